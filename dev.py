@@ -1,0 +1,75 @@
+#!/usr/bin/env python3
+"""Set up and run psvs with nothing but Python >= 3.11 and git.
+
+    python3 dev.py demo          # the main demo
+    python3 dev.py test          # the whole test suite (what CI runs)
+    python3 dev.py bench         # benchmarks -> docs/benchmarks.md
+    python3 dev.py psvs ARGS...  # any psvs command inside the project's virtualenv
+
+The first call creates ``.venv`` and installs the pinned ``requirements.lock`` plus psvs itself
+(editable); later calls reuse it and reinstall only when the lock file or pyproject.toml change.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+VENV = ROOT / ".venv"
+STAMP = VENV / ".psvs-installed"
+
+
+def _python() -> Path:
+    return VENV / ("Scripts/python.exe" if os.name == "nt" else "bin/python")
+
+
+def _fingerprint() -> str:
+    h = hashlib.sha256()
+    for name in ("requirements.lock", "pyproject.toml"):
+        h.update((ROOT / name).read_bytes())
+    return h.hexdigest()
+
+
+def ensure_env() -> Path:
+    """Create the virtualenv and install pinned dependencies when needed; return its python."""
+    if sys.version_info < (3, 11):
+        sys.exit(f"dev.py: Python >= 3.11 is needed, this is {sys.version.split()[0]}")
+    py = _python()
+    want = _fingerprint()
+    if py.exists() and STAMP.exists() and STAMP.read_text() == want:
+        return py
+    if not py.exists():
+        print("dev.py: creating .venv ...", flush=True)
+        venv.create(VENV, with_pip=True)
+    pip = [str(py), "-m", "pip", "install", "--quiet", "--disable-pip-version-check"]
+    print("dev.py: installing pinned dependencies ...", flush=True)
+    subprocess.run(pip + ["-r", str(ROOT / "requirements.lock")], check=True)
+    subprocess.run(pip + ["--no-deps", "--no-build-isolation", "-e", str(ROOT)], check=True)
+    STAMP.write_text(want)
+    return py
+
+
+def main(argv: list[str]) -> int:
+    if not argv or argv[0] not in {"demo", "test", "bench", "psvs"}:
+        print(__doc__, file=sys.stderr)
+        return 2
+    py = str(ensure_env())
+    cmd, rest = argv[0], argv[1:]
+    env = dict(os.environ, MPLBACKEND="Agg")
+    if cmd == "demo":
+        args = [py, "-m", "psvs", "demo", *rest]
+    elif cmd == "test":
+        args = [py, "-m", "pytest", "-q", *rest]
+    elif cmd == "bench":
+        args = [py, str(ROOT / "bench" / "run.py"), *rest]
+    else:
+        args = [py, "-m", "psvs", *rest]
+    return subprocess.run(args, cwd=ROOT, env=env).returncode
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,3 @@
+from psvs.cli.main import main
+
+raise SystemExit(main())

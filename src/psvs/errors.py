@@ -1,0 +1,5 @@
+"""Exceptions of psvs."""
+
+
+class RigGeometryError(ValueError):
+    """The whole rig configuration is physically impossible (e.g. a mirror blocks the other path)."""

@@ -1,0 +1,1 @@
+"""Rig geometry and exact optics: mirrors, plate refraction, tracing, projection, mirror design."""

@@ -1,0 +1,91 @@
+"""Where the four mirrors and the two faces of the M1 plate are, for a :class:`~psvs.optics.rig.Rig`.
+
+With omega_1 the angle between a mirror and the optical axis, M1 (front face through (0, 0, c1)) has the
+in-plane axis s1 = (sin w, 0, cos w) and reflects the axis into r1 = (sin 2w, 0, cos 2w); M4 is parallel
+to M1 and crosses that reflected axis at x = +b/2. M2 and M3 are their mirror images about the YZ plane
+(M2 through (0, 0, c2), M3 at x = -b/2). The plate's back face is the front face moved by d along the
+direction of propagation. For w = 45 deg: M1: z = x + c1, M4: z = x + c1 - b/2, M2: z = c2 - x,
+M3: z = c2 - b/2 - x.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from psvs.optics.rig import Rig
+from psvs.optics.surfaces import Plane
+
+#: Surfaces met by each view's chief ray, in order, with what happens there:
+#: ("reflect", plane) or ("refract", plane, n_before, n_after) with indices filled in by :func:`path`.
+VIEWS = ("left", "right")
+
+
+def mirror_planes(rig: Rig) -> dict[str, Plane]:
+    """All optical surfaces of the rig: ``m1`` (coated front face), ``m1_back``, ``m2``, ``m3``, ``m4``."""
+    m = rig.mirrors
+    w = m.angle_rad
+    c1, c2, half_b = m.m1_axis_distance_mm, m.m2_axis_distance_mm, 0.5 * m.baseline_mm
+    sw, cw, s2w, c2w = math.sin(w), math.cos(w), math.sin(2 * w), math.cos(2 * w)
+
+    s1 = np.array([sw, 0.0, cw])
+    n1 = np.array([cw, 0.0, -sw])     # faces the camera
+    s2 = np.array([-sw, 0.0, cw])
+    n2 = np.array([-cw, 0.0, -sw])    # faces the camera (through the plate)
+    a1 = np.array([0.0, 0.0, c1])
+    a2 = np.array([0.0, 0.0, c2])
+    reach = half_b / s2w               # path length along the reflected axis from M1 (M2) to M4 (M3)
+    a4 = a1 + reach * np.array([s2w, 0.0, c2w])
+    a3 = a2 + reach * np.array([-s2w, 0.0, c2w])
+    ext = m.extent
+    return {
+        "m1": Plane("m1", a1, n1, s1, ext("m1")),
+        "m1_back": Plane("m1_back", a1 - m.plate_thickness_mm * n1, n1, s1, ext("m1")),
+        "m2": Plane("m2", a2, n2, s2, ext("m2")),
+        "m3": Plane("m3", a3, -n2, s2, ext("m3")),
+        "m4": Plane("m4", a4, -n1, s1, ext("m4")),
+    }
+
+
+def path(rig: Rig, view: str) -> list[tuple]:
+    """The surfaces of one view's optical path, in the order light from the camera meets them.
+
+    Each step is ``("reflect", plane)`` or ``("refract", plane, eta)`` with eta = n_before / n_after.
+    The left view is *transmitted* through the M1 plate, the right view is *reflected* at its front face.
+    """
+    planes = mirror_planes(rig)
+    if view == "right":
+        return [("reflect", planes["m1"]), ("reflect", planes["m4"])]
+    if view == "left":
+        n = rig.mirrors.refractive_index
+        steps = []
+        if rig.mirrors.plate_thickness_mm > 0:
+            steps = [("refract", planes["m1"], 1.0 / n), ("refract", planes["m1_back"], n / 1.0)]
+        else:  # a zero-thickness plate still has a finite front face that the light must pass
+            steps = [("pass", planes["m1"])]
+        return steps + [("reflect", planes["m2"]), ("reflect", planes["m3"])]
+    raise ValueError(f"view must be 'left' or 'right', got {view!r}")
+
+
+def direction_map(rig: Rig, view: str) -> np.ndarray:
+    """3x3 matrix R with d_out = R d_camera for a view: the product of its mirrors' reflections.
+
+    A parallel plate changes no direction, so only the two mirrors count (R = I for parallel mirrors).
+    """
+    R = np.eye(3)
+    for step in path(rig, view):
+        if step[0] == "reflect":
+            R = step[1].householder() @ R
+    return R
+
+
+def virtual_centre(rig: Rig, view: str) -> np.ndarray:
+    """Virtual optical centre (3,), mm: O mirrored through the view's two mirrors (plate ignored).
+
+    For omega_1 = 45 deg: O1 = (-b/2, 0, -b/2) (left), O2 = (+b/2, 0, -b/2) (right), paper III.2.
+    """
+    p = np.zeros((1, 3))
+    for step in path(rig, view):
+        if step[0] == "reflect":
+            p = step[1].reflect_points(p)
+    return p[0]

@@ -1,0 +1,100 @@
+"""Vectorised chief-ray tracing through the rig, pixel <-> camera-ray conversions.
+
+A pixel's chief ray leaves O along (x, y, f) with x = (u - cx) pitch_x, y = (v - cy) pitch_y, then
+follows its view's path (:func:`psvs.optics.mirrors.path`): two mirrors for the right view; the M1
+plate (Snell refraction at both faces) and two mirrors for the left view. A ray that misses a finite
+mirror or plate face is vignetted: its row stays computed but ``valid`` is False.
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from psvs._validate import check_points
+from psvs.optics.mirrors import path
+from psvs.optics.rig import Camera, Rig
+from psvs.optics.surfaces import intersect, reflect, refract
+
+
+class Rays(NamedTuple):
+    """Rays leaving the rig toward the scene.
+
+    origins_mm : (N, 3) point on the ray (its hit on the last mirror), mm.
+    dirs : (N, 3) unit direction toward the scene.
+    valid : (N,) bool, False where the ray was vignetted or undefined (NaN input).
+    """
+
+    origins_mm: np.ndarray
+    dirs: np.ndarray
+    valid: np.ndarray
+
+
+def sensor_from_pixels(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
+    """Sensor coordinates (x, y), shape (N, 2), mm, of pixels (u, v), shape (N, 2), px."""
+    return (uv_px - np.asarray(camera.principal_point_px)) * np.asarray(camera.pixel_pitch_mm)
+
+
+def pixels_from_sensor(xy_mm: np.ndarray, camera: Camera) -> np.ndarray:
+    """Pixels (u, v), shape (N, 2), px, of sensor coordinates (x, y), shape (N, 2), mm."""
+    return xy_mm / np.asarray(camera.pixel_pitch_mm) + np.asarray(camera.principal_point_px)
+
+
+def camera_dirs(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
+    """Unit directions (N, 3) in frame C of the real camera's rays through pixels (N, 2) px."""
+    xy = sensor_from_pixels(uv_px, camera)
+    d = np.empty((len(xy), 3))
+    d[:, :2] = xy
+    d[:, 2] = camera.focal_length_mm
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def pixels_from_camera_dirs(dirs: np.ndarray, camera: Camera) -> np.ndarray:
+    """Pixels (N, 2) px hit by camera rays of directions (N, 3); NaN where d_z <= 0."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.where(dirs[:, 2] > 0, dirs[:, 2], np.nan)
+        xy = camera.focal_length_mm * dirs[:, :2] / z[:, None]
+    return pixels_from_sensor(xy, camera)
+
+
+def trace_rays(origins_mm: np.ndarray, dirs: np.ndarray, steps: list[tuple]) -> Rays:
+    """Follow rays (N, 3) through a list of surface steps (see :func:`psvs.optics.mirrors.path`)."""
+    o, d = origins_mm, dirs
+    valid = np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(o), axis=1)
+    for step in steps:
+        kind, plane = step[0], step[1]
+        _, o, ahead = intersect(o, d, plane)
+        valid &= ahead & plane.contains(o)
+        if kind == "reflect":
+            d = reflect(d, plane.normal)
+        elif kind == "refract":
+            d, ok = refract(d, plane.normal, step[2])
+            valid &= ok
+    return Rays(o, d, valid)
+
+
+def trace_pixels(uv_px, rig: Rig, view: str) -> Rays:
+    """Back-project pixels of one view to the rays they see in the scene.
+
+    Parameters
+    ----------
+    uv_px : array_like, shape (N, 2)
+        Pixel positions (u, v) in the complex image, px.
+    rig : Rig
+    view : {'left', 'right'}
+
+    Returns
+    -------
+    Rays
+        Origins (N, 3) mm on the view's last mirror, unit directions (N, 3), validity (N,).
+
+    Examples
+    --------
+    >>> from psvs import default_rig
+    >>> rays = trace_pixels([[319.5, 239.5]], default_rig(), "right")
+    >>> rays.origins_mm.round(6), rays.dirs.round(6), rays.valid
+    (array([[50., 0., 25.]]), array([[0., 0., 1.]]), array([ True]))
+    """
+    uv = check_points(uv_px, "uv_px", 2)
+    dirs = camera_dirs(uv, rig.camera)
+    return trace_rays(np.zeros_like(dirs), dirs, path(rig, view))
