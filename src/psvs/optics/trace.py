@@ -57,14 +57,24 @@ def pixels_from_camera_dirs(dirs: np.ndarray, camera: Camera) -> np.ndarray:
     return pixels_from_sensor(xy, camera)
 
 
-def trace_rays(origins_mm: np.ndarray, dirs: np.ndarray, steps: list[tuple]) -> Rays:
-    """Follow rays (N, 3) through a list of surface steps (see :func:`psvs.optics.mirrors.path`)."""
+def trace_rays(origins_mm: np.ndarray, dirs: np.ndarray, steps: list[tuple], hits: list | None = None) -> Rays:
+    """Follow rays (N, 3) through a list of surface steps (see :func:`psvs.optics.mirrors.path`).
+
+    A finite surface (with an extent) is physical: the ray must meet it ahead of the previous surface
+    and inside its rectangle, or it is vignetted. An unbounded surface is the paper's ideal plane: the
+    reflected or refracted *line* is the same on either side of the hit, so only a parallel ray fails.
+    When ``hits`` is a list, ``(plane, points_mm (N, 3), ahead (N,))`` is appended for every surface met.
+    """
     o, d = origins_mm, dirs
     valid = np.all(np.isfinite(d), axis=1) & np.all(np.isfinite(o), axis=1)
     for step in steps:
         kind, plane = step[0], step[1]
-        _, o, ahead = intersect(o, d, plane)
-        valid &= ahead & plane.contains(o)
+        t, o, ahead = intersect(o, d, plane)
+        valid &= np.isfinite(t)
+        if plane.extent is not None:
+            valid &= ahead & plane.contains(o)
+        if hits is not None:
+            hits.append((plane, o, ahead))
         if kind == "reflect":
             d = reflect(d, plane.normal)
         elif kind == "refract":
@@ -73,7 +83,7 @@ def trace_rays(origins_mm: np.ndarray, dirs: np.ndarray, steps: list[tuple]) -> 
     return Rays(o, d, valid)
 
 
-def trace_pixels(uv_px, rig: Rig, view: str) -> Rays:
+def trace_pixels(uv_px, rig: Rig, view: str, hits: list | None = None) -> Rays:
     """Back-project pixels of one view to the rays they see in the scene.
 
     Parameters
@@ -97,4 +107,4 @@ def trace_pixels(uv_px, rig: Rig, view: str) -> Rays:
     """
     uv = check_points(uv_px, "uv_px", 2)
     dirs = camera_dirs(uv, rig.camera)
-    return trace_rays(np.zeros_like(dirs), dirs, path(rig, view))
+    return trace_rays(np.zeros_like(dirs), dirs, path(rig, view), hits)

@@ -1,0 +1,1 @@
+"""Files: rig parameters (TOML/JSON), point tables (CSV), atomic writes."""

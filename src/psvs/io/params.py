@@ -1,0 +1,166 @@
+"""Rig files (TOML or JSON) <-> :class:`~psvs.optics.rig.Rig`.
+
+Format (docs/rig_file.md). Required: ``[camera] focal_length_mm, pixel_pitch_mm, image_size_px`` and
+``[mirrors] baseline_mm, m1_axis_distance_mm, m2_axis_distance_mm, plate_thickness_mm, refractive_index``.
+Optional: ``principal_point_px`` (image centre), ``angle_deg`` (45), ``split_ratio`` (0.5),
+``refraction_l_mm`` / ``refraction_m_mm`` (derived from d, n, omega_1), and per-mirror extents
+``[mirrors.m1]`` .. ``[mirrors.m4]`` with ``along_mm = [min, max]`` and ``height_mm = [min, max]``
+(unbounded when absent). Unknown keys are errors: a misspelt key must not fall back to a default.
+"""
+from __future__ import annotations
+
+import json
+import math
+import tomllib
+from pathlib import Path
+
+import tomli_w
+
+from psvs.io.atomic import write_atomic
+from psvs.optics.rig import MIRROR_NAMES, Camera, MirrorExtent, Mirrors, Rig
+
+_CAMERA_REQUIRED = ("focal_length_mm", "pixel_pitch_mm", "image_size_px")
+_CAMERA_OPTIONAL = ("principal_point_px",)
+_MIRRORS_REQUIRED = ("baseline_mm", "m1_axis_distance_mm", "m2_axis_distance_mm",
+                     "plate_thickness_mm", "refractive_index")
+_MIRRORS_OPTIONAL = ("angle_deg", "split_ratio", "refraction_l_mm", "refraction_m_mm")
+_EXTENT_KEYS = ("along_mm", "height_mm")
+
+
+def load_rig(path) -> Rig:
+    """Read a rig file (``.toml`` or ``.json``); errors name the file and the key."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"rig file not found: {path}")
+    text = path.read_text(encoding="utf-8")
+    try:
+        data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: malformed {'JSON' if path.suffix.lower() == '.json' else 'TOML'}: {exc}") from None
+    try:
+        return rig_from_dict(data)
+    except (ValueError, TypeError) as exc:
+        raise type(exc)(f"{path}: {exc}") from None
+
+
+def _table(data: dict, name: str) -> dict:
+    if name not in data:
+        raise ValueError(f"missing table [{name}]")
+    t = data[name]
+    if not isinstance(t, dict):
+        raise ValueError(f"[{name}] must be a table, got {type(t).__name__}")
+    return t
+
+
+def _check_keys(table: dict, where: str, required, optional) -> None:
+    unknown = sorted(set(table) - set(required) - set(optional))
+    if unknown:
+        raise ValueError(f"unknown key {where}.{unknown[0]} (allowed: {', '.join((*required, *optional))})")
+    missing = [k for k in required if k not in table]
+    if missing:
+        raise ValueError(f"missing key {where}.{missing[0]}")
+
+
+def _pair(value, where: str):
+    if not isinstance(value, (list, tuple)) or len(value) != 2:
+        raise ValueError(f"{where} must be a list of two numbers, got {value!r}")
+    return tuple(value)
+
+
+def rig_from_dict(data: dict) -> Rig:
+    """Build a :class:`Rig` from the nested dict of a rig file (degrees converted to radians)."""
+    if not isinstance(data, dict):
+        raise ValueError(f"a rig file must hold tables [camera] and [mirrors], got {type(data).__name__}")
+    unknown = sorted(set(data) - {"camera", "mirrors"})
+    if unknown:
+        raise ValueError(f"unknown table [{unknown[0]}] (allowed: [camera], [mirrors])")
+    cam_t, mir_t = _table(data, "camera"), _table(data, "mirrors")
+    _check_keys(cam_t, "camera", _CAMERA_REQUIRED, _CAMERA_OPTIONAL)
+    scalars = {k: v for k, v in mir_t.items() if k not in MIRROR_NAMES}
+    _check_keys(scalars, "mirrors", _MIRRORS_REQUIRED, _MIRRORS_OPTIONAL)
+
+    size = _pair(cam_t["image_size_px"], "camera.image_size_px")
+    if "principal_point_px" in cam_t:
+        cpp = _pair(cam_t["principal_point_px"], "camera.principal_point_px")
+    elif all(isinstance(s, int) for s in size):
+        cpp = ((size[0] - 1) / 2, (size[1] - 1) / 2)
+    else:
+        cpp = (0.0, 0.0)  # Camera() rejects the size with its own message
+    camera = _build(Camera, "camera", focal_length_mm=cam_t["focal_length_mm"],
+                    pixel_pitch_mm=_pair(cam_t["pixel_pitch_mm"], "camera.pixel_pitch_mm"),
+                    image_size_px=size, principal_point_px=cpp)
+
+    kwargs = {k: scalars[k] for k in _MIRRORS_REQUIRED}
+    for k in ("split_ratio", "refraction_l_mm", "refraction_m_mm"):
+        if k in scalars:
+            kwargs[k] = scalars[k]
+    if "angle_deg" in scalars:
+        ang = scalars["angle_deg"]
+        if isinstance(ang, bool) or not isinstance(ang, (int, float)):
+            raise TypeError(f"mirrors.angle_deg must be a number, got {type(ang).__name__} {ang!r}")
+        kwargs["angle_rad"] = math.radians(ang)
+    for name in MIRROR_NAMES:
+        if name in mir_t:
+            ext = mir_t[name]
+            if not isinstance(ext, dict):
+                raise ValueError(f"[mirrors.{name}] must be a table, got {type(ext).__name__}")
+            _check_keys(ext, f"mirrors.{name}", _EXTENT_KEYS, ())
+            kwargs[f"{name}_extent"] = _build(
+                MirrorExtent, f"mirrors.{name}", along_mm=_pair(ext["along_mm"], f"mirrors.{name}.along_mm"),
+                height_mm=_pair(ext["height_mm"], f"mirrors.{name}.height_mm"))
+    mirrors = _build(Mirrors, "mirrors", **kwargs)
+    return Rig(camera, mirrors)
+
+
+def _build(cls, where: str, **kwargs):
+    try:
+        return cls(**kwargs)
+    except (ValueError, TypeError) as exc:
+        msg = str(exc).replace("angle_rad (omega_1) must be in (0, pi/2)", "angle_deg must be in (0, 90)")
+        raise type(exc)(f"{where}.{msg}") from None
+
+
+def rig_to_dict(rig: Rig) -> dict:
+    """The nested dict of a rig file (angles in degrees); inverse of :func:`rig_from_dict`."""
+    c, m = rig.camera, rig.mirrors
+    mirrors = {
+        "baseline_mm": m.baseline_mm,
+        "m1_axis_distance_mm": m.m1_axis_distance_mm,
+        "m2_axis_distance_mm": m.m2_axis_distance_mm,
+        "angle_deg": math.degrees(m.angle_rad),
+        "plate_thickness_mm": m.plate_thickness_mm,
+        "refractive_index": m.refractive_index,
+        "split_ratio": m.split_ratio,
+    }
+    for k in ("refraction_l_mm", "refraction_m_mm"):
+        if getattr(m, k) is not None:
+            mirrors[k] = float(getattr(m, k))
+    for name in MIRROR_NAMES:
+        ext = m.extent(name)
+        if ext is not None:
+            mirrors[name] = {"along_mm": list(ext.along_mm), "height_mm": list(ext.height_mm)}
+    return {
+        "camera": {
+            "focal_length_mm": c.focal_length_mm,
+            "pixel_pitch_mm": list(c.pixel_pitch_mm),
+            "image_size_px": list(c.image_size_px),
+            "principal_point_px": list(c.principal_point_px),
+        },
+        "mirrors": mirrors,
+    }
+
+
+def dumps_rig(rig: Rig, fmt: str = "toml") -> str:
+    """A rig file's text, ``fmt`` 'toml' or 'json'."""
+    data = rig_to_dict(rig)
+    if fmt == "json":
+        return json.dumps(data, indent=2) + "\n"
+    if fmt == "toml":
+        return tomli_w.dumps(data)
+    raise ValueError(f"fmt must be 'toml' or 'json', got {fmt!r}")
+
+
+def save_rig(rig: Rig, path) -> None:
+    """Write a rig file atomically; the format follows the suffix (.json, else TOML)."""
+    path = Path(path)
+    write_atomic(path, dumps_rig(rig, "json" if path.suffix.lower() == ".json" else "toml"))

@@ -1,0 +1,69 @@
+"""CSV tables of correspondences (u_l, v_l, u_r, v_r px) and of triangulated points (X, Y, Z mm, valid)."""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+
+from psvs.io.atomic import write_atomic
+
+MATCH_COLUMNS = ("u_l", "v_l", "u_r", "v_r")
+POINT_COLUMNS = ("X_mm", "Y_mm", "Z_mm", "valid")
+
+
+def read_matches_csv(path) -> tuple[np.ndarray, np.ndarray]:
+    """Read a CSV with header columns ``u_l,v_l,u_r,v_r`` (px; other columns ignored).
+
+    Returns ``left_px`` (N, 2) and ``right_px`` (N, 2). Empty cells and ``nan`` become NaN.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"points file not found: {path}")
+    with path.open(newline="", encoding="utf-8") as fh:
+        reader = csv.reader(fh)
+        header = next(reader, None)
+        if header is None:
+            raise ValueError(f"{path}: empty file, expected a header {','.join(MATCH_COLUMNS)}")
+        header = [h.strip() for h in header]
+        missing = [c for c in MATCH_COLUMNS if c not in header]
+        if missing:
+            raise ValueError(f"{path}: missing column(s) {', '.join(missing)}; expected header "
+                             f"{','.join(MATCH_COLUMNS)}, got {','.join(header)}")
+        idx = [header.index(c) for c in MATCH_COLUMNS]
+        rows = []
+        for lineno, row in enumerate(reader, start=2):
+            if not row or all(not cell.strip() for cell in row):
+                continue
+            if len(row) < len(header):
+                raise ValueError(f"{path}:{lineno}: expected {len(header)} columns, got {len(row)}")
+            try:
+                rows.append([float(row[i]) if row[i].strip() else np.nan for i in idx])
+            except ValueError:
+                bad = next(row[i] for i in idx if not _is_float(row[i]))
+                raise ValueError(f"{path}:{lineno}: not a number: {bad!r}") from None
+    arr = np.array(rows, dtype=float).reshape(-1, 4)
+    return arr[:, :2], arr[:, 2:]
+
+
+def _is_float(text: str) -> bool:
+    try:
+        float(text)
+        return True
+    except ValueError:
+        return not text.strip()
+
+
+def points_csv_text(points_mm: np.ndarray, valid: np.ndarray) -> str:
+    """CSV text with columns ``X_mm,Y_mm,Z_mm,valid`` (valid as 1/0, invalid rows' coordinates nan)."""
+    buf = io.StringIO()
+    buf.write(",".join(POINT_COLUMNS) + "\n")
+    for (x, y, z), ok in zip(points_mm, valid):
+        buf.write(f"{x:.15g},{y:.15g},{z:.15g},{int(bool(ok))}\n")
+    return buf.getvalue()
+
+
+def write_points_csv(path, points_mm: np.ndarray, valid: np.ndarray) -> None:
+    """Write triangulated points atomically (see :func:`points_csv_text`)."""
+    write_atomic(path, points_csv_text(points_mm, valid))

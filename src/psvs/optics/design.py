@@ -1,0 +1,217 @@
+"""Mirror design for a camera, a baseline and a working range (paper III.1 and what it leaves out).
+
+Eqs. (1)-(8) give each mirror's length in the plane of the axis. A real rig also needs each mirror's
+height for the vertical field, its position along the mirror (the footprint is not centred on the axis
+point), the plate's back face (the refracted beam is shifted), and a check that no mirror, nor the
+plate's thickness, blocks the other view. :func:`design_mirrors` traces the camera's whole field through
+each path with unbounded mirrors, takes every surface's footprint as that mirror's rectangle, so that
+the rig's field of view equals the camera's (paper, property 3), and then checks for obstructions.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.errors import RigGeometryError
+from psvs.optics.field import field_pixels
+from psvs.optics.mirror_length import mirror_length_eq6
+from psvs.optics.mirrors import VIEWS, mirror_planes
+from psvs.optics.obstruction import Obstruction, find_collisions, find_obstructions
+from psvs.optics.rig import MIRROR_NAMES, MirrorExtent, Rig
+from psvs.optics.trace import trace_pixels
+
+
+@dataclass(frozen=True)
+class MirrorSpec:
+    """One mirror of a design: where it is and how big it must be (mm)."""
+
+    name: str
+    extent: MirrorExtent
+    anchor_mm: tuple[float, float, float]   # where its path's optical axis crosses it
+    centre_mm: tuple[float, float, float]   # centre of its rectangle (front face)
+    normal: tuple[float, float, float]      # unit, facing the incoming light
+    axis_distance_mm: float                 # OB of eqs. (1)-(8): path length from (virtual) O to anchor
+    eq6_length_mm: float                    # AC of eq. (6) (pinhole, no plate), for comparison
+
+
+@dataclass(frozen=True)
+class WorkingRange:
+    """What a working depth range [near, far] (mm) means for this rig."""
+
+    near_mm: float
+    far_mm: float
+    disparity_px: tuple[float, float]         # ideal disparity (eq. 12) at far and near
+    depth_per_px_mm: tuple[float, float]      # depth change for 1 px of disparity at near and far
+    overlap_start_mm: float                   # depth where the two views' fields start to overlap
+
+
+@dataclass(frozen=True)
+class MirrorDesign:
+    """Result of :func:`design_mirrors`: the rig with its mirror extents, a table, and the checks."""
+
+    rig: Rig
+    mirrors: tuple[MirrorSpec, ...]
+    obstructions: tuple[Obstruction, ...]
+    collisions: tuple[str, ...]
+    working_range: WorkingRange | None
+    m2_window_mm: tuple[float, float] | None = None    # clear c2 range for this c1 (see clear_m2_window)
+    suggestion_mm: tuple[float, float] | None = None   # a clear (c1, c2) when this layout is not
+
+    @property
+    def ok(self) -> bool:
+        """True when no light path is blocked and no two parts cut through each other."""
+        return not self.obstructions and not self.collisions
+
+    @property
+    def problems(self) -> list[str]:
+        """One line per obstruction or collision (empty when :attr:`ok`)."""
+        return [str(o) for o in self.obstructions] + list(self.collisions)
+
+
+def footprint_extents(rig: Rig, pixels_px: np.ndarray, margin_mm: float = 0.0) -> dict[str, MirrorExtent]:
+    """Bounding rectangles of the field's footprint on each mirror (unbounded mirrors traced), mm.
+
+    M1's rectangle covers both its coated front face and the plate's back face.
+    """
+    free = rig.with_extents({n: None for n in MIRROR_NAMES})
+    local: dict[str, list] = {n: [] for n in MIRROR_NAMES}
+    for view in VIEWS:
+        hits: list = []
+        trace_pixels(pixels_px, free, view, hits)
+        for plane, pts, _ in hits:
+            local[plane.name.removesuffix("_back")].append(plane.local(pts))
+    out = {}
+    for name, chunks in local.items():
+        st = np.concatenate(chunks)
+        if not np.all(np.isfinite(st)):
+            raise RigGeometryError(f"part of the camera's field never reaches {name.upper()}: "
+                                   f"omega_1 must exceed the half field of view")
+        lo, hi = st.min(axis=0) - margin_mm, st.max(axis=0) + margin_mm
+        out[name] = MirrorExtent((float(lo[0]), float(hi[0])), (float(lo[1]), float(hi[1])))
+    return out
+
+
+def working_range(rig: Rig, near_mm: float, far_mm: float) -> WorkingRange:
+    """Disparity range, depth resolution and the start of the views' overlap for depths near..far (mm)."""
+    if not 0 < near_mm < far_mm:
+        raise ValueError(f"working range must satisfy 0 < near < far, got near={near_mm!r}, far={far_mm!r}")
+    cam, b, zv = rig.camera, rig.mirrors.baseline_mm, rig.virtual_z_mm
+    f, px = cam.focal_length_mm, cam.pixel_pitch_mm[0]
+    disp = [b * f / (z - zv) / px for z in (far_mm, near_mm)]
+    res = [(z - zv) ** 2 * px / (b * f) for z in (near_mm, far_mm)]
+    overlap = zv + 0.5 * b / math.tan(cam.half_fov_rad[0])
+    return WorkingRange(near_mm, far_mm, (disp[0], disp[1]), (res[0], res[1]), overlap)
+
+
+def design_mirrors(rig: Rig, *, margin_mm: float = 0.0, near_mm: float | None = None,
+                   far_mm: float | None = None, search: bool = True) -> MirrorDesign:
+    """Size all four mirrors for the rig's camera and baseline and check the layout.
+
+    Parameters
+    ----------
+    rig : Rig
+        Camera, baseline, mirror positions c1, c2, angle and plate; any extents in it are replaced.
+    margin_mm : float
+        Extra border on every side of every mirror, mm (e.g. half the lens's entrance pupil).
+    near_mm, far_mm : float, optional
+        Working depth range, mm, for the disparity and resolution summary.
+    search : bool
+        Also find the clear range of M2 positions for this c1 and, when the layout is blocked, suggest a
+        clear (c1, c2) (:func:`clear_m2_window`, :func:`suggest_layout`).
+
+    Returns
+    -------
+    MirrorDesign
+        ``rig`` with the designed extents, one :class:`MirrorSpec` per mirror, and ``obstructions``
+        (empty when every path is clear).
+
+    Examples
+    --------
+    >>> from psvs import default_rig
+    >>> d = design_mirrors(default_rig(), search=False)
+    >>> [(s.name, round(s.extent.width_mm, 2)) for s in d.mirrors]
+    [('m1', 20.55), ('m2', 38.16), ('m3', 86.34), ('m4', 57.41)]
+    """
+    if margin_mm < 0:
+        raise ValueError(f"margin_mm must be >= 0, got {margin_mm!r}")
+    pixels = field_pixels(rig.camera)
+    extents = footprint_extents(rig, pixels, margin_mm)
+    designed = rig.with_extents(extents)
+    planes = mirror_planes(designed)
+    a = rig.camera.half_fov_rad[0]
+    w = rig.mirrors.angle_rad
+    reach = 0.5 * rig.mirrors.baseline_mm / math.sin(2 * w)
+    ob = {"m1": rig.mirrors.m1_axis_distance_mm, "m2": rig.mirrors.m2_axis_distance_mm}
+    ob["m4"], ob["m3"] = ob["m1"] + reach, ob["m2"] + reach
+    specs = []
+    for name in MIRROR_NAMES:
+        p, e = planes[name], extents[name]
+        (s0, s1), (t0, t1) = e.along_mm, e.height_mm
+        centre = p.point + 0.5 * (s0 + s1) * p.s_axis + np.array([0.0, 0.5 * (t0 + t1), 0.0])
+        eq6 = float(mirror_length_eq6(ob[name], a, w)) if w > a else float("nan")
+        specs.append(MirrorSpec(name, e, tuple(map(float, p.point)), tuple(map(float, centre)),
+                                tuple(map(float, p.normal)), float(ob[name]), eq6))
+    obstructions = tuple(find_obstructions(designed, pixels))
+    collisions = tuple(find_collisions(designed))
+    wr = working_range(rig, near_mm, far_mm) if near_mm is not None and far_mm is not None else None
+    window = clear_m2_window(rig, margin_mm) if search else None
+    blocked = bool(obstructions or collisions)
+    suggestion = suggest_layout(rig, margin_mm) if search and blocked else None
+    return MirrorDesign(designed, tuple(specs), obstructions, collisions, wr, window, suggestion)
+
+
+def _clear(rig: Rig, c1: float, c2: float, margin_mm: float, pixels: np.ndarray) -> bool:
+    trial = rig.replace(m1_axis_distance_mm=c1, m2_axis_distance_mm=c2)
+    trial = trial.with_extents(footprint_extents(trial, pixels, margin_mm))
+    return not find_obstructions(trial, pixels) and not find_collisions(trial)
+
+
+def clear_m2_window(rig: Rig, margin_mm: float = 0.0, step_mm: float = 0.5,
+                    tol_mm: float = 0.01) -> tuple[float, float] | None:
+    """The range of c2 (M2's axis distance, mm) for which no path is blocked and no parts collide.
+
+    Too close, M2 cuts into the plate or the right beam; too far, M2 grows into the left view's
+    outgoing beam (for 45 deg mirrors and no plate: c2 < b (1 - tan a)^2 / (4 tan a)). Scans
+    c1 < c2 <= c1 + b in ``step_mm`` steps for the first clear run, then bisects both ends to ``tol_mm``.
+    Returns None when no position is clear.
+    """
+    pixels = field_pixels(rig.camera, per_side=33, interior=5)
+    c1, b = rig.mirrors.m1_axis_distance_mm, rig.mirrors.baseline_mm
+
+    def clear(c2):
+        return _clear(rig, c1, c2, margin_mm, pixels)
+
+    grid = np.arange(c1 + step_mm, c1 + b + 1e-9, step_mm)
+    ok = [clear(c2) for c2 in grid]
+    if not any(ok):
+        return None
+    first = ok.index(True)
+    last = first
+    while last + 1 < len(ok) and ok[last + 1]:
+        last += 1
+
+    def bisect(good, bad):
+        while abs(good - bad) > tol_mm:
+            mid = 0.5 * (good + bad)
+            good, bad = (mid, bad) if clear(mid) else (good, mid)
+        return good
+
+    lo = bisect(grid[first], grid[first - 1] if first > 0 else c1 + 1e-6)
+    hi = bisect(grid[last], grid[last + 1]) if last + 1 < len(grid) else grid[last]
+    return float(lo), float(hi)
+
+
+def suggest_layout(rig: Rig, margin_mm: float = 0.0, min_window_mm: float = 2.0,
+                   step_mm: float = 0.5) -> tuple[float, float] | None:
+    """A clear (c1, c2), mm: the largest M1 distance up to the rig's own whose M2 window is at least
+    ``min_window_mm`` wide, with M2 in the middle of that window. None when even c1 = 1 mm fails."""
+    c1 = rig.mirrors.m1_axis_distance_mm
+    while c1 >= 1.0:
+        trial = rig.replace(m1_axis_distance_mm=c1, m2_axis_distance_mm=c1 + rig.mirrors.baseline_mm)
+        window = clear_m2_window(trial, margin_mm)
+        if window is not None and window[1] - window[0] >= min_window_mm:
+            return float(c1), 0.5 * (window[0] + window[1])
+        c1 -= step_mm
+    return None
