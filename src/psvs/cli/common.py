@@ -1,0 +1,29 @@
+"""Helpers shared by the subcommands."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from psvs.io.params import load_rig
+from psvs.optics.rig import Rig, default_rig
+
+
+def add_rig_argument(parser, required: bool = True) -> None:
+    parser.add_argument("--rig", metavar="RIG.toml", required=required,
+                        help="rig file (TOML or JSON; see docs/rig_file.md)" +
+                             ("" if required else "; default: the paper's rig"))
+
+
+def rig_from_args(args) -> Rig:
+    return load_rig(args.rig) if args.rig else default_rig()
+
+
+def check_output_path(path: str | None, suffixes: tuple[str, ...]) -> Path | None:
+    """Validate an output path before any work: known suffix, existing folder."""
+    if path is None:
+        return None
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise ValueError(f"output {p} must end in {' or '.join(suffixes)}")
+    if not p.parent.is_dir():
+        raise FileNotFoundError(f"output folder does not exist: {p.parent}")
+    return p

@@ -1,0 +1,73 @@
+"""``psvs demo``: design the paper's rig, then plant points, project them through the exact optics and
+recover them with each triangulation model: a readable summary of what the plate does to depth."""
+from __future__ import annotations
+
+import numpy as np
+
+from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.cli.design_cmd import format_design
+from psvs.measure.triangulate import MODELS, fit_refraction_terms, triangulate
+from psvs.optics.design import design_mirrors
+from psvs.optics.plate import derived_refraction_terms
+from psvs.optics.project import in_image, project_points
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("demo", help="design a rig, triangulate planted points, print a summary")
+    add_rig_argument(p, required=False)
+    p.set_defaults(run=run)
+
+
+def planted_points(rig, depths_mm, per_depth: int, seed: int = 0):
+    """Points at the given depths spread over the part of the field both views see, and their pixels."""
+    rng = np.random.default_rng(seed)
+    pts = []
+    for z in depths_mm:
+        half_w = (z - rig.virtual_z_mm) * np.tan(rig.camera.half_fov_rad[0]) - rig.mirrors.baseline_mm / 2
+        half_h = (z - rig.virtual_z_mm) * np.tan(rig.camera.half_fov_rad[1])
+        xy = rng.uniform(-1, 1, (per_depth, 2)) * [0.95 * half_w, 0.95 * half_h]
+        pts.append(np.column_stack([xy, np.full(per_depth, float(z))]))
+    pts = np.concatenate(pts)
+    left, ok_l = project_points(pts, rig, "left")
+    right, ok_r = project_points(pts, rig, "right")
+    ok = ok_l & ok_r & in_image(left, rig) & in_image(right, rig)
+    return pts[ok], left[ok], right[ok]
+
+
+def run(args) -> int:
+    rig = rig_from_args(args)
+    print("== 1. Mirror design (eqs. 1-8 and the full 3-D footprint) ==")
+    design = design_mirrors(rig)
+    print(format_design(design))
+    if design.ok:
+        used = design.rig
+    elif design.suggestion_mm is not None:
+        c1, c2 = design.suggestion_mm
+        print(f"\nUsing the suggested clear layout (M1 at {c1:.2f} mm, M2 at {c2:.2f} mm) from here on.")
+        used = design_mirrors(rig.replace(m1_axis_distance_mm=c1, m2_axis_distance_mm=c2), search=False).rig
+    else:
+        print("\nNo clear layout found; continuing with ideal (unbounded) mirrors.")
+        used = rig
+
+    print("\n== 2. Triangulation of planted points (projected through the exact optics) ==")
+    depths = np.arange(450.0, 1101.0, 50.0)
+    pts, left, right = planted_points(used, depths, per_depth=40, seed=0)
+    fit_pts, fit_l, fit_r = planted_points(used, depths + 25.0, per_depth=40, seed=1)
+    l_fit, m_fit = fit_refraction_terms(fit_l, fit_r, fit_pts, used)
+    l_der, m_der = derived_refraction_terms(used)
+    print(f"{len(pts)} points at {depths[0]:.0f}-{depths[-1]:.0f} mm over the shared field.")
+    print(f"Eq. (15) terms: derived from d, n, omega_1: l = {l_der:.4f} mm, m = {m_der:.4f} mm; "
+          f"fitted on {len(fit_pts)} other points: l = {l_fit:.4f} mm, m = {m_fit:.4f} mm\n")
+    print(f"{'model':<22}{'mean |err| mm':>15}{'max |err| mm':>14}{'mean Z bias %':>15}")
+    runs = [(m, used) for m in MODELS]
+    runs.insert(2, ("refraction", used.replace(refraction_l_mm=l_fit, refraction_m_mm=m_fit)))
+    for i, (model, r) in enumerate(runs):
+        res = triangulate(left, right, r, model=model)
+        err = np.linalg.norm(res.points_mm - pts, axis=1)
+        bias = 100 * np.mean((res.points_mm[:, 2] - pts[:, 2]) / pts[:, 2])
+        name = {0: "paper eqs. (12)-(14)", 1: "eqs. (15)-(17) derived", 2: "eqs. (15)-(17) fitted",
+                3: "exact ray tracing"}[i]
+        print(f"{name:<22}{np.mean(err):15.4g}{np.max(err):14.4g}{bias:15.3f}")
+    print("\nThe paper's eq. (12) ignores the plate: the transmitted (left) view is shifted by ~m, which widens "
+          "the effective baseline by ~1 %.")
+    return 0

@@ -1,0 +1,40 @@
+"""``psvs`` entry point: one subcommand per module; bad input exits 2 with a one-line message."""
+from __future__ import annotations
+
+import argparse
+import sys
+
+from psvs.cli import demo_cmd, design_cmd, triangulate_cmd
+from psvs.errors import RigGeometryError
+
+COMMANDS = (demo_cmd, design_cmd, triangulate_cmd)
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # argparse's usage errors: one line, exit 2
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="psvs", description="Pseudo Stereo Vision System toolkit (Pachidis & Lygouras).")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser, required=True)
+    for mod in COMMANDS:
+        mod.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.run(args) or 0)
+    except (ValueError, TypeError, OSError, RigGeometryError) as exc:
+        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
+            msg = f"{msg}: {exc.filename}"
+        print(f"psvs {args.command}: error: {msg}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

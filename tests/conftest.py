@@ -1,0 +1,39 @@
+import math
+
+import numpy as np
+import pytest
+
+from psvs import default_rig
+from psvs.optics.design import design_mirrors
+from tests.reference_optics import ReferenceRig
+
+
+@pytest.fixture
+def rig():
+    """The default rig of the issue (f 11.3, b 100, 3 mm plate, n 1.52), ideal unbounded mirrors."""
+    return default_rig()
+
+
+@pytest.fixture(scope="session")
+def clear_rig():
+    """A layout whose designed mirrors clear both paths (M1 at 22 mm, M2 at 44 mm), with extents."""
+    d = design_mirrors(default_rig().replace(m1_axis_distance_mm=22.0, m2_axis_distance_mm=44.0), search=False)
+    assert d.ok, d.problems
+    return d.rig
+
+
+@pytest.fixture(scope="session")
+def reference():
+    return ReferenceRig()
+
+
+def whole_field_points(rig, n_side=9, depths=(400.0, 600.0, 800.0, 1000.0, 1200.0)):
+    """Points over the whole field seen by *both* views, at the given depths (mm), shape (N, 3)."""
+    pts = []
+    a_x, a_y = rig.camera.half_fov_rad
+    for z in depths:
+        half_w = (z - rig.virtual_z_mm) * math.tan(a_x) - rig.mirrors.baseline_mm / 2
+        half_h = (z - rig.virtual_z_mm) * math.tan(a_y)
+        gx, gy = np.meshgrid(np.linspace(-0.99, 0.99, n_side), np.linspace(-0.99, 0.99, n_side))
+        pts.append(np.column_stack([gx.ravel() * half_w, gy.ravel() * half_h, np.full(gx.size, z)]))
+    return np.concatenate(pts)

@@ -1,0 +1,111 @@
+import math
+
+import numpy as np
+import pytest
+
+from psvs import default_rig
+from psvs.errors import RigGeometryError
+from psvs.optics.design import design_mirrors, working_range
+from psvs.optics.mirror_length import mirror_length_eq6
+from psvs.optics.rig import MIRROR_NAMES
+from psvs.optics.trace import trace_pixels
+
+
+def all_pixels(rig, step=4):
+    """Every 4th pixel plus the outer pixel edges (the field's boundary rays)."""
+    w, h = rig.camera.image_size_px
+    u, v = np.meshgrid(np.r_[-0.5, np.arange(0, w, step), w - 0.5], np.r_[-0.5, np.arange(0, h, step), h - 0.5])
+    return np.column_stack([u.ravel(), v.ravel()])
+
+
+def test_every_field_ray_lands_on_its_mirror(clear_rig):
+    px = all_pixels(clear_rig)
+    for view in ("left", "right"):
+        assert trace_pixels(px, clear_rig, view).valid.all()
+
+
+@pytest.mark.parametrize("name", MIRROR_NAMES)
+def test_shrinking_a_mirror_by_2_percent_vignettes(clear_rig, name):
+    shrunk = clear_rig.with_extents({name: clear_rig.mirrors.extent(name).scaled(0.98)})
+    px = all_pixels(clear_rig)
+    lost = sum((~trace_pixels(px, shrunk, view).valid).sum() for view in ("left", "right"))
+    assert lost > 0
+
+
+def test_clear_layout_has_no_obstruction(clear_rig):
+    d = design_mirrors(clear_rig, search=False)
+    assert d.ok and d.problems == []
+
+
+def test_default_layout_is_blocked_and_names_the_mirror():
+    """c1 = 25, c2 = 45 with a 3 mm plate: the plate's far end crosses M2's plane (see docs/optics.md)."""
+    d = design_mirrors(default_rig())
+    assert not d.ok
+    assert "M2 cuts through the M1 plate" in d.problems
+    assert any(p.startswith("M2 blocks the left view between M1 plate -> M2") for p in d.problems)
+    assert d.m2_window_mm is None
+    c1, c2 = d.suggestion_mm
+    assert c1 < 25.0
+    fixed = design_mirrors(default_rig().replace(m1_axis_distance_mm=c1, m2_axis_distance_mm=c2), search=False)
+    assert fixed.ok
+
+
+def test_far_m2_blocks_outgoing_left_beam():
+    """By hand (45 deg, no plate): the left view's inner edge ray clears M2's far end only while
+    c2 < b (1 - tan a)^2 / (4 tan a) ~ 45.4 mm; at c2 = 60 mm M2 is in the way."""
+    rig = default_rig().replace(m1_axis_distance_mm=20.0, m2_axis_distance_mm=60.0)
+    d = design_mirrors(rig, search=False)
+    assert any(p.startswith("M2 blocks the left view between M3 -> scene") for p in d.problems)
+
+
+def test_m2_window_upper_end_matches_closed_form():
+    rig = default_rig().replace(plate_thickness_mm=0.0, m1_axis_distance_mm=15.0, m2_axis_distance_mm=35.0)
+    tan_a = math.tan(rig.camera.half_fov_rad[0])
+    bound = 100.0 * (1 - tan_a) ** 2 / (4 * tan_a)
+    lo, hi = design_mirrors(rig).m2_window_mm
+    assert hi == pytest.approx(bound, abs=0.02)
+    assert lo < 35.0
+
+
+def test_mirror_widths_follow_eq6():
+    """Pure-mirror footprints on planes tilted about Y: their length along the mirror is eq. (6) exactly."""
+    rig = default_rig().replace(plate_thickness_mm=0.0)
+    d = design_mirrors(rig, search=False)
+    a = rig.camera.half_fov_rad[0]
+    for spec in d.mirrors:
+        assert spec.extent.width_mm == pytest.approx(float(mirror_length_eq6(spec.axis_distance_mm, a, math.pi / 4)),
+                                                     abs=1e-9)
+    assert [s.axis_distance_mm for s in d.mirrors] == pytest.approx([25.0, 45.0, 95.0, 75.0])
+
+
+def test_plate_makes_m1_longer_than_eq6(rig):
+    spec = design_mirrors(rig, search=False).mirrors[0]
+    assert spec.extent.width_mm > spec.eq6_length_mm + 1.0   # the refracted beam leaves the back face further on
+
+
+def test_heights_cover_vertical_field():
+    """M4 height by hand: the corner ray from the virtual centre O' = (-c1, 0, c1) reaches M4 at its far end."""
+    rig = default_rig().replace(plate_thickness_mm=0.0)
+    d = design_mirrors(rig, search=False)
+    tan_x, tan_y = (math.tan(v) for v in rig.camera.half_fov_rad)
+    # camera ray (tan_x, tan_y, 1) t hits M1 (z = x + 25) at t1 = 25 / (1 - tan_x); its height grows along the
+    # reflected path to M4 (total path OB = 75 along the axis): the far-end height is tan_y * t4 with
+    # t4 = 75 / (1 - tan_x) by similar triangles on the unfolded ray.
+    assert d.mirrors[3].extent.height_mm[1] == pytest.approx(tan_y * 75.0 / (1 - tan_x), abs=1e-9)
+
+
+def test_working_range_by_hand(rig):
+    wr = working_range(rig, 400.0, 1200.0)
+    assert wr.disparity_px == pytest.approx((100 * 11.3 / 1250 / 0.01, 100 * 11.3 / 450 / 0.01))
+    assert wr.depth_per_px_mm == pytest.approx((450**2 * 0.01 / 1130, 1250**2 * 0.01 / 1130))
+    assert wr.overlap_start_mm == pytest.approx(-50 + 50 / (320 * 0.01 / 11.3))
+    with pytest.raises(ValueError, match="0 < near < far"):
+        working_range(rig, 500.0, 400.0)
+
+
+def test_margin_and_impossible_layouts(rig):
+    with pytest.raises(ValueError, match="margin_mm must be >= 0"):
+        design_mirrors(rig, margin_mm=-1.0)
+    wide = rig.replace(focal_length_mm=2.0)  # half field 58 deg > omega_1: the field misses the mirrors
+    with pytest.raises(RigGeometryError, match="never reaches"):
+        design_mirrors(wide, search=False)
