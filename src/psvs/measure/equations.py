@@ -12,8 +12,10 @@ import numpy as np
 
 
 def _disparity(xl, xr):
-    disp = np.asarray(xl, dtype=float) - np.asarray(xr, dtype=float)
-    return np.where(disp > 0, disp, np.nan)
+    disp = np.asarray(np.asarray(xl, dtype=float) - np.asarray(xr, dtype=float))
+    with np.errstate(invalid="ignore"):
+        disp[~(disp > 0)] = np.nan
+    return disp
 
 
 def _zv(b, z_v):
@@ -48,17 +50,26 @@ def z_eq12(xl, xr, f, b, z_v=None):
     >>> float(z_eq12(0.5, -0.5, 11.3, 100.0))
     1080.0
     """
-    return b * f / _disparity(xl, xr) + _zv(b, z_v)
+    z = np.divide(b * f, _disparity(xl, xr))
+    z += _zv(b, z_v)
+    return z
 
 
 def x_eq13(xr, z, f, b, z_v=None):
     """Eq. (13) = eq. (16): x = (x_r / f) (z + b/2) + b/2, mm, from the right view (no plate on its path)."""
-    return np.asarray(xr, dtype=float) / f * (z - _zv(b, z_v)) + 0.5 * b
+    x = np.asarray(z - _zv(b, z_v), dtype=float)
+    x *= xr
+    x /= f
+    x += 0.5 * b
+    return x
 
 
 def y_eq14(yr, z, f, b, z_v=None):
     """Eq. (14) = eq. (17): y = (y_r / f) (z + b/2), mm."""
-    return np.asarray(yr, dtype=float) / f * (z - _zv(b, z_v))
+    y = np.asarray(z - _zv(b, z_v), dtype=float)
+    y *= yr
+    y /= f
+    return y
 
 
 def z_eq15(xl, xr, f, b, l_mm, m_mm, z_v=None):
@@ -66,5 +77,8 @@ def z_eq15(xl, xr, f, b, l_mm, m_mm, z_v=None):
 
     l and m (mm) carry the M1 plate's refraction (:mod:`psvs.optics.plate`); l = m = 0 is eq. (12).
     """
-    disp = _disparity(xl, xr)
-    return (b * f + np.asarray(xl, dtype=float) * l_mm + f * m_mm) / disp + _zv(b, z_v)
+    z = np.asarray(np.asarray(xl, dtype=float) * l_mm)
+    z += b * f + f * m_mm
+    z /= _disparity(xl, xr)
+    z += _zv(b, z_v)
+    return z

@@ -65,16 +65,19 @@ def triangulate(left_px, right_px, rig: Rig, model: str = "refraction") -> Trian
         return _triangulate_exact(left, right, rig)
     cam, m = rig.camera, rig.mirrors
     f, b, zv = cam.focal_length_mm, m.baseline_mm, rig.virtual_z_mm
-    xl = sensor_from_pixels(left, cam)[:, 0]
-    xr, yr = sensor_from_pixels(right, cam).T
+    (cx, cy), (px, py) = cam.principal_point_px, cam.pixel_pitch_mm
+    xl = (left[:, 0] - cx) * px
+    xr = (right[:, 0] - cx) * px
+    yr = (right[:, 1] - cy) * py
     if model == "paper":
         z = z_eq12(xl, xr, f, b, zv)
     else:
         l_mm, m_mm = refraction_terms(rig)
         z = z_eq15(xl, xr, f, b, l_mm, m_mm, zv)
-    pts = np.stack([x_eq13(xr, z, f, b, zv), y_eq14(yr, z, f, b, zv), z], axis=1)
-    valid = np.all(np.isfinite(pts), axis=1) & np.isfinite(left[:, 1])
-    pts[~valid] = np.nan
+    valid = np.isfinite(z + yr + left[:, 1])
+    pts = np.stack([x_eq13(xr, z, f, b, zv), y_eq14(yr, z, f, b, zv), z]).T  # (N, 3) view of a (3, N) block
+    if not valid.all():
+        pts[~valid] = np.nan
     return Triangulation(pts, valid)
 
 

@@ -131,8 +131,10 @@ def design_mirrors(rig: Rig, *, margin_mm: float = 0.0, near_mm: float | None = 
     --------
     >>> from psvs import default_rig
     >>> d = design_mirrors(default_rig(), search=False)
-    >>> [(s.name, round(s.extent.width_mm, 2)) for s in d.mirrors]
-    [('m1', 20.55), ('m2', 38.16), ('m3', 86.34), ('m4', 57.41)]
+    >>> [(s.name, round(s.extent.width_mm, 2), round(s.eq6_length_mm, 2)) for s in d.mirrors]
+    [('m1', 23.87, 21.77), ('m2', 38.57, 39.19), ('m3', 82.11, 82.73), ('m4', 65.31, 65.31)]
+    >>> d.ok, d.problems[-1]
+    (False, 'M2 cuts through the M1 plate')
     """
     if margin_mm < 0:
         raise ValueError(f"margin_mm must be >= 0, got {margin_mm!r}")

@@ -77,8 +77,8 @@ def intersect(origins_mm: np.ndarray, dirs: np.ndarray, plane: Plane):
     """
     denom = dirs @ plane.normal
     with np.errstate(divide="ignore", invalid="ignore"):
-        t = ((plane.point - origins_mm) @ plane.normal) / denom
-    t = np.where(np.abs(denom) > 1e-15, t, np.nan)
+        t = (plane.point @ plane.normal - origins_mm @ plane.normal) / denom
+    t[np.abs(denom) <= 1e-15] = np.nan
     points = origins_mm + t[:, None] * dirs
     return t, points, t > 0
 
@@ -107,11 +107,13 @@ def refract(dirs: np.ndarray, normal: np.ndarray, eta: float):
     valid : ndarray of bool, shape (N,)
     """
     cos_i = dirs @ normal
-    nrm = np.where((cos_i > 0)[:, None], -normal, normal)  # make the normal face the incoming ray
+    side = -np.sign(cos_i)               # the normal, flipped to face the incoming ray, is side * normal
     cos_i = np.abs(cos_i)
     sin2_t = eta * eta * (1.0 - cos_i * cos_i)
     valid = sin2_t <= 1.0
     cos_t = np.sqrt(np.clip(1.0 - sin2_t, 0.0, None))
-    out = eta * dirs + (eta * cos_i - cos_t)[:, None] * nrm
-    out[~valid] = np.nan
+    out = eta * dirs
+    out += ((eta * cos_i - cos_t) * side)[:, None] * normal
+    if not valid.all():
+        out[~valid] = np.nan
     return out, valid

@@ -1,0 +1,78 @@
+"""Run the benchmarks (bench_*.py) and write docs/benchmarks.md with the machine and the date.
+
+    python3 dev.py bench            # all
+    python3 dev.py bench triangulate
+
+Each bench module defines ``cases()`` returning a list of ``(name, setup_result_fn, target_s)`` where
+calling ``setup_result_fn()`` returns the zero-argument function to time. The best of 5 runs counts.
+Benchmarks are single-threaded (BLAS/OpenMP pinned to one thread) unless the case says otherwise.
+"""
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import datetime  # noqa: E402
+import importlib.util  # noqa: E402
+import platform  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+OUT = HERE.parent / "docs" / "benchmarks.md"
+
+
+def machine() -> str:
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return (f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, NumPy {np.__version__}, "
+            f"{platform.system()} {platform.release()}")
+
+
+def time_best(fn, repeat: int = 5) -> float:
+    best = float("inf")
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def main(argv: list[str]) -> int:
+    modules = sorted(HERE.glob("bench_*.py"))
+    if argv:
+        modules = [m for m in modules if any(a in m.stem for a in argv)]
+    rows = []
+    for path in modules:
+        spec = importlib.util.spec_from_file_location(path.stem, path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        for name, setup, target in mod.cases():
+            fn = setup()
+            t = time_best(fn)
+            ok = "yes" if t <= target else "NO"
+            rows.append((path.stem.removeprefix("bench_"), name, t, target, ok))
+            print(f"{name:<55} {t * 1e3:10.1f} ms  (target {target * 1e3:.0f} ms: {ok})", flush=True)
+    lines = ["# Benchmarks", "",
+             "Written by `python3 dev.py bench` (bench/run.py); best of 5 runs, one thread.", "",
+             f"- Date: {datetime.date.today().isoformat()}", f"- Machine: {machine()}", "",
+             "| group | case | time (ms) | target (ms) | met |", "|---|---|---:|---:|---|"]
+    lines += [f"| {g} | {n} | {t * 1e3:.1f} | {tg * 1e3:.0f} | {ok} |" for g, n, t, tg, ok in rows]
+    OUT.write_text("\n".join(lines) + "\n")
+    print(f"wrote {OUT}")
+    return 0 if all(r[4] == "yes" for r in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,123 @@
+"""The psvs command line: exit codes and messages (typer CliRunner style, in-process)."""
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from psvs import default_rig
+from psvs.cli.main import main
+from psvs.io.params import save_rig
+from psvs.optics.project import project_points
+
+EXAMPLE = str(Path(__file__).resolve().parents[2] / "examples" / "rigs" / "default.toml")
+
+
+def run(capsys, *argv):
+    try:
+        code = main(list(argv))
+    except SystemExit as exc:  # argparse usage errors
+        code = exc.code
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+@pytest.mark.parametrize("cmd", ["demo", "design", "triangulate"])
+def test_help(capsys, cmd):
+    with pytest.raises(SystemExit) as info:
+        main([cmd, "--help"])
+    assert info.value.code == 0
+    assert "usage: psvs " + cmd in capsys.readouterr().out
+
+
+@pytest.fixture
+def matches_csv(tmp_path):
+    rig = default_rig()
+    pts = np.array([[0.0, 0.0, 500.0], [30.0, -20.0, 800.0], [-60.0, 40.0, 1100.0]])
+    left, _ = project_points(pts, rig, "left")
+    right, _ = project_points(pts, rig, "right")
+    p = tmp_path / "matches.csv"
+    rows = ["u_l,v_l,u_r,v_r"] + [",".join(repr(float(v)) for v in (*l, *r)) for l, r in zip(left, right)]
+    rows.append("300,239.5,310,239.5")  # x_l < x_r: invalid
+    p.write_text("\n".join(rows) + "\n")
+    return p, pts
+
+
+def test_triangulate_exact_to_file(capsys, tmp_path, matches_csv):
+    csv_in, pts = matches_csv
+    out = tmp_path / "points.csv"
+    code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv_in), "--model", "exact", "-o", str(out))
+    assert code == 0 and "3 of 4 points valid" in err
+    lines = out.read_text().splitlines()
+    assert lines[0] == "X_mm,Y_mm,Z_mm,valid"
+    got = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
+    np.testing.assert_allclose(got[:3, :3], pts, atol=1e-6)
+    assert got[:, 3].tolist() == [1, 1, 1, 0] and np.isnan(got[3, :3]).all()
+
+
+def test_triangulate_to_stdout_paper_model(capsys, matches_csv):
+    code, out, _ = run(capsys, "triangulate", "--rig", EXAMPLE, str(matches_csv[0]), "--model", "paper")
+    assert code == 0
+    z = float(out.splitlines()[1].split(",")[2])
+    assert 490 < z < 497   # eq. (12) underestimates 500 mm by ~1 %
+
+
+@pytest.mark.parametrize("make_args, message", [
+    (lambda d, csv: ["--rig", str(d / "missing.toml"), str(csv)], "rig file not found"),
+    (lambda d, csv: ["--rig", EXAMPLE, str(d / "missing.csv")], "points file not found"),
+    (lambda d, csv: ["--rig", EXAMPLE, str(csv), "-o", str(d / "out.txt")], "must end in .csv"),
+    (lambda d, csv: ["--rig", EXAMPLE, str(csv), "-o", str(d / "no" / "out.csv")], "output folder does not exist"),
+    (lambda d, csv: ["--rig", EXAMPLE, str(csv), "--model", "magic"], "invalid choice: 'magic'"),
+])
+def test_triangulate_bad_input_exits_2(capsys, tmp_path, matches_csv, make_args, message):
+    code, _, err = run(capsys, "triangulate", *make_args(tmp_path, matches_csv[0]))
+    assert code == 2
+    assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_bad_rig_and_csv_exit_2_and_keep_old_output(capsys, tmp_path, matches_csv):
+    out = tmp_path / "points.csv"
+    out.write_text("previous results\n")
+    bad_rig = tmp_path / "bad.toml"
+    bad_rig.write_text(Path(EXAMPLE).read_text().replace("focal_length_mm = 11.3", "focal_length_mm = -1"))
+    code, _, err = run(capsys, "triangulate", "--rig", str(bad_rig), str(matches_csv[0]), "-o", str(out))
+    assert code == 2 and "camera.focal_length_mm must be > 0 mm" in err
+    bad_csv = tmp_path / "bad.csv"
+    bad_csv.write_text("x,y\n1,2\n")
+    code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(bad_csv), "-o", str(out))
+    assert code == 2 and "missing column(s) u_l, v_l, u_r, v_r" in err
+    assert out.read_text() == "previous results\n"
+
+
+def test_design_blocked_default_rig_writes_table(capsys, tmp_path):
+    table = tmp_path / "mirrors.json"
+    code, out, _ = run(capsys, "design", "--rig", EXAMPLE, "-o", str(table))
+    assert code == 1
+    assert "Layout: BLOCKED" in out and "M2 cuts through the M1 plate" in out and "Suggestion:" in out
+    data = json.loads(table.read_text())
+    assert [m["name"] for m in data["mirrors"]] == ["M1", "M2", "M3", "M4"]
+    assert data["checks"]["ok"] is False and data["checks"]["suggested_m1_axis_distance_mm"] < 25
+
+
+def test_design_clear_rig_toml_and_rig_out(capsys, tmp_path):
+    rig_file = tmp_path / "clear.toml"
+    save_rig(default_rig().replace(m1_axis_distance_mm=22.0, m2_axis_distance_mm=44.0), rig_file)
+    table, rig_out = tmp_path / "mirrors.toml", tmp_path / "designed.toml"
+    code, out, _ = run(capsys, "design", "--rig", str(rig_file), "--no-search", "-o", str(table),
+                       "--rig-out", str(rig_out))
+    assert code == 0 and "Layout: clear" in out and "Working range 400-1200 mm" in out
+    data = tomllib.loads(table.read_text())
+    assert data["checks"]["ok"] is True and data["mirrors"][3]["width_mm"] > 50
+    assert "[mirrors.m4]" in rig_out.read_text()
+
+
+def test_design_bad_margin(capsys):
+    code, _, err = run(capsys, "design", "--rig", EXAMPLE, "--margin-mm", "-2", "--no-search")
+    assert code == 2 and "margin_mm must be >= 0" in err
+
+
+def test_demo_runs(capsys):
+    code, out, _ = run(capsys, "demo")
+    assert code == 0
+    assert "exact ray tracing" in out and "Suggestion:" in out

@@ -1,0 +1,78 @@
+import math
+from pathlib import Path
+
+import pytest
+
+from psvs import default_rig
+from psvs.io.params import dumps_rig, load_rig, save_rig
+from psvs.optics.rig import MirrorExtent
+
+EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "rigs" / "default.toml"
+
+
+def test_example_file_is_the_default_rig():
+    assert load_rig(EXAMPLE) == default_rig()
+
+
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_round_trip_with_extents_and_overrides(tmp_path, suffix):
+    rig = default_rig().replace(angle_rad=math.radians(40), refraction_l_mm=1.9, refraction_m_mm=1.02)
+    rig = rig.with_extents({"m2": MirrorExtent((-12.5, 26.25), (-13.0, 13.0))})
+    path = tmp_path / f"rig{suffix}"
+    save_rig(rig, path)
+    back = load_rig(path)
+    assert back.mirrors.angle_rad == pytest.approx(rig.mirrors.angle_rad, abs=1e-15)
+    assert back.replace(angle_rad=rig.mirrors.angle_rad) == rig
+
+
+def write(tmp_path, text):
+    p = tmp_path / "rig.toml"
+    p.write_text(text)
+    return p
+
+
+BASE = EXAMPLE.read_text()
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda t: t.replace("focal_length_mm = 11.3", "focal_length_mm = -11.3"),
+     r"camera\.focal_length_mm must be > 0 mm, got -11\.3"),
+    (lambda t: t.replace("baseline_mm = 100.0", "baseline_mm = 100.0\nbaseline = 3"),
+     r"unknown key mirrors\.baseline "),
+    (lambda t: t.replace("refractive_index = 1.52", "refractive_index = 0.5"),
+     r"mirrors\.refractive_index must be >= 1"),
+    (lambda t: t.replace("plate_thickness_mm = 3.0", ""), r"missing key mirrors\.plate_thickness_mm"),
+    (lambda t: t.replace("image_size_px = [640, 480]", "image_size_px = [640]"),
+     r"camera\.image_size_px must be a list of two numbers"),
+    (lambda t: t.replace("focal_length_mm = 11.3", 'focal_length_mm = "long"'),
+     r"camera\.focal_length_mm must be a number, got str"),
+    (lambda t: t.replace("angle_deg = 45.0", "angle_deg = 95.0"), r"mirrors\.angle_deg must be in \(0, 90\)"),
+    (lambda t: t.replace("m2_axis_distance_mm = 45.0", "m2_axis_distance_mm = 20.0"),
+     r"m2_axis_distance_mm must be > m1_axis_distance_mm"),
+    (lambda t: t + "\n[mirrors.m5]\nalong_mm = [0, 1]\n", r"unknown key mirrors\.m5"),
+    (lambda t: t + "\n[mirrors.m1]\nalong_mm = [2, 1]\nheight_mm = [-1, 1]\n", r"mirrors\.m1\.along_mm must be \(min, max\)"),
+    (lambda t: t + "\n[lens]\nk1 = 0\n", r"unknown table \[lens\]"),
+    (lambda t: t.replace("[camera]", "[camera"), r"malformed TOML"),
+])
+def test_bad_files_name_the_problem(tmp_path, edit, message):
+    path = write(tmp_path, edit(BASE))
+    with pytest.raises((ValueError, TypeError), match=message) as info:
+        load_rig(path)
+    assert str(path) in str(info.value)
+
+
+def test_missing_file():
+    with pytest.raises(FileNotFoundError, match="rig file not found: nope.toml"):
+        load_rig("nope.toml")
+
+
+def test_optional_keys_default(tmp_path):
+    text = "\n".join(line for line in BASE.splitlines()
+                     if not line.startswith(("principal_point_px", "angle_deg", "split_ratio")))
+    rig = load_rig(write(tmp_path, text))
+    assert rig == default_rig()
+
+
+def test_dumps_rejects_unknown_format():
+    with pytest.raises(ValueError, match="fmt must be 'toml' or 'json'"):
+        dumps_rig(default_rig(), "yaml")
