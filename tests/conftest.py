@@ -1,9 +1,11 @@
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from psvs import default_rig
+from psvs.io.params import load_rig
 from psvs.optics.design import design_mirrors
 from tests.reference_optics import ReferenceRig
 
@@ -14,12 +16,17 @@ def rig():
     return default_rig()
 
 
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
 @pytest.fixture(scope="session")
 def clear_rig():
-    """A layout whose designed mirrors clear both paths (M1 at 22 mm, M2 at 44 mm), with extents."""
-    d = design_mirrors(default_rig().replace(m1_axis_distance_mm=22.0, m2_axis_distance_mm=44.0), search=False)
+    """examples/rigs/clear.toml: M1 at 22 mm, M2 at 44 mm, with its designed mirror extents."""
+    rig = load_rig(EXAMPLES / "rigs" / "clear.toml")
+    d = design_mirrors(rig, search=False)
     assert d.ok, d.problems
-    return d.rig
+    assert d.rig == rig  # the file holds exactly the designed extents
+    return rig
 
 
 @pytest.fixture(scope="session")

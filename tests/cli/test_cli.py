@@ -23,7 +23,7 @@ def run(capsys, *argv):
     return code, out.out, out.err
 
 
-@pytest.mark.parametrize("cmd", ["demo", "design", "triangulate"])
+@pytest.mark.parametrize("cmd", ["demo", "design", "triangulate", "fit-refraction"])
 def test_help(capsys, cmd):
     with pytest.raises(SystemExit) as info:
         main([cmd, "--help"])
@@ -121,3 +121,25 @@ def test_demo_runs(capsys):
     code, out, _ = run(capsys, "demo")
     assert code == 0
     assert "exact ray tracing" in out and "Suggestion:" in out
+
+
+def test_fit_refraction_writes_rig(capsys, tmp_path):
+    rig = default_rig()
+    rng = np.random.default_rng(3)
+    pts = np.column_stack([rng.uniform(-80, 80, 200), rng.uniform(-60, 60, 200), rng.uniform(400, 1200, 200)])
+    left, _ = project_points(pts, rig, "left")
+    right, _ = project_points(pts, rig, "right")
+    csv = tmp_path / "known.csv"
+    rows = ["u_l,v_l,u_r,v_r,X_mm,Y_mm,Z_mm"] + [",".join(repr(float(v)) for v in row)
+                                                 for row in np.column_stack([left, right, pts])]
+    csv.write_text("\n".join(rows) + "\n")
+    out = tmp_path / "fitted.toml"
+    code, text, _ = run(capsys, "fit-refraction", "--rig", EXAMPLE, str(csv), "-o", str(out))
+    assert code == 0 and "mean 3-D error" in text
+    fitted = tomllib.loads(out.read_text())["mirrors"]
+    assert 1.7 < fitted["refraction_l_mm"] < 2.2 and 0.95 < fitted["refraction_m_mm"] < 1.1
+    code, _, err = run(capsys, "fit-refraction", "--rig", EXAMPLE, str(tmp_path / "known.csv"), "-o", str(tmp_path / "x.yaml"))
+    assert code == 2 and "must end in .toml or .json" in err
+    (tmp_path / "short.csv").write_text("u_l,v_l,u_r,v_r\n1,2,3,4\n")
+    code, _, err = run(capsys, "fit-refraction", "--rig", EXAMPLE, str(tmp_path / "short.csv"))
+    assert code == 2 and "missing column(s) X_mm, Y_mm, Z_mm" in err

@@ -102,3 +102,14 @@ def test_argument_errors(rig):
         triangulate([[1, 2]], [[0, 2, 3]], rig)
     with pytest.raises(ValueError, match="needs >= 2 valid correspondences"):
         fit_refraction_terms([[1, 2]], [[0, 2]], [[0, 0, 500]], rig)
+
+
+def test_example_matches_recover_their_truth(clear_rig):
+    """examples/matches.csv (projected through examples/rigs/clear.toml) against examples/matches_truth.csv."""
+    from psvs.io.points import read_matches_csv
+    from tests.conftest import EXAMPLES
+    left, right = read_matches_csv(EXAMPLES / "matches.csv")
+    truth = np.loadtxt(EXAMPLES / "matches_truth.csv", delimiter=",", skiprows=1)
+    res = triangulate(left, right, clear_rig, model="exact")
+    assert res.valid.all()
+    np.testing.assert_allclose(res.points_mm, truth, atol=1e-6)

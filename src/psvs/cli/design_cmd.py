@@ -4,10 +4,9 @@ from __future__ import annotations
 import json
 import math
 
-import tomli_w
-
 from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
 from psvs.io.atomic import write_atomic
+from psvs.io.toml_out import dumps_toml
 from psvs.io.params import rig_to_dict, save_rig
 from psvs.optics.design import MirrorDesign, design_mirrors
 
@@ -98,7 +97,7 @@ def run(args) -> int:
     print(format_design(d))
     if out is not None:
         data = design_to_dict(d)
-        write_atomic(out, json.dumps(data, indent=2) + "\n" if out.suffix.lower() == ".json" else tomli_w.dumps(data))
+        write_atomic(out, json.dumps(data, indent=2) + "\n" if out.suffix.lower() == ".json" else dumps_toml(data))
     if rig_out is not None:
         save_rig(d.rig, rig_out)
     return 0 if d.ok else 1

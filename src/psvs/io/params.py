@@ -14,9 +14,8 @@ import math
 import tomllib
 from pathlib import Path
 
-import tomli_w
-
 from psvs.io.atomic import write_atomic
+from psvs.io.toml_out import dumps_toml
 from psvs.optics.rig import MIRROR_NAMES, Camera, MirrorExtent, Mirrors, Rig
 
 _CAMERA_REQUIRED = ("focal_length_mm", "pixel_pitch_mm", "image_size_px")
@@ -156,7 +155,7 @@ def dumps_rig(rig: Rig, fmt: str = "toml") -> str:
     if fmt == "json":
         return json.dumps(data, indent=2) + "\n"
     if fmt == "toml":
-        return tomli_w.dumps(data)
+        return dumps_toml(data)
     raise ValueError(f"fmt must be 'toml' or 'json', got {fmt!r}")
 
 

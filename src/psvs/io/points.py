@@ -18,6 +18,12 @@ def read_matches_csv(path) -> tuple[np.ndarray, np.ndarray]:
 
     Returns ``left_px`` (N, 2) and ``right_px`` (N, 2). Empty cells and ``nan`` become NaN.
     """
+    arr = read_csv_columns(path, MATCH_COLUMNS)
+    return arr[:, :2], arr[:, 2:]
+
+
+def read_csv_columns(path, columns: tuple[str, ...]) -> np.ndarray:
+    """The named numeric columns of a CSV with a header, shape (N, len(columns)); other columns ignored."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"points file not found: {path}")
@@ -25,13 +31,13 @@ def read_matches_csv(path) -> tuple[np.ndarray, np.ndarray]:
         reader = csv.reader(fh)
         header = next(reader, None)
         if header is None:
-            raise ValueError(f"{path}: empty file, expected a header {','.join(MATCH_COLUMNS)}")
+            raise ValueError(f"{path}: empty file, expected a header {','.join(columns)}")
         header = [h.strip() for h in header]
-        missing = [c for c in MATCH_COLUMNS if c not in header]
+        missing = [c for c in columns if c not in header]
         if missing:
             raise ValueError(f"{path}: missing column(s) {', '.join(missing)}; expected header "
-                             f"{','.join(MATCH_COLUMNS)}, got {','.join(header)}")
-        idx = [header.index(c) for c in MATCH_COLUMNS]
+                             f"{','.join(columns)}, got {','.join(header)}")
+        idx = [header.index(c) for c in columns]
         rows = []
         for lineno, row in enumerate(reader, start=2):
             if not row or all(not cell.strip() for cell in row):
@@ -43,8 +49,7 @@ def read_matches_csv(path) -> tuple[np.ndarray, np.ndarray]:
             except ValueError:
                 bad = next(row[i] for i in idx if not _is_float(row[i]))
                 raise ValueError(f"{path}:{lineno}: not a number: {bad!r}") from None
-    arr = np.array(rows, dtype=float).reshape(-1, 4)
-    return arr[:, :2], arr[:, 2:]
+    return np.array(rows, dtype=float).reshape(-1, len(columns))
 
 
 def _is_float(text: str) -> bool:

@@ -1,0 +1,39 @@
+"""``psvs fit-refraction``: fit l and m of eq. (15) to matches of known points; write them into a rig file."""
+from __future__ import annotations
+
+import numpy as np
+
+from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
+from psvs.io.params import save_rig
+from psvs.io.points import MATCH_COLUMNS, read_csv_columns
+from psvs.measure.triangulate import fit_refraction_terms, triangulate
+from psvs.optics.plate import derived_refraction_terms
+
+TRUTH_COLUMNS = ("X_mm", "Y_mm", "Z_mm")
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("fit-refraction", help="fit l, m of eq. (15) to matched pixels of known points",
+                       description="Fit the refraction terms l, m of eq. (15) by least squares in depth. Input "
+                                   "CSV columns u_l,v_l,u_r,v_r (px) and X_mm,Y_mm,Z_mm (the known points).")
+    add_rig_argument(p)
+    p.add_argument("points", metavar="MATCHES.csv", help="CSV with u_l,v_l,u_r,v_r,X_mm,Y_mm,Z_mm")
+    p.add_argument("-o", "--output", metavar="RIG.toml", help="write the rig with refraction_l_mm/_m_mm set")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    out = check_output_path(args.output, (".toml", ".json"))
+    rig = rig_from_args(args)
+    data = read_csv_columns(args.points, MATCH_COLUMNS + TRUTH_COLUMNS)
+    left, right, pts = data[:, :2], data[:, 2:4], data[:, 4:]
+    l_mm, m_mm = fit_refraction_terms(left, right, pts, rig)
+    fitted = rig.replace(refraction_l_mm=l_mm, refraction_m_mm=m_mm)
+    res = triangulate(left, right, fitted)
+    err = np.linalg.norm(res.points_mm[res.valid] - pts[res.valid], axis=1)
+    l_der, m_der = derived_refraction_terms(rig)
+    print(f"l = {l_mm:.6f} mm, m = {m_mm:.6f} mm (derived from d, n, omega_1: l = {l_der:.6f}, m = {m_der:.6f})")
+    print(f"fit on {int(res.valid.sum())} points: mean 3-D error {err.mean():.4f} mm, max {err.max():.4f} mm")
+    if out is not None:
+        save_rig(fitted, out)
+    return 0
