@@ -16,8 +16,7 @@ import numpy as np
 from psvs.optics.rig import Rig
 from psvs.optics.surfaces import Plane
 
-#: Surfaces met by each view's chief ray, in order, with what happens there:
-#: ("reflect", plane) or ("refract", plane, n_before, n_after) with indices filled in by :func:`path`.
+#: The two views of the complex image: "left" (transmitted through the M1 plate), "right" (reflected).
 VIEWS = ("left", "right")
 
 
@@ -50,15 +49,14 @@ def mirror_planes(rig: Rig) -> dict[str, Plane]:
 def path(rig: Rig, view: str) -> list[tuple]:
     """The surfaces of one view's optical path, in the order light from the camera meets them.
 
-    Each step is ``("reflect", plane)`` or ``("refract", plane, eta)`` with eta = n_before / n_after.
-    The left view is *transmitted* through the M1 plate, the right view is *reflected* at its front face.
+    Each step is ``("reflect", plane)``, ``("refract", plane, eta)`` with eta = n_before / n_after, or
+    ``("pass", plane)`` (a zero-thickness plate: the light only has to cross the face). The left view is *transmitted* through the M1 plate, the right view is *reflected* at its front face.
     """
     planes = mirror_planes(rig)
     if view == "right":
         return [("reflect", planes["m1"]), ("reflect", planes["m4"])]
     if view == "left":
         n = rig.mirrors.refractive_index
-        steps = []
         if rig.mirrors.plate_thickness_mm > 0:
             steps = [("refract", planes["m1"], 1.0 / n), ("refract", planes["m1_back"], n / 1.0)]
         else:  # a zero-thickness plate still has a finite front face that the light must pass
