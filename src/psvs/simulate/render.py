@@ -1,0 +1,215 @@
+"""Render the complex image: both views' chief rays through the exact optics, into the scene, summed.
+
+For every pixel and every one of K x K sub-pixel samples, the left and right chief rays are traced
+through the rig (:func:`psvs.optics.trace.trace_pixels`: the M1 plate's refraction, mirror extents and
+vignetting), intersected with the scene (:class:`~psvs.simulate.geometry.SceneGeometry`) and shaded
+(ambient + the rig's lamp, Lambertian, with shadows). The complex image is
+C = (1 - s) L + s R with s the rig's split ratio (the share reflected at M1, the right view).
+"""
+from __future__ import annotations
+
+import functools
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.optics.mirrors import mirror_planes
+from psvs.optics.project import in_image, project_points
+from psvs.optics.rig import Rig
+from psvs.optics.trace import trace_pixels
+from psvs.simulate.geometry import Hits, SceneGeometry, group_by
+from psvs.simulate.scene import Scene
+from psvs.simulate.sensor import Sensor, expose
+
+VISIBILITY_TOL_MM = 1e-3
+SHADOW_OFFSET_MM = 0.1
+
+
+@dataclass(frozen=True, eq=False)
+class GroundTruth:
+    """Per-pixel truth at pixel centres, each (H, W). Depth is Z in frame C (mm), NaN where the view sees
+    nothing. Disparity u_l - u_r (px) of the point each pixel sees, NaN where that point is outside the
+    other view, hidden in it, or absent. ``valid_*`` marks finite disparities."""
+
+    depth_left_mm: np.ndarray
+    depth_right_mm: np.ndarray
+    disparity_left_px: np.ndarray
+    disparity_right_px: np.ndarray
+    valid_left: np.ndarray
+    valid_right: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class RenderResult:
+    """image (H, W) uint8 through the sensor; irradiance (H, W) the noiseless complex image (1.0 = full
+    well); left, right (H, W) each view's radiance alone (before the split); truth or None."""
+
+    image: np.ndarray
+    irradiance: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    truth: GroundTruth | None = None
+
+
+@functools.lru_cache(maxsize=8)
+def view_rays(rig: Rig, supersample: int, view: str):
+    """Scene rays of every sub-pixel sample of one view: (origins (H*W*K*K, 3), dirs, valid), cached per rig."""
+    w, h = rig.camera.image_size_px
+    offs = (np.arange(supersample) + 0.5) / supersample - 0.5
+    v, u, dv, du = np.meshgrid(np.arange(h, dtype=float), np.arange(w, dtype=float), offs, offs, indexing="ij")
+    uv = np.column_stack([(u + du).ravel(), (v + dv).ravel()])
+    rays = trace_pixels(uv, rig, view)
+    for a in rays:
+        a.setflags(write=False)
+    return rays
+
+
+def rig_front_z_mm(rig: Rig) -> float:
+    """The largest z reached by the rig's mirrors (anchors, and rectangle corners when finite), mm."""
+    zs = []
+    for p in mirror_planes(rig).values():
+        zs.append(p.point[2])
+        if p.extent is not None:
+            for s in p.extent.along_mm:
+                zs.append(p.point[2] + s * p.s_axis[2])
+    return float(max(zs))
+
+
+def check_scene_in_front(geom: SceneGeometry, rig: Rig) -> None:
+    """Raise ValueError naming the first object that reaches behind the rig's front."""
+    front = rig_front_z_mm(rig)
+    for k, o in enumerate(geom.objects):
+        z = geom.min_z_mm(k)
+        if z <= front:
+            raise ValueError(f"object {o.name or o.kind!r} is behind the rig: it reaches z = {z:.1f} mm, "
+                             f"the mirrors end at z = {front:.1f} mm")
+
+
+def shade(geom: SceneGeometry, scene: Scene, hits: Hits) -> np.ndarray:
+    """Radiance (N,) of each hit: albedo * (ambient + lamp * max(0, n.l) (ref / r)^2 * unshadowed); 0 on a miss."""
+    light = scene.lighting
+    hit = hits.obj >= 0
+    albedo = np.zeros(len(hits.t_mm))
+    for k, sel in group_by(hits.obj):
+        if k >= 0:
+            albedo[sel] = geom.objects[k].texture(geom.local_xy(k, hits.points_mm[sel]))
+    irr = np.full(len(albedo), light.ambient)
+    if light.lamp > 0 and hit.any():
+        all_hit = bool(hit.all())
+        idx = None if all_hit else np.flatnonzero(hit)
+        p = hits.points_mm if all_hit else hits.points_mm[idx]
+        n = hits.normals if all_hit else hits.normals[idx]
+        to_lamp = np.asarray(light.lamp_position_mm) - p
+        r2 = np.einsum("ij,ij->i", to_lamp, to_lamp)
+        r = np.sqrt(r2)
+        cos = np.einsum("ij,ij->i", n, to_lamp) / r
+        lit = cos > 0
+        if light.shadows and lit.any():
+            li = np.flatnonzero(lit)
+            ldir = to_lamp[li] / r[li, None]
+            # start beyond the tessellated shell that circumscribes curved surfaces (< 0.01 mm thick)
+            start = p[li] + SHADOW_OFFSET_MM * n[li]
+            lit[li[geom.occluded(start, ldir, r[li] - 2 * SHADOW_OFFSET_MM)]] = False
+        lamp = np.where(lit, light.lamp * light.reference_mm ** 2 * cos / r2, 0.0)
+        if all_hit:
+            irr += lamp
+        else:
+            irr[idx] += lamp
+    return np.where(hit, albedo * irr, 0.0)
+
+
+CHUNK_RAYS = 1 << 16  # measured best on 2 cores (docs/benchmarks.md)
+
+
+def radiance(geom: SceneGeometry, scene: Scene, rays) -> np.ndarray:
+    """Radiance (N,) along traced rays; vignetted rays bring no light. Cache-sized chunks, one per
+    thread (NumPy and Embree release the GIL)."""
+    n = len(rays.valid)
+    out = np.zeros(n)
+
+    def one(a):
+        b = min(a + CHUNK_RAYS, n)
+        valid = rays.valid[a:b]
+        if valid.all():
+            out[a:b] = shade(geom, scene, geom.intersect(rays.origins_mm[a:b], rays.dirs[a:b]))
+        elif valid.any():
+            ok = np.flatnonzero(valid) + a
+            out[ok] = shade(geom, scene, geom.intersect(rays.origins_mm[ok], rays.dirs[ok]))
+
+    with ThreadPoolExecutor(max(1, os.cpu_count() or 1)) as ex:
+        list(ex.map(one, range(0, n, CHUNK_RAYS)))
+    return out
+
+
+def render_views(scene: Scene, rig: Rig, supersample: int = 2, geom: SceneGeometry | None = None):
+    """Each view's radiance image (H, W), averaged over K x K samples per pixel."""
+    if not isinstance(supersample, (int, np.integer)) or supersample < 1:
+        raise ValueError(f"supersample must be an integer >= 1, got {supersample!r}")
+    geom = geom or SceneGeometry(scene)
+    check_scene_in_front(geom, rig)
+    w, h = rig.camera.image_size_px
+    out = []
+    for view in ("left", "right"):
+        rad = radiance(geom, scene, view_rays(rig, int(supersample), view))
+        out.append(rad.reshape(h, w, supersample * supersample).mean(axis=2))
+    return out[0], out[1]
+
+
+def ground_truth(scene: Scene, rig: Rig, geom: SceneGeometry | None = None) -> GroundTruth:
+    """Depth and disparity at pixel centres of both views (see :class:`GroundTruth`)."""
+    geom = geom or SceneGeometry(scene)
+    w, h = rig.camera.image_size_px
+    res = {}
+    for view, other in (("left", "right"), ("right", "left")):
+        rays = view_rays(rig, 1, view)
+        hits = geom.intersect(rays.origins_mm, rays.dirs)
+        seen = rays.valid & (hits.obj >= 0)
+        depth = np.where(seen, hits.points_mm[:, 2], np.nan)
+        uv_other, ok = project_points(hits.points_mm[seen], rig, other)
+        ok &= in_image(uv_other, rig)
+        # the point must be what the other view actually sees at that exact position (not hidden)
+        back = trace_pixels(uv_other[ok], rig, other)
+        h2 = geom.intersect(back.origins_mm, back.dirs)
+        vis = back.valid & (np.linalg.norm(h2.points_mm - hits.points_mm[seen][ok], axis=1) < VISIBILITY_TOL_MM)
+        ok[np.flatnonzero(ok)[~vis]] = False
+        disp = np.full(w * h, np.nan)
+        u_pix = np.tile(np.arange(w, dtype=float), h)
+        seen_idx = np.flatnonzero(seen)
+        if view == "left":
+            disp[seen_idx[ok]] = u_pix[seen_idx[ok]] - uv_other[ok, 0]
+        else:
+            disp[seen_idx[ok]] = uv_other[ok, 0] - u_pix[seen_idx[ok]]
+        res[view] = (depth.reshape(h, w), disp.reshape(h, w))
+    return GroundTruth(res["left"][0], res["right"][0], res["left"][1], res["right"][1],
+                       np.isfinite(res["left"][1]), np.isfinite(res["right"][1]))
+
+
+def render(scene: Scene, rig: Rig, *, supersample: int = 2, sensor: Sensor = Sensor(), seed: int | None = 0,
+           truth: bool = False) -> RenderResult:
+    """Render the complex image of a scene through a rig.
+
+    Parameters
+    ----------
+    scene : Scene
+    rig : Rig
+    supersample : int
+        K: K x K samples per pixel (anti-aliasing).
+    sensor : Sensor
+        Blur, noise, gain; :data:`psvs.simulate.sensor.IDEAL` for quantisation only.
+    seed : int or None
+        Noise seed (same seed, same image).
+    truth : bool
+        Also compute the per-pixel :class:`GroundTruth`.
+
+    Returns
+    -------
+    RenderResult
+    """
+    geom = SceneGeometry(scene)
+    left, right = render_views(scene, rig, supersample, geom)
+    s = rig.mirrors.split_ratio
+    irradiance = (1.0 - s) * left + s * right
+    image = expose(irradiance, sensor, seed)
+    return RenderResult(image, irradiance, left, right, ground_truth(scene, rig, geom) if truth else None)

@@ -1,0 +1,116 @@
+"""Surface textures: albedo in [0, 1] as a function of a surface's local (x, y) coordinates in mm.
+
+Textures are evaluated analytically at each ray's exact hit point (anti-aliasing comes from the
+renderer's supersampling). Image textures are sampled bilinearly and stretched over the object's
+``size_mm`` (rectangles) or its local bounding square.
+"""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Uniform:
+    albedo: float = 0.8
+
+    def __call__(self, xy_mm: np.ndarray) -> np.ndarray:
+        return np.full(len(xy_mm), self.albedo)
+
+
+@dataclass(frozen=True)
+class Checker:
+    """Squares of ``square_mm``; the square at the origin's +x/+y corner is ``high``."""
+
+    square_mm: float = 20.0
+    low: float = 0.1
+    high: float = 0.9
+
+    def __call__(self, xy_mm):
+        k = np.floor(xy_mm[:, 0] / self.square_mm) + np.floor(xy_mm[:, 1] / self.square_mm)
+        return np.where(k % 2 == 0, self.high, self.low)
+
+
+@functools.lru_cache(maxsize=16)
+def _lattice(seed: int) -> np.ndarray:
+    """A seeded random lattice, 1024 x 1024 values in [0, 1), repeated periodically."""
+    return np.random.default_rng(seed).random((1024, 1024))
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Smooth value noise between low and high: smoothstep-bilinear interpolation of a seeded random
+    lattice of pitch ``scale_mm`` (period 1024 pitches)."""
+
+    scale_mm: float = 10.0
+    seed: int = 0
+    low: float = 0.1
+    high: float = 0.9
+
+    def __call__(self, xy_mm):
+        g = xy_mm / self.scale_mm
+        i = np.floor(g)
+        f = g - i
+        f = f * f * (3 - 2 * f)  # smoothstep: continuous slope across lattice cells
+        i = i.astype(np.int64) & 1023
+        ix, iy = i[:, 0], i[:, 1]
+        ix1, iy1 = (ix + 1) & 1023, (iy + 1) & 1023
+        lat = _lattice(self.seed)
+        fx, fy = f[:, 0], f[:, 1]
+        top = lat[iy, ix] * (1 - fx) + lat[iy, ix1] * fx
+        bot = lat[iy1, ix] * (1 - fx) + lat[iy1, ix1] * fx
+        return self.low + (self.high - self.low) * (top * (1 - fy) + bot * fy)
+
+
+@dataclass(frozen=True)
+class Circles:
+    """A row of ``count`` discs of ``diameter_mm``, centres ``spacing_mm`` apart along local x and centred
+    on the origin, colour ``low``, on a ground of ``high`` (the paper's Fig. 9 pattern: 5 x 10 mm, 20 mm)."""
+
+    diameter_mm: float = 10.0
+    spacing_mm: float = 20.0
+    count: int = 5
+    low: float = 0.05
+    high: float = 0.9
+
+    def centres_mm(self) -> np.ndarray:
+        """Circle centres in local coordinates, shape (count, 2), mm."""
+        x = (np.arange(self.count) - (self.count - 1) / 2) * self.spacing_mm
+        return np.column_stack([x, np.zeros(self.count)])
+
+    def __call__(self, xy_mm):
+        r2 = (self.diameter_mm / 2) ** 2
+        inside = np.zeros(len(xy_mm), dtype=bool)
+        for cx, cy in self.centres_mm():
+            inside |= (xy_mm[:, 0] - cx) ** 2 + (xy_mm[:, 1] - cy) ** 2 <= r2
+        return np.where(inside, self.low, self.high)
+
+
+@dataclass(frozen=True, eq=False)
+class ImageTexture:
+    """A grey image (H, W) in [0, 1] stretched over ``size_mm`` (width, height) centred on the origin.
+    Image row 0 is at local -y/2 (top, toward smaller image rows when the object faces the camera)."""
+
+    image: np.ndarray
+    size_mm: tuple[float, float]
+    path: str = ""
+
+    def __call__(self, xy_mm):
+        h, w = self.image.shape
+        u = (xy_mm[:, 0] / self.size_mm[0] + 0.5) * w - 0.5
+        v = (xy_mm[:, 1] / self.size_mm[1] + 0.5) * h - 0.5
+        u = np.clip(u, 0, w - 1)
+        v = np.clip(v, 0, h - 1)
+        u0 = np.minimum(np.floor(u).astype(int), w - 2) if w > 1 else np.zeros(len(u), int)
+        v0 = np.minimum(np.floor(v).astype(int), h - 2) if h > 1 else np.zeros(len(v), int)
+        fu, fv = u - u0, v - v0
+        im = self.image
+        u1, v1 = np.minimum(u0 + 1, w - 1), np.minimum(v0 + 1, h - 1)
+        top = im[v0, u0] * (1 - fu) + im[v0, u1] * fu
+        bot = im[v1, u0] * (1 - fu) + im[v1, u1] * fu
+        return top * (1 - fv) + bot * fv
+
+
+Texture = Uniform | Checker | Noise | Circles | ImageTexture
