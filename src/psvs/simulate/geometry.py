@@ -60,7 +60,8 @@ def _local_mesh(o: SceneObject) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(o.vertices_mm, float), np.asarray(o.faces)
 
 
-def _backdrop(scene: Scene) -> SceneObject:
+def backdrop_object(scene: Scene) -> SceneObject:
+    """The backdrop as a large rectangle facing the camera (an ordinary object)."""
     pose = Pose(np.eye(3), np.array([0.0, 0.0, scene.backdrop_z_mm]))
     return SceneObject("rectangle", pose, scene.backdrop_texture, size_mm=(2 * BACKDROP_HALF_MM,) * 2,
                        name="backdrop")
@@ -80,7 +81,7 @@ class SceneGeometry:
     """Embree scene for a :class:`Scene` plus the exact surfaces for refinement."""
 
     def __init__(self, scene: Scene):
-        self.objects = list(scene.objects) + ([_backdrop(scene)] if scene.backdrop_z_mm is not None else [])
+        self.objects = list(scene.objects) + ([backdrop_object(scene)] if scene.backdrop_z_mm is not None else [])
         tris, owner, self.world_triangles = [], [], []
         for k, o in enumerate(self.objects):
             v, f = _local_mesh(o)

@@ -1,0 +1,139 @@
+"""Scene files (TOML) -> :class:`psvs.simulate.scene.Scene`. Format: docs/scene_file.md.
+
+Lengths in mm, angles in degrees (``rotation_deg``: extrinsic x-y-z Euler angles). Texture and mesh
+files are relative to the scene file. Every error names the file, the object and the key.
+"""
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from psvs.simulate import textures as tx
+from psvs.simulate.scene import KINDS, Lighting, Pose, Scene, SceneObject
+
+_OBJECT_KEYS = {"type", "name", "position_mm", "rotation_deg", "albedo", "texture", "size_mm", "radius_mm",
+                "height_mm", "file", "scale"}
+_TEXTURES = {
+    "uniform": (tx.Uniform, {"albedo"}),
+    "checker": (tx.Checker, {"square_mm", "low", "high"}),
+    "noise": (tx.Noise, {"scale_mm", "seed", "low", "high"}),
+    "circles": (tx.Circles, {"diameter_mm", "spacing_mm", "count", "low", "high"}),
+    "image": (None, {"file", "size_mm"}),
+}
+
+
+def load_scene(path) -> Scene:
+    """Read a scene file; raise ValueError/FileNotFoundError naming the file and the problem."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"scene file not found: {path}")
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{path}: malformed TOML: {exc}") from None
+    try:
+        return scene_from_dict(data, base=path.parent, name=path.stem)
+    except (ValueError, TypeError) as exc:
+        raise type(exc)(f"{path}: {exc}") from None
+
+
+def _vec(value, n: int, where: str) -> np.ndarray:
+    if not isinstance(value, (list, tuple)) or len(value) != n or not all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        raise ValueError(f"{where} must be a list of {n} numbers, got {value!r}")
+    return np.asarray(value, dtype=float)
+
+
+def _texture(spec, where: str, base: Path, object_size) -> tx.Texture:
+    if not isinstance(spec, dict) or "type" not in spec:
+        raise ValueError(f"{where} must be a table with a 'type' ({', '.join(_TEXTURES)}), got {spec!r}")
+    kind = spec["type"]
+    if kind not in _TEXTURES:
+        raise ValueError(f"{where}: unknown texture type {kind!r} (known: {', '.join(_TEXTURES)})")
+    cls, allowed = _TEXTURES[kind]
+    params = {k: v for k, v in spec.items() if k != "type"}
+    unknown = sorted(set(params) - allowed)
+    if unknown:
+        raise ValueError(f"{where}: unknown key {unknown[0]!r} for a {kind} texture (allowed: {', '.join(sorted(allowed))})")
+    if kind != "image":
+        return cls(**params)
+    if "file" not in params:
+        raise ValueError(f"{where}: an image texture needs 'file'")
+    file = base / params["file"]
+    if not file.is_file():
+        raise FileNotFoundError(f"{where}: texture file not found: {file}")
+    img = cv2.imread(str(file), cv2.IMREAD_GRAYSCALE)
+    if img is None:
+        raise ValueError(f"{where}: cannot read image {file}")
+    size = params.get("size_mm", object_size)
+    if size is None:
+        raise ValueError(f"{where}: give size_mm for an image texture on a non-rectangular object")
+    return tx.ImageTexture(img.astype(float) / 255.0, tuple(_vec(size, 2, f"{where}.size_mm")), str(file))
+
+
+def _object(spec: dict, i: int, base: Path) -> SceneObject:
+    if not isinstance(spec, dict):
+        raise ValueError(f"objects[{i}] must be a table, got {type(spec).__name__}")
+    label = f"objects[{i}]" + (f" ({spec['name']})" if "name" in spec else "")
+    unknown = sorted(set(spec) - _OBJECT_KEYS)
+    if unknown:
+        raise ValueError(f"{label}: unknown key {unknown[0]!r}")
+    kind = spec.get("type")
+    if kind not in KINDS:
+        raise ValueError(f"{label}: unknown primitive {kind!r} (known: {', '.join(KINDS)})")
+    pose = Pose.from_euler_deg(_vec(spec.get("position_mm", [0, 0, 0]), 3, f"{label}.position_mm"),
+                               _vec(spec.get("rotation_deg", [0, 0, 0]), 3, f"{label}.rotation_deg"))
+    kw = {"name": str(spec.get("name", ""))}
+    if "size_mm" in spec:
+        n = 2 if kind == "rectangle" else 3
+        kw["size_mm"] = tuple(float(v) for v in _vec(spec["size_mm"], n, f"{label}.size_mm"))
+    for key in ("radius_mm", "height_mm"):
+        if key in spec:
+            kw[key] = spec[key]
+    if kind == "mesh":
+        if "file" not in spec:
+            raise ValueError(f"{label}: a mesh needs 'file' (STL, OBJ, PLY, ...)")
+        file = base / spec["file"]
+        if not file.is_file():
+            raise FileNotFoundError(f"{label}: mesh file not found: {file}")
+        import trimesh
+        mesh = trimesh.load(file, force="mesh")
+        kw["vertices_mm"] = np.asarray(mesh.vertices, float) * float(spec.get("scale", 1.0))
+        kw["faces"] = np.asarray(mesh.faces)
+    albedo = spec.get("albedo", 0.8)
+    texture = _texture(spec["texture"], f"{label}.texture", base, kw.get("size_mm") if kind == "rectangle" else None) \
+        if "texture" in spec else tx.Uniform(albedo)
+    try:
+        return SceneObject(kind, pose, texture, **kw)
+    except (ValueError, TypeError) as exc:
+        raise type(exc)(f"{label}: {exc}") from None
+
+
+def scene_from_dict(data: dict, base: Path = Path("."), name: str = "") -> Scene:
+    """Build a Scene from a scene file's dict; ``base`` resolves texture and mesh paths."""
+    unknown = sorted(set(data) - {"name", "lighting", "backdrop", "objects"})
+    if unknown:
+        raise ValueError(f"unknown key {unknown[0]!r} (allowed: name, lighting, backdrop, objects)")
+    objects = data.get("objects", [])
+    if not isinstance(objects, list):
+        raise ValueError("objects must be an array of tables ([[objects]])")
+    objs = tuple(_object(spec, i, base) for i, spec in enumerate(objects))
+    light = data.get("lighting", {})
+    allowed = {"ambient", "lamp", "lamp_position_mm", "reference_mm", "shadows"}
+    if set(light) - allowed:
+        raise ValueError(f"lighting: unknown key {sorted(set(light) - allowed)[0]!r}")
+    if "lamp_position_mm" in light:
+        light = dict(light, lamp_position_mm=tuple(_vec(light["lamp_position_mm"], 3, "lighting.lamp_position_mm")))
+    lighting = Lighting(**light)
+    back = data.get("backdrop")
+    z, texture = None, tx.Uniform(0.2)
+    if back is not None:
+        if set(back) - {"z_mm", "albedo", "texture"} or "z_mm" not in back:
+            raise ValueError(f"backdrop needs z_mm (and optional albedo or texture), got keys {sorted(back)}")
+        z = back["z_mm"]
+        texture = _texture(back["texture"], "backdrop.texture", base, None) if "texture" in back \
+            else tx.Uniform(back.get("albedo", 0.2))
+    return Scene(objs, lighting, z, texture, str(data.get("name", name)))

@@ -1,0 +1,154 @@
+"""Built-in scenes that reproduce the paper's images, in frame C (mm, degrees in parameters).
+
+fig5a      simple objects whose left and right views are separated (paper Fig. 5a)
+fig5b      two ashtray-like objects whose views partly overlap (Fig. 5b)
+fig6       a cluttered scene (Fig. 6)
+fig9       the accuracy pattern: 5 circles of 10 mm, 20 mm apart, on a sheet (Fig. 9), at any distance/pose
+weld_seam  two plates meeting along a curved, beveled seam (the arc-welding workpiece, issue 7)
+"""
+from __future__ import annotations
+
+import inspect
+
+import numpy as np
+
+from psvs.simulate.scene import Lighting, Pose, Scene, SceneObject
+from psvs.simulate.textures import Checker, Circles, Noise, Uniform
+
+
+def _at(x, y, z, rx=0.0, ry=0.0, rz=0.0) -> Pose:
+    return Pose.from_euler_deg([x, y, z], [rx, ry, rz])
+
+
+def fig5a(distance_mm: float = 600.0) -> Scene:
+    """A box and an upright cylinder at ~distance_mm whose left and right views do not overlap."""
+    z = distance_mm
+    objs = (
+        SceneObject("box", _at(-60, -50, z, 0, 20, 0), Noise(6, 1, 0.55, 0.85), size_mm=(60, 60, 40), name="box"),
+        SceneObject("cylinder", _at(60, 60, z + 50, 90, 0, 0), Uniform(0.75), radius_mm=25, height_mm=60,
+                    name="cylinder"),
+    )
+    return Scene(objs, Lighting(), 2 * z, Uniform(0.12), "fig5a")
+
+
+def fig5b(distance_mm: float = 700.0) -> Scene:
+    """Two ashtray-like objects (short cylinders with a dark bowl) side by side; their views overlap."""
+    z = distance_mm
+    objs = []
+    for name, x in (("ashtray_left", -45.0), ("ashtray_right", 45.0)):
+        objs.append(SceneObject("cylinder", _at(x, 0, z), Uniform(0.8), radius_mm=40, height_mm=20, name=name))
+        objs.append(SceneObject("disc", _at(x, 0, z - 10.5), Noise(3, 7, 0.2, 0.35), radius_mm=28,
+                                name=f"{name}_bowl"))
+    return Scene(tuple(objs), Lighting(), z + 500, Uniform(0.1), "fig5b")
+
+
+def fig6(seed: int = 6, count: int = 14) -> Scene:
+    """A cluttered scene: ``count`` mixed objects at 500-1000 mm with seeded poses and textures."""
+    rng = np.random.default_rng(seed)
+    objs = []
+    kinds = ("box", "cylinder", "sphere", "rectangle", "disc")
+    for i in range(count):
+        kind = kinds[i % len(kinds)]
+        z = rng.uniform(500, 1000)
+        x, y = rng.uniform(-0.3, 0.3) * z, rng.uniform(-0.2, 0.2) * z
+        rot = rng.uniform(-40, 40, 3)
+        tex = (Noise(rng.uniform(3, 12), int(rng.integers(1000)), 0.2, 0.9) if i % 3 else
+               Checker(rng.uniform(8, 20), 0.15, 0.85))
+        kw = {"box": {"size_mm": tuple(rng.uniform(30, 80, 3))}, "rectangle": {"size_mm": tuple(rng.uniform(40, 90, 2))},
+              "cylinder": {"radius_mm": rng.uniform(12, 30), "height_mm": rng.uniform(30, 80)},
+              "sphere": {"radius_mm": rng.uniform(15, 35)}, "disc": {"radius_mm": rng.uniform(15, 35)}}[kind]
+        objs.append(SceneObject(kind, _at(x, y, z, *rot), tex, name=f"{kind}_{i}", **kw))
+    return Scene(tuple(objs), Lighting(), 1400.0, Noise(40, seed, 0.05, 0.3), "fig6")
+
+
+def fig9(distance_mm: float = 600.0, tilt_x_deg: float = 0.0, tilt_y_deg: float = 0.0, x_mm: float = 0.0,
+         y_mm: float = 0.0) -> Scene:
+    """The paper's accuracy pattern: five black circles (10 mm, centres 20 mm apart) on a white sheet
+    (120 x 50 mm) at ``distance_mm``, turned by the tilts (deg), on a dark backdrop 400 mm behind."""
+    sheet = SceneObject("rectangle", _at(x_mm, y_mm, distance_mm, tilt_x_deg, tilt_y_deg, 0),
+                        Circles(10.0, 20.0, 5, 0.05, 0.9), size_mm=(120.0, 50.0), name="pattern")
+    return Scene((sheet,), Lighting(ambient=0.5, lamp=0.5, reference_mm=distance_mm), distance_mm + 400,
+                 Uniform(0.08), "fig9")
+
+
+def seam_mesh(radius_mm: float = 150.0, length_mm: float = 240.0, width_mm: float = 160.0,
+              height_amplitude_mm: float = 20.0, bevel_width_mm: float = 6.0, bevel_depth_mm: float = 3.0,
+              gap: tuple[float, float] | None = None, steps: int = 480):
+    """Two plates meeting along a curved V-groove seam, as (vertices (V, 3) mm, plate faces, groove faces)
+    in a local frame whose x runs along the seam, y across it and z up (toward the camera when posed).
+
+    The seam's centre line is y(x) = R - sqrt(R^2 - x^2) (curvature radius R), its height varies as
+    A sin(pi x / L); across the seam the surface drops linearly by ``bevel_depth_mm`` within
+    ``bevel_width_mm`` of the centre line (a V-groove). ``gap`` = (x0, x1) fills the groove over that
+    stretch (the seam disappears there: a gap in the seam).
+    """
+    xs = np.linspace(-length_mm / 2, length_mm / 2, steps)
+    w = np.concatenate([np.linspace(-width_mm / 2, -bevel_width_mm, 8)[:-1],
+                        np.linspace(-bevel_width_mm, bevel_width_mm, 9),
+                        np.linspace(bevel_width_mm, width_mm / 2, 8)[1:]])
+    X, W = np.meshgrid(xs, w, indexing="ij")
+    centre_y = radius_mm - np.sqrt(radius_mm ** 2 - X ** 2)
+    height = height_amplitude_mm * np.sin(np.pi * X / length_mm)
+    filled = np.zeros_like(X, dtype=bool) if gap is None else (X >= gap[0]) & (X <= gap[1])
+    groove = np.where(filled, 0.0, bevel_depth_mm * np.clip(1 - np.abs(W) / bevel_width_mm, 0, None))
+    V = np.stack([X, centre_y + W, height - groove], axis=-1).reshape(-1, 3)
+    nx, nw = X.shape
+    i, j = np.meshgrid(np.arange(nx - 1), np.arange(nw - 1), indexing="ij")
+    a = (i * nw + j).ravel()
+    b, c, d = a + nw, a + nw + 1, a + 1
+    F = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
+    cell_in_groove = ((np.abs(W[:-1, :-1] + W[1:, 1:]) / 2 < bevel_width_mm) & ~(filled[:-1, :-1] & filled[1:, 1:])).ravel()
+    in_groove = np.concatenate([cell_in_groove, cell_in_groove])
+    return V, F[~in_groove], F[in_groove]
+
+
+def seam_centre_line(x_mm: np.ndarray, radius_mm: float = 150.0, length_mm: float = 240.0,
+                     height_amplitude_mm: float = 20.0, bevel_depth_mm: float = 3.0) -> np.ndarray:
+    """The true seam (groove bottom) in the workpiece's local frame, (N, 3) mm, for local x positions."""
+    x = np.asarray(x_mm, dtype=float)
+    return np.stack([x, radius_mm - np.sqrt(radius_mm ** 2 - x ** 2),
+                     height_amplitude_mm * np.sin(np.pi * x / length_mm) - bevel_depth_mm], axis=-1)
+
+
+def weld_seam(distance_mm: float = 450.0, radius_mm: float = 150.0, height_amplitude_mm: float = 20.0,
+              gap_start_mm: float | None = None, gap_length_mm: float = 0.0) -> Scene:
+    """Two plates meeting along a curved beveled seam, facing the camera at ``distance_mm`` (the workpiece's
+    local z points toward the camera, so its heights move toward the rig)."""
+    gap = None if gap_start_mm is None else (gap_start_mm, gap_start_mm + gap_length_mm)
+    V, plates, groove = seam_mesh(radius_mm=radius_mm, height_amplitude_mm=height_amplitude_mm, gap=gap)
+    pose = _at(0.0, -radius_mm / 4, distance_mm, 180.0, 0.0, 0.0)  # local z toward the camera
+    objs = (SceneObject("mesh", pose, Noise(4, 11, 0.45, 0.7), vertices_mm=V, faces=plates, name="plates"),
+            SceneObject("mesh", pose, Noise(2, 12, 0.08, 0.18), vertices_mm=V, faces=groove, name="seam groove"))
+    return Scene(objs, Lighting(ambient=0.25, lamp=0.75, reference_mm=distance_mm), distance_mm + 300,
+                 Uniform(0.05), "weld_seam")
+
+
+BUILTINS = {"fig5a": fig5a, "fig5b": fig5b, "fig6": fig6, "fig9": fig9, "weld_seam": weld_seam}
+
+
+def describe() -> list[tuple[str, str, str]]:
+    """(name, one-line description, parameters with defaults) of every built-in scene."""
+    out = []
+    for name, fn in BUILTINS.items():
+        params = ", ".join(f"{p.name}={p.default}" for p in inspect.signature(fn).parameters.values())
+        out.append((name, (fn.__doc__ or "").strip().splitlines()[0], params))
+    return out
+
+
+def builtin_scene(spec: str) -> Scene:
+    """A built-in scene from ``name`` or ``name:key=value,key=value`` (e.g. ``fig9:distance_mm=800``)."""
+    name, _, args = spec.partition(":")
+    if name not in BUILTINS:
+        raise ValueError(f"unknown built-in scene {name!r} (known: {', '.join(BUILTINS)})")
+    fn = BUILTINS[name]
+    params = inspect.signature(fn).parameters
+    kwargs = {}
+    for item in filter(None, args.split(",")):
+        key, eq, value = item.partition("=")
+        if not eq or key not in params:
+            raise ValueError(f"{name}: unknown parameter {key!r} (known: {', '.join(params)})")
+        try:
+            kwargs[key] = type(params[key].default)(value) if params[key].default is not None else float(value)
+        except ValueError:
+            raise ValueError(f"{name}: {key} must be a number, got {value!r}") from None
+    return fn(**kwargs)
