@@ -23,7 +23,7 @@ def run(capsys, *argv):
     return code, out.out, out.err
 
 
-@pytest.mark.parametrize("cmd", ["demo", "design", "triangulate", "fit-refraction"])
+@pytest.mark.parametrize("cmd", ["demo", "design", "triangulate", "fit-refraction", "simulate"])
 def test_help(capsys, cmd):
     with pytest.raises(SystemExit) as info:
         main([cmd, "--help"])

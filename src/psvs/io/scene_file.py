@@ -36,7 +36,7 @@ def load_scene(path) -> Scene:
         raise ValueError(f"{path}: malformed TOML: {exc}") from None
     try:
         return scene_from_dict(data, base=path.parent, name=path.stem)
-    except (ValueError, TypeError) as exc:
+    except (ValueError, TypeError, FileNotFoundError) as exc:
         raise type(exc)(f"{path}: {exc}") from None
 
 

@@ -11,10 +11,21 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from psvs._validate import check_finite, check_positive
+
+
+def _check_levels(**levels):
+    for name, v in levels.items():
+        if not 0.0 <= check_finite(v, name) <= 1.0:
+            raise ValueError(f"{name} must be an albedo in [0, 1], got {v!r}")
+
 
 @dataclass(frozen=True)
 class Uniform:
     albedo: float = 0.8
+
+    def __post_init__(self):
+        _check_levels(albedo=self.albedo)
 
     def __call__(self, xy_mm: np.ndarray) -> np.ndarray:
         return np.full(len(xy_mm), self.albedo)
@@ -27,6 +38,10 @@ class Checker:
     square_mm: float = 20.0
     low: float = 0.1
     high: float = 0.9
+
+    def __post_init__(self):
+        check_positive(self.square_mm, "square_mm", "mm")
+        _check_levels(low=self.low, high=self.high)
 
     def __call__(self, xy_mm):
         k = np.floor(xy_mm[:, 0] / self.square_mm) + np.floor(xy_mm[:, 1] / self.square_mm)
@@ -48,6 +63,12 @@ class Noise:
     seed: int = 0
     low: float = 0.1
     high: float = 0.9
+
+    def __post_init__(self):
+        check_positive(self.scale_mm, "scale_mm", "mm")
+        if not isinstance(self.seed, int) or isinstance(self.seed, bool):
+            raise TypeError(f"seed must be an integer, got {self.seed!r}")
+        _check_levels(low=self.low, high=self.high)
 
     def __call__(self, xy_mm):
         g = xy_mm / self.scale_mm
@@ -74,6 +95,13 @@ class Circles:
     count: int = 5
     low: float = 0.05
     high: float = 0.9
+
+    def __post_init__(self):
+        check_positive(self.diameter_mm, "diameter_mm", "mm")
+        check_positive(self.spacing_mm, "spacing_mm", "mm")
+        if not isinstance(self.count, int) or self.count < 1:
+            raise ValueError(f"count must be an integer >= 1, got {self.count!r}")
+        _check_levels(low=self.low, high=self.high)
 
     def centres_mm(self) -> np.ndarray:
         """Circle centres in local coordinates, shape (count, 2), mm."""

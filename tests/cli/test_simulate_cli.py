@@ -1,0 +1,78 @@
+import numpy as np
+import pytest
+
+from psvs.cli.main import main
+from psvs.io.images import read_grey
+from psvs.io.params import save_rig
+from tests.cli.test_cli import run
+
+
+@pytest.fixture
+def small_rig_file(tmp_path):
+    from psvs import default_rig
+    rig = default_rig().replace(pixel_pitch_mm=(0.04, 0.04), image_size_px=(160, 120), principal_point_px=(79.5, 59.5))
+    path = tmp_path / "small.toml"
+    save_rig(rig, path)
+    return str(path)
+
+
+def test_list(capsys):
+    code, out, _ = run(capsys, "simulate", "--list")
+    assert code == 0 and "fig5b" in out and "weld_seam" in out and "parameters:" in out
+
+
+def test_render_with_truth(capsys, tmp_path, small_rig_file):
+    out, truth = tmp_path / "f9.png", tmp_path / "f9.npz"
+    code, _, err = run(capsys, "simulate", "fig9:distance_mm=700", "--rig", small_rig_file, "-o", str(out),
+                       "--truth", str(truth), "--seed", "3", "--supersample", "1")
+    assert code == 0 and "160x120" in err
+    img = read_grey(out)
+    assert img.shape == (120, 160)
+    t = np.load(truth)
+    assert set(t.files) >= {"left", "right", "depth_left_mm", "disparity_left_px", "valid_left", "valid_right"}
+    assert np.nanmin(t["depth_left_mm"]) == pytest.approx(700.0, abs=20)
+
+
+def test_same_seed_same_image(capsys, tmp_path, small_rig_file):
+    paths = [tmp_path / f"{i}.png" for i in range(3)]
+    for p, seed in zip(paths, ("1", "1", "2")):
+        assert run(capsys, "simulate", "fig5a", "--rig", small_rig_file, "-o", str(p), "--seed", seed,
+                   "--supersample", "1")[0] == 0
+    a, b, c = (read_grey(p) for p in paths)
+    assert np.array_equal(a, b) and not np.array_equal(a, c)
+
+
+def test_sequence(capsys, tmp_path, small_rig_file):
+    out = tmp_path / "seq.png"
+    code, _, _ = run(capsys, "simulate", "fig5b", "--rig", small_rig_file, "-o", str(out), "--frames", "3",
+                     "--move-mm", "0,0,-20", "--supersample", "1")
+    assert code == 0
+    assert sorted(p.name for p in tmp_path.glob("seq_*.png")) == ["seq_000.png", "seq_001.png", "seq_002.png"]
+
+
+@pytest.mark.parametrize("scene_text, args, message", [
+    ('[[objects]]\ntype = "cone"\n', [], "unknown primitive 'cone'"),
+    ('[[objects]]\ntype = "rectangle"\nsize_mm = [0, 5]\nposition_mm = [0, 0, 500]\n', [], "size_mm must be > 0 mm"),
+    ('[[objects]]\ntype = "rectangle"\nsize_mm = [5, 5]\nposition_mm = [0, 0, 500]\n'
+     'texture = { type = "image", file = "gone.png" }\n', [], "texture file not found"),
+    ('[[objects]]\ntype = "rectangle"\nsize_mm = [5, 5]\nposition_mm = [0, 0, -100]\n', [], "is behind the rig"),
+    ('[[objects]]\ntype = "sphere"\nradius_mm = 5\nposition_mm = [0, 0, 500]\n', ["--supersample", "0"],
+     "supersample must be an integer >= 1"),
+    ('[[objects]]\ntype = "sphere"\nradius_mm = 5\nposition_mm = [0, 0, 500]\n', ["--move-mm", "1,2"],
+     "--move-mm must be 'dx,dy,dz'"),
+])
+def test_bad_input_exits_2_and_keeps_output(capsys, tmp_path, small_rig_file, scene_text, args, message):
+    scene = tmp_path / "scene.toml"
+    scene.write_text(scene_text)
+    out = tmp_path / "out.png"
+    out.write_bytes(b"earlier image")
+    code, _, err = run(capsys, "simulate", str(scene), "--rig", small_rig_file, "-o", str(out), *args)
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert out.read_bytes() == b"earlier image"
+
+
+def test_unknown_scene_and_missing_output(capsys):
+    code, _, err = run(capsys, "simulate", "fig99", "-o", "x.png")
+    assert code == 2 and "neither a scene file nor a built-in" in err
+    code, _, err = run(capsys, "simulate", "fig5a")
+    assert code == 2 and "give a SCENE and -o OUT.png" in err
