@@ -5,7 +5,7 @@
 
 Each bench module defines ``cases()`` returning a list of ``(name, setup_result_fn, target_s)`` where
 calling ``setup_result_fn()`` returns the zero-argument function to time. The best of 5 runs counts.
-Benchmarks are single-threaded (BLAS/OpenMP pinned to one thread) unless the case says otherwise.
+BLAS/OpenMP are pinned to one thread; the render group uses its own thread pool (both cores).
 """
 from __future__ import annotations
 
@@ -65,7 +65,8 @@ def main(argv: list[str]) -> int:
             rows.append((path.stem.removeprefix("bench_"), name, t, target, ok))
             print(f"{name:<55} {t * 1e3:10.1f} ms  (target {target * 1e3:.0f} ms: {ok})", flush=True)
     lines = ["# Benchmarks", "",
-             "Written by `python3 dev.py bench` (bench/run.py); best of 5 runs, one thread.", "",
+             "Written by `python3 dev.py bench` (bench/run.py); best of 5 runs. Triangulation and projection run on",
+             "one thread; rendering uses both cores (its own thread pool).", "",
              f"- Date: {datetime.date.today().isoformat()}", f"- Machine: {machine()}", "",
              "| group | case | time (ms) | target (ms) | met |", "|---|---|---:|---:|---|"]
     lines += [f"| {g} | {n} | {t * 1e3:.1f} | {tg * 1e3:.0f} | {ok} |" for g, n, t, tg, ok in rows]

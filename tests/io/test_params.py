@@ -16,7 +16,8 @@ def test_example_file_is_the_default_rig():
 
 @pytest.mark.parametrize("suffix", [".toml", ".json"])
 def test_round_trip_with_extents_and_overrides(tmp_path, suffix):
-    rig = default_rig().replace(angle_rad=math.radians(40), refraction_l_mm=1.9, refraction_m_mm=1.02)
+    rig = default_rig().replace(angle_rad=math.radians(40), refraction_l_mm=1.9, refraction_m_mm=1.02,
+                                distortion_k=(-0.2, 0.05))
     rig = rig.with_extents({"m2": MirrorExtent((-12.5, 26.25), (-13.0, 13.0))})
     path = tmp_path / f"rig{suffix}"
     save_rig(rig, path)
@@ -52,6 +53,8 @@ BASE = EXAMPLE.read_text()
     (lambda t: t + "\n[mirrors.m5]\nalong_mm = [0, 1]\n", r"unknown key mirrors\.m5"),
     (lambda t: t + "\n[mirrors.m1]\nalong_mm = [2, 1]\nheight_mm = [-1, 1]\n", r"mirrors\.m1\.along_mm must be \(min, max\)"),
     (lambda t: t + "\n[lens]\nk1 = 0\n", r"unknown table \[lens\]"),
+    (lambda t: t.replace("principal_point_px = [319.5, 239.5]", "distortion_k = [0.1]"),
+     r"camera\.distortion_k must be a list of two numbers"),
     (lambda t: t.replace("[camera]", "[camera"), r"malformed TOML"),
 ])
 def test_bad_files_name_the_problem(tmp_path, edit, message):

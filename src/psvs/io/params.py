@@ -2,7 +2,7 @@
 
 Format (docs/rig_file.md). Required: ``[camera] focal_length_mm, pixel_pitch_mm, image_size_px`` and
 ``[mirrors] baseline_mm, m1_axis_distance_mm, m2_axis_distance_mm, plate_thickness_mm, refractive_index``.
-Optional: ``principal_point_px`` (image centre), ``angle_deg`` (45), ``split_ratio`` (0.5),
+Optional: ``principal_point_px`` (image centre), ``distortion_k`` ([0, 0]), ``angle_deg`` (45), ``split_ratio`` (0.5),
 ``refraction_l_mm`` / ``refraction_m_mm`` (derived from d, n, omega_1), and per-mirror extents
 ``[mirrors.m1]`` .. ``[mirrors.m4]`` with ``along_mm = [min, max]`` and ``height_mm = [min, max]``
 (unbounded when absent). Unknown keys are errors: a misspelt key must not fall back to a default.
@@ -19,7 +19,7 @@ from psvs.io.toml_out import dumps_toml
 from psvs.optics.rig import MIRROR_NAMES, Camera, MirrorExtent, Mirrors, Rig
 
 _CAMERA_REQUIRED = ("focal_length_mm", "pixel_pitch_mm", "image_size_px")
-_CAMERA_OPTIONAL = ("principal_point_px",)
+_CAMERA_OPTIONAL = ("principal_point_px", "distortion_k")
 _MIRRORS_REQUIRED = ("baseline_mm", "m1_axis_distance_mm", "m2_axis_distance_mm",
                      "plate_thickness_mm", "refractive_index")
 _MIRRORS_OPTIONAL = ("angle_deg", "split_ratio", "refraction_l_mm", "refraction_m_mm")
@@ -87,7 +87,8 @@ def rig_from_dict(data: dict) -> Rig:
         cpp = (0.0, 0.0)  # Camera() rejects the size with its own message
     camera = _build(Camera, "camera", focal_length_mm=cam_t["focal_length_mm"],
                     pixel_pitch_mm=_pair(cam_t["pixel_pitch_mm"], "camera.pixel_pitch_mm"),
-                    image_size_px=size, principal_point_px=cpp)
+                    image_size_px=size, principal_point_px=cpp,
+                    distortion_k=_pair(cam_t.get("distortion_k", [0.0, 0.0]), "camera.distortion_k"))
 
     kwargs = {k: scalars[k] for k in _MIRRORS_REQUIRED}
     for k in ("split_ratio", "refraction_l_mm", "refraction_m_mm"):
@@ -144,6 +145,7 @@ def rig_to_dict(rig: Rig) -> dict:
             "pixel_pitch_mm": list(c.pixel_pitch_mm),
             "image_size_px": list(c.image_size_px),
             "principal_point_px": list(c.principal_point_px),
+            **({"distortion_k": list(c.distortion_k)} if c.distorted else {}),
         },
         "mirrors": mirrors,
     }

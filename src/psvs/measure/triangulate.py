@@ -19,7 +19,7 @@ from psvs._validate import check_points, check_same_length
 from psvs.measure.equations import x_eq13, y_eq14, z_eq12, z_eq15
 from psvs.optics.plate import refraction_terms
 from psvs.optics.rig import Rig
-from psvs.optics.trace import sensor_from_pixels, trace_pixels
+from psvs.optics.trace import ideal_sensor_from_pixels, trace_pixels
 
 MODELS = ("paper", "refraction", "exact")
 
@@ -65,10 +65,14 @@ def triangulate(left_px, right_px, rig: Rig, model: str = "refraction") -> Trian
         return _triangulate_exact(left, right, rig)
     cam, m = rig.camera, rig.mirrors
     f, b, zv = cam.focal_length_mm, m.baseline_mm, rig.virtual_z_mm
-    (cx, cy), (px, py) = cam.principal_point_px, cam.pixel_pitch_mm
-    xl = (left[:, 0] - cx) * px
-    xr = (right[:, 0] - cx) * px
-    yr = (right[:, 1] - cy) * py
+    if cam.distorted:
+        xl = ideal_sensor_from_pixels(left, cam)[:, 0]
+        xr, yr = ideal_sensor_from_pixels(right, cam).T
+    else:  # the fast path: eqs. (12)-(17) on raw columns
+        (cx, cy), (px, py) = cam.principal_point_px, cam.pixel_pitch_mm
+        xl = (left[:, 0] - cx) * px
+        xr = (right[:, 0] - cx) * px
+        yr = (right[:, 1] - cy) * py
     if model == "paper":
         z = z_eq12(xl, xr, f, b, zv)
     else:
@@ -125,8 +129,8 @@ def fit_refraction_terms(left_px, right_px, points_mm, rig: Rig) -> tuple[float,
     check_same_length(left, pts, "left_px", "points_mm")
     cam, m = rig.camera, rig.mirrors
     f, b = cam.focal_length_mm, m.baseline_mm
-    xl = sensor_from_pixels(left, cam)[:, 0]
-    xr = sensor_from_pixels(right, cam)[:, 0]
+    xl = ideal_sensor_from_pixels(left, cam)[:, 0]
+    xr = ideal_sensor_from_pixels(right, cam)[:, 0]
     disp = xl - xr
     ok = np.isfinite(disp) & (disp > 0) & np.isfinite(pts[:, 2])
     if ok.sum() < 2:

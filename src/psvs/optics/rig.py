@@ -23,13 +23,15 @@ class Camera:
     """The real camera: a pinhole with square-or-not pixels.
 
     Sensor coordinates (mm) of pixel (u, v): ``x = (u - cx) * pitch_x``, ``y = (v - cy) * pitch_y``;
-    pixel centres sit at integer (u, v).
+    pixel centres sit at integer (u, v). Optional radial lens distortion (Brown, as OpenCV's k1, k2): an
+    ideal ray (x_n, y_n) = (x/f, y/f) lands at (x_n, y_n) (1 + k1 r^2 + k2 r^4), r^2 = x_n^2 + y_n^2.
     """
 
     focal_length_mm: float = 11.3
     pixel_pitch_mm: tuple[float, float] = (0.01, 0.01)      # x, y
     image_size_px: tuple[int, int] = (640, 480)              # width, height
     principal_point_px: tuple[float, float] = (319.5, 239.5)  # cx, cy
+    distortion_k: tuple[float, float] = (0.0, 0.0)           # k1, k2 (dimensionless)
 
     def __post_init__(self):
         check_positive(self.focal_length_mm, "focal_length_mm", "mm")
@@ -41,9 +43,14 @@ class Camera:
                 or not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in size)):
             raise ValueError(f"image_size_px must be two positive integers (width, height), got {size!r}")
         check_pair(self.principal_point_px, "principal_point_px")
+        object.__setattr__(self, "distortion_k", check_pair(self.distortion_k, "distortion_k"))
         object.__setattr__(self, "pixel_pitch_mm", (px, py))
         object.__setattr__(self, "image_size_px", (int(size[0]), int(size[1])))
         object.__setattr__(self, "principal_point_px", tuple(float(c) for c in self.principal_point_px))
+
+    @property
+    def distorted(self) -> bool:
+        return self.distortion_k != (0.0, 0.0)
 
     @property
     def half_fov_rad(self) -> tuple[float, float]:

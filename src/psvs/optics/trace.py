@@ -40,9 +40,33 @@ def pixels_from_sensor(xy_mm: np.ndarray, camera: Camera) -> np.ndarray:
     return xy_mm / np.asarray(camera.pixel_pitch_mm) + np.asarray(camera.principal_point_px)
 
 
+def distort(xn: np.ndarray, k: tuple[float, float]) -> np.ndarray:
+    """Radial distortion of normalised image coordinates (N, 2): x_d = x_n (1 + k1 r^2 + k2 r^4)."""
+    r2 = np.einsum("ij,ij->i", xn, xn)
+    return xn * (1.0 + k[0] * r2 + k[1] * r2 * r2)[:, None]
+
+
+def undistort(xd: np.ndarray, k: tuple[float, float], iterations: int = 30) -> np.ndarray:
+    """Inverse of :func:`distort` by fixed-point iteration (converges for the moderate k of real lenses)."""
+    xn = xd.copy()
+    for _ in range(iterations):
+        r2 = np.einsum("ij,ij->i", xn, xn)
+        xn = xd / (1.0 + k[0] * r2 + k[1] * r2 * r2)[:, None]
+    return xn
+
+
+def ideal_sensor_from_pixels(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
+    """Distortion-free sensor coordinates (N, 2), mm, of pixels (N, 2): what eqs. (9)-(17) call x, y."""
+    xy = sensor_from_pixels(uv_px, camera)
+    if not camera.distorted:
+        return xy
+    f = camera.focal_length_mm
+    return undistort(xy / f, camera.distortion_k) * f
+
+
 def camera_dirs(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
     """Unit directions (N, 3) in frame C of the real camera's rays through pixels (N, 2) px."""
-    xy = sensor_from_pixels(uv_px, camera)
+    xy = ideal_sensor_from_pixels(uv_px, camera)
     d = np.empty((len(xy), 3))
     d[:, :2] = xy
     d[:, 2] = camera.focal_length_mm
@@ -50,11 +74,14 @@ def camera_dirs(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
 
 
 def pixels_from_camera_dirs(dirs: np.ndarray, camera: Camera) -> np.ndarray:
-    """Pixels (N, 2) px hit by camera rays of directions (N, 3); NaN where d_z <= 0."""
+    """Pixels (N, 2) px hit by camera rays of directions (N, 3) (through the lens's distortion);
+    NaN where d_z <= 0."""
     with np.errstate(divide="ignore", invalid="ignore"):
         z = np.where(dirs[:, 2] > 0, dirs[:, 2], np.nan)
-        xy = camera.focal_length_mm * dirs[:, :2] / z[:, None]
-    return pixels_from_sensor(xy, camera)
+        xn = dirs[:, :2] / z[:, None]
+    if camera.distorted:
+        xn = distort(xn, camera.distortion_k)
+    return pixels_from_sensor(camera.focal_length_mm * xn, camera)
 
 
 def trace_rays(origins_mm: np.ndarray, dirs: np.ndarray, steps: list[tuple], hits: list | None = None) -> Rays:
