@@ -91,20 +91,20 @@ def shade(geom: SceneGeometry, scene: Scene, hits: Hits) -> np.ndarray:
     """Radiance (N,) of each hit: albedo * (ambient + lamp * max(0, n.l) (ref / r)^2 * unshadowed); 0 on a miss."""
     light = scene.lighting
     hit = hits.obj >= 0
+    all_hit = bool(hit.all())
     albedo = np.zeros(len(hits.t_mm))
     for k, sel in group_by(hits.obj):
         if k >= 0:
             albedo[sel] = geom.objects[k].texture(geom.local_xy(k, hits.points_mm[sel]))
     irr = np.full(len(albedo), light.ambient)
     if light.lamp > 0 and hit.any():
-        all_hit = bool(hit.all())
-        idx = None if all_hit else np.flatnonzero(hit)
-        p = hits.points_mm if all_hit else hits.points_mm[idx]
-        n = hits.normals if all_hit else hits.normals[idx]
+        idx = slice(None) if all_hit else np.flatnonzero(hit)
+        p, n = hits.points_mm[idx], hits.normals[idx]
         to_lamp = np.asarray(light.lamp_position_mm) - p
         r2 = np.einsum("ij,ij->i", to_lamp, to_lamp)
         r = np.sqrt(r2)
-        cos = np.einsum("ij,ij->i", n, to_lamp) / r
+        cos = np.einsum("ij,ij->i", n, to_lamp)
+        cos /= r
         lit = cos > 0
         if light.shadows and lit.any():
             li = np.flatnonzero(lit)
@@ -112,12 +112,14 @@ def shade(geom: SceneGeometry, scene: Scene, hits: Hits) -> np.ndarray:
             # start beyond the tessellated shell that circumscribes curved surfaces (< 0.01 mm thick)
             start = p[li] + SHADOW_OFFSET_MM * n[li]
             lit[li[geom.occluded(start, ldir, r[li] - 2 * SHADOW_OFFSET_MM)]] = False
-        lamp = np.where(lit, light.lamp * light.reference_mm ** 2 * cos / r2, 0.0)
-        if all_hit:
-            irr += lamp
-        else:
-            irr[idx] += lamp
-    return np.where(hit, albedo * irr, 0.0)
+        cos *= light.lamp * light.reference_mm ** 2
+        cos /= r2
+        cos[~lit] = 0.0
+        irr[idx] += cos
+    albedo *= irr
+    if not all_hit:
+        albedo[~hit] = 0.0
+    return albedo
 
 
 CHUNK_RAYS = 1 << 16  # measured best on 2 cores (docs/benchmarks.md)
@@ -133,10 +135,10 @@ def radiance(geom: SceneGeometry, scene: Scene, rays) -> np.ndarray:
         b = min(a + CHUNK_RAYS, n)
         valid = rays.valid[a:b]
         if valid.all():
-            out[a:b] = shade(geom, scene, geom.intersect(rays.origins_mm[a:b], rays.dirs[a:b]))
+            out[a:b] = shade(geom, scene, geom.intersect(rays.origins_mm[a:b], rays.dirs[a:b], refine=False))
         elif valid.any():
             ok = np.flatnonzero(valid) + a
-            out[ok] = shade(geom, scene, geom.intersect(rays.origins_mm[ok], rays.dirs[ok]))
+            out[ok] = shade(geom, scene, geom.intersect(rays.origins_mm[ok], rays.dirs[ok], refine=False))
 
     with ThreadPoolExecutor(max(1, os.cpu_count() or 1)) as ex:
         list(ex.map(one, range(0, n, CHUNK_RAYS)))
