@@ -21,6 +21,12 @@ def test_example_scene_loads_and_renders(small_rig):
     assert res.image.shape == (120, 160) and 20 < res.image.mean() < 120
 
 
+@pytest.mark.parametrize("path", sorted(SCENES.glob("*.toml")), ids=lambda p: p.name)
+def test_every_example_scene_renders(path, small_rig):
+    res = render(load_scene(path), small_rig, supersample=1, sensor=IDEAL)
+    assert res.image.mean() > 5
+
+
 def write(tmp_path, text):
     p = tmp_path / "scene.toml"
     p.write_text(text)
