@@ -1,0 +1,2 @@
+"""Image processing for the correspondence algorithm: filters, binarisation, edges, pipelines.
+Knows nothing about rigs."""

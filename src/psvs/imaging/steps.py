@@ -1,0 +1,135 @@
+"""Pipeline steps (paper III.3 step 1: "filtering, edge detection, binary conversion ... any combination of
+different filters and edge detection algorithms"), thin wrappers over OpenCV and scikit-image.
+
+Grey images are (H, W) uint8 (OpenCV's fast path; the paper's threshold 92 is a grey level); binary
+images and edge maps are (H, W) bool. Each step takes an image and keyword parameters and returns an image.
+"""
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+
+def _grey(img: np.ndarray, step: str) -> np.ndarray:
+    if img.dtype == bool:
+        return img.astype(np.uint8) * 255
+    if img.dtype != np.uint8:
+        raise ValueError(f"{step}: expected a uint8 grey or bool image, got {img.dtype}")
+    return img
+
+
+def _odd(k, name: str) -> int:
+    if not isinstance(k, int) or k < 1 or k % 2 == 0:
+        raise ValueError(f"{name} must be an odd integer >= 1, got {k!r}")
+    return k
+
+
+# --- filters: grey -> grey ---------------------------------------------------------------------------
+
+def median(img, ksize: int = 3):
+    """Median filter, ksize x ksize (the paper's filter)."""
+    return cv2.medianBlur(_grey(img, "median"), _odd(ksize, "median ksize"))
+
+
+def gaussian(img, sigma: float = 1.0):
+    """Gaussian filter of standard deviation sigma (px)."""
+    if sigma <= 0:
+        raise ValueError(f"gaussian sigma must be > 0 px, got {sigma!r}")
+    k = 2 * int(np.ceil(3 * sigma)) + 1
+    return cv2.GaussianBlur(_grey(img, "gaussian"), (k, k), sigma)
+
+
+def mean(img, ksize: int = 3):
+    """Box (mean) filter, ksize x ksize."""
+    k = _odd(ksize, "mean ksize")
+    return cv2.blur(_grey(img, "mean"), (k, k))
+
+
+def bilateral(img, diameter: int = 5, sigma_color: float = 25.0, sigma_space: float = 3.0):
+    """Edge-preserving bilateral filter (OpenCV)."""
+    return cv2.bilateralFilter(_grey(img, "bilateral"), diameter, sigma_color, sigma_space)
+
+
+# --- binarisation: grey -> bool ------------------------------------------------------------------------
+
+def threshold(img, level: int = 92, method: str = "fixed", block: int = 31, offset: float = 5.0):
+    """Binary image: ``fixed`` (grey > level; the paper uses 92), ``otsu`` or ``adaptive`` (local mean of a
+    block x block window minus offset)."""
+    g = _grey(img, "threshold")
+    if method == "fixed":
+        if not 0 <= level <= 255:
+            raise ValueError(f"threshold level must be a grey level 0-255, got {level!r}")
+        return g > level
+    if method == "otsu":
+        _, b = cv2.threshold(g, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+        return b > 0
+    if method == "adaptive":
+        b = cv2.adaptiveThreshold(g, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY,
+                                  _odd(block, "adaptive block"), offset)
+        return b > 0
+    raise ValueError(f"threshold method must be fixed, otsu or adaptive, got {method!r}")
+
+
+# --- edges: grey or bool -> bool -----------------------------------------------------------------------
+
+def roberts(img, level: float = 0.0):
+    """Roberts cross (the paper's detector). On a binary image it is exact and cheap: a pixel is an edge
+    when it differs from a diagonal neighbour (|G1| + |G2| > 0). On a grey image: |G1| + |G2| > level."""
+    out = np.zeros(img.shape, dtype=bool)
+    if img.dtype == bool:
+        out[:-1, :-1] = (img[:-1, :-1] ^ img[1:, 1:]) | (img[:-1, 1:] ^ img[1:, :-1])
+        return out
+    g = _grey(img, "roberts").astype(np.int16)
+    mag = np.abs(g[:-1, :-1] - g[1:, 1:]) + np.abs(g[:-1, 1:] - g[1:, :-1])
+    out[:-1, :-1] = mag > level
+    return out
+
+
+def _gradient_edges(img, kx, ky, level, step):
+    g = _grey(img, step).astype(np.float32)
+    gx = cv2.filter2D(g, cv2.CV_32F, kx)
+    gy = cv2.filter2D(g, cv2.CV_32F, ky)
+    return np.hypot(gx, gy) > level
+
+
+def sobel(img, level: float = 60.0):
+    """Sobel gradient magnitude > level."""
+    kx = np.array([[-1, 0, 1], [-2, 0, 2], [-1, 0, 1]], np.float32)
+    return _gradient_edges(img, kx, kx.T.copy(), level, "sobel")
+
+
+def prewitt(img, level: float = 50.0):
+    """Prewitt gradient magnitude > level."""
+    kx = np.array([[-1, 0, 1], [-1, 0, 1], [-1, 0, 1]], np.float32)
+    return _gradient_edges(img, kx, kx.T.copy(), level, "prewitt")
+
+
+def laplacian(img, level: float = 20.0):
+    """Zero crossings of the Laplacian whose local contrast exceeds level."""
+    lap = cv2.Laplacian(_grey(img, "laplacian").astype(np.float32), cv2.CV_32F, ksize=3)
+    out = np.zeros(lap.shape, dtype=bool)
+    for a, b in ((lap[:, :-1], lap[:, 1:]), (lap[:-1, :], lap[1:, :])):
+        cross = (np.sign(a) * np.sign(b) < 0) & (np.abs(a - b) > level)
+        if a.shape[1] != lap.shape[1]:
+            out[:, :-1] |= cross
+        else:
+            out[:-1, :] |= cross
+    return out
+
+
+def canny(img, low: float = 50.0, high: float = 120.0):
+    """Canny edges (OpenCV) with hysteresis thresholds low, high."""
+    return cv2.Canny(_grey(img, "canny"), low, high, L2gradient=True) > 0
+
+
+def thinning(img):
+    """Thin an edge map to one-pixel-wide lines (scikit-image)."""
+    from skimage.morphology import thin
+    if img.dtype != bool:
+        raise ValueError(f"thinning: expected a bool edge map, got {img.dtype}")
+    return thin(img)
+
+
+STEPS = {"median": median, "gaussian": gaussian, "mean": mean, "bilateral": bilateral, "threshold": threshold,
+         "roberts": roberts, "sobel": sobel, "prewitt": prewitt, "laplacian": laplacian, "canny": canny,
+         "thinning": thinning}
