@@ -17,7 +17,7 @@ import cv2
 import numpy as np
 
 from psvs.match.edges import EdgePixels, edge_pixels, row_votes
-from psvs.match.pairs import EdgePair, pair_rows
+from psvs.match.pairs import EdgePair, grow_pairs
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,6 +44,72 @@ def _runs(px: EdgePixels, idx: np.ndarray) -> list[np.ndarray]:
     return np.split(idx[order], cuts)
 
 
+def _candidates(px: EdgePixels, p, q, d, d_min: int, min_rows: int) -> list[dict]:
+    """Candidate twins (left component i, right component j, disparity d): every local maximum over d of
+    the agreeing rows of a component pair, with its votes (indices into p, q, d within +-1 px)."""
+    n_lab = px.n_labels
+    span = int(d.max()) - d_min + 3
+    key = (px.label[p] * n_lab + px.label[q]) * span + (d - d_min + 1)
+    order = np.argsort(key, kind="stable")
+    ks = key[order]
+    # rows per (i, j, d): distinct (key, row)
+    height = int(px.v.max()) + 1
+    uk, first = np.unique(ks, return_index=True)
+    last = np.r_[first[1:], len(ks)]
+    row_key = np.unique(ks * height + px.v[p[order]]) // height
+    rk, rcount = np.unique(row_key, return_counts=True)
+    rows = dict(zip(rk.tolist(), rcount.tolist()))
+    slices = dict(zip(uk.tolist(), zip(first.tolist(), last.tolist())))
+    # every local maximum over d of the (+-1 px smoothed) agreeing rows of a component pair is a candidate:
+    # one pair of components can hold two twins at different disparities (merged outlines)
+    smooth = {k: rows.get(k - 1, 0) + rows[k] + rows.get(k + 1, 0) for k in uk.tolist()}
+    cands = []
+    for k, score in smooth.items():
+        if score < min_rows or any(smooth.get(k + o, 0) > score for o in (-2, -1, 1, 2)) \
+                or smooth.get(k - 1, 0) == score or smooth.get(k - 2, 0) == score:
+            continue
+        pk = k // span
+        idx = np.concatenate([order[slice(*slices[kk])] for kk in (k - 1, k, k + 1) if kk in slices])
+        u, v = px.u[p[idx]], px.v[p[idx]]
+        cands.append({"i": pk // n_lab, "j": pk % n_lab, "d": int(k % span) + d_min - 1, "votes": idx,
+                      "rows": float(score), "box": (u.min(), v.min(), u.max(), v.max())})
+    return cands
+
+
+def _by_support(cands: list[dict], support_px: int):
+    """Yield candidates best first: own agreeing rows plus the rows of already *accepted* candidates near
+    it (same disparity +-2 px, boxes within ``support_px``: the same object's other edges). The caller
+    sends back True when it accepted the candidate it got."""
+    if not cands:
+        return
+    rows = np.array([c["rows"] for c in cands])
+    dd = np.array([c["d"] for c in cands])
+    box = np.array([c["box"] for c in cands], dtype=float)
+    near = ((np.abs(dd[:, None] - dd[None, :]) <= 2)
+            & (box[None, :, 0] <= box[:, None, 2] + support_px) & (box[None, :, 2] >= box[:, None, 0] - support_px)
+            & (box[None, :, 1] <= box[:, None, 3] + support_px) & (box[None, :, 3] >= box[:, None, 1] - support_px))
+    np.fill_diagonal(near, False)
+    rank = rows.copy()
+    remaining = np.ones(len(cands), dtype=bool)
+    while remaining.any():
+        k = int(np.argmax(np.where(remaining, rank, -np.inf)))
+        remaining[k] = False
+        c = cands[k]
+        c["rank"] = float(rank[k])
+        if (yield c):
+            rank += near[:, k] * rows[k]
+            yield None  # answer to send()
+
+
+def _polarity(grey: np.ndarray, px: EdgePixels, level: float) -> np.ndarray:
+    """Sign (-1, 0, +1) of the grey step along the row at each edge pixel (0: under ``level``)."""
+    if grey.shape != px.index.shape:
+        raise ValueError(f"grey must have the edge map's shape {px.index.shape}, got {grey.shape}")
+    w = grey.shape[1]
+    step = grey[px.v, np.minimum(px.u + 2, w - 1)] - grey[px.v, np.maximum(px.u - 2, 0)]
+    return np.where(np.abs(step) < level, 0, np.sign(step)).astype(np.int8)
+
+
 def _row_span(px: EdgePixels, run: np.ndarray) -> int:
     return int(px.v[run].max() - px.v[run].min() + 1)
 
@@ -56,7 +122,9 @@ class AutoMatch:
 
 
 def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_rows: int = 10,
-               min_fraction: float = 0.6, long_run_rows: int = 20, min_run: int = 4, tol_px: float = 2.0) -> AutoMatch:
+               min_fraction: float = 0.6, long_run_rows: int = 20, min_run: int = 4, tol_px: float = 2.0,
+               support_px: int = 24, standalone_rows: int = 30, grey: np.ndarray | None = None,
+               polarity_level: float = 8.0) -> AutoMatch:
     """Pair all edges of an (H, W) bool edge map with their twins.
 
     Parameters
@@ -73,6 +141,16 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
         Agreeing pixels count only in contiguous stretches spanning at least this many rows.
     tol_px : float
         Pixel pairing tolerance around the shape disparity, px.
+    grey : ndarray, shape (H, W), optional
+        The (filtered) grey image the edges came from. When given, a vote needs both pixels to step the
+        same way across the edge along the row (I(u+2) - I(u-2) of one sign; steps under
+        ``polarity_level`` grey levels match either): twins cross the same object boundary.
+    standalone_rows : int
+        Rows needed by a twin that no accepted pair nearby at the same disparity supports.
+    support_px : int
+        Candidates are ranked by their agreeing rows plus those of other candidates at the same
+        disparity (+-2 px) within this distance: the other edges of the same object (inner contours,
+        texture) back the true disparity, which settles repeated shapes (two identical objects).
 
     Returns
     -------
@@ -85,34 +163,17 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
     px = edge_pixels(edges)
     sizes = np.bincount(px.label, minlength=px.n_labels)
     p, q, d = row_votes(px, d_min, d_max)
+    if grey is not None and len(p):
+        pol = _polarity(np.asarray(grey, dtype=np.float64), px, polarity_level)
+        ok = (pol[p] == pol[q]) | (pol[p] == 0) | (pol[q] == 0)
+        p, q, d = p[ok], q[ok], d[ok]
     pairs: list[EdgePair] = []
-    used = np.zeros(px.n_labels, dtype=bool)
+    free = np.ones(len(px.u), dtype=bool)                    # pixels not yet in any pair
     if len(p):
-        lp, lq = px.label[p], px.label[q]
-        span = int(d_max - d_min) + 3
-        # count *rows* agreeing per (left component, right component, disparity), then +-1 px smoothing:
-        # a near-horizontal stretch holds many pixels in one row and agrees at any disparity
-        key = (lp * px.n_labels + lq) * span + (d - int(d_min) + 1)
-        height = int(px.v.max()) + 1
-        rows = np.unique(key * height + px.v[p])
-        uk, cnt = np.unique(rows // height, return_counts=True)
-        pair_key, dd = uk // span, uk % span
-        smooth = cnt.astype(float)
-        for off in (-1, 1):
-            nb = np.searchsorted(uk, uk + off)
-            ok = (nb < len(uk)) & (uk[np.minimum(nb, len(uk) - 1)] == uk + off) & ((dd + off) >= 0)
-            smooth[ok] += cnt[nb[ok]]
-        order = np.lexsort((-smooth, pair_key))
-        first = np.r_[True, pair_key[order][1:] != pair_key[order][:-1]]
-        best = order[first]                                  # best disparity per component pair
-        cand_i, cand_j = pair_key[best] // px.n_labels, pair_key[best] % px.n_labels
-        cand_d = dd[best] + int(d_min) - 1
-        free = np.ones(len(px.u), dtype=bool)            # pixels not yet in any pair
-        for k in np.argsort(-smooth[best], kind="stable"):
-            i, j, ds = int(cand_i[k]), int(cand_j[k]), int(cand_d[k])
-            if smooth[best][k] < min_rows:
-                break
-            sel = (lp == i) & (lq == j) & (np.abs(d - ds) <= 1) & free[p] & free[q]
+        order = _by_support(_candidates(px, p, q, d, int(d_min), min_rows), support_px)
+        for c in order:
+            i, j, ds, sel = c["i"], c["j"], c["d"], c["votes"]
+            sel = sel[free[p[sel]] & free[q[sel]]]
             runs = _runs(px, np.unique(p[sel]))
             long_runs = [r for r in runs if _row_span(px, r) >= min_run]
             kept = np.concatenate(long_runs) if long_runs else np.zeros(0, int)
@@ -122,11 +183,17 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             rows_j = np.unique(px.v[free & (px.label == j)]).size
             # a merged outline (both views in one component) pairs with itself: half is left, half right
             smaller = rows_i / 2 if i == j else min(rows_i, rows_j)
-            if agree < min_rows or (agree < min_fraction * smaller and longest < long_run_rows):
+            # an edge backed by no accepted pair at its disparity nearby needs stronger evidence of its own
+            need = min_rows if c["rank"] > c["rows"] else standalone_rows
+            if agree < need or (agree < min_fraction * smaller and longest < long_run_rows):
                 continue
-            left_set = kept
-            right_set = np.setdiff1d(np.unique(q[sel & np.isin(p, kept)]), left_set)
-            li, ri = pair_rows(px, left_set, right_set, ds, tol_px)
+            # grow along both edges from the agreeing pixels (the disparity may drift along a slanted edge)
+            left_set = np.flatnonzero(free & (px.label == i))
+            right_set = np.flatnonzero(free & (px.label == j))
+            if i == j:
+                right_set = np.setdiff1d(np.unique(q[sel][np.isin(p[sel], kept)]), kept)
+                left_set = kept
+            li, ri = grow_pairs(px, np.union1d(kept, left_set), np.setdiff1d(right_set, kept), ds, tol_px)
             if len(li) < min_rows:
                 continue
             left = np.column_stack([px.u[li], px.v[li]]).astype(float)
@@ -134,13 +201,13 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             pairs.append(EdgePair(left, right, left[:, 0] - right[:, 0], i, j, float(ds)))
             free[li] = False
             free[ri] = False
-            used[i] = used[j] = True
+            order.send(True)
     unmatched = []
-    paired = np.bincount(px.label[~free], minlength=px.n_labels) if len(p) else np.zeros(px.n_labels, int)
+    paired = np.bincount(px.label[~free], minlength=px.n_labels)
     for lab in range(px.n_labels):
         if paired[lab] >= 0.5 * sizes[lab]:
             continue  # mostly paired; stray pixels of a paired edge are not an unmatched edge
-        sel = (px.label == lab) & (free if len(p) else True)
+        sel = (px.label == lab) & free
         u, v = px.u[sel], px.v[sel]
         unmatched.append(Unmatched(int(lab), int(sel.sum()), (int(u.min()), int(v.min()), int(u.max()), int(v.max()))))
     return AutoMatch(pairs, unmatched, px)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
 
@@ -36,29 +37,75 @@ class EdgePair:
         return float(np.nanmedian(self.points_mm[:, 2])) if self.points_mm is not None else float("nan")
 
 
-def pair_rows(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, tol_px: float = 2.0):
-    """Pair each left edge pixel with the right edge pixel of its row closest to u - d_star (within tol).
+def pair_rows(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star, tol_px: float = 2.0):
+    """Pair each left edge pixel with the right edge pixel of its row closest to u - d (within tol).
 
-    ``left_idx`` / ``right_idx`` index ``px`` (EdgePixels). Each right pixel is used at most once.
-    Returns (left indices, right indices) of the pairs, row by row.
+    ``left_idx`` / ``right_idx`` index ``px`` (EdgePixels); ``d_star`` is one disparity or one per left
+    pixel. Each right pixel is used at most once (the closer left pixel wins). Returns (left indices,
+    right indices) of the pairs, in row-major order.
     """
-    lp, rp = [], []
-    rv = px.v[right_idx]
-    order = np.argsort(rv, kind="stable")
-    right_sorted, rv_sorted = right_idx[order], rv[order]
-    for v in np.unique(px.v[left_idx]):
-        ls = left_idx[px.v[left_idx] == v]
-        a, b = np.searchsorted(rv_sorted, v), np.searchsorted(rv_sorted, v, side="right")
-        rs = right_sorted[a:b]
-        if len(rs) == 0:
-            continue
-        cost = np.abs((px.u[ls][:, None] - d_star) - px.u[rs][None, :])
-        used = np.zeros(len(rs), dtype=bool)
-        for i in np.argsort(cost.min(axis=1), kind="stable"):
-            c = np.where(used, np.inf, cost[i])
-            j = int(np.argmin(c))
-            if c[j] <= tol_px:
-                used[j] = True
-                lp.append(ls[i])
-                rp.append(rs[j])
-    return np.asarray(lp, dtype=int), np.asarray(rp, dtype=int)
+    left_idx, right_idx = np.asarray(left_idx, dtype=int), np.asarray(right_idx, dtype=int)
+    if len(left_idx) == 0 or len(right_idx) == 0:
+        return np.zeros(0, int), np.zeros(0, int)
+    width = int(px.u.max()) + 2 * int(np.ceil(np.max(np.abs(d_star)))) + 10
+    rkey = px.v[right_idx] * width + px.u[right_idx]
+    order = np.argsort(rkey)
+    rkey, right_sorted = rkey[order], right_idx[order]
+    target = px.v[left_idx] * width + (px.u[left_idx] - d_star)
+    k = np.searchsorted(rkey, target)
+    best = np.full(len(left_idx), -1)
+    cost = np.full(len(left_idx), np.inf)
+    for cand in (k - 1, k):
+        ok = (cand >= 0) & (cand < len(rkey))
+        c = np.where(ok, cand, 0)
+        same_row = ok & (rkey[c] // width == px.v[left_idx])
+        dist = np.where(same_row, np.abs(rkey[c] - target), np.inf)
+        better = dist < cost
+        best[better], cost[better] = c[better], dist[better]
+    keep = cost <= tol_px
+    if not keep.any():
+        return np.zeros(0, int), np.zeros(0, int)
+    li, ri, cost = left_idx[keep], right_sorted[best[keep]], cost[keep]
+    # each right pixel once: the closest left pixel keeps it
+    o = np.lexsort((cost, ri))
+    first = np.r_[True, ri[o][1:] != ri[o][:-1]]
+    sel = np.sort(o[first])
+    return li[sel], ri[sel]
+
+
+def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, tol_px: float = 2.0,
+               radius_px: int = 6, max_iter: int = 60):
+    """Pair along an edge whose disparity drifts (a surface at a slant): start with the pixels at
+    ``d_star`` +- tol, then give each unpaired left pixel the mean disparity of the paired left pixels
+    within ``radius_px`` along the edge and pair it at that disparity +- tol, until nothing changes.
+
+    Returns (left indices, right indices) into ``px``, like :func:`pair_rows`.
+    """
+    li, ri = pair_rows(px, left_idx, right_idx, d_star, tol_px)
+    if len(li) == 0:
+        return li, ri
+    left_idx = np.asarray(left_idx, dtype=int)
+    u, v = px.u[left_idx], px.v[left_idx]
+    u0, v0 = u.min() - radius_px, v.min() - radius_px
+    shape = (v.max() - v0 + radius_px + 1, u.max() - u0 + radius_px + 1)
+    k = 2 * radius_px + 1
+    for _ in range(max_iter):
+        dsum = np.zeros(shape, np.float32)
+        cnt = np.zeros(shape, np.float32)
+        dsum[px.v[li] - v0, px.u[li] - u0] = px.u[li] - px.u[ri]
+        cnt[px.v[li] - v0, px.u[li] - u0] = 1.0
+        dsum = cv2.boxFilter(dsum, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
+        cnt = cv2.boxFilter(cnt, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
+        todo = left_idx[~np.isin(left_idx, li)]
+        c = cnt[px.v[todo] - v0, px.u[todo] - u0]
+        todo = todo[c > 0]
+        if len(todo) == 0:
+            break
+        d_local = dsum[px.v[todo] - v0, px.u[todo] - u0] / cnt[px.v[todo] - v0, px.u[todo] - u0]
+        free_r = np.setdiff1d(right_idx, ri)
+        nl, nr = pair_rows(px, todo, free_r, d_local, tol_px)
+        if len(nl) == 0:
+            break
+        li, ri = np.concatenate([li, nl]), np.concatenate([ri, nr])
+    order = np.lexsort((px.u[li], px.v[li]))
+    return li[order], ri[order]

@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 
 from psvs.match.edges import edge_pixels, row_votes
-from psvs.match.pairs import EdgePair, pair_rows
+from psvs.match.pairs import EdgePair, grow_pairs
 
 
 def match_seeded(edges: np.ndarray, seed_px, disparity_range_px: tuple[float, float], n_seeds: int = 10,
@@ -17,7 +17,7 @@ def match_seeded(edges: np.ndarray, seed_px, disparity_range_px: tuple[float, fl
     number of them (the shape match) picks the ``n_seeds`` seeds (2-100) on the corresponding edge,
     spread along it; (5-7) the corresponding edge grows from the seeds through ``connectivity``-neighbours
     (4 in the paper) over edge pixels; (8) each selected pixel is paired with the grown edge's pixel on
-    its row nearest to the shape disparity.
+    its row nearest to the shape disparity, and the pairing follows the edge where its disparity drifts.
 
     Parameters
     ----------
@@ -57,7 +57,7 @@ def match_seeded(edges: np.ndarray, seed_px, disparity_range_px: tuple[float, fl
     seeds = cand_q[order][np.linspace(0, len(cand_q) - 1, min(n_seeds, len(cand_q))).astype(int)]
     grown = _grow(edges & ~_mask(px, selected, edges.shape), px, seeds, connectivity)
     right_idx = np.flatnonzero(grown[px.v, px.u])
-    li, ri = pair_rows(px, np.flatnonzero(selected), right_idx, d_star)
+    li, ri = grow_pairs(px, np.flatnonzero(selected), right_idx, d_star)
     if len(li) == 0:
         return _empty(lab)
     left = np.column_stack([px.u[li], px.v[li]]).astype(float)

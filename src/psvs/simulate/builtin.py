@@ -39,12 +39,16 @@ def fig5a(distance_mm: float = 600.0) -> Scene:
 
 
 def fig5b(distance_mm: float = 700.0) -> Scene:
-    """Two ashtray-like objects (short cylinders with a dark bowl) side by side; their views overlap."""
+    """Two ashtray-like objects (short cylinders with a dark bowl) side by side; their views overlap.
+
+    The two differ in size and depth: with two *identical* objects whose views overlap, swapping which
+    copy belongs to which view gives the very same complex image, and no method can tell them apart.
+    """
     z = distance_mm
     objs = []
-    for name, x in (("ashtray_left", -45.0), ("ashtray_right", 45.0)):
-        objs.append(SceneObject("cylinder", _at(x, 0, z), Uniform(0.9), radius_mm=40, height_mm=20, name=name))
-        objs.append(SceneObject("disc", _at(x, 0, z - 10.5), Noise(3, 7, 0.1, 0.25), radius_mm=28,
+    for name, x, dz, r, r_bowl in (("ashtray_left", -45.0, 0.0, 40.0, 27.0), ("ashtray_right", 42.0, 30.0, 32.0, 19.0)):
+        objs.append(SceneObject("cylinder", _at(x, 0, z + dz), Uniform(0.9), radius_mm=r, height_mm=20, name=name))
+        objs.append(SceneObject("disc", _at(x, 0, z + dz - 10.5), Noise(3, 7, 0.1, 0.25), radius_mm=r_bowl,
                                 name=f"{name}_bowl"))
     return Scene(tuple(objs), regulated_light(z), z + 500, Uniform(0.08), "fig5b")
 

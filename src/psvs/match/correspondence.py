@@ -1,0 +1,88 @@
+"""From a complex image to matched, triangulated edges: pipeline -> match (seeded or automatic) ->
+sub-pixel refinement -> triangulation (issue 2's models, refraction-corrected by default)."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.imaging.pipeline import PAPER, Pipeline
+from psvs.match.auto import Unmatched, match_auto
+from psvs.match.pairs import EdgePair
+from psvs.match.seeded import match_seeded
+from psvs.match.subpixel import refine_pairs
+from psvs.measure.triangulate import triangulate
+from psvs.optics.design import working_range
+from psvs.optics.rig import Rig
+
+#: Extra disparity margin (px) around the working range's ideal disparities (plate shift, edge width).
+RANGE_MARGIN_PX = 4.0
+
+
+@dataclass(frozen=True, eq=False)
+class MatchResult:
+    """pairs (with points_mm), unmatched edges (automatic mode), the edge map (H, W) bool, the disparity
+    range used (px) and the pipeline's stages [(op, image)]."""
+
+    pairs: list[EdgePair]
+    unmatched: list[Unmatched]
+    edges: np.ndarray
+    disparity_range_px: tuple[float, float]
+    stages: list
+
+
+def disparity_range(rig: Rig, near_mm: float, far_mm: float) -> tuple[float, float]:
+    """Disparities (px) of the working range near..far, widened by :data:`RANGE_MARGIN_PX`."""
+    wr = working_range(rig, near_mm, far_mm)
+    return (max(1.0, wr.disparity_px[0] - RANGE_MARGIN_PX), wr.disparity_px[1] + RANGE_MARGIN_PX)
+
+
+def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline = PAPER, near_mm: float = 400.0,
+                far_mm: float = 1200.0, subpixel: bool = True, model: str = "refraction", n_seeds: int = 10,
+                min_rows: int = 10) -> MatchResult:
+    """Match edges of a complex image and triangulate them.
+
+    Parameters
+    ----------
+    grey : ndarray, shape (H, W), uint8
+        The complex image.
+    rig : Rig
+        Its size must be the image's.
+    seed_px : (u, v) or None
+        A pixel on a left-view edge: the paper's algorithm from that seed. None: automatic mode.
+    pipeline : Pipeline
+        Filters, binarisation and edge detector (default: the paper's median 3x3, threshold 92, Roberts).
+    near_mm, far_mm : float
+        Working depth range: sets the disparities searched.
+    subpixel : bool
+        Refine every matched pixel to sub-pixel on the grey image.
+    model : {'paper', 'refraction', 'exact'}
+        Triangulation model (issue 2).
+
+    Returns
+    -------
+    MatchResult
+    """
+    grey = np.asarray(grey)
+    if grey.ndim != 2 or grey.dtype != np.uint8:
+        raise ValueError(f"image must be a grey (H, W) uint8 image, got shape {grey.shape} {grey.dtype}")
+    w, h = rig.camera.image_size_px
+    if grey.shape != (h, w):
+        raise ValueError(f"image is {grey.shape[1]}x{grey.shape[0]} px but the rig's camera is {w}x{h} px")
+    if grey.max() == grey.min():
+        raise ValueError("image is blank (one grey level): nothing to match")
+    rng = disparity_range(rig, near_mm, far_mm)
+    edges, stages = pipeline.run(grey, keep=True)
+    if seed_px is not None:
+        pair = match_seeded(edges, seed_px, rng, n_seeds=n_seeds)
+        pairs, unmatched = ([pair] if len(pair) else []), []
+    else:
+        auto = match_auto(edges, rng, min_rows=min_rows, grey=grey)
+        pairs, unmatched = auto.pairs, auto.unmatched
+    out = []
+    for pair in pairs:
+        if subpixel:
+            pair = refine_pairs(grey, pair)
+        res = triangulate(pair.left_px, pair.right_px, rig, model=model)
+        out.append(pair.with_points(res.points_mm))
+    return MatchResult(out, unmatched, edges, rng, stages)

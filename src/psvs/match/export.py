@@ -1,0 +1,55 @@
+"""Write matched edges: JSON (the CLI's OUT.json), CSV (one row per pixel pair) and PLY (point cloud)."""
+from __future__ import annotations
+
+import io
+import json
+
+import numpy as np
+
+from psvs.io.atomic import write_atomic
+from psvs.match.correspondence import MatchResult
+
+
+def _clean(a: np.ndarray) -> list:
+    """Nested lists with NaN as None (JSON has no NaN)."""
+    return [None if (isinstance(x, float) and not np.isfinite(x)) else x for x in a.tolist()] if a.ndim == 1 else \
+        [_clean(row) for row in a]
+
+
+def result_to_dict(res: MatchResult) -> dict:
+    """``{"pairs": [...], "unmatched": [...], "disparity_range_px": [...]}``; px and mm."""
+    pairs = []
+    for k, p in enumerate(res.pairs):
+        pts = p.points_mm if p.points_mm is not None else np.full((len(p), 3), np.nan)
+        pairs.append({"id": k, "left_label": p.left_label, "right_label": p.right_label,
+                      "shape_disparity_px": p.shape_disparity_px, "n": len(p),
+                      "median_z_mm": p.median_z_mm() if len(p) else None,
+                      "left_px": _clean(p.left_px), "right_px": _clean(p.right_px),
+                      "disparity_px": _clean(p.disparity_px), "points_mm": _clean(pts)})
+    unmatched = [{"label": u.label, "n_pixels": u.n_pixels, "bbox_px": list(u.bbox_px)} for u in res.unmatched]
+    return {"pairs": pairs, "unmatched": unmatched, "disparity_range_px": list(res.disparity_range_px)}
+
+
+def write_json(path, res: MatchResult) -> None:
+    write_atomic(path, json.dumps(result_to_dict(res)) + "\n")
+
+
+def write_csv(path, res: MatchResult) -> None:
+    """Columns pair,u_l,v_l,u_r,v_r,disparity_px,X_mm,Y_mm,Z_mm (one row per matched pixel)."""
+    buf = io.StringIO()
+    buf.write("pair,u_l,v_l,u_r,v_r,disparity_px,X_mm,Y_mm,Z_mm\n")
+    for k, p in enumerate(res.pairs):
+        for (ul, vl), (ur, vr), d, (x, y, z) in zip(p.left_px, p.right_px, p.disparity_px, p.points_mm):
+            buf.write(f"{k},{ul:.4f},{vl:.4f},{ur:.4f},{vr:.4f},{d:.4f},{x:.4f},{y:.4f},{z:.4f}\n")
+    write_atomic(path, buf.getvalue())
+
+
+def write_ply(path, res: MatchResult) -> None:
+    """ASCII PLY of the valid 3-D points (mm) with the pair id as a vertex property."""
+    rows = []
+    for k, p in enumerate(res.pairs):
+        ok = np.all(np.isfinite(p.points_mm), axis=1)
+        rows += [f"{x:.4f} {y:.4f} {z:.4f} {k}" for x, y, z in p.points_mm[ok]]
+    head = ["ply", "format ascii 1.0", "comment psvs matched edges, frame C, mm", f"element vertex {len(rows)}",
+            "property float x", "property float y", "property float z", "property int pair", "end_header"]
+    write_atomic(path, "\n".join(head + rows) + "\n")
