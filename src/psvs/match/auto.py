@@ -163,6 +163,7 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
     px = edge_pixels(edges)
     sizes = np.bincount(px.label, minlength=px.n_labels)
     p, q, d = row_votes(px, d_min, d_max)
+    pol = None
     if grey is not None and len(p):
         pol = _polarity(np.asarray(grey, dtype=np.float64), px, polarity_level)
         ok = (pol[p] == pol[q]) | (pol[p] == 0) | (pol[q] == 0)
@@ -193,7 +194,8 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             if i == j:
                 right_set = np.setdiff1d(np.unique(q[sel][np.isin(p[sel], kept)]), kept)
                 left_set = kept
-            li, ri = grow_pairs(px, np.union1d(kept, left_set), np.setdiff1d(right_set, kept), ds, tol_px)
+            li, ri = grow_pairs(px, np.union1d(kept, left_set), np.setdiff1d(right_set, kept), ds, tol_px,
+                                polarity=pol)
             if len(li) < min_rows:
                 continue
             left = np.column_stack([px.u[li], px.v[li]]).astype(float)

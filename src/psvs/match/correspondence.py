@@ -13,6 +13,7 @@ from psvs.match.seeded import match_seeded
 from psvs.match.subpixel import refine_pairs
 from psvs.measure.triangulate import triangulate
 from psvs.optics.design import working_range
+from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
 
 #: Extra disparity margin (px) around the working range's ideal disparities (plate shift, edge width).
@@ -35,6 +36,38 @@ def disparity_range(rig: Rig, near_mm: float, far_mm: float) -> tuple[float, flo
     """Disparities (px) of the working range near..far, widened by :data:`RANGE_MARGIN_PX`."""
     wr = working_range(rig, near_mm, far_mm)
     return (max(1.0, wr.disparity_px[0] - RANGE_MARGIN_PX), wr.disparity_px[1] + RANGE_MARGIN_PX)
+
+
+def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
+    """Move each right-view point to the row where its twin really is.
+
+    The M1 plate shifts the left view's rows slightly (by up to ~0.5 px, depending on position and
+    depth), so a point's twin lies on row v_r = v_l + dv, not on the same row. Each pair is triangulated
+    exactly and its point projected into the right view to get v_r; the right point then slides along its
+    edge to that row, u_r += (du/dv) dv, with the edge direction du/dv = -g_v / g_u from the grey image's
+    gradient. Where the edge runs nearly along the row (|g_u| < |g_v| / 2), only v changes.
+    """
+    if len(pair) == 0:
+        return pair
+    pts = triangulate(pair.left_px, pair.right_px, rig, model="exact").points_mm
+    uv, ok = project_points(pts, rig, "right")
+    img = np.asarray(grey, dtype=np.float64)
+    h, w = img.shape
+    u = np.clip(np.rint(pair.right_px[:, 0]).astype(int), 1, w - 2)
+    v = np.clip(np.rint(pair.right_px[:, 1]).astype(int), 1, h - 2)
+    gu = img[v, u + 1] - img[v, u - 1]
+    gv = img[v + 1, u] - img[v - 1, u]
+    steep = np.abs(gu) >= 0.5 * np.abs(gv)
+    ok &= np.isfinite(uv[:, 1])
+    dv = np.where(ok, uv[:, 1] - pair.right_px[:, 1], 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        du = np.where(ok & steep & (gu != 0), -gv / gu * dv, 0.0)
+    right = pair.right_px.copy()
+    right[:, 0] += du
+    right[:, 1] += dv
+    left = pair.left_px
+    return EdgePair(left, right, left[:, 0] - right[:, 0], pair.left_label, pair.right_label,
+                    pair.shape_disparity_px, pair.points_mm)
 
 
 def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline = PAPER, near_mm: float = 400.0,
@@ -82,7 +115,7 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     out = []
     for pair in pairs:
         if subpixel:
-            pair = refine_pairs(grey, pair)
+            pair = correct_rows(grey, refine_pairs(grey, pair), rig)
         res = triangulate(pair.left_px, pair.right_px, rig, model=model)
         out.append(pair.with_points(res.points_mm))
     return MatchResult(out, unmatched, edges, rng, stages)

@@ -74,14 +74,23 @@ def pair_rows(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star, tol_px: f
 
 
 def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, tol_px: float = 2.0,
-               radius_px: int = 6, max_iter: int = 60):
+               radius_px: int = 6, max_iter: int = 60, polarity: np.ndarray | None = None):
     """Pair along an edge whose disparity drifts (a surface at a slant): start with the pixels at
     ``d_star`` +- tol, then give each unpaired left pixel the mean disparity of the paired left pixels
     within ``radius_px`` along the edge and pair it at that disparity +- tol, until nothing changes.
 
-    Returns (left indices, right indices) into ``px``, like :func:`pair_rows`.
+    ``polarity`` (one value per edge pixel: -1, 0, +1, the sign of the grey step along the row) rejects
+    grown pairs whose two pixels step opposite ways. Returns (left indices, right indices) into ``px``.
     """
+    def agree(a, b):
+        if polarity is None:
+            return np.ones(len(a), dtype=bool)
+        pa, pb = polarity[a], polarity[b]
+        return (pa == pb) | (pa == 0) | (pb == 0)
+
     li, ri = pair_rows(px, left_idx, right_idx, d_star, tol_px)
+    keep = agree(li, ri)
+    li, ri = li[keep], ri[keep]
     if len(li) == 0:
         return li, ri
     left_idx = np.asarray(left_idx, dtype=int)
@@ -104,6 +113,8 @@ def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, t
         d_local = dsum[px.v[todo] - v0, px.u[todo] - u0] / cnt[px.v[todo] - v0, px.u[todo] - u0]
         free_r = np.setdiff1d(right_idx, ri)
         nl, nr = pair_rows(px, todo, free_r, d_local, tol_px)
+        keep = agree(nl, nr)
+        nl, nr = nl[keep], nr[keep]
         if len(nl) == 0:
             break
         li, ri = np.concatenate([li, nl]), np.concatenate([ri, nr])
