@@ -103,8 +103,8 @@ def _by_support(cands: list[dict], support_px: int):
 
 def _polarity(grey: np.ndarray, px: EdgePixels, level: float) -> np.ndarray:
     """Sign (-1, 0, +1) of the grey step along the row at each edge pixel (0: under ``level``)."""
-    if grey.shape != px.index.shape:
-        raise ValueError(f"grey must have the edge map's shape {px.index.shape}, got {grey.shape}")
+    if grey.shape != tuple(px.shape):
+        raise ValueError(f"grey must have the edge map's shape {tuple(px.shape)}, got {grey.shape}")
     w = grey.shape[1]
     step = grey[px.v, np.minimum(px.u + 2, w - 1)] - grey[px.v, np.maximum(px.u - 2, 0)]
     return np.where(np.abs(step) < level, 0, np.sign(step)).astype(np.int8)

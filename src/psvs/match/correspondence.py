@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from psvs.imaging.pipeline import PAPER, Pipeline
@@ -102,7 +103,8 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     w, h = rig.camera.image_size_px
     if grey.shape != (h, w):
         raise ValueError(f"image is {grey.shape[1]}x{grey.shape[0]} px but the rig's camera is {w}x{h} px")
-    if grey.max() == grey.min():
+    lo, hi, _, _ = cv2.minMaxLoc(grey)
+    if lo == hi:
         raise ValueError("image is blank (one grey level): nothing to match")
     rng = disparity_range(rig, near_mm, far_mm)
     edges, stages = pipeline.run(grey, keep=True)

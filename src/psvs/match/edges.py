@@ -14,62 +14,62 @@ import numpy as np
 
 @dataclass(frozen=True, eq=False)
 class EdgePixels:
-    """The edge pixels of an edge map: u, v (N,) int, component label (N,) (8-connected, from 0) and a
-    (H, W) index image (-1 off edges)."""
+    """The edge pixels of an edge map: u, v (N,) int (row-major), component label (N,) (8-connected, from 0),
+    the map's shape (H, W) and the number of components."""
 
     u: np.ndarray
     v: np.ndarray
     label: np.ndarray
-    index: np.ndarray
+    shape: tuple
     n_labels: int
+
+
+def edge_coords(edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(u, v) int64 arrays of an (H, W) bool edge map's pixels, row-major (OpenCV's scan, ~3x np.nonzero)."""
+    pts = cv2.findNonZero(edges.view(np.uint8))
+    if pts is None:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    return pts[:, 0, 0].astype(np.int64), pts[:, 0, 1].astype(np.int64)
 
 
 def edge_pixels(edges: np.ndarray) -> EdgePixels:
     """Label an (H, W) bool edge map into 8-connected components."""
     if edges.ndim != 2 or edges.dtype != bool:
         raise ValueError(f"edges must be an (H, W) bool edge map, got {edges.shape} {edges.dtype}")
-    n, labels = cv2.connectedComponents(edges.astype(np.uint8), connectivity=8)
-    v, u = np.nonzero(edges)
-    index = np.full(edges.shape, -1, dtype=np.int64)
-    index[v, u] = np.arange(len(u))
-    return EdgePixels(u.astype(np.int64), v.astype(np.int64), labels[v, u].astype(np.int64) - 1, index, n - 1)
+    n, labels = cv2.connectedComponents(edges.view(np.uint8), connectivity=8)
+    u, v = edge_coords(edges)
+    return EdgePixels(u, v, labels[v, u].astype(np.int64) - 1, edges.shape, n - 1)
 
 
 def row_votes(px: EdgePixels, d_min: float, d_max: float, left_mask=None, right_mask=None):
     """All same-row pairs (p, q) of edge pixels with d = u_p - u_q in [d_min, d_max].
 
     ``left_mask`` / ``right_mask`` (N,) restrict which pixels may be p / q. Returns (p, q, d) arrays.
-    Pixels are in row-major order (np.nonzero), so each row is a contiguous, u-sorted run.
+    Pixels are in row-major order (np.nonzero), so the twins of p form one contiguous range of the
+    row-major keys v * W + u: found by two binary searches, expanded without Python loops.
     """
-    n = len(px.u)
+    return votes_from_coords(px.u, px.v, d_min, d_max, left_mask, right_mask)
+
+
+def votes_from_coords(u: np.ndarray, v: np.ndarray, d_min: float, d_max: float, left_mask=None, right_mask=None):
+    """:func:`row_votes` on row-major edge coordinates u, v (N,)."""
+    n = len(u)
     if n == 0:
         return np.zeros(0, int), np.zeros(0, int), np.zeros(0, int)
-    starts = np.flatnonzero(np.r_[True, px.v[1:] != px.v[:-1]])
-    ends = np.r_[starts[1:], n]
-    ps, qs = [], []
-    # pair each pixel with the pixels k places before it on its row, for growing k, while any is in range
-    row_of = np.repeat(np.arange(len(starts)), ends - starts)
-    k = 1
-    while True:
-        p = np.arange(k, n)
-        q = p - k
-        same = row_of[p] == row_of[q]
-        if not same.any():
-            break
-        p, q = p[same], q[same]
-        d = px.u[p] - px.u[q]
-        if d.min() > d_max:
-            break
-        keep = (d >= d_min) & (d <= d_max)
-        ps.append(p[keep])
-        qs.append(q[keep])
-        k += 1
-    p = np.concatenate(ps) if ps else np.zeros(0, int)
-    q = np.concatenate(qs) if qs else np.zeros(0, int)
-    keep = np.ones(len(p), dtype=bool)
-    if left_mask is not None:
-        keep &= left_mask[p]
+    width = int(u.max()) + int(d_max) + 2
+    key = v * width + u                                   # increasing (row-major order)
+    p = np.arange(n) if left_mask is None else np.flatnonzero(left_mask)
+    lo = np.searchsorted(key, key[p] - int(np.floor(d_max)), side="left")
+    hi = np.searchsorted(key, key[p] - int(np.ceil(d_min)), side="right")
+    lo = np.maximum(lo, np.searchsorted(key, v[p] * width, side="left"))   # stay on the row
+    counts = np.maximum(hi - lo, 0)
+    total = int(counts.sum())
+    if total == 0:
+        return np.zeros(0, int), np.zeros(0, int), np.zeros(0, int)
+    pp = np.repeat(p, counts)
+    start = np.repeat(lo - np.cumsum(np.r_[0, counts[:-1]]), counts)
+    qq = start + np.arange(total)
     if right_mask is not None:
-        keep &= right_mask[q]
-    p, q = p[keep], q[keep]
-    return p, q, px.u[p] - px.u[q]
+        keep = right_mask[qq]
+        pp, qq = pp[keep], qq[keep]
+    return pp, qq, u[pp] - u[qq]

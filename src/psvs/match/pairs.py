@@ -98,6 +98,10 @@ def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, t
     u0, v0 = u.min() - radius_px, v.min() - radius_px
     shape = (v.max() - v0 + radius_px + 1, u.max() - u0 + radius_px + 1)
     k = 2 * radius_px + 1
+    paired_l = np.zeros(len(px.u), dtype=bool)
+    used_r = np.zeros(len(px.u), dtype=bool)
+    paired_l[li] = True
+    used_r[ri] = True
     for _ in range(max_iter):
         dsum = np.zeros(shape, np.float32)
         cnt = np.zeros(shape, np.float32)
@@ -105,18 +109,22 @@ def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, t
         cnt[px.v[li] - v0, px.u[li] - u0] = 1.0
         dsum = cv2.boxFilter(dsum, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
         cnt = cv2.boxFilter(cnt, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
-        todo = left_idx[~np.isin(left_idx, li)]
+        todo = left_idx[~paired_l[left_idx]]
         c = cnt[px.v[todo] - v0, px.u[todo] - u0]
         todo = todo[c > 0]
         if len(todo) == 0:
             break
         d_local = dsum[px.v[todo] - v0, px.u[todo] - u0] / cnt[px.v[todo] - v0, px.u[todo] - u0]
-        free_r = np.setdiff1d(right_idx, ri)
+        free_r = right_idx[~used_r[right_idx]]
         nl, nr = pair_rows(px, todo, free_r, d_local, tol_px)
         keep = agree(nl, nr)
         nl, nr = nl[keep], nr[keep]
         if len(nl) == 0:
             break
         li, ri = np.concatenate([li, nl]), np.concatenate([ri, nr])
+        paired_l[nl] = True
+        used_r[nr] = True
+        if len(nl) < max(2, 0.01 * len(li)):
+            break  # the growth has stalled
     order = np.lexsort((px.u[li], px.v[li]))
     return li[order], ri[order]
