@@ -1,10 +1,9 @@
-"""Every CLI example in the README runs (in a scratch folder with a copy of examples/)."""
+"""Every CLI example in the README runs, in order, in one scratch folder with a copy of examples/ (a later
+example may read what an earlier one wrote, as in a shell session)."""
 import re
 import shlex
 import shutil
 from pathlib import Path
-
-import pytest
 
 from psvs.cli.main import main
 
@@ -16,16 +15,16 @@ def test_readme_has_examples():
     assert len(EXAMPLES) >= 4
 
 
-@pytest.mark.parametrize("line", EXAMPLES)
-def test_readme_example_runs(line, tmp_path, monkeypatch, capsys):
+def test_readme_examples_run_in_order(tmp_path, monkeypatch, capsys):
     shutil.copytree(ROOT / "examples", tmp_path / "examples")
     monkeypatch.chdir(tmp_path)
-    args = shlex.split(line)[1:]
-    code = main(args)
-    err = capsys.readouterr().err
-    assert "error" not in err
-    # `design` exits 1 for a blocked layout: the default rig is blocked (docs/optics.md)
-    assert code == (1 if args[0] == "design" and "default.toml" in line else 0)
-    for i, a in enumerate(args):
-        if a == "-o":
-            assert (tmp_path / args[i + 1]).stat().st_size > 0
+    for line in EXAMPLES:
+        args = shlex.split(line)[1:]
+        code = main(args)
+        err = capsys.readouterr().err
+        assert "error" not in err, (line, err)
+        # `design` exits 1 for a blocked layout: the default rig is blocked (docs/optics.md)
+        assert code == (1 if args[0] == "design" and "default.toml" in line else 0), line
+        for i, a in enumerate(args):
+            if a == "-o":
+                assert (tmp_path / args[i + 1]).stat().st_size > 0, line

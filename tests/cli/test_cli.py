@@ -23,7 +23,7 @@ def run(capsys, *argv):
     return code, out.out, out.err
 
 
-@pytest.mark.parametrize("cmd", ["demo", "design", "triangulate", "fit-refraction", "simulate"])
+@pytest.mark.parametrize("cmd", ["demo", "design", "triangulate", "fit-refraction", "simulate", "match"])
 def test_help(capsys, cmd):
     with pytest.raises(SystemExit) as info:
         main([cmd, "--help"])
@@ -117,10 +117,10 @@ def test_design_bad_margin(capsys):
     assert code == 2 and "margin_mm must be >= 0" in err
 
 
-def test_demo_runs(capsys):
-    code, out, _ = run(capsys, "demo")
+def test_demo_runs(capsys, tmp_path):
+    code, out, _ = run(capsys, "demo", "--out", str(tmp_path))
     assert code == 0
-    assert "exact ray tracing" in out and "Suggestion:" in out
+    assert "exact ray tracing" in out and "Suggestion:" in out and "edges paired" in out
 
 
 def test_fit_refraction_writes_rig(capsys, tmp_path):
