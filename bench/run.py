@@ -4,7 +4,7 @@
     python3 dev.py bench triangulate
 
 Each bench module defines ``cases()`` returning a list of ``(name, setup_result_fn, target_s)`` where
-calling ``setup_result_fn()`` returns the zero-argument function to time. Time per call: the best of 5
+calling ``setup_result_fn()`` returns the zero-argument function to time. Time per call: the best of 7
 batches of back-to-back calls (timeit's method; one call per batch for cases slower than 50 ms).
 BLAS/OpenMP are pinned to one thread; the render group uses its own thread pool (both cores).
 """
@@ -41,9 +41,9 @@ def machine() -> str:
             f"{platform.system()} {platform.release()}")
 
 
-def time_best(fn, repeat: int = 5) -> float:
+def time_best(fn, repeat: int = 7) -> float:
     """Seconds per call, as timeit does: calls in batches (enough for ~50 ms a batch, as a frame loop runs
-    them back to back), the best batch's mean over ``repeat`` batches."""
+    them back to back), the best batch's mean over ``repeat`` batches (the minimum: interference only ever adds time)."""
     t0 = time.perf_counter()
     fn()
     single = time.perf_counter() - t0
@@ -81,7 +81,7 @@ def main(argv: list[str]) -> int:
                 rows.append((cells[0], cells[1], float(cells[2]) / 1e3, float(cells[3]) / 1e3, cells[4]))
     rows.sort(key=lambda r: r[0])
     lines = ["# Benchmarks", "",
-             "Written by `python3 dev.py bench` (bench/run.py): time per call, best of 5 batches of back-to-back calls",
+             "Written by `python3 dev.py bench` (bench/run.py): time per call, best of 7 batches of back-to-back calls",
              "(one call a batch above 50 ms). Triangulation, projection and matching run on",
              "one thread; rendering uses both cores (its own thread pool).", "",
              f"- Date: {datetime.date.today().isoformat()}", f"- Machine: {machine()}", "",

@@ -29,6 +29,18 @@ class Unmatched:
     bbox_px: tuple[int, int, int, int]
 
 
+def _n_rows(v: np.ndarray) -> int:
+    """Number of distinct rows among row indices v (bincount: no hashing, no sort)."""
+    return int(np.count_nonzero(np.bincount(v))) if len(v) else 0
+
+
+def _distinct(idx: np.ndarray, n: int) -> np.ndarray:
+    """Sorted distinct values of integer indices in [0, n) (a mask, not a hash)."""
+    m = np.zeros(n, dtype=bool)
+    m[idx] = True
+    return np.flatnonzero(m)
+
+
 def _runs(px: EdgePixels, idx: np.ndarray) -> list[np.ndarray]:
     """Split edge pixels ``idx`` into 8-connected runs (lists of indices)."""
     if len(idx) == 0:
@@ -52,12 +64,16 @@ def _candidates(px: EdgePixels, p, q, d, d_min: int, min_rows: int) -> list[dict
     key = (px.label[p] * n_lab + px.label[q]) * span + (d - d_min + 1)
     order = np.argsort(key, kind="stable")
     ks = key[order]
-    # rows per (i, j, d): distinct (key, row)
+    # rows per (i, j, d): distinct (key, row); the keys are sorted, so distinct values come from diff
     height = int(px.v.max()) + 1
-    uk, first = np.unique(ks, return_index=True)
-    last = np.r_[first[1:], len(ks)]
-    row_key = np.unique(ks * height + px.v[p[order]]) // height
-    rk, rcount = np.unique(row_key, return_counts=True)
+    new = np.concatenate(([True], ks[1:] != ks[:-1]))
+    first = np.flatnonzero(new)
+    uk = ks[first]
+    last = np.concatenate((first[1:], [len(ks)]))
+    kv = np.sort(ks * height + px.v[p[order]])
+    kv = kv[np.concatenate(([True], kv[1:] != kv[:-1]))] // height
+    rcount = np.diff(np.concatenate((np.flatnonzero(np.concatenate(([True], kv[1:] != kv[:-1]))), [len(kv)])))
+    rk = kv[np.concatenate(([True], kv[1:] != kv[:-1]))]
     rows = dict(zip(rk.tolist(), rcount.tolist()))
     slices = dict(zip(uk.tolist(), zip(first.tolist(), last.tolist())))
     # every local maximum over d of the (+-1 px smoothed) agreeing rows of a component pair is a candidate:
@@ -175,13 +191,13 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
         for c in order:
             i, j, ds, sel = c["i"], c["j"], c["d"], c["votes"]
             sel = sel[free[p[sel]] & free[q[sel]]]
-            runs = _runs(px, np.unique(p[sel]))
+            runs = _runs(px, _distinct(p[sel], len(px.u)))
             long_runs = [r for r in runs if _row_span(px, r) >= min_run]
             kept = np.concatenate(long_runs) if long_runs else np.zeros(0, int)
-            agree = np.unique(px.v[kept]).size                      # distinct agreeing rows
+            agree = _n_rows(px.v[kept])                              # distinct agreeing rows
             longest = max((_row_span(px, r) for r in long_runs), default=0)
-            rows_i = np.unique(px.v[free & (px.label == i)]).size
-            rows_j = np.unique(px.v[free & (px.label == j)]).size
+            rows_i = _n_rows(px.v[free & (px.label == i)])
+            rows_j = _n_rows(px.v[free & (px.label == j)])
             # a merged outline (both views in one component) pairs with itself: half is left, half right
             smaller = rows_i / 2 if i == j else min(rows_i, rows_j)
             # an edge backed by no accepted pair at its disparity nearby needs stronger evidence of its own
@@ -192,10 +208,15 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             left_set = np.flatnonzero(free & (px.label == i))
             right_set = np.flatnonzero(free & (px.label == j))
             if i == j:
-                right_set = np.setdiff1d(np.unique(q[sel][np.isin(p[sel], kept)]), kept)
+                in_kept = np.zeros(len(px.u), dtype=bool)
+                in_kept[kept] = True
+                right_set = _distinct(q[sel][in_kept[p[sel]]], len(px.u))
+                right_set = right_set[~in_kept[right_set]]
                 left_set = kept
-            li, ri = grow_pairs(px, np.union1d(kept, left_set), np.setdiff1d(right_set, kept), ds, tol_px,
-                                polarity=pol)
+            in_kept = np.zeros(len(px.u), dtype=bool)
+            in_kept[kept] = True
+            li, ri = grow_pairs(px, _distinct(np.concatenate([kept, left_set]), len(px.u)),
+                                right_set[~in_kept[right_set]], ds, tol_px, polarity=pol)
             if len(li) < min_rows:
                 continue
             left = np.column_stack([px.u[li], px.v[li]]).astype(float)

@@ -51,24 +51,26 @@ def pair_rows(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star, tol_px: f
     rkey = px.v[right_idx] * width + px.u[right_idx]
     order = np.argsort(rkey)
     rkey, right_sorted = rkey[order], right_idx[order]
-    target = px.v[left_idx] * width + (px.u[left_idx] - d_star)
+    vl = px.v[left_idx]
+    target = vl * width + (px.u[left_idx] - d_star)
     k = np.searchsorted(rkey, target)
-    best = np.full(len(left_idx), -1)
-    cost = np.full(len(left_idx), np.inf)
-    for cand in (k - 1, k):
-        ok = (cand >= 0) & (cand < len(rkey))
-        c = np.where(ok, cand, 0)
-        same_row = ok & (rkey[c] // width == px.v[left_idx])
-        dist = np.where(same_row, np.abs(rkey[c] - target), np.inf)
-        better = dist < cost
-        best[better], cost[better] = c[better], dist[better]
+    cand = np.stack([k - 1, np.minimum(k, len(rkey) - 1)])            # the neighbours below and above
+    ck = rkey[np.maximum(cand, 0)]
+    dist = np.abs(ck - target).astype(np.float64)
+    dist[(cand < 0) | (ck // width != vl)] = np.inf                    # off the row
+    pick = np.argmin(dist, axis=0)
+    n = np.arange(len(left_idx))
+    best, cost = cand[pick, n], dist[pick, n]
     keep = cost <= tol_px
     if not keep.any():
         return np.zeros(0, int), np.zeros(0, int)
     li, ri, cost = left_idx[keep], right_sorted[best[keep]], cost[keep]
+    if np.bincount(ri).max() <= 1:
+        return li, ri
     # each right pixel once: the closest left pixel keeps it
     o = np.lexsort((cost, ri))
-    first = np.r_[True, ri[o][1:] != ri[o][:-1]]
+    ro = ri[o]
+    first = np.concatenate(([True], ro[1:] != ro[:-1]))
     sel = np.sort(o[first])
     return li[sel], ri[sel]
 
@@ -103,6 +105,8 @@ def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, t
     paired_l[li] = True
     used_r[ri] = True
     for _ in range(max_iter):
+        if paired_l[left_idx].all():
+            break
         dsum = np.zeros(shape, np.float32)
         cnt = np.zeros(shape, np.float32)
         dsum[px.v[li] - v0, px.u[li] - u0] = px.u[li] - px.u[ri]
@@ -124,7 +128,7 @@ def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, t
         li, ri = np.concatenate([li, nl]), np.concatenate([ri, nr])
         paired_l[nl] = True
         used_r[nr] = True
-        if len(nl) < max(2, 0.01 * len(li)):
+        if len(nl) < max(8, 0.01 * len(li)):
             break  # the growth has stalled
     order = np.lexsort((px.u[li], px.v[li]))
     return li[order], ri[order]
