@@ -14,13 +14,13 @@ A pipeline file is TOML:
 from __future__ import annotations
 
 import inspect
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from psvs.imaging.steps import STEPS
+from psvs.io.tomlfile import load_toml
 
 
 @dataclass(frozen=True)
@@ -84,12 +84,7 @@ PAPER = make_pipeline([{"op": "median", "ksize": 3}, {"op": "threshold", "level"
 
 def load_pipeline(path) -> Pipeline:
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"pipeline file not found: {path}")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: malformed TOML: {exc}") from None
+    data = load_toml(path, "pipeline")
     if set(data) != {"steps"} or not isinstance(data["steps"], list):
         raise ValueError(f"{path}: a pipeline file holds one array of tables [[steps]]")
     try:

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import json
 import math
-import tomllib
 from pathlib import Path
 
 from psvs.io.atomic import write_atomic
 from psvs.io.toml_out import dumps_toml
+from psvs.io.tomlfile import load_toml
 from psvs.optics.rig import MIRROR_NAMES, Camera, MirrorExtent, Mirrors, Rig
 
 _CAMERA_REQUIRED = ("focal_length_mm", "pixel_pitch_mm", "image_size_px")
@@ -29,13 +29,7 @@ _EXTENT_KEYS = ("along_mm", "height_mm")
 def load_rig(path) -> Rig:
     """Read a rig file (``.toml`` or ``.json``); errors name the file and the key."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"rig file not found: {path}")
-    text = path.read_text(encoding="utf-8")
-    try:
-        data = json.loads(text) if path.suffix.lower() == ".json" else tomllib.loads(text)
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: malformed {'JSON' if path.suffix.lower() == '.json' else 'TOML'}: {exc}") from None
+    data = load_toml(path, "rig")
     try:
         return rig_from_dict(data)
     except (ValueError, TypeError) as exc:

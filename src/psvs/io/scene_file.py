@@ -5,12 +5,12 @@ files are relative to the scene file. Every error names the file, the object and
 """
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from psvs.io.tomlfile import load_toml
 from psvs.simulate import textures as tx
 from psvs.simulate.scene import KINDS, Lighting, Pose, Scene, SceneObject
 
@@ -28,12 +28,7 @@ _TEXTURES = {
 def load_scene(path) -> Scene:
     """Read a scene file; raise ValueError/FileNotFoundError naming the file and the problem."""
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"scene file not found: {path}")
-    try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{path}: malformed TOML: {exc}") from None
+    data = load_toml(path, "scene")
     try:
         return scene_from_dict(data, base=path.parent, name=path.stem)
     except (ValueError, TypeError, FileNotFoundError) as exc:
