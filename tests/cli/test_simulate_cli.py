@@ -1,7 +1,6 @@
 import numpy as np
 import pytest
 
-from psvs.cli.main import main
 from psvs.io.images import read_grey
 from psvs.io.params import save_rig
 from tests.cli.test_cli import run

@@ -4,7 +4,6 @@ import pytest
 
 from psvs import default_rig
 from psvs.match.correspondence import disparity_range, match_image
-from psvs.optics.project import project_points
 from psvs.optics.trace import trace_pixels
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render

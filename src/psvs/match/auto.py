@@ -205,18 +205,15 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             if agree < need or (agree < min_fraction * smaller and longest < long_run_rows):
                 continue
             # grow along both edges from the agreeing pixels (the disparity may drift along a slanted edge)
-            left_set = np.flatnonzero(free & (px.label == i))
-            right_set = np.flatnonzero(free & (px.label == j))
-            if i == j:
-                in_kept = np.zeros(len(px.u), dtype=bool)
-                in_kept[kept] = True
-                right_set = _distinct(q[sel][in_kept[p[sel]]], len(px.u))
-                right_set = right_set[~in_kept[right_set]]
-                left_set = kept
             in_kept = np.zeros(len(px.u), dtype=bool)
             in_kept[kept] = True
-            li, ri = grow_pairs(px, _distinct(np.concatenate([kept, left_set]), len(px.u)),
-                                right_set[~in_kept[right_set]], ds, tol_px, polarity=pol)
+            if i == j:  # a merged outline: the agreeing pixels are the left view, their twins the right
+                left_set = kept
+                right_set = _distinct(q[sel][in_kept[p[sel]]], len(px.u))
+            else:
+                left_set = _distinct(np.concatenate([kept, np.flatnonzero(free & (px.label == i))]), len(px.u))
+                right_set = np.flatnonzero(free & (px.label == j))
+            li, ri = grow_pairs(px, left_set, right_set[~in_kept[right_set]], ds, tol_px, polarity=pol)
             if len(li) < min_rows:
                 continue
             left = np.column_stack([px.u[li], px.v[li]]).astype(float)
