@@ -1,0 +1,166 @@
+"""Detect the paper's accuracy pattern (Fig. 9: a row of dark circles on a sheet) in a complex image.
+
+Each circle appears twice, once per view. Dark blobs are found with a black-hat transform (closing minus
+image), so they stand out on any local background, including where one view's circle lies on the other
+view's sheet. Each blob is refined on the grey image: along rays from its centre, the rim is where the
+profile crosses half-way between *that ray's* inside and outside levels, so a change of background under
+half of a circle (the border of the other view's sheet) does not bias it. An ellipse is fitted to those
+sub-pixel rim points (rim points far off the fit, where a sheet border runs right along the rim, are
+dropped and the ellipse refitted). The pattern spans 0.8 of the baseline (80 mm vs 100 mm), so the two views' circles
+never interleave: sorted by u, the first ``count`` belong to the right view, the last ``count`` to the left.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Ellipse:
+    """centre_px (u, v), semi-axes (a, b) px along its own axes, angle_rad of the a-axis from +u."""
+
+    centre_px: np.ndarray
+    axes_px: tuple[float, float]
+    angle_rad: float
+    rim_px: np.ndarray  # (K, 2) sub-pixel rim points used for the fit
+
+    def row_crossings(self, v: float) -> tuple[float, float] | None:
+        """(u_left, u_right) where row v crosses the ellipse, or None."""
+        a, b = self.axes_px
+        c, s = np.cos(self.angle_rad), np.sin(self.angle_rad)
+        y = v - self.centre_px[1]
+        # ((x c + y s)/a)^2 + ((-x s + y c)/b)^2 = 1, a quadratic in x
+        A = c * c / a ** 2 + s * s / b ** 2
+        B = 2 * y * (c * s / a ** 2 - c * s / b ** 2)
+        C = y * y * (s * s / a ** 2 + c * c / b ** 2) - 1
+        disc = B * B - 4 * A * C
+        if disc < 0:
+            return None
+        r = np.sqrt(disc)
+        return self.centre_px[0] + (-B - r) / (2 * A), self.centre_px[0] + (-B + r) / (2 * A)
+
+
+@dataclass(frozen=True, eq=False)
+class PatternDetection:
+    """The pattern's circles in each view, ordered by u: left[k] and right[k] are the same circle."""
+
+    left: list[Ellipse]
+    right: list[Ellipse]
+
+
+def dark_blobs(grey: np.ndarray, max_diameter_px: int = 40, min_area_px: float = 12.0):
+    """Candidate dark round blobs: list of (centre (2,), equivalent radius px)."""
+    k = 2 * (max_diameter_px // 2) + 3
+    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (k, k))
+    hat = cv2.morphologyEx(grey, cv2.MORPH_BLACKHAT, kernel)
+    if hat.max() < 20:
+        return []
+    _, mask = cv2.threshold(hat, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    out = []
+    for c in contours:
+        area = cv2.contourArea(c)
+        per = cv2.arcLength(c, True)
+        if area < min_area_px or per == 0:
+            continue
+        if 4 * np.pi * area / per ** 2 < 0.6:
+            continue  # not round
+        m = cv2.moments(c)
+        out.append((np.array([m["m10"] / m["m00"], m["m01"] / m["m00"]]), float(np.sqrt(area / np.pi))))
+    return out
+
+
+def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int = 64) -> Ellipse:
+    """Sub-pixel rim points along ``rays`` rays (per-ray half-level crossing) and a fitted ellipse."""
+    img = np.asarray(grey, dtype=np.float32)
+    ang = 2 * np.pi * np.arange(rays) / rays
+    dr = min(0.05 * radius, 0.25)                        # sample spacing along a ray, px
+    rr = np.arange(0.4 * radius, 1.8 * radius + 2.5, dr)
+    xs = centre[0] + np.cos(ang)[:, None] * rr[None, :]
+    ys = centre[1] + np.sin(ang)[:, None] * rr[None, :]
+    prof = cv2.remap(img, xs.astype(np.float32), ys.astype(np.float32), cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_REPLICATE)
+    dp = np.diff(prof, axis=1)                          # rising step = dark inside -> bright outside
+    win = (rr[:-1] >= 0.6 * radius) & (rr[:-1] <= 1.4 * radius)
+    step = int(np.ceil(max(0.15 * radius, 2.0) / dr))    # levels read +-max(0.15 r, 2 px) around the step
+    pts = []
+    for i in range(rays):
+        d = np.where(win, dp[i], -np.inf)
+        top = d.max()
+        if not np.isfinite(top) or top <= 0:
+            continue
+        peaks = np.flatnonzero((d >= 0.4 * top) & (d >= np.roll(d, 1)) & (d >= np.roll(d, -1)))
+        if len(peaks) == 0:
+            continue
+        k = peaks[np.argmin(np.abs(rr[peaks] - radius))]   # the strong step nearest the blob's radius
+        a, b = max(k - step, 0), min(k + 1 + step, len(rr) - 1)
+        lo_level, hi_level = prof[i, a], prof[i, b]
+        if hi_level - lo_level < 10:
+            continue
+        half = 0.5 * (lo_level + hi_level)
+        seg = prof[i, a:b + 1]
+        j = np.flatnonzero(seg >= half)
+        if len(j) == 0 or j[0] == 0:
+            continue
+        j = a + j[0]
+        p0, p1 = prof[i, j - 1], prof[i, j]
+        r = rr[j - 1] + (half - p0) / (p1 - p0) * (rr[j] - rr[j - 1])
+        pts.append((centre[0] + r * np.cos(ang[i]), centre[1] + r * np.sin(ang[i])))
+    pts = np.asarray(pts, dtype=np.float64)
+    if len(pts) < 8:
+        raise ValueError(f"circle at ({centre[0]:.1f}, {centre[1]:.1f}) px: too few rim points ({len(pts)}) to fit")
+    e = _fit(pts)
+    for _ in range(2):  # drop rim points far off the fit (a sheet border crossing the circle), refit
+        res = np.abs(_radial_residual(e, pts))
+        mad = np.median(res) + 1e-6
+        keep = res <= max(3 * 1.4826 * mad, 0.15)
+        if keep.all() or keep.sum() < 8:
+            break
+        pts = pts[keep]
+        e = _fit(pts)
+    return e
+
+
+def _fit(pts: np.ndarray) -> Ellipse:
+    (cx, cy), (w, h), deg = cv2.fitEllipse(pts.astype(np.float32))
+    return Ellipse(np.array([cx, cy]), (w / 2, h / 2), np.radians(deg), pts)
+
+
+def _radial_residual(e: Ellipse, pts: np.ndarray) -> np.ndarray:
+    """Approximate distance (px) of points from the ellipse: (normalised radius - 1) * mean semi-axis."""
+    c, s = np.cos(e.angle_rad), np.sin(e.angle_rad)
+    d = pts - e.centre_px
+    x = (d[:, 0] * c + d[:, 1] * s) / e.axes_px[0]
+    y = (-d[:, 0] * s + d[:, 1] * c) / e.axes_px[1]
+    return (np.hypot(x, y) - 1) * np.mean(e.axes_px)
+
+
+def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = 40) -> PatternDetection:
+    """Find the pattern's ``count`` circles in both views of a complex image.
+
+    Raises ValueError naming the problem: blank image, wrong number of circles, circles not on one row.
+    """
+    grey = np.asarray(grey)
+    if grey.ndim != 2 or grey.dtype != np.uint8:
+        raise ValueError(f"image must be a grey (H, W) uint8 image, got {grey.shape} {grey.dtype}")
+    lo, hi, _, _ = cv2.minMaxLoc(grey)
+    if hi - lo < 20:
+        raise ValueError("image is blank (no contrast): no pattern to find")
+    blobs = dark_blobs(grey, max_diameter_px)
+    if len(blobs) < 2 * count:
+        raise ValueError(f"found {len(blobs)} circle(s), expected {2 * count} ({count} per view): a circle is "
+                         f"missing or the pattern is partly out of view")
+    if len(blobs) > 2 * count:
+        # keep the 2*count blobs closest to the row most of them share
+        v = np.array([c[1] for c, _ in blobs])
+        med = np.median(v)
+        blobs = [blobs[i] for i in np.argsort(np.abs(v - med))[:2 * count]]
+    blobs.sort(key=lambda b: b[0][0])
+    circles = [refine_circle(grey, c, r) for c, r in blobs]
+    right, left = circles[:count], circles[count:]
+    rows = np.array([e.centre_px[1] for e in circles])
+    if np.ptp(rows) > 0.5 * np.mean([np.mean(e.axes_px) for e in circles]) + 0.1 * np.ptp([e.centre_px[0] for e in circles]):
+        raise ValueError("the circles do not lie along one row: not the accuracy pattern")
+    return PatternDetection(left, right)

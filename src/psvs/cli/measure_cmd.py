@@ -1,0 +1,35 @@
+"""``psvs measure circles``: Table I's columns (Z, circle diameters, first-last distance) from one image."""
+from __future__ import annotations
+
+import json
+
+from psvs.calibrate.measure import measure_pattern
+from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.io.images import read_grey
+from psvs.measure.triangulate import MODELS
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("measure", help="measure the paper's circle pattern (Table I columns)",
+                       description="Measure the paper's accuracy pattern (Fig. 9: 5 circles of 10 mm, 20 mm apart) "
+                                   "in a complex image: depth Z, the circles' diameters and the distance between "
+                                   "the first and the last circle centres.")
+    p.add_argument("target", choices=["circles"], help="what to measure")
+    p.add_argument("image", metavar="IMAGE", help="complex image (PNG, grey)")
+    add_rig_argument(p)
+    p.add_argument("--model", choices=MODELS, default="exact", help="triangulation model (default exact)")
+    p.add_argument("--count", type=int, default=5, help="circles in the pattern (default 5)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of a summary")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    rig = rig_from_args(args)
+    m = measure_pattern(read_grey(args.image), rig, model=args.model, count=args.count)
+    if args.json:
+        print(json.dumps(m.to_dict()))
+    else:
+        print(f"Z = {m.Z_mm:.3f} mm, circle diameter = {m.diameter_mm:.3f} mm "
+              f"({', '.join(f'{d:.3f}' for d in m.diameters_mm)}), first-last distance = "
+              f"{m.first_last_distance_mm:.3f} mm")
+    return 0
