@@ -1,0 +1,142 @@
+"""The paper's accuracy experiment (section IV.2, Table I, Fig. 10), reproduced in simulation.
+
+A robot holds the circle pattern (slightly turned and off-centre on its holder) and moves it along Z.
+A calibration sweep at 11 distances (425-1175 mm, not the test distances) calibrates the rig from a rough
+start (f +10 %, b +10 mm, principal point off, plate 2 mm); the paper's 15 test distances are then measured
+with the calibrated rig: depth Z, circle diameter (10 mm) and first-last centre distance (80 mm).
+"""
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from psvs.calibrate.measure import PatternMeasurement, measure_pattern
+from psvs.calibrate.sweep import CalibrationResult, calibrate_sweep
+from psvs.calibrate.targets import detect_pattern
+from psvs.io.atomic import write_atomic
+from psvs.optics.rig import Rig
+from psvs.simulate.builtin import builtin_scene
+from psvs.simulate.render import render
+
+#: Table I of the paper: Z meas., Z calc., d calc., a calc. (mm); d meas. = 10, a meas. = 80.
+PAPER_TABLE1 = np.array([
+    [440.0, 439.082, 10.043, 78.541], [489.0, 490.747, 10.174, 78.399], [537.5, 539.249, 10.136, 78.030],
+    [590.0, 587.431, 10.187, 79.198], [636.0, 634.599, 10.288, 78.956], [685.5, 684.006, 9.933, 79.423],
+    [736.0, 728.767, 9.984, 79.824], [786.0, 777.394, 9.942, 79.362], [833.0, 830.534, 9.888, 79.194],
+    [883.5, 880.250, 9.725, 80.110], [928.5, 929.444, 10.230, 79.872], [977.5, 975.734, 9.950, 80.117],
+    [1027.0, 1025.416, 9.821, 80.120], [1073.0, 1071.799, 10.078, 80.127], [1123.0, 1122.425, 9.721, 81.178]])
+SWEEP_Z_MM = np.arange(425.0, 1176.0, 75.0)
+HOLDER = dict(tilt_x_deg=2.0, tilt_y_deg=-3.0, x_mm=6.0, y_mm=-4.0)   # the pattern on the robot
+ROBOT_OFFSET_MM = -312.7                                              # robot reading = Z - offset
+
+
+@dataclass(frozen=True, eq=False)
+class Table1:
+    calibration: CalibrationResult
+    z_true_mm: np.ndarray
+    measurements: list[PatternMeasurement]
+
+    def rows(self) -> np.ndarray:
+        """(15, 4): Z meas., Z calc., d calc., a calc. (mm), ours."""
+        return np.array([[z, m.Z_mm, m.diameter_mm, m.first_last_distance_mm]
+                         for z, m in zip(self.z_true_mm, self.measurements)])
+
+    def summary(self) -> dict:
+        r = self.rows()
+        p = PAPER_TABLE1
+        ze, de, ae = np.abs(r[:, 1] - r[:, 0]), np.abs(r[:, 2] - 10.0), np.abs(r[:, 3] - 80.0)
+        pz, pd, pa = np.abs(p[:, 1] - p[:, 0]), np.abs(p[:, 2] - 10.0), np.abs(p[:, 3] - 80.0)
+        return {"ours": {"mean_abs_z_error_mm": ze.mean(), "max_abs_z_error_mm": ze.max(),
+                         "mean_diameter_error_mm": de.mean(), "mean_distance_error_mm": ae.mean()},
+                "paper": {"mean_abs_z_error_mm": pz.mean(), "max_abs_z_error_mm": pz.max(),
+                          "mean_diameter_error_mm": pd.mean(), "mean_distance_error_mm": pa.mean()}}
+
+
+def _image(rig: Rig, z: float, seed: int) -> np.ndarray:
+    spec = ",".join(f"{k}={v}" for k, v in HOLDER.items())
+    return render(builtin_scene(f"fig9:distance_mm={z},{spec}"), rig, seed=seed).image
+
+
+def rough_start(rig: Rig) -> Rig:
+    """The rig as a user would guess it: f 10 % long, b 10 mm long, principal point off, plate 2 mm."""
+    c = rig.camera
+    return rig.replace(focal_length_mm=1.1 * c.focal_length_mm, baseline_mm=rig.mirrors.baseline_mm + 10.0,
+                       principal_point_px=(c.principal_point_px[0] + 3.0, c.principal_point_px[1] - 3.0),
+                       plate_thickness_mm=2.0)
+
+
+def run_table1(true_rig: Rig, progress=None) -> Table1:
+    """Render the sweep and the test images through ``true_rig``, calibrate, measure."""
+    total = len(SWEEP_Z_MM) + len(PAPER_TABLE1)
+    step = 0
+
+    def tick(what):
+        nonlocal step
+        step += 1
+        if progress:
+            progress(step, total, what)
+
+    sweep = []
+    for z in SWEEP_Z_MM:
+        sweep.append((f"sweep_{z:.0f}", z - ROBOT_OFFSET_MM, detect_pattern(_image(true_rig, z, int(z)))))
+        tick(f"sweep {z:.0f} mm")
+    cal = calibrate_sweep(sweep, rough_start(true_rig))
+    meas = []
+    for z in PAPER_TABLE1[:, 0]:
+        meas.append(measure_pattern(_image(true_rig, z, int(z) + 1), cal.rig))
+        tick(f"test {z:.1f} mm")
+    return Table1(cal, PAPER_TABLE1[:, 0].copy(), meas)
+
+
+def table_markdown(t: Table1) -> str:
+    r, p, s = t.rows(), PAPER_TABLE1, t.summary()
+    lines = ["| Z meas. (mm) | Z calc. paper | Z calc. psvs | d calc. paper | d calc. psvs | a calc. paper | a calc. psvs |",
+             "|---:|---:|---:|---:|---:|---:|---:|"]
+    lines += [f"| {a[0]:.1f} | {b[1]:.3f} | {a[1]:.3f} | {b[2]:.3f} | {a[2]:.3f} | {b[3]:.3f} | {a[3]:.3f} |"
+              for a, b in zip(r, p)]
+    lines += ["", "| error (d meas. = 10 mm, a meas. = 80 mm) | paper | psvs |", "|---|---:|---:|"]
+    for key, label in (("mean_abs_z_error_mm", "mean \\|Z error\\| (mm)"), ("max_abs_z_error_mm", "max \\|Z error\\| (mm)"),
+                       ("mean_diameter_error_mm", "mean \\|d error\\| (mm)"), ("mean_distance_error_mm", "mean \\|a error\\| (mm)")):
+        lines.append(f"| {label} | {s['paper'][key]:.3f} | {s['ours'][key]:.3f} |")
+    return "\n".join(lines) + "\n"
+
+
+def write_outputs(folder, t: Table1) -> list[Path]:
+    """table1.csv, table1.md and fig10.png (Z calc. vs Z meas.; distances vs Z) in ``folder``."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    folder = Path(folder)
+    r, p = t.rows(), PAPER_TABLE1
+    csv = io.StringIO()
+    csv.write("Z_meas_mm,Z_calc_mm,d_calc_mm,a_calc_mm,Z_calc_paper_mm,d_calc_paper_mm,a_calc_paper_mm\n")
+    for a, b in zip(r, p):
+        csv.write(",".join(f"{v:.4f}" for v in (*a, *b[1:])) + "\n")
+    write_atomic(folder / "table1.csv", csv.getvalue())
+    write_atomic(folder / "table1.md", table_markdown(t))
+    fig, ax = plt.subplots(1, 2, figsize=(11, 4.2))
+    ax[0].plot(r[:, 0], r[:, 0], "k-", lw=0.8, label="ideal")
+    ax[0].plot(p[:, 0], p[:, 1], "s", ms=4, label="paper")
+    ax[0].plot(r[:, 0], r[:, 1], "o", ms=4, label="psvs")
+    ax[0].set_xlabel("Z measured (mm)")
+    ax[0].set_ylabel("Z calculated (mm)")
+    ax[0].legend()
+    ax[1].plot(p[:, 1], p[:, 2], "s", ms=4, label="d, paper")
+    ax[1].plot(r[:, 1], r[:, 2], "o", ms=4, label="d, psvs")
+    ax[1].plot(p[:, 1], p[:, 3] / 8, "^", ms=4, label="a / 8, paper")
+    ax[1].plot(r[:, 1], r[:, 3] / 8, "v", ms=4, label="a / 8, psvs")
+    ax[1].axhline(10, color="k", lw=0.8)
+    ax[1].set_xlabel("Z calculated (mm)")
+    ax[1].set_ylabel("distance (mm)")
+    ax[1].legend(fontsize=8)
+    fig.suptitle("Fig. 10: calculated vs measured depth; measured distances vs depth")
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=100)
+    plt.close(fig)
+    write_atomic(folder / "fig10.png", buf.getvalue())
+    return [folder / "table1.csv", folder / "table1.md", folder / "fig10.png"]

@@ -1,0 +1,70 @@
+"""Calibration from a robot sweep: planted truth (render through a known rig, calibrate from a rough start)."""
+import csv
+
+import numpy as np
+import pytest
+
+from psvs import default_rig
+from psvs.calibrate.sweep import calibrate_folder, calibrate_sweep, read_sweep
+from psvs.calibrate.table1 import HOLDER, ROBOT_OFFSET_MM, _image, rough_start
+from psvs.calibrate.targets import detect_pattern
+from psvs.io.images import write_png
+from tests.cli.test_cli import EXAMPLE, run
+
+SWEEP = np.arange(450.0, 1151.0, 140.0)   # 6 positions
+
+
+@pytest.fixture(scope="module")
+def sweep_dir(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("sweep")
+    rig = default_rig()
+    rows = []
+    for z in SWEEP:
+        name = f"z{z:.0f}.png"
+        write_png(folder / name, _image(rig, z, int(z)))
+        rows.append((name, z - ROBOT_OFFSET_MM))
+    write_png(folder / "blank.png", np.full((480, 640), 30, np.uint8))
+    rows.append(("blank.png", 2000.0))
+    with (folder / "sweep.csv").open("w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["image", "position_mm"])
+        w.writerows(rows)
+    return folder
+
+
+def test_recovers_the_rig_from_a_rough_start(sweep_dir):
+    """Start: f 10 % long, b 10 mm long, principal point 3 px off, plate 2 mm. Truth: f 11.3, b 100,
+    (319.5, 239.5), plate 3 mm, offset -312.7 mm, pattern turned -3 deg about y."""
+    res = calibrate_folder(sweep_dir, rough_start(default_rig()))
+    v, s = res.values, res.sigma
+    assert res.success and res.rms_px < 0.1
+    assert res.skipped.keys() == {"blank.png"} and "image is blank" in res.skipped["blank.png"]
+    assert len(res.used) == len(SWEEP)
+    assert abs(v["focal_length_mm"] - 11.3) < 0.01
+    assert abs(v["baseline_mm"] - 100.0) < 0.5
+    assert abs(v["cx_px"] - 319.5) < 0.1 and abs(v["cy_px"] - 239.5) < 0.1
+    assert abs(res.offset_mm - ROBOT_OFFSET_MM) < 1.0
+    assert abs(v["ry_rad"] - np.radians(HOLDER["tilt_y_deg"])) < 0.01
+    assert all(np.isfinite(x) and x >= 0 for x in s.values())
+    assert s["baseline_mm"] < 0.5 and s["focal_length_mm"] < 0.01
+
+
+def test_calibrate_cli(capsys, tmp_path, sweep_dir):
+    out = tmp_path / "cal.toml"
+    code, text, err = run(capsys, "calibrate", str(sweep_dir), "--rig", EXAMPLE, "-o", str(out))
+    assert code == 0 and "skipped blank.png: image is blank" in err and "baseline_mm" in text
+    assert "focal_length_mm" in out.read_text()
+
+
+def test_bad_sweeps(capsys, tmp_path, sweep_dir):
+    code, _, err = run(capsys, "calibrate", str(tmp_path), "--rig", EXAMPLE, "-o", str(tmp_path / "r.toml"))
+    assert code == 2 and "sweep file not found" in err
+    (tmp_path / "sweep.csv").write_text("file,z\na.png,3\n")
+    with pytest.raises(ValueError, match="expected columns image,position_mm"):
+        read_sweep(tmp_path)
+    (tmp_path / "sweep.csv").write_text("image,position_mm\na.png,far\n")
+    with pytest.raises(ValueError, match="position_mm is not a number: 'far'"):
+        read_sweep(tmp_path)
+    obs = [("a", 700.0, detect_pattern(_image(default_rig(), 400.0 - ROBOT_OFFSET_MM + ROBOT_OFFSET_MM, 1)))]
+    with pytest.raises(ValueError, match="needs at least 3 usable sweep images, got 1"):
+        calibrate_sweep(obs, default_rig())
