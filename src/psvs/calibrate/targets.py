@@ -6,7 +6,8 @@ view's sheet. Each blob is refined on the grey image: along rays from its centre
 profile crosses half-way between *that ray's* inside and outside levels, so a change of background under
 half of a circle (the border of the other view's sheet) does not bias it. An ellipse is fitted to those
 sub-pixel rim points (rim points far off the fit, where a sheet border runs right along the rim, are
-dropped and the ellipse refitted). The pattern spans 0.8 of the baseline (80 mm vs 100 mm), so the two views' circles
+dropped and the ellipse refitted). Blur pulls the half-level contour of a small circle inward by about
+sigma^2 / (2 R); sigma is measured from the rim profiles' steepest slopes and the axes are corrected. The pattern spans 0.8 of the baseline (80 mm vs 100 mm), so the two views' circles
 never interleave: sorted by u, the first ``count`` belong to the right view, the last ``count`` to the left.
 """
 from __future__ import annotations
@@ -85,7 +86,7 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
     dp = np.diff(prof, axis=1)                          # rising step = dark inside -> bright outside
     win = (rr[:-1] >= 0.6 * radius) & (rr[:-1] <= 1.4 * radius)
     step = int(np.ceil(max(0.15 * radius, 2.0) / dr))    # levels read +-max(0.15 r, 2 px) around the step
-    pts = []
+    pts, widths = [], []
     for i in range(rays):
         d = np.where(win, dp[i], -np.inf)
         top = d.max()
@@ -100,6 +101,8 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
         if hi_level - lo_level < 10:
             continue
         half = 0.5 * (lo_level + hi_level)
+        # edge spread: a step of height D blurred by a Gaussian of sigma rises at most D / (sigma sqrt(2 pi))
+        widths.append((hi_level - lo_level) / (dp[i, k] / dr * np.sqrt(2 * np.pi)))
         seg = prof[i, a:b + 1]
         j = np.flatnonzero(seg >= half)
         if len(j) == 0 or j[0] == 0:
@@ -120,7 +123,11 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
             break
         pts = pts[keep]
         e = _fit(pts)
-    return e
+    # blur moves the half-level contour of a curved edge toward its centre of curvature by ~ sigma^2 / (2 R)
+    # (the blurred disc's indicator is below one half at the true rim); undo it with the measured spread
+    sigma2 = float(np.median(widths)) ** 2 if widths else 0.0
+    a, b = e.axes_px
+    return Ellipse(e.centre_px, (a + sigma2 / (2 * a), b + sigma2 / (2 * b)), e.angle_rad, e.rim_px)
 
 
 def _fit(pts: np.ndarray) -> Ellipse:
