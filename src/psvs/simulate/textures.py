@@ -116,6 +116,46 @@ class Circles:
         return np.where(inside, self.low, self.high)
 
 
+@dataclass(frozen=True)
+class CircleGrid:
+    """An OpenCV-style symmetric grid of ``rows`` x ``cols`` dark discs (``diameter_mm``, centres
+    ``spacing_mm`` apart), centred on the origin, colour ``low`` on a ground of ``high``."""
+
+    rows: int = 4
+    cols: int = 5
+    spacing_mm: float = 15.0
+    diameter_mm: float = 7.0
+    low: float = 0.05
+    high: float = 0.9
+
+    def __post_init__(self):
+        for name in ("rows", "cols"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 2:
+                raise ValueError(f"{name} must be an integer >= 2, got {v!r}")
+        check_positive(self.spacing_mm, "spacing_mm", "mm")
+        check_positive(self.diameter_mm, "diameter_mm", "mm")
+        if self.diameter_mm >= self.spacing_mm:
+            raise ValueError(f"diameter_mm must be < spacing_mm, got {self.diameter_mm!r} >= {self.spacing_mm!r}")
+        _check_levels(low=self.low, high=self.high)
+
+    def centres_mm(self) -> np.ndarray:
+        """Disc centres (rows * cols, 2) mm, row by row (OpenCV's object-point order)."""
+        j, i = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
+        return np.column_stack([(j.ravel() - (self.cols - 1) / 2) * self.spacing_mm,
+                                (i.ravel() - (self.rows - 1) / 2) * self.spacing_mm])
+
+    def __call__(self, xy_mm):
+        s = self.spacing_mm
+        gx = np.rint(xy_mm[:, 0] / s + (self.cols - 1) / 2)
+        gy = np.rint(xy_mm[:, 1] / s + (self.rows - 1) / 2)
+        on = (gx >= 0) & (gx < self.cols) & (gy >= 0) & (gy < self.rows)
+        dx = xy_mm[:, 0] - (gx - (self.cols - 1) / 2) * s
+        dy = xy_mm[:, 1] - (gy - (self.rows - 1) / 2) * s
+        inside = on & (dx * dx + dy * dy <= (self.diameter_mm / 2) ** 2)
+        return np.where(inside, self.low, self.high)
+
+
 @dataclass(frozen=True, eq=False)
 class ImageTexture:
     """A grey image (H, W) in [0, 1] stretched over ``size_mm`` (width, height) centred on the origin.
@@ -141,4 +181,4 @@ class ImageTexture:
         return top * (1 - fv) + bot * fv
 
 
-Texture = Uniform | Checker | Noise | Circles | ImageTexture
+Texture = Uniform | Checker | Noise | Circles | CircleGrid | ImageTexture
