@@ -1,4 +1,4 @@
-"""OpenCV-style circle grids in complex images, and a generic stereo calibration (OpenCV) from them.
+"""OpenCV-style circle grids and chessboards in complex images, and a generic stereo calibration (OpenCV).
 
 Each disc appears twice. All dark blobs are found and refined as for the paper's pattern
 (:mod:`psvs.calibrate.targets`), split into the two views by a two-cluster split along u (the grid must
@@ -77,7 +77,8 @@ class StereoCalibration:
 
 def calibrate_stereo(detections: list[GridDetection], rows: int, cols: int, spacing_mm: float,
                      image_size_px: tuple[int, int]) -> StereoCalibration:
-    """Generic stereo calibration (shared intrinsics) from grid detections in several poses."""
+    """Generic stereo calibration (shared intrinsics) from target detections (circle grids, or chessboard
+    inner corners with ``spacing_mm`` the square size) in several poses."""
     if len(detections) < 3:
         raise ValueError(f"stereo calibration needs at least 3 grid poses, got {len(detections)}")
     j, i = np.meshgrid(np.arange(cols), np.arange(rows))
@@ -90,3 +91,36 @@ def calibrate_stereo(detections: list[GridDetection], rows: int, cols: int, spac
     rms_s, _, _, _, _, R, T, _, _ = cv2.stereoCalibrate([obj] * len(detections), img_l, img_r, K, dist, K, dist,
                                                         image_size_px, flags=cv2.CALIB_FIX_INTRINSIC)
     return StereoCalibration(K, dist.ravel(), R, T.ravel(), float(rms_i), float(rms_s))
+
+
+def detect_chessboard(grey: np.ndarray, rows: int, cols: int) -> GridDetection:
+    """Both views of a chessboard with ``rows`` x ``cols`` inner corners.
+
+    OpenCV finds one board; its region is painted over with the image's median grey and the search is
+    repeated for the second. Corners are refined with ``cv2.cornerSubPix``; the right-hand copy is the left
+    view; its corners are paired with the other copy's through the median disparity.
+    """
+    n = rows * cols
+    img = np.ascontiguousarray(grey)
+    flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
+    boards = []
+    work = img.copy()
+    for _ in range(2):
+        ok, corners = cv2.findChessboardCorners(work, (cols, rows), flags=flags)
+        if not ok:
+            raise ValueError(f"found {len(boards)} of the 2 views of a {rows}x{cols} chessboard")
+        corners = cv2.cornerSubPix(img, corners, (5, 5), (-1, -1),
+                                   (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3))
+        pts = corners[:, 0, :].astype(np.float64)
+        boards.append(pts)
+        hull = cv2.convexHull(pts.astype(np.float32))
+        centre = pts.mean(axis=0)
+        grown = (centre + 1.6 * (hull[:, 0, :] - centre)).astype(np.int32)   # the border squares too
+        cv2.fillConvexPoly(work, grown, int(np.median(img)))
+    a, b = boards
+    left, right = (a, b) if a[:, 0].mean() > b[:, 0].mean() else (b, a)
+    shift = np.median(left[:, 0]) - np.median(right[:, 0])
+    twin = [int(np.argmin(np.linalg.norm(right - (p - [shift, 0.0]), axis=1))) for p in left]
+    if len(set(twin)) != n:
+        raise ValueError("could not pair the chessboard's two views corner by corner")
+    return GridDetection(left, right[twin])

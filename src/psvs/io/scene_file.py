@@ -21,6 +21,7 @@ _TEXTURES = {
     "checker": (tx.Checker, {"square_mm", "low", "high"}),
     "noise": (tx.Noise, {"scale_mm", "seed", "low", "high"}),
     "circles": (tx.Circles, {"diameter_mm", "spacing_mm", "count", "low", "high"}),
+    "chessboard": (tx.Chessboard, {"squares_x", "squares_y", "square_mm", "low", "high"}),
     "circle_grid": (tx.CircleGrid, {"rows", "cols", "spacing_mm", "diameter_mm", "low", "high"}),
     "image": (None, {"file", "size_mm"}),
 }

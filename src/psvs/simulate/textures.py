@@ -117,6 +117,35 @@ class Circles:
 
 
 @dataclass(frozen=True)
+class Chessboard:
+    """A calibration chessboard: ``squares_x`` x ``squares_y`` squares of ``square_mm`` centred on the
+    origin (its (squares_x - 1) x (squares_y - 1) inner corners at multiples of the square size), on a
+    ``high`` (white) margin, as OpenCV's detector needs."""
+
+    squares_x: int = 6
+    squares_y: int = 5
+    square_mm: float = 10.0
+    low: float = 0.05
+    high: float = 0.9
+
+    def __post_init__(self):
+        for name in ("squares_x", "squares_y"):
+            v = getattr(self, name)
+            if not isinstance(v, int) or v < 3:
+                raise ValueError(f"{name} must be an integer >= 3, got {v!r}")
+        check_positive(self.square_mm, "square_mm", "mm")
+        _check_levels(low=self.low, high=self.high)
+
+    def __call__(self, xy_mm):
+        s = self.square_mm
+        gx = np.floor(xy_mm[:, 0] / s + self.squares_x / 2)
+        gy = np.floor(xy_mm[:, 1] / s + self.squares_y / 2)
+        on = (gx >= 0) & (gx < self.squares_x) & (gy >= 0) & (gy < self.squares_y)
+        dark = on & ((gx + gy) % 2 == 0)
+        return np.where(dark, self.low, self.high)
+
+
+@dataclass(frozen=True)
 class CircleGrid:
     """An OpenCV-style symmetric grid of ``rows`` x ``cols`` dark discs (``diameter_mm``, centres
     ``spacing_mm`` apart), centred on the origin, colour ``low`` on a ground of ``high``."""
@@ -181,4 +210,4 @@ class ImageTexture:
         return top * (1 - fv) + bot * fv
 
 
-Texture = Uniform | Checker | Noise | Circles | CircleGrid | ImageTexture
+Texture = Uniform | Checker | Chessboard | Noise | Circles | CircleGrid | ImageTexture
