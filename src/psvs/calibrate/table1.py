@@ -1,7 +1,7 @@
 """The paper's accuracy experiment (section IV.2, Table I, Fig. 10), reproduced in simulation.
 
 A robot holds the circle pattern (slightly turned and off-centre on its holder) and moves it along Z.
-A calibration sweep at 11 distances (425-1175 mm, not the test distances) calibrates the rig from a rough
+A calibration sweep at 16 distances (425-1175 mm every 50 mm, not the test distances) calibrates the rig from a rough
 start (f +10 %, b +10 mm, principal point off, plate 2 mm); the paper's 15 test distances are then measured
 with the calibrated rig: depth Z, circle diameter (10 mm) and first-last centre distance (80 mm).
 """
@@ -28,7 +28,7 @@ PAPER_TABLE1 = np.array([
     [736.0, 728.767, 9.984, 79.824], [786.0, 777.394, 9.942, 79.362], [833.0, 830.534, 9.888, 79.194],
     [883.5, 880.250, 9.725, 80.110], [928.5, 929.444, 10.230, 79.872], [977.5, 975.734, 9.950, 80.117],
     [1027.0, 1025.416, 9.821, 80.120], [1073.0, 1071.799, 10.078, 80.127], [1123.0, 1122.425, 9.721, 81.178]])
-SWEEP_Z_MM = np.arange(425.0, 1176.0, 75.0)
+SWEEP_Z_MM = np.arange(425.0, 1176.0, 50.0)   # 16 positions, none at a test distance
 HOLDER = dict(tilt_x_deg=2.0, tilt_y_deg=-3.0, x_mm=6.0, y_mm=-4.0)   # the pattern on the robot
 ROBOT_OFFSET_MM = -312.7                                              # robot reading = Z - offset
 
