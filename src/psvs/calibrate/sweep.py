@@ -19,8 +19,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
-from psvs.calibrate.targets import PatternDetection, detect_pattern
+from psvs.calibrate.targets import detect_pattern
 from psvs.io.images import read_grey
+from psvs.measure.triangulate import triangulate
 from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
 
@@ -97,7 +98,6 @@ def calibrate_sweep(observations, start: Rig, spacing_mm: float = 20.0, count: i
     right = np.concatenate([np.array([e.centre_px for e in d.right]) for _, _, d in observations])
     local = np.column_stack([(np.arange(count) - (count - 1) / 2) * spacing_mm, np.zeros(count), np.zeros(count)])
     # start: offset from the first image's depth with the start rig; pose facing the camera
-    from psvs.measure.triangulate import triangulate
     first = triangulate(left[:count], right[:count], start, model="exact").points_mm
     c = start.camera
     x0 = np.array([c.focal_length_mm, *c.principal_point_px, start.mirrors.baseline_mm,
@@ -144,5 +144,3 @@ def calibrate_folder(folder, start: Rig, count: int = 5) -> CalibrationResult:
     return CalibrationResult(res.rig, res.offset_mm, res.values, res.sigma, res.rms_px, res.used, skipped,
                              res.success, res.message)
 
-
-__all__ = ["CalibrationResult", "PatternDetection", "calibrate_folder", "calibrate_sweep", "read_sweep"]

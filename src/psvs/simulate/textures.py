@@ -14,6 +14,11 @@ import numpy as np
 from psvs._validate import check_finite, check_positive
 
 
+def _check_count(value, name: str, minimum: int) -> None:
+    if not isinstance(value, int) or isinstance(value, bool) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+
+
 def _check_levels(**levels):
     for name, v in levels.items():
         if not 0.0 <= check_finite(v, name) <= 1.0:
@@ -99,8 +104,7 @@ class Circles:
     def __post_init__(self):
         check_positive(self.diameter_mm, "diameter_mm", "mm")
         check_positive(self.spacing_mm, "spacing_mm", "mm")
-        if not isinstance(self.count, int) or self.count < 1:
-            raise ValueError(f"count must be an integer >= 1, got {self.count!r}")
+        _check_count(self.count, "count", 1)
         _check_levels(low=self.low, high=self.high)
 
     def centres_mm(self) -> np.ndarray:
@@ -129,10 +133,8 @@ class Chessboard:
     high: float = 0.9
 
     def __post_init__(self):
-        for name in ("squares_x", "squares_y"):
-            v = getattr(self, name)
-            if not isinstance(v, int) or v < 3:
-                raise ValueError(f"{name} must be an integer >= 3, got {v!r}")
+        _check_count(self.squares_x, "squares_x", 3)
+        _check_count(self.squares_y, "squares_y", 3)
         check_positive(self.square_mm, "square_mm", "mm")
         _check_levels(low=self.low, high=self.high)
 
@@ -158,10 +160,8 @@ class CircleGrid:
     high: float = 0.9
 
     def __post_init__(self):
-        for name in ("rows", "cols"):
-            v = getattr(self, name)
-            if not isinstance(v, int) or v < 2:
-                raise ValueError(f"{name} must be an integer >= 2, got {v!r}")
+        _check_count(self.rows, "rows", 2)
+        _check_count(self.cols, "cols", 2)
         check_positive(self.spacing_mm, "spacing_mm", "mm")
         check_positive(self.diameter_mm, "diameter_mm", "mm")
         if self.diameter_mm >= self.spacing_mm:
