@@ -7,8 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.calibrate.targets import Ellipse, PatternDetection, detect_pattern
-from psvs.measure.triangulate import triangulate
-from psvs.optics.project import project_points
+from psvs.measure.triangulate import triangulate, twin_rows
 from psvs.optics.rig import Rig
 
 
@@ -41,15 +40,14 @@ def _rim_points(left: Ellipse, right: Ellipse, rig: Rig, model: str, rows: int =
             continue
         lp = np.array([[cl[0], v], [cl[1], v]])
         rp = np.array([[cr[0], v], [cr[1], v]])
-        pts = triangulate(lp, rp, rig, model=model).points_mm
-        uv, ok = project_points(pts, rig, "right")      # the twin's true row
+        v_r, ok = twin_rows(lp, rp, rig, model)         # the twin's true row
         for k in range(2):
             if not ok[k]:
                 continue
-            c2 = right.row_crossings(uv[k, 1])
+            c2 = right.row_crossings(v_r[k])
             if c2 is None:
                 continue
-            rp[k] = [c2[k], uv[k, 1]]
+            rp[k] = [c2[k], v_r[k]]
         out.append(triangulate(lp, rp, rig, model=model).points_mm)
     return np.concatenate(out) if out else np.zeros((0, 3))
 

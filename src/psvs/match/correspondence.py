@@ -12,9 +12,8 @@ from psvs.match.auto import Unmatched, match_auto
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.match.subpixel import refine_pairs
-from psvs.measure.triangulate import triangulate
+from psvs.measure.triangulate import triangulate, twin_rows
 from psvs.optics.design import working_range
-from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
 
 #: Extra disparity margin (px) around the working range's ideal disparities (plate shift, edge width).
@@ -50,8 +49,7 @@ def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
     """
     if len(pair) == 0:
         return pair
-    pts = triangulate(pair.left_px, pair.right_px, rig, model="exact").points_mm
-    uv, ok = project_points(pts, rig, "right")
+    v_r, ok = twin_rows(pair.left_px, pair.right_px, rig)
     img = np.asarray(grey, dtype=np.float64)
     h, w = img.shape
     u = np.clip(np.rint(pair.right_px[:, 0]).astype(int), 1, w - 2)
@@ -59,8 +57,7 @@ def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
     gu = img[v, u + 1] - img[v, u - 1]
     gv = img[v + 1, u] - img[v - 1, u]
     steep = np.abs(gu) >= 0.5 * np.abs(gv)
-    ok &= np.isfinite(uv[:, 1])
-    dv = np.where(ok, uv[:, 1] - pair.right_px[:, 1], 0.0)
+    dv = np.where(ok, v_r - pair.right_px[:, 1], 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         du = np.where(ok & steep & (gu != 0), -gv / gu * dv, 0.0)
     right = pair.right_px.copy()

@@ -75,6 +75,28 @@ def pair_rows(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star, tol_px: f
     return li[sel], ri[sel]
 
 
+def local_mean(values: np.ndarray, from_u: np.ndarray, from_v: np.ndarray, at_u: np.ndarray, at_v: np.ndarray,
+               radius: int) -> np.ndarray:
+    """Mean of ``values`` given at pixels (from_u, from_v), over the (2r+1)^2 window around each pixel
+    (at_u, at_v); NaN where the window holds none. All integer pixel arrays, (N,) and (M,)."""
+    if len(at_u) == 0:
+        return np.zeros(0)
+    if len(from_u) == 0:
+        return np.full(len(at_u), np.nan)
+    u0 = min(from_u.min(), at_u.min()) - radius
+    v0 = min(from_v.min(), at_v.min()) - radius
+    shape = (max(from_v.max(), at_v.max()) - v0 + radius + 1, max(from_u.max(), at_u.max()) - u0 + radius + 1)
+    vs, cs = np.zeros(shape), np.zeros(shape)
+    np.add.at(vs, (from_v - v0, from_u - u0), values)
+    np.add.at(cs, (from_v - v0, from_u - u0), 1.0)
+    k = 2 * radius + 1
+    vs = cv2.boxFilter(vs, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
+    cs = cv2.boxFilter(cs, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
+    c = cs[at_v - v0, at_u - u0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(c > 0.5, vs[at_v - v0, at_u - u0] / c, np.nan)
+
+
 def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, tol_px: float = 2.0,
                radius_px: int = 6, max_iter: int = 60, polarity: np.ndarray | None = None):
     """Pair along an edge whose disparity drifts (a surface at a slant): start with the pixels at
@@ -96,29 +118,19 @@ def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, t
     if len(li) == 0:
         return li, ri
     left_idx = np.asarray(left_idx, dtype=int)
-    u, v = px.u[left_idx], px.v[left_idx]
-    u0, v0 = u.min() - radius_px, v.min() - radius_px
-    shape = (v.max() - v0 + radius_px + 1, u.max() - u0 + radius_px + 1)
-    k = 2 * radius_px + 1
     paired_l = np.zeros(len(px.u), dtype=bool)
     used_r = np.zeros(len(px.u), dtype=bool)
     paired_l[li] = True
     used_r[ri] = True
     for _ in range(max_iter):
-        if paired_l[left_idx].all():
-            break
-        dsum = np.zeros(shape, np.float32)
-        cnt = np.zeros(shape, np.float32)
-        dsum[px.v[li] - v0, px.u[li] - u0] = px.u[li] - px.u[ri]
-        cnt[px.v[li] - v0, px.u[li] - u0] = 1.0
-        dsum = cv2.boxFilter(dsum, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
-        cnt = cv2.boxFilter(cnt, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
         todo = left_idx[~paired_l[left_idx]]
-        c = cnt[px.v[todo] - v0, px.u[todo] - u0]
-        todo = todo[c > 0]
         if len(todo) == 0:
             break
-        d_local = dsum[px.v[todo] - v0, px.u[todo] - u0] / cnt[px.v[todo] - v0, px.u[todo] - u0]
+        d_local = local_mean(px.u[li] - px.u[ri], px.u[li], px.v[li], px.u[todo], px.v[todo], radius_px)
+        has = np.isfinite(d_local)
+        todo, d_local = todo[has], d_local[has]
+        if len(todo) == 0:
+            break
         free_r = right_idx[~used_r[right_idx]]
         nl, nr = pair_rows(px, todo, free_r, d_local, tol_px)
         keep = agree(nl, nr)

@@ -9,10 +9,9 @@ supersampling, Gaussian optics) that crossing is unbiased; a parabola on the gra
 """
 from __future__ import annotations
 
-import cv2
 import numpy as np
 
-from psvs.match.pairs import EdgePair
+from psvs.match.pairs import EdgePair, local_mean
 
 
 def refine_columns(grey: np.ndarray, px: np.ndarray, radius: int = 2, min_ratio: float = 0.5,
@@ -48,21 +47,6 @@ def refine_columns(grey: np.ndarray, px: np.ndarray, radius: int = 2, min_ratio:
     return (out, ok) if with_mask else out
 
 
-def _local_mean(u: np.ndarray, v: np.ndarray, values: np.ndarray, weights: np.ndarray, radius: int):
-    """Mean of ``values`` (weighted 0/1) over a (2r+1)^2 window around each (u, v); NaN where empty."""
-    u0, v0 = u.min() - radius, v.min() - radius
-    shape = (v.max() - v0 + radius + 1, u.max() - u0 + radius + 1)
-    vs, cs = np.zeros(shape), np.zeros(shape)
-    np.add.at(vs, (v - v0, u - u0), values * weights)
-    np.add.at(cs, (v - v0, u - u0), weights)
-    k = 2 * radius + 1
-    vs = cv2.boxFilter(vs, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
-    cs = cv2.boxFilter(cs, -1, (k, k), normalize=False, borderType=cv2.BORDER_CONSTANT)
-    c = cs[v - v0, u - u0]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(c > 0.5, vs[v - v0, u - u0] / c, np.nan)
-
-
 def refine_pairs(grey: np.ndarray, pair: EdgePair, radius: int = 2, smooth_px: int = 3,
                  spread_px: int = 10) -> EdgePair:
     """The pair refined to sub-pixel.
@@ -81,9 +65,8 @@ def refine_pairs(grey: np.ndarray, pair: EdgePair, radius: int = 2, smooth_px: i
     if good.any():
         left[~good, 0] = np.rint(pair.left_px[~good, 0])
         u, v = np.rint(left[:, 0]).astype(int), np.rint(left[:, 1]).astype(int)
-        w = good.astype(float)
-        near = _local_mean(u, v, disp, w, smooth_px)
-        wide = _local_mean(u, v, disp, w, spread_px)
+        near = local_mean(disp[good], u[good], v[good], u, v, smooth_px)
+        wide = local_mean(disp[good], u[good], v[good], u, v, spread_px)
         new = np.where(np.isfinite(near), near, wide)
         has = np.isfinite(new)
         disp = np.where(has, new, pair.left_px[:, 0] - pair.right_px[:, 0])

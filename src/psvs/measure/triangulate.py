@@ -18,6 +18,7 @@ import numpy as np
 from psvs._validate import check_points, check_same_length
 from psvs.measure.equations import x_eq13, y_eq14, z_eq12, z_eq15
 from psvs.optics.plate import refraction_terms
+from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
 from psvs.optics.trace import ideal_sensor_from_pixels, trace_pixels
 
@@ -83,6 +84,19 @@ def triangulate(left_px, right_px, rig: Rig, model: str = "refraction") -> Trian
     if not valid.all():
         pts[~valid] = np.nan
     return Triangulation(pts, valid)
+
+
+def twin_rows(left_px, right_px, rig: Rig, model: str = "exact"):
+    """Row v (px) in the right view where each matched pair's point really appears, and a validity mask.
+
+    The M1 plate shifts the left view's rows slightly (up to ~0.5 px, with position and depth), so a
+    point seen on row v_l lies on row v_l + dv in the right view: triangulate, project into the right view.
+    Returns (v_right (N,), valid (N,)).
+    """
+    pts = triangulate(left_px, right_px, rig, model=model).points_mm
+    uv, ok = project_points(pts, rig, "right")
+    ok &= np.isfinite(uv[:, 1])
+    return uv[:, 1], ok
 
 
 def _triangulate_exact(left: np.ndarray, right: np.ndarray, rig: Rig) -> Triangulation:
