@@ -27,6 +27,16 @@ class GridDetection:
     right: np.ndarray
 
 
+def _pair_views(left: np.ndarray, right: np.ndarray, what: str) -> GridDetection:
+    """Pair each (ordered) left-view point with the right-view point nearest to it shifted back by the
+    median disparity; ValueError("could not pair the <what>") unless the pairing is one to one."""
+    shift = np.median(left[:, 0]) - np.median(right[:, 0])
+    twin = [int(np.argmin(np.linalg.norm(right - (p - [shift, 0.0]), axis=1))) for p in left]
+    if len(set(twin)) != len(left):
+        raise ValueError(f"could not pair the {what}")
+    return GridDetection(left, right[twin])
+
+
 def _order(points: np.ndarray, radius: float, rows: int, cols: int, shape) -> np.ndarray | None:
     canvas = np.full(shape, 255, np.uint8)
     for u, v in points:
@@ -55,11 +65,7 @@ def detect_grid(grey: np.ndarray, rows: int, cols: int, max_diameter_px: int = 4
     ordered = _order(left, radius, rows, cols, grey.shape)
     if ordered is None:
         raise ValueError(f"the discs do not form a {rows}x{cols} grid")
-    shift = np.median(left[:, 0]) - np.median(right[:, 0])
-    twin = [int(np.argmin(np.linalg.norm(right - (p - [shift, 0.0]), axis=1))) for p in ordered]
-    if len(set(twin)) != n:
-        raise ValueError("could not pair the grid's two views disc by disc")
-    return GridDetection(ordered, right[twin])
+    return _pair_views(ordered, right, "grid's two views disc by disc")
 
 
 @dataclass(frozen=True, eq=False)
@@ -100,7 +106,6 @@ def detect_chessboard(grey: np.ndarray, rows: int, cols: int) -> GridDetection:
     repeated for the second. Corners are refined with ``cv2.cornerSubPix``; the right-hand copy is the left
     view; its corners are paired with the other copy's through the median disparity.
     """
-    n = rows * cols
     img = np.ascontiguousarray(grey)
     flags = cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE
     boards = []
@@ -119,8 +124,4 @@ def detect_chessboard(grey: np.ndarray, rows: int, cols: int) -> GridDetection:
         cv2.fillConvexPoly(work, grown, int(np.median(img)))
     a, b = boards
     left, right = (a, b) if a[:, 0].mean() > b[:, 0].mean() else (b, a)
-    shift = np.median(left[:, 0]) - np.median(right[:, 0])
-    twin = [int(np.argmin(np.linalg.norm(right - (p - [shift, 0.0]), axis=1))) for p in left]
-    if len(set(twin)) != n:
-        raise ValueError("could not pair the chessboard's two views corner by corner")
-    return GridDetection(left, right[twin])
+    return _pair_views(left, right, "chessboard's two views corner by corner")
