@@ -78,6 +78,8 @@ def test_cli(capsys, tmp_path, images):
     code, out, _ = run(capsys, "measure", "circles", str(path), "--rig", EXAMPLE, "--json")
     data = json.loads(out)
     assert code == 0 and abs(data["Z_mm"] - 589) < 0.5 and len(data["diameters_mm"]) == 5
+    code, _, err = run(capsys, "measure", "circles", str(path), "--rig", EXAMPLE, "--count", "0")
+    assert code == 2 and "count must be an integer >= 2" in err
     blank = tmp_path / "b.png"
     write_png(blank, np.full((480, 640), 40, np.uint8))
     code, _, err = run(capsys, "measure", "circles", str(blank), "--rig", EXAMPLE)

@@ -33,6 +33,10 @@ def test_outputs(table1):
     assert fig.stat().st_size > 10_000
 
 
-def test_cli_help(capsys):
+def test_cli_help_and_bad_output(capsys, tmp_path):
     code, out, _ = run(capsys, "table1", "--help")
     assert code == 0 and "Table I" in out
+    f = tmp_path / "f.txt"
+    f.write_text("keep")
+    code, _, err = run(capsys, "table1", "-o", str(f))
+    assert code == 2 and "is a file" in err and f.read_text() == "keep"

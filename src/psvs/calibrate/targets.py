@@ -149,6 +149,8 @@ def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = 40) 
 
     Raises ValueError naming the problem: blank image, wrong number of circles, circles not on one row.
     """
+    if not isinstance(count, int) or count < 2:
+        raise ValueError(f"count must be an integer >= 2 (circles in the pattern), got {count!r}")
     grey = np.asarray(grey)
     if grey.ndim != 2 or grey.dtype != np.uint8:
         raise ValueError(f"image must be a grey (H, W) uint8 image, got {grey.shape} {grey.dtype}")

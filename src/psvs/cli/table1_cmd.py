@@ -28,6 +28,8 @@ def _progress(i, n, what):
 
 def run(args) -> int:
     out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"output folder {out} is a file")
     out.mkdir(parents=True, exist_ok=True)
     t = run_table1(rig_from_args(args), progress=_progress)
     cal = t.calibration
