@@ -5,6 +5,7 @@ fig5b      two ashtray-like objects whose views partly overlap (Fig. 5b)
 fig6       a cluttered scene (Fig. 6)
 fig9       the accuracy pattern: 5 circles of 10 mm, 20 mm apart, on a sheet (Fig. 9), at any distance/pose
 weld_seam  two plates meeting along a curved, beveled seam (the arc-welding workpiece, issue 7)
+textured   photo-textured objects and backdrop for dense disparity (docs/dense.md)
 """
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import inspect
 import numpy as np
 
 from psvs.simulate.scene import Lighting, Pose, Scene, SceneObject
-from psvs.simulate.textures import Checker, Circles, Noise, Uniform
+from psvs.simulate.textures import Checker, Circles, ImageTexture, Noise, Uniform
 
 
 def _at(x, y, z, rx=0.0, ry=0.0, rz=0.0) -> Pose:
@@ -133,7 +134,31 @@ def weld_seam(distance_mm: float = 450.0, radius_mm: float = 150.0, height_ampli
                  Uniform(0.05), "weld_seam")
 
 
-BUILTINS = {"fig5a": fig5a, "fig5b": fig5b, "fig6": fig6, "fig9": fig9, "weld_seam": weld_seam}
+def _photo(name: str, size_mm: tuple[float, float]) -> ImageTexture:
+    """One of scikit-image's bundled photographs (CC0 or public domain), grey in [0, 1], as a texture."""
+    from skimage import data
+    from skimage.color import rgb2gray
+
+    img = getattr(data, name)()
+    grey = rgb2gray(img) if img.ndim == 3 else img / 255.0
+    return ImageTexture(np.asarray(grey, dtype=np.float64), size_mm, f"skimage.data.{name}")
+
+
+def textured(distance_mm: float = 800.0) -> Scene:
+    """Photo-textured panel, box, ball and backdrop at 0.7-1.4 x distance_mm, for dense disparity."""
+    z = distance_mm
+    objs = (
+        SceneObject("rectangle", _at(-60, -40, z, 0, 25, 0), _photo("astronaut", (260, 180)), size_mm=(260, 180),
+                    name="panel"),
+        SceneObject("sphere", _at(90, 60, 0.78 * z), _photo("grass", (90, 90)), radius_mm=45, name="ball"),
+        SceneObject("box", _at(-110, 90, 0.7 * z, 10, 30, 0), _photo("brick", (90, 70)),
+                    size_mm=(90, 70, 60), name="crate"),
+    )
+    return Scene(objs, regulated_light(z), 1.4 * z, _photo("gravel", (1.3 * z, 1.0 * z)), "textured")
+
+
+BUILTINS = {"fig5a": fig5a, "fig5b": fig5b, "fig6": fig6, "fig9": fig9, "weld_seam": weld_seam,
+            "textured": textured}
 
 
 def describe() -> list[tuple[str, str, str]]:

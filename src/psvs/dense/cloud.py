@@ -1,0 +1,72 @@
+"""Depth map and point cloud of a dense left-view disparity map, through the rig's triangulation
+(eqs. 12–17, or exact ray tracing), and their files (NumPy .npy, binary PLY)."""
+from __future__ import annotations
+
+import io
+from typing import NamedTuple
+
+import numpy as np
+
+from psvs.io.atomic import write_atomic
+from psvs.measure.triangulate import triangulate, twin_rows
+from psvs.optics.rig import Rig
+
+
+class Cloud(NamedTuple):
+    """``points_mm`` (N, 3) frame C; ``pixels`` (N, 2) left-view (u, v) of each point; ``depth_mm`` (H, W)
+    Z of the left view's pixels, NaN where there is no point."""
+
+    points_mm: np.ndarray
+    pixels: np.ndarray
+    depth_mm: np.ndarray
+
+
+def disparity_cloud(disparity_left, rig: Rig, model: str = "refraction", mask=None) -> Cloud:
+    """Triangulate every finite pixel of ``disparity_left`` (H, W, px): the left-view pixel (u, v) and its
+    right-view twin (u − d, v). ``mask`` (H, W bool) keeps a subset, e.g. ``confidence > 0``. With the exact
+    model the twin's row is first moved to where the plate really puts it (:func:`twin_rows`)."""
+    d = np.asarray(disparity_left, dtype=np.float64)
+    if d.ndim != 2:
+        raise ValueError(f"disparity map must be (H, W), got shape {d.shape}")
+    keep = np.isfinite(d) & (d > 0)
+    if mask is not None:
+        keep &= np.asarray(mask, dtype=bool)
+    v, u = np.nonzero(keep)
+    left = np.stack([u, v], axis=1).astype(np.float64)
+    right = np.stack([u - d[v, u], v], axis=1).astype(np.float64)
+    if model == "exact" and len(left):
+        right[:, 1], _ = twin_rows(left, right, rig, model="exact")
+    tri = triangulate(left, right, rig, model=model)
+    depth = np.full(d.shape, np.nan)
+    depth[v[tri.valid], u[tri.valid]] = tri.points_mm[tri.valid, 2]
+    return Cloud(tri.points_mm[tri.valid], left[tri.valid], depth)
+
+
+def write_cloud_ply(path, cloud: Cloud, grey=None) -> None:
+    """Binary little-endian PLY of the cloud's points (float32 mm), with each point's grey level (uchar)
+    from the (H, W) image ``grey`` when given. Written atomically."""
+    pts = np.asarray(cloud.points_mm, dtype=np.float64)
+    fields = [("x", "<f4"), ("y", "<f4"), ("z", "<f4")]
+    if grey is not None:
+        fields.append(("grey", "u1"))
+    rec = np.empty(len(pts), dtype=fields)
+    rec["x"], rec["y"], rec["z"] = pts[:, 0], pts[:, 1], pts[:, 2]
+    props = ["property float x", "property float y", "property float z"]
+    if grey is not None:
+        g = np.asarray(grey)
+        u, v = cloud.pixels[:, 0].astype(int), cloud.pixels[:, 1].astype(int)
+        rec["grey"] = np.clip(np.rint(g[v, u]), 0, 255).astype(np.uint8)
+        props.append("property uchar grey")
+    head = "\n".join(["ply", "format binary_little_endian 1.0", "comment psvs dense cloud, frame C, mm",
+                      f"element vertex {len(pts)}", *props, "end_header"]) + "\n"
+    buf = io.BytesIO()
+    buf.write(head.encode("ascii"))
+    buf.write(rec.tobytes())
+    write_atomic(path, buf.getvalue())
+
+
+def write_npy(path, array: np.ndarray) -> None:
+    """An array as a NumPy .npy file, atomically."""
+    buf = io.BytesIO()
+    np.save(buf, array)
+    write_atomic(path, buf.getvalue())

@@ -1,0 +1,164 @@
+"""Echo cost of a complex image: how well the image around x repeats around x − d.
+
+A complex image is C = (1 − s)·L + s·R with R(x − d) = L(x) for a left-view point at x of disparity d
+(x_l − x_r, the denominator of the paper's eq. 12). Every textured patch of C therefore appears twice,
+d px apart, the left-view copy on the right. The echo at (x, d) is the normalised cross-correlation of C's
+band-passed window at x with the window at x − d: high when the left-view content at x has disparity d.
+The hot loops are Numba kernels, parallel over lags or rows.
+"""
+from __future__ import annotations
+
+import cv2
+import numba as nb
+import numpy as np
+
+NO_TWIN = np.float32(-1.0)  # correlation given to lags whose twin window lies outside the image
+
+
+def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
+    """Image minus its Gaussian blur (σ in px), float32 (H, W): keeps the fine texture that identifies a
+    patch, drops shading and the smooth part whose self-similarity would mimic an echo at small lags."""
+    f = np.asarray(image, dtype=np.float32)
+    return f - cv2.GaussianBlur(f, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)
+
+
+@nb.njit(cache=True, parallel=True, fastmath=True)
+def _echo(f, mu, sd, lags, r):  # pragma: no cover - compiled
+    h, w = f.shape
+    n = len(lags)
+    out = np.empty((n, h, w), np.float32)
+    inv = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
+    for k in nb.prange(n):
+        d = lags[k]
+        rows = np.zeros((h, w), np.float32)  # horizontal window sums of f(x)·f(x−d), clamped borders
+        for y in range(h):
+            acc = np.float32(0.0)
+            for j in range(-r, r + 1):
+                xx = min(max(d + j, d), w - 1)
+                acc += f[y, xx] * f[y, xx - d]
+            rows[y, d] = acc
+            for x in range(d + 1, w):
+                xa = min(x + r, w - 1)
+                xr = max(x - r - 1, d)
+                acc += f[y, xa] * f[y, xa - d] - f[y, xr] * f[y, xr - d]
+                rows[y, x] = acc
+        for x in range(w):
+            for y in range(h):
+                if x < d:
+                    out[k, y, x] = NO_TWIN
+        for x in range(d, w):
+            acc = np.float32(0.0)
+            for j in range(-r, r + 1):
+                acc += rows[min(max(j, 0), h - 1), x]
+            for y in range(h):
+                if y > 0:
+                    acc += rows[min(y + r, h - 1), x] - rows[max(y - r - 1, 0), x]
+                cov = acc * inv - mu[y, x] * mu[y, x - d]
+                out[k, y, x] = cov / (sd[y, x] * sd[y, x - d])
+    return out
+
+
+def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_window: int = 1) -> np.ndarray:
+    """NCC of each ``window`` × ``window`` patch (odd side) of ``features`` (H, W) at x with the patch at
+    x − d, for each lag d in ``lags`` (px, integers in 1..W−1): float32 (D, H, W) in [−1, 1], :data:`NO_TWIN`
+    where x − d is outside the image. With ``shift_window`` > 1 each pixel takes the best of the windows
+    that contain it within that size (shiftable windows), so a patch straddling a depth edge can use its
+    one-surface side."""
+    if window < 1 or window % 2 == 0:
+        raise ValueError(f"window must be an odd number of px, got {window}")
+    f = np.ascontiguousarray(features, dtype=np.float32)
+    lags = np.ascontiguousarray(lags, dtype=np.int64)
+    if lags.size and (lags.min() < 1 or lags.max() >= f.shape[1]):
+        raise ValueError(f"lags must lie in 1..{f.shape[1] - 1} px, got {lags.min()}..{lags.max()}")
+    box = lambda a: cv2.boxFilter(a, -1, (window, window), borderType=cv2.BORDER_REPLICATE)  # noqa: E731
+    mu = box(f)
+    sd = np.sqrt(np.maximum(box(f * f) - mu * mu, 1e-6)).astype(np.float32)
+    vol = _echo(f, mu, sd, lags, window // 2)
+    if shift_window > 1:
+        kernel = np.ones((shift_window, shift_window), np.uint8)
+        for k, d in enumerate(lags):
+            vol[k] = cv2.dilate(vol[k], kernel, borderType=cv2.BORDER_REPLICATE)
+            vol[k, :, :d] = NO_TWIN
+    return vol
+
+
+@nb.njit(cache=True, parallel=True, fastmath=True)
+def fused_cost(echo, lags):  # pragma: no cover - compiled
+    """Cost (H, W, D) float32 = −max(echo at x, echo seen from the right-view end at x + d), shifted so
+    each pixel's minimum is 0: low where *either* view's content at x has its twin at distance d."""
+    n, h, w = echo.shape
+    cost = np.empty((h, w, n), np.float32)
+    for y in nb.prange(h):
+        best = np.full(w, np.inf, np.float32)
+        for k in range(n):
+            d = lags[k]
+            for x in range(w):
+                v = echo[k, y, x]
+                if x + d < w and echo[k, y, x + d] > v:
+                    v = echo[k, y, x + d]
+                cost[y, x, k] = -v
+                best[x] = min(best[x], -v)
+        for x in range(w):
+            for k in range(n):
+                cost[y, x, k] -= best[x]
+    return cost
+
+
+@nb.njit(cache=True, parallel=True, fastmath=True)
+def pick(agg, echo, lags):  # pragma: no cover - compiled
+    """Winner of the aggregated cost (H, W, D) with a parabola's sub-pixel offset: disparity (px), and the
+    echo seen from the left-view end (``own``) and the right-view end (``other``) at that lag, each (H, W)."""
+    h, w, n = agg.shape
+    disp = np.empty((h, w), np.float64)
+    own = np.empty((h, w), np.float32)
+    other = np.empty((h, w), np.float32)
+    for y in nb.prange(h):
+        for x in range(w):
+            k = 0
+            for j in range(1, n):
+                if agg[y, x, j] < agg[y, x, k]:
+                    k = j
+            off = 0.0
+            if 0 < k < n - 1:
+                c0, c1, c2 = agg[y, x, k - 1], agg[y, x, k], agg[y, x, k + 1]
+                den = c0 - 2 * c1 + c2
+                if den > 1e-9:
+                    off = min(0.5, max(-0.5, 0.5 * (c0 - c2) / den))
+            disp[y, x] = lags[k] + off
+            own[y, x] = echo[k, y, x]
+            xf = x + lags[k]
+            other[y, x] = echo[k, y, xf] if xf < w else NO_TWIN
+    return disp, own, other
+
+
+@nb.njit(cache=True, parallel=True, fastmath=True)
+def one_sided_cost(echo, lags, fused, keep, right_view):  # pragma: no cover - compiled
+    """Cost (H, W, D) of one view's map for the second pass: the fused cost where the pixel's own view
+    owns it (``keep``), else that view's own evidence alone — the echo at x (left view) or seen from x + d
+    (right view) — shifted to a minimum of 0. Pixels in the band whose twin may lie outside the image
+    (x < d_max for the left view, x ≥ W − d_max for the right) get a neutral, all-zero cost there."""
+    n, h, w = echo.shape
+    d_max = lags[n - 1]
+    cost = np.empty((h, w, n), np.float32)
+    for y in nb.prange(h):
+        for x in range(w):
+            if keep[y, x]:
+                for k in range(n):
+                    cost[y, x, k] = fused[y, x, k]
+                continue
+            if (x < d_max) if not right_view else (x >= w - d_max):
+                for k in range(n):
+                    cost[y, x, k] = 0.0
+                continue
+            best = np.float32(np.inf)
+            for k in range(n):
+                if right_view:
+                    xf = x + lags[k]
+                    v = -echo[k, y, xf] if xf < w else -NO_TWIN
+                else:
+                    v = -echo[k, y, x]
+                cost[y, x, k] = v
+                best = min(best, v)
+            for k in range(n):
+                cost[y, x, k] -= best
+    return cost

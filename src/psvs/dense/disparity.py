@@ -1,0 +1,198 @@
+"""Dense disparity of both views from one complex image (the paper's closing open problem: "a fast
+intelligent algorithm for separation of the pair of images ... to any complex scene").
+
+Method (docs/dense.md):
+
+1. **Echo cost.** C = (1 − s)·L + s·R, so each patch of C recurs d px to its left when it belongs to the left
+   view (disparity d = x_l − x_r, eq. 12's denominator) and d px to its right when it belongs to the right
+   view. :func:`psvs.dense.cost.echo_correlation` measures the first, :func:`~psvs.dense.cost.forward` the
+   second, on band-passed C with shiftable windows.
+2. **Layer-agnostic disparity.** Whichever layer dominates a patch, one of the two sees its echo, so the
+   cost ``−max(echo, forward)`` followed by semi-global aggregation gives, at every pixel, the disparity
+   of the dominant layer there.
+3. **Ownership.** A pixel keeps that disparity in the left map when its own left-view echo carries it
+   (echo ≥ forward − margin) and in the right map in the opposite case; the rest, where the other view's
+   texture dominated, is filled along the row from the farther (smaller-disparity) side, as occlusions are.
+4. **Second pass.** Where the two maps then fail the left-right check, each view is matched again from its
+   own evidence alone at the pixels it did not own; values that pass the check replace the fill, and what
+   is still inconsistent is filled from the farther side.
+
+Disparities below :data:`MIN_LAG_PX` cannot be told from the image's own smoothness and are not searched.
+"""
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+
+from psvs.dense.cost import band_pass, echo_correlation, fused_cost, one_sided_cost, pick
+from psvs.dense.sgm import aggregate
+
+MIN_LAG_PX = 3
+MIN_SIZE_PX = 16
+
+
+@dataclass(frozen=True)
+class DenseParams:
+    """Tuning of :func:`dense_disparity`; lengths in px of the working scale."""
+
+    sigma_px: float = 0.7          # band-pass: image minus its Gaussian blur of this σ
+    window: int = 7                # NCC window side
+    shift_window: int = 7          # shiftable-window neighbourhood side (1: plain windows)
+    p1: float = 0.3                # SGM penalty of a 1 px disparity step (NCC units)
+    p2: float = 8.0                # SGM penalty of a larger jump
+    n_paths: int = 8               # SGM paths, 4 or 8
+    ownership_margin: float = 0.2  # a pixel's own echo may be this much below the other view's and still own it
+    scale: int = 1                 # 2: work at half resolution (the fast mode); lengths are at that scale
+    second_pass: bool = True       # re-match, from each view's own evidence, pixels the first pass left inconsistent
+
+
+DEFAULT = DenseParams()
+FAST = DenseParams(sigma_px=0.5, window=7, shift_window=5, n_paths=4, scale=2, second_pass=False)
+
+
+@dataclass(frozen=True, eq=False)
+class DenseResult:
+    """Float32 (H, W) maps of the input's size. ``disparity_left[v, u]`` is x_l − x_r (px) of the left-view
+    point seen at (u, v); ``disparity_right[v, u]`` the same for the right-view point at (u, v) (so that
+    point's left-view twin is at u + d). NaN where no answer. ``confidence_*`` in [0, 1]: the echo
+    correlation of the pixel's own view at its disparity, 0 where the value was filled from neighbours."""
+
+    disparity_left: np.ndarray
+    disparity_right: np.ndarray
+    confidence_left: np.ndarray
+    confidence_right: np.ndarray
+    searched_px: tuple[float, float]
+
+
+def check_image(image) -> np.ndarray:
+    """The complex image as float64 (H, W), or ValueError naming what is wrong."""
+    a = np.asarray(image)
+    if a.ndim == 3 and a.shape[2] in (3, 4):
+        raise ValueError(f"complex image must be grey (H, W), got colour of shape {a.shape}")
+    if a.ndim != 2:
+        raise ValueError(f"complex image must be 2-D (H, W), got shape {a.shape}")
+    if a.size == 0:
+        raise ValueError("complex image is empty")
+    if min(a.shape) < MIN_SIZE_PX:
+        raise ValueError(f"complex image of {a.shape[1]}x{a.shape[0]} px is too small (at least "
+                         f"{MIN_SIZE_PX} px a side)")
+    a = a.astype(np.float64)
+    if not np.all(np.isfinite(a)):
+        raise ValueError("complex image has NaN or infinite values")
+    return a
+
+
+def check_range(d_min: float, d_max: float, width: int) -> None:
+    """ValueError unless 0 ≤ d_min < d_max < width (px)."""
+    if not (math.isfinite(d_min) and math.isfinite(d_max)) or d_min < 0:
+        raise ValueError(f"disparity range must be finite and >= 0, got {d_min}..{d_max}")
+    if d_max <= d_min:
+        raise ValueError(f"disparity range is empty: min {d_min} >= max {d_max}")
+    if d_max >= width:
+        raise ValueError(f"disparity range up to {d_max} px is wider than the image ({width} px)")
+    if d_max < MIN_LAG_PX:
+        raise ValueError(f"disparities below {MIN_LAG_PX} px cannot be measured in a complex image "
+                         f"(range {d_min}..{d_max})")
+
+
+def fill_from_background(d: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """``d`` (H, W) where ``keep``; elsewhere the smaller of the nearest kept values to the left and right
+    on the same row (the farther surface, as for occlusions); NaN on rows with nothing kept."""
+    h, w = d.shape
+    cols = np.arange(w)[None, :]
+    left = np.maximum.accumulate(np.where(keep, cols, -1), axis=1)
+    right = np.minimum.accumulate(np.where(keep, cols, w)[:, ::-1], axis=1)[:, ::-1]
+    rows = np.arange(h)[:, None]
+    lv = np.where(left >= 0, d[rows, np.clip(left, 0, w - 1)], np.inf)
+    rv = np.where(right < w, d[rows, np.clip(right, 0, w - 1)], np.inf)
+    filled = np.minimum(lv, rv)
+    filled[np.isinf(filled)] = np.nan
+    return np.where(keep, d, filled)
+
+
+def consistent(d_left: np.ndarray, d_right: np.ndarray, tol_px: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Left-right check of two maps (H, W): a left pixel x with disparity d is consistent when the right map
+    at x − d holds d (± tol_px), and a right pixel y when the left map at y + d does. (left_ok, right_ok)."""
+    h, w = d_left.shape
+    cols = np.arange(w)[None, :]
+    rows = np.arange(h)[:, None]
+    out = []
+    for mine, other, sign in ((d_left, d_right, -1), (d_right, d_left, 1)):
+        x = cols + sign * np.rint(np.nan_to_num(mine, nan=-1e6)).astype(np.int64)
+        inside = (x >= 0) & (x < w)
+        seen = other[rows, np.clip(x, 0, w - 1)]
+        out.append(inside & (np.abs(mine - seen) <= tol_px))
+    return out[0], out[1]
+
+
+def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams):
+    lo = max(MIN_LAG_PX, math.ceil(d_min))
+    hi = min(math.floor(d_max), img.shape[1] - 1)
+    lags = np.arange(lo, hi + 1)
+    echo = echo_correlation(band_pass(img, p.sigma_px), lags, p.window, p.shift_window)
+    fused = fused_cost(echo, lags)
+    d, own, other = pick(aggregate(fused, p.p1, p.p2, p.n_paths), echo, lags)
+    keep_l = own >= other - p.ownership_margin
+    keep_r = other >= own - p.ownership_margin
+    dl, dr = fill_from_background(d, keep_l), fill_from_background(d, keep_r)
+    ok_l, ok_r = consistent(dl, dr)
+    if p.second_pass:  # each view's own evidence where the other view's texture dominated
+        dl2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_l, False), p.p1, p.p2, p.n_paths), echo, lags)[0]
+        dr2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_r, True), p.p1, p.p2, p.n_paths), echo, lags)[0]
+        ok2_l, ok2_r = consistent(dl2, dr2)
+        dl = fill_from_background(np.where(~ok_l & ok2_l, dl2, dl), ok_l | ok2_l)
+        dr = fill_from_background(np.where(~ok_r & ok2_r, dr2, dr), ok_r | ok2_r)
+        ok_l, ok_r = ok_l | ok2_l, ok_r | ok2_r
+    conf_l = np.where(ok_l, np.clip(_echo_at(echo, lags, dl, False), 0, 1), 0.0)
+    conf_r = np.where(ok_r, np.clip(_echo_at(echo, lags, dr, True), 0, 1), 0.0)
+    return dl, dr, conf_l, conf_r, (float(lags[0]), float(lags[-1]))
+
+
+def _echo_at(echo: np.ndarray, lags: np.ndarray, d: np.ndarray, right_view: bool) -> np.ndarray:
+    """The echo (H, W) at each pixel's own disparity, seen from its own view's end; −1 where undefined."""
+    n, h, w = echo.shape
+    k = np.clip(np.rint(np.nan_to_num(d, nan=lags[0])).astype(np.int64) - lags[0], 0, n - 1)
+    rows, cols = np.indices((h, w))
+    x = cols + (lags[k] if right_view else 0)
+    ok = np.isfinite(d) & (x < w)
+    return np.where(ok, echo[k, rows, np.clip(x, 0, w - 1)], -1.0)
+
+
+def _upsample(a: np.ndarray, shape: tuple[int, int], factor: float = 1.0) -> np.ndarray:
+    return cv2.resize(a.astype(np.float32), (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST) * factor
+
+
+def dense_disparity(image, d_min: float, d_max: float, *, fast: bool = False,
+                    params: DenseParams | None = None) -> DenseResult:
+    """Left- and right-view disparity maps (px) of a complex image (H, W), searching d_min..d_max px.
+
+    ``fast`` uses :data:`FAST` (half resolution, 4 SGM paths); ``params`` overrides either. A constant
+    image has no echo to measure: the maps are all NaN and a RuntimeWarning says so."""
+    img = check_image(image)
+    h, w = img.shape
+    check_range(float(d_min), float(d_max), w)
+    p = params or (FAST if fast else DEFAULT)
+    if np.ptp(img) == 0:
+        warnings.warn("complex image is constant: no texture to match, disparity is all NaN", RuntimeWarning,
+                      stacklevel=2)
+        nan = np.full((h, w), np.nan, np.float32)
+        return DenseResult(nan, nan.copy(), np.zeros((h, w), np.float32), np.zeros((h, w), np.float32),
+                           (float(d_min), float(d_max)))
+    if p.scale == 1:
+        dl, dr, cl, cr, searched = _at_scale(img, d_min, d_max, p)
+        f32 = lambda a: a.astype(np.float32)  # noqa: E731
+        return DenseResult(f32(dl), f32(dr), f32(cl), f32(cr), searched)
+    s = p.scale
+    small = cv2.resize(img, (max(MIN_SIZE_PX, w // s), max(MIN_SIZE_PX, h // s)), interpolation=cv2.INTER_AREA)
+    fx = w / small.shape[1]
+    dmin_s = d_min / fx
+    dmax_s = min(d_max / fx, small.shape[1] - 1)
+    if dmax_s < MIN_LAG_PX:  # too narrow a range for the coarse scale: full resolution it is
+        return dense_disparity(img, d_min, d_max, params=replace(p, scale=1))
+    dl, dr, cl, cr, searched = _at_scale(small, dmin_s, dmax_s, p)
+    return DenseResult(_upsample(dl, (h, w), fx), _upsample(dr, (h, w), fx), _upsample(cl, (h, w)),
+                       _upsample(cr, (h, w)), (searched[0] * fx, searched[1] * fx))

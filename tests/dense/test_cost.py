@@ -1,0 +1,72 @@
+import numpy as np
+import pytest
+
+from psvs.dense.cost import NO_TWIN, band_pass, echo_correlation, fused_cost, pick
+from tests.dense.planted import texture
+
+
+def direct_ncc(f, y, x, d, r):
+    """NCC of the (2r+1)^2 windows at (y, x) and (y, x - d), rows clamped at the image edge and columns
+    clamped to x >= d (where the twin exists), straight from the definition."""
+    h, w = f.shape
+    ys = np.clip(np.arange(y - r, y + r + 1), 0, h - 1)
+    xa = np.clip(np.arange(x - r, x + r + 1), 0, w - 1)
+    xb = np.clip(np.arange(x - r, x + r + 1), d, w - 1)
+    a, b = f[np.ix_(ys, xa)], f[np.ix_(ys, xb - d)]
+    ab = f[np.ix_(ys, xb)] * b
+    mu_a, mu_b = a.mean(), f[np.ix_(ys, np.clip(np.arange(x - d - r, x - d + r + 1), 0, w - 1))].mean()
+    sd_a = np.sqrt((a * a).mean() - mu_a ** 2)
+    bb = f[np.ix_(ys, np.clip(np.arange(x - d - r, x - d + r + 1), 0, w - 1))]
+    sd_b = np.sqrt((bb * bb).mean() - mu_b ** 2)
+    return (ab.mean() - mu_a * mu_b) / (sd_a * sd_b)
+
+
+def test_echo_correlation_matches_the_definition():
+    rng = np.random.default_rng(3)
+    f = rng.random((24, 40)).astype(np.float32)
+    lags = np.array([2, 5, 9])
+    vol = echo_correlation(f, lags, window=5)
+    assert vol.shape == (3, 24, 40)
+    for k, d in enumerate(lags):
+        assert np.all(vol[k, :, :d] == NO_TWIN)
+        for y, x in ((0, d), (7, 20), (23, 39), (12, d + 1)):
+            assert vol[k, y, x] == pytest.approx(direct_ncc(f, y, x, d, 2), abs=2e-5)
+
+
+def test_echo_peaks_at_the_planted_disparity():
+    # L(x) = t(x), R(x) = t(x + d) = L(x + d): every left-view patch repeats d px to its left. The other
+    # view's texture in each window halves the correlation, so a window needs a few hundred pixels.
+    t = texture(60, 160, seed=2)
+    d = 17
+    c = 0.5 * t[:, 0:120] + 0.5 * t[:, d:d + 120]
+    lags = np.arange(3, 40)
+    vol = echo_correlation(band_pass(c, 0.7), lags, window=21)
+    best = lags[np.argmax(vol[:, 10:50, 45:], axis=0)]
+    assert np.mean(best == d) > 0.93
+    assert np.median(vol[d - 3, 10:50, 45:]) == pytest.approx(0.5, abs=0.1)  # half the window is the twin
+
+
+def test_fused_cost_takes_either_end_of_a_pair():
+    echo = np.full((2, 1, 10), -1.0, np.float32)
+    echo[1, 0, 7] = 0.8            # the patch at x = 7 repeats at 7 - 4 = 3
+    lags = np.array([2, 4])
+    cost = fused_cost(echo, lags)
+    assert cost[0, 7, 1] == 0.0 and cost[0, 7, 0] == pytest.approx(1.8)   # left-view end
+    assert cost[0, 3, 1] == 0.0 and cost[0, 3, 0] == pytest.approx(1.8)   # right-view end, seen forward
+
+
+def test_pick_finds_the_parabola_vertex():
+    lags = np.array([10, 11, 12, 13, 14])
+    d_true = 12.3
+    agg = ((lags - d_true) ** 2).astype(np.float32)[None, None, :]
+    echo = np.zeros((5, 1, 1), np.float32)
+    d, own, other = pick(agg, echo, lags)
+    assert d[0, 0] == pytest.approx(d_true, abs=1e-6)
+
+
+def test_bad_windows_and_lags_are_rejected():
+    f = np.zeros((20, 20), np.float32)
+    with pytest.raises(ValueError, match="odd"):
+        echo_correlation(f, np.array([3]), window=4)
+    with pytest.raises(ValueError, match="lags must lie"):
+        echo_correlation(f, np.array([3, 20]), window=5)
