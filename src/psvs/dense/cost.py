@@ -23,7 +23,7 @@ def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def _echo(f, mu, sd, lags, r):  # pragma: no cover - compiled
+def _echo(f, mu, sd, lags, r, rs):  # pragma: no cover - compiled
     h, w = f.shape
     n = len(lags)
     out = np.empty((n, h, w), np.float32)
@@ -55,6 +55,19 @@ def _echo(f, mu, sd, lags, r):  # pragma: no cover - compiled
                     acc += rows[min(y + r, h - 1), x] - rows[max(y - r - 1, 0), x]
                 cov = acc * inv - mu[y, x] * mu[y, x - d]
                 out[k, y, x] = cov / (sd[y, x] * sd[y, x - d])
+        if rs > 0:  # shiftable windows: max over the (2 rs + 1)^2 neighbourhood, separable, within x >= d
+            for y in range(h):
+                for x in range(d, w):
+                    m = out[k, y, x]
+                    for j in range(max(d, x - rs), min(w, x + rs + 1)):
+                        m = max(m, out[k, y, j])
+                    rows[y, x] = m
+            for y in range(h):
+                for x in range(d, w):
+                    out[k, y, x] = rows[y, x]
+                for j in range(max(0, y - rs), min(h, y + rs + 1)):
+                    for x in range(d, w):
+                        out[k, y, x] = max(out[k, y, x], rows[j, x])
     return out
 
 
@@ -73,12 +86,7 @@ def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_
     box = lambda a: cv2.boxFilter(a, -1, (window, window), borderType=cv2.BORDER_REPLICATE)  # noqa: E731
     mu = box(f)
     sd = np.sqrt(np.maximum(box(f * f) - mu * mu, 1e-6)).astype(np.float32)
-    vol = _echo(f, mu, sd, lags, window // 2)
-    if shift_window > 1:
-        kernel = np.ones((shift_window, shift_window), np.uint8)
-        for k, d in enumerate(lags):
-            vol[k] = cv2.dilate(vol[k], kernel, borderType=cv2.BORDER_REPLICATE)
-            vol[k, :, :d] = NO_TWIN
+    vol = _echo(f, mu, sd, lags, window // 2, max(0, shift_window // 2))
     return vol
 
 

@@ -26,6 +26,7 @@ import warnings
 from dataclasses import dataclass, replace
 
 import cv2
+import numba as nb
 import numpy as np
 
 from psvs.dense.cost import band_pass, echo_correlation, fused_cost, one_sided_cost, pick
@@ -51,7 +52,7 @@ class DenseParams:
 
 
 DEFAULT = DenseParams()
-FAST = DenseParams(sigma_px=0.5, window=7, shift_window=5, n_paths=4, scale=2, second_pass=False)
+FAST = DenseParams(sigma_px=0.5, window=9, shift_window=1, n_paths=4, scale=2, second_pass=False)
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,16 +103,28 @@ def check_range(d_min: float, d_max: float, width: int) -> None:
 def fill_from_background(d: np.ndarray, keep: np.ndarray) -> np.ndarray:
     """``d`` (H, W) where ``keep``; elsewhere the smaller of the nearest kept values to the left and right
     on the same row (the farther surface, as for occlusions); NaN on rows with nothing kept."""
+    return _fill_rows(np.ascontiguousarray(d, dtype=np.float64), np.ascontiguousarray(keep, dtype=np.bool_))
+
+
+@nb.njit(cache=True, parallel=True)
+def _fill_rows(d, keep):  # pragma: no cover - compiled
     h, w = d.shape
-    cols = np.arange(w)[None, :]
-    left = np.maximum.accumulate(np.where(keep, cols, -1), axis=1)
-    right = np.minimum.accumulate(np.where(keep, cols, w)[:, ::-1], axis=1)[:, ::-1]
-    rows = np.arange(h)[:, None]
-    lv = np.where(left >= 0, d[rows, np.clip(left, 0, w - 1)], np.inf)
-    rv = np.where(right < w, d[rows, np.clip(right, 0, w - 1)], np.inf)
-    filled = np.minimum(lv, rv)
-    filled[np.isinf(filled)] = np.nan
-    return np.where(keep, d, filled)
+    out = np.empty_like(d)
+    for y in nb.prange(h):
+        last = np.inf
+        for x in range(w):  # nearest kept value on the left
+            if keep[y, x]:
+                last = d[y, x]
+            out[y, x] = d[y, x] if keep[y, x] else last
+        last = np.inf
+        for x in range(w - 1, -1, -1):  # and on the right; keep the smaller
+            if keep[y, x]:
+                last = d[y, x]
+            elif last < out[y, x]:
+                out[y, x] = last
+            if out[y, x] == np.inf:
+                out[y, x] = np.nan
+    return out
 
 
 def consistent(d_left: np.ndarray, d_right: np.ndarray, tol_px: float = 1.0) -> tuple[np.ndarray, np.ndarray]:

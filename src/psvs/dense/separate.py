@@ -30,7 +30,7 @@ def _differences(h: int, w: int, offset: int, n_unknowns: int) -> sp.csr_matrix:
     return sp.vstack(blocks).tocsr()
 
 
-def separate_views(image, disparity_left, split: float = 0.5, disparity_right=None, smoothness: float = 0.2,
+def separate_views(image, disparity_left, split: float = 0.5, disparity_right=None, smoothness: float = 0.05,
                    coupling: float = 1.0, iterations: int = 200) -> tuple[np.ndarray, np.ndarray]:
     """Left and right views (float64 (H, W), grey levels of the input) of the complex ``image`` (H, W).
 

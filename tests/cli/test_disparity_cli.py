@@ -1,0 +1,109 @@
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from psvs.dense.evaluate import superimpose
+from psvs.io.images import write_png
+from tests.cli.test_cli import EXAMPLE, run
+from tests.dense.planted import layered_pair
+
+
+@pytest.fixture(scope="module")
+def planted(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("dense")
+    left, right, tl, _ = layered_pair()
+    u8 = lambda a: np.clip(np.rint(a), 0, 255).astype(np.uint8)  # noqa: E731
+    paths = {k: folder / f"{k}.png" for k in ("complex", "left", "right")}
+    write_png(paths["complex"], u8(superimpose(left, right)))
+    write_png(paths["left"], u8(left))
+    write_png(paths["right"], u8(right))
+    paths["truth"] = folder / "truth.npy"
+    np.save(paths["truth"], tl)
+    return paths, tl
+
+
+def test_disparity_writes_map_views_depth_and_cloud(capsys, tmp_path, planted):
+    paths, tl = planted
+    out, conf, right = tmp_path / "d.npy", tmp_path / "c.npy", tmp_path / "dr.npy"
+    lv, rv, depth, ply = tmp_path / "l.png", tmp_path / "r.png", tmp_path / "z.npy", tmp_path / "p.ply"
+    code, text, err = run(capsys, "disparity", str(paths["complex"]), "--rig", EXAMPLE, "--min-disparity", "0",
+                          "--max-disparity", "40", "-o", str(out), "--confidence", str(conf), "--right", str(right),
+                          "--views", str(lv), str(rv), "--depth", str(depth), "--cloud", str(ply))
+    assert code == 0, err
+    d = np.load(out)
+    assert d.dtype == np.float32 and d.shape == tl.shape
+    assert np.median(d[tl == 31]) == pytest.approx(31, abs=0.5)
+    assert np.load(conf).shape == tl.shape and np.load(right).shape == tl.shape
+    assert cv2.imread(str(lv), cv2.IMREAD_GRAYSCALE).shape == tl.shape
+    z = np.load(depth)
+    assert z.dtype == np.float32 and np.nanmin(z) > 1000   # 18-40 px disparities are far away for this rig
+    assert b"binary_little_endian" in ply.read_bytes()[:200]
+    assert "px answered" in text and "points" in text
+
+
+def test_fast_and_rig_range(capsys, tmp_path):
+    from psvs import default_rig
+    from psvs.simulate.builtin import textured
+    from psvs.simulate.render import render
+
+    img = tmp_path / "t.png"
+    write_png(img, render(textured(), default_rig(), supersample=1).image)
+    out = tmp_path / "d.npy"
+    code, text, err = run(capsys, "disparity", str(img), "--rig", EXAMPLE, "-o", str(out), "--fast")
+    assert code == 0, err
+    d = np.load(out)
+    assert d.shape == (480, 640) and 86 <= np.nanmedian(d) <= 256   # the rig's 400-1200 mm range
+
+
+def test_constant_image_warns_and_writes_nan(capsys, tmp_path):
+    img = tmp_path / "flat.png"
+    write_png(img, np.full((40, 60), 90, np.uint8))
+    out = tmp_path / "d.npy"
+    code, _, err = run(capsys, "disparity", str(img), "--min-disparity", "0", "--max-disparity", "20", "-o", str(out))
+    assert code == 0 and "warning" in err and "constant" in err
+    assert np.all(np.isnan(np.load(out)))
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--min-disparity", "0"], "both --min-disparity and --max-disparity"),
+    ([], "give --rig or"),
+    (["--min-disparity", "0", "--max-disparity", "400"], "wider than the image"),
+    (["--min-disparity", "0", "--max-disparity", "40", "--cloud", "x.ply"], "need --rig"),
+    (["--min-disparity", "0", "--max-disparity", "40", "--split", "1"], "--split"),
+])
+def test_bad_input_exits_2_with_one_line(capsys, tmp_path, planted, extra, message):
+    paths, _ = planted
+    out = tmp_path / "d.npy"
+    out.write_bytes(b"keep me")
+    code, _, err = run(capsys, "disparity", str(paths["complex"]), "-o", str(out), *extra)
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert out.read_bytes() == b"keep me"   # nothing written over
+
+
+def test_missing_image_and_bad_suffix(capsys, tmp_path):
+    code, _, err = run(capsys, "disparity", str(tmp_path / "none.png"), "--min-disparity", "0",
+                       "--max-disparity", "9", "-o", str(tmp_path / "d.npy"))
+    assert code == 2 and "not found" in err
+    code, _, err = run(capsys, "disparity", str(tmp_path / "none.png"), "-o", str(tmp_path / "d.txt"))
+    assert code == 2 and ".npy" in err
+
+
+def test_dense_eval_on_own_pair(capsys, tmp_path, planted):
+    paths, _ = planted
+    code, text, err = run(capsys, "dense-eval", "--left", str(paths["left"]), "--right", str(paths["right"]),
+                          "--truth", str(paths["truth"]), "--max-disparity", "40", "-o", str(tmp_path))
+    assert code == 0, err
+    scores = json.loads((tmp_path / "scores.json").read_text())["scores"]
+    assert scores["psvs dense"]["bad2_pct"] < 10 and "StereoSGBM, separate pair" in scores
+    assert (tmp_path / "figure.png").stat().st_size > 10000 and "| psvs dense |" in text
+
+
+@pytest.mark.parametrize("extra, message", [
+    (["--left", "a.png"], "go together"),
+    (["-o", "no/such/dir"], "does not exist"),
+])
+def test_dense_eval_bad_input(capsys, extra, message):
+    code, _, err = run(capsys, "dense-eval", *extra)
+    assert code == 2 and message in err
