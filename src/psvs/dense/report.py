@@ -44,7 +44,7 @@ def figure_png(ev: Evaluation, d_max: float) -> bytes:
         ax.axis("off")
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=80)
+    fig.savefig(buf, format="png", dpi=56)
     plt.close(fig)
     return buf.getvalue()
 
