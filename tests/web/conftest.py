@@ -1,3 +1,4 @@
+import contextlib
 import socket
 import threading
 import time
@@ -27,21 +28,30 @@ def free_port() -> int:
         return s.getsockname()[1]
 
 
-@pytest.fixture
-def live_server(disc_source):
-    """A real uvicorn server on 127.0.0.1 in a background thread; yields its base URL."""
-    source, rig = disc_source
+@contextlib.contextmanager
+def serving(app):
+    """Run ``app`` on a real uvicorn server (127.0.0.1, free port, background thread); yields its base URL."""
     port = free_port()
-    server = uvicorn.Server(uvicorn.Config(create_app(source, rig), host="127.0.0.1", port=port, log_level="error"))
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="error"))
     thread = threading.Thread(target=server.run, daemon=True)
     thread.start()
     t0 = time.monotonic()
     while not server.started:
         assert thread.is_alive() and time.monotonic() - t0 < 30, "server did not start"
         time.sleep(0.05)
-    yield f"http://127.0.0.1:{port}"
-    server.should_exit = True
-    thread.join(timeout=10)
+    try:
+        yield f"http://127.0.0.1:{port}"
+    finally:
+        server.should_exit = True
+        thread.join(timeout=10)
+
+
+@pytest.fixture
+def live_server(disc_source):
+    """The app on the simulated disc, served for real."""
+    source, rig = disc_source
+    with serving(create_app(source, rig)) as url:
+        yield url
 
 
 def rim_point_px(rig, view="left", angle_rad=np.pi):

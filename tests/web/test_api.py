@@ -24,6 +24,7 @@ def test_info_image_and_page(client):
     info = client.get("/api/info").json()
     assert info["image_size_px"] == [640, 480] and info["source"]["kind"] == "scene" and info["source"]["live"]
     assert [s["op"] for s in info["pipeline"]] == ["median", "threshold", "roberts"]
+    assert info["rig"] == {"name": "default rig", "focal_length_mm": 11.3, "baseline_mm": 100.0, "plate_thickness_mm": 3.0}
     img = cv2.imdecode(np.frombuffer(client.get("/api/image.png").content, np.uint8), cv2.IMREAD_UNCHANGED)
     assert img.shape == (480, 640)
     page = client.get("/")

@@ -42,7 +42,7 @@ def run(args) -> int:
 
     from psvs.web.app import create_app
     rig = rig_from_args(args)
-    app = create_app(make_source(args, rig), rig)
+    app = create_app(make_source(args, rig), rig, args.rig or "default rig")
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"psvs serve: warning: listening on {args.host}: anyone who can reach it can use the UI")
     config = uvicorn.Config(app, host=args.host, port=args.port, log_level="warning")

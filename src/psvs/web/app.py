@@ -82,8 +82,9 @@ def _result_json(res: MatchResult, seed) -> dict:
             "disparity_range_px": list(res.disparity_range_px)}
 
 
-def create_app(source: Source, rig: Rig) -> FastAPI:
-    """The web app for one source and rig (state is per app: one user, on their own machine)."""
+def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastAPI:
+    """The web app for one source and rig (state is per app: one user, on their own machine). ``rig_name``
+    (e.g. the calibrated rig file) is shown with the rig's f, b and plate thickness."""
     w, h = rig.camera.image_size_px
     if source.still.shape != (h, w):
         raise ValueError(f"{source.name} is {source.still.shape[1]}x{source.still.shape[0]} px but the rig's camera "
@@ -124,6 +125,8 @@ def create_app(source: Source, rig: Rig) -> FastAPI:
     @app.get("/api/info")
     def info():
         return {"source": {"kind": source.kind, "name": state["name"], "live": source.live, "fps": source.fps},
+                "rig": {"name": rig_name, "focal_length_mm": rig.camera.focal_length_mm,
+                        "baseline_mm": rig.mirrors.baseline_mm, "plate_thickness_mm": rig.mirrors.plate_thickness_mm},
                 "image_size_px": [w, h], "pipeline": PAPER.to_dict()["steps"], "models": list(MODELS),
                 "steps": sorted(STEPS), "snap_px": SNAP_PX, "max_upload_bytes": MAX_BODY_BYTES}
 

@@ -55,15 +55,15 @@ function draw() {
   ctx.drawImage(base, 0, 0, canvas.width, canvas.height);
   if (state.live && state.liveState) {
     const s = state.liveState;
-    (s.left_px || []).forEach(([u, v]) => dot(ctx, u, v, "#e53935"));
-    (s.right_px || []).forEach(([u, v]) => dot(ctx, u, v, "#00e5ff"));
+    (s.left_px || []).forEach(([u, v]) => dot(ctx, u, v, $("sel-colour").value));
+    (s.right_px || []).forEach(([u, v]) => dot(ctx, u, v, $("twin-colour").value));
     return;
   }
   const res = state.result;
   if (!res) return;
   const seeded = res.seed_px !== null;
   res.pairs.forEach((p, k) => {
-    const cl = seeded ? "#e53935" : PALETTE[k % PALETTE.length], cr = seeded ? "#00e5ff" : cl;
+    const cl = seeded ? $("sel-colour").value : PALETTE[k % PALETTE.length], cr = seeded ? $("twin-colour").value : cl;
     p.left_px.forEach(([u, v]) => dot(ctx, u, v, cl));
     p.right_px.forEach(([u, v]) => dot(ctx, u, v, cr));
   });
@@ -139,7 +139,7 @@ function plotFig8(res) {
   const [sx, sy] = axes(c, Math.min(...vs), Math.max(...vs), Math.min(...ds), Math.max(...ds),
                         "row v (px)", "disparity u_l − u_r (px)");
   res.pairs.forEach((p, k) => {
-    c.fillStyle = PALETTE[k % PALETTE.length];
+    c.fillStyle = res.seed_px ? $("sel-colour").value : PALETTE[k % PALETTE.length];
     p.left_px.forEach(([, v], i) => c.fillRect(sx(v) - 1, sy(p.disparity_px[i]) - 1, 2, 2));
   });
 }
@@ -217,12 +217,15 @@ $("upload").addEventListener("change", async (ev) => {
 });
 
 ["filter", "filter-size", "binarise", "level", "edges"].forEach((id) => $(id).addEventListener("change", schedulePreview));
-$("show-edges").addEventListener("change", draw);
+["show-edges", "sel-colour", "twin-colour"].forEach((id) => $(id).addEventListener("input", draw));
 
 (async function init() {
   try {
     const info = await api("/api/info");
     $("source").textContent = `${info.source.kind}: ${info.source.name}`;
+    const rig = info.rig;
+    $("rig").textContent = `rig: ${rig.name} (f ${rig.focal_length_mm.toFixed(3)} mm, b ${rig.baseline_mm.toFixed(2)} mm, ` +
+      `plate ${rig.plate_thickness_mm.toFixed(2)} mm)`;
     $("live-start").disabled = !info.source.live;
     await loadImage();
     await preview();
