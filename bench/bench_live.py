@@ -54,7 +54,8 @@ def _whole_video():
             depth = np.array([tracker.step(frame).depth_mm for frame in src])
         if "checked" not in s:
             err = np.abs(depth / s["truth"] - 1)
-            print(f"  {len(depth)} frames, worst depth error {100 * np.nanmax(err):.3f} %, mean {100 * np.nanmean(err):.3f} %")
+            print(f"  {len(depth)} frames, worst depth error {100 * np.nanmax(err):.3f} %, "
+                  f"mean {100 * np.nanmean(err):.3f} %")
             assert len(depth) == FRAMES and np.all(err <= 0.005), "live accuracy: a frame is off by more than 0.5 %"
             s["checked"] = True
     return run

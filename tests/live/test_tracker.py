@@ -120,3 +120,20 @@ def test_live_cli_errors(args, message, capsys, tmp_path, monkeypatch):
     assert main(["live", "--rig", RIG_FILE, *args]) == 2
     err = capsys.readouterr().err
     assert message in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_live_cli_image_sequence_and_max_frames(disc_video, tmp_path, capsys):
+    """An image sequence (printf pattern) is a video too; --max-frames stops early; --quiet prints the summary."""
+    import cv2
+    path, truth, rig, scene, positions = disc_video
+    with VideoSource(video=str(path)) as src:
+        for k in range(4):
+            cv2.imwrite(str(tmp_path / f"seq_{k:03d}.png"), src.read())
+    u, v = rim_seed(rig, scene, positions[0])
+    assert main(["live", "--video", str(tmp_path / "seq_%03d.png"), "--rig", RIG_FILE, "--seed", f"{u},{v}",
+                 "--max-frames", "3", "--quiet"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 1 and out[0].startswith("3 frames, 3 tracked, ")
+    # a seed far from any edge: nothing tracked, exit status 1 and the reason
+    assert main(["live", "--video", str(tmp_path / "seq_%03d.png"), "--rig", RIG_FILE, "--seed", "5,5"]) == 1
+    assert "the edge was never found: no edge pixel near the seed" in capsys.readouterr().err

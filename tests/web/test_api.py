@@ -24,7 +24,8 @@ def test_info_image_and_page(client):
     info = client.get("/api/info").json()
     assert info["image_size_px"] == [640, 480] and info["source"]["kind"] == "scene" and info["source"]["live"]
     assert [s["op"] for s in info["pipeline"]] == ["median", "threshold", "roberts"]
-    assert info["rig"] == {"name": "default rig", "focal_length_mm": 11.3, "baseline_mm": 100.0, "plate_thickness_mm": 3.0}
+    assert info["rig"] == {"name": "default rig", "focal_length_mm": 11.3, "baseline_mm": 100.0,
+                           "plate_thickness_mm": 3.0}
     img = cv2.imdecode(np.frombuffer(client.get("/api/image.png").content, np.uint8), cv2.IMREAD_UNCHANGED)
     assert img.shape == (480, 640)
     page = client.get("/")
@@ -106,12 +107,14 @@ def test_bad_match_requests(client, body, status, detail):
 
 
 def test_malformed_bodies(client):
-    assert client.post("/api/match", content=b"{not json", headers={"content-type": "application/json"}).status_code == 422
-    assert client.post("/api/preview", content=b"[]", headers={"content-type": "application/json"}).status_code == 422
+    js = {"content-type": "application/json"}
+    assert client.post("/api/match", content=b"{not json", headers=js).status_code == 422
+    assert client.post("/api/preview", content=b"[]", headers=js).status_code == 422
     assert client.get("/static/../app.py").status_code == 404
     assert client.get("/static/%2e%2e/app.py").status_code == 404
     assert client.get("/etc/passwd").status_code == 404
-    assert client.post("/api/live/start", json={}).json()["detail"] == "live mode tracks one edge: double-click an edge first"
+    detail = client.post("/api/live/start", json={}).json()["detail"]
+    assert detail == "live mode tracks one edge: double-click an edge first"
 
 
 def test_live_mode_on_a_video(disc_video):

@@ -15,7 +15,7 @@ from psvs.measure.triangulate import MODELS
 def add_parser(sub) -> None:
     p = sub.add_parser("live", help="track an edge through live video and print its depth every frame",
                        description="The PSVS as a real-time sensor: frames from a video file (or an image sequence "
-                                   "such as seq_%%03d.png) or a camera; the edge under --seed is matched with the "
+                                   "such as seq_%03d.png) or a camera; the edge under --seed is matched with the "
                                    "paper's algorithm on the first frame and re-seeded at its new position on "
                                    "every later frame. Prints one line per frame (depth, disparity, latency); "
                                    "Ctrl-C stops a camera and still writes the log.")

@@ -84,7 +84,8 @@ def run(args) -> int:
                           disparity_right_px=t.disparity_right_px, valid_left=t.valid_left,
                           valid_right=t.valid_right, split_ratio=rig.mirrors.split_ratio)
             label = f"frame {i}" if video else name
-            print(f"{label}: {res.image.shape[1]}x{res.image.shape[0]}, mean grey {res.image.mean():.1f}", file=sys.stderr)
+            h, w = res.image.shape
+            print(f"{label}: {w}x{h}, mean grey {res.image.mean():.1f}", file=sys.stderr)
             yield res.image
 
     if video:

@@ -19,7 +19,8 @@ class LiveRunner:
     """Start with a source and a tracker; poll :meth:`state` and :meth:`frame`; stop with :meth:`stop`."""
 
     def __init__(self):
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()          # guards the latest frame, step and history
+        self._control = threading.Lock()       # serialises start and stop
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
         self._reset()
@@ -37,16 +38,22 @@ class LiveRunner:
         return self._thread is not None and self._thread.is_alive()
 
     def start(self, source: Source, tracker: EdgeTracker) -> None:
-        self.stop()
-        frames = source.frames()
-        with self._lock:
-            self._reset()
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._loop, args=(frames, tracker, source.fps), daemon=True,
-                                        name="psvs-live")
-        self._thread.start()
+        """Stop any running loop and start a new one (one loop at a time, even with concurrent requests)."""
+        with self._control:
+            self._stop_locked()
+            frames = source.frames()
+            with self._lock:
+                self._reset()
+            self._stop.clear()
+            self._thread = threading.Thread(target=self._loop, args=(frames, tracker, source.fps), daemon=True,
+                                            name="psvs-live")
+            self._thread.start()
 
     def stop(self) -> None:
+        with self._control:
+            self._stop_locked()
+
+    def _stop_locked(self) -> None:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=5)
