@@ -137,3 +137,16 @@ def test_live_cli_image_sequence_and_max_frames(disc_video, tmp_path, capsys):
     # a seed far from any edge: nothing tracked, exit status 1 and the reason
     assert main(["live", "--video", str(tmp_path / "seq_%03d.png"), "--rig", RIG_FILE, "--seed", "5,5"]) == 1
     assert "the edge was never found: no edge pixel near the seed" in capsys.readouterr().err
+
+
+def test_tracker_follows_a_jump_after_losing_the_edge(disc_video):
+    """The video restarts: the disc jumps back 120 mm nearer and 26 mm sideways, beyond the search radius and
+    the disparity step allowed between frames. Both grow while the edge is lost, so the tracker takes it up
+    again."""
+    path, truth, rig, scene, positions = disc_video
+    with VideoSource(video=str(path)) as src:
+        frames = [src.read() for _ in range(8)]
+    tr = EdgeTracker(rig, rim_seed(rig, scene, positions[7]), max_jump_px=8.0)
+    steps = [tr.step(f) for f in (frames[7], frames[0], frames[0], frames[0])]
+    assert steps[0].ok and not steps[1].ok
+    assert steps[-1].ok and steps[-1].depth_mm == pytest.approx(truth[0], rel=0.005)

@@ -4,8 +4,9 @@ re-seeded at the edge's new position.
 Frame 1 is seeded by the user (the paper's double-click, snapped to the nearest edge pixel). On each later
 frame the seed is predicted from its last motion (constant velocity), snapped to the nearest edge pixel of
 the new edge map, and accepted when the seeded match finds a twin whose disparity continues the last one;
-otherwise the next-nearest candidates are tried. The seed then moves to the matched left edge's pixel
-nearest the prediction, so it follows the edge as the object moves and changes size.
+otherwise the next-nearest candidates are tried. The search radius and the allowed disparity change grow
+with every frame the edge stays lost. The seed then moves to the matched left edge's pixel nearest the prediction, so it
+follows the edge as the object moves and changes size.
 """
 from __future__ import annotations
 
@@ -73,9 +74,11 @@ class EdgeTracker:
     snap_px : float
         How far from the user's seed the first edge pixel may be, px.
     search_px : float
-        How far from the predicted seed an edge pixel is looked for on later frames, px.
+        How far from the predicted seed an edge pixel is looked for on later frames, px; after k lost
+        frames, (k + 1) times that.
     max_jump_px : float
-        Largest change of the edge's median disparity between two frames, px.
+        Largest change of the edge's median disparity between two frames, px; after k lost frames,
+        (k + 1) times that.
     min_pairs : int
         Fewest matched pixel pairs for a frame to count as tracked.
     """
@@ -101,6 +104,7 @@ class EdgeTracker:
         self._seed = seed
         self._velocity = np.zeros(2)
         self._disparity = None          # last median disparity (px); None before the first match
+        self._lost = 0                  # frames since the edge was last tracked
         self._frame = 0
 
     def step(self, grey: np.ndarray) -> TrackStep:
@@ -116,7 +120,7 @@ class EdgeTracker:
         edges = self.pipeline.run(grey)
         first = self._disparity is None
         predicted = self._seed + self._velocity
-        radius = self.snap_px if first else self.search_px + float(np.hypot(*self._velocity))
+        radius = self.snap_px if first else self.search_px * (1 + self._lost) + float(np.hypot(*self._velocity))
         cands = nearest_edge_pixels(edges, predicted, radius, self.candidates)
         msg = "no edge pixel near the seed" if first else "edge lost"
         for cand in cands:
@@ -124,7 +128,7 @@ class EdgeTracker:
             if len(pair) < self.min_pairs:
                 continue
             d = float(np.median(pair.disparity_px))
-            if not first and abs(d - self._disparity) > self.max_jump_px:
+            if not first and abs(d - self._disparity) > self.max_jump_px * (1 + self._lost):
                 msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"
                 continue
             pair, = finish_pairs(grey, [pair], self.rig, subpixel=self.subpixel, model=self.model)
@@ -136,8 +140,10 @@ class EdgeTracker:
             self._velocity = np.zeros(2) if first else new_seed - self._seed
             self._seed = new_seed
             self._disparity = float(np.median(pair.disparity_px))
+            self._lost = 0
             return TrackStep(frame, (int(new_seed[0]), int(new_seed[1])), pair, self._disparity,
                              float(np.nanmedian(z)), time.perf_counter() - t0, "tracked")
         if not first:
             self._velocity = np.zeros(2)
+            self._lost += 1
         return TrackStep(frame, None, None, float("nan"), float("nan"), time.perf_counter() - t0, msg)
