@@ -149,3 +149,10 @@ def test_source_must_fit_the_rig(disc_source):
     _, rig = disc_source
     with pytest.raises(ValueError, match="still.png is 320x240 px but the rig's camera is 640x480 px"):
         create_app(image_source("still.png", np.zeros((240, 320), np.uint8)), rig)
+
+
+def test_right_view_edge_has_no_twin(client, disc_source):
+    """The paper selects edges of the left view: a right-view edge has no twin at a positive disparity."""
+    _, rig = disc_source
+    res = client.post("/api/match", json={"seed": list(rim_point_px(rig, "right"))}).json()
+    assert res["seed_px"] is not None and res["pairs"] == []

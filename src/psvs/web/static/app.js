@@ -106,7 +106,9 @@ function showResult(res) {
   $("depth").textContent = first ? fmt(first.median_z_mm, 2, "mm") : "–";
   $("depth").dataset.mm = first && first.median_z_mm !== null ? String(first.median_z_mm) : "";
   $("npairs").textContent = res.pairs.reduce((a, p) => a + p.n, 0);
-  if (!res.pairs.length) setStatus(res.seed_px ? "no twin found for this edge" : "no pair found");
+  if (!res.pairs.length) {
+    setStatus(res.seed_px ? "no twin found for this edge (double-click an edge of the left view)" : "no pair found");
+  }
   else setStatus(res.seed_px ? "edge matched" : `${res.pairs.length} edge pairs, ${res.unmatched} without a twin`, true);
   plotFig8(res);
   draw();
