@@ -44,3 +44,17 @@ def whole_field_points(rig, n_side=9, depths=(400.0, 600.0, 800.0, 1000.0, 1200.
         gx, gy = np.meshgrid(np.linspace(-0.99, 0.99, n_side), np.linspace(-0.99, 0.99, n_side))
         pts.append(np.column_stack([gx.ravel() * half_w, gy.ravel() * half_h, np.full(gx.size, z)]))
     return np.concatenate(pts)
+
+
+@pytest.fixture(scope="session")
+def disc_video(tmp_path_factory):
+    """A 3 s, 30 frames/s lossless (FFV1) simulated video of a disc moving in depth and sideways, through the
+    default rig: (path, true depth per frame (mm), the rig, the disc scene, rig positions (N, 3) mm)."""
+    from psvs.io.video import write_video
+    from psvs.live.simulated import SimulatedSequence, disc_scene, ping_pong_positions
+    rig = default_rig()
+    scene = disc_scene(z_mm=760.0, radius_mm=30.0, x_mm=-20.0, y_mm=10.0)
+    positions = ping_pong_positions(90, [24.0, -10.0, -120.0], 8)
+    path = tmp_path_factory.mktemp("video") / "disc.avi"
+    assert write_video(path, SimulatedSequence(scene, rig, positions, seed=3), fps=30.0) == 90
+    return path, 760.0 - positions[:, 2], rig, scene, positions

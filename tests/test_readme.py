@@ -1,11 +1,18 @@
 """Every CLI example in the README runs, in order, in one scratch folder with a copy of examples/ (a later
-example may read what an earlier one wrote, as in a shell session)."""
+example may read what an earlier one wrote, as in a shell session). ``psvs serve`` runs until stopped: it is
+started as a process on a free port, must answer its page and API, and is then stopped."""
+import json
 import re
 import shlex
 import shutil
+import subprocess
+import sys
+import time
+import urllib.request
 from pathlib import Path
 
 from psvs.cli.main import main
+from tests.web.conftest import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = [line[2:] for line in re.findall(r"^\$ psvs .*$", (ROOT / "README.md").read_text(), re.M)]
@@ -15,11 +22,42 @@ def test_readme_has_examples():
     assert len(EXAMPLES) >= 4
 
 
+def run_server(args, cwd: Path) -> None:
+    """Start ``psvs serve ARGS`` on a free port, check it answers, stop it."""
+    port = free_port()
+    if "--port" in args:
+        i = args.index("--port")
+        args = args[:i] + args[i + 2:]
+    proc = subprocess.Popen([sys.executable, "-m", "psvs", *args, "--port", str(port)], cwd=cwd,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        t0 = time.monotonic()
+        while True:
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() - t0 < 60, "psvs serve did not answer within 60 s"
+            try:
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/api/info", timeout=5) as r:
+                    info = json.load(r)
+                break
+            except OSError:
+                time.sleep(0.2)
+        assert info["image_size_px"] == [640, 480]
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=5) as r:
+            assert b'<canvas id="image"' in r.read()
+    finally:
+        proc.terminate()
+        out, err = proc.communicate(timeout=30)
+    assert f"open http://127.0.0.1:{port}/" in out and "error" not in err, (out, err)
+
+
 def test_readme_examples_run_in_order(tmp_path, monkeypatch, capsys):
     shutil.copytree(ROOT / "examples", tmp_path / "examples")
     monkeypatch.chdir(tmp_path)
     for line in EXAMPLES:
         args = shlex.split(line)[1:]
+        if args[0] == "serve":
+            run_server(args, tmp_path)
+            continue
         code = main(args)
         err = capsys.readouterr().err
         assert "error" not in err, (line, err)

@@ -75,3 +75,19 @@ def test_unknown_scene_and_missing_output(capsys):
     assert code == 2 and "neither a scene file nor a built-in" in err
     code, _, err = run(capsys, "simulate", "fig5a")
     assert code == 2 and "give a SCENE and -o OUT.png" in err
+
+
+def test_sequence_as_lossless_video(capsys, tmp_path, small_rig_file):
+    """-o OUT.avi with --frames: an FFV1 video whose frames are exactly the PNG sequence's."""
+    from psvs.live.source import VideoSource
+    args = ["fig5a", "--rig", small_rig_file, "--frames", "3", "--move-mm", "0,0,-30", "--supersample", "1"]
+    assert run(capsys, "simulate", *args, "-o", str(tmp_path / "seq.png"))[0] == 0
+    code, _, err = run(capsys, "simulate", *args, "-o", str(tmp_path / "seq.avi"), "--fps", "25")
+    assert code == 0 and "seq.avi: 3 frames, FFV1, 25 frames/s" in err
+    with VideoSource(video=str(tmp_path / "seq.avi")) as src:
+        frames = list(src)
+        assert src.fps == 25
+    assert len(frames) == 3
+    assert all(np.array_equal(f, read_grey(tmp_path / f"seq_{i:03d}.png")) for i, f in enumerate(frames))
+    code, _, err = run(capsys, "simulate", *args, "-o", str(tmp_path / "bad.avi"), "--fps", "0")
+    assert code == 2 and "--fps must be > 0" in err and not (tmp_path / "bad.avi").exists()

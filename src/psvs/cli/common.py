@@ -27,3 +27,14 @@ def check_output_path(path: str | None, suffixes: tuple[str, ...]) -> Path | Non
     if not p.parent.is_dir():
         raise FileNotFoundError(f"output folder does not exist: {p.parent}")
     return p
+
+
+def load_scene_spec(spec: str):
+    """A scene from a scene file (TOML) or a built-in spec such as ``fig9:distance_mm=800``."""
+    from psvs.io.scene_file import load_scene
+    from psvs.simulate.builtin import BUILTINS, builtin_scene
+    if spec.endswith(".toml") or Path(spec).exists():
+        return load_scene(spec)
+    if spec.partition(":")[0] in BUILTINS:
+        return builtin_scene(spec)
+    raise ValueError(f"scene {spec!r} is neither a scene file nor a built-in ({', '.join(BUILTINS)})")

@@ -2,14 +2,13 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 
-from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
+from psvs.cli.common import add_rig_argument, check_output_path, load_scene_spec, rig_from_args
 from psvs.io.images import write_npz, write_png
-from psvs.io.scene_file import load_scene
-from psvs.simulate.builtin import BUILTINS, builtin_scene, describe
+from psvs.io.video import VIDEO_SUFFIXES, write_video
+from psvs.simulate.builtin import describe
 from psvs.simulate.render import render
 from psvs.simulate.sensor import Sensor
 from psvs.simulate.sequence import render_sequence, straight_path
@@ -23,7 +22,8 @@ def add_parser(sub) -> None:
                                    "each view's image, depth, disparity and validity.")
     p.add_argument("scene", metavar="SCENE", nargs="?", help="scene file (.toml) or built-in name")
     add_rig_argument(p, required=False)
-    p.add_argument("-o", "--output", metavar="OUT.png", help="image to write (with --frames: OUT_000.png, ...)")
+    p.add_argument("-o", "--output", metavar="OUT.png", help="image to write (with --frames: OUT_000.png, ...; "
+                                                           "OUT.avi or OUT.mkv: a lossless FFV1 video)")
     p.add_argument("--truth", metavar="OUT.npz", help="also write the ground truth")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--supersample", type=int, default=2, help="K x K samples per pixel (default 2)")
@@ -34,16 +34,9 @@ def add_parser(sub) -> None:
     p.add_argument("--no-shot-noise", action="store_true", help="turn photon (shot) noise off")
     p.add_argument("--frames", type=int, default=1, help="render a sequence of N frames along --move-mm")
     p.add_argument("--move-mm", default="0,0,0", help="rig displacement over the sequence, 'dx,dy,dz' mm")
+    p.add_argument("--fps", type=float, default=30.0, help="frame rate of a video output (default 30)")
     p.add_argument("--list", action="store_true", help="list the built-in scenes and exit")
     p.set_defaults(run=run)
-
-
-def _load(spec: str):
-    if spec.endswith(".toml") or Path(spec).exists():
-        return load_scene(spec)
-    if spec.partition(":")[0] in BUILTINS:
-        return builtin_scene(spec)
-    raise ValueError(f"scene {spec!r} is neither a scene file nor a built-in ({', '.join(BUILTINS)})")
 
 
 def run(args) -> int:
@@ -53,7 +46,10 @@ def run(args) -> int:
         return 0
     if args.scene is None or args.output is None:
         raise ValueError("give a SCENE and -o OUT.png (or --list)")
-    out = check_output_path(args.output, (".png",))
+    out = check_output_path(args.output, (".png", *VIDEO_SUFFIXES))
+    video = out.suffix.lower() in VIDEO_SUFFIXES
+    if video and not args.fps > 0:
+        raise ValueError(f"--fps must be > 0, got {args.fps}")
     truth_path = check_output_path(args.truth, (".npz",))
     if args.frames < 1:
         raise ValueError(f"--frames must be >= 1, got {args.frames}")
@@ -64,8 +60,8 @@ def run(args) -> int:
         raise ValueError(f"--move-mm must be 'dx,dy,dz' in mm, got {args.move_mm!r}") from None
     sensor = Sensor(args.blur_px, args.full_well_e, args.read_noise_e, args.gain, not args.no_shot_noise)
     rig = rig_from_args(args)
-    scene = _load(args.scene)
-    if args.frames == 1:
+    scene = load_scene_spec(args.scene)
+    if args.frames == 1 and not video:
         results = [render(scene, rig, supersample=args.supersample, sensor=sensor, seed=args.seed,
                           truth=truth_path is not None)]
         names = [out]
@@ -73,16 +69,29 @@ def run(args) -> int:
         results = render_sequence(scene, rig, straight_path([0, 0, 0], move, args.frames),
                                   supersample=args.supersample, sensor=sensor, seed=args.seed,
                                   truth=truth_path is not None)
-        names = [out.with_name(f"{out.stem}_{i:03d}{out.suffix}") for i in range(args.frames)]
-    for i, (res, name) in enumerate(zip(results, names)):
-        write_png(name, res.image)
-        if truth_path is not None:
-            tp = truth_path if args.frames == 1 else truth_path.with_name(f"{truth_path.stem}_{i:03d}.npz")
-            t = res.truth
-            write_npz(tp, left=res.left.astype(np.float32), right=res.right.astype(np.float32),
-                      irradiance=res.irradiance.astype(np.float32), depth_left_mm=t.depth_left_mm,
-                      depth_right_mm=t.depth_right_mm, disparity_left_px=t.disparity_left_px,
-                      disparity_right_px=t.disparity_right_px, valid_left=t.valid_left,
-                      valid_right=t.valid_right, split_ratio=rig.mirrors.split_ratio)
-        print(f"{name}: {res.image.shape[1]}x{res.image.shape[0]}, mean grey {res.image.mean():.1f}", file=sys.stderr)
+        names = [out.with_name(f"{out.stem}_{i:03d}.png") for i in range(args.frames)]
+
+    def frames():
+        for i, (res, name) in enumerate(zip(results, names)):
+            if not video:
+                write_png(name, res.image)
+            if truth_path is not None:
+                tp = truth_path if args.frames == 1 else truth_path.with_name(f"{truth_path.stem}_{i:03d}.npz")
+                t = res.truth
+                write_npz(tp, left=res.left.astype(np.float32), right=res.right.astype(np.float32),
+                          irradiance=res.irradiance.astype(np.float32), depth_left_mm=t.depth_left_mm,
+                          depth_right_mm=t.depth_right_mm, disparity_left_px=t.disparity_left_px,
+                          disparity_right_px=t.disparity_right_px, valid_left=t.valid_left,
+                          valid_right=t.valid_right, split_ratio=rig.mirrors.split_ratio)
+            label = f"frame {i}" if video else name
+            h, w = res.image.shape
+            print(f"{label}: {w}x{h}, mean grey {res.image.mean():.1f}", file=sys.stderr)
+            yield res.image
+
+    if video:
+        n = write_video(out, frames(), fps=args.fps)
+        print(f"{out}: {n} frames, FFV1, {args.fps:g} frames/s", file=sys.stderr)
+    else:
+        for _ in frames():
+            pass
     return 0

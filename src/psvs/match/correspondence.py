@@ -111,10 +111,17 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     else:
         auto = match_auto(edges, rng, min_rows=min_rows, grey=grey)
         pairs, unmatched = auto.pairs, auto.unmatched
+    return MatchResult(finish_pairs(grey, pairs, rig, subpixel=subpixel, model=model), unmatched, edges, rng, stages)
+
+
+def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel: bool = True,
+                 model: str = "refraction") -> list[EdgePair]:
+    """Refine integer pixel pairs to sub-pixel on the grey (H, W) uint8 image, correct their rows for the
+    plate (:func:`correct_rows`) and triangulate them (points_mm, frame C, mm)."""
     out = []
     for pair in pairs:
         if subpixel:
             pair = correct_rows(grey, refine_pairs(grey, pair), rig)
         res = triangulate(pair.left_px, pair.right_px, rig, model=model)
         out.append(pair.with_points(res.points_mm))
-    return MatchResult(out, unmatched, edges, rng, stages)
+    return out

@@ -1,0 +1,75 @@
+"""``psvs serve``: the browser UI (FastAPI + uvicorn) on a complex image, a video, a camera or a simulated scene."""
+from __future__ import annotations
+
+from psvs.cli.common import add_rig_argument, load_scene_spec, rig_from_args
+from psvs.io.images import read_grey
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("serve", help="interactive web UI: pipeline, double-click matching, live mode",
+                       description="A local web app: the complex image, the image pipeline with live previews, "
+                                   "double-click an edge to match it (the paper's algorithm) and read its "
+                                   "disparity and depth, pair every edge automatically, export CSV/JSON/PLY, and "
+                                   "track the selected edge live. Open the printed address in a browser.")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument("--image", metavar="F", help="complex image (PNG, grey)")
+    src.add_argument("--video", metavar="F", help="video file (live mode plays it in a loop)")
+    src.add_argument("--camera", metavar="N", type=int, help="camera index (OpenCV VideoCapture)")
+    src.add_argument("--scene", metavar="S", help="simulated scene: a built-in (e.g. fig5b) or a scene file "
+                                                  "(the default is fig5b)")
+    add_rig_argument(p, required=False)
+    p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
+    p.add_argument("--port", type=int, default=8000, help="port (default 8000; 0 picks a free one)")
+    p.set_defaults(run=run)
+
+
+def make_source(args, rig):
+    from psvs.web import sources
+    if args.image:
+        return sources.image_source(args.image, read_grey(args.image))
+    if args.video:
+        return sources.video_source(args.video)
+    if args.camera is not None:
+        return sources.camera_source(args.camera)
+    spec = args.scene or "fig5b"
+    return sources.scene_source(spec, load_scene_spec(spec), rig)
+
+
+def run(args) -> int:
+    if not 0 <= args.port <= 65535:
+        raise ValueError(f"--port must be 0-65535, got {args.port}")
+    import uvicorn
+
+    from psvs.web.app import create_app
+    rig = rig_from_args(args)
+    app = create_app(make_source(args, rig), rig, args.rig or "default rig")
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        print(f"psvs serve: warning: listening on {args.host}: anyone who can reach it can use the UI")
+    config = uvicorn.Config(app, host=args.host, port=args.port, log_level="warning")
+    server = uvicorn.Server(config)
+
+    def announce():
+        for s in server.servers:
+            for sock in s.sockets:
+                host, port = sock.getsockname()[:2]
+                print(f"psvs serve: open http://{'[' + host + ']' if ':' in host else host}:{port}/ "
+                      f"(Ctrl-C stops)", flush=True)
+    _run_announced(server, announce)
+    return 0
+
+
+def _run_announced(server, announce) -> None:
+    """Run the uvicorn server, printing the bound address once it listens."""
+    import asyncio
+
+    async def main():
+        task = asyncio.create_task(server.serve())
+        while not server.started and not task.done():
+            await asyncio.sleep(0.05)
+        if server.started:
+            announce()
+        await task
+    try:
+        asyncio.run(main())
+    except KeyboardInterrupt:
+        pass

@@ -1,0 +1,149 @@
+"""Track one matched edge through a frame sequence: the paper's seeded algorithm (III.3) on every frame,
+re-seeded at the edge's new position.
+
+Frame 1 is seeded by the user (the paper's double-click, snapped to the nearest edge pixel). On each later
+frame the seed is predicted from its last motion (constant velocity), snapped to the nearest edge pixel of
+the new edge map, and accepted when the seeded match finds a twin whose disparity continues the last one;
+otherwise the next-nearest candidates are tried. The search radius and the allowed disparity change grow
+with every frame the edge stays lost. The seed then moves to the matched left edge's pixel nearest the prediction, so it
+follows the edge as the object moves and changes size.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.imaging.pipeline import PAPER, Pipeline
+from psvs.match.correspondence import disparity_range, finish_pairs
+from psvs.match.pairs import EdgePair
+from psvs.match.seeded import match_seeded
+from psvs.optics.rig import Rig
+
+
+@dataclass(frozen=True, eq=False)
+class TrackStep:
+    """One frame's result: frame index (from 0), the seed used (u, v) px (None when lost), the matched pair
+    (sub-pixel, with points_mm) or None, median disparity (px) and median depth Z (mm; NaN when lost),
+    processing time (s) and a short status message."""
+
+    frame: int
+    seed_px: tuple[int, int] | None
+    pair: EdgePair | None
+    disparity_px: float
+    depth_mm: float
+    elapsed_s: float
+    message: str
+
+    @property
+    def ok(self) -> bool:
+        return self.pair is not None
+
+
+def nearest_edge_pixels(edges: np.ndarray, point_px, radius_px: float, k: int = 1) -> np.ndarray:
+    """Up to ``k`` edge pixels (k, 2) int (u, v) of the (H, W) bool map nearest to ``point_px`` (u, v),
+    within ``radius_px``, nearest first (an empty (0, 2) array when there is none)."""
+    h, w = edges.shape
+    u0, v0 = float(point_px[0]), float(point_px[1])
+    r = int(np.ceil(radius_px))
+    a, b = max(0, int(round(v0)) - r), min(h, int(round(v0)) + r + 1)
+    c, d = max(0, int(round(u0)) - r), min(w, int(round(u0)) + r + 1)
+    if a >= b or c >= d:
+        return np.zeros((0, 2), int)
+    vv, uu = np.nonzero(edges[a:b, c:d])
+    uu, vv = uu + c, vv + a
+    dist = np.hypot(uu - u0, vv - v0)
+    keep = dist <= radius_px
+    order = np.argsort(dist[keep], kind="stable")[:k]
+    return np.column_stack([uu[keep][order], vv[keep][order]])
+
+
+class EdgeTracker:
+    """Follow the left-view edge under ``seed_px`` frame to frame and report its depth.
+
+    Parameters
+    ----------
+    rig : Rig
+    seed_px : (u, v)
+        A point on (or within ``snap_px`` of) a left-view edge in the first frame, px.
+    pipeline : Pipeline
+        The image pipeline (default: the paper's median 3x3, threshold 92, Roberts).
+    near_mm, far_mm : float
+        Working depth range (sets the disparities searched).
+    snap_px : float
+        How far from the user's seed the first edge pixel may be, px.
+    search_px : float
+        How far from the predicted seed an edge pixel is looked for on later frames, px; after k lost
+        frames, (k + 1) times that.
+    max_jump_px : float
+        Largest change of the edge's median disparity between two frames, px; after k lost frames,
+        (k + 1) times that.
+    min_pairs : int
+        Fewest matched pixel pairs for a frame to count as tracked.
+    """
+
+    def __init__(self, rig: Rig, seed_px, *, pipeline: Pipeline = PAPER, near_mm: float = 400.0,
+                 far_mm: float = 1200.0, model: str = "refraction", subpixel: bool = True, snap_px: float = 6.0,
+                 search_px: float = 25.0, max_jump_px: float = 12.0, min_pairs: int = 10, candidates: int = 4):
+        try:
+            seed = np.array([float(c) for c in seed_px])
+            assert seed.shape == (2,) and np.all(np.isfinite(seed))
+        except (TypeError, ValueError, AssertionError):
+            raise ValueError(f"seed must be two numbers (u, v) in px, got {seed_px!r}") from None
+        w, h = rig.camera.image_size_px
+        if not (0 <= seed[0] < w and 0 <= seed[1] < h):
+            raise ValueError(f"seed ({seed[0]:g}, {seed[1]:g}) is outside the {w}x{h} image")
+        for name, value in (("snap_px", snap_px), ("search_px", search_px), ("max_jump_px", max_jump_px)):
+            if not value > 0:
+                raise ValueError(f"{name} must be > 0 px, got {value!r}")
+        self.rig, self.pipeline, self.model, self.subpixel = rig, pipeline, model, subpixel
+        self.range_px = disparity_range(rig, near_mm, far_mm)
+        self.snap_px, self.search_px, self.max_jump_px = snap_px, search_px, max_jump_px
+        self.min_pairs, self.candidates = min_pairs, candidates
+        self._seed = seed
+        self._velocity = np.zeros(2)
+        self._disparity = None          # last median disparity (px); None before the first match
+        self._lost = 0                  # frames since the edge was last tracked
+        self._frame = 0
+
+    def step(self, grey: np.ndarray) -> TrackStep:
+        """Process the next frame (H, W) uint8 and return its :class:`TrackStep`."""
+        t0 = time.perf_counter()
+        grey = np.asarray(grey)
+        w, h = self.rig.camera.image_size_px
+        if grey.ndim != 2 or grey.dtype != np.uint8:
+            raise ValueError(f"frame must be a grey (H, W) uint8 image, got shape {grey.shape} {grey.dtype}")
+        if grey.shape != (h, w):
+            raise ValueError(f"frame is {grey.shape[1]}x{grey.shape[0]} px but the rig's camera is {w}x{h} px")
+        frame, self._frame = self._frame, self._frame + 1
+        edges = self.pipeline.run(grey)
+        first = self._disparity is None
+        predicted = self._seed + self._velocity
+        radius = self.snap_px if first else self.search_px * (1 + self._lost) + float(np.hypot(*self._velocity))
+        cands = nearest_edge_pixels(edges, predicted, radius, self.candidates)
+        msg = "no edge pixel near the seed" if first else "edge lost"
+        for cand in cands:
+            pair = match_seeded(edges, cand, self.range_px)
+            if len(pair) < self.min_pairs:
+                continue
+            d = float(np.median(pair.disparity_px))
+            if not first and abs(d - self._disparity) > self.max_jump_px * (1 + self._lost):
+                msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"
+                continue
+            pair, = finish_pairs(grey, [pair], self.rig, subpixel=self.subpixel, model=self.model)
+            z = pair.points_mm[:, 2]
+            if not np.any(np.isfinite(z)):
+                continue
+            new_seed = pair.left_px[np.argmin(np.hypot(*(pair.left_px - predicted).T))]
+            new_seed = np.rint(new_seed)
+            self._velocity = np.zeros(2) if first else new_seed - self._seed
+            self._seed = new_seed
+            self._disparity = float(np.median(pair.disparity_px))
+            self._lost = 0
+            return TrackStep(frame, (int(new_seed[0]), int(new_seed[1])), pair, self._disparity,
+                             float(np.nanmedian(z)), time.perf_counter() - t0, "tracked")
+        if not first:
+            self._velocity = np.zeros(2)
+            self._lost += 1
+        return TrackStep(frame, None, None, float("nan"), float("nan"), time.perf_counter() - t0, msg)

@@ -1,0 +1,1 @@
+"""The browser UI (psvs serve): FastAPI app, plain JS and canvas."""

@@ -1,0 +1,226 @@
+"""``psvs serve``'s web app: the complex image, the pipeline with live previews, the paper's double-click
+matching (III.3 step 2) with Fig. 7c/d- and Fig. 8-like views, automatic pairing, exports and live mode.
+
+Everything the page needs comes from this module's routes and the files in ``static/``; no route takes a
+file path, so nothing else on the machine can be read. Request bodies are capped (:class:`BodyLimit`).
+"""
+from __future__ import annotations
+
+import base64
+import contextlib
+import struct
+import tempfile
+import threading
+from pathlib import Path
+
+import cv2
+import numpy as np
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import FileResponse, JSONResponse, Response
+from fastapi.staticfiles import StaticFiles
+from pydantic import BaseModel, ConfigDict, Field
+
+from psvs.imaging.pipeline import PAPER, make_pipeline
+from psvs.imaging.steps import STEPS
+from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
+from psvs.match.correspondence import MatchResult, match_image
+from psvs.match.export import write_csv, write_json, write_ply
+from psvs.measure.triangulate import MODELS
+from psvs.optics.rig import Rig
+from psvs.web.limits import BodyLimit, check_steps
+from psvs.web.live_runner import LiveRunner
+from psvs.web.sources import Source
+
+STATIC = Path(__file__).resolve().parent / "static"
+#: Largest request body (an uploaded PNG of a 640x480 grey image is ~0.3 MB).
+MAX_BODY_BYTES = 8 * 1024 * 1024
+#: A double-click this close (px) to an edge selects it.
+SNAP_PX = 6.0
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+EXPORTS = {"csv": (write_csv, "text/csv"), "json": (write_json, "application/json"), "ply": (write_ply, "text/plain")}
+
+
+class PipelineBody(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    steps: list[dict] | None = Field(default=None, description="pipeline steps; default: the paper's")
+
+
+class MatchBody(PipelineBody):
+    seed: tuple[float, float] | None = Field(default=None, description="double-clicked (u, v) px; None: automatic")
+    near_mm: float = Field(400.0, gt=0, le=100000)
+    far_mm: float = Field(1200.0, gt=0, le=100000)
+    model: str = "refraction"
+
+
+def _png(img: np.ndarray) -> bytes:
+    ok, buf = cv2.imencode(".png", img.view(np.uint8) * 255 if img.dtype == bool else img)
+    if not ok:
+        raise ValueError("could not encode the image as PNG")
+    return buf.tobytes()
+
+
+def _data_url(img: np.ndarray) -> str:
+    return "data:image/png;base64," + base64.b64encode(_png(img)).decode()
+
+
+def _pipeline(steps):
+    return PAPER if steps is None else make_pipeline(check_steps(steps))
+
+
+def _result_json(res: MatchResult, seed) -> dict:
+    pairs = []
+    for k, p in enumerate(res.pairs):
+        z = p.points_mm[:, 2]
+        pairs.append({"id": k, "n": len(p), "median_z_mm": float(np.nanmedian(z)) if np.any(np.isfinite(z)) else None,
+                      "median_disparity_px": float(np.median(p.disparity_px)),
+                      "shape_disparity_px": p.shape_disparity_px,
+                      "left_px": np.round(p.left_px, 3).tolist(), "right_px": np.round(p.right_px, 3).tolist(),
+                      "disparity_px": np.round(p.disparity_px, 4).tolist(),
+                      "z_mm": [None if not np.isfinite(v) else round(float(v), 3) for v in z]})
+    return {"seed_px": seed, "pairs": pairs, "unmatched": len(res.unmatched),
+            "disparity_range_px": list(res.disparity_range_px)}
+
+
+def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastAPI:
+    """The web app for one source and rig (state is per app: one user, on their own machine). ``rig_name``
+    (e.g. the calibrated rig file) is shown with the rig's f, b and plate thickness."""
+    w, h = rig.camera.image_size_px
+    if source.still.shape != (h, w):
+        raise ValueError(f"{source.name} is {source.still.shape[1]}x{source.still.shape[0]} px but the rig's camera "
+                         f"is {w}x{h} px")
+    live = LiveRunner()
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app):
+        yield
+        live.stop()
+
+    app = FastAPI(title="psvs", docs_url=None, redoc_url=None, openapi_url=None, lifespan=lifespan)
+    app.add_middleware(BodyLimit, max_bytes=MAX_BODY_BYTES)
+    state = {"still": source.still, "name": source.name, "result": None}
+    lock = threading.Lock()
+    app.state.live = live
+
+    @app.exception_handler(ValueError)
+    @app.exception_handler(TypeError)
+    @app.exception_handler(cv2.error)
+    async def bad_input(request: Request, exc: Exception):
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else type(exc).__name__
+        return JSONResponse({"detail": msg[:300]}, status_code=400)
+
+    @app.exception_handler(RequestValidationError)
+    async def bad_request(request: Request, exc: RequestValidationError):
+        errs = exc.errors()
+        where = ".".join(str(x) for x in errs[0].get("loc", ())) if errs else "body"
+        return JSONResponse({"detail": f"malformed request: {where}: {errs[0].get('msg', '') if errs else ''}"[:300]},
+                            status_code=422)
+
+    @app.get("/", include_in_schema=False)
+    def index():
+        return FileResponse(STATIC / "index.html", media_type="text/html")
+
+    app.mount("/static", StaticFiles(directory=STATIC), name="static")
+
+    @app.get("/api/info")
+    def info():
+        return {"source": {"kind": source.kind, "name": state["name"], "live": source.live, "fps": source.fps},
+                "rig": {"name": rig_name, "focal_length_mm": rig.camera.focal_length_mm,
+                        "baseline_mm": rig.mirrors.baseline_mm, "plate_thickness_mm": rig.mirrors.plate_thickness_mm},
+                "image_size_px": [w, h], "pipeline": PAPER.to_dict()["steps"], "models": list(MODELS),
+                "steps": sorted(STEPS), "snap_px": SNAP_PX, "max_upload_bytes": MAX_BODY_BYTES}
+
+    @app.get("/api/image.png")
+    def image():
+        return Response(_png(state["still"]), media_type="image/png", headers={"Cache-Control": "no-store"})
+
+    @app.post("/api/preview")
+    def preview(body: PipelineBody):
+        """Every pipeline stage of the current image as a PNG data URL (binary images and the edge map)."""
+        _, stages = _pipeline(body.steps).run(state["still"], keep=True)
+        return {"stages": [{"op": op, "binary": img.dtype == bool, "png": _data_url(img)} for op, img in stages]}
+
+    @app.post("/api/match")
+    def match(body: MatchBody):
+        """The paper's algorithm from a double-clicked point (snapped to the nearest edge pixel within
+        SNAP_PX), or automatic pairing of every edge when no seed is given."""
+        if body.model not in MODELS:
+            raise ValueError(f"model must be one of {', '.join(MODELS)}, got {body.model!r}")
+        if not body.near_mm < body.far_mm:
+            raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
+        pipeline, grey, seed = _pipeline(body.steps), state["still"], None
+        if body.seed is not None:
+            u, v = body.seed
+            if not (np.isfinite(u) and np.isfinite(v) and -0.5 <= u < w - 0.5 and -0.5 <= v < h - 0.5):
+                raise ValueError(f"seed ({u:g}, {v:g}) is outside the {w}x{h} image")
+            near = nearest_edge_pixels(pipeline.run(grey), (u, v), SNAP_PX)
+            if len(near) == 0:
+                raise ValueError(f"no edge within {SNAP_PX:g} px of ({u:.0f}, {v:.0f}): double-click on an edge")
+            seed = [int(near[0][0]), int(near[0][1])]
+        res = match_image(grey, rig, seed_px=seed, pipeline=pipeline, near_mm=body.near_mm, far_mm=body.far_mm,
+                          model=body.model)
+        with lock:
+            state["result"] = res
+        return _result_json(res, seed)
+
+    @app.get("/api/export/{fmt}")
+    def export(fmt: str):
+        if fmt not in EXPORTS:
+            return JSONResponse({"detail": f"export format must be one of {', '.join(EXPORTS)}"}, status_code=404)
+        with lock:
+            res = state["result"]
+        if res is None:
+            return JSONResponse({"detail": "nothing to export yet: match an edge first"}, status_code=409)
+        writer, media = EXPORTS[fmt]
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / f"psvs_match.{fmt}"
+            writer(path, res)
+            data = path.read_bytes()
+        return Response(data, media_type=media,
+                        headers={"Content-Disposition": f'attachment; filename="psvs_match.{fmt}"'})
+
+    @app.post("/api/upload")
+    async def upload(request: Request):
+        """Replace the complex image by a grey PNG of the rig's size (raw request body)."""
+        data = await request.body()
+        if not data.startswith(PNG_SIGNATURE) or len(data) < 33 or data[12:16] != b"IHDR":
+            raise ValueError("upload must be a PNG image")
+        pw, ph = struct.unpack(">II", data[16:24])
+        if (pw, ph) != (w, h):     # checked before decoding: no decompression bombs
+            raise ValueError(f"image is {pw}x{ph} px but the rig's camera is {w}x{h} px")
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
+        if img is None or img.shape != (h, w):
+            raise ValueError("not a readable PNG image")
+        with lock:
+            state.update(still=img, name="uploaded image", result=None)
+        return {"image_size_px": [w, h]}
+
+    @app.post("/api/live/start")
+    def live_start(body: MatchBody):
+        if body.seed is None:
+            raise ValueError("live mode tracks one edge: double-click an edge first")
+        if not body.near_mm < body.far_mm:
+            raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
+        tracker = EdgeTracker(rig, body.seed, pipeline=_pipeline(body.steps), near_mm=body.near_mm,
+                              far_mm=body.far_mm, model=body.model if body.model in MODELS else "refraction",
+                              snap_px=SNAP_PX)
+        live.start(source, tracker)
+        return {"running": True}
+
+    @app.post("/api/live/stop")
+    def live_stop():
+        live.stop()
+        return {"running": False}
+
+    @app.get("/api/live/state")
+    def live_state():
+        return live.state()
+
+    @app.get("/api/live/frame.png")
+    def live_frame():
+        frame = live.frame()
+        if frame is None:
+            return JSONResponse({"detail": "no live frame yet"}, status_code=404)
+        return Response(_png(frame), media_type="image/png", headers={"Cache-Control": "no-store"})
+
+    return app

@@ -1,0 +1,107 @@
+"""The web UI's live mode: a background thread that reads frames, tracks the selected edge and keeps the
+latest frame, the latest result and a depth-over-time history for the page to poll."""
+from __future__ import annotations
+
+import collections
+import threading
+import time
+
+import numpy as np
+
+from psvs.live.tracker import EdgeTracker, TrackStep
+from psvs.web.sources import Source
+
+HISTORY = 600          # depth samples kept for the plot
+SHOWN_PAIRS = 400      # pixel pairs sent to the page per frame (evenly subsampled)
+
+
+class LiveRunner:
+    """Start with a source and a tracker; poll :meth:`state` and :meth:`frame`; stop with :meth:`stop`."""
+
+    def __init__(self):
+        self._lock = threading.Lock()          # guards the latest frame, step and history
+        self._control = threading.Lock()       # serialises start and stop
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._reset()
+
+    def _reset(self):
+        self._frame = None
+        self._step: TrackStep | None = None
+        self._history = collections.deque(maxlen=HISTORY)
+        self._times = collections.deque(maxlen=30)
+        self._error = ""
+        self._t0 = time.perf_counter()
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def start(self, source: Source, tracker: EdgeTracker) -> None:
+        """Stop any running loop and start a new one (one loop at a time, even with concurrent requests)."""
+        with self._control:
+            self._stop_locked()
+            frames = source.frames()
+            with self._lock:
+                self._reset()
+            self._stop.clear()
+            self._thread = threading.Thread(target=self._loop, args=(frames, tracker, source.fps), daemon=True,
+                                            name="psvs-live")
+            self._thread.start()
+
+    def stop(self) -> None:
+        with self._control:
+            self._stop_locked()
+
+    def _stop_locked(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+        self._thread = None
+
+    def _loop(self, frames, tracker: EdgeTracker, fps: float) -> None:
+        period = 1.0 / fps if fps > 0 else 0.0
+        next_t = time.perf_counter()
+        try:
+            for frame in frames:
+                if self._stop.is_set():
+                    break
+                step = tracker.step(frame)
+                now = time.perf_counter()
+                with self._lock:
+                    self._frame, self._step = frame, step
+                    self._times.append(now)
+                    self._history.append((now - self._t0, step.depth_mm))
+                if period:   # play files and simulations at their nominal rate
+                    next_t = max(next_t + period, now - period)
+                    self._stop.wait(max(0.0, next_t - time.perf_counter()))
+        except Exception as exc:   # shown on the page; the server keeps running
+            with self._lock:
+                self._error = f"{type(exc).__name__}: {exc}"
+        finally:
+            close = getattr(frames, "close", None)
+            if close:
+                close()
+
+    def frame(self) -> np.ndarray | None:
+        with self._lock:
+            return self._frame
+
+    def state(self) -> dict:
+        with self._lock:
+            step, times = self._step, list(self._times)
+            history = [[round(t, 3), None if not np.isfinite(z) else round(z, 3)] for t, z in self._history]
+            error = self._error
+        fps = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 and times[-1] > times[0] else 0.0
+        out = {"running": self.running, "error": error, "fps": round(fps, 2), "history": history}
+        if step is not None:
+            out.update(frame=step.frame, tracked=step.ok, message=step.message,
+                       latency_ms=round(step.elapsed_s * 1e3, 3),
+                       depth_mm=step.depth_mm if step.ok else None,
+                       disparity_px=step.disparity_px if step.ok else None,
+                       seed_px=list(step.seed_px) if step.seed_px else None)
+            if step.ok:
+                k = np.unique(np.linspace(0, len(step.pair) - 1, min(SHOWN_PAIRS, len(step.pair))).astype(int))
+                out["left_px"] = np.round(step.pair.left_px[k], 2).tolist()
+                out["right_px"] = np.round(step.pair.right_px[k], 2).tolist()
+        return out

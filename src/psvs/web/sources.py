@@ -1,0 +1,92 @@
+"""What ``psvs serve`` shows: a still complex image, a video file, a camera or a simulated scene.
+
+A source gives the still image the page opens with and, except for a still image, a fresh frame iterator
+for live mode with the source's nominal frame rate (the live loop plays files and simulations at that rate).
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from psvs.live.simulated import SimulatedSequence, ping_pong_positions
+from psvs.live.source import VideoSource
+from psvs.optics.rig import Rig
+from psvs.simulate.render import render
+from psvs.simulate.scene import Scene
+
+#: A simulated scene's live sequence: the rig moves this far (mm) and back over this many distinct positions.
+SIM_MOVE_MM = (0.0, 0.0, -150.0)
+SIM_POSITIONS = 16
+
+
+@dataclass(eq=False)
+class Source:
+    """kind: 'image', 'video', 'camera' or 'scene'; name: shown to the user; still: (H, W) uint8."""
+
+    kind: str
+    name: str
+    still: np.ndarray
+    fps: float = 0.0
+    _open: object = field(default=None, repr=False)
+
+    @property
+    def live(self) -> bool:
+        return self._open is not None
+
+    def frames(self) -> Iterator[np.ndarray]:
+        """A new iterator over the live frames (a file or a simulation loops; a camera runs until closed)."""
+        if self._open is None:
+            raise ValueError("a still image has no live frames: start psvs serve with --video, --camera or --scene")
+        return self._open()
+
+
+def image_source(name: str, grey: np.ndarray) -> Source:
+    return Source("image", name, grey)
+
+
+def video_source(path: str) -> Source:
+    with VideoSource(video=path) as v:
+        first, fps = v.read(), v.fps
+    if first is None:
+        raise ValueError(f"no frame could be read from {path}")
+
+    def frames():
+        while True:
+            n = 0
+            with VideoSource(video=path) as v:
+                for frame in v:
+                    n += 1
+                    yield frame
+            if n == 0:
+                return
+    return Source("video", path, first, fps or 30.0, frames)
+
+
+def camera_source(index: int) -> Source:
+    with VideoSource(camera=index) as v:
+        first = v.read()
+    if first is None:
+        raise OSError(f"camera {index} gives no frames")
+
+    def frames():
+        with VideoSource(camera=index) as v:
+            yield from v
+    return Source("camera", f"camera {index}", first, 0.0, frames)
+
+
+def scene_source(name: str, scene: Scene, rig: Rig) -> Source:
+    """The scene's complex image (2x2 supersampled); live: the rig moves along Z and back (rendered once per
+    position, fresh noise every frame)."""
+    still = render(scene, rig, seed=0).image
+    period = 2 * (SIM_POSITIONS - 1)
+    sim = SimulatedSequence(scene, rig, ping_pong_positions(period, SIM_MOVE_MM, SIM_POSITIONS), supersample=1)
+
+    def frames():
+        k = 0
+        while True:
+            yield sim.frame(k)
+            k += 1
+    return Source("scene", name, still, 30.0, frames)
+

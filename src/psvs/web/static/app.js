@@ -1,0 +1,236 @@
+// psvs web UI: plain JS and canvas. The server does all computation (psvs.web.app); this draws.
+"use strict";
+const $ = (id) => document.getElementById(id);
+const PALETTE = ["#e53935", "#1e88e5", "#43a047", "#fb8c00", "#8e24aa", "#00acc1", "#6d4c41", "#d81b60",
+                 "#7cb342", "#3949ab"];
+const state = { image: null, edges: null, result: null, seed: null, live: false, liveFrame: null, liveState: null };
+const canvas = $("image"), ctx = canvas.getContext("2d");
+
+function setStatus(text, ok) { const s = $("status"); s.textContent = text || ""; s.className = ok ? "ok" : ""; }
+
+async function api(path, body) {
+  const opts = body === undefined ? {} : { method: "POST", headers: { "Content-Type": "application/json" },
+                                           body: JSON.stringify(body) };
+  const r = await fetch(path, opts);
+  const data = await r.json().catch(() => ({}));
+  if (!r.ok) throw new Error(data.detail || `${r.status} ${r.statusText}`);
+  return data;
+}
+
+function steps() {
+  const out = [], f = $("filter").value, size = Number($("filter-size").value), bin = $("binarise").value;
+  if (f === "median" || f === "mean") out.push({ op: f, ksize: size });
+  else if (f === "gaussian") out.push({ op: f, sigma: size / 3 });
+  else if (f === "bilateral") out.push({ op: f, diameter: size });
+  if (bin === "fixed") out.push({ op: "threshold", level: Number($("level").value) });
+  else if (bin !== "none") out.push({ op: "threshold", method: bin });
+  out.push({ op: $("edges").value });
+  return out;
+}
+
+function matchBody(seed) {
+  return { steps: steps(), seed: seed, near_mm: Number($("near").value), far_mm: Number($("far").value) };
+}
+
+function loadImg(src) {
+  return new Promise((resolve, reject) => {
+    const img = new Image();
+    img.onload = () => resolve(img);
+    img.onerror = () => reject(new Error("could not load " + src));
+    img.src = src;
+  });
+}
+
+async function loadImage() {
+  state.image = await loadImg("/api/image.png?t=" + Date.now());
+  canvas.width = state.image.width; canvas.height = state.image.height;
+  draw();
+}
+
+function dot(c, x, y, colour) { c.fillStyle = colour; c.fillRect(x - 0.5, y - 0.5, 1.6, 1.6); }
+
+function draw() {
+  const base = state.live && state.liveFrame ? state.liveFrame : ($("show-edges").checked && state.edges) || state.image;
+  if (!base) return;
+  ctx.drawImage(base, 0, 0, canvas.width, canvas.height);
+  if (state.live && state.liveState) {
+    const s = state.liveState;
+    (s.left_px || []).forEach(([u, v]) => dot(ctx, u, v, $("sel-colour").value));
+    (s.right_px || []).forEach(([u, v]) => dot(ctx, u, v, $("twin-colour").value));
+    return;
+  }
+  const res = state.result;
+  if (!res) return;
+  const seeded = res.seed_px !== null;
+  res.pairs.forEach((p, k) => {
+    const cl = seeded ? $("sel-colour").value : PALETTE[k % PALETTE.length], cr = seeded ? $("twin-colour").value : cl;
+    p.left_px.forEach(([u, v]) => dot(ctx, u, v, cl));
+    p.right_px.forEach(([u, v]) => dot(ctx, u, v, cr));
+  });
+  if (seeded) {
+    ctx.strokeStyle = "#ffeb3b"; ctx.lineWidth = 1.5;
+    ctx.beginPath(); ctx.arc(res.seed_px[0], res.seed_px[1], 6, 0, 2 * Math.PI); ctx.stroke();
+  }
+}
+
+let previewTimer = null;
+function schedulePreview() { clearTimeout(previewTimer); previewTimer = setTimeout(preview, 150); }
+
+async function preview() {
+  try {
+    const data = await api("/api/preview", { steps: steps() });
+    const st = data.stages, last = st[st.length - 1];
+    const binary = st.filter((s) => s.binary && s !== last).pop() || st[st.length - 2] || last;
+    $("binary").src = binary.png; $("edgemap").src = last.png;
+    state.edges = await loadImg(last.png);
+    setStatus("");
+    draw();
+  } catch (e) { setStatus("pipeline: " + e.message); }
+}
+
+function fmt(x, digits, unit) { return x === null || x === undefined || !isFinite(x) ? "–" : `${x.toFixed(digits)} ${unit}`; }
+
+function showResult(res) {
+  state.result = res;
+  const tbody = $("pairs").querySelector("tbody");
+  tbody.innerHTML = "";
+  res.pairs.forEach((p, k) => {
+    const tr = document.createElement("tr");
+    tr.innerHTML = `<td style="color:${PALETTE[k % PALETTE.length]}">${k}</td><td>${p.n}</td>` +
+      `<td>${p.median_disparity_px.toFixed(2)}</td><td>${p.median_z_mm === null ? "–" : p.median_z_mm.toFixed(2)}</td>`;
+    tbody.appendChild(tr);
+  });
+  const first = res.pairs[0];
+  $("seed").textContent = res.seed_px ? `(${res.seed_px[0]}, ${res.seed_px[1]})` : "automatic";
+  $("disparity").textContent = first ? fmt(first.median_disparity_px, 2, "px") : "–";
+  $("depth").textContent = first ? fmt(first.median_z_mm, 2, "mm") : "–";
+  $("depth").dataset.mm = first && first.median_z_mm !== null ? String(first.median_z_mm) : "";
+  $("npairs").textContent = res.pairs.reduce((a, p) => a + p.n, 0);
+  if (!res.pairs.length) {
+    setStatus(res.seed_px ? "no twin found for this edge (double-click an edge of the left view)" : "no pair found");
+  }
+  else setStatus(res.seed_px ? "edge matched" : `${res.pairs.length} edge pairs, ${res.unmatched} without a twin`, true);
+  plotFig8(res);
+  draw();
+}
+
+function axes(c, x0, x1, y0, y1, xlabel, ylabel) {
+  const W = c.canvas.width, H = c.canvas.height, m = { l: 50, r: 10, t: 10, b: 32 };
+  c.clearRect(0, 0, W, H);
+  c.strokeStyle = "#444"; c.fillStyle = "#444"; c.font = "11px sans-serif"; c.lineWidth = 1;
+  c.strokeRect(m.l, m.t, W - m.l - m.r, H - m.t - m.b);
+  if (x1 <= x0) x1 = x0 + 1;
+  if (y1 <= y0) { y0 -= 0.5; y1 += 0.5; }
+  const sx = (x) => m.l + (x - x0) / (x1 - x0) * (W - m.l - m.r);
+  const sy = (y) => H - m.b - (y - y0) / (y1 - y0) * (H - m.t - m.b);
+  for (let i = 0; i <= 4; i++) {
+    const xv = x0 + (x1 - x0) * i / 4, yv = y0 + (y1 - y0) * i / 4;
+    c.fillText(xv.toFixed(xv > 100 ? 0 : 1), sx(xv) - 10, H - m.b + 13);
+    c.fillText(yv.toFixed(Math.abs(y1 - y0) > 20 ? 0 : 2), 2, sy(yv) + 4);
+  }
+  c.fillText(xlabel, W / 2 - 20, H - 4);
+  c.fillText(ylabel, m.l + 4, m.t + 12);
+  return [sx, sy];
+}
+
+function plotFig8(res) {
+  const c = $("fig8").getContext("2d");
+  const all = res.pairs.flatMap((p) => p.left_px.map(([, v], i) => [v, p.disparity_px[i]]));
+  if (!all.length) { c.clearRect(0, 0, c.canvas.width, c.canvas.height); return; }
+  const vs = all.map((a) => a[0]), ds = all.map((a) => a[1]);
+  const [sx, sy] = axes(c, Math.min(...vs), Math.max(...vs), Math.min(...ds), Math.max(...ds),
+                        "row v (px)", "disparity u_l − u_r (px)");
+  res.pairs.forEach((p, k) => {
+    c.fillStyle = res.seed_px ? $("sel-colour").value : PALETTE[k % PALETTE.length];
+    p.left_px.forEach(([, v], i) => c.fillRect(sx(v) - 1, sy(p.disparity_px[i]) - 1, 2, 2));
+  });
+}
+
+function plotDepth(history) {
+  const c = $("depth-plot").getContext("2d");
+  const pts = history.filter((h) => h[1] !== null);
+  if (!pts.length) { c.clearRect(0, 0, c.canvas.width, c.canvas.height); return; }
+  const ts = pts.map((p) => p[0]), zs = pts.map((p) => p[1]);
+  const [sx, sy] = axes(c, Math.min(...ts), Math.max(...ts), Math.min(...zs), Math.max(...zs), "time (s)", "depth Z (mm)");
+  c.strokeStyle = "#1e88e5"; c.beginPath();
+  pts.forEach(([t, z], i) => (i ? c.lineTo(sx(t), sy(z)) : c.moveTo(sx(t), sy(z))));
+  c.stroke();
+}
+
+canvas.addEventListener("dblclick", async (ev) => {
+  if (state.live) return;
+  const r = canvas.getBoundingClientRect();
+  const u = (ev.clientX - r.left) * canvas.width / r.width - 0.5, v = (ev.clientY - r.top) * canvas.height / r.height - 0.5;
+  setStatus("matching…", true);
+  try {
+    const res = await api("/api/match", matchBody([u, v]));
+    if (res.seed_px) state.seed = res.seed_px;
+    showResult(res);
+  } catch (e) { setStatus(e.message); }
+});
+
+$("auto").addEventListener("click", async () => {
+  setStatus("pairing every edge…", true);
+  try { showResult(await api("/api/match", matchBody(null))); } catch (e) { setStatus(e.message); }
+});
+
+async function livePoll() {
+  if (!state.live) return;
+  try {
+    const s = await api("/api/live/state");
+    state.liveState = s;
+    $("live-frame").textContent = s.frame ?? "–";
+    $("live-fps").textContent = fmt(s.fps, 1, "");
+    $("live-latency").textContent = fmt(s.latency_ms, 1, "ms");
+    $("live-depth").textContent = fmt(s.depth_mm, 2, "mm");
+    $("live-depth").dataset.mm = s.depth_mm ?? "";
+    plotDepth(s.history || []);
+    if (s.error) setStatus("live: " + s.error);
+    else if (s.message && !s.tracked) setStatus("live: " + s.message);
+    else setStatus("live", true);
+    if (s.frame !== undefined) state.liveFrame = await loadImg("/api/live/frame.png?t=" + Date.now());
+    draw();
+    if (!s.running) { state.live = false; return; }
+  } catch (e) { setStatus("live: " + e.message); }
+  setTimeout(livePoll, 80);
+}
+
+$("live-start").addEventListener("click", async () => {
+  try {
+    await api("/api/live/start", matchBody(state.seed));
+    state.live = true; state.liveFrame = null;
+    livePoll();
+  } catch (e) { setStatus(e.message); }
+});
+
+$("live-stop").addEventListener("click", async () => {
+  try { await api("/api/live/stop", {}); } catch (e) { setStatus(e.message); }
+  state.live = false; draw();
+});
+
+$("upload").addEventListener("change", async (ev) => {
+  const file = ev.target.files[0];
+  if (!file) return;
+  const r = await fetch("/api/upload", { method: "POST", headers: { "Content-Type": "image/png" }, body: file });
+  const data = await r.json().catch(() => ({}));
+  if (!r.ok) { setStatus("upload: " + (data.detail || r.status)); return; }
+  state.result = null; $("source").textContent = file.name;
+  await loadImage(); schedulePreview();
+});
+
+["filter", "filter-size", "binarise", "level", "edges"].forEach((id) => $(id).addEventListener("change", schedulePreview));
+["show-edges", "sel-colour", "twin-colour"].forEach((id) => $(id).addEventListener("input", draw));
+
+(async function init() {
+  try {
+    const info = await api("/api/info");
+    $("source").textContent = `${info.source.kind}: ${info.source.name}`;
+    const rig = info.rig;
+    $("rig").textContent = `rig: ${rig.name} (f ${rig.focal_length_mm.toFixed(3)} mm, b ${rig.baseline_mm.toFixed(2)} mm, ` +
+      `plate ${rig.plate_thickness_mm.toFixed(2)} mm)`;
+    $("live-start").disabled = !info.source.live;
+    await loadImage();
+    await preview();
+    document.body.dataset.ready = "1";
+  } catch (e) { setStatus(e.message); }
+})();

@@ -1,0 +1,158 @@
+"""The web app's API (FastAPI TestClient): matching against planted truth, previews, exports, uploads, live
+mode on a simulated video, and 4xx answers for bad requests."""
+import json
+import time
+
+import cv2
+import numpy as np
+import pytest
+from fastapi.testclient import TestClient
+
+from psvs.web.app import MAX_BODY_BYTES, create_app
+from psvs.web.sources import image_source, video_source
+from tests.web.conftest import DISC, rim_point_px
+
+
+@pytest.fixture
+def client(disc_source):
+    source, rig = disc_source
+    with TestClient(create_app(source, rig)) as c:
+        yield c
+
+
+def test_info_image_and_page(client):
+    info = client.get("/api/info").json()
+    assert info["image_size_px"] == [640, 480] and info["source"]["kind"] == "scene" and info["source"]["live"]
+    assert [s["op"] for s in info["pipeline"]] == ["median", "threshold", "roberts"]
+    assert info["rig"] == {"name": "default rig", "focal_length_mm": 11.3, "baseline_mm": 100.0,
+                           "plate_thickness_mm": 3.0}
+    img = cv2.imdecode(np.frombuffer(client.get("/api/image.png").content, np.uint8), cv2.IMREAD_UNCHANGED)
+    assert img.shape == (480, 640)
+    page = client.get("/")
+    assert page.status_code == 200 and 'id="image"' in page.text
+    assert client.get("/static/app.js").status_code == 200
+
+
+def test_preview_gives_every_stage(client):
+    stages = client.post("/api/preview", json={}).json()["stages"]
+    assert [(s["op"], s["binary"]) for s in stages] == [("median", False), ("threshold", True), ("roberts", True)]
+    canny = client.post("/api/preview", json={"steps": [{"op": "gaussian", "sigma": 1.0}, {"op": "canny"}]}).json()
+    assert [s["op"] for s in canny["stages"]] == ["gaussian", "canny"]
+    assert canny["stages"][-1]["png"].startswith("data:image/png;base64,")
+
+
+def test_double_click_matches_the_edge(client, disc_source):
+    """A click 3 px off the rim snaps to it; the edge's median depth is the disc's depth (0.5 %)."""
+    _, rig = disc_source
+    u, v = rim_point_px(rig, "left")
+    res = client.post("/api/match", json={"seed": [u - 3, v]}).json()
+    assert abs(res["seed_px"][0] - u) <= 2 and abs(res["seed_px"][1] - v) <= 1
+    (pair,) = res["pairs"]
+    assert pair["median_z_mm"] == pytest.approx(DISC["z_mm"], rel=0.005)
+    ur, vr = rim_point_px(rig, "right")          # the twin: the same rim seen by the right view
+    assert np.min(np.hypot(*(np.array(pair["right_px"]) - [ur, vr]).T)) < 1.5
+    assert pair["median_disparity_px"] == pytest.approx(u - ur, abs=0.3)
+
+
+def test_automatic_and_exports(client):
+    assert client.get("/api/export/csv").status_code == 409
+    res = client.post("/api/match", json={"seed": None}).json()
+    assert res["seed_px"] is None and len(res["pairs"]) == 1
+    assert res["pairs"][0]["median_z_mm"] == pytest.approx(DISC["z_mm"], rel=0.005)
+    csv = client.get("/api/export/csv")
+    assert csv.headers["content-disposition"] == 'attachment; filename="psvs_match.csv"'
+    lines = csv.text.splitlines()
+    assert lines[0] == "pair,u_l,v_l,u_r,v_r,disparity_px,X_mm,Y_mm,Z_mm" and len(lines) == res["pairs"][0]["n"] + 1
+    assert json.loads(client.get("/api/export/json").text)["pairs"][0]["n"] == res["pairs"][0]["n"]
+    ply = client.get("/api/export/ply").text
+    assert ply.startswith("ply\n") and f"element vertex {res['pairs'][0]['n']}" in ply
+    assert client.get("/api/export/xyz").status_code == 404
+
+
+def test_upload_replaces_the_image(client):
+    img = np.full((480, 640), 30, np.uint8)
+    cv2.rectangle(img, (100, 200), (160, 260), 220, -1)
+    cv2.rectangle(img, (300, 200), (360, 260), 220, -1)          # its twin, 200 px to the right
+    ok, png = cv2.imencode(".png", img)
+    assert client.post("/api/upload", content=png.tobytes()).status_code == 200
+    back = cv2.imdecode(np.frombuffer(client.get("/api/image.png").content, np.uint8), cv2.IMREAD_UNCHANGED)
+    assert np.array_equal(back, img)
+    assert client.get("/api/info").json()["source"]["name"] == "uploaded image"
+    _, small = cv2.imencode(".png", img[:100, :100])
+    r = client.post("/api/upload", content=small.tobytes())
+    assert r.status_code == 400 and r.json()["detail"] == "image is 100x100 px but the rig's camera is 640x480 px"
+    assert client.post("/api/upload", content=b"GIF89a....").json()["detail"] == "upload must be a PNG image"
+    assert client.post("/api/upload", content=b"\0" * (MAX_BODY_BYTES + 1)).status_code == 413
+
+
+@pytest.mark.parametrize("body, status, detail", [
+    ({"seed": [5, 5]}, 400, "no edge within 6 px of (5, 5): double-click on an edge"),
+    ({"seed": [900, 5]}, 400, "seed (900, 5) is outside the 640x480 image"),
+    ({"seed": "x"}, 422, "malformed request"),
+    ({"seed": [1, 2, 3]}, 422, "malformed request"),
+    ({"near_mm": 900, "far_mm": 500}, 400, "near_mm must be < far_mm"),
+    ({"near_mm": -1}, 422, "malformed request"),
+    ({"model": "magic"}, 400, "model must be one of paper, refraction, exact"),
+    ({"steps": [{"op": "nope"}]}, 400, "unknown pipeline step 'nope'"),
+    ({"steps": [{"op": "median", "ksize": 4}, {"op": "roberts"}]}, 400, "median ksize must be an odd integer"),
+    ({"steps": [{"op": "gaussian", "sigma": 1e9}, {"op": "roberts"}]}, 400, "sigma must be within"),
+    ({"steps": [{"op": "median"}]}, 400, "the pipeline must end with an edge detector"),
+    ({"steps": []}, 400, "steps must be a list of 1 to 8 steps"),
+    ({"steps": [{"op": "roberts", "level": "high"}]}, 400, "must be a number"),
+    ({"unexpected": 1}, 422, "malformed request"),
+])
+def test_bad_match_requests(client, body, status, detail):
+    r = client.post("/api/match", json=body)
+    assert r.status_code == status and detail in r.json()["detail"], r.json()
+
+
+def test_malformed_bodies(client):
+    js = {"content-type": "application/json"}
+    assert client.post("/api/match", content=b"{not json", headers=js).status_code == 422
+    assert client.post("/api/preview", content=b"[]", headers=js).status_code == 422
+    assert client.get("/static/../app.py").status_code == 404
+    assert client.get("/static/%2e%2e/app.py").status_code == 404
+    assert client.get("/etc/passwd").status_code == 404
+    detail = client.post("/api/live/start", json={}).json()["detail"]
+    assert detail == "live mode tracks one edge: double-click an edge first"
+
+
+def test_live_mode_on_a_video(disc_video):
+    """Live mode plays the video, tracks the clicked edge and reports each frame's depth (0.5 %)."""
+    path, truth, rig, scene, positions = disc_video
+    from tests.live.test_tracker import rim_seed
+    with TestClient(create_app(video_source(str(path)), rig)) as c:
+        assert c.get("/api/live/frame.png").status_code == 404
+        u, v = rim_seed(rig, scene, positions[0])
+        assert c.post("/api/live/start", json={"seed": [u, v]}).json() == {"running": True}
+        t0 = time.monotonic()
+        while (s := c.get("/api/live/state").json()).get("frame", -1) < 20:
+            assert time.monotonic() - t0 < 30 and not s["error"], s
+            time.sleep(0.05)
+        assert s["tracked"] and s["depth_mm"] == pytest.approx(truth[s["frame"] % len(truth)], rel=0.005)
+        assert s["fps"] > 0 and s["latency_ms"] > 0 and len(s["history"]) >= 20 and len(s["left_px"]) > 50
+        frame = cv2.imdecode(np.frombuffer(c.get("/api/live/frame.png").content, np.uint8), cv2.IMREAD_UNCHANGED)
+        assert frame.shape == (480, 640)
+        assert c.post("/api/live/stop").json() == {"running": False}
+        assert not c.get("/api/live/state").json()["running"]
+
+
+def test_still_image_has_no_live_mode(disc_source):
+    source, rig = disc_source
+    with TestClient(create_app(image_source("still.png", source.still), rig)) as c:
+        assert not c.get("/api/info").json()["source"]["live"]
+        r = c.post("/api/live/start", json={"seed": [100, 100]})
+        assert r.status_code == 400 and "a still image has no live frames" in r.json()["detail"]
+
+
+def test_source_must_fit_the_rig(disc_source):
+    _, rig = disc_source
+    with pytest.raises(ValueError, match="still.png is 320x240 px but the rig's camera is 640x480 px"):
+        create_app(image_source("still.png", np.zeros((240, 320), np.uint8)), rig)
+
+
+def test_right_view_edge_has_no_twin(client, disc_source):
+    """The paper selects edges of the left view: a right-view edge has no twin at a positive disparity."""
+    _, rig = disc_source
+    res = client.post("/api/match", json={"seed": list(rim_point_px(rig, "right"))}).json()
+    assert res["seed_px"] is not None and res["pairs"] == []
