@@ -1,5 +1,6 @@
-"""Every CLI example in the README runs, in order, in one scratch folder with a copy of examples/ (a later
-example may read what an earlier one wrote, as in a shell session). ``psvs serve`` runs until stopped: it is
+"""Every CLI example in the README (and in docs/*.md, one scratch folder per file) runs, in order, in one
+scratch folder with a copy of examples/ (a later example may read what an earlier one wrote, as in a shell
+session). ``psvs serve`` runs until stopped: it is
 started as a process on a free port, must answer its page and API, and is then stopped."""
 import json
 import re
@@ -15,7 +16,14 @@ from psvs.cli.main import main
 from tests.web.conftest import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLES = [line[2:] for line in re.findall(r"^\$ psvs .*$", (ROOT / "README.md").read_text(), re.M)]
+
+
+def examples(path: Path) -> list[str]:
+    return [line[2:] for line in re.findall(r"^\$ psvs .*$", path.read_text(), re.M)]
+
+
+EXAMPLES = examples(ROOT / "README.md")
+DOCS_WITH_EXAMPLES = [p for p in sorted((ROOT / "docs").glob("*.md")) if examples(p)]
 
 
 def test_readme_has_examples():
@@ -51,9 +59,21 @@ def run_server(args, cwd: Path) -> None:
 
 
 def test_readme_examples_run_in_order(tmp_path, monkeypatch, capsys):
+    run_examples(EXAMPLES, tmp_path, monkeypatch, capsys)
+
+
+def test_docs_examples_run_in_order(tmp_path, monkeypatch, capsys):
+    assert DOCS_WITH_EXAMPLES, "no docs/*.md has a $ psvs example"
+    for doc in DOCS_WITH_EXAMPLES:
+        folder = tmp_path / doc.stem
+        folder.mkdir()
+        run_examples(examples(doc), folder, monkeypatch, capsys)
+
+
+def run_examples(lines, tmp_path: Path, monkeypatch, capsys) -> None:
     shutil.copytree(ROOT / "examples", tmp_path / "examples")
     monkeypatch.chdir(tmp_path)
-    for line in EXAMPLES:
+    for line in lines:
         args = shlex.split(line)[1:]
         if args[0] == "serve":
             run_server(args, tmp_path)

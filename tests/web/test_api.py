@@ -156,3 +156,23 @@ def test_right_view_edge_has_no_twin(client, disc_source):
     _, rig = disc_source
     res = client.post("/api/match", json={"seed": list(rim_point_px(rig, "right"))}).json()
     assert res["seed_px"] is not None and res["pairs"] == []
+
+
+def test_dense_disparity_of_a_textured_scene():
+    """Issue 6 in the page: the dense map of a photo-textured scene, its median depth inside the scene."""
+    from psvs import default_rig
+    from psvs.simulate.builtin import textured
+    from psvs.simulate.render import render
+
+    rig = default_rig()
+    with TestClient(create_app(image_source("textured", render(textured(), rig, supersample=1).image), rig)) as c:
+        res = c.post("/api/dense", json={"fast": True, "views": True}).json()
+        img = cv2.imdecode(np.frombuffer(__import__("base64").b64decode(res["disparity_png"].split(",")[1]),
+                                         np.uint8), cv2.IMREAD_COLOR)
+        assert img.shape == (480, 640, 3) and res["answered_pct"] == 100.0
+        assert res["range_px"][0] <= res["median_disparity_px"] <= res["range_px"][1]
+        assert 550 < res["median_z_mm"] < 1150          # the scene spans 560-1120 mm
+        assert res["left_png"].startswith("data:image/png;base64,") and "right_png" in res
+        assert c.post("/api/dense", json={"fast": "maybe"}).status_code == 422
+        bad = c.post("/api/dense", json={"near_mm": 900, "far_mm": 500})
+        assert bad.status_code == 400 and "near_mm" in bad.json()["detail"]

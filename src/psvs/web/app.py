@@ -21,10 +21,11 @@ from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
 
+from psvs.dense import dense_disparity, disparity_cloud, separate_views
 from psvs.imaging.pipeline import PAPER, make_pipeline
 from psvs.imaging.steps import STEPS
 from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
-from psvs.match.correspondence import MatchResult, match_image
+from psvs.match.correspondence import MatchResult, disparity_range, match_image
 from psvs.match.export import write_csv, write_json, write_ply
 from psvs.measure.triangulate import MODELS
 from psvs.optics.rig import Rig
@@ -51,6 +52,22 @@ class MatchBody(PipelineBody):
     near_mm: float = Field(400.0, gt=0, le=100000)
     far_mm: float = Field(1200.0, gt=0, le=100000)
     model: str = "refraction"
+
+
+class DenseBody(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    fast: bool = True
+    views: bool = Field(False, description="also separate the left and right views (slower)")
+    near_mm: float = Field(400.0, gt=0, le=100000)
+    far_mm: float = Field(1200.0, gt=0, le=100000)
+
+
+def _colour_disparity(d: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """A disparity map (H, W) as a BGR colour image: near (large d) bright, no answer black."""
+    t = np.clip((np.nan_to_num(d, nan=lo) - lo) / max(hi - lo, 1e-9), 0, 1)
+    out = cv2.applyColorMap(np.rint(255 * t).astype(np.uint8), cv2.COLORMAP_INFERNO)
+    out[~np.isfinite(d)] = 0
+    return out
 
 
 def _png(img: np.ndarray) -> bytes:
@@ -162,6 +179,28 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
         with lock:
             state["result"] = res
         return _result_json(res, seed)
+
+    @app.post("/api/dense")
+    def dense(body: DenseBody):
+        """Dense disparity of the current image (issue 6, docs/dense.md), its median depth, and optionally
+        the separated views, as PNG data URLs."""
+        if not body.near_mm < body.far_mm:
+            raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
+        grey = state["still"]
+        lo, hi = disparity_range(rig, body.near_mm, body.far_mm)
+        hi = min(hi, w - 1.0)
+        res = dense_disparity(grey, lo, hi, fast=body.fast)
+        d = res.disparity_left
+        z = disparity_cloud(d, rig).depth_mm
+        out = {"disparity_png": _data_url(_colour_disparity(d, lo, hi)), "range_px": [lo, hi],
+               "answered_pct": 100.0 * float(np.mean(np.isfinite(d))),
+               "median_disparity_px": float(np.nanmedian(d)) if np.isfinite(d).any() else None,
+               "median_z_mm": float(np.nanmedian(z)) if np.isfinite(z).any() else None}
+        if body.views and np.isfinite(d).any():
+            lv, rv = separate_views(grey, d, rig.mirrors.split_ratio, res.disparity_right)
+            u8 = lambda a: np.clip(np.rint(a), 0, 255).astype(np.uint8)  # noqa: E731
+            out.update(left_png=_data_url(u8(lv)), right_png=_data_url(u8(rv)))
+        return out
 
     @app.get("/api/export/{fmt}")
     def export(fmt: str):

@@ -174,6 +174,19 @@ $("auto").addEventListener("click", async () => {
   try { showResult(await api("/api/match", matchBody(null))); } catch (e) { setStatus(e.message); }
 });
 
+$("dense").addEventListener("click", async () => {
+  setStatus("dense disparity…", true);
+  try {
+    const res = await api("/api/dense", { fast: $("dense-fast").checked, views: $("dense-views").checked,
+                                          near_mm: Number($("near").value), far_mm: Number($("far").value) });
+    $("dense-map").src = res.disparity_png;
+    $("dense-left").src = res.left_png || ""; $("dense-right").src = res.right_png || "";
+    $("dense-disparity").textContent = fmt(res.median_disparity_px, 1, "px");
+    $("dense-depth").textContent = fmt(res.median_z_mm, 1, "mm");
+    setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered`, true);
+  } catch (e) { setStatus(e.message); }
+});
+
 async function livePoll() {
   if (!state.live) return;
   try {
