@@ -44,14 +44,14 @@ def moto():
 
 
 def test_motorcycle_scores(moto):
-    """Issue 6 acceptance data set. The issue asks bad-2 <= 20 % (goal 15 %); measured 20.7 %."""
+    """Issue 6 acceptance data set. The issue asks bad-2 <= 20 % (goal 15 %); measured 20.1 %."""
     left, _, gt, ev = moto
     assert left.shape == gt.shape == (500, 741)
     ours, fast, ref = (ev.scores[k] for k in ("psvs dense", "psvs dense --fast", "StereoSGBM, separate pair"))
-    assert ours["bad2_pct"] < 21.5 and ours["coverage_pct"] == 100.0
+    assert ours["bad2_pct"] < 20.6 and ours["coverage_pct"] == 100.0
     assert fast["bad2_pct"] < 28.0
     assert 17.0 < ref["bad2_pct"] < 21.0            # the issue's reference figure: 18 %
-    assert ev.psnr_left_db > 21.0 and ev.psnr_right_db > 21.0
+    assert ev.psnr_left_db > 21.0 and ev.psnr_right_db > 21.0   # the pair itself is consistent to 22.8 dB
     assert ev.psnr_left_db > psnr_db(ev.complex_image, left) + 2.0
 
 
@@ -64,7 +64,7 @@ def test_simulated_psvs_scene():
     lo, hi = disparity_range(rig, 400, 1200)
     res = dense_disparity(rr.image, lo, hi)
     truth = rr.truth.disparity_left_px
-    assert disparity_scores(res.disparity_left, truth)["bad2_pct"] < 12.0
+    assert disparity_scores(res.disparity_left, truth)["bad2_pct"] < 10.0
     # depth of the well-matched pixels through eqs. (15)-(17) against the true depth
     good = np.abs(res.disparity_left - truth) <= 2
     cloud = disparity_cloud(np.where(good, res.disparity_left, np.nan), rig)

@@ -15,7 +15,7 @@ Method (docs/dense.md):
    texture dominated, is filled along the row from the farther (smaller-disparity) side, as occlusions are.
 4. **Second pass.** Where the two maps then fail the left-right check, each view is matched again from its
    own evidence alone at the pixels it did not own; values that pass the check replace the fill, and what
-   is still inconsistent is filled from the farther side.
+   is still inconsistent is filled from the farther side. An 11×11 median removes the fills' streaks.
 
 Disparities below :data:`MIN_LAG_PX` cannot be told from the image's own smoothness and are not searched.
 """
@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numba as nb
 import numpy as np
+from scipy.ndimage import median_filter
 
 from psvs.dense.cost import band_pass, echo_correlation, fused_cost, one_sided_cost, pick
 from psvs.dense.sgm import aggregate
@@ -49,10 +50,11 @@ class DenseParams:
     ownership_margin: float = 0.2  # a pixel's own echo may be this much below the other view's and still own it
     scale: int = 1                 # 2: work at half resolution (the fast mode); lengths are at that scale
     second_pass: bool = True       # re-match, from each view's own evidence, pixels the first pass left inconsistent
+    median_px: int = 11            # final median filter of each map (odd side; 1 = none): removes the fill's streaks
 
 
 DEFAULT = DenseParams()
-FAST = DenseParams(sigma_px=0.5, window=9, shift_window=1, n_paths=4, scale=2, second_pass=False)
+FAST = DenseParams(sigma_px=0.5, window=9, shift_window=1, n_paths=4, scale=2, second_pass=False, median_px=1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -160,9 +162,20 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams):
         dl = fill_from_background(np.where(~ok_l & ok2_l, dl2, dl), ok_l | ok2_l)
         dr = fill_from_background(np.where(~ok_r & ok2_r, dr2, dr), ok_r | ok2_r)
         ok_l, ok_r = ok_l | ok2_l, ok_r | ok2_r
+    if p.median_px > 1:
+        dl, dr = (_median(m, p.median_px) for m in (dl, dr))
     conf_l = np.where(ok_l, np.clip(_echo_at(echo, lags, dl, False), 0, 1), 0.0)
     conf_r = np.where(ok_r, np.clip(_echo_at(echo, lags, dr, True), 0, 1), 0.0)
     return dl, dr, conf_l, conf_r, (float(lags[0]), float(lags[-1]))
+
+
+def _median(d: np.ndarray, size: int) -> np.ndarray:
+    """Median of each size × size neighbourhood of the finite values (a row without any stays NaN)."""
+    finite = np.isfinite(d)
+    if not finite.any():
+        return d
+    out = median_filter(np.where(finite, d, np.nanmedian(d)), size=size, mode="nearest")
+    return np.where(np.isnan(d) & ~finite.any(axis=1, keepdims=True), np.nan, out)
 
 
 def _echo_at(echo: np.ndarray, lags: np.ndarray, d: np.ndarray, right_view: bool) -> np.ndarray:
