@@ -5,11 +5,11 @@ import argparse
 import sys
 
 from psvs.cli import (calibrate_cmd, demo_cmd, design_cmd, fit_refraction_cmd, match_cmd, measure_cmd,
-                      simulate_cmd, table1_cmd, triangulate_cmd)
+                      simulate_cmd, table1_cmd, track_cmd, triangulate_cmd)
 from psvs.errors import RigGeometryError
 
 COMMANDS = (demo_cmd, design_cmd, triangulate_cmd, fit_refraction_cmd, simulate_cmd, match_cmd, measure_cmd,
-            calibrate_cmd, table1_cmd)
+            calibrate_cmd, table1_cmd, track_cmd)
 
 
 class _Parser(argparse.ArgumentParser):
