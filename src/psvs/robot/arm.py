@@ -95,19 +95,24 @@ class Arm:
         T[:3, 3] /= M_PER_MM
         return T
 
-    def ikine(self, flange2base: np.ndarray, q0=None) -> np.ndarray:
-        """Joint angles (6,) rad reaching ``flange2base`` (4, 4, mm), the solution nearest ``q0``
-        (default: the current joints). ValueError when unreachable or outside the joint range."""
+    def ikine(self, flange2base: np.ndarray, q0=None, max_step_rad: float | None = None) -> np.ndarray:
+        """Joint angles (6,) rad reaching ``flange2base`` (4, 4, mm): Levenberg-Marquardt from ``q0``
+        (default: the current joints), so the solution is the one nearest it, in the same arm
+        configuration. ValueError when unreachable, outside the joint range, or (``max_step_rad``) when
+        the solution is more than that from ``q0`` in any joint: another configuration, a joint-space jump."""
         T = np.array(flange2base, float)
         T[:3, 3] *= M_PER_MM
         q0 = self.q if q0 is None else np.asarray(q0, float)
-        sol = self.robot.ikine_LM(T, q0=q0, joint_limits=True, tol=1e-12, ilimit=100, slimit=4)
+        sol = self.robot.ikine_LM(T, q0=q0, joint_limits=True, tol=1e-10, ilimit=200, slimit=1)
         if not sol.success:
             raise ValueError(f"pose unreachable: inverse kinematics failed ({sol.reason})")
         q = np.asarray(sol.q, float)
         q = q0 + (q - q0 + np.pi) % (2 * np.pi) - np.pi   # the same angle nearest q0
         if not self.within_limits(q):
             raise ValueError("pose needs joint angles outside the joint range")
+        if max_step_rad is not None and np.max(np.abs(q - q0)) > max_step_rad:
+            raise ValueError(f"inverse kinematics jumped {np.max(np.abs(q - q0)):.2f} rad in joint space "
+                             "(another arm configuration)")
         return q
 
     def servo(self, q_target, period_s: float) -> ServoStep:
@@ -133,16 +138,28 @@ class Arm:
             v = (ref - self.q) / dt
             v_lim = np.clip(v, -self._qd_max, self._qd_max)
             # brake before the range limits: v^2 <= 2 a (distance to the limit)
-            room_hi = np.sqrt(2 * self._qdd_max * np.clip(self.qlim[1] - self.q, 0, None))
-            room_lo = -np.sqrt(2 * self._qdd_max * np.clip(self.q - self.qlim[0], 0, None))
+            room_hi = self._brake_speed(self.qlim[1] - self.q, dt)
+            room_lo = -self._brake_speed(self.q - self.qlim[0], dt)
             v_lim = np.clip(v_lim, room_lo, room_hi)
-            a = np.clip((v_lim - self.qd) / dt, -self._qdd_max, self._qdd_max)
+            # one scale for all joints (coordinated motion): a saturated joint slows the others with it,
+            # so the tool stays on its path instead of wandering off it joint by joint
+            dv = v_lim - self.qd
+            big = np.abs(dv) > 1e-15
+            scale = min(1.0, float(np.min(self._qdd_max[big] * dt / np.abs(dv[big])))) if big.any() else 1.0
+            a = dv * scale / dt
             new_qd = self.qd + a * dt
             limited |= bool(np.any(np.abs(new_qd - v) > 1e-9))
             peak = np.maximum(peak, np.abs(a))
-            self.q = self.q + new_qd * dt
+            # the braking speed is exact only in continuous time: the last tick may not pass the limit
+            self.q = np.clip(self.q + new_qd * dt, self.qlim[0], self.qlim[1])
             self.qd = new_qd
         return ServoStep(self.q.copy(), self.qd.copy(), peak, limited)
+
+    def _brake_speed(self, room: np.ndarray, dt: float) -> np.ndarray:
+        """Fastest speed (6,) from which ticks of dt braking at qdd_max stop within ``room`` (rad): the
+        discrete form of v^2 = 2 a d, v = a dt (sqrt(2 d / (a dt^2) + 1/4) - 1/2)."""
+        a = self._qdd_max
+        return a * dt * (np.sqrt(2 * np.clip(room, 0, None) / (a * dt * dt) + 0.25) - 0.5)
 
     def stop(self, period_s: float) -> ServoStep:
         """One control period of braking toward rest at the acceleration limits."""

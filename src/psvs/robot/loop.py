@@ -9,8 +9,9 @@ plus the bridge), and the torch pose there (stand-off above the seam, vertical, 
 goes through inverse kinematics to the joint servo. Wall time of each stage is measured.
 
 Losing the seam (gap, occlusion, end of the work): the model carries on along its end tangent; if the
-seam is seen again within ``bridge_mm`` of its last point the gap is bridged by the spline; once the view
-is beyond that, the torch is brought to a smooth stop at the last seam point seen, and where is reported.
+seam is seen again within ``bridge_mm`` of its last point the gap is bridged by the spline; once the whole
+sensor window is beyond that, the torch is brought to a smooth stop at the last seam point seen, and where
+is reported.
 """
 from __future__ import annotations
 
@@ -36,6 +37,13 @@ from psvs.simulate.textures import CircleGrid
 #: A PUMA 560 configuration (right arm, elbow up) with the torch down over the table; IK starts here.
 HOME_Q = np.radians([23.0, 4.5, -168.0, -54.0, -53.0, 161.0])
 UP = np.array([0.0, 0.0, 1.0])
+#: The largest joint change one control cycle may ask for (a path step of < 1 mm moves no joint by
+#: more than ~0.01 rad here): more means the solver switched arm configuration.
+MAX_IK_STEP_RAD = 0.1
+#: How fast the torch may turn about its axis to keep the PSVS on the seam ahead.
+MAX_YAW_RATE_RAD_S = 0.5
+#: Slack on a measured gap before it counts as longer than the bridge (edge rows lost at the groove's ends).
+GAP_TOL_MM = 1.5
 
 
 @dataclass(frozen=True)
@@ -112,14 +120,17 @@ class Cycle:
 
 @dataclass(frozen=True, eq=False)
 class Stop:
-    """Why and where the run ended: reason, torch progress (mm), torch tip (3,) mm, last seam point seen."""
+    """Why and where the run ended: reason, torch progress (mm), torch tip (3,) mm, the last seam point
+    seen (arc length, base point), and the torch progress when the seam was first lost and when the
+    stop was decided."""
 
     reason: str
     s_mm: float
     tcp_mm: np.ndarray
     last_seen_s_mm: float
     last_seen_mm: np.ndarray
-    lost_at_s_mm: float | None = None   # torch progress when the loss was declared
+    lost_at_s_mm: float | None = None   # torch progress at the first frame without the seam
+    decided_at_s_mm: float | None = None  # torch progress when the stop was decided
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,7 +198,8 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
     X = he.cam2flange
     T_tool = tool2flange()
     roi, _ = roi_rig(rig, cfg.roi_rows)
-    # the operator jogs the torch to the seam's start (a teach point, 0.3 mm off) and teaches the travel direction
+    # the operator jogs the torch to the seam's start (a teach point, 0.3 mm off the seam) and teaches the
+    # direction of travel: the only use of the true seam in the loop (scoring aside)
     x0 = workpiece.x_range_mm[0] + cfg.start_offset_mm
     p0, p1 = workpiece.seam_base([x0, x0 + 1.0])
     travel = (p1 - p0) / np.linalg.norm(p1 - p0)
@@ -196,8 +208,15 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
     tool0 = tool_pose(taught + cfg.standoff_mm * UP, travel)
     arm.q = arm.ikine(tool0 @ np.linalg.inv(T_tool), HOME_Q)
     near, far = cfg.camera_distance_mm - 80.0, cfg.camera_distance_mm + 120.0
+    # the length of seam the sensor window spans: the gap is too long once the whole window is beyond
+    # the last seam point + the bridge
+    cam = rig.camera
+    window_mm = cfg.roi_rows * cam.pixel_pitch_mm[1] * cfg.camera_distance_mm / cam.focal_length_mm
     sensor = None
-    s_cmd, v = 0.0, 0.0
+    s_cmd, v, width = 0.0, 0.0, None
+    heading = travel.copy()      # the torch's direction of travel, turned at a bounded rate
+    s_far, gaps = 0.0, []        # furthest seam arc length seen; gaps bridged (from, to) mm
+    decided_at = None
     stopping_at, lost_at, stop_reason = None, None, ""
     cycles: list[Cycle] = []
     max_cycles = int((workpiece.params["length_mm"] + 100) / cfg.speed_mm_s * cfg.rate_hz * 2) + 200
@@ -228,16 +247,40 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
         if obs.valid:
             t_end = path.tangent(path.s_end)
             tangent = sp.tangent if sp.tangent @ t_end >= 0 else -sp.tangent
+            width = width or sp.width_mm    # the groove's width, taught by the first frame
             reason = _off_model(path, seam, t_end)
+            if abs(sp.width_mm - width) > 0.2 * width:
+                reason = f"groove incomplete (width {sp.width_mm:.1f} mm, taught {width:.1f} mm)"
             if not reason:
-                accepted = path.add(seam, tangent)
+                # the stretch of seam this frame saw, as arc lengths on the model: where the centre line
+                # starts and ends, halfway between the two edges' ends (a groove end may cross obliquely)
+                top = seam + cfg.groove_depth_mm * UP
+                ea, eb = (a - top) @ tangent, (b - top) @ tangent
+                along = np.array([(ea.min() + eb.min()) / 2, (ea.max() + eb.max()) / 2])
+                s_here = path.arc_of(seam, tangent)
+                if lost_at is not None and s_here + along.min() - s_far > cfg.bridge_mm + GAP_TOL_MM:
+                    if stopping_at is None:
+                        stopping_at = s_far
+                        stop_reason = (f"seam gap of {s_here + along.min() - s_far:.1f} mm after s = "
+                                       f"{s_far:.1f} mm, longer than the {cfg.bridge_mm:g} mm bridge")
+                    reason = "beyond a gap too long to bridge"
+                else:
+                    if lost_at is not None and s_here + along.min() > s_far:
+                        gaps.append((s_far, s_here + float(along.min())))
+                    accepted = path.add(seam, tangent)
+                    if accepted:
+                        s_far = max(s_far, path.s_end + float(along.max()))
+        if accepted or (obs.valid and not reason and sensor.half_width_px is None):
+            sensor.commit(obs)
         if accepted:
             lost_at = None
         elif lost_at is None and (not obs.valid or reason):
             lost_at = s_cmd
-        if stopping_at is None and lost_at is not None and s_cmd + cfg.look_ahead_mm > path.s_end + cfg.bridge_mm:
-            stopping_at = path.s_end
-            stop_reason = (f"seam lost: nothing seen for {cfg.bridge_mm:g} mm after s = {path.s_end:.1f} mm "
+        if stopping_at is None and lost_at is not None and \
+                s_cmd + cfg.look_ahead_mm - window_mm > s_far + cfg.bridge_mm:
+            # the whole window is past the bridge and has seen no seam: weld to the last seam point seen
+            stopping_at = s_far
+            stop_reason = (f"seam lost: nothing seen for {cfg.bridge_mm:g} mm after s = {s_far:.1f} mm "
                            f"(gap longer than the bridge, or the end of the seam)")
         s_limit = path.s_end + cfg.bridge_mm if stopping_at is None else stopping_at
         if cfg.weld_length_mm is not None:
@@ -245,15 +288,19 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
             s_limit = min(s_limit, end)
             if stopping_at is None and s_cmd >= end - 1e-6:
                 stopping_at, stop_reason = end, "weld length reached"
+        if stopping_at is not None and decided_at is None:
+            decided_at = s_cmd
         v_allow = math.sqrt(2 * cfg.accel_mm_s2 * max(0.0, s_limit - s_cmd))
         v = max(0.0, min(cfg.speed_mm_s, v + cfg.accel_mm_s2 * dt, v_allow))
         s_cmd = min(s_cmd + v * dt, s_limit)
         path.fit(s_cmd)
         target = path.position(s_cmd) + cfg.standoff_mm * UP
         aim = path.position(s_cmd + cfg.look_ahead_mm) - path.position(s_cmd)
-        tool = tool_pose(target, aim if np.hypot(aim[0], aim[1]) > 1.0 else path.tangent(s_cmd))
+        heading = _turn_toward(heading, aim if np.hypot(aim[0], aim[1]) > 1.0 else path.tangent(s_cmd),
+                               MAX_YAW_RATE_RAD_S * dt)
+        tool = tool_pose(target, heading)
         try:
-            q_t = arm.ikine(tool @ np.linalg.inv(T_tool))
+            q_t = arm.ikine(tool @ np.linalg.inv(T_tool), max_step_rad=MAX_IK_STEP_RAD)
             step = arm.servo(q_t, dt)
         except ValueError as exc:
             step = arm.stop(dt)
@@ -263,8 +310,8 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
         t3 = time.perf_counter()
         tcp = (arm.fkine() @ T_tool)[:3, 3]
         ahead = np.array([path.position(s) for s in np.linspace(s_cmd, max(s_cmd, path.s_end), 20)])
-        cyc = Cycle(k * dt, s_cmd, v, tcp, target, seam, obs.valid and not reason, reason, step.q, step.qd, step.qdd_peak, img,
-                    pts, ahead, t1 - t0, t2 - t1, t3 - t2)
+        cyc = Cycle(k * dt, s_cmd, v, tcp, target, seam, obs.valid and not reason, reason, step.q, step.qd,
+                    step.qdd_peak, img, pts, ahead, t1 - t0, t2 - t1, t3 - t2)
         cycles.append(cyc)
         if progress is not None:
             progress(cyc)
@@ -272,10 +319,18 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
             break
     else:
         stop_reason = stop_reason or "cycle limit reached"
-    last = path.p[-1]
-    stop = Stop(stop_reason, s_cmd, cycles[-1].tcp_mm, path.s_end, last, lost_at)
+    stop = Stop(stop_reason, s_cmd, cycles[-1].tcp_mm, s_far, path.position(s_far),
+                lost_at if stopping_at is not None else None, decided_at)
     return TrackRun(cfg, cycles, stop, he, cam_true, sensor.centre_px if sensor else (np.nan, np.nan),
-                    {"seed_px": seed_px, "path_knots": (np.array(path.s), np.array(path.p))})
+                    {"seed_px": seed_px, "path_knots": (np.array(path.s), np.array(path.p)), "gaps_bridged": gaps})
+
+
+def _turn_toward(current: np.ndarray, wanted: np.ndarray, max_rad: float) -> np.ndarray:
+    """The horizontal direction ``current`` turned toward ``wanted`` by at most ``max_rad`` (unit (3,))."""
+    a0 = math.atan2(current[1], current[0])
+    d = (math.atan2(wanted[1], wanted[0]) - a0 + math.pi) % (2 * math.pi) - math.pi
+    a = a0 + float(np.clip(d, -max_rad, max_rad))
+    return np.array([math.cos(a), math.sin(a), 0.0])
 
 
 def _off_model(path: SeamPath, point: np.ndarray, t_end: np.ndarray, lateral_mm: float = 2.0,
@@ -291,6 +346,8 @@ def _off_model(path: SeamPath, point: np.ndarray, t_end: np.ndarray, lateral_mm:
     e = point - pred
     horiz = np.cross(UP, t_end)
     horiz /= np.linalg.norm(horiz)
-    if abs(e @ horiz) > lateral_mm or abs(e[2]) > vertical_mm:
+    # after a gap the model's straight continuation departs from a curved seam by ds^2 / 2R (R >= 100 mm)
+    bend = max(ds, 0.0) ** 2 / (2 * 100.0)
+    if abs(e @ horiz) > lateral_mm + bend or abs(e[2]) > vertical_mm + bend:
         return f"seam point {abs(e @ horiz):.1f} mm beside / {abs(e[2]):.1f} mm off the path model"
     return ""

@@ -74,7 +74,8 @@ def summary(run: TrackRun, workpiece: Workpiece) -> dict:
         "seed_px": list(run.extras.get("seed_px") or ()),
         "stop": {"reason": st.reason, "torch_s_mm": st.s_mm, "torch_mm": st.tcp_mm.tolist(),
                  "last_seen_s_mm": st.last_seen_s_mm, "last_seen_mm": st.last_seen_mm.tolist(),
-                 "lost_at_torch_s_mm": st.lost_at_s_mm},
+                 "lost_at_torch_s_mm": st.lost_at_s_mm, "decided_at_torch_s_mm": st.decided_at_s_mm},
+        "gaps_bridged_mm": [[a, b] for a, b in run.extras.get("gaps_bridged", [])],
     }
 
 

@@ -43,14 +43,19 @@ class SeamPath:
         """Add a seen seam point with its unit tangent; False (not added) when it is not ahead of the last
         knot by ``min_spacing_mm``."""
         point_mm = np.asarray(point_mm, float)
-        step = point_mm - self.p[-1]
-        ds = float(step @ tangent) if len(self.s) > 1 else float(np.linalg.norm(step))
-        if ds < self.min_spacing_mm:
+        s_new = self.arc_of(point_mm, tangent)
+        if s_new - self.s[-1] < self.min_spacing_mm:
             return False
-        self.s.append(self.s[-1] + ds)
+        self.s.append(s_new)
         self.p.append(point_mm)
         self._fit = None
         return True
+
+    def arc_of(self, point_mm, tangent) -> float:
+        """The arc length a new knot at ``point_mm`` gets: the last knot's plus the step projected on the
+        tangent (the straight distance from the start point for the first seen knot)."""
+        step = np.asarray(point_mm, float) - self.p[-1]
+        return self.s[-1] + (float(step @ tangent) if len(self.s) > 1 else float(np.linalg.norm(step)))
 
     def fit(self, s_from: float) -> None:
         """Refit the spline over the knots from ``s_from`` - 10 mm on (call before evaluating)."""

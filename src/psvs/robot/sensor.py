@@ -64,12 +64,15 @@ def auto_seed(grey: np.ndarray, pipeline: Pipeline = SEAM_PIPELINE, min_width_px
 class SeamObservation:
     """One frame's measurement. ``edges_mm``: the two groove edges' triangulated points, each (N, 3)
     frame C, mm (empty when invalid); ``centre_px``: (u, v) of the groove centre in the left view;
-    ``reason``: why the frame is invalid ('' when valid)."""
+    ``reason``: why the frame is invalid ('' when valid); the twin band's disparity and the groove's
+    half width on the seed row, px."""
 
     valid: bool
     edges_mm: tuple[np.ndarray, np.ndarray]
     centre_px: tuple[float, float]
     reason: str = ""
+    disparity_px: float | None = None
+    half_width_px: float | None = None
 
 
 def _nearest_edges(edge_row: np.ndarray, u_c: float, max_px: float):
@@ -82,7 +85,8 @@ def _nearest_edges(edge_row: np.ndarray, u_c: float, max_px: float):
 
 
 class SeamSensor:
-    """Groove-edge tracking in the ROI images of one run (state: the last groove centre, the taught width).
+    """Groove-edge tracking in the ROI images of one run (state: the last accepted groove centre and
+    disparity, the taught width; :meth:`commit` an observation to track from it).
 
     Parameters
     ----------
@@ -119,7 +123,8 @@ class SeamSensor:
             e = _nearest_edges(edges[v], u_c, max_px)
             if e is None:
                 continue
-            if self.half_width_px is not None and not (0.6 < (e[1] - e[0]) / (2 * self.half_width_px) < 1.5):
+            # a full groove width (not where the groove starts or ends, with its edges closing in)
+            if self.half_width_px is not None and not (0.75 < (e[1] - e[0]) / (2 * self.half_width_px) < 1.3):
                 continue
             found = (e, int(v))
             break
@@ -136,16 +141,26 @@ class SeamSensor:
         for u in (ua, ub):
             res = match_image(grey, self.rig, seed_px=(u, v), pipeline=self.pipeline, near_mm=near,
                               far_mm=far, model="exact")
-            pts = res.pairs[0].points_mm if res.pairs else np.empty((0, 3))
+            if not res.pairs:
+                sides.append(np.empty((0, 3)))
+                continue
+            pair = res.pairs[0]
+            # a seam edge crosses each row once: rows where the edge runs along the row (where the groove
+            # starts or ends) give no usable twin disparity and are dropped
+            rows, counts = np.unique(np.rint(pair.left_px[:, 1]), return_counts=True)
+            single = np.isin(np.rint(pair.left_px[:, 1]), rows[counts == 1])
+            pts = pair.points_mm[single]
             sides.append(pts[np.all(np.isfinite(pts), axis=1)])
         if min(len(s) for s in sides) < self.min_rows:
             return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px,
                                    f"edge twins matched on fewer than {self.min_rows} rows")
-        self.centre_px = ((ua + ub) / 2, float(v))
-        self.disparity_px = d
-        self.half_width_px = (ub - ua) / 2 if self.half_width_px is None else \
-            0.8 * self.half_width_px + 0.2 * (ub - ua) / 2
-        return SeamObservation(True, (sides[0], sides[1]), self.centre_px)
+        return SeamObservation(True, (sides[0], sides[1]), ((ua + ub) / 2, float(v)), "", d, (ub - ua) / 2)
+
+    def commit(self, obs: SeamObservation) -> None:
+        """Track from this observation on (call it for the frames the path model accepts)."""
+        self.centre_px, self.disparity_px = obs.centre_px, obs.disparity_px
+        if self.half_width_px is None:   # taught once: the groove's width is the joint's, it does not drift
+            self.half_width_px = obs.half_width_px
 
     def _twin_disparity(self, grey, edges, v, ua, ub):
         """The disparity (px) of the groove's twin band on row v: right-view edges at ua - d and ub - d
@@ -190,9 +205,10 @@ def fit_seam_point(edge_a: np.ndarray, edge_b: np.ndarray, depth_mm: float, up: 
     along the seam direction (no chord bias on curved seams) evaluated at the middle; the root lies
     ``depth_mm`` below the edges' midpoint along ``up`` (the groove's depth as the joint drawing gives it,
     measured along the torch axis)."""
-    allp = np.vstack([edge_a, edge_b])
-    mean = allp.mean(axis=0)
-    _, _, vt = np.linalg.svd(allp - mean, full_matrices=False)
+    mean = np.vstack([edge_a, edge_b]).mean(axis=0)
+    # the seam direction: principal axis of both edges, each about its own centre (not across the groove)
+    _, _, vt = np.linalg.svd(np.vstack([edge_a - edge_a.mean(axis=0), edge_b - edge_b.mean(axis=0)]),
+                             full_matrices=False)
     t = vt[0] * np.sign(vt[0] @ (edge_a[-1] - edge_a[0]) or 1.0)
     fits = []
     for e in (edge_a, edge_b):
