@@ -138,3 +138,7 @@ def test_track_config_checks():
         TrackConfig(speed_mm_s=-1.0)
     with pytest.raises(ValueError, match="rate_hz must be in"):
         TrackConfig(rate_hz=1000.0)
+    with pytest.raises(ValueError, match="roi_rows must be an integer >= 8"):
+        TrackConfig(roi_rows=4)
+    with pytest.raises(ValueError, match="bridge_mm must be in"):
+        TrackConfig(bridge_mm=50.0)

@@ -40,8 +40,10 @@ UP = np.array([0.0, 0.0, 1.0])
 #: The largest joint change one control cycle may ask for (a path step of < 1 mm moves no joint by
 #: more than ~0.01 rad here): more means the solver switched arm configuration.
 MAX_IK_STEP_RAD = 0.1
-#: How fast the torch may turn about its axis to keep the PSVS on the seam ahead.
-MAX_YAW_RATE_RAD_S = 0.5
+#: How fast the torch may turn about its axis to keep the PSVS on the seam ahead (a seam of radius
+#: 100 mm at 10 mm/s needs 0.1 rad/s), and how fast that rate may change.
+MAX_YAW_RATE_RAD_S = 0.3
+MAX_YAW_ACCEL_RAD_S2 = 0.5
 #: Slack on a measured gap before it counts as longer than the bridge (edge rows lost at the groove's ends).
 GAP_TOL_MM = 1.5
 
@@ -84,6 +86,8 @@ class TrackConfig:
             raise ValueError(f"speed_mm_s must be <= 100 mm/s (a seam-tracking speed), got {self.speed_mm_s!r}")
         if not 1 <= self.rate_hz <= 250:
             raise ValueError(f"rate_hz must be in 1..250 Hz, got {self.rate_hz!r}")
+        if not isinstance(self.roi_rows, int) or self.roi_rows < 8:
+            raise ValueError(f"roi_rows must be an integer >= 8, got {self.roi_rows!r}")
         if self.weld_length_mm is not None and not self.weld_length_mm > 0:
             raise ValueError(f"weld_length_mm must be > 0, got {self.weld_length_mm!r}")
         if self.bridge_mm < 0 or self.bridge_mm >= self.look_ahead_mm:
@@ -214,7 +218,7 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
     window_mm = cfg.roi_rows * cam.pixel_pitch_mm[1] * cfg.camera_distance_mm / cam.focal_length_mm
     sensor = None
     s_cmd, v, width = 0.0, 0.0, None
-    heading = travel.copy()      # the torch's direction of travel, turned at a bounded rate
+    yaw, yaw_rate = math.atan2(travel[1], travel[0]), 0.0   # the torch's heading, turned smoothly
     s_far, gaps = 0.0, []        # furthest seam arc length seen; gaps bridged (from, to) mm
     decided_at = None
     stopping_at, lost_at, stop_reason = None, None, ""
@@ -296,9 +300,8 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
         path.fit(s_cmd)
         target = path.position(s_cmd) + cfg.standoff_mm * UP
         aim = path.position(s_cmd + cfg.look_ahead_mm) - path.position(s_cmd)
-        heading = _turn_toward(heading, aim if np.hypot(aim[0], aim[1]) > 1.0 else path.tangent(s_cmd),
-                               MAX_YAW_RATE_RAD_S * dt)
-        tool = tool_pose(target, heading)
+        yaw, yaw_rate = _steer(yaw, yaw_rate, aim if np.hypot(aim[0], aim[1]) > 1.0 else path.tangent(s_cmd), dt)
+        tool = tool_pose(target, np.array([math.cos(yaw), math.sin(yaw), 0.0]))
         try:
             q_t = arm.ikine(tool @ np.linalg.inv(T_tool), max_step_rad=MAX_IK_STEP_RAD)
             step = arm.servo(q_t, dt)
@@ -325,12 +328,14 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
                     {"seed_px": seed_px, "path_knots": (np.array(path.s), np.array(path.p)), "gaps_bridged": gaps})
 
 
-def _turn_toward(current: np.ndarray, wanted: np.ndarray, max_rad: float) -> np.ndarray:
-    """The horizontal direction ``current`` turned toward ``wanted`` by at most ``max_rad`` (unit (3,))."""
-    a0 = math.atan2(current[1], current[0])
-    d = (math.atan2(wanted[1], wanted[0]) - a0 + math.pi) % (2 * math.pi) - math.pi
-    a = a0 + float(np.clip(d, -max_rad, max_rad))
-    return np.array([math.cos(a), math.sin(a), 0.0])
+def _steer(yaw: float, yaw_rate: float, wanted: np.ndarray, dt: float) -> tuple[float, float]:
+    """The torch's heading (rad) and its rate (rad/s) one cycle on, turning toward the horizontal
+    direction ``wanted``: a first-order approach (0.5 s) with the rate and its change bounded, so that the
+    wrist, which a bent-neck torch needs for turning about its own axis, is never pushed to its limits."""
+    err = (math.atan2(wanted[1], wanted[0]) - yaw + math.pi) % (2 * math.pi) - math.pi
+    want_rate = float(np.clip(err / 0.5, -MAX_YAW_RATE_RAD_S, MAX_YAW_RATE_RAD_S))
+    yaw_rate += float(np.clip(want_rate - yaw_rate, -MAX_YAW_ACCEL_RAD_S2 * dt, MAX_YAW_ACCEL_RAD_S2 * dt))
+    return yaw + yaw_rate * dt, yaw_rate
 
 
 def _off_model(path: SeamPath, point: np.ndarray, t_end: np.ndarray, lateral_mm: float = 2.0,

@@ -3,7 +3,7 @@
 Each valid frame adds one knot (the groove root the sensor fitted). Its arc length is the previous
 knot's plus the step projected on the measured tangent (lateral noise does not lengthen the path). The
 path is a cubic smoothing spline per coordinate (scipy's ``make_smoothing_spline``) over the knots of a
-window that starts behind the torch; its penalty weight is lam = L^4 / h (h the mean knot spacing), so
+window that starts 30 mm behind the torch; its penalty weight is lam = L^4 / h (h the mean knot spacing), so
 that it averages over about ``smoothing_mm`` = L of seam whatever the speed (generalised cross-validation
 would choose it per fit, but costs ~50 ms a fit: too slow for a 25 Hz loop). Beyond the last
 knot the model continues along the end tangent: that is how a gap is bridged (up to ``bridge_mm``).
@@ -12,6 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.interpolate import make_smoothing_spline
+
+
+#: How far behind the torch the spline's window starts, mm (6 smoothing lengths).
+BEHIND_MM = 30.0
 
 
 class SeamPath:
@@ -58,9 +62,11 @@ class SeamPath:
         return self.s[-1] + (float(step @ tangent) if len(self.s) > 1 else float(np.linalg.norm(step)))
 
     def fit(self, s_from: float) -> None:
-        """Refit the spline over the knots from ``s_from`` - 10 mm on (call before evaluating)."""
+        """Refit the spline over the knots from ``s_from`` - ``BEHIND_MM`` on (call before evaluating). The
+        window reaches well behind the torch (``s_from``): a knot leaving it changes the fit only where
+        the torch has already been."""
         s = np.asarray(self.s)
-        keep = np.flatnonzero(s >= s_from - 10.0)
+        keep = np.flatnonzero(s >= s_from - BEHIND_MM)
         first = max(0, keep[0] - 1) if len(keep) else len(s) - 1
         S, P = s[first:], np.asarray(self.p[first:])
         if len(S) >= 5:
