@@ -14,6 +14,7 @@ import numpy as np
 
 from psvs.imaging.pipeline import Pipeline, make_pipeline
 from psvs.match.correspondence import disparity_range, match_image
+from psvs.measure.equations import z_eq12
 from psvs.optics.rig import Rig
 
 
@@ -134,9 +135,10 @@ class SeamSensor:
         d = self._twin_disparity(grey, edges, v, ua, ub)
         if d is None:
             return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px, "no twin of the groove edges")
-        f_px = self.rig.camera.focal_length_mm / self.rig.camera.pixel_pitch_mm[0]
-        b = self.rig.mirrors.baseline_mm
-        near, far = (f_px * b / max(d + dd, 1.0) - b / 2 for dd in (10.0, -10.0))   # eq. (12), +-10 px
+        cam = self.rig.camera
+        # the depths of disparities d +- 10 px (eq. (12) on sensor coordinates x = u * pitch)
+        near, far = (float(z_eq12(max(d + dd, 1.0) * cam.pixel_pitch_mm[0], 0.0, cam.focal_length_mm,
+                                  self.rig.mirrors.baseline_mm)) for dd in (10.0, -10.0))
         sides = []
         for u in (ua, ub):
             res = match_image(grey, self.rig, seed_px=(u, v), pipeline=self.pipeline, near_mm=near,
