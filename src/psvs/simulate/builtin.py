@@ -122,11 +122,16 @@ def seam_centre_line(x_mm: np.ndarray, radius_mm: float = 150.0, length_mm: floa
 
 
 def weld_seam(distance_mm: float = 450.0, radius_mm: float = 150.0, height_amplitude_mm: float = 20.0,
-              gap_start_mm: float | None = None, gap_length_mm: float = 0.0) -> Scene:
+              gap_start_mm: float | None = None, gap_length_mm: float = 0.0, length_mm: float = 240.0,
+              width_mm: float = 160.0) -> Scene:
     """Two plates meeting along a curved beveled seam, facing the camera at ``distance_mm`` (the workpiece's
     local z points toward the camera, so its heights move toward the rig)."""
     gap = None if gap_start_mm is None else (gap_start_mm, gap_start_mm + gap_length_mm)
-    V, plates, groove = seam_mesh(radius_mm=radius_mm, height_amplitude_mm=height_amplitude_mm, gap=gap)
+    if not 0 < length_mm <= 2 * radius_mm:
+        raise ValueError(f"weld_seam: length_mm must be in (0, 2 radius_mm], got {length_mm!r}")
+    V, plates, groove = seam_mesh(radius_mm=radius_mm, length_mm=length_mm, width_mm=width_mm,
+                                  height_amplitude_mm=height_amplitude_mm, gap=gap,
+                                  steps=max(2, int(2 * length_mm)))
     pose = _at(0.0, -radius_mm / 4, distance_mm, 180.0, 0.0, 0.0)  # local z toward the camera
     objs = (SceneObject("mesh", pose, Noise(4, 11, 0.45, 0.7), vertices_mm=V, faces=plates, name="plates"),
             SceneObject("mesh", pose, Noise(2, 12, 0.08, 0.18), vertices_mm=V, faces=groove, name="seam groove"))
@@ -172,6 +177,12 @@ def describe() -> list[tuple[str, str, str]]:
 
 def builtin_scene(spec: str) -> Scene:
     """A built-in scene from ``name`` or ``name:key=value,key=value`` (e.g. ``fig9:distance_mm=800``)."""
+    name, kwargs = parse_spec(spec)
+    return BUILTINS[name](**kwargs)
+
+
+def parse_spec(spec: str) -> tuple[str, dict]:
+    """(name, keyword arguments) of a built-in scene spec ``name[:key=value,...]``; ValueError if unknown."""
     name, _, args = spec.partition(":")
     if name not in BUILTINS:
         raise ValueError(f"unknown built-in scene {name!r} (known: {', '.join(BUILTINS)})")
@@ -186,4 +197,4 @@ def builtin_scene(spec: str) -> Scene:
             kwargs[key] = type(params[key].default)(value) if params[key].default is not None else float(value)
         except ValueError:
             raise ValueError(f"{name}: {key} must be a number, got {value!r}") from None
-    return fn(**kwargs)
+    return name, kwargs

@@ -1,0 +1,69 @@
+"""``psvs track``: closed-loop seam tracking with the PSVS on a simulated PUMA arm; report, CSV, plots, bag."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from psvs.cli.common import add_rig_argument, rig_from_args
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("track", help="follow a weld seam with the PSVS on a simulated PUMA arm",
+                       description="Closed loop in simulated time: every control cycle the complex image (the "
+                                   "sensor window) is rendered from the camera pose, both groove edges are "
+                                   "matched with their twins and triangulated, the seam path model is updated "
+                                   "and the torch follows it. Writes report.json, log.csv, top_view.png, "
+                                   "error.png and a ROS 2 bag (bag/) into RUN_DIR. See docs/robot.md.")
+    p.add_argument("scene", metavar="SCENE", help="the workpiece: weld_seam[:key=value,...] "
+                                                  "(e.g. weld_seam:gap_start_mm=0,gap_length_mm=10)")
+    add_rig_argument(p)
+    p.add_argument("--speed", type=float, default=10.0, metavar="MM_S", help="travel speed, mm/s (default 10)")
+    p.add_argument("--rate", type=float, default=25.0, metavar="HZ", help="control rate, Hz (default 25)")
+    p.add_argument("--length", type=float, default=None, metavar="MM",
+                   help="weld this length then stop (default: to the end of the seam)")
+    p.add_argument("--seed", metavar="U,V", help="a pixel inside the groove in the left view of the first "
+                                                 "sensor frame (default: found on the middle row)")
+    p.add_argument("--roi-rows", type=int, default=32, help="sensor window rows (default 32)")
+    p.add_argument("--no-bag", action="store_true", help="do not write the ROS 2 bag")
+    p.add_argument("-o", "--output", metavar="RUN_DIR", required=True, help="folder for the run's outputs")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from psvs.robot.bag import write_bag
+    from psvs.robot.loop import TrackConfig, track
+    from psvs.robot.report import write_report
+    from psvs.robot.workpiece import seam_workpiece
+
+    for name, v in (("--speed", args.speed), ("--rate", args.rate)):
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"{name} must be a number > 0, got {v!r}")
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"output {out} exists and is not a folder")
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"output folder does not exist: {out.parent}")
+    seed = None
+    if args.seed is not None:
+        try:
+            seed = tuple(float(v) for v in args.seed.split(","))
+            assert len(seed) == 2
+        except (ValueError, AssertionError):
+            raise ValueError(f"--seed must be 'u,v' in px, got {args.seed!r}") from None
+    cfg = TrackConfig(speed_mm_s=args.speed, rate_hz=args.rate, weld_length_mm=args.length, roi_rows=args.roi_rows)
+    rig = rig_from_args(args)
+    wp = seam_workpiece(args.scene, cfg.camera_distance_mm)
+    result = track(wp, rig, cfg, seed_px=seed)
+    out.mkdir(exist_ok=True)
+    s = write_report(result, wp, out)
+    if not args.no_bag:
+        write_bag(result, out / "bag")
+    lat, ver, wall = s["lateral_mm"], s["vertical_mm"], s["wall_ms"]
+    print(f"{s['cycles']} cycles ({s['simulated_s']:.1f} s simulated), welded {s['welded_mm']:.1f} mm")
+    if lat["rms"] is not None:
+        print(f"torch deviation: lateral RMS {lat['rms']:.3f} mm (max {lat['max']:.3f}), "
+              f"vertical RMS {ver['rms']:.3f} mm (max {ver['max']:.3f})")
+    print(f"wall time per cycle (median): sensor {wall['sensor']['median']:.1f} ms, "
+          f"control {wall['control']['median']:.1f} ms, rendering {wall['render (simulation)']['median']:.0f} ms")
+    print(f"stop: {s['stop']['reason']} (torch at s = {s['stop']['torch_s_mm']:.1f} mm)")
+    return 0

@@ -1,0 +1,97 @@
+"""Hand-eye calibration: where the PSVS (frame C) sits on the flange, from views of a circle-grid target.
+
+The robot shows the target to the PSVS from several flange poses. In each complex image the grid is found
+in both views (:func:`psvs.calibrate.grid.detect_grid`), its disc centres are triangulated (exact model),
+and the rigid transform target -> frame C is the least-squares fit of the grid's known layout to them
+(Kabsch). With the flange poses from the arm's kinematics, OpenCV's ``calibrateHandEye`` solves
+AX = XB for X = cam2flange (Park-Martin by default).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from psvs.calibrate.grid import detect_grid
+from psvs.measure.triangulate import triangulate
+from psvs.optics.rig import Rig
+from psvs.simulate.textures import CircleGrid
+
+
+def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
+    """Least-squares rigid transform (4, 4) mapping src (N, 3) onto dst (N, 3) (Kabsch), and its RMS
+    residual, mm."""
+    cs, cd = src.mean(axis=0), dst.mean(axis=0)
+    U, _, Vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
+    R = Vt.T @ D @ U.T
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, cd - R @ cs
+    res = dst - (src @ R.T + T[:3, 3])
+    return T, float(np.sqrt(np.mean(np.sum(res ** 2, axis=1))))
+
+
+def target_in_camera(grey: np.ndarray, rig: Rig, grid: CircleGrid, expected: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, float]:
+    """target2cam (4, 4, mm) from one complex image of the grid, and the fit's RMS residual (mm).
+
+    A symmetric grid's discs fit equally well in four labellings (turned half about its normal, or
+    flipped over about either axis); ``expected`` (a rough target2cam, e.g. from the nominal mounting)
+    picks the one whose rotation is nearest to it."""
+    det = detect_grid(grey, grid.rows, grid.cols)
+    pts = triangulate(det.left, det.right, rig, model="exact").points_mm
+    if not np.all(np.isfinite(pts)):
+        raise ValueError("grid discs could not be triangulated")
+    model = np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
+    best = None
+    idx = np.arange(grid.rows * grid.cols).reshape(grid.rows, grid.cols)
+    for order in (idx, idx[::-1], idx[:, ::-1], idx[::-1, ::-1]):
+        T, rms = rigid_fit(model, pts[order.ravel()])
+        score = 0.0 if expected is None else np.linalg.norm(T[:3, :3] - expected[:3, :3])
+        if best is None or score < best[0]:
+            best = (score, T, rms)
+    return best[1], best[2]
+
+
+@dataclass(frozen=True, eq=False)
+class HandEyeResult:
+    """cam2flange (4, 4) mm; per-view target fit RMS (mm); the spread of the target's base pose over
+    the views (translation mm, rotation rad): the calibration's consistency."""
+
+    cam2flange: np.ndarray
+    target_rms_mm: np.ndarray
+    spread_mm: float
+    spread_rad: float
+
+
+def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarray],
+                       method: int = cv2.CALIB_HAND_EYE_PARK) -> np.ndarray:
+    """X = cam2flange (4, 4, mm) from >= 3 pairs of flange2base and target2cam (4, 4, mm) poses."""
+    if len(flange2base) != len(target2cam) or len(flange2base) < 3:
+        raise ValueError(f"hand-eye calibration needs >= 3 paired views, got {len(flange2base)} and {len(target2cam)}")
+    R, t = cv2.calibrateHandEye([T[:3, :3] for T in flange2base], [T[:3, 3] for T in flange2base],
+                                [T[:3, :3] for T in target2cam], [T[:3, 3] for T in target2cam], method=method)
+    X = np.eye(4)
+    X[:3, :3], X[:3, 3] = R, np.ravel(t)
+    return X
+
+
+def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray], rig: Rig, grid: CircleGrid,
+                         nominal_cam2flange: np.ndarray, target2base_guess: np.ndarray) -> HandEyeResult:
+    """Hand-eye calibration from complex images of the grid taken at the given flange poses.
+
+    ``nominal_cam2flange`` (the mounting drawing) and ``target2base_guess`` (roughly where the target
+    lies) only resolve the grid's half-turn ambiguity; the result comes from the images."""
+    t2c, rms = [], []
+    for img, F in zip(images, flange2base):
+        guess = np.linalg.inv(F @ nominal_cam2flange) @ target2base_guess
+        T, r = target_in_camera(img, rig, grid, guess)
+        t2c.append(T)
+        rms.append(r)
+    X = calibrate_hand_eye(flange2base, t2c)
+    targets = [F @ X @ T for F, T in zip(flange2base, t2c)]
+    pos = np.array([T[:3, 3] for T in targets])
+    ang = [np.arccos(np.clip((np.trace(targets[0][:3, :3].T @ T[:3, :3]) - 1) / 2, -1, 1)) for T in targets]
+    return HandEyeResult(X, np.array(rms), float(np.max(np.linalg.norm(pos - pos.mean(axis=0), axis=1))),
+                         float(np.max(ang)))

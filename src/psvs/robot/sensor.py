@@ -1,0 +1,225 @@
+"""The PSVS as a seam sensor: a region of interest of the complex image, both groove edges matched with
+their twins (the paper's seeded algorithm, section III.3), triangulated, and the seam point fitted.
+
+A V-groove shows as a dark band in each view: its two edges are the plate's bevel tops. The user shows
+the groove once, with a pixel inside the band in the left view of the first frame (teaching by showing,
+:func:`auto_seed` finds it when no one is at the keyboard); from then on each frame's seeds are the edges
+nearest the previous frame's groove centre on the same row.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from psvs.imaging.pipeline import Pipeline, make_pipeline
+from psvs.match.correspondence import disparity_range, match_image
+from psvs.measure.equations import z_eq12
+from psvs.optics.rig import Rig
+
+
+#: The seam sensor's image pipeline: the paper's median 3x3 and Roberts cross, with Otsu's threshold in
+#: place of the fixed level 92: where one view shows the groove and the other the plate, the complex
+#: image sits near 92 (half of each), so a fixed level splits the groove band into fragments.
+SEAM_PIPELINE = make_pipeline([{"op": "median", "ksize": 3}, {"op": "threshold", "method": "otsu"},
+                               {"op": "roberts"}])
+
+
+def roi_rig(rig: Rig, rows: int) -> tuple[Rig, int]:
+    """The rig with its camera read out over ``rows`` image rows centred on the principal point (a
+    sensor window, as a real camera's ROI readout: same optics, the principal point shifted by the
+    window's first row). Returns (ROI rig, first row v0 of the window in the full image)."""
+    w, h = rig.camera.image_size_px
+    if not isinstance(rows, (int, np.integer)) or not 8 <= rows <= h:
+        raise ValueError(f"roi_rows must be an integer in 8..{h}, got {rows!r}")
+    cx, cy = rig.camera.principal_point_px
+    v0 = int(np.clip(round(cy - (rows - 1) / 2), 0, h - rows))
+    cam = replace(rig.camera, image_size_px=(w, int(rows)), principal_point_px=(cx, cy - v0))
+    return Rig(cam, rig.mirrors), v0
+
+
+def auto_seed(grey: np.ndarray, pipeline: Pipeline = SEAM_PIPELINE, min_width_px: int = 6) -> tuple[float, float]:
+    """A pixel inside the left view's groove on the middle row: the image shows the groove twice (one dark
+    band per view, where the other view sees plate); the left view's is the one at larger u (disparity
+    u_l - u_r > 0). Bands touching the image border are ignored. ValueError when there is none."""
+    binary = grey
+    for step in pipeline.steps[:-1]:     # the pipeline up to its binarisation
+        binary = step(binary)
+    row = np.asarray(binary)[grey.shape[0] // 2]
+    dark = ~row.astype(bool)
+    runs, start = [], None
+    for u, d in enumerate(np.append(dark, False)):
+        if d and start is None:
+            start = u
+        elif not d and start is not None:
+            if u - start >= min_width_px and start > 0 and u < len(row):
+                runs.append((start, u))
+            start = None
+    if not runs:
+        raise ValueError("cannot find the groove: the middle row shows no dark band (give the seed by hand)")
+    a, b = max(runs, key=lambda r: (r[0] + r[1]))
+    return (a + b - 1) / 2, float(grey.shape[0] // 2)
+
+
+@dataclass(frozen=True, eq=False)
+class SeamObservation:
+    """One frame's measurement. ``edges_mm``: the two groove edges' triangulated points, each (N, 3)
+    frame C, mm (empty when invalid); ``centre_px``: (u, v) of the groove centre in the left view;
+    ``reason``: why the frame is invalid ('' when valid); the twin band's disparity and the groove's
+    half width on the seed row, px."""
+
+    valid: bool
+    edges_mm: tuple[np.ndarray, np.ndarray]
+    centre_px: tuple[float, float]
+    reason: str = ""
+    disparity_px: float | None = None
+    half_width_px: float | None = None
+
+
+def _nearest_edges(edge_row: np.ndarray, u_c: float, max_px: float):
+    cols = np.flatnonzero(edge_row)
+    left = cols[(cols < u_c) & (cols >= u_c - max_px)]
+    right = cols[(cols > u_c) & (cols <= u_c + max_px)]
+    if len(left) == 0 or len(right) == 0:
+        return None
+    return int(left.max()), int(right.min())
+
+
+class SeamSensor:
+    """Groove-edge tracking in the ROI images of one run (state: the last accepted groove centre and
+    disparity, the taught width; :meth:`commit` an observation to track from it).
+
+    Parameters
+    ----------
+    rig : Rig
+        The ROI rig (:func:`roi_rig`).
+    seed_px : (u, v)
+        A pixel inside the left view's groove in the first frame, px (ROI coordinates).
+    near_mm, far_mm : working depth range (sets the disparities searched).
+    min_rows : int
+        Fewest matched rows per edge for a valid frame.
+    """
+
+    def __init__(self, rig: Rig, seed_px, near_mm: float, far_mm: float, min_rows: int = 8,
+                 pipeline: Pipeline = SEAM_PIPELINE):
+        w, h = rig.camera.image_size_px
+        u, v = (float(c) for c in seed_px)
+        if not (0 <= u < w and 0 <= v < h):
+            raise ValueError(f"seed ({u:g}, {v:g}) is outside the {w}x{h} px sensor window")
+        self.rig, self.near_mm, self.far_mm, self.min_rows = rig, near_mm, far_mm, min_rows
+        self.pipeline = pipeline
+        self.disparity_px: float | None = None
+        self.centre_px = (u, v)
+        self.half_width_px: float | None = None
+
+    def measure(self, grey: np.ndarray) -> SeamObservation:
+        """Match both groove edges of one ROI image (H, W) uint8 and triangulate them (exact model)."""
+        edges = self.pipeline.run(grey)
+        h = grey.shape[0]
+        u_c = self.centre_px[0]
+        max_px = 60.0 if self.half_width_px is None else 1.6 * self.half_width_px + 3
+        order = np.argsort(np.abs(np.arange(h) - (h - 1) / 2), kind="stable")
+        found = None
+        for v in order[: h // 2]:
+            e = _nearest_edges(edges[v], u_c, max_px)
+            if e is None:
+                continue
+            # a full groove width (not where the groove starts or ends, with its edges closing in)
+            if self.half_width_px is not None and not (0.75 < (e[1] - e[0]) / (2 * self.half_width_px) < 1.3):
+                continue
+            found = (e, int(v))
+            break
+        if found is None:
+            return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px, "no groove edges near the track")
+        (ua, ub), v = found
+        d = self._twin_disparity(grey, edges, v, ua, ub)
+        if d is None:
+            return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px, "no twin of the groove edges")
+        cam = self.rig.camera
+        # the depths of disparities d +- 10 px (eq. (12) on sensor coordinates x = u * pitch)
+        near, far = (float(z_eq12(max(d + dd, 1.0) * cam.pixel_pitch_mm[0], 0.0, cam.focal_length_mm,
+                                  self.rig.mirrors.baseline_mm)) for dd in (10.0, -10.0))
+        sides = []
+        for u in (ua, ub):
+            res = match_image(grey, self.rig, seed_px=(u, v), pipeline=self.pipeline, near_mm=near,
+                              far_mm=far, model="exact")
+            if not res.pairs:
+                sides.append(np.empty((0, 3)))
+                continue
+            pair = res.pairs[0]
+            # a seam edge crosses each row once: rows where the edge runs along the row (where the groove
+            # starts or ends) give no usable twin disparity and are dropped
+            rows, counts = np.unique(np.rint(pair.left_px[:, 1]), return_counts=True)
+            single = np.isin(np.rint(pair.left_px[:, 1]), rows[counts == 1])
+            pts = pair.points_mm[single]
+            sides.append(pts[np.all(np.isfinite(pts), axis=1)])
+        if min(len(s) for s in sides) < self.min_rows:
+            return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px,
+                                   f"edge twins matched on fewer than {self.min_rows} rows")
+        return SeamObservation(True, (sides[0], sides[1]), ((ua + ub) / 2, float(v)), "", d, (ub - ua) / 2)
+
+    def commit(self, obs: SeamObservation) -> None:
+        """Track from this observation on (call it for the frames the path model accepts)."""
+        self.centre_px, self.disparity_px = obs.centre_px, obs.disparity_px
+        if self.half_width_px is None:   # taught once: the groove's width is the joint's, it does not drift
+            self.half_width_px = obs.half_width_px
+
+    def _twin_disparity(self, grey, edges, v, ua, ub):
+        """The disparity (px) of the groove's twin band on row v: right-view edges at ua - d and ub - d
+        with the same polarities (bright-to-dark, dark-to-bright) as ua and ub; the one nearest the last
+        frame's disparity. The seeded algorithm alone may pair a groove edge with the wrong one of the
+        twin band's two edges (both lie within the disparity range)."""
+        g = grey[max(0, v - 1): v + 2].astype(float).mean(axis=0)
+        w = len(g)
+
+        def pol(u):
+            return np.sign(g[min(w - 1, u + 2)] + g[min(w - 1, u + 1)] - g[max(0, u - 1)] - g[max(0, u - 2)])
+
+        cols = np.flatnonzero(edges[v])
+        d_lo, d_hi = disparity_range(self.rig, self.near_mm, self.far_mm)
+        best = None
+        for c in cols:
+            d = ua - c
+            if not d_lo <= d <= d_hi or pol(c) != pol(ua):
+                continue
+            near_b = cols[np.abs(cols - (ub - d)) <= 3]
+            if not any(pol(c2) == pol(ub) for c2 in near_b):
+                continue
+            cost = 0.0 if self.disparity_px is None else abs(d - self.disparity_px)
+            if self.disparity_px is not None and cost > 15:
+                continue
+            if best is None or cost < best[0]:
+                best = (cost, float(d))
+        return None if best is None else best[1]
+
+
+@dataclass(frozen=True)
+class SeamPoint:
+    """The seam (groove root) at one frame, base frame: point (3,) mm, unit tangent (3,), groove width mm."""
+
+    point_mm: np.ndarray
+    tangent: np.ndarray
+    width_mm: float
+
+
+def fit_seam_point(edge_a: np.ndarray, edge_b: np.ndarray, depth_mm: float, up: np.ndarray) -> SeamPoint:
+    """The root of a V-groove from its two edges (each (N, 3) mm, same frame): a quadratic fit of each edge
+    along the seam direction (no chord bias on curved seams) evaluated at the middle; the root lies
+    ``depth_mm`` below the edges' midpoint along ``up`` (the groove's depth as the joint drawing gives it,
+    measured along the torch axis)."""
+    mean = np.vstack([edge_a, edge_b]).mean(axis=0)
+    # the seam direction: principal axis of both edges, each about its own centre (not across the groove)
+    _, _, vt = np.linalg.svd(np.vstack([edge_a - edge_a.mean(axis=0), edge_b - edge_b.mean(axis=0)]),
+                             full_matrices=False)
+    t = vt[0] * np.sign(vt[0] @ (edge_a[-1] - edge_a[0]) or 1.0)
+    fits = []
+    for e in (edge_a, edge_b):
+        tau = (e - mean) @ t
+        deg = 2 if np.ptp(tau) > 3.0 and len(e) >= 6 else 1
+        coef = [np.polyfit(tau, e[:, k], deg) for k in range(3)]
+        fits.append((np.array([np.polyval(c, 0.0) for c in coef]),
+                     np.array([np.polyval(np.polyder(c), 0.0) for c in coef])))
+    (pa, da), (pb, db) = fits
+    tangent = (da + db) / np.linalg.norm(da + db)
+    root = (pa + pb) / 2 - depth_mm * np.asarray(up, float)
+    return SeamPoint(root, tangent, float(np.linalg.norm(pa - pb)))

@@ -1,0 +1,144 @@
+"""Arm, hand-eye, seam model and seam-point fit against planted truth (fast)."""
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from psvs.robot.arm import Arm, ArmLimits
+from psvs.robot.cell import tool2flange, tool_pose
+from psvs.robot.handeye import calibrate_hand_eye, rigid_fit
+from psvs.robot.loop import HOME_Q, TrackConfig
+from psvs.robot.seam_model import SeamPath
+from psvs.robot.sensor import fit_seam_point, roi_rig
+from psvs.optics.rig import default_rig
+
+
+def _T(rotvec, t):
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = Rotation.from_rotvec(rotvec).as_matrix(), t
+    return T
+
+
+def test_ik_reaches_a_torch_pose_and_fk_agrees():
+    arm = Arm(HOME_Q)
+    tool = tool_pose([560.0, -40.0, 20.0], [0.3, 1.0, 0.0])
+    q = arm.ikine(tool @ np.linalg.inv(tool2flange()))
+    got = arm.fkine(q) @ tool2flange()
+    assert np.allclose(got, tool, atol=1e-6)
+    assert arm.within_limits(q)
+
+
+def test_ik_rejects_an_unreachable_pose():
+    arm = Arm(HOME_Q)
+    with pytest.raises(ValueError, match="unreachable|joint range"):
+        arm.ikine(tool_pose([3000.0, 0.0, 0.0], [1.0, 0.0, 0.0]))
+
+
+def test_servo_never_jumps_and_respects_speed_and_acceleration():
+    """A set-point 1 rad away: the servo moves at most qd_max * T per cycle, accelerations within qdd_max."""
+    lim = ArmLimits()
+    arm = Arm(HOME_Q, lim)
+    target = HOME_Q + 1.0
+    prev = arm.q.copy()
+    for _ in range(10):
+        step = arm.servo(target, 0.04)
+        assert np.all(np.abs(step.q - prev) <= np.asarray(lim.qd_max) * 0.04 + 1e-12)
+        assert np.all(step.qdd_peak <= np.asarray(lim.qdd_max) + 1e-9)
+        prev = step.q
+    assert step.limited
+
+
+def test_servo_follows_a_slow_ramp_exactly():
+    arm = Arm(HOME_Q)
+    for k in range(1, 30):
+        arm.servo(HOME_Q + 0.001 * k, 0.04)
+    assert np.allclose(arm.q, HOME_Q + 0.029, atol=2e-4)
+
+
+def test_servo_brakes_before_the_joint_range():
+    arm = Arm(HOME_Q)
+    beyond = HOME_Q.copy()
+    beyond[0] = arm.qlim[1, 0] + 1.0
+    for _ in range(200):
+        arm.servo(beyond, 0.04)
+    assert arm.q[0] <= arm.qlim[1, 0] + 1e-9
+
+
+def test_arm_limits_are_checked():
+    with pytest.raises(ValueError, match="qd_max must be six positive"):
+        ArmLimits(qd_max=(1.0, 1.0))
+
+
+def test_hand_eye_recovers_a_planted_mounting():
+    """AX = XB with exact flange poses and target2cam = inv(F X)^-1 target2base: X back to 1e-6."""
+    rng = np.random.default_rng(0)
+    X = _T([0.01, -0.02, 1.5], [40.0, 5.0, -280.0])
+    target2base = _T([np.pi, 0, 0], [550.0, 0.0, 0.0])
+    F = [_T(rng.uniform(-0.4, 0.4, 3) + [np.pi, 0, 0], rng.uniform(-50, 50, 3) + [500, 0, 300]) for _ in range(8)]
+    t2c = [np.linalg.inv(f @ X) @ target2base for f in F]
+    assert np.allclose(calibrate_hand_eye(F, t2c), X, atol=1e-6)
+    with pytest.raises(ValueError, match=">= 3 paired views"):
+        calibrate_hand_eye(F[:2], t2c[:2])
+
+
+def test_rigid_fit_recovers_a_transform():
+    rng = np.random.default_rng(1)
+    src = rng.normal(size=(10, 3)) * 30
+    T = _T([0.2, -0.1, 0.3], [1.0, 2.0, 3.0])
+    got, rms = rigid_fit(src, src @ T[:3, :3].T + T[:3, 3])
+    assert np.allclose(got, T, atol=1e-9) and rms < 1e-9
+
+
+def _circle(s, R=150.0):
+    return np.column_stack([R * np.sin(s / R), R - R * np.cos(s / R), 0.05 * s])
+
+
+def test_seam_path_follows_a_noisy_circle_and_bridges_along_the_tangent():
+    rng = np.random.default_rng(2)
+    s_true = np.arange(0.0, 60.0, 0.4)
+    pts = _circle(s_true) + rng.normal(0, 0.03, (len(s_true), 3))
+    path = SeamPath(pts[0], [1.0, 0.0, 0.0])
+    for p, s in zip(pts[1:], s_true[1:]):
+        t = _circle(np.array([s + 0.01]))[0] - _circle(np.array([s]))[0]
+        path.add(p, t / np.linalg.norm(t))
+    path.fit(20.0)
+    dense = _circle(np.arange(0.0, 60.0, 0.005))
+    for s in (25.0, 40.0, 50.0):   # distance to the curve (the arc length itself may drift along it)
+        assert np.min(np.linalg.norm(dense - path.position(s), axis=1)) < 0.05   # noise 0.03 per knot
+        assert abs(path.s_end - 59.6) < 0.5
+    end, t_end = path.position(path.s_end), path.tangent(path.s_end)
+    assert np.allclose(path.position(path.s_end + 10.0), end + 10.0 * t_end, atol=1e-9)
+    assert not path.add(pts[-1], t_end)   # not ahead of the last knot
+
+
+def test_fit_seam_point_on_a_curved_groove():
+    """Edges of a groove of half-width 6 mm around a circle of radius 150 mm (z up): the root is the centre
+    line, depth below; quadratic fits leave no chord bias."""
+    s = np.linspace(-5, 5, 30)
+    c = _circle(s + 50.0)
+    t = np.gradient(c, axis=0)
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    n = np.cross([0, 0, 1.0], t)
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    sp = fit_seam_point(c + 6 * n, c - 6 * n, 3.0, np.array([0, 0, 1.0]))
+    mid = _circle(np.array([50.0]))[0] - [0, 0, 3.0]
+    assert np.linalg.norm(sp.point_mm - mid) < 0.02
+    assert abs(sp.width_mm - 12.0) < 0.01
+
+
+def test_roi_rig_keeps_the_optics_and_checks_rows():
+    rig, v0 = roi_rig(default_rig(), 32)
+    assert rig.camera.image_size_px == (640, 32) and v0 == 224
+    assert rig.camera.principal_point_px[1] == pytest.approx(239.5 - 224)
+    with pytest.raises(ValueError, match="roi_rows must be an integer"):
+        roi_rig(default_rig(), 4)
+
+
+def test_track_config_checks():
+    with pytest.raises(ValueError, match="speed_mm_s must be a number > 0"):
+        TrackConfig(speed_mm_s=-1.0)
+    with pytest.raises(ValueError, match="rate_hz must be in"):
+        TrackConfig(rate_hz=1000.0)
+    with pytest.raises(ValueError, match="roi_rows must be an integer >= 8"):
+        TrackConfig(roi_rows=4)
+    with pytest.raises(ValueError, match="bridge_mm must be in"):
+        TrackConfig(bridge_mm=50.0)
