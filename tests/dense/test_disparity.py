@@ -77,6 +77,7 @@ def test_constant_image_gives_all_nan_with_a_warning():
     (np.random.default_rng(0).random((40, 60)), 20, 10, "empty"),
     (np.random.default_rng(0).random((40, 60)), -5, 10, ">= 0"),
     (np.random.default_rng(0).random((40, 60)), 0, 2, "below 3 px"),
+    (np.random.default_rng(0).random((40, 60)), 10.5, 10.9, "no whole-pixel"),
 ])
 def test_bad_input_is_named(image, lo, hi, message):
     with pytest.raises(ValueError, match=message):
@@ -87,3 +88,5 @@ def test_fast_mode_on_a_narrow_range_falls_back_to_full_resolution(pair):
     left, right, tl, _ = pair
     res = dense_disparity(superimpose(left, right)[:, :60], 0, 5, fast=True)   # 5 px range: 2.5 at half size
     assert res.disparity_left.shape == (200, 60)
+    res = dense_disparity(superimpose(left, right), 20.2, 21.8, fast=True)      # 10.1..10.9: no whole px
+    assert res.disparity_left.shape == left.shape and np.nanmax(res.disparity_left) <= 21.8

@@ -5,10 +5,11 @@ Method (docs/dense.md):
 
 1. **Echo cost.** C = (1 − s)·L + s·R, so each patch of C recurs d px to its left when it belongs to the left
    view (disparity d = x_l − x_r, eq. 12's denominator) and d px to its right when it belongs to the right
-   view. :func:`psvs.dense.cost.echo_correlation` measures the first, :func:`~psvs.dense.cost.forward` the
-   second, on band-passed C with shiftable windows.
+   view. :func:`psvs.dense.cost.echo_correlation` measures the echo on band-passed C with shiftable
+   windows; :func:`~psvs.dense.cost.fused_cost` reads it from both ends of each pair.
 2. **Layer-agnostic disparity.** Whichever layer dominates a patch, one of the two sees its echo, so the
-   cost ``−max(echo, forward)`` followed by semi-global aggregation gives, at every pixel, the disparity
+   cost ``−max(echo, forward)`` (forward: the echo seen from the pair's right-view end, at x + d) followed
+   by semi-global aggregation gives, at every pixel, the disparity
    of the dominant layer there.
 3. **Ownership.** A pixel keeps that disparity in the left map when its own left-view echo carries it
    (echo ≥ forward − margin) and in the right map in the opposite case; the rest, where the other view's
@@ -100,6 +101,8 @@ def check_range(d_min: float, d_max: float, width: int) -> None:
     if d_max < MIN_LAG_PX:
         raise ValueError(f"disparities below {MIN_LAG_PX} px cannot be measured in a complex image "
                          f"(range {d_min}..{d_max})")
+    if math.floor(d_max) < max(MIN_LAG_PX, math.ceil(d_min)):
+        raise ValueError(f"disparity range {d_min}..{d_max} px holds no whole-pixel disparity to search")
 
 
 def fill_from_background(d: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -217,7 +220,7 @@ def dense_disparity(image, d_min: float, d_max: float, *, fast: bool = False,
     fx = w / small.shape[1]
     dmin_s = d_min / fx
     dmax_s = min(d_max / fx, small.shape[1] - 1)
-    if dmax_s < MIN_LAG_PX:  # too narrow a range for the coarse scale: full resolution it is
+    if math.floor(dmax_s) < max(MIN_LAG_PX, math.ceil(dmin_s)):  # too narrow for the coarse scale
         return dense_disparity(img, d_min, d_max, params=replace(p, scale=1))
     dl, dr, cl, cr, searched = _at_scale(small, dmin_s, dmax_s, p)
     return DenseResult(_upsample(dl, (h, w), fx), _upsample(dr, (h, w), fx), _upsample(cl, (h, w)),
