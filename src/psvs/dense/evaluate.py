@@ -84,14 +84,13 @@ class Evaluation:
 def evaluate_pair(left, right, truth, d_min: float = 0.0, d_max: float = 64.0, split: float = 0.5) -> Evaluation:
     """Run the default and fast modes on the superimposed pair and StereoSGBM on the separate pair."""
     c = superimpose(left, right, split)
-    scores, seconds = {}, {}
+    scores, seconds, results = {}, {}, {}
     for name, fast in (("psvs dense", False), ("psvs dense --fast", True)):
         t0 = time.perf_counter()
-        res = dense_disparity(c, d_min, d_max, fast=fast)
+        results[name] = dense_disparity(c, d_min, d_max, fast=fast)
         seconds[name] = time.perf_counter() - t0
-        scores[name] = disparity_scores(res.disparity_left, truth)
-        if not fast:
-            best = res
+        scores[name] = disparity_scores(results[name].disparity_left, truth)
+    best = results["psvs dense"]
     t0 = time.perf_counter()
     lv, rv = separate_views(c, best.disparity_left, split, best.disparity_right)
     seconds["view separation"] = time.perf_counter() - t0
