@@ -38,3 +38,14 @@ def load_scene_spec(spec: str):
     if spec.partition(":")[0] in BUILTINS:
         return builtin_scene(spec)
     raise ValueError(f"scene {spec!r} is neither a scene file nor a built-in ({', '.join(BUILTINS)})")
+
+
+def parse_seed(text: str | None) -> tuple[float, float] | None:
+    """``--seed U,V`` as (u, v) px; None stays None; anything else is a one-line ValueError."""
+    if text is None:
+        return None
+    try:
+        u, v = (float(c) for c in text.split(","))
+    except ValueError:
+        raise ValueError(f"--seed must be 'u,v' in px, got {text!r}") from None
+    return u, v

@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 import time
 
-from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
+from psvs.cli.common import add_rig_argument, check_output_path, parse_seed, rig_from_args
 from psvs.imaging.pipeline import PAPER, load_pipeline
 from psvs.live.log import write_log
 from psvs.live.source import VideoSource
@@ -32,14 +32,6 @@ def add_parser(sub) -> None:
     p.add_argument("--max-frames", type=int, help="stop after N frames")
     p.add_argument("--quiet", action="store_true", help="print only the summary")
     p.set_defaults(run=run)
-
-
-def parse_seed(text: str) -> tuple[float, float]:
-    try:
-        u, v = (float(c) for c in text.split(","))
-    except ValueError:
-        raise ValueError(f"--seed must be 'u,v' in px, got {text!r}") from None
-    return u, v
 
 
 def run(args) -> int:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import sys
 
-from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
+from psvs.cli.common import add_rig_argument, check_output_path, parse_seed, rig_from_args
 from psvs.imaging.pipeline import PAPER, load_pipeline
 from psvs.io.images import read_grey
 from psvs.match.correspondence import match_image
@@ -43,13 +43,7 @@ def run(args) -> int:
         from pathlib import Path
         if not Path(args.figures).is_dir():
             raise FileNotFoundError(f"figures folder does not exist: {args.figures}")
-    seed = None
-    if args.seed is not None:
-        try:
-            seed = tuple(float(v) for v in args.seed.split(","))
-            assert len(seed) == 2
-        except (ValueError, AssertionError):
-            raise ValueError(f"--seed must be 'u,v' in px, got {args.seed!r}") from None
+    seed = parse_seed(args.seed)
     rig = rig_from_args(args)
     pipeline = load_pipeline(args.pipeline) if args.pipeline else PAPER
     image = read_grey(args.image)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.cli.common import add_rig_argument, parse_seed, rig_from_args
 
 
 def add_parser(sub) -> None:
@@ -43,13 +43,7 @@ def run(args) -> int:
         raise ValueError(f"output {out} exists and is not a folder")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"output folder does not exist: {out.parent}")
-    seed = None
-    if args.seed is not None:
-        try:
-            seed = tuple(float(v) for v in args.seed.split(","))
-            assert len(seed) == 2
-        except (ValueError, AssertionError):
-            raise ValueError(f"--seed must be 'u,v' in px, got {args.seed!r}") from None
+    seed = parse_seed(args.seed)
     cfg = TrackConfig(speed_mm_s=args.speed, rate_hz=args.rate, weld_length_mm=args.length, roi_rows=args.roi_rows)
     rig = rig_from_args(args)
     wp = seam_workpiece(args.scene, cfg.camera_distance_mm)
