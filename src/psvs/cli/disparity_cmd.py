@@ -8,10 +8,9 @@ import numpy as np
 
 from psvs.cli.common import check_output_path
 from psvs.dense import dense_disparity, disparity_cloud, separate_views, write_cloud_ply
-from psvs.dense.cloud import write_npy
-from psvs.io.images import read_grey, write_png
+from psvs.dense.disparity import working_range_px
+from psvs.io.images import read_grey, to_grey8, write_npy, write_png
 from psvs.io.params import load_rig
-from psvs.match.correspondence import disparity_range
 from psvs.measure.triangulate import MODELS
 
 
@@ -48,8 +47,7 @@ def _range(args, rig, width: int) -> tuple[float, float]:
         return args.min_disparity, args.max_disparity
     if rig is None:
         raise ValueError("give --rig or --min-disparity and --max-disparity")
-    lo, hi = disparity_range(rig, args.near_mm, args.far_mm)
-    return lo, min(hi, width - 1.0)
+    return working_range_px(rig, args.near_mm, args.far_mm, width)
 
 
 def run(args) -> int:
@@ -83,7 +81,7 @@ def run(args) -> int:
         else:  # nothing to separate by: a constant image is two identical constant views
             lv = rv = image.astype(np.float64)
         for path, v in zip(views, (lv, rv)):
-            write_png(path, np.clip(np.rint(v), 0, 255).astype(np.uint8))
+            write_png(path, to_grey8(v))
     cloud = disparity_cloud(res.disparity_left, rig, args.model) if (depth_out or cloud_out) else None
     if depth_out:
         write_npy(depth_out, cloud.depth_mm.astype(np.float32))

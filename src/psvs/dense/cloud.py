@@ -1,5 +1,5 @@
 """Depth map and point cloud of a dense left-view disparity map, through the rig's triangulation
-(eqs. 12–17, or exact ray tracing), and their files (NumPy .npy, binary PLY)."""
+(eqs. 12–17, or exact ray tracing), and the cloud's file (binary PLY)."""
 from __future__ import annotations
 
 import io
@@ -8,6 +8,7 @@ from typing import NamedTuple
 import numpy as np
 
 from psvs.io.atomic import write_atomic
+from psvs.io.images import to_grey8
 from psvs.measure.triangulate import triangulate, twin_rows
 from psvs.optics.rig import Rig
 
@@ -55,18 +56,11 @@ def write_cloud_ply(path, cloud: Cloud, grey=None) -> None:
     if grey is not None:
         g = np.asarray(grey)
         u, v = cloud.pixels[:, 0].astype(int), cloud.pixels[:, 1].astype(int)
-        rec["grey"] = np.clip(np.rint(g[v, u]), 0, 255).astype(np.uint8)
+        rec["grey"] = to_grey8(g[v, u])
         props.append("property uchar grey")
     head = "\n".join(["ply", "format binary_little_endian 1.0", "comment psvs dense cloud, frame C, mm",
                       f"element vertex {len(pts)}", *props, "end_header"]) + "\n"
     buf = io.BytesIO()
     buf.write(head.encode("ascii"))
     buf.write(rec.tobytes())
-    write_atomic(path, buf.getvalue())
-
-
-def write_npy(path, array: np.ndarray) -> None:
-    """An array as a NumPy .npy file, atomically."""
-    buf = io.BytesIO()
-    np.save(buf, array)
     write_atomic(path, buf.getvalue())

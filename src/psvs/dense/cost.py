@@ -42,10 +42,9 @@ def _echo(f, mu, sd, lags, r, rs):  # pragma: no cover - compiled
                 xr = max(x - r - 1, d)
                 acc += f[y, xa] * f[y, xa - d] - f[y, xr] * f[y, xr - d]
                 rows[y, x] = acc
-        for x in range(w):
-            for y in range(h):
-                if x < d:
-                    out[k, y, x] = NO_TWIN
+        for y in range(h):
+            for x in range(min(d, w)):
+                out[k, y, x] = NO_TWIN
         for x in range(d, w):
             acc = np.float32(0.0)
             for j in range(-r, r + 1):

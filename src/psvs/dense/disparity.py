@@ -33,6 +33,8 @@ from scipy.ndimage import median_filter
 
 from psvs.dense.cost import band_pass, echo_correlation, fused_cost, one_sided_cost, pick
 from psvs.dense.sgm import aggregate
+from psvs.match.correspondence import disparity_range
+from psvs.optics.rig import Rig
 
 MIN_LAG_PX = 3
 MIN_SIZE_PX = 16
@@ -103,6 +105,13 @@ def check_range(d_min: float, d_max: float, width: int) -> None:
                          f"(range {d_min}..{d_max})")
     if math.floor(d_max) < max(MIN_LAG_PX, math.ceil(d_min)):
         raise ValueError(f"disparity range {d_min}..{d_max} px holds no whole-pixel disparity to search")
+
+
+def working_range_px(rig: Rig, near_mm: float, far_mm: float, width_px: int) -> tuple[float, float]:
+    """Disparities (px) to search for the rig's working depth near..far (mm), the far end of the range
+    (the largest disparity) cut at the image's last column."""
+    lo, hi = disparity_range(rig, near_mm, far_mm)
+    return lo, min(hi, width_px - 1.0)
 
 
 def fill_from_background(d: np.ndarray, keep: np.ndarray) -> np.ndarray:

@@ -15,6 +15,7 @@ import numpy as np
 
 from psvs.dense.disparity import dense_disparity
 from psvs.dense.separate import psnr_db, separate_views
+from psvs.io.images import to_grey8
 
 
 def superimpose(left, right, split: float = 0.5) -> np.ndarray:
@@ -48,8 +49,7 @@ def sgbm_reference(left, right, d_max: int, block: int = 5) -> np.ndarray:
     m = cv2.StereoSGBM_create(minDisparity=0, numDisparities=n, blockSize=block, P1=8 * block * block,
                               P2=32 * block * block, disp12MaxDiff=1, uniquenessRatio=10, speckleWindowSize=100,
                               speckleRange=2, mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY)
-    u8 = lambda a: np.clip(np.rint(a), 0, 255).astype(np.uint8)  # noqa: E731
-    d = m.compute(u8(left), u8(right)).astype(np.float64) / 16.0
+    d = m.compute(to_grey8(left), to_grey8(right)).astype(np.float64) / 16.0
     d[d < 0] = np.nan
     return d
 

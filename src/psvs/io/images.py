@@ -20,6 +20,11 @@ def write_png(path, image: np.ndarray) -> None:
     write_atomic(path, buf.tobytes())
 
 
+def to_grey8(image) -> np.ndarray:
+    """Grey levels (any real dtype, any shape) rounded and clipped to 0..255, uint8."""
+    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
+
+
 def read_grey(path) -> np.ndarray:
     """Read an image file as (H, W) uint8 grey; raise naming the file when it is missing or unreadable."""
     path = Path(path)
@@ -29,6 +34,13 @@ def read_grey(path) -> np.ndarray:
     if img is None:
         raise ValueError(f"not a readable image: {path}")
     return img
+
+
+def write_npy(path, array: np.ndarray) -> None:
+    """Write one array as a NumPy .npy file, atomically."""
+    buf = io.BytesIO()
+    np.save(buf, array)
+    write_atomic(path, buf.getvalue())
 
 
 def write_npz(path, **arrays) -> None:

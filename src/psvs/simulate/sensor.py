@@ -7,6 +7,7 @@ import cv2
 import numpy as np
 
 from psvs._validate import check_nonnegative, check_positive
+from psvs.io.images import to_grey8
 
 
 @dataclass(frozen=True)
@@ -55,4 +56,4 @@ def expose(irradiance: np.ndarray, sensor: Sensor, seed: int | None = 0) -> np.n
     if sensor.read_noise_e > 0:
         e = e + rng.normal(0.0, sensor.read_noise_e, e.shape)
     dn = sensor.gain * 255.0 * e / sensor.full_well_e
-    return np.clip(np.rint(dn), 0, 255).astype(np.uint8)
+    return to_grey8(dn)

@@ -22,10 +22,12 @@ from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
 
 from psvs.dense import dense_disparity, disparity_cloud, separate_views
+from psvs.dense.disparity import working_range_px
 from psvs.imaging.pipeline import PAPER, make_pipeline
 from psvs.imaging.steps import STEPS
+from psvs.io.images import to_grey8
 from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
-from psvs.match.correspondence import MatchResult, disparity_range, match_image
+from psvs.match.correspondence import MatchResult, match_image
 from psvs.match.export import write_csv, write_json, write_ply
 from psvs.measure.triangulate import MODELS
 from psvs.optics.rig import Rig
@@ -187,8 +189,7 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
         if not body.near_mm < body.far_mm:
             raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
         grey = state["still"]
-        lo, hi = disparity_range(rig, body.near_mm, body.far_mm)
-        hi = min(hi, w - 1.0)
+        lo, hi = working_range_px(rig, body.near_mm, body.far_mm, w)
         res = dense_disparity(grey, lo, hi, fast=body.fast)
         d = res.disparity_left
         z = disparity_cloud(d, rig).depth_mm
@@ -198,8 +199,7 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
                "median_z_mm": float(np.nanmedian(z)) if np.isfinite(z).any() else None}
         if body.views and np.isfinite(d).any():
             lv, rv = separate_views(grey, d, rig.mirrors.split_ratio, res.disparity_right)
-            u8 = lambda a: np.clip(np.rint(a), 0, 255).astype(np.uint8)  # noqa: E731
-            out.update(left_png=_data_url(u8(lv)), right_png=_data_url(u8(rv)))
+            out.update(left_png=_data_url(to_grey8(lv)), right_png=_data_url(to_grey8(rv)))
         return out
 
     @app.get("/api/export/{fmt}")
