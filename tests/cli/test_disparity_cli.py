@@ -107,3 +107,26 @@ def test_dense_eval_on_own_pair(capsys, tmp_path, planted):
 def test_dense_eval_bad_input(capsys, extra, message):
     code, _, err = run(capsys, "dense-eval", *extra)
     assert code == 2 and message in err
+
+
+def test_dense_eval_bad_truth_and_sizes(capsys, tmp_path, planted):
+    paths, tl = planted
+    own = ["--left", str(paths["left"]), "--right", str(paths["right"])]
+    txt = tmp_path / "truth.txt"
+    txt.write_text("1 2 3")
+    code, _, err = run(capsys, "dense-eval", *own, "--truth", str(txt))
+    assert code == 2 and ".pfm or .npy" in err and len(err.strip().splitlines()) == 1
+    small = tmp_path / "small.npy"
+    np.save(small, tl[:10])
+    code, _, err = run(capsys, "dense-eval", *own, "--truth", str(small))
+    assert code == 2 and "differ in size" in err
+    code, _, err = run(capsys, "dense-eval", *own, "--truth", str(tmp_path / "none.npy"))
+    assert code == 2 and "not found" in err
+
+
+def test_disparity_on_a_file_that_is_not_an_image(capsys, tmp_path):
+    fake = tmp_path / "fake.png"
+    fake.write_text("not a PNG")
+    code, _, err = run(capsys, "disparity", str(fake), "--min-disparity", "0", "--max-disparity", "9",
+                       "-o", str(tmp_path / "d.npy"))
+    assert code == 2 and "not a readable image" in err and not (tmp_path / "d.npy").exists()
