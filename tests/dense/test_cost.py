@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from psvs.dense.cost import NO_TWIN, band_pass, echo_correlation, fused_cost, pick
+from psvs.dense.cost import NO_TWIN, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost, pick
 from tests.dense.planted import texture
 
 
@@ -70,3 +70,32 @@ def test_bad_windows_and_lags_are_rejected():
         echo_correlation(f, np.array([3]), window=4)
     with pytest.raises(ValueError, match="lags must lie"):
         echo_correlation(f, np.array([3, 20]), window=5)
+
+
+def test_aperture_weight_sees_only_variation_along_x():
+    y, x = np.mgrid[0:60, 0:80].astype(np.float64)
+    horizontal = np.sin(y / 1.5)                    # stripes along x: the same at every lag
+    vertical = np.sin(x / 1.5)                      # stripes across x: pin the lag
+    diagonal = np.sin((x + y) / 2.0)                # half the gradient energy along x
+    inner = (slice(10, 50), slice(10, 70))
+    assert np.all(aperture_weight(horizontal, 7, 0.2)[inner] < 1e-6)
+    assert np.all(aperture_weight(vertical, 7, 0.2)[inner] == 1.0)
+    np.testing.assert_allclose(aperture_weight(diagonal, 7, 0.8)[inner], 0.5 / 0.8, atol=0.02)
+    t = band_pass(texture(60, 80, seed=4), 0.7)    # isotropic texture: about half along x, so full weight
+    assert np.mean(aperture_weight(t, 7, 0.2)[inner] == 1.0) > 0.95
+
+
+def test_filter_volume_is_a_double_box_mean_under_a_flat_guide_and_stops_at_guide_edges():
+    rng = np.random.default_rng(5)
+    vol = rng.random((2, 30, 40)).astype(np.float32)
+    vol[1, :, :6] = NO_TWIN
+    flat = filter_volume(vol, np.zeros((30, 40), np.float32), 2, 0.01)
+    box = lambda a: np.mean([np.roll(np.roll(a, i, 0), j, 1) for i in range(-2, 3) for j in range(-2, 3)], 0)  # noqa: E731
+    np.testing.assert_allclose(flat[0, 5:-5, 5:-5], box(box(vol[0]))[5:-5, 5:-5], atol=1e-5)  # a = 0, b = box
+    assert np.all(flat[1, :, :6] == NO_TWIN)        # missing twins stay missing
+    # a cost that is 1 left of a guide edge and 0 right of it keeps its step (a box would blur it over 9 px)
+    step = np.zeros((1, 30, 40), np.float32)
+    step[0, :, :20] = 1.0
+    guide = np.where(np.arange(40) < 20, 0.0, 1.0)[None, :].repeat(30, 0).astype(np.float32)
+    out = filter_volume(step, guide, 4, 1e-4)[0]
+    assert np.all(out[:, 15:20] > 0.98) and np.all(np.abs(out[:, 20:25]) < 0.02)

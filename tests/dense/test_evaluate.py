@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from psvs.dense import dense_disparity, disparity_cloud, psnr_db, separate_views
-from psvs.dense.evaluate import disparity_scores, evaluate_pair, motorcycle, sgbm_reference, superimpose
+from psvs.dense.evaluate import disparity_scores, evaluate_pair, mirrored, motorcycle, sgbm_reference, superimpose
 from psvs.match.correspondence import disparity_range
 from psvs.simulate.builtin import textured
 from psvs.simulate.render import render
@@ -44,15 +44,34 @@ def moto():
 
 
 def test_motorcycle_scores(moto):
-    """Issue 6 acceptance data set. The issue asks bad-2 <= 20 % (goal 15 %); measured 20.1 %."""
+    """Issue 6 acceptance data set. The issue asks bad-2 <= 20 % (goal 15 %); measured 16.6 %."""
     left, _, gt, ev = moto
     assert left.shape == gt.shape == (500, 741)
     ours, fast, ref = (ev.scores[k] for k in ("psvs dense", "psvs dense --fast", "StereoSGBM, separate pair"))
-    assert ours["bad2_pct"] < 20.6 and ours["coverage_pct"] == 100.0
-    assert fast["bad2_pct"] < 28.0
+    assert ours["bad2_pct"] < 17.5 and ours["coverage_pct"] == 100.0
+    assert fast["bad2_pct"] < 25.0
     assert 17.0 < ref["bad2_pct"] < 21.0            # the issue's reference figure: 18 %
-    assert ev.psnr_left_db > 21.0 and ev.psnr_right_db > 21.0   # the pair itself is consistent to 22.8 dB
-    assert ev.psnr_left_db > psnr_db(ev.complex_image, left) + 2.0
+    assert ev.psnr_left_db > 20.8 and ev.psnr_right_db > 20.8   # the pair itself is consistent to 22.8 dB
+    assert ev.psnr_left_db > psnr_db(ev.complex_image, left) + 1.5
+
+
+def test_mirrored_pair_truth_is_the_right_views_disparity():
+    left, right, tl, tr = layered_pair()
+    ml, mr, mt = mirrored(left, right, tl)
+    np.testing.assert_array_equal(ml, np.fliplr(right))
+    np.testing.assert_array_equal(mr, np.fliplr(left))
+    seen = np.isfinite(mt)
+    assert seen.mean() > 0.85
+    np.testing.assert_array_equal(mt[seen], np.fliplr(tr)[seen])   # the right view's own truth, mirrored
+
+
+def test_mirrored_motorcycle_scores(moto):
+    """The same photographs in a mirror: every ghost falls on the other side. Measured 12.5 % (StereoSGBM on
+    the separate mirrored pair: see docs/dense.md)."""
+    left, right, gt, _ = moto
+    ml, mr, mt = mirrored(left, right, gt)
+    res = dense_disparity(superimpose(ml, mr), 0, 64)
+    assert disparity_scores(res.disparity_left, mt)["bad2_pct"] < 13.5
 
 
 def test_simulated_psvs_scene():

@@ -4,8 +4,9 @@ import pytest
 from psvs.dense.sgm import PATHS, aggregate
 
 
-def reference_sgm(cost, p1, p2, paths):
-    """Plain Python SGM straight from Hirschmüller's recursion, one pixel at a time."""
+def reference_sgm(cost, p1, p2, paths, guide=None, tau=1.0):
+    """Plain Python SGM straight from Hirschmüller's recursion, one pixel at a time; with a guide, the jump
+    penalty is max(p1, p2 / (1 + |ΔI| / tau))."""
     h, w, n = cost.shape
     total = np.zeros_like(cost, dtype=np.float64)
     for dy, dx in paths:
@@ -20,8 +21,9 @@ def reference_sgm(cost, p1, p2, paths):
                     continue
                 prev = lr[py, px]
                 m = prev.min()
+                jump = p2 if guide is None else max(p1, p2 / (1 + abs(guide[y, x] - guide[py, px]) / tau))
                 for d in range(n):
-                    cands = [prev[d], m + p2]
+                    cands = [prev[d], m + jump]
                     if d > 0:
                         cands.append(prev[d - 1] + p1)
                     if d < n - 1:
@@ -40,6 +42,17 @@ def test_aggregate_matches_reference_recursion(n_paths):
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
 
 
+def test_guided_penalty_matches_reference_recursion():
+    rng = np.random.default_rng(2)
+    cost = rng.random((6, 8, 5)).astype(np.float32)
+    guide = (rng.random((6, 8)) * 3).astype(np.float32)
+    got = aggregate(cost, 0.1, 0.9, guide=guide, tau=0.5)
+    want = reference_sgm(cost.astype(np.float64), 0.1, 0.9, PATHS, guide.astype(np.float64), 0.5)
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
+    flat = aggregate(cost, 0.1, 0.9, guide=np.ones((6, 8), np.float32), tau=0.5)
+    np.testing.assert_allclose(flat, aggregate(cost, 0.1, 0.9), rtol=1e-6)   # no edge: the plain penalty
+
+
 def test_aggregation_fills_an_uninformative_gap():
     # a clear minimum at d=3 everywhere except a flat-cost hole: SGM carries d=3 into the hole
     cost = np.ones((20, 20, 8), np.float32)
@@ -54,3 +67,7 @@ def test_penalties_are_checked():
         aggregate(np.zeros((3, 3, 2), np.float32), 1.0, 0.5)
     with pytest.raises(ValueError, match="n_paths"):
         aggregate(np.zeros((3, 3, 2), np.float32), 0.1, 0.5, n_paths=6)
+    with pytest.raises(ValueError, match="tau"):
+        aggregate(np.zeros((3, 3, 2), np.float32), 0.1, 0.5, guide=np.zeros((3, 3)), tau=0.0)
+    with pytest.raises(ValueError, match="guide"):
+        aggregate(np.zeros((3, 3, 2), np.float32), 0.1, 0.5, guide=np.zeros((3, 4)))

@@ -70,6 +70,46 @@ def _echo(f, mu, sd, lags, r, rs):  # pragma: no cover - compiled
     return out
 
 
+def aperture_weight(features: np.ndarray, window: int, full_share: float) -> np.ndarray:
+    """How far each ``window`` × ``window`` patch of ``features`` (H, W) can pin a horizontal echo, float32
+    (H, W) in [0, 1]: the share of its gradient energy that lies along x, Σg_x² / (Σg_x² + Σg_y²), over
+    ``full_share`` and capped at 1. A lag is a shift along x, so a patch of horizontal stripes repeats at
+    every lag and its echo says nothing about d (the aperture problem); worse, its correlation falls off
+    slowly with the lag and pulls toward the smallest one. Weighting the echo by this share makes such
+    patches neutral, so the aggregation takes their disparity from patches that do carry one."""
+    f = np.asarray(features, dtype=np.float32)
+    gx = cv2.Sobel(f, cv2.CV_32F, 1, 0, borderType=cv2.BORDER_REFLECT)
+    gy = cv2.Sobel(f, cv2.CV_32F, 0, 1, borderType=cv2.BORDER_REFLECT)
+    sx = cv2.boxFilter(gx * gx, -1, (window, window), borderType=cv2.BORDER_REFLECT)
+    sy = cv2.boxFilter(gy * gy, -1, (window, window), borderType=cv2.BORDER_REFLECT)
+    share = sx / np.maximum(sx + sy, 1e-12)
+    return np.clip(share / full_share, 0.0, 1.0).astype(np.float32)
+
+
+def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float) -> np.ndarray:
+    """Guided filter (He, Sun & Tang 2013) of each slice of ``volume`` (D, H, W) with ``guide`` (H, W) scaled
+    to about 0..1, box radius ``radius`` px and regulariser ``eps`` (guide units²): cost-volume filtering
+    (Hosni et al. 2013). Each pixel's cost becomes a local linear function of the guide, so support stops
+    at the guide's edges instead of letting a textured surface's echo spread over its neighbour. The
+    :data:`NO_TWIN` entries count as 0 (no evidence) and keep their value."""
+    k = (2 * radius + 1, 2 * radius + 1)
+    box = lambda a: cv2.boxFilter(a, -1, k, borderType=cv2.BORDER_REFLECT)  # noqa: E731
+    g = np.asarray(guide, dtype=np.float32)
+    mean_g = box(g)
+    var_g = box(g * g) - mean_g * mean_g
+    out = np.empty_like(volume, dtype=np.float32)
+    for i in range(volume.shape[0]):
+        missing = volume[i] == NO_TWIN
+        p = volume[i].copy()
+        p[missing] = 0.0
+        mean_p = box(p)
+        a = (box(g * p) - mean_g * mean_p) / (var_g + eps)
+        b = mean_p - a * mean_g
+        out[i] = box(a) * g + box(b)
+        out[i][missing] = NO_TWIN
+    return out
+
+
 def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_window: int = 1) -> np.ndarray:
     """NCC of each ``window`` × ``window`` patch (odd side) of ``features`` (H, W) at x with the patch at
     x − d, for each lag d in ``lags`` (px, integers in 1..W−1): float32 (D, H, W) in [−1, 1], :data:`NO_TWIN`

@@ -6,11 +6,14 @@ Method (docs/dense.md):
 1. **Echo cost.** C = (1 − s)·L + s·R, so each patch of C recurs d px to its left when it belongs to the left
    view (disparity d = x_l − x_r, eq. 12's denominator) and d px to its right when it belongs to the right
    view. :func:`psvs.dense.cost.echo_correlation` measures the echo on band-passed C with shiftable
-   windows; :func:`~psvs.dense.cost.fused_cost` reads it from both ends of each pair.
+   windows; :func:`~psvs.dense.cost.filter_volume` smooths it with C as guide, so it stops at image edges;
+   :func:`~psvs.dense.cost.aperture_weight` scales it by how much of the patch varies along x (a patch of
+   horizontal stripes echoes at every lag); :func:`~psvs.dense.cost.fused_cost` reads it from both ends of
+   each pair.
 2. **Layer-agnostic disparity.** Whichever layer dominates a patch, one of the two sees its echo, so the
    cost ``−max(echo, forward)`` (forward: the echo seen from the pair's right-view end, at x + d) followed
-   by semi-global aggregation gives, at every pixel, the disparity
-   of the dominant layer there.
+   by semi-global aggregation (its jump penalty lowered across C's edges) gives, at every pixel, the
+   disparity of the dominant layer there.
 3. **Ownership.** A pixel keeps that disparity in the left map when its own left-view echo carries it
    (echo ≥ forward − margin) and in the right map in the opposite case; the rest, where the other view's
    texture dominated, is filled along the row from the farther (smaller-disparity) side, as occlusions are.
@@ -25,14 +28,16 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, replace
+from functools import partial
 
 import cv2
 import numba as nb
 import numpy as np
 from scipy.ndimage import median_filter
 
-from psvs.dense.cost import band_pass, echo_correlation, fused_cost, one_sided_cost, pick
-from psvs.dense.sgm import aggregate
+from psvs.dense.cost import (NO_TWIN, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost,
+                             one_sided_cost, pick)
+from psvs.dense.sgm import aggregate as sgm_aggregate
 from psvs.match.correspondence import disparity_range
 from psvs.optics.rig import Rig
 
@@ -45,10 +50,15 @@ class DenseParams:
     """Tuning of :func:`dense_disparity`; lengths in px of the working scale."""
 
     sigma_px: float = 0.7          # band-pass: image minus its Gaussian blur of this σ
-    window: int = 7                # NCC window side
-    shift_window: int = 7          # shiftable-window neighbourhood side (1: plain windows)
+    window: int = 5                # NCC window side
+    shift_window: int = 5          # shiftable-window neighbourhood side (1: plain windows)
+    guided_radius: int = 4         # guided filter of the echo volume, box radius (0: none)
+    guided_eps: float = 0.01       # its regulariser, in (guide units)², the guide being C scaled to 0..1
+    aperture_window: int = 7       # side of the patch whose x-share of gradient energy weights the echo
+    aperture_share: float = 0.2    # x-share at which a patch counts as fully informative
     p1: float = 0.3                # SGM penalty of a 1 px disparity step (NCC units)
-    p2: float = 8.0                # SGM penalty of a larger jump
+    p2: float = 16.0               # SGM penalty of a larger jump between like neighbours ...
+    edge_contrast: float = 0.06    # ... divided by 1 + |ΔC| / this (C blurred, scaled to 0..1) across edges
     n_paths: int = 8               # SGM paths, 4 or 8
     ownership_margin: float = 0.2  # a pixel's own echo may be this much below the other view's and still own it
     scale: int = 1                 # 2: work at half resolution (the fast mode); lengths are at that scale
@@ -57,7 +67,8 @@ class DenseParams:
 
 
 DEFAULT = DenseParams()
-FAST = DenseParams(sigma_px=0.5, window=9, shift_window=1, n_paths=4, scale=2, second_pass=False, median_px=1)
+FAST = DenseParams(sigma_px=0.5, window=9, shift_window=1, guided_radius=0, n_paths=4, scale=2, second_pass=False,
+                   median_px=1)
 
 
 @dataclass(frozen=True, eq=False)
@@ -156,20 +167,44 @@ def consistent(d_left: np.ndarray, d_right: np.ndarray, tol_px: float = 1.0) -> 
     return out[0], out[1]
 
 
+def unit_scaled(img: np.ndarray) -> np.ndarray:
+    """``img`` (H, W) mapped linearly so its 1st and 99th percentiles become 0 and 1, float32: the guide
+    for the echo filter and the SGM penalties, whatever the image's grey scale."""
+    lo, hi = np.percentile(img, (1.0, 99.0))
+    return ((img - lo) / max(hi - lo, 1e-12)).astype(np.float32)
+
+
+def weighted_echo(img: np.ndarray, lags: np.ndarray, p: DenseParams, guide: np.ndarray) -> np.ndarray:
+    """The echo volume (D, H, W) of :func:`dense_disparity`: band-passed NCC, guided-filtered with ``guide``
+    (the image scaled by :func:`unit_scaled`), weighted by each patch's aperture; :data:`NO_TWIN` where the
+    twin lies outside the image (x < d)."""
+    features = band_pass(img, p.sigma_px)
+    echo = echo_correlation(features, lags, p.window, p.shift_window)
+    if p.guided_radius > 0:
+        echo = filter_volume(echo, guide, p.guided_radius, p.guided_eps)
+    echo *= aperture_weight(features, p.aperture_window, p.aperture_share)[None]
+    for k, d in enumerate(lags):
+        echo[k, :, :d] = NO_TWIN
+    return echo
+
+
 def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams):
     lo = max(MIN_LAG_PX, math.ceil(d_min))
     hi = min(math.floor(d_max), img.shape[1] - 1)
     lags = np.arange(lo, hi + 1)
-    echo = echo_correlation(band_pass(img, p.sigma_px), lags, p.window, p.shift_window)
+    guide = unit_scaled(img)
+    echo = weighted_echo(img, lags, p, guide)
+    aggregate = partial(sgm_aggregate, p1=p.p1, p2=p.p2, n_paths=p.n_paths,
+                        guide=cv2.GaussianBlur(guide, (0, 0), 1.0), tau=p.edge_contrast)
     fused = fused_cost(echo, lags)
-    d, own, other = pick(aggregate(fused, p.p1, p.p2, p.n_paths), echo, lags)
+    d, own, other = pick(aggregate(fused), echo, lags)
     keep_l = own >= other - p.ownership_margin
     keep_r = other >= own - p.ownership_margin
     dl, dr = fill_from_background(d, keep_l), fill_from_background(d, keep_r)
     ok_l, ok_r = consistent(dl, dr)
     if p.second_pass:  # each view's own evidence where the other view's texture dominated
-        dl2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_l, False), p.p1, p.p2, p.n_paths), echo, lags)[0]
-        dr2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_r, True), p.p1, p.p2, p.n_paths), echo, lags)[0]
+        dl2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_l, False)), echo, lags)[0]
+        dr2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_r, True)), echo, lags)[0]
         ok2_l, ok2_r = consistent(dl2, dr2)
         dl = fill_from_background(np.where(~ok_l & ok2_l, dl2, dl), ok_l | ok2_l)
         dr = fill_from_background(np.where(~ok_r & ok2_r, dr2, dr), ok_r | ok2_r)

@@ -54,6 +54,25 @@ def sgbm_reference(left, right, d_max: int, block: int = 5) -> np.ndarray:
     return d
 
 
+def mirrored(left, right, truth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pair seen in a mirror, a second test of one real pair: the left view is the right view flipped
+    left-right, the right view the flipped left view, so each scene point swaps which view it is ghosted in.
+    Its truth (the new left view's disparity, px) is the old left truth carried to each point's right-view
+    column, x − d, the nearer point winning; NaN where no point lands (the old right view's occlusions)."""
+    gt = np.asarray(truth, dtype=np.float64)
+    h, w = gt.shape
+    yy, xx = np.nonzero(np.isfinite(gt))
+    d = gt[yy, xx]
+    xr = np.rint(xx - d).astype(np.int64)
+    inside = (xr >= 0) & (xr < w)
+    yy, xr, d = yy[inside], xr[inside], d[inside]
+    flat = np.full(h * w, -np.inf)
+    np.maximum.at(flat, yy * w + (w - 1 - xr), d)
+    out = flat.reshape(h, w)
+    out[~np.isfinite(out)] = np.nan
+    return np.fliplr(np.asarray(right)).copy(), np.fliplr(np.asarray(left)).copy(), out
+
+
 def motorcycle() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Middlebury 2014 Motorcycle as shipped by scikit-image: grey left, grey right (0–255, float64, full
     size of that copy) and the left view's ground-truth disparity (px, NaN where unknown)."""
