@@ -36,10 +36,11 @@ def figure_png(ev: Evaluation, d_max: float) -> bytes:
               (ev.truth, "ground truth", "magma", 0, d_max),
               (ev.left_view, f"separated left view ({ev.psnr_left_db:.1f} dB)", "gray", 0, 255),
               (ev.right_view, f"separated right view ({ev.psnr_right_db:.1f} dB)", "gray", 0, 255),
-              (np.where(np.isfinite(ev.truth), np.abs(ev.disparity - ev.truth) > 2, np.nan),
-               "bad-2 pixels (white)", "gray", 0, 1)]
+              (np.where(np.isfinite(ev.truth), ~(np.abs(ev.disparity - ev.truth) <= 2), 0.5),
+               "bad-2 pixels (white; grey: no truth)", "gray", 0, 1)]
     for ax, (img, title, cmap, lo, hi) in zip(axes.ravel(), panels):
-        ax.imshow(img, cmap=cmap, vmin=lo, vmax=hi)
+        # nearest: a smoothing resampler would spread the truth's NaN edges over whole areas
+        ax.imshow(img, cmap=cmap, vmin=lo, vmax=hi, interpolation="nearest")
         ax.set_title(title, fontsize=10)
         ax.axis("off")
     fig.tight_layout()
