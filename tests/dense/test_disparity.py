@@ -68,6 +68,14 @@ def test_constant_image_gives_all_nan_with_a_warning():
     assert np.all(np.isnan(res.disparity_left)) and np.all(res.confidence_left == 0)
 
 
+def test_nearly_constant_image_gives_finite_maps_without_a_crash():
+    img = np.full((40, 60), 128.0)
+    img[20, 30] = 200.0                       # the 1st and 99th percentiles are equal: the guide uses min..max
+    res = dense_disparity(img, 0, 20)
+    assert res.disparity_left.shape == img.shape and np.isfinite(res.disparity_left).any()
+    assert np.all((res.confidence_left >= 0) & (res.confidence_left <= 1))
+
+
 @pytest.mark.parametrize("image, lo, hi, message", [
     (np.zeros((0, 0)), 0, 10, "empty"),
     (np.zeros((8, 40)), 0, 10, "too small"),

@@ -76,7 +76,8 @@ class DenseResult:
     """Float32 (H, W) maps of the input's size. ``disparity_left[v, u]`` is x_l − x_r (px) of the left-view
     point seen at (u, v); ``disparity_right[v, u]`` the same for the right-view point at (u, v) (so that
     point's left-view twin is at u + d). NaN where no answer. ``confidence_*`` in [0, 1]: the echo
-    correlation of the pixel's own view at its disparity, 0 where the value was filled from neighbours."""
+    correlation (filtered and aperture-weighted) of the pixel's own view at its disparity, 0 where the
+    value was filled from neighbours."""
 
     disparity_left: np.ndarray
     disparity_right: np.ndarray
@@ -171,6 +172,8 @@ def unit_scaled(img: np.ndarray) -> np.ndarray:
     """``img`` (H, W) mapped linearly so its 1st and 99th percentiles become 0 and 1, float32: the guide
     for the echo filter and the SGM penalties, whatever the image's grey scale."""
     lo, hi = np.percentile(img, (1.0, 99.0))
+    if hi <= lo:  # nearly all one value: use the full range (the image is not constant, it was checked)
+        lo, hi = float(img.min()), float(img.max())
     return ((img - lo) / max(hi - lo, 1e-12)).astype(np.float32)
 
 
