@@ -44,7 +44,7 @@ def _order(points: np.ndarray, radius: float, rows: int, cols: int, shape) -> np
     ok, found = cv2.findCirclesGrid(canvas, (cols, rows), flags=cv2.CALIB_CB_SYMMETRIC_GRID)
     if not ok:
         return None
-    found = found[:, 0, :]
+    found = found.reshape(-1, 2)  # (N, 1, 2) in OpenCV 4, (N, 2) in OpenCV 5
     idx = [int(np.argmin(np.linalg.norm(points - f, axis=1))) for f in found]
     return points[idx] if len(set(idx)) == len(idx) else None
 
@@ -116,11 +116,11 @@ def detect_chessboard(grey: np.ndarray, rows: int, cols: int) -> GridDetection:
             raise ValueError(f"found {len(boards)} of the 2 views of a {rows}x{cols} chessboard")
         corners = cv2.cornerSubPix(img, corners, (5, 5), (-1, -1),
                                    (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_MAX_ITER, 50, 1e-3))
-        pts = corners[:, 0, :].astype(np.float64)
+        pts = corners.reshape(-1, 2).astype(np.float64)  # OpenCV 4: (N, 1, 2); 5: (N, 2)
         boards.append(pts)
         hull = cv2.convexHull(pts.astype(np.float32))
         centre = pts.mean(axis=0)
-        grown = (centre + 1.6 * (hull[:, 0, :] - centre)).astype(np.int32)   # the border squares too
+        grown = (centre + 1.6 * (hull.reshape(-1, 2) - centre)).astype(np.int32)   # the border squares too
         cv2.fillConvexPoly(work, grown, int(np.median(img)))
     a, b = boards
     left, right = (a, b) if a[:, 0].mean() > b[:, 0].mean() else (b, a)

@@ -29,7 +29,8 @@ def edge_coords(edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     pts = cv2.findNonZero(edges.view(np.uint8))
     if pts is None:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    return pts[:, 0, 0].astype(np.int64), pts[:, 0, 1].astype(np.int64)
+    pts = pts.reshape(-1, 2)  # (N, 1, 2) in OpenCV 4, (N, 2) in OpenCV 5
+    return pts[:, 0].astype(np.int64), pts[:, 1].astype(np.int64)
 
 
 def edge_pixels(edges: np.ndarray) -> EdgePixels:

@@ -3,15 +3,20 @@
 The robot shows the target to the PSVS from several flange poses. In each complex image the grid is found
 in both views (:func:`psvs.calibrate.grid.detect_grid`), its disc centres are triangulated (exact model),
 and the rigid transform target -> frame C is the least-squares fit of the grid's known layout to them
-(Kabsch). With the flange poses from the arm's kinematics, OpenCV's ``calibrateHandEye`` solves
-AX = XB for X = cam2flange (Park-Martin by default).
+(Kabsch). With the flange poses from the arm's kinematics, AX = XB is solved for X = cam2flange by
+Park & Martin's closed form [1] (OpenCV 4's ``calibrateHandEye`` with ``CALIB_HAND_EYE_PARK``; OpenCV 5's
+Python wheels no longer ship that function, so psvs solves it itself and the tests compare the two where
+OpenCV 4 is installed).
+
+[1] F. C. Park, B. J. Martin, "Robot sensor calibration: solving AX = XB on the Euclidean group",
+    IEEE Trans. Robotics and Automation 10(5), 1994.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from psvs.calibrate.grid import detect_grid
 from psvs.measure.triangulate import triangulate
@@ -65,15 +70,38 @@ class HandEyeResult:
     spread_rad: float
 
 
-def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarray],
-                       method: int = cv2.CALIB_HAND_EYE_PARK) -> np.ndarray:
-    """X = cam2flange (4, 4, mm) from >= 3 pairs of flange2base and target2cam (4, 4, mm) poses."""
+def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarray]) -> np.ndarray:
+    """X = cam2flange (4, 4, mm) from >= 3 pairs of flange2base and target2cam (4, 4, mm) poses.
+
+    The target is fixed in the base: F_i X T_i is the same for every view i, so for every pair of views
+    A X = X B with A = F_j^-1 F_i (flange motion) and B = T_j T_i^-1 (target motion seen by the camera).
+    Park & Martin: the rotation vectors obey log(R_A) = R_X log(R_B), solved for R_X in the least-squares
+    sense over all pairs (orthogonal Procrustes); then (R_A - I) t_X = R_X t_B - t_A is linear in t_X.
+    Pairs whose motion turns by less than 1e-6 rad carry no rotation information and are left out of the
+    rotation step. With all motions about one axis, X's rotation about it is unobservable: ValueError.
+    """
     if len(flange2base) != len(target2cam) or len(flange2base) < 3:
         raise ValueError(f"hand-eye calibration needs >= 3 paired views, got {len(flange2base)} and {len(target2cam)}")
-    R, t = cv2.calibrateHandEye([T[:3, :3] for T in flange2base], [T[:3, 3] for T in flange2base],
-                                [T[:3, :3] for T in target2cam], [T[:3, 3] for T in target2cam], method=method)
+    F = [np.asarray(T, dtype=np.float64) for T in flange2base]
+    C = [np.asarray(T, dtype=np.float64) for T in target2cam]
+    A, B = [], []
+    for i in range(len(F)):
+        for j in range(i + 1, len(F)):
+            A.append(np.linalg.solve(F[j], F[i]))
+            B.append(C[j] @ np.linalg.inv(C[i]))
+    alpha = Rotation.from_matrix(np.array([a[:3, :3] for a in A])).as_rotvec()
+    beta = Rotation.from_matrix(np.array([b[:3, :3] for b in B])).as_rotvec()
+    turns = np.linalg.norm(alpha, axis=1) > 1e-6
+    axes = alpha[turns] / np.linalg.norm(alpha[turns], axis=1, keepdims=True)
+    spread = np.linalg.svd(axes, compute_uv=False) if len(axes) else np.zeros(1)
+    if len(spread) < 2 or spread[1] < 1e-3 * spread[0]:
+        raise ValueError("hand-eye calibration needs flange poses that turn about at least two axes")
+    R, _ = Rotation.align_vectors(alpha[turns], beta[turns])
+    R = R.as_matrix()
+    lhs = np.concatenate([a[:3, :3] - np.eye(3) for a in A])
+    rhs = np.concatenate([R @ b[:3, 3] - a[:3, 3] for a, b in zip(A, B)])
     X = np.eye(4)
-    X[:3, :3], X[:3, 3] = R, np.ravel(t)
+    X[:3, :3], X[:3, 3] = R, np.linalg.lstsq(lhs, rhs, rcond=None)[0]
     return X
 
 
