@@ -1,6 +1,7 @@
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from psvs import default_rig
@@ -17,7 +18,7 @@ def test_example_file_is_the_default_rig():
 @pytest.mark.parametrize("suffix", [".toml", ".json"])
 def test_round_trip_with_extents_and_overrides(tmp_path, suffix):
     rig = default_rig().replace(angle_rad=math.radians(40), refraction_l_mm=1.9, refraction_m_mm=1.02,
-                                distortion_k=(-0.2, 0.05))
+                                distortion=(-0.2, 0.05, 0.0, 0.0, 0.0))
     rig = rig.with_extents({"m2": MirrorExtent((-12.5, 26.25), (-13.0, 13.0))})
     path = tmp_path / f"rig{suffix}"
     save_rig(rig, path)
@@ -79,3 +80,64 @@ def test_optional_keys_default(tmp_path):
 def test_dumps_rejects_unknown_format():
     with pytest.raises(ValueError, match="fmt must be 'toml' or 'json'"):
         dumps_rig(default_rig(), "yaml")
+
+
+def _build_rig():
+    from psvs.optics.rig import MirrorError
+    rig = default_rig().replace(distortion=(-0.21, 0.07, 1.2e-3, -8e-4, -0.015), principal_point_px=(324.1, 236.8),
+                                box_rotation_rad=(1e-3, -2.5e-3, 4e-4))
+    return rig.with_errors({"m1": MirrorError((math.radians(0.2), math.radians(-0.15)), 0.3),
+                            "m3": MirrorError((math.radians(-0.25), 0.0), -0.8)}).with_extents(
+        {"m2": MirrorExtent((-12.5, 26.25), (-13.0, 13.0))})
+
+
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_a_build_round_trips(tmp_path, suffix):
+    """rig -> file -> rig to 1e-15 rad (degrees in the file), and file -> rig -> file text unchanged."""
+    import json
+    import tomllib
+    rig = _build_rig()
+    path = tmp_path / f"rig{suffix}"
+    save_rig(rig, path)
+    back = load_rig(path)
+    for name in ("m1", "m2", "m3", "m4"):
+        np.testing.assert_allclose(back.mirrors.error(name).tilt_rad, rig.mirrors.error(name).tilt_rad, atol=1e-15)
+        assert back.mirrors.error(name).shift_mm == rig.mirrors.error(name).shift_mm
+    np.testing.assert_allclose(back.mirrors.box_rotation_rad, rig.mirrors.box_rotation_rad, atol=1e-15)
+    assert back.camera == rig.camera and back.mirrors.m2_extent == rig.mirrors.m2_extent
+    text = path.read_text()
+    data = json.loads(text) if suffix == ".json" else tomllib.loads(text)
+    assert data["camera"]["distortion"] == [-0.21, 0.07, 1.2e-3, -8e-4, -0.015]
+    assert data["mirrors"]["m1"]["tilt_deg"] == [0.2, -0.15] and data["mirrors"]["m3"]["shift_mm"] == -0.8
+    assert data["mirrors"]["m2"] == {"along_mm": [-12.5, 26.25], "height_mm": [-13.0, 13.0]}
+    save_rig(back, path)
+    assert path.read_text() == text
+
+
+def test_old_files_load_as_designed():
+    from psvs.optics.rig import MIRROR_NAMES
+    for f in sorted((EXAMPLE.parent).glob("*.toml")):
+        rig = load_rig(f)
+        if "misaligned" in f.name:
+            continue
+        assert rig.as_designed and all(rig.mirrors.error(n).is_zero for n in MIRROR_NAMES), f
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda t: t + "\n[mirrors.m1]\ntilt_deg = [0.1]\n", r"mirrors\.m1\.tilt_deg must be a list of two numbers"),
+    (lambda t: t + "\n[mirrors.m1]\ntilt_deg = [0.1, \"x\"]\n", r"mirrors\.m1\.tilt_deg must hold numbers \(degrees\)"),
+    (lambda t: t + "\n[mirrors.m1]\nshift_mm = nan\n", r"mirrors\.m1\.shift_mm must be finite"),
+    (lambda t: t + "\n[mirrors.m1]\ntwist_deg = 1\n", r"unknown key mirrors\.m1\.twist_deg"),
+    (lambda t: t + "\n[mirrors.m1]\nalong_mm = [-1, 1]\n", r"missing key mirrors\.m1\.height_mm"),
+    (lambda t: t.replace("split_ratio = 0.5", "split_ratio = 0.5\nbox_rotation_deg = [1, 2]"),
+     r"mirrors\.box_rotation_deg must be a list of three numbers"),
+    (lambda t: t.replace("principal_point_px = [319.5, 239.5]",
+                         "principal_point_px = [319.5, 239.5]\ndistortion = [0.1, 0, 0]"),
+     r"camera\.distortion must be a list of five numbers"),
+    (lambda t: t.replace("principal_point_px = [319.5, 239.5]",
+                         "principal_point_px = [319.5, 239.5]\ndistortion = [0, 0, 0, 0, 0]\ndistortion_k = [0, 0]"),
+     r"camera\.distortion and camera\.distortion_k are both given"),
+])
+def test_build_keys_are_checked(tmp_path, edit, message):
+    with pytest.raises((ValueError, TypeError), match=message):
+        load_rig(write(tmp_path, edit(BASE)))

@@ -14,7 +14,7 @@ K = (-0.25, 0.12)
 
 @pytest.fixture
 def rig():
-    return default_rig().replace(distortion_k=K)
+    return default_rig().replace(distortion=(*K, 0.0, 0.0, 0.0))
 
 
 def test_right_view_matches_opencv_projectpoints(rig):
@@ -44,6 +44,6 @@ def test_triangulation_undistorts(rig, model):
 
 
 def test_distortion_moves_field_corners():
-    plain, bent = default_rig(), default_rig().replace(distortion_k=K)
+    plain, bent = default_rig(), default_rig().replace(distortion=(*K, 0.0, 0.0, 0.0))
     p = [[200.0, 150.0, 700.0]]
     assert np.abs(project_points(p, plain, "right")[0] - project_points(p, bent, "right")[0]).max() > 1.0

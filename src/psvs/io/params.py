@@ -2,10 +2,12 @@
 
 Format (docs/rig_file.md). Required: ``[camera] focal_length_mm, pixel_pitch_mm, image_size_px`` and
 ``[mirrors] baseline_mm, m1_axis_distance_mm, m2_axis_distance_mm, plate_thickness_mm, refractive_index``.
-Optional: ``principal_point_px`` (image centre), ``distortion_k`` ([0, 0]), ``angle_deg`` (45), ``split_ratio`` (0.5),
-``refraction_l_mm`` / ``refraction_m_mm`` (derived from d, n, omega_1), and per-mirror extents
-``[mirrors.m1]`` .. ``[mirrors.m4]`` with ``along_mm = [min, max]`` and ``height_mm = [min, max]``
-(unbounded when absent). Unknown keys are errors: a misspelt key must not fall back to a default.
+Optional: ``principal_point_px`` (image centre), ``distortion`` ([k1, k2, p1, p2, k3], OpenCV's order; the
+older ``distortion_k = [k1, k2]`` still loads), ``angle_deg`` (45), ``split_ratio`` (0.5),
+``refraction_l_mm`` / ``refraction_m_mm`` (derived from d, n, omega_1), ``box_rotation_deg`` ([0, 0, 0]), and
+per-mirror tables ``[mirrors.m1]`` .. ``[mirrors.m4]`` with an extent (``along_mm = [min, max]`` and
+``height_mm = [min, max]``, unbounded when absent) and the build's pose error (``tilt_deg = [a, b]``,
+``shift_mm``; zero when absent). Unknown keys are errors: a misspelt key must not fall back to a default.
 """
 from __future__ import annotations
 
@@ -16,14 +18,15 @@ from pathlib import Path
 from psvs.io.atomic import write_atomic
 from psvs.io.toml_out import dumps_toml
 from psvs.io.tomlfile import load_toml
-from psvs.optics.rig import MIRROR_NAMES, Camera, MirrorExtent, Mirrors, Rig
+from psvs.optics.rig import MIRROR_NAMES, Camera, MirrorError, MirrorExtent, Mirrors, Rig
 
 _CAMERA_REQUIRED = ("focal_length_mm", "pixel_pitch_mm", "image_size_px")
-_CAMERA_OPTIONAL = ("principal_point_px", "distortion_k")
+_CAMERA_OPTIONAL = ("principal_point_px", "distortion", "distortion_k")
 _MIRRORS_REQUIRED = ("baseline_mm", "m1_axis_distance_mm", "m2_axis_distance_mm",
                      "plate_thickness_mm", "refractive_index")
-_MIRRORS_OPTIONAL = ("angle_deg", "split_ratio", "refraction_l_mm", "refraction_m_mm")
+_MIRRORS_OPTIONAL = ("angle_deg", "split_ratio", "refraction_l_mm", "refraction_m_mm", "box_rotation_deg")
 _EXTENT_KEYS = ("along_mm", "height_mm")
+_ERROR_KEYS = ("tilt_deg", "shift_mm")
 
 
 def load_rig(path) -> Rig:
@@ -55,9 +58,31 @@ def _check_keys(table: dict, where: str, required, optional) -> None:
 
 
 def _pair(value, where: str):
-    if not isinstance(value, (list, tuple)) or len(value) != 2:
-        raise ValueError(f"{where} must be a list of two numbers, got {value!r}")
+    return _numbers(value, where, 2)
+
+
+_COUNT = {2: "two", 3: "three", 5: "five"}
+
+
+def _numbers(value, where: str, n: int) -> tuple:
+    if not isinstance(value, (list, tuple)) or len(value) != n:
+        raise ValueError(f"{where} must be a list of {_COUNT[n]} numbers, got {value!r}")
     return tuple(value)
+
+
+def _degrees_to_rad(values: tuple, where: str) -> tuple:
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise TypeError(f"{where} must hold numbers (degrees), got {type(v).__name__} {v!r}")
+    out = tuple(math.radians(v) for v in values)
+    if not all(math.isfinite(v) for v in out):
+        raise ValueError(f"{where} must be finite degrees, got {list(values)!r}")
+    return out
+
+
+def _deg_out(rad: float) -> float:
+    """Degrees for a file: 12 significant digits, so that a file read and written again is unchanged."""
+    return float(f"{math.degrees(rad):.12g}")
 
 
 def rig_from_dict(data: dict) -> Rig:
@@ -79,10 +104,16 @@ def rig_from_dict(data: dict) -> Rig:
         cpp = ((size[0] - 1) / 2, (size[1] - 1) / 2)
     else:
         cpp = (0.0, 0.0)  # Camera() rejects the size with its own message
+    if "distortion" in cam_t and "distortion_k" in cam_t:
+        raise ValueError("camera.distortion and camera.distortion_k are both given: keep distortion "
+                         "([k1, k2, p1, p2, k3])")
+    if "distortion_k" in cam_t:
+        dist = (*_pair(cam_t["distortion_k"], "camera.distortion_k"), 0.0, 0.0, 0.0)
+    else:
+        dist = _numbers(cam_t.get("distortion", [0.0] * 5), "camera.distortion", 5)
     camera = _build(Camera, "camera", focal_length_mm=cam_t["focal_length_mm"],
                     pixel_pitch_mm=_pair(cam_t["pixel_pitch_mm"], "camera.pixel_pitch_mm"),
-                    image_size_px=size, principal_point_px=cpp,
-                    distortion_k=_pair(cam_t.get("distortion_k", [0.0, 0.0]), "camera.distortion_k"))
+                    image_size_px=size, principal_point_px=cpp, distortion=dist)
 
     kwargs = {k: scalars[k] for k in _MIRRORS_REQUIRED}
     for k in ("split_ratio", "refraction_l_mm", "refraction_m_mm"):
@@ -93,15 +124,28 @@ def rig_from_dict(data: dict) -> Rig:
         if isinstance(ang, bool) or not isinstance(ang, (int, float)):
             raise TypeError(f"mirrors.angle_deg must be a number, got {type(ang).__name__} {ang!r}")
         kwargs["angle_rad"] = math.radians(ang)
+    if "box_rotation_deg" in scalars:
+        kwargs["box_rotation_rad"] = _degrees_to_rad(
+            _numbers(scalars["box_rotation_deg"], "mirrors.box_rotation_deg", 3), "mirrors.box_rotation_deg")
     for name in MIRROR_NAMES:
         if name in mir_t:
-            ext = mir_t[name]
-            if not isinstance(ext, dict):
-                raise ValueError(f"[mirrors.{name}] must be a table, got {type(ext).__name__}")
-            _check_keys(ext, f"mirrors.{name}", _EXTENT_KEYS, ())
-            kwargs[f"{name}_extent"] = _build(
-                MirrorExtent, f"mirrors.{name}", along_mm=_pair(ext["along_mm"], f"mirrors.{name}.along_mm"),
-                height_mm=_pair(ext["height_mm"], f"mirrors.{name}.height_mm"))
+            tab = mir_t[name]
+            where = f"mirrors.{name}"
+            if not isinstance(tab, dict):
+                raise ValueError(f"[{where}] must be a table, got {type(tab).__name__}")
+            _check_keys(tab, where, (), _EXTENT_KEYS + _ERROR_KEYS)
+            given = [k for k in _EXTENT_KEYS if k in tab]
+            if len(given) == 1:
+                missing = next(k for k in _EXTENT_KEYS if k not in tab)
+                raise ValueError(f"missing key {where}.{missing} ({where}.{given[0]} needs it: a mirror's "
+                                 f"extent is along_mm and height_mm)")
+            if given:
+                kwargs[f"{name}_extent"] = _build(
+                    MirrorExtent, where, along_mm=_pair(tab["along_mm"], f"{where}.along_mm"),
+                    height_mm=_pair(tab["height_mm"], f"{where}.height_mm"))
+            if "tilt_deg" in tab or "shift_mm" in tab:
+                tilt = _degrees_to_rad(_pair(tab.get("tilt_deg", [0.0, 0.0]), f"{where}.tilt_deg"), f"{where}.tilt_deg")
+                kwargs[f"{name}_error"] = _build(MirrorError, where, tilt_rad=tilt, shift_mm=tab.get("shift_mm", 0.0))
     mirrors = _build(Mirrors, "mirrors", **kwargs)
     return Rig(camera, mirrors)
 
@@ -111,6 +155,7 @@ def _build(cls, where: str, **kwargs):
         return cls(**kwargs)
     except (ValueError, TypeError) as exc:
         msg = str(exc).replace("angle_rad (omega_1) must be in (0, pi/2)", "angle_deg must be in (0, 90)")
+        msg = msg.replace("tilt_rad", "tilt_deg").replace("box_rotation_rad", "box_rotation_deg")
         raise type(exc)(f"{where}.{msg}") from None
 
 
@@ -129,17 +174,27 @@ def rig_to_dict(rig: Rig) -> dict:
     for k in ("refraction_l_mm", "refraction_m_mm"):
         if getattr(m, k) is not None:
             mirrors[k] = float(getattr(m, k))
+    if m.box_rotation_rad != (0.0, 0.0, 0.0):
+        mirrors["box_rotation_deg"] = [_deg_out(r) for r in m.box_rotation_rad]
     for name in MIRROR_NAMES:
-        ext = m.extent(name)
+        ext, err = m.extent(name), m.error(name)
+        table = {}
         if ext is not None:
-            mirrors[name] = {"along_mm": list(ext.along_mm), "height_mm": list(ext.height_mm)}
+            table.update(along_mm=list(ext.along_mm), height_mm=list(ext.height_mm))
+        if not err.is_zero:
+            table.update(tilt_deg=[_deg_out(t) for t in err.tilt_rad], shift_mm=err.shift_mm)
+        if table:
+            mirrors[name] = table
+    dist = c.distortion
+    lens = {} if not c.distorted else \
+        {"distortion_k": list(dist[:2])} if dist[2:] == (0.0, 0.0, 0.0) else {"distortion": list(dist)}
     return {
         "camera": {
             "focal_length_mm": c.focal_length_mm,
             "pixel_pitch_mm": list(c.pixel_pitch_mm),
             "image_size_px": list(c.image_size_px),
             "principal_point_px": list(c.principal_point_px),
-            **({"distortion_k": list(c.distortion_k)} if c.distorted else {}),
+            **lens,
         },
         "mirrors": mirrors,
     }

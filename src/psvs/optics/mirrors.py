@@ -6,12 +6,17 @@ to M1 and crosses that reflected axis at x = +b/2. M2 and M3 are their mirror im
 (M2 through (0, 0, c2), M3 at x = -b/2). The plate's back face is the front face moved by d along the
 direction of propagation. For w = 45 deg: M1: z = x + c1, M4: z = x + c1 - b/2, M2: z = c2 - x,
 M3: z = c2 - b/2 - x.
+
+A real build (:class:`~psvs.optics.rig.MirrorError`, ``box_rotation_rad``): each designed mirror is turned
+about its anchor, first about +Y, then about its in-plane horizontal axis, and moved along its normal; the
+plate's back face follows its front face (parallel faces, thickness d). Then the whole box turns about O.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from psvs.optics.rig import Rig
 from psvs.optics.surfaces import Plane
@@ -37,13 +42,32 @@ def mirror_planes(rig: Rig) -> dict[str, Plane]:
     a4 = a1 + reach * np.array([s2w, 0.0, c2w])
     a3 = a2 + reach * np.array([-s2w, 0.0, c2w])
     ext = m.extent
-    return {
+    designed = {
         "m1": Plane("m1", a1, n1, s1, ext("m1")),
-        "m1_back": Plane("m1_back", a1 - m.plate_thickness_mm * n1, n1, s1, ext("m1")),
         "m2": Plane("m2", a2, n2, s2, ext("m2")),
         "m3": Plane("m3", a3, -n2, s2, ext("m3")),
         "m4": Plane("m4", a4, -n1, s1, ext("m4")),
     }
+    if m.as_designed:
+        planes = designed
+    else:
+        box = Rotation.from_rotvec(m.box_rotation_rad).as_matrix()
+        planes = {}
+        for name, p in designed.items():
+            err = m.error(name)
+            turn = _tilt_matrix(err.tilt_rad, p.s_axis)
+            planes[name] = p.moved(turn, p.point, err.shift_mm).moved(box, np.zeros(3))
+    front = planes["m1"]
+    back = Plane("m1_back", front.point - m.plate_thickness_mm * front.normal, front.normal, front.s_axis,
+                 front.extent, front.t_axis)
+    return {"m1": front, "m1_back": back, "m2": planes["m2"], "m3": planes["m3"], "m4": planes["m4"]}
+
+
+def _tilt_matrix(tilt_rad: tuple[float, float], s_axis: np.ndarray) -> np.ndarray:
+    """Rotation (3, 3) of a mirror's tilt (a, b): by a about +Y, then by b about the turned s axis."""
+    yaw = Rotation.from_rotvec([0.0, tilt_rad[0], 0.0])
+    lean = Rotation.from_rotvec(tilt_rad[1] * yaw.apply(s_axis))
+    return (lean * yaw).as_matrix()
 
 
 def path(rig: Rig, view: str) -> list[tuple]:

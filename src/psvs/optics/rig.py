@@ -7,6 +7,11 @@ Layout (paper Fig. 1, omega_1 = 45 deg): M1's coated front face crosses the axis
 toward +X; M4 (parallel to M1, at x = +b/2) turns that path to +Z: the *right* view, virtual centre
 O2 = (+b/2, 0, -b/2). Light transmitted through the M1 plate meets M2 (z = c2), goes to -X, and M3
 (parallel to M2, at x = -b/2) turns it to +Z: the *left* view, virtual centre O1 = (-b/2, 0, -b/2).
+
+A real build departs from that design (docs/optics.md, "The rig as built"): each mirror may be tilted about
+its two in-plane axes and shifted along its normal (:class:`MirrorError`; M1's plate keeps its faces
+parallel), the whole mirror box may be turned about O relative to the camera (``box_rotation_rad``), and
+the lens has OpenCV's five distortion coefficients. All of them default to the ideal rig.
 """
 from __future__ import annotations
 
@@ -20,18 +25,20 @@ MIRROR_NAMES = ("m1", "m2", "m3", "m4")
 
 @dataclass(frozen=True)
 class Camera:
-    """The real camera: a pinhole with square-or-not pixels.
+    """The real camera: a pinhole with square-or-not pixels and OpenCV's lens model.
 
     Sensor coordinates (mm) of pixel (u, v): ``x = (u - cx) * pitch_x``, ``y = (v - cy) * pitch_y``;
-    pixel centres sit at integer (u, v). Optional radial lens distortion (Brown, as OpenCV's k1, k2): an
-    ideal ray (x_n, y_n) = (x/f, y/f) lands at (x_n, y_n) (1 + k1 r^2 + k2 r^4), r^2 = x_n^2 + y_n^2.
+    pixel centres sit at integer (u, v). Lens distortion is OpenCV's (Brown-Conrady) with
+    ``distortion = (k1, k2, p1, p2, k3)``: an ideal ray (x, y) = (X/Z, Y/Z), r^2 = x^2 + y^2, lands at
+    x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2),
+    y_d = y (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y^2) + 2 p2 x y, then x = f x_d (mm).
     """
 
     focal_length_mm: float = 11.3
     pixel_pitch_mm: tuple[float, float] = (0.01, 0.01)      # x, y
     image_size_px: tuple[int, int] = (640, 480)              # width, height
     principal_point_px: tuple[float, float] = (319.5, 239.5)  # cx, cy
-    distortion_k: tuple[float, float] = (0.0, 0.0)           # k1, k2 (dimensionless)
+    distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)  # k1, k2, p1, p2, k3 (OpenCV's order)
 
     def __post_init__(self):
         check_positive(self.focal_length_mm, "focal_length_mm", "mm")
@@ -43,14 +50,17 @@ class Camera:
                 or not all(isinstance(s, int) and not isinstance(s, bool) and s > 0 for s in size)):
             raise ValueError(f"image_size_px must be two positive integers (width, height), got {size!r}")
         check_pair(self.principal_point_px, "principal_point_px")
-        object.__setattr__(self, "distortion_k", check_pair(self.distortion_k, "distortion_k"))
+        dist = self.distortion
+        if not isinstance(dist, (tuple, list)) or len(dist) != 5:
+            raise ValueError(f"distortion must be five numbers (k1, k2, p1, p2, k3), got {dist!r}")
+        object.__setattr__(self, "distortion", tuple(check_finite(c, f"distortion[{k}]") for k, c in enumerate(dist)))
         object.__setattr__(self, "pixel_pitch_mm", (px, py))
         object.__setattr__(self, "image_size_px", (int(size[0]), int(size[1])))
         object.__setattr__(self, "principal_point_px", tuple(float(c) for c in self.principal_point_px))
 
     @property
     def distorted(self) -> bool:
-        return self.distortion_k != (0.0, 0.0)
+        return any(c != 0.0 for c in self.distortion)
 
     @property
     def half_fov_rad(self) -> tuple[float, float]:
@@ -102,6 +112,28 @@ class MirrorExtent:
 
 
 @dataclass(frozen=True)
+class MirrorError:
+    """How one mirror of a real build departs from its designed pose.
+
+    ``tilt_rad = (a, b)``: the mirror turned about its anchor, first by a about the vertical axis +Y
+    (this changes omega_1 in the XZ plane), then by b about its in-plane horizontal axis s (it leans
+    forward or back, out of vertical). ``shift_mm``: then moved along its (tilted) normal, which faces the
+    light arriving on the nominal path. Zero for the ideal rig.
+    """
+
+    tilt_rad: tuple[float, float] = (0.0, 0.0)
+    shift_mm: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "tilt_rad", check_pair(self.tilt_rad, "tilt_rad"))
+        object.__setattr__(self, "shift_mm", check_finite(self.shift_mm, "shift_mm"))
+
+    @property
+    def is_zero(self) -> bool:
+        return self.tilt_rad == (0.0, 0.0) and self.shift_mm == 0.0
+
+
+@dataclass(frozen=True)
 class Mirrors:
     """The four mirrors and the M1 plate; symbols as in the paper (b, omega_1, d, n) and eq. (15) (l, m)."""
 
@@ -118,6 +150,11 @@ class Mirrors:
     m2_extent: MirrorExtent | None = None
     m3_extent: MirrorExtent | None = None
     m4_extent: MirrorExtent | None = None
+    m1_error: MirrorError = field(default_factory=MirrorError)
+    m2_error: MirrorError = field(default_factory=MirrorError)
+    m3_error: MirrorError = field(default_factory=MirrorError)
+    m4_error: MirrorError = field(default_factory=MirrorError)
+    box_rotation_rad: tuple[float, float, float] = (0.0, 0.0, 0.0)  # rotation vector of the box about O
 
     def __post_init__(self):
         check_positive(self.baseline_mm, "baseline_mm", "mm")
@@ -144,9 +181,25 @@ class Mirrors:
             ext = getattr(self, f"{name}_extent")
             if ext is not None and not isinstance(ext, MirrorExtent):
                 raise TypeError(f"{name}_extent must be a MirrorExtent or None, got {type(ext).__name__}")
+            err = getattr(self, f"{name}_error")
+            if not isinstance(err, MirrorError):
+                raise TypeError(f"{name}_error must be a MirrorError, got {type(err).__name__}")
+        rot = self.box_rotation_rad
+        if not isinstance(rot, (tuple, list)) or len(rot) != 3:
+            raise ValueError(f"box_rotation_rad must be three numbers (a rotation vector), got {rot!r}")
+        object.__setattr__(self, "box_rotation_rad",
+                           tuple(check_finite(c, f"box_rotation_rad[{k}]") for k, c in enumerate(rot)))
 
     def extent(self, name: str) -> MirrorExtent | None:
         return getattr(self, f"{name}_extent")
+
+    def error(self, name: str) -> MirrorError:
+        return getattr(self, f"{name}_error")
+
+    @property
+    def as_designed(self) -> bool:
+        """True when no mirror has a pose error and the box is not turned: the paper's ideal geometry."""
+        return all(self.error(n).is_zero for n in MIRROR_NAMES) and self.box_rotation_rad == (0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -174,6 +227,15 @@ class Rig:
     def with_extents(self, extents: dict[str, MirrorExtent | None]) -> "Rig":
         """A copy with the given mirror extents (keys ``m1`` .. ``m4``)."""
         return self.replace(**{f"{k}_extent": v for k, v in extents.items()})
+
+    def with_errors(self, errors: dict[str, MirrorError]) -> "Rig":
+        """A copy with the given mirror pose errors (keys ``m1`` .. ``m4``)."""
+        return self.replace(**{f"{k}_error": v for k, v in errors.items()})
+
+    @property
+    def as_designed(self) -> bool:
+        """No mirror pose error and no box rotation (the lens may still distort)."""
+        return self.mirrors.as_designed
 
     @property
     def virtual_z_mm(self) -> float:

@@ -5,7 +5,7 @@ plane, behind it, outside a mirror, total internal reflection) clear a ``valid``
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -28,9 +28,12 @@ class Plane:
     normal : ndarray, shape (3,)
         Unit normal, facing the light that arrives along the nominal path.
     s_axis : ndarray, shape (3,)
-        Unit in-plane horizontal axis (in the XZ plane, +Z component); the other in-plane axis is +Y.
+        Unit in-plane horizontal axis (in the XZ plane, +Z component, for a mirror as designed).
     extent : MirrorExtent or None
         Rectangle in (s, t) about ``point``; None is an unbounded plane.
+    t_axis : ndarray, shape (3,)
+        Unit in-plane axis perpendicular to ``s_axis``: +Y for a mirror as designed (a leaning mirror
+        tilts it).
     """
 
     name: str
@@ -38,11 +41,19 @@ class Plane:
     normal: np.ndarray
     s_axis: np.ndarray
     extent: MirrorExtent | None = None
+    t_axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
 
     def local(self, points_mm: np.ndarray) -> np.ndarray:
         """In-plane coordinates (s, t) of points, shape (N, 2), mm."""
         rel = points_mm - self.point
-        return np.stack([rel @ self.s_axis, rel[:, 1]], axis=1)
+        return np.stack([rel @ self.s_axis, rel @ self.t_axis], axis=1)
+
+    def moved(self, R: np.ndarray, centre: np.ndarray, shift_mm: float = 0.0) -> "Plane":
+        """The plane turned by the rotation matrix R (3, 3) about ``centre`` (3,), then moved by
+        ``shift_mm`` along its turned normal (its rectangle moves with it)."""
+        normal = R @ self.normal
+        point = centre + R @ (self.point - centre) + shift_mm * normal
+        return Plane(self.name, point, normal, R @ self.s_axis, self.extent, R @ self.t_axis)
 
     def contains(self, points_mm: np.ndarray) -> np.ndarray:
         """Mask (N,) of points (assumed on the plane) inside the rectangle; all True when unbounded."""
@@ -50,7 +61,7 @@ class Plane:
             return np.ones(len(points_mm), dtype=bool)
         rel = points_mm - self.point
         s = rel @ self.s_axis
-        t = rel[:, 1]
+        t = rel @ self.t_axis
         (s0, s1), (t0, t1) = self.extent.along_mm, self.extent.height_mm
         tol = EXTENT_TOL_MM
         return (s >= s0 - tol) & (s <= s1 + tol) & (t >= t0 - tol) & (t <= t1 + tol)

@@ -40,18 +40,46 @@ def pixels_from_sensor(xy_mm: np.ndarray, camera: Camera) -> np.ndarray:
     return xy_mm / np.asarray(camera.pixel_pitch_mm) + np.asarray(camera.principal_point_px)
 
 
-def distort(xn: np.ndarray, k: tuple[float, float]) -> np.ndarray:
-    """Radial distortion of normalised image coordinates (N, 2): x_d = x_n (1 + k1 r^2 + k2 r^4)."""
-    r2 = np.einsum("ij,ij->i", xn, xn)
-    return xn * (1.0 + k[0] * r2 + k[1] * r2 * r2)[:, None]
+def _coefficients(dist) -> tuple[float, float, float, float, float]:
+    """(k1, k2, p1, p2, k3) from OpenCV's 2-, 4- or 5-vector."""
+    c = tuple(float(x) for x in dist)
+    if len(c) not in (2, 4, 5):
+        raise ValueError(f"distortion must hold 2, 4 or 5 coefficients (k1, k2[, p1, p2[, k3]]), got {len(c)}")
+    return (c + (0.0, 0.0, 0.0))[:5]
 
 
-def undistort(xd: np.ndarray, k: tuple[float, float], iterations: int = 30) -> np.ndarray:
-    """Inverse of :func:`distort` by fixed-point iteration (converges for the moderate k of real lenses)."""
+def distort(xn: np.ndarray, dist) -> np.ndarray:
+    """OpenCV's lens distortion of normalised image coordinates (N, 2) (see :class:`Camera`).
+
+    ``dist`` is (k1, k2, p1, p2, k3), or its first 2 or 4 terms. Returns distorted coordinates (N, 2).
+    """
+    k1, k2, p1, p2, k3 = _coefficients(dist)
+    x, y = xn[:, 0], xn[:, 1]
+    r2 = x * x + y * y
+    radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    out = np.empty_like(xn)
+    out[:, 0] = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x)
+    out[:, 1] = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y
+    return out
+
+
+def undistort(xd: np.ndarray, dist, iterations: int = 50, tol: float = 1e-15) -> np.ndarray:
+    """Inverse of :func:`distort`: fixed-point iteration x <- (x_d - tangential(x)) / radial(x), as
+    OpenCV's ``undistortPoints``, run to convergence (contracts fast for the moderate terms of real
+    lenses: |k1| r^2 ~ 0.03 at the corners of a 1/2" sensor behind an 11 mm lens)."""
+    k1, k2, p1, p2, k3 = _coefficients(dist)
     xn = xd.copy()
     for _ in range(iterations):
-        r2 = np.einsum("ij,ij->i", xn, xn)
-        xn = xd / (1.0 + k[0] * r2 + k[1] * r2 * r2)[:, None]
+        x, y = xn[:, 0], xn[:, 1]
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        new = np.empty_like(xn)
+        new[:, 0] = (xd[:, 0] - 2.0 * p1 * x * y - p2 * (r2 + 2.0 * x * x)) / radial
+        new[:, 1] = (xd[:, 1] - p1 * (r2 + 2.0 * y * y) - 2.0 * p2 * x * y) / radial
+        done = not np.any(np.abs(new - xn) > tol)
+        xn = new
+        if done:
+            break
     return xn
 
 
@@ -61,7 +89,7 @@ def ideal_sensor_from_pixels(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
     if not camera.distorted:
         return xy
     f = camera.focal_length_mm
-    return undistort(xy / f, camera.distortion_k) * f
+    return undistort(xy / f, camera.distortion) * f
 
 
 def camera_dirs(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
@@ -80,7 +108,7 @@ def pixels_from_camera_dirs(dirs: np.ndarray, camera: Camera) -> np.ndarray:
         z = np.where(dirs[:, 2] > 0, dirs[:, 2], np.nan)
         xn = dirs[:, :2] / z[:, None]
     if camera.distorted:
-        xn = distort(xn, camera.distortion_k)
+        xn = distort(xn, camera.distortion)
     return pixels_from_sensor(camera.focal_length_mm * xn, camera)
 
 
