@@ -74,8 +74,10 @@ class ReferenceBuild:
         return uv.reshape(2)
 
     def camera_dir(self, u, v) -> np.ndarray:
-        xy = cv2.undistortPointsIter(np.array([[[u, v]]], float), self._K(), self.dist, None, None,
-                                     (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-15)).reshape(2)
+        """Unit camera-frame direction (3,) seen by pixel (u, v): OpenCV's projection inverted by fsolve."""
+        target = np.array([u, v], float)
+        guess = (target - self.centre) * self.pitch / self.f
+        xy = fsolve(lambda q: self.pixel_of_camera_dir([q[0], q[1], 1.0]) - target, guess, xtol=1e-15)
         i = np.array([xy[0], xy[1], 1.0])
         return i / np.linalg.norm(i)
 
