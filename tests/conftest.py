@@ -58,3 +58,30 @@ def disc_video(tmp_path_factory):
     path = tmp_path_factory.mktemp("video") / "disc.avi"
     assert write_video(path, SimulatedSequence(scene, rig, positions, seed=3), fps=30.0) == 90
     return path, 760.0 - positions[:, 2], rig, scene, positions
+
+
+def kabsch(src: np.ndarray, dst: np.ndarray):
+    """Rotation (3, 3) and translation (3,) minimising |R src + t - dst| (independent of psvs)."""
+    cs, cd = src.mean(axis=0), dst.mean(axis=0)
+    U, _, Vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
+    R = Vt.T @ D @ U.T
+    return R, cd - R @ cs
+
+
+def reconstruction_errors(calibrated, true_rig, depths=(400.0, 600.0, 800.0, 1000.0, 1200.0)):
+    """Triangulate the true correspondences of points over the whole common field (400-1200 mm) with a
+    calibrated rig (exact model). Returns (3-D errors in frame C, mm; 3-D errors after the best rigid
+    motion, mm; the points (N, 3)). Images cannot fix frame C's placement behind the mirrors completely
+    (docs/optics.md): the second number is the reconstruction's own accuracy."""
+    from psvs.measure.triangulate import triangulate
+    from psvs.optics.project import in_image, project_points
+    pts = whole_field_points(default_rig(), n_side=9, depths=depths)
+    left, okl = project_points(pts, true_rig, "left")
+    right, okr = project_points(pts, true_rig, "right")
+    seen = okl & okr & in_image(left, true_rig) & in_image(right, true_rig)
+    got = triangulate(left[seen], right[seen], calibrated, model="exact").points_mm
+    raw = np.linalg.norm(got - pts[seen], axis=1)
+    R, t = kabsch(got, pts[seen])
+    aligned = np.linalg.norm(got @ R.T + t - pts[seen], axis=1)
+    return raw, aligned, pts[seen]

@@ -3,8 +3,8 @@
 Each disc appears twice. All dark blobs are found and refined as for the paper's pattern
 (:mod:`psvs.calibrate.targets`), split into the two views by a two-cluster split along u (the grid must
 be narrower than its disparity, so the copies do not interleave: the left view is the right-hand copy),
-ordered with ``cv2.findCirclesGrid`` run on a clean synthetic image of the left copy's centres, and the
-right copy's discs paired with them through the median disparity. The generic calibration treats the two
+and each copy ordered on its own with ``cv2.findCirclesGrid`` run on a clean synthetic image of its
+centres, row by row toward +u and +v (so a build whose views disagree by many rows pairs them right). The generic calibration treats the two
 views as two pinhole cameras with *shared* intrinsics (one lens): ``cv2.calibrateCamera`` on every view
 for K and the distortion, then ``cv2.stereoCalibrate`` with them fixed for R and T. (The M1 plate makes
 the left view slightly non-central; this model absorbs that into R, T and the residual.)
@@ -19,12 +19,19 @@ import numpy as np
 from psvs.calibrate.targets import dark_blobs, refine_circle
 
 
+#: A disc whose surroundings vary more than this (share of its contrast) is not trusted for calibration.
+MAX_BACKGROUND_SPREAD = 0.25
+
+
 @dataclass(frozen=True, eq=False)
 class GridDetection:
-    """left, right: (rows * cols, 2) px, the same disc in the same row of both."""
+    """left, right: (rows * cols, 2) px, the same disc in the same row of both. ``reliable``
+    (rows * cols,) bool: both copies of the disc lie on an even ground (no other view's card edge across
+    them), so their centres are unbiased; None when not assessed (every point trusted)."""
 
     left: np.ndarray
     right: np.ndarray
+    reliable: np.ndarray | None = None
 
 
 def _pair_views(left: np.ndarray, right: np.ndarray, what: str) -> GridDetection:
@@ -38,6 +45,7 @@ def _pair_views(left: np.ndarray, right: np.ndarray, what: str) -> GridDetection
 
 
 def _order(points: np.ndarray, radius: float, rows: int, cols: int, shape) -> np.ndarray | None:
+    """The points (rows * cols, 2) in grid order (see :func:`_canonical`), or None when they form no grid."""
     canvas = np.full(shape, 255, np.uint8)
     for u, v in points:
         cv2.circle(canvas, (int(round(u * 4)), int(round(v * 4))), int(round(radius * 4)), 0, -1, cv2.LINE_AA, 2)
@@ -46,7 +54,21 @@ def _order(points: np.ndarray, radius: float, rows: int, cols: int, shape) -> np
         return None
     found = found.reshape(-1, 2)  # (N, 1, 2) in OpenCV 4, (N, 2) in OpenCV 5
     idx = [int(np.argmin(np.linalg.norm(points - f, axis=1))) for f in found]
-    return points[idx] if len(set(idx)) == len(idx) else None
+    return _canonical(points[idx], rows, cols) if len(set(idx)) == len(idx) else None
+
+
+def _canonical(ordered: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    """The grid's points row by row with columns running toward +u and rows toward +v in the image.
+
+    ``cv2.findCirclesGrid`` may start at any corner of a symmetric grid; both views see the target from
+    nearly the same direction (two mirrors each: not mirrored), so this labels a disc the same in both.
+    """
+    g = ordered.reshape(rows, cols, 2)
+    if np.mean(g[:, -1, 0] - g[:, 0, 0]) < 0:
+        g = g[:, ::-1]
+    if np.mean(g[-1, :, 1] - g[0, :, 1]) < 0:
+        g = g[::-1]
+    return g.reshape(-1, 2)
 
 
 def detect_grid(grey: np.ndarray, rows: int, cols: int, max_diameter_px: int = 40) -> GridDetection:
@@ -57,15 +79,20 @@ def detect_grid(grey: np.ndarray, rows: int, cols: int, max_diameter_px: int = 4
         raise ValueError(f"found {len(blobs)} disc(s), expected {2 * n} ({rows}x{cols} per view)")
     ells = [refine_circle(grey, c, r) for c, r in blobs]
     pts = np.array([e.centre_px for e in ells])
+    spread = np.array([e.background_spread for e in ells])
     radius = float(np.mean([np.mean(e.axes_px) for e in ells]))
     order = np.argsort(pts[:, 0])
     right, left = pts[order[:n]], pts[order[n:]]
     if right[:, 0].max() >= left[:, 0].min():
         raise ValueError("the grid's two views interleave: use a grid narrower than its disparity")
-    ordered = _order(left, radius, rows, cols, grey.shape)
-    if ordered is None:
-        raise ValueError(f"the discs do not form a {rows}x{cols} grid")
-    return _pair_views(ordered, right, "grid's two views disc by disc")
+    ordered = [_order(view, radius, rows, cols, grey.shape) for view in (left, right)]
+    if ordered[0] is None or ordered[1] is None:
+        which = "left" if ordered[0] is None else "right"
+        raise ValueError(f"the {which} view's discs do not form a {rows}x{cols} grid")
+    # each ordered point is one of the refined centres: look up its ground's spread
+    even = [spread[np.argmin(np.linalg.norm(pts[:, None, :] - o[None, :, :], axis=2), axis=0)]
+            <= MAX_BACKGROUND_SPREAD for o in ordered]
+    return GridDetection(ordered[0], ordered[1], even[0] & even[1])
 
 
 @dataclass(frozen=True, eq=False)

@@ -20,12 +20,16 @@ import numpy as np
 
 @dataclass(frozen=True, eq=False)
 class Ellipse:
-    """centre_px (u, v), semi-axes (a, b) px along its own axes, angle_rad of the a-axis from +u."""
+    """centre_px (u, v), semi-axes (a, b) px along its own axes, angle_rad of the a-axis from +u;
+    ``background_spread``: how much the level just outside the rim varies around it (10-90 % range over
+    the circle's contrast): ~0 on an even ground, ~1 where another view's sheet edge crosses the circle
+    (such a centre is biased by a few tenths of a pixel)."""
 
     centre_px: np.ndarray
     axes_px: tuple[float, float]
     angle_rad: float
     rim_px: np.ndarray  # (K, 2) sub-pixel rim points used for the fit
+    background_spread: float = 0.0
 
     def row_crossings(self, v: float) -> tuple[float, float] | None:
         """(u_left, u_right) where row v crosses the ellipse, or None."""
@@ -59,6 +63,9 @@ def dark_blobs(grey: np.ndarray, max_diameter_px: int = 40, min_area_px: float =
     if hat.max() < 20:
         return []
     _, mask = cv2.threshold(hat, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
+    # where the other view's card edge crosses a disc, blur leaves a thin low seam in the hat that cuts
+    # the disc in two: close 1-2 px seams (discs of a usable target are much farther apart than that)
+    mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (3, 3)))
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     out = []
     for c in contours:
@@ -86,7 +93,7 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
     dp = np.diff(prof, axis=1)                          # rising step = dark inside -> bright outside
     win = (rr[:-1] >= 0.6 * radius) & (rr[:-1] <= 1.4 * radius)
     step = int(np.ceil(max(0.15 * radius, 2.0) / dr))    # levels read +-max(0.15 r, 2 px) around the step
-    pts, widths = [], []
+    pts, widths, levels = [], [], []
     for i in range(rays):
         d = np.where(win, dp[i], -np.inf)
         top = d.max()
@@ -101,6 +108,7 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
         if hi_level - lo_level < 10:
             continue
         half = 0.5 * (lo_level + hi_level)
+        levels.append((lo_level, hi_level))
         # edge spread: a step of height D blurred by a Gaussian of sigma rises at most D / (sigma sqrt(2 pi))
         widths.append((hi_level - lo_level) / (dp[i, k] / dr * np.sqrt(2 * np.pi)))
         seg = prof[i, a:b + 1]
@@ -127,7 +135,10 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
     # (the blurred disc's indicator is below one half at the true rim); undo it with the measured spread
     sigma2 = float(np.median(widths)) ** 2 if widths else 0.0
     a, b = e.axes_px
-    return Ellipse(e.centre_px, (a + sigma2 / (2 * a), b + sigma2 / (2 * b)), e.angle_rad, e.rim_px)
+    lo_hi = np.array(levels)
+    p10, p90 = np.percentile(lo_hi[:, 1], [10, 90])
+    spread = float((p90 - p10) / max(np.median(lo_hi[:, 1] - lo_hi[:, 0]), 1e-6))
+    return Ellipse(e.centre_px, (a + sigma2 / (2 * a), b + sigma2 / (2 * b)), e.angle_rad, e.rim_px, spread)
 
 
 def _fit(pts: np.ndarray) -> Ellipse:

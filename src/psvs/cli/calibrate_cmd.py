@@ -1,32 +1,65 @@
-"""``psvs calibrate``: calibrate a rig from a robot sweep of the paper's circle pattern."""
+"""``psvs calibrate``: calibrate a build from hand-held card views and/or the paper's robot sweep."""
 from __future__ import annotations
 
+import math
 import sys
+from pathlib import Path
 
-from psvs.calibrate.sweep import calibrate_folder
+from psvs.calibrate.bundle import PRIOR_SIGMA
+from psvs.calibrate.folder import calibrate_folder
 from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
 from psvs.io.params import save_rig
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("calibrate", help="calibrate the rig from a robot sweep of the circle pattern",
-                       description="Calibrate f, the principal point, the baseline, the M1 plate's thickness and "
-                                   "the robot's Z offset from images of the paper's pattern moved along Z. "
-                                   "SWEEP_DIR holds the images and sweep.csv (columns image,position_mm).")
-    p.add_argument("sweep", metavar="SWEEP_DIR", help="folder with the images and sweep.csv")
+    p = sub.add_parser("calibrate", help="calibrate the rig from views of a card (or a robot sweep)",
+                       description="Calibrate a build from the complex images in DIR: views of a hand-held "
+                                   "circle-grid card at free poses (DIR/target.toml describes it) and/or the "
+                                   "paper's robot sweep of the circle pattern (DIR/sweep.csv: image,position_mm). "
+                                   "A bundle adjustment over the exact optics, starting from the nominal design "
+                                   "(--rig), solves the lens (f, principal point, k1 k2 p1 p2 k3), the plate, "
+                                   "each mirror's tilts and the far mirrors' shifts, and every pose.")
+    p.add_argument("folder", metavar="DIR", help="folder with the PNG images and target.toml and/or sweep.csv")
     add_rig_argument(p)
     p.add_argument("-o", "--output", metavar="RIG.toml", required=True, help="calibrated rig file")
+    p.add_argument("--report", metavar="DIR", help="write residuals.png and vertical_disagreement.png here")
     p.set_defaults(run=run)
+
+
+def _fmt(name: str, value: float, sigma: float) -> str:
+    if name.endswith("_rad"):
+        return f"  {name[:-4] + '_deg':<22}{math.degrees(value):12.5f}  +- {math.degrees(sigma):.5f}"
+    return f"  {name:<22}{value:12.5f}  +- {sigma:.5f}"
 
 
 def run(args) -> int:
     out = check_output_path(args.output, (".toml", ".json"))
-    res = calibrate_folder(args.sweep, rig_from_args(args))
-    for name, reason in res.skipped.items():
+    if args.report is not None and not Path(args.report).is_dir():
+        raise FileNotFoundError(f"report folder does not exist: {args.report}")
+    res = calibrate_folder(args.folder, rig_from_args(args))
+    b = res.bundle
+    for name, reason in sorted(res.skipped.items()):
         print(f"skipped {name}: {reason}", file=sys.stderr)
-    print(f"used {len(res.used)} image(s): {', '.join(res.used)}")
-    for k, v in res.values.items():
-        print(f"  {k:<20}{v:12.5f}  +- {res.sigma[k]:.5f}")
-    print(f"reprojection RMS {res.rms_px:.4f} px; solver: {res.message}")
+    kinds = sorted(set(res.used.values()))
+    print(f"used {len(res.used)} image(s) ({', '.join(f'{sum(v == k for v in res.used.values())} {k}' for k in kinds)})")
+    print(f"reprojection RMS {b.rms_px:.4f} px (left view {b.rms_by_view['left']:.4f}, right view "
+          f"{b.rms_by_view['right']:.4f})")
+    for name, rms in b.rms_by_image.items():
+        print(f"  {name:<28}{rms:8.4f} px")
+    print("parameters (1-sigma):")
+    for name, value in b.values.items():
+        held = "  (not seen by these images: held near nominal by its prior)" if name in b.held_by_prior else ""
+        print(_fmt(name, value, b.sigma[name]) + held)
+    print(f"  {'baseline_mm (|O1 O2|)':<22}{res.baseline_mm:12.5f}  +- {res.baseline_sigma_mm:.5f}")
+    if b.sweep:
+        print(f"  robot offset: Z = reading + {b.sweep['offset_mm']:.3f} mm")
+    if b.held_by_prior:
+        print(f"{len(b.held_by_prior)} parameter(s) held near nominal by priors (sigma "
+              f"{', '.join(f'{n} {PRIOR_SIGMA[n]:g}' for n in b.held_by_prior)}): add card views to see them")
+    print(f"solver: {b.message}")
     save_rig(res.rig, out)
-    return 0 if res.success else 1
+    if args.report is not None:
+        from psvs.calibrate.report import write_report
+        for f in write_report(args.report, b):
+            print(f"wrote {f}")
+    return 0 if b.success else 1

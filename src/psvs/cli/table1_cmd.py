@@ -4,16 +4,25 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from psvs.calibrate.table1 import run_table1, table_markdown, write_outputs
 from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.io.params import load_rig
+from psvs.optics.mirrors import virtual_centre
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("table1", help="reproduce the paper's Table I and Fig. 10 (simulated robot sweep)",
-                       description="Render a calibration sweep and the paper's 15 test distances of the circle "
-                                   "pattern through the rig, calibrate from a rough start, measure, and print our "
-                                   "Table I beside the paper's; write table1.csv, table1.md and fig10.png.")
+                       description="Render a calibration sweep (or, with --card, views of a hand-held circle-grid "
+                                   "card) and the paper's 15 test distances of the circle pattern through the rig "
+                                   "(--rig: the true build, which may be misaligned), calibrate from a rough start "
+                                   "(or --start NOMINAL.toml), measure, and print our Table I beside the paper's; "
+                                   "write table1.csv, table1.md and fig10.png.")
     add_rig_argument(p, required=False)
+    p.add_argument("--start", metavar="NOMINAL.toml", help="calibrate from this design (default: a rough guess "
+                                                            "of the rig: f +10 %%, b +10 mm, no lens or mirror error)")
+    p.add_argument("--card", action="store_true", help="calibrate from 18 views of a hand-held 4x6 card, not a sweep")
     p.add_argument("-o", "--out", metavar="DIR", default="out/table1", help="output folder (default out/table1)")
     p.set_defaults(run=run)
 
@@ -31,11 +40,14 @@ def run(args) -> int:
     if out.exists() and not out.is_dir():
         raise ValueError(f"output folder {out} is a file")
     out.mkdir(parents=True, exist_ok=True)
-    t = run_table1(rig_from_args(args), progress=_progress)
+    start = load_rig(args.start) if args.start else None
+    t = run_table1(rig_from_args(args), progress=_progress, start=start, method="grid" if args.card else "sweep")
     cal = t.calibration
-    print(f"Calibration ({len(cal.used)} images, RMS {cal.rms_px:.3f} px): f = {cal.values['focal_length_mm']:.4f} mm, "
-          f"b = {cal.values['baseline_mm']:.3f} mm, plate = {cal.values['plate_thickness_mm']:.2f} mm, "
-          f"offset = {cal.offset_mm:.2f} mm\n")
+    b = float(np.linalg.norm(virtual_centre(cal.rig, "left") - virtual_centre(cal.rig, "right")))
+    what = f"{len(cal.rms_by_image)} card views" if args.card else f"a {len(cal.rms_by_image)}-position sweep"
+    print(f"Calibration from {what}, RMS {cal.rms_px:.3f} px: f = {cal.values['focal_length_mm']:.4f} mm, "
+          f"|O1 O2| = {b:.3f} mm, plate = {cal.values['plate_thickness_mm']:.2f} mm"
+          + (f", robot offset = {cal.sweep['offset_mm']:.2f} mm" if cal.sweep else "") + "\n")
     print(table_markdown(t))
     files = write_outputs(out, t)
     print("Wrote " + ", ".join(str(f) for f in files))

@@ -1,0 +1,357 @@
+"""Bundle adjustment of a real build over the exact optics: the lens, the plate, the mirrors' pose errors
+and every target pose, from hand-held grid views and/or the paper's robot sweep.
+
+Unknowns (docs/calibration.md, "What is calibrated"):
+- the lens: f, the principal point (cx, cy) and OpenCV's (k1, k2, p1, p2, k3);
+- the M1 plate's thickness d and the baseline b;
+- each mirror's two tilts (about +Y, about its horizontal in-plane axis) and M3's shift along its normal.
+Held at the start rig's values because images cannot tell them apart from the others (docs/optics.md,
+"What images can see"): the shifts of M1 and M2 (a periscope moved along its normal as a whole changes no
+ray: M1 with M4, M2 with M3), M4's shift (with b free, b and the two far-mirror shifts have one degree of
+freedom too many) and the box rotation (any turn of the box about O is a set of mirror tilts and shifts);
+- per grid image: the target's pose (rotation vector, translation, frame C);
+- with a robot sweep: the pattern's pose on the robot (ry, rz, x0, y0) and the robot's Z offset.
+Two more combinations of the tilts move the whole reconstruction rigidly without changing any image (a
+gauge). Every rig parameter therefore has a weak prior at the start rig's value (``PRIOR_SIGMA``), which
+fixes those combinations at their nominal values and holds whatever a data set cannot see (e.g. the lens
+terms from a sweep alone); the result says which parameters the data did not pin down.
+
+Residuals: every detected disc or circle centre in both views minus the exact projection
+(:func:`psvs.optics.project.project_points`) of its target point, px, with a soft-L1 loss (scale 0.5 px);
+the priors are residuals (value - start) / sigma scaled to the detections' noise. Solved by scipy's
+least_squares (trust-region reflective) with a finite-difference Jacobian that perturbs one pose component
+of all images at once (each image sees only its own pose). Standard deviations come from the Gauss-Newton
+covariance at the solution, scaled by the residuals' variance.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+
+from psvs.optics.mirrors import direction_map, virtual_centre
+from psvs.optics.project import project_points
+from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
+
+#: Calibrated rig parameters, in the vector's order; tilts in rad.
+RIG_PARAMS = ("focal_length_mm", "cx_px", "cy_px", "k1", "k2", "p1", "p2", "k3", "plate_thickness_mm",
+              "baseline_mm", "m1_tilt_a_rad", "m1_tilt_b_rad", "m2_tilt_a_rad", "m2_tilt_b_rad",
+              "m3_tilt_a_rad", "m3_tilt_b_rad", "m4_tilt_a_rad", "m4_tilt_b_rad", "m3_shift_mm", "m4_shift_mm")
+#: Prior standard deviations about the start rig (the nominal design): wide for the lens, where the data
+#: decide; a build's tolerances for the mirrors (what a careful builder achieves: tenths of a degree,
+#: tenths of a millimetre), which decide only what no image can see.
+PRIOR_SIGMA = {"focal_length_mm": 2.0, "cx_px": 40.0, "cy_px": 40.0, "k1": 0.5, "k2": 0.5, "p1": 0.02,
+               "p2": 0.02, "k3": 0.5, "plate_thickness_mm": 1.0, "baseline_mm": 20.0,
+               **{f"m{k}_tilt_{a}_rad": np.radians(0.3) for k in range(1, 5) for a in "ab"},
+               "m3_shift_mm": 0.5, "m4_shift_mm": 0.5}
+SWEEP_PARAMS = ("offset_mm", "ry_rad", "rz_rad", "x0_mm", "y0_mm")
+NOISE_PX = 0.05          # detection noise the priors are weighed against
+#: What a robot sweep alone (one row of circles moved along Z) cannot see: held at the start rig's values.
+SWEEP_HOLDS = ("k1", "k2", "p1", "p2", "k3", *(f"m{k}_tilt_{a}_rad" for k in range(1, 5) for a in "ab"),
+               "m3_shift_mm", "m4_shift_mm")
+LOSS_SCALE_PX = 0.5      # soft-L1: residuals beyond this are treated as outliers
+_MISS_PX = 100.0         # residual of a point the optics cannot reach
+_STEP = {"focal_length_mm": 1e-5, "cx_px": 1e-3, "cy_px": 1e-3, "k1": 1e-6, "k2": 1e-6, "p1": 1e-7,
+         "p2": 1e-7, "k3": 1e-6, "plate_thickness_mm": 1e-4, "baseline_mm": 1e-4, "m3_shift_mm": 1e-4,
+         "m4_shift_mm": 1e-4,
+         **{f"m{k}_tilt_{a}_rad": 1e-7 for k in range(1, 5) for a in "ab"},
+         "offset_mm": 1e-4, "ry_rad": 1e-7, "rz_rad": 1e-7, "x0_mm": 1e-4, "y0_mm": 1e-4}
+_POSE_STEP = (1e-7, 1e-7, 1e-7, 1e-4, 1e-4, 1e-4)
+
+
+@dataclass(frozen=True, eq=False)
+class GridView:
+    """One hand-held view of a planar target: ``object_mm`` (n, 3) in the target's frame (z = 0) and the
+    detected centres ``left``, ``right`` (n, 2) px, row k of each the same target point."""
+
+    name: str
+    object_mm: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class SweepView:
+    """One image of the robot sweep: the robot's Z reading (mm) and the pattern's centres in both views."""
+
+    name: str
+    position_mm: float
+    left: np.ndarray
+    right: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class BundleResult:
+    """The calibrated rig, every parameter's value and 1-sigma (tilts in rad), the parameters the data did
+    not pin down (their posterior sigma is over half the prior's), reprojection RMS overall / per view /
+    per image (px), the residuals (u, v) and detections of each image's points per view, the target
+    poses (4x4, target -> frame C) of the grid images, the solver's verdict, the sweep's parameters and
+    the rig parameters' covariance."""
+
+    rig: Rig
+    values: dict
+    sigma: dict
+    held_by_prior: tuple
+    rms_px: float
+    rms_by_view: dict
+    rms_by_image: dict
+    residuals: dict
+    observed: dict
+    poses: dict
+    success: bool
+    message: str
+    sweep: dict = field(default_factory=dict)
+    covariance: np.ndarray | None = None   # (len(RIG_PARAMS),) * 2, of the rig parameters
+
+
+def rig_vector(rig: Rig) -> np.ndarray:
+    """The calibrated parameters of a rig, in :data:`RIG_PARAMS` order."""
+    c, m = rig.camera, rig.mirrors
+    tilts = [t for name in MIRROR_NAMES for t in m.error(name).tilt_rad]
+    return np.array([c.focal_length_mm, *c.principal_point_px, *c.distortion, m.plate_thickness_mm,
+                     m.baseline_mm, *tilts, m.error("m3").shift_mm, m.error("m4").shift_mm])
+
+
+def rig_from_vector(x: np.ndarray, start: Rig) -> Rig:
+    """``start`` with the calibrated parameters set from ``x`` (:data:`RIG_PARAMS` order)."""
+    m = start.mirrors
+    errors = {}
+    shifts = {"m3": x[18], "m4": x[19]}
+    for k, name in enumerate(MIRROR_NAMES):
+        shift = shifts.get(name, m.error(name).shift_mm)
+        errors[name] = MirrorError((float(x[10 + 2 * k]), float(x[11 + 2 * k])), float(shift))
+    rig = start.replace(focal_length_mm=float(x[0]), principal_point_px=(float(x[1]), float(x[2])),
+                        distortion=tuple(float(v) for v in x[3:8]), plate_thickness_mm=max(float(x[8]), 0.0),
+                        baseline_mm=float(x[9]), refraction_l_mm=None, refraction_m_mm=None)
+    return rig.with_errors(errors)
+
+
+def pose_matrix(rotvec, t) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = Rotation.from_rotvec(rotvec).as_matrix(), t
+    return T
+
+
+def initial_grid_pose(view: GridView, rig: Rig) -> np.ndarray:
+    """Target pose (6,: rotation vector, translation mm, target -> frame C) from the right view alone:
+    the right view is a pinhole camera (two mirrors), so OpenCV's PnP on it, moved into frame C."""
+    import cv2
+    c = rig.camera
+    K = np.array([[c.focal_length_mm / c.pixel_pitch_mm[0], 0, c.principal_point_px[0]],
+                  [0, c.focal_length_mm / c.pixel_pitch_mm[1], c.principal_point_px[1]], [0, 0, 1.0]])
+    ok, rvec, tvec = cv2.solvePnP(view.object_mm.astype(np.float64), view.right.astype(np.float64), K,
+                                  np.array(c.distortion), flags=cv2.SOLVEPNP_ITERATIVE)
+    if not ok:
+        raise ValueError(f"{view.name}: the target fits no pose")
+    R_view = direction_map(rig, "right")                    # d_out = R d_cam
+    R = R_view @ Rotation.from_rotvec(rvec.ravel()).as_matrix()
+    t = R_view @ tvec.ravel() + virtual_centre(rig, "right")
+    return np.concatenate([Rotation.from_matrix(R).as_rotvec(), t])
+
+
+def initial_sweep(views: list[SweepView], local_mm: np.ndarray, rig: Rig) -> np.ndarray:
+    """Sweep parameters (offset, ry, rz, x0, y0) from the right view alone: each image's depth from the
+    apparent first-to-last length of the pattern (pinhole at O2), the offset their mean difference from
+    the robot readings, the lateral position from the right view's pattern centre."""
+    c = rig.camera
+    span = np.linalg.norm(local_mm[-1] - local_mm[0])
+    zs, xy = [], []
+    o2, R = virtual_centre(rig, "right"), direction_map(rig, "right")
+    for v in views:
+        length_mm = np.linalg.norm((v.right[-1] - v.right[0]) * c.pixel_pitch_mm)
+        depth = c.focal_length_mm * span / length_mm                   # along the view's axis from O2
+        ray = np.array([*((v.right.mean(axis=0) - c.principal_point_px) * c.pixel_pitch_mm), c.focal_length_mm])
+        p = o2 + R @ (ray / ray[2] * depth)
+        zs.append(p[2] - v.position_mm)
+        xy.append(p[:2])
+    x0, y0 = np.mean(xy, axis=0)
+    return np.array([float(np.mean(zs)), 0.0, 0.0, x0, y0])
+
+
+def _sweep_points(s: np.ndarray, positions: np.ndarray, local_mm: np.ndarray) -> np.ndarray:
+    R = Rotation.from_euler("zy", [s[2], s[1]]).as_matrix()
+    pts = local_mm @ R.T
+    return np.concatenate([pts + [s[3], s[4], p + s[0]] for p in positions]) if len(positions) else np.zeros((0, 3))
+
+
+class _Problem:
+    """The residual function and its Jacobian over x = [rig (19), sweep (5, if any), poses (6 per grid)]."""
+
+    def __init__(self, grids, sweeps, local_mm, start: Rig, hold=()):
+        self.grids, self.sweeps, self.local, self.start = grids, sweeps, local_mm, start
+        self.free = np.array([p not in hold for p in RIG_PARAMS])   # held parameters stay at the start
+        self.n_rig = int(self.free.sum())
+        self.n_sweep = len(SWEEP_PARAMS) if sweeps else 0
+        self.full_start = rig_vector(start)
+        self.x_start = self.full_start[self.free]
+        self.names = [p for p, f in zip(RIG_PARAMS, self.free) if f]
+        self.sigma = np.array([PRIOR_SIGMA[p] for p in self.names])
+        self.obs = np.concatenate([np.concatenate([g.left for g in grids] + [s.left for s in sweeps]),
+                                   np.concatenate([g.right for g in grids] + [s.right for s in sweeps])])
+        counts = [len(g.object_mm) for g in grids] + [len(s.left) for s in sweeps]
+        self.owner = np.repeat(np.arange(len(counts)), counts)           # image index of each point
+        self.n_points = int(sum(counts))
+        self.positions = np.array([s.position_mm for s in sweeps])
+
+    def rig(self, x) -> Rig:
+        full = self.full_start.copy()
+        full[self.free] = x[:self.n_rig]
+        return rig_from_vector(full, self.start)
+
+    def split(self, x):
+        r = x[:self.n_rig]
+        s = x[self.n_rig:self.n_rig + self.n_sweep]
+        poses = x[self.n_rig + self.n_sweep:].reshape(-1, 6)
+        return r, s, poses
+
+    def points(self, x) -> np.ndarray:
+        _, s, poses = self.split(x)
+        parts = []
+        for g, p in zip(self.grids, poses):
+            parts.append(g.object_mm @ Rotation.from_rotvec(p[:3]).as_matrix().T + p[3:])
+        if self.sweeps:
+            parts.append(_sweep_points(s, self.positions, self.local))
+        return np.concatenate(parts)
+
+    def project(self, x) -> np.ndarray:
+        """Image residuals (2 * n_points, 2): left view rows first, px."""
+        rig = self.rig(x)
+        pts = self.points(x)
+        out = []
+        for view in ("left", "right"):
+            uv, ok = project_points(pts, rig, view)
+            uv[~ok] = np.nan
+            out.append(uv)
+        r = np.concatenate(out) - self.obs
+        r[~np.isfinite(r)] = _MISS_PX
+        return r
+
+    def residuals(self, x) -> np.ndarray:
+        prior = NOISE_PX * (x[:self.n_rig] - self.x_start) / self.sigma
+        return np.concatenate([self.project(x).ravel(), prior])
+
+    def jacobian(self, x) -> np.ndarray:
+        n_img_rows = 4 * self.n_points
+        J = np.zeros((n_img_rows + self.n_rig, len(x)))
+        steps = [_STEP[p] for p in self.names] + [_STEP[p] for p in SWEEP_PARAMS[:self.n_sweep]]
+        for k, h in enumerate(steps):
+            dx = np.zeros(len(x))
+            dx[k] = h
+            J[:n_img_rows, k] = ((self.project(x + dx) - self.project(x - dx)) / (2 * h)).ravel()
+        first = self.n_rig + self.n_sweep
+        grid_rows = np.flatnonzero(self.owner < len(self.grids))
+        img_of_row = np.concatenate([self.owner, self.owner])           # both views
+        for q, h in enumerate(_POSE_STEP):
+            dx = np.zeros(len(x))
+            dx[first + q::6] = h
+            diff = (self.project(x + dx) - self.project(x - dx)) / (2 * h)   # (2 n_points, 2)
+            for view in range(2):
+                rows = grid_rows + view * self.n_points
+                cols = first + 6 * img_of_row[rows] + q
+                J[2 * rows, cols] = diff[rows, 0]
+                J[2 * rows + 1, cols] = diff[rows, 1]
+        J[n_img_rows + np.arange(self.n_rig), np.arange(self.n_rig)] = NOISE_PX / self.sigma
+        return J
+
+
+def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
+                  sweep_local_mm: np.ndarray | None = None, max_nfev: int = 60, hold=None) -> BundleResult:
+    """Calibrate a build from grid views and/or sweep views, starting from ``start`` (the nominal design).
+
+    Parameters
+    ----------
+    grids : list of GridView
+        Hand-held views of a planar target (free poses).
+    sweeps : list of SweepView
+        The paper's robot sweep: one pattern pose, moved along Z by the robot.
+    start : Rig
+        The nominal design; also the centre of the priors.
+    sweep_local_mm : ndarray, shape (k, 3)
+        The sweep pattern's points in its own frame (the paper's row of circles), mm.
+    hold : iterable of str, optional
+        Parameters held at the start rig's values. Default: none with grid views; :data:`SWEEP_HOLDS`
+        with a sweep alone (five circles in a row cannot tell mirror tilts from the principal point, nor
+        see the lens's higher terms).
+    """
+    if len(grids) + len(sweeps) < 3:
+        raise ValueError(f"calibration needs at least 3 usable images, got {len(grids) + len(sweeps)}")
+    if sweeps and sweep_local_mm is None:
+        raise ValueError("sweep views need the pattern's layout (sweep_local_mm)")
+    local = np.zeros((0, 3)) if sweep_local_mm is None else np.asarray(sweep_local_mm, float)
+    if hold is None:
+        hold = () if grids else SWEEP_HOLDS
+    prob = _Problem(grids, sweeps, local, start, tuple(hold))
+    x0 = [prob.x_start]
+    if sweeps:
+        x0.append(initial_sweep(sweeps, local, start))
+    x0 += [initial_grid_pose(g, start) for g in grids]
+    x0 = np.concatenate(x0)
+    lo, hi = np.full(len(x0), -np.inf), np.full(len(x0), np.inf)
+    for k, name in enumerate(prob.names):
+        lo[k], hi[k] = _bounds(name, prob.x_start[k], start)
+    pad = 1e-9 * (hi[:prob.n_rig] - lo[:prob.n_rig])
+    x0[:prob.n_rig] = np.clip(x0[:prob.n_rig], lo[:prob.n_rig] + pad, hi[:prob.n_rig] - pad)
+    sol = least_squares(prob.residuals, x0, jac=prob.jacobian, bounds=(lo, hi), method="trf", loss="soft_l1",
+                        f_scale=LOSS_SCALE_PX, x_scale="jac", max_nfev=max_nfev, tr_solver="exact")
+    return _result(prob, sol)
+
+
+def _bounds(name: str, value: float, start: Rig) -> tuple[float, float]:
+    """Physical limits of a parameter, so the solver never leaves the optics' domain (f > 0, ...)."""
+    w, h = start.camera.image_size_px
+    if name == "focal_length_mm":
+        return 0.5 * value, 2.0 * value
+    if name == "cx_px":
+        return 0.0, w - 1.0
+    if name == "cy_px":
+        return 0.0, h - 1.0
+    if name == "plate_thickness_mm":
+        return 0.0, max(10.0, 3 * value)
+    if name == "baseline_mm":
+        return 0.3 * value, 3.0 * value
+    if "tilt" in name:
+        return -0.1, 0.1          # rad: +-5.7 deg
+    if "shift" in name:
+        return -20.0, 20.0
+    return (-2.0, 2.0) if name in ("k1", "k2", "k3") else (-0.2, 0.2)
+
+
+def _result(prob: _Problem, sol) -> BundleResult:
+    x = sol.x
+    img = prob.project(x)                                   # (2 n_points, 2)
+    n = prob.n_points
+    names = prob.names + list(SWEEP_PARAMS[:prob.n_sweep])
+    J = prob.jacobian(x)
+    k = len(names)
+    dof = max(1, img.size - len(x) + prob.n_rig)
+    s2 = max(float(np.sum(img ** 2)) / dof, 1e-12)
+    cov = np.linalg.pinv(J.T @ J) * s2
+    sig = np.sqrt(np.clip(np.diag(cov)[:k], 0, None))
+    # what the data did not pin down: held on purpose, or its posterior sigma is still over half its prior's
+    sigma = dict(zip(names, map(float, sig)))
+    held = tuple(p for p in RIG_PARAMS if p not in sigma or sigma[p] > 0.5 * PRIOR_SIGMA[p])
+    full_cov = np.zeros((len(RIG_PARAMS), len(RIG_PARAMS)))
+    idx = np.flatnonzero(prob.free)
+    full_cov[np.ix_(idx, idx)] = cov[:prob.n_rig, :prob.n_rig]
+    rig = prob.rig(x)
+    values = dict(zip(RIG_PARAMS, map(float, rig_vector(rig))))
+    values.update(zip(names[prob.n_rig:], map(float, x[prob.n_rig:k])))
+    sigma = {p: sigma.get(p, 0.0) for p in names[:0] + list(RIG_PARAMS)} | {n: sigma[n] for n in names[prob.n_rig:]}
+    labels = [g.name for g in prob.grids] + [s.name for s in prob.sweeps]
+    left, right = img[:n], img[n:]
+    per_image = {name: float(np.sqrt(np.mean(np.concatenate([left[prob.owner == i], right[prob.owner == i]]) ** 2)))
+                 for i, name in enumerate(labels)}
+    residuals = {name: (left[prob.owner == i], right[prob.owner == i]) for i, name in enumerate(labels)}
+    observed = {name: (prob.obs[:n][prob.owner == i], prob.obs[n:][prob.owner == i]) for i, name in enumerate(labels)}
+    _, s, poses = prob.split(x)
+    return BundleResult(
+        rig=rig, values=values, sigma=sigma, held_by_prior=held,
+        rms_px=float(np.sqrt(np.mean(img ** 2))),
+        rms_by_view={"left": float(np.sqrt(np.mean(left ** 2))), "right": float(np.sqrt(np.mean(right ** 2)))},
+        rms_by_image=per_image, residuals=residuals, observed=observed,
+        poses={g.name: pose_matrix(p[:3], p[3:]) for g, p in zip(prob.grids, poses)},
+        success=bool(sol.success), message=str(sol.message),
+        sweep=dict(zip(SWEEP_PARAMS, map(float, s))) if prob.n_sweep else {},
+        covariance=full_cov)

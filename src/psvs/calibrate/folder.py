@@ -1,0 +1,123 @@
+"""Calibrate a build from a folder of complex images: hand-held grid views, a robot sweep, or both.
+
+The folder holds PNG images and ``target.toml`` (the hand-held card, :mod:`psvs.calibrate.target_file`)
+and/or ``sweep.csv`` (the paper's robot sweep, :mod:`psvs.calibrate.sweep`). Images listed in ``sweep.csv``
+are sweep images; every other PNG is a view of the card. Each image is detected on its own; one that
+cannot be used is skipped with its reason (no grid found, too few discs on an even ground, or -- after a
+first adjustment -- a target that fits no pose), and the bundle adjustment
+(:func:`psvs.calibrate.bundle.bundle_adjust`) runs on the rest.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
+from psvs.calibrate.grid import detect_grid
+from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
+from psvs.calibrate.target_file import load_target
+from psvs.io.images import read_grey
+from psvs.optics.mirrors import virtual_centre
+from psvs.optics.rig import Rig
+from psvs.simulate.textures import CircleGrid
+
+MIN_GRID_POINTS = 8        # fewer trusted discs than this: the view is skipped
+MAX_IMAGE_RMS_PX = 1.0     # an image whose points miss their fitted pose by more: skipped, refitted
+
+
+@dataclass(frozen=True, eq=False)
+class CalibrationResult:
+    """The bundle adjustment's result, with the images used (name -> 'grid' or 'sweep'), the images
+    skipped (name -> reason), and the effective baseline |O1 O2| of the calibrated rig (mm, 1-sigma)."""
+
+    bundle: BundleResult
+    used: dict
+    skipped: dict = field(default_factory=dict)
+    baseline_mm: float = float("nan")
+    baseline_sigma_mm: float = float("nan")
+
+    @property
+    def rig(self) -> Rig:
+        return self.bundle.rig
+
+
+def grid_view(name: str, grey: np.ndarray, grid: CircleGrid) -> GridView:
+    """The trusted discs of one card view (both views of each disc on an even ground)."""
+    det = detect_grid(grey, grid.rows, grid.cols)
+    keep = det.reliable if det.reliable is not None else np.ones(len(det.left), bool)
+    if keep.sum() < MIN_GRID_POINTS:
+        raise ValueError(f"only {int(keep.sum())} of {len(keep)} discs lie on an even ground in both views "
+                         f"(another view's card crosses them); need {MIN_GRID_POINTS}")
+    local = np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
+    return GridView(name, local[keep], det.left[keep], det.right[keep])
+
+
+def calibrate_folder(folder, start: Rig) -> CalibrationResult:
+    """Detect, adjust, drop images that fit no pose and adjust again (see the module docstring)."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"calibration folder not found: {folder}")
+    has_target, has_sweep = (folder / "target.toml").is_file(), (folder / "sweep.csv").is_file()
+    if not has_target and not has_sweep:
+        raise ValueError(f"{folder} holds neither target.toml (hand-held card views) nor sweep.csv (robot sweep)")
+    skipped: dict[str, str] = {}
+    sweeps = []
+    sweep_names: set[str] = set()
+    if has_sweep:
+        items = read_sweep(folder)
+        sweep_names = {p.name for p, _ in items}
+        found, bad = detect_sweep(items, COUNT)
+        skipped.update(bad)
+        sweeps = sweep_views(found)
+    grids = []
+    others = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".png" and p.name not in sweep_names)
+    if has_target:
+        grid = load_target(folder / "target.toml")
+        for path in others:
+            try:
+                grids.append(grid_view(path.name, read_grey(path), grid))
+            except ValueError as exc:
+                skipped[path.name] = str(exc)
+    else:
+        skipped.update({p.name: "not in sweep.csv, and no target.toml describes a card" for p in others})
+    _enough(grids, sweeps, skipped)
+    local = pattern_layout(COUNT) if sweeps else None
+    res = bundle_adjust(grids, sweeps, start, sweep_local_mm=local)
+    bad = {n: r for n, r in res.rms_by_image.items() if r > MAX_IMAGE_RMS_PX}
+    if bad:
+        for name, rms in bad.items():
+            skipped[name] = f"the target fits no pose (reprojection RMS {rms:.2f} px after adjustment)"
+        grids = [g for g in grids if g.name not in bad]
+        sweeps = [s for s in sweeps if s.name not in bad]
+        _enough(grids, sweeps, skipped)
+        res = bundle_adjust(grids, sweeps, start, sweep_local_mm=local if sweeps else None)
+    used = {**{g.name: "grid" for g in grids}, **{s.name: "sweep" for s in sweeps}}
+    b, sb = effective_baseline(res)
+    return CalibrationResult(res, used, skipped, b, sb)
+
+
+def _enough(grids, sweeps, skipped) -> None:
+    n = len(grids) + len(sweeps)
+    if n < 3:
+        why = "; ".join(f"{k}: {v}" for k, v in sorted(skipped.items())[:3])
+        raise ValueError(f"calibration needs at least 3 usable images, got {n}" + (f" (skipped {why})" if why else ""))
+
+
+def effective_baseline(res: BundleResult) -> tuple[float, float]:
+    """|O1 O2| of the calibrated rig (mm) and its 1-sigma (first-order propagation of the rig parameters'
+    covariance)."""
+    from psvs.calibrate.bundle import RIG_PARAMS, rig_from_vector, rig_vector
+
+    def base(r: Rig) -> float:
+        return float(np.linalg.norm(virtual_centre(r, "left") - virtual_centre(r, "right")))
+
+    x = rig_vector(res.rig)
+    b0 = base(res.rig)
+    grad = np.zeros(len(RIG_PARAMS))
+    for k in range(len(RIG_PARAMS)):
+        dx = np.zeros(len(x))
+        dx[k] = 1e-6
+        grad[k] = (base(rig_from_vector(x + dx, res.rig)) - b0) / 1e-6
+    return b0, float(np.sqrt(max(grad @ res.covariance @ grad, 0.0)))

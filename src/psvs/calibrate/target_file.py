@@ -1,0 +1,57 @@
+"""``target.toml``: the hand-held calibration target of a calibration folder (docs/calibration.md).
+
+    [target]
+    kind = "circle_grid"   # symmetric grid of dark discs on a light card
+    rows = 4
+    cols = 6
+    spacing_mm = 14.0      # centre to centre
+    diameter_mm = 7.0
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from psvs.io.tomlfile import load_toml
+from psvs.simulate.textures import CircleGrid
+
+KINDS = ("circle_grid",)
+_KEYS = ("kind", "rows", "cols", "spacing_mm", "diameter_mm")
+
+
+def load_target(path) -> CircleGrid:
+    """The target described by a ``target.toml``; ValueError naming the file and the key otherwise."""
+    path = Path(path)
+    data = load_toml(path, "target")
+    try:
+        return target_from_dict(data)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def target_from_dict(data: dict) -> CircleGrid:
+    if set(data) != {"target"} or not isinstance(data["target"], dict):
+        raise ValueError("expected one table [target]")
+    t = data["target"]
+    unknown = sorted(set(t) - set(_KEYS))
+    if unknown:
+        raise ValueError(f"unknown key target.{unknown[0]} (allowed: {', '.join(_KEYS)})")
+    missing = [k for k in _KEYS if k not in t]
+    if missing:
+        raise ValueError(f"missing key target.{missing[0]}")
+    if t["kind"] not in KINDS:
+        raise ValueError(f"target.kind must be one of {', '.join(KINDS)}, got {t['kind']!r}")
+    for k in ("spacing_mm", "diameter_mm"):
+        if isinstance(t[k], bool) or not isinstance(t[k], (int, float)):
+            raise ValueError(f"target.{k} must be a number (mm), got {t[k]!r}")
+    try:
+        return CircleGrid(rows=t["rows"], cols=t["cols"], spacing_mm=float(t["spacing_mm"]),
+                          diameter_mm=float(t["diameter_mm"]))
+    except ValueError as exc:
+        raise ValueError(f"target.{exc}") from None
+
+
+def dumps_target(grid: CircleGrid) -> str:
+    """The ``target.toml`` text of a circle grid (read back by :func:`load_target`)."""
+    import tomli_w
+    return tomli_w.dumps({"target": {"kind": "circle_grid", "rows": grid.rows, "cols": grid.cols,
+                                     "spacing_mm": float(grid.spacing_mm), "diameter_mm": float(grid.diameter_mm)}})
