@@ -38,24 +38,27 @@ from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 #: Calibrated rig parameters, in the vector's order; tilts in rad.
 RIG_PARAMS = ("focal_length_mm", "cx_px", "cy_px", "k1", "k2", "p1", "p2", "k3", "plate_thickness_mm",
               "baseline_mm", "m1_tilt_a_rad", "m1_tilt_b_rad", "m2_tilt_a_rad", "m2_tilt_b_rad",
-              "m3_tilt_a_rad", "m3_tilt_b_rad", "m4_tilt_a_rad", "m4_tilt_b_rad", "m3_shift_mm", "m4_shift_mm")
+              "m3_tilt_a_rad", "m3_tilt_b_rad", "m4_tilt_a_rad", "m4_tilt_b_rad", "m1_shift_mm", "m2_shift_mm",
+              "m3_shift_mm", "m4_shift_mm", "box_x_rad", "box_y_rad", "box_z_rad")
 #: Prior standard deviations about the start rig (the nominal design): wide for the lens, where the data
 #: decide; a build's tolerances for the mirrors (what a careful builder achieves: tenths of a degree,
 #: tenths of a millimetre), which decide only what no image can see.
 PRIOR_SIGMA = {"focal_length_mm": 2.0, "cx_px": 40.0, "cy_px": 40.0, "k1": 0.5, "k2": 0.5, "p1": 0.02,
-               "p2": 0.02, "k3": 0.5, "plate_thickness_mm": 1.0, "baseline_mm": 20.0,
+               "p2": 0.02, "k3": 0.5, "plate_thickness_mm": 3.0, "baseline_mm": 20.0,
                **{f"m{k}_tilt_{a}_rad": np.radians(0.3) for k in range(1, 5) for a in "ab"},
-               "m3_shift_mm": 0.5, "m4_shift_mm": 0.5}
+               **{f"m{k}_shift_mm": 0.5 for k in range(1, 5)}, **{f"box_{a}_rad": np.radians(0.3) for a in "xyz"}}
 SWEEP_PARAMS = ("offset_mm", "ry_rad", "rz_rad", "x0_mm", "y0_mm")
 NOISE_PX = 0.05          # detection noise the priors are weighed against
 #: What a robot sweep alone (one row of circles moved along Z) cannot see: held at the start rig's values.
-SWEEP_HOLDS = ("k1", "k2", "p1", "p2", "k3", *(f"m{k}_tilt_{a}_rad" for k in range(1, 5) for a in "ab"),
-               "m3_shift_mm", "m4_shift_mm")
+SWEEP_HOLDS = ("k2", "p1", "p2", "k3")
+#: ... and, first, the design's mirrors: a sweep frees them only when the design cannot explain its images.
+DESIGN_HOLDS = SWEEP_HOLDS + tuple(p for p in RIG_PARAMS if p.startswith(("m1_", "m2_", "m3_", "m4_", "box_")))
+DESIGN_FITS_PX = 3 * NOISE_PX
 LOSS_SCALE_PX = 0.5      # soft-L1: residuals beyond this are treated as outliers
 _MISS_PX = 100.0         # residual of a point the optics cannot reach
 _STEP = {"focal_length_mm": 1e-5, "cx_px": 1e-3, "cy_px": 1e-3, "k1": 1e-6, "k2": 1e-6, "p1": 1e-7,
-         "p2": 1e-7, "k3": 1e-6, "plate_thickness_mm": 1e-4, "baseline_mm": 1e-4, "m3_shift_mm": 1e-4,
-         "m4_shift_mm": 1e-4,
+         "p2": 1e-7, "k3": 1e-6, "plate_thickness_mm": 1e-4, "baseline_mm": 1e-4,
+         **{f"m{k}_shift_mm": 1e-4 for k in range(1, 5)}, **{f"box_{a}_rad": 1e-7 for a in "xyz"},
          **{f"m{k}_tilt_{a}_rad": 1e-7 for k in range(1, 5) for a in "ab"},
          "offset_mm": 1e-4, "ry_rad": 1e-7, "rz_rad": 1e-7, "x0_mm": 1e-4, "y0_mm": 1e-4}
 _POSE_STEP = (1e-7, 1e-7, 1e-7, 1e-4, 1e-4, 1e-4)
@@ -111,20 +114,19 @@ def rig_vector(rig: Rig) -> np.ndarray:
     c, m = rig.camera, rig.mirrors
     tilts = [t for name in MIRROR_NAMES for t in m.error(name).tilt_rad]
     return np.array([c.focal_length_mm, *c.principal_point_px, *c.distortion, m.plate_thickness_mm,
-                     m.baseline_mm, *tilts, m.error("m3").shift_mm, m.error("m4").shift_mm])
+                     m.baseline_mm, *tilts, *(m.error(n).shift_mm for n in MIRROR_NAMES), *m.box_rotation_rad])
 
 
 def rig_from_vector(x: np.ndarray, start: Rig) -> Rig:
     """``start`` with the calibrated parameters set from ``x`` (:data:`RIG_PARAMS` order)."""
     m = start.mirrors
     errors = {}
-    shifts = {"m3": x[18], "m4": x[19]}
     for k, name in enumerate(MIRROR_NAMES):
-        shift = shifts.get(name, m.error(name).shift_mm)
-        errors[name] = MirrorError((float(x[10 + 2 * k]), float(x[11 + 2 * k])), float(shift))
+        errors[name] = MirrorError((float(x[10 + 2 * k]), float(x[11 + 2 * k])), float(x[18 + k]))
     rig = start.replace(focal_length_mm=float(x[0]), principal_point_px=(float(x[1]), float(x[2])),
                         distortion=tuple(float(v) for v in x[3:8]), plate_thickness_mm=max(float(x[8]), 0.0),
-                        baseline_mm=float(x[9]), refraction_l_mm=None, refraction_m_mm=None)
+                        baseline_mm=float(x[9]), box_rotation_rad=tuple(float(v) for v in x[22:25]),
+                        refraction_l_mm=None, refraction_m_mm=None)
     return rig.with_errors(errors)
 
 
@@ -271,18 +273,23 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
     sweep_local_mm : ndarray, shape (k, 3)
         The sweep pattern's points in its own frame (the paper's row of circles), mm.
     hold : iterable of str, optional
-        Parameters held at the start rig's values. Default: none with grid views; :data:`SWEEP_HOLDS`
-        with a sweep alone (five circles in a row cannot tell mirror tilts from the principal point, nor
-        see the lens's higher terms).
+        Parameters held at the start rig's values. Default: none with grid views. With a sweep alone (five
+        circles in a row cannot see the lens's higher terms, nor tell most mirror errors from the principal
+        point and the pattern's pose): first :data:`DESIGN_HOLDS` (the design's mirrors, as the paper's
+        model), and only if that leaves the images unexplained (RMS > :data:`DESIGN_FITS_PX`) again with
+        the mirror errors free, :data:`SWEEP_HOLDS`.
     """
     if len(grids) + len(sweeps) < 3:
         raise ValueError(f"calibration needs at least 3 usable images, got {len(grids) + len(sweeps)}")
     if sweeps and sweep_local_mm is None:
         raise ValueError("sweep views need the pattern's layout (sweep_local_mm)")
     local = np.zeros((0, 3)) if sweep_local_mm is None else np.asarray(sweep_local_mm, float)
-    if hold is None:
-        hold = () if grids else SWEEP_HOLDS
-    prob = _Problem(grids, sweeps, local, start, tuple(hold))
+    if hold is None and not grids:
+        first = bundle_adjust(grids, sweeps, start, sweep_local_mm, max_nfev, hold=DESIGN_HOLDS)
+        if first.rms_px <= DESIGN_FITS_PX:
+            return first
+        hold = SWEEP_HOLDS
+    prob = _Problem(grids, sweeps, local, start, tuple(hold or ()))
     x0 = [prob.x_start]
     if sweeps:
         x0.append(initial_sweep(sweeps, local, start))
@@ -311,7 +318,7 @@ def _bounds(name: str, value: float, start: Rig) -> tuple[float, float]:
         return 0.0, max(10.0, 3 * value)
     if name == "baseline_mm":
         return 0.3 * value, 3.0 * value
-    if "tilt" in name:
+    if "tilt" in name or name.startswith("box"):
         return -0.1, 0.1          # rad: +-5.7 deg
     if "shift" in name:
         return -20.0, 20.0

@@ -75,16 +75,21 @@ def detect_grid(grey: np.ndarray, rows: int, cols: int, max_diameter_px: int = 4
     """Both views of a ``rows`` x ``cols`` circle grid; ValueError naming the problem when it is not there."""
     n = rows * cols
     blobs = dark_blobs(grey, max_diameter_px)
-    if len(blobs) != 2 * n:
+    if len(blobs) < 2 * n:
         raise ValueError(f"found {len(blobs)} disc(s), expected {2 * n} ({rows}x{cols} per view)")
     ells = [refine_circle(grey, c, r) for c, r in blobs]
     pts = np.array([e.centre_px for e in ells])
     spread = np.array([e.background_spread for e in ells])
-    radius = float(np.mean([np.mean(e.axes_px) for e in ells]))
+    radius = float(np.median([np.mean(e.axes_px) for e in ells]))
+    # the two copies side by side: split at the widest gap along u that leaves each side a whole grid
+    # (a stray dark blob -- the gap where two cards nearly touch -- may add a point to either side)
+    us = np.sort(pts[:, 0])
     order = np.argsort(pts[:, 0])
-    right, left = pts[order[:n]], pts[order[n:]]
-    if right[:, 0].max() >= left[:, 0].min():
+    cuts = range(n, len(pts) - n + 1)
+    k = max(cuts, key=lambda c: us[c] - us[c - 1])
+    if us[k] - us[k - 1] <= 0.5 * radius:
         raise ValueError("the grid's two views interleave: use a grid narrower than its disparity")
+    right, left = pts[order[:k]], pts[order[k:]]
     ordered = [_order(view, radius, rows, cols, grey.shape) for view in (left, right)]
     if ordered[0] is None or ordered[1] is None:
         which = "left" if ordered[0] is None else "right"

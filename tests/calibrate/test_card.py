@@ -1,0 +1,174 @@
+"""Calibration of a misaligned build from a hand-held circle-grid card (issue 14): planted truth.
+
+The images are rendered through examples/rigs/misaligned.toml (mirrors 0.1-0.3 deg and up to 0.8 mm off,
+the box turned, k1 = -0.2 with tangential terms, f +1 %, principal point 5 px off); calibration starts from
+the nominal design (examples/rigs/clear.toml without mirror extents)."""
+import json
+import math
+import re
+import tomllib
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from psvs.calibrate.folder import calibrate_folder
+from psvs.calibrate.report import vertical_disagreement
+from psvs.calibrate.synthetic import random_poses, render_grid_shots
+from psvs.calibrate.target_file import dumps_target, load_target
+from psvs.io.images import write_png
+from psvs.io.params import load_rig
+from psvs.simulate.textures import CircleGrid
+from tests.cli.test_cli import run
+from tests.conftest import reconstruction_errors
+from tests.reference_build import ReferenceBuild
+
+RIGS = Path(__file__).resolve().parents[2] / "examples" / "rigs"
+CARD = CircleGrid(4, 6, 14.0, 7.0)
+
+
+def nominal():
+    return load_rig(RIGS / "clear.toml").with_extents({k: None for k in ("m1", "m2", "m3", "m4")})
+
+
+@pytest.fixture(scope="module")
+def card_dir(tmp_path_factory):
+    """16 card views at 450-1000 mm (tilted up to 25 deg), a blank frame and a frame without the card."""
+    folder = tmp_path_factory.mktemp("card")
+    true = load_rig(RIGS / "misaligned.toml")
+    poses = random_poses(true, CARD, 16, seed=3)
+    for k, shot in enumerate(render_grid_shots(true, CARD, poses, seed=40)):
+        write_png(folder / f"card_{k:02d}.png", shot.image)
+    write_png(folder / "blank.png", np.full((480, 640), 30, np.uint8))
+    junk = np.full((480, 640), 40, np.uint8)
+    cv2.circle(junk, (200, 200), 10, 200, -1)
+    write_png(folder / "lamp.png", junk)
+    (folder / "target.toml").write_text(dumps_target(CARD))
+    return folder, true
+
+
+@pytest.fixture(scope="module")
+def calibrated(card_dir):
+    folder, _ = card_dir
+    return calibrate_folder(folder, nominal())
+
+
+def test_reprojection_and_reconstruction(calibrated, card_dir):
+    """Acceptance: RMS <= 0.05 px. True correspondences over 400-1200 mm, triangulated with the calibrated
+    rig: what no card view can fix (docs/calibration.md, "What a card cannot see") is (a) where frame C
+    sits behind the mirrors, a rigid motion of the whole reconstruction, and (b) its scale, through the
+    focal length (a narrow lens sees f and distance only together; +-0.1-0.2 % with cards tilted 25 deg).
+    Up to a similarity the reconstruction is within 0.3 mm; up to a rigid motion within 0.3 % of depth;
+    in frame C itself the error is reported in docs, not hidden."""
+    res = calibrated
+    b = res.bundle
+    assert b.success and b.rms_px <= 0.05
+    assert max(b.rms_by_view.values()) <= 0.05 and max(b.rms_by_image.values()) <= 0.1
+    raw, aligned, pts = reconstruction_errors(res.rig, card_dir[1])
+    assert np.mean(aligned / pts[:, 2]) <= 3e-3
+    f_err = b.values["focal_length_mm"] / card_dir[1].camera.focal_length_mm - 1
+    assert abs(f_err) < 3 * b.sigma["focal_length_mm"] / card_dir[1].camera.focal_length_mm
+    scaled, aligned_s, _ = reconstruction_errors(res.rig, card_dir[1], scale=1 / (1 + f_err))
+    assert np.mean(aligned_s) <= 0.3
+
+
+def test_the_lens_is_recovered(calibrated, card_dir):
+    """The lens terms the card sees, within 4 sigma (and sigma small): planted k1 -0.2, p1 1.2e-3,
+    p2 -0.9e-3, f 11.413 mm; the plate 3 mm."""
+    true = card_dir[1]
+    v, s = calibrated.bundle.values, calibrated.bundle.sigma
+    k1, k2, p1, p2, k3 = true.camera.distortion
+    for name, want, max_sigma in (("k1", k1, 0.01), ("p1", p1, 5e-4), ("p2", p2, 5e-4),
+                                  ("focal_length_mm", true.camera.focal_length_mm, 0.03),
+                                  ("plate_thickness_mm", 3.0, 0.3)):
+        assert s[name] < max_sigma, name
+        assert abs(v[name] - want) < 4 * s[name] + 1e-9, (name, v[name], want, s[name])
+
+
+def test_skipped_images_say_why(calibrated):
+    assert set(calibrated.skipped) == {"blank.png", "lamp.png"}
+    assert "found 0 disc(s), expected 48" in calibrated.skipped["blank.png"]
+    assert re.search(r"found \d+ disc\(s\), expected 48", calibrated.skipped["lamp.png"])
+    assert len(calibrated.used) == 16 and set(calibrated.used.values()) == {"grid"}
+
+
+def test_vertical_disagreement_map_against_the_reference(card_dir):
+    """The report's map: where the twin of a left-view pixel lies, rows off, at 700 mm, against the
+    independent reference build (its left ray to 700 mm, projected into its right view)."""
+    true = card_dir[1]
+    c = true.camera
+    errors = {n: (*true.mirrors.error(n).tilt_rad, true.mirrors.error(n).shift_mm) for n in ("m1", "m2", "m3", "m4")}
+    ref = ReferenceBuild(f=c.focal_length_mm, centre=c.principal_point_px, dist=c.distortion, c1=22.0, c2=44.0,
+                         errors=errors, box_rotvec=true.mirrors.box_rotation_rad)
+    u, v, dv = vertical_disagreement(true, 700.0, step_px=80)
+    for (uu, vv, d) in zip(u.ravel(), v.ravel(), dv.ravel()):
+        if not np.isfinite(d):
+            continue
+        o, direction = ref.left_line(uu, vv)
+        p = o + (700.0 - o[2]) / direction[2] * direction
+        assert ref.project_right(p[None, :])[0, 1] - vv == pytest.approx(d, abs=1e-4)
+    assert np.nanmax(np.abs(dv)) > 3.0          # this build's twins are rows apart
+
+
+def test_cli_writes_a_rig_that_reads_back_and_a_report(capsys, card_dir, tmp_path):
+    folder, _ = card_dir
+    out = tmp_path / "rig.toml"
+    report = tmp_path / "report"
+    report.mkdir()
+    code, text, err = run(capsys, "calibrate", str(folder), "--rig", str(RIGS / "clear.toml"), "-o", str(out),
+                          "--report", str(report))
+    assert code == 0, err
+    assert "skipped blank.png: found 0 disc(s)" in err
+    rms = float(re.search(r"reprojection RMS ([0-9.]+) px \(left view ([0-9.]+), right view ([0-9.]+)\)", text)[1])
+    assert rms <= 0.05
+    assert len(re.findall(r"^  card_\d\d\.png\s+[0-9.]+ px$", text, re.M)) == 16
+    printed = {m[0]: float(m[1]) for m in re.findall(r"^  (\w+)\s+(-?[0-9.]+)  \+-", text, re.M)}
+    data = tomllib.loads(out.read_text())
+    rig = load_rig(out)
+    assert data["camera"]["distortion"][0] == pytest.approx(printed["k1"], abs=1e-5)
+    assert rig.camera.distortion[0] == pytest.approx(printed["k1"], abs=1e-5)
+    assert data["mirrors"]["m2"]["tilt_deg"][1] == pytest.approx(printed["m2_tilt_b_deg"], abs=1e-5)
+    assert math.degrees(rig.mirrors.error("m3").tilt_rad[0]) == pytest.approx(printed["m3_tilt_a_deg"], abs=1e-5)
+    for name, size in (("residuals.png", (620, 800)), ("vertical_disagreement.png", (620, 800))):
+        img = cv2.imread(str(report / name))
+        assert img is not None and img.shape[:2] == size
+        assert (np.abs(img.astype(int) - 255).sum(axis=2) > 60).mean() > 0.02   # drawn, not blank
+
+
+def test_target_file_errors(tmp_path):
+    good = dumps_target(CARD)
+    assert load_target(_write(tmp_path, good)) == CARD
+    for text, message in ((good.replace('kind = "circle_grid"', 'kind = "chessboard"'),
+                           r"target\.kind must be one of circle_grid, got 'chessboard'"),
+                          (good.replace("rows = 4\n", ""), r"missing key target\.rows"),
+                          (good + "colour = 1\n", r"unknown key target\.colour"),
+                          (good.replace("diameter_mm = 7.0", "diameter_mm = 20.0"), r"diameter_mm must be < spacing_mm"),
+                          ("[card]\nrows = 3\n", r"expected one table \[target\]")):
+        with pytest.raises(ValueError, match=message):
+            load_target(_write(tmp_path, text))
+
+
+def _write(tmp_path, text):
+    p = tmp_path / "target.toml"
+    p.write_text(text)
+    return p
+
+
+def test_cli_bad_folders(capsys, card_dir, tmp_path):
+    """One line, exit 2, and an earlier rig file left as it was."""
+    out = tmp_path / "rig.toml"
+    out.write_text("keep")
+    code, _, err = run(capsys, "calibrate", str(tmp_path / "none"), "--rig", str(RIGS / "clear.toml"), "-o", str(out))
+    assert code == 2 and "calibration folder not found" in err and len(err.strip().splitlines()) == 1
+    few = tmp_path / "few"
+    few.mkdir()
+    (few / "target.toml").write_text(dumps_target(CARD))
+    for name in ("card_00.png", "card_01.png"):
+        (few / name).write_bytes((card_dir[0] / name).read_bytes())
+    code, _, err = run(capsys, "calibrate", str(few), "--rig", str(RIGS / "clear.toml"), "-o", str(out))
+    assert code == 2 and "calibration needs at least 3 usable images, got 2" in err
+    (few / "target.toml").write_text(dumps_target(CARD).replace("rows = 4", "rows = 5"))
+    code, _, err = run(capsys, "calibrate", str(few), "--rig", str(RIGS / "clear.toml"), "-o", str(out))
+    assert code == 2 and "got 0" in err and "expected 60" in err
+    assert out.read_text() == "keep"
