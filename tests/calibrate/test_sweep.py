@@ -10,8 +10,9 @@ from psvs.calibrate.sweep import calibrate_sweep, read_sweep
 from psvs.calibrate.table1 import HOLDER, ROBOT_OFFSET_MM, _image, rough_start
 from psvs.calibrate.targets import detect_pattern
 from psvs.io.images import write_png
+from psvs.measure.triangulate import triangulate
+from psvs.optics.project import project_points
 from tests.cli.test_cli import EXAMPLE, run
-from tests.conftest import reconstruction_errors
 
 SWEEP = np.arange(450.0, 1151.0, 140.0)   # 6 positions
 
@@ -45,10 +46,15 @@ def test_recovers_the_rig_from_a_rough_start(sweep_dir):
     assert len(res.used) == len(SWEEP) and set(res.used.values()) == {"sweep"}
     assert abs(v["focal_length_mm"] - 11.3) < 0.01
     assert abs(res.baseline_mm - 100.0) < 0.5 and res.baseline_sigma_mm < 0.5
-    # a sweep cannot tell the principal point from a turn of the mirrors; what matters is what the rig
-    # measures: true correspondences over 400-1200 mm triangulate to the truth up to a rigid motion
-    raw, aligned, _ = reconstruction_errors(b.rig, default_rig())
-    assert np.mean(aligned) < 0.3
+    # what the sweep saw -- the pattern's row, 450-1150 mm -- the calibrated rig measures: true
+    # correspondences of points there triangulate within 0.5 mm, issue 14's bound for a sweep alone (the
+    # whole field needs card views; absolute depth rests on the design, since the robot's offset is free)
+    zz, xx = np.meshgrid(np.linspace(450.0, 1150.0, 8), np.linspace(-40.0, 50.0, 7))
+    pts = np.column_stack([xx.ravel(), np.full(xx.size, -4.0), zz.ravel()])
+    left, _ = project_points(pts, default_rig(), "left")
+    right, _ = project_points(pts, default_rig(), "right")
+    got = triangulate(left, right, b.rig, model="exact").points_mm
+    assert np.mean(np.linalg.norm(got - pts, axis=1)) < 0.5
     assert abs(b.sweep["offset_mm"] - ROBOT_OFFSET_MM) < 1.0
     assert abs(b.sweep["ry_rad"] - np.radians(HOLDER["tilt_y_deg"])) < 0.01
     assert all(np.isfinite(x) and x >= 0 for x in s.values())
@@ -74,7 +80,8 @@ def test_calibrate_cli(capsys, tmp_path, sweep_dir):
     assert rig.mirrors.plate_thickness_mm == pytest.approx(printed["plate_thickness_mm"], abs=1e-5)
     assert np.degrees(rig.mirrors.error("m1").tilt_rad[0]) == pytest.approx(printed["m1_tilt_a_deg"], abs=1e-5)
     assert rig.mirrors.error("m4").shift_mm == pytest.approx(printed["m4_shift_mm"], abs=1e-5)
-    assert re.search(r"held near nominal by priors", text)
+    held = re.search(r"parameter\(s\) held near nominal by their priors \((.*)\)", text)[1]
+    assert {"k2 +-0.5", "p1 +-0.02", "m4_tilt_a_deg +-0.3", "box_z_deg +-0.3"} <= set(held.split(", "))
 
 
 def test_bad_sweeps(capsys, tmp_path, sweep_dir):

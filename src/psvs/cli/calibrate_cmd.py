@@ -54,8 +54,10 @@ def run(args) -> int:
     if b.sweep:
         print(f"  robot offset: Z = reading + {b.sweep['offset_mm']:.3f} mm")
     if b.held_by_prior:
-        print(f"{len(b.held_by_prior)} parameter(s) held near nominal by priors (sigma "
-              f"{', '.join(f'{n} {PRIOR_SIGMA[n]:g}' for n in b.held_by_prior)}): add card views to see them")
+        priors = ", ".join(f"{n[:-4]}_deg +-{math.degrees(PRIOR_SIGMA[n]):.2g}" if n.endswith("_rad")
+                           else f"{n} +-{PRIOR_SIGMA[n]:g}" for n in b.held_by_prior)
+        print(f"{len(b.held_by_prior)} parameter(s) held near nominal by their priors ({priors}): "
+              "the images do not show them; more card views, tilted and over the whole field, would")
     print(f"solver: {b.message}")
     save_rig(res.rig, out)
     if args.report is not None:

@@ -1,0 +1,49 @@
+"""``psvs card-views``: simulated views of a hand-held circle-grid card, ready for ``psvs calibrate``."""
+from __future__ import annotations
+
+from pathlib import Path
+
+from psvs.cli.common import add_rig_argument, rig_from_args
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("card-views", help="render hand-held card views through a rig, for psvs calibrate",
+                       description="Render N views of a circle-grid card (4x6 discs, 14 mm apart, 7 mm across, "
+                                   "unless --rows/--cols/--spacing-mm/--diameter-mm) at random poses (450-1000 mm, "
+                                   "tilted up to 25 deg) through the rig, and write card_NN.png and target.toml into "
+                                   "DIR: a calibration folder as a user would make with a printed card.")
+    p.add_argument("folder", metavar="DIR", help="output folder (created if missing)")
+    add_rig_argument(p)
+    p.add_argument("--views", type=int, default=16, help="number of views (3-60, default 16)")
+    p.add_argument("--seed", type=int, default=0, help="random poses and sensor noise (default 0)")
+    p.add_argument("--rows", type=int, default=4)
+    p.add_argument("--cols", type=int, default=6)
+    p.add_argument("--spacing-mm", type=float, default=14.0)
+    p.add_argument("--diameter-mm", type=float, default=7.0)
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from psvs.calibrate.synthetic import random_poses, render_grid_shots
+    from psvs.calibrate.target_file import dumps_target
+    from psvs.io.atomic import write_atomic
+    from psvs.io.images import write_png
+    from psvs.simulate.textures import CircleGrid
+
+    if not 3 <= args.views <= 60:
+        raise ValueError(f"--views must be 3-60, got {args.views}")
+    folder = Path(args.folder)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"output folder {folder} is a file")
+    try:
+        card = CircleGrid(args.rows, args.cols, args.spacing_mm, args.diameter_mm)
+    except ValueError as exc:
+        raise ValueError(f"card: {str(exc).replace('_mm', '-mm')}") from None
+    rig = rig_from_args(args)
+    shots = render_grid_shots(rig, card, random_poses(rig, card, args.views, seed=args.seed), seed=args.seed)
+    folder.mkdir(parents=True, exist_ok=True)
+    for k, shot in enumerate(shots):
+        write_png(folder / f"card_{k:02d}.png", shot.image)
+    write_atomic(folder / "target.toml", dumps_target(card))
+    print(f"wrote {len(shots)} card views and target.toml to {folder}")
+    return 0
