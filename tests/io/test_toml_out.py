@@ -1,24 +1,34 @@
-import math
+"""Rig files hold plain numbers whatever the rig was built from (a calibration gives NumPy scalars): the
+written TOML and JSON read back with the standard readers, by value."""
+import json
 import tomllib
 
+import numpy as np
 import pytest
 
-from psvs.io.toml_out import dumps_toml
+from psvs import default_rig
+from psvs.io.params import dumps_rig, load_rig, save_rig
+from psvs.io.tomlfile import dumps_toml
 
 
-def test_round_trip_through_tomllib():
-    data = {
-        "flag": True, "count": 3, "name": 'say "hi"\n\u00e9', "x": 0.1 + 0.2, "bad": float("nan"),
-        "far": float("-inf"), "pair": [1.5, -2.25], "words": ["a", "b"],
-        "table": {"k": 1, "sub": {"deep": [1, 2, 3]}},
-        "rows": [{"name": "M1", "w": 2.5}, {"name": "M2", "w": 3.5}],
-    }
-    back = tomllib.loads(dumps_toml(data))
-    assert math.isnan(back.pop("bad"))
-    data.pop("bad")
-    assert back == data
+@pytest.mark.parametrize("suffix", [".toml", ".json"])
+def test_numpy_scalars_write_plain_numbers(tmp_path, suffix):
+    rig = default_rig().replace(focal_length_mm=np.float64(11.300391427337438),
+                                principal_point_px=(np.float64(320.25), np.float32(240.5)),
+                                plate_thickness_mm=np.float64(2.91), baseline_mm=np.float64(100.06))
+    path = tmp_path / f"rig{suffix}"
+    save_rig(rig, path)
+    text = path.read_text()
+    assert "np." not in text
+    data = json.loads(text) if suffix == ".json" else tomllib.loads(text)
+    assert data["camera"]["focal_length_mm"] == 11.300391427337438
+    assert data["camera"]["principal_point_px"] == [320.25, 240.5]
+    assert data["mirrors"]["baseline_mm"] == 100.06
+    assert load_rig(path) == rig.replace(focal_length_mm=11.300391427337438, principal_point_px=(320.25, 240.5),
+                                         plate_thickness_mm=2.91, baseline_mm=100.06)
 
 
-def test_unsupported_value():
-    with pytest.raises(TypeError, match="cannot write NoneType None to TOML"):
+def test_writer_refuses_what_it_cannot_write():
+    with pytest.raises(TypeError):
         dumps_toml({"x": None})
+    assert tomllib.loads(dumps_rig(default_rig()))["mirrors"]["angle_deg"] == 45.0

@@ -6,7 +6,7 @@ import math
 
 from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
 from psvs.io.atomic import write_atomic
-from psvs.io.toml_out import dumps_toml
+from psvs.io.tomlfile import dumps_toml
 from psvs.io.params import rig_to_dict, save_rig
 from psvs.optics.design import MirrorDesign, design_mirrors
 

@@ -15,9 +15,10 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
+
 from psvs.io.atomic import write_atomic
-from psvs.io.toml_out import dumps_toml
-from psvs.io.tomlfile import load_toml
+from psvs.io.tomlfile import dumps_toml, load_toml
 from psvs.optics.rig import MIRROR_NAMES, Camera, MirrorError, MirrorExtent, Mirrors, Rig
 
 _CAMERA_REQUIRED = ("focal_length_mm", "pixel_pitch_mm", "image_size_px")
@@ -188,7 +189,7 @@ def rig_to_dict(rig: Rig) -> dict:
     dist = c.distortion
     lens = {} if not c.distorted else \
         {"distortion_k": list(dist[:2])} if dist[2:] == (0.0, 0.0, 0.0) else {"distortion": list(dist)}
-    return {
+    return _plain({
         "camera": {
             "focal_length_mm": c.focal_length_mm,
             "pixel_pitch_mm": list(c.pixel_pitch_mm),
@@ -197,7 +198,21 @@ def rig_to_dict(rig: Rig) -> dict:
             **lens,
         },
         "mirrors": mirrors,
-    }
+    })
+
+
+def _plain(value):
+    """The dict with every number a plain Python int or float (a rig may hold NumPy scalars, e.g. from a
+    calibration; TOML and JSON writers must never see them)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, bool) or isinstance(value, str):
+        return value
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    return float(value)
 
 
 def dumps_rig(rig: Rig, fmt: str = "toml") -> str:

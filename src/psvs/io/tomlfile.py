@@ -1,4 +1,4 @@
-"""Reading psvs's TOML files with errors that name the file."""
+"""psvs's TOML files: reading with errors that name the file (``tomllib``), writing with ``tomli-w``."""
 from __future__ import annotations
 
 import json
@@ -18,3 +18,21 @@ def load_toml(path, what: str) -> dict:
         return json.loads(text) if is_json else tomllib.loads(text)
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"{path}: malformed {'JSON' if is_json else 'TOML'}: {exc}") from None
+
+
+def dumps_toml(data: dict) -> str:
+    """TOML text of a nested dict of plain Python values (``tomli-w``; NumPy scalars must be converted
+    first: a TypeError names the value, so nothing unreadable is ever written).
+
+    Examples
+    --------
+    >>> print(dumps_toml({"camera": {"focal_length_mm": 11.3, "image_size_px": [640, 480]}}), end="")
+    [camera]
+    focal_length_mm = 11.3
+    image_size_px = [
+        640,
+        480,
+    ]
+    """
+    import tomli_w
+    return tomli_w.dumps(data)
