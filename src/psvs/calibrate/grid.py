@@ -4,7 +4,8 @@ Each disc appears twice. All dark blobs are found and refined as for the paper's
 (:mod:`psvs.calibrate.targets`), split into the two views by a two-cluster split along u (the grid must
 be narrower than its disparity, so the copies do not interleave: the left view is the right-hand copy),
 and each copy ordered on its own with ``cv2.findCirclesGrid`` run on a clean synthetic image of its
-centres, row by row toward +u and +v (so a build whose views disagree by many rows pairs them right). The generic calibration treats the two
+centres; the right copy's order is then turned to agree with the left's (twins all sit one shift apart),
+so a build whose views disagree by many rows pairs them right. The generic calibration treats the two
 views as two pinhole cameras with *shared* intrinsics (one lens): ``cv2.calibrateCamera`` on every view
 for K and the distortion, then ``cv2.stereoCalibrate`` with them fixed for R and T. (The M1 plate makes
 the left view slightly non-central; this model absorbs that into R, T and the residual.)
@@ -45,7 +46,7 @@ def _pair_views(left: np.ndarray, right: np.ndarray, what: str) -> GridDetection
 
 
 def _order(points: np.ndarray, radius: float, rows: int, cols: int, shape) -> np.ndarray | None:
-    """The points (rows * cols, 2) in grid order (see :func:`_canonical`), or None when they form no grid."""
+    """The points (rows * cols, 2) in ``cv2.findCirclesGrid``'s grid order, or None when they form no grid."""
     canvas = np.full(shape, 255, np.uint8)
     for u, v in points:
         cv2.circle(canvas, (int(round(u * 4)), int(round(v * 4))), int(round(radius * 4)), 0, -1, cv2.LINE_AA, 2)
@@ -54,21 +55,23 @@ def _order(points: np.ndarray, radius: float, rows: int, cols: int, shape) -> np
         return None
     found = found.reshape(-1, 2)  # (N, 1, 2) in OpenCV 4, (N, 2) in OpenCV 5
     idx = [int(np.argmin(np.linalg.norm(points - f, axis=1))) for f in found]
-    return _canonical(points[idx], rows, cols) if len(set(idx)) == len(idx) else None
+    return points[idx] if len(set(idx)) == len(idx) else None
 
 
-def _canonical(ordered: np.ndarray, rows: int, cols: int) -> np.ndarray:
-    """The grid's points row by row with columns running toward +u and rows toward +v in the image.
+def _pair_orders(left: np.ndarray, right: np.ndarray, rows: int, cols: int) -> np.ndarray:
+    """The right view's grid order turned (a half turn; a quarter turn too for a square grid) to label
+    each disc as the left view does: twins sit one shift apart (the disparity, and the rows a build puts
+    between the views), so the right order whose left-minus-right offsets agree best is the one.
 
-    ``cv2.findCirclesGrid`` may start at any corner of a symmetric grid; both views see the target from
-    nearly the same direction (two mirrors each: not mirrored), so this labels a disc the same in both.
+    ``cv2.findCirclesGrid`` may start a grid at any corner; only turns are tried, never a mirror image:
+    both views see the card through two mirrors each, so neither is mirrored.
     """
-    g = ordered.reshape(rows, cols, 2)
-    if np.mean(g[:, -1, 0] - g[:, 0, 0]) < 0:
-        g = g[:, ::-1]
-    if np.mean(g[-1, :, 1] - g[0, :, 1]) < 0:
-        g = g[::-1]
-    return g.reshape(-1, 2)
+    g = right.reshape(rows, cols, 2)
+    turns = [g, g[::-1, ::-1]]
+    if rows == cols:
+        turns += [np.rot90(g, 1), np.rot90(g, 3)]
+    spread = [np.linalg.norm(np.std(left - t.reshape(-1, 2), axis=0)) for t in turns]
+    return turns[int(np.argmin(spread))].reshape(-1, 2)
 
 
 def detect_grid(grey: np.ndarray, rows: int, cols: int, max_diameter_px: int = 40) -> GridDetection:
@@ -94,6 +97,7 @@ def detect_grid(grey: np.ndarray, rows: int, cols: int, max_diameter_px: int = 4
     if ordered[0] is None or ordered[1] is None:
         which = "left" if ordered[0] is None else "right"
         raise ValueError(f"the {which} view's discs do not form a {rows}x{cols} grid")
+    ordered[1] = _pair_orders(ordered[0], ordered[1], rows, cols)
     # each ordered point is one of the refined centres: look up its ground's spread
     even = [spread[np.argmin(np.linalg.norm(pts[:, None, :] - o[None, :, :], axis=2), axis=0)]
             <= MAX_BACKGROUND_SPREAD for o in ordered]
