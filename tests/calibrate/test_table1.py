@@ -40,3 +40,19 @@ def test_cli_help_and_bad_output(capsys, tmp_path):
     f.write_text("keep")
     code, _, err = run(capsys, "table1", "-o", str(f))
     assert code == 2 and "is a file" in err and f.read_text() == "keep"
+
+
+def test_table1_on_a_misaligned_build_from_the_sweep_alone():
+    """Issue 14: the paper's robot sweep through examples/rigs/misaligned.toml, calibrated from its design
+    (examples/rigs/clear.toml): mean |Z error| <= 0.5 mm on the 15 test distances, first-last distance
+    within 0.1 mm."""
+    from pathlib import Path
+
+    from psvs.calibrate.table1 import run_table1
+    from psvs.io.params import load_rig
+    rigs = Path(__file__).resolve().parents[2] / "examples" / "rigs"
+    design = load_rig(rigs / "clear.toml").with_extents({k: None for k in ("m1", "m2", "m3", "m4")})
+    t = run_table1(load_rig(rigs / "misaligned.toml"), start=design, method="sweep")
+    s = t.summary()["ours"]
+    assert t.calibration.rms_px < 0.05
+    assert s["mean_abs_z_error_mm"] <= 0.5 and s["mean_distance_error_mm"] <= 0.1
