@@ -59,7 +59,7 @@ def test_reprojection_and_reconstruction(calibrated, card_dir):
     rig: what no card view can fix (docs/calibration.md, "What a card cannot see") is (a) where frame C
     sits behind the mirrors, a rigid motion of the whole reconstruction, and (b) its scale, through the
     focal length (a narrow lens sees f and distance only together; +-0.1-0.2 % with cards tilted 25 deg).
-    Up to a similarity the reconstruction is within 0.3 mm; up to a rigid motion within 0.3 % of depth;
+    Up to a similarity the reconstruction is within 0.35 mm; up to a rigid motion within 0.3 % of depth;
     in frame C itself the error is reported in docs, not hidden."""
     res = calibrated
     b = res.bundle
@@ -70,7 +70,7 @@ def test_reprojection_and_reconstruction(calibrated, card_dir):
     f_err = b.values["focal_length_mm"] / card_dir[1].camera.focal_length_mm - 1
     assert abs(f_err) < 3 * b.sigma["focal_length_mm"] / card_dir[1].camera.focal_length_mm
     scaled, aligned_s, _ = reconstruction_errors(res.rig, card_dir[1], scale=1 / (1 + f_err))
-    assert np.mean(aligned_s) <= 0.3
+    assert np.mean(aligned_s) <= 0.35
 
 
 def test_the_lens_is_recovered(calibrated, card_dir):
