@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import signal
 import subprocess
 import sys
 import venv
@@ -53,6 +54,23 @@ def ensure_env() -> Path:
     return py
 
 
+def run_child(args: list[str], **kwargs) -> int:
+    """Run a command and return its exit status. Ctrl-C reaches the child (the terminal sends SIGINT to
+    the whole process group; a SIGINT sent to dev.py alone is passed on), and dev.py waits for it to stop
+    cleanly instead of killing it: status 130, no traceback from dev.py."""
+    proc = subprocess.Popen(args, **kwargs)
+    while True:
+        try:
+            code = proc.wait()
+            break
+        except KeyboardInterrupt:
+            try:
+                proc.send_signal(signal.SIGINT)
+            except ProcessLookupError:
+                pass
+    return 130 if code == -signal.SIGINT else code
+
+
 def main(argv: list[str]) -> int:
     if not argv or argv[0] not in {"demo", "test", "bench", "psvs"}:
         print(__doc__, file=sys.stderr)
@@ -68,8 +86,12 @@ def main(argv: list[str]) -> int:
         args = [py, str(ROOT / "bench" / "run.py"), *rest]
     else:
         args = [py, "-m", "psvs", *rest]
-    return subprocess.run(args, cwd=ROOT, env=env).returncode
+    return run_child(args, cwd=ROOT, env=env)
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    try:
+        sys.exit(main(sys.argv[1:]))
+    except KeyboardInterrupt:           # Ctrl-C while setting up the virtualenv
+        print("\ndev.py: interrupted", file=sys.stderr)
+        sys.exit(130)

@@ -31,6 +31,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.run(args) or 0)
+    except KeyboardInterrupt:
+        # Ctrl-C: one line and the shell's status for SIGINT; files are written atomically, so no output
+        # is left half-written (a write in progress removes its temporary file)
+        print(f"\npsvs {args.command}: interrupted", file=sys.stderr)
+        return 130
     except (ValueError, TypeError, OSError, RigGeometryError) as exc:
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
