@@ -86,7 +86,9 @@ def main(argv: list[str]) -> int:
         args = [py, str(ROOT / "bench" / "run.py"), *rest]
     else:
         args = [py, "-m", "psvs", *rest]
-    return run_child(args, cwd=ROOT, env=env)
+    # psvs and the demo run where the user is (relative paths mean what they typed); tests and benchmarks
+    # run in the repository
+    return run_child(args, cwd=ROOT if cmd in ("test", "bench") else Path.cwd(), env=env)
 
 
 if __name__ == "__main__":

@@ -41,8 +41,8 @@ def reflection(point, normal) -> np.ndarray:
 
 
 class ReferenceBuild:
-    def __init__(self, f=11.3, pitch=0.01, centre=(319.5, 239.5), dist=(0, 0, 0, 0, 0), b=100.0, c1=25.0,
-                 c2=45.0, d=3.0, n=1.52, errors=None, box_rotvec=(0.0, 0.0, 0.0)):
+    def __init__(self, f=11.3, pitch=0.01, centre=(319.5, 239.5), dist=(0, 0, 0, 0, 0), b=100.0, c1=22.0,
+                 c2=44.0, d=3.0, n=1.52, errors=None, box_rotvec=(0.0, 0.0, 0.0)):
         self.f, self.pitch, self.centre, self.dist = f, pitch, np.asarray(centre, float), np.asarray(dist, float)
         self.d, self.n = d, n
         r2 = 1 / math.sqrt(2)

@@ -7,7 +7,7 @@ import pytest
 from psvs import default_rig
 from psvs.calibrate.folder import calibrate_folder
 from psvs.calibrate.sweep import calibrate_sweep, read_sweep
-from psvs.calibrate.table1 import HOLDER, ROBOT_OFFSET_MM, _image, rough_start
+from psvs.calibrate.table1 import HOLDER, ROBOT_OFFSET_MM, pattern_image, rough_start
 from psvs.calibrate.targets import detect_pattern
 from psvs.io.images import write_png
 from psvs.measure.triangulate import triangulate
@@ -24,7 +24,7 @@ def sweep_dir(tmp_path_factory):
     rows = []
     for z in SWEEP:
         name = f"z{z:.0f}.png"
-        write_png(folder / name, _image(rig, z, int(z)))
+        write_png(folder / name, pattern_image(rig, z, int(z)))
         rows.append((name, z - ROBOT_OFFSET_MM))
     write_png(folder / "blank.png", np.full((480, 640), 30, np.uint8))
     rows.append(("blank.png", 2000.0))
@@ -93,6 +93,6 @@ def test_bad_sweeps(capsys, tmp_path, sweep_dir):
     (tmp_path / "sweep.csv").write_text("image,position_mm\na.png,far\n")
     with pytest.raises(ValueError, match="position_mm is not a number: 'far'"):
         read_sweep(tmp_path)
-    obs = [("a", 700.0, detect_pattern(_image(default_rig(), 400.0 - ROBOT_OFFSET_MM + ROBOT_OFFSET_MM, 1)))]
+    obs = [("a", 700.0, detect_pattern(pattern_image(default_rig(), 400.0 - ROBOT_OFFSET_MM + ROBOT_OFFSET_MM, 1)))]
     with pytest.raises(ValueError, match="needs at least 3 usable sweep images, got 1"):
         calibrate_sweep(obs, default_rig())

@@ -90,9 +90,11 @@ def test_bad_rig_and_csv_exit_2_and_keep_old_output(capsys, tmp_path, matches_cs
     assert out.read_text() == "previous results\n"
 
 
-def test_design_blocked_default_rig_writes_table(capsys, tmp_path):
+def test_design_blocked_rig_writes_table(capsys, tmp_path):
+    blocked = tmp_path / "blocked.toml"
+    save_rig(default_rig().replace(m1_axis_distance_mm=25.0, m2_axis_distance_mm=45.0), blocked)
     table = tmp_path / "mirrors.json"
-    code, out, _ = run(capsys, "design", "--rig", EXAMPLE, "-o", str(table))
+    code, out, _ = run(capsys, "design", "--rig", str(blocked), "-o", str(table))
     assert code == 1
     assert "Layout: BLOCKED" in out and "M2 cuts through the M1 plate" in out and "Suggestion:" in out
     data = json.loads(table.read_text())
@@ -114,13 +116,26 @@ def test_design_clear_rig_toml_and_rig_out(capsys, tmp_path):
 
 def test_design_bad_margin(capsys):
     code, _, err = run(capsys, "design", "--rig", EXAMPLE, "--margin-mm", "-2", "--no-search")
-    assert code == 2 and "margin_mm must be >= 0" in err
+    assert code == 2 and "--margin-mm must be a finite border >= 0 mm, got -2.0" in err
 
 
-def test_demo_runs(capsys, tmp_path):
+def test_demo_prints_the_right_millimetres(capsys, tmp_path):
+    """The demo's numbers, read from its tables and checked against the truth it renders."""
+    import re
     code, out, _ = run(capsys, "demo", "--out", str(tmp_path))
-    assert code == 0
-    assert "exact ray tracing" in out and "Suggestion:" in out and "edges paired" in out
+    assert code == 0 and "Layout: clear" in out
+    tri = {m[1].strip(): (float(m[2]), float(m[3])) for m in
+           re.finditer(r"^(paper eqs\. \(12\)-\(14\)|eqs\. \(15\)-\(17\) derived|exact ray tracing)\s+(\S+)\s+(\S+)",
+                       out, re.M)}
+    assert tri["exact ray tracing"][1] < 1e-6                     # exact optics invert the projection
+    assert tri["eqs. (15)-(17) derived"][0] < 0.5 < 5 < tri["paper eqs. (12)-(14)"][0]
+    rows = re.findall(r"^(\d+)\s+(\d+)\s+(\d+)\s+([\d.]+)\s+([\d.]+)\s+(-?[\d.]+)$", out, re.M)
+    assert len(rows) >= 4                                           # Fig. 5b: the paired edges
+    for _, _, _, z_meas, z_true, err in rows:
+        assert abs(float(z_meas) - float(z_true)) <= 0.01 * float(z_true)
+        assert float(err) == pytest.approx(100 * (float(z_meas) - float(z_true)) / float(z_true), abs=0.02)
+    assert 690 <= np.median([float(r[4]) for r in rows]) <= 720     # the ashtrays at 690 and 720 mm
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fig5b.png", "fig7_views.png", "fig8_disparity.png"]
 
 
 def test_fit_refraction_writes_rig(capsys, tmp_path):

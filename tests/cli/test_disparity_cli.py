@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from psvs.dense.evaluate import superimpose
-from psvs.io.images import write_png
+from psvs.io.images import read_grey, write_png
 from tests.cli.test_cli import EXAMPLE, run
 from tests.dense.planted import layered_pair
 
@@ -130,3 +130,20 @@ def test_disparity_on_a_file_that_is_not_an_image(capsys, tmp_path):
     code, _, err = run(capsys, "disparity", str(fake), "--min-disparity", "0", "--max-disparity", "9",
                        "-o", str(tmp_path / "d.npy"))
     assert code == 2 and "not a readable image" in err and not (tmp_path / "d.npy").exists()
+
+
+def test_memory_is_checked_before_the_cost_volume(capsys, tmp_path, planted, monkeypatch):
+    """24 B per (pixel, lag) + 400 B per pixel, against 80 % of what is available: refused in one line that
+    names the options; the same range runs when the memory is there."""
+    from psvs import _memory
+    from psvs.dense.disparity import dense_memory_bytes
+    paths, _ = planted
+    h, w = read_grey(paths["complex"]).shape
+    need = dense_memory_bytes(h, w, 0, w - 1)
+    assert need == 24 * h * w * (w - 1 - 3 + 1) + 400 * h * w   # lags MIN_LAG_PX (3) .. w - 1
+    monkeypatch.setattr(_memory, "available_bytes", lambda: int(need / 0.8) - 1)
+    out = tmp_path / "d.npy"
+    code, _, err = run(capsys, "disparity", str(paths["complex"]), "-o", str(out), "--min-disparity", "0",
+                       "--max-disparity", str(w - 1))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not out.exists()
+    assert f"--min-disparity/--max-disparity 0..{w - 1} px on {w}x{h} px needs about" in err

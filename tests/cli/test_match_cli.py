@@ -1,5 +1,6 @@
 import json
 
+import cv2
 import numpy as np
 import pytest
 
@@ -11,13 +12,31 @@ from tests.cli.test_cli import EXAMPLE, run
 
 
 @pytest.fixture(scope="module")
-def fig5a_png(tmp_path_factory):
+def fig5a_render(tmp_path_factory):
     path = tmp_path_factory.mktemp("img") / "fig5a.png"
-    write_png(path, render(builtin_scene("fig5a"), default_rig(), seed=1).image)
-    return path
+    res = render(builtin_scene("fig5a"), default_rig(), seed=1, truth=True)
+    write_png(path, res.image)
+    return path, res.truth.depth_left_mm
 
 
-def test_auto_writes_json_csv_ply_figures(capsys, tmp_path, fig5a_png):
+@pytest.fixture(scope="module")
+def fig5a_png(fig5a_render):
+    return fig5a_render[0]
+
+
+def depth_errors_mm(left_px, z_mm, depth_left_mm):
+    """|Z - truth| per matched point: the truth is the object depth (not the backdrop's) in the 3x3 pixels
+    around the left-view edge pixel that is closest to Z (an edge pixel straddles object and backdrop)."""
+    out = []
+    for (u, v), z in zip(np.rint(left_px).astype(int), z_mm):
+        w = depth_left_mm[v - 1:v + 2, u - 1:u + 2]
+        w = w[np.isfinite(w) & (w < 1000.0)]   # fig5a's backdrop is at 1200 mm
+        out.append(np.min(np.abs(w - z)) if w.size else np.inf)
+    return np.array(out)
+
+
+def test_auto_writes_json_csv_ply_figures(capsys, tmp_path, fig5a_render):
+    fig5a_png, depth_truth = fig5a_render
     out, csv, ply = tmp_path / "m.json", tmp_path / "m.csv", tmp_path / "m.ply"
     figs = tmp_path / "figs"
     figs.mkdir()
@@ -30,7 +49,10 @@ def test_auto_writes_json_csv_ply_figures(capsys, tmp_path, fig5a_png):
     n = pair["n"]
     assert np.array(pair["left_px"]).shape == (n, 2) and np.array(pair["right_px"]).shape == (n, 2)
     assert len(pair["disparity_px"]) == n and np.array(pair["points_mm"], dtype=float).shape == (n, 3)
-    assert 580 < pair["median_z_mm"] < 720 and "median Z" in text
+    assert "median Z" in text
+    for p in data["pairs"]:   # against the renderer's depth map: box ~600 mm, cylinder silhouette ~650 mm
+        err = depth_errors_mm(p["left_px"], np.array(p["points_mm"], float)[:, 2], depth_truth)
+        assert np.median(err) < 4.0   # measured 0.9 (box) and 2.8 mm (cylinder); 1 px of disparity ~ 2.3 mm
     assert csv.read_text().startswith("pair,u_l,v_l,u_r,v_r,disparity_px,X_mm,Y_mm,Z_mm\n")
     assert "element vertex" in ply.read_text()
     assert sorted(p.name for p in figs.iterdir()) == ["fig7_views.png", "fig8_disparity.png"]
@@ -71,3 +93,20 @@ def test_bad_images(capsys, tmp_path):
         assert code == 2 and message in err
     code, _, err = run(capsys, "match", str(blank), "--rig", EXAMPLE, "-o", str(tmp_path / "o.json"))
     assert code == 2 and "one of the arguments --seed --auto is required" in err
+
+
+def test_12bit_and_colour_images_match_like_the_8bit_one(capsys, tmp_path, fig5a_png):
+    """The same complex image as a 12-bit camera (16-bit PNG, 0..4095) and as colour: both find the same two
+    pairs at the same depths as the 8-bit image (issue 13: a 12-bit PNG used to become 0..15)."""
+    img8 = cv2.imread(str(fig5a_png), cv2.IMREAD_GRAYSCALE)
+    deep, colour = tmp_path / "deep.png", tmp_path / "colour.png"
+    cv2.imwrite(str(deep), np.rint(img8.astype(float) * 4095 / 255).astype(np.uint16))
+    cv2.imwrite(str(colour), np.dstack([img8] * 3))
+    depths = []
+    for path in (fig5a_png, deep, colour):
+        out = tmp_path / f"{path.stem}.json"
+        code, _, err = run(capsys, "match", str(path), "--rig", EXAMPLE, "--auto", "-o", str(out))
+        assert code == 0, err
+        depths.append([p["median_z_mm"] for p in json.loads(out.read_text())["pairs"]])
+    assert len(depths[0]) == 2
+    assert depths[1] == pytest.approx(depths[0], abs=0.5) and depths[2] == pytest.approx(depths[0], abs=1e-9)

@@ -59,6 +59,13 @@ def test_sequence(capsys, tmp_path, small_rig_file):
      "supersample must be an integer >= 1"),
     ('[[objects]]\ntype = "sphere"\nradius_mm = 5\nposition_mm = [0, 0, 500]\n', ["--move-mm", "1,2"],
      "--move-mm must be 'dx,dy,dz'"),
+    ('[[objects]]\ntype = "sphere"\nradius_mm = 5\nposition_mm = [0, 0, 500]\n', ["--move-mm", "nan,0,0"],
+     "three finite numbers in mm, got 'nan,0,0'"),
+    ('[[objects]]\ntype = "sphere"\nradius_mm = 5\nposition_mm = [0, 0, 500]\n', ["--seed", "-1"],
+     "--seed must be >= 0, got -1"),
+    # 160x120 px x 1000^2 samples x 300 B: ~5.4 TiB, refused before any allocation, naming the option
+    ('[[objects]]\ntype = "sphere"\nradius_mm = 5\nposition_mm = [0, 0, 500]\n', ["--supersample", "1000"],
+     "--supersample 1000 (160x120 px x 1000000 samples per pixel) needs about 5.2 TiB of memory"),
 ])
 def test_bad_input_exits_2_and_keeps_output(capsys, tmp_path, small_rig_file, scene_text, args, message):
     scene = tmp_path / "scene.toml"
@@ -91,3 +98,15 @@ def test_sequence_as_lossless_video(capsys, tmp_path, small_rig_file):
     assert all(np.array_equal(f, read_grey(tmp_path / f"seq_{i:03d}.png")) for i, f in enumerate(frames))
     code, _, err = run(capsys, "simulate", *args, "-o", str(tmp_path / "bad.avi"), "--fps", "0")
     assert code == 2 and "--fps must be > 0" in err and not (tmp_path / "bad.avi").exists()
+
+
+def test_supersample_limit_follows_the_memory_available(capsys, tmp_path, small_rig_file, monkeypatch):
+    """With 1 GiB available (80 % usable) at 160x120 px x 300 B per sample: K = floor(sqrt(0.8 GiB / 5.76 MB))
+    = 12 fits, 13 does not; the message names the option, the need and the largest K that fits."""
+    from psvs import _memory
+    monkeypatch.setattr(_memory, "available_bytes", lambda: 1 << 30)
+    out = tmp_path / "o.png"
+    code, _, err = run(capsys, "simulate", "fig9", "--rig", small_rig_file, "-o", str(out), "--supersample", "13")
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "--supersample 13" in err and "more than the 819.2 MiB available; at most --supersample 12 fits" in err
+    assert not out.exists()

@@ -49,7 +49,11 @@ BASE = EXAMPLE.read_text()
     (lambda t: t.replace("focal_length_mm = 11.3", 'focal_length_mm = "long"'),
      r"camera\.focal_length_mm must be a number, got str"),
     (lambda t: t.replace("angle_deg = 45.0", "angle_deg = 95.0"), r"mirrors\.angle_deg must be in \(0, 90\)"),
-    (lambda t: t.replace("m2_axis_distance_mm = 45.0", "m2_axis_distance_mm = 20.0"),
+    # the user typed degrees: the message answers in degrees, not in radians (issue 13)
+    (lambda t: t.replace("angle_deg = 45.0", "angle_deg = 90"), r"mirrors\.angle_deg must be in \(0, 90\) degrees, got 90$"),
+    (lambda t: t.replace("split_ratio = 0.5", "split_ratio = 1.0"), r"mirrors\.split_ratio must be in \(0, 1\) \(at 0 or 1 one view"),
+    (lambda t: t.replace("split_ratio = 0.5", "split_ratio = 0"), r"mirrors\.split_ratio must be in \(0, 1\)"),
+    (lambda t: t.replace("m2_axis_distance_mm = 44.0", "m2_axis_distance_mm = 20.0"),
      r"m2_axis_distance_mm must be > m1_axis_distance_mm"),
     (lambda t: t + "\n[mirrors.m5]\nalong_mm = [0, 1]\n", r"unknown key mirrors\.m5"),
     (lambda t: t + "\n[mirrors.m1]\nalong_mm = [2, 1]\nheight_mm = [-1, 1]\n", r"mirrors\.m1\.along_mm must be \(min, max\)"),

@@ -37,9 +37,17 @@ def test_clear_layout_has_no_obstruction(clear_rig):
     assert d.ok and d.problems == []
 
 
-def test_default_layout_is_blocked_and_names_the_mirror():
-    """c1 = 25, c2 = 45 with a 3 mm plate: the plate's far end crosses M2's plane (see docs/optics.md)."""
+def test_default_layout_is_clear():
+    """The project's default rig (c1 = 22, c2 = 44 mm) clears both light paths (issue 13)."""
     d = design_mirrors(default_rig())
+    assert d.ok and d.problems == []
+    lo, hi = d.m2_window_mm
+    assert lo < 44.0 < hi
+
+
+def test_blocked_layout_names_the_mirror():
+    """c1 = 25, c2 = 45 with a 3 mm plate: the plate's far end crosses M2's plane (see docs/optics.md)."""
+    d = design_mirrors(default_rig().replace(m1_axis_distance_mm=25.0, m2_axis_distance_mm=45.0))
     assert not d.ok
     assert "M2 cuts through the M1 plate" in d.problems
     assert any(p.startswith("M2 blocks the left view between M1 plate -> M2") for p in d.problems)
@@ -75,7 +83,7 @@ def test_mirror_widths_follow_eq6():
     for spec in d.mirrors:
         assert spec.extent.width_mm == pytest.approx(float(mirror_length_eq6(spec.axis_distance_mm, a, math.pi / 4)),
                                                      abs=1e-9)
-    assert [s.axis_distance_mm for s in d.mirrors] == pytest.approx([25.0, 45.0, 95.0, 75.0])
+    assert [s.axis_distance_mm for s in d.mirrors] == pytest.approx([22.0, 44.0, 94.0, 72.0])
 
 
 def test_plate_makes_m1_longer_than_eq6(rig):
@@ -88,10 +96,10 @@ def test_heights_cover_vertical_field():
     rig = default_rig().replace(plate_thickness_mm=0.0)
     d = design_mirrors(rig, search=False)
     tan_x, tan_y = (math.tan(v) for v in rig.camera.half_fov_rad)
-    # camera ray (tan_x, tan_y, 1) t hits M1 (z = x + 25) at t1 = 25 / (1 - tan_x); its height grows along the
-    # reflected path to M4 (total path OB = 75 along the axis): the far-end height is tan_y * t4 with
-    # t4 = 75 / (1 - tan_x) by similar triangles on the unfolded ray.
-    assert d.mirrors[3].extent.height_mm[1] == pytest.approx(tan_y * 75.0 / (1 - tan_x), abs=1e-9)
+    # camera ray (tan_x, tan_y, 1) t hits M1 (z = x + 22) at t1 = 22 / (1 - tan_x); its height grows along the
+    # reflected path to M4 (total path OB = 72 along the axis): the far-end height is tan_y * t4 with
+    # t4 = 72 / (1 - tan_x) by similar triangles on the unfolded ray.
+    assert d.mirrors[3].extent.height_mm[1] == pytest.approx(tan_y * 72.0 / (1 - tan_x), abs=1e-9)
 
 
 def test_working_range_by_hand(rig):

@@ -93,7 +93,7 @@ def test_report_and_bag_read_back(gap10, tmp_path):
     (["track", "weld_seam", "--rig", "examples/rigs/default.toml", "--speed", "-3", "-o", "r"], "--speed must be"),
     (["track", "weld_seam", "--rig", "examples/rigs/default.toml", "--rate", "0", "-o", "r"], "--rate must be"),
     (["track", "weld_seam", "--rig", "examples/rigs/default.toml", "-o", "no/such/dir"], "does not exist"),
-    (["track", "weld_seam", "--rig", "examples/rigs/default.toml", "-o", "afile"], "not a folder"),
+    (["track", "weld_seam", "--rig", "examples/rigs/default.toml", "-o", "afile"], "output afile is a file"),
     (["track", "weld_seam", "--rig", "examples/rigs/default.toml", "--seed", "x", "-o", "r"], "--seed must be"),
 ])
 def test_cli_errors_are_one_line_exit_2(args, msg, tmp_path, monkeypatch, capsys):

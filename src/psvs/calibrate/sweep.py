@@ -10,6 +10,7 @@ sweep is calibrated by the same bundle adjustment as hand-held grid views
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,7 @@ import numpy as np
 from psvs.calibrate.bundle import BundleResult, SweepView, bundle_adjust
 from psvs.calibrate.targets import PatternDetection, detect_pattern
 from psvs.io.images import read_grey
+from psvs.io.text import read_text
 from psvs.optics.rig import Rig
 
 SPACING_MM = 20.0   # the paper's pattern: circles 20 mm apart (Fig. 9)
@@ -28,13 +30,23 @@ def pattern_layout(count: int = COUNT, spacing_mm: float = SPACING_MM) -> np.nda
     return np.column_stack([(np.arange(count) - (count - 1) / 2) * spacing_mm, np.zeros(count), np.zeros(count)])
 
 
+def dumps_sweep(rows: list[tuple[str, float]]) -> str:
+    """``sweep.csv`` text: a header ``image,position_mm`` and one row per (image file name, robot reading mm);
+    the readings are written with repr precision, so :func:`read_sweep` gets the same floats back."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["image", "position_mm"])
+    w.writerows((name, repr(float(z))) for name, z in rows)
+    return buf.getvalue()
+
+
 def read_sweep(folder) -> list[tuple[Path, float]]:
     """(image path, robot position mm) from ``folder/sweep.csv`` (columns image,position_mm)."""
     folder = Path(folder)
     table = folder / "sweep.csv"
     if not table.is_file():
         raise FileNotFoundError(f"sweep file not found: {table}")
-    with table.open(newline="", encoding="utf-8") as fh:
+    with io.StringIO(read_text(table, "CSV"), newline="") as fh:
         reader = csv.DictReader(fh)
         if reader.fieldnames is None or not {"image", "position_mm"} <= set(reader.fieldnames):
             raise ValueError(f"{table}: expected columns image,position_mm, got {reader.fieldnames}")

@@ -62,7 +62,8 @@ class Table1:
                           "mean_diameter_error_mm": pd.mean(), "mean_distance_error_mm": pa.mean()}}
 
 
-def _image(rig: Rig, z: float, seed: int) -> np.ndarray:
+def pattern_image(rig: Rig, z: float, seed: int) -> np.ndarray:
+    """The Fig. 9 pattern on the robot's holder (:data:`HOLDER`) at depth ``z`` mm, rendered through ``rig``."""
     spec = ",".join(f"{k}={v}" for k, v in HOLDER.items())
     return render(builtin_scene(f"fig9:distance_mm={z},{spec}"), rig, seed=seed).image
 
@@ -97,7 +98,7 @@ def run_table1(true_rig: Rig, progress=None, start: Rig | None = None, method: s
     if method == "sweep":
         sweep = []
         for z in SWEEP_Z_MM:
-            sweep.append((f"sweep_{z:.0f}", z - ROBOT_OFFSET_MM, detect_pattern(_image(true_rig, z, int(z)))))
+            sweep.append((f"sweep_{z:.0f}", z - ROBOT_OFFSET_MM, detect_pattern(pattern_image(true_rig, z, int(z)))))
             tick(f"sweep {z:.0f} mm")
         cal = bundle_adjust([], sweep_views(sweep), start, sweep_local_mm=pattern_layout())
     else:
@@ -111,7 +112,7 @@ def run_table1(true_rig: Rig, progress=None, start: Rig | None = None, method: s
         cal = bundle_adjust(views, [], start)
     meas = []
     for z in PAPER_TABLE1[:, 0]:
-        meas.append(measure_pattern(_image(true_rig, z, int(z) + 1), cal.rig))
+        meas.append(measure_pattern(pattern_image(true_rig, z, int(z) + 1), cal.rig))
         tick(f"test {z:.1f} mm")
     return Table1(cal, PAPER_TABLE1[:, 0].copy(), meas)
 

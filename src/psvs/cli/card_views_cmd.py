@@ -1,9 +1,7 @@
 """``psvs card-views``: simulated views of a hand-held circle-grid card, ready for ``psvs calibrate``."""
 from __future__ import annotations
 
-from pathlib import Path
-
-from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
 
 
 def add_parser(sub) -> None:
@@ -32,9 +30,9 @@ def run(args) -> int:
 
     if not 3 <= args.views <= 60:
         raise ValueError(f"--views must be 3-60, got {args.views}")
-    folder = Path(args.folder)
-    if folder.exists() and not folder.is_dir():
-        raise ValueError(f"output folder {folder} is a file")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    folder = check_output_folder(args.folder)
     try:
         card = CircleGrid(args.rows, args.cols, args.spacing_mm, args.diameter_mm)
     except ValueError as exc:

@@ -1,6 +1,8 @@
 """Helpers shared by the subcommands."""
 from __future__ import annotations
 
+import math
+import os
 from pathlib import Path
 
 from psvs.io.params import load_rig
@@ -9,7 +11,8 @@ from psvs.optics.rig import Rig, default_rig
 
 def add_rig_argument(parser, required: bool = True) -> None:
     parser.add_argument("--rig", metavar="RIG.toml", required=required,
-                        help="rig file (TOML or JSON; see docs/rig_file.md)" +
+                        help="rig file (TOML or JSON; see docs/rig_file.md), or a shipped rig: default, clear, "
+                             "misaligned (psvs rig list)" +
                              ("" if required else "; default: the paper's rig"))
 
 
@@ -26,7 +29,35 @@ def check_output_path(path: str | None, suffixes: tuple[str, ...]) -> Path | Non
         raise ValueError(f"output {p} must end in {' or '.join(suffixes)}")
     if not p.parent.is_dir():
         raise FileNotFoundError(f"output folder does not exist: {p.parent}")
+    if p.is_dir():
+        raise ValueError(f"output {p} is a folder, not a file")
+    if not os.access(p.parent, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
+        raise PermissionError(f"cannot write {p}: permission denied")
     return p
+
+
+def check_output_folder(path: str, option: str = "output folder") -> Path:
+    """Validate an output folder before any work: not a file, and writable (the folder, or the nearest
+    existing folder above it, which psvs will create it in). Returns the path; creates nothing."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise ValueError(f"{option} {p} is a file")
+    existing = p
+    while not existing.exists():
+        existing = existing.parent
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise PermissionError(f"cannot write {option} {p}: permission denied")
+    return p
+
+
+def check_working_range(near_mm: float, far_mm: float) -> tuple[float, float]:
+    """``--near-mm``/``--far-mm`` as finite depths with 0 < near < far (mm), else a one-line ValueError."""
+    for name, v in (("--near-mm", near_mm), ("--far-mm", far_mm)):
+        if not math.isfinite(v) or v <= 0:
+            raise ValueError(f"{name} must be a finite depth > 0 mm, got {v}")
+    if near_mm >= far_mm:
+        raise ValueError(f"--near-mm ({near_mm} mm) must be less than --far-mm ({far_mm} mm)")
+    return near_mm, far_mm
 
 
 def load_scene_spec(spec: str):

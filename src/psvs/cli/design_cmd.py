@@ -4,10 +4,11 @@ from __future__ import annotations
 import json
 import math
 
-from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
+from psvs.cli.common import add_rig_argument, check_output_path, check_working_range, rig_from_args
 from psvs.io.atomic import write_atomic
 from psvs.io.tomlfile import dumps_toml
 from psvs.io.params import rig_to_dict, save_rig
+from psvs.measure.tolerance import Sensitivity, tolerance_analysis
 from psvs.optics.design import MirrorDesign, design_mirrors
 
 
@@ -22,6 +23,9 @@ def add_parser(sub) -> None:
     p.add_argument("--margin-mm", type=float, default=0.0,
                    help="extra border on every mirror side, e.g. half the lens entrance pupil (default 0)")
     p.add_argument("--no-search", action="store_true", help="skip the search for clear M1/M2 positions")
+    p.add_argument("--tolerance", action="store_true",
+                   help="also say how far each mirror's mounting error (0.1 deg, 0.1 mm) moves the views: rows "
+                        "apart (px) and depth error before calibration (mm), and the error worth 1 px")
     p.add_argument("-o", "--output", metavar="TABLE.json|.toml", help="write the mirror table here")
     p.add_argument("--rig-out", metavar="RIG.toml|.json", help="write the rig with the designed mirror extents")
     p.set_defaults(run=run)
@@ -50,6 +54,38 @@ def design_to_dict(d: MirrorDesign) -> dict:
             "depth_per_px_mm": list(wr.depth_per_px_mm), "overlap_start_mm": wr.overlap_start_mm}
     out["rig"] = rig_to_dict(d.rig)
     return out
+
+
+def tolerance_to_dict(rows: list[Sensitivity]) -> list[dict]:
+    """Tolerance rows as plain data: steps and the 1-px errors in degrees or mm (the file's units)."""
+    out = []
+    for r in rows:
+        deg = r.unit == "rad"
+        conv = math.degrees if deg else float
+        key = "deg" if deg else "mm"
+        out.append({"part": r.part, "error": r.component, f"step_{key}": conv(r.step),
+                    "rows_apart_px_max": r.row_px_max, "rows_apart_px_mean": r.row_px_mean,
+                    "depth_error_mm_mean": r.depth_mm_mean, "depth_error_mm_max": r.depth_mm_max,
+                    f"error_for_1px_{key}": conv(r.per_px) if math.isfinite(r.per_px) else -1.0})
+    return out
+
+
+def format_tolerance(rows: list[Sensitivity], near_mm: float, far_mm: float) -> str:
+    """The tolerance table (each error alone, before calibration)."""
+    lines = ["", f"Tolerance: each error alone, points over the shared field at {near_mm:g}-{far_mm:g} mm, "
+                 "the nominal rig triangulating (no calibration)",
+             f"{'part':<11}{'error':<26}{'step':>9}{'rows apart px':>16}{'depth error mm':>17}{'1 px of rows':>15}",
+             f"{'':<11}{'':<26}{'':>9}{'max':>8}{'mean':>8}{'mean':>8}{'max':>9}{'at':>15}"]
+    for r in rows:
+        deg = r.unit == "rad"
+        step = f"{math.degrees(r.step):.2g} deg" if deg else f"{r.step:.2g} mm"
+        one = (f"{math.degrees(r.per_px):.3f} deg" if deg else f"{r.per_px:.2f} mm") if math.isfinite(r.per_px) \
+            else "never"
+        lines.append(f"{r.part:<11}{r.component:<26}{step:>9}{r.row_px_max:8.2f}{r.row_px_mean:8.2f}"
+                     f"{r.depth_mm_mean:8.2f}{r.depth_mm_max:9.2f}{one:>15}")
+    lines.append("Errors add about linearly. Matching along rows needs twins within ~1 px; calibration "
+                 "(psvs calibrate) removes the depth error.")
+    return "\n".join(lines)
 
 
 def format_design(d: MirrorDesign) -> str:
@@ -91,12 +127,20 @@ def format_design(d: MirrorDesign) -> str:
 def run(args) -> int:
     out = check_output_path(args.output, (".json", ".toml"))
     rig_out = check_output_path(args.rig_out, (".json", ".toml"))
+    check_working_range(args.near_mm, args.far_mm)
+    if not (math.isfinite(args.margin_mm) and args.margin_mm >= 0):
+        raise ValueError(f"--margin-mm must be a finite border >= 0 mm, got {args.margin_mm}")
     rig = rig_from_args(args)
     d = design_mirrors(rig, margin_mm=args.margin_mm, near_mm=args.near_mm, far_mm=args.far_mm,
                        search=not args.no_search)
     print(format_design(d))
+    tol = tolerance_analysis(d.rig, args.near_mm, args.far_mm) if args.tolerance else None
+    if tol is not None:
+        print(format_tolerance(tol, args.near_mm, args.far_mm))
     if out is not None:
         data = design_to_dict(d)
+        if tol is not None:
+            data["tolerance"] = tolerance_to_dict(tol)
         write_atomic(out, json.dumps(data, indent=2) + "\n" if out.suffix.lower() == ".json" else dumps_toml(data))
     if rig_out is not None:
         save_rig(d.rig, rig_out)

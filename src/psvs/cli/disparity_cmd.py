@@ -6,9 +6,9 @@ import warnings
 
 import numpy as np
 
-from psvs.cli.common import check_output_path
+from psvs.cli.common import check_output_path, check_working_range
 from psvs.dense import dense_disparity, disparity_cloud, separate_views, write_cloud_ply
-from psvs.dense.disparity import working_range_px
+from psvs.dense.disparity import FAST, check_dense_memory, check_range, working_range_px
 from psvs.io.images import read_grey, to_grey8, write_npy, write_png
 from psvs.io.params import load_rig
 from psvs.measure.triangulate import MODELS
@@ -47,6 +47,7 @@ def _range(args, rig, width: int) -> tuple[float, float]:
         return args.min_disparity, args.max_disparity
     if rig is None:
         raise ValueError("give --rig or --min-disparity and --max-disparity")
+    check_working_range(args.near_mm, args.far_mm)
     return working_range_px(rig, args.near_mm, args.far_mm, width)
 
 
@@ -65,6 +66,9 @@ def run(args) -> int:
         raise ValueError(f"--split must lie strictly between 0 and 1, got {split}")
     image = read_grey(args.image)
     lo, hi = _range(args, rig, image.shape[1])
+    check_range(lo, hi, image.shape[1])
+    check_dense_memory(*image.shape, lo, hi, FAST if args.fast else None,
+                       "--min-disparity/--max-disparity" if args.max_disparity is not None else "the rig's range")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", RuntimeWarning)
         res = dense_disparity(image, lo, hi, fast=args.fast)

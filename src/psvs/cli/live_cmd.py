@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 import time
 
-from psvs.cli.common import add_rig_argument, check_output_path, parse_seed, rig_from_args
+from psvs.cli.common import add_rig_argument, check_output_path, check_working_range, parse_seed, rig_from_args
 from psvs.imaging.pipeline import PAPER, load_pipeline
 from psvs.live.log import write_log
 from psvs.live.source import VideoSource
@@ -41,6 +41,7 @@ def run(args) -> int:
     seed = parse_seed(args.seed)
     rig = rig_from_args(args)
     pipeline = load_pipeline(args.pipeline) if args.pipeline else PAPER
+    check_working_range(args.near_mm, args.far_mm)
     tracker = EdgeTracker(rig, seed, pipeline=pipeline, near_mm=args.near_mm, far_mm=args.far_mm, model=args.model)
     steps = []
     t0 = time.perf_counter()

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import sys
 
-from psvs.cli.common import add_rig_argument, check_output_path, parse_seed, rig_from_args
+from psvs.cli.common import add_rig_argument, check_output_path, check_working_range, parse_seed, rig_from_args
 from psvs.imaging.pipeline import PAPER, load_pipeline
 from psvs.io.images import read_grey
 from psvs.match.correspondence import match_image
@@ -30,7 +30,7 @@ def add_parser(sub) -> None:
     p.add_argument("--near-mm", type=float, default=400.0, help="working range near end (default 400)")
     p.add_argument("--far-mm", type=float, default=1200.0, help="working range far end (default 1200)")
     p.add_argument("--model", choices=MODELS, default="refraction", help="triangulation model (default refraction)")
-    p.add_argument("--n-seeds", type=int, default=10, help="seeds on the corresponding edge, 2-100 (default 10)")
+    p.add_argument("--n-seeds", type=int, help="seeds on the corresponding edge, 2-100 (default 10)")
     p.add_argument("--no-subpixel", action="store_true", help="keep integer pixel positions")
     p.set_defaults(run=run)
 
@@ -44,11 +44,16 @@ def run(args) -> int:
         if not Path(args.figures).is_dir():
             raise FileNotFoundError(f"figures folder does not exist: {args.figures}")
     seed = parse_seed(args.seed)
+    check_working_range(args.near_mm, args.far_mm)
+    if args.auto and args.n_seeds is not None:
+        raise ValueError("--n-seeds applies to --seed (seeds on the edge the user picked), not to --auto")
+    if args.n_seeds is not None and not 2 <= args.n_seeds <= 100:
+        raise ValueError(f"--n-seeds must be 2-100, got {args.n_seeds}")
     rig = rig_from_args(args)
     pipeline = load_pipeline(args.pipeline) if args.pipeline else PAPER
     image = read_grey(args.image)
     res = match_image(image, rig, seed_px=seed, pipeline=pipeline, near_mm=args.near_mm, far_mm=args.far_mm,
-                      subpixel=not args.no_subpixel, model=args.model, n_seeds=args.n_seeds)
+                      subpixel=not args.no_subpixel, model=args.model, n_seeds=10 if args.n_seeds is None else args.n_seeds)
     write_json(out, res)
     if csv_path:
         write_csv(csv_path, res)

@@ -9,7 +9,7 @@ from psvs.cli.common import add_rig_argument, check_output_path, load_scene_spec
 from psvs.io.images import write_npz, write_png
 from psvs.io.video import VIDEO_SUFFIXES, write_video
 from psvs.simulate.builtin import describe
-from psvs.simulate.render import render
+from psvs.simulate.render import check_supersample, render
 from psvs.simulate.sensor import Sensor
 from psvs.simulate.sequence import render_sequence, straight_path
 
@@ -55,12 +55,15 @@ def run(args) -> int:
         raise ValueError(f"--frames must be >= 1, got {args.frames}")
     try:
         move = np.array([float(v) for v in args.move_mm.split(",")])
-        assert move.shape == (3,)
+        assert move.shape == (3,) and np.all(np.isfinite(move))
     except (ValueError, AssertionError):
-        raise ValueError(f"--move-mm must be 'dx,dy,dz' in mm, got {args.move_mm!r}") from None
+        raise ValueError(f"--move-mm must be 'dx,dy,dz', three finite numbers in mm, got {args.move_mm!r}") from None
+    if args.seed is not None and args.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
     sensor = Sensor(args.blur_px, args.full_well_e, args.read_noise_e, args.gain, not args.no_shot_noise)
     rig = rig_from_args(args)
     scene = load_scene_spec(args.scene)
+    check_supersample(rig, args.supersample, "--supersample")
     if args.frames == 1 and not video:
         results = [render(scene, rig, supersample=args.supersample, sensor=sensor, seed=args.seed,
                           truth=truth_path is not None)]

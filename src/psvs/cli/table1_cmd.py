@@ -2,12 +2,11 @@
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import numpy as np
 
 from psvs.calibrate.table1 import run_table1, table_markdown, write_outputs
-from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
 from psvs.io.params import load_rig
 from psvs.optics.mirrors import virtual_centre
 
@@ -36,12 +35,10 @@ def _progress(i, n, what):
 
 
 def run(args) -> int:
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"output folder {out} is a file")
-    out.mkdir(parents=True, exist_ok=True)
+    out = check_output_folder(args.out)
     start = load_rig(args.start) if args.start else None
     t = run_table1(rig_from_args(args), progress=_progress, start=start, method="grid" if args.card else "sweep")
+    out.mkdir(parents=True, exist_ok=True)
     cal = t.calibration
     b = float(np.linalg.norm(virtual_centre(cal.rig, "left") - virtual_centre(cal.rig, "right")))
     what = f"{len(cal.rms_by_image)} card views" if args.card else f"a {len(cal.rms_by_image)}-position sweep"

@@ -2,9 +2,8 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
-from psvs.cli.common import add_rig_argument, parse_seed, rig_from_args
+from psvs.cli.common import add_rig_argument, check_output_folder, parse_seed, rig_from_args
 
 
 def add_parser(sub) -> None:
@@ -38,9 +37,7 @@ def run(args) -> int:
     for name, v in (("--speed", args.speed), ("--rate", args.rate)):
         if not (math.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be a number > 0, got {v!r}")
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"output {out} exists and is not a folder")
+    out = check_output_folder(args.output, "output")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"output folder does not exist: {out.parent}")
     seed = parse_seed(args.seed)

@@ -35,6 +35,7 @@ import numba as nb
 import numpy as np
 from scipy.ndimage import median_filter
 
+from psvs._memory import check_memory
 from psvs.dense.cost import (NO_TWIN, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost,
                              one_sided_cost, pick)
 from psvs.dense.sgm import aggregate as sgm_aggregate
@@ -117,6 +118,26 @@ def check_range(d_min: float, d_max: float, width: int) -> None:
                          f"(range {d_min}..{d_max})")
     if math.floor(d_max) < max(MIN_LAG_PX, math.ceil(d_min)):
         raise ValueError(f"disparity range {d_min}..{d_max} px holds no whole-pixel disparity to search")
+
+
+#: Peak bytes per cell (pixel x searched disparity) of the cost volumes at the working scale (measured
+#: ~20 B: echo, fused cost, SGM paths; rounded up), and per pixel of the full image.
+CELL_BYTES = 24
+PIXEL_BYTES = 400
+
+
+def dense_memory_bytes(h: int, w: int, d_min: float, d_max: float, params: "DenseParams | None" = None) -> int:
+    """Estimated peak memory (bytes) of :func:`dense_disparity` on an (h, w) image searching d_min..d_max px."""
+    s = (params or DEFAULT).scale
+    n_lags = max(1, math.floor(d_max / s) - max(MIN_LAG_PX, math.ceil(d_min / s)) + 1)
+    return int(CELL_BYTES * (h // s) * (w // s) * n_lags + PIXEL_BYTES * h * w)
+
+
+def check_dense_memory(h: int, w: int, d_min: float, d_max: float, params: "DenseParams | None" = None,
+                       what: str = "disparity range") -> None:
+    """ValueError naming ``what`` when the search d_min..d_max px on an (h, w) image does not fit in memory."""
+    check_memory(dense_memory_bytes(h, w, d_min, d_max, params),
+                 f"{what} {d_min:g}..{d_max:g} px on {w}x{h} px", "narrow the range or use --fast")
 
 
 def working_range_px(rig: Rig, near_mm: float, far_mm: float, width_px: int) -> tuple[float, float]:
@@ -252,6 +273,7 @@ def dense_disparity(image, d_min: float, d_max: float, *, fast: bool = False,
     h, w = img.shape
     check_range(float(d_min), float(d_max), w)
     p = params or (FAST if fast else DEFAULT)
+    check_dense_memory(h, w, float(d_min), float(d_max), p)
     if np.ptp(img) == 0:
         warnings.warn("complex image is constant: no texture to match, disparity is all NaN", RuntimeWarning,
                       stacklevel=2)

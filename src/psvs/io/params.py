@@ -20,6 +20,7 @@ import numpy as np
 from psvs.io.atomic import write_atomic
 from psvs.io.tomlfile import dumps_toml, load_toml
 from psvs.optics.rig import MIRROR_NAMES, Camera, MirrorError, MirrorExtent, Mirrors, Rig
+from psvs.rigs import SHIPPED, shipped_rig_path
 
 _CAMERA_REQUIRED = ("focal_length_mm", "pixel_pitch_mm", "image_size_px")
 _CAMERA_OPTIONAL = ("principal_point_px", "distortion", "distortion_k")
@@ -31,8 +32,13 @@ _ERROR_KEYS = ("tilt_deg", "shift_mm")
 
 
 def load_rig(path) -> Rig:
-    """Read a rig file (``.toml`` or ``.json``); errors name the file and the key."""
+    """Read a rig file (``.toml`` or ``.json``), or a rig shipped with psvs by its name (``default``,
+    ``clear``, ``misaligned``: :mod:`psvs.rigs`) when no such file exists; errors name the file and the key."""
     path = Path(path)
+    if not path.exists() and not path.suffix and path.name == str(path):
+        if path.name not in SHIPPED:
+            raise FileNotFoundError(f"rig file not found: {path} (shipped rigs: {', '.join(SHIPPED)})")
+        path = shipped_rig_path(path.name)
     data = load_toml(path, "rig")
     try:
         return rig_from_dict(data)
@@ -124,6 +130,8 @@ def rig_from_dict(data: dict) -> Rig:
         ang = scalars["angle_deg"]
         if isinstance(ang, bool) or not isinstance(ang, (int, float)):
             raise TypeError(f"mirrors.angle_deg must be a number, got {type(ang).__name__} {ang!r}")
+        if not 0 < ang < 90:   # checked here, in the file's degrees (the model checks radians)
+            raise ValueError(f"mirrors.angle_deg must be in (0, 90) degrees, got {ang!r}")
         kwargs["angle_rad"] = math.radians(ang)
     if "box_rotation_deg" in scalars:
         kwargs["box_rotation_rad"] = _degrees_to_rad(
@@ -155,8 +163,7 @@ def _build(cls, where: str, **kwargs):
     try:
         return cls(**kwargs)
     except (ValueError, TypeError) as exc:
-        msg = str(exc).replace("angle_rad (omega_1) must be in (0, pi/2)", "angle_deg must be in (0, 90)")
-        msg = msg.replace("tilt_rad", "tilt_deg").replace("box_rotation_rad", "box_rotation_deg")
+        msg = str(exc).replace("tilt_rad", "tilt_deg").replace("box_rotation_rad", "box_rotation_deg")
         raise type(exc)(f"{where}.{msg}") from None
 
 

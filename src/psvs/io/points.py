@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from psvs.io.atomic import write_atomic
+from psvs.io.text import read_text
 
 MATCH_COLUMNS = ("u_l", "v_l", "u_r", "v_r")
 POINT_COLUMNS = ("X_mm", "Y_mm", "Z_mm", "valid")
@@ -27,7 +28,7 @@ def read_csv_columns(path, columns: tuple[str, ...]) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"points file not found: {path}")
-    with path.open(newline="", encoding="utf-8") as fh:
+    with io.StringIO(read_text(path, "CSV"), newline="") as fh:
         reader = csv.reader(fh)
         header = next(reader, None)
         if header is None:

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import cv2
 import numpy as np
 
+from psvs.io.images import read_grey
 from psvs.io.tomlfile import load_toml
 from psvs.simulate import textures as tx
 from psvs.simulate.scene import KINDS, Lighting, Pose, Scene, SceneObject
@@ -62,9 +62,10 @@ def _texture(spec, where: str, base: Path, object_size) -> tx.Texture:
     file = base / params["file"]
     if not file.is_file():
         raise FileNotFoundError(f"{where}: texture file not found: {file}")
-    img = cv2.imread(str(file), cv2.IMREAD_GRAYSCALE)
-    if img is None:
-        raise ValueError(f"{where}: cannot read image {file}")
+    try:
+        img = read_grey(file)
+    except ValueError as exc:
+        raise ValueError(f"{where}: {exc}") from None
     size = params.get("size_mm", object_size)
     if size is None:
         raise ValueError(f"{where}: give size_mm for an image texture on a non-rectangular object")

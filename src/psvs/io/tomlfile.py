@@ -5,6 +5,8 @@ import json
 import tomllib
 from pathlib import Path
 
+from psvs.io.text import read_text
+
 
 def load_toml(path, what: str) -> dict:
     """Parse a TOML file (or JSON, by its suffix); raise FileNotFoundError("<what> file not found: ...")
@@ -12,8 +14,8 @@ def load_toml(path, what: str) -> dict:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{what} file not found: {path}")
-    text = path.read_text(encoding="utf-8")
     is_json = path.suffix.lower() == ".json"
+    text = read_text(path, "JSON" if is_json else "TOML")
     try:
         return json.loads(text) if is_json else tomllib.loads(text)
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:

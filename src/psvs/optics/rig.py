@@ -138,8 +138,8 @@ class Mirrors:
     """The four mirrors and the M1 plate; symbols as in the paper (b, omega_1, d, n) and eq. (15) (l, m)."""
 
     baseline_mm: float = 100.0           # b, distance between the two virtual optical axes
-    m1_axis_distance_mm: float = 25.0    # c1: M1's coated front face crosses the optical axis at z = c1
-    m2_axis_distance_mm: float = 45.0    # c2: M2 crosses the optical axis at z = c2
+    m1_axis_distance_mm: float = 22.0    # c1: M1's coated front face crosses the optical axis at z = c1
+    m2_axis_distance_mm: float = 44.0    # c2: M2 crosses the optical axis at z = c2
     angle_rad: float = math.pi / 4       # omega_1: angle between the mirrors and the optical axis
     plate_thickness_mm: float = 3.0      # d, M1 glass thickness
     refractive_index: float = 1.52       # n, M1 glass
@@ -171,8 +171,8 @@ class Mirrors:
         if n < 1:
             raise ValueError(f"refractive_index must be >= 1, got {n!r}")
         s = check_finite(self.split_ratio, "split_ratio")
-        if not 0 <= s <= 1:
-            raise ValueError(f"split_ratio must be in [0, 1], got {s!r}")
+        if not 0 < s < 1:   # at 0 or 1 one view gets no light: there is no stereo pair
+            raise ValueError(f"split_ratio must be in (0, 1) (at 0 or 1 one view gets no light), got {s!r}")
         for name in ("refraction_l_mm", "refraction_m_mm"):
             v = getattr(self, name)
             if v is not None:

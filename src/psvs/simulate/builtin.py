@@ -10,6 +10,7 @@ textured   photo-textured objects and backdrop for dense disparity (docs/dense.m
 from __future__ import annotations
 
 import inspect
+import math
 
 import numpy as np
 
@@ -197,4 +198,9 @@ def parse_spec(spec: str) -> tuple[str, dict]:
             kwargs[key] = type(params[key].default)(value) if params[key].default is not None else float(value)
         except ValueError:
             raise ValueError(f"{name}: {key} must be a number, got {value!r}") from None
+        v = kwargs[key]
+        if isinstance(v, float) and not math.isfinite(v):
+            raise ValueError(f"{name}: {key} must be finite, got {value!r}")
+        if key.endswith(("distance_mm", "radius_mm", "length_mm", "width_mm")) and v <= 0:
+            raise ValueError(f"{name}: {key} must be > 0 mm, got {value!r}")
     return name, kwargs

@@ -25,7 +25,7 @@ from psvs.dense import dense_disparity, disparity_cloud, separate_views
 from psvs.dense.disparity import working_range_px
 from psvs.imaging.pipeline import PAPER, make_pipeline
 from psvs.imaging.steps import STEPS
-from psvs.io.images import to_grey8
+from psvs.io.images import grey8, to_grey8
 from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
 from psvs.match.correspondence import MatchResult, match_image
 from psvs.match.export import write_csv, write_json, write_ply
@@ -227,9 +227,10 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
         pw, ph = struct.unpack(">II", data[16:24])
         if (pw, ph) != (w, h):     # checked before decoding: no decompression bombs
             raise ValueError(f"image is {pw}x{ph} px but the rig's camera is {w}x{h} px")
-        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_GRAYSCALE)
-        if img is None or img.shape != (h, w):
+        img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        if img is None or img.shape[:2] != (h, w):
             raise ValueError("not a readable PNG image")
+        img = grey8(img, "uploaded image")   # colour -> luma, 16-bit scaled by its bit depth (as read_grey)
         with lock:
             state.update(still=img, name="uploaded image", result=None)
         return {"image_size_px": [w, h]}

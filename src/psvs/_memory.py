@@ -1,0 +1,43 @@
+"""Memory estimates made before big allocations, so a command refuses in one line instead of dying later."""
+from __future__ import annotations
+
+import os
+
+#: Share of the memory available now that one allocation plan may use.
+USABLE_SHARE = 0.8
+
+
+def available_bytes() -> int:
+    """Memory available to this process now (Linux: MemAvailable; elsewhere the physical memory), bytes."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):   # pragma: no cover - platforms without sysconf
+        return 1 << 40
+
+
+def human(n: float) -> str:
+    """Bytes in binary units, e.g. ``2.2 TiB``."""
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if n < 1024 or unit == "PiB":
+            return f"{n:.1f} {unit}" if unit != "B" else f"{n:.0f} B"
+        n /= 1024
+    raise AssertionError  # pragma: no cover
+
+
+def check_memory(need_bytes: float, what: str, hint: str = "", limit_bytes: float | None = None) -> None:
+    """ValueError naming ``what`` (the option the user typed) when ``need_bytes`` exceeds the usable memory.
+
+    ``limit_bytes`` defaults to :data:`USABLE_SHARE` of :func:`available_bytes`; ``hint`` (e.g. the largest
+    value that fits) is appended to the message."""
+    limit = USABLE_SHARE * available_bytes() if limit_bytes is None else float(limit_bytes)
+    if need_bytes > limit:
+        tail = f"; {hint}" if hint else ""
+        raise ValueError(f"{what} needs about {human(need_bytes)} of memory, more than the {human(limit)} "
+                         f"available{tail}")

@@ -1,0 +1,54 @@
+"""``psvs sweep-views``: a simulated robot sweep (the paper's calibration), ready for ``psvs calibrate``."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("sweep-views", help="render a robot sweep of the Fig. 9 pattern, for psvs calibrate",
+                       description="Render the Fig. 9 pattern (five 10 mm circles, 20 mm apart) on a robot's holder "
+                                   "(turned 2 and -3 deg, off-centre) at depths --from-mm..--to-mm every --step-mm "
+                                   "through the rig, and write sweep_NNNN.png and sweep.csv (image, robot reading "
+                                   "= depth + 312.7 mm) into DIR: the paper's calibration sweep as a robot makes it.")
+    p.add_argument("folder", metavar="DIR", help="output folder (created if missing)")
+    add_rig_argument(p)
+    p.add_argument("--from-mm", type=float, default=425.0, help="nearest depth (default 425)")
+    p.add_argument("--to-mm", type=float, default=1175.0, help="farthest depth (default 1175)")
+    p.add_argument("--step-mm", type=float, default=50.0, help="robot step (default 50: 16 images)")
+    p.add_argument("--seed", type=int, default=0, help="sensor noise (default 0)")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from psvs.calibrate.sweep import dumps_sweep
+    from psvs.calibrate.table1 import ROBOT_OFFSET_MM, pattern_image
+    from psvs.io.atomic import write_atomic
+    from psvs.io.images import write_png
+
+    for name in ("from_mm", "to_mm", "step_mm"):
+        v = getattr(args, name)
+        if not (math.isfinite(v) and v > 0):
+            raise ValueError(f"--{name.replace('_', '-')} must be a finite number > 0 mm, got {v}")
+    if args.to_mm < args.from_mm:
+        raise ValueError(f"--to-mm ({args.to_mm} mm) must not be less than --from-mm ({args.from_mm} mm)")
+    depths = np.arange(args.from_mm, args.to_mm + 1e-9, args.step_mm)
+    if not 3 <= len(depths) <= 60:
+        raise ValueError(f"the sweep has {len(depths)} positions; give 3-60 (--from-mm, --to-mm, --step-mm)")
+    if args.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    folder = check_output_folder(args.folder)
+    rig = rig_from_args(args)
+    images = [pattern_image(rig, float(z), args.seed + k) for k, z in enumerate(depths)]
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for z, img in zip(depths, images):
+        name = f"sweep_{z:06.1f}.png".replace(".", "_", 1)
+        write_png(folder / name, img)
+        rows.append((name, float(z) - ROBOT_OFFSET_MM))
+    write_atomic(folder / "sweep.csv", dumps_sweep(rows))
+    print(f"wrote {len(rows)} sweep images and sweep.csv to {folder}")
+    return 0

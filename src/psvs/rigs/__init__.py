@@ -1,0 +1,22 @@
+"""Rig files shipped with psvs, so a pip user has them: ``--rig default`` (or ``clear``, ``misaligned``).
+
+- ``default``: the paper's camera (f 11.3 mm, 640x480, 10 um pixels) and b = 100 mm, M1 at 22 mm, M2 at
+  44 mm (a clear layout), unbounded mirrors.
+- ``clear``: the same with the finite mirror sizes ``psvs design --rig-out`` gives.
+- ``misaligned``: a build of ``clear`` with mirror tilts and shifts, a rotated box and a distorting lens.
+
+``examples/rigs/`` in the repository links to these files.
+"""
+from __future__ import annotations
+
+from importlib import resources
+from pathlib import Path
+
+SHIPPED = ("default", "clear", "misaligned")
+
+
+def shipped_rig_path(name: str) -> Path:
+    """Path of the shipped rig file ``name`` (one of :data:`SHIPPED`); ValueError naming the choices."""
+    if name not in SHIPPED:
+        raise ValueError(f"no shipped rig {name!r} (shipped: {', '.join(SHIPPED)})")
+    return Path(str(resources.files(__name__).joinpath(f"{name}.toml")))
