@@ -9,6 +9,7 @@ from psvs import default_rig
 from psvs.calibrate.measure import measure_pattern
 from psvs.calibrate.targets import detect_pattern
 from psvs.io.images import write_png
+from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
@@ -54,6 +55,19 @@ def test_table1_columns(images):
     z, d, a = map(np.abs, (np.array(z), np.array(d), np.array(a)))
     assert z.max() <= 0.5 and z.mean() <= 0.2
     assert d.mean() <= 0.1 and a.mean() <= 0.1
+
+
+@pytest.mark.parametrize("dist, tilt", [(470, 0), (760, 8), (1050, -6)])
+def test_diameters_on_a_misaligned_build(dist, tilt):
+    """On a build (mirrors tilted and shifted, distorting lens, rows of the two views 3-16 px apart) a rim
+    point's twin lies on its epipolar curve, not on its row: the circles still measure 10 mm (issue 14;
+    they were NaN), measured with the build's own rig."""
+    rig = load_rig("misaligned")
+    img = render(builtin_scene(f"fig9:distance_mm={dist},tilt_y_deg={tilt}"), rig, seed=dist).image
+    m = measure_pattern(img, rig)
+    assert np.all(np.isfinite(m.diameters_mm))
+    assert np.abs(m.diameters_mm - 10.0).max() <= 0.25 and abs(m.diameter_mm - 10.0) <= 0.1   # as on the ideal rig
+    assert abs(m.first_last_distance_mm - 80.0) <= 0.25
 
 
 def test_bad_images():

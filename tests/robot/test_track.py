@@ -1,5 +1,9 @@
 """The closed loop on short seam stretches: accuracy at 10 mm/s and 25 Hz, a 10 mm gap bridged, a 40 mm
 gap stopping the arm, the ROS 2 bag read back, and the CLI's errors. One hand-eye calibration is shared."""
+import csv
+import json
+
+import cv2
 import numpy as np
 import pytest
 
@@ -8,7 +12,7 @@ from psvs.optics.rig import default_rig
 from psvs.robot.arm import Arm
 from psvs.robot.bag import TOPICS, read_bag, write_bag
 from psvs.robot.loop import HOME_Q, TrackConfig, calibrate_cell, track
-from psvs.robot.report import summary, write_report
+from psvs.robot.report import deviations, error_series, summary, write_report
 from psvs.robot.workpiece import seam_workpiece
 
 CFG = TrackConfig(speed_mm_s=10.0, rate_hz=25.0, weld_length_mm=25.0)
@@ -69,9 +73,25 @@ def test_report_and_bag_read_back(gap10, tmp_path):
     wp, run = gap10
     write_report(run, wp, tmp_path)
     write_bag(run, tmp_path / "bag")
-    for name in ("report.json", "log.csv", "top_view.png", "error.png"):
-        assert (tmp_path / name).stat().st_size > 0
-    assert len((tmp_path / "log.csv").read_text().splitlines()) == len(run.cycles) + 1
+    rep = json.loads((tmp_path / "report.json").read_text())
+    assert rep["cycles"] == len(run.cycles) and rep["stop"]["torch_s_mm"] == pytest.approx(run.stop.s_mm)
+    rows = list(csv.DictReader((tmp_path / "log.csv").open()))
+    assert len(rows) == len(run.cycles)
+    assert [float(r["s_mm"]) for r in rows] == pytest.approx([c.s_mm for c in run.cycles], abs=5e-5)
+    assert [int(r["valid"]) for r in rows] == [int(c.valid) for c in run.cycles]
+    # the PNGs decode (OpenCV) at the figure sizes (6x6 and 8x4 in at 100 dpi, trimmed) and show the curves
+    top, err = (cv2.imread(str(tmp_path / n), cv2.IMREAD_COLOR) for n in ("top_view.png", "error.png"))
+    assert 450 <= top.shape[0] <= 620 and 450 <= top.shape[1] <= 620
+    assert 300 <= err.shape[0] <= 420 and 650 <= err.shape[1] <= 820
+    b, g, r = (top[..., k].astype(int) for k in range(3))
+    assert ((r > 200) & (g < 60) & (b < 60)).sum() > 200           # the torch path, red
+    b, g, r = (err[..., k].astype(int) for k in range(3))
+    assert (abs(b - 180) + abs(g - 119) + abs(r - 31) < 60).sum() > 200   # lateral, matplotlib blue C0
+    assert (abs(b - 14) + abs(g - 127) + abs(r - 255) < 60).sum() > 200   # vertical, orange C1
+    # error.png's x axis is the torch's s, the origin of the CLI's "torch at s = ... mm"
+    s_mm, lateral, _ = error_series(run, deviations(run, wp))
+    assert s_mm.min() >= run.config.arc_on_mm and s_mm.max() == pytest.approx(max(c.s_mm for c in run.cycles))
+    assert s_mm.min() <= run.stop.s_mm <= s_mm.max() + 1.0 and len(lateral) == len(s_mm)
     msgs = read_bag(tmp_path / "bag")
     assert set(msgs) == set(TOPICS)
     for topic, typ in TOPICS.items():

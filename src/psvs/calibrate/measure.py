@@ -7,8 +7,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.calibrate.targets import Ellipse, PatternDetection, detect_pattern
-from psvs.measure.triangulate import triangulate, twin_rows
+from psvs.measure.triangulate import triangulate
+from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
+from psvs.optics.trace import trace_pixels
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,28 +30,58 @@ class PatternMeasurement:
                 "diameters_mm": self.diameters_mm.tolist(), "centres_mm": self.centres_mm.tolist()}
 
 
-def _rim_points(left: Ellipse, right: Ellipse, rig: Rig, model: str, rows: int = 15) -> np.ndarray:
-    """3-D rim points (M, 3) of one circle: the ends of each row chord in the left view matched with the
-    chord ends in the right view (epipolar rows), moved to the twin's true row (the plate shifts rows)."""
+def _implicit(e: Ellipse, uv: np.ndarray) -> np.ndarray:
+    """The ellipse's implicit function at pixels uv (..., 2): < 0 inside, 0 on the rim, > 0 outside."""
+    a, b = e.axes_px
+    c, s = np.cos(e.angle_rad), np.sin(e.angle_rad)
+    x, y = uv[..., 0] - e.centre_px[0], uv[..., 1] - e.centre_px[1]
+    return ((x * c + y * s) / a) ** 2 + ((-x * s + y * c) / b) ** 2 - 1.0
+
+
+def epipolar_twins(left_px: np.ndarray, right: Ellipse, rig: Rig, z_mm: tuple[float, float], first: np.ndarray,
+                   samples: int = 161) -> np.ndarray:
+    """Where the epipolar curves of left-view rim points cross the right view's ellipse, (N, 2) px (NaN where
+    they do not): each left pixel's ray (exact optics, any build) is sampled at depths z_mm[0]..z_mm[1],
+    projected into the right view, and the crossing refined on that curve; ``first`` (N,) bool picks the
+    crossing of smaller u (the rim's left end), else the larger."""
+    n = len(left_px)
+    rays = trace_pixels(left_px, rig, "left")
+    z = np.linspace(*z_mm, samples)
+    t = (z[None, :] - rays.origins_mm[:, 2:3]) / rays.dirs[:, 2:3]
+    pts = rays.origins_mm[:, None, :] + t[..., None] * rays.dirs[:, None, :]
+    uv, ok = project_points(pts.reshape(-1, 3), rig, "right")
+    uv = uv.reshape(n, samples, 2)
+    f = np.where(ok.reshape(n, samples), _implicit(right, uv), np.nan)
+    out = np.full((n, 2), np.nan)
+    for k in range(n):
+        if not rays.valid[k]:
+            continue
+        cross = np.flatnonzero(np.sign(f[k, :-1]) * np.sign(f[k, 1:]) < 0)
+        if len(cross) == 0:
+            continue
+        at = [c + f[k, c] / (f[k, c] - f[k, c + 1]) for c in cross]          # linear in the sample index
+        pos = [uv[k, c] + (a - c) * (uv[k, c + 1] - uv[k, c]) for c, a in zip(cross, at)]
+        out[k] = min(pos, key=lambda q: q[0]) if first[k] else max(pos, key=lambda q: q[0])
+    return out
+
+
+def _rim_points(left: Ellipse, right: Ellipse, rig: Rig, model: str, z_mm: float, rows: int = 15) -> np.ndarray:
+    """3-D rim points (M, 3) of one circle: both ends of row chords of the left view's ellipse, each paired
+    with the point where its epipolar curve (the exact optics of the rig as built: rows of the two views
+    need not agree) crosses the right view's ellipse, near the circle's depth ``z_mm``."""
     b = max(left.axes_px) * 0.85
-    out = []
+    ends, first = [], []
     for v in np.linspace(left.centre_px[1] - b, left.centre_px[1] + b, rows):
         cl = left.row_crossings(v)
-        cr = right.row_crossings(v)
-        if cl is None or cr is None:
-            continue
-        lp = np.array([[cl[0], v], [cl[1], v]])
-        rp = np.array([[cr[0], v], [cr[1], v]])
-        v_r, ok = twin_rows(lp, rp, rig, model)         # the twin's true row
-        for k in range(2):
-            if not ok[k]:
-                continue
-            c2 = right.row_crossings(v_r[k])
-            if c2 is None:
-                continue
-            rp[k] = [c2[k], v_r[k]]
-        out.append(triangulate(lp, rp, rig, model=model).points_mm)
-    return np.concatenate(out) if out else np.zeros((0, 3))
+        if cl is not None:
+            ends += [[cl[0], v], [cl[1], v]]
+            first += [True, False]
+    if not ends:
+        return np.zeros((0, 3))
+    lp = np.array(ends)
+    rp = epipolar_twins(lp, right, rig, (z_mm - 80.0, z_mm + 80.0), np.array(first))
+    keep = np.all(np.isfinite(rp), axis=1)
+    return triangulate(lp[keep], rp[keep], rig, model=model).points_mm
 
 
 def _circle_diameter(points: np.ndarray) -> float:
@@ -75,6 +107,7 @@ def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int
     centres = triangulate(lc, rc, rig, model=model).points_mm
     if not np.all(np.isfinite(centres)):
         raise ValueError("a circle's two views do not triangulate (disparity <= 0): not a PSVS pattern image")
-    diam = np.array([_circle_diameter(_rim_points(lft, rgt, rig, model)) for lft, rgt in zip(det.left, det.right)])
+    diam = np.array([_circle_diameter(_rim_points(lft, rgt, rig, model, float(c[2])))
+                     for lft, rgt, c in zip(det.left, det.right, centres)])
     return PatternMeasurement(float(centres[:, 2].mean()), diam, float(np.nanmean(diam)),
                               float(np.linalg.norm(centres[-1] - centres[0])), centres)

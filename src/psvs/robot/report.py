@@ -115,12 +115,22 @@ def plots(run: TrackRun, workpiece: Workpiece, out_dir: Path) -> None:
     ax.set_title("top view")
     _save(fig, out_dir / "top_view.png")
     fig, ax = plt.subplots(figsize=(8, 4))
-    weld = np.array([c.s_mm for c in run.cycles]) >= run.config.arc_on_mm
-    ax.plot(dev["seam_arc_mm"][weld], dev["lateral_mm"][weld], label="lateral")
-    ax.plot(dev["seam_arc_mm"][weld], dev["vertical_mm"][weld], label="vertical")
-    ax.set_xlabel("arc length along the true seam (mm)"), ax.set_ylabel("torch deviation (mm)")
+    s_mm, lateral, vertical = error_series(run, dev)
+    ax.plot(s_mm, lateral, label="lateral")
+    ax.plot(s_mm, vertical, label="vertical")
+    ax.axvline(run.stop.s_mm, color="r", lw=0.8, ls="--", label=f"stop (s = {run.stop.s_mm:.1f} mm)")
+    ax.set_xlabel("torch position s along its path (mm; the s of 'torch at s = ...')")
+    ax.set_ylabel("torch deviation (mm)")
     ax.axhline(0, color="k", lw=0.5), ax.legend(), ax.set_title("deviation from the true seam (arc on)")
     _save(fig, out_dir / "error.png")
+
+
+def error_series(run: TrackRun, dev: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What error.png plots, arc on: the torch's path position s (mm, the origin of the CLI's "torch at
+    s = ... mm" and of the report's ``stop.torch_s_mm``) and the lateral and vertical deviations (mm)."""
+    s_mm = np.array([c.s_mm for c in run.cycles])
+    weld = s_mm >= run.config.arc_on_mm
+    return s_mm[weld], dev["lateral_mm"][weld], dev["vertical_mm"][weld]
 
 
 def _save(fig, path: Path) -> None:
