@@ -117,17 +117,84 @@ def _by_support(cands: list[dict], support_px: int):
             yield None  # answer to send()
 
 
+def _row_step(grey: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Grey step along the row, I(u + 2) - I(u - 2), at integer pixels (u, v) (columns clipped)."""
+    w = grey.shape[1]
+    return grey[v, np.clip(u + 2, 0, w - 1)] - grey[v, np.clip(u - 2, 0, w - 1)]
+
+
 def _polarity(grey: np.ndarray, px: EdgePixels, level: float) -> np.ndarray:
     """Sign (-1, 0, +1) of the grey step along the row at each edge pixel (0: under ``level``)."""
     if grey.shape != tuple(px.shape):
         raise ValueError(f"grey must have the edge map's shape {tuple(px.shape)}, got {grey.shape}")
-    w = grey.shape[1]
-    step = grey[px.v, np.minimum(px.u + 2, w - 1)] - grey[px.v, np.maximum(px.u - 2, 0)]
+    step = _row_step(grey, px.u, px.v)
     return np.where(np.abs(step) < level, 0, np.sign(step)).astype(np.int8)
+
+
+def _twin_step_seen(grey: np.ndarray, px: EdgePixels, idx: np.ndarray, d: float, tol_px: float,
+                    level: float) -> np.ndarray:
+    """Mask (len(idx),): the grey image steps the same way as at left edge pixel ``idx`` somewhere within
+    +-tol_px of its twin's column u - d on its row, by at least half as much (and ``level``).
+
+    The complex image is the *sum* of the two views, so an edge of one view that falls on a bright object
+    of the other view still steps the grey level by its own contrast, although both sides of it land above
+    the binary threshold and the edge map loses it there.
+    """
+    u, v = px.u[idx], px.v[idx]
+    own = _row_step(grey, u, v)
+    need = np.maximum(level, 0.5 * np.abs(own))
+    sign = np.sign(own)
+    seen = np.zeros(len(idx), dtype=bool)
+    t = int(np.ceil(tol_px))
+    for k in range(-t, t + 1):
+        seen |= sign * _row_step(grey, np.rint(u - d).astype(int) + k, v) >= need
+    return seen & (sign != 0)
 
 
 def _row_span(px: EdgePixels, run: np.ndarray) -> int:
     return int(px.v[run].max() - px.v[run].min() + 1)
+
+
+def _by_label(px: EdgePixels, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The votes sorted by the component of their left pixel, and where each component's votes start
+    (n_labels + 1 offsets): the votes of component i are ``order[start[i]:start[i + 1]]``."""
+    lab = px.label[p]
+    order = np.argsort(lab, kind="stable")
+    return order, np.searchsorted(lab[order], np.arange(px.n_labels + 1))
+
+
+def _partly_hidden_twin(px: EdgePixels, p, q, d, by_left, free, grey, i: int, ds: int, min_rows: int,
+                        min_run: int, tol_px: float, need_rows: float, level: float):
+    """Accept the twin of left edge ``i`` at disparity ``ds`` from its visible pieces, wherever they are.
+
+    Where one object's view overlaps another object's view, the binary edge map keeps only part of its
+    twin's outline, and that part is merged with the other object's outline (or its inner contour). The
+    visible pieces are gathered over *all* components at ``ds`` +-1 px; they must agree on at least
+    ``min_rows`` rows in stretches of ``min_run`` rows. The rest of the twin must be explained: on at
+    least ``need_rows`` rows of edge ``i``, the grey image steps the same way at the twin's column
+    (:func:`_twin_step_seen`), whether the edge map kept that piece or lost it on the bright overlap.
+
+    Returns (agreeing left pixels, free pixels of the components holding the twin's pieces) as indices
+    into ``px``, or None.
+    """
+    order, start = by_left
+    sel = order[start[i]:start[i + 1]]
+    sel = sel[(np.abs(d[sel] - ds) <= 1) & free[p[sel]] & free[q[sel]] & (px.label[q[sel]] != i)]
+    runs = [r for r in _runs(px, _distinct(p[sel], len(px.u))) if _row_span(px, r) >= min_run]
+    if not runs:
+        return None
+    kept = np.concatenate(runs)
+    if _n_rows(px.v[kept]) < min_rows:
+        return None
+    left = np.flatnonzero(free & (px.label == i))
+    seen = left[_twin_step_seen(grey, px, left, ds, tol_px, level)]
+    if _n_rows(px.v[seen]) < need_rows:
+        return None
+    in_kept = np.zeros(len(px.u), dtype=bool)
+    in_kept[kept] = True
+    holders = np.zeros(px.n_labels, dtype=bool)
+    holders[px.label[q[sel][in_kept[p[sel]]]]] = True
+    return kept, np.flatnonzero(free & holders[px.label])
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,7 +207,7 @@ class AutoMatch:
 def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_rows: int = 10,
                min_fraction: float = 0.6, long_run_rows: int = 20, min_run: int = 4, tol_px: float = 2.0,
                support_px: int = 24, standalone_rows: int = 30, grey: np.ndarray | None = None,
-               polarity_level: float = 8.0) -> AutoMatch:
+               polarity_level: float = 8.0, seen_fraction: float = 0.8) -> AutoMatch:
     """Pair all edges of an (H, W) bool edge map with their twins.
 
     Parameters
@@ -186,7 +253,10 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
         p, q, d = p[ok], q[ok], d[ok]
     pairs: list[EdgePair] = []
     free = np.ones(len(px.u), dtype=bool)                    # pixels not yet in any pair
+    explained = np.zeros(len(px.u), dtype=bool)              # unpaired pixels of a pair whose twin is hidden
     if len(p):
+        grey_f = None if pol is None else np.asarray(grey, dtype=np.float64)
+        by_left = _by_label(px, p)
         order = _by_support(_candidates(px, p, q, d, int(d_min), min_rows), support_px)
         for c in order:
             i, j, ds, sel = c["i"], c["j"], c["d"], c["votes"]
@@ -202,8 +272,16 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             smaller = rows_i / 2 if i == j else min(rows_i, rows_j)
             # an edge backed by no accepted pair at its disparity nearby needs stronger evidence of its own
             need = min_rows if c["rank"] > c["rows"] else standalone_rows
+            hidden = None
             if agree < need or (agree < min_fraction * smaller and longest < long_run_rows):
-                continue
+                if pol is None or i == j:
+                    continue
+                # too little of the twin is on the edge map: is the rest on another object's outline or inside it?
+                hidden = _partly_hidden_twin(px, p, q, d, by_left, free, grey_f, i, ds, min_rows, min_run, tol_px,
+                                             max(standalone_rows, seen_fraction * rows_i), polarity_level)
+                if hidden is None:
+                    continue
+                kept, right_set = hidden
             # grow along both edges from the agreeing pixels (the disparity may drift along a slanted edge)
             in_kept = np.zeros(len(px.u), dtype=bool)
             in_kept[kept] = True
@@ -212,7 +290,8 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
                 right_set = _distinct(q[sel][in_kept[p[sel]]], len(px.u))
             else:
                 left_set = _distinct(np.concatenate([kept, np.flatnonzero(free & (px.label == i))]), len(px.u))
-                right_set = np.flatnonzero(free & (px.label == j))
+                if hidden is None:
+                    right_set = np.flatnonzero(free & (px.label == j))
             li, ri = grow_pairs(px, left_set, right_set[~in_kept[right_set]], ds, tol_px, polarity=pol)
             if len(li) < min_rows:
                 continue
@@ -221,9 +300,14 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             pairs.append(EdgePair(left, right, left[:, 0] - right[:, 0], i, j, float(ds)))
             free[li] = False
             free[ri] = False
+            if pol is not None and i != j:
+                # the pair's leftover pixels whose twin steps the grey image where the edge map lost it
+                for idx, dd in ((np.flatnonzero(free & (px.label == i)), ds),
+                                (np.flatnonzero(free & np.isin(px.label, px.label[ri])), -ds)):
+                    explained[idx[_twin_step_seen(grey_f, px, idx, dd, tol_px, polarity_level)]] = True
             order.send(True)
     unmatched = []
-    paired = np.bincount(px.label[~free], minlength=px.n_labels)
+    paired = np.bincount(px.label[~free | explained], minlength=px.n_labels)
     for lab in range(px.n_labels):
         if paired[lab] >= 0.5 * sizes[lab]:
             continue  # mostly paired; stray pixels of a paired edge are not an unmatched edge
