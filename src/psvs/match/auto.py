@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from psvs.match.edges import EdgePixels, edge_pixels, row_votes
+from psvs.match.edges import EdgePixels, edge_pixels, row_step, row_votes
 from psvs.match.pairs import EdgePair, grow_pairs
 
 
@@ -117,77 +117,96 @@ def _by_support(cands: list[dict], support_px: int):
             yield None  # answer to send()
 
 
-def _row_step(grey: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Grey step along the row, I(u + 2) - I(u - 2), at integer pixels (u, v) (columns clipped)."""
-    w = grey.shape[1]
-    return grey[v, np.clip(u + 2, 0, w - 1)] - grey[v, np.clip(u - 2, 0, w - 1)]
-
-
 def _polarity(grey: np.ndarray, px: EdgePixels, level: float) -> np.ndarray:
     """Sign (-1, 0, +1) of the grey step along the row at each edge pixel (0: under ``level``)."""
     if grey.shape != tuple(px.shape):
         raise ValueError(f"grey must have the edge map's shape {tuple(px.shape)}, got {grey.shape}")
-    step = _row_step(grey, px.u, px.v)
+    step = row_step(grey, px.u, px.v)
     return np.where(np.abs(step) < level, 0, np.sign(step)).astype(np.int8)
 
 
-def _twin_step_seen(grey: np.ndarray, px: EdgePixels, idx: np.ndarray, d: float, tol_px: float,
-                    level: float) -> np.ndarray:
-    """Mask (len(idx),): the grey image steps the same way as at left edge pixel ``idx`` somewhere within
-    +-tol_px of its twin's column u - d on its row, by at least half as much (and ``level``).
+def _step_image(grey: np.ndarray, pad: int) -> np.ndarray:
+    """:func:`row_step` at every pixel of a grey (H, W) image, zero-padded by ``pad`` columns each side:
+    (H, W + 2 pad), column u at u + pad."""
+    h, w = grey.shape
+    out = np.zeros((h, w + 2 * pad))
+    out[:, pad:pad + w] = row_step(grey, np.arange(w)[None, :], np.arange(h)[:, None])
+    return out
+
+
+def _twin_step_seen(steps: np.ndarray, px: EdgePixels, idx: np.ndarray, d: float, tol_px: float,
+                    level: float, blocked: np.ndarray) -> np.ndarray:
+    """Mask (len(idx),): the twin of edge pixel ``idx``, at column u - d of its row (+-tol_px), is seen
+    in the grey image: it steps the same way there, by at least half as much (and ``level``), and no
+    ``blocked`` pixel lies there: an edge already claimed *in the twin's view*. That step is another
+    object's edge in the same view; an edge of the *other* view there is what the twin may have merged
+    with. ``steps`` and ``blocked`` are padded images from :func:`_step_image` (same padding).
 
     The complex image is the *sum* of the two views, so an edge of one view that falls on a bright object
     of the other view still steps the grey level by its own contrast, although both sides of it land above
     the binary threshold and the edge map loses it there.
     """
-    u, v = px.u[idx], px.v[idx]
-    own = _row_step(grey, u, v)
+    pad = (steps.shape[1] - px.shape[1]) // 2
+    u, v = px.u[idx] + pad, px.v[idx]
+    own = steps[v, u]
     need = np.maximum(level, 0.5 * np.abs(own))
     sign = np.sign(own)
     seen = np.zeros(len(idx), dtype=bool)
+    other = np.zeros(len(idx), dtype=bool)
     t = int(np.ceil(tol_px))
+    at = np.clip(np.rint(u - d).astype(int), t, steps.shape[1] - 1 - t)
     for k in range(-t, t + 1):
-        seen |= sign * _row_step(grey, np.rint(u - d).astype(int) + k, v) >= need
-    return seen & (sign != 0)
+        seen |= sign * steps[v, at + k] >= need
+        other |= blocked[v, at + k]
+    return seen & ~other & (sign != 0)
+
+
+def _claim(claimed: np.ndarray, px: EdgePixels, idx: np.ndarray, view: int) -> None:
+    """Mark edge pixels ``idx`` as belonging to ``view`` (0 left, 1 right) in ``claimed`` (2, H, W + 2 pad)."""
+    pad = (claimed.shape[2] - px.shape[1]) // 2
+    claimed[view, px.v[idx], px.u[idx] + pad] = True
 
 
 def _row_span(px: EdgePixels, run: np.ndarray) -> int:
     return int(px.v[run].max() - px.v[run].min() + 1)
 
 
-def _by_label(px: EdgePixels, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The votes sorted by the component of their left pixel, and where each component's votes start
-    (n_labels + 1 offsets): the votes of component i are ``order[start[i]:start[i + 1]]``."""
-    lab = px.label[p]
-    order = np.argsort(lab, kind="stable")
-    return order, np.searchsorted(lab[order], np.arange(px.n_labels + 1))
+def _by_label(labels: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices sorted by label, and where each label's run starts (n_labels + 1 offsets): the entries
+    with label i are ``order[start[i]:start[i + 1]]``."""
+    order = np.argsort(labels, kind="stable")
+    return order, np.searchsorted(labels[order], np.arange(n_labels + 1))
 
 
-def _partly_hidden_twin(px: EdgePixels, p, q, d, by_left, free, grey, i: int, ds: int, min_rows: int,
+def _partly_hidden_twin(px: EdgePixels, votes, index, free, claimed, steps, i: int, ds: int, min_rows: int,
                         min_run: int, tol_px: float, need_rows: float, level: float):
     """Accept the twin of left edge ``i`` at disparity ``ds`` from its visible pieces, wherever they are.
 
     Where one object's view overlaps another object's view, the binary edge map keeps only part of its
     twin's outline, and that part is merged with the other object's outline (or its inner contour). The
-    visible pieces are gathered over *all* components at ``ds`` +-1 px; they must agree on at least
-    ``min_rows`` rows in stretches of ``min_run`` rows. The rest of the twin must be explained: on at
-    least ``need_rows`` rows of edge ``i``, the grey image steps the same way at the twin's column
-    (:func:`_twin_step_seen`), whether the edge map kept that piece or lost it on the bright overlap.
+    visible pieces are gathered over *all* components at ``ds`` +-1 px (except pixels already claimed for
+    the right view); they must agree on at least ``min_rows`` rows in stretches of ``min_run`` rows. The
+    rest of the twin must be explained: on at least ``need_rows`` rows of edge ``i``, the grey image steps
+    the same way at the twin's column (:func:`_twin_step_seen`), whether the edge map kept that piece or
+    lost it on the bright overlap.
 
     Returns (agreeing left pixels, free pixels of the components holding the twin's pieces) as indices
     into ``px``, or None.
     """
-    order, start = by_left
-    sel = order[start[i]:start[i + 1]]
+    p, q, d = votes
+    (vote_order, vote_start), (pix_order, pix_start) = index
+    sel = vote_order[vote_start[i]:vote_start[i + 1]]
     sel = sel[(np.abs(d[sel] - ds) <= 1) & free[p[sel]] & free[q[sel]] & (px.label[q[sel]] != i)]
-    runs = [r for r in _runs(px, _distinct(p[sel], len(px.u))) if _row_span(px, r) >= min_run]
-    if not runs:
+    sel = sel[~claimed[1, px.v[q[sel]], px.u[q[sel]] + (claimed.shape[2] - px.shape[1]) // 2]]
+    if _n_rows(px.v[p[sel]]) < min_rows:
         return None
-    kept = np.concatenate(runs)
+    runs = [r for r in _runs(px, _distinct(p[sel], len(px.u))) if _row_span(px, r) >= min_run]
+    kept = np.concatenate(runs) if runs else np.zeros(0, int)
     if _n_rows(px.v[kept]) < min_rows:
         return None
-    left = np.flatnonzero(free & (px.label == i))
-    seen = left[_twin_step_seen(grey, px, left, ds, tol_px, level)]
+    left = pix_order[pix_start[i]:pix_start[i + 1]]
+    left = left[free[left]]
+    seen = left[_twin_step_seen(steps, px, left, ds, tol_px, level, claimed[1])]
     if _n_rows(px.v[seen]) < need_rows:
         return None
     in_kept = np.zeros(len(px.u), dtype=bool)
@@ -255,8 +274,12 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
     free = np.ones(len(px.u), dtype=bool)                    # pixels not yet in any pair
     explained = np.zeros(len(px.u), dtype=bool)              # unpaired pixels of a pair whose twin is hidden
     if len(p):
-        grey_f = None if pol is None else np.asarray(grey, dtype=np.float64)
-        by_left = _by_label(px, p)
+        pad = int(np.ceil(d_max + tol_px)) + 1
+        steps = None if pol is None else _step_image(np.asarray(grey, dtype=np.float64), pad)
+        claimed = np.zeros((2, px.shape[0], px.shape[1] + 2 * pad), dtype=bool)  # known left / right-view pixels
+        # votes and pixels by (left) component
+        index = (_by_label(px.label[p], px.n_labels), _by_label(px.label, px.n_labels))
+        tried = set()                                        # (i, d) found wanting since the last acceptance
         order = _by_support(_candidates(px, p, q, d, int(d_min), min_rows), support_px)
         for c in order:
             i, j, ds, sel = c["i"], c["j"], c["d"], c["votes"]
@@ -274,11 +297,15 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             need = min_rows if c["rank"] > c["rows"] else standalone_rows
             hidden = None
             if agree < need or (agree < min_fraction * smaller and longest < long_run_rows):
-                if pol is None or i == j:
+                if pol is None or i == j or rows_i < standalone_rows:
                     continue
-                # too little of the twin is on the edge map: is the rest on another object's outline or inside it?
-                hidden = _partly_hidden_twin(px, p, q, d, by_left, free, grey_f, i, ds, min_rows, min_run, tol_px,
-                                             max(standalone_rows, seen_fraction * rows_i), polarity_level)
+                # too little twin on the edge map: is the rest merged with, or hidden on, another object?
+                if (i, ds) in tried:
+                    continue
+                tried.add((i, ds))
+                hidden = _partly_hidden_twin(px, (p, q, d), index, free, claimed, steps, i, ds, min_rows,
+                                             min_run, tol_px, max(standalone_rows, seen_fraction * rows_i),
+                                             polarity_level)
                 if hidden is None:
                     continue
                 kept, right_set = hidden
@@ -300,11 +327,16 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             pairs.append(EdgePair(left, right, left[:, 0] - right[:, 0], i, j, float(ds)))
             free[li] = False
             free[ri] = False
+            _claim(claimed, px, li, 0)
+            tried.clear()
+            _claim(claimed, px, ri, 1)
             if pol is not None and i != j:
                 # the pair's leftover pixels whose twin steps the grey image where the edge map lost it
-                for idx, dd in ((np.flatnonzero(free & (px.label == i)), ds),
-                                (np.flatnonzero(free & np.isin(px.label, px.label[ri])), -ds)):
-                    explained[idx[_twin_step_seen(grey_f, px, idx, dd, tol_px, polarity_level)]] = True
+                for idx, dd, view in ((np.flatnonzero(free & (px.label == i)), ds, 0),
+                                      (np.flatnonzero(free & np.isin(px.label, px.label[ri])), -ds, 1)):
+                    idx = idx[_twin_step_seen(steps, px, idx, dd, tol_px, polarity_level, claimed[1 - view])]
+                    explained[idx] = True
+                    _claim(claimed, px, idx, view)
             order.send(True)
     unmatched = []
     paired = np.bincount(px.label[~free | explained], minlength=px.n_labels)

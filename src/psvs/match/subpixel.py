@@ -11,13 +11,19 @@ from __future__ import annotations
 
 import numpy as np
 
+from psvs.match.edges import row_step
 from psvs.match.pairs import EdgePair, local_mean
 
 
 def refine_columns(grey: np.ndarray, px: np.ndarray, radius: int = 2, min_ratio: float = 0.5,
-                   with_mask: bool = False):
+                   with_mask: bool = False, sign: np.ndarray | None = None):
     """Sub-pixel u of edge points ``px`` (N, 2) (u, v) on ``grey`` (H, W); returns (N, 2) float (and, with
-    ``with_mask``, an (N,) bool mask of the points that could be refined)."""
+    ``with_mask``, an (N,) bool mask of the points that could be refined).
+
+    ``sign`` (N,), optional: the way each edge steps along the row (+1 rising, -1 falling, 0 either). The
+    steepest sample is then sought among those stepping that way: next to a thin stripe (a sliver of
+    background between two overlapping views) the stripe's other, opposite edge may be steeper.
+    """
     img = np.asarray(grey, dtype=np.float64)
     h, w = img.shape
     out = np.asarray(px, dtype=float).copy()
@@ -32,7 +38,12 @@ def refine_columns(grey: np.ndarray, px: np.ndarray, radius: int = 2, min_ratio:
     prof = img[rows, cols]                                          # (N, 2r+3) row profile
     g = 0.5 * (img[rows, cols + 1] - img[rows, cols - 1])
     gv = 0.5 * (img[np.clip(rows + 1, 0, h - 1), cols] - img[np.clip(rows - 1, 0, h - 1), cols])
-    k = np.argmax(np.abs(g[:, 1:-1]), axis=1) + 1                    # steepest sample, not at the ends
+    if sign is None:
+        score = np.abs(g)
+    else:
+        sg = np.asarray(sign)[:, None]
+        score = np.where(sg == 0, np.abs(g), sg * g)
+    k = np.argmax(score[:, 1:-1], axis=1) + 1                        # steepest sample, not at the ends
     # half-level crossing between the local low and high levels, next to the steepest sample
     half = 0.5 * (prof.min(axis=1) + prof.max(axis=1))
     # the crossing lies between k and k+1 when moving along the step direction reaches half after k
@@ -47,6 +58,13 @@ def refine_columns(grey: np.ndarray, px: np.ndarray, radius: int = 2, min_ratio:
     return (out, ok) if with_mask else out
 
 
+def _row_steps(grey: np.ndarray, px: np.ndarray) -> np.ndarray:
+    """:func:`psvs.match.edges.row_step` at the integer pixels nearest ``px`` (N, 2)."""
+    img = np.asarray(grey, dtype=np.float64)
+    v = np.clip(np.rint(px[:, 1]).astype(int), 0, img.shape[0] - 1)
+    return row_step(img, np.rint(px[:, 0]).astype(int), v)
+
+
 def refine_pairs(grey: np.ndarray, pair: EdgePair, radius: int = 2, smooth_px: int = 3,
                  spread_px: int = 10) -> EdgePair:
     """The pair refined to sub-pixel.
@@ -58,8 +76,9 @@ def refine_pairs(grey: np.ndarray, pair: EdgePair, radius: int = 2, smooth_px: i
     such a pixel takes the mean disparity of the well-conditioned pixels within ``spread_px``. The right
     column is then u_l - d. Pixels with no well-conditioned neighbour keep their integer positions.
     """
-    left, ok_l = refine_columns(grey, pair.left_px, radius, with_mask=True)
-    right, ok_r = refine_columns(grey, pair.right_px, radius, with_mask=True)
+    sign = np.sign(_row_steps(grey, pair.left_px) + _row_steps(grey, pair.right_px))   # the pair's polarity
+    left, ok_l = refine_columns(grey, pair.left_px, radius, with_mask=True, sign=sign)
+    right, ok_r = refine_columns(grey, pair.right_px, radius, with_mask=True, sign=sign)
     good = ok_l & ok_r
     disp = left[:, 0] - right[:, 0]
     if good.any():
