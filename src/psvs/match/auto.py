@@ -125,40 +125,53 @@ def _polarity(grey: np.ndarray, px: EdgePixels, level: float) -> np.ndarray:
     return np.where(np.abs(step) < level, 0, np.sign(step)).astype(np.int8)
 
 
-def _step_image(grey: np.ndarray, pad: int) -> np.ndarray:
-    """:func:`row_step` at every pixel of a grey (H, W) image, zero-padded by ``pad`` columns each side:
-    (H, W + 2 pad), column u at u + pad."""
+def _step_image(grey: np.ndarray, pad: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`row_step` at every pixel of a grey (H, W) image, and the headroom above the darker of its
+    two samples where the brighter one reaches the image's maximum (a step clipped by saturation), else
+    infinity; both zero-padded by ``pad`` columns each side: (H, W + 2 pad), column u at u + pad."""
     h, w = grey.shape
-    out = np.zeros((h, w + 2 * pad))
-    out[:, pad:pad + w] = row_step(grey, np.arange(w)[None, :], np.arange(h)[:, None])
-    return out
+    u, v = np.arange(w)[None, :], np.arange(h)[:, None]
+    a, b = grey[v, np.clip(u - 2, 0, w - 1)], grey[v, np.clip(u + 2, 0, w - 1)]
+    top = grey.max()
+    steps, room = np.zeros((h, w + 2 * pad)), np.zeros((h, w + 2 * pad))
+    steps[:, pad:pad + w] = row_step(grey, u, v)
+    room[:, pad:pad + w] = np.where(np.maximum(a, b) >= top, top - np.minimum(a, b), np.inf)
+    room[:, :pad] = room[:, pad + w:] = np.inf
+    return steps, room
 
 
-def _twin_step_seen(steps: np.ndarray, px: EdgePixels, idx: np.ndarray, d: float, tol_px: float,
-                    level: float, blocked: np.ndarray) -> np.ndarray:
-    """Mask (len(idx),): the twin of edge pixel ``idx``, at column u - d of its row (+-tol_px), is seen
-    in the grey image: it steps the same way there, by at least half as much (and ``level``), and no
-    ``blocked`` pixel lies there: an edge already claimed *in the twin's view*. That step is another
-    object's edge in the same view; an edge of the *other* view there is what the twin may have merged
-    with. ``steps`` and ``blocked`` are padded images from :func:`_step_image` (same padding).
+def _twin_step_seen(steps, px: EdgePixels, idx: np.ndarray, d: float, tol_px: float,
+                    level: float, blocked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Masks (len(idx),) seen and blind, for the twins of edge pixels ``idx`` at column u - d of their
+    rows (+-tol_px).
+
+    Seen: the grey image steps the same way there, by at least half as much (and ``level``; half the
+    headroom where saturation clips the step), and no ``blocked`` pixel lies there: an edge already
+    claimed *in the twin's view*. That step is another object's edge in the same view; an edge of the
+    *other* view there is what the twin may have merged with. Blind: saturation flattens the whole
+    neighbourhood, which can then neither show nor deny the twin. ``steps`` (step, headroom) and
+    ``blocked`` are padded images from :func:`_step_image` (same padding).
 
     The complex image is the *sum* of the two views, so an edge of one view that falls on a bright object
     of the other view still steps the grey level by its own contrast, although both sides of it land above
     the binary threshold and the edge map loses it there.
     """
-    pad = (steps.shape[1] - px.shape[1]) // 2
+    step, room = steps
+    pad = (step.shape[1] - px.shape[1]) // 2
     u, v = px.u[idx] + pad, px.v[idx]
-    own = steps[v, u]
-    need = np.maximum(level, 0.5 * np.abs(own))
+    own = step[v, u]
     sign = np.sign(own)
     seen = np.zeros(len(idx), dtype=bool)
     other = np.zeros(len(idx), dtype=bool)
     t = int(np.ceil(tol_px))
-    at = np.clip(np.rint(u - d).astype(int), t, steps.shape[1] - 1 - t)
+    at = np.clip(np.rint(u - d).astype(int), t, step.shape[1] - 1 - t)
+    blind = np.ones(len(idx), dtype=bool)
     for k in range(-t, t + 1):
-        seen |= sign * steps[v, at + k] >= need
+        need = np.maximum(level, 0.5 * np.minimum(np.abs(own), room[v, at + k]))
+        seen |= sign * step[v, at + k] >= need
         other |= blocked[v, at + k]
-    return seen & ~other & (sign != 0)
+        blind &= room[v, at + k] < level
+    return seen & ~other & (sign != 0), blind & ~other
 
 
 def _claim(claimed: np.ndarray, px: EdgePixels, idx: np.ndarray, view: int) -> None:
@@ -178,17 +191,18 @@ def _by_label(labels: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray
     return order, np.searchsorted(labels[order], np.arange(n_labels + 1))
 
 
-def _partly_hidden_twin(px: EdgePixels, votes, index, free, claimed, steps, i: int, ds: int, min_rows: int,
-                        min_run: int, tol_px: float, need_rows: float, level: float):
+def _partly_hidden_twin(px: EdgePixels, votes, index, free, explained, claimed, steps, i: int, ds: int, min_rows: int,
+                        min_run: int, tol_px: float, standalone_rows: int, seen_fraction: float, level: float):
     """Accept the twin of left edge ``i`` at disparity ``ds`` from its visible pieces, wherever they are.
 
     Where one object's view overlaps another object's view, the binary edge map keeps only part of its
     twin's outline, and that part is merged with the other object's outline (or its inner contour). The
     visible pieces are gathered over *all* components at ``ds`` +-1 px (except pixels already claimed for
     the right view); they must agree on at least ``min_rows`` rows in stretches of ``min_run`` rows. The
-    rest of the twin must be explained: on at least ``need_rows`` rows of edge ``i``, the grey image steps
-    the same way at the twin's column (:func:`_twin_step_seen`), whether the edge map kept that piece or
-    lost it on the bright overlap.
+    rest of the twin must be explained: on at least ``standalone_rows`` rows of edge ``i``, and on
+    ``seen_fraction`` of its rows where saturation does not blind the grey image, the grey image steps the
+    same way at the twin's column (:func:`_twin_step_seen`), whether the edge map kept that piece or lost
+    it on the bright overlap.
 
     Returns (agreeing left pixels, free pixels of the components holding the twin's pieces) as indices
     into ``px``, or None.
@@ -205,9 +219,11 @@ def _partly_hidden_twin(px: EdgePixels, votes, index, free, claimed, steps, i: i
     if _n_rows(px.v[kept]) < min_rows:
         return None
     left = pix_order[pix_start[i]:pix_start[i + 1]]
-    left = left[free[left]]
-    seen = left[_twin_step_seen(steps, px, left, ds, tol_px, level, claimed[1])]
-    if _n_rows(px.v[seen]) < need_rows:
+    left = left[free[left] & ~explained[left]]                  # not already explained by an accepted pair
+    seen, blind = _twin_step_seen(steps, px, left, ds, tol_px, level, claimed[1])
+    seen_rows = _n_rows(px.v[left[seen]])
+    blind_rows = _n_rows(px.v[left]) - _n_rows(px.v[left[~blind]])    # rows with all their twins blind
+    if seen_rows < standalone_rows or seen_rows < seen_fraction * (_n_rows(px.v[left]) - blind_rows):
         return None
     in_kept = np.zeros(len(px.u), dtype=bool)
     in_kept[kept] = True
@@ -273,13 +289,43 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
     pairs: list[EdgePair] = []
     free = np.ones(len(px.u), dtype=bool)                    # pixels not yet in any pair
     explained = np.zeros(len(px.u), dtype=bool)              # unpaired pixels of a pair whose twin is hidden
+    pad = int(np.ceil(d_max + tol_px)) + 1
+    steps = None if pol is None else _step_image(np.asarray(grey, dtype=np.float64), pad)
+    claimed = np.zeros((2, px.shape[0], px.shape[1] + 2 * pad), dtype=bool)  # known left / right-view pixels
+
+    def accept(i: int, j: int, ds: int, kept: np.ndarray, sel: np.ndarray, right_set: np.ndarray | None) -> bool:
+        """Grow the pair (i, j) at disparity ds from its agreeing left pixels ``kept`` (votes ``sel``) along
+        both edges (the disparity may drift along a slanted edge); append it if it holds min_rows pixels."""
+        in_kept = np.zeros(len(px.u), dtype=bool)
+        in_kept[kept] = True
+        if i == j:  # a merged outline: the agreeing pixels are the left view, their twins the right
+            left_set = kept
+            right_set = _distinct(q[sel][in_kept[p[sel]]], len(px.u))
+        else:
+            left_set = _distinct(np.concatenate([kept, np.flatnonzero(free & (px.label == i))]), len(px.u))
+            if right_set is None:
+                right_set = np.flatnonzero(free & (px.label == j))
+        li, ri = grow_pairs(px, left_set, right_set[~in_kept[right_set]], ds, tol_px, polarity=pol)
+        if len(li) < min_rows:
+            return False
+        left = np.column_stack([px.u[li], px.v[li]]).astype(float)
+        right = np.column_stack([px.u[ri], px.v[ri]]).astype(float)
+        pairs.append(EdgePair(left, right, left[:, 0] - right[:, 0], i, j, float(ds)))
+        free[li] = False
+        free[ri] = False
+        _claim(claimed, px, li, 0)
+        _claim(claimed, px, ri, 1)
+        if pol is not None and i != j:
+            # the pair's leftover pixels whose twin steps the grey image where the edge map lost it
+            for idx, dd, view in ((np.flatnonzero(free & (px.label == i)), ds, 0),
+                                  (np.flatnonzero(free & np.isin(px.label, px.label[ri])), -ds, 1)):
+                seen, blind = _twin_step_seen(steps, px, idx, dd, tol_px, polarity_level, claimed[1 - view])
+                explained[idx[seen | blind]] = True
+                _claim(claimed, px, idx[seen], view)
+        return True
+
+    later = []                                               # candidates the edge map alone does not settle
     if len(p):
-        pad = int(np.ceil(d_max + tol_px)) + 1
-        steps = None if pol is None else _step_image(np.asarray(grey, dtype=np.float64), pad)
-        claimed = np.zeros((2, px.shape[0], px.shape[1] + 2 * pad), dtype=bool)  # known left / right-view pixels
-        # votes and pixels by (left) component
-        index = (_by_label(px.label[p], px.n_labels), _by_label(px.label, px.n_labels))
-        tried = set()                                        # (i, d) found wanting since the last acceptance
         order = _by_support(_candidates(px, p, q, d, int(d_min), min_rows), support_px)
         for c in order:
             i, j, ds, sel = c["i"], c["j"], c["d"], c["votes"]
@@ -295,49 +341,25 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             smaller = rows_i / 2 if i == j else min(rows_i, rows_j)
             # an edge backed by no accepted pair at its disparity nearby needs stronger evidence of its own
             need = min_rows if c["rank"] > c["rows"] else standalone_rows
-            hidden = None
             if agree < need or (agree < min_fraction * smaller and longest < long_run_rows):
-                if pol is None or i == j or rows_i < standalone_rows:
-                    continue
-                # too little twin on the edge map: is the rest merged with, or hidden on, another object?
-                if (i, ds) in tried:
-                    continue
-                tried.add((i, ds))
-                hidden = _partly_hidden_twin(px, (p, q, d), index, free, claimed, steps, i, ds, min_rows,
-                                             min_run, tol_px, max(standalone_rows, seen_fraction * rows_i),
-                                             polarity_level)
-                if hidden is None:
-                    continue
-                kept, right_set = hidden
-            # grow along both edges from the agreeing pixels (the disparity may drift along a slanted edge)
-            in_kept = np.zeros(len(px.u), dtype=bool)
-            in_kept[kept] = True
-            if i == j:  # a merged outline: the agreeing pixels are the left view, their twins the right
-                left_set = kept
-                right_set = _distinct(q[sel][in_kept[p[sel]]], len(px.u))
-            else:
-                left_set = _distinct(np.concatenate([kept, np.flatnonzero(free & (px.label == i))]), len(px.u))
-                if hidden is None:
-                    right_set = np.flatnonzero(free & (px.label == j))
-            li, ri = grow_pairs(px, left_set, right_set[~in_kept[right_set]], ds, tol_px, polarity=pol)
-            if len(li) < min_rows:
+                if pol is not None and i != j:
+                    later.append(c)
                 continue
-            left = np.column_stack([px.u[li], px.v[li]]).astype(float)
-            right = np.column_stack([px.u[ri], px.v[ri]]).astype(float)
-            pairs.append(EdgePair(left, right, left[:, 0] - right[:, 0], i, j, float(ds)))
-            free[li] = False
-            free[ri] = False
-            _claim(claimed, px, li, 0)
+            if accept(i, j, ds, kept, sel, None):
+                order.send(True)
+    # Second pass, once the edge map has settled what it can (so it never takes a pixel a first-pass pair
+    # needed): twins partly hidden on, or merged with, another object's view.
+    index = (_by_label(px.label[p], px.n_labels), _by_label(px.label, px.n_labels))  # votes, pixels by component
+    tried = set()                                            # (i, d) found wanting since the last acceptance
+    for c in later:
+        i, ds = c["i"], c["d"]
+        if (i, ds) in tried or _n_rows(px.v[free & (px.label == i)]) < standalone_rows:
+            continue
+        tried.add((i, ds))
+        hidden = _partly_hidden_twin(px, (p, q, d), index, free, explained, claimed, steps, i, ds, min_rows,
+                                     min_run, tol_px, standalone_rows, seen_fraction, polarity_level)
+        if hidden is not None and accept(i, c["j"], ds, hidden[0], c["votes"], hidden[1]):
             tried.clear()
-            _claim(claimed, px, ri, 1)
-            if pol is not None and i != j:
-                # the pair's leftover pixels whose twin steps the grey image where the edge map lost it
-                for idx, dd, view in ((np.flatnonzero(free & (px.label == i)), ds, 0),
-                                      (np.flatnonzero(free & np.isin(px.label, px.label[ri])), -ds, 1)):
-                    idx = idx[_twin_step_seen(steps, px, idx, dd, tol_px, polarity_level, claimed[1 - view])]
-                    explained[idx] = True
-                    _claim(claimed, px, idx, view)
-            order.send(True)
     unmatched = []
     paired = np.bincount(px.label[~free | explained], minlength=px.n_labels)
     for lab in range(px.n_labels):
