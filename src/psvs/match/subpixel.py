@@ -22,7 +22,8 @@ def refine_columns(grey: np.ndarray, px: np.ndarray, radius: int = 2, min_ratio:
 
     ``sign`` (N,), optional: the way each edge steps along the row (+1 rising, -1 falling, 0 either). The
     steepest sample is then sought among those stepping that way: next to a thin stripe (a sliver of
-    background between two overlapping views) the stripe's other, opposite edge may be steeper.
+    background between two overlapping views) the stripe's other, opposite edge may be steeper. The low
+    and high levels are taken on their own sides of the steepest sample.
     """
     img = np.asarray(grey, dtype=np.float64)
     h, w = img.shape
@@ -44,8 +45,14 @@ def refine_columns(grey: np.ndarray, px: np.ndarray, radius: int = 2, min_ratio:
         sg = np.asarray(sign)[:, None]
         score = np.where(sg == 0, np.abs(g), sg * g)
     k = np.argmax(score[:, 1:-1], axis=1) + 1                        # steepest sample, not at the ends
-    # half-level crossing between the local low and high levels, next to the steepest sample
-    half = 0.5 * (prof.min(axis=1) + prof.max(axis=1))
+    # half-level crossing between the local low and high levels, next to the steepest sample; each level
+    # from its own side of it (a thin stripe's far side is not this edge's level)
+    col = np.arange(prof.shape[1])[None, :]
+    rising = (g[n, k] >= 0)[:, None]
+    before, after = col <= k[:, None], col >= k[:, None]
+    low = np.where(np.where(rising, before, after), prof, np.inf).min(axis=1)
+    high = np.where(np.where(rising, after, before), prof, -np.inf).max(axis=1)
+    half = 0.5 * (low + high)
     # the crossing lies between k and k+1 when moving along the step direction reaches half after k
     lo_idx = np.where((prof[n, k] - half) * g[n, k] < 0, k, k - 1)
     p0, p1 = prof[n, lo_idx], prof[n, np.minimum(lo_idx + 1, prof.shape[1] - 1)]
