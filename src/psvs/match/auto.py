@@ -7,7 +7,10 @@ spread over many disparities. Candidates are ranked by the number of distinct le
 within +-1 px and accepted greedily, strongest first, as a unique assignment of *pixels*: every edge
 pixel ends up in at most one pair, as the left or the right view. Where the views overlap, the outline of
 the union holds pieces of both views in one component; such a component may pair with several others or
-with itself (both views of one object merged). Edges without a strong enough twin are reported unmatched.
+with itself (both views of one object merged). A second pass then takes the left edges whose twin is
+mostly lost from the edge map where it fell on another object's view: its visible pieces pair, and the
+grey image (the sum of both views) must still show the rest. Edges without a strong enough twin are
+reported unmatched.
 """
 from __future__ import annotations
 
@@ -269,6 +272,11 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
         Candidates are ranked by their agreeing rows plus those of other candidates at the same
         disparity (+-2 px) within this distance: the other edges of the same object (inner contours,
         texture) back the true disparity, which settles repeated shapes (two identical objects).
+    seen_fraction : float
+        With ``grey``, a second pass accepts a left edge whose twin the edge map keeps only in pieces
+        (merged with another object's view): the pieces, gathered over all components at one disparity,
+        must agree on ``min_rows`` rows, and the grey image must step the same way at the twin's column
+        on this share of the edge's rows and on ``standalone_rows`` rows (:func:`_partly_hidden_twin`).
 
     Returns
     -------
