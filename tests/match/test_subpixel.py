@@ -26,8 +26,8 @@ def test_horizontal_edges_keep_integer_positions():
 def test_sign_picks_the_edge_of_a_thin_stripe_that_steps_the_right_way():
     """A dark stripe 2.5 px wide between a bright (200) and a dimmer (120) level, box-sampled and blurred
     (sigma 0.6 px): the stripe's falling edge is the steeper one. Asked for the rising edge (at 43.8 px,
-    pixel centres), the refinement finds it within 0.15 px (the low and high levels come from their own sides of it); without
-    the sign it lands on the falling edge (41.3 px)."""
+    pixel centres), the refinement finds it within 0.15 px (the low and high levels come from their own
+    sides of it); without the sign it lands on the falling edge (41.3 px)."""
     from scipy.ndimage import gaussian_filter1d
     fine = np.arange(0, 100, 0.01) - 0.5                      # pixel k covers [k - 0.5, k + 0.5)
     prof = gaussian_filter1d(np.where(fine < 41.3, 200.0, np.where(fine < 43.8, 20.0, 120.0)), 60)

@@ -194,8 +194,9 @@ def _by_label(labels: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray
     return order, np.searchsorted(labels[order], np.arange(n_labels + 1))
 
 
-def _partly_hidden_twin(px: EdgePixels, votes, index, free, explained, claimed, steps, i: int, ds: int, min_rows: int,
-                        min_run: int, tol_px: float, standalone_rows: int, seen_fraction: float, level: float):
+def _partly_hidden_twin(px: EdgePixels, votes, index, free, explained, claimed, steps, i: int, ds: int,
+                        min_rows: int, min_run: int, tol_px: float, standalone_rows: int, seen_fraction: float,
+                        level: float):
     """Accept the twin of left edge ``i`` at disparity ``ds`` from its visible pieces, wherever they are.
 
     Where one object's view overlaps another object's view, the binary edge map keeps only part of its
@@ -213,7 +214,8 @@ def _partly_hidden_twin(px: EdgePixels, votes, index, free, explained, claimed, 
     p, q, d = votes
     (vote_order, vote_start), (pix_order, pix_start) = index
     sel = vote_order[vote_start[i]:vote_start[i + 1]]
-    sel = sel[(np.abs(d[sel] - ds) <= 1) & free[p[sel]] & free[q[sel]] & (px.label[q[sel]] != i)]
+    sel = sel[(np.abs(d[sel] - ds) <= 1) & free[p[sel]] & ~explained[p[sel]] & free[q[sel]]
+              & (px.label[q[sel]] != i)]
     sel = sel[~claimed[1, px.v[q[sel]], px.u[q[sel]] + (claimed.shape[2] - px.shape[1]) // 2]]
     if _n_rows(px.v[p[sel]]) < min_rows:
         return None
