@@ -42,6 +42,13 @@ def edge_pixels(edges: np.ndarray) -> EdgePixels:
     return EdgePixels(u, v, labels[v, u].astype(np.int64) - 1, edges.shape, n - 1)
 
 
+def row_step(grey: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Grey step along the row, I(u + 2) - I(u - 2), at integer pixels (u, v) of a float (H, W) image
+    (columns clipped to the image): its sign is the edge's polarity."""
+    w = grey.shape[1]
+    return grey[v, np.clip(u + 2, 0, w - 1)] - grey[v, np.clip(u - 2, 0, w - 1)]
+
+
 def row_votes(px: EdgePixels, d_min: float, d_max: float, left_mask=None, right_mask=None):
     """All same-row pairs (p, q) of edge pixels with d = u_p - u_q in [d_min, d_max].
 

@@ -11,13 +11,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from psvs.match.edges import row_step
 from psvs.match.pairs import EdgePair, local_mean
 
 
 def refine_columns(grey: np.ndarray, px: np.ndarray, radius: int = 2, min_ratio: float = 0.5,
-                   with_mask: bool = False):
+                   with_mask: bool = False, sign: np.ndarray | None = None):
     """Sub-pixel u of edge points ``px`` (N, 2) (u, v) on ``grey`` (H, W); returns (N, 2) float (and, with
-    ``with_mask``, an (N,) bool mask of the points that could be refined)."""
+    ``with_mask``, an (N,) bool mask of the points that could be refined).
+
+    ``sign`` (N,), optional: the way each edge steps along the row (+1 rising, -1 falling, 0 either). The
+    steepest sample is then sought among those stepping that way: next to a thin stripe (a sliver of
+    background between two overlapping views) the stripe's other, opposite edge may be steeper. The low
+    and high levels are taken on their own sides of the steepest sample.
+    """
     img = np.asarray(grey, dtype=np.float64)
     h, w = img.shape
     out = np.asarray(px, dtype=float).copy()
@@ -32,9 +39,20 @@ def refine_columns(grey: np.ndarray, px: np.ndarray, radius: int = 2, min_ratio:
     prof = img[rows, cols]                                          # (N, 2r+3) row profile
     g = 0.5 * (img[rows, cols + 1] - img[rows, cols - 1])
     gv = 0.5 * (img[np.clip(rows + 1, 0, h - 1), cols] - img[np.clip(rows - 1, 0, h - 1), cols])
-    k = np.argmax(np.abs(g[:, 1:-1]), axis=1) + 1                    # steepest sample, not at the ends
-    # half-level crossing between the local low and high levels, next to the steepest sample
-    half = 0.5 * (prof.min(axis=1) + prof.max(axis=1))
+    if sign is None:
+        score = np.abs(g)
+    else:
+        sg = np.asarray(sign)[:, None]
+        score = np.where(sg == 0, np.abs(g), sg * g)
+    k = np.argmax(score[:, 1:-1], axis=1) + 1                        # steepest sample, not at the ends
+    # half-level crossing between the local low and high levels, next to the steepest sample; each level
+    # from its own side of it (a thin stripe's far side is not this edge's level)
+    col = np.arange(prof.shape[1])[None, :]
+    rising = (g[n, k] >= 0)[:, None]
+    before, after = col <= k[:, None], col >= k[:, None]
+    low = np.where(np.where(rising, before, after), prof, np.inf).min(axis=1)
+    high = np.where(np.where(rising, after, before), prof, -np.inf).max(axis=1)
+    half = 0.5 * (low + high)
     # the crossing lies between k and k+1 when moving along the step direction reaches half after k
     lo_idx = np.where((prof[n, k] - half) * g[n, k] < 0, k, k - 1)
     p0, p1 = prof[n, lo_idx], prof[n, np.minimum(lo_idx + 1, prof.shape[1] - 1)]
@@ -45,6 +63,13 @@ def refine_columns(grey: np.ndarray, px: np.ndarray, radius: int = 2, min_ratio:
     ok &= (u >= radius + 2) & (u < w - radius - 2) & (v >= 1) & (v < h - 1)
     out[ok, 0] = cols[n, lo_idx][ok] + frac[ok]
     return (out, ok) if with_mask else out
+
+
+def _row_steps(grey: np.ndarray, px: np.ndarray) -> np.ndarray:
+    """:func:`psvs.match.edges.row_step` at the integer pixels nearest ``px`` (N, 2)."""
+    img = np.asarray(grey, dtype=np.float64)
+    v = np.clip(np.rint(px[:, 1]).astype(int), 0, img.shape[0] - 1)
+    return row_step(img, np.rint(px[:, 0]).astype(int), v)
 
 
 def refine_pairs(grey: np.ndarray, pair: EdgePair, radius: int = 2, smooth_px: int = 3,
@@ -58,8 +83,9 @@ def refine_pairs(grey: np.ndarray, pair: EdgePair, radius: int = 2, smooth_px: i
     such a pixel takes the mean disparity of the well-conditioned pixels within ``spread_px``. The right
     column is then u_l - d. Pixels with no well-conditioned neighbour keep their integer positions.
     """
-    left, ok_l = refine_columns(grey, pair.left_px, radius, with_mask=True)
-    right, ok_r = refine_columns(grey, pair.right_px, radius, with_mask=True)
+    sign = np.sign(_row_steps(grey, pair.left_px) + _row_steps(grey, pair.right_px))   # the pair's polarity
+    left, ok_l = refine_columns(grey, pair.left_px, radius, with_mask=True, sign=sign)
+    right, ok_r = refine_columns(grey, pair.right_px, radius, with_mask=True, sign=sign)
     good = ok_l & ok_r
     disp = left[:, 0] - right[:, 0]
     if good.any():
