@@ -24,13 +24,28 @@ def test_ten_times_better_than_the_paper(table1):
     assert t.summary()["paper"]["mean_abs_z_error_mm"] == pytest.approx(2.50, abs=0.01)
 
 
-def test_outputs(table1):
-    _, files = table1
+def test_outputs_read_back_by_value(table1):
+    """table1.csv (csv module), table1.md (its Markdown rows) and fig10.png (OpenCV) hold what was measured."""
+    import csv as csvlib
+
+    import cv2
+    import numpy as np
+
+    from psvs.calibrate.table1 import PAPER_TABLE1
+    t, files = table1
     csv, md, fig = files
-    assert csv.read_text().startswith("Z_meas_mm,Z_calc_mm,d_calc_mm,a_calc_mm,")
-    assert len(csv.read_text().splitlines()) == 16
-    assert "| mean \\|Z error\\| (mm) | 2.500 |" in md.read_text()
-    assert fig.stat().st_size > 10_000
+    rows = list(csvlib.DictReader(csv.open()))
+    ours = np.array([[float(r[k]) for k in ("Z_meas_mm", "Z_calc_mm", "d_calc_mm", "a_calc_mm")] for r in rows])
+    assert ours == pytest.approx(t.rows(), abs=5.1e-5)                        # 4 decimals
+    paper = np.array([[float(r[k]) for k in ("Z_calc_paper_mm", "d_calc_paper_mm", "a_calc_paper_mm")] for r in rows])
+    assert paper == pytest.approx(PAPER_TABLE1[:, 1:], abs=5.1e-5)
+    table = [ln.strip("|").split("|") for ln in md.read_text().splitlines() if ln.startswith("| ") and
+             ln[2].isdigit()]
+    assert np.array([[float(c) for c in r] for r in table])[:, [0, 2, 4, 6]] == pytest.approx(t.rows(), abs=5e-4)
+    s = t.summary()
+    assert f"| mean \\|Z error\\| (mm) | 2.500 | {s['ours']['mean_abs_z_error_mm']:.3f} |" in md.read_text()
+    img = cv2.imread(str(fig))
+    assert img.shape == (420, 1100, 3) and img.std() > 10                    # 11 x 4.2 in at 100 dpi
 
 
 def test_cli_help_and_bad_output(capsys, tmp_path):

@@ -97,7 +97,16 @@ def test_dense_eval_on_own_pair(capsys, tmp_path, planted):
     assert code == 0, err
     scores = json.loads((tmp_path / "scores.json").read_text())["scores"]
     assert scores["psvs dense"]["bad2_pct"] < 10 and "StereoSGBM, separate pair" in scores
-    assert (tmp_path / "figure.png").stat().st_size > 10000 and "| psvs dense |" in text
+    # report.md's table and the terminal hold the same numbers as scores.json
+    md = (tmp_path / "report.md").read_text()
+    for name, sc in scores.items():
+        row = next(ln for ln in md.splitlines() if ln.startswith(f"| {name} |"))
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert cells[1:5] == [f"{sc['bad1_pct']:.1f}", f"{sc['bad2_pct']:.1f}", f"{sc['mae_px']:.2f}",
+                              f"{sc['coverage_pct']:.1f}"], (name, row)
+        assert row.rsplit("|", 2)[0] in text
+    fig = cv2.imread(str(tmp_path / "figure.png"))
+    assert fig is not None and min(fig.shape[:2]) > 200 and fig.std() > 10
 
 
 @pytest.mark.parametrize("extra, message", [

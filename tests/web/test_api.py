@@ -63,9 +63,23 @@ def test_automatic_and_exports(client):
     assert csv.headers["content-disposition"] == 'attachment; filename="psvs_match.csv"'
     lines = csv.text.splitlines()
     assert lines[0] == "pair,u_l,v_l,u_r,v_r,disparity_px,X_mm,Y_mm,Z_mm" and len(lines) == res["pairs"][0]["n"] + 1
-    assert json.loads(client.get("/api/export/json").text)["pairs"][0]["n"] == res["pairs"][0]["n"]
-    ply = client.get("/api/export/ply").text
-    assert ply.startswith("ply\n") and f"element vertex {res['pairs'][0]['n']}" in ply
+    exported = json.loads(client.get("/api/export/json").text)["pairs"][0]
+    assert exported["n"] == res["pairs"][0]["n"]
+    # every export holds the same points, read back by independent readers (csv, json, plyfile)
+    import csv as csvlib
+    import io
+
+    from plyfile import PlyData
+    pts = np.array(exported["points_mm"], float)
+    rows = list(csvlib.DictReader(io.StringIO(csv.text)))
+    assert np.array([[float(r[k]) for k in ("X_mm", "Y_mm", "Z_mm")] for r in rows]) == pytest.approx(pts, abs=5.1e-5)
+    assert np.array([[float(r["u_l"]), float(r["v_l"])] for r in rows]) == pytest.approx(
+        np.array(exported["left_px"], float), abs=5.1e-5)
+    ply = client.get("/api/export/ply")
+    v = PlyData.read(io.BytesIO(ply.content))["vertex"]
+    ok = np.all(np.isfinite(pts), axis=1)
+    assert v.count == ok.sum() and np.column_stack([v["x"], v["y"], v["z"]]) == pytest.approx(pts[ok], abs=1e-3)
+    assert np.median(v["z"]) == pytest.approx(DISC["z_mm"], rel=0.005)
     assert client.get("/api/export/xyz").status_code == 404
 
 
