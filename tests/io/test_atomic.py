@@ -34,3 +34,45 @@ def test_grey8_and_npy_helpers(tmp_path):
     write_npy(path, np.arange(6, dtype=np.float32).reshape(2, 3))
     back = np.load(path)
     assert back.dtype == np.float32 and back.shape == (2, 3) and back[1, 2] == 5
+
+
+def test_output_batch_lands_all_or_nothing(tmp_path):
+    from psvs.io.atomic import output_batch
+    a, b = tmp_path / "a.json", tmp_path / "b.csv"
+    a.write_text("old a")
+    with pytest.raises(RuntimeError, match="late"):
+        with output_batch():
+            write_atomic(a, "new a")
+            assert a.read_text() == "old a"          # nothing lands before the batch ends
+            write_atomic(b, "new b")
+            raise RuntimeError("late failure")
+    assert a.read_text() == "old a" and not b.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json"]   # no temporary file left
+    with output_batch():
+        write_atomic(a, "new a")
+        write_atomic(b, "new b")
+    assert (a.read_text(), b.read_text()) == ("new a", "new b")
+
+
+def test_match_keeps_the_earlier_json_when_a_later_output_fails(tmp_path, monkeypatch, capsys):
+    """issue 13: `match -o a.json --csv ...` used to replace a.json and then exit 2 on the CSV."""
+    import numpy as np
+
+    import psvs.cli.match_cmd as match_cmd
+    from psvs.cli.main import main
+    from psvs.io.images import write_png
+    img = np.full((480, 640), 30, np.uint8)
+    img[200:260, 300:360] = 220
+    img[200:260, 130:190] = 220
+    write_png(tmp_path / "c.png", img)
+    (tmp_path / "a.json").write_text("earlier")
+
+    def fail(path, res):
+        raise OSError(f"cannot write {path}: No space left on device")
+    monkeypatch.setattr(match_cmd, "write_csv", fail)
+    code = main(["match", str(tmp_path / "c.png"), "--rig", "default", "--auto", "-o", str(tmp_path / "a.json"),
+                 "--csv", str(tmp_path / "a.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and "No space left on device" in err
+    assert (tmp_path / "a.json").read_text() == "earlier" and not (tmp_path / "a.csv").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "c.png"]

@@ -8,6 +8,7 @@ from pathlib import Path
 from psvs.calibrate.bundle import PRIOR_SIGMA
 from psvs.calibrate.folder import calibrate_folder
 from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
+from psvs.io.atomic import output_batch
 from psvs.io.params import save_rig
 
 
@@ -59,9 +60,12 @@ def run(args) -> int:
         print(f"{len(b.held_by_prior)} parameter(s) held near nominal by their priors ({priors}): "
               "the images do not show them; more card views, tilted and over the whole field, would")
     print(f"solver: {b.message}")
-    save_rig(res.rig, out)
-    if args.report is not None:
-        from psvs.calibrate.report import write_report
-        for f in write_report(args.report, b):
-            print(f"wrote {f}")
+    with output_batch():   # the rig file and the report land together
+        save_rig(res.rig, out)
+        written = []
+        if args.report is not None:
+            from psvs.calibrate.report import write_report
+            written = write_report(args.report, b)
+    for f in written:
+        print(f"wrote {f}")
     return 0 if b.success else 1

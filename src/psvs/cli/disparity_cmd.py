@@ -9,6 +9,7 @@ import numpy as np
 from psvs.cli.common import check_output_path, check_working_range
 from psvs.dense import dense_disparity, disparity_cloud, separate_views, write_cloud_ply
 from psvs.dense.disparity import FAST, check_dense_memory, check_range, working_range_px
+from psvs.io.atomic import output_batch
 from psvs.io.images import read_grey, to_grey8, write_npy, write_png
 from psvs.io.params import load_rig
 from psvs.measure.triangulate import MODELS
@@ -74,23 +75,24 @@ def run(args) -> int:
         res = dense_disparity(image, lo, hi, fast=args.fast)
     for w in caught:
         print(f"psvs disparity: warning: {w.message}", file=sys.stderr)
-    write_npy(out, res.disparity_left)
-    if right_out:
-        write_npy(right_out, res.disparity_right)
-    if conf_out:
-        write_npy(conf_out, res.confidence_left)
-    if views:
-        if np.isfinite(res.disparity_left).any():
-            lv, rv = separate_views(image, res.disparity_left, split, res.disparity_right)
-        else:  # nothing to separate by: a constant image is two identical constant views
-            lv = rv = image.astype(np.float64)
-        for path, v in zip(views, (lv, rv)):
-            write_png(path, to_grey8(v))
-    cloud = disparity_cloud(res.disparity_left, rig, args.model) if (depth_out or cloud_out) else None
-    if depth_out:
-        write_npy(depth_out, cloud.depth_mm.astype(np.float32))
-    if cloud_out:
-        write_cloud_ply(cloud_out, cloud, grey=image)
+    with output_batch():   # all outputs land together, or none replaces an earlier file
+        write_npy(out, res.disparity_left)
+        if right_out:
+            write_npy(right_out, res.disparity_right)
+        if conf_out:
+            write_npy(conf_out, res.confidence_left)
+        if views:
+            if np.isfinite(res.disparity_left).any():
+                lv, rv = separate_views(image, res.disparity_left, split, res.disparity_right)
+            else:  # nothing to separate by: a constant image is two identical constant views
+                lv = rv = image.astype(np.float64)
+            for path, v in zip(views, (lv, rv)):
+                write_png(path, to_grey8(v))
+        cloud = disparity_cloud(res.disparity_left, rig, args.model) if (depth_out or cloud_out) else None
+        if depth_out:
+            write_npy(depth_out, cloud.depth_mm.astype(np.float32))
+        if cloud_out:
+            write_cloud_ply(cloud_out, cloud, grey=image)
     d = res.disparity_left[np.isfinite(res.disparity_left)]
     summary = (f"{d.size} of {res.disparity_left.size} px answered, disparity {np.median(d):.1f} px median "
                f"({res.searched_px[0]:.0f}..{res.searched_px[1]:.0f} searched)") if d.size else "no disparity found"

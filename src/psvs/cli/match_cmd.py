@@ -5,6 +5,7 @@ import sys
 
 from psvs.cli.common import add_rig_argument, check_output_path, check_working_range, parse_seed, rig_from_args
 from psvs.imaging.pipeline import PAPER, load_pipeline
+from psvs.io.atomic import output_batch
 from psvs.io.images import read_grey
 from psvs.match.correspondence import match_image
 from psvs.match.export import write_csv, write_json, write_ply
@@ -54,14 +55,15 @@ def run(args) -> int:
     image = read_grey(args.image)
     res = match_image(image, rig, seed_px=seed, pipeline=pipeline, near_mm=args.near_mm, far_mm=args.far_mm,
                       subpixel=not args.no_subpixel, model=args.model, n_seeds=10 if args.n_seeds is None else args.n_seeds)
-    write_json(out, res)
-    if csv_path:
-        write_csv(csv_path, res)
-    if ply_path:
-        write_ply(ply_path, res)
-    if args.figures:
-        from psvs.match.figures import write_figures
-        write_figures(args.figures, res, image)
+    with output_batch():   # all outputs land together, or none replaces an earlier file
+        write_json(out, res)
+        if csv_path:
+            write_csv(csv_path, res)
+        if ply_path:
+            write_ply(ply_path, res)
+        if args.figures:
+            from psvs.match.figures import write_figures
+            write_figures(args.figures, res, image)
     for k, p in enumerate(res.pairs):
         print(f"edge {k}: {len(p)} pixel pairs, disparity {p.shape_disparity_px:.0f} px, median Z {p.median_z_mm():.1f} mm")
     if res.unmatched:

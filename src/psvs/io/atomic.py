@@ -1,15 +1,22 @@
-"""Atomic file writes: a file is either fully written or left as it was."""
+"""Atomic file writes: a file is either fully written or left as it was; and, inside :func:`output_batch`,
+a command's outputs land together or not at all."""
 from __future__ import annotations
 
+import contextvars
 import os
 import tempfile
+from contextlib import contextmanager
 from pathlib import Path
+
+# (temporary file, destination) pairs of the open batch, or None outside a batch
+_BATCH: contextvars.ContextVar[list | None] = contextvars.ContextVar("psvs_output_batch", default=None)
 
 
 def write_atomic(path, data: str | bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``.
 
-    A crash or error part-way leaves any earlier file at ``path`` untouched.
+    A crash or error part-way leaves any earlier file at ``path`` untouched. Inside :func:`output_batch` the
+    temporary file is only renamed into place when the whole batch has been written.
     """
     path = Path(path)
     if not path.parent.is_dir():
@@ -25,6 +32,10 @@ def write_atomic(path, data: str | bytes) -> None:
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the permissions open() would
         with os.fdopen(fd, mode, **({} if mode == "wb" else {"encoding": "utf-8", "newline": ""})) as fh:
             fh.write(data)
+        batch = _BATCH.get()
+        if batch is not None:
+            batch.append((tmp, path))
+            return
         os.replace(tmp, path)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
@@ -32,3 +43,25 @@ def write_atomic(path, data: str | bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+@contextmanager
+def output_batch():
+    """Every :func:`write_atomic` in the block goes to its temporary file; when the block ends normally all
+    are renamed into place, and when it raises (a later output cannot be written, bad input found late,
+    Ctrl-C) none is: the earlier files stay as they were. Batches do not nest (an inner one joins the outer)."""
+    if _BATCH.get() is not None:
+        yield
+        return
+    pending: list = []
+    token = _BATCH.set(pending)
+    try:
+        yield
+    except BaseException:
+        for tmp, _ in pending:
+            Path(tmp).unlink(missing_ok=True)
+        raise
+    finally:
+        _BATCH.reset(token)
+    for tmp, path in pending:
+        os.replace(tmp, path)
