@@ -1,5 +1,7 @@
 """Ctrl-C (issue 13): one line, exit status 130, no traceback and no partial file -- from ``psvs`` and
 from ``dev.py``, which passes the signal on and waits for psvs instead of killing it."""
+import os
+import select
 import signal
 import subprocess
 import sys
@@ -15,12 +17,20 @@ ROOT = Path(__file__).resolve().parents[2]
 def test_ctrl_c_during_table1(tmp_path, launcher):
     out = tmp_path / "t1"
     cmd = [sys.executable, "-m", "psvs"] if launcher == "psvs" else [sys.executable, str(ROOT / "dev.py"), "psvs"]
-    proc = subprocess.Popen(cmd + ["table1", "-o", str(out)], cwd=tmp_path, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    time.sleep(6.0)                      # well into the calibration sweep's rendering (the run takes > 30 s)
-    assert proc.poll() is None, proc.communicate()
+    proc = subprocess.Popen(cmd + ["table1", "-o", str(out)], cwd=tmp_path, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    # wait until table1 is at work (its progress bar has counted a first sweep image; dev.py may first
+    # reinstall the virtualenv, and a loaded machine imports slowly), then interrupt it
+    seen = b""
+    t0 = time.monotonic()
+    while b"] 1/" not in seen:
+        assert time.monotonic() - t0 < 300 and proc.poll() is None, seen.decode(errors="replace")[-2000:]
+        ready, _, _ = select.select([proc.stderr], [], [], 1.0)
+        if ready:
+            seen += os.read(proc.stderr.fileno(), 65536)
     proc.send_signal(signal.SIGINT)      # to this process only: dev.py must pass it on
-    _, err = proc.communicate(timeout=120)
+    rest = proc.communicate(timeout=120)[1]
+    err = (seen + rest).decode(errors="replace")
     assert proc.returncode == 130, err
     assert "Traceback" not in err
     assert err.strip().splitlines()[-1] == "psvs table1: interrupted"

@@ -132,8 +132,12 @@ def design_mirrors(rig: Rig, *, margin_mm: float = 0.0, near_mm: float | None = 
     >>> from psvs import default_rig
     >>> d = design_mirrors(default_rig(), search=False)
     >>> [(s.name, round(s.extent.width_mm, 2), round(s.eq6_length_mm, 2)) for s in d.mirrors]
-    [('m1', 23.87, 21.77), ('m2', 38.57, 39.19), ('m3', 82.11, 82.73), ('m4', 65.31, 65.31)]
-    >>> d.ok, d.problems[-1]
+    [('m1', 21.26, 19.16), ('m2', 37.7, 38.32), ('m3', 81.24, 81.86), ('m4', 62.7, 62.7)]
+    >>> d.ok, d.problems
+    (True, [])
+    >>> blocked = design_mirrors(default_rig().replace(m1_axis_distance_mm=25.0, m2_axis_distance_mm=45.0),
+    ...                          search=False)
+    >>> blocked.ok, blocked.problems[-1]
     (False, 'M2 cuts through the M1 plate')
     """
     if margin_mm < 0:

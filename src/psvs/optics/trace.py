@@ -158,7 +158,7 @@ def trace_pixels(uv_px, rig: Rig, view: str, hits: list | None = None) -> Rays:
     >>> from psvs import default_rig
     >>> rays = trace_pixels([[319.5, 239.5]], default_rig(), "right")
     >>> rays.origins_mm.round(6), rays.dirs.round(6), rays.valid
-    (array([[50., 0., 25.]]), array([[0., 0., 1.]]), array([ True]))
+    (array([[50., 0., 22.]]), array([[0., 0., 1.]]), array([ True]))
     """
     uv = check_points(uv_px, "uv_px", 2)
     dirs = camera_dirs(uv, rig.camera)
