@@ -18,7 +18,7 @@ import numpy as np
 
 from psvs.calibrate.bundle import BundleResult, bundle_adjust
 from psvs.calibrate.measure import PatternMeasurement, measure_pattern
-from psvs.calibrate.sweep import pattern_layout, sweep_views
+from psvs.calibrate.sweep import calibrate_sweep
 from psvs.calibrate.targets import detect_pattern
 from psvs.io.atomic import write_atomic
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
@@ -100,7 +100,7 @@ def run_table1(true_rig: Rig, progress=None, start: Rig | None = None, method: s
         for z in SWEEP_Z_MM:
             sweep.append((f"sweep_{z:.0f}", z - ROBOT_OFFSET_MM, detect_pattern(pattern_image(true_rig, z, int(z)))))
             tick(f"sweep {z:.0f} mm")
-        cal = bundle_adjust([], sweep_views(sweep), start, sweep_local_mm=pattern_layout())
+        cal = calibrate_sweep(sweep, start)
     else:
         from psvs.calibrate.folder import grid_view
         from psvs.calibrate.synthetic import random_poses, render_grid_shots

@@ -53,8 +53,9 @@ def run(args) -> int:
     rig = rig_from_args(args)
     pipeline = load_pipeline(args.pipeline) if args.pipeline else PAPER
     image = read_grey(args.image)
+    seeds = {} if args.n_seeds is None else {"n_seeds": args.n_seeds}   # else match_image's default
     res = match_image(image, rig, seed_px=seed, pipeline=pipeline, near_mm=args.near_mm, far_mm=args.far_mm,
-                      subpixel=not args.no_subpixel, model=args.model, n_seeds=10 if args.n_seeds is None else args.n_seeds)
+                      subpixel=not args.no_subpixel, model=args.model, **seeds)
     with output_batch():   # all outputs land together, or none replaces an earlier file
         write_json(out, res)
         if csv_path:

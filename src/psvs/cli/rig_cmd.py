@@ -3,9 +3,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from psvs.io.params import load_rig, rig_to_dict
+from psvs.io.params import load_rig, rig_path, rig_to_dict
 from psvs.io.tomlfile import dumps_toml
-from psvs.rigs import SHIPPED, shipped_rig_path
+from psvs.rigs import SHIPPED
 
 
 def add_parser(sub) -> None:
@@ -31,8 +31,9 @@ def run(args) -> int:
         return 0
     if args.rig is None:
         raise ValueError("psvs rig show needs a shipped rig's name or a rig file")
-    if args.rig in SHIPPED and not Path(args.rig).exists():
-        print(shipped_rig_path(args.rig).read_text(encoding="utf-8"), end="")
+    path = rig_path(args.rig)
+    if path != Path(args.rig):   # a shipped rig: its file as written, with the comments
+        print(path.read_text(encoding="utf-8"), end="")
     else:
-        print(dumps_toml(rig_to_dict(load_rig(args.rig))), end="")
+        print(dumps_toml(rig_to_dict(load_rig(path))), end="")
     return 0

@@ -31,14 +31,21 @@ _EXTENT_KEYS = ("along_mm", "height_mm")
 _ERROR_KEYS = ("tilt_deg", "shift_mm")
 
 
-def load_rig(path) -> Rig:
-    """Read a rig file (``.toml`` or ``.json``), or a rig shipped with psvs by its name (``default``,
-    ``clear``, ``misaligned``: :mod:`psvs.rigs`) when no such file exists; errors name the file and the key."""
+def rig_path(path) -> Path:
+    """The file a ``--rig`` argument names: the path itself, or, when no such file exists and it is a bare
+    name, the rig shipped with psvs under that name (``default``, ``clear``, ``misaligned``: :mod:`psvs.rigs`)."""
     path = Path(path)
     if not path.exists() and not path.suffix and path.name == str(path):
         if path.name not in SHIPPED:
             raise FileNotFoundError(f"rig file not found: {path} (shipped rigs: {', '.join(SHIPPED)})")
-        path = shipped_rig_path(path.name)
+        return shipped_rig_path(path.name)
+    return path
+
+
+def load_rig(path) -> Rig:
+    """Read a rig file (``.toml`` or ``.json``), or a shipped rig by its name (:func:`rig_path`); errors name
+    the file and the key."""
+    path = rig_path(path)
     data = load_toml(path, "rig")
     try:
         return rig_from_dict(data)
