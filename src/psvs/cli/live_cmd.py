@@ -28,7 +28,8 @@ def add_parser(sub) -> None:
     p.add_argument("--pipeline", metavar="P.toml", help="image pipeline (default: median 3, threshold 92, Roberts)")
     p.add_argument("--near-mm", type=float, default=400.0, help="working range near end (default 400)")
     p.add_argument("--far-mm", type=float, default=1200.0, help="working range far end (default 1200)")
-    p.add_argument("--model", choices=MODELS, default="refraction", help="triangulation model (default refraction)")
+    p.add_argument("--model", choices=MODELS, default=None,
+                   help="triangulation model (default: refraction on the paper's geometry, exact on a build)")
     p.add_argument("--max-frames", type=int, help="stop after N frames")
     p.add_argument("--quiet", action="store_true", help="print only the summary")
     p.set_defaults(run=run)

@@ -30,7 +30,8 @@ def add_parser(sub) -> None:
     p.add_argument("--figures", metavar="DIR", help="write fig7_views.png and fig8_disparity.png here")
     p.add_argument("--near-mm", type=float, default=400.0, help="working range near end (default 400)")
     p.add_argument("--far-mm", type=float, default=1200.0, help="working range far end (default 1200)")
-    p.add_argument("--model", choices=MODELS, default="refraction", help="triangulation model (default refraction)")
+    p.add_argument("--model", choices=MODELS, default=None,
+                   help="triangulation model (default: refraction on the paper's geometry, exact on a build)")
     p.add_argument("--n-seeds", type=int, help="seeds on the corresponding edge, 2-100 (default 10)")
     p.add_argument("--no-subpixel", action="store_true", help="keep integer pixel positions")
     p.set_defaults(run=run)

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.imaging.pipeline import PAPER, Pipeline
-from psvs.match.correspondence import disparity_range, finish_pairs
+from psvs.match.correspondence import disparity_range, finish_pairs, rectification_for
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.optics.rig import Rig
@@ -84,7 +84,7 @@ class EdgeTracker:
     """
 
     def __init__(self, rig: Rig, seed_px, *, pipeline: Pipeline = PAPER, near_mm: float = 400.0,
-                 far_mm: float = 1200.0, model: str = "refraction", subpixel: bool = True, snap_px: float = 6.0,
+                 far_mm: float = 1200.0, model: str | None = None, subpixel: bool = True, snap_px: float = 6.0,
                  search_px: float = 25.0, max_jump_px: float = 12.0, min_pairs: int = 10, candidates: int = 4):
         try:
             seed = np.array([float(c) for c in seed_px])
@@ -98,7 +98,8 @@ class EdgeTracker:
             if not value > 0:
                 raise ValueError(f"{name} must be > 0 px, got {value!r}")
         self.rig, self.pipeline, self.model, self.subpixel = rig, pipeline, model, subpixel
-        self.range_px = disparity_range(rig, near_mm, far_mm)
+        self.rect = rectification_for(rig, near_mm, far_mm)       # a build: twins on rectified rows
+        self.range_px = disparity_range(rig, near_mm, far_mm, self.rect)
         self.snap_px, self.search_px, self.max_jump_px = snap_px, search_px, max_jump_px
         self.min_pairs, self.candidates = min_pairs, candidates
         self._seed = seed
@@ -124,14 +125,14 @@ class EdgeTracker:
         cands = nearest_edge_pixels(edges, predicted, radius, self.candidates)
         msg = "no edge pixel near the seed" if first else "edge lost"
         for cand in cands:
-            pair = match_seeded(edges, cand, self.range_px)
+            pair = match_seeded(edges, cand, self.range_px, rect=self.rect)
             if len(pair) < self.min_pairs:
                 continue
             d = float(np.median(pair.disparity_px))
             if not first and abs(d - self._disparity) > self.max_jump_px * (1 + self._lost):
                 msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"
                 continue
-            pair, = finish_pairs(grey, [pair], self.rig, subpixel=self.subpixel, model=self.model)
+            pair, = finish_pairs(grey, [pair], self.rig, subpixel=self.subpixel, model=self.model, rect=self.rect)
             z = pair.points_mm[:, 2]
             if not np.any(np.isfinite(z)):
                 continue

@@ -68,12 +68,13 @@ def _candidates(px: EdgePixels, p, q, d, d_min: int, min_rows: int) -> list[dict
     order = np.argsort(key, kind="stable")
     ks = key[order]
     # rows per (i, j, d): distinct (key, row); the keys are sorted, so distinct values come from diff
-    height = int(px.v.max()) + 1
+    rows_of = px.left_uv[1]                                  # rows as the left view sees them
+    height = int(rows_of.max()) + 1
     new = np.concatenate(([True], ks[1:] != ks[:-1]))
     first = np.flatnonzero(new)
     uk = ks[first]
     last = np.concatenate((first[1:], [len(ks)]))
-    kv = np.sort(ks * height + px.v[p[order]])
+    kv = np.sort(ks * height + rows_of[p[order]])
     kv = kv[np.concatenate(([True], kv[1:] != kv[:-1]))] // height
     rcount = np.diff(np.concatenate((np.flatnonzero(np.concatenate(([True], kv[1:] != kv[:-1]))), [len(kv)])))
     rk = kv[np.concatenate(([True], kv[1:] != kv[:-1]))]
@@ -144,9 +145,10 @@ def _step_image(grey: np.ndarray, pad: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _twin_step_seen(steps, px: EdgePixels, idx: np.ndarray, d: float, tol_px: float,
-                    level: float, blocked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Masks (len(idx),) seen and blind, for the twins of edge pixels ``idx`` at column u - d of their
-    rows (+-tol_px).
+                    level: float, blocked: np.ndarray, view: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Masks (len(idx),) seen and blind, for the twins of edge pixels ``idx`` (taken in ``view``, 0 left or
+    1 right) at column u - d of their rows (+-tol_px; on a build, rows and columns of the rectified views,
+    :meth:`EdgePixels.twin_pixels`).
 
     Seen: the grey image steps the same way there, by at least half as much (and ``level``; half the
     headroom where saturation clips the step), and no ``blocked`` pixel lies there: an edge already
@@ -167,13 +169,16 @@ def _twin_step_seen(steps, px: EdgePixels, idx: np.ndarray, d: float, tol_px: fl
     seen = np.zeros(len(idx), dtype=bool)
     other = np.zeros(len(idx), dtype=bool)
     t = int(np.ceil(tol_px))
-    at = np.clip(np.rint(u - d).astype(int), t, step.shape[1] - 1 - t)
     blind = np.ones(len(idx), dtype=bool)
     for k in range(-t, t + 1):
-        need = np.maximum(level, 0.5 * np.minimum(np.abs(own), room[v, at + k]))
-        seen |= sign * step[v, at + k] >= need
-        other |= blocked[v, at + k]
-        blind &= room[v, at + k] < level
+        tu, tv, inside = px.twin_pixels(idx, k - np.rint(d), view)
+        tu, tv = np.clip(tu + pad, 0, step.shape[1] - 1), np.clip(tv, 0, step.shape[0] - 1)
+        step_k = np.where(inside, step[tv, tu], 0.0)            # outside the image: as the zero padding
+        room_k = np.where(inside, room[tv, tu], np.inf)
+        need = np.maximum(level, 0.5 * np.minimum(np.abs(own), room_k))
+        seen |= sign * step_k >= need
+        other |= inside & blocked[tv, tu]
+        blind &= room_k < level
     return seen & ~other & (sign != 0), blind & ~other
 
 
@@ -247,7 +252,7 @@ class AutoMatch:
 def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_rows: int = 10,
                min_fraction: float = 0.6, long_run_rows: int = 20, min_run: int = 4, tol_px: float = 2.0,
                support_px: int = 24, standalone_rows: int = 30, grey: np.ndarray | None = None,
-               polarity_level: float = 8.0, seen_fraction: float = 0.8) -> AutoMatch:
+               polarity_level: float = 8.0, seen_fraction: float = 0.8, rect=None) -> AutoMatch:
     """Pair all edges of an (H, W) bool edge map with their twins.
 
     Parameters
@@ -279,16 +284,20 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
         (merged with another object's view): the pieces, gathered over all components at one disparity,
         must agree on ``min_rows`` rows, and the grey image must step the same way at the twin's column
         on this share of the edge's rows and on ``standalone_rows`` rows (:func:`_partly_hidden_twin`).
+    rect : psvs.optics.rectify.Rectification, optional
+        A build's dual rectification: twins then share rows of the rectified views, and disparities are
+        rectified ones. None: the complex image's own rows (the paper's geometry).
 
     Returns
     -------
     AutoMatch
-        ``pairs`` (integer pixel pairs, strongest first), ``unmatched`` edges, and the labelled pixels.
+        ``pairs`` (integer pixel pairs, strongest first; with ``rect`` in rectified coordinates, left and
+        right each in its own view's), ``unmatched`` edges (complex-image boxes), and the labelled pixels.
     """
     d_min, d_max = disparity_range_px
     if not 0 < d_min < d_max:
         raise ValueError(f"disparity range must satisfy 0 < d_min < d_max, got {disparity_range_px!r}")
-    px = edge_pixels(edges)
+    px = edge_pixels(edges, rect)
     sizes = np.bincount(px.label, minlength=px.n_labels)
     p, q, d = row_votes(px, d_min, d_max)
     pol = None
@@ -318,8 +327,8 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
         li, ri = grow_pairs(px, left_set, right_set[~in_kept[right_set]], ds, tol_px, polarity=pol)
         if len(li) < min_rows:
             return False
-        left = np.column_stack([px.u[li], px.v[li]]).astype(float)
-        right = np.column_stack([px.u[ri], px.v[ri]]).astype(float)
+        left = np.column_stack([c[li] for c in px.left_uv]).astype(float)
+        right = np.column_stack([c[ri] for c in px.right_uv]).astype(float)
         pairs.append(EdgePair(left, right, left[:, 0] - right[:, 0], i, j, float(ds)))
         free[li] = False
         free[ri] = False
@@ -329,7 +338,7 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
             # the pair's leftover pixels whose twin steps the grey image where the edge map lost it
             for idx, dd, view in ((np.flatnonzero(free & (px.label == i)), ds, 0),
                                   (np.flatnonzero(free & np.isin(px.label, px.label[ri])), -ds, 1)):
-                seen, blind = _twin_step_seen(steps, px, idx, dd, tol_px, polarity_level, claimed[1 - view])
+                seen, blind = _twin_step_seen(steps, px, idx, dd, tol_px, polarity_level, claimed[1 - view], view)
                 explained[idx[seen | blind]] = True
                 _claim(claimed, px, idx[seen], view)
         return True

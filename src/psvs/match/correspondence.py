@@ -1,5 +1,10 @@
 """From a complex image to matched, triangulated edges: pipeline -> match (seeded or automatic) ->
-sub-pixel refinement -> triangulation (issue 2's models, refraction-corrected by default)."""
+sub-pixel refinement -> triangulation (issue 2's models, refraction-corrected by default).
+
+On a build (misaligned mirrors or a distorting lens, :func:`psvs.optics.rectify.needs_rectification`) the
+two views of a point no longer share a row of the complex image: matching then pairs edge pixels on the
+rows of the dual rectification (psvs.optics.rectify), refines them on the two rectified images, maps them
+back to the complex image and triangulates them with the exact model of the build."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -14,6 +19,7 @@ from psvs.match.seeded import match_seeded
 from psvs.match.subpixel import refine_pairs
 from psvs.measure.triangulate import triangulate, twin_rows
 from psvs.optics.design import working_range
+from psvs.optics.rectify import Rectification, needs_rectification, rectify
 from psvs.optics.rig import Rig
 
 #: Extra disparity margin (px) around the working range's ideal disparities (plate shift, edge width).
@@ -32,10 +38,28 @@ class MatchResult:
     stages: list
 
 
-def disparity_range(rig: Rig, near_mm: float, far_mm: float) -> tuple[float, float]:
-    """Disparities (px) of the working range near..far, widened by :data:`RANGE_MARGIN_PX`."""
-    wr = working_range(rig, near_mm, far_mm)
-    return (max(1.0, wr.disparity_px[0] - RANGE_MARGIN_PX), wr.disparity_px[1] + RANGE_MARGIN_PX)
+def disparity_range(rig: Rig, near_mm: float, far_mm: float, rect: Rectification | None = None) -> tuple[float, float]:
+    """Disparities (px) of the working range near..far, widened by :data:`RANGE_MARGIN_PX`; with ``rect``,
+    rectified disparities f' b' / z' (z' from the views' centres along the rectified axis)."""
+    if rect is None:
+        wr = working_range(rig, near_mm, far_mm)
+        lo, hi = wr.disparity_px
+    else:
+        wr = working_range(rig, near_mm, far_mm)          # checks the range
+        zc = 0.5 * (rect.centres_mm["left"] + rect.centres_mm["right"]) @ rect.rotation[2]
+        lo, hi = (rect.camera_matrix[0, 0] * rect.baseline_mm / (z - zc) for z in (far_mm, near_mm))
+    return (max(1.0, lo - RANGE_MARGIN_PX), hi + RANGE_MARGIN_PX)
+
+
+def default_model(rig: Rig) -> str:
+    """The triangulation model used when none is asked for: the refraction-corrected closed forms
+    (eq. 15) on the paper's geometry, the exact model on a build (the closed forms assume it ideal)."""
+    return "exact" if needs_rectification(rig) else "refraction"
+
+
+def rectification_for(rig: Rig, near_mm: float, far_mm: float) -> Rectification | None:
+    """The rig's dual rectification over near..far (cached), or None where its own rows serve."""
+    return rectify(rig, float(near_mm), float(far_mm)) if needs_rectification(rig) else None
 
 
 def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
@@ -69,7 +93,7 @@ def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
 
 
 def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline = PAPER, near_mm: float = 400.0,
-                far_mm: float = 1200.0, subpixel: bool = True, model: str = "refraction", n_seeds: int = 10,
+                far_mm: float = 1200.0, subpixel: bool = True, model: str | None = None, n_seeds: int = 10,
                 min_rows: int = 10) -> MatchResult:
     """Match edges of a complex image and triangulate them.
 
@@ -87,12 +111,13 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         Working depth range: sets the disparities searched.
     subpixel : bool
         Refine every matched pixel to sub-pixel on the grey image.
-    model : {'paper', 'refraction', 'exact'}
-        Triangulation model (issue 2).
+    model : {'paper', 'refraction', 'exact'}, optional
+        Triangulation model (issue 2); default :func:`default_model` (exact on a build).
 
     Returns
     -------
     MatchResult
+        Pairs in complex-image pixels; on a build their disparity is the rectified one.
     """
     grey = np.asarray(grey)
     if grey.ndim != 2 or grey.dtype != np.uint8:
@@ -103,25 +128,51 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     lo, hi, _, _ = cv2.minMaxLoc(grey)
     if lo == hi:
         raise ValueError("image is blank (one grey level): nothing to match")
-    rng = disparity_range(rig, near_mm, far_mm)
+    rect = rectification_for(rig, near_mm, far_mm)
+    rng = disparity_range(rig, near_mm, far_mm, rect)
     edges, stages = pipeline.run(grey, keep=True)
     if seed_px is not None:
-        pair = match_seeded(edges, seed_px, rng, n_seeds=n_seeds)
+        pair = match_seeded(edges, seed_px, rng, n_seeds=n_seeds, rect=rect)
         pairs, unmatched = ([pair] if len(pair) else []), []
     else:
-        auto = match_auto(edges, rng, min_rows=min_rows, grey=grey)
+        auto = match_auto(edges, rng, min_rows=min_rows, grey=grey, rect=rect)
         pairs, unmatched = auto.pairs, auto.unmatched
-    return MatchResult(finish_pairs(grey, pairs, rig, subpixel=subpixel, model=model), unmatched, edges, rng, stages)
+    return MatchResult(finish_pairs(grey, pairs, rig, subpixel=subpixel, model=model, rect=rect), unmatched, edges,
+                       rng, stages)
 
 
 def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel: bool = True,
-                 model: str = "refraction") -> list[EdgePair]:
+                 model: str | None = None, rect: Rectification | None = None) -> list[EdgePair]:
     """Refine integer pixel pairs to sub-pixel on the grey (H, W) uint8 image, correct their rows for the
-    plate (:func:`correct_rows`) and triangulate them (points_mm, frame C, mm)."""
+    plate (:func:`correct_rows`) and triangulate them (points_mm, frame C, mm).
+
+    With ``rect`` (a build) the pairs come in rectified coordinates: each side is refined along its row on
+    its own view's rectified image (so both stay on one epipolar row), then mapped back to the complex
+    image; rows whose point no view pixel sees are dropped. The result is in complex-image pixels, with
+    the rectified disparity."""
+    model = default_model(rig) if model is None else model
+    if rect is not None and subpixel and pairs:
+        # only the rectified rows the pairs use (+-3 for the refinement's neighbours)
+        rows = np.concatenate([p.left_px[:, 1] for p in pairs if len(p)] or [np.zeros(1)])
+        r0, r1 = max(0, int(rows.min()) - 3), int(rows.max()) + 4
+        views = rect.remap_fast(grey, "left", (r0, r1)), rect.remap_fast(grey, "right", (r0, r1))
+        shift = np.array([0.0, r0])
     out = []
     for pair in pairs:
-        if subpixel:
-            pair = correct_rows(grey, refine_pairs(grey, pair), rig)
+        if rect is None:
+            if subpixel:
+                pair = correct_rows(grey, refine_pairs(grey, pair), rig)
+        else:
+            if subpixel:
+                band = EdgePair(pair.left_px - shift, pair.right_px - shift, pair.disparity_px, pair.left_label,
+                                pair.right_label, pair.shape_disparity_px)
+                band = refine_pairs(views[0], band, grey_right=views[1])
+                pair = EdgePair(band.left_px + shift, band.right_px + shift, band.disparity_px, pair.left_label,
+                                pair.right_label, pair.shape_disparity_px)
+            left, right = rect.lookup(pair.left_px, "left"), rect.lookup(pair.right_px, "right")
+            ok = np.all(np.isfinite(left), axis=1) & np.all(np.isfinite(right), axis=1)
+            pair = EdgePair(left[ok], right[ok], pair.disparity_px[ok], pair.left_label, pair.right_label,
+                            pair.shape_disparity_px)
         res = triangulate(pair.left_px, pair.right_px, rig, model=model)
         out.append(pair.with_points(res.points_mm))
     return out

@@ -40,19 +40,21 @@ class EdgePair:
 def pair_rows(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star, tol_px: float = 2.0):
     """Pair each left edge pixel with the right edge pixel of its row closest to u - d (within tol).
 
-    ``left_idx`` / ``right_idx`` index ``px`` (EdgePixels); ``d_star`` is one disparity or one per left
-    pixel. Each right pixel is used at most once (the closer left pixel wins). Returns (left indices,
-    right indices) of the pairs, in row-major order.
+    ``left_idx`` / ``right_idx`` index ``px`` (EdgePixels; left pixels in their left-view coordinates,
+    right pixels in their right-view ones, :attr:`EdgePixels.left_uv`); ``d_star`` is one disparity or one
+    per left pixel. Each right pixel is used at most once (the closer left pixel wins). Returns (left
+    indices, right indices) of the pairs, in row-major order.
     """
     left_idx, right_idx = np.asarray(left_idx, dtype=int), np.asarray(right_idx, dtype=int)
     if len(left_idx) == 0 or len(right_idx) == 0:
         return np.zeros(0, int), np.zeros(0, int)
-    width = int(px.u.max()) + 2 * int(np.ceil(np.max(np.abs(d_star)))) + 10
-    rkey = px.v[right_idx] * width + px.u[right_idx]
+    (lu, lv), (ru, rv) = px.left_uv, px.right_uv
+    width = int(max(lu.max(), ru.max())) + 2 * int(np.ceil(np.max(np.abs(d_star)))) + 10
+    rkey = rv[right_idx] * width + ru[right_idx]
     order = np.argsort(rkey)
     rkey, right_sorted = rkey[order], right_idx[order]
-    vl = px.v[left_idx]
-    target = vl * width + (px.u[left_idx] - d_star)
+    vl = lv[left_idx]
+    target = vl * width + (lu[left_idx] - d_star)
     k = np.searchsorted(rkey, target)
     cand = np.stack([k - 1, np.minimum(k, len(rkey) - 1)])            # the neighbours below and above
     ck = rkey[np.maximum(cand, 0)]
@@ -112,12 +114,15 @@ def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, t
         pa, pb = polarity[a], polarity[b]
         return (pa == pb) | (pa == 0) | (pb == 0)
 
+    (lu, lv), (ru, rv) = px.left_uv, px.right_uv
+    left_idx, right_idx = np.asarray(left_idx, dtype=int), np.asarray(right_idx, dtype=int)
+    left_idx = left_idx[(lu[left_idx] >= 0) & (lv[left_idx] >= 0)]        # pixels a view cannot see
+    right_idx = right_idx[(ru[right_idx] >= 0) & (rv[right_idx] >= 0)]
     li, ri = pair_rows(px, left_idx, right_idx, d_star, tol_px)
     keep = agree(li, ri)
     li, ri = li[keep], ri[keep]
     if len(li) == 0:
         return li, ri
-    left_idx = np.asarray(left_idx, dtype=int)
     paired_l = np.zeros(len(px.u), dtype=bool)
     used_r = np.zeros(len(px.u), dtype=bool)
     paired_l[li] = True
@@ -126,7 +131,7 @@ def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, t
         todo = left_idx[~paired_l[left_idx]]
         if len(todo) == 0:
             break
-        d_local = local_mean(px.u[li] - px.u[ri], px.u[li], px.v[li], px.u[todo], px.v[todo], radius_px)
+        d_local = local_mean(lu[li] - ru[ri], lu[li], lv[li], lu[todo], lv[todo], radius_px)
         has = np.isfinite(d_local)
         todo, d_local = todo[has], d_local[has]
         if len(todo) == 0:
@@ -142,5 +147,5 @@ def grow_pairs(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star: float, t
         used_r[nr] = True
         if len(nl) < max(8, 0.01 * len(li)):
             break  # the growth has stalled
-    order = np.lexsort((px.u[li], px.v[li]))
+    order = np.lexsort((lu[li], lv[li]))
     return li[order], ri[order]

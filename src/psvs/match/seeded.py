@@ -4,12 +4,12 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from psvs.match.edges import EdgePixels, edge_coords, votes_from_coords
+from psvs.match.edges import EdgePixels, edge_coords, roles_of, row_votes
 from psvs.match.pairs import EdgePair, grow_pairs
 
 
 def match_seeded(edges: np.ndarray, seed_px, disparity_range_px: tuple[float, float], n_seeds: int = 10,
-                 connectivity: int = 4) -> EdgePair:
+                 connectivity: int = 4, rect=None) -> EdgePair:
     """Match the edge under ``seed_px`` (a left-view edge) with its twin, as in the paper.
 
     Steps: (2) the seed selects its whole connected edge; (3) for every selected pixel, the edge pixels
@@ -26,11 +26,14 @@ def match_seeded(edges: np.ndarray, seed_px, disparity_range_px: tuple[float, fl
         An edge pixel of the left view (integers), px.
     disparity_range_px : (d_min, d_max)
         Disparities u_l - u_r the rig can produce in its working range, px.
+    rect : psvs.optics.rectify.Rectification, optional
+        A build's dual rectification: "the same row" is then a row of the rectified views.
 
     Returns
     -------
     EdgePair
-        Integer pixel pairs (refine with :func:`psvs.match.subpixel.refine_pairs`).
+        Integer pixel pairs (refine with :func:`psvs.match.subpixel.refine_pairs`); with ``rect``, in
+        rectified coordinates (left and right each in its own view's).
     """
     u0, v0 = _check_seed(seed_px, edges)
     if not 2 <= n_seeds <= 100:
@@ -45,14 +48,15 @@ def match_seeded(edges: np.ndarray, seed_px, disparity_range_px: tuple[float, fl
     h, w = edges.shape
     mask = np.zeros((h + 2, w + 2), np.uint8)
     y0, y1 = _flood(e8, mask, [(u0, v0)], 8, 1)
-    # twins lie on the same rows: only the selected edge's row band is scanned for edge pixels
-    y0, y1 = max(0, y0 - 2), min(h, y1 + 2)
+    # twins lie on the same rows: only the selected edge's row band is scanned for edge pixels (on a
+    # build, the twins' rows in the complex image differ: the whole map)
+    y0, y1 = (max(0, y0 - 2), min(h, y1 + 2)) if rect is None else (0, h)
     u, v = edge_coords(edges[y0:y1])
     v = v + y0
-    px = EdgePixels(u, v, np.zeros(len(u), np.int64), edges.shape, 1)
+    px = EdgePixels(u, v, np.zeros(len(u), np.int64), edges.shape, 1, roles_of(u, v, rect))
     selected = mask[v + 1, u + 1] == 1
     # (3) every edge pixel on the same row within the disparity range
-    p, q, d = votes_from_coords(px.u, px.v, d_min, d_max, left_mask=selected, right_mask=~selected)
+    p, q, d = row_votes(px, d_min, d_max, left_mask=selected, right_mask=~selected)
     if len(p) == 0:
         return _empty(0)
     # (4) shape match: the disparity (+-1 px) shared by the largest number of selected pixels
@@ -72,8 +76,8 @@ def match_seeded(edges: np.ndarray, seed_px, disparity_range_px: tuple[float, fl
     li, ri = grow_pairs(px, np.flatnonzero(selected), right_idx, d_star)
     if len(li) == 0:
         return _empty(0)
-    left = np.column_stack([px.u[li], px.v[li]]).astype(float)
-    right = np.column_stack([px.u[ri], px.v[ri]]).astype(float)
+    left = np.column_stack([c[li] for c in px.left_uv]).astype(float)
+    right = np.column_stack([c[ri] for c in px.right_uv]).astype(float)
     return EdgePair(left, right, left[:, 0] - right[:, 0], 0, 1, float(d_star))
 
 

@@ -73,8 +73,9 @@ def _row_steps(grey: np.ndarray, px: np.ndarray) -> np.ndarray:
 
 
 def refine_pairs(grey: np.ndarray, pair: EdgePair, radius: int = 2, smooth_px: int = 3,
-                 spread_px: int = 10) -> EdgePair:
-    """The pair refined to sub-pixel.
+                 spread_px: int = 10, grey_right: np.ndarray | None = None) -> EdgePair:
+    """The pair refined to sub-pixel (the right side on ``grey_right`` when given: on a build, the left
+    side lives on the left view's rectified image and the right side on the right view's).
 
     Where both sides refine (the edge crosses the row steeply) they take their sub-pixel columns, and the
     disparity is averaged over the well-conditioned pixels within ``smooth_px`` along the edge (disparity
@@ -83,9 +84,10 @@ def refine_pairs(grey: np.ndarray, pair: EdgePair, radius: int = 2, smooth_px: i
     such a pixel takes the mean disparity of the well-conditioned pixels within ``spread_px``. The right
     column is then u_l - d. Pixels with no well-conditioned neighbour keep their integer positions.
     """
-    sign = np.sign(_row_steps(grey, pair.left_px) + _row_steps(grey, pair.right_px))   # the pair's polarity
+    grey_right = grey if grey_right is None else grey_right
+    sign = np.sign(_row_steps(grey, pair.left_px) + _row_steps(grey_right, pair.right_px))   # the pair's polarity
     left, ok_l = refine_columns(grey, pair.left_px, radius, with_mask=True, sign=sign)
-    right, ok_r = refine_columns(grey, pair.right_px, radius, with_mask=True, sign=sign)
+    right, ok_r = refine_columns(grey_right, pair.right_px, radius, with_mask=True, sign=sign)
     good = ok_l & ok_r
     disp = left[:, 0] - right[:, 0]
     if good.any():
