@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from psvs.io.params import load_rig
-from psvs.match.correspondence import default_model, disparity_range, match_image, rectification_for
+from psvs.match.correspondence import disparity_range, match_image, rectification_for
+from psvs.measure.triangulate import default_model
 from psvs.match.seeded import match_seeded
 from psvs.measure.triangulate import triangulate
 from psvs.optics.project import project_points

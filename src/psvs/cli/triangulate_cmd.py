@@ -5,7 +5,7 @@ import sys
 
 from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
 from psvs.io.points import points_csv_text, read_matches_csv, write_points_csv
-from psvs.measure.triangulate import MODELS, triangulate
+from psvs.measure.triangulate import MODELS, default_model, triangulate
 
 
 def add_parser(sub) -> None:
@@ -14,8 +14,9 @@ def add_parser(sub) -> None:
                                    "Input CSV columns u_l,v_l,u_r,v_r (px); output X_mm,Y_mm,Z_mm,valid.")
     add_rig_argument(p)
     p.add_argument("points", metavar="POINTS.csv", help="CSV with header u_l,v_l,u_r,v_r")
-    p.add_argument("--model", choices=MODELS, default="refraction",
-                   help="paper: eqs. (12)-(14); refraction: eqs. (15)-(17) (default); exact: traced rays")
+    p.add_argument("--model", choices=MODELS, default=None,
+                   help="paper: eqs. (12)-(14); refraction: eqs. (15)-(17); exact: traced rays (default: refraction "
+                        "on the paper's geometry, exact on a build)")
     p.add_argument("-o", "--output", metavar="OUT.csv", help="write here (atomically) instead of stdout")
     p.set_defaults(run=run)
 
@@ -24,11 +25,12 @@ def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
     rig = rig_from_args(args)
     left, right = read_matches_csv(args.points)
-    res = triangulate(left, right, rig, model=args.model)
+    model = args.model or default_model(rig)
+    res = triangulate(left, right, rig, model=model)
     if out is None:
         sys.stdout.write(points_csv_text(res.points_mm, res.valid))
     else:
         write_points_csv(out, res.points_mm, res.valid)
-        print(f"{out}: {int(res.valid.sum())} of {len(res.valid)} points valid ({args.model} model)",
+        print(f"{out}: {int(res.valid.sum())} of {len(res.valid)} points valid ({model} model)",
               file=sys.stderr)
     return 0

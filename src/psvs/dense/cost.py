@@ -23,24 +23,24 @@ def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def _echo(f, mu, sd, lags, r, rs):  # pragma: no cover - compiled
+def _echo(f, g, mu, sd, mg, sg, lags, r, rs):  # pragma: no cover - compiled
     h, w = f.shape
     n = len(lags)
     out = np.empty((n, h, w), np.float32)
     inv = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
     for k in nb.prange(n):
         d = lags[k]
-        rows = np.zeros((h, w), np.float32)  # horizontal window sums of f(x)·f(x−d), clamped borders
+        rows = np.zeros((h, w), np.float32)  # horizontal window sums of f(x)·g(x−d), clamped borders
         for y in range(h):
             acc = np.float32(0.0)
             for j in range(-r, r + 1):
                 xx = min(max(d + j, d), w - 1)
-                acc += f[y, xx] * f[y, xx - d]
+                acc += f[y, xx] * g[y, xx - d]
             rows[y, d] = acc
             for x in range(d + 1, w):
                 xa = min(x + r, w - 1)
                 xr = max(x - r - 1, d)
-                acc += f[y, xa] * f[y, xa - d] - f[y, xr] * f[y, xr - d]
+                acc += f[y, xa] * g[y, xa - d] - f[y, xr] * g[y, xr - d]
                 rows[y, x] = acc
         for y in range(h):
             for x in range(min(d, w)):
@@ -52,8 +52,8 @@ def _echo(f, mu, sd, lags, r, rs):  # pragma: no cover - compiled
             for y in range(h):
                 if y > 0:
                     acc += rows[min(y + r, h - 1), x] - rows[max(y - r - 1, 0), x]
-                cov = acc * inv - mu[y, x] * mu[y, x - d]
-                out[k, y, x] = cov / (sd[y, x] * sd[y, x - d])
+                cov = acc * inv - mu[y, x] * mg[y, x - d]
+                out[k, y, x] = cov / (sd[y, x] * sg[y, x - d])
         if rs > 0:  # shiftable windows: max over the (2 rs + 1)^2 neighbourhood, separable, within x >= d
             for y in range(h):
                 for x in range(d, w):
@@ -110,12 +110,17 @@ def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float
     return out
 
 
-def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_window: int = 1) -> np.ndarray:
+def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_window: int = 1,
+                     features_right: np.ndarray | None = None) -> np.ndarray:
     """NCC of each ``window`` × ``window`` patch (odd side) of ``features`` (H, W) at x with the patch at
     x − d, for each lag d in ``lags`` (px, integers in 1..W−1): float32 (D, H, W) in [−1, 1], :data:`NO_TWIN`
     where x − d is outside the image. With ``shift_window`` > 1 each pixel takes the best of the windows
     that contain it within that size (shiftable windows), so a patch straddling a depth edge can use its
-    one-surface side."""
+    one-surface side.
+
+    ``features_right`` (H, W), on a build: the patch at x − d is taken from it (the complex image
+    resampled on the right view's rectified grid) while the patch at x comes from ``features`` (resampled
+    on the left view's): a cross-correlation, which is the echo when both are the same image."""
     if window < 1 or window % 2 == 0:
         raise ValueError(f"window must be an odd number of px, got {window}")
     f = np.ascontiguousarray(features, dtype=np.float32)
@@ -123,10 +128,16 @@ def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_
     if lags.size and (lags.min() < 1 or lags.max() >= f.shape[1]):
         raise ValueError(f"lags must lie in 1..{f.shape[1] - 1} px, got {lags.min()}..{lags.max()}")
     box = lambda a: cv2.boxFilter(a, -1, (window, window), borderType=cv2.BORDER_REPLICATE)  # noqa: E731
-    mu = box(f)
-    sd = np.sqrt(np.maximum(box(f * f) - mu * mu, 1e-6)).astype(np.float32)
-    vol = _echo(f, mu, sd, lags, window // 2, max(0, shift_window // 2))
-    return vol
+    stats = lambda a: (box(a), np.sqrt(np.maximum(box(a * a) - box(a) ** 2, 1e-6)).astype(np.float32))  # noqa: E731
+    mu, sd = stats(f)
+    if features_right is None:
+        g, mg, sg = f, mu, sd
+    else:
+        g = np.ascontiguousarray(features_right, dtype=np.float32)
+        if g.shape != f.shape:
+            raise ValueError(f"features_right {g.shape} must match features {f.shape}")
+        mg, sg = stats(g)
+    return _echo(f, g, mu, sd, mg, sg, lags, window // 2, max(0, shift_window // 2))
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)

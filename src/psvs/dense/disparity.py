@@ -198,12 +198,14 @@ def unit_scaled(img: np.ndarray) -> np.ndarray:
     return ((img - lo) / max(hi - lo, 1e-12)).astype(np.float32)
 
 
-def weighted_echo(img: np.ndarray, lags: np.ndarray, p: DenseParams, guide: np.ndarray) -> np.ndarray:
+def weighted_echo(img: np.ndarray, lags: np.ndarray, p: DenseParams, guide: np.ndarray,
+                  img_right: np.ndarray | None = None) -> np.ndarray:
     """The echo volume (D, H, W) of :func:`dense_disparity`: band-passed NCC, guided-filtered with ``guide``
     (the image scaled by :func:`unit_scaled`), weighted by each patch's aperture; :data:`NO_TWIN` where the
-    twin lies outside the image (x < d)."""
+    twin lies outside the image (x < d). With ``img_right`` (a build) the twin's patch comes from it."""
     features = band_pass(img, p.sigma_px)
-    echo = echo_correlation(features, lags, p.window, p.shift_window)
+    right = None if img_right is None else band_pass(img_right, p.sigma_px)
+    echo = echo_correlation(features, lags, p.window, p.shift_window, right)
     if p.guided_radius > 0:
         echo = filter_volume(echo, guide, p.guided_radius, p.guided_eps)
     echo *= aperture_weight(features, p.aperture_window, p.aperture_share)[None]
@@ -212,12 +214,12 @@ def weighted_echo(img: np.ndarray, lags: np.ndarray, p: DenseParams, guide: np.n
     return echo
 
 
-def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams):
+def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_right: np.ndarray | None = None):
     lo = max(MIN_LAG_PX, math.ceil(d_min))
     hi = min(math.floor(d_max), img.shape[1] - 1)
     lags = np.arange(lo, hi + 1)
     guide = unit_scaled(img)
-    echo = weighted_echo(img, lags, p, guide)
+    echo = weighted_echo(img, lags, p, guide, img_right)
     aggregate = partial(sgm_aggregate, p1=p.p1, p2=p.p2, n_paths=p.n_paths,
                         guide=cv2.GaussianBlur(guide, (0, 0), 1.0), tau=p.edge_contrast)
     fused = fused_cost(echo, lags)
@@ -264,33 +266,44 @@ def _upsample(a: np.ndarray, shape: tuple[int, int], factor: float = 1.0) -> np.
 
 
 def dense_disparity(image, d_min: float, d_max: float, *, fast: bool = False,
-                    params: DenseParams | None = None) -> DenseResult:
+                    params: DenseParams | None = None, image_right=None) -> DenseResult:
     """Left- and right-view disparity maps (px) of a complex image (H, W), searching d_min..d_max px.
 
     ``fast`` uses :data:`FAST` (half resolution, 4 SGM paths); ``params`` overrides either. A constant
-    image has no echo to measure: the maps are all NaN and a RuntimeWarning says so."""
+    image has no echo to measure: the maps are all NaN and a RuntimeWarning says so.
+
+    ``image_right`` (a build, psvs.dense.build): ``image`` is the complex image resampled on the left view's
+    rectified grid and this one on the right view's; a left pixel's twin is then sought in it, and the
+    maps are in rectified coordinates (the left map on the left grid, the right map on the right grid)."""
     img = check_image(image)
+    right = None
+    if image_right is not None:
+        right = check_image(image_right)
+        if right.shape != img.shape:
+            raise ValueError(f"the right view's image {right.shape} must match the left view's {img.shape}")
     h, w = img.shape
     check_range(float(d_min), float(d_max), w)
     p = params or (FAST if fast else DEFAULT)
     check_dense_memory(h, w, float(d_min), float(d_max), p)
-    if np.ptp(img) == 0:
+    if np.ptp(img) == 0 and (right is None or np.ptp(right) == 0):
         warnings.warn("complex image is constant: no texture to match, disparity is all NaN", RuntimeWarning,
                       stacklevel=2)
         nan = np.full((h, w), np.nan, np.float32)
         return DenseResult(nan, nan.copy(), np.zeros((h, w), np.float32), np.zeros((h, w), np.float32),
                            (float(d_min), float(d_max)))
     if p.scale == 1:
-        dl, dr, cl, cr, searched = _at_scale(img, d_min, d_max, p)
+        dl, dr, cl, cr, searched = _at_scale(img, d_min, d_max, p, right)
         f32 = lambda a: a.astype(np.float32)  # noqa: E731
         return DenseResult(f32(dl), f32(dr), f32(cl), f32(cr), searched)
     s = p.scale
-    small = cv2.resize(img, (max(MIN_SIZE_PX, w // s), max(MIN_SIZE_PX, h // s)), interpolation=cv2.INTER_AREA)
+    size = (max(MIN_SIZE_PX, w // s), max(MIN_SIZE_PX, h // s))
+    small = cv2.resize(img, size, interpolation=cv2.INTER_AREA)
+    small_right = None if right is None else cv2.resize(right, size, interpolation=cv2.INTER_AREA)
     fx = w / small.shape[1]
     dmin_s = d_min / fx
     dmax_s = min(d_max / fx, small.shape[1] - 1)
     if math.floor(dmax_s) < max(MIN_LAG_PX, math.ceil(dmin_s)):  # too narrow for the coarse scale
-        return dense_disparity(img, d_min, d_max, params=replace(p, scale=1))
-    dl, dr, cl, cr, searched = _at_scale(small, dmin_s, dmax_s, p)
+        return dense_disparity(img, d_min, d_max, params=replace(p, scale=1), image_right=right)
+    dl, dr, cl, cr, searched = _at_scale(small, dmin_s, dmax_s, p, small_right)
     return DenseResult(_upsample(dl, (h, w), fx), _upsample(dr, (h, w), fx), _upsample(cl, (h, w)),
                        _upsample(cr, (h, w)), (searched[0] * fx, searched[1] * fx))

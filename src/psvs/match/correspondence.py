@@ -17,7 +17,7 @@ from psvs.match.auto import Unmatched, match_auto
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.match.subpixel import refine_pairs
-from psvs.measure.triangulate import triangulate, twin_rows
+from psvs.measure.triangulate import default_model, triangulate, twin_rows
 from psvs.optics.design import working_range
 from psvs.optics.rectify import Rectification, needs_rectification, rectify
 from psvs.optics.rig import Rig
@@ -49,12 +49,6 @@ def disparity_range(rig: Rig, near_mm: float, far_mm: float, rect: Rectification
         zc = 0.5 * (rect.centres_mm["left"] + rect.centres_mm["right"]) @ rect.rotation[2]
         lo, hi = (rect.camera_matrix[0, 0] * rect.baseline_mm / (z - zc) for z in (far_mm, near_mm))
     return (max(1.0, lo - RANGE_MARGIN_PX), hi + RANGE_MARGIN_PX)
-
-
-def default_model(rig: Rig) -> str:
-    """The triangulation model used when none is asked for: the refraction-corrected closed forms
-    (eq. 15) on the paper's geometry, the exact model on a build (the closed forms assume it ideal)."""
-    return "exact" if needs_rectification(rig) else "refraction"
 
 
 def rectification_for(rig: Rig, near_mm: float, far_mm: float) -> Rectification | None:

@@ -19,6 +19,7 @@ from psvs._validate import check_points, check_same_length
 from psvs.measure.equations import x_eq13, y_eq14, z_eq12, z_eq15
 from psvs.optics.plate import refraction_terms
 from psvs.optics.project import project_points
+from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
 from psvs.optics.trace import ideal_sensor_from_pixels, trace_pixels
 
@@ -30,6 +31,13 @@ class Triangulation(NamedTuple):
 
     points_mm: np.ndarray
     valid: np.ndarray
+
+
+def default_model(rig: Rig) -> str:
+    """The triangulation model used when none is asked for: the refraction-corrected closed forms
+    (eq. 15) on the paper's geometry, the exact model on a build (misaligned mirrors or a distorting lens:
+    the closed forms assume the ideal geometry)."""
+    return "exact" if needs_rectification(rig) else "refraction"
 
 
 def triangulate(left_px, right_px, rig: Rig, model: str = "refraction") -> Triangulation:

@@ -160,7 +160,7 @@ class Rectification:
         """The complex image resampled on the rectified grid of one view (H', W'): that view's content with
         its epipolar curves as rows (the other view's content is warped along, not rectified)."""
         mu, mv = self.maps(view)
-        return cv2.remap(np.asarray(image), mu, mv, interpolation, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return cv2.remap(np.asarray(image), mu, mv, interpolation, borderMode=cv2.BORDER_REPLICATE)
 
     def remap_fast(self, image: np.ndarray, view: str, rows: tuple[int, int] | None = None) -> np.ndarray:
         """:meth:`remap` (bilinear) through OpenCV's fixed-point maps: several times faster, with the
@@ -173,7 +173,7 @@ class Rectification:
         if rows is not None:
             r0, r1 = max(0, int(rows[0])), min(m1.shape[0], int(rows[1]))
             m1, m2 = m1[r0:max(r0 + 1, r1)], m2[r0:max(r0 + 1, r1)]
-        return cv2.remap(np.asarray(image), m1, m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        return cv2.remap(np.asarray(image), m1, m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
 def _check_view(view: str) -> str:

@@ -1,0 +1,102 @@
+"""Dense disparity, depth and point cloud of a complex image on any rig, a misaligned build included.
+
+On the paper's geometry the complex image itself is searched (:func:`psvs.dense.disparity.dense_disparity`).
+On a build (psvs.optics.rectify.needs_rectification) a point's twin is rows away, so the complex image is
+resampled twice, on the left view's and on the right view's rectified grid, and a left-grid patch's twin
+is sought along the same row of the right-grid image (the echo becomes a cross-correlation between the
+two, docs/dense.md). The maps are then in rectified coordinates: ``disparity_left`` on the left view's
+rectified grid (u'_l − u'_r, px), ``disparity_right`` on the right view's; pixels outside a view's field
+are NaN. Depth and points come from the exact model of the build: each left-grid pixel and its twin
+u' − d on the right grid are mapped back to complex-image pixels and triangulated.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from scipy.ndimage import distance_transform_edt
+
+from psvs.dense.cloud import Cloud, disparity_cloud
+from psvs.dense.disparity import DenseParams, DenseResult, dense_disparity, working_range_px
+from psvs.match.correspondence import disparity_range, rectification_for
+from psvs.measure.triangulate import default_model, triangulate
+from psvs.optics.rectify import Rectification
+from psvs.optics.rig import Rig
+
+
+@dataclass(frozen=True, eq=False)
+class RigDense:
+    """The dense result, the rectification it is expressed in (None: complex-image coordinates, the
+    paper's geometry), and the image the left map is aligned with (H', W') (the complex image itself, or
+    its left-grid resampling), e.g. for grey levels of the cloud."""
+
+    result: DenseResult
+    rect: Rectification | None
+    left_image: np.ndarray
+
+
+@lru_cache(maxsize=8)
+def _nearest_inside(rect: Rectification, view: str) -> tuple[np.ndarray, np.ndarray]:
+    """Index arrays (rows, cols) giving, for every rectified pixel, the nearest one inside the view's field."""
+    outside = rect.maps(view)[0] < 0
+    if not outside.any():
+        h, w = outside.shape
+        return np.indices((h, w))
+    _, (iv, iu) = distance_transform_edt(outside, return_indices=True)
+    return iv, iu
+
+
+def rectified_images(image, rect: Rectification) -> tuple[np.ndarray, np.ndarray]:
+    """The complex image (H, W) resampled on the left and on the right view's rectified grid, float32
+    (H', W'); outside a view's field each pixel repeats the nearest inside one (no artificial edge)."""
+    img = np.asarray(image, dtype=np.float32)
+    out = []
+    for view in ("left", "right"):
+        a = rect.remap(img, view)
+        iv, iu = _nearest_inside(rect, view)
+        out.append(a[iv, iu])
+    return out[0], out[1]
+
+
+def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, *, fast: bool = False,
+                 params: DenseParams | None = None, d_range: tuple[float, float] | None = None) -> RigDense:
+    """Dense disparity of a complex image (H, W) through ``rig``, searching the disparities of its working
+    range near..far mm (or ``d_range`` px). See the module docstring for the coordinates of the maps."""
+    img = np.asarray(image)
+    rect = rectification_for(rig, near_mm, far_mm)
+    if rect is None:
+        lo, hi = d_range or working_range_px(rig, near_mm, far_mm, img.shape[1])
+        return RigDense(dense_disparity(img, lo, hi, fast=fast, params=params), None, img)
+    a, b = rectified_images(img, rect)
+    lo, hi = d_range or disparity_range(rig, near_mm, far_mm, rect)
+    res = dense_disparity(a, lo, min(hi, a.shape[1] - 1.0), fast=fast, params=params, image_right=b)
+    inside_l, inside_r = (rect.maps(v)[0] >= 0 for v in ("left", "right"))
+    nan = np.float32(np.nan)
+    res = DenseResult(np.where(inside_l, res.disparity_left, nan), np.where(inside_r, res.disparity_right, nan),
+                      np.where(inside_l, res.confidence_left, 0).astype(np.float32),
+                      np.where(inside_r, res.confidence_right, 0).astype(np.float32), res.searched_px)
+    return RigDense(res, rect, a)
+
+
+def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) -> Cloud:
+    """Depth map (on the left map's grid) and point cloud (frame C, mm) of a :class:`RigDense`: on the
+    paper's geometry :func:`psvs.dense.cloud.disparity_cloud`; on a build each left-grid pixel and its twin
+    are mapped back to the complex image and triangulated with ``model`` (default: exact on a build)."""
+    model = default_model(rig) if model is None else model
+    d = np.asarray(dense.result.disparity_left, dtype=np.float64)
+    if dense.rect is None:
+        return disparity_cloud(d, rig, model, mask)
+    keep = np.isfinite(d) & (d > 0)
+    if mask is not None:
+        keep &= np.asarray(mask, dtype=bool)
+    v, u = np.nonzero(keep)
+    left_rect = np.column_stack([u, v]).astype(np.float64)
+    left = dense.rect.lookup(left_rect, "left")
+    right = dense.rect.lookup(np.column_stack([u - d[v, u], v]), "right")
+    ok = np.all(np.isfinite(left), axis=1) & np.all(np.isfinite(right), axis=1)
+    tri = triangulate(left[ok], right[ok], rig, model=model)
+    u, v, left_rect = u[ok][tri.valid], v[ok][tri.valid], left_rect[ok][tri.valid]
+    depth = np.full(d.shape, np.nan)
+    depth[v, u] = tri.points_mm[tri.valid, 2]
+    return Cloud(tri.points_mm[tri.valid], left_rect, depth)
