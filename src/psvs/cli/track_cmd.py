@@ -22,6 +22,9 @@ def add_parser(sub) -> None:
                    help="weld this length then stop (default: to the end of the seam)")
     p.add_argument("--seed", metavar="U,V", help="a pixel inside the groove in the left view of the first "
                                                  "sensor frame (default: found on the middle row)")
+    p.add_argument("--true-rig", metavar="RIG", help="the rig as built, through which the world is rendered "
+                                                     "(name or file; default: --rig). The sensor uses only --rig, "
+                                                     "e.g. what psvs calibrate found, as on real glass")
     p.add_argument("--roi-rows", type=int, default=32, help="sensor window rows (default 32)")
     p.add_argument("--no-bag", action="store_true", help="do not write the ROS 2 bag")
     p.add_argument("-o", "--output", metavar="RUN_DIR", required=True, help="folder for the run's outputs")
@@ -29,6 +32,7 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from psvs.io.params import load_rig
     from psvs.robot.bag import write_bag
     from psvs.robot.loop import TrackConfig, track
     from psvs.robot.report import write_report
@@ -43,8 +47,12 @@ def run(args) -> int:
     seed = parse_seed(args.seed)
     cfg = TrackConfig(speed_mm_s=args.speed, rate_hz=args.rate, weld_length_mm=args.length, roi_rows=args.roi_rows)
     rig = rig_from_args(args)
+    true_rig = load_rig(args.true_rig) if args.true_rig else None
+    if true_rig is not None and true_rig.camera.image_size_px != rig.camera.image_size_px:
+        raise ValueError(f"--true-rig's camera is {true_rig.camera.image_size_px} px but --rig's is "
+                         f"{rig.camera.image_size_px} px: one camera")
     wp = seam_workpiece(args.scene, cfg.camera_distance_mm)
-    result = track(wp, rig, cfg, seed_px=seed)
+    result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig)
     out.mkdir(exist_ok=True)
     s = write_report(result, wp, out)
     if not args.no_bag:

@@ -88,7 +88,7 @@ def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
 
 def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline = PAPER, near_mm: float = 400.0,
                 far_mm: float = 1200.0, subpixel: bool = True, model: str | None = None, n_seeds: int = 10,
-                min_rows: int = 10) -> MatchResult:
+                min_rows: int = 10, rect: Rectification | None = None) -> MatchResult:
     """Match edges of a complex image and triangulate them.
 
     Parameters
@@ -107,6 +107,9 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         Refine every matched pixel to sub-pixel on the grey image.
     model : {'paper', 'refraction', 'exact'}, optional
         Triangulation model (issue 2); default :func:`default_model` (exact on a build).
+    rect : Rectification, optional
+        The build's dual rectification to use (default: the rig's over near..far, cached; a caller whose
+        working range changes every frame passes one fitted over its whole range).
 
     Returns
     -------
@@ -122,7 +125,8 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     lo, hi, _, _ = cv2.minMaxLoc(grey)
     if lo == hi:
         raise ValueError("image is blank (one grey level): nothing to match")
-    rect = rectification_for(rig, near_mm, far_mm)
+    if rect is None:
+        rect = rectification_for(rig, near_mm, far_mm)
     rng = disparity_range(rig, near_mm, far_mm, rect)
     edges, stages = pipeline.run(grey, keep=True)
     if seed_px is not None:

@@ -152,10 +152,12 @@ def cell_lighting(cfg: TrackConfig) -> Lighting:
     return Lighting(ambient=0.25, lamp=0.75, reference_mm=cfg.camera_distance_mm)
 
 
-def calibrate_cell(rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12) -> tuple[HandEyeResult, np.ndarray]:
+def calibrate_cell(rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12,
+                   true_rig: Rig | None = None) -> tuple[HandEyeResult, np.ndarray]:
     """Hand-eye calibration session: a 4 x 5 circle grid on the table, shown to the PSVS from ``views``
     flange poses (tilted up to ~12 deg, turned about the vertical); returns the result and the true
-    cam2flange of the simulated hardware."""
+    cam2flange of the simulated hardware. The views are rendered through ``true_rig`` (default ``rig``),
+    the rig as built, and calibrated with ``rig``, what the sensor knows of it."""
     grid = CircleGrid(rows=4, cols=5, spacing_mm=15.0, diameter_mm=7.0)
     target2base = transform(np.diag([1.0, -1.0, -1.0]), (550.0, 0.0, 0.0))  # lying face up on the table
     plate = SceneObject("rectangle", Pose(target2base[:3, :3], target2base[:3, 3]), grid, size_mm=(320.0, 320.0),
@@ -175,7 +177,8 @@ def calibrate_cell(rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12) -> tup
         flange = cam2base @ np.linalg.inv(nominal)
         q = arm.ikine(flange, HOME_Q)
         F = arm.fkine(q)
-        img = render(scene_in_rig_frame(scene, np.linalg.inv(F @ true)), rig, supersample=1, seed=100 + k).image
+        img = render(scene_in_rig_frame(scene, np.linalg.inv(F @ true)), true_rig or rig, supersample=1,
+                     seed=100 + k).image
         images.append(img)
         flanges.append(F)
     return calibrate_from_views(images, flanges, rig, grid, nominal, target2base), true
@@ -183,13 +186,16 @@ def calibrate_cell(rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12) -> tup
 
 def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed_px=None,
           limits: ArmLimits = ArmLimits(), handeye: tuple[HandEyeResult, np.ndarray] | None = None,
-          progress=None) -> TrackRun:
+          progress=None, true_rig: Rig | None = None) -> TrackRun:
     """Run the closed loop on the workpiece until the torch stops; see the module docstring.
 
     Parameters
     ----------
     workpiece : Workpiece (base frame)
-    rig : Rig (the full camera; the sensor reads ``cfg.roi_rows`` rows of it)
+    rig : Rig (the full camera; the sensor reads ``cfg.roi_rows`` rows of it): what the sensor knows
+    true_rig : Rig or None
+        The rig as built, through which the world is rendered (default ``rig``): e.g. the build's true
+        geometry while the sensor uses only what was calibrated from images, as on real glass.
     seed_px : (u, v) or None
         A pixel inside the left view's groove in the first ROI frame (teaching by showing); None: found
         by :func:`psvs.robot.sensor.auto_seed`.
@@ -198,10 +204,11 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
     """
     dt = 1.0 / cfg.rate_hz
     arm = Arm(HOME_Q, limits)
-    he, cam_true = handeye if handeye is not None else calibrate_cell(rig, cfg, arm)
+    he, cam_true = handeye if handeye is not None else calibrate_cell(rig, cfg, arm, true_rig=true_rig)
     X = he.cam2flange
     T_tool = tool2flange()
-    roi, _ = roi_rig(rig, cfg.roi_rows)
+    roi, v0 = roi_rig(rig, cfg.roi_rows)
+    roi_true = roi if true_rig is None else roi_rig(true_rig, cfg.roi_rows, v0)[0]   # the same sensor rows
     # the operator jogs the torch to the seam's start (a teach point, 0.3 mm off the seam) and teaches the
     # direction of travel: the only use of the true seam in the loop (scoring aside)
     x0 = workpiece.x_range_mm[0] + cfg.start_offset_mm
@@ -228,7 +235,7 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
         F = arm.fkine()
         t0 = time.perf_counter()
         world2cam = np.linalg.inv(F @ cam_true)
-        img = render(scene_in_rig_frame(workpiece.scene, world2cam), roi, supersample=cfg.supersample,
+        img = render(scene_in_rig_frame(workpiece.scene, world2cam), roi_true, supersample=cfg.supersample,
                      sensor=Sensor(), seed=cfg.noise_seed + k).image
         t1 = time.perf_counter()
         # ---- sensor: groove edges and twins -> frame C -> base (calibrated hand-eye) -> groove root

@@ -13,7 +13,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from psvs.imaging.pipeline import Pipeline, make_pipeline
-from psvs.match.correspondence import disparity_range, match_image
+from psvs.match.correspondence import disparity_range, match_image, rectification_for
+from psvs.match.edges import edge_pixels
 from psvs.measure.equations import z_eq12
 from psvs.optics.rig import Rig
 
@@ -25,15 +26,16 @@ SEAM_PIPELINE = make_pipeline([{"op": "median", "ksize": 3}, {"op": "threshold",
                                {"op": "roberts"}])
 
 
-def roi_rig(rig: Rig, rows: int) -> tuple[Rig, int]:
-    """The rig with its camera read out over ``rows`` image rows centred on the principal point (a
-    sensor window, as a real camera's ROI readout: same optics, the principal point shifted by the
-    window's first row). Returns (ROI rig, first row v0 of the window in the full image)."""
+def roi_rig(rig: Rig, rows: int, v0: int | None = None) -> tuple[Rig, int]:
+    """The rig with its camera read out over ``rows`` image rows centred on the principal point, or from
+    row ``v0`` (a sensor window, as a real camera's ROI readout: same optics, the principal point shifted
+    by the window's first row). Returns (ROI rig, first row v0 of the window in the full image)."""
     w, h = rig.camera.image_size_px
     if not isinstance(rows, (int, np.integer)) or not 8 <= rows <= h:
         raise ValueError(f"roi_rows must be an integer in 8..{h}, got {rows!r}")
     cx, cy = rig.camera.principal_point_px
-    v0 = int(np.clip(round(cy - (rows - 1) / 2), 0, h - rows))
+    if v0 is None:
+        v0 = int(np.clip(round(cy - (rows - 1) / 2), 0, h - rows))
     cam = replace(rig.camera, image_size_px=(w, int(rows)), principal_point_px=(cx, cy - v0))
     return Rig(cam, rig.mirrors), v0
 
@@ -108,6 +110,7 @@ class SeamSensor:
             raise ValueError(f"seed ({u:g}, {v:g}) is outside the {w}x{h} px sensor window")
         self.rig, self.near_mm, self.far_mm, self.min_rows = rig, near_mm, far_mm, min_rows
         self.pipeline = pipeline
+        self.rect = rectification_for(rig, near_mm, far_mm)     # a build: twins on rectified rows
         self.disparity_px: float | None = None
         self.centre_px = (u, v)
         self.half_width_px: float | None = None
@@ -142,15 +145,16 @@ class SeamSensor:
         sides = []
         for u in (ua, ub):
             res = match_image(grey, self.rig, seed_px=(u, v), pipeline=self.pipeline, near_mm=near,
-                              far_mm=far, model="exact")
+                              far_mm=far, model="exact", rect=self.rect)
             if not res.pairs:
                 sides.append(np.empty((0, 3)))
                 continue
             pair = res.pairs[0]
             # a seam edge crosses each row once: rows where the edge runs along the row (where the groove
             # starts or ends) give no usable twin disparity and are dropped
-            rows, counts = np.unique(np.rint(pair.left_px[:, 1]), return_counts=True)
-            single = np.isin(np.rint(pair.left_px[:, 1]), rows[counts == 1])
+            v_rows = pair.left_px[:, 1] if self.rect is None else self.rect.to_rectified(pair.left_px, "left")[:, 1]
+            rows, counts = np.unique(np.rint(v_rows), return_counts=True)      # (a build: rectified rows)
+            single = np.isin(np.rint(v_rows), rows[counts == 1])
             pts = pair.points_mm[single]
             sides.append(pts[np.all(np.isfinite(pts), axis=1)])
         if min(len(s) for s in sides) < self.min_rows:
@@ -168,22 +172,32 @@ class SeamSensor:
         """The disparity (px) of the groove's twin band on row v: right-view edges at ua - d and ub - d
         with the same polarities (bright-to-dark, dark-to-bright) as ua and ub; the one nearest the last
         frame's disparity. The seeded algorithm alone may pair a groove edge with the wrong one of the
-        twin band's two edges (both lie within the disparity range)."""
-        g = grey[max(0, v - 1): v + 2].astype(float).mean(axis=0)
-        w = len(g)
+        twin band's two edges (both lie within the disparity range). On a build, rows and columns are
+        those of the rectified views (psvs.optics.rectify): the twins' rows in the window differ."""
+        img = grey.astype(float)
+        h, w = img.shape
 
-        def pol(u):
+        def pol(u, row):
+            g = img[max(0, row - 1): row + 2].mean(axis=0)
             return np.sign(g[min(w - 1, u + 2)] + g[min(w - 1, u + 1)] - g[max(0, u - 1)] - g[max(0, u - 2)])
 
-        cols = np.flatnonzero(edges[v])
-        d_lo, d_hi = disparity_range(self.rig, self.near_mm, self.far_mm)
+        px = edge_pixels(edges, self.rect)
+        (lu, lv), (ru, rv) = px.left_uv, px.right_uv
+        if self.rect is None:
+            (la, va), (lb, vb) = (ua, v), (ub, v)
+        else:
+            table = self.rect.pixel_table("left")
+            (la, va), (lb, vb) = (np.rint(table[v, u]).astype(int) for u in (ua, ub))
+        d_lo, d_hi = disparity_range(self.rig, self.near_mm, self.far_mm, self.rect)
+        row_a = np.flatnonzero(rv == va)
+        row_b = np.flatnonzero(rv == vb)
         best = None
-        for c in cols:
-            d = ua - c
-            if not d_lo <= d <= d_hi or pol(c) != pol(ua):
+        for c in row_a:
+            d = la - ru[c]
+            if not d_lo <= d <= d_hi or pol(px.u[c], px.v[c]) != pol(ua, v):
                 continue
-            near_b = cols[np.abs(cols - (ub - d)) <= 3]
-            if not any(pol(c2) == pol(ub) for c2 in near_b):
+            near_b = row_b[np.abs(ru[row_b] - (lb - d)) <= 3]
+            if not any(pol(px.u[c2], px.v[c2]) == pol(ub, v) for c2 in near_b):
                 continue
             cost = 0.0 if self.disparity_px is None else abs(d - self.disparity_px)
             if self.disparity_px is not None and cost > 15:
