@@ -25,7 +25,8 @@ def test_info_image_and_page(client):
     assert info["image_size_px"] == [640, 480] and info["source"]["kind"] == "scene" and info["source"]["live"]
     assert [s["op"] for s in info["pipeline"]] == ["median", "threshold", "roberts"]
     assert info["rig"] == {"name": "default rig", "focal_length_mm": 11.3, "baseline_mm": 100.0,
-                           "plate_thickness_mm": 3.0}
+                           "plate_thickness_mm": 3.0, "build": False, "calibrated": False, "calibration": None,
+                           "default_model": "refraction"}
     img = cv2.imdecode(np.frombuffer(client.get("/api/image.png").content, np.uint8), cv2.IMREAD_UNCHANGED)
     assert img.shape == (480, 640)
     page = client.get("/")
@@ -190,3 +191,27 @@ def test_dense_disparity_of_a_textured_scene():
         assert c.post("/api/dense", json={"fast": "maybe"}).status_code == 422
         bad = c.post("/api/dense", json={"near_mm": 900, "far_mm": 500})
         assert bad.status_code == 400 and "near_mm" in bad.json()["detail"]
+
+
+def test_calibrated_build_double_click_automatic_and_status():
+    """Issue 15: a calibrated build (its rig file carries the calibration's RMS): the page's info says so,
+    and a double-click and Automatic pair the discs, whose twins are rows apart, at their true depths."""
+    import dataclasses
+
+    from psvs.io.params import load_rig
+    from psvs.optics.project import project_points
+    from psvs.optics.rig import Calibration
+    from psvs.simulate.render import render
+    from tests.match.test_scenes import flat_discs_scene
+    build = dataclasses.replace(load_rig("misaligned"), calibration=Calibration(0.031, 0.03, 0.032, 18, "18 card"))
+    img = render(flat_discs_scene(), build, seed=5).image
+    with TestClient(create_app(image_source("discs.png", img), build, "calibrated")) as c:
+        rig_info = c.get("/api/info").json()["rig"]
+        assert rig_info["build"] and rig_info["calibrated"] and rig_info["default_model"] == "exact"
+        assert rig_info["calibration"] == {"rms_px": 0.031, "rms_left_px": 0.03, "rms_right_px": 0.032,
+                                           "images": 18, "kinds": "18 card"}
+        auto = c.post("/api/match", json={}).json()
+        assert sorted(round(p["median_z_mm"] / 10) * 10 for p in auto["pairs"]) == [450, 700, 1100]
+        rim, _ = project_points([[-40.0 - 18.0, -70.0, 450.0]], build, "left")   # the 450 mm disc's left rim
+        one = c.post("/api/match", json={"seed": [float(rim[0, 0]) + 1.5, float(rim[0, 1])]}).json()
+        assert len(one["pairs"]) == 1 and abs(one["pairs"][0]["median_z_mm"] - 450.0) < 1.35

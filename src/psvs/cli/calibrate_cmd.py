@@ -1,6 +1,7 @@
 """``psvs calibrate``: calibrate a build from hand-held card views and/or the paper's robot sweep."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -10,6 +11,7 @@ from psvs.calibrate.folder import calibrate_folder
 from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
 from psvs.io.atomic import output_batch
 from psvs.io.params import save_rig
+from psvs.optics.rig import Calibration
 
 
 def add_parser(sub) -> None:
@@ -61,7 +63,9 @@ def run(args) -> int:
               "the images do not show them; more card views, tilted and over the whole field, would")
     print(f"solver: {b.message}")
     with output_batch():   # the rig file and the report land together
-        save_rig(res.rig, out)
+        kinds_text = ", ".join(f"{sum(v == k for v in res.used.values())} {k}" for k in kinds)
+        save_rig(dataclasses.replace(res.rig, calibration=Calibration(
+            b.rms_px, b.rms_by_view["left"], b.rms_by_view["right"], len(res.used), kinds_text)), out)
         written = []
         if args.report is not None:
             from psvs.calibrate.report import write_report

@@ -19,7 +19,7 @@ import numpy as np
 
 from psvs.io.atomic import write_atomic
 from psvs.io.tomlfile import dumps_toml, load_toml
-from psvs.optics.rig import MIRROR_NAMES, Camera, MirrorError, MirrorExtent, Mirrors, Rig
+from psvs.optics.rig import MIRROR_NAMES, Calibration, Camera, MirrorError, MirrorExtent, Mirrors, Rig
 from psvs.rigs import SHIPPED, shipped_rig_path
 
 _CAMERA_REQUIRED = ("focal_length_mm", "pixel_pitch_mm", "image_size_px")
@@ -103,9 +103,14 @@ def rig_from_dict(data: dict) -> Rig:
     """Build a :class:`Rig` from the nested dict of a rig file (degrees converted to radians)."""
     if not isinstance(data, dict):
         raise ValueError(f"a rig file must hold tables [camera] and [mirrors], got {type(data).__name__}")
-    unknown = sorted(set(data) - {"camera", "mirrors"})
+    unknown = sorted(set(data) - {"camera", "mirrors", "calibration"})
     if unknown:
-        raise ValueError(f"unknown table [{unknown[0]}] (allowed: [camera], [mirrors])")
+        raise ValueError(f"unknown table [{unknown[0]}] (allowed: [camera], [mirrors], [calibration])")
+    calibration = None
+    if "calibration" in data:
+        cal_t = _table(data, "calibration")
+        _check_keys(cal_t, "calibration", ("rms_px", "rms_left_px", "rms_right_px", "images"), ("kinds",))
+        calibration = _build(Calibration, "calibration", **cal_t)
     cam_t, mir_t = _table(data, "camera"), _table(data, "mirrors")
     _check_keys(cam_t, "camera", _CAMERA_REQUIRED, _CAMERA_OPTIONAL)
     scalars = {k: v for k, v in mir_t.items() if k not in MIRROR_NAMES}
@@ -163,7 +168,7 @@ def rig_from_dict(data: dict) -> Rig:
                 tilt = _degrees_to_rad(_pair(tab.get("tilt_deg", [0.0, 0.0]), f"{where}.tilt_deg"), f"{where}.tilt_deg")
                 kwargs[f"{name}_error"] = _build(MirrorError, where, tilt_rad=tilt, shift_mm=tab.get("shift_mm", 0.0))
     mirrors = _build(Mirrors, "mirrors", **kwargs)
-    return Rig(camera, mirrors)
+    return Rig(camera, mirrors, calibration)
 
 
 def _build(cls, where: str, **kwargs):
@@ -203,6 +208,10 @@ def rig_to_dict(rig: Rig) -> dict:
     dist = c.distortion
     lens = {} if not c.distorted else \
         {"distortion_k": list(dist[:2])} if dist[2:] == (0.0, 0.0, 0.0) else {"distortion": list(dist)}
+    cal = rig.calibration
+    calibration = {} if cal is None else {"calibration": {
+        "rms_px": cal.rms_px, "rms_left_px": cal.rms_left_px, "rms_right_px": cal.rms_right_px,
+        "images": cal.images, "kinds": cal.kinds}}
     return _plain({
         "camera": {
             "focal_length_mm": c.focal_length_mm,
@@ -212,6 +221,7 @@ def rig_to_dict(rig: Rig) -> dict:
             **lens,
         },
         "mirrors": mirrors,
+        **calibration,
     })
 
 

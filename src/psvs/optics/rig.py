@@ -203,17 +203,43 @@ class Mirrors:
 
 
 @dataclass(frozen=True)
+class Calibration:
+    """How a rig file's values were found (``[calibration]`` in the file, written by ``psvs calibrate``):
+    reprojection RMS overall and per view (px), the number of images used and their kinds (e.g.
+    "16 card"), so a reader (the web UI) can say whether it works with a calibrated build."""
+
+    rms_px: float
+    rms_left_px: float
+    rms_right_px: float
+    images: int
+    kinds: str = ""
+
+    def __post_init__(self):
+        for name in ("rms_px", "rms_left_px", "rms_right_px"):
+            check_nonnegative(getattr(self, name), name, "px")
+            object.__setattr__(self, name, float(getattr(self, name)))
+        if not isinstance(self.images, int) or isinstance(self.images, bool) or self.images < 0:
+            raise ValueError(f"images must be a whole number >= 0, got {self.images!r}")
+        if not isinstance(self.kinds, str):
+            raise ValueError(f"kinds must be a string, got {self.kinds!r}")
+
+
+@dataclass(frozen=True)
 class Rig:
-    """A whole PSVS: the real camera and the mirror assembly. Make variants with :meth:`replace`."""
+    """A whole PSVS: the real camera and the mirror assembly, and how they were calibrated (None: a
+    design, not measured). Make variants with :meth:`replace`."""
 
     camera: Camera = field(default_factory=Camera)
     mirrors: Mirrors = field(default_factory=Mirrors)
+    calibration: Calibration | None = None
 
     def __post_init__(self):
         if not isinstance(self.camera, Camera):
             raise TypeError(f"camera must be a Camera, got {type(self.camera).__name__}")
         if not isinstance(self.mirrors, Mirrors):
             raise TypeError(f"mirrors must be a Mirrors, got {type(self.mirrors).__name__}")
+        if self.calibration is not None and not isinstance(self.calibration, Calibration):
+            raise TypeError(f"calibration must be a Calibration or None, got {type(self.calibration).__name__}")
 
     def replace(self, **changes) -> "Rig":
         """A copy with fields of the camera or the mirrors changed, e.g. ``rig.replace(plate_thickness_mm=0)``."""
@@ -222,7 +248,7 @@ class Rig:
         unknown = set(changes) - set(cam) - set(mir)
         if unknown:
             raise TypeError(f"unknown rig field(s): {', '.join(sorted(unknown))}")
-        return Rig(replace(self.camera, **cam), replace(self.mirrors, **mir))
+        return Rig(replace(self.camera, **cam), replace(self.mirrors, **mir), self.calibration)
 
     def with_extents(self, extents: dict[str, MirrorExtent | None]) -> "Rig":
         """A copy with the given mirror extents (keys ``m1`` .. ``m4``)."""

@@ -21,15 +21,16 @@ from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
 
-from psvs.dense import dense_disparity, disparity_cloud, separate_views
-from psvs.dense.disparity import working_range_px
+from psvs.dense import separate_views
+from psvs.dense.build import dense_on_rig, rig_cloud
 from psvs.imaging.pipeline import PAPER, make_pipeline
 from psvs.imaging.steps import STEPS
 from psvs.io.images import grey8, to_grey8
 from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
 from psvs.match.correspondence import MatchResult, match_image
 from psvs.match.export import write_csv, write_json, write_ply
-from psvs.measure.triangulate import MODELS
+from psvs.measure.triangulate import MODELS, default_model
+from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
 from psvs.web.limits import BodyLimit, check_steps
 from psvs.web.live_runner import LiveRunner
@@ -53,7 +54,8 @@ class MatchBody(PipelineBody):
     seed: tuple[float, float] | None = Field(default=None, description="double-clicked (u, v) px; None: automatic")
     near_mm: float = Field(400.0, gt=0, le=100000)
     far_mm: float = Field(1200.0, gt=0, le=100000)
-    model: str = "refraction"
+    model: str | None = Field(default=None, description="triangulation model; default: refraction on the "
+                                                        "paper's geometry, exact on a build")
 
 
 class DenseBody(BaseModel):
@@ -85,6 +87,17 @@ def _data_url(img: np.ndarray) -> str:
 
 def _pipeline(steps):
     return PAPER if steps is None else make_pipeline(check_steps(steps))
+
+
+def _calibration_status(rig: Rig) -> dict:
+    """What the page says of the rig: a build (matched on rectified rows) or the paper's geometry, and
+    the reprojection RMS of the calibration that wrote it (None for a design)."""
+    cal = rig.calibration
+    return {"build": needs_rectification(rig), "calibrated": cal is not None,
+            "calibration": None if cal is None else {"rms_px": cal.rms_px, "rms_left_px": cal.rms_left_px,
+                                                     "rms_right_px": cal.rms_right_px, "images": cal.images,
+                                                     "kinds": cal.kinds},
+            "default_model": default_model(rig)}
 
 
 def _result_json(res: MatchResult, seed) -> dict:
@@ -145,7 +158,8 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
     def info():
         return {"source": {"kind": source.kind, "name": state["name"], "live": source.live, "fps": source.fps},
                 "rig": {"name": rig_name, "focal_length_mm": rig.camera.focal_length_mm,
-                        "baseline_mm": rig.mirrors.baseline_mm, "plate_thickness_mm": rig.mirrors.plate_thickness_mm},
+                        "baseline_mm": rig.mirrors.baseline_mm, "plate_thickness_mm": rig.mirrors.plate_thickness_mm,
+                        **_calibration_status(rig)},
                 "image_size_px": [w, h], "pipeline": PAPER.to_dict()["steps"], "models": list(MODELS),
                 "steps": sorted(STEPS), "snap_px": SNAP_PX, "max_upload_bytes": MAX_BODY_BYTES}
 
@@ -163,7 +177,7 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
     def match(body: MatchBody):
         """The paper's algorithm from a double-clicked point (snapped to the nearest edge pixel within
         SNAP_PX), or automatic pairing of every edge when no seed is given."""
-        if body.model not in MODELS:
+        if body.model is not None and body.model not in MODELS:
             raise ValueError(f"model must be one of {', '.join(MODELS)}, got {body.model!r}")
         if not body.near_mm < body.far_mm:
             raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
@@ -189,16 +203,17 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
         if not body.near_mm < body.far_mm:
             raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
         grey = state["still"]
-        lo, hi = working_range_px(rig, body.near_mm, body.far_mm, w)
-        res = dense_disparity(grey, lo, hi, fast=body.fast)
-        d = res.disparity_left
-        z = disparity_cloud(d, rig).depth_mm
+        dense_res = dense_on_rig(grey, rig, body.near_mm, body.far_mm, fast=body.fast)
+        res = dense_res.result
+        lo, hi = res.searched_px
+        d = res.disparity_left       # on a build: on the left view's rectified grid
+        z = rig_cloud(dense_res, rig).depth_mm
         out = {"disparity_png": _data_url(_colour_disparity(d, lo, hi)), "range_px": [lo, hi],
                "answered_pct": 100.0 * float(np.mean(np.isfinite(d))),
                "median_disparity_px": float(np.nanmedian(d)) if np.isfinite(d).any() else None,
                "median_z_mm": float(np.nanmedian(z)) if np.isfinite(z).any() else None}
         if body.views and np.isfinite(d).any():
-            lv, rv = separate_views(grey, d, rig.mirrors.split_ratio, res.disparity_right)
+            lv, rv = separate_views(grey, d, rig.mirrors.split_ratio, res.disparity_right, rect=dense_res.rect)
             out.update(left_png=_data_url(to_grey8(lv)), right_png=_data_url(to_grey8(rv)))
         return out
 
@@ -242,7 +257,7 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
         if not body.near_mm < body.far_mm:
             raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
         tracker = EdgeTracker(rig, body.seed, pipeline=_pipeline(body.steps), near_mm=body.near_mm,
-                              far_mm=body.far_mm, model=body.model if body.model in MODELS else "refraction",
+                              far_mm=body.far_mm, model=body.model if body.model in MODELS else None,
                               snap_px=SNAP_PX)
         live.start(source, tracker)
         return {"running": True}

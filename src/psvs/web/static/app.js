@@ -239,8 +239,11 @@ $("upload").addEventListener("change", async (ev) => {
     const info = await api("/api/info");
     $("source").textContent = `${info.source.kind}: ${info.source.name}`;
     const rig = info.rig;
+    const cal = rig.calibration;
+    const status = cal ? `calibrated: RMS ${cal.rms_px.toFixed(3)} px from ${cal.images} images` : "not calibrated (a design)";
     $("rig").textContent = `rig: ${rig.name} (f ${rig.focal_length_mm.toFixed(3)} mm, b ${rig.baseline_mm.toFixed(2)} mm, ` +
-      `plate ${rig.plate_thickness_mm.toFixed(2)} mm)`;
+      `plate ${rig.plate_thickness_mm.toFixed(2)} mm) — ${status}; ` +
+      (rig.build ? "a build: twins matched on rectified rows" : "the paper's geometry: twins on image rows");
     $("live-start").disabled = !info.source.live;
     await loadImage();
     await preview();
