@@ -215,3 +215,22 @@ def test_calibrated_build_double_click_automatic_and_status():
         rim, _ = project_points([[-40.0 - 18.0, -70.0, 450.0]], build, "left")   # the 450 mm disc's left rim
         one = c.post("/api/match", json={"seed": [float(rim[0, 0]) + 1.5, float(rim[0, 1])]}).json()
         assert len(one["pairs"]) == 1 and abs(one["pairs"][0]["median_z_mm"] - 450.0) < 1.35
+
+
+def test_serve_renders_a_scene_through_the_true_rig(tmp_path):
+    """`psvs serve --scene S --rig CALIBRATED --true-rig BUILD`: the still is the scene through the build, the
+    matching rig is --rig; --true-rig with a real source is refused in one line."""
+    import argparse
+
+    from psvs.cli.serve_cmd import make_source
+    from psvs.io.params import load_rig
+    from psvs.simulate.builtin import builtin_scene
+    from psvs.simulate.render import render
+    args = argparse.Namespace(image=None, video=None, camera=None, scene="fig5a", true_rig="misaligned")
+    src = make_source(args, load_rig("clear"))
+    np.testing.assert_array_equal(src.still, render(builtin_scene("fig5a"), load_rig("misaligned"), seed=0).image)
+    png = tmp_path / "x.png"
+    cv2.imwrite(str(png), src.still)
+    with pytest.raises(ValueError, match="--true-rig renders a simulated scene"):
+        make_source(argparse.Namespace(image=str(png), video=None, camera=None, scene=None, true_rig="misaligned"),
+                    load_rig("clear"))

@@ -18,13 +18,24 @@ def add_parser(sub) -> None:
     src.add_argument("--scene", metavar="S", help="simulated scene: a built-in (e.g. fig5b) or a scene file "
                                                   "(the default is fig5b)")
     add_rig_argument(p, required=False)
+    p.add_argument("--true-rig", metavar="RIG", help="with --scene: render through this rig, the build as it "
+                                                     "is (name or file), while matching uses --rig")
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=int, default=8000, help="port (default 8000; 0 picks a free one)")
     p.set_defaults(run=run)
 
 
 def make_source(args, rig):
+    from psvs.io.params import load_rig
     from psvs.web import sources
+    true_rig = getattr(args, "true_rig", None)
+    if true_rig and (args.image or args.video or args.camera is not None):
+        raise ValueError("--true-rig renders a simulated scene: use it with --scene (or no source)")
+    if true_rig:
+        true_rig = load_rig(true_rig)
+        if true_rig.camera.image_size_px != rig.camera.image_size_px:
+            raise ValueError(f"--true-rig's camera is {true_rig.camera.image_size_px} px but --rig's is "
+                             f"{rig.camera.image_size_px} px: one camera")
     if args.image:
         return sources.image_source(args.image, read_grey(args.image))
     if args.video:
@@ -32,7 +43,7 @@ def make_source(args, rig):
     if args.camera is not None:
         return sources.camera_source(args.camera)
     spec = args.scene or "fig5b"
-    return sources.scene_source(spec, load_scene_spec(spec), rig)
+    return sources.scene_source(spec, load_scene_spec(spec), true_rig or rig)
 
 
 def run(args) -> int:

@@ -150,11 +150,12 @@ def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel:
     the rectified disparity."""
     model = default_model(rig) if model is None else model
     if rect is not None and subpixel and pairs:
-        # only the rectified rows the pairs use (+-3 for the refinement's neighbours)
-        rows = np.concatenate([p.left_px[:, 1] for p in pairs if len(p)] or [np.zeros(1)])
-        r0, r1 = max(0, int(rows.min()) - 3), int(rows.max()) + 4
-        views = rect.remap_fast(grey, "left", (r0, r1)), rect.remap_fast(grey, "right", (r0, r1))
-        shift = np.array([0.0, r0])
+        # only the part of the rectified grid the pairs use (+-6 px for the refinement's neighbours)
+        pts = np.concatenate([np.vstack([p.left_px, p.right_px]) for p in pairs if len(p)] or [np.zeros((1, 2))])
+        (c0, r0), (c1, r1) = np.floor(pts.min(axis=0)).astype(int) - 6, np.ceil(pts.max(axis=0)).astype(int) + 7
+        c0, r0 = max(0, c0), max(0, r0)
+        views = tuple(rect.remap_fast(grey, v, (r0, r1, c0, c1)) for v in ("left", "right"))
+        shift = np.array([float(c0), float(r0)])
     out = []
     for pair in pairs:
         if rect is None:

@@ -162,18 +162,25 @@ class Rectification:
         mu, mv = self.maps(view)
         return cv2.remap(np.asarray(image), mu, mv, interpolation, borderMode=cv2.BORDER_REPLICATE)
 
-    def remap_fast(self, image: np.ndarray, view: str, rows: tuple[int, int] | None = None) -> np.ndarray:
+    def remap_fast(self, image: np.ndarray, view: str, window: tuple[int, int, int, int] | None = None) -> np.ndarray:
         """:meth:`remap` (bilinear) through OpenCV's fixed-point maps: several times faster, with the
-        sample positions rounded to 1/32 px (what cv2.remap does to float maps as well). ``rows`` (r0, r1):
-        only rectified rows r0..r1-1 (row r0 of the result is rectified row r0)."""
+        sample positions rounded to 1/32 px (what cv2.remap does to float maps as well). ``window``
+        (r0, r1, c0, c1): only rectified rows r0..r1-1 and columns c0..c1-1 (clipped to the grid; the
+        result's pixel (0, 0) is rectified pixel (c0, r0) after clipping)."""
         view = _check_view(view)
         if view not in self._fixed:
             self._fixed[view] = cv2.convertMaps(*self.maps(view), cv2.CV_16SC2)
         m1, m2 = self._fixed[view]
-        if rows is not None:
-            r0, r1 = max(0, int(rows[0])), min(m1.shape[0], int(rows[1]))
-            m1, m2 = m1[r0:max(r0 + 1, r1)], m2[r0:max(r0 + 1, r1)]
+        if window is not None:
+            (r0, r1), (c0, c1) = _clip_span(window[:2], m1.shape[0]), _clip_span(window[2:], m1.shape[1])
+            m1, m2 = m1[r0:r1, c0:c1], m2[r0:r1, c0:c1]
         return cv2.remap(np.asarray(image), m1, m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+def _clip_span(span, size: int) -> tuple[int, int]:
+    """(start, stop) of a window clipped to 0..size, never empty."""
+    start = min(max(0, int(span[0])), size - 1)
+    return start, max(start + 1, min(size, int(span[1])))
 
 
 def _check_view(view: str) -> str:
