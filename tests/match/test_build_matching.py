@@ -16,7 +16,7 @@ from psvs.measure.triangulate import triangulate
 from psvs.optics.project import project_points
 from psvs.simulate.render import render
 from psvs.simulate.sensor import Sensor
-from tests.match.test_overlap import CASES, overlap_scene
+from tests.match.test_overlap import CASES, assert_both_paired, overlap_scene
 from tests.match.test_scenes import flat_discs_scene
 from tests.optics.test_build import random_build
 
@@ -51,12 +51,7 @@ def test_overlapping_views_pair_on_a_build(case):
     rig = load_rig("misaligned")
     scene, _ = overlap_scene(rig, shape, z_ring, z_other, offset, ring_xy)
     m = match_image(render(scene, rig, seed=seed, sensor=Sensor(gain=gain)).image, rig)
-    depths = np.array([z_ring, z_other], float)
-    owner = [int(np.argmin(np.abs(depths - p.median_z_mm()))) for p in m.pairs]
-    for p, k in zip(m.pairs, owner):
-        assert abs(p.median_z_mm() - depths[k]) <= 0.003 * depths[k], (k, len(p), p.median_z_mm())
-    for k in (0, 1):
-        assert sum(len(p) for p, o in zip(m.pairs, owner) if o == k) >= 15, k
+    assert_both_paired(m.pairs, (z_ring, z_other))
 
 
 def test_seeded_matching_on_a_build():

@@ -41,6 +41,18 @@ def overlap_scene(rig, shape, z_ring_mm, z_other_mm, offset_px, ring_xy_mm, ring
     return Scene((ring, other), light, max(z_ring_mm, z_other_mm) + 500, Uniform(0.08)), other_c
 
 
+def assert_both_paired(pairs, depths_mm) -> list[int]:
+    """Every pair belongs to one of the objects (its median Z within 0.3 % of that object's depth) and
+    both objects are paired (>= 15 pixel pairs each). Returns each pair's object (0: ring, 1: other)."""
+    depths = np.array(depths_mm, float)
+    owner = [int(np.argmin(np.abs(depths - p.median_z_mm()))) for p in pairs]
+    for p, k in zip(pairs, owner):
+        assert abs(p.median_z_mm() - depths[k]) <= 0.003 * depths[k], (k, len(p), p.median_z_mm())
+    for k in (0, 1):
+        assert sum(len(p) for p, o in zip(pairs, owner) if o == k) >= 15, k
+    return owner
+
+
 CASES = [  # shape, z ring, z other (mm), offset (du, dv) px, ring (x, y) mm, noise seed, sensor gain
     ("disc", 600, 650, (13, 0), (-30, 0), 1, 1.0),       # the disc's twin: a sliver in the ring's centre
     ("disc", 600, 650, (-14, 0), (-30, 0), 2, 1.0),
@@ -65,14 +77,7 @@ def test_both_objects_paired_when_views_overlap(shape, z_ring, z_other, offset, 
     scene, other_c = overlap_scene(rig, shape, z_ring, z_other, offset, ring_xy)
     res = render(scene, rig, seed=seed, sensor=Sensor(gain=gain))
     m = match_image(res.image, rig)
-    depths = np.array([z_ring, z_other], float)
-    owner = [int(np.argmin(np.abs(depths - p.median_z_mm()))) for p in m.pairs]
-    # every pair belongs to one of the objects, its median Z within 0.3 % of that object's depth
-    for p, k in zip(m.pairs, owner):
-        assert abs(p.median_z_mm() - depths[k]) <= 0.003 * depths[k], (k, len(p), p.median_z_mm())
-    # both objects paired
-    for k in (0, 1):
-        assert sum(len(p) for p, o in zip(m.pairs, owner) if o == k) >= 15, k
+    owner = assert_both_paired(m.pairs, (z_ring, z_other))
     # the configuration: the second object's paired twin shares an edge component with the ring's left view
     _, lab = cv2.connectedComponents(m.edges.view(np.uint8), connectivity=8)
 
