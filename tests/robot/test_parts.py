@@ -164,6 +164,59 @@ def test_roi_rig_keeps_the_optics_and_checks_rows():
     assert rig.camera.principal_point_px[1] == pytest.approx(239.5 - 224)
     with pytest.raises(ValueError, match="roi_rows must be an integer"):
         roi_rig(default_rig(), 4)
+    # the ideal rig's window does not grow, whatever the range
+    assert roi_rig(default_rig(), 32, span_mm=(220.0, 420.0))[0].camera.image_size_px == (640, 32)
+
+
+@pytest.mark.parametrize("rows, span", [(32, (220.0, 420.0)), (24, (450.0, 900.0))])
+def test_roi_window_on_a_build_holds_the_twins(rows, span):
+    """On a build the window grows so that a point the left view sees on its central ``rows`` rows has its
+    right-view twin inside the window too: checked on random scene points projected into both views
+    (project_points, not the traced rays roi_rig uses)."""
+    from psvs.io.params import load_rig
+    from psvs.optics.project import project_points
+    build = load_rig("misaligned")
+    full_h = build.camera.image_size_px[1]
+    band0 = int(round(build.camera.principal_point_px[1] - (rows - 1) / 2))
+    roi, v0 = roi_rig(build, rows, span_mm=span)
+    h = roi.camera.image_size_px[1]
+    assert rows + 4 < h <= full_h and 0 <= v0 <= band0 <= band0 + rows <= v0 + h
+    # the optics unchanged: a pixel's ray is the same in the window (rows shifted by v0)
+    rng = np.random.default_rng(3)
+    z = rng.uniform(*span, 4000)
+    pts = np.column_stack([rng.uniform(-0.4, 0.4, 4000) * z, rng.uniform(-0.1, 0.1, 4000) * z, z])
+    left, ok_l = project_points(pts, build, "left")
+    right, ok_r = project_points(pts, build, "right")
+    inband = ok_l & ok_r & (left[:, 1] >= band0) & (left[:, 1] <= band0 + rows - 1) & \
+        (left[:, 0] >= 0) & (left[:, 0] <= build.camera.image_size_px[0] - 1)
+    assert inband.sum() > 50
+    assert np.all(right[inband, 1] >= v0 - 0.5) and np.all(right[inband, 1] <= v0 + h - 0.5)
+    # the twins really are rows apart on this build (the reason for the taller window)
+    assert np.abs(right[inband, 1] - left[inband, 1]).max() > 5.0
+    roi_left, _ = project_points(pts[inband], roi, "left")
+    assert np.allclose(roi_left[:, 1], left[inband, 1] - v0, atol=1e-6)
+
+
+def test_groove_edges_drop_the_end_outline():
+    """Where the groove ends in the window its outline closes the band (the V's end, oblique in the image):
+    the outline's pixels go; each edge keeps its own, also on rows where the other edge has already ended
+    (edge a runs on to row 29, edge b ends at row 21 and the outline runs from there toward edge a)."""
+    from psvs.robot.sensor import _groove_edges
+    v = np.arange(30.0)
+    ua = 300.0 + 0.1 * v + np.random.default_rng(1).choice([-0.5, 0.0, 0.5], 30)
+    ub = 340.0 + 0.1 * v
+    ub[22:] = 340.0 + 0.1 * v[22:] - 4.0 * (v[22:] - 21)   # rows 22..29: the outline, not edge b
+    pa, pb = np.column_stack([ua, v]), np.column_stack([ub, v])
+    xa = np.column_stack([v, np.zeros(30), np.zeros(30)])
+    xb = np.column_stack([v, np.ones(30), np.zeros(30)])
+    a, b = _groove_edges(((pa, xa), (pb, xb)), 20.0)
+    assert a[:, 0].tolist() == list(range(30))          # edge a whole, past edge b's end
+    assert b[:, 0].tolist() == list(range(22))          # edge b without the outline
+    # an outline pixel on edge a's side (the corner where the outline meets it, 5 px off) goes too
+    pa2 = np.vstack([pa, [ua[10] + 5.0, 10.0]])
+    xa2 = np.vstack([xa, [99.0, 0.0, 0.0]])
+    a2, _ = _groove_edges(((pa2, xa2), (pb, xb)), 20.0)
+    assert 99.0 not in a2[:, 0]
 
 
 def test_track_config_checks():

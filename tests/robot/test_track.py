@@ -53,6 +53,24 @@ def test_tracking_accuracy_and_bridged_gap(gap10):
     assert np.all(np.array([c.qdd_peak for c in run.cycles]) <= np.array([4, 4, 4, 8, 8, 8]) + 1e-9)
 
 
+def test_replay_reproduces_every_command(gap10):
+    """Issue 16: a fresh controller and sensor on the run's recorded frames and flange poses (the replay
+    cell: no simulation) send exactly the recorded commands, through the gap; a recording altered by
+    0.01 mm in its flange poses from one cycle on does not replay the same (the check can fail)."""
+    from dataclasses import replace as dc_replace
+
+    from psvs.robot.loop import replay
+    wp, run = gap10
+    cell = replay(run, default_rig())
+    assert len(cell.sent) == len(run.cycles) and cell.mismatches == []
+    k = len(run.cycles) // 3
+    shift = np.eye(4)
+    shift[1, 3] = 0.01
+    cycles = run.cycles[:k] + [dc_replace(c, flange2base=shift @ c.flange2base) for c in run.cycles[k:]]
+    altered = replay(dc_replace(run, cycles=cycles), default_rig())
+    assert altered.mismatches and altered.mismatches[0] >= k
+
+
 def test_forty_mm_gap_stops_within_one_look_ahead(handeye):
     wp = seam_workpiece("weld_seam:gap_start_mm=-25,gap_length_mm=40", CFG.camera_distance_mm)
     cfg = TrackConfig(weld_length_mm=None)
@@ -131,14 +149,18 @@ def test_cli_errors_are_one_line_exit_2(args, msg, tmp_path, monkeypatch, capsys
 
 def test_tracking_on_a_misaligned_build():
     """Issue 15: the world rendered through the misaligned build, the sensor matching on its rectified rows
-    (twins rows apart in the window) with the build's own model, the hand-eye calibrated through it too:
-    a continuous seam tracked with lateral RMS <= 0.2 mm, max <= 0.5, every cycle valid."""
+    (twins rows apart: the window is taller by their offset) with the build's own model, the hand-eye
+    calibrated through it too: lateral RMS <= 0.2 mm, max <= 0.5, and a 10 mm gap bridged as on the ideal
+    rig (measured within 1.5 mm, the torch on the seam across it)."""
     from psvs.io.params import load_rig
     build = load_rig("misaligned")
-    wp = seam_workpiece("weld_seam", CFG.camera_distance_mm)
+    wp = seam_workpiece("weld_seam:gap_start_mm=-15,gap_length_mm=10", CFG.camera_distance_mm)
     run = track(wp, build, CFG, true_rig=build)
     s = summary(run, wp)
     assert s["stop"]["reason"] == "weld length reached"
     assert s["lateral_mm"]["rms"] <= 0.2 and s["lateral_mm"]["max"] <= 0.5
     assert s["vertical_mm"]["rms"] <= 0.3
-    assert all(c.valid for c in run.cycles)
+    assert s["in_gap_lateral_mm"]["max"] is not None and s["in_gap_lateral_mm"]["max"] <= 0.5
+    (a, b), = run.extras["gaps_bridged"]
+    assert b - a == pytest.approx(10.0, abs=1.5)
+    assert run.cycles[0].image.shape[0] > CFG.roi_rows       # the readout spans the twins' offset

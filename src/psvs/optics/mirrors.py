@@ -14,6 +14,7 @@ plate's back face follows its front face (parallel faces, thickness d). Then the
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -26,8 +27,13 @@ VIEWS = ("left", "right")
 
 
 def mirror_planes(rig: Rig) -> dict[str, Plane]:
-    """All optical surfaces of the rig: ``m1`` (coated front face), ``m1_back``, ``m2``, ``m3``, ``m4``."""
-    m = rig.mirrors
+    """All optical surfaces of the rig: ``m1`` (coated front face), ``m1_back``, ``m2``, ``m3``, ``m4``
+    (computed once per mirror set: every ray trace asks for them)."""
+    return dict(_planes(rig.mirrors))
+
+
+@lru_cache(maxsize=64)
+def _planes(m) -> dict[str, Plane]:
     w = m.angle_rad
     c1, c2, half_b = m.m1_axis_distance_mm, m.m2_axis_distance_mm, 0.5 * m.baseline_mm
     sw, cw, s2w, c2w = math.sin(w), math.cos(w), math.sin(2 * w), math.cos(2 * w)
@@ -60,7 +66,11 @@ def mirror_planes(rig: Rig) -> dict[str, Plane]:
     front = planes["m1"]
     back = Plane("m1_back", front.point - m.plate_thickness_mm * front.normal, front.normal, front.s_axis,
                  front.extent, front.t_axis)
-    return {"m1": front, "m1_back": back, "m2": planes["m2"], "m3": planes["m3"], "m4": planes["m4"]}
+    out = {"m1": front, "m1_back": back, "m2": planes["m2"], "m3": planes["m3"], "m4": planes["m4"]}
+    for plane in out.values():          # shared by every caller (cached): read-only
+        for arr in (plane.point, plane.normal, plane.s_axis, plane.t_axis):
+            arr.flags.writeable = False
+    return out
 
 
 def _tilt_matrix(tilt_rad: tuple[float, float], s_axis: np.ndarray) -> np.ndarray:

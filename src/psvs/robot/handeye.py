@@ -37,26 +37,47 @@ def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
     return T, float(np.sqrt(np.mean(np.sum(res ** 2, axis=1))))
 
 
-def target_in_camera(grey: np.ndarray, rig: Rig, grid: CircleGrid, expected: np.ndarray | None = None
-                     ) -> tuple[np.ndarray, float]:
-    """target2cam (4, 4, mm) from one complex image of the grid, and the fit's RMS residual (mm).
-
-    A symmetric grid's discs fit equally well in four labellings (turned half about its normal, or
-    flipped over about either axis); ``expected`` (a rough target2cam, e.g. from the nominal mounting)
-    picks the one whose rotation is nearest to it."""
+def target_candidates(grey: np.ndarray, rig: Rig, grid: CircleGrid) -> list[tuple[np.ndarray, float]]:
+    """The four target2cam (4, 4, mm) a symmetric grid fits equally well in one complex image (its discs
+    labelled as they are, turned half about the grid's normal, or flipped over about either axis), each
+    with the fit's RMS residual (mm). The grid is found in both views and triangulated (exact model)."""
     det = detect_grid(grey, grid.rows, grid.cols)
     pts = triangulate(det.left, det.right, rig, model="exact").points_mm
     if not np.all(np.isfinite(pts)):
         raise ValueError("grid discs could not be triangulated")
     model = np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
-    best = None
     idx = np.arange(grid.rows * grid.cols).reshape(grid.rows, grid.cols)
-    for order in (idx, idx[::-1], idx[:, ::-1], idx[::-1, ::-1]):
-        T, rms = rigid_fit(model, pts[order.ravel()])
-        score = 0.0 if expected is None else np.linalg.norm(T[:3, :3] - expected[:3, :3])
-        if best is None or score < best[0]:
-            best = (score, T, rms)
-    return best[1], best[2]
+    return [rigid_fit(model, pts[order.ravel()]) for order in (idx, idx[::-1], idx[:, ::-1], idx[::-1, ::-1])]
+
+
+def target_in_camera(grey: np.ndarray, rig: Rig, grid: CircleGrid, expected: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, float]:
+    """target2cam (4, 4, mm) from one complex image of the grid, and the fit's RMS residual (mm): of the
+    four labellings (:func:`target_candidates`), the one whose rotation is nearest to ``expected`` (a
+    rough target2cam, e.g. from the nominal mounting), or the first."""
+    cands = target_candidates(grey, rig, grid)
+    if expected is None:
+        return cands[0]
+    return min(cands, key=lambda c: np.linalg.norm(c[0][:3, :3] - expected[:3, :3]))
+
+
+def _angle(R: np.ndarray) -> float:
+    return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
+
+
+def consistent_labellings(candidates: list[list[tuple[np.ndarray, float]]], flange2base: list[np.ndarray]
+                          ) -> list[tuple[np.ndarray, float]]:
+    """One target2cam per view, labelled consistently without any pose guess: the first view's first
+    labelling defines the target frame (X does not depend on it), and every other view takes the labelling
+    whose motion relative to the first turns by the same angle as the flange's (A X = X B makes A and B
+    similar: equal rotation angles). The wrong labellings differ by half turns."""
+    F0 = flange2base[0]
+    first = candidates[0][0]
+    out = [first]
+    for cands, F in zip(candidates[1:], flange2base[1:]):
+        want = _angle(np.linalg.solve(F, F0)[:3, :3])
+        out.append(min(cands, key=lambda c: abs(_angle((c[0] @ np.linalg.inv(first[0]))[:3, :3]) - want)))
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,20 +127,24 @@ def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarra
 
 
 def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray], rig: Rig, grid: CircleGrid,
-                         nominal_cam2flange: np.ndarray, target2base_guess: np.ndarray) -> HandEyeResult:
+                         nominal_cam2flange: np.ndarray | None = None,
+                         target2base_guess: np.ndarray | None = None) -> HandEyeResult:
     """Hand-eye calibration from complex images of the grid taken at the given flange poses.
 
     ``nominal_cam2flange`` (the mounting drawing) and ``target2base_guess`` (roughly where the target
-    lies) only resolve the grid's half-turn ambiguity; the result comes from the images."""
-    t2c, rms = [], []
-    for img, F in zip(images, flange2base):
-        guess = np.linalg.inv(F @ nominal_cam2flange) @ target2base_guess
-        T, r = target_in_camera(img, rig, grid, guess)
-        t2c.append(T)
-        rms.append(r)
+    lies) pick the grid's labelling in each view; without them the labellings are made consistent by the
+    views' motions (:func:`consistent_labellings`). The result comes from the images either way."""
+    if len(images) != len(flange2base):
+        raise ValueError(f"{len(images)} images but {len(flange2base)} flange poses")
+    if nominal_cam2flange is not None and target2base_guess is not None:
+        fits = [target_in_camera(img, rig, grid, np.linalg.inv(F @ nominal_cam2flange) @ target2base_guess)
+                for img, F in zip(images, flange2base)]
+    else:
+        fits = consistent_labellings([target_candidates(img, rig, grid) for img in images], flange2base)
+    t2c, rms = [f[0] for f in fits], [f[1] for f in fits]
     X = calibrate_hand_eye(flange2base, t2c)
     targets = [F @ X @ T for F, T in zip(flange2base, t2c)]
     pos = np.array([T[:3, 3] for T in targets])
-    ang = [np.arccos(np.clip((np.trace(targets[0][:3, :3].T @ T[:3, :3]) - 1) / 2, -1, 1)) for T in targets]
+    ang = [_angle(targets[0][:3, :3].T @ T[:3, :3]) for T in targets]
     return HandEyeResult(X, np.array(rms), float(np.max(np.linalg.norm(pos - pos.mean(axis=0), axis=1))),
                          float(np.max(ang)))

@@ -61,6 +61,7 @@ def summary(run: TrackRun, workpiece: Workpiece) -> dict:
     return {
         "config": {k: getattr(run.config, k) for k in run.config.__dataclass_fields__},
         "cycles": len(run.cycles), "simulated_s": run.cycles[-1].t_s + 1 / run.config.rate_hz,
+        "start_s": run.extras.get("start_s"),
         "welded_mm": float(max(0.0, s[-1] - run.config.arc_on_mm)),
         "valid_frames": int(sum(c.valid for c in run.cycles)),
         "lateral_mm": stats(lat), "vertical_mm": stats(ver),

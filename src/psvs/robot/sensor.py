@@ -16,7 +16,10 @@ from psvs.imaging.pipeline import Pipeline, make_pipeline
 from psvs.match.correspondence import disparity_range, match_image, rectification_for
 from psvs.match.edges import edge_pixels
 from psvs.measure.equations import z_eq12
+from psvs.optics.project import project_points
+from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
+from psvs.optics.trace import trace_pixels
 
 
 #: The seam sensor's image pipeline: the paper's median 3x3 and Roberts cross, with Otsu's threshold in
@@ -26,18 +29,51 @@ SEAM_PIPELINE = make_pipeline([{"op": "median", "ksize": 3}, {"op": "threshold",
                                {"op": "roberts"}])
 
 
-def roi_rig(rig: Rig, rows: int, v0: int | None = None) -> tuple[Rig, int]:
+def roi_rig(rig: Rig, rows: int, v0: int | None = None,
+            span_mm: tuple[float, float] | None = None) -> tuple[Rig, int]:
     """The rig with its camera read out over ``rows`` image rows centred on the principal point, or from
     row ``v0`` (a sensor window, as a real camera's ROI readout: same optics, the principal point shifted
-    by the window's first row). Returns (ROI rig, first row v0 of the window in the full image)."""
+    by the window's first row). Returns (ROI rig, first row v0 of the window in the full image).
+
+    On a build (the views' rows disagree, :func:`psvs.optics.rectify.needs_rectification`) with the working
+    range ``span_mm`` = (near, far) given, the window grows by the twins' row offset over that range (from
+    the exact optics, every column): its ``rows`` central left-view rows keep their right-view twins inside
+    it, so the sensor pairs as many rows as on the ideal rig."""
     w, h = rig.camera.image_size_px
     if not isinstance(rows, (int, np.integer)) or not 8 <= rows <= h:
         raise ValueError(f"roi_rows must be an integer in 8..{h}, got {rows!r}")
     cx, cy = rig.camera.principal_point_px
     if v0 is None:
         v0 = int(np.clip(round(cy - (rows - 1) / 2), 0, h - rows))
+        if span_mm is not None and needs_rectification(rig):
+            lo, hi = twin_row_offsets(rig, (v0, v0 + rows - 1), span_mm)
+            top, bottom = v0 + min(0, int(np.floor(lo))), v0 + rows + max(0, int(np.ceil(hi)))
+            v0, rows = max(0, top), min(h, bottom) - max(0, top)
     cam = replace(rig.camera, image_size_px=(w, int(rows)), principal_point_px=(cx, cy - v0))
     return Rig(cam, rig.mirrors), v0
+
+
+def twin_row_offsets(rig: Rig, rows: tuple[int, int], span_mm: tuple[float, float]) -> tuple[float, float]:
+    """The least and greatest row offset v_right - v_left (px) of a point's two views, for points the left
+    view sees on image rows rows[0]..rows[1], at depths Z in span_mm = (near, far) mm: left pixels every
+    16 columns traced (exact optics: plate, mirrors, lens) to three depths and projected into the right
+    view. (0, 0) when no such point reaches the right view."""
+    w, _ = rig.camera.image_size_px
+    uu, vv = np.meshgrid(np.arange(0.0, w, 16.0), np.array(rows, float))
+    uv = np.column_stack([uu.ravel(), vv.ravel()])
+    rays = trace_pixels(uv, rig, "left")
+    offsets = []
+    for z in np.linspace(span_mm[0], span_mm[1], 3):
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (z - rays.origins_mm[:, 2]) / rays.dirs[:, 2]
+        pts = rays.origins_mm + t[:, None] * rays.dirs
+        ok = rays.valid & (t > 0)
+        if not ok.any():
+            continue
+        right, seen = project_points(pts[ok], rig, "right")
+        offsets.append(right[seen, 1] - uv[ok][seen, 1])
+    d = np.concatenate(offsets) if offsets else np.zeros(0)
+    return (float(d.min()), float(d.max())) if len(d) else (0.0, 0.0)
 
 
 def auto_seed(grey: np.ndarray, pipeline: Pipeline = SEAM_PIPELINE, min_width_px: int = 6) -> tuple[float, float]:
@@ -87,6 +123,46 @@ def _nearest_edges(edge_row: np.ndarray, u_c: float, max_px: float):
     return int(left.max()), int(right.min())
 
 
+def _groove_edges(sides, half_width_px: float, band=(0.75, 1.3), tol_px: float = 1.5):
+    """The two bevel tops' points (each (N, 3) mm) among the contour pixels traced from the seeds.
+
+    Where the groove ends (or starts) in the window, its end outline (the V's end, oblique in the image)
+    joins the edges and closes the band over a few rows; on those rows one side's pixels are the outline,
+    and the other's may still be its edge (a groove oblique in the image: one edge runs on past the
+    other's end). So each edge is fitted by a line u(v) on the rows where the groove shows its full
+    cross-section (both edges, their distance within ``band`` of the taught 2 * ``half_width_px``; refitted
+    without those more than ``tol_px`` off), and keeps its pixels within ``tol_px`` of that line on any row;
+    the outline's are off it. ``sides``:
+    ((left-view pixels (N, 2), points (N, 3)) of edge a, the same of edge b)."""
+    (pa, xa), (pb, xb) = sides
+    ra, rb = np.rint(pa[:, 1]).astype(int), np.rint(pb[:, 1]).astype(int)
+    common = np.intersect1d(ra, rb)
+    ratio = np.zeros(0)
+    if len(common):
+        lo, n = common[0], common[-1] - common[0] + 1
+        means = []
+        for px, r in ((pa, ra), (pb, rb)):          # each edge's mean column per row
+            sel = (r >= lo) & (r < lo + n)
+            means.append(np.bincount(r[sel] - lo, px[sel, 0], n)[common - lo] /
+                         np.bincount(r[sel] - lo, None, n)[common - lo])
+        ratio = (means[1] - means[0]) / (2 * half_width_px)
+    full = common[(ratio > band[0]) & (ratio < band[1])]
+    out = []
+    for px, x, r in ((pa, xa, ra), (pb, xb, rb)):
+        fit = np.isin(r, full)
+        if fit.sum() < 3:
+            out.append(x[fit])
+            continue
+        for _ in range(3):       # the band's last rows toward the end may still be outline: refit without
+            line = np.polyfit(px[fit, 1], px[fit, 0], 1)
+            on = np.abs(px[:, 0] - np.polyval(line, px[:, 1])) <= tol_px
+            if (fit & on).sum() < 3 or np.array_equal(fit & on, fit):
+                break
+            fit &= on
+        out.append(x[on])
+    return out[0], out[1]
+
+
 class SeamSensor:
     """Groove-edge tracking in the ROI images of one run (state: the last accepted groove centre and
     disparity, the taught width; :meth:`commit` an observation to track from it).
@@ -122,7 +198,8 @@ class SeamSensor:
         u_c = self.centre_px[0]
         max_px = 60.0 if self.half_width_px is None else 1.6 * self.half_width_px + 3
         order = np.argsort(np.abs(np.arange(h) - (h - 1) / 2), kind="stable")
-        found = None
+        px = edge_pixels(edges, self.rect)
+        found, seen = None, False
         for v in order[: h // 2]:
             e = _nearest_edges(edges[v], u_c, max_px)
             if e is None:
@@ -130,14 +207,17 @@ class SeamSensor:
             # a full groove width (not where the groove starts or ends, with its edges closing in)
             if self.half_width_px is not None and not (0.75 < (e[1] - e[0]) / (2 * self.half_width_px) < 1.3):
                 continue
-            found = (e, int(v))
-            break
+            # the nearest such row whose twin band is in the window (on a build, the twins' rows differ
+            # and the window's outer rows hold only one view's part)
+            seen = True
+            d = self._twin_disparity(grey, px, int(v), *e)
+            if d is not None:
+                found = (e, int(v))
+                break
         if found is None:
-            return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px, "no groove edges near the track")
+            reason = "no twin of the groove edges" if seen else "no groove edges near the track"
+            return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px, reason)
         (ua, ub), v = found
-        d = self._twin_disparity(grey, edges, v, ua, ub)
-        if d is None:
-            return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px, "no twin of the groove edges")
         cam = self.rig.camera
         # the depths of disparities d +- 10 px (eq. (12) on sensor coordinates x = u * pitch)
         near, far = (float(z_eq12(max(d + dd, 1.0) * cam.pixel_pitch_mm[0], 0.0, cam.focal_length_mm,
@@ -147,20 +227,33 @@ class SeamSensor:
             res = match_image(grey, self.rig, seed_px=(u, v), pipeline=self.pipeline, near_mm=near,
                               far_mm=far, model="exact", rect=self.rect)
             if not res.pairs:
-                sides.append(np.empty((0, 3)))
+                sides.append((np.empty((0, 2)), np.empty((0, 3))))
                 continue
             pair = res.pairs[0]
+            # where the groove ends in the window, its end joins both edges into one contour: keep this
+            # edge's side of the groove centre
+            side = pair.left_px[:, 0] < (ua + ub) / 2 if u == ua else pair.left_px[:, 0] > (ua + ub) / 2
             # a seam edge crosses each row once: rows where the edge runs along the row (where the groove
             # starts or ends) give no usable twin disparity and are dropped
-            v_rows = pair.left_px[:, 1] if self.rect is None else self.rect.to_rectified(pair.left_px, "left")[:, 1]
+            left_px, pts = pair.left_px[side], pair.points_mm[side]
+            v_rows = left_px[:, 1] if self.rect is None else self._rectified_rows(left_px)
             rows, counts = np.unique(np.rint(v_rows), return_counts=True)      # (a build: rectified rows)
-            single = np.isin(np.rint(v_rows), rows[counts == 1])
-            pts = pair.points_mm[single]
-            sides.append(pts[np.all(np.isfinite(pts), axis=1)])
+            keep = np.isin(np.rint(v_rows), rows[counts == 1]) & np.all(np.isfinite(pts), axis=1)
+            sides.append((left_px[keep], pts[keep]))
+        sides = _groove_edges(sides, (ub - ua) / 2 if self.half_width_px is None else self.half_width_px)
         if min(len(s) for s in sides) < self.min_rows:
             return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px,
                                    f"edge twins matched on fewer than {self.min_rows} rows")
         return SeamObservation(True, (sides[0], sides[1]), ((ua + ub) / 2, float(v)), "", d, (ub - ua) / 2)
+
+    def _rectified_rows(self, uv: np.ndarray) -> np.ndarray:
+        """Rectified rows (N,) of left-view pixels (N, 2), from the rectification's pixel table (nearest
+        pixel: the rows are only counted, rounded)."""
+        table = self.rect.pixel_table("left")
+        h, w = table.shape[:2]
+        u = np.clip(np.rint(uv[:, 0]).astype(int), 0, w - 1)
+        v = np.clip(np.rint(uv[:, 1]).astype(int), 0, h - 1)
+        return table[v, u, 1]
 
     def commit(self, obs: SeamObservation) -> None:
         """Track from this observation on (call it for the frames the path model accepts)."""
@@ -168,12 +261,13 @@ class SeamSensor:
         if self.half_width_px is None:   # taught once: the groove's width is the joint's, it does not drift
             self.half_width_px = obs.half_width_px
 
-    def _twin_disparity(self, grey, edges, v, ua, ub):
+    def _twin_disparity(self, grey, px, v, ua, ub):
         """The disparity (px) of the groove's twin band on row v: right-view edges at ua - d and ub - d
         with the same polarities (bright-to-dark, dark-to-bright) as ua and ub; the one nearest the last
         frame's disparity. The seeded algorithm alone may pair a groove edge with the wrong one of the
         twin band's two edges (both lie within the disparity range). On a build, rows and columns are
-        those of the rectified views (psvs.optics.rectify): the twins' rows in the window differ."""
+        those of the rectified views (psvs.optics.rectify): the twins' rows in the window differ.
+        ``px``: the frame's edge pixels (:func:`psvs.match.edges.edge_pixels`); None when no twin is found."""
         img = grey.astype(float)
         h, w = img.shape
 
@@ -181,7 +275,6 @@ class SeamSensor:
             g = img[max(0, row - 1): row + 2].mean(axis=0)
             return np.sign(g[min(w - 1, u + 2)] + g[min(w - 1, u + 1)] - g[max(0, u - 1)] - g[max(0, u - 2)])
 
-        px = edge_pixels(edges, self.rect)
         (lu, lv), (ru, rv) = px.left_uv, px.right_uv
         if self.rect is None:
             (la, va), (lb, vb) = (ua, v), (ub, v)

@@ -1,0 +1,68 @@
+"""``psvs handeye``: where the PSVS sits on the flange, from circle-grid views with their flange poses (a
+views folder, or rendered in the simulated cell), written as handeye.toml for ``psvs track --handeye``."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from psvs.cli.common import add_rig_argument, check_output_folder, check_output_path, rig_from_args
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("handeye", help="calibrate where the PSVS sits on the robot's flange (hand-eye)",
+                       description="Hand-eye calibration (AX = XB, Park & Martin) from complex images of a circle "
+                                   "grid taken at known flange poses: VIEWS_DIR holds view_NN.png, target.toml "
+                                   "and flange_poses.csv (image,x_mm,y_mm,z_mm,qx,qy,qz,qw, base frame). "
+                                   "Without VIEWS_DIR the views are rendered in the simulated PUMA cell of "
+                                   "psvs track. Writes the transform, its residuals and the method to "
+                                   "HANDEYE.toml. See docs/robot.md.")
+    p.add_argument("views", nargs="?", metavar="VIEWS_DIR", help="a hand-eye views folder (default: the "
+                                                                  "simulated cell)")
+    add_rig_argument(p)
+    p.add_argument("--true-rig", metavar="RIG", help="simulated cell only: the rig as built, through which the "
+                                                     "views are rendered (default: --rig)")
+    p.add_argument("--views-count", type=int, default=12, metavar="N",
+                   help="simulated cell only: how many views (default 12)")
+    p.add_argument("--save-views", metavar="DIR", help="simulated cell only: also write the views as a folder")
+    p.add_argument("-o", "--output", metavar="HANDEYE.toml", required=True, help="the hand-eye file to write")
+    p.set_defaults(run=run)
+
+
+def run(args) -> int:
+    from psvs.io.params import load_rig
+    from psvs.robot.arm import Arm
+    from psvs.robot.handeye import calibrate_from_views
+    from psvs.robot.handeye_io import read_views, save_handeye, write_views
+    from psvs.robot.loop import CELL_GRID, HOME_Q, TrackConfig, cell_views, true_cam2flange
+
+    out = check_output_path(args.output, (".toml",))
+    if args.views is not None and (args.true_rig or args.save_views):
+        raise ValueError("--true-rig and --save-views are for the simulated cell, not a views folder")
+    save = check_output_folder(args.save_views, "--save-views folder") if args.save_views else None
+    rig = rig_from_args(args)
+    truth = None
+    if args.views is not None:
+        images, flanges, grid = read_views(args.views)
+        source = str(Path(args.views))
+    else:
+        true_rig = load_rig(args.true_rig) if args.true_rig else None
+        cfg = TrackConfig()
+        images, flanges = cell_views(rig, cfg, Arm(HOME_Q), args.views_count, true_rig)
+        grid, source, truth = CELL_GRID, "simulated cell", true_cam2flange(cfg)
+    he = calibrate_from_views(images, flanges, rig, grid)
+    if save is not None:
+        write_views(save, images, flanges, grid)
+    save_handeye(out, he, source, Path(args.rig).stem if args.rig else "default")
+    print(f"{len(images)} views; target fit RMS per view (mm): " + ", ".join(f"{r:.3f}" for r in he.target_rms_mm))
+    print(f"consistency: the target's pose over the views spreads {he.spread_mm:.3f} mm, "
+          f"{math.degrees(he.spread_rad):.3f} deg")
+    t = he.cam2flange[:3, 3]
+    print(f"PSVS on the flange: ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm")
+    if truth is not None:
+        err = np.linalg.norm(he.cam2flange[:3, 3] - truth[:3, 3])
+        ang = math.degrees(np.arccos(np.clip((np.trace(truth[:3, :3].T @ he.cam2flange[:3, :3]) - 1) / 2, -1, 1)))
+        print(f"against the simulated hardware's true mounting: {err:.3f} mm, {ang:.4f} deg")
+    print(f"wrote {out}" + (f" and the views to {save}" if save else ""))
+    return 0

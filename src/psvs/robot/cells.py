@@ -1,0 +1,166 @@
+"""Cells: what runs the seam-tracking controller (psvs.robot.controller) on an arm and a camera.
+
+A cell has three operations, all in the robot's base frame, millimetres and seconds:
+
+- ``read() -> Frame``: the next camera frame (the sensor window of the complex image, (H, W) uint8), its
+  time, and the flange pose flange2base (4, 4) *at the frame's exposure* (a real driver interpolates the
+  arm's joint readings to the camera's time stamp);
+- ``send(tool2base) -> ServoStep``: carry out one command, the torch pose to reach by the next frame (the
+  cell's inverse kinematics and joint servo); ValueError when the arm cannot (unreachable, a joint limit,
+  a configuration switch): the controller then stops;
+- ``stop() -> ServoStep``: brake for one period.
+
+:func:`control_loop` runs a controller on any cell: read, sensor, controller, send, once per frame, until
+the controller has stopped and the arm is at rest. :class:`SimulatedCell` is the PUMA 560 of
+psvs.robot.arm with the world rendered from the pose the joints really give; :class:`ReplayCell` plays a
+recorded run's frames and poses back and checks that the controller sends the recorded commands.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.optics.rig import Rig
+from psvs.robot.arm import Arm, ServoStep
+from psvs.robot.cell import tool2flange
+from psvs.robot.controller import Command, Observation, SeamTracker
+from psvs.robot.sensor import SeamSensor, auto_seed
+from psvs.robot.workpiece import Workpiece
+from psvs.simulate.render import render
+from psvs.simulate.sensor import Sensor
+from psvs.simulate.sequence import scene_in_rig_frame
+
+#: The largest joint change one control cycle may ask for (a path step of < 1 mm moves no joint by
+#: more than ~0.01 rad here): more means the solver switched arm configuration.
+MAX_IK_STEP_RAD = 0.1
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """One camera frame: time (s), flange2base (4, 4) mm at its exposure, the image (H, W) uint8."""
+
+    t_s: float
+    flange2base: np.ndarray
+    image: np.ndarray
+
+
+class SimulatedCell:
+    """The simulated PUMA 560 cell: frames rendered through ``true_roi_rig`` (the sensor window of the rig
+    as built) from the camera pose the joints really give (the true mounting ``cam2flange_true``), one per
+    control period; commands through the arm's IK and its 500 Hz joint servo."""
+
+    def __init__(self, arm: Arm, workpiece: Workpiece, true_roi_rig: Rig, cam2flange_true: np.ndarray,
+                 rate_hz: float, supersample: int = 2, noise_seed: int = 0):
+        self.arm, self.workpiece, self.rig, self.cam = arm, workpiece, true_roi_rig, cam2flange_true
+        self.dt, self.supersample, self.noise_seed = 1.0 / rate_hz, supersample, noise_seed
+        self.k = 0
+        self._tool = tool2flange()
+
+    def read(self) -> Frame:
+        F = self.arm.fkine()
+        world2cam = np.linalg.inv(F @ self.cam)
+        img = render(scene_in_rig_frame(self.workpiece.scene, world2cam), self.rig, supersample=self.supersample,
+                     sensor=Sensor(), seed=self.noise_seed + self.k).image
+        frame = Frame(self.k * self.dt, F, img)
+        self.k += 1
+        return frame
+
+    def send(self, tool2base: np.ndarray) -> ServoStep:
+        q_t = self.arm.ikine(tool2base @ np.linalg.inv(self._tool), max_step_rad=MAX_IK_STEP_RAD)
+        return self.arm.servo(q_t, self.dt)
+
+    def stop(self) -> ServoStep:
+        return self.arm.stop(self.dt)
+
+    def at_rest(self) -> bool:
+        return bool(np.max(np.abs(self.arm.qd)) < 1e-6)
+
+    def tcp_mm(self) -> np.ndarray:
+        """(3,) the torch tip where the arm really is."""
+        return (self.arm.fkine() @ self._tool)[:3, 3]
+
+
+@dataclass(frozen=True, eq=False)
+class CycleResult:
+    """What :func:`control_loop` hands back each cycle: the frame, the sensor's measurement, the command,
+    the servo step, the arm's fault ('' none) and the wall times (s) of reading, sensing, control."""
+
+    frame: Frame
+    seam: object
+    command: Command
+    step: ServoStep | None
+    fault: str
+    wall_s: tuple[float, float, float]
+
+
+def control_loop(cell, tracker: SeamTracker, sensor_rig: Rig, near_mm: float, far_mm: float, seed_px,
+                 max_cycles: int, on_cycle=None) -> tuple[list[CycleResult], SeamSensor | None, tuple]:
+    """Run ``tracker`` on ``cell`` until it has stopped and the arm is at rest, or ``max_cycles``.
+
+    The seam sensor (over ``sensor_rig``, the sensor window of the rig as calibrated) starts on the first
+    frame from ``seed_px`` (None: :func:`psvs.robot.sensor.auto_seed`) and tracks from every frame the
+    controller accepts. ``on_cycle(CycleResult)`` is called after every cycle. Returns (the cycles, the
+    sensor, the seed used)."""
+    sensor, results = None, []
+    for _ in range(max_cycles):
+        t0 = time.perf_counter()
+        frame = cell.read()
+        t1 = time.perf_counter()
+        if sensor is None:
+            seed_px = auto_seed(frame.image) if seed_px is None else tuple(float(c) for c in seed_px)
+            sensor = SeamSensor(sensor_rig, seed_px, near_mm, far_mm)
+        seam = sensor.measure(frame.image)
+        t2 = time.perf_counter()
+        cmd = tracker.step(Observation(frame.t_s, frame.flange2base, seam))
+        if cmd.accepted or (cmd.valid and sensor.half_width_px is None):
+            sensor.commit(seam)
+        fault = ""
+        try:
+            step = cell.send(cmd.tool2base)
+        except ValueError as exc:
+            step, fault = cell.stop(), str(exc)
+            tracker.fault(fault)
+        t3 = time.perf_counter()
+        res = CycleResult(frame, seam, cmd, step, fault, (t1 - t0, t2 - t1, t3 - t2))
+        results.append(res)
+        if on_cycle is not None:
+            on_cycle(res)
+        if tracker.stopped and cell.at_rest():
+            break
+    return results, sensor, seed_px
+
+
+class ReplayCell:
+    """A recorded run played back: ``frames`` (each :class:`Frame`), the commands the live controller
+    sent (tool2base (4, 4) each) and the arm's faults ('' none) per frame. ``send`` records what the
+    controller sends now and raises the recorded fault where there was one; the arm is at rest when the
+    recording ends. :attr:`mismatches` lists the frames whose command differs from the recorded one."""
+
+    def __init__(self, frames: list[Frame], commands: list[np.ndarray], faults: list[str] | None = None):
+        if len(frames) != len(commands):
+            raise ValueError(f"a recording needs one command per frame: {len(frames)} frames, {len(commands)} commands")
+        self.frames, self.recorded = frames, [np.asarray(c, float) for c in commands]
+        self.faults = faults or [""] * len(frames)
+        self.k, self.sent, self.mismatches = 0, [], []
+
+    def read(self) -> Frame:
+        if self.k >= len(self.frames):
+            raise ValueError(f"the recording ends after {len(self.frames)} frames")
+        self.k += 1
+        return self.frames[self.k - 1]
+
+    def send(self, tool2base: np.ndarray) -> None:
+        k = self.k - 1
+        self.sent.append(np.array(tool2base, float))
+        if not np.array_equal(self.sent[-1], self.recorded[k]):
+            self.mismatches.append(k)
+        if self.faults[k]:
+            raise ValueError(self.faults[k])
+
+    def stop(self) -> None:
+        return None
+
+    def at_rest(self) -> bool:
+        return self.k >= len(self.frames)

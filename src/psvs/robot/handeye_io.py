@@ -1,0 +1,159 @@
+"""Hand-eye files: the calibrated transform (``handeye.toml``) and a folder of hand-eye views.
+
+``handeye.toml`` (written by ``psvs handeye``, read by ``psvs track --handeye``)::
+
+    [handeye]
+    method = "park_martin"       # AX = XB, Park & Martin (1994), closed form over all pairs of views
+    source = "simulated cell"    # or the views folder
+    rig = "default"              # the rig the views were triangulated with
+    views = 12
+    cam2flange = [[r00, r01, r02, x_mm], [r10, r11, r12, y_mm], [r20, r21, r22, z_mm], [0.0, 0.0, 0.0, 1.0]]
+    target_rms_mm = [...]        # per view: the grid's rigid fit to its triangulated discs
+    spread_mm = 0.05             # the target's base pose over the views (consistency)
+    spread_deg = 0.02
+
+frame C (the PSVS) in the flange frame: a 4 x 4 homogeneous transform, rotation and millimetres (the
+matrix is kept whole so that a file round-trips exactly; degrees appear only in ``spread_deg``).
+
+A views folder holds the complex images ``view_NN.png``, ``target.toml`` (the circle grid, as for
+``psvs calibrate``) and ``flange_poses.csv``: ``image,x_mm,y_mm,z_mm,qx,qy,qz,qw``, each image's flange
+pose in the robot's base frame (position mm, unit quaternion, scalar last as in ROS).
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from psvs.calibrate.target_file import dumps_target, load_target
+from psvs.io.atomic import write_atomic
+from psvs.io.images import read_grey, write_png
+from psvs.io.tomlfile import dumps_toml, load_toml
+from psvs.robot.handeye import HandEyeResult
+from psvs.simulate.textures import CircleGrid
+
+METHOD = "park_martin"
+_KEYS = ("method", "source", "rig", "views", "cam2flange", "target_rms_mm", "spread_mm", "spread_deg")
+POSES_CSV = "flange_poses.csv"
+POSE_COLUMNS = ("image", "x_mm", "y_mm", "z_mm", "qx", "qy", "qz", "qw")
+
+
+def dumps_handeye(result: HandEyeResult, source: str, rig: str) -> str:
+    """The ``handeye.toml`` text of a calibration (read back exactly by :func:`load_handeye`)."""
+    data = {"handeye": {
+        "method": METHOD, "source": str(source), "rig": str(rig), "views": int(len(result.target_rms_mm)),
+        "cam2flange": [[float(x) for x in row] for row in result.cam2flange],
+        "target_rms_mm": [float(x) for x in result.target_rms_mm],
+        "spread_mm": float(result.spread_mm), "spread_deg": math.degrees(result.spread_rad)}}
+    return ("# psvs handeye: frame C (the PSVS) in the flange frame; rotation and mm (docs/robot.md)\n"
+            + dumps_toml(data))
+
+
+def save_handeye(path, result: HandEyeResult, source: str, rig: str) -> None:
+    write_atomic(Path(path), dumps_handeye(result, source, rig))
+
+
+def load_handeye(path) -> HandEyeResult:
+    """A ``handeye.toml``; ValueError naming the file and the key when it is not one."""
+    path = Path(path)
+    data = load_toml(path, "hand-eye")
+    try:
+        return _from_dict(data)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{path}: {exc}") from None
+
+
+def _from_dict(data: dict) -> HandEyeResult:
+    if set(data) != {"handeye"} or not isinstance(data["handeye"], dict):
+        raise ValueError("expected one table [handeye]")
+    h = data["handeye"]
+    unknown = sorted(set(h) - set(_KEYS))
+    if unknown:
+        raise ValueError(f"unknown key handeye.{unknown[0]} (allowed: {', '.join(_KEYS)})")
+    missing = [k for k in _KEYS if k not in h]
+    if missing:
+        raise ValueError(f"missing key handeye.{missing[0]}")
+    if h["method"] != METHOD:
+        raise ValueError(f"handeye.method must be {METHOD!r}, got {h['method']!r}")
+    X = _numbers(h["cam2flange"], "cam2flange")
+    if X.shape != (4, 4):
+        raise ValueError(f"handeye.cam2flange must be 4 rows of 4 numbers, got shape {X.shape}")
+    R = X[:3, :3]
+    if not np.allclose(X[3], [0.0, 0.0, 0.0, 1.0]) or not np.allclose(R.T @ R, np.eye(3), atol=1e-6) \
+            or np.linalg.det(R) < 0:
+        raise ValueError("handeye.cam2flange is not a rigid transform (its rotation is not orthonormal with "
+                         "det +1, or its last row is not 0, 0, 0, 1)")
+    rms = _numbers(h["target_rms_mm"], "target_rms_mm").ravel()
+    if isinstance(h["views"], bool) or not isinstance(h["views"], int) or h["views"] != len(rms) or len(rms) < 3:
+        raise ValueError(f"handeye.views must be the number of target_rms_mm values (>= 3), got {h['views']!r}")
+    spreads = [_numbers(h[k], k).item() for k in ("spread_mm", "spread_deg")]
+    if np.any(rms < 0) or min(spreads) < 0:
+        raise ValueError("handeye residuals must be >= 0")
+    return HandEyeResult(X, rms, spreads[0], math.radians(spreads[1]))
+
+
+def _numbers(value, key: str) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"handeye.{key} must hold numbers, got {value!r}") from None
+    if any(isinstance(x, bool) for x in np.ravel(np.array(value, dtype=object))) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"handeye.{key} must hold finite numbers, got {value!r}")
+    return arr
+
+
+def write_views(folder, images: list[np.ndarray], flange2base: list[np.ndarray], grid: CircleGrid) -> None:
+    """A hand-eye views folder (see the module docstring), each file written atomically."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(POSE_COLUMNS)
+    for k, (img, F) in enumerate(zip(images, flange2base)):
+        name = f"view_{k:02d}.png"
+        write_png(folder / name, img)
+        q = Rotation.from_matrix(F[:3, :3]).as_quat()
+        w.writerow([name, *(repr(float(x)) for x in F[:3, 3]), *(repr(float(x)) for x in q)])
+    write_atomic(folder / "target.toml", dumps_target(grid))
+    write_atomic(folder / POSES_CSV, buf.getvalue())
+
+
+def read_views(folder) -> tuple[list[np.ndarray], list[np.ndarray], CircleGrid]:
+    """(complex images, flange2base (4, 4) mm, the target) of a hand-eye views folder; ValueError naming
+    the file and the row when it is not one."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        raise FileNotFoundError(f"hand-eye views folder not found: {folder}")
+    grid = load_target(folder / "target.toml")
+    poses = folder / POSES_CSV
+    if not poses.is_file():
+        raise FileNotFoundError(f"{folder} has no {POSES_CSV} (image,x_mm,y_mm,z_mm,qx,qy,qz,qw)")
+    with poses.open(newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    if not rows or tuple(c.strip() for c in rows[0]) != POSE_COLUMNS:
+        raise ValueError(f"{poses}: the header must be {','.join(POSE_COLUMNS)}")
+    images, flanges = [], []
+    for n, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        if len(row) != len(POSE_COLUMNS):
+            raise ValueError(f"{poses}: line {n} has {len(row)} fields, not {len(POSE_COLUMNS)}")
+        try:
+            vals = np.array([float(x) for x in row[1:]])
+        except ValueError:
+            raise ValueError(f"{poses}: line {n}: not a number in {row[1:]}") from None
+        q = vals[3:]
+        if not np.all(np.isfinite(vals)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
+            raise ValueError(f"{poses}: line {n}: the position must be finite and the quaternion of unit "
+                             f"length (|q| = {np.linalg.norm(q):.4g})")
+        F = np.eye(4)
+        F[:3, :3], F[:3, 3] = Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), vals[:3]
+        images.append(read_grey(folder / row[0].strip()))
+        flanges.append(F)
+    if len(images) < 3:
+        raise ValueError(f"{poses}: the hand-eye calibration needs >= 3 views, found {len(images)}")
+    return images, flanges, grid

@@ -1,0 +1,157 @@
+"""Hand-eye as a file (issue 16, item 2): handeye.toml and the views folder round-trip by value (read back
+by tomllib / csv / OpenCV), a folder calibrates without any pose guess to the cell's result, psvs track
+--handeye uses the file, and bad files exit 2 with one line."""
+import csv
+import json
+import math
+import tomllib
+
+import cv2
+import numpy as np
+import pytest
+
+from psvs.cli.main import main
+from psvs.optics.rig import default_rig
+from psvs.robot.arm import Arm
+from psvs.robot.handeye import HandEyeResult, calibrate_from_views
+from psvs.robot.handeye_io import dumps_handeye, load_handeye, read_views, save_handeye, write_views
+from psvs.robot.loop import CELL_GRID, CELL_TARGET2BASE, HOME_Q, TrackConfig, cell_views, nominal_cam2flange, \
+    true_cam2flange
+
+
+@pytest.fixture(scope="module")
+def session():
+    cfg = TrackConfig()
+    images, flanges = cell_views(default_rig(), cfg, Arm(HOME_Q), 8)
+    return cfg, images, flanges
+
+
+def _result():
+    from scipy.spatial.transform import Rotation
+    X = np.eye(4)
+    X[:3, :3] = Rotation.from_rotvec([0.3, -1.2, 0.7]).as_matrix()
+    X[:3, 3] = [-31.2, 1.0 / 3.0, 12.6]
+    return HandEyeResult(X, np.array([0.05, 0.061, 1 / 7]), 0.072, 0.00195)
+
+
+def test_handeye_file_round_trips_exactly(tmp_path):
+    he = _result()
+    path = tmp_path / "he.toml"
+    save_handeye(path, he, "simulated cell", "default")
+    raw = tomllib.loads(path.read_text())["handeye"]         # an independent reader
+    assert np.array_equal(np.array(raw["cam2flange"]), he.cam2flange)
+    assert raw["target_rms_mm"] == he.target_rms_mm.tolist() and raw["views"] == 3
+    assert raw["spread_deg"] == pytest.approx(math.degrees(0.00195), rel=1e-15)
+    assert raw["method"] == "park_martin" and raw["source"] == "simulated cell" and raw["rig"] == "default"
+    back = load_handeye(path)
+    assert np.array_equal(back.cam2flange, he.cam2flange)
+    assert np.array_equal(back.target_rms_mm, he.target_rms_mm)
+    assert back.spread_mm == he.spread_mm and back.spread_rad == pytest.approx(he.spread_rad, rel=1e-15)
+
+
+@pytest.mark.parametrize("edit, msg", [
+    (lambda t: t.replace('method = "park_martin"', 'method = "tsai"'), "handeye.method must be"),
+    (lambda t: t.replace("spread_mm =", "spread_cm ="), "unknown key handeye.spread_cm"),
+    (lambda t: t.replace('rig = "default"\n', ""), "missing key handeye.rig"),
+    (lambda t: t.replace("views = 3", "views = 4"), "handeye.views must be"),
+    (lambda t: t.replace("0.0,\n        0.0,\n        0.0,\n        1.0", "0.0,\n        0.0,\n        0.0,\n        2.0"),
+     "not a rigid transform"),
+    (lambda t: t.replace("-31.2", '"x"'), "must hold numbers"),
+    (lambda t: t + "[[oops\n", "malformed TOML"),
+])
+def test_bad_handeye_files(tmp_path, edit, msg):
+    path = tmp_path / "he.toml"
+    text = dumps_handeye(_result(), "simulated cell", "default")
+    path.write_text(edit(text))
+    with pytest.raises(ValueError, match=msg):
+        load_handeye(path)
+
+
+def test_a_scaled_rotation_is_not_rigid(tmp_path):
+    he = _result()
+    bad = HandEyeResult(he.cam2flange @ np.diag([1.01, 1.0, 1.0, 1.0]), he.target_rms_mm, 0.1, 0.001)
+    (tmp_path / "he.toml").write_text(dumps_handeye(bad, "x", "y"))
+    with pytest.raises(ValueError, match="not a rigid transform"):
+        load_handeye(tmp_path / "he.toml")
+
+
+def test_views_folder_round_trips_and_calibrates_without_a_guess(session, tmp_path):
+    cfg, images, flanges = session
+    write_views(tmp_path, images, flanges, CELL_GRID)
+    # independent readers: csv + OpenCV + scipy's quaternion convention (scalar last)
+    from scipy.spatial.transform import Rotation
+    with (tmp_path / "flange_poses.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == len(images)
+    for row, img, F in zip(rows, images, flanges):
+        assert np.array_equal(cv2.imread(str(tmp_path / row["image"]), cv2.IMREAD_GRAYSCALE), img)
+        q = [float(row[k]) for k in ("qx", "qy", "qz", "qw")]
+        assert np.allclose(Rotation.from_quat(q).as_matrix(), F[:3, :3], atol=1e-12)
+        assert [float(row[k]) for k in ("x_mm", "y_mm", "z_mm")] == F[:3, 3].tolist()
+    imgs2, fl2, grid = read_views(tmp_path)
+    assert grid == CELL_GRID and all(np.array_equal(a, b) for a, b in zip(imgs2, images))
+    assert all(np.allclose(a, b, atol=1e-12) for a, b in zip(fl2, flanges))
+    # no pose guess (the folder's case) gives the cell's result, labelled by the guesses
+    free = calibrate_from_views(imgs2, fl2, default_rig(), grid)
+    guided = calibrate_from_views(images, flanges, default_rig(), CELL_GRID, nominal_cam2flange(cfg), CELL_TARGET2BASE)
+    assert np.allclose(free.cam2flange, guided.cam2flange, atol=1e-6)
+    assert np.linalg.norm(free.cam2flange[:3, 3] - true_cam2flange(cfg)[:3, 3]) < 1.0
+    assert free.spread_mm < 0.3
+
+
+def test_bad_views_folders(session, tmp_path):
+    _, images, flanges = session
+    write_views(tmp_path, images[:3], flanges[:3], CELL_GRID)
+    poses = tmp_path / "flange_poses.csv"
+    good = poses.read_text()
+    poses.write_text(good.replace(good.splitlines()[1].split(",")[-1], "0.5"))   # |q| != 1
+    with pytest.raises(ValueError, match="unit length"):
+        read_views(tmp_path)
+    poses.write_text("\n".join(good.splitlines()[:3]) + "\n")
+    with pytest.raises(ValueError, match="needs >= 3 views, found 2"):
+        read_views(tmp_path)
+    poses.write_text(good.replace("qw", "w"))
+    with pytest.raises(ValueError, match="the header must be"):
+        read_views(tmp_path)
+    poses.unlink()
+    with pytest.raises(FileNotFoundError, match="has no flange_poses.csv"):
+        read_views(tmp_path)
+
+
+def test_cli_handeye_then_track_with_the_file(session, tmp_path, capsys):
+    """psvs handeye on a views folder, then psvs track --handeye: no hand-eye session, set-up well under
+    2 s here (the rig's ray tables), tracking within issue 7's tolerances."""
+    cfg, images, flanges = session
+    views = tmp_path / "views"
+    write_views(views, images, flanges, CELL_GRID)
+    he = tmp_path / "he.toml"
+    assert main(["handeye", str(views), "--rig", "default", "-o", str(he)]) == 0
+    assert "target fit RMS per view" in capsys.readouterr().out
+    assert load_handeye(he).target_rms_mm.shape == (8,)
+    run = tmp_path / "run"
+    assert main(["track", "weld_seam", "--rig", "default", "--handeye", str(he), "--speed", "25", "--length", "5",
+                 "--no-bag", "-o", str(run)]) == 0
+    rep = json.loads((run / "report.json").read_text())
+    assert rep["stop"]["reason"] == "weld length reached"
+    assert rep["lateral_mm"]["rms"] <= 0.2 and rep["lateral_mm"]["max"] <= 0.5
+    assert rep["start_s"] < 10.0          # no hand-eye session (the 2 s target is a benchmark)
+
+
+def test_cli_bad_handeye_input(tmp_path, capsys):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[handeye]\nmethod = "tsai"\n')
+    afile = tmp_path / "afile"
+    afile.write_text("keep")
+    for args, msg in ((["track", "weld_seam", "--rig", "default", "--handeye", str(bad), "-o", str(tmp_path / "r")],
+                       "missing key handeye.source"),
+                      (["track", "weld_seam", "--rig", "default", "--handeye", str(tmp_path / "no.toml"),
+                        "-o", str(tmp_path / "r")], "hand-eye file not found"),
+                      (["handeye", str(tmp_path / "nowhere"), "--rig", "default", "-o", str(tmp_path / "he.toml")],
+                       "hand-eye views folder not found"),
+                      (["handeye", str(tmp_path), "--rig", "default", "--save-views", str(tmp_path / "v"),
+                        "-o", str(tmp_path / "he.toml")], "are for the simulated cell"),
+                      (["handeye", "--rig", "default", "-o", str(tmp_path / "he.txt")], "must end in .toml")):
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert msg in err and len(err.strip().splitlines()) == 1, err
+    assert afile.read_text() == "keep" and not (tmp_path / "he.toml").exists() and not (tmp_path / "r").exists()
