@@ -71,6 +71,14 @@ def run_child(args: list[str], **kwargs) -> int:
     return 130 if code == -signal.SIGINT else code
 
 
+def _workers(rest: list[str]) -> list[str]:
+    """pytest-xdist options: one worker per core (at most 4), a test file's tests on one worker (they share
+    its costly fixtures); none when the caller chose (-n, -p no:xdist) or there is one core."""
+    n = min(4, os.cpu_count() or 1)
+    chosen = any(a.startswith("-n") or a == "--numprocesses" or "xdist" in a for a in rest)
+    return [] if chosen or n < 2 else ["-n", str(n), "--dist", "loadfile"]
+
+
 def main(argv: list[str]) -> int:
     if not argv or argv[0] not in {"demo", "test", "bench", "psvs"}:
         print(__doc__, file=sys.stderr)
@@ -81,7 +89,7 @@ def main(argv: list[str]) -> int:
     if cmd == "demo":
         args = [py, "-m", "psvs", "demo", *rest]
     elif cmd == "test":
-        args = [py, "-m", "pytest", "-q", *rest]
+        args = [py, "-m", "pytest", "-q", *_workers(rest), *rest]
     elif cmd == "bench":
         args = [py, str(ROOT / "bench" / "run.py"), *rest]
     else:

@@ -19,6 +19,9 @@ from psvs.dense.disparity import DenseResult
 from psvs.io.params import load_rig, save_rig
 from psvs.optics.rectify import rectify
 
+#: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def calibrated(tmp_path_factory):

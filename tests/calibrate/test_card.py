@@ -24,6 +24,9 @@ from tests.cli.test_cli import run
 from tests.conftest import reconstruction_errors
 from tests.reference_build import ReferenceBuild
 
+#: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
+pytestmark = pytest.mark.slow
+
 RIGS = Path(__file__).resolve().parents[2] / "examples" / "rigs"
 CARD = CircleGrid(4, 6, 14.0, 7.0)
 

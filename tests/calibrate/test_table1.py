@@ -3,6 +3,9 @@ import pytest
 
 from tests.cli.test_cli import run
 
+#: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def table1(tmp_path_factory):

@@ -17,8 +17,10 @@ ROOT = Path(__file__).resolve().parents[2]
 def test_ctrl_c_during_table1(tmp_path, launcher):
     out = tmp_path / "t1"
     cmd = [sys.executable, "-m", "psvs"] if launcher == "psvs" else [sys.executable, str(ROOT / "dev.py"), "psvs"]
+    # SIGINT as a terminal's foreground job has it: a test run from a background job (where the shell set
+    # SIGINT to "ignored", which children inherit) must not make the child deaf to Ctrl-C
     proc = subprocess.Popen(cmd + ["table1", "-o", str(out)], cwd=tmp_path, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE)
+                            stderr=subprocess.PIPE, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     # wait until table1 is at work (its progress bar has counted a first sweep image), at most 20 s (the
     # run takes > 30 s; dev.py may first reinstall the virtualenv), then interrupt it
     seen = b""

@@ -17,6 +17,9 @@ from psvs.simulate.render import render
 from psvs.simulate.scene import Scene, SceneObject
 from tests.optics.test_build import random_build
 
+#: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
+pytestmark = pytest.mark.slow
+
 
 def cards_scene() -> Scene:
     """Two photo cards at 600 and 800 mm before a textured wall at 1000 mm."""

@@ -118,6 +118,7 @@ def test_bad_views_folders(session, tmp_path):
         read_views(tmp_path)
 
 
+@pytest.mark.slow
 def test_cli_handeye_then_track_with_the_file(session, tmp_path, capsys):
     """psvs handeye on a views folder, then psvs track --handeye: no hand-eye session, set-up well under
     2 s here (the rig's ray tables), tracking within issue 7's tolerances."""

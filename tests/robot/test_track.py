@@ -15,6 +15,9 @@ from psvs.robot.loop import HOME_Q, TrackConfig, calibrate_cell, track
 from psvs.robot.report import deviations, error_series, summary, write_report
 from psvs.robot.workpiece import seam_workpiece
 
+#: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
+pytestmark = pytest.mark.slow
+
 CFG = TrackConfig(speed_mm_s=10.0, rate_hz=25.0, weld_length_mm=25.0)
 
 
@@ -90,7 +93,8 @@ def test_forty_mm_gap_stops_within_one_look_ahead(handeye):
 def test_report_and_bag_read_back(gap10, tmp_path):
     wp, run = gap10
     write_report(run, wp, tmp_path)
-    write_bag(run, tmp_path / "bag")
+    write_bag(run, tmp_path / "bag")                      # MCAP storage (rosbag2's default)
+    write_bag(run, tmp_path / "bag_sqlite", storage="sqlite3")
     rep = json.loads((tmp_path / "report.json").read_text())
     assert rep["cycles"] == len(run.cycles) and rep["stop"]["torch_s_mm"] == pytest.approx(run.stop.s_mm)
     rows = list(csv.DictReader((tmp_path / "log.csv").open()))
@@ -110,7 +114,12 @@ def test_report_and_bag_read_back(gap10, tmp_path):
     s_mm, lateral, _ = error_series(run, deviations(run, wp))
     assert s_mm.min() >= run.config.arc_on_mm and s_mm.max() == pytest.approx(max(c.s_mm for c in run.cycles))
     assert s_mm.min() <= run.stop.s_mm <= s_mm.max() + 1.0 and len(lateral) == len(s_mm)
+    assert [p.name for p in sorted((tmp_path / "bag").iterdir())] == ["bag.mcap", "metadata.yaml"]
+    assert (tmp_path / "bag_sqlite" / "bag.db3").is_file()
+    # both read back with rosbags, message for message
+    sq = read_bag(tmp_path / "bag_sqlite")
     msgs = read_bag(tmp_path / "bag")
+    assert {t: [s for s, _ in m] for t, m in msgs.items()} == {t: [s for s, _ in m] for t, m in sq.items()}
     assert set(msgs) == set(TOPICS)
     for topic, typ in TOPICS.items():
         assert len(msgs[topic]) == len(run.cycles)
@@ -134,6 +143,8 @@ def test_report_and_bag_read_back(gap10, tmp_path):
     (["track", "weld_seam", "--rig", "examples/rigs/default.toml", "-o", "afile"], "output afile is a file"),
     (["track", "weld_seam", "--rig", "examples/rigs/default.toml", "--seed", "x", "-o", "r"], "--seed must be"),
     (["track", "weld_seam", "--rig", "default", "--true-rig", "nosuch", "-o", "r"], "nosuch"),
+    (["track", "weld_seam", "--rig", "default", "--mcap", "run.txt", "-o", "r"], "must end in .mcap"),
+    (["track", "weld_seam", "--rig", "default", "--foxglove", "host:port", "-o", "r"], "PORT an integer"),
 ])
 def test_cli_errors_are_one_line_exit_2(args, msg, tmp_path, monkeypatch, capsys):
     import shutil
@@ -164,3 +175,89 @@ def test_tracking_on_a_misaligned_build():
     (a, b), = run.extras["gaps_bridged"]
     assert b - a == pytest.approx(10.0, abs=1.5)
     assert run.cycles[0].image.shape[0] > CFG.roi_rows       # the readout spans the twins' offset
+
+
+def _write_recording(run, path, tamper_cycle=None):
+    """What `psvs track --mcap` writes during the run (the same publisher), from a finished run; with
+    ``tamper_cycle`` that cycle's recorded command is moved by 1 nm."""
+    from dataclasses import replace as dc_replace
+
+    from psvs.io.telemetry import Telemetry
+    from psvs.robot.cell import tool2flange
+    from psvs.robot.recording import CyclePublisher, publish_setup
+    with Telemetry(path, t0_ns=1_700_000_000 * 10**9) as tel:
+        publish_setup(tel, run.config, run.handeye.cam2flange, run.extras["taught_mm"], run.extras["travel"], None)
+        pub = CyclePublisher(tel, run.handeye.cam2flange, tool2flange())
+        for k, c in enumerate(run.cycles):
+            if k == tamper_cycle:
+                moved = c.tool2base.copy()
+                moved[0, 3] += 1e-6
+                c = dc_replace(c, tool2base=moved)
+            pub(c)
+
+
+def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
+    """Issue 16: the recording read with the `mcap` reader (schemas, channels, counts, rising time stamps,
+    /tf decoded with protobuf), read back exactly by read_recording, and `psvs replay` reproducing every
+    command; a recording whose command differs by 1 nm in one cycle fails the replay (exit 1)."""
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+    from mcap.reader import make_reader
+
+    from psvs.robot.recording import TOPICS as REC_TOPICS
+    from psvs.robot.recording import read_recording
+    wp, run = gap10
+    path = tmp_path / "run.mcap"
+    _write_recording(run, path)
+    n = len(run.cycles)
+    with path.open("rb") as f:
+        reader = make_reader(f)
+        summ = reader.get_summary()
+        schema = {c.topic: summ.schemas[c.schema_id].name for c in summ.channels.values()}
+        counts = {summ.channels[i].topic: k for i, k in summ.statistics.channel_message_counts.items()}
+        msgs = list(reader.iter_messages(log_time_order=False))
+    assert schema == {"/psvs/setup": "psvs.setup", "/psvs/cycle": "psvs.cycle", "/psvs/image": "foxglove.RawImage",
+                      "/psvs/points": "foxglove.PointCloud", "/tf": "foxglove.FrameTransforms",
+                      "/psvs/seam": "foxglove.SceneUpdate", "/psvs/log": "foxglove.Log"}
+    assert set(schema) == set(REC_TOPICS)
+    assert {t: counts[t] for t in REC_TOPICS if t != "/psvs/log"} == \
+        {"/psvs/setup": 1, **{t: n for t in REC_TOPICS[1:] if t != "/psvs/log"}}
+    assert counts["/psvs/log"] >= 2                          # the start, and the seam lost in the gap at least
+    for topic in REC_TOPICS:                                 # rising; /psvs/log: never falling
+        stamps = [m.log_time for _, c, m in msgs if c.topic == topic]
+        assert np.all(np.diff(stamps) >= (0 if topic == "/psvs/log" else 1)), topic
+    tf_schema, k = next((s, m) for s, c, m in msgs if c.topic == "/tf" and m.log_time == 1_700_000_000 * 10**9 + 10**9)
+    pool = descriptor_pool.DescriptorPool()
+    for fd in descriptor_pb2.FileDescriptorSet.FromString(tf_schema.data).file:
+        pool.Add(fd)
+    tfs = message_factory.GetMessageClass(pool.FindMessageTypeByName("foxglove.FrameTransforms")).FromString(k.data)
+    flange = next(t for t in tfs.transforms if (t.parent_frame_id, t.child_frame_id) == ("base", "flange"))
+    c25 = run.cycles[25]                                     # t = 1 s at 25 Hz
+    assert c25.t_s == 1.0
+    got = np.array([flange.translation.x, flange.translation.y, flange.translation.z]) * 1e3
+    assert np.allclose(got, c25.flange2base[:3, 3], atol=1e-9)
+
+    rec = read_recording(path)
+    assert rec.config == run.config and rec.seed_px is None and len(rec.frames) == n
+    assert np.array_equal(rec.cam2flange, run.handeye.cam2flange)
+    assert all(np.array_equal(f.image, c.image) and np.array_equal(f.flange2base, c.flange2base) and f.t_s == c.t_s
+               for f, c in zip(rec.frames, run.cycles))
+    assert all(np.array_equal(a, c.tool2base) for a, c in zip(rec.commands, run.cycles))
+    assert main(["replay", str(path), "--rig", "examples/rigs/default.toml"]) == 0
+    assert capsys.readouterr().out.strip() == f"replayed {n} cycles: every command equals the recorded one"
+
+    _write_recording(run, tmp_path / "tampered.mcap", tamper_cycle=n // 2)
+    assert main(["replay", str(tmp_path / "tampered.mcap"), "--rig", "examples/rigs/default.toml"]) == 1
+    assert f"1 of {n} commands differ from the recording (first at cycle {n // 2})" in capsys.readouterr().err
+
+
+def test_replay_cli_errors(tmp_path, capsys):
+    """An unreadable recording, a missing one, an MCAP file that is no psvs track recording: one line, exit 2."""
+    (tmp_path / "junk.mcap").write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 40)
+    from psvs.io.telemetry import Telemetry
+    with Telemetry(tmp_path / "other.mcap") as tel:
+        tel.log(0.0, "hello")
+    for name, msg in (("junk.mcap", "cannot read the recording"), ("none.mcap", "no such recording"),
+                      ("other.mcap", "is not a psvs track recording")):
+        assert main(["replay", str(tmp_path / name), "--rig", "examples/rigs/default.toml"]) == 2
+        err = capsys.readouterr().err
+        assert msg in err and len(err.strip().splitlines()) == 1, err

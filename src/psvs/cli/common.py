@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 import os
+from contextlib import contextmanager
 from pathlib import Path
 
 from psvs.io.params import load_rig
@@ -14,6 +15,30 @@ def add_rig_argument(parser, required: bool = True) -> None:
                         help="rig file (TOML or JSON; see docs/rig_file.md), or a shipped rig: default, clear, "
                              "misaligned (psvs rig list)" +
                              ("" if required else "; default: the paper's rig"))
+
+
+def add_telemetry_arguments(parser) -> None:
+    """--foxglove [HOST:]PORT and --mcap FILE (psvs.io.telemetry)."""
+    parser.add_argument("--foxglove", metavar="[HOST:]PORT",
+                        help="serve the run live to Foxglove (WebSocket, loopback unless HOST is given)")
+    parser.add_argument("--mcap", metavar="FILE.mcap", help="record the same channels to an MCAP file")
+
+
+@contextmanager
+def open_telemetry(args, t0_ns: int | None = None):
+    """The :class:`psvs.io.telemetry.Telemetry` the options ask for (None when neither), closed on exit: the
+    MCAP file is moved into place unless the command failed."""
+    mcap = check_output_path(args.mcap, (".mcap",))
+    if mcap is None and args.foxglove is None:
+        yield None
+        return
+    from psvs.io.telemetry import Telemetry, parse_endpoint
+    serve = parse_endpoint(args.foxglove) if args.foxglove is not None else None
+    tel = Telemetry(mcap, serve, t0_ns)
+    if serve is not None:
+        print(f"Foxglove: ws://{serve[0]}:{tel.port} (Open connection > Foxglove WebSocket)", flush=True)
+    with tel:
+        yield tel
 
 
 def rig_from_args(args) -> Rig:

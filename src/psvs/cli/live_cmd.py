@@ -4,7 +4,8 @@ from __future__ import annotations
 import sys
 import time
 
-from psvs.cli.common import add_rig_argument, check_output_path, check_working_range, parse_seed, rig_from_args
+from psvs.cli.common import (add_rig_argument, add_telemetry_arguments, check_output_path, check_working_range,
+                             open_telemetry, parse_seed, rig_from_args)
 from psvs.imaging.pipeline import PAPER, load_pipeline
 from psvs.live.log import write_log
 from psvs.live.source import VideoSource
@@ -32,6 +33,9 @@ def add_parser(sub) -> None:
                    help="triangulation model (default: refraction on the paper's geometry, exact on a build)")
     p.add_argument("--max-frames", type=int, help="stop after N frames")
     p.add_argument("--quiet", action="store_true", help="print only the summary")
+    add_telemetry_arguments(p)
+    p.add_argument("--realtime", action="store_true", help="play a video at its frame rate (as a camera delivers "
+                                                           "it) instead of as fast as possible")
     p.set_defaults(run=run)
 
 
@@ -45,12 +49,18 @@ def run(args) -> int:
     check_working_range(args.near_mm, args.far_mm)
     tracker = EdgeTracker(rig, seed, pipeline=pipeline, near_mm=args.near_mm, far_mm=args.far_mm, model=args.model)
     steps = []
-    t0 = time.perf_counter()
-    with VideoSource(video=args.video, camera=args.camera) as source:
+    with VideoSource(video=args.video, camera=args.camera) as source, open_telemetry(args) as tel:
+        period = 1.0 / source.fps if (args.video and source.fps > 0) else None
+        t0 = time.perf_counter()
         try:
             for frame in source:
+                k = len(steps)
+                if args.realtime and period is not None:
+                    time.sleep(max(0.0, t0 + k * period - time.perf_counter()))
                 step = tracker.step(frame)
                 steps.append(step)
+                if tel is not None:   # a video's frames at its own rate; a camera's at their arrival
+                    publish_step(tel, k * period if period is not None else time.perf_counter() - t0, frame, step)
                 if not args.quiet:
                     if step.ok:
                         print(f"frame {step.frame}: Z {step.depth_mm:.2f} mm, disparity {step.disparity_px:.2f} px, "
@@ -61,7 +71,7 @@ def run(args) -> int:
                     break
         except KeyboardInterrupt:
             pass
-    wall = time.perf_counter() - t0
+        wall = time.perf_counter() - t0
     if not steps:
         raise ValueError(f"no frame could be read from {source.name}")
     if out:
@@ -73,3 +83,16 @@ def run(args) -> int:
         print(f"the edge was never found: {steps[0].message}", file=sys.stderr)
         return 1
     return 0
+
+
+def publish_step(tel, t_s: float, frame, step) -> None:
+    """One frame of ``psvs live`` on the Foxglove channels (psvs.io.telemetry): the frame, the pair's edge
+    pixels, its points (frame C), and a /psvs/depth record {frame, tracked, depth_mm, disparity_px, message}."""
+    tel.image(t_s, frame)
+    if step.pair is not None:
+        tel.edges(t_s, step.pair.left_px, step.pair.right_px)
+        tel.points(t_s, step.pair.points_mm)
+    else:
+        tel.log(t_s, f"frame {step.frame}: {step.message}", "warning")
+    tel.record("depth", t_s, {"frame": step.frame, "tracked": step.ok, "depth_mm": step.depth_mm,
+                              "disparity_px": step.disparity_px, "message": step.message})

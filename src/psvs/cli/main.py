@@ -6,12 +6,13 @@ import sys
 
 from psvs.cli import (calibrate_cmd, card_views_cmd, demo_cmd, dense_eval_cmd, design_cmd, disparity_cmd,
                       export_calibration_cmd, fit_refraction_cmd, handeye_cmd, live_cmd, match_cmd, measure_cmd,
-                      rig_cmd, serve_cmd, simulate_cmd, sweep_views_cmd, table1_cmd, track_cmd, triangulate_cmd)
+                      replay_cmd, rig_cmd, serve_cmd, simulate_cmd, sweep_views_cmd, table1_cmd, track_cmd,
+                      triangulate_cmd)
 from psvs.errors import RigGeometryError
 
 COMMANDS = (demo_cmd, rig_cmd, design_cmd, triangulate_cmd, fit_refraction_cmd, simulate_cmd, match_cmd,
             measure_cmd, calibrate_cmd, card_views_cmd, sweep_views_cmd, table1_cmd, disparity_cmd, dense_eval_cmd,
-            serve_cmd, live_cmd, handeye_cmd, track_cmd, export_calibration_cmd)
+            serve_cmd, live_cmd, handeye_cmd, track_cmd, replay_cmd, export_calibration_cmd)
 
 
 class _Parser(argparse.ArgumentParser):

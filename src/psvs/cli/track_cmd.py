@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import math
 
-from psvs.cli.common import add_rig_argument, check_output_folder, parse_seed, rig_from_args
+from psvs.cli.common import (add_rig_argument, add_telemetry_arguments, check_output_folder, open_telemetry,
+                             parse_seed, rig_from_args)
 
 
 def add_parser(sub) -> None:
@@ -29,6 +30,9 @@ def add_parser(sub) -> None:
                                                              "calibrate it in the cell first, ~12 s)")
     p.add_argument("--roi-rows", type=int, default=32, help="sensor window rows (default 32)")
     p.add_argument("--no-bag", action="store_true", help="do not write the ROS 2 bag")
+    p.add_argument("--bag-storage", choices=("mcap", "sqlite3"), default="mcap",
+                   help="the ROS 2 bag's storage (default mcap, rosbag2's default)")
+    add_telemetry_arguments(p)
     p.add_argument("-o", "--output", metavar="RUN_DIR", required=True, help="folder for the run's outputs")
     p.set_defaults(run=run)
 
@@ -59,11 +63,24 @@ def run(args) -> int:
         from psvs.robot.handeye_io import load_handeye
         from psvs.robot.loop import true_cam2flange
         handeye = (load_handeye(args.handeye), true_cam2flange(cfg))   # the simulated hardware's truth: scoring
-    result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye)
+    with open_telemetry(args) as tel:
+        publisher = []
+
+        def on_start(cam2flange, taught, travel):
+            if tel is not None:
+                from psvs.robot.cell import tool2flange
+                from psvs.robot.recording import CyclePublisher, publish_setup
+                publish_setup(tel, cfg, cam2flange, taught, travel, seed)
+                publisher.append(CyclePublisher(tel, cam2flange, tool2flange()))
+
+        result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, on_start=on_start,
+                       progress=lambda c: publisher and publisher[0](c))
+        if tel is not None:
+            tel.log(result.cycles[-1].t_s, f"stop: {result.stop.reason}")
     out.mkdir(exist_ok=True)
     s = write_report(result, wp, out)
     if not args.no_bag:
-        write_bag(result, out / "bag")
+        write_bag(result, out / "bag", args.bag_storage)
     lat, ver, wall = s["lateral_mm"], s["vertical_mm"], s["wall_ms"]
     print(f"set-up before the first control cycle: {s['start_s']:.1f} s" + ("" if args.handeye else
           " (the hand-eye calibration included; --handeye FILE skips it)"))

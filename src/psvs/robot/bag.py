@@ -1,4 +1,5 @@
-"""A run as a ROS 2 bag (rosbags, sqlite3 storage, CDR): replay it with ``ros2 bag play`` and RViz.
+"""A run as a ROS 2 bag (rosbags, CDR; MCAP storage, rosbag2's default since Iron, or sqlite3): replay it
+with ``ros2 bag play`` and RViz.
 
 Topics (one message per control cycle, stamped with the simulated time; lengths in metres, as ROS
 wants, REP 103):
@@ -20,6 +21,7 @@ from psvs.robot.loop import TrackRun
 TOPICS = {"/psvs/image": "sensor_msgs/msg/Image", "/psvs/seam_points": "sensor_msgs/msg/PointCloud2",
           "/psvs/seam_path": "nav_msgs/msg/Path"}
 FRAME = "base_link"
+STORAGES = ("mcap", "sqlite3")
 
 
 def _typestore():
@@ -53,10 +55,14 @@ def _messages(run: TrackRun, ts):
         yield ns, {"/psvs/image": img, "/psvs/seam_points": cloud, "/psvs/seam_path": path}
 
 
-def write_bag(run: TrackRun, path) -> None:
-    """Write the run as a ROS 2 bag folder at ``path``: built in a temporary folder beside it and moved
-    into place at the end (an existing bag there is replaced only then)."""
-    from rosbags.rosbag2 import Writer
+def write_bag(run: TrackRun, path, storage: str = "mcap") -> None:
+    """Write the run as a ROS 2 bag folder at ``path`` in ``storage`` ('mcap': ``bag_0.mcap``, or 'sqlite3':
+    ``bag.db3``, with ``metadata.yaml``): built in a temporary folder beside it and moved into place at the
+    end (an existing bag there is replaced only then)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    if storage not in STORAGES:
+        raise ValueError(f"bag storage must be one of {', '.join(STORAGES)}, got {storage!r}")
+    plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
     path = Path(path)
     if not path.parent.is_dir():
         raise FileNotFoundError(f"output folder does not exist: {path.parent}")
@@ -64,7 +70,7 @@ def write_bag(run: TrackRun, path) -> None:
     tmp_root = Path(tempfile.mkdtemp(dir=path.parent, prefix=f".{path.name}."))
     tmp = tmp_root / "bag"
     try:
-        with Writer(tmp, version=8) as writer:
+        with Writer(tmp, version=8, storage_plugin=plugin) as writer:
             conns = {t: writer.add_connection(t, m, typestore=ts) for t, m in TOPICS.items()}
             for ns, msgs in _messages(run, ts):
                 for topic, msg in msgs.items():

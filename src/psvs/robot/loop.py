@@ -141,7 +141,7 @@ def calibrate_cell(rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12,
 
 def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed_px=None,
           limits: ArmLimits = ArmLimits(), handeye: tuple[HandEyeResult, np.ndarray] | None = None,
-          progress=None, true_rig: Rig | None = None) -> TrackRun:
+          progress=None, true_rig: Rig | None = None, on_start=None) -> TrackRun:
     """Run the closed loop on the workpiece until the torch stops; see the module docstring.
 
     Parameters
@@ -156,6 +156,8 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
         by :func:`psvs.robot.sensor.auto_seed`.
     handeye : (HandEyeResult, true cam2flange) or None to run :func:`calibrate_cell` first.
     progress : callable(Cycle) or None, called after every cycle.
+    on_start : callable(cam2flange (4, 4), taught_mm (3,), travel (3,)) or None, called once before the
+        first cycle with what the controller starts from (e.g. to record it).
     """
     t_enter = time.perf_counter()
     arm = Arm(HOME_Q, limits)
@@ -174,6 +176,8 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
     tracker = SeamTracker(cfg, he.cam2flange, taught, travel, window_length_mm(rig, cfg))
     cell = SimulatedCell(arm, workpiece, roi_true, cam_true, cfg.rate_hz, cfg.supersample, cfg.noise_seed)
     cycles: list[Cycle] = []
+    if on_start is not None:
+        on_start(he.cam2flange, taught, travel)
 
     def record(res: CycleResult) -> None:
         c, step = res.command, res.step
@@ -213,12 +217,19 @@ def replay(run: TrackRun, rig: Rig) -> ReplayCell:
     holds: no simulation), with the run's configuration, hand-eye transform, teach point and seed, and
     ``rig`` as the sensor's rig; returns the replay cell, whose ``mismatches`` lists the cycles where the
     command differs from the recorded one (none: the controller is deterministic)."""
-    cfg = run.config
+    return replay_cell(run.config, run.handeye.cam2flange, run.extras["taught_mm"], run.extras["travel"],
+                       run.extras["seed_px"], [Frame(c.t_s, c.flange2base, c.image) for c in run.cycles],
+                       [c.tool2base for c in run.cycles], [c.fault for c in run.cycles], rig)
+
+
+def replay_cell(cfg: TrackConfig, cam2flange: np.ndarray, taught_mm, travel, seed_px, frames: list[Frame],
+                commands: list[np.ndarray], faults: list[str], rig: Rig) -> ReplayCell:
+    """:func:`replay` from its parts (e.g. read from a recording, :mod:`psvs.robot.recording`): seed_px None
+    finds the seed on the first frame as the live run did."""
     near, far = sensor_range(cfg)
     roi, _ = roi_rig(rig, cfg.roi_rows, span_mm=(near, far))
-    frames = [Frame(c.t_s, c.flange2base, c.image) for c in run.cycles]
-    cell = ReplayCell(frames, [c.tool2base for c in run.cycles], [c.fault for c in run.cycles])
-    tracker = SeamTracker(cfg, run.handeye.cam2flange, run.extras["taught_mm"], run.extras["travel"],
+    cell = ReplayCell(frames, commands, faults)
+    tracker = SeamTracker(cfg, cam2flange, np.asarray(taught_mm, float), np.asarray(travel, float),
                           window_length_mm(rig, cfg))
-    control_loop(cell, tracker, roi, near, far, run.extras["seed_px"], len(frames))
+    control_loop(cell, tracker, roi, near, far, seed_px, len(frames))
     return cell

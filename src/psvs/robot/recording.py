@@ -1,0 +1,136 @@
+"""A seam-tracking run on Foxglove's channels (:mod:`psvs.io.telemetry`): what ``psvs track --foxglove``
+shows live and ``--mcap`` records, and what :func:`read_recording` / :func:`replay_recording` read back.
+
+Besides Foxglove's channels (the sensor window on /psvs/image, the seam points on /psvs/points in the base
+frame, base -> flange -> camera and flange -> torch on /tf, the path model and the torch path on
+/psvs/seam, status on /psvs/log), a recording holds what the controller needs to run again, exactly:
+
+- ``/psvs/setup`` (once, at t = 0): the TrackConfig, the hand-eye transform cam2flange, the teach point,
+  the taught direction of travel and the seed pixel (null: found on the first frame);
+- ``/psvs/cycle`` (every frame): t_s, the flange pose flange2base at the exposure (the controller's
+  input), the torch pose tool2base commanded (its output), the arm's fault, and the controller's state
+  (s_mm, valid, reason) for reading. Matrices as 16 row-major floats in mm, written exactly (JSON repr).
+
+The frames are /psvs/image's mono8 bytes, losslessly. Everything shares one log time per cycle.
+"""
+from __future__ import annotations
+
+import json
+import struct
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.robot.cells import Frame
+from psvs.robot.controller import TrackConfig
+
+#: Every topic of a ``psvs track`` recording.
+TOPICS = ("/psvs/setup", "/psvs/cycle", "/psvs/image", "/psvs/points", "/tf", "/psvs/seam", "/psvs/log")
+
+
+def _mat(a) -> list[float]:
+    return [float(x) for x in np.asarray(a, float).ravel()]
+
+
+def publish_setup(tel, cfg: TrackConfig, cam2flange: np.ndarray, taught_mm, travel, seed_px) -> None:
+    """The run's /psvs/setup record and a status line."""
+    tel.record("setup", 0.0, {"config": {k: getattr(cfg, k) for k in cfg.__dataclass_fields__},
+                              "cam2flange": _mat(cam2flange), "taught_mm": _mat(taught_mm),
+                              "travel": _mat(travel), "seed_px": None if seed_px is None else _mat(seed_px)})
+    tel.log(0.0, f"tracking at {cfg.speed_mm_s:g} mm/s, {cfg.rate_hz:g} Hz")
+
+
+class CyclePublisher:
+    """Publishes every control cycle (psvs.robot.loop.Cycle) of a run: call it with each cycle."""
+
+    def __init__(self, tel, cam2flange: np.ndarray, tool2flange: np.ndarray):
+        self.tel, self.cam, self.tool = tel, cam2flange, tool2flange
+        self.torch: list[np.ndarray] = []
+        self._last_reason = None
+
+    def __call__(self, c) -> None:
+        tel, t = self.tel, c.t_s
+        tel.record("cycle", t, {"t_s": t, "flange2base": _mat(c.flange2base), "tool2base": _mat(c.tool2base),
+                                "fault": c.fault, "s_mm": c.s_mm, "valid": bool(c.valid), "reason": c.reason})
+        tel.image(t, c.image)
+        tel.points(t, c.points_mm, frame_id="base")
+        tel.transforms(t, [("base", "flange", c.flange2base), ("flange", "camera", self.cam),
+                           ("flange", "torch", self.tool)])
+        self.torch.append(c.tcp_mm)
+        tel.lines(t, {"taught_seam": c.path_mm, "torch_path": np.array(self.torch)})
+        if c.fault:
+            tel.log(t, f"arm fault: {c.fault}", "error")
+        elif c.reason != self._last_reason and c.reason:
+            tel.log(t, c.reason, "info" if c.valid else "warning")
+        self._last_reason = c.reason
+
+
+@dataclass(frozen=True, eq=False)
+class Recording:
+    """A recorded run: its configuration, hand-eye transform (4, 4), teach point (3,), direction of travel
+    (3,), seed (u, v) or None, and per cycle the frame, the command tool2base (4, 4) and the fault."""
+
+    config: TrackConfig
+    cam2flange: np.ndarray
+    taught_mm: np.ndarray
+    travel: np.ndarray
+    seed_px: tuple[float, float] | None
+    frames: list[Frame]
+    commands: list[np.ndarray]
+    faults: list[str]
+
+
+def read_recording(path) -> Recording:
+    """Read a ``psvs track --mcap`` file with the ``mcap`` reader (images decoded with protobuf from the
+    schema the file carries). ValueError names what is missing or unreadable."""
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+    setup, cycles, images = None, {}, {}
+    image_cls = None
+    try:
+        with open(path, "rb") as f:
+            for schema, channel, msg in make_reader(f).iter_messages(topics=["/psvs/setup", "/psvs/cycle",
+                                                                             "/psvs/image"]):
+                if channel.topic == "/psvs/setup":
+                    setup = json.loads(msg.data)
+                elif channel.topic == "/psvs/cycle":
+                    cycles[msg.log_time] = json.loads(msg.data)
+                else:
+                    if image_cls is None:
+                        pool = descriptor_pool.DescriptorPool()
+                        for fd in descriptor_pb2.FileDescriptorSet.FromString(schema.data).file:
+                            pool.Add(fd)
+                        image_cls = message_factory.GetMessageClass(pool.FindMessageTypeByName(schema.name))
+                    images[msg.log_time] = image_cls.FromString(msg.data)
+    except (McapError, OSError, ValueError, KeyError, struct.error) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        raise ValueError(f"cannot read the recording {path}: {exc or type(exc).__name__}") from None
+    if setup is None or not cycles:
+        raise ValueError(f"{path} is not a psvs track recording: no /psvs/setup or /psvs/cycle messages")
+    missing = sorted(set(cycles) - set(images))
+    if missing:
+        raise ValueError(f"{path}: {len(missing)} cycles have no /psvs/image frame")
+    frames, commands, faults = [], [], []
+    for ns in sorted(cycles):
+        c, img = cycles[ns], images[ns]
+        if img.encoding != "mono8" or len(img.data) != img.width * img.height:
+            raise ValueError(f"{path}: a /psvs/image frame is not {img.width}x{img.height} mono8")
+        image = np.frombuffer(img.data, np.uint8).reshape(img.height, img.width)
+        frames.append(Frame(c["t_s"], np.array(c["flange2base"], float).reshape(4, 4), image))
+        commands.append(np.array(c["tool2base"], float).reshape(4, 4))
+        faults.append(c["fault"])
+    seed = setup["seed_px"]
+    return Recording(TrackConfig(**setup["config"]), np.array(setup["cam2flange"], float).reshape(4, 4),
+                     np.array(setup["taught_mm"], float), np.array(setup["travel"], float),
+                     None if seed is None else tuple(seed), frames, commands, faults)
+
+
+def replay_recording(path, rig):
+    """Run a fresh controller and seam sensor (over ``rig``) on a recording's frames and flange poses:
+    :func:`psvs.robot.loop.replay_cell`; returns the replay cell (``mismatches`` empty: reproduced)."""
+    from psvs.robot.loop import replay_cell
+    rec = read_recording(path)
+    return replay_cell(rec.config, rec.cam2flange, rec.taught_mm, rec.travel, rec.seed_px, rec.frames,
+                       rec.commands, rec.faults, rig)
