@@ -12,6 +12,8 @@ import time
 import urllib.request
 from pathlib import Path
 
+import pytest
+
 from psvs.cli.main import main
 from tests.web.conftest import free_port
 
@@ -59,6 +61,7 @@ def run_server(args, cwd: Path) -> None:
     assert f"open http://127.0.0.1:{port}/" in out and "error" not in err, (out, err)
 
 
+@pytest.mark.slow          # every CLI example: the lock suite runs it; .ci/latest runs psvs demo from the wheel
 def test_readme_examples_run_in_order(tmp_path, monkeypatch, capsys):
     run_examples(EXAMPLES, tmp_path, monkeypatch, capsys)
     # every output lands in out/ (git-ignored), none in the folder the user runs from (issue 13)
@@ -66,6 +69,7 @@ def test_readme_examples_run_in_order(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "out" / "demo").is_dir() and (tmp_path / "out" / "fig5b_match.json").is_file()
 
 
+@pytest.mark.slow
 def test_docs_examples_run_in_order(tmp_path, monkeypatch, capsys):
     assert DOCS_WITH_EXAMPLES, "no docs/*.md has a $ psvs example"
     for doc in DOCS_WITH_EXAMPLES:

@@ -74,6 +74,7 @@ def test_mirrored_motorcycle_scores(moto):
     assert disparity_scores(res.disparity_left, mt)["bad2_pct"] < 13.5
 
 
+@pytest.mark.slow
 def test_simulated_psvs_scene():
     """The built-in photo-textured scene through the paper's rig, against the renderer's ground truth."""
     from psvs import default_rig

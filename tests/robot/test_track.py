@@ -16,7 +16,7 @@ from psvs.robot.report import deviations, error_series, summary, write_report
 from psvs.robot.workpiece import seam_workpiece
 
 #: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
-pytestmark = pytest.mark.slow
+slow = pytest.mark.slow
 
 CFG = TrackConfig(speed_mm_s=10.0, rate_hz=25.0, weld_length_mm=25.0)
 
@@ -33,6 +33,7 @@ def gap10(handeye):
     return wp, track(wp, default_rig(), CFG, handeye=handeye)
 
 
+@slow
 def test_hand_eye_calibration_is_consistent(handeye):
     he, true = handeye
     assert np.all(he.target_rms_mm < 0.15)
@@ -40,6 +41,7 @@ def test_hand_eye_calibration_is_consistent(handeye):
     assert np.linalg.norm(he.cam2flange[:3, 3] - true[:3, 3]) < 1.0
 
 
+@slow
 def test_tracking_accuracy_and_bridged_gap(gap10):
     """Acceptance tolerances on a short stretch: lateral RMS <= 0.2 mm, max <= 0.5; vertical RMS <= 0.3."""
     wp, run = gap10
@@ -56,6 +58,7 @@ def test_tracking_accuracy_and_bridged_gap(gap10):
     assert np.all(np.array([c.qdd_peak for c in run.cycles]) <= np.array([4, 4, 4, 8, 8, 8]) + 1e-9)
 
 
+@slow
 def test_replay_reproduces_every_command(gap10):
     """Issue 16: a fresh controller and sensor on the run's recorded frames and flange poses (the replay
     cell: no simulation) send exactly the recorded commands, through the gap; a recording altered by
@@ -74,6 +77,7 @@ def test_replay_reproduces_every_command(gap10):
     assert altered.mismatches and altered.mismatches[0] >= k
 
 
+@slow
 def test_forty_mm_gap_stops_within_one_look_ahead(handeye):
     wp = seam_workpiece("weld_seam:gap_start_mm=-25,gap_length_mm=40", CFG.camera_distance_mm)
     cfg = TrackConfig(weld_length_mm=None)
@@ -90,6 +94,7 @@ def test_forty_mm_gap_stops_within_one_look_ahead(handeye):
     assert -27.0 < x_stop < -24.0
 
 
+@slow
 def test_report_and_bag_read_back(gap10, tmp_path):
     wp, run = gap10
     write_report(run, wp, tmp_path)
@@ -158,6 +163,7 @@ def test_cli_errors_are_one_line_exit_2(args, msg, tmp_path, monkeypatch, capsys
     assert (tmp_path / "afile").read_text() == "keep"
 
 
+@slow
 def test_tracking_on_a_misaligned_build():
     """Issue 15: the world rendered through the misaligned build, the sensor matching on its rectified rows
     (twins rows apart: the window is taller by their offset) with the build's own model, the hand-eye
@@ -177,25 +183,29 @@ def test_tracking_on_a_misaligned_build():
     assert run.cycles[0].image.shape[0] > CFG.roi_rows       # the readout spans the twins' offset
 
 
-def _write_recording(run, path, tamper_cycle=None):
+def _write_recording(run, path, tamper_cycle=None, cycles=None):
     """What `psvs track --mcap` writes during the run (the same publisher), from a finished run; with
-    ``tamper_cycle`` that cycle's recorded command is moved by 1 nm."""
+    ``tamper_cycle`` that cycle's recorded command is moved by 1 nm; with ``cycles`` only the first that
+    many, without the stop record (a run cut short)."""
     from dataclasses import replace as dc_replace
 
     from psvs.io.telemetry import Telemetry
     from psvs.robot.cell import tool2flange
-    from psvs.robot.recording import CyclePublisher, publish_setup
+    from psvs.robot.recording import CyclePublisher, publish_setup, publish_stop
     with Telemetry(path, t0_ns=1_700_000_000 * 10**9) as tel:
         publish_setup(tel, run.config, run.handeye.cam2flange, run.extras["taught_mm"], run.extras["travel"], None)
         pub = CyclePublisher(tel, run.handeye.cam2flange, tool2flange())
-        for k, c in enumerate(run.cycles):
+        for k, c in enumerate(run.cycles[:cycles]):
             if k == tamper_cycle:
                 moved = c.tool2base.copy()
                 moved[0, 3] += 1e-6
                 c = dc_replace(c, tool2base=moved)
             pub(c)
+        if cycles is None:
+            publish_stop(tel, run.cycles[-1].t_s, run.stop.reason)
 
 
+@slow
 def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
     """Issue 16: the recording read with the `mcap` reader (schemas, channels, counts, rising time stamps,
     /tf decoded with protobuf), read back exactly by read_recording, and `psvs replay` reproducing every
@@ -217,10 +227,10 @@ def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
         msgs = list(reader.iter_messages(log_time_order=False))
     assert schema == {"/psvs/setup": "psvs.setup", "/psvs/cycle": "psvs.cycle", "/psvs/image": "foxglove.RawImage",
                       "/psvs/points": "foxglove.PointCloud", "/tf": "foxglove.FrameTransforms",
-                      "/psvs/seam": "foxglove.SceneUpdate", "/psvs/log": "foxglove.Log"}
+                      "/psvs/seam": "foxglove.SceneUpdate", "/psvs/log": "foxglove.Log", "/psvs/stop": "psvs.stop"}
     assert set(schema) == set(REC_TOPICS)
     assert {t: counts[t] for t in REC_TOPICS if t != "/psvs/log"} == \
-        {"/psvs/setup": 1, **{t: n for t in REC_TOPICS[1:] if t != "/psvs/log"}}
+        {"/psvs/setup": 1, "/psvs/stop": 1, **{t: n for t in REC_TOPICS[1:-1] if t != "/psvs/log"}}
     assert counts["/psvs/log"] >= 2                          # the start, and the seam lost in the gap at least
     for topic in REC_TOPICS:                                 # rising; /psvs/log: never falling
         stamps = [m.log_time for _, c, m in msgs if c.topic == topic]
@@ -230,7 +240,7 @@ def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
     for fd in descriptor_pb2.FileDescriptorSet.FromString(tf_schema.data).file:
         pool.Add(fd)
     tfs = message_factory.GetMessageClass(pool.FindMessageTypeByName("foxglove.FrameTransforms")).FromString(k.data)
-    flange = next(t for t in tfs.transforms if (t.parent_frame_id, t.child_frame_id) == ("base", "flange"))
+    flange = next(t for t in tfs.transforms if (t.parent_frame_id, t.child_frame_id) == ("base_link", "flange"))
     c25 = run.cycles[25]                                     # t = 1 s at 25 Hz
     assert c25.t_s == 1.0
     got = np.array([flange.translation.x, flange.translation.y, flange.translation.z]) * 1e3
@@ -243,7 +253,14 @@ def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
                for f, c in zip(rec.frames, run.cycles))
     assert all(np.array_equal(a, c.tool2base) for a, c in zip(rec.commands, run.cycles))
     assert main(["replay", str(path), "--rig", "examples/rigs/default.toml"]) == 0
-    assert capsys.readouterr().out.strip() == f"replayed {n} cycles: every command equals the recorded one"
+    assert capsys.readouterr().out.strip() == \
+        f"replayed {n} cycles: every command equals the recorded one (the run's stop: weld length reached)"
+    assert rec.stop_reason == "weld length reached"
+
+    _write_recording(run, tmp_path / "cut.mcap", cycles=40)          # Ctrl-C after 40 cycles
+    assert main(["replay", str(tmp_path / "cut.mcap"), "--rig", "examples/rigs/default.toml"]) == 0
+    out, err = capsys.readouterr()
+    assert out.strip() == "replayed 40 cycles: every command equals the recorded one" and "cut short" in err
 
     _write_recording(run, tmp_path / "tampered.mcap", tamper_cycle=n // 2)
     assert main(["replay", str(tmp_path / "tampered.mcap"), "--rig", "examples/rigs/default.toml"]) == 1
@@ -256,8 +273,10 @@ def test_replay_cli_errors(tmp_path, capsys):
     from psvs.io.telemetry import Telemetry
     with Telemetry(tmp_path / "other.mcap") as tel:
         tel.log(0.0, "hello")
+    (tmp_path / "folder.mcap").mkdir()
     for name, msg in (("junk.mcap", "cannot read the recording"), ("none.mcap", "no such recording"),
-                      ("other.mcap", "is not a psvs track recording")):
+                      ("other.mcap", "not a psvs track recording"), ("folder.mcap", "is a folder")):
         assert main(["replay", str(tmp_path / name), "--rig", "examples/rigs/default.toml"]) == 2
         err = capsys.readouterr().err
         assert msg in err and len(err.strip().splitlines()) == 1, err
+        assert not err.strip().endswith(": "), err                     # the reason is named

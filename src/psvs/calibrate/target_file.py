@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from psvs.io.tomlfile import load_toml
+from psvs.io.tomlfile import load_toml, single_table
 from psvs.simulate.textures import CircleGrid
 
 KINDS = ("circle_grid",)
@@ -29,15 +29,7 @@ def load_target(path) -> CircleGrid:
 
 
 def target_from_dict(data: dict) -> CircleGrid:
-    if set(data) != {"target"} or not isinstance(data["target"], dict):
-        raise ValueError("expected one table [target]")
-    t = data["target"]
-    unknown = sorted(set(t) - set(_KEYS))
-    if unknown:
-        raise ValueError(f"unknown key target.{unknown[0]} (allowed: {', '.join(_KEYS)})")
-    missing = [k for k in _KEYS if k not in t]
-    if missing:
-        raise ValueError(f"missing key target.{missing[0]}")
+    t = single_table(data, "target", _KEYS)
     if t["kind"] not in KINDS:
         raise ValueError(f"target.kind must be one of {', '.join(KINDS)}, got {t['kind']!r}")
     for k in ("spacing_mm", "diameter_mm"):

@@ -32,11 +32,11 @@ def open_telemetry(args, t0_ns: int | None = None):
     if mcap is None and args.foxglove is None:
         yield None
         return
-    from psvs.io.telemetry import Telemetry, parse_endpoint
+    from psvs.io.telemetry import Telemetry, parse_endpoint, url_host
     serve = parse_endpoint(args.foxglove) if args.foxglove is not None else None
     tel = Telemetry(mcap, serve, t0_ns)
     if serve is not None:
-        print(f"Foxglove: ws://{serve[0]}:{tel.port} (Open connection > Foxglove WebSocket)", flush=True)
+        print(f"Foxglove: ws://{url_host(serve[0])}:{tel.port} (Open connection > Foxglove WebSocket)", flush=True)
     with tel:
         yield tel
 

@@ -54,13 +54,13 @@ def run(args) -> int:
         t0 = time.perf_counter()
         try:
             for frame in source:
-                k = len(steps)
+                k, arrived_s = len(steps), time.perf_counter() - t0
                 if args.realtime and period is not None:
                     time.sleep(max(0.0, t0 + k * period - time.perf_counter()))
                 step = tracker.step(frame)
                 steps.append(step)
                 if tel is not None:   # a video's frames at its own rate; a camera's at their arrival
-                    publish_step(tel, k * period if period is not None else time.perf_counter() - t0, frame, step)
+                    publish_step(tel, k * period if period is not None else arrived_s, frame, step)
                 if not args.quiet:
                     if step.ok:
                         print(f"frame {step.frame}: Z {step.depth_mm:.2f} mm, disparity {step.disparity_px:.2f} px, "
@@ -72,13 +72,13 @@ def run(args) -> int:
         except KeyboardInterrupt:
             pass
         wall = time.perf_counter() - t0
-    if not steps:
-        raise ValueError(f"no frame could be read from {source.name}")
+        if not steps:               # inside: a recording of nothing is discarded, not kept
+            raise ValueError(f"no frame could be read from {source.name}")
     if out:
         write_log(out, steps)
     tracked = sum(s.ok for s in steps)
     print(f"{len(steps)} frames, {tracked} tracked, {len(steps) / wall:.1f} frames/s "
-          f"(reading + processing), mean latency {1e3 * sum(s.elapsed_s for s in steps) / len(steps):.1f} ms")
+          f"({'paced by --realtime' if args.realtime else 'reading + processing'}), mean latency {1e3 * sum(s.elapsed_s for s in steps) / len(steps):.1f} ms")
     if tracked == 0:
         print(f"the edge was never found: {steps[0].message}", file=sys.stderr)
         return 1

@@ -21,14 +21,20 @@ def run(args) -> int:
     from pathlib import Path
 
     from psvs.robot.recording import replay_recording
-    if not Path(args.recording).is_file():
-        raise FileNotFoundError(f"no such recording: {args.recording}")
+    path = Path(args.recording)
+    if path.is_dir():
+        raise ValueError(f"{path} is a folder, not a recording (psvs track --mcap FILE.mcap)")
+    if not path.is_file():
+        raise FileNotFoundError(f"no such recording: {path}")
     rig = rig_from_args(args)
-    cell = replay_recording(args.recording, rig)
+    rec, cell = replay_recording(path, rig)
     n = len(cell.sent)
+    if rec.stop_reason is None:
+        print("note: the recording ends without its /psvs/stop record (the run was cut short)", file=sys.stderr)
     if cell.mismatches:
         print(f"{len(cell.mismatches)} of {n} commands differ from the recording (first at cycle "
               f"{cell.mismatches[0]})", file=sys.stderr)
         return 1
-    print(f"replayed {n} cycles: every command equals the recorded one")
+    print(f"replayed {n} cycles: every command equals the recorded one"
+          + (f" (the run's stop: {rec.stop_reason})" if rec.stop_reason else ""))
     return 0

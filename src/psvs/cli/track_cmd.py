@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import time
 
 from psvs.cli.common import (add_rig_argument, add_telemetry_arguments, check_output_folder, open_telemetry,
                              parse_seed, rig_from_args)
@@ -63,7 +64,9 @@ def run(args) -> int:
         from psvs.robot.handeye_io import load_handeye
         from psvs.robot.loop import true_cam2flange
         handeye = (load_handeye(args.handeye), true_cam2flange(cfg))   # the simulated hardware's truth: scoring
-    with open_telemetry(args) as tel:
+    out.mkdir(exist_ok=True)                     # before the run: a recording may go into it
+    t0_ns = time.time_ns()                       # the run's start: the recording's and the bag's time base
+    with open_telemetry(args, t0_ns) as tel:
         publisher = []
 
         def on_start(cam2flange, taught, travel):
@@ -76,11 +79,11 @@ def run(args) -> int:
         result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, on_start=on_start,
                        progress=lambda c: publisher and publisher[0](c))
         if tel is not None:
-            tel.log(result.cycles[-1].t_s, f"stop: {result.stop.reason}")
-    out.mkdir(exist_ok=True)
+            from psvs.robot.recording import publish_stop
+            publish_stop(tel, result.cycles[-1].t_s, result.stop.reason)
     s = write_report(result, wp, out)
     if not args.no_bag:
-        write_bag(result, out / "bag", args.bag_storage)
+        write_bag(result, out / "bag", args.bag_storage, t0_ns)
     lat, ver, wall = s["lateral_mm"], s["vertical_mm"], s["wall_ms"]
     print(f"set-up before the first control cycle: {s['start_s']:.1f} s" + ("" if args.handeye else
           " (the hand-eye calibration included; --handeye FILE skips it)"))

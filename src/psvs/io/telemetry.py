@@ -1,6 +1,6 @@
 """Live views and recordings in Foxglove's formats (the ``foxglove-sdk`` package): one set of channels, sent
-to a Foxglove WebSocket server (``ws://HOST:PORT``, subprotocol ``foxglove.websocket.v1``; open it in
-Foxglove with "Open connection") and/or written to an MCAP file (open it in Foxglove, or read it with the
+to a Foxglove WebSocket server (``ws://HOST:PORT``; Foxglove's WebSocket protocol, which foxglove-sdk
+0.30 names ``foxglove.sdk.v1``; open it in Foxglove with "Open connection") and/or written to an MCAP file (open it in Foxglove, or read it with the
 ``mcap`` package).
 
 Channels (Foxglove's schemas, protobuf-encoded, unless said otherwise):
@@ -8,11 +8,11 @@ Channels (Foxglove's schemas, protobuf-encoded, unless said otherwise):
 =================  =========================  ==============================================================
 topic              schema                     what
 =================  =========================  ==============================================================
-/psvs/image        foxglove.RawImage          the complex image (or the sensor window), mono8, frame 'camera'
+/psvs/image        foxglove.RawImage          the complex image (or the sensor window), mono8, CAMERA_FRAME
 /psvs/edges        foxglove.ImageAnnotations  matched edge pixels on it: left view green, twins magenta
 /psvs/points       foxglove.PointCloud        the points of the cycle, x y z float64, metres
-/tf                foxglove.FrameTransforms   base -> flange -> camera, flange -> torch (robot runs), metres
-/psvs/seam         foxglove.SceneUpdate       the taught seam (path model) and the torch path, frame 'base'
+/tf                foxglove.FrameTransforms   base_link -> flange -> psvs_optical_frame, flange -> torch
+/psvs/seam         foxglove.SceneUpdate       the taught seam (path model) and the torch path, base_link
 /psvs/log          foxglove.Log               status and log messages
 /psvs/<name>       JSON (jsonschema)          psvs's own records in psvs's units (mm, px, s), exact floats
 =================  =========================  ==============================================================
@@ -31,8 +31,9 @@ from pathlib import Path
 
 import numpy as np
 
-#: The frame ids used in every message.
-FRAMES = ("base", "flange", "camera", "torch")
+#: Frame ids (ROS-Industrial names): the robot's base, its flange, the PSVS frame C (X right, Y down, Z along
+#: the optical axis: an optical frame, REP 103), the torch tip.
+BASE_FRAME, FLANGE_FRAME, CAMERA_FRAME, TORCH_FRAME = "base_link", "flange", "psvs_optical_frame", "torch"
 
 
 def parse_endpoint(text: str, default_host: str = "127.0.0.1") -> tuple[str, int]:
@@ -48,17 +49,19 @@ def parse_endpoint(text: str, default_host: str = "127.0.0.1") -> tuple[str, int
     return host, p
 
 
+def url_host(host: str) -> str:
+    """A host as it goes in a URL (IPv6 addresses in brackets)."""
+    return f"[{host}]" if ":" in host else host
+
+
 def _split_ns(ns: int):
     from foxglove.messages import Timestamp
     return Timestamp(sec=int(ns // 10**9), nsec=int(ns % 10**9))
 
 
-def _pose(T: np.ndarray | None = None):
+def _identity_pose():
     from foxglove.messages import Pose, Quaternion, Vector3
-    if T is None:
-        return Pose(position=Vector3(x=0.0, y=0.0, z=0.0), orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
-    return Pose(position=Vector3(**dict(zip("xyz", map(float, T[:3, 3] * 1e-3)))),
-                orientation=Quaternion(**dict(zip("xyzw", map(float, _quat(T[:3, :3]))))))
+    return Pose(position=Vector3(x=0.0, y=0.0, z=0.0), orientation=Quaternion(x=0.0, y=0.0, z=0.0, w=1.0))
 
 
 def _quat(R: np.ndarray) -> np.ndarray:
@@ -96,18 +99,19 @@ class Telemetry:
         self.path = Path(mcap_path) if mcap_path is not None else None
         self._writer = self._server = None
         self._channels: dict[str, object] = {}
+        if self.path is not None:
+            if not self.path.parent.is_dir():
+                raise FileNotFoundError(f"output folder does not exist: {self.path.parent}")
+            self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+            self._writer = foxglove.open_mcap(self._tmp, allow_overwrite=True, context=self.ctx)
         if serve is not None:
             host, port = serve
             try:
                 self._server = foxglove.start_server(name=name, host=host, port=int(port), context=self.ctx)
             except RuntimeError as exc:
-                raise OSError(f"cannot serve Foxglove on {host}:{port}: {str(exc).split(': ', 1)[-1]}") from None
-        if self.path is not None:
-            if not self.path.parent.is_dir():
-                self.close()
-                raise FileNotFoundError(f"output folder does not exist: {self.path.parent}")
-            self._tmp = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-            self._writer = foxglove.open_mcap(self._tmp, allow_overwrite=True, context=self.ctx)
+                self.close(keep=False)
+                raise OSError(f"cannot serve Foxglove on {url_host(host)}:{port}: "
+                              f"{str(exc).split(': ', 1)[-1]}") from None
 
     @property
     def port(self) -> int | None:
@@ -136,7 +140,7 @@ class Telemetry:
         self._channel(f"/psvs/{name}", "json").log(json.dumps(_json_safe(data), allow_nan=False).encode(),
                                                    log_time=self.ns(t_s))
 
-    def image(self, t_s: float, image: np.ndarray, frame_id: str = "camera") -> None:
+    def image(self, t_s: float, image: np.ndarray, frame_id: str = CAMERA_FRAME) -> None:
         """The (H, W) uint8 image on /psvs/image."""
         from foxglove.messages import RawImage
         img = np.ascontiguousarray(image, np.uint8)
@@ -159,7 +163,7 @@ class Telemetry:
                                          outline_color=Color(r=rgb[0], g=rgb[1], b=rgb[2], a=1.0), thickness=3.0))
         self._channel("/psvs/edges", "ImageAnnotations").log(ImageAnnotations(points=anns), log_time=ns)
 
-    def points(self, t_s: float, points_mm: np.ndarray, frame_id: str = "camera") -> None:
+    def points(self, t_s: float, points_mm: np.ndarray, frame_id: str = CAMERA_FRAME) -> None:
         """Points (N, 3) mm in ``frame_id`` on /psvs/points (float64 x, y, z in metres; NaN rows dropped)."""
         from foxglove.messages import PackedElementField, PackedElementFieldNumericType, PointCloud
         p = np.asarray(points_mm, float).reshape(-1, 3)
@@ -168,8 +172,8 @@ class Telemetry:
                   for i, n in enumerate("xyz")]
         ns = self.ns(t_s)
         self._channel("/psvs/points", "PointCloud").log(
-            PointCloud(timestamp=_split_ns(ns), frame_id=frame_id, pose=_pose(), point_stride=24, fields=fields,
-                       data=p.tobytes()), log_time=ns)
+            PointCloud(timestamp=_split_ns(ns), frame_id=frame_id, pose=_identity_pose(), point_stride=24,
+                       fields=fields, data=p.tobytes()), log_time=ns)
 
     def transforms(self, t_s: float, parent_child_T: list[tuple[str, str, np.ndarray]]) -> None:
         """Frames on /tf: (parent, child, child2parent (4, 4) mm) each."""
@@ -183,7 +187,7 @@ class Telemetry:
                                       rotation=Quaternion(**dict(zip("xyzw", map(float, q))))))
         self._channel("/tf", "FrameTransforms").log(FrameTransforms(transforms=tfs), log_time=ns)
 
-    def lines(self, t_s: float, lines: dict[str, np.ndarray], frame_id: str = "base") -> None:
+    def lines(self, t_s: float, lines: dict[str, np.ndarray], frame_id: str = BASE_FRAME) -> None:
         """Polylines {id: (N, 3) mm} on /psvs/seam (one scene entity each, replacing the last of that id)."""
         from foxglove.messages import (Color, LinePrimitive, LinePrimitiveLineType, Point3, SceneEntity,
                                        SceneUpdate)
@@ -194,7 +198,7 @@ class Telemetry:
             p = np.asarray(pts, float).reshape(-1, 3)
             p = p[np.all(np.isfinite(p), axis=1)] * 1e-3
             r, g, b = colours[k % 3]
-            line = LinePrimitive(type=LinePrimitiveLineType.LineStrip, pose=_pose(), thickness=2.0,
+            line = LinePrimitive(type=LinePrimitiveLineType.LineStrip, pose=_identity_pose(), thickness=2.0,
                                  scale_invariant=True, points=[Point3(x=float(x), y=float(y), z=float(z))
                                                                for x, y, z in p],
                                  color=Color(r=r, g=g, b=b, a=1.0))
@@ -211,20 +215,23 @@ class Telemetry:
                                                   name="psvs"), log_time=ns)
 
     def close(self, keep: bool = True) -> None:
-        """Stop the server; finish the MCAP file and move it into place (``keep=False``: discard it)."""
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
-            if keep:
-                os.replace(self._tmp, self.path)
-            else:
+        """Stop the server; finish the MCAP file and move it into place (``keep=False``: discard it). The
+        server stops and no temporary file stays behind even when finishing the file fails."""
+        try:
+            if self._writer is not None:
+                writer, self._writer = self._writer, None
+                writer.close()
+                if keep:
+                    os.replace(self._tmp, self.path)
+        finally:
+            if self.path is not None:
                 self._tmp.unlink(missing_ok=True)
-        if self._server is not None:
-            self._server.stop()
-            self._server = None
-        for ch in self._channels.values():
-            ch.close()
-        self._channels = {}
+            if self._server is not None:
+                self._server.stop()
+                self._server = None
+            for ch in self._channels.values():
+                ch.close()
+            self._channels = {}
 
     def __enter__(self):
         return self

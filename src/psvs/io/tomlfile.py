@@ -22,6 +22,21 @@ def load_toml(path, what: str) -> dict:
         raise ValueError(f"{path}: malformed {'JSON' if is_json else 'TOML'}: {exc}") from None
 
 
+def single_table(data: dict, table: str, keys: tuple[str, ...]) -> dict:
+    """The one table ``[table]`` of a file's ``data``, with exactly ``keys``; ValueError naming the first
+    unknown or missing key otherwise."""
+    if set(data) != {table} or not isinstance(data[table], dict):
+        raise ValueError(f"expected one table [{table}]")
+    t = data[table]
+    unknown = sorted(set(t) - set(keys))
+    if unknown:
+        raise ValueError(f"unknown key {table}.{unknown[0]} (allowed: {', '.join(keys)})")
+    missing = [k for k in keys if k not in t]
+    if missing:
+        raise ValueError(f"missing key {table}.{missing[0]}")
+    return t
+
+
 def dumps_toml(data: dict) -> str:
     """TOML text of a nested dict of plain Python values (``tomli-w``; NumPy scalars must be converted
     first: a TypeError names the value, so nothing unreadable is ever written).

@@ -29,7 +29,7 @@ def _typestore():
     return get_typestore(Stores.ROS2_HUMBLE)
 
 
-def _messages(run: TrackRun, ts):
+def _messages(run: TrackRun, ts, t0_ns: int):
     T = ts.types
     Header, Time = T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
     PointField, Pose, PoseStamped = T["sensor_msgs/msg/PointField"], T["geometry_msgs/msg/Pose"], \
@@ -37,7 +37,7 @@ def _messages(run: TrackRun, ts):
     Point, Quat = T["geometry_msgs/msg/Point"], T["geometry_msgs/msg/Quaternion"]
     fields = [PointField(name=n, offset=4 * i, datatype=PointField.FLOAT32, count=1) for i, n in enumerate("xyz")]
     for k, c in enumerate(run.cycles):
-        ns = int(round(c.t_s * 1e9))
+        ns = t0_ns + int(round(c.t_s * 1e9))
         hdr = Header(stamp=Time(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=FRAME)
         h, w = c.image.shape
         img = T["sensor_msgs/msg/Image"](header=Header(stamp=hdr.stamp, frame_id="psvs_camera"), height=h, width=w,
@@ -55,10 +55,11 @@ def _messages(run: TrackRun, ts):
         yield ns, {"/psvs/image": img, "/psvs/seam_points": cloud, "/psvs/seam_path": path}
 
 
-def write_bag(run: TrackRun, path, storage: str = "mcap") -> None:
-    """Write the run as a ROS 2 bag folder at ``path`` in ``storage`` ('mcap': ``bag_0.mcap``, or 'sqlite3':
-    ``bag.db3``, with ``metadata.yaml``): built in a temporary folder beside it and moved into place at the
-    end (an existing bag there is replaced only then)."""
+def write_bag(run: TrackRun, path, storage: str = "mcap", t0_ns: int = 0) -> None:
+    """Write the run as a ROS 2 bag folder at ``path`` in ``storage`` ('mcap': ``bag.mcap``, or 'sqlite3':
+    ``bag.db3``, with ``metadata.yaml``), stamped ``t0_ns`` (ns since the epoch; ``psvs track``: the run's
+    start, as its MCAP recording) plus the simulated time: built in a temporary folder beside it and moved
+    into place at the end (an existing bag there is replaced only then)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     if storage not in STORAGES:
         raise ValueError(f"bag storage must be one of {', '.join(STORAGES)}, got {storage!r}")
@@ -72,7 +73,7 @@ def write_bag(run: TrackRun, path, storage: str = "mcap") -> None:
     try:
         with Writer(tmp, version=8, storage_plugin=plugin) as writer:
             conns = {t: writer.add_connection(t, m, typestore=ts) for t, m in TOPICS.items()}
-            for ns, msgs in _messages(run, ts):
+            for ns, msgs in _messages(run, ts, int(t0_ns)):
                 for topic, msg in msgs.items():
                     writer.write(conns[topic], ns, ts.serialize_cdr(msg, TOPICS[topic]))
         if path.exists():

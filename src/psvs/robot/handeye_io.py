@@ -32,7 +32,7 @@ from scipy.spatial.transform import Rotation
 from psvs.calibrate.target_file import dumps_target, load_target
 from psvs.io.atomic import write_atomic
 from psvs.io.images import read_grey, write_png
-from psvs.io.tomlfile import dumps_toml, load_toml
+from psvs.io.tomlfile import dumps_toml, load_toml, single_table
 from psvs.robot.handeye import HandEyeResult
 from psvs.simulate.textures import CircleGrid
 
@@ -68,15 +68,7 @@ def load_handeye(path) -> HandEyeResult:
 
 
 def _from_dict(data: dict) -> HandEyeResult:
-    if set(data) != {"handeye"} or not isinstance(data["handeye"], dict):
-        raise ValueError("expected one table [handeye]")
-    h = data["handeye"]
-    unknown = sorted(set(h) - set(_KEYS))
-    if unknown:
-        raise ValueError(f"unknown key handeye.{unknown[0]} (allowed: {', '.join(_KEYS)})")
-    missing = [k for k in _KEYS if k not in h]
-    if missing:
-        raise ValueError(f"missing key handeye.{missing[0]}")
+    h = single_table(data, "handeye", _KEYS)
     if h["method"] != METHOD:
         raise ValueError(f"handeye.method must be {METHOD!r}, got {h['method']!r}")
     X = _numbers(h["cam2flange"], "cam2flange")

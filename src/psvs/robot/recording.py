@@ -2,14 +2,17 @@
 shows live and ``--mcap`` records, and what :func:`read_recording` / :func:`replay_recording` read back.
 
 Besides Foxglove's channels (the sensor window on /psvs/image, the seam points on /psvs/points in the base
-frame, base -> flange -> camera and flange -> torch on /tf, the path model and the torch path on
-/psvs/seam, status on /psvs/log), a recording holds what the controller needs to run again, exactly:
+frame, base_link -> flange -> psvs_optical_frame and flange -> torch on /tf, the path model and the torch
+path on /psvs/seam, status on /psvs/log), a recording holds what the controller needs to run again,
+exactly:
 
 - ``/psvs/setup`` (once, at t = 0): the TrackConfig, the hand-eye transform cam2flange, the teach point,
   the taught direction of travel and the seed pixel (null: found on the first frame);
 - ``/psvs/cycle`` (every frame): t_s, the flange pose flange2base at the exposure (the controller's
   input), the torch pose tool2base commanded (its output), the arm's fault, and the controller's state
-  (s_mm, valid, reason) for reading. Matrices as 16 row-major floats in mm, written exactly (JSON repr).
+  (s_mm, valid, reason) for reading. Matrices as 16 row-major floats in mm, written exactly (JSON repr);
+- ``/psvs/stop`` (once, at the last cycle): why the run ended. A recording without it was cut short
+  (e.g. Ctrl-C): it still replays, and the replay says so.
 
 The frames are /psvs/image's mono8 bytes, losslessly. Everything shares one log time per cycle.
 """
@@ -21,11 +24,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from psvs.io.telemetry import BASE_FRAME, CAMERA_FRAME, FLANGE_FRAME, TORCH_FRAME
 from psvs.robot.cells import Frame
 from psvs.robot.controller import TrackConfig
 
 #: Every topic of a ``psvs track`` recording.
-TOPICS = ("/psvs/setup", "/psvs/cycle", "/psvs/image", "/psvs/points", "/tf", "/psvs/seam", "/psvs/log")
+TOPICS = ("/psvs/setup", "/psvs/cycle", "/psvs/image", "/psvs/points", "/tf", "/psvs/seam", "/psvs/log",
+          "/psvs/stop")
+#: The torch path shown on /psvs/seam: a point every TORCH_STEP_MM, the last TORCH_POINTS of them.
+TORCH_STEP_MM, TORCH_POINTS = 1.0, 500
 
 
 def _mat(a) -> list[float]:
@@ -38,6 +45,12 @@ def publish_setup(tel, cfg: TrackConfig, cam2flange: np.ndarray, taught_mm, trav
                               "cam2flange": _mat(cam2flange), "taught_mm": _mat(taught_mm),
                               "travel": _mat(travel), "seed_px": None if seed_px is None else _mat(seed_px)})
     tel.log(0.0, f"tracking at {cfg.speed_mm_s:g} mm/s, {cfg.rate_hz:g} Hz")
+
+
+def publish_stop(tel, t_s: float, reason: str) -> None:
+    """The run's /psvs/stop record and a status line, at the last cycle's time."""
+    tel.record("stop", t_s, {"reason": reason})
+    tel.log(t_s, f"stop: {reason}")
 
 
 class CyclePublisher:
@@ -53,11 +66,12 @@ class CyclePublisher:
         tel.record("cycle", t, {"t_s": t, "flange2base": _mat(c.flange2base), "tool2base": _mat(c.tool2base),
                                 "fault": c.fault, "s_mm": c.s_mm, "valid": bool(c.valid), "reason": c.reason})
         tel.image(t, c.image)
-        tel.points(t, c.points_mm, frame_id="base")
-        tel.transforms(t, [("base", "flange", c.flange2base), ("flange", "camera", self.cam),
-                           ("flange", "torch", self.tool)])
-        self.torch.append(c.tcp_mm)
-        tel.lines(t, {"taught_seam": c.path_mm, "torch_path": np.array(self.torch)})
+        tel.points(t, c.points_mm, frame_id=BASE_FRAME)
+        tel.transforms(t, [(BASE_FRAME, FLANGE_FRAME, c.flange2base), (FLANGE_FRAME, CAMERA_FRAME, self.cam),
+                           (FLANGE_FRAME, TORCH_FRAME, self.tool)])
+        if not self.torch or np.linalg.norm(c.tcp_mm - self.torch[-1]) >= TORCH_STEP_MM:
+            self.torch = self.torch[-(TORCH_POINTS - 1):] + [np.asarray(c.tcp_mm, float)]
+        tel.lines(t, {"taught_seam": c.path_mm, "torch_path": np.array(self.torch + [c.tcp_mm])})
         if c.fault:
             tel.log(t, f"arm fault: {c.fault}", "error")
         elif c.reason != self._last_reason and c.reason:
@@ -78,59 +92,74 @@ class Recording:
     frames: list[Frame]
     commands: list[np.ndarray]
     faults: list[str]
+    stop_reason: str | None        # None: the recording was cut short
 
 
 def read_recording(path) -> Recording:
     """Read a ``psvs track --mcap`` file with the ``mcap`` reader (images decoded with protobuf from the
     schema the file carries). ValueError names what is missing or unreadable."""
-    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
-    from mcap.exceptions import McapError
-    from mcap.reader import make_reader
-    setup, cycles, images = None, {}, {}
-    image_cls = None
     try:
-        with open(path, "rb") as f:
-            for schema, channel, msg in make_reader(f).iter_messages(topics=["/psvs/setup", "/psvs/cycle",
-                                                                             "/psvs/image"]):
-                if channel.topic == "/psvs/setup":
-                    setup = json.loads(msg.data)
-                elif channel.topic == "/psvs/cycle":
-                    cycles[msg.log_time] = json.loads(msg.data)
-                else:
-                    if image_cls is None:
-                        pool = descriptor_pool.DescriptorPool()
-                        for fd in descriptor_pb2.FileDescriptorSet.FromString(schema.data).file:
-                            pool.Add(fd)
-                        image_cls = message_factory.GetMessageClass(pool.FindMessageTypeByName(schema.name))
-                    images[msg.log_time] = image_cls.FromString(msg.data)
-    except (McapError, OSError, ValueError, KeyError, struct.error) as exc:
-        if isinstance(exc, FileNotFoundError):
-            raise
-        raise ValueError(f"cannot read the recording {path}: {exc or type(exc).__name__}") from None
+        rec = _read(path)
+    except FileNotFoundError:
+        raise
+    except ValueError as exc:
+        raise ValueError(f"{path}: {exc}") from None
+    except Exception as exc:       # the mcap reader's, zstd's and protobuf's errors: a damaged file
+        raise ValueError(f"cannot read the recording {path}: {str(exc) or type(exc).__name__}") from None
+    return rec
+
+
+def _read(path) -> Recording:
+    from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+    from mcap.reader import make_reader
+    setup, stop, cycles, images = None, None, {}, {}
+    image_cls = None
+    with open(path, "rb") as f:
+        for schema, channel, msg in make_reader(f).iter_messages(
+                topics=["/psvs/setup", "/psvs/cycle", "/psvs/image", "/psvs/stop"]):
+            if channel.topic == "/psvs/setup":
+                setup = json.loads(msg.data)
+            elif channel.topic == "/psvs/stop":
+                stop = json.loads(msg.data)["reason"]
+            elif channel.topic == "/psvs/cycle":
+                cycles[msg.log_time] = json.loads(msg.data)
+            else:
+                if image_cls is None:
+                    if schema is None or schema.encoding != "protobuf":
+                        raise ValueError("/psvs/image has no protobuf schema")
+                    pool = descriptor_pool.DescriptorPool()
+                    for fd in descriptor_pb2.FileDescriptorSet.FromString(schema.data).file:
+                        pool.Add(fd)
+                    image_cls = message_factory.GetMessageClass(pool.FindMessageTypeByName(schema.name))
+                images[msg.log_time] = image_cls.FromString(msg.data)
     if setup is None or not cycles:
-        raise ValueError(f"{path} is not a psvs track recording: no /psvs/setup or /psvs/cycle messages")
+        raise ValueError("not a psvs track recording: no /psvs/setup or /psvs/cycle messages")
     missing = sorted(set(cycles) - set(images))
     if missing:
-        raise ValueError(f"{path}: {len(missing)} cycles have no /psvs/image frame")
+        raise ValueError(f"{len(missing)} cycles have no /psvs/image frame")
     frames, commands, faults = [], [], []
-    for ns in sorted(cycles):
-        c, img = cycles[ns], images[ns]
-        if img.encoding != "mono8" or len(img.data) != img.width * img.height:
-            raise ValueError(f"{path}: a /psvs/image frame is not {img.width}x{img.height} mono8")
-        image = np.frombuffer(img.data, np.uint8).reshape(img.height, img.width)
-        frames.append(Frame(c["t_s"], np.array(c["flange2base"], float).reshape(4, 4), image))
-        commands.append(np.array(c["tool2base"], float).reshape(4, 4))
-        faults.append(c["fault"])
-    seed = setup["seed_px"]
-    return Recording(TrackConfig(**setup["config"]), np.array(setup["cam2flange"], float).reshape(4, 4),
-                     np.array(setup["taught_mm"], float), np.array(setup["travel"], float),
-                     None if seed is None else tuple(seed), frames, commands, faults)
+    try:
+        for ns in sorted(cycles):
+            c, img = cycles[ns], images[ns]
+            if img.encoding != "mono8" or len(img.data) != img.width * img.height:
+                raise ValueError(f"a /psvs/image frame is not {img.width}x{img.height} mono8")
+            image = np.frombuffer(img.data, np.uint8).reshape(img.height, img.width)
+            frames.append(Frame(float(c["t_s"]), np.array(c["flange2base"], float).reshape(4, 4), image))
+            commands.append(np.array(c["tool2base"], float).reshape(4, 4))
+            faults.append(str(c["fault"]))
+        seed = setup["seed_px"]
+        return Recording(TrackConfig(**setup["config"]), np.array(setup["cam2flange"], float).reshape(4, 4),
+                         np.array(setup["taught_mm"], float), np.array(setup["travel"], float),
+                         None if seed is None else tuple(seed), frames, commands, faults, stop)
+    except (KeyError, TypeError) as exc:
+        raise ValueError(f"a /psvs/setup or /psvs/cycle record lacks or mistypes {exc}") from None
 
 
 def replay_recording(path, rig):
     """Run a fresh controller and seam sensor (over ``rig``) on a recording's frames and flange poses:
-    :func:`psvs.robot.loop.replay_cell`; returns the replay cell (``mismatches`` empty: reproduced)."""
+    :func:`psvs.robot.loop.replay_cell`; returns (the :class:`Recording`, the replay cell: ``mismatches``
+    empty when every command was reproduced)."""
     from psvs.robot.loop import replay_cell
     rec = read_recording(path)
-    return replay_cell(rec.config, rec.cam2flange, rec.taught_mm, rec.travel, rec.seed_px, rec.frames,
-                       rec.commands, rec.faults, rig)
+    return rec, replay_cell(rec.config, rec.cam2flange, rec.taught_mm, rec.travel, rec.seed_px, rec.frames,
+                            rec.commands, rec.faults, rig)
