@@ -19,7 +19,6 @@ The frames are /psvs/image's mono8 bytes, losslessly. Everything shares one log 
 from __future__ import annotations
 
 import json
-import struct
 from dataclasses import dataclass
 
 import numpy as np

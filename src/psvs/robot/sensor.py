@@ -275,7 +275,7 @@ class SeamSensor:
             g = img[max(0, row - 1): row + 2].mean(axis=0)
             return np.sign(g[min(w - 1, u + 2)] + g[min(w - 1, u + 1)] - g[max(0, u - 1)] - g[max(0, u - 2)])
 
-        (lu, lv), (ru, rv) = px.left_uv, px.right_uv
+        ru, rv = px.right_uv
         if self.rect is None:
             (la, va), (lb, vb) = (ua, v), (ub, v)
         else:
