@@ -1,5 +1,8 @@
 """The psvs command line: exit codes and messages (typer CliRunner style, in-process)."""
 import json
+import os
+import subprocess
+import sys
 import tomllib
 from pathlib import Path
 
@@ -29,6 +32,31 @@ def test_help(capsys, cmd):
         main([cmd, "--help"])
     assert info.value.code == 0
     assert "usage: psvs " + cmd in capsys.readouterr().out
+
+
+def test_main_help_lists_every_command(capsys):
+    from psvs.cli.main import COMMANDS
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert all(name in out for name in COMMANDS) and len(COMMANDS) == 20
+
+
+def test_a_command_loads_only_its_own_module():
+    """``psvs track`` must start fast: building its parser loads no other command, and the arm's
+    kinematics load no robotics toolbox (a 2 s import)."""
+    code = ("import sys\n"
+            "from psvs.cli.main import build_parser\n"
+            "build_parser('track').parse_args(['track', 'weld_seam', '--rig', 'default', '-o', 'x'])\n"
+            "from psvs.robot.arm import Arm\n"
+            "from psvs.robot.loop import HOME_Q\n"
+            "arm = Arm(HOME_Q)\n"
+            "assert abs(arm.ikine(arm.fkine()) - HOME_Q).max() < 1e-9\n"
+            "print(sorted(m for m in sys.modules if m.startswith('psvs.cli.')), 'roboticstoolbox' in sys.modules)\n")
+    env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout.split()
+    assert out == ["['psvs.cli.common',", "'psvs.cli.main',", "'psvs.cli.track_cmd']", "False"]
 
 
 @pytest.fixture

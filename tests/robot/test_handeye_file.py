@@ -95,7 +95,9 @@ def test_views_folder_round_trips_and_calibrates_without_a_guess(session, tmp_pa
     free = calibrate_from_views(imgs2, fl2, default_rig(), grid)
     guided = calibrate_from_views(images, flanges, default_rig(), CELL_GRID, nominal_cam2flange(cfg), CELL_TARGET2BASE)
     assert np.allclose(free.cam2flange, guided.cam2flange, atol=1e-6)
-    assert np.linalg.norm(free.cam2flange[:3, 3] - true_cam2flange(cfg)[:3, 3]) < 1.0
+    # 8 views pin the translation to about 1 mm (0.97 mm with the toolbox's IK, whose 10 um tolerance moved
+    # the flange poses; 1.15 mm with exact IK); the cell's default 12 views to 0.4 mm
+    assert np.linalg.norm(free.cam2flange[:3, 3] - true_cam2flange(cfg)[:3, 3]) < 1.5
     assert free.spread_mm < 0.3
 
 
@@ -132,6 +134,9 @@ def test_cli_handeye_then_track_with_the_file(session, tmp_path, capsys):
     run = tmp_path / "run"
     assert main(["track", "weld_seam", "--rig", "default", "--handeye", str(he), "--speed", "25", "--length", "5",
                  "--no-bag", "-o", str(run)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "tracking: first control cycle done"      # said when it happens, before the summary
+    assert out[1].startswith("set-up before the first control cycle:")
     rep = json.loads((run / "report.json").read_text())
     assert rep["stop"]["reason"] == "weld length reached"
     assert rep["lateral_mm"]["rms"] <= 0.2 and rep["lateral_mm"]["max"] <= 0.5

@@ -1,18 +1,20 @@
-"""``psvs`` entry point: one subcommand per module; bad input exits 2 with a one-line message."""
+"""``psvs`` entry point: one subcommand per module; bad input exits 2 with a one-line message.
+
+A command's module is psvs.cli.<command>_cmd (dashes as underscores). ``psvs COMMAND ...`` imports only that
+command's module, so a command starts without loading every other command's libraries (``psvs track``
+must reach its first control cycle within 2 s); ``psvs --help`` and an unknown command load them all.
+"""
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 
-from psvs.cli import (calibrate_cmd, card_views_cmd, demo_cmd, dense_eval_cmd, design_cmd, disparity_cmd,
-                      export_calibration_cmd, fit_refraction_cmd, handeye_cmd, live_cmd, match_cmd, measure_cmd,
-                      replay_cmd, rig_cmd, serve_cmd, simulate_cmd, sweep_views_cmd, table1_cmd, track_cmd,
-                      triangulate_cmd)
 from psvs.errors import RigGeometryError
 
-COMMANDS = (demo_cmd, rig_cmd, design_cmd, triangulate_cmd, fit_refraction_cmd, simulate_cmd, match_cmd,
-            measure_cmd, calibrate_cmd, card_views_cmd, sweep_views_cmd, table1_cmd, disparity_cmd, dense_eval_cmd,
-            serve_cmd, live_cmd, handeye_cmd, track_cmd, replay_cmd, export_calibration_cmd)
+COMMANDS = ("demo", "rig", "design", "triangulate", "fit-refraction", "simulate", "match", "measure", "calibrate",
+            "card-views", "sweep-views", "table1", "disparity", "dense-eval", "serve", "live", "handeye", "track",
+            "replay", "export-calibration")
 
 
 class _Parser(argparse.ArgumentParser):
@@ -20,16 +22,18 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The ``psvs`` parser with every command, or with the command ``only`` alone."""
     parser = _Parser(prog="psvs", description="Pseudo Stereo Vision System toolkit (Pachidis & Lygouras).")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser, required=True)
-    for mod in COMMANDS:
-        mod.add_parser(sub)
+    for name in COMMANDS if only is None else (only,):
+        importlib.import_module(f"psvs.cli.{name.replace('-', '_')}_cmd").add_parser(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else list(argv)
+    parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
     args = parser.parse_args(argv)
     try:
         return int(args.run(args) or 0)

@@ -76,8 +76,17 @@ def run(args) -> int:
                 publish_setup(tel, cfg, cam2flange, taught, travel, seed)
                 publisher.append(CyclePublisher(tel, cam2flange, tool2flange()))
 
+        started = []
+
+        def on_cycle(c):
+            if not started:     # the run has started (what bench/bench_track.py times from the command's start)
+                print("tracking: first control cycle done", flush=True)
+                started.append(True)
+            if publisher:
+                publisher[0](c)
+
         result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, on_start=on_start,
-                       progress=lambda c: publisher and publisher[0](c))
+                       progress=on_cycle)
         if tel is not None:
             from psvs.robot.recording import publish_stop
             publish_stop(tel, result.cycles[-1].t_s, result.stop.reason)

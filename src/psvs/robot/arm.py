@@ -1,9 +1,9 @@
 """A PUMA-family 6R arm in mm: forward/inverse kinematics and a rate-limited joint servo.
 
-The kinematics are roboticstoolbox-python's ``Puma560`` (standard DH, Corke). The paper's PUMA 761 is
-the same Unimation PUMA family (a larger 700-series arm with the same 6R layout: a shoulder, an elbow and
-a spherical wrist), so a tracking loop tuned here carries over with the 761's DH table. The toolbox
-works in metres; this module converts at its boundary (mm everywhere else).
+The kinematics are the PUMA 560 of roboticstoolbox-python's ``Puma560`` (standard DH, Corke), computed by
+psvs.robot.kinematics (checked against the toolbox in the tests). The paper's PUMA 761 is the same
+Unimation PUMA family (a larger 700-series arm with the same 6R layout: a shoulder, an elbow and a
+spherical wrist), so a tracking loop tuned here carries over with the 761's DH table.
 
 The servo stands in for the joint controller: every control cycle receives one joint set-point and
 interpolates toward it at ``servo_rate_hz`` with the joint velocity and acceleration limits enforced,
@@ -17,12 +17,7 @@ from functools import cached_property
 
 import numpy as np
 
-M_PER_MM = 1e-3
-
-
-def _puma():
-    import roboticstoolbox as rtb  # heavy import: only when an arm is built
-    return rtb.models.DH.Puma560()
+from psvs.robot.kinematics import PUMA560, DHChain, ikine_lm
 
 
 @dataclass(frozen=True)
@@ -64,12 +59,14 @@ class Arm:
     q : (6,) rad
         Initial joint angles.
     limits : ArmLimits
+    chain : DHChain
+        The arm's kinematics (default: the PUMA 560).
     """
 
-    def __init__(self, q, limits: ArmLimits = ArmLimits()):
-        self.robot = _puma()
+    def __init__(self, q, limits: ArmLimits = ArmLimits(), chain: DHChain = PUMA560):
+        self.chain = chain
         self.limits = limits
-        self.qlim = np.asarray(limits.qlim if limits.qlim is not None else self.robot.qlim, float)
+        self.qlim = np.asarray(limits.qlim if limits.qlim is not None else chain.qlim, float)
         self.q = np.asarray(q, float).copy()
         if self.q.shape != (6,):
             raise ValueError(f"q must have 6 joint angles, got shape {self.q.shape}")
@@ -91,21 +88,18 @@ class Arm:
 
     def fkine(self, q=None) -> np.ndarray:
         """flange2base (4, 4), mm, at joint angles q (default: the current ones)."""
-        T = np.array(self.robot.fkine(self.q if q is None else np.asarray(q, float)).A)
-        T[:3, 3] /= M_PER_MM
-        return T
+        return self.chain.fkine(self.q if q is None else np.asarray(q, float))
 
     def ikine(self, flange2base: np.ndarray, q0=None, max_step_rad: float | None = None) -> np.ndarray:
         """Joint angles (6,) rad reaching ``flange2base`` (4, 4, mm): Levenberg-Marquardt from ``q0``
         (default: the current joints), so the solution is the one nearest it, in the same arm
         configuration. ValueError when unreachable, outside the joint range, or (``max_step_rad``) when
         the solution is more than that from ``q0`` in any joint: another configuration, a joint-space jump."""
-        T = np.array(flange2base, float)
-        T[:3, 3] *= M_PER_MM
         q0 = self.q if q0 is None else np.asarray(q0, float)
-        sol = self.robot.ikine_LM(T, q0=q0, joint_limits=True, tol=1e-10, ilimit=200, slimit=1)
+        sol = ikine_lm(self.chain, flange2base, q0)
         if not sol.success:
-            raise ValueError(f"pose unreachable: inverse kinematics failed ({sol.reason})")
+            raise ValueError(f"pose unreachable: inverse kinematics stopped {sol.position_error_mm:.3g} mm and "
+                             f"{np.degrees(sol.rotation_error_rad):.3g} deg from it")
         q = np.asarray(sol.q, float)
         q = q0 + (q - q0 + np.pi) % (2 * np.pi) - np.pi   # the same angle nearest q0
         if not self.within_limits(q):

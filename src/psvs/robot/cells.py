@@ -28,6 +28,9 @@ from psvs.robot.cell import tool2flange
 from psvs.robot.controller import Command, Observation, SeamTracker
 from psvs.robot.sensor import SeamSensor, auto_seed
 from psvs.robot.workpiece import Workpiece
+
+#: The arm is at rest when every joint turns slower than this (rad/s): the torch then moves < 0.1 mm/s.
+REST_SPEED_RAD_S = 1e-4
 from psvs.simulate.render import render
 from psvs.simulate.sensor import Sensor
 from psvs.simulate.sequence import scene_in_rig_frame
@@ -75,7 +78,7 @@ class SimulatedCell:
         return self.arm.stop(self.dt)
 
     def at_rest(self) -> bool:
-        return bool(np.max(np.abs(self.arm.qd)) < 1e-6)
+        return bool(np.max(np.abs(self.arm.qd)) < REST_SPEED_RAD_S)
 
     def tcp_mm(self) -> np.ndarray:
         """(3,) the torch tip where the arm really is."""
