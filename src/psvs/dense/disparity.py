@@ -33,11 +33,11 @@ from functools import partial
 import cv2
 import numba as nb
 import numpy as np
-from scipy.ndimage import median_filter
 
 from psvs._memory import check_memory
 from psvs.dense.cost import (NO_TWIN, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost,
                              one_sided_cost, pick)
+from psvs.dense.median import median_filter
 from psvs.dense.sgm import aggregate as sgm_aggregate
 from psvs.match.correspondence import disparity_range
 from psvs.optics.rig import Rig
@@ -247,7 +247,7 @@ def _median(d: np.ndarray, size: int) -> np.ndarray:
     finite = np.isfinite(d)
     if not finite.any():
         return d
-    out = median_filter(np.where(finite, d, np.nanmedian(d)), size=size, mode="nearest")
+    out = median_filter(np.where(finite, d, np.nanmedian(d)), size)
     return np.where(np.isnan(d) & ~finite.any(axis=1, keepdims=True), np.nan, out)
 
 
