@@ -220,9 +220,10 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     lags = np.arange(lo, hi + 1)
     guide = unit_scaled(img)
     echo = weighted_echo(img, lags, p, guide, img_right)
-    aggregate = partial(sgm_aggregate, p1=p.p1, p2=p.p2, n_paths=p.n_paths,
-                        guide=cv2.GaussianBlur(guide, (0, 0), 1.0), tau=p.edge_contrast)
     fused = fused_cost(echo, lags)
+    aggregate = partial(sgm_aggregate, p1=p.p1, p2=p.p2, n_paths=p.n_paths,    # one pair of volumes for all
+                        guide=cv2.GaussianBlur(guide, (0, 0), 1.0), tau=p.edge_contrast,
+                        out=np.empty_like(fused), work=np.empty_like(fused))
     d, own, other = pick(aggregate(fused), echo, lags)
     keep_l = own >= other - p.ownership_margin
     keep_r = other >= own - p.ownership_margin

@@ -24,36 +24,49 @@ PATHS = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1))
 _BIG = np.float32(1e30)   # the padding of a path's row: never the minimum (finite: the kernels use fastmath)
 
 
-@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _step(c, src, m, jump, p1, dst, acc):  # pragma: no cover - compiled
-    """One path step: dst[1 + d] = c[d] + min(src[1+d], src[d] + p1, src[2+d] + p1, jump) − m, added to
-    acc[d]; returns its minimum. (Three loops: the sum or the minimum taken in the first keeps it from
-    vectorising.)"""
-    n = c.shape[0]
-    for d in range(n):
-        near = min(src[d], src[d + 2]) + p1
-        dst[d + 1] = c[d] + min(near, min(src[d + 1], jump)) - m
-    for d in range(n):
-        acc[d] += dst[d + 1]
-    return _row_min(dst, n)
-
+# The kernels index whole arrays (row numbers, then the disparity from a range) instead of taking a view
+# per pixel: a view costs reference counting, and a variable offset added to the disparity would bring
+# Numba's negative-index wrap-around into the inner loop, which then does not vectorise.
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _start(c, dst, acc):  # pragma: no cover - compiled
-    """A path's first pixel: its cost, added to acc; the minimum."""
-    n = c.shape[0]
+def _step(cost, y, x, src, ks, xs, m, jump, p1, dst, kd, xd, acc):  # pragma: no cover - compiled
+    """One path step: dst[kd, xd, 1 + d] = cost[y, x, d] + min(src[ks, xs, 1 + d], src[ks, xs, d] + p1,
+    src[ks, xs, 2 + d] + p1, jump) − m, added to acc[y, x, d]; returns its minimum."""
+    n = cost.shape[2]
     for d in range(n):
-        dst[d + 1] = c[d]
-        acc[d] += c[d]
-    return _row_min(dst, n)
+        near = min(src[ks, xs, d], src[ks, xs, d + 2]) + p1
+        dst[kd, xd, d + 1] = cost[y, x, d] + min(near, min(src[ks, xs, d + 1], jump)) - m
+    for d in range(n):
+        acc[y, x, d] += dst[kd, xd, d + 1]
+    return _row_min(dst, kd, xd, n)
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _row_min(row, n):  # pragma: no cover - compiled
-    best = _BIG
-    for d in range(1, n + 1):
-        best = min(best, row[d])
-    return best
+def _start(cost, y, x, dst, kd, xd, acc):  # pragma: no cover - compiled
+    """A path's first pixel: its cost into dst[kd, xd, 1:], added to acc; the minimum."""
+    n = cost.shape[2]
+    for d in range(n):
+        dst[kd, xd, d + 1] = cost[y, x, d]
+        acc[y, x, d] += cost[y, x, d]
+    return _row_min(dst, kd, xd, n)
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _row_min(row, k, x, n):  # pragma: no cover - compiled
+    """min(row[k, x, 1:n + 1]) in eight independent lanes (a one-accumulator float minimum does not
+    vectorise)."""
+    m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = _BIG
+    d = 1
+    while d + 8 <= n + 1:
+        m0, m1 = min(m0, row[k, x, d]), min(m1, row[k, x, d + 1])
+        m2, m3 = min(m2, row[k, x, d + 2]), min(m3, row[k, x, d + 3])
+        m4, m5 = min(m4, row[k, x, d + 4]), min(m5, row[k, x, d + 5])
+        m6, m7 = min(m6, row[k, x, d + 6]), min(m7, row[k, x, d + 7])
+        d += 8
+    while d <= n:
+        m0 = min(m0, row[k, x, d])
+        d += 1
+    return min(min(min(m0, m1), min(m2, m3)), min(min(m4, m5), min(m6, m7)))
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
@@ -65,7 +78,7 @@ def _penalty(g, g_prev, p1, p2, tau):  # pragma: no cover - compiled
 
 @nb.njit(cache=True, nogil=True, fastmath=True)
 def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
-    """Sum (into ``out``) of the paths of one pass: down (rows top to bottom, x left to right) takes the paths
+    """Sum (written to ``out``) of the paths of one pass: down (rows top to bottom, x left to right) takes the paths
     arriving from x − 1 in the row, and from the previous row at x (and x − 1, x + 1 with ``diagonals``);
     up the mirror images. Rows of path costs are padded: index 1 + d holds disparity d."""
     h, w, n = cost.shape
@@ -75,40 +88,50 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
     cur = np.full((n_rows, w, n + 2), _BIG, np.float32)
     prev_min = np.zeros((n_rows, w), np.float32)
     cur_min = np.zeros((n_rows, w), np.float32)
-    hor = np.full((2, n + 2), _BIG, np.float32)  # the row path: previous pixel, this pixel
+    hor = np.full((2, 1, n + 2), _BIG, np.float32)   # the row path: previous pixel, this pixel
     hor_min = np.float32(0.0)
     for iy in range(h):
         y = iy if down else h - 1 - iy
         for ix in range(w):
             x = ix if down else w - 1 - ix
-            c = cost[y, x]
             g = guide[y, x]
-            acc = out[y, x]
+            for d in range(n):                   # the sum starts here: no zeroed volume needed
+                out[y, x, d] = 0.0
             a = ix & 1                           # the row path's buffers alternate
             if ix == 0:
-                hor_min = _start(c, hor[a], acc)
+                hor_min = _start(cost, y, x, hor, a, 0, out)
             else:
                 jump = hor_min + _penalty(g, guide[y, x - s], p1, p2, tau)
-                hor_min = _step(c, hor[1 - a], hor_min, jump, p1, hor[a], acc)
+                hor_min = _step(cost, y, x, hor, 1 - a, 0, hor_min, jump, p1, hor, a, 0, out)
             for k in range(n_rows):
                 px = x if k == 0 else (x - s if k == 1 else x + s)
                 if iy == 0 or px < 0 or px >= w:
-                    cur_min[k, x] = _start(c, cur[k, x], acc)
+                    cur_min[k, x] = _start(cost, y, x, cur, k, x, out)
                 else:
                     m = prev_min[k, px]
                     jump = m + _penalty(g, guide[y - s, px], p1, p2, tau)
-                    cur_min[k, x] = _step(c, prev[k, px], m, jump, p1, cur[k, x], acc)
+                    cur_min[k, x] = _step(cost, y, x, prev, k, px, m, jump, p1, cur, k, x, out)
         prev, cur = cur, prev
         prev_min, cur_min = cur_min, prev_min
 
 
+@nb.njit(cache=True, parallel=True, fastmath=True)
+def _add_into(a, b):  # pragma: no cover - compiled
+    a1, b1 = a.reshape(-1), b.reshape(-1)
+    for i in nb.prange(a1.shape[0]):
+        a1[i] += b1[i]
+
+
 def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads: int = 2,
-              guide: np.ndarray | None = None, tau: float = 1.0) -> np.ndarray:
+              guide: np.ndarray | None = None, tau: float = 1.0, out: np.ndarray | None = None,
+              work: np.ndarray | None = None) -> np.ndarray:
     """Sum over ``n_paths`` (4 or 8) of the SGM path costs of ``cost`` (H, W, D), float32 (H, W, D).
 
     ``p1`` penalises a one-step disparity change between neighbours, ``p2`` (≥ p1) any larger jump, both in
     the cost's units. With ``guide`` (H, W), a jump between neighbours whose guide values differ by g costs
-    max(p1, p2 / (1 + g / tau)) instead (``tau`` in the guide's units)."""
+    max(p1, p2 / (1 + g / tau)) instead (``tau`` in the guide's units). ``out`` and ``work`` (float32, the
+    cost's shape), when given, are used instead of new volumes (the result is ``out``): a caller that
+    aggregates several times reuses them, and fresh memory costs page faults."""
     if n_paths not in (4, 8):
         raise ValueError(f"n_paths must be 4 or 8, got {n_paths}")
     if not 0 <= p1 <= p2:
@@ -121,7 +144,13 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     guide = np.ascontiguousarray(guide, dtype=np.float32)
     if guide.shape != cost.shape[:2]:
         raise ValueError(f"guide {guide.shape} must match the cost's image size {cost.shape[:2]}")
-    outs = [np.zeros_like(cost), np.zeros_like(cost)]
+    outs = []
+    for buf in (out, work):
+        if buf is None:
+            buf = np.empty_like(cost)
+        elif buf.shape != cost.shape or buf.dtype != np.float32 or not buf.flags.c_contiguous:
+            raise ValueError(f"SGM buffers must be contiguous float32 {cost.shape}, got {buf.dtype} {buf.shape}")
+        outs.append(buf)
     args = (np.float32(p1), np.float32(p2), guide, np.float32(tau))
     diagonals = n_paths == 8
     if threads < 2:
@@ -130,6 +159,5 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     else:
         with ThreadPoolExecutor(2) as pool:
             list(pool.map(lambda k: _pass(cost, outs[k], k == 0, diagonals, *args), range(2)))
-    total = outs[0]
-    total += outs[1]
-    return total
+    _add_into(outs[0], outs[1])
+    return outs[0]
