@@ -10,27 +10,18 @@ from mcap.reader import make_reader
 
 from psvs.cli.main import main
 from psvs.io.params import load_rig
-from psvs.io.video import write_video
 from psvs.live.dense import DenseSensor
-from psvs.live.simulated import SimulatedSequence, ping_pong_positions
 from psvs.optics.rig import default_rig
-from psvs.simulate.builtin import _photo, regulated_light
-from psvs.simulate.scene import Scene
+from tests.conftest import write_wall_video
 from tests.live.test_foxglove import proto_class
-
-WALL_MM = 700.0
 
 
 @pytest.fixture(scope="module", params=["default", "misaligned"])
 def wall_video(request, tmp_path_factory):
-    """6 frames (30/s) of a grass-photo wall filling the view at 700 mm, the rig moving 0..-40 mm in depth
-    (3 positions), rendered through the rig as built: (rig name, video path, true depth per frame)."""
+    """The photo wall's video (tests.conftest.write_wall_video) through the rig as built: (rig name, path,
+    true depth per frame)."""
     rig = default_rig() if request.param == "default" else load_rig("misaligned")
-    scene = Scene((), regulated_light(WALL_MM), WALL_MM, _photo("grass", (1400.0, 1050.0)), "wall")
-    positions = ping_pong_positions(6, [0.0, 0.0, -40.0], 3)
-    path = tmp_path_factory.mktemp("dense_video") / "wall.avi"
-    assert write_video(path, SimulatedSequence(scene, rig, positions, seed=5), fps=30.0) == 6
-    return request.param, path, WALL_MM - positions[:, 2]
+    return (request.param, *write_wall_video(tmp_path_factory.mktemp("dense_video"), rig))
 
 
 def test_live_dense_depth_every_frame_log_and_mcap(wall_video, tmp_path, capsys):
