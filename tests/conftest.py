@@ -60,6 +60,29 @@ def disc_video(tmp_path_factory):
     return path, 760.0 - positions[:, 2], rig, scene, positions
 
 
+WALL_MM = 700.0
+
+
+def write_wall_video(folder, rig, frames: int = 6):
+    """``frames`` frames (30/s, FFV1) of a grass-photo wall filling the view at 700 mm, the rig moving 0..-40 mm
+    in depth over 3 positions, rendered through ``rig``: (path, true depth of every pixel per frame (mm))."""
+    from psvs.io.video import write_video
+    from psvs.live.simulated import SimulatedSequence, ping_pong_positions
+    from psvs.simulate.builtin import _photo, regulated_light
+    from psvs.simulate.scene import Scene
+    scene = Scene((), regulated_light(WALL_MM), WALL_MM, _photo("grass", (1400.0, 1050.0)), "wall")
+    positions = ping_pong_positions(frames, [0.0, 0.0, -40.0], 3)
+    path = Path(folder) / "wall.avi"
+    assert write_video(path, SimulatedSequence(scene, rig, positions, seed=5), fps=30.0) == frames
+    return path, WALL_MM - positions[:, 2]
+
+
+@pytest.fixture(scope="session")
+def wall_video(tmp_path_factory):
+    """:func:`write_wall_video` through the default rig."""
+    return write_wall_video(tmp_path_factory.mktemp("wall"), default_rig())
+
+
 def kabsch(src: np.ndarray, dst: np.ndarray):
     """Rotation (3, 3) and translation (3,) minimising |R src + t - dst| (independent of psvs)."""
     cs, cd = src.mean(axis=0), dst.mean(axis=0)

@@ -99,3 +99,28 @@ def test_filter_volume_is_a_double_box_mean_under_a_flat_guide_and_stops_at_guid
     guide = np.where(np.arange(40) < 20, 0.0, 1.0)[None, :].repeat(30, 0).astype(np.float32)
     out = filter_volume(step, guide, 4, 1e-4)[0]
     assert np.all(out[:, 15:20] > 0.98) and np.all(np.abs(out[:, 20:25]) < 0.02)
+
+
+@pytest.mark.parametrize("radius, shape", [(4, (48, 64)), (2, (17, 23)), (1, (16, 16))])
+def test_filter_volume_matches_opencv_box_filters_everywhere(radius, shape):
+    """The Numba guided filter against He et al.'s formulas with OpenCV's boxFilter (BORDER_REFLECT), borders
+    included."""
+    import cv2
+    rng = np.random.default_rng(radius)
+    vol = rng.uniform(-1, 1, (3, *shape)).astype(np.float32)
+    vol[2, :, :5] = NO_TWIN
+    guide = rng.random(shape).astype(np.float32)
+    k = (2 * radius + 1, 2 * radius + 1)
+    box = lambda a: cv2.boxFilter(a, -1, k, borderType=cv2.BORDER_REFLECT)  # noqa: E731
+    mg = box(guide)
+    vg = box(guide * guide) - mg * mg
+    got = filter_volume(vol, guide, radius, 0.01)
+    for i in range(3):
+        p = np.where(vol[i] == NO_TWIN, 0.0, vol[i]).astype(np.float32)
+        mp = box(p)
+        a = (box(guide * p) - mg * mp) / (vg + 0.01)
+        want = box(a) * guide + box(mp - a * mg)
+        want[vol[i] == NO_TWIN] = NO_TWIN
+        np.testing.assert_allclose(got[i], want, atol=2e-5)
+    with pytest.raises(ValueError, match="radius"):
+        filter_volume(vol, guide, 0, 0.01)

@@ -46,3 +46,39 @@ def test_bad_input_is_named(pair, kwargs, message):
     args = {"image": superimpose(left, right), "disparity_left": tl, **kwargs}
     with pytest.raises(ValueError, match=message):
         separate_views(**args)
+
+
+def test_matrix_free_normal_equations_match_scipy_sparse():
+    """The Numba operator is DᵀD + c·TᵀT + λ·GᵀG as scipy builds it, and the solve follows scipy's cg."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spl
+
+    from psvs.dense.separate import _cg_matrix_free, _differences, _normal_apply, _ties
+    rng = np.random.default_rng(3)
+    h, w, s, coupling, lam = 9, 13, 0.4, 0.7, 0.05
+    n = h * w
+    dl = rng.uniform(0, 6, (h, w))
+    dl[2, 3] = np.nan
+    dl[:, -1] = 12.99                 # twins at the grid's left end and beyond it
+    dr = rng.uniform(0, 6, (h, w))
+    yy, xx, x0, f = _ties(dl, dr, w)
+    m = yy.size
+    r = np.arange(m)
+    x1 = np.minimum(x0 + 1, w - 1)
+    ties = sp.csr_matrix((np.r_[-np.ones(m), 1 - f, f], (np.r_[r, r, r], np.r_[yy * w + xx, n + yy * w + x0,
+                                                                              n + yy * w + x1])), shape=(m, 2 * n))
+    k = np.arange(n)
+    data = sp.csr_matrix((np.r_[np.full(n, 1 - s), np.full(n, s)], (np.r_[k, k], np.r_[k, k + n])), shape=(n, 2 * n))
+    grad = sp.vstack([_differences(h, w, 0, 2 * n), _differences(h, w, n, 2 * n)]).tocsr()
+    normal = (data.T @ data + coupling * (ties.T @ ties) + lam * (grad.T @ grad)).tocsr()
+    ptr = np.searchsorted(yy, np.arange(h + 1)).astype(np.int64)
+    apply = lambda v, out: _normal_apply(v, out, h, w, s, coupling, lam, ptr, xx.astype(np.int64),  # noqa: E731
+                                         x0.astype(np.int64), f)
+    v = rng.normal(0, 1, 2 * n)
+    out = np.empty(2 * n)
+    apply(v, out)
+    np.testing.assert_allclose(out, normal @ v, atol=1e-12)
+    b, start = rng.normal(0, 1, 2 * n), rng.normal(0, 1, 2 * n)
+    for it in (5, 40):
+        want, _ = spl.cg(normal, b, x0=start, maxiter=it, rtol=1e-7)
+        np.testing.assert_allclose(_cg_matrix_free(b, start, it, 1e-7, apply), want, atol=1e-8)

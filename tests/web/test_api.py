@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from fastapi.testclient import TestClient
 
+from psvs import default_rig
 from psvs.web.app import MAX_BODY_BYTES, create_app
 from psvs.web.sources import image_source, video_source
 from tests.web.conftest import DISC, rim_point_px
@@ -129,7 +130,7 @@ def test_malformed_bodies(client):
     assert client.get("/static/%2e%2e/app.py").status_code == 404
     assert client.get("/etc/passwd").status_code == 404
     detail = client.post("/api/live/start", json={}).json()["detail"]
-    assert detail == "live mode tracks one edge: double-click an edge first"
+    assert detail == "live mode tracks one edge or shows dense depth: double-click an edge first, or tick dense"
 
 
 def test_live_mode_on_a_video(disc_video):
@@ -150,6 +151,25 @@ def test_live_mode_on_a_video(disc_video):
         assert frame.shape == (480, 640)
         assert c.post("/api/live/stop").json() == {"running": False}
         assert not c.get("/api/live/state").json()["running"]
+
+
+def test_live_dense_on_a_video(wall_video):
+    """Live mode with dense depth and no edge: each frame's dense map, its median depth (0.5 % of the wall's)
+    and its colour picture."""
+    path, truth = wall_video
+    with TestClient(create_app(video_source(str(path)), default_rig())) as c:
+        assert c.get("/api/live/dense.png").status_code == 404
+        assert c.post("/api/live/start", json={"dense": True}).json() == {"running": True}
+        t0 = time.monotonic()
+        while (s := c.get("/api/live/state").json()).get("frame", -1) < 4:
+            assert time.monotonic() - t0 < 60 and not s["error"], s
+            time.sleep(0.05)
+        d = s["dense"]
+        assert d["frame"] == s["frame"] and d["median_z_mm"] == pytest.approx(truth[d["frame"] % len(truth)], rel=0.005)
+        assert d["answered_pct"] > 80 and d["latency_ms"] > 0 and "tracked" not in s
+        img = cv2.imdecode(np.frombuffer(c.get("/api/live/dense.png").content, np.uint8), cv2.IMREAD_UNCHANGED)
+        assert img.shape == (480, 640, 3) and img.any()
+        assert c.post("/api/live/stop").json() == {"running": False}
 
 
 def test_still_image_has_no_live_mode(disc_source):

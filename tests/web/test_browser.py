@@ -5,6 +5,7 @@ from pathlib import Path
 
 import pytest
 
+from psvs import default_rig
 from psvs.web.app import create_app
 from psvs.web.sources import video_source
 from tests.live.test_tracker import rim_seed
@@ -83,3 +84,22 @@ def test_live_mode_in_the_page(page, disc_video):
         assert abs(z - truth[frame % len(truth)]) <= 0.01 * truth[frame % len(truth)]
         assert float(page.inner_text("#live-fps")) > 0 and page.inner_text("#live-latency").endswith(" ms")
         shot(page, "web_live.png")
+
+
+def test_live_dense_in_the_page(page, wall_video):
+    """Tick dense, start live without an edge: the page shows each frame's dense map and median depth (1 % of
+    that frame's truth)."""
+    path, truth = wall_video
+    with serving(create_app(video_source(str(path)), default_rig())) as url:
+        page.goto(url + "/")
+        page.wait_for_selector("body[data-ready='1']", timeout=30000)
+        page.check("#live-dense")
+        page.click("#live-start")
+        page.wait_for_function("Number(document.getElementById('live-dense-z').dataset.frame) >= 3", timeout=60000)
+        page.click("#live-stop")
+        frame, z = page.evaluate("() => [Number(document.getElementById('live-dense-z').dataset.frame), "
+                                 "Number(document.getElementById('live-dense-z').dataset.mm)]")
+        assert abs(z - truth[frame % len(truth)]) <= 0.01 * truth[frame % len(truth)]
+        assert page.is_visible("#live-dense-map") and page.inner_text("#live-dense-ms").endswith(" ms")
+        page.wait_for_function("document.getElementById('live-dense-map').naturalWidth === 640", timeout=10000)
+        shot(page, "web_live_dense.png")

@@ -4,9 +4,12 @@ from __future__ import annotations
 import sys
 import time
 
+import numpy as np
+
 from psvs.cli.common import (add_rig_argument, add_telemetry_arguments, check_output_path, check_working_range,
                              open_telemetry, parse_seed, rig_from_args)
 from psvs.imaging.pipeline import PAPER, load_pipeline
+from psvs.live.dense import DenseSensor
 from psvs.live.log import write_log
 from psvs.live.source import VideoSource
 from psvs.live.tracker import EdgeTracker
@@ -24,7 +27,12 @@ def add_parser(sub) -> None:
     src.add_argument("--video", metavar="F", help="video file or printf-style image sequence (OpenCV)")
     src.add_argument("--camera", metavar="N", type=int, help="camera index (OpenCV VideoCapture)")
     add_rig_argument(p)
-    p.add_argument("--seed", metavar="U,V", required=True, help="a point on a left-view edge in the first frame (px)")
+    p.add_argument("--seed", metavar="U,V", help="a point on a left-view edge in the first frame (px); required "
+                                                 "unless --dense")
+    p.add_argument("--dense", action="store_true", help="also a dense depth map of every frame (the fast mode of "
+                                                        "psvs disparity over the working range; docs/dense.md)")
+    p.add_argument("--dense-stride", type=int, default=4, metavar="N",
+                   help="with --dense: triangulate one map pixel in N along each axis (default 4)")
     p.add_argument("-o", "--output", metavar="LOG.csv", help="per-frame log (CSV)")
     p.add_argument("--pipeline", metavar="P.toml", help="image pipeline (default: median 3, threshold 92, Roberts)")
     p.add_argument("--near-mm", type=float, default=400.0, help="working range near end (default 400)")
@@ -43,12 +51,18 @@ def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
     if args.max_frames is not None and args.max_frames < 1:
         raise ValueError(f"--max-frames must be >= 1, got {args.max_frames}")
-    seed = parse_seed(args.seed)
+    if args.seed is None and not args.dense:
+        raise ValueError("give --seed U,V (an edge to track) or --dense (a depth map per frame), or both")
+    if args.dense_stride < 1:
+        raise ValueError(f"--dense-stride must be >= 1, got {args.dense_stride}")
+    seed = parse_seed(args.seed) if args.seed is not None else None
     rig = rig_from_args(args)
     pipeline = load_pipeline(args.pipeline) if args.pipeline else PAPER
     check_working_range(args.near_mm, args.far_mm)
-    tracker = EdgeTracker(rig, seed, pipeline=pipeline, near_mm=args.near_mm, far_mm=args.far_mm, model=args.model)
-    steps = []
+    tracker = None if seed is None else EdgeTracker(rig, seed, pipeline=pipeline, near_mm=args.near_mm,
+                                                    far_mm=args.far_mm, model=args.model)
+    dense = DenseSensor(rig, args.near_mm, args.far_mm, stride=args.dense_stride) if args.dense else None
+    steps, dense_frames = [], []
     with VideoSource(video=args.video, camera=args.camera) as source, open_telemetry(args) as tel:
         period = 1.0 / source.fps if (args.video and source.fps > 0) else None
         t0 = time.perf_counter()
@@ -57,16 +71,19 @@ def run(args) -> int:
                 k, arrived_s = len(steps), time.perf_counter() - t0
                 if args.realtime and period is not None:
                     time.sleep(max(0.0, t0 + k * period - time.perf_counter()))
-                step = tracker.step(frame)
+                step = tracker.step(frame) if tracker is not None else None
+                dstep = dense.step(frame) if dense is not None else None
                 steps.append(step)
+                dense_frames.append(dstep)
                 if tel is not None:   # a video's frames at its own rate; a camera's at their arrival
-                    publish_step(tel, k * period if period is not None else arrived_s, frame, step)
+                    t_s = k * period if period is not None else arrived_s
+                    tel.image(t_s, frame)
+                    if step is not None:
+                        publish_step(tel, t_s, step)
+                    if dstep is not None:
+                        publish_dense(tel, t_s, dstep, args.dense_stride)
                 if not args.quiet:
-                    if step.ok:
-                        print(f"frame {step.frame}: Z {step.depth_mm:.2f} mm, disparity {step.disparity_px:.2f} px, "
-                              f"{len(step.pair)} pairs, {step.elapsed_s * 1e3:.1f} ms", flush=True)
-                    else:
-                        print(f"frame {step.frame}: {step.message}", flush=True)
+                    print(_frame_line(k, step, dstep), flush=True)
                 if args.max_frames is not None and len(steps) >= args.max_frames:
                     break
         except KeyboardInterrupt:
@@ -75,20 +92,39 @@ def run(args) -> int:
         if not steps:               # inside: a recording of nothing is discarded, not kept
             raise ValueError(f"no frame could be read from {source.name}")
     if out:
-        write_log(out, steps)
+        write_log(out, steps, dense_frames if dense is not None else None)
+    n = len(steps)
+    pace = "paced by --realtime" if args.realtime else "reading + processing"
+    if dense is not None:
+        z = [d.median_z_mm for d in dense_frames]
+        print(f"dense: {n} frames, median Z {np.nanmedian(z):.1f} mm, {np.mean([d.answered_pct for d in dense_frames]):.1f} "
+              f"% of pixels answered, mean {1e3 * np.mean([d.elapsed_s for d in dense_frames]):.1f} ms per frame")
+    if tracker is None:
+        print(f"{n} frames, {n / wall:.1f} frames/s ({pace})")
+        return 0
     tracked = sum(s.ok for s in steps)
-    print(f"{len(steps)} frames, {tracked} tracked, {len(steps) / wall:.1f} frames/s "
-          f"({'paced by --realtime' if args.realtime else 'reading + processing'}), mean latency {1e3 * sum(s.elapsed_s for s in steps) / len(steps):.1f} ms")
+    print(f"{n} frames, {tracked} tracked, {n / wall:.1f} frames/s "
+          f"({pace}), mean latency {1e3 * sum(s.elapsed_s for s in steps) / n:.1f} ms")
     if tracked == 0:
         print(f"the edge was never found: {steps[0].message}", file=sys.stderr)
         return 1
     return 0
 
 
-def publish_step(tel, t_s: float, frame, step) -> None:
-    """One frame of ``psvs live`` on the Foxglove channels (psvs.io.telemetry): the frame, the pair's edge
-    pixels, its points (frame C), and a /psvs/depth record {frame, tracked, depth_mm, disparity_px, message}."""
-    tel.image(t_s, frame)
+def _frame_line(k: int, step, dstep) -> str:
+    parts = []
+    if step is not None:
+        parts.append(f"Z {step.depth_mm:.2f} mm, disparity {step.disparity_px:.2f} px, {len(step.pair)} pairs, "
+                     f"{step.elapsed_s * 1e3:.1f} ms" if step.ok else step.message)
+    if dstep is not None:
+        parts.append(f"dense median Z {dstep.median_z_mm:.1f} mm, {dstep.answered_pct:.0f} % answered, "
+                     f"{dstep.elapsed_s * 1e3:.1f} ms")
+    return f"frame {k}: " + "; ".join(parts)
+
+
+def publish_step(tel, t_s: float, step) -> None:
+    """The tracked edge of one frame on the Foxglove channels (psvs.io.telemetry): the pair's edge pixels,
+    its points (frame C), and a /psvs/depth record {frame, tracked, depth_mm, disparity_px, message}."""
     if step.pair is not None:
         tel.edges(t_s, step.pair.left_px, step.pair.right_px)
         tel.points(t_s, step.pair.points_mm)
@@ -96,3 +132,17 @@ def publish_step(tel, t_s: float, frame, step) -> None:
         tel.log(t_s, f"frame {step.frame}: {step.message}", "warning")
     tel.record("depth", t_s, {"frame": step.frame, "tracked": step.ok, "depth_mm": step.depth_mm,
                               "disparity_px": step.disparity_px, "message": step.message})
+
+
+def publish_dense(tel, t_s: float, d, stride: int) -> None:
+    """One frame's dense result: the strided depth image (metres, 32FC1, NaN where none) on
+    /psvs/dense/depth, its cloud on /psvs/dense/points, and a /psvs/dense record {frame, median_z_mm,
+    answered_pct, elapsed_ms, stride}."""
+    h, w = d.disparity_px.shape
+    depth = np.full((len(range(stride // 2, h, stride)), len(range(stride // 2, w, stride))), np.nan)
+    u, v = d.pixels[:, 0].astype(int), d.pixels[:, 1].astype(int)
+    depth[v // stride, u // stride] = d.points_mm[:, 2]
+    tel.depth_image(t_s, depth, "/psvs/dense/depth")
+    tel.points(t_s, d.points_mm, topic="/psvs/dense/points")
+    tel.record("dense", t_s, {"frame": d.frame, "median_z_mm": d.median_z_mm, "answered_pct": d.answered_pct,
+                              "elapsed_ms": d.elapsed_s * 1e3, "stride": stride})

@@ -12,6 +12,8 @@ import cv2
 import numba as nb
 import numpy as np
 
+from psvs.dense.guided import guided_filter_volume
+
 NO_TWIN = np.float32(-1.0)  # correlation given to lags whose twin window lies outside the image
 
 
@@ -22,6 +24,34 @@ def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
     return f - cv2.GaussianBlur(f, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)
 
 
+@nb.njit(cache=True, fastmath=True, inline="always")
+def _window_sum(src, dst, r):  # pragma: no cover - compiled
+    """dst[i] = Σ src[clamp(i + j)], j = −r..r, indices clamped to the row (its end values repeated)."""
+    n = src.shape[0]
+    for i in range(n):
+        dst[i] = 0.0
+    for j in range(-r, r + 1):
+        lo, hi = max(0, -j), min(n, n - j)   # i + j inside the row
+        for i in range(lo, hi):
+            dst[i] += src[i + j]
+        for i in range(0, lo):
+            dst[i] += src[0]
+        for i in range(hi, n):
+            dst[i] += src[n - 1]
+
+
+@nb.njit(cache=True, fastmath=True, inline="always")
+def _window_max(src, dst, r):  # pragma: no cover - compiled
+    """dst[i] = max src[i + j], j = −r..r, over the indices inside the row."""
+    n = src.shape[0]
+    for i in range(n):
+        dst[i] = src[i]
+    for j in range(-r, r + 1):
+        for i in range(max(0, -j), min(n, n - j)):
+            v = src[i + j]
+            dst[i] = v if v > dst[i] else dst[i]   # a select (vectorises), not max()
+
+
 @nb.njit(cache=True, parallel=True, fastmath=True)
 def _echo(f, g, mu, sd, mg, sg, lags, r, rs):  # pragma: no cover - compiled
     h, w = f.shape
@@ -30,43 +60,36 @@ def _echo(f, g, mu, sd, mg, sg, lags, r, rs):  # pragma: no cover - compiled
     inv = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
     for k in nb.prange(n):
         d = lags[k]
-        rows = np.zeros((h, w), np.float32)  # horizontal window sums of f(x)·g(x−d), clamped borders
+        wd = w - d                                 # columns x = d + i whose twin x − d = i is inside
+        o = out[k]
+        o[:, :d] = NO_TWIN
+        rows = np.empty((h, wd), np.float32)       # horizontal window sums of f(x)·g(x − d)
+        prod = np.empty(wd, np.float32)
         for y in range(h):
-            acc = np.float32(0.0)
+            for i in range(wd):
+                prod[i] = f[y, i + d] * g[y, i]
+            _window_sum(prod, rows[y], r)
+        col = np.empty(wd, np.float32)
+        for y in range(h):                         # vertical sums (rows clamped), then the NCC
+            col[:] = 0.0
             for j in range(-r, r + 1):
-                xx = min(max(d + j, d), w - 1)
-                acc += f[y, xx] * g[y, xx - d]
-            rows[y, d] = acc
-            for x in range(d + 1, w):
-                xa = min(x + r, w - 1)
-                xr = max(x - r - 1, d)
-                acc += f[y, xa] * g[y, xa - d] - f[y, xr] * g[y, xr - d]
-                rows[y, x] = acc
-        for y in range(h):
-            for x in range(min(d, w)):
-                out[k, y, x] = NO_TWIN
-        for x in range(d, w):
-            acc = np.float32(0.0)
-            for j in range(-r, r + 1):
-                acc += rows[min(max(j, 0), h - 1), x]
-            for y in range(h):
-                if y > 0:
-                    acc += rows[min(y + r, h - 1), x] - rows[max(y - r - 1, 0), x]
-                cov = acc * inv - mu[y, x] * mg[y, x - d]
-                out[k, y, x] = cov / (sd[y, x] * sg[y, x - d])
+                src = rows[min(max(y + j, 0), h - 1)]
+                for i in range(wd):
+                    col[i] += src[i]
+            for i in range(wd):
+                x = i + d
+                o[y, x] = (col[i] * inv - mu[y, x] * mg[y, i]) / (sd[y, x] * sg[y, i])
         if rs > 0:  # shiftable windows: max over the (2 rs + 1)^2 neighbourhood, separable, within x >= d
             for y in range(h):
-                for x in range(d, w):
-                    m = out[k, y, x]
-                    for j in range(max(d, x - rs), min(w, x + rs + 1)):
-                        m = max(m, out[k, y, j])
-                    rows[y, x] = m
+                _window_max(o[y, d:], rows[y], rs)
             for y in range(h):
-                for x in range(d, w):
-                    out[k, y, x] = rows[y, x]
+                dst = o[y, d:]
+                dst[:] = rows[y]
                 for j in range(max(0, y - rs), min(h, y + rs + 1)):
-                    for x in range(d, w):
-                        out[k, y, x] = max(out[k, y, x], rows[j, x])
+                    src = rows[j]
+                    for i in range(wd):
+                        v = src[i]
+                        dst[i] = v if v > dst[i] else dst[i]
     return out
 
 
@@ -92,22 +115,10 @@ def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float
     (Hosni et al. 2013). Each pixel's cost becomes a local linear function of the guide, so support stops
     at the guide's edges instead of letting a textured surface's echo spread over its neighbour. The
     :data:`NO_TWIN` entries count as 0 (no evidence) and keep their value."""
-    k = (2 * radius + 1, 2 * radius + 1)
-    box = lambda a: cv2.boxFilter(a, -1, k, borderType=cv2.BORDER_REFLECT)  # noqa: E731
-    g = np.asarray(guide, dtype=np.float32)
-    mean_g = box(g)
-    var_g = box(g * g) - mean_g * mean_g
-    out = np.empty_like(volume, dtype=np.float32)
-    for i in range(volume.shape[0]):
-        missing = volume[i] == NO_TWIN
-        p = volume[i].copy()
-        p[missing] = 0.0
-        mean_p = box(p)
-        a = (box(g * p) - mean_g * mean_p) / (var_g + eps)
-        b = mean_p - a * mean_g
-        out[i] = box(a) * g + box(b)
-        out[i][missing] = NO_TWIN
-    return out
+    if radius < 1:
+        raise ValueError(f"guided filter radius must be >= 1 px, got {radius}")
+    return guided_filter_volume(np.ascontiguousarray(volume, dtype=np.float32),
+                                np.ascontiguousarray(guide, dtype=np.float32), int(radius), np.float32(eps), NO_TWIN)
 
 
 def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_window: int = 1,

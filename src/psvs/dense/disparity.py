@@ -33,11 +33,11 @@ from functools import partial
 import cv2
 import numba as nb
 import numpy as np
-from scipy.ndimage import median_filter
 
 from psvs._memory import check_memory
 from psvs.dense.cost import (NO_TWIN, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost,
                              one_sided_cost, pick)
+from psvs.dense.median import median_filter
 from psvs.dense.sgm import aggregate as sgm_aggregate
 from psvs.match.correspondence import disparity_range
 from psvs.optics.rig import Rig
@@ -220,9 +220,10 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     lags = np.arange(lo, hi + 1)
     guide = unit_scaled(img)
     echo = weighted_echo(img, lags, p, guide, img_right)
-    aggregate = partial(sgm_aggregate, p1=p.p1, p2=p.p2, n_paths=p.n_paths,
-                        guide=cv2.GaussianBlur(guide, (0, 0), 1.0), tau=p.edge_contrast)
     fused = fused_cost(echo, lags)
+    aggregate = partial(sgm_aggregate, p1=p.p1, p2=p.p2, n_paths=p.n_paths,    # one pair of volumes for all
+                        guide=cv2.GaussianBlur(guide, (0, 0), 1.0), tau=p.edge_contrast,
+                        out=np.empty_like(fused), work=np.empty_like(fused))
     d, own, other = pick(aggregate(fused), echo, lags)
     keep_l = own >= other - p.ownership_margin
     keep_r = other >= own - p.ownership_margin
@@ -247,7 +248,7 @@ def _median(d: np.ndarray, size: int) -> np.ndarray:
     finite = np.isfinite(d)
     if not finite.any():
         return d
-    out = median_filter(np.where(finite, d, np.nanmedian(d)), size=size, mode="nearest")
+    out = median_filter(np.where(finite, d, np.nanmedian(d)), size)
     return np.where(np.isnan(d) & ~finite.any(axis=1, keepdims=True), np.nan, out)
 
 

@@ -9,9 +9,18 @@ Unknowns: the two views L and R (H, W). Least squares of three terms, solved by 
 * prior      λ·(|∇L|² + |∇R|²)                       (the null space of the mixing is an oscillation of
                                                       period 2d/(2k+1): the smoothness prior picks the
                                                       least-oscillating answer)
+
+Conjugate gradients start from L = R = C and stop after ``iterations`` (30): with *estimated* disparities
+the least-squares optimum is not the best answer (wrong ties pull it off), and the early iterates are
+better. Measured PSNR of both views against the truth, 10 / 20 / 30 / 50 / 200 iterations: Motorcycle
+640x480 21.7 / 21.7 / 21.5 / 21.1 / 20.4 dB, its mirrored pair 22.3 / 22.3 / 22.1 / 21.8 / 21.4 dB, a planted
+layered scene 28.4 / 28.6 / 28.5 / 28.4 / 28.4 dB; with its *true* disparities the iterates converge by 30
+(29.3 / 29.7 / 29.8 / 29.8 / 29.8 dB). On the ideal rig the normal equations are applied without a matrix
+(Numba: data, ties and Laplacian per row, both cores), so 30 iterations on 640x480 take about 0.1 s.
 """
 from __future__ import annotations
 
+import numba as nb
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
@@ -45,8 +54,81 @@ def _sampling(uv: np.ndarray, h: int, w: int) -> sp.csr_matrix:
     return sp.csr_matrix((vals, (rows, cols)), shape=(n, h * w))
 
 
+@nb.njit(cache=True, parallel=True, fastmath=True)
+def _normal_apply(v, out, h, w, s, coupling, lam, tie_ptr, tie_x, tie_x0, tie_f):  # pragma: no cover - compiled
+    """out = (DᵀD + coupling·TᵀT + lam·GᵀG) v for v = [L; R] (2·h·w,): D mixes each pixel's L and R, T ties
+    L(y, x) to R(y, x0 + f) (the ties of row y are tie_ptr[y]:tie_ptr[y + 1]), G the 4-neighbour differences
+    of each view (GᵀG: the graph Laplacian, no term across the border). Rows are independent: parallel."""
+    n = h * w
+    for y in nb.prange(h):
+        for x in range(w):
+            for off in (0, n):
+                i = off + y * w + x
+                c = v[i]
+                lap = np.float64(0.0)
+                if x > 0:
+                    lap += c - v[i - 1]
+                if x < w - 1:
+                    lap += c - v[i + 1]
+                if y > 0:
+                    lap += c - v[i - w]
+                if y < h - 1:
+                    lap += c - v[i + w]
+                out[i] = lam * lap
+            i = y * w + x
+            m = (1.0 - s) * v[i] + s * v[n + i]
+            out[i] += (1.0 - s) * m
+            out[n + i] += s * m
+        for t in range(tie_ptr[y], tie_ptr[y + 1]):
+            il, i0 = y * w + tie_x[t], n + y * w + tie_x0[t]
+            f = tie_f[t]
+            i1 = i0 + 1 if tie_x0[t] < w - 1 else i0
+            e = coupling * ((1.0 - f) * v[i0] + f * v[i1] - v[il])
+            out[il] -= e
+            out[i0] += (1.0 - f) * e
+            out[i1] += f * e
+
+
+@nb.njit(cache=True, parallel=True, fastmath=True)
+def _dot(a, b):  # pragma: no cover - compiled
+    acc = 0.0
+    for i in nb.prange(a.shape[0]):
+        acc += a[i] * b[i]
+    return acc
+
+
+@nb.njit(cache=True, parallel=True, fastmath=True)
+def _axpy(alpha, x, y):  # pragma: no cover - compiled
+    for i in nb.prange(x.shape[0]):
+        y[i] += alpha * x[i]
+
+
+def _cg_matrix_free(rhs, start, iterations, rtol, apply):
+    """Conjugate gradients (as scipy.sparse.linalg.cg: stop when |r| <= rtol·|b| or after ``iterations``)."""
+    x = start.copy()
+    r = rhs.copy()
+    ax = np.empty_like(x)
+    apply(x, ax)
+    r -= ax
+    stop = (rtol * np.sqrt(_dot(rhs, rhs))) ** 2
+    p = r.copy()
+    rr = _dot(r, r)
+    for _ in range(iterations):
+        if rr <= stop:
+            break
+        apply(p, ax)
+        alpha = rr / _dot(p, ax)
+        _axpy(alpha, p, x)
+        _axpy(-alpha, ax, r)
+        rr_new = _dot(r, r)
+        p *= rr_new / rr
+        p += r
+        rr = rr_new
+    return x
+
+
 def separate_views(image, disparity_left, split: float = 0.5, disparity_right=None, smoothness: float = 0.05,
-                   coupling: float = 1.0, iterations: int = 200, rect=None) -> tuple[np.ndarray, np.ndarray]:
+                   coupling: float = 1.0, iterations: int = 30, rect=None) -> tuple[np.ndarray, np.ndarray]:
     """Left and right views (float64 (H, W), grey levels of the input) of the complex ``image`` (H, W).
 
     ``disparity_left`` (H, W, px, NaN = unknown) ties each left pixel to its right-view twin;
@@ -64,20 +146,40 @@ def separate_views(image, disparity_left, split: float = 0.5, disparity_right=No
         h, w = c.shape
         if dl.shape != c.shape:
             raise ValueError(f"disparity map {dl.shape} does not match the image {c.shape}")
-        n = h * w
-        k = np.arange(n)
-        data = sp.csr_matrix((np.r_[np.full(n, 1 - split), np.full(n, split)], (np.r_[k, k], np.r_[k, k + n])),
-                             shape=(n, 2 * n))
-        start = np.r_[c.ravel(), c.ravel()]
     else:
         w, h = rect.size_px
         if dl.shape != (h, w):
             raise ValueError(f"disparity map {dl.shape} does not match the rectified grid {(h, w)}")
-        n = h * w
-        data = sp.hstack([(1 - split) * _sampling(rect.pixel_table("left").reshape(-1, 2), h, w),
-                          split * _sampling(rect.pixel_table("right").reshape(-1, 2), h, w)]).tocsr()
-        from psvs.dense.build import rectified_images    # (build imports this module's neighbours)
-        start = np.concatenate([a.ravel() for a in rectified_images(c, rect)]).astype(np.float64)
+    n = h * w
+    yy, xx, x0, f = _ties(dl, disparity_right, w)
+    if rect is None:
+        cf = c.ravel()
+        rhs = np.r_[(1 - split) * cf, split * cf]
+        ptr = np.searchsorted(yy, np.arange(h + 1)).astype(np.int64)
+        args = (h, w, float(split), float(coupling), float(smoothness), ptr, xx.astype(np.int64),
+                x0.astype(np.int64), f)
+        x = _cg_matrix_free(rhs, np.r_[cf, cf], iterations, 1e-7, lambda v, out: _normal_apply(v, out, *args))
+        return x[:n].reshape(h, w), x[n:].reshape(h, w)
+    data = sp.hstack([(1 - split) * _sampling(rect.pixel_table("left").reshape(-1, 2), h, w),
+                      split * _sampling(rect.pixel_table("right").reshape(-1, 2), h, w)]).tocsr()
+    from psvs.dense.build import rectified_images    # (build imports this module's neighbours)
+    start = np.concatenate([a.ravel() for a in rectified_images(c, rect)]).astype(np.float64)
+    m = yy.size
+    r = np.arange(m)
+    x1 = np.minimum(x0 + 1, w - 1)
+    ties = sp.csr_matrix((np.r_[-np.ones(m), 1 - f, f], (np.r_[r, r, r],
+                                                         np.r_[yy * w + xx, n + yy * w + x0, n + yy * w + x1])),
+                         shape=(m, 2 * n))
+    grad = sp.vstack([_differences(h, w, 0, 2 * n), _differences(h, w, n, 2 * n)]).tocsr()
+    normal = (data.T @ data + coupling * (ties.T @ ties) + smoothness * (grad.T @ grad)).tocsr()
+    x, _ = spl.cg(normal, data.T @ c.ravel(), x0=start, maxiter=iterations, rtol=1e-7)
+    return x[:n].reshape(h, w), x[n:].reshape(h, w)
+
+
+def _ties(dl: np.ndarray, disparity_right, w: int):
+    """The coupling ties of the finite left disparities whose twin is inside the grid and not occluded (the
+    right map showing a nearer point there): rows yy, left columns xx, and the twin at x0 + f (0 <= f < 1),
+    in row-major order."""
     yy, xx = np.nonzero(np.isfinite(dl))
     xr = xx - dl[yy, xx]
     ok = (xr >= 0) & (xr <= w - 1)
@@ -87,18 +189,7 @@ def separate_views(image, disparity_left, split: float = 0.5, disparity_right=No
         ok &= ~(twin > dl[yy, xx] + 1.0)  # the right view sees something nearer there
     yy, xx, xr = yy[ok], xx[ok], xr[ok]
     x0 = np.floor(xr).astype(int)
-    x1 = np.minimum(x0 + 1, w - 1)
-    f = xr - x0
-    m = yy.size
-    r = np.arange(m)
-    ties = sp.csr_matrix((np.r_[-np.ones(m), 1 - f, f], (np.r_[r, r, r],
-                                                         np.r_[yy * w + xx, n + yy * w + x0, n + yy * w + x1])),
-                         shape=(m, 2 * n))
-    grad = sp.vstack([_differences(h, w, 0, 2 * n), _differences(h, w, n, 2 * n)]).tocsr()
-    normal = (data.T @ data + coupling * (ties.T @ ties) + smoothness * (grad.T @ grad)).tocsr()
-    rhs = data.T @ c.ravel()
-    x, _ = spl.cg(normal, rhs, x0=start, maxiter=iterations, rtol=1e-7)
-    return x[:n].reshape(h, w), x[n:].reshape(h, w)
+    return yy, xx, x0, xr - x0
 
 
 def psnr_db(estimate, truth, peak: float = 255.0) -> float:

@@ -4,8 +4,13 @@ The recursion along each path r is  L_r(p, d) = c(p, d) + min(L_r(p−r, d), L_r
 min_k L_r(p−r, k) + P2) − min_k L_r(p−r, k); the aggregated cost is the sum over the paths. With a guide
 image I, the jump penalty follows Hirschmüller's intensity-adaptive form, P2 / (1 + |I(p) − I(p−r)| / τ)
 (never below P1), so depth edges settle on image edges instead of spreading into the weaker-textured side.
-Memory is one line of the path (W × D) per path on top of the (H, W, D) cost and output volumes. Paths run
-on two threads.
+
+The paths run in two passes, as OpenCV's StereoSGBM does: a downward pass (rows top to bottom, each row
+left to right) carries the paths that come from the left, the upper left, above and the upper right; an
+upward pass the four opposite ones. Each pass reads the cost volume once and writes its sum of paths
+once, keeping only the previous row of each path (W × D per path), so the work is bound by arithmetic
+rather than memory traffic, and the inner loop over disparities has no branch (rows padded with a large
+cost at both ends), so it vectorises. The two passes run on two threads.
 """
 from __future__ import annotations
 
@@ -16,54 +21,117 @@ import numpy as np
 
 #: (dy, dx) of the 8 paths; the first 4 are the horizontal and vertical ones used by the fast mode.
 PATHS = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1))
+_BIG = np.float32(1e30)   # the padding of a path's row: never the minimum (finite: the kernels use fastmath)
+
+
+# The kernels index whole arrays (row numbers, then the disparity from a range) instead of taking a view
+# per pixel: a view costs reference counting, and a variable offset added to the disparity would bring
+# Numba's negative-index wrap-around into the inner loop, which then does not vectorise.
+
+@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _step(cost, y, x, src, ks, xs, m, jump, p1, dst, kd, xd, acc):  # pragma: no cover - compiled
+    """One path step: dst[kd, xd, 1 + d] = cost[y, x, d] + min(src[ks, xs, 1 + d], src[ks, xs, d] + p1,
+    src[ks, xs, 2 + d] + p1, jump) − m, added to acc[y, x, d]; returns its minimum."""
+    n = cost.shape[2]
+    for d in range(n):
+        near = min(src[ks, xs, d], src[ks, xs, d + 2]) + p1
+        dst[kd, xd, d + 1] = cost[y, x, d] + min(near, min(src[ks, xs, d + 1], jump)) - m
+    for d in range(n):
+        acc[y, x, d] += dst[kd, xd, d + 1]
+    return _row_min(dst, kd, xd, n)
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _start(cost, y, x, dst, kd, xd, acc):  # pragma: no cover - compiled
+    """A path's first pixel: its cost into dst[kd, xd, 1:], added to acc; the minimum."""
+    n = cost.shape[2]
+    for d in range(n):
+        dst[kd, xd, d + 1] = cost[y, x, d]
+        acc[y, x, d] += cost[y, x, d]
+    return _row_min(dst, kd, xd, n)
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _row_min(row, k, x, n):  # pragma: no cover - compiled
+    """min(row[k, x, 1:n + 1]) in eight independent lanes (a one-accumulator float minimum does not
+    vectorise)."""
+    m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = _BIG
+    d = 1
+    while d + 8 <= n + 1:
+        m0, m1 = min(m0, row[k, x, d]), min(m1, row[k, x, d + 1])
+        m2, m3 = min(m2, row[k, x, d + 2]), min(m3, row[k, x, d + 3])
+        m4, m5 = min(m4, row[k, x, d + 4]), min(m5, row[k, x, d + 5])
+        m6, m7 = min(m6, row[k, x, d + 6]), min(m7, row[k, x, d + 7])
+        d += 8
+    while d <= n:
+        m0 = min(m0, row[k, x, d])
+        d += 1
+    return min(min(min(m0, m1), min(m2, m3)), min(min(m4, m5), min(m6, m7)))
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _penalty(g, g_prev, p1, p2, tau):  # pragma: no cover - compiled
+    """The jump penalty between neighbours of guide values g and g_prev, float32 (no float64 promotion:
+    it would turn the disparity loop into double precision)."""
+    return max(p1, p2 / (np.float32(1.0) + abs(g - g_prev) / tau))
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True)
-def _aggregate_path(cost, out, dy, dx, p1, p2, guide, tau):  # pragma: no cover - compiled
-    h, w, n_d = cost.shape
-    prev = np.zeros((w, n_d), np.float32)
-    cur = np.zeros((w, n_d), np.float32)
-    prev_min = np.zeros(w, np.float32)
-    cur_min = np.zeros(w, np.float32)
+def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
+    """Sum (written to ``out``) of the paths of one pass: down (rows top to bottom, x left to right) takes the paths
+    arriving from x − 1 in the row, and from the previous row at x (and x − 1, x + 1 with ``diagonals``);
+    up the mirror images. Rows of path costs are padded: index 1 + d holds disparity d."""
+    h, w, n = cost.shape
+    s = 1 if down else -1
+    n_rows = 3 if diagonals else 1               # previous-row paths: from x, then x − s and x + s
+    prev = np.full((n_rows, w, n + 2), _BIG, np.float32)
+    cur = np.full((n_rows, w, n + 2), _BIG, np.float32)
+    prev_min = np.zeros((n_rows, w), np.float32)
+    cur_min = np.zeros((n_rows, w), np.float32)
+    hor = np.full((2, 1, n + 2), _BIG, np.float32)   # the row path: previous pixel, this pixel
+    hor_min = np.float32(0.0)
     for iy in range(h):
-        y = iy if dy >= 0 else h - 1 - iy
+        y = iy if down else h - 1 - iy
         for ix in range(w):
-            x = ix if dx >= 0 else w - 1 - ix
-            px = x - dx
-            best = np.float32(np.inf)
-            if px < 0 or px >= w or (dy == 0 and ix == 0) or (dy != 0 and iy == 0):
-                for d in range(n_d):
-                    v = cost[y, x, d]
-                    cur[x, d] = v
-                    out[y, x, d] += v
-                    best = min(best, v)
+            x = ix if down else w - 1 - ix
+            g = guide[y, x]
+            for d in range(n):                   # the sum starts here: no zeroed volume needed
+                out[y, x, d] = 0.0
+            a = ix & 1                           # the row path's buffers alternate
+            if ix == 0:
+                hor_min = _start(cost, y, x, hor, a, 0, out)
             else:
-                src = cur if dy == 0 else prev
-                m = cur_min[px] if dy == 0 else prev_min[px]
-                step = abs(guide[y, x] - guide[y - dy, px]) / tau
-                jump = m + max(p1, p2 / (1 + step))
-                lo = np.float32(np.inf)
-                for d in range(n_d):
-                    v = src[px, d]
-                    hi = src[px, d + 1] + p1 if d + 1 < n_d else np.float32(np.inf)
-                    v = min(v, min(lo, hi), jump)
-                    lo = src[px, d] + p1
-                    v = cost[y, x, d] + v - m
-                    cur[x, d] = v
-                    out[y, x, d] += v
-                    best = min(best, v)
-            cur_min[x] = best
+                jump = hor_min + _penalty(g, guide[y, x - s], p1, p2, tau)
+                hor_min = _step(cost, y, x, hor, 1 - a, 0, hor_min, jump, p1, hor, a, 0, out)
+            for k in range(n_rows):
+                px = x if k == 0 else (x - s if k == 1 else x + s)
+                if iy == 0 or px < 0 or px >= w:
+                    cur_min[k, x] = _start(cost, y, x, cur, k, x, out)
+                else:
+                    m = prev_min[k, px]
+                    jump = m + _penalty(g, guide[y - s, px], p1, p2, tau)
+                    cur_min[k, x] = _step(cost, y, x, prev, k, px, m, jump, p1, cur, k, x, out)
         prev, cur = cur, prev
         prev_min, cur_min = cur_min, prev_min
 
 
+@nb.njit(cache=True, parallel=True, fastmath=True)
+def _add_into(a, b):  # pragma: no cover - compiled
+    a1, b1 = a.reshape(-1), b.reshape(-1)
+    for i in nb.prange(a1.shape[0]):
+        a1[i] += b1[i]
+
+
 def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads: int = 2,
-              guide: np.ndarray | None = None, tau: float = 1.0) -> np.ndarray:
+              guide: np.ndarray | None = None, tau: float = 1.0, out: np.ndarray | None = None,
+              work: np.ndarray | None = None) -> np.ndarray:
     """Sum over ``n_paths`` (4 or 8) of the SGM path costs of ``cost`` (H, W, D), float32 (H, W, D).
 
     ``p1`` penalises a one-step disparity change between neighbours, ``p2`` (≥ p1) any larger jump, both in
     the cost's units. With ``guide`` (H, W), a jump between neighbours whose guide values differ by g costs
-    max(p1, p2 / (1 + g / tau)) instead (``tau`` in the guide's units)."""
+    max(p1, p2 / (1 + g / tau)) instead (``tau`` in the guide's units). ``out`` and ``work`` (float32, the
+    cost's shape), when given, are used instead of new volumes (the result is ``out``): a caller that
+    aggregates several times reuses them, and fresh memory costs page faults."""
     if n_paths not in (4, 8):
         raise ValueError(f"n_paths must be 4 or 8, got {n_paths}")
     if not 0 <= p1 <= p2:
@@ -76,20 +144,20 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     guide = np.ascontiguousarray(guide, dtype=np.float32)
     if guide.shape != cost.shape[:2]:
         raise ValueError(f"guide {guide.shape} must match the cost's image size {cost.shape[:2]}")
-    paths = PATHS[:n_paths]
-    threads = max(1, min(threads, len(paths)))
-    outs = [np.zeros_like(cost) for _ in range(threads)]
-
-    def work(k: int) -> None:
-        for dy, dx in paths[k::threads]:
-            _aggregate_path(cost, outs[k], dy, dx, np.float32(p1), np.float32(p2), guide, np.float32(tau))
-
-    if threads == 1:
-        work(0)
+    outs = []
+    for buf in (out, work):
+        if buf is None:
+            buf = np.empty_like(cost)
+        elif buf.shape != cost.shape or buf.dtype != np.float32 or not buf.flags.c_contiguous:
+            raise ValueError(f"SGM buffers must be contiguous float32 {cost.shape}, got {buf.dtype} {buf.shape}")
+        outs.append(buf)
+    args = (np.float32(p1), np.float32(p2), guide, np.float32(tau))
+    diagonals = n_paths == 8
+    if threads < 2:
+        for k in range(2):
+            _pass(cost, outs[k], k == 0, diagonals, *args)
     else:
-        with ThreadPoolExecutor(threads) as pool:
-            list(pool.map(work, range(threads)))
-    total = outs[0]
-    for o in outs[1:]:
-        total += o
-    return total
+        with ThreadPoolExecutor(2) as pool:
+            list(pool.map(lambda k: _pass(cost, outs[k], k == 0, diagonals, *args), range(2)))
+    _add_into(outs[0], outs[1])
+    return outs[0]

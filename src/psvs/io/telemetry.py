@@ -163,15 +163,27 @@ class Telemetry:
                                          outline_color=Color(r=rgb[0], g=rgb[1], b=rgb[2], a=1.0), thickness=3.0))
         self._channel("/psvs/edges", "ImageAnnotations").log(ImageAnnotations(points=anns), log_time=ns)
 
-    def points(self, t_s: float, points_mm: np.ndarray, frame_id: str = CAMERA_FRAME) -> None:
-        """Points (N, 3) mm in ``frame_id`` on /psvs/points (float64 x, y, z in metres; NaN rows dropped)."""
+    def depth_image(self, t_s: float, depth_mm: np.ndarray, topic: str, frame_id: str = CAMERA_FRAME) -> None:
+        """A depth map (H, W) mm on ``topic`` as a RawImage of encoding 32FC1 in metres (ROS's convention
+        for depth images), NaN where there is no depth."""
+        from foxglove.messages import RawImage
+        z = np.ascontiguousarray(np.asarray(depth_mm, float) * 1e-3, "<f4")
+        h, w = z.shape
+        ns = self.ns(t_s)
+        self._channel(topic, "RawImage").log(
+            RawImage(timestamp=_split_ns(ns), frame_id=frame_id, width=w, height=h, encoding="32FC1", step=4 * w,
+                     data=z.tobytes()), log_time=ns)
+
+    def points(self, t_s: float, points_mm: np.ndarray, frame_id: str = CAMERA_FRAME,
+               topic: str = "/psvs/points") -> None:
+        """Points (N, 3) mm in ``frame_id`` on ``topic`` (float64 x, y, z in metres; NaN rows dropped)."""
         from foxglove.messages import PackedElementField, PackedElementFieldNumericType, PointCloud
         p = np.asarray(points_mm, float).reshape(-1, 3)
         p = np.ascontiguousarray(p[np.all(np.isfinite(p), axis=1)] * 1e-3)
         fields = [PackedElementField(name=n, offset=8 * i, type=PackedElementFieldNumericType.Float64)
                   for i, n in enumerate("xyz")]
         ns = self.ns(t_s)
-        self._channel("/psvs/points", "PointCloud").log(
+        self._channel(topic, "PointCloud").log(
             PointCloud(timestamp=_split_ns(ns), frame_id=frame_id, pose=_identity_pose(), point_stride=24,
                        fields=fields, data=p.tobytes()), log_time=ns)
 

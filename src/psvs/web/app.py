@@ -26,6 +26,7 @@ from psvs.dense.build import dense_on_rig, rig_cloud
 from psvs.imaging.pipeline import PAPER, make_pipeline
 from psvs.imaging.steps import STEPS
 from psvs.io.images import grey8, to_grey8
+from psvs.live.dense import DenseSensor
 from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
 from psvs.match.correspondence import MatchResult, match_image
 from psvs.match.export import write_csv, write_json, write_ply
@@ -56,6 +57,10 @@ class MatchBody(PipelineBody):
     far_mm: float = Field(1200.0, gt=0, le=100000)
     model: str | None = Field(default=None, description="triangulation model; default: refraction on the "
                                                         "paper's geometry, exact on a build")
+
+
+class LiveBody(MatchBody):
+    dense: bool = Field(False, description="also a dense depth map of every frame (the fast mode)")
 
 
 class DenseBody(BaseModel):
@@ -251,15 +256,17 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
         return {"image_size_px": [w, h]}
 
     @app.post("/api/live/start")
-    def live_start(body: MatchBody):
-        if body.seed is None:
-            raise ValueError("live mode tracks one edge: double-click an edge first")
+    def live_start(body: LiveBody):
+        if body.seed is None and not body.dense:
+            raise ValueError("live mode tracks one edge or shows dense depth: double-click an edge first, "
+                             "or tick dense")
         if not body.near_mm < body.far_mm:
             raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
-        tracker = EdgeTracker(rig, body.seed, pipeline=_pipeline(body.steps), near_mm=body.near_mm,
-                              far_mm=body.far_mm, model=body.model if body.model in MODELS else None,
-                              snap_px=SNAP_PX)
-        live.start(source, tracker)
+        tracker = None if body.seed is None else EdgeTracker(
+            rig, body.seed, pipeline=_pipeline(body.steps), near_mm=body.near_mm, far_mm=body.far_mm,
+            model=body.model if body.model in MODELS else None, snap_px=SNAP_PX)
+        dense = DenseSensor(rig, body.near_mm, body.far_mm) if body.dense else None
+        live.start(source, tracker, dense)
         return {"running": True}
 
     @app.post("/api/live/stop")
@@ -277,5 +284,13 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
         if frame is None:
             return JSONResponse({"detail": "no live frame yet"}, status_code=404)
         return Response(_png(frame), media_type="image/png", headers={"Cache-Control": "no-store"})
+
+    @app.get("/api/live/dense.png")
+    def live_dense():
+        d = live.dense()
+        if d is None:
+            return JSONResponse({"detail": "no dense frame yet: start live with dense"}, status_code=404)
+        return Response(_png(_colour_disparity(d.disparity_px, *d.searched_px)), media_type="image/png",
+                        headers={"Cache-Control": "no-store"})
 
     return app

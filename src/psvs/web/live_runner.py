@@ -1,5 +1,6 @@
-"""The web UI's live mode: a background thread that reads frames, tracks the selected edge and keeps the
-latest frame, the latest result and a depth-over-time history for the page to poll."""
+"""The web UI's live mode: a background thread that reads frames, tracks the selected edge and/or computes
+a dense depth map of each, and keeps the latest frame, the latest results and a depth-over-time history
+(the edge's depth, else the dense map's median) for the page to poll."""
 from __future__ import annotations
 
 import collections
@@ -8,6 +9,7 @@ import time
 
 import numpy as np
 
+from psvs.live.dense import DenseFrame, DenseSensor
 from psvs.live.tracker import EdgeTracker, TrackStep
 from psvs.web.sources import Source
 
@@ -28,6 +30,7 @@ class LiveRunner:
     def _reset(self):
         self._frame = None
         self._step: TrackStep | None = None
+        self._dense: DenseFrame | None = None
         self._history = collections.deque(maxlen=HISTORY)
         self._times = collections.deque(maxlen=30)
         self._error = ""
@@ -37,15 +40,18 @@ class LiveRunner:
     def running(self) -> bool:
         return self._thread is not None and self._thread.is_alive()
 
-    def start(self, source: Source, tracker: EdgeTracker) -> None:
-        """Stop any running loop and start a new one (one loop at a time, even with concurrent requests)."""
+    def start(self, source: Source, tracker: EdgeTracker | None, dense: DenseSensor | None = None) -> None:
+        """Stop any running loop and start a new one (one loop at a time, even with concurrent requests),
+        with an edge tracker, a dense sensor, or both."""
+        if tracker is None and dense is None:
+            raise ValueError("live mode needs an edge to track or dense depth")
         with self._control:
             self._stop_locked()
             frames = source.frames()
             with self._lock:
                 self._reset()
             self._stop.clear()
-            self._thread = threading.Thread(target=self._loop, args=(frames, tracker, source.fps), daemon=True,
+            self._thread = threading.Thread(target=self._loop, args=(frames, tracker, dense, source.fps), daemon=True,
                                             name="psvs-live")
             self._thread.start()
 
@@ -59,19 +65,20 @@ class LiveRunner:
             self._thread.join(timeout=5)
         self._thread = None
 
-    def _loop(self, frames, tracker: EdgeTracker, fps: float) -> None:
+    def _loop(self, frames, tracker: EdgeTracker | None, dense: DenseSensor | None, fps: float) -> None:
         period = 1.0 / fps if fps > 0 else 0.0
         next_t = time.perf_counter()
         try:
             for frame in frames:
                 if self._stop.is_set():
                     break
-                step = tracker.step(frame)
+                step = tracker.step(frame) if tracker is not None else None
+                dstep = dense.step(frame) if dense is not None else None
                 now = time.perf_counter()
                 with self._lock:
-                    self._frame, self._step = frame, step
+                    self._frame, self._step, self._dense = frame, step, dstep
                     self._times.append(now)
-                    self._history.append((now - self._t0, step.depth_mm))
+                    self._history.append((now - self._t0, step.depth_mm if step is not None else dstep.median_z_mm))
                 if period:   # play files and simulations at their nominal rate
                     next_t = max(next_t + period, now - period)
                     self._stop.wait(max(0.0, next_t - time.perf_counter()))
@@ -87,9 +94,13 @@ class LiveRunner:
         with self._lock:
             return self._frame
 
+    def dense(self) -> DenseFrame | None:
+        with self._lock:
+            return self._dense
+
     def state(self) -> dict:
         with self._lock:
-            step, times = self._step, list(self._times)
+            step, dstep, times = self._step, self._dense, list(self._times)
             history = [[round(t, 3), None if not np.isfinite(z) else round(z, 3)] for t, z in self._history]
             error = self._error
         fps = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 and times[-1] > times[0] else 0.0
@@ -104,4 +115,10 @@ class LiveRunner:
                 k = np.unique(np.linspace(0, len(step.pair) - 1, min(SHOWN_PAIRS, len(step.pair))).astype(int))
                 out["left_px"] = np.round(step.pair.left_px[k], 2).tolist()
                 out["right_px"] = np.round(step.pair.right_px[k], 2).tolist()
+        if dstep is not None:
+            if step is None:
+                out.update(frame=dstep.frame, latency_ms=round(dstep.elapsed_s * 1e3, 3))
+            out["dense"] = {"frame": dstep.frame, "median_z_mm": dstep.median_z_mm if np.isfinite(dstep.median_z_mm)
+                            else None, "answered_pct": round(dstep.answered_pct, 2),
+                            "latency_ms": round(dstep.elapsed_s * 1e3, 3), "range_px": list(dstep.searched_px)}
         return out

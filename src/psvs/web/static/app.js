@@ -201,6 +201,14 @@ async function livePoll() {
     if (s.error) setStatus("live: " + s.error);
     else if (s.message && !s.tracked) setStatus("live: " + s.message);
     else setStatus("live", true);
+    if (s.dense) {
+      $("live-dense-z").textContent = fmt(s.dense.median_z_mm, 1, "mm");
+      $("live-dense-z").dataset.mm = s.dense.median_z_mm ?? "";
+      $("live-dense-z").dataset.frame = s.dense.frame;
+      $("live-dense-ms").textContent = fmt(s.dense.latency_ms, 0, "ms");
+      $("live-dense-figure").hidden = false;
+      $("live-dense-map").src = "/api/live/dense.png?t=" + Date.now();
+    }
     if (s.frame !== undefined) state.liveFrame = await loadImg("/api/live/frame.png?t=" + Date.now());
     draw();
     if (!s.running) { state.live = false; return; }
@@ -210,7 +218,7 @@ async function livePoll() {
 
 $("live-start").addEventListener("click", async () => {
   try {
-    await api("/api/live/start", matchBody(state.seed));
+    await api("/api/live/start", { ...matchBody(state.seed), dense: $("live-dense").checked });
     state.live = true; state.liveFrame = null;
     livePoll();
   } catch (e) { setStatus(e.message); }

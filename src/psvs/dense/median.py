@@ -1,0 +1,67 @@
+"""Median filter of a disparity map by a running histogram (Huang, Yang & Tang 1979), in Numba.
+
+Disparities are quantised to 1/:data:`LEVELS_PER_PX` px, so the window's histogram is small; sliding the
+window one column changes 2·size entries, and the median's bin moves by a few steps, so a pixel costs
+O(size) instead of a sort of size² values (scipy.ndimage.median_filter). The result differs from the exact
+median by at most half a quantum (1/64 px), far below a disparity map's own precision.
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+LEVELS_PER_PX = 32
+
+
+@nb.njit(cache=True, parallel=True)
+def _median_rows(q, size, n_bins):  # pragma: no cover - compiled
+    h, w = q.shape
+    r = size // 2
+    half = (size * size) // 2            # the median is the (half + 1)-th smallest value
+    out = np.empty((h, w), np.int32)
+    for y in nb.prange(h):
+        hist = np.zeros(n_bins, np.int32)
+        for j in range(-r, r + 1):
+            yy = min(max(y + j, 0), h - 1)
+            for i in range(-r, r + 1):
+                hist[q[yy, min(max(i, 0), w - 1)]] += 1
+        m, below = 0, 0                  # median bin, and how many values lie below it
+        while below + hist[m] <= half:
+            below += hist[m]
+            m += 1
+        out[y, 0] = m
+        for x in range(1, w):
+            x_out, x_in = max(x - r - 1, 0), min(x + r, w - 1)
+            for j in range(-r, r + 1):
+                yy = min(max(y + j, 0), h - 1)
+                v = q[yy, x_out]
+                hist[v] -= 1
+                if v < m:
+                    below -= 1
+                v = q[yy, x_in]
+                hist[v] += 1
+                if v < m:
+                    below += 1
+            while below > half:
+                m -= 1
+                below -= hist[m]
+            while below + hist[m] <= half:
+                below += hist[m]
+                m += 1
+            out[y, x] = m
+    return out
+
+
+def median_filter(d: np.ndarray, size: int) -> np.ndarray:
+    """Median of each ``size`` × ``size`` neighbourhood (odd size) of the finite map ``d`` (H, W, px), the
+    image's edge values repeated beyond it (scipy's mode "nearest"), float64 (H, W), to within 1/64 px."""
+    if size < 1 or size % 2 == 0:
+        raise ValueError(f"median size must be an odd number >= 1, got {size}")
+    a = np.asarray(d, dtype=np.float64)
+    if not np.all(np.isfinite(a)):
+        raise ValueError("median_filter needs a finite map")
+    if size == 1:
+        return a.copy()
+    lo = float(a.min())
+    q = np.rint((a - lo) * LEVELS_PER_PX).astype(np.int32)
+    return _median_rows(q, size, int(q.max()) + 1) / LEVELS_PER_PX + lo

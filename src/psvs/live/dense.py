@@ -1,0 +1,73 @@
+"""Dense depth of every live frame: the fast mode of psvs.dense (half resolution, 4 SGM paths) over the
+rig's working range, on any rig (on a build, on the rectified grids of psvs.dense.build).
+
+Each frame gives the left view's disparity map and, on a grid of every ``stride``-th pixel, the
+triangulated points (frame C, mm) and their depth: the full map would cost 0.2 s of exact ray tracing on
+a build; one pixel in 16 keeps the cloud's shape and its median depth at a fraction of it.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.dense.build import dense_on_rig, rig_cloud
+from psvs.optics.rig import Rig
+
+
+@dataclass(frozen=True, eq=False)
+class DenseFrame:
+    """One frame's dense result. ``disparity_px`` (H', W') float32: the left map (on a build, on the left
+    view's rectified grid), NaN where no answer; ``searched_px`` the disparity range searched;
+    ``points_mm`` (N, 3) and ``pixels`` (N, 2) (u, v on the map's grid) of the strided cloud;
+    ``median_z_mm`` (NaN with no point), ``answered_pct`` (% of the map's pixels with a disparity) and the
+    processing time ``elapsed_s``."""
+
+    frame: int
+    disparity_px: np.ndarray
+    searched_px: tuple[float, float]
+    points_mm: np.ndarray
+    pixels: np.ndarray
+    median_z_mm: float
+    answered_pct: float
+    elapsed_s: float
+
+
+class DenseSensor:
+    """Dense depth frame after frame: ``step(frame)`` -> :class:`DenseFrame`.
+
+    Parameters
+    ----------
+    rig : Rig
+    near_mm, far_mm : float
+        The working range whose disparities are searched.
+    fast : bool
+        The fast mode (default) or the default mode of psvs.dense.
+    stride : int
+        Triangulate one pixel in ``stride`` along each axis (>= 1).
+    """
+
+    def __init__(self, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, *, fast: bool = True,
+                 stride: int = 4):
+        if not (isinstance(stride, (int, np.integer)) and stride >= 1):
+            raise ValueError(f"stride must be an integer >= 1, got {stride!r}")
+        if not 0 < near_mm < far_mm:
+            raise ValueError(f"the working range needs 0 < near < far, got {near_mm}..{far_mm} mm")
+        self.rig, self.near_mm, self.far_mm, self.fast, self.stride = rig, near_mm, far_mm, fast, int(stride)
+        self.frames = 0
+
+    def step(self, frame) -> DenseFrame:
+        """The dense disparity and strided cloud of ``frame`` (H, W) grey."""
+        t0 = time.perf_counter()
+        dense = dense_on_rig(frame, self.rig, self.near_mm, self.far_mm, fast=self.fast)
+        d = dense.result.disparity_left
+        mask = np.zeros(d.shape, bool)
+        mask[self.stride // 2::self.stride, self.stride // 2::self.stride] = True
+        cloud = rig_cloud(dense, self.rig, mask=mask)
+        z = cloud.points_mm[:, 2]
+        out = DenseFrame(self.frames, d, dense.result.searched_px, cloud.points_mm, cloud.pixels,
+                         float(np.median(z)) if len(z) else float("nan"), 100.0 * float(np.mean(np.isfinite(d))),
+                         time.perf_counter() - t0)
+        self.frames += 1
+        return out

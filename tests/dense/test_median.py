@@ -1,0 +1,25 @@
+"""The running-histogram median against scipy.ndimage.median_filter (the exact median)."""
+import numpy as np
+import pytest
+from scipy.ndimage import median_filter as exact
+
+from psvs.dense.median import LEVELS_PER_PX, median_filter
+
+
+@pytest.mark.parametrize("size, shape, seed", [(11, (60, 90), 0), (5, (17, 16), 1), (3, (40, 33), 2), (11, (8, 30), 3)])
+def test_median_matches_scipy_within_half_a_level(size, shape, seed):
+    rng = np.random.default_rng(seed)
+    d = np.cumsum(rng.normal(0, 2, shape), axis=1) + rng.uniform(0, 1, shape) + 40.0   # streaks and noise
+    d[5:9, 10:14] = 3.25                                                              # a plateau
+    got = median_filter(d, size)
+    np.testing.assert_allclose(got, exact(d, size=size, mode="nearest"), atol=0.5 / LEVELS_PER_PX + 1e-12)
+
+
+def test_values_on_the_grid_are_exact_and_errors_are_named():
+    d = np.random.default_rng(4).integers(0, 64 * LEVELS_PER_PX, (30, 40)) / LEVELS_PER_PX - 5.0
+    np.testing.assert_array_equal(median_filter(d, 7), exact(d, size=7, mode="nearest"))
+    np.testing.assert_array_equal(median_filter(d, 1), d)
+    with pytest.raises(ValueError, match="odd"):
+        median_filter(d, 4)
+    with pytest.raises(ValueError, match="finite"):
+        median_filter(np.full((20, 20), np.nan), 3)

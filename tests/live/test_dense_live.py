@@ -1,0 +1,71 @@
+"""`psvs live --dense`: a dense depth map of every frame, on the ideal rig and on a misaligned build, read
+back from the log (csv) and from the MCAP recording (the `mcap` reader, Foxglove's RawImage 32FC1 and
+PointCloud decoded with protobuf), against the planted depth of a photo-textured wall."""
+import csv
+import json
+
+import numpy as np
+import pytest
+from mcap.reader import make_reader
+
+from psvs.cli.main import main
+from psvs.io.params import load_rig
+from psvs.live.dense import DenseSensor
+from psvs.optics.rig import default_rig
+from tests.conftest import write_wall_video
+from tests.live.test_foxglove import proto_class
+
+
+@pytest.fixture(scope="module", params=["default", "misaligned"])
+def wall_video(request, tmp_path_factory):
+    """The photo wall's video (tests.conftest.write_wall_video) through the rig as built: (rig name, path,
+    true depth per frame)."""
+    rig = default_rig() if request.param == "default" else load_rig("misaligned")
+    return (request.param, *write_wall_video(tmp_path_factory.mktemp("dense_video"), rig))
+
+
+def test_live_dense_depth_every_frame_log_and_mcap(wall_video, tmp_path, capsys):
+    rig, path, truth = wall_video
+    log, rec = tmp_path / "live.csv", tmp_path / "live.mcap"
+    assert main(["live", "--video", str(path), "--rig", rig, "--dense", "-o", str(log), "--mcap", str(rec)]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("frame 0: dense median Z ") and out[-1].startswith("6 frames, ")
+    with log.open() as f:
+        rows = list(csv.DictReader(f))
+    z = np.array([float(r["dense_median_z_mm"]) for r in rows])
+    assert [int(r["frame"]) for r in rows] == list(range(6)) and all(r["tracked"] == "" for r in rows)
+    np.testing.assert_allclose(z, truth, rtol=0.005)                      # within 0.5 % of the wall
+    assert all(float(r["dense_answered_pct"]) > 80.0 for r in rows)
+    with rec.open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        topics = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
+        counts = {summary.channels[k].topic: n for k, n in summary.statistics.channel_message_counts.items()}
+        msgs = list(reader.iter_messages(log_time_order=True))
+    assert topics == {"/psvs/image": "foxglove.RawImage", "/psvs/dense/depth": "foxglove.RawImage",
+                      "/psvs/dense/points": "foxglove.PointCloud", "/psvs/dense": "psvs.dense"}
+    assert counts == {t: 6 for t in topics}
+    schemas = {c.topic: summary.schemas[c.schema_id] for c in summary.channels.values()}
+    Raw = proto_class("foxglove.RawImage", schemas["/psvs/dense/depth"].data)
+    Cloud = proto_class("foxglove.PointCloud", schemas["/psvs/dense/points"].data)
+    depth_imgs = [Raw.FromString(m.data) for _, c, m in msgs if c.topic == "/psvs/dense/depth"]
+    clouds = [Cloud.FromString(m.data) for _, c, m in msgs if c.topic == "/psvs/dense/points"]
+    records = [json.loads(m.data) for _, c, m in msgs if c.topic == "/psvs/dense"]
+    for k, (img, cloud, record) in enumerate(zip(depth_imgs, clouds, records)):
+        assert img.encoding == "32FC1" and img.step == 4 * img.width
+        zi = np.frombuffer(img.data, "<f4").reshape(img.height, img.width) * 1e3       # metres -> mm
+        zc = np.frombuffer(cloud.data, "<f8").reshape(-1, 3)[:, 2] * 1e3
+        assert np.isfinite(zi).sum() == len(zc) and record["frame"] == k and record["stride"] == 4
+        assert np.nanmedian(zi) == pytest.approx(truth[k], rel=0.005)
+        assert record["median_z_mm"] == pytest.approx(np.median(zc), abs=1e-3) == pytest.approx(z[k], abs=1e-3)
+
+
+def test_dense_sensor_and_cli_errors(capsys):
+    with pytest.raises(ValueError, match="stride"):
+        DenseSensor(default_rig(), stride=0)
+    with pytest.raises(ValueError, match="near < far"):
+        DenseSensor(default_rig(), 800.0, 600.0)
+    assert main(["live", "--video", "x.avi", "--rig", "default"]) == 2
+    assert "give --seed U,V" in capsys.readouterr().err
+    assert main(["live", "--video", "x.avi", "--rig", "default", "--dense", "--dense-stride", "0"]) == 2
+    assert "--dense-stride must be >= 1" in capsys.readouterr().err
