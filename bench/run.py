@@ -4,7 +4,8 @@
     python3 dev.py bench triangulate
 
 Each bench module defines ``cases()`` returning a list of ``(name, setup_result_fn, target_s)`` where
-calling ``setup_result_fn()`` returns the zero-argument function to time. Time per call: the best of 7
+calling ``setup_result_fn()`` returns the zero-argument function to time, and may define ``RATIOS``, a list
+of ``(name, case_a, case_b)``: the ratio of two of its cases' times, measured in the same run. Time per call: the best of 7
 batches of back-to-back calls (timeit's method; one call per batch for cases slower than 50 ms).
 BLAS/OpenMP are pinned to one thread; the render group uses its own thread pool (both cores).
 """
@@ -61,7 +62,7 @@ def main(argv: list[str]) -> int:
     modules = sorted(HERE.glob("bench_*.py"))
     if argv:
         modules = [m for m in modules if any(a in m.stem for a in argv)]
-    rows = []
+    rows, ratios = [], []
     for path in modules:
         spec = importlib.util.spec_from_file_location(path.stem, path)
         mod = importlib.util.module_from_spec(spec)
@@ -73,6 +74,10 @@ def main(argv: list[str]) -> int:
             rows.append((path.stem.removeprefix("bench_"), name, t, target, ok))
             print(f"{name:<55} {t * 1e3:10.1f} ms  " + ("(reported)" if ok == "—" else
                                                            f"(target {target * 1e3:.0f} ms: {ok})"), flush=True)
+        times = {r[1]: r[2] for r in rows if r[0] == path.stem.removeprefix("bench_")}
+        for name, a, b in getattr(mod, "RATIOS", []):
+            ratios.append((path.stem.removeprefix("bench_"), name, times[a] / times[b]))
+            print(f"{name:<55} {ratios[-1][2]:10.2f}", flush=True)
     # keep the rows of groups not run this time (python3 dev.py bench GROUP re-measures one group)
     ran = {r[0] for r in rows}
     if OUT.exists():
@@ -81,7 +86,10 @@ def main(argv: list[str]) -> int:
             if len(cells) == 5 and cells[0] not in ran and cells[0] not in ("group", "---"):
                 target = float("inf") if cells[3] in ("—", "inf") else float(cells[3]) / 1e3
                 rows.append((cells[0], cells[1], float(cells[2]) / 1e3, target, "—" if target == float("inf") else cells[4]))
+            elif len(cells) == 3 and cells[0] not in ran and cells[0] not in ("group", "---"):
+                ratios.append((cells[0], cells[1], float(cells[2])))
     rows.sort(key=lambda r: r[0])
+    ratios.sort(key=lambda r: r[0])
     lines = ["# Benchmarks", "",
              "Written by `python3 dev.py bench` (bench/run.py): time per call, best of 7 batches of back-to-back calls",
              "(one call a batch above 50 ms). Triangulation, projection and matching run on",
@@ -90,6 +98,10 @@ def main(argv: list[str]) -> int:
              "| group | case | time (ms) | target (ms) | met |", "|---|---|---:|---:|---|"]
     lines += [f"| {g} | {n} | {t * 1e3:.1f} | {'—' if tg == float('inf') else f'{tg * 1e3:.0f}'} | {ok} |"
               for g, n, t, tg, ok in rows]
+    if ratios:
+        lines += ["", "Ratios of two cases' times measured in the same run:", "",
+                  "| group | ratio | value |", "|---|---|---:|"]
+        lines += [f"| {g} | {n} | {v:.2f} |" for g, n, v in ratios]
     OUT.write_text("\n".join(lines) + "\n")
     print(f"wrote {OUT}")
     return 0 if all(r[4] in ("yes", "—") for r in rows) else 1

@@ -122,5 +122,8 @@ def test_filter_volume_matches_opencv_box_filters_everywhere(radius, shape):
         want = box(a) * guide + box(mp - a * mg)
         want[vol[i] == NO_TWIN] = NO_TWIN
         np.testing.assert_allclose(got[i], want, atol=2e-5)
+    inp = vol.copy()
+    again = filter_volume(inp, guide, radius, 0.01, in_place=True)   # over its input: the same values
+    assert again is inp and np.array_equal(again, got)
     with pytest.raises(ValueError, match="radius"):
         filter_volume(vol, guide, 0, 0.01)

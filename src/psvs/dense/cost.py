@@ -24,6 +24,9 @@ def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
     return f - cv2.GaussianBlur(f, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)
 
 
+# Inner loops run over 0-based slices of rows: an index with a variable offset (x + d) would bring Numba's
+# negative-index wrap-around into the loop, and then it does not vectorise.
+
 @nb.njit(cache=True, fastmath=True, inline="always")
 def _window_sum(src, dst, r):  # pragma: no cover - compiled
     """dst[i] = Σ src[clamp(i + j)], j = −r..r, indices clamped to the row (its end values repeated)."""
@@ -32,11 +35,13 @@ def _window_sum(src, dst, r):  # pragma: no cover - compiled
         dst[i] = 0.0
     for j in range(-r, r + 1):
         lo, hi = max(0, -j), min(n, n - j)   # i + j inside the row
-        for i in range(lo, hi):
-            dst[i] += src[i + j]
-        for i in range(0, lo):
+        if hi > lo:
+            a, b = dst[lo:hi], src[lo + j:hi + j]
+            for i in range(hi - lo):
+                a[i] += b[i]
+        for i in range(0, min(lo, n)):
             dst[i] += src[0]
-        for i in range(hi, n):
+        for i in range(max(hi, 0), n):
             dst[i] += src[n - 1]
 
 
@@ -47,13 +52,18 @@ def _window_max(src, dst, r):  # pragma: no cover - compiled
     for i in range(n):
         dst[i] = src[i]
     for j in range(-r, r + 1):
-        for i in range(max(0, -j), min(n, n - j)):
-            v = src[i + j]
-            dst[i] = v if v > dst[i] else dst[i]   # a select (vectorises), not max()
+        lo, hi = max(0, -j), min(n, n - j)
+        if hi > lo:
+            a, b = dst[lo:hi], src[lo + j:hi + j]
+            for i in range(hi - lo):
+                v = b[i]
+                a[i] = v if v > a[i] else a[i]   # a select (vectorises), not max()
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def _echo(f, g, mu, sd, mg, sg, lags, r, rs):  # pragma: no cover - compiled
+def _echo(f, g, mu, isd, mg, isg, lags, r, rs):  # pragma: no cover - compiled
+    """The echo volume (D, H, W): per lag, the window sums of f(x)·g(x − d) (rows by direct sums, columns by
+    a running sum), the NCC from the windows' means and inverse deviations, then the shiftable maximum."""
     h, w = f.shape
     n = len(lags)
     out = np.empty((n, h, w), np.float32)
@@ -66,19 +76,23 @@ def _echo(f, g, mu, sd, mg, sg, lags, r, rs):  # pragma: no cover - compiled
         rows = np.empty((h, wd), np.float32)       # horizontal window sums of f(x)·g(x − d)
         prod = np.empty(wd, np.float32)
         for y in range(h):
+            fy, gy = f[y, d:], g[y, :wd]
             for i in range(wd):
-                prod[i] = f[y, i + d] * g[y, i]
+                prod[i] = fy[i] * gy[i]
             _window_sum(prod, rows[y], r)
-        col = np.empty(wd, np.float32)
-        for y in range(h):                         # vertical sums (rows clamped), then the NCC
-            col[:] = 0.0
-            for j in range(-r, r + 1):
-                src = rows[min(max(y + j, 0), h - 1)]
-                for i in range(wd):
-                    col[i] += src[i]
+        col = np.zeros(wd, np.float32)             # vertical window sum (rows clamped), running down
+        for j in range(-r, r + 1):
+            src = rows[min(max(j, 0), h - 1)]
             for i in range(wd):
-                x = i + d
-                o[y, x] = (col[i] * inv - mu[y, x] * mg[y, i]) / (sd[y, x] * sg[y, i])
+                col[i] += src[i]
+        for y in range(h):
+            if y > 0:
+                add, sub = rows[min(y + r, h - 1)], rows[max(y - r - 1, 0)]
+                for i in range(wd):
+                    col[i] += add[i] - sub[i]
+            oy, muy, isdy, mgy, isgy = o[y, d:], mu[y, d:], isd[y, d:], mg[y, :wd], isg[y, :wd]
+            for i in range(wd):
+                oy[i] = (col[i] * inv - muy[i] * mgy[i]) * (isdy[i] * isgy[i])
         if rs > 0:  # shiftable windows: max over the (2 rs + 1)^2 neighbourhood, separable, within x >= d
             for y in range(h):
                 _window_max(o[y, d:], rows[y], rs)
@@ -109,16 +123,18 @@ def aperture_weight(features: np.ndarray, window: int, full_share: float) -> np.
     return np.clip(share / full_share, 0.0, 1.0).astype(np.float32)
 
 
-def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float) -> np.ndarray:
+def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float, in_place: bool = False) -> np.ndarray:
     """Guided filter (He, Sun & Tang 2013) of each slice of ``volume`` (D, H, W) with ``guide`` (H, W) scaled
     to about 0..1, box radius ``radius`` px and regulariser ``eps`` (guide units²): cost-volume filtering
     (Hosni et al. 2013). Each pixel's cost becomes a local linear function of the guide, so support stops
     at the guide's edges instead of letting a textured surface's echo spread over its neighbour. The
-    :data:`NO_TWIN` entries count as 0 (no evidence) and keep their value."""
+    :data:`NO_TWIN` entries count as 0 (no evidence) and keep their value. ``in_place`` (a contiguous
+    float32 volume) writes the result over ``volume``: one volume less to allocate."""
     if radius < 1:
         raise ValueError(f"guided filter radius must be >= 1 px, got {radius}")
-    return guided_filter_volume(np.ascontiguousarray(volume, dtype=np.float32),
-                                np.ascontiguousarray(guide, dtype=np.float32), int(radius), np.float32(eps), NO_TWIN)
+    v = np.ascontiguousarray(volume, dtype=np.float32)
+    return guided_filter_volume(v, np.ascontiguousarray(guide, dtype=np.float32), int(radius), np.float32(eps), NO_TWIN,
+                                in_place and v is volume)
 
 
 def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_window: int = 1,
@@ -148,28 +164,40 @@ def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_
         if g.shape != f.shape:
             raise ValueError(f"features_right {g.shape} must match features {f.shape}")
         mg, sg = stats(g)
-    return _echo(f, g, mu, sd, mg, sg, lags, window // 2, max(0, shift_window // 2))
+    return _echo(f, g, mu, (1.0 / sd).astype(np.float32), mg, (1.0 / sg).astype(np.float32), lags, window // 2,
+                 max(0, shift_window // 2))
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
 def fused_cost(echo, lags):  # pragma: no cover - compiled
     """Cost (H, W, D) float32 = −max(echo at x, echo seen from the right-view end at x + d), shifted so
-    each pixel's minimum is 0: low where *either* view's content at x has its twin at distance d."""
+    each pixel's minimum is 0: low where *either* view's content at x has its twin at distance d.
+    (Per row: the costs in lag-major order, vectorised along x, then moved to (x, lag) order.)"""
     n, h, w = echo.shape
     cost = np.empty((h, w, n), np.float32)
     for y in nb.prange(h):
-        best = np.full(w, np.inf, np.float32)
+        buf = np.empty((n, w), np.float32)
+        best = np.full(w, np.float32(1e30), np.float32)
         for k in range(n):
             d = lags[k]
+            e, row = echo[k, y], buf[k]
+            m = max(w - d, 0)
+            ef = e[d:]                                  # the echo seen from the right-view end, x + d
+            for x in range(m):
+                a, b = e[x], ef[x]
+                row[x] = -(a if a > b else b)
+            tail = row[m:]
+            et = e[m:]
+            for x in range(w - m):
+                tail[x] = -et[x]
             for x in range(w):
-                v = echo[k, y, x]
-                if x + d < w and echo[k, y, x + d] > v:
-                    v = echo[k, y, x + d]
-                cost[y, x, k] = -v
-                best[x] = min(best[x], -v)
+                v = row[x]
+                best[x] = v if v < best[x] else best[x]
+        out = cost[y]
         for x in range(w):
+            bx = best[x]
             for k in range(n):
-                cost[y, x, k] -= best[x]
+                out[x, k] = buf[k, x] - bx
     return cost
 
 
@@ -183,10 +211,19 @@ def pick(agg, echo, lags):  # pragma: no cover - compiled
     other = np.empty((h, w), np.float32)
     for y in nb.prange(h):
         for x in range(w):
+            a = agg[y, x]
+            m0 = m1 = m2 = m3 = np.float32(1e30)   # the minimum in four lanes (vectorises), then its first index
+            j = 0
+            while j + 4 <= n:
+                m0, m1, m2, m3 = min(m0, a[j]), min(m1, a[j + 1]), min(m2, a[j + 2]), min(m3, a[j + 3])
+                j += 4
+            while j < n:
+                m0 = min(m0, a[j])
+                j += 1
+            lowest = min(min(m0, m1), min(m2, m3))
             k = 0
-            for j in range(1, n):
-                if agg[y, x, j] < agg[y, x, k]:
-                    k = j
+            while a[k] != lowest:
+                k += 1
             off = 0.0
             if 0 < k < n - 1:
                 c0, c1, c2 = agg[y, x, k - 1], agg[y, x, k], agg[y, x, k + 1]
@@ -201,14 +238,14 @@ def pick(agg, echo, lags):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def one_sided_cost(echo, lags, fused, keep, right_view):  # pragma: no cover - compiled
+def one_sided_cost(echo, lags, fused, keep, right_view, cost):  # pragma: no cover - compiled
     """Cost (H, W, D) of one view's map for the second pass: the fused cost where the pixel's own view
     owns it (``keep``), else that view's own evidence alone — the echo at x (left view) or seen from x + d
     (right view) — shifted to a minimum of 0. Pixels in the band whose twin may lie outside the image
-    (x < d_max for the left view, x ≥ W − d_max for the right) get a neutral, all-zero cost there."""
+    (x < d_max for the left view, x ≥ W − d_max for the right) get a neutral, all-zero cost there. Written
+    into ``cost`` (H, W, D) float32, which is returned."""
     n, h, w = echo.shape
     d_max = lags[n - 1]
-    cost = np.empty((h, w, n), np.float32)
     for y in nb.prange(h):
         for x in range(w):
             if keep[y, x]:

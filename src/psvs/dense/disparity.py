@@ -177,16 +177,23 @@ def _fill_rows(d, keep):  # pragma: no cover - compiled
 def consistent(d_left: np.ndarray, d_right: np.ndarray, tol_px: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """Left-right check of two maps (H, W): a left pixel x with disparity d is consistent when the right map
     at x − d holds d (± tol_px), and a right pixel y when the left map at y + d does. (left_ok, right_ok)."""
-    h, w = d_left.shape
-    cols = np.arange(w)[None, :]
-    rows = np.arange(h)[:, None]
-    out = []
-    for mine, other, sign in ((d_left, d_right, -1), (d_right, d_left, 1)):
-        x = cols + sign * np.rint(np.nan_to_num(mine, nan=-1e6)).astype(np.int64)
-        inside = (x >= 0) & (x < w)
-        seen = other[rows, np.clip(x, 0, w - 1)]
-        out.append(inside & (np.abs(mine - seen) <= tol_px))
-    return out[0], out[1]
+    a = np.ascontiguousarray(d_left, dtype=np.float64)
+    b = np.ascontiguousarray(d_right, dtype=np.float64)
+    return _consistent(a, b, -1, tol_px), _consistent(b, a, 1, tol_px)
+
+
+@nb.njit(cache=True, parallel=True)
+def _consistent(mine, other, sign, tol):  # pragma: no cover - compiled
+    h, w = mine.shape
+    ok = np.zeros((h, w), np.bool_)
+    for y in nb.prange(h):
+        for x in range(w):
+            d = mine[y, x]
+            if np.isfinite(d):
+                xx = x + sign * int(np.rint(d))
+                if 0 <= xx < w:
+                    ok[y, x] = abs(d - other[y, xx]) <= tol
+    return ok
 
 
 def unit_scaled(img: np.ndarray) -> np.ndarray:
@@ -207,7 +214,7 @@ def weighted_echo(img: np.ndarray, lags: np.ndarray, p: DenseParams, guide: np.n
     right = None if img_right is None else band_pass(img_right, p.sigma_px)
     echo = echo_correlation(features, lags, p.window, p.shift_window, right)
     if p.guided_radius > 0:
-        echo = filter_volume(echo, guide, p.guided_radius, p.guided_eps)
+        echo = filter_volume(echo, guide, p.guided_radius, p.guided_eps, in_place=True)
     echo *= aperture_weight(features, p.aperture_window, p.aperture_share)[None]
     for k, d in enumerate(lags):
         echo[k, :, :d] = NO_TWIN
@@ -230,8 +237,9 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     dl, dr = fill_from_background(d, keep_l), fill_from_background(d, keep_r)
     ok_l, ok_r = consistent(dl, dr)
     if p.second_pass:  # each view's own evidence where the other view's texture dominated
-        dl2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_l, False)), echo, lags)[0]
-        dr2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_r, True)), echo, lags)[0]
+        one = np.empty_like(fused)      # one volume for both views' costs, used one after the other
+        dl2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_l, False, one)), echo, lags)[0]
+        dr2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_r, True, one)), echo, lags)[0]
         ok2_l, ok2_r = consistent(dl2, dr2)
         dl = fill_from_background(np.where(~ok_l & ok2_l, dl2, dl), ok_l | ok2_l)
         dr = fill_from_background(np.where(~ok_r & ok2_r, dr2, dr), ok_r | ok2_r)
@@ -254,12 +262,24 @@ def _median(d: np.ndarray, size: int) -> np.ndarray:
 
 def _echo_at(echo: np.ndarray, lags: np.ndarray, d: np.ndarray, right_view: bool) -> np.ndarray:
     """The echo (H, W) at each pixel's own disparity, seen from its own view's end; −1 where undefined."""
+    return _echo_lookup(echo, np.ascontiguousarray(lags, dtype=np.int64), np.ascontiguousarray(d, dtype=np.float64),
+                        right_view)
+
+
+@nb.njit(cache=True, parallel=True)
+def _echo_lookup(echo, lags, d, right_view):  # pragma: no cover - compiled
     n, h, w = echo.shape
-    k = np.clip(np.rint(np.nan_to_num(d, nan=lags[0])).astype(np.int64) - lags[0], 0, n - 1)
-    rows, cols = np.indices((h, w))
-    x = cols + (lags[k] if right_view else 0)
-    ok = np.isfinite(d) & (x < w)
-    return np.where(ok, echo[k, rows, np.clip(x, 0, w - 1)], -1.0)
+    out = np.empty((h, w), np.float64)
+    for y in nb.prange(h):
+        for x in range(w):
+            v = d[y, x]
+            if not np.isfinite(v):
+                out[y, x] = -1.0
+                continue
+            k = min(max(int(np.rint(v)) - lags[0], 0), n - 1)
+            xx = x + lags[k] if right_view else x
+            out[y, x] = echo[k, y, xx] if xx < w else -1.0
+    return out
 
 
 def _upsample(a: np.ndarray, shape: tuple[int, int], factor: float = 1.0) -> np.ndarray:

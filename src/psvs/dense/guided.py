@@ -60,9 +60,8 @@ def _box_mean(src, dst, tmp, r):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def _filter_slices(volume, guide, r, eps, missing_value, n_chunks):  # pragma: no cover - compiled
+def _filter_slices(volume, guide, r, eps, missing_value, n_chunks, out):  # pragma: no cover - compiled
     n, h, w = volume.shape
-    out = np.empty_like(volume)
     mean_g = np.empty((h, w), np.float32)
     var_g = np.empty((h, w), np.float32)
     work = np.empty((h, w), np.float32)
@@ -99,10 +98,12 @@ def _filter_slices(volume, guide, r, eps, missing_value, n_chunks):  # pragma: n
     return out
 
 
-def guided_filter_volume(volume: np.ndarray, guide: np.ndarray, r: int, eps: float,
-                         missing_value: float) -> np.ndarray:
+def guided_filter_volume(volume: np.ndarray, guide: np.ndarray, r: int, eps: float, missing_value: float,
+                         in_place: bool = False) -> np.ndarray:
     """Each slice of ``volume`` (D, H, W) float32 filtered with ``guide`` (H, W) float32, box radius ``r``
     px, regulariser ``eps`` (guide units²); entries equal to ``missing_value`` count as 0 and keep their
-    value. Float32 (D, H, W)."""
+    value. Float32 (D, H, W): ``volume`` itself with ``in_place`` (a slice's input is read before its
+    output is written, pixel by pixel), else a new array."""
     n_chunks = max(1, min(len(volume), nb.get_num_threads()))
-    return _filter_slices(volume, guide, r, np.float32(eps), np.float32(missing_value), n_chunks)
+    out = volume if in_place else np.empty_like(volume)
+    return _filter_slices(volume, guide, r, np.float32(eps), np.float32(missing_value), n_chunks, out)

@@ -10,11 +10,9 @@ left to right) carries the paths that come from the left, the upper left, above 
 upward pass the four opposite ones. Each pass reads the cost volume once and writes its sum of paths
 once, keeping only the previous row of each path (W × D per path), so the work is bound by arithmetic
 rather than memory traffic, and the inner loop over disparities has no branch (rows padded with a large
-cost at both ends), so it vectorises. The two passes run on two threads.
+cost at both ends), so it vectorises. The two passes run on two threads (Numba's).
 """
 from __future__ import annotations
-
-from concurrent.futures import ThreadPoolExecutor
 
 import numba as nb
 import numpy as np
@@ -29,25 +27,22 @@ _BIG = np.float32(1e30)   # the padding of a path's row: never the minimum (fini
 # Numba's negative-index wrap-around into the inner loop, which then does not vectorise.
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _step(cost, y, x, src, ks, xs, m, jump, p1, dst, kd, xd, acc):  # pragma: no cover - compiled
+def _step(cost, y, x, src, ks, xs, m, jump, p1, dst, kd, xd):  # pragma: no cover - compiled
     """One path step: dst[kd, xd, 1 + d] = cost[y, x, d] + min(src[ks, xs, 1 + d], src[ks, xs, d] + p1,
-    src[ks, xs, 2 + d] + p1, jump) − m, added to acc[y, x, d]; returns its minimum."""
+    src[ks, xs, 2 + d] + p1, jump) − m; returns its minimum."""
     n = cost.shape[2]
     for d in range(n):
         near = min(src[ks, xs, d], src[ks, xs, d + 2]) + p1
         dst[kd, xd, d + 1] = cost[y, x, d] + min(near, min(src[ks, xs, d + 1], jump)) - m
-    for d in range(n):
-        acc[y, x, d] += dst[kd, xd, d + 1]
     return _row_min(dst, kd, xd, n)
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _start(cost, y, x, dst, kd, xd, acc):  # pragma: no cover - compiled
-    """A path's first pixel: its cost into dst[kd, xd, 1:], added to acc; the minimum."""
+def _start(cost, y, x, dst, kd, xd):  # pragma: no cover - compiled
+    """A path's first pixel: its cost into dst[kd, xd, 1:]; the minimum."""
     n = cost.shape[2]
     for d in range(n):
         dst[kd, xd, d + 1] = cost[y, x, d]
-        acc[y, x, d] += cost[y, x, d]
     return _row_min(dst, kd, xd, n)
 
 
@@ -78,7 +73,7 @@ def _penalty(g, g_prev, p1, p2, tau):  # pragma: no cover - compiled
 
 @nb.njit(cache=True, nogil=True, fastmath=True)
 def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
-    """Sum (written to ``out``) of the paths of one pass: down (rows top to bottom, x left to right) takes the paths
+    """Sum (written to ``out``, once per pixel) of the paths of one pass: down (rows top to bottom, x left to right) takes the paths
     arriving from x − 1 in the row, and from the previous row at x (and x − 1, x + 1 with ``diagonals``);
     up the mirror images. Rows of path costs are padded: index 1 + d holds disparity d."""
     h, w, n = cost.shape
@@ -90,29 +85,54 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
     cur_min = np.zeros((n_rows, w), np.float32)
     hor = np.full((2, 1, n + 2), _BIG, np.float32)   # the row path: previous pixel, this pixel
     hor_min = np.float32(0.0)
+    # the jump penalties from each path's previous pixel, computed up front (vectorised divisions):
+    # pen[0] for the row path (from x − s), pen[1 + k] for previous-row path k (from y − s and px(k))
+    pen = np.empty((n_rows + 1, h, w), np.float32)
+    for y in range(h):
+        yp = min(max(y - s, 0), h - 1)
+        for k in range(n_rows + 1):
+            src = guide[y] if k == 0 else guide[yp]
+            shift = -s if k in (0, 2) else (s if k == 3 else 0)    # the neighbour's column is x + shift
+            row, gy = pen[k, y], guide[y]
+            for x in range(w):
+                row[x] = _penalty(gy[x], src[min(max(x + shift, 0), w - 1)], p1, p2, tau)
     for iy in range(h):
         y = iy if down else h - 1 - iy
         for ix in range(w):
             x = ix if down else w - 1 - ix
-            g = guide[y, x]
-            for d in range(n):                   # the sum starts here: no zeroed volume needed
-                out[y, x, d] = 0.0
             a = ix & 1                           # the row path's buffers alternate
             if ix == 0:
-                hor_min = _start(cost, y, x, hor, a, 0, out)
+                hor_min = _start(cost, y, x, hor, a, 0)
             else:
-                jump = hor_min + _penalty(g, guide[y, x - s], p1, p2, tau)
-                hor_min = _step(cost, y, x, hor, 1 - a, 0, hor_min, jump, p1, hor, a, 0, out)
+                jump = hor_min + pen[0, y, x]
+                hor_min = _step(cost, y, x, hor, 1 - a, 0, hor_min, jump, p1, hor, a, 0)
             for k in range(n_rows):
                 px = x if k == 0 else (x - s if k == 1 else x + s)
                 if iy == 0 or px < 0 or px >= w:
-                    cur_min[k, x] = _start(cost, y, x, cur, k, x, out)
+                    cur_min[k, x] = _start(cost, y, x, cur, k, x)
                 else:
                     m = prev_min[k, px]
-                    jump = m + _penalty(g, guide[y - s, px], p1, p2, tau)
-                    cur_min[k, x] = _step(cost, y, x, prev, k, px, m, jump, p1, cur, k, x, out)
+                    jump = m + pen[1 + k, y, x]
+                    cur_min[k, x] = _step(cost, y, x, prev, k, px, m, jump, p1, cur, k, x)
+            if diagonals:                        # the pass's sum of paths, written once
+                for d in range(n):
+                    out[y, x, d] = hor[a, 0, d + 1] + cur[0, x, d + 1] + cur[1, x, d + 1] + cur[2, x, d + 1]
+            else:
+                for d in range(n):
+                    out[y, x, d] = hor[a, 0, d + 1] + cur[0, x, d + 1]
         prev, cur = cur, prev
         prev_min, cur_min = cur_min, prev_min
+
+
+@nb.njit(cache=True, parallel=True)
+def _both_passes(cost, out, work, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
+    """The downward pass into ``out`` and the upward one into ``work``, one per thread (Numba's pool: a
+    Python thread pool started per call ran them at half the speed)."""
+    for k in nb.prange(2):
+        if k == 0:
+            _pass(cost, out, True, diagonals, p1, p2, guide, tau)
+        else:
+            _pass(cost, work, False, diagonals, p1, p2, guide, tau)
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
@@ -157,7 +177,6 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
         for k in range(2):
             _pass(cost, outs[k], k == 0, diagonals, *args)
     else:
-        with ThreadPoolExecutor(2) as pool:
-            list(pool.map(lambda k: _pass(cost, outs[k], k == 0, diagonals, *args), range(2)))
+        _both_passes(cost, outs[0], outs[1], diagonals, *args)
     _add_into(outs[0], outs[1])
     return outs[0]
