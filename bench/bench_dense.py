@@ -7,6 +7,7 @@ import cv2
 import numba
 
 from psvs.dense import dense_disparity, separate_views
+from psvs.dense.disparity import Workspace
 from psvs.dense.evaluate import motorcycle, sgbm_reference, superimpose
 
 numba.set_num_threads(2)
@@ -26,7 +27,8 @@ def _dense(fast: bool, d_max: float = 64):
     def setup():
         cv2.setNumThreads(2)
         c = _frame()["c"]
-        return lambda: dense_disparity(c, 0, d_max, fast=fast)
+        ws = Workspace()     # as a live loop keeps it from frame to frame
+        return lambda: dense_disparity(c, 0, d_max, fast=fast, workspace=ws)
     return setup
 
 

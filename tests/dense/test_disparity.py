@@ -98,3 +98,20 @@ def test_fast_mode_on_a_narrow_range_falls_back_to_full_resolution(pair):
     assert res.disparity_left.shape == (200, 60)
     res = dense_disparity(superimpose(left, right), 20.2, 21.8, fast=True)      # 10.1..10.9: no whole px
     assert res.disparity_left.shape == left.shape and np.nanmax(res.disparity_left) <= 21.8
+
+
+def test_a_kept_workspace_gives_the_same_maps():
+    """Volumes reused from call to call (a live loop), over frames of two sizes and both modes: the same maps
+    as fresh memory, and the volumes are the kept ones."""
+    from psvs.dense.disparity import Workspace
+    left, right, _, _ = layered_pair()
+    c = superimpose(left, right)
+    ws = Workspace()
+    for img, fast in ((c, True), (c, False), (c[:, :150], True), (c, True)):
+        want = dense_disparity(img, 0, 40, fast=fast)
+        got = dense_disparity(img, 0, 40, fast=fast, workspace=ws)
+        for a, b in zip((want.disparity_left, want.disparity_right, want.confidence_left),
+                        (got.disparity_left, got.disparity_right, got.confidence_left)):
+            np.testing.assert_array_equal(a, b)
+    kept = ws.array("fused", ws._arrays["fused"].shape)
+    assert kept is ws._arrays["fused"] and kept.dtype == np.float32

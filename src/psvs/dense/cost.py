@@ -61,12 +61,12 @@ def _window_max(src, dst, r):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def _echo(f, g, mu, isd, mg, isg, lags, r, rs):  # pragma: no cover - compiled
-    """The echo volume (D, H, W): per lag, the window sums of f(x)·g(x − d) (rows by direct sums, columns by
-    a running sum), the NCC from the windows' means and inverse deviations, then the shiftable maximum."""
+def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # pragma: no cover - compiled
+    """The echo volume (D, H, W) into ``out``: per lag, the window sums of f(x)·g(x − d) (rows by direct
+    sums, columns by a running sum), the NCC from the windows' means and inverse deviations, then the
+    shiftable maximum."""
     h, w = f.shape
     n = len(lags)
-    out = np.empty((n, h, w), np.float32)
     inv = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
     for k in nb.prange(n):
         d = lags[k]
@@ -138,7 +138,7 @@ def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float
 
 
 def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_window: int = 1,
-                     features_right: np.ndarray | None = None) -> np.ndarray:
+                     features_right: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
     """NCC of each ``window`` × ``window`` patch (odd side) of ``features`` (H, W) at x with the patch at
     x − d, for each lag d in ``lags`` (px, integers in 1..W−1): float32 (D, H, W) in [−1, 1], :data:`NO_TWIN`
     where x − d is outside the image. With ``shift_window`` > 1 each pixel takes the best of the windows
@@ -164,17 +164,33 @@ def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_
         if g.shape != f.shape:
             raise ValueError(f"features_right {g.shape} must match features {f.shape}")
         mg, sg = stats(g)
+    shape = (len(lags), *f.shape)
+    out = _volume(out, shape)
     return _echo(f, g, mu, (1.0 / sd).astype(np.float32), mg, (1.0 / sg).astype(np.float32), lags, window // 2,
-                 max(0, shift_window // 2))
+                 max(0, shift_window // 2), out)
+
+
+def _volume(out: np.ndarray | None, shape: tuple) -> np.ndarray:
+    """``out`` checked to be a contiguous float32 array of ``shape``, or a new one."""
+    if out is None:
+        return np.empty(shape, np.float32)
+    if out.shape != shape or out.dtype != np.float32 or not out.flags.c_contiguous:
+        raise ValueError(f"output volume must be contiguous float32 {shape}, got {out.dtype} {out.shape}")
+    return out
+
+
+def fused_cost(echo: np.ndarray, lags: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Cost (H, W, D) float32 = −max(echo at x, echo seen from the right-view end at x + d), shifted so
+    each pixel's minimum is 0: low where *either* view's content at x has its twin at distance d.
+    ``echo`` (D, H, W); written into ``out`` when given."""
+    n, h, w = echo.shape
+    return _fused_cost(echo, np.ascontiguousarray(lags, dtype=np.int64), _volume(out, (h, w, n)))
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def fused_cost(echo, lags):  # pragma: no cover - compiled
-    """Cost (H, W, D) float32 = −max(echo at x, echo seen from the right-view end at x + d), shifted so
-    each pixel's minimum is 0: low where *either* view's content at x has its twin at distance d.
-    (Per row: the costs in lag-major order, vectorised along x, then moved to (x, lag) order.)"""
+def _fused_cost(echo, lags, cost):  # pragma: no cover - compiled
+    """Per row: the costs in lag-major order, vectorised along x, then moved to (x, lag) order."""
     n, h, w = echo.shape
-    cost = np.empty((h, w, n), np.float32)
     for y in nb.prange(h):
         buf = np.empty((n, w), np.float32)
         best = np.full(w, np.float32(1e30), np.float32)

@@ -206,13 +206,14 @@ def unit_scaled(img: np.ndarray) -> np.ndarray:
 
 
 def weighted_echo(img: np.ndarray, lags: np.ndarray, p: DenseParams, guide: np.ndarray,
-                  img_right: np.ndarray | None = None) -> np.ndarray:
+                  img_right: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
     """The echo volume (D, H, W) of :func:`dense_disparity`: band-passed NCC, guided-filtered with ``guide``
     (the image scaled by :func:`unit_scaled`), weighted by each patch's aperture; :data:`NO_TWIN` where the
-    twin lies outside the image (x < d). With ``img_right`` (a build) the twin's patch comes from it."""
+    twin lies outside the image (x < d). With ``img_right`` (a build) the twin's patch comes from it. Written
+    into ``out`` (D, H, W) when given."""
     features = band_pass(img, p.sigma_px)
     right = None if img_right is None else band_pass(img_right, p.sigma_px)
-    echo = echo_correlation(features, lags, p.window, p.shift_window, right)
+    echo = echo_correlation(features, lags, p.window, p.shift_window, right, out)
     if p.guided_radius > 0:
         echo = filter_volume(echo, guide, p.guided_radius, p.guided_eps, in_place=True)
     echo *= aperture_weight(features, p.aperture_window, p.aperture_share)[None]
@@ -221,23 +222,44 @@ def weighted_echo(img: np.ndarray, lags: np.ndarray, p: DenseParams, guide: np.n
     return echo
 
 
-def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_right: np.ndarray | None = None):
+class Workspace:
+    """The cost volumes of :func:`dense_disparity`, kept from one call to the next on frames of one size
+    (a live loop): fresh memory costs page faults on every frame. One per thread (not thread-safe); it
+    holds about five volumes of (H, W, searched disparities) float32 at the working scale."""
+
+    def __init__(self):
+        self._arrays: dict[str, np.ndarray] = {}
+
+    def array(self, name: str, shape: tuple) -> np.ndarray:
+        """The float32 array ``name`` of ``shape`` (contents undefined): the kept one, or a new one."""
+        a = self._arrays.get(name)
+        if a is None or a.shape != shape:
+            a = self._arrays[name] = np.empty(shape, np.float32)
+        return a
+
+
+def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_right: np.ndarray | None = None,
+              workspace: Workspace | None = None):
     lo = max(MIN_LAG_PX, math.ceil(d_min))
     hi = min(math.floor(d_max), img.shape[1] - 1)
     lags = np.arange(lo, hi + 1)
+    h, w = img.shape
+    vol = (lambda name: workspace.array(name, (h, w, len(lags)))) if workspace is not None else \
+        (lambda name: np.empty((h, w, len(lags)), np.float32))
     guide = unit_scaled(img)
-    echo = weighted_echo(img, lags, p, guide, img_right)
-    fused = fused_cost(echo, lags)
+    echo = weighted_echo(img, lags, p, guide, img_right,
+                         out=None if workspace is None else workspace.array("echo", (len(lags), h, w)))
+    fused = fused_cost(echo, lags, vol("fused"))
     aggregate = partial(sgm_aggregate, p1=p.p1, p2=p.p2, n_paths=p.n_paths,    # one pair of volumes for all
                         guide=cv2.GaussianBlur(guide, (0, 0), 1.0), tau=p.edge_contrast,
-                        out=np.empty_like(fused), work=np.empty_like(fused))
+                        out=vol("sgm"), work=vol("sgm_work"))
     d, own, other = pick(aggregate(fused), echo, lags)
     keep_l = own >= other - p.ownership_margin
     keep_r = other >= own - p.ownership_margin
     dl, dr = fill_from_background(d, keep_l), fill_from_background(d, keep_r)
     ok_l, ok_r = consistent(dl, dr)
     if p.second_pass:  # each view's own evidence where the other view's texture dominated
-        one = np.empty_like(fused)      # one volume for both views' costs, used one after the other
+        one = vol("one_sided")          # one volume for both views' costs, used one after the other
         dl2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_l, False, one)), echo, lags)[0]
         dr2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_r, True, one)), echo, lags)[0]
         ok2_l, ok2_r = consistent(dl2, dr2)
@@ -287,7 +309,8 @@ def _upsample(a: np.ndarray, shape: tuple[int, int], factor: float = 1.0) -> np.
 
 
 def dense_disparity(image, d_min: float, d_max: float, *, fast: bool = False,
-                    params: DenseParams | None = None, image_right=None) -> DenseResult:
+                    params: DenseParams | None = None, image_right=None,
+                    workspace: Workspace | None = None) -> DenseResult:
     """Left- and right-view disparity maps (px) of a complex image (H, W), searching d_min..d_max px.
 
     ``fast`` uses :data:`FAST` (half resolution, 4 SGM paths); ``params`` overrides either. A constant
@@ -295,7 +318,9 @@ def dense_disparity(image, d_min: float, d_max: float, *, fast: bool = False,
 
     ``image_right`` (a build, psvs.dense.build): ``image`` is the complex image resampled on the left view's
     rectified grid and this one on the right view's; a left pixel's twin is then sought in it, and the
-    maps are in rectified coordinates (the left map on the left grid, the right map on the right grid)."""
+    maps are in rectified coordinates (the left map on the left grid, the right map on the right grid).
+
+    ``workspace`` (:class:`Workspace`) keeps the cost volumes for the next call (a live loop)."""
     img = check_image(image)
     right = None
     if image_right is not None:
@@ -313,7 +338,7 @@ def dense_disparity(image, d_min: float, d_max: float, *, fast: bool = False,
         return DenseResult(nan, nan.copy(), np.zeros((h, w), np.float32), np.zeros((h, w), np.float32),
                            (float(d_min), float(d_max)))
     if p.scale == 1:
-        dl, dr, cl, cr, searched = _at_scale(img, d_min, d_max, p, right)
+        dl, dr, cl, cr, searched = _at_scale(img, d_min, d_max, p, right, workspace)
         f32 = lambda a: a.astype(np.float32)  # noqa: E731
         return DenseResult(f32(dl), f32(dr), f32(cl), f32(cr), searched)
     s = p.scale
@@ -324,7 +349,8 @@ def dense_disparity(image, d_min: float, d_max: float, *, fast: bool = False,
     dmin_s = d_min / fx
     dmax_s = min(d_max / fx, small.shape[1] - 1)
     if math.floor(dmax_s) < max(MIN_LAG_PX, math.ceil(dmin_s)):  # too narrow for the coarse scale
-        return dense_disparity(img, d_min, d_max, params=replace(p, scale=1), image_right=right)
-    dl, dr, cl, cr, searched = _at_scale(small, dmin_s, dmax_s, p, small_right)
+        return dense_disparity(img, d_min, d_max, params=replace(p, scale=1), image_right=right,
+                               workspace=workspace)
+    dl, dr, cl, cr, searched = _at_scale(small, dmin_s, dmax_s, p, small_right, workspace)
     return DenseResult(_upsample(dl, (h, w), fx), _upsample(dr, (h, w), fx), _upsample(cl, (h, w)),
                        _upsample(cr, (h, w)), (searched[0] * fx, searched[1] * fx))

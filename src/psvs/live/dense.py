@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.dense.build import dense_on_rig, rig_cloud
+from psvs.dense.disparity import Workspace
 from psvs.optics.rig import Rig
 
 
@@ -35,7 +36,8 @@ class DenseFrame:
 
 
 class DenseSensor:
-    """Dense depth frame after frame: ``step(frame)`` -> :class:`DenseFrame`.
+    """Dense depth frame after frame: ``step(frame)`` -> :class:`DenseFrame`. One per thread (it keeps
+    the cost volumes between frames).
 
     Parameters
     ----------
@@ -56,11 +58,12 @@ class DenseSensor:
             raise ValueError(f"the working range needs 0 < near < far, got {near_mm}..{far_mm} mm")
         self.rig, self.near_mm, self.far_mm, self.fast, self.stride = rig, near_mm, far_mm, fast, int(stride)
         self.frames = 0
+        self._workspace = Workspace()     # the cost volumes, reused frame after frame
 
     def step(self, frame) -> DenseFrame:
         """The dense disparity and strided cloud of ``frame`` (H, W) grey."""
         t0 = time.perf_counter()
-        dense = dense_on_rig(frame, self.rig, self.near_mm, self.far_mm, fast=self.fast)
+        dense = dense_on_rig(frame, self.rig, self.near_mm, self.far_mm, fast=self.fast, workspace=self._workspace)
         d = dense.result.disparity_left
         mask = np.zeros(d.shape, bool)
         mask[self.stride // 2::self.stride, self.stride // 2::self.stride] = True
