@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from psvs.dense.cost import NO_TWIN, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost, pick
+from psvs.dense.cost import NO_TWIN, PAD_COST, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost, pick
 from tests.dense.planted import texture
 
 
@@ -53,6 +53,7 @@ def test_fused_cost_takes_either_end_of_a_pair():
     cost = fused_cost(echo, lags)
     assert cost[0, 7, 1] == 0.0 and cost[0, 7, 0] == pytest.approx(1.8)   # left-view end
     assert cost[0, 3, 1] == 0.0 and cost[0, 3, 0] == pytest.approx(1.8)   # right-view end, seen forward
+    assert cost.shape == (1, 10, 8) and np.all(cost[..., 2:] == PAD_COST)  # padded to whole vectors
 
 
 def test_pick_finds_the_parabola_vertex():

@@ -40,6 +40,12 @@ def test_aggregate_matches_reference_recursion(n_paths):
     got = aggregate(cost, 0.1, 0.4, n_paths=n_paths)
     want = reference_sgm(cost.astype(np.float64), 0.1, 0.4, PATHS[:n_paths])
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
+    # one thread, and caller's buffers (written over, the result is the first)
+    out, work = np.full_like(cost, np.nan), np.full_like(cost, np.nan)
+    again = aggregate(cost, 0.1, 0.4, n_paths=n_paths, threads=1, out=out, work=work)
+    assert again is out and np.array_equal(again, got)
+    with pytest.raises(ValueError, match="SGM buffers"):
+        aggregate(cost, 0.1, 0.4, out=np.empty((7, 9, 4), np.float32))
 
 
 def test_guided_penalty_matches_reference_recursion():

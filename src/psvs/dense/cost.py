@@ -15,6 +15,15 @@ import numpy as np
 from psvs.dense.guided import guided_filter_volume
 
 NO_TWIN = np.float32(-1.0)  # correlation given to lags whose twin window lies outside the image
+#: Cost volumes (H, W, D') hold D' = the searched lags rounded up to a multiple of LANES: the extra entries
+#: hold PAD_COST, which never wins, so SGM's loops over lags run in whole vectors (no scalar remainder).
+LANES = 8
+PAD_COST = np.float32(1e6)
+
+
+def padded_lags(n: int) -> int:
+    """The cost volume's lag axis for ``n`` searched lags: n rounded up to a multiple of :data:`LANES`."""
+    return -(-n // LANES) * LANES
 
 
 def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
@@ -180,11 +189,12 @@ def _volume(out: np.ndarray | None, shape: tuple) -> np.ndarray:
 
 
 def fused_cost(echo: np.ndarray, lags: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-    """Cost (H, W, D) float32 = −max(echo at x, echo seen from the right-view end at x + d), shifted so
+    """Cost (H, W, D') float32 = −max(echo at x, echo seen from the right-view end at x + d), shifted so
     each pixel's minimum is 0: low where *either* view's content at x has its twin at distance d.
-    ``echo`` (D, H, W); written into ``out`` when given."""
+    ``echo`` (D, H, W); D' = :func:`padded_lags` (D), the entries past D :data:`PAD_COST`. Written into
+    ``out`` when given."""
     n, h, w = echo.shape
-    return _fused_cost(echo, np.ascontiguousarray(lags, dtype=np.int64), _volume(out, (h, w, n)))
+    return _fused_cost(echo, np.ascontiguousarray(lags, dtype=np.int64), _volume(out, (h, w, padded_lags(n))))
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
@@ -214,14 +224,18 @@ def _fused_cost(echo, lags, cost):  # pragma: no cover - compiled
             bx = best[x]
             for k in range(n):
                 out[x, k] = buf[k, x] - bx
+            for k in range(n, cost.shape[2]):
+                out[x, k] = PAD_COST
     return cost
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
 def pick(agg, echo, lags):  # pragma: no cover - compiled
-    """Winner of the aggregated cost (H, W, D) with a parabola's sub-pixel offset: disparity (px), and the
-    echo seen from the left-view end (``own``) and the right-view end (``other``) at that lag, each (H, W)."""
-    h, w, n = agg.shape
+    """Winner of the aggregated cost (H, W, D'), over its first D = len(lags) entries, with a parabola's
+    sub-pixel offset: disparity (px), and the echo seen from the left-view end (``own``) and the right-view
+    end (``other``) at that lag, each (H, W)."""
+    h, w = agg.shape[0], agg.shape[1]
+    n = lags.shape[0]
     disp = np.empty((h, w), np.float64)
     own = np.empty((h, w), np.float32)
     other = np.empty((h, w), np.float32)
@@ -259,11 +273,15 @@ def one_sided_cost(echo, lags, fused, keep, right_view, cost):  # pragma: no cov
     owns it (``keep``), else that view's own evidence alone — the echo at x (left view) or seen from x + d
     (right view) — shifted to a minimum of 0. Pixels in the band whose twin may lie outside the image
     (x < d_max for the left view, x ≥ W − d_max for the right) get a neutral, all-zero cost there. Written
-    into ``cost`` (H, W, D) float32, which is returned."""
+    into ``cost`` (H, W, D') float32 (:func:`padded_lags`, the padding :data:`PAD_COST`), which is
+    returned."""
     n, h, w = echo.shape
+    n_pad = cost.shape[2]
     d_max = lags[n - 1]
     for y in nb.prange(h):
         for x in range(w):
+            for k in range(n, n_pad):
+                cost[y, x, k] = PAD_COST
             if keep[y, x]:
                 for k in range(n):
                     cost[y, x, k] = fused[y, x, k]

@@ -36,7 +36,7 @@ import numpy as np
 
 from psvs._memory import check_memory
 from psvs.dense.cost import (NO_TWIN, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost,
-                             one_sided_cost, pick)
+                             one_sided_cost, padded_lags, pick)
 from psvs.dense.median import median_filter
 from psvs.dense.sgm import aggregate as sgm_aggregate
 from psvs.match.correspondence import disparity_range
@@ -244,8 +244,9 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     hi = min(math.floor(d_max), img.shape[1] - 1)
     lags = np.arange(lo, hi + 1)
     h, w = img.shape
-    vol = (lambda name: workspace.array(name, (h, w, len(lags)))) if workspace is not None else \
-        (lambda name: np.empty((h, w, len(lags)), np.float32))
+    shape = (h, w, padded_lags(len(lags)))       # the cost volumes' lag axis, padded to whole vectors
+    vol = (lambda name: workspace.array(name, shape)) if workspace is not None else \
+        (lambda name: np.empty(shape, np.float32))
     guide = unit_scaled(img)
     echo = weighted_echo(img, lags, p, guide, img_right,
                          out=None if workspace is None else workspace.array("echo", (len(lags), h, w)))

@@ -2,8 +2,9 @@
 
 Per slice p and guide I (box means over a (2r + 1)² window, borders reflected as OpenCV's BORDER_REFLECT):
 a = (mean(I·p) − mean(I)·mean(p)) / (var(I) + ε), b = mean(p) − a·mean(I), q = mean(a)·I + mean(b).
-The slices run in parallel; each box mean is two separable passes of 2r + 1 shifted adds, which vectorise
-(OpenCV's boxFilter per slice, called from Python, spent most of its time outside the arithmetic).
+The slices run in parallel; each box mean is two separable passes, 2r + 1 shifted adds along the rows and
+a running sum down the columns, which vectorise (OpenCV's boxFilter per slice, called from Python, spent
+most of its time outside the arithmetic).
 """
 from __future__ import annotations
 
@@ -48,15 +49,19 @@ def _box_mean(src, dst, tmp, r):  # pragma: no cover - compiled
             for j in range(-r, r + 1):
                 s += row[_reflect(x + j, w)]
             out[x] = s
-    for y in range(h):
-        out = dst[y]
-        out[:] = tmp[_reflect(y - r, h)]
-        for j in range(-r + 1, r + 1):
-            row = tmp[_reflect(y + j, h)]
-            for x in range(w):
-                out[x] += row[x]
+    col = np.zeros(w, np.float32)          # the vertical window's sum, running down the rows
+    for j in range(-r, r + 1):
+        row = tmp[_reflect(j, h)]
         for x in range(w):
-            out[x] *= scale
+            col[x] += row[x]
+    for y in range(h):
+        if y > 0:
+            add, sub = tmp[_reflect(y + r, h)], tmp[_reflect(y - r - 1, h)]
+            for x in range(w):
+                col[x] += add[x] - sub[x]
+        out = dst[y]
+        for x in range(w):
+            out[x] = col[x] * scale
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)

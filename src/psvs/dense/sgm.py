@@ -151,7 +151,8 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     the cost's units. With ``guide`` (H, W), a jump between neighbours whose guide values differ by g costs
     max(p1, p2 / (1 + g / tau)) instead (``tau`` in the guide's units). ``out`` and ``work`` (float32, the
     cost's shape), when given, are used instead of new volumes (the result is ``out``): a caller that
-    aggregates several times reuses them, and fresh memory costs page faults."""
+    aggregates several times reuses them, and fresh memory costs page faults. ``threads`` < 2 runs the
+    two passes one after the other."""
     if n_paths not in (4, 8):
         raise ValueError(f"n_paths must be 4 or 8, got {n_paths}")
     if not 0 <= p1 <= p2:
