@@ -54,9 +54,25 @@ SGBM = "OpenCV StereoSGBM on the separate pair, 64 disparities, 1 thread"
 RATIOS = [("default mode / StereoSGBM (same image, same run)", DEFAULT, SGBM)]
 
 
+def _live_dense():
+    """psvs live --dense's per-frame work: the fast mode over the default rig's whole working range
+    (400-1200 mm) and the strided cloud, on a rendered photo wall at 700 mm."""
+    from psvs import default_rig
+    from psvs.live.dense import DenseSensor
+    from psvs.simulate.builtin import _photo, regulated_light
+    from psvs.simulate.render import render
+    from psvs.simulate.scene import Scene
+    rig = default_rig()
+    frame = render(Scene((), regulated_light(700.0), 700.0, _photo("grass", (1400.0, 1050.0)), "wall"), rig,
+                   seed=1).image
+    sensor = DenseSensor(rig)
+    return lambda: sensor.step(frame)
+
+
 def cases():
     return [("dense --fast, 640x480, 64 disparities, 2 cores", _dense(True), 0.033),
             (DEFAULT, _dense(False), 0.300),
             ("dense (default mode), 640x480, 160 disparities (the rig's range), 2 cores", _dense(False, 160), 0.600),
             ("view separation, 640x480", _separate, 0.300),
-            (SGBM, _sgbm, float("inf"))]
+            (SGBM, _sgbm, float("inf")),
+            ("psvs live --dense per frame: fast mode over the rig's 400-1200 mm + cloud", _live_dense, float("inf"))]
