@@ -60,6 +60,19 @@ def disc_video(tmp_path_factory):
     return path, 760.0 - positions[:, 2], rig, scene, positions
 
 
+def read_mcap(path):
+    """An MCAP file through the `mcap` reader (independent of psvs): ({topic: (schema name, message
+    encoding)}, {topic: message count}, [(schema, channel, message)] in the file's order, so a test of rising
+    time stamps tests the file)."""
+    from mcap.reader import make_reader
+    with Path(path).open("rb") as f:
+        reader = make_reader(f)
+        summary = reader.get_summary()
+        topics = {c.topic: (summary.schemas[c.schema_id].name, c.message_encoding) for c in summary.channels.values()}
+        counts = {summary.channels[k].topic: n for k, n in summary.statistics.channel_message_counts.items()}
+        return topics, counts, list(reader.iter_messages(log_time_order=False))
+
+
 WALL_MM = 700.0
 
 

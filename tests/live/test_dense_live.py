@@ -6,13 +6,12 @@ import json
 
 import numpy as np
 import pytest
-from mcap.reader import make_reader
 
 from psvs.cli.main import main
 from psvs.io.params import load_rig
 from psvs.live.dense import DenseSensor
 from psvs.optics.rig import default_rig
-from tests.conftest import write_wall_video
+from tests.conftest import read_mcap, write_wall_video
 from tests.live.test_foxglove import proto_class
 
 
@@ -36,16 +35,12 @@ def test_live_dense_depth_every_frame_log_and_mcap(wall_video, tmp_path, capsys)
     assert [int(r["frame"]) for r in rows] == list(range(6)) and all(r["tracked"] == "" for r in rows)
     np.testing.assert_allclose(z, truth, rtol=0.005)                      # within 0.5 % of the wall
     assert all(float(r["dense_answered_pct"]) > 80.0 for r in rows)
-    with rec.open("rb") as f:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        topics = {c.topic: summary.schemas[c.schema_id].name for c in summary.channels.values()}
-        counts = {summary.channels[k].topic: n for k, n in summary.statistics.channel_message_counts.items()}
-        msgs = list(reader.iter_messages(log_time_order=True))
-    assert topics == {"/psvs/image": "foxglove.RawImage", "/psvs/dense/depth": "foxglove.RawImage",
-                      "/psvs/dense/points": "foxglove.PointCloud", "/psvs/dense": "psvs.dense"}
+    topics, counts, msgs = read_mcap(rec)
+    assert topics == {"/psvs/image": ("foxglove.RawImage", "protobuf"),
+                      "/psvs/dense/depth": ("foxglove.RawImage", "protobuf"),
+                      "/psvs/dense/points": ("foxglove.PointCloud", "protobuf"), "/psvs/dense": ("psvs.dense", "json")}
     assert counts == {t: 6 for t in topics}
-    schemas = {c.topic: summary.schemas[c.schema_id] for c in summary.channels.values()}
+    schemas = {c.topic: s for s, c, _ in msgs}
     Raw = proto_class("foxglove.RawImage", schemas["/psvs/dense/depth"].data)
     Cloud = proto_class("foxglove.PointCloud", schemas["/psvs/dense/points"].data)
     depth_imgs = [Raw.FromString(m.data) for _, c, m in msgs if c.topic == "/psvs/dense/depth"]

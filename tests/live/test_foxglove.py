@@ -13,12 +13,11 @@ import time
 import numpy as np
 import pytest
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
-from mcap.reader import make_reader
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
 from psvs.cli.main import main
-from tests.conftest import EXAMPLES
+from tests.conftest import EXAMPLES, read_mcap
 from tests.live.test_tracker import rim_seed
 
 RIG_FILE = str(EXAMPLES / "rigs" / "default.toml")
@@ -120,13 +119,7 @@ def test_live_mcap_reads_back_with_the_mcap_reader(disc_video, tmp_path, capsys)
     out = tmp_path / "live.mcap"
     assert main(["live", "--video", str(path), "--rig", RIG_FILE, "--seed", f"{u:.1f},{v:.1f}", "--quiet",
                  "--max-frames", "20", "--mcap", str(out)]) == 0
-    with out.open("rb") as f:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        topics = {c.topic: (summary.schemas[c.schema_id].name, c.message_encoding)
-                  for c in summary.channels.values()}
-        counts = {summary.channels[k].topic: n for k, n in summary.statistics.channel_message_counts.items()}
-        msgs = list(reader.iter_messages(log_time_order=False))
+    topics, counts, msgs = read_mcap(out)
     assert topics == {"/psvs/image": ("foxglove.RawImage", "protobuf"),
                       "/psvs/edges": ("foxglove.ImageAnnotations", "protobuf"),
                       "/psvs/points": ("foxglove.PointCloud", "protobuf"), "/psvs/depth": ("psvs.depth", "json")}

@@ -212,7 +212,7 @@ def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
     /tf decoded with protobuf), read back exactly by read_recording, and `psvs replay` reproducing every
     command; a recording whose command differs by 1 nm in one cycle fails the replay (exit 1)."""
     from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
-    from mcap.reader import make_reader
+    from tests.conftest import read_mcap
 
     from psvs.robot.recording import TOPICS as REC_TOPICS
     from psvs.robot.recording import read_recording
@@ -220,12 +220,8 @@ def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
     path = tmp_path / "run.mcap"
     _write_recording(run, path)
     n = len(run.cycles)
-    with path.open("rb") as f:
-        reader = make_reader(f)
-        summ = reader.get_summary()
-        schema = {c.topic: summ.schemas[c.schema_id].name for c in summ.channels.values()}
-        counts = {summ.channels[i].topic: k for i, k in summ.statistics.channel_message_counts.items()}
-        msgs = list(reader.iter_messages(log_time_order=False))
+    topics, counts, msgs = read_mcap(path)
+    schema = {t: name for t, (name, _) in topics.items()}
     assert schema == {"/psvs/setup": "psvs.setup", "/psvs/cycle": "psvs.cycle", "/psvs/image": "foxglove.RawImage",
                       "/psvs/points": "foxglove.PointCloud", "/tf": "foxglove.FrameTransforms",
                       "/psvs/seam": "foxglove.SceneUpdate", "/psvs/log": "foxglove.Log", "/psvs/stop": "psvs.stop"}
