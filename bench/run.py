@@ -4,7 +4,8 @@
     python3 dev.py bench triangulate
 
 Each bench module defines ``cases()`` returning a list of ``(name, setup_result_fn, target_s)`` where
-calling ``setup_result_fn()`` returns the zero-argument function to time, and may define ``RATIOS``, a list
+calling ``setup_result_fn()`` returns the zero-argument function to time (a function that returns a float
+has timed itself: that many seconds, best of 7), and may define ``RATIOS``, a list
 of ``(name, case_a, case_b)``: the ratio of two of its cases' times, measured in the same run. Time per call: the best of 7
 batches of back-to-back calls (timeit's method; one call per batch for cases slower than 50 ms).
 BLAS/OpenMP are pinned to one thread; the render group uses its own thread pool (both cores).
@@ -46,8 +47,10 @@ def time_best(fn, repeat: int = 7) -> float:
     """Seconds per call, as timeit does: calls in batches (enough for ~50 ms a batch, as a frame loop runs
     them back to back), the best batch's mean over ``repeat`` batches (the minimum: interference only ever adds time)."""
     t0 = time.perf_counter()
-    fn()
+    own = fn()
     single = time.perf_counter() - t0
+    if isinstance(own, float):   # a case that times itself (e.g. a child process up to a line it prints)
+        return min([own] + [fn() for _ in range(repeat - 1)])
     inner = max(1, int(0.05 / max(single, 1e-6)))
     best = float("inf")
     for _ in range(repeat):

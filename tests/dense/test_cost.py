@@ -63,6 +63,8 @@ def test_pick_finds_the_parabola_vertex():
     echo = np.zeros((5, 1, 1), np.float32)
     d, own, other = pick(agg, echo, lags)
     assert d[0, 0] == pytest.approx(d_true, abs=1e-6)
+    d, _, _ = pick(np.full_like(agg, np.nan), echo, lags)        # NaN costs: the search stays in the range
+    assert lags[0] <= d[0, 0] <= lags[-1]
 
 
 def test_bad_windows_and_lags_are_rejected():
@@ -128,3 +130,9 @@ def test_filter_volume_matches_opencv_box_filters_everywhere(radius, shape):
     assert again is inp and np.array_equal(again, got)
     with pytest.raises(ValueError, match="radius"):
         filter_volume(vol, guide, 0, 0.01)
+    with pytest.raises(ValueError, match="radius"):
+        filter_volume(vol, guide, min(shape), 0.01)
+    with pytest.raises(ValueError, match="eps"):
+        filter_volume(vol, guide, radius, 0.0)
+    with pytest.raises(ValueError, match="guide"):
+        filter_volume(vol, guide[:-1], radius, 0.01)

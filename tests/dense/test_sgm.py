@@ -46,6 +46,8 @@ def test_aggregate_matches_reference_recursion(n_paths):
     assert again is out and np.array_equal(again, got)
     with pytest.raises(ValueError, match="SGM buffers"):
         aggregate(cost, 0.1, 0.4, out=np.empty((7, 9, 4), np.float32))
+    with pytest.raises(ValueError, match="overlap"):
+        aggregate(cost, 0.1, 0.4, out=cost)
 
 
 def test_guided_penalty_matches_reference_recursion():

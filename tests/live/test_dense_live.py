@@ -64,3 +64,15 @@ def test_dense_sensor_and_cli_errors(capsys):
     assert "give --seed U,V" in capsys.readouterr().err
     assert main(["live", "--video", "x.avi", "--rig", "default", "--dense", "--dense-stride", "0"]) == 2
     assert "--dense-stride must be >= 1" in capsys.readouterr().err
+
+
+def test_live_dense_without_texture_says_so(tmp_path, capsys):
+    """A featureless video: every frame's dense map is empty, the run says so and exits 1."""
+    from psvs.io.video import write_video
+    path = tmp_path / "flat.avi"
+    assert write_video(path, [np.full((480, 640), 90, np.uint8)] * 3, fps=30.0) == 3
+    with pytest.warns(RuntimeWarning, match="constant"):
+        assert main(["live", "--video", str(path), "--rig", "default", "--dense", "--quiet"]) == 1
+    out = capsys.readouterr()
+    assert "3 frames, 0 with depth, median Z none" in out.out
+    assert "no frame gave a dense depth" in out.err

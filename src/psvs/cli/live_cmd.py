@@ -96,11 +96,17 @@ def run(args) -> int:
     n = len(steps)
     pace = "paced by --realtime" if args.realtime else "reading + processing"
     if dense is not None:
-        z = [d.median_z_mm for d in dense_frames]
-        print(f"dense: {n} frames, median Z {np.nanmedian(z):.1f} mm, {np.mean([d.answered_pct for d in dense_frames]):.1f} "
-              f"% of pixels answered, mean {1e3 * np.mean([d.elapsed_s for d in dense_frames]):.1f} ms per frame")
+        z = np.array([d.median_z_mm for d in dense_frames])
+        z = z[np.isfinite(z)]
+        print(f"dense: {n} frames, {len(z)} with depth, median Z "
+              + (f"{np.median(z):.1f} mm" if len(z) else "none")
+              + f", {np.mean([d.answered_pct for d in dense_frames]):.1f} % of pixels answered, "
+              f"mean {1e3 * np.mean([d.elapsed_s for d in dense_frames]):.1f} ms per frame")
     if tracker is None:
         print(f"{n} frames, {n / wall:.1f} frames/s ({pace})")
+        if not len(z):
+            print("no frame gave a dense depth (no texture in the working range?)", file=sys.stderr)
+            return 1
         return 0
     tracked = sum(s.ok for s in steps)
     print(f"{n} frames, {tracked} tracked, {n / wall:.1f} frames/s "

@@ -33,7 +33,11 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
+    try:        # the command's module (and its libraries) load here: Ctrl-C then ends as it does later on
+        parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
+    except KeyboardInterrupt:
+        print("\npsvs: interrupted", file=sys.stderr)
+        return 130
     args = parser.parse_args(argv)
     try:
         return int(args.run(args) or 0)

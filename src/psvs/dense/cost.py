@@ -139,9 +139,14 @@ def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float
     at the guide's edges instead of letting a textured surface's echo spread over its neighbour. The
     :data:`NO_TWIN` entries count as 0 (no evidence) and keep their value. ``in_place`` (a contiguous
     float32 volume) writes the result over ``volume``: one volume less to allocate."""
-    if radius < 1:
-        raise ValueError(f"guided filter radius must be >= 1 px, got {radius}")
     v = np.ascontiguousarray(volume, dtype=np.float32)
+    g = np.asarray(guide)
+    if g.shape != v.shape[1:]:
+        raise ValueError(f"guide {g.shape} must match the volume's slices {v.shape[1:]}")
+    if not 1 <= radius < min(g.shape):
+        raise ValueError(f"guided filter radius must be >= 1 px and below the image's {min(g.shape)} px, got {radius}")
+    if not eps > 0:
+        raise ValueError(f"guided filter eps must be > 0, got {eps}")
     return guided_filter_volume(v, np.ascontiguousarray(guide, dtype=np.float32), int(radius), np.float32(eps), NO_TWIN,
                                 in_place and v is volume)
 
@@ -252,7 +257,7 @@ def pick(agg, echo, lags):  # pragma: no cover - compiled
                 j += 1
             lowest = min(min(m0, m1), min(m2, m3))
             k = 0
-            while a[k] != lowest:
+            while k < n - 1 and a[k] != lowest:   # (bounded: a NaN cost equals nothing)
                 k += 1
             off = 0.0
             if 0 < k < n - 1:
@@ -290,7 +295,7 @@ def one_sided_cost(echo, lags, fused, keep, right_view, cost):  # pragma: no cov
                 for k in range(n):
                     cost[y, x, k] = 0.0
                 continue
-            best = np.float32(np.inf)
+            best = np.float32(1e30)                 # finite: the kernel uses fastmath
             for k in range(n):
                 if right_view:
                     xf = x + lags[k]

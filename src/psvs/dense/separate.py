@@ -16,7 +16,7 @@ better. Measured PSNR of both views against the truth, 10 / 20 / 30 / 50 / 200 i
 640x480 21.7 / 21.7 / 21.5 / 21.1 / 20.4 dB, its mirrored pair 22.3 / 22.3 / 22.1 / 21.8 / 21.4 dB, a planted
 layered scene 28.4 / 28.6 / 28.5 / 28.4 / 28.4 dB; with its *true* disparities the iterates converge by 30
 (29.3 / 29.7 / 29.8 / 29.8 / 29.8 dB). On the ideal rig the normal equations are applied without a matrix
-(Numba: data, ties and Laplacian per row, both cores), so 30 iterations on 640x480 take about 0.1 s.
+(Numba: data, ties and Laplacian per row, both cores), so 30 iterations on 640x480 take about 0.2 s.
 """
 from __future__ import annotations
 

@@ -171,6 +171,8 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
             buf = np.empty_like(cost)
         elif buf.shape != cost.shape or buf.dtype != np.float32 or not buf.flags.c_contiguous:
             raise ValueError(f"SGM buffers must be contiguous float32 {cost.shape}, got {buf.dtype} {buf.shape}")
+        elif any(np.shares_memory(buf, a) for a in (cost, *outs)):
+            raise ValueError("SGM buffers must not overlap the cost or each other")
         outs.append(buf)
     args = (np.float32(p1), np.float32(p2), guide, np.float32(tau))
     diagonals = n_paths == 8

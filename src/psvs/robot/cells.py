@@ -29,7 +29,7 @@ from psvs.robot.controller import Command, Observation, SeamTracker
 from psvs.robot.sensor import SeamSensor, auto_seed
 from psvs.robot.workpiece import Workpiece
 
-#: The arm is at rest when every joint turns slower than this (rad/s): the torch then moves < 0.1 mm/s.
+#: The arm is at rest when every joint turns slower than this (rad/s): the torch then moves < 0.3 mm/s.
 REST_SPEED_RAD_S = 1e-4
 from psvs.simulate.render import render
 from psvs.simulate.sensor import Sensor

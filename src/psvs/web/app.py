@@ -34,7 +34,7 @@ from psvs.measure.triangulate import MODELS, default_model
 from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
 from psvs.web.limits import BodyLimit, check_steps
-from psvs.web.live_runner import LiveRunner
+from psvs.web.live_runner import DENSE_LOCK, LiveRunner
 from psvs.web.sources import Source
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -208,7 +208,8 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
         if not body.near_mm < body.far_mm:
             raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
         grey = state["still"]
-        dense_res = dense_on_rig(grey, rig, body.near_mm, body.far_mm, fast=body.fast)
+        with DENSE_LOCK:
+            dense_res = dense_on_rig(grey, rig, body.near_mm, body.far_mm, fast=body.fast)
         res = dense_res.result
         lo, hi = res.searched_px
         d = res.disparity_left       # on a build: on the left view's rectified grid
@@ -218,7 +219,8 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
                "median_disparity_px": float(np.nanmedian(d)) if np.isfinite(d).any() else None,
                "median_z_mm": float(np.nanmedian(z)) if np.isfinite(z).any() else None}
         if body.views and np.isfinite(d).any():
-            lv, rv = separate_views(grey, d, rig.mirrors.split_ratio, res.disparity_right, rect=dense_res.rect)
+            with DENSE_LOCK:
+                lv, rv = separate_views(grey, d, rig.mirrors.split_ratio, res.disparity_right, rect=dense_res.rect)
             out.update(left_png=_data_url(to_grey8(lv)), right_png=_data_url(to_grey8(rv)))
         return out
 

@@ -13,6 +13,10 @@ from psvs.live.dense import DenseFrame, DenseSensor
 from psvs.live.tracker import EdgeTracker, TrackStep
 from psvs.web.sources import Source
 
+#: Serialises the dense computations of the page's requests and of the live loop: Numba's parallel kernels
+#: may not run from two threads at once under its fallback threading layer (workqueue).
+DENSE_LOCK = threading.Lock()
+
 HISTORY = 600          # depth samples kept for the plot
 SHOWN_PAIRS = 400      # pixel pairs sent to the page per frame (evenly subsampled)
 
@@ -73,7 +77,10 @@ class LiveRunner:
                 if self._stop.is_set():
                     break
                 step = tracker.step(frame) if tracker is not None else None
-                dstep = dense.step(frame) if dense is not None else None
+                dstep = None
+                if dense is not None:
+                    with DENSE_LOCK:
+                        dstep = dense.step(frame)
                 now = time.perf_counter()
                 with self._lock:
                     self._frame, self._step, self._dense = frame, step, dstep

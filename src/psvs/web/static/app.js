@@ -219,6 +219,9 @@ async function livePoll() {
 $("live-start").addEventListener("click", async () => {
   try {
     await api("/api/live/start", { ...matchBody(state.seed), dense: $("live-dense").checked });
+    $("live-dense-figure").hidden = true;          // no map from an earlier run
+    $("live-dense-map").removeAttribute("src");
+    for (const id of ["live-dense-z", "live-dense-ms"]) { $(id).textContent = "–"; delete $(id).dataset.mm; delete $(id).dataset.frame; }
     state.live = true; state.liveFrame = null;
     livePoll();
   } catch (e) { setStatus(e.message); }
