@@ -108,7 +108,10 @@ def test_live_foxglove_websocket_client_reads_the_depth(disc_video):
         assert cloud.frame_id == "psvs_optical_frame" and cloud.timestamp.seconds * 10**9 + cloud.timestamp.nanos == ts
         errs.append(np.median(cloud_z_mm(cloud)) / truth[frame_of[ts]] - 1)
     assert len(errs) >= 30 and np.max(np.abs(errs)) <= 0.002, (len(errs), np.max(np.abs(errs)))
-    assert np.all(np.diff([ts for ts, _ in got["/psvs/image"]]) > 0)
+    # every channel's stamps rise. foxglove-sdk's server drops a slow client's oldest queued messages; once,
+    # on a loaded CI host, every one of the 307 kB images was lost that way, so images are not required
+    for topic in ("/psvs/points", "/psvs/depth", "/psvs/image"):
+        assert np.all(np.diff([ts for ts, _ in got.get(topic, [])]) > 0), topic
 
 
 def test_live_mcap_reads_back_with_the_mcap_reader(disc_video, tmp_path, capsys):
