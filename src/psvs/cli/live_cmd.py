@@ -144,11 +144,7 @@ def publish_dense(tel, t_s: float, d, stride: int) -> None:
     """One frame's dense result: the strided depth image (metres, 32FC1, NaN where none) on
     /psvs/dense/depth, its cloud on /psvs/dense/points, and a /psvs/dense record {frame, median_z_mm,
     answered_pct, elapsed_ms, stride}."""
-    h, w = d.disparity_px.shape
-    depth = np.full((len(range(stride // 2, h, stride)), len(range(stride // 2, w, stride))), np.nan)
-    u, v = d.pixels[:, 0].astype(int), d.pixels[:, 1].astype(int)
-    depth[v // stride, u // stride] = d.points_mm[:, 2]
-    tel.depth_image(t_s, depth, "/psvs/dense/depth")
+    tel.depth_image(t_s, d.depth_mm, "/psvs/dense/depth")
     tel.points(t_s, d.points_mm, topic="/psvs/dense/points")
     tel.record("dense", t_s, {"frame": d.frame, "median_z_mm": d.median_z_mm, "answered_pct": d.answered_pct,
                               "elapsed_ms": d.elapsed_s * 1e3, "stride": stride})

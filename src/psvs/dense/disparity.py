@@ -244,12 +244,13 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     hi = min(math.floor(d_max), img.shape[1] - 1)
     lags = np.arange(lo, hi + 1)
     h, w = img.shape
-    shape = (h, w, padded_lags(len(lags)))       # the cost volumes' lag axis, padded to whole vectors
-    vol = (lambda name: workspace.array(name, shape)) if workspace is not None else \
-        (lambda name: np.empty(shape, np.float32))
+    cost_shape = (h, w, padded_lags(len(lags)))  # the cost volumes' lag axis, padded to whole vectors
+
+    def vol(name: str, shape: tuple = cost_shape) -> np.ndarray:
+        return workspace.array(name, shape) if workspace is not None else np.empty(shape, np.float32)
+
     guide = unit_scaled(img)
-    echo = weighted_echo(img, lags, p, guide, img_right,
-                         out=None if workspace is None else workspace.array("echo", (len(lags), h, w)))
+    echo = weighted_echo(img, lags, p, guide, img_right, out=vol("echo", (len(lags), h, w)))
     fused = fused_cost(echo, lags, vol("fused"))
     aggregate = partial(sgm_aggregate, p1=p.p1, p2=p.p2, n_paths=p.n_paths,    # one pair of volumes for all
                         guide=cv2.GaussianBlur(guide, (0, 0), 1.0), tau=p.edge_contrast,

@@ -21,7 +21,8 @@ from psvs.optics.rig import Rig
 class DenseFrame:
     """One frame's dense result. ``disparity_px`` (H', W') float32: the left map (on a build, on the left
     view's rectified grid), NaN where no answer; ``searched_px`` the disparity range searched;
-    ``points_mm`` (N, 3) and ``pixels`` (N, 2) (u, v on the map's grid) of the strided cloud;
+    ``points_mm`` (N, 3) and ``pixels`` (N, 2) (u, v on the map's grid) of the strided cloud, and
+    ``depth_mm`` its depth on the strided grid (every ``stride``-th pixel of the map, NaN where no point);
     ``median_z_mm`` (NaN with no point), ``answered_pct`` (% of the map's pixels with a disparity) and the
     processing time ``elapsed_s``."""
 
@@ -30,6 +31,7 @@ class DenseFrame:
     searched_px: tuple[float, float]
     points_mm: np.ndarray
     pixels: np.ndarray
+    depth_mm: np.ndarray
     median_z_mm: float
     answered_pct: float
     elapsed_s: float
@@ -65,12 +67,13 @@ class DenseSensor:
         t0 = time.perf_counter()
         dense = dense_on_rig(frame, self.rig, self.near_mm, self.far_mm, fast=self.fast, workspace=self._workspace)
         d = dense.result.disparity_left
+        grid = (slice(self.stride // 2, None, self.stride),) * 2
         mask = np.zeros(d.shape, bool)
-        mask[self.stride // 2::self.stride, self.stride // 2::self.stride] = True
+        mask[grid] = True
         cloud = rig_cloud(dense, self.rig, mask=mask)
         z = cloud.points_mm[:, 2]
         out = DenseFrame(self.frames, d, dense.result.searched_px, cloud.points_mm, cloud.pixels,
-                         float(np.median(z)) if len(z) else float("nan"), 100.0 * float(np.mean(np.isfinite(d))),
-                         time.perf_counter() - t0)
+                         cloud.depth_mm[grid], float(np.median(z)) if len(z) else float("nan"),
+                         100.0 * float(np.mean(np.isfinite(d))), time.perf_counter() - t0)
         self.frames += 1
         return out
