@@ -101,17 +101,54 @@ def test_fast_mode_on_a_narrow_range_falls_back_to_full_resolution(pair):
 
 
 def test_a_kept_workspace_gives_the_same_maps():
-    """Volumes reused from call to call (a live loop), over frames of two sizes and both modes: the same maps
-    as fresh memory, and the volumes are the kept ones."""
+    """Volumes reused from call to call (a live loop), over frames of two sizes, two ranges and both modes:
+    the same maps as fresh memory, and the volumes are the kept ones (a smaller one inside a larger)."""
     from psvs.dense.disparity import Workspace
     left, right, _, _ = layered_pair()
     c = superimpose(left, right)
     ws = Workspace()
-    for img, fast in ((c, True), (c, False), (c[:, :150], True), (c, True)):
-        want = dense_disparity(img, 0, 40, fast=fast)
-        got = dense_disparity(img, 0, 40, fast=fast, workspace=ws)
+    for img, fast, hi in ((c, True, 40), (c, False, 40), (c[:, :150], True, 40), (c, False, 30), (c, True, 40)):
+        want = dense_disparity(img, 0, hi, fast=fast)
+        got = dense_disparity(img, 0, hi, fast=fast, workspace=ws)
         for a, b in zip((want.disparity_left, want.disparity_right, want.confidence_left),
                         (got.disparity_left, got.disparity_right, got.confidence_left)):
             np.testing.assert_array_equal(a, b)
-    kept = ws.array("fused", ws._arrays["fused"].shape)
-    assert kept is ws._arrays["fused"] and kept.dtype == np.float32
+    big = ws.array("fused", (10, 20, 16))
+    small = ws.array("fused", (5, 20, 8))
+    assert big.dtype == small.dtype == np.float32 and small.flags.c_contiguous and np.shares_memory(big, small)
+    assert ws.coarse is ws.coarse and ws.coarse is not ws
+
+
+def test_pruned_range_keeps_the_supported_disparities_with_a_margin():
+    """The coarse pass's consistent answers set the range; a few stray ones and filled pixels do not."""
+    from psvs.dense.disparity import PRUNE_MARGIN_PX, PRUNE_MARGIN_SHARE, DenseResult, pruned_range
+    rng = np.random.default_rng(3)
+    d = np.where(rng.random((100, 200)) < 0.5, 20.0, 30.0).astype(np.float32)
+    d[0, :5] = 90.0                                   # 5 stray pixels: below the support
+    conf = np.ones_like(d)
+    filled = np.full_like(d, 120.0)                   # the right map: all filled (confidence 0)
+    res = DenseResult(d, filled, conf, np.zeros_like(d), (0.0, 150.0))
+    lo, hi = pruned_range(res, 0.0, 150.0, d.size)
+    margin = PRUNE_MARGIN_PX + PRUNE_MARGIN_SHARE * 12   # support counts answers within 1 px: 19..31
+    assert (lo, hi) == pytest.approx((19 - margin, 31 + margin))
+    assert pruned_range(res, 18.0, 31.0, d.size) == (18.0, 31.0)            # never wider than asked
+    none = DenseResult(d, d, np.zeros_like(d), np.zeros_like(d), (0.0, 150.0))
+    assert pruned_range(none, 0.0, 150.0, d.size) == (0.0, 150.0)          # nothing found: the whole range
+
+
+def test_a_wide_range_is_pruned_to_the_scene_and_gives_the_same_maps(pair):
+    """Layers at 18 and 31 px searched over 0..120 px: the coarse pass narrows the search to about 12..38,
+    and the maps match those of the search over 0..40 (which is pruned to the same lags)."""
+    from dataclasses import replace
+
+    from psvs.dense.disparity import DEFAULT
+    left, right, tl, tr = pair
+    c = superimpose(left, right)
+    wide = dense_disparity(c, 0, 120)
+    lo, hi = wide.searched_px
+    assert 8 <= lo <= 17 and 32 <= hi <= 42
+    for d, truth in ((wide.disparity_left, tl), (wide.disparity_right, tr)):
+        assert _share_correct(d, truth, 31) > 0.8 and _share_correct(d, truth, 18) > 0.95
+    whole = dense_disparity(c, 0, 120, params=replace(DEFAULT, prune=False))
+    assert whole.searched_px == (3.0, 120.0)
+    assert disparity_scores(wide.disparity_left, tl)["bad2_pct"] <= disparity_scores(whole.disparity_left, tl)["bad2_pct"] + 0.5

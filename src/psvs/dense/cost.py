@@ -132,13 +132,15 @@ def aperture_weight(features: np.ndarray, window: int, full_share: float) -> np.
     return np.clip(share / full_share, 0.0, 1.0).astype(np.float32)
 
 
-def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float, in_place: bool = False) -> np.ndarray:
+def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float, in_place: bool = False,
+                  weight: np.ndarray | None = None) -> np.ndarray:
     """Guided filter (He, Sun & Tang 2013) of each slice of ``volume`` (D, H, W) with ``guide`` (H, W) scaled
     to about 0..1, box radius ``radius`` px and regulariser ``eps`` (guide units²): cost-volume filtering
     (Hosni et al. 2013). Each pixel's cost becomes a local linear function of the guide, so support stops
     at the guide's edges instead of letting a textured surface's echo spread over its neighbour. The
-    :data:`NO_TWIN` entries count as 0 (no evidence) and keep their value. ``in_place`` (a contiguous
-    float32 volume) writes the result over ``volume``: one volume less to allocate."""
+    :data:`NO_TWIN` entries count as 0 (no evidence) and keep their value. ``weight`` (H, W), when given,
+    multiplies every filtered slice (in the same pass). ``in_place`` (a contiguous float32 volume) writes
+    the result over ``volume``: one volume less to allocate."""
     v = np.ascontiguousarray(volume, dtype=np.float32)
     g = np.asarray(guide)
     if g.shape != v.shape[1:]:
@@ -147,8 +149,12 @@ def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float
         raise ValueError(f"guided filter radius must be >= 1 px and below the image's {min(g.shape)} px, got {radius}")
     if not eps > 0:
         raise ValueError(f"guided filter eps must be > 0, got {eps}")
+    if weight is not None:
+        weight = np.ascontiguousarray(weight, dtype=np.float32)
+        if weight.shape != g.shape:
+            raise ValueError(f"weight {weight.shape} must match the volume's slices {v.shape[1:]}")
     return guided_filter_volume(v, np.ascontiguousarray(guide, dtype=np.float32), int(radius), np.float32(eps), NO_TWIN,
-                                in_place and v is volume)
+                                in_place and v is volume, weight)
 
 
 def echo_correlation(features: np.ndarray, lags: np.ndarray, window: int, shift_window: int = 1,

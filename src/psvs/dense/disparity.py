@@ -44,6 +44,7 @@ from psvs.optics.rig import Rig
 
 MIN_LAG_PX = 3
 MIN_SIZE_PX = 16
+MIN_PRUNED_LAGS = 8      # ranges of fewer lags than twice this are searched whole, and none is pruned below it
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,7 @@ class DenseParams:
     scale: int = 1                 # 2: work at half resolution (the fast mode); lengths are at that scale
     second_pass: bool = True       # re-match, from each view's own evidence, pixels the first pass left inconsistent
     median_px: int = 11            # final median filter of each map (odd side; 1 = none): removes the fill's streaks
+    prune: bool = True             # full resolution: search only the lags a coarse pass (FAST) finds in the scene
 
 
 DEFAULT = DenseParams()
@@ -214,28 +216,40 @@ def weighted_echo(img: np.ndarray, lags: np.ndarray, p: DenseParams, guide: np.n
     features = band_pass(img, p.sigma_px)
     right = None if img_right is None else band_pass(img_right, p.sigma_px)
     echo = echo_correlation(features, lags, p.window, p.shift_window, right, out)
-    if p.guided_radius > 0:
-        echo = filter_volume(echo, guide, p.guided_radius, p.guided_eps, in_place=True)
-    echo *= aperture_weight(features, p.aperture_window, p.aperture_share)[None]
+    aperture = aperture_weight(features, p.aperture_window, p.aperture_share)
+    if p.guided_radius > 0:         # the filter weighs the slices as it writes them, NO_TWIN kept
+        return filter_volume(echo, guide, p.guided_radius, p.guided_eps, in_place=True, weight=aperture)
+    echo *= aperture[None]
     for k, d in enumerate(lags):
         echo[k, :, :d] = NO_TWIN
     return echo
 
 
 class Workspace:
-    """The cost volumes of :func:`dense_disparity`, kept from one call to the next on frames of one size
-    (a live loop): fresh memory costs page faults on every frame. One per thread (not thread-safe); it
-    holds about five volumes of (H, W, searched disparities) float32 at the working scale."""
+    """The cost volumes of :func:`dense_disparity`, kept from one call to the next (a live loop): fresh
+    memory costs page faults on every frame. One per thread (not thread-safe); it holds about five volumes
+    of (H, W, searched disparities) float32 at the working scale, each as large as the largest asked for
+    (a pruned search asks for fewer lags from frame to frame), and those of the coarse pass."""
 
     def __init__(self):
-        self._arrays: dict[str, np.ndarray] = {}
+        self._buffers: dict[str, np.ndarray] = {}
+        self._coarse: Workspace | None = None
 
     def array(self, name: str, shape: tuple) -> np.ndarray:
-        """The float32 array ``name`` of ``shape`` (contents undefined): the kept one, or a new one."""
-        a = self._arrays.get(name)
-        if a is None or a.shape != shape:
-            a = self._arrays[name] = np.empty(shape, np.float32)
-        return a
+        """A contiguous float32 array of ``shape`` (contents undefined) in the kept buffer ``name``, which
+        grows when too small."""
+        size = math.prod(shape)
+        buf = self._buffers.get(name)
+        if buf is None or buf.size < size:
+            buf = self._buffers[name] = np.empty(size, np.float32)
+        return buf[:size].reshape(shape)
+
+    @property
+    def coarse(self) -> "Workspace":
+        """The workspace of the coarse pass that prunes the search (:func:`pruned_range`)."""
+        if self._coarse is None:
+            self._coarse = Workspace()
+        return self._coarse
 
 
 def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_right: np.ndarray | None = None,
@@ -273,6 +287,35 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     conf_l = np.where(ok_l, np.clip(_echo_at(echo, lags, dl, False), 0, 1), 0.0)
     conf_r = np.where(ok_r, np.clip(_echo_at(echo, lags, dr, True), 0, 1), 0.0)
     return dl, dr, conf_l, conf_r, (float(lags[0]), float(lags[-1]))
+
+
+#: The coarse pass's support for a disparity: at least this share of its pixels (and PRUNE_MIN_PX of them) with
+#: a consistent answer within 1 px of it; the pruned range keeps PRUNE_MARGIN_PX (full-resolution px) and
+#: PRUNE_MARGIN_SHARE of its span beyond the outermost supported disparities.
+PRUNE_MIN_SHARE = 2e-4
+PRUNE_MIN_PX = 8
+PRUNE_MARGIN_PX = 4.0
+PRUNE_MARGIN_SHARE = 0.1
+
+
+def pruned_range(coarse: DenseResult, d_min: float, d_max: float, n_pixels: int) -> tuple[float, float]:
+    """The part of d_min..d_max (px) that the coarse pass ``coarse`` (both maps, full-resolution px) finds
+    in the scene: from its smallest to its largest well-supported consistent disparity, widened by a
+    margin; the whole range when it finds none. A scene rarely fills a rig's whole working range (a wall
+    fills one disparity), and the full-resolution search costs in proportion to the lags searched."""
+    d = np.concatenate([coarse.disparity_left[coarse.confidence_left > 0],
+                        coarse.disparity_right[coarse.confidence_right > 0]])
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return d_min, d_max
+    counts = np.bincount(np.clip(np.rint(d).astype(np.int64), 0, None))
+    support = np.convolve(counts, np.ones(3, np.int64), mode="same")      # within 1 px
+    found = np.flatnonzero(support >= max(PRUNE_MIN_PX, PRUNE_MIN_SHARE * n_pixels))
+    if found.size == 0:
+        return d_min, d_max
+    lo, hi = float(found[0]), float(found[-1])
+    margin = PRUNE_MARGIN_PX + PRUNE_MARGIN_SHARE * (hi - lo)
+    return max(d_min, lo - margin), min(d_max, hi + margin)
 
 
 def _median(d: np.ndarray, size: int) -> np.ndarray:
@@ -340,6 +383,12 @@ def dense_disparity(image, d_min: float, d_max: float, *, fast: bool = False,
         return DenseResult(nan, nan.copy(), np.zeros((h, w), np.float32), np.zeros((h, w), np.float32),
                            (float(d_min), float(d_max)))
     if p.scale == 1:
+        if p.prune and math.floor(d_max) - max(MIN_LAG_PX, math.ceil(d_min)) >= 2 * MIN_PRUNED_LAGS:
+            coarse = dense_disparity(img, d_min, d_max, params=replace(FAST, prune=False), image_right=right,
+                                     workspace=None if workspace is None else workspace.coarse)
+            lo, hi = pruned_range(coarse, float(d_min), float(d_max), h * w)
+            if math.floor(hi) - max(MIN_LAG_PX, math.ceil(lo)) >= MIN_PRUNED_LAGS:
+                d_min, d_max = lo, hi
         dl, dr, cl, cr, searched = _at_scale(img, d_min, d_max, p, right, workspace)
         f32 = lambda a: a.astype(np.float32)  # noqa: E731
         return DenseResult(f32(dl), f32(dr), f32(cl), f32(cr), searched)

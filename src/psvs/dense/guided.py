@@ -65,7 +65,7 @@ def _box_mean(src, dst, tmp, r):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def _filter_slices(volume, guide, r, eps, missing_value, n_chunks, out):  # pragma: no cover - compiled
+def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):  # pragma: no cover - compiled
     n, h, w = volume.shape
     mean_g = np.empty((h, w), np.float32)
     var_g = np.empty((h, w), np.float32)
@@ -75,7 +75,7 @@ def _filter_slices(volume, guide, r, eps, missing_value, n_chunks, out):  # prag
     for y in range(h):
         for x in range(w):
             var_g[y, x] = var_g[y, x] - mean_g[y, x] * mean_g[y, x] + eps
-    g1, mg1, vg1 = guide.reshape(-1), mean_g.reshape(-1), var_g.reshape(-1)
+    g1, mg1, vg1, wt1 = guide.reshape(-1), mean_g.reshape(-1), var_g.reshape(-1), weight.reshape(-1)
     for c in nb.prange(n_chunks):         # work space once per chunk of slices
         p = np.empty((h, w), np.float32)
         gp = np.empty((h, w), np.float32)
@@ -99,16 +99,19 @@ def _filter_slices(volume, guide, r, eps, missing_value, n_chunks, out):  # prag
             _box_mean(p, mp, tmp, r)
             _box_mean(gp, mgp, tmp, r)
             for i in range(h * w):
-                o[i] = missing_value if v[i] == missing_value else mp1[i] * g1[i] + mgp1[i]
+                o[i] = missing_value if v[i] == missing_value else (mp1[i] * g1[i] + mgp1[i]) * wt1[i]
     return out
 
 
 def guided_filter_volume(volume: np.ndarray, guide: np.ndarray, r: int, eps: float, missing_value: float,
-                         in_place: bool = False) -> np.ndarray:
+                         in_place: bool = False, weight: np.ndarray | None = None) -> np.ndarray:
     """Each slice of ``volume`` (D, H, W) float32 filtered with ``guide`` (H, W) float32, box radius ``r``
-    px, regulariser ``eps`` (guide units²); entries equal to ``missing_value`` count as 0 and keep their
-    value. Float32 (D, H, W): ``volume`` itself with ``in_place`` (a slice's input is read before its
-    output is written, pixel by pixel), else a new array."""
+    px, regulariser ``eps`` (guide units²), and multiplied by ``weight`` (H, W) float32 when given (in the
+    same pass); entries equal to ``missing_value`` count as 0 and keep their value. Float32 (D, H, W):
+    ``volume`` itself with ``in_place`` (a slice's input is read before its output is written, pixel by
+    pixel), else a new array."""
     n_chunks = max(1, min(len(volume), nb.get_num_threads()))
     out = volume if in_place else np.empty_like(volume)
-    return _filter_slices(volume, guide, r, np.float32(eps), np.float32(missing_value), n_chunks, out)
+    if weight is None:
+        weight = np.ones(guide.shape, np.float32)
+    return _filter_slices(volume, guide, weight, r, np.float32(eps), np.float32(missing_value), n_chunks, out)
