@@ -65,6 +65,11 @@ def test_pick_finds_the_parabola_vertex():
     assert d[0, 0] == pytest.approx(d_true, abs=1e-6)
     d, _, _ = pick(np.full_like(agg, np.nan), echo, lags)        # NaN costs: the search stays in the range
     assert lags[0] <= d[0, 0] <= lags[-1]
+    half = (agg / 2).astype(np.float32)                           # SGM's two passes, added as it goes
+    d2, _, _ = pick(half, echo, lags, agg - half)
+    assert d2[0, 0] == pytest.approx(d_true, abs=1e-6)
+    with pytest.raises(ValueError, match="differ in shape"):
+        pick(half, echo, lags, half[:, :, :3])
 
 
 def test_bad_windows_and_lags_are_rejected():
@@ -136,3 +141,30 @@ def test_filter_volume_matches_opencv_box_filters_everywhere(radius, shape):
         filter_volume(vol, guide, radius, 0.0)
     with pytest.raises(ValueError, match="guide"):
         filter_volume(vol, guide[:-1], radius, 0.01)
+
+
+@pytest.mark.parametrize("right_view", [False, True])
+def test_one_sided_cost_against_its_definition(right_view):
+    """Each pixel's cost, straight from the docstring: the fused cost where the view owns the pixel, zero in
+    the band where its twin may be outside, else the view's own echo (at x, or seen from x + d) negated and
+    shifted to a minimum of 0; the padding PAD_COST."""
+    from psvs.dense.cost import one_sided_cost, padded_lags
+    rng = np.random.default_rng(7 + right_view)
+    lags = np.arange(3, 14)
+    n, h, w = len(lags), 6, 40
+    echo = rng.uniform(-1, 1, (n, h, w)).astype(np.float32)
+    fused = rng.random((h, w, padded_lags(n))).astype(np.float32)
+    keep = rng.random((h, w)) < 0.3
+    got = one_sided_cost(echo, lags, fused, keep, right_view, np.full((h, w, padded_lags(n)), np.nan, np.float32))
+    for y in range(h):
+        for x in range(w):
+            if keep[y, x]:
+                want = fused[y, x, :n]
+            elif (x >= w - lags[-1]) if right_view else (x < lags[-1]):
+                want = np.zeros(n)
+            else:
+                own = np.array([(echo[k, y, x + d] if x + d < w else NO_TWIN) if right_view else echo[k, y, x]
+                                for k, d in enumerate(lags)])
+                want = -own - (-own).min()
+            np.testing.assert_allclose(got[y, x, :n], want, atol=1e-6)
+    assert np.all(got[:, :, n:] == PAD_COST)

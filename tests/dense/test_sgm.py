@@ -44,6 +44,13 @@ def test_aggregate_matches_reference_recursion(n_paths):
     out, work = np.full_like(cost, np.nan), np.full_like(cost, np.nan)
     again = aggregate(cost, 0.1, 0.4, n_paths=n_paths, threads=1, out=out, work=work)
     assert again is out and np.array_equal(again, got)
+    # negative costs (the kernel needs >= 0): shifted in and out, still the recursion's result
+    below = aggregate(cost - 0.6, 0.1, 0.4, n_paths=n_paths)
+    np.testing.assert_allclose(below, want - 0.6 * n_paths, rtol=1e-5, atol=1e-5)
+    down, up = aggregate(cost, 0.1, 0.4, n_paths=n_paths, summed=False)   # the two passes, for pick to add
+    np.testing.assert_allclose(down + up, want, rtol=1e-5, atol=1e-5)
+    with pytest.raises(ValueError, match="unsummed"):
+        aggregate(cost - 0.6, 0.1, 0.4, summed=False)
     with pytest.raises(ValueError, match="SGM buffers"):
         aggregate(cost, 0.1, 0.4, out=np.empty((7, 9, 4), np.float32))
     with pytest.raises(ValueError, match="overlap"):

@@ -240,34 +240,47 @@ def _fused_cost(echo, lags, cost):  # pragma: no cover - compiled
     return cost
 
 
+def pick(agg: np.ndarray, echo: np.ndarray, lags: np.ndarray, agg_more: np.ndarray | None = None):
+    """Winner of the aggregated cost (H, W, D') >= 0 (plus ``agg_more`` of the same shape when given: SGM's
+    two passes, summed here instead of in a pass over the volume), over its first D = len(lags) entries,
+    with a parabola's sub-pixel offset: disparity (px), and the echo (D, H, W) seen from the left-view end
+    (``own``) and the right-view end (``other``) at that lag, each (H, W)."""
+    lags = np.ascontiguousarray(lags, dtype=np.int64)
+    if agg_more is None:
+        return _pick(agg, agg, False, echo, lags)
+    if agg_more.shape != agg.shape:
+        raise ValueError(f"the two aggregated volumes differ in shape: {agg.shape} and {agg_more.shape}")
+    return _pick(agg, agg_more, True, echo, lags)
+
+
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def pick(agg, echo, lags):  # pragma: no cover - compiled
-    """Winner of the aggregated cost (H, W, D'), over its first D = len(lags) entries, with a parabola's
-    sub-pixel offset: disparity (px), and the echo seen from the left-view end (``own``) and the right-view
-    end (``other``) at that lag, each (H, W)."""
+def _pick(agg, agg_more, two, echo, lags):  # pragma: no cover - compiled
     h, w = agg.shape[0], agg.shape[1]
     n = lags.shape[0]
     disp = np.empty((h, w), np.float64)
     own = np.empty((h, w), np.float32)
     other = np.empty((h, w), np.float32)
     for y in nb.prange(h):
+        a = np.empty(n, np.float32)
+        bits = a.view(np.int32)   # costs >= 0 order as their float32 bits do: an integer minimum vectorises
         for x in range(w):
-            a = agg[y, x]
-            m0 = m1 = m2 = m3 = np.float32(1e30)   # the minimum in four lanes (vectorises), then its first index
-            j = 0
-            while j + 4 <= n:
-                m0, m1, m2, m3 = min(m0, a[j]), min(m1, a[j + 1]), min(m2, a[j + 2]), min(m3, a[j + 3])
-                j += 4
-            while j < n:
-                m0 = min(m0, a[j])
-                j += 1
-            lowest = min(min(m0, m1), min(m2, m3))
+            s, t = agg[y, x], agg_more[y, x]
+            if two:
+                for j in range(n):
+                    a[j] = s[j] + t[j]
+            else:
+                for j in range(n):
+                    a[j] = s[j]
+            m = np.int32(2147483647)
+            for j in range(n):
+                m = min(m, bits[j])
+            lowest = np.int32(m).view(np.float32)   # then its first index
             k = 0
             while k < n - 1 and a[k] != lowest:   # (bounded: a NaN cost equals nothing)
                 k += 1
             off = 0.0
             if 0 < k < n - 1:
-                c0, c1, c2 = agg[y, x, k - 1], agg[y, x, k], agg[y, x, k + 1]
+                c0, c1, c2 = a[k - 1], a[k], a[k + 1]
                 den = c0 - 2 * c1 + c2
                 if den > 1e-9:
                     off = min(0.5, max(-0.5, 0.5 * (c0 - c2) / den))
@@ -285,31 +298,43 @@ def one_sided_cost(echo, lags, fused, keep, right_view, cost):  # pragma: no cov
     (right view) — shifted to a minimum of 0. Pixels in the band whose twin may lie outside the image
     (x < d_max for the left view, x ≥ W − d_max for the right) get a neutral, all-zero cost there. Written
     into ``cost`` (H, W, D') float32 (:func:`padded_lags`, the padding :data:`PAD_COST`), which is
-    returned."""
+    returned. Per row, the echo is read in lag-major order (as stored) into a buffer, then moved to
+    (x, lag) order."""
     n, h, w = echo.shape
     n_pad = cost.shape[2]
     d_max = lags[n - 1]
     for y in nb.prange(h):
+        buf = np.empty((n, w), np.float32)       # −(own evidence), lag-major
+        for k in range(n):
+            d = lags[k]
+            row, e = buf[k], echo[k, y]
+            if right_view:                       # seen from x + d; outside the image: no twin
+                m = max(w - d, 0)
+                ef = e[d:]
+                for x in range(m):
+                    row[x] = -ef[x]
+                for x in range(m, w):
+                    row[x] = -NO_TWIN
+            else:
+                for x in range(w):
+                    row[x] = -e[x]
         for x in range(w):
+            out = cost[y, x]
             for k in range(n, n_pad):
-                cost[y, x, k] = PAD_COST
+                out[k] = PAD_COST
             if keep[y, x]:
+                f = fused[y, x]
                 for k in range(n):
-                    cost[y, x, k] = fused[y, x, k]
-                continue
-            if (x < d_max) if not right_view else (x >= w - d_max):
+                    out[k] = f[k]
+            elif (x < d_max) if not right_view else (x >= w - d_max):
                 for k in range(n):
-                    cost[y, x, k] = 0.0
-                continue
-            best = np.float32(1e30)                 # finite: the kernel uses fastmath
-            for k in range(n):
-                if right_view:
-                    xf = x + lags[k]
-                    v = -echo[k, y, xf] if xf < w else -NO_TWIN
-                else:
-                    v = -echo[k, y, x]
-                cost[y, x, k] = v
-                best = min(best, v)
-            for k in range(n):
-                cost[y, x, k] -= best
+                    out[k] = 0.0
+            else:
+                best = np.float32(1e30)          # finite: the kernel uses fastmath
+                for k in range(n):
+                    v = buf[k, x]
+                    out[k] = v
+                    best = min(best, v)
+                for k in range(n):
+                    out[k] -= best
     return cost

@@ -268,16 +268,17 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     fused = fused_cost(echo, lags, vol("fused"))
     aggregate = partial(sgm_aggregate, p1=p.p1, p2=p.p2, n_paths=p.n_paths,    # one pair of volumes for all
                         guide=cv2.GaussianBlur(guide, (0, 0), 1.0), tau=p.edge_contrast,
-                        out=vol("sgm"), work=vol("sgm_work"))
-    d, own, other = pick(aggregate(fused), echo, lags)
+                        out=vol("sgm"), work=vol("sgm_work"), min_cost=0.0, summed=False)  # costs >= 0
+    winner = lambda passes: pick(passes[0], echo, lags, passes[1])  # noqa: E731  (adds SGM's two passes)
+    d, own, other = winner(aggregate(fused))
     keep_l = own >= other - p.ownership_margin
     keep_r = other >= own - p.ownership_margin
     dl, dr = fill_from_background(d, keep_l), fill_from_background(d, keep_r)
     ok_l, ok_r = consistent(dl, dr)
     if p.second_pass:  # each view's own evidence where the other view's texture dominated
         one = vol("one_sided")          # one volume for both views' costs, used one after the other
-        dl2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_l, False, one)), echo, lags)[0]
-        dr2 = pick(aggregate(one_sided_cost(echo, lags, fused, keep_r, True, one)), echo, lags)[0]
+        dl2 = winner(aggregate(one_sided_cost(echo, lags, fused, keep_l, False, one)))[0]
+        dr2 = winner(aggregate(one_sided_cost(echo, lags, fused, keep_r, True, one)))[0]
         ok2_l, ok2_r = consistent(dl2, dr2)
         dl = fill_from_background(np.where(~ok_l & ok2_l, dl2, dl), ok_l | ok2_l)
         dr = fill_from_background(np.where(~ok_r & ok2_r, dr2, dr), ok_r | ok2_r)

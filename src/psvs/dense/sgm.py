@@ -8,9 +8,10 @@ image I, the jump penalty follows Hirschmüller's intensity-adaptive form, P2 / 
 The paths run in two passes, as OpenCV's StereoSGBM does: a downward pass (rows top to bottom, each row
 left to right) carries the paths that come from the left, the upper left, above and the upper right; an
 upward pass the four opposite ones. Each pass reads the cost volume once and writes its sum of paths
-once, keeping only the previous row of each path (W × D per path), so the work is bound by arithmetic
-rather than memory traffic, and the inner loop over disparities has no branch (rows padded with a large
-cost at both ends), so it vectorises. The two passes run on two threads (Numba's).
+once, keeping only the previous row of each path (W × D per path); all the paths of a pass advance in one
+loop over the disparities, which has no branch and vectorises. The two passes run on two threads (Numba's).
+The recursion needs costs >= 0 (a path's minimum is taken on the float bits as integers); :func:`aggregate`
+shifts other costs, which shifts the result by the same amount per path.
 """
 from __future__ import annotations
 
@@ -22,46 +23,21 @@ PATHS = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1))
 _BIG = np.float32(1e30)   # the padding of a path's row: never the minimum (finite: the kernels use fastmath)
 
 
-# The kernels index whole arrays (row numbers, then the disparity from a range) instead of taking a view
-# per pixel: a view costs reference counting, and a variable offset added to the disparity would bring
-# Numba's negative-index wrap-around into the inner loop, which then does not vectorise.
+# A pass keeps each path's previous row in a buffer (path, 1 + x, 1 + d): columns 0 and W + 1 stand for
+# "outside the image" and rows start as zeros, a zero source with a zero minimum being exactly a path's
+# start (L = c), so the loop has no branch for the borders; lags 0 and n + 1 hold a large cost, so the
+# loop over disparities has none for its ends. All paths of a pass advance in one loop over the
+# disparities (one read of the cost, one write of the sum).
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _step(cost, y, x, src, ks, xs, m, jump, p1, dst, kd, xd):  # pragma: no cover - compiled
-    """One path step: dst[kd, xd, 1 + d] = cost[y, x, d] + min(src[ks, xs, 1 + d], src[ks, xs, d] + p1,
-    src[ks, xs, 2 + d] + p1, jump) − m; returns its minimum."""
-    n = cost.shape[2]
-    for d in range(n):
-        near = min(src[ks, xs, d], src[ks, xs, d + 2]) + p1
-        dst[kd, xd, d + 1] = cost[y, x, d] + min(near, min(src[ks, xs, d + 1], jump)) - m
-    return _row_min(dst, kd, xd, n)
-
-
-@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _start(cost, y, x, dst, kd, xd):  # pragma: no cover - compiled
-    """A path's first pixel: its cost into dst[kd, xd, 1:]; the minimum."""
-    n = cost.shape[2]
-    for d in range(n):
-        dst[kd, xd, d + 1] = cost[y, x, d]
-    return _row_min(dst, kd, xd, n)
-
-
-@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _row_min(row, k, x, n):  # pragma: no cover - compiled
-    """min(row[k, x, 1:n + 1]) in eight independent lanes (a one-accumulator float minimum does not
-    vectorise)."""
-    m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = _BIG
-    d = 1
-    while d + 8 <= n + 1:
-        m0, m1 = min(m0, row[k, x, d]), min(m1, row[k, x, d + 1])
-        m2, m3 = min(m2, row[k, x, d + 2]), min(m3, row[k, x, d + 3])
-        m4, m5 = min(m4, row[k, x, d + 4]), min(m5, row[k, x, d + 5])
-        m6, m7 = min(m6, row[k, x, d + 6]), min(m7, row[k, x, d + 7])
-        d += 8
-    while d <= n:
-        m0 = min(m0, row[k, x, d])
-        d += 1
-    return min(min(min(m0, m1), min(m2, m3)), min(min(m4, m5), min(m6, m7)))
+def _row_min(rows, k, x, n):  # pragma: no cover - compiled
+    """min(rows[k, x, 1:n + 1]) of path costs, which are >= 0: their float32 bits order as int32 do, and
+    an integer minimum vectorises (a float one with one accumulator does not)."""
+    bits = rows.view(np.int32)
+    m = np.int32(2147483647)
+    for d in range(1, n + 1):
+        m = min(m, bits[k, x, d])
+    return np.int32(m).view(np.float32)
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
@@ -73,53 +49,70 @@ def _penalty(g, g_prev, p1, p2, tau):  # pragma: no cover - compiled
 
 @nb.njit(cache=True, nogil=True, fastmath=True)
 def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
-    """Sum (written to ``out``, once per pixel) of the paths of one pass: down (rows top to bottom, x left to right) takes the paths
-    arriving from x − 1 in the row, and from the previous row at x (and x − 1, x + 1 with ``diagonals``);
-    up the mirror images. Rows of path costs are padded: index 1 + d holds disparity d."""
+    """Sum (written to ``out``, once per pixel) of the paths of one pass: down (rows top to bottom) takes
+    the paths arriving from x − 1 in the row and from the previous row at x (and x − 1, x + 1 with
+    ``diagonals``); up the mirror images. The costs must be >= 0.
+
+    Each row is swept twice: first along the row path's direction (for the up pass, right to left) into a
+    row of path costs, then left to right for the paths from the previous row, adding that row: memory
+    is read and written in ascending order (a descending stream through the volumes runs at half the
+    speed here)."""
     h, w, n = cost.shape
     s = 1 if down else -1
-    n_rows = 3 if diagonals else 1               # previous-row paths: from x, then x − s and x + s
-    prev = np.full((n_rows, w, n + 2), _BIG, np.float32)
-    cur = np.full((n_rows, w, n + 2), _BIG, np.float32)
-    prev_min = np.zeros((n_rows, w), np.float32)
-    cur_min = np.zeros((n_rows, w), np.float32)
-    hor = np.full((2, 1, n + 2), _BIG, np.float32)   # the row path: previous pixel, this pixel
-    hor_min = np.float32(0.0)
-    # the jump penalties from each path's previous pixel, computed up front (vectorised divisions):
-    # pen[0] for the row path (from x − s), pen[1 + k] for previous-row path k (from y − s and px(k))
-    pen = np.empty((n_rows + 1, h, w), np.float32)
-    for y in range(h):
-        yp = min(max(y - s, 0), h - 1)
-        for k in range(n_rows + 1):
-            src = guide[y] if k == 0 else guide[yp]
-            shift = -s if k in (0, 2) else (s if k == 3 else 0)    # the neighbour's column is x + shift
-            row, gy = pen[k, y], guide[y]
-            for x in range(w):
-                row[x] = _penalty(gy[x], src[min(max(x + shift, 0), w - 1)], p1, p2, tau)
+    n_k = 4 if diagonals else 2                  # path k: 0 the row's, 1 from above, 2 from x − s, 3 from x + s
+    prev = np.full((n_k, w + 2, n + 2), _BIG, np.float32)
+    cur = np.full((n_k, w + 2, n + 2), _BIG, np.float32)
+    prev[:, :, 1:n + 1] = 0.0                    # the first row's sources ...
+    cur[:, 0, 1:n + 1] = 0.0                     # ... and the columns outside the image: zero, minimum zero
+    cur[:, w + 1, 1:n + 1] = 0.0
+    prev_min = np.zeros((n_k, w + 2), np.float32)
+    cur_min = np.zeros((n_k, w + 2), np.float32)
+    pen = np.empty((n_k, w), np.float32)         # the jump penalty from each path's previous pixel
     for iy in range(h):
         y = iy if down else h - 1 - iy
-        for ix in range(w):
+        gy, gp = guide[y], guide[min(max(y - s, 0), h - 1)]
+        for x in range(w):
+            pen[0, x] = _penalty(gy[x], gy[min(max(x - s, 0), w - 1)], p1, p2, tau)
+            pen[1, x] = _penalty(gy[x], gp[x], p1, p2, tau)
+        if diagonals:
+            for x in range(w):
+                pen[2, x] = _penalty(gy[x], gp[min(max(x - s, 0), w - 1)], p1, p2, tau)
+                pen[3, x] = _penalty(gy[x], gp[min(max(x + s, 0), w - 1)], p1, p2, tau)
+        for ix in range(w):                      # the row path, in its own direction, into cur[0]
             x = ix if down else w - 1 - ix
-            a = ix & 1                           # the row path's buffers alternate
-            if ix == 0:
-                hor_min = _start(cost, y, x, hor, a, 0)
-            else:
-                jump = hor_min + pen[0, y, x]
-                hor_min = _step(cost, y, x, hor, 1 - a, 0, hor_min, jump, p1, hor, a, 0)
-            for k in range(n_rows):
-                px = x if k == 0 else (x - s if k == 1 else x + s)
-                if iy == 0 or px < 0 or px >= w:
-                    cur_min[k, x] = _start(cost, y, x, cur, k, x)
-                else:
-                    m = prev_min[k, px]
-                    jump = m + pen[1 + k, y, x]
-                    cur_min[k, x] = _step(cost, y, x, prev, k, px, m, jump, p1, cur, k, x)
-            if diagonals:                        # the pass's sum of paths, written once
+            xb, x0 = x + 1, x + 1 - s            # the buffers' columns: this pixel, the path's previous one
+            m0 = cur_min[0, x0]
+            j0 = m0 + pen[0, x]
+            for d in range(n):
+                cur[0, xb, d + 1] = cost[y, x, d] + min(min(cur[0, x0, d], cur[0, x0, d + 2]) + p1,
+                                                        min(cur[0, x0, d + 1], j0)) - m0
+            cur_min[0, xb] = _row_min(cur, 0, xb, n)
+        for x in range(w):                       # the paths from the previous row, left to right
+            xb = x + 1
+            m1 = prev_min[1, xb]
+            j1 = m1 + pen[1, x]
+            if diagonals:
+                x2, x3 = xb - s, xb + s
+                m2, m3 = prev_min[2, x2], prev_min[3, x3]
+                j2, j3 = m2 + pen[2, x], m3 + pen[3, x]
                 for d in range(n):
-                    out[y, x, d] = hor[a, 0, d + 1] + cur[0, x, d + 1] + cur[1, x, d + 1] + cur[2, x, d + 1]
+                    c = cost[y, x, d]
+                    l1 = c + min(min(prev[1, xb, d], prev[1, xb, d + 2]) + p1, min(prev[1, xb, d + 1], j1)) - m1
+                    l2 = c + min(min(prev[2, x2, d], prev[2, x2, d + 2]) + p1, min(prev[2, x2, d + 1], j2)) - m2
+                    l3 = c + min(min(prev[3, x3, d], prev[3, x3, d + 2]) + p1, min(prev[3, x3, d + 1], j3)) - m3
+                    cur[1, xb, d + 1] = l1
+                    cur[2, xb, d + 1] = l2
+                    cur[3, xb, d + 1] = l3
+                    out[y, x, d] = (cur[0, xb, d + 1] + l1) + (l2 + l3)
+                cur_min[2, xb] = _row_min(cur, 2, xb, n)
+                cur_min[3, xb] = _row_min(cur, 3, xb, n)
             else:
                 for d in range(n):
-                    out[y, x, d] = hor[a, 0, d + 1] + cur[0, x, d + 1]
+                    l1 = cost[y, x, d] + min(min(prev[1, xb, d], prev[1, xb, d + 2]) + p1,
+                                             min(prev[1, xb, d + 1], j1)) - m1
+                    cur[1, xb, d + 1] = l1
+                    out[y, x, d] = cur[0, xb, d + 1] + l1
+            cur_min[1, xb] = _row_min(cur, 1, xb, n)
         prev, cur = cur, prev
         prev_min, cur_min = cur_min, prev_min
 
@@ -127,12 +120,10 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
 @nb.njit(cache=True, parallel=True)
 def _both_passes(cost, out, work, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
     """The downward pass into ``out`` and the upward one into ``work``, one per thread (Numba's pool: a
-    Python thread pool started per call ran them at half the speed)."""
+    Python thread pool started per call ran them at half the speed). The direction is a run-time value:
+    a literal one makes Numba compile a specialisation of the pass that runs at half the speed."""
     for k in nb.prange(2):
-        if k == 0:
-            _pass(cost, out, True, diagonals, p1, p2, guide, tau)
-        else:
-            _pass(cost, work, False, diagonals, p1, p2, guide, tau)
+        _pass(cost, out if k == 0 else work, k == 0, diagonals, p1, p2, guide, tau)
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
@@ -144,7 +135,7 @@ def _add_into(a, b):  # pragma: no cover - compiled
 
 def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads: int = 2,
               guide: np.ndarray | None = None, tau: float = 1.0, out: np.ndarray | None = None,
-              work: np.ndarray | None = None) -> np.ndarray:
+              work: np.ndarray | None = None, min_cost: float | None = None, summed: bool = True):
     """Sum over ``n_paths`` (4 or 8) of the SGM path costs of ``cost`` (H, W, D), float32 (H, W, D).
 
     ``p1`` penalises a one-step disparity change between neighbours, ``p2`` (≥ p1) any larger jump, both in
@@ -152,7 +143,11 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     max(p1, p2 / (1 + g / tau)) instead (``tau`` in the guide's units). ``out`` and ``work`` (float32, the
     cost's shape), when given, are used instead of new volumes (the result is ``out``): a caller that
     aggregates several times reuses them, and fresh memory costs page faults. ``threads`` < 2 runs the
-    two passes one after the other."""
+    two passes one after the other. ``min_cost``: a lower bound of the cost when the caller knows one (a
+    pass over the volume less); negative costs are shifted to 0 and the result shifted back (each path's
+    cost moves with a constant added to every cost). ``summed=False`` returns the two passes' sums
+    (``out``, ``work``) without adding them (a pass over the volumes less, for a reader that adds them as
+    it goes, e.g. :func:`psvs.dense.cost.pick`); it needs costs >= 0."""
     if n_paths not in (4, 8):
         raise ValueError(f"n_paths must be 4 or 8, got {n_paths}")
     if not 0 <= p1 <= p2:
@@ -174,6 +169,11 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
         elif any(np.shares_memory(buf, a) for a in (cost, *outs)):
             raise ValueError("SGM buffers must not overlap the cost or each other")
         outs.append(buf)
+    lowest = float(np.min(cost)) if min_cost is None else float(min_cost)
+    if lowest < 0 and not summed:
+        raise ValueError("SGM's two passes can be returned unsummed only for costs >= 0")
+    if lowest < 0:
+        cost = cost - np.float32(lowest)
     args = (np.float32(p1), np.float32(p2), guide, np.float32(tau))
     diagonals = n_paths == 8
     if threads < 2:
@@ -181,5 +181,9 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
             _pass(cost, outs[k], k == 0, diagonals, *args)
     else:
         _both_passes(cost, outs[0], outs[1], diagonals, *args)
+    if not summed:
+        return outs[0], outs[1]
     _add_into(outs[0], outs[1])
+    if lowest < 0:
+        outs[0] += np.float32(lowest * n_paths)
     return outs[0]
