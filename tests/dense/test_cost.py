@@ -33,6 +33,24 @@ def test_echo_correlation_matches_the_definition():
             assert vol[k, y, x] == pytest.approx(direct_ncc(f, y, x, d, 2), abs=2e-5)
 
 
+def test_shiftable_windows_take_the_neighbourhood_maximum_and_short_rows_work():
+    """shift_window 5: each pixel's echo is the plain echo's maximum over its 5 x 5 neighbourhood (rows
+    inside the image, columns where the twin is); lags that leave rows shorter than the window too."""
+    rng = np.random.default_rng(4)
+    f = rng.random((20, 30)).astype(np.float32)
+    lags = np.array([2, 7, 27, 29])                      # twin rows of 28, 23, 3 and 1 px
+    plain = echo_correlation(f, lags, window=5)
+    shift = echo_correlation(f, lags, window=5, shift_window=5)
+    h, w = f.shape
+    for k, d in enumerate(lags):
+        assert np.all(shift[k, :, :d] == NO_TWIN)
+        for y in range(h):
+            for x in range(d, w):
+                assert plain[k, y, x] == pytest.approx(direct_ncc(f, y, x, d, 2), abs=2e-5)
+                want = plain[k, max(0, y - 2):y + 3, max(d, x - 2):x + 3].max()
+                assert shift[k, y, x] == pytest.approx(want, abs=1e-6)
+
+
 def test_echo_peaks_at_the_planted_disparity():
     # L(x) = t(x), R(x) = t(x + d) = L(x + d): every left-view patch repeats d px to its left. The other
     # view's texture in each window halves the correlation, so a window needs a few hundred pixels.

@@ -12,7 +12,7 @@ import cv2
 import numba as nb
 import numpy as np
 
-from psvs.dense.guided import guided_filter_volume
+from psvs.dense.guided import guided_filter_volume, n_levels, row_sums
 
 NO_TWIN = np.float32(-1.0)  # correlation given to lags whose twin window lies outside the image
 #: Cost volumes (H, W, D') hold D' = the searched lags rounded up to a multiple of LANES: the extra entries
@@ -37,24 +37,6 @@ def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
 # negative-index wrap-around into the loop, and then it does not vectorise.
 
 @nb.njit(cache=True, fastmath=True, inline="always")
-def _window_sum(src, dst, r):  # pragma: no cover - compiled
-    """dst[i] = Σ src[clamp(i + j)], j = −r..r, indices clamped to the row (its end values repeated)."""
-    n = src.shape[0]
-    for i in range(n):
-        dst[i] = 0.0
-    for j in range(-r, r + 1):
-        lo, hi = max(0, -j), min(n, n - j)   # i + j inside the row
-        if hi > lo:
-            a, b = dst[lo:hi], src[lo + j:hi + j]
-            for i in range(hi - lo):
-                a[i] += b[i]
-        for i in range(0, min(lo, n)):
-            dst[i] += src[0]
-        for i in range(max(hi, 0), n):
-            dst[i] += src[n - 1]
-
-
-@nb.njit(cache=True, fastmath=True, inline="always")
 def _window_max(src, dst, r):  # pragma: no cover - compiled
     """dst[i] = max src[i + j], j = −r..r, over the indices inside the row."""
     n = src.shape[0]
@@ -71,45 +53,61 @@ def _window_max(src, dst, r):  # pragma: no cover - compiled
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
 def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # pragma: no cover - compiled
-    """The echo volume (D, H, W) into ``out``: per lag, the window sums of f(x)·g(x − d) (rows by direct
-    sums, columns by a running sum), the NCC from the windows' means and inverse deviations, then the
-    shiftable maximum."""
+    """The echo volume (D, H, W) into ``out``. Per lag, the slice streams down its rows in stages: row t's
+    products f(x)·g(x − d) summed along the row (rows clamped at the ends); row t − r's window sums from
+    the running column sums of those (rows clamped), its NCC from the windows' means and inverse
+    deviations, and its maximum along the row over the shiftable neighbourhood; row t − r − rs the
+    maximum of those over the neighbourhood's rows. The intermediates live in rings of a few rows."""
     h, w = f.shape
     n = len(lags)
     inv = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
+    nr = 2 * r + 2                                 # ring of row sums: the window's rows and the one leaving it
+    nm = 2 * rs + 1                                # ring of row maxima
+    n_lv = n_levels(r)
     for k in nb.prange(n):
         d = lags[k]
         wd = w - d                                 # columns x = d + i whose twin x − d = i is inside
         o = out[k]
         o[:, :d] = NO_TWIN
-        rows = np.empty((h, wd), np.float32)       # horizontal window sums of f(x)·g(x − d)
+        sums = np.empty((nr, wd), np.float32)
+        peaks = np.empty((nm, wd), np.float32)
         prod = np.empty(wd, np.float32)
-        for y in range(h):
-            fy, gy = f[y, d:], g[y, :wd]
-            for i in range(wd):
-                prod[i] = fy[i] * gy[i]
-            _window_sum(prod, rows[y], r)
-        col = np.zeros(wd, np.float32)             # vertical window sum (rows clamped), running down
-        for j in range(-r, r + 1):
-            src = rows[min(max(j, 0), h - 1)]
-            for i in range(wd):
-                col[i] += src[i]
-        for y in range(h):
-            if y > 0:
-                add, sub = rows[min(y + r, h - 1)], rows[max(y - r - 1, 0)]
+        col = np.empty(wd, np.float32)
+        ncc = np.empty(wd, np.float32)
+        levels = np.empty((n_lv, wd + 2 * r), np.float32)
+        for t in range(h + r + rs):
+            if t < h:                              # row t: products, summed along the row
+                fy, gy = f[t, d:], g[t, :wd]
                 for i in range(wd):
-                    col[i] += add[i] - sub[i]
-            oy, muy, isdy, mgy, isgy = o[y, d:], mu[y, d:], isd[y, d:], mg[y, :wd], isg[y, :wd]
-            for i in range(wd):
-                oy[i] = (col[i] * inv - muy[i] * mgy[i]) * (isdy[i] * isgy[i])
-        if rs > 0:  # shiftable windows: max over the (2 rs + 1)^2 neighbourhood, separable, within x >= d
-            for y in range(h):
-                _window_max(o[y, d:], rows[y], rs)
-            for y in range(h):
+                    prod[i] = fy[i] * gy[i]
+                row_sums(prod, sums[t % nr], r, levels, True)
+            y = t - r
+            if 0 <= y < h:                         # row t − r: window sums, NCC, maximum along the row
+                if y == 0:
+                    for i in range(wd):
+                        col[i] = 0.0
+                    for j in range(-r, r + 1):
+                        src = sums[min(max(j, 0), h - 1) % nr]
+                        for i in range(wd):
+                            col[i] += src[i]
+                else:
+                    add, sub = sums[min(y + r, h - 1) % nr], sums[max(y - r - 1, 0) % nr]
+                    for i in range(wd):
+                        col[i] += add[i] - sub[i]
+                dst = ncc if rs > 0 else o[y, d:]
+                muy, isdy, mgy, isgy = mu[y, d:], isd[y, d:], mg[y, :wd], isg[y, :wd]
+                for i in range(wd):
+                    dst[i] = (col[i] * inv - muy[i] * mgy[i]) * (isdy[i] * isgy[i])
+                if rs > 0:
+                    _window_max(ncc, peaks[y % nm], rs)
+            y = t - r - rs
+            if rs > 0 and 0 <= y < h:              # row t − r − rs: the maximum over the neighbourhood's rows
                 dst = o[y, d:]
-                dst[:] = rows[y]
-                for j in range(max(0, y - rs), min(h, y + rs + 1)):
-                    src = rows[j]
+                first = peaks[max(0, y - rs) % nm]
+                for i in range(wd):
+                    dst[i] = first[i]
+                for j in range(max(0, y - rs) + 1, min(h, y + rs + 1)):
+                    src = peaks[j % nm]
                     for i in range(wd):
                         v = src[i]
                         dst[i] = v if v > dst[i] else dst[i]

@@ -2,9 +2,10 @@
 
 Per slice p and guide I (box means over a (2r + 1)² window, borders reflected as OpenCV's BORDER_REFLECT):
 a = (mean(I·p) − mean(I)·mean(p)) / (var(I) + ε), b = mean(p) − a·mean(I), q = mean(a)·I + mean(b).
-The slices run in parallel; each box mean is two separable passes, 2r + 1 shifted adds along the rows and
-a running sum down the columns, which vectorise (OpenCV's boxFilter per slice, called from Python, spent
-most of its time outside the arithmetic).
+The slices run in parallel. A box sum is a sum along the rows by doubling (a few passes over a row that
+vectorise) and a running sum down the columns. Each slice streams down its rows with every intermediate
+in rings of a few rows that stay in cache (full-slice intermediates made the filter wait on memory);
+OpenCV's boxFilter per slice, called from Python, spent most of its time outside the arithmetic.
 """
 from __future__ import annotations
 
@@ -22,33 +23,61 @@ def _reflect(i, n):  # pragma: no cover - compiled
     return i
 
 
+@nb.njit(cache=True)
+def n_levels(r):  # pragma: no cover - compiled
+    """Rows of :func:`row_sums`' work space for radius r: ⌊log2(2r + 1)⌋ + 1."""
+    n = 1
+    while (1 << n) <= 2 * r + 1:
+        n += 1
+    return n
+
+
+@nb.njit(cache=True, fastmath=True, inline="always")
+def row_sums(row, out, r, levels, clamp):  # pragma: no cover - compiled
+    """out[x] = Σ row[x + j], j = −r..r (row, out: (W,)), beyond the ends the row reflected (OpenCV's
+    BORDER_REFLECT) or with ``clamp`` its end values repeated, by doubling: the extended row into
+    levels[0]; levels[b] holds the sums of 2^b consecutive entries, each level two shifted reads of the
+    one below; the window of 2r + 1 entries is the sum of the levels of its binary digits. A few passes
+    that vectorise instead of 2r + 1 (levels: (:func:`n_levels` (r), ≥ W + 2r) work space)."""
+    w = row.shape[0]
+    n = w + 2 * r
+    ext = levels[0]
+    mid = ext[r:r + w]
+    for i in range(w):
+        mid[i] = row[i]
+    for j in range(r):                       # reflect: fedcba|abcdef|fedcba; clamp: aaaaaa|abcdef|ffffff
+        ext[r - 1 - j] = row[0] if clamp else row[min(j, w - 1)]
+        ext[r + w + j] = row[w - 1] if clamp else row[max(w - 1 - j, 0)]
+    size = 2 * r + 1
+    for b in range(1, levels.shape[0]):
+        half = 1 << (b - 1)
+        m = n - (1 << b) + 1
+        dst, lo, hi = levels[b, :m], levels[b - 1, :m], levels[b - 1, half:half + m]
+        for i in range(m):
+            dst[i] = lo[i] + hi[i]
+    first = True
+    off = 0
+    for b in range(levels.shape[0] - 1, -1, -1):
+        if size & (1 << b):
+            src = levels[b, off:off + w]
+            if first:
+                for i in range(w):
+                    out[i] = src[i]
+                first = False
+            else:
+                for i in range(w):
+                    out[i] += src[i]
+            off += 1 << b
+
+
 @nb.njit(cache=True, fastmath=True)
 def _box_mean(src, dst, tmp, r):  # pragma: no cover - compiled
     """dst = mean of src (H, W) over (2r + 1)² windows, reflected borders; tmp (H, W) is work space."""
     h, w = src.shape
     scale = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
-    lo, hi = min(r, w), max(w - r, min(r, w))
-    m = hi - lo
+    levels = np.empty((n_levels(r), w + 2 * r), np.float32)
     for y in range(h):
-        row, out = src[y], tmp[y]
-        inner = out[lo:hi]
-        first = row[lo - r:hi - r]
-        for i in range(m):                   # 0-based loops over slices: no index wrap-around, they vectorise
-            inner[i] = first[i]
-        for j in range(-r + 1, r + 1):
-            seg = row[lo + j:hi + j]
-            for i in range(m):
-                inner[i] += seg[i]
-        for x in range(0, lo):
-            s = np.float32(0.0)
-            for j in range(-r, r + 1):
-                s += row[_reflect(x + j, w)]
-            out[x] = s
-        for x in range(hi, w):
-            s = np.float32(0.0)
-            for j in range(-r, r + 1):
-                s += row[_reflect(x + j, w)]
-            out[x] = s
+        row_sums(src[y], tmp[y], r, levels, False)
     col = np.zeros(w, np.float32)          # the vertical window's sum, running down the rows
     for j in range(-r, r + 1):
         row = tmp[_reflect(j, h)]
@@ -64,8 +93,32 @@ def _box_mean(src, dst, tmp, r):  # pragma: no cover - compiled
             out[x] = col[x] * scale
 
 
+@nb.njit(cache=True, fastmath=True, inline="always")
+def _slide(col, ring, y, h, r, first):  # pragma: no cover - compiled
+    """The column sums ``col`` (W,) of the row sums in ``ring`` (2r + 2 rows, row i in slot i mod 2r + 2)
+    moved to the window of row y, rows reflect(y − r .. y + r): summed afresh for the first row, else
+    the entering row added and the leaving one taken off."""
+    n = ring.shape[0]
+    w = col.shape[0]
+    if first:
+        for x in range(w):
+            col[x] = 0.0
+        for j in range(-r, r + 1):
+            src = ring[_reflect(y + j, h) % n]
+            for x in range(w):
+                col[x] += src[x]
+    else:
+        add, sub = ring[_reflect(y + r, h) % n], ring[_reflect(y - r - 1, h) % n]
+        for x in range(w):
+            col[x] += add[x] - sub[x]
+
+
 @nb.njit(cache=True, parallel=True, fastmath=True)
 def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):  # pragma: no cover - compiled
+    """Each slice streams down its rows in three stages r rows apart: row t's p and I·p are summed along
+    the row; row t − r gets its means from the running column sums of those, then its a, b and their row
+    sums; row t − 2r its output from the running column sums of those. The intermediates live in rings of
+    2r + 2 rows, in cache: a slice is read once and written once."""
     n, h, w = volume.shape
     mean_g = np.empty((h, w), np.float32)
     var_g = np.empty((h, w), np.float32)
@@ -75,31 +128,52 @@ def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):
     for y in range(h):
         for x in range(w):
             var_g[y, x] = var_g[y, x] - mean_g[y, x] * mean_g[y, x] + eps
-    g1, mg1, vg1, wt1 = guide.reshape(-1), mean_g.reshape(-1), var_g.reshape(-1), weight.reshape(-1)
+    scale = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
+    nr = 2 * r + 2
+    n_lv = n_levels(r)
     for c in nb.prange(n_chunks):         # work space once per chunk of slices
-        p = np.empty((h, w), np.float32)
-        gp = np.empty((h, w), np.float32)
-        mp = np.empty((h, w), np.float32)
-        mgp = np.empty((h, w), np.float32)
-        tmp = np.empty((h, w), np.float32)
-        p1, gp1, mp1, mgp1 = p.reshape(-1), gp.reshape(-1), mp.reshape(-1), mgp.reshape(-1)
+        ring_p = np.empty((nr, w), np.float32)      # row sums of p, I·p, a and b
+        ring_gp = np.empty((nr, w), np.float32)
+        ring_a = np.empty((nr, w), np.float32)
+        ring_b = np.empty((nr, w), np.float32)
+        col_p = np.empty(w, np.float32)             # their running column sums
+        col_gp = np.empty(w, np.float32)
+        col_a = np.empty(w, np.float32)
+        col_b = np.empty(w, np.float32)
+        p = np.empty(w, np.float32)
+        gp = np.empty(w, np.float32)
+        levels = np.empty((n_lv, w + 2 * r), np.float32)
         for k in range(c, n, n_chunks):
-            v, o = volume[k].reshape(-1), out[k].reshape(-1)     # flat: the loops vectorise
-            for i in range(h * w):
-                val = v[i]
-                val = np.float32(0.0) if val == missing_value else val
-                p1[i] = val
-                gp1[i] = g1[i] * val
-            _box_mean(p, mp, tmp, r)
-            _box_mean(gp, mgp, tmp, r)
-            for i in range(h * w):               # a into p, b into gp
-                a = (mgp1[i] - mg1[i] * mp1[i]) / vg1[i]
-                p1[i] = a
-                gp1[i] = mp1[i] - a * mg1[i]
-            _box_mean(p, mp, tmp, r)
-            _box_mean(gp, mgp, tmp, r)
-            for i in range(h * w):
-                o[i] = missing_value if v[i] == missing_value else (mp1[i] * g1[i] + mgp1[i]) * wt1[i]
+            for t in range(h + 2 * r):
+                if t < h:                          # row t: p (missing counts as 0) and I·p, summed along the row
+                    v, g = volume[k, t], guide[t]
+                    for x in range(w):
+                        val = v[x]
+                        val = np.float32(0.0) if val == missing_value else val
+                        p[x] = val
+                        gp[x] = g[x] * val
+                    row_sums(p, ring_p[t % nr], r, levels, False)
+                    row_sums(gp, ring_gp[t % nr], r, levels, False)
+                y = t - r
+                if 0 <= y < h:                     # row t − r: its means, a and b (into p, gp), their row sums
+                    _slide(col_p, ring_p, y, h, r, y == 0)
+                    _slide(col_gp, ring_gp, y, h, r, y == 0)
+                    mg, vg = mean_g[y], var_g[y]
+                    for x in range(w):
+                        mp = col_p[x] * scale
+                        a = (col_gp[x] * scale - mg[x] * mp) / vg[x]
+                        p[x] = a
+                        gp[x] = mp - a * mg[x]
+                    row_sums(p, ring_a[y % nr], r, levels, False)
+                    row_sums(gp, ring_b[y % nr], r, levels, False)
+                y = t - 2 * r
+                if y >= 0:                         # row t − 2r: q = mean(a)·I + mean(b), weighted
+                    _slide(col_a, ring_a, y, h, r, y == 0)
+                    _slide(col_b, ring_b, y, h, r, y == 0)
+                    v, o, g, wt = volume[k, y], out[k, y], guide[y], weight[y]
+                    for x in range(w):             # (in place: v[x] is read before o[x] is written)
+                        q = (col_a[x] * g[x] + col_b[x]) * scale * wt[x]
+                        o[x] = missing_value if v[x] == missing_value else q
     return out
 
 
