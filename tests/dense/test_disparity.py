@@ -152,3 +152,23 @@ def test_a_wide_range_is_pruned_to_the_scene_and_gives_the_same_maps(pair):
     whole = dense_disparity(c, 0, 120, params=replace(DEFAULT, prune=False))
     assert whole.searched_px == (3.0, 120.0)
     assert disparity_scores(wide.disparity_left, tl)["bad2_pct"] <= disparity_scores(whole.disparity_left, tl)["bad2_pct"] + 0.5
+
+
+@pytest.mark.parametrize("side", [40, 64])
+def test_pruning_keeps_a_small_object_whose_disparity_stands_apart(side):
+    """A side x side px object at 40 px before a background at 12 px, searched over 0..100: the coarse pass
+    finds the object, so the pruned search covers it and recovers it as the whole search does."""
+    from dataclasses import replace
+
+    from psvs.dense.disparity import DEFAULT
+    left, right, tl, _ = layered_pair(d_bg=12, d_fg=40, rect=(100 - side // 2, 100 + side // 2,
+                                                               160 - side // 2, 160 + side // 2))
+    c = superimpose(left, right)
+    pruned = dense_disparity(c, 0, 100)
+    whole = dense_disparity(c, 0, 100, params=replace(DEFAULT, prune=False))
+    lo, hi = pruned.searched_px
+    assert lo <= 10 and 44 <= hi <= 60
+    fg = tl == 40
+    share = lambda d: float(np.mean(np.abs(d[fg] - 40) <= 2))  # noqa: E731
+    assert share(pruned.disparity_left) >= share(whole.disparity_left) - 0.02
+    assert share(pruned.disparity_left) > (0.3 if side == 40 else 0.6)
