@@ -7,11 +7,12 @@ image I, the jump penalty follows Hirschmüller's intensity-adaptive form, P2 / 
 
 The paths run in two passes, as OpenCV's StereoSGBM does: a downward pass (rows top to bottom, each row
 left to right) carries the paths that come from the left, the upper left, above and the upper right; an
-upward pass the four opposite ones. Each pass reads the cost volume once and writes its sum of paths
-once, keeping only the previous row of each path (W × D per path); all the paths of a pass advance in one
-loop over the disparities, which has no branch and vectorises. The two passes run on two threads (Numba's).
-The recursion needs costs >= 0 (a path's minimum is taken on the float bits as integers); :func:`aggregate`
-shifts other costs, which shifts the result by the same amount per path.
+upward pass the four opposite ones. Each pass keeps only the previous row of each path (W × D per path)
+and writes its sum of paths once per pixel. A row is swept twice: along the row path's own direction,
+then left to right for the paths from the previous row, all three in one loop over the disparities that
+has no branch and vectorises; memory is thus read in ascending order in both passes. The two passes run
+on two threads (Numba's). The kernels need costs >= 0 (a path's minimum is taken on the float bits as
+integers); :func:`aggregate` shifts other costs, which shifts the result by the same amount per path.
 """
 from __future__ import annotations
 
@@ -26,18 +27,22 @@ _BIG = np.float32(1e30)   # the padding of a path's row: never the minimum (fini
 # A pass keeps each path's previous row in a buffer (path, 1 + x, 1 + d): columns 0 and W + 1 stand for
 # "outside the image" and rows start as zeros, a zero source with a zero minimum being exactly a path's
 # start (L = c), so the loop has no branch for the borders; lags 0 and n + 1 hold a large cost, so the
-# loop over disparities has none for its ends. All paths of a pass advance in one loop over the
-# disparities (one read of the cost, one write of the sum).
+# loop over disparities has none for its ends.
+
+_INT_BIG = np.int32(2147483647)
+
+
+# A path's minimum over the disparities is taken as the costs are computed, on their float32 bits read as
+# int32: path costs are >= 0, and non-negative floats order as their bits do. An integer minimum
+# vectorises; a float one with one accumulator does not.
+@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _bits(v):  # pragma: no cover - compiled
+    return np.float32(v).view(np.int32)
+
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
-def _row_min(rows, k, x, n):  # pragma: no cover - compiled
-    """min(rows[k, x, 1:n + 1]) of path costs, which are >= 0: their float32 bits order as int32 do, and
-    an integer minimum vectorises (a float one with one accumulator does not)."""
-    bits = rows.view(np.int32)
-    m = np.int32(2147483647)
-    for d in range(1, n + 1):
-        m = min(m, bits[k, x, d])
-    return np.int32(m).view(np.float32)
+def _float(b):  # pragma: no cover - compiled
+    return np.int32(b).view(np.float32)
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
@@ -83,10 +88,12 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
             xb, x0 = x + 1, x + 1 - s            # the buffers' columns: this pixel, the path's previous one
             m0 = cur_min[0, x0]
             j0 = m0 + pen[0, x]
+            b0 = _INT_BIG
             for d in range(n):
-                cur[0, xb, d + 1] = cost[y, x, d] + min(min(cur[0, x0, d], cur[0, x0, d + 2]) + p1,
-                                                        min(cur[0, x0, d + 1], j0)) - m0
-            cur_min[0, xb] = _row_min(cur, 0, xb, n)
+                l0 = cost[y, x, d] + min(min(cur[0, x0, d], cur[0, x0, d + 2]) + p1, min(cur[0, x0, d + 1], j0)) - m0
+                cur[0, xb, d + 1] = l0
+                b0 = min(b0, _bits(l0))
+            cur_min[0, xb] = _float(b0)
         for x in range(w):                       # the paths from the previous row, left to right
             xb = x + 1
             m1 = prev_min[1, xb]
@@ -95,6 +102,7 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
                 x2, x3 = xb - s, xb + s
                 m2, m3 = prev_min[2, x2], prev_min[3, x3]
                 j2, j3 = m2 + pen[2, x], m3 + pen[3, x]
+                b1 = b2 = b3 = _INT_BIG
                 for d in range(n):
                     c = cost[y, x, d]
                     l1 = c + min(min(prev[1, xb, d], prev[1, xb, d + 2]) + p1, min(prev[1, xb, d + 1], j1)) - m1
@@ -104,15 +112,18 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
                     cur[2, xb, d + 1] = l2
                     cur[3, xb, d + 1] = l3
                     out[y, x, d] = (cur[0, xb, d + 1] + l1) + (l2 + l3)
-                cur_min[2, xb] = _row_min(cur, 2, xb, n)
-                cur_min[3, xb] = _row_min(cur, 3, xb, n)
+                    b1, b2, b3 = min(b1, _bits(l1)), min(b2, _bits(l2)), min(b3, _bits(l3))
+                cur_min[2, xb] = _float(b2)
+                cur_min[3, xb] = _float(b3)
             else:
+                b1 = _INT_BIG
                 for d in range(n):
                     l1 = cost[y, x, d] + min(min(prev[1, xb, d], prev[1, xb, d + 2]) + p1,
                                              min(prev[1, xb, d + 1], j1)) - m1
                     cur[1, xb, d + 1] = l1
                     out[y, x, d] = cur[0, xb, d + 1] + l1
-            cur_min[1, xb] = _row_min(cur, 1, xb, n)
+                    b1 = min(b1, _bits(l1))
+            cur_min[1, xb] = _float(b1)
         prev, cur = cur, prev
         prev_min, cur_min = cur_min, prev_min
 
