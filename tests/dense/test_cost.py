@@ -83,6 +83,8 @@ def test_pick_finds_the_parabola_vertex():
     assert d[0, 0] == pytest.approx(d_true, abs=1e-6)
     d, _, _ = pick(np.full_like(agg, np.nan), echo, lags)        # NaN costs: the search stays in the range
     assert lags[0] <= d[0, 0] <= lags[-1]
+    with pytest.raises(ValueError, match=">= 0"):                 # the integer minimum needs costs >= 0
+        pick(agg - 5.0, echo, lags)
     half = (agg / 2).astype(np.float32)                           # SGM's two passes, added as it goes
     d2, _, _ = pick(half, echo, lags, agg - half)
     assert d2[0, 0] == pytest.approx(d_true, abs=1e-6)
@@ -127,7 +129,7 @@ def test_filter_volume_is_a_double_box_mean_under_a_flat_guide_and_stops_at_guid
     assert np.all(out[:, 15:20] > 0.98) and np.all(np.abs(out[:, 20:25]) < 0.02)
 
 
-@pytest.mark.parametrize("radius, shape", [(4, (48, 64)), (2, (17, 23)), (1, (16, 16))])
+@pytest.mark.parametrize("radius, shape", [(4, (48, 64)), (2, (17, 23)), (1, (16, 16)), (7, (8, 12))])
 def test_filter_volume_matches_opencv_box_filters_everywhere(radius, shape):
     """The Numba guided filter against He et al.'s formulas with OpenCV's boxFilter (BORDER_REFLECT), borders
     included."""
@@ -151,6 +153,11 @@ def test_filter_volume_matches_opencv_box_filters_everywhere(radius, shape):
     inp = vol.copy()
     again = filter_volume(inp, guide, radius, 0.01, in_place=True)   # over its input: the same values
     assert again is inp and np.array_equal(again, got)
+    weight = rng.random(shape).astype(np.float32)                    # weighted as it is written
+    weighted = filter_volume(vol, guide, radius, 0.01, weight=weight)
+    np.testing.assert_allclose(weighted, np.where(vol == NO_TWIN, NO_TWIN, got * weight), atol=1e-6)
+    with pytest.raises(ValueError, match="weight"):
+        filter_volume(vol, guide, radius, 0.01, weight=weight[:-1])
     with pytest.raises(ValueError, match="radius"):
         filter_volume(vol, guide, 0, 0.01)
     with pytest.raises(ValueError, match="radius"):

@@ -113,10 +113,12 @@ def test_a_kept_workspace_gives_the_same_maps():
         for a, b in zip((want.disparity_left, want.disparity_right, want.confidence_left),
                         (got.disparity_left, got.disparity_right, got.confidence_left)):
             np.testing.assert_array_equal(a, b)
-    big = ws.array("fused", (10, 20, 16))
+    kept = {name: buf for name, buf in ws._buffers.items()}       # what the calls left in the workspace
+    assert {"echo", "fused", "sgm", "sgm_work", "one_sided"} <= set(kept) and ws.coarse._buffers
+    dense_disparity(c, 0, 30, workspace=ws)                         # a smaller search: the same memory
+    assert all(ws._buffers[name] is buf for name, buf in kept.items())
     small = ws.array("fused", (5, 20, 8))
-    assert big.dtype == small.dtype == np.float32 and small.flags.c_contiguous and np.shares_memory(big, small)
-    assert ws.coarse is ws.coarse and ws.coarse is not ws
+    assert small.dtype == np.float32 and small.flags.c_contiguous and np.shares_memory(small, kept["fused"])
 
 
 def test_pruned_range_keeps_the_supported_disparities_with_a_margin():
@@ -138,7 +140,7 @@ def test_pruned_range_keeps_the_supported_disparities_with_a_margin():
 
 def test_a_wide_range_is_pruned_to_the_scene_and_gives_the_same_maps(pair):
     """Layers at 18 and 31 px searched over 0..120 px: the coarse pass narrows the search to about 12..38,
-    and the maps match those of the search over 0..40 (which is pruned to the same lags)."""
+    and the maps are as good as those of the whole search."""
     from dataclasses import replace
 
     from psvs.dense.disparity import DEFAULT
@@ -172,3 +174,15 @@ def test_pruning_keeps_a_small_object_whose_disparity_stands_apart(side):
     share = lambda d: float(np.mean(np.abs(d[fg] - 40) <= 2))  # noqa: E731
     assert share(pruned.disparity_left) >= share(whole.disparity_left) - 0.02
     assert share(pruned.disparity_left) > (0.3 if side == 40 else 0.6)
+
+
+def test_one_depth_at_the_end_of_the_range_is_widened_not_searched_whole():
+    """A single plane at 30 px searched over 0..32: the pruned range, clipped at 32, is widened inside the
+    range to at least MIN_PRUNED_LAGS px instead of falling back to the whole range."""
+    from psvs.dense.disparity import MIN_PRUNED_LAGS
+    left, right, tl, _ = layered_pair(d_bg=30, d_fg=30)
+    res = dense_disparity(superimpose(left, right), 0, 32)
+    lo, hi = res.searched_px
+    assert hi == 32 and MIN_PRUNED_LAGS - 1 <= hi - lo <= 12
+    seen = np.isfinite(tl)
+    assert np.mean(np.abs(res.disparity_left[seen] - 30) <= 2) > 0.9

@@ -244,11 +244,12 @@ def pick(agg: np.ndarray, echo: np.ndarray, lags: np.ndarray, agg_more: np.ndarr
     with a parabola's sub-pixel offset: disparity (px), and the echo (D, H, W) seen from the left-view end
     (``own``) and the right-view end (``other``) at that lag, each (H, W)."""
     lags = np.ascontiguousarray(lags, dtype=np.int64)
-    if agg_more is None:
-        return _pick(agg, agg, False, echo, lags)
-    if agg_more.shape != agg.shape:
+    if agg_more is not None and agg_more.shape != agg.shape:
         raise ValueError(f"the two aggregated volumes differ in shape: {agg.shape} and {agg_more.shape}")
-    return _pick(agg, agg_more, True, echo, lags)
+    disp, own, other, negative = _pick(agg, agg if agg_more is None else agg_more, agg_more is not None, echo, lags)
+    if negative.any():
+        raise ValueError("aggregated costs must be >= 0 (shift them by their minimum)")
+    return disp, own, other
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
@@ -258,9 +259,11 @@ def _pick(agg, agg_more, two, echo, lags):  # pragma: no cover - compiled
     disp = np.empty((h, w), np.float64)
     own = np.empty((h, w), np.float32)
     other = np.empty((h, w), np.float32)
+    negative = np.zeros(h, np.bool_)
     for y in nb.prange(h):
         a = np.empty(n, np.float32)
         bits = a.view(np.int32)   # costs >= 0 order as their float32 bits do: an integer minimum vectorises
+        # (with a negative cost among them the minimum found is negative: the row is flagged)
         for x in range(w):
             s, t = agg[y, x], agg_more[y, x]
             if two:
@@ -276,6 +279,8 @@ def _pick(agg, agg_more, two, echo, lags):  # pragma: no cover - compiled
             k = 0
             while k < n - 1 and a[k] != lowest:   # (bounded: a NaN cost equals nothing)
                 k += 1
+            if m < 0:                             # the sign bit (the kernel uses fastmath: no float test of NaN)
+                negative[y] = True
             off = 0.0
             if 0 < k < n - 1:
                 c0, c1, c2 = a[k - 1], a[k], a[k + 1]
@@ -286,7 +291,7 @@ def _pick(agg, agg_more, two, echo, lags):  # pragma: no cover - compiled
             own[y, x] = echo[k, y, x]
             xf = x + lags[k]
             other[y, x] = echo[k, y, xf] if xf < w else NO_TWIN
-    return disp, own, other
+    return disp, own, other, negative
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)

@@ -44,7 +44,7 @@ from psvs.optics.rig import Rig
 
 MIN_LAG_PX = 3
 MIN_SIZE_PX = 16
-MIN_PRUNED_LAGS = 8      # ranges of fewer lags than twice this are searched whole, and none is pruned below it
+MIN_PRUNED_LAGS = 8      # px: ranges of at most twice this are searched whole, and none is pruned below it
 
 
 @dataclass(frozen=True)
@@ -71,11 +71,11 @@ class DenseParams:
 
 DEFAULT = DenseParams()
 FAST = DenseParams(sigma_px=0.5, window=9, shift_window=1, guided_radius=0, n_paths=4, scale=2, second_pass=False,
-                   median_px=1)
+                   median_px=1, prune=False)
 #: The coarse pass that prunes the default mode's search: the fast mode. (At quarter resolution it would
 #: take 12 ms instead of 55 at 160 disparities, but it misses a 64 x 64 px object whose disparity stands
 #: apart: tests/dense/test_disparity.py.)
-COARSE = replace(FAST, prune=False)
+COARSE = FAST
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,9 +134,13 @@ PIXEL_BYTES = 400
 
 def dense_memory_bytes(h: int, w: int, d_min: float, d_max: float, params: "DenseParams | None" = None) -> int:
     """Estimated peak memory (bytes) of :func:`dense_disparity` on an (h, w) image searching d_min..d_max px."""
-    s = (params or DEFAULT).scale
+    p = params or DEFAULT
+    s = p.scale
     n_lags = max(1, math.floor(d_max / s) - max(MIN_LAG_PX, math.ceil(d_min / s)) + 1)
-    return int(CELL_BYTES * (h // s) * (w // s) * n_lags + PIXEL_BYTES * h * w)
+    cells = (h // s) * (w // s) * n_lags
+    if s == 1 and p.prune:   # the coarse pass's volumes, kept beside the full-resolution ones
+        cells += (h // COARSE.scale) * (w // COARSE.scale) * max(1, n_lags // COARSE.scale)
+    return int(CELL_BYTES * cells + PIXEL_BYTES * h * w)
 
 
 def check_dense_memory(h: int, w: int, d_min: float, d_max: float, params: "DenseParams | None" = None,
@@ -325,17 +329,21 @@ def pruned_range(coarse: DenseResult, d_min: float, d_max: float, n_pixels: int)
 
 def _prune(img: np.ndarray, d_min: float, d_max: float, right: np.ndarray | None,
            workspace: Workspace | None) -> tuple[float, float]:
-    """The range to search at full resolution: :func:`pruned_range` of a coarse pass (:data:`COARSE`), or
-    d_min..d_max when it holds fewer than 2·MIN_PRUNED_LAGS lags (then the coarse scale still has at least
-    four to search)."""
-    if math.floor(d_max) - max(MIN_LAG_PX, math.ceil(d_min)) < 2 * MIN_PRUNED_LAGS:
+    """The range to search at full resolution: :func:`pruned_range` of a coarse pass (:data:`COARSE`),
+    widened within d_min..d_max to at least MIN_PRUNED_LAGS px; d_min..d_max itself when that spans no more
+    than 2·MIN_PRUNED_LAGS px (the coarse scale then still has lags to search: over 4)."""
+    if math.floor(d_max) - max(MIN_LAG_PX, math.ceil(d_min)) <= 2 * MIN_PRUNED_LAGS:
         return d_min, d_max
     h, w = img.shape
-    coarse = dense_disparity(img, d_min, d_max, params=COARSE, image_right=right,
-                             workspace=None if workspace is None else workspace.coarse)
+    with warnings.catch_warnings():   # a coarse image may be constant where the full one is not: no warning
+        warnings.simplefilter("ignore", RuntimeWarning)
+        coarse = dense_disparity(img, d_min, d_max, params=COARSE, image_right=right,
+                                 workspace=None if workspace is None else workspace.coarse)
     lo, hi = pruned_range(coarse, d_min, d_max, h * w)
-    if math.floor(hi) - max(MIN_LAG_PX, math.ceil(lo)) < MIN_PRUNED_LAGS:
-        return d_min, d_max
+    short = MIN_PRUNED_LAGS - (hi - lo)
+    if short > 0:                     # one depth near an end of the range: widen, inside the range
+        lo, hi = lo - short / 2, hi + short / 2
+        lo, hi = (max(d_min, lo - max(0.0, hi - d_max)), min(d_max, hi + max(0.0, d_min - lo)))
     return lo, hi
 
 

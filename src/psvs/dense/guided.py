@@ -32,6 +32,8 @@ def n_levels(r):  # pragma: no cover - compiled
     return n
 
 
+# psvs.dense.cost's echo kernel compiles this in. Numba's cache only sees a kernel's own file: after an
+# edit here, touch cost.py (or clear __pycache__) so that its cached kernel is rebuilt.
 @nb.njit(cache=True, fastmath=True, inline="always")
 def row_sums(row, out, r, levels, clamp):  # pragma: no cover - compiled
     """out[x] = Σ row[x + j], j = −r..r (row, out: (W,)), beyond the ends the row reflected (OpenCV's
@@ -131,18 +133,16 @@ def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):
     scale = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
     nr = 2 * r + 2
     n_lv = n_levels(r)
-    for c in nb.prange(n_chunks):         # work space once per chunk of slices
-        ring_p = np.empty((nr, w), np.float32)      # row sums of p, I·p, a and b
-        ring_gp = np.empty((nr, w), np.float32)
-        ring_a = np.empty((nr, w), np.float32)
-        ring_b = np.empty((nr, w), np.float32)
-        col_p = np.empty(w, np.float32)             # their running column sums
-        col_gp = np.empty(w, np.float32)
-        col_a = np.empty(w, np.float32)
-        col_b = np.empty(w, np.float32)
-        p = np.empty(w, np.float32)
-        gp = np.empty(w, np.float32)
-        levels = np.empty((n_lv, w + 2 * r), np.float32)
+    # work space per chunk of slices (one chunk per thread), allocated here: an allocation inside the
+    # parallel loop would be hoisted out of it by Numba, and then the threads would share it
+    rings = np.empty((n_chunks, 4, nr, w), np.float32)
+    rows = np.empty((n_chunks, 6, w), np.float32)
+    all_levels = np.empty((n_chunks, n_lv, w + 2 * r), np.float32)
+    for c in nb.prange(n_chunks):
+        ring_p, ring_gp, ring_a, ring_b = rings[c, 0], rings[c, 1], rings[c, 2], rings[c, 3]  # row sums of p, I·p, a, b
+        col_p, col_gp, col_a, col_b = rows[c, 0], rows[c, 1], rows[c, 2], rows[c, 3]          # their column sums
+        p, gp = rows[c, 4], rows[c, 5]
+        levels = all_levels[c]
         for k in range(c, n, n_chunks):
             for t in range(h + 2 * r):
                 if t < h:                          # row t: p (missing counts as 0) and I·p, summed along the row
@@ -170,10 +170,12 @@ def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):
                 if y >= 0:                         # row t − 2r: q = mean(a)·I + mean(b), weighted
                     _slide(col_a, ring_a, y, h, r, y == 0)
                     _slide(col_b, ring_b, y, h, r, y == 0)
-                    v, o, g, wt = volume[k, y], out[k, y], guide[y], weight[y]
+                    g, wt = guide[y], weight[y]
+                    for x in range(w):             # into p: a loop whose arrays never overlap vectorises
+                        p[x] = (col_a[x] * g[x] + col_b[x]) * scale * wt[x]    # alike in and out of place
+                    v, o = volume[k, y], out[k, y]
                     for x in range(w):             # (in place: v[x] is read before o[x] is written)
-                        q = (col_a[x] * g[x] + col_b[x]) * scale * wt[x]
-                        o[x] = missing_value if v[x] == missing_value else q
+                        o[x] = missing_value if v[x] == missing_value else p[x]
     return out
 
 
@@ -188,4 +190,6 @@ def guided_filter_volume(volume: np.ndarray, guide: np.ndarray, r: int, eps: flo
     out = volume if in_place else np.empty_like(volume)
     if weight is None:
         weight = np.ones(guide.shape, np.float32)
+    if weight.shape != guide.shape or volume.shape[1:] != guide.shape:
+        raise ValueError(f"volume slices {volume.shape[1:]}, guide {guide.shape} and weight {weight.shape} must match")
     return _filter_slices(volume, guide, weight, r, np.float32(eps), np.float32(missing_value), n_chunks, out)

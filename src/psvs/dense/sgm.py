@@ -10,7 +10,8 @@ left to right) carries the paths that come from the left, the upper left, above 
 upward pass the four opposite ones. Each pass keeps only the previous row of each path (W × D per path)
 and writes its sum of paths once per pixel. A row is swept twice: along the row path's own direction,
 then left to right for the paths from the previous row, all three in one loop over the disparities that
-has no branch and vectorises; memory is thus read in ascending order in both passes. The two passes run
+has no branch and vectorises; that sweep, which reads the cost and writes the sums, runs left to right in
+both passes (a descending stream through a volume runs at half the speed here). The two passes run
 on two threads (Numba's). The kernels need costs >= 0 (a path's minimum is taken on the float bits as
 integers); :func:`aggregate` shifts other costs, which shifts the result by the same amount per path.
 """
@@ -59,9 +60,9 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
     ``diagonals``); up the mirror images. The costs must be >= 0.
 
     Each row is swept twice: first along the row path's direction (for the up pass, right to left) into a
-    row of path costs, then left to right for the paths from the previous row, adding that row: memory
-    is read and written in ascending order (a descending stream through the volumes runs at half the
-    speed here)."""
+    row of path costs, then left to right for the paths from the previous row, adding that row and
+    writing the sums: the long stream through ``out`` runs in ascending order in both passes (a
+    descending one runs at half the speed here)."""
     h, w, n = cost.shape
     s = 1 if down else -1
     n_k = 4 if diagonals else 2                  # path k: 0 the row's, 1 from above, 2 from x − s, 3 from x + s
