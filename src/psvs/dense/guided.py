@@ -133,8 +133,8 @@ def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):
     scale = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
     nr = 2 * r + 2
     n_lv = n_levels(r)
-    # work space per chunk of slices (one chunk per thread), allocated here: an allocation inside the
-    # parallel loop would be hoisted out of it by Numba, and then the threads would share it
+    # work space per chunk of slices (one chunk per thread), allocated here rather than inside the parallel
+    # loop, whose loop-invariant allocations Numba hoists (numba/numba#9529; a flaky test stopped with this)
     rings = np.empty((n_chunks, 4, nr, w), np.float32)
     rows = np.empty((n_chunks, 6, w), np.float32)
     all_levels = np.empty((n_chunks, n_lv, w + 2 * r), np.float32)
