@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from psvs.dense.cost import NO_TWIN, PAD_COST, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost, pick
+from psvs.dense.cost import NO_TWIN, PAD_COST, _keys, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost, pick
 from tests.dense.planted import texture
 
 
@@ -31,6 +31,17 @@ def test_echo_correlation_matches_the_definition():
         assert np.all(vol[k, :, :d] == NO_TWIN)
         for y, x in ((0, d), (7, 20), (23, 39), (12, d + 1)):
             assert vol[k, y, x] == pytest.approx(direct_ncc(f, y, x, d, 2), abs=2e-5)
+
+
+def test_integer_keys_order_as_the_floats_and_turn_back():
+    """The echo's maxima run on int32 keys of the float32 bits: ascending floats (negative, both zeros,
+    tiny and huge) give ascending keys, and the same map turns the keys back into the floats."""
+    v = np.array([-3e38, -1.0, -0.5, -1e-30, -0.0, 0.0, 1e-30, 0.25, 1.0, 3e38], np.float32)
+    keys = v.copy().view(np.int32)
+    _keys(keys)
+    assert np.all(np.diff(keys.astype(np.int64)) > 0)
+    _keys(keys)
+    assert np.array_equal(keys.view(np.float32), v) and np.signbit(keys.view(np.float32)[4])
 
 
 def test_shiftable_windows_take_the_neighbourhood_maximum_and_short_rows_work():

@@ -36,9 +36,21 @@ def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
 # Inner loops run over 0-based slices of rows: an index with a variable offset (x + d) would bring Numba's
 # negative-index wrap-around into the loop, and then it does not vectorise.
 
+# The shiftable windows' maxima are taken on integer keys of the float32 values: a float max (or select)
+# that updates a row in place, a[i] = max(a[i], b[i]), compiles to scalar code here (Numba 0.6x, LLVM),
+# the same on int32 vectorises (4x faster; the echo 93 -> 58 ms). _keys maps a float's bits to an int32
+# that orders as the float does (negative floats' magnitude bits flipped); it is its own inverse.
+@nb.njit(cache=True, fastmath=True, inline="always")
+def _keys(a):  # pragma: no cover - compiled
+    """Turn the int32 row ``a`` (a float32 row's bits) into order-preserving keys, or back, in place."""
+    for i in range(a.shape[0]):
+        b = a[i]
+        a[i] = b ^ ((b >> 31) & np.int32(0x7FFFFFFF))
+
+
 @nb.njit(cache=True, fastmath=True, inline="always")
 def _window_max(src, dst, r):  # pragma: no cover - compiled
-    """dst[i] = max src[i + j], j = −r..r, over the indices inside the row."""
+    """dst[i] = max src[i + j], j = −r..r, over the indices inside the row (int32 rows)."""
     n = src.shape[0]
     for i in range(n):
         dst[i] = src[i]
@@ -48,7 +60,7 @@ def _window_max(src, dst, r):  # pragma: no cover - compiled
             a, b = dst[lo:hi], src[lo + j:hi + j]
             for i in range(hi - lo):
                 v = b[i]
-                a[i] = v if v > a[i] else a[i]   # a select (vectorises), not max()
+                a[i] = v if v > a[i] else a[i]
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
@@ -70,10 +82,13 @@ def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # pragma: no cover - compi
         o = out[k]
         o[:, :d] = NO_TWIN
         sums = np.empty((nr, wd), np.float32)
-        peaks = np.empty((nm, wd), np.float32)
+        peaks = np.empty((nm, wd), np.int32)       # keys (_keys) of the row maxima
         prod = np.empty(wd, np.float32)
         col = np.empty(wd, np.float32)
         ncc = np.empty(wd, np.float32)
+        ncc_keys = ncc.view(np.int32)
+        top = np.empty(wd, np.int32)
+        top_values = top.view(np.float32)
         levels = np.empty((n_lv, wd + 2 * r), np.float32)
         for t in range(h + r + rs):
             if t < h:                              # row t: products, summed along the row
@@ -99,18 +114,22 @@ def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # pragma: no cover - compi
                 for i in range(wd):
                     dst[i] = (col[i] * inv - muy[i] * mgy[i]) * (isdy[i] * isgy[i])
                 if rs > 0:
-                    _window_max(ncc, peaks[y % nm], rs)
+                    _keys(ncc_keys)
+                    _window_max(ncc_keys, peaks[y % nm], rs)
             y = t - r - rs
             if rs > 0 and 0 <= y < h:              # row t − r − rs: the maximum over the neighbourhood's rows
-                dst = o[y, d:]
                 first = peaks[max(0, y - rs) % nm]
                 for i in range(wd):
-                    dst[i] = first[i]
+                    top[i] = first[i]
                 for j in range(max(0, y - rs) + 1, min(h, y + rs + 1)):
                     src = peaks[j % nm]
                     for i in range(wd):
                         v = src[i]
-                        dst[i] = v if v > dst[i] else dst[i]
+                        top[i] = v if v > top[i] else top[i]
+                _keys(top)
+                dst = o[y, d:]
+                for i in range(wd):
+                    dst[i] = top_values[i]
     return out
 
 
