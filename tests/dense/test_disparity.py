@@ -114,7 +114,7 @@ def test_a_kept_workspace_gives_the_same_maps():
                         (got.disparity_left, got.disparity_right, got.confidence_left)):
             np.testing.assert_array_equal(a, b)
     kept = {name: buf for name, buf in ws._buffers.items()}       # what the calls left in the workspace
-    assert {"echo", "fused", "sgm", "sgm_work", "one_sided"} <= set(kept) and ws.coarse._buffers
+    assert {"echo", "fused", "sgm", "one_sided"} <= set(kept) and ws.coarse._buffers
     dense_disparity(c, 0, 30, workspace=ws)                         # a smaller search: the same memory
     assert all(ws._buffers[name] is buf for name, buf in kept.items())
     small = ws.array("fused", (5, 20, 8))

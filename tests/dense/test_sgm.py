@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from psvs.dense.sgm import PATHS, aggregate
+from psvs.dense.sgm import PATHS, aggregate, winners
 
 
 def reference_sgm(cost, p1, p2, paths, guide=None, tau=1.0):
@@ -55,6 +55,44 @@ def test_aggregate_matches_reference_recursion(n_paths):
         aggregate(cost, 0.1, 0.4, out=np.empty((7, 9, 4), np.float32))
     with pytest.raises(ValueError, match="overlap"):
         aggregate(cost, 0.1, 0.4, out=cost)
+
+
+def reference_winner(agg, n_valid):
+    """Index of the lowest of agg[..., :n_valid] plus a parabola's offset (within ±0.5, none at the ends)."""
+    k = np.argmin(agg[..., :n_valid], axis=-1)
+    kc = np.clip(k, 1, n_valid - 2)
+    c0, c1, c2 = (np.take_along_axis(agg, (kc + j)[..., None], -1)[..., 0] for j in (-1, 0, 1))
+    den = c0 - 2 * c1 + c2
+    off = np.where(den > 1e-9, np.clip(0.5 * (c0 - c2) / np.where(den > 1e-9, den, 1), -0.5, 0.5), 0.0)
+    return k + np.where((k > 0) & (k < n_valid - 1), off, 0.0)
+
+
+@pytest.mark.parametrize("n_paths", [4, 8])
+@pytest.mark.parametrize("threads", [1, 2])
+def test_winners_are_the_aggregated_costs_lowest_lags(n_paths, threads):
+    """winners (two volumes at once, the upward pass adding the downward one's sums as it goes) finds
+    the lowest of the recursion's sums over the first n_valid lags, with the parabola's offset; the lags
+    past n_valid (padding) never win."""
+    rng = np.random.default_rng(5 + n_paths)
+    costs = rng.random((2, 8, 11, 8)).astype(np.float32)
+    costs[:, :, :, 6:] = 0.0                     # padding that would win were it searched
+    guide = rng.random((8, 11)).astype(np.float32)
+    sums = np.full_like(costs, np.nan)
+    got = winners(costs, 6, 0.1, 0.4, n_paths=n_paths, threads=threads, guide=guide, tau=0.3, sums=sums)
+    for i in range(2):
+        want = reference_sgm(costs[i].astype(np.float64), 0.1, 0.4, PATHS[:n_paths], guide.astype(np.float64), 0.3)
+        np.testing.assert_allclose(got[i], reference_winner(want, 6), atol=1e-4)
+        assert np.all((got[i] >= 0) & (got[i] <= 5))
+    with pytest.raises(ValueError, match="two cost volumes"):
+        winners(costs[0], 6, 0.1, 0.4)
+    with pytest.raises(ValueError, match="n_valid"):
+        winners(costs, 9, 0.1, 0.4)
+    with pytest.raises(ValueError, match="costs >= 0"):
+        winners(costs - 0.5, 6, 0.1, 0.4)
+    with pytest.raises(ValueError, match="overlap"):
+        winners(costs, 6, 0.1, 0.4, sums=costs)
+    with pytest.raises(ValueError, match="penalties"):
+        winners(costs, 6, 0.5, 0.4)
 
 
 def test_guided_penalty_matches_reference_recursion():

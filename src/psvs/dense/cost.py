@@ -13,6 +13,7 @@ import numba as nb
 import numpy as np
 
 from psvs.dense.guided import guided_filter_volume, n_levels, row_sums
+from psvs.dense.sgm import winner
 
 NO_TWIN = np.float32(-1.0)  # correlation given to lags whose twin window lies outside the image
 #: Cost volumes (H, W, D') hold D' = the searched lags rounded up to a multiple of LANES: the extra entries
@@ -294,18 +295,9 @@ def _pick(agg, agg_more, two, echo, lags):  # pragma: no cover - compiled
             m = np.int32(2147483647)
             for j in range(n):
                 m = min(m, bits[j])
-            lowest = np.int32(m).view(np.float32)   # then its first index
-            k = 0
-            while k < n - 1 and a[k] != lowest:   # (bounded: a NaN cost equals nothing)
-                k += 1
             if m < 0:                             # the sign bit (the kernel uses fastmath: no float test of NaN)
                 negative[y] = True
-            off = 0.0
-            if 0 < k < n - 1:
-                c0, c1, c2 = a[k - 1], a[k], a[k + 1]
-                den = c0 - 2 * c1 + c2
-                if den > 1e-9:
-                    off = min(0.5, max(-0.5, 0.5 * (c0 - c2) / den))
+            k, off = winner(a, n, np.int32(m).view(np.float32))
             disp[y, x] = lags[k] + off
             own[y, x] = echo[k, y, x]
             xf = x + lags[k]

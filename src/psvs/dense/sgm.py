@@ -14,6 +14,11 @@ has no branch and vectorises; that sweep, which reads the cost and writes the su
 both passes (a descending stream through a volume runs at half the speed here). The two passes run
 on two threads (Numba's). The kernels need costs >= 0 (a path's minimum is taken on the float bits as
 integers); :func:`aggregate` shifts other costs, which shifts the result by the same amount per path.
+
+:func:`winners` aggregates two volumes at once for a caller that only wants each pixel's winner (the
+second pass of psvs.dense): each volume on its own thread, the downward pass writing its sums, the upward
+pass adding them row by row and keeping only the winner, so the upward pass's volume is neither written
+to memory nor read back.
 """
 from __future__ import annotations
 
@@ -53,11 +58,45 @@ def _penalty(g, g_prev, p1, p2, tau):  # pragma: no cover - compiled
     return max(p1, p2 / (np.float32(1.0) + abs(g - g_prev) / tau))
 
 
+# psvs.dense.cost's pick compiles this in. Numba's cache only sees a kernel's own file: after an edit here,
+# touch cost.py (or clear __pycache__) so that its cached kernel is rebuilt.
+@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def winner(a, n, lowest):  # pragma: no cover - compiled
+    """The first index k < n of ``lowest`` (the minimum of the costs ``a`` (>= n,) float32) plus a parabola's
+    sub-pixel offset through a[k − 1], a[k], a[k + 1] (within ±0.5, none at the ends): (k, offset)."""
+    k = 0
+    while k < n - 1 and a[k] != lowest:   # (bounded: a NaN cost equals nothing)
+        k += 1
+    off = 0.0
+    if 0 < k < n - 1:
+        c0, c1, c2 = a[k - 1], a[k], a[k + 1]
+        den = c0 - 2 * c1 + c2
+        if den > 1e-9:
+            off = min(0.5, max(-0.5, 0.5 * (c0 - c2) / den))
+    return k, off
+
+
 @nb.njit(cache=True, nogil=True, fastmath=True)
-def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
+def _pick_row(row, below, best, n_valid, total):  # pragma: no cover - compiled
+    """best[x] = the winner (:func:`winner`, as index + offset) of row[x] + below[x] (W, D) >= 0."""
+    for x in range(row.shape[0]):
+        a, b, bt = row[x], below[x], _INT_BIG
+        for d in range(n_valid):
+            v = a[d] + b[d]
+            total[d] = v
+            bt = min(bt, _bits(v))
+        k, off = winner(total, n_valid, _float(bt))
+        best[x] = k + off
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True)
+def _pass(cost, out, down, diagonals, p1, p2, guide, tau, pick, below, best, n_valid):  # pragma: no cover - compiled
     """Sum (written to ``out``, once per pixel) of the paths of one pass: down (rows top to bottom) takes
     the paths arriving from x − 1 in the row and from the previous row at x (and x − 1, x + 1 with
-    ``diagonals``); up the mirror images. The costs must be >= 0.
+    ``diagonals``); up the mirror images. The costs must be >= 0. With ``pick``, ``out`` is one row of work
+    space (1, W, D): after each row, ``below`` (the other pass's sums, (H, W, D)) is added to it and
+    ``best[y, x]`` gets the lowest total's index among the first ``n_valid`` lags, with its sub-pixel
+    offset (:func:`winner`), while the row is still in cache.
 
     Each row is swept twice: first along the row path's direction (for the up pass, right to left) into a
     row of path costs, then left to right for the paths from the previous row, adding that row and
@@ -74,6 +113,7 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
     prev_min = np.zeros((n_k, w + 2), np.float32)
     cur_min = np.zeros((n_k, w + 2), np.float32)
     pen = np.empty((n_k, w), np.float32)         # the jump penalty from each path's previous pixel
+    total = np.empty(n, np.float32)              # with pick: a pixel's sum of all paths
     for iy in range(h):
         y = iy if down else h - 1 - iy
         gy, gp = guide[y], guide[min(max(y - s, 0), h - 1)]
@@ -95,6 +135,7 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
                 cur[0, xb, d + 1] = l0
                 b0 = min(b0, _bits(l0))
             cur_min[0, xb] = _float(b0)
+        row = out[min(y, out.shape[0] - 1)]     # with pick, out is one row of work space
         for x in range(w):                       # the paths from the previous row, left to right
             xb = x + 1
             m1 = prev_min[1, xb]
@@ -112,7 +153,7 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
                     cur[1, xb, d + 1] = l1
                     cur[2, xb, d + 1] = l2
                     cur[3, xb, d + 1] = l3
-                    out[y, x, d] = (cur[0, xb, d + 1] + l1) + (l2 + l3)
+                    row[x, d] = (cur[0, xb, d + 1] + l1) + (l2 + l3)
                     b1, b2, b3 = min(b1, _bits(l1)), min(b2, _bits(l2)), min(b3, _bits(l3))
                 cur_min[2, xb] = _float(b2)
                 cur_min[3, xb] = _float(b3)
@@ -122,9 +163,11 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau):  # pragma: no cover -
                     l1 = cost[y, x, d] + min(min(prev[1, xb, d], prev[1, xb, d + 2]) + p1,
                                              min(prev[1, xb, d + 1], j1)) - m1
                     cur[1, xb, d + 1] = l1
-                    out[y, x, d] = cur[0, xb, d + 1] + l1
+                    row[x, d] = cur[0, xb, d + 1] + l1
                     b1 = min(b1, _bits(l1))
             cur_min[1, xb] = _float(b1)
+        if pick:
+            _pick_row(row, below[y], best[y], n_valid, total)
         prev, cur = cur, prev
         prev_min, cur_min = cur_min, prev_min
 
@@ -134,8 +177,21 @@ def _both_passes(cost, out, work, diagonals, p1, p2, guide, tau):  # pragma: no 
     """The downward pass into ``out`` and the upward one into ``work``, one per thread (Numba's pool: a
     Python thread pool started per call ran them at half the speed). The direction is a run-time value:
     a literal one makes Numba compile a specialisation of the pass that runs at half the speed."""
+    none = np.empty((1, 1), np.float64)
     for k in nb.prange(2):
-        _pass(cost, out if k == 0 else work, k == 0, diagonals, p1, p2, guide, tau)
+        _pass(cost, out if k == 0 else work, k == 0, diagonals, p1, p2, guide, tau, k < 0, out, none, 0)
+
+
+@nb.njit(cache=True, parallel=True)
+def _winners(costs, sums, best, n_valid, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
+    """Each of the two volumes ``costs`` (2, H, W, D) on its own thread: the downward pass's sums into
+    ``sums[i]``, then the upward pass, which adds them and keeps each pixel's winner in ``best[i]``."""
+    rows = np.empty((2, 1, costs.shape[2], costs.shape[3]), np.float32)   # the upward pass's row of sums
+    for i in nb.prange(2):
+        for step in range(2):
+            down = step == 0
+            _pass(costs[i], sums[i] if down else rows[i], down, diagonals, p1, p2, guide, tau, not down, sums[i],
+                  best[i], n_valid)
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
@@ -143,6 +199,21 @@ def _add_into(a, b):  # pragma: no cover - compiled
     a1, b1 = a.reshape(-1), b.reshape(-1)
     for i in nb.prange(a1.shape[0]):
         a1[i] += b1[i]
+
+
+def _checked(n_paths: int, p1: float, p2: float, tau: float, guide: np.ndarray | None, size: tuple) -> np.ndarray:
+    """The guide as contiguous float32 (zeros when None) after checking the parameters; ValueError naming
+    the first wrong one."""
+    if n_paths not in (4, 8):
+        raise ValueError(f"n_paths must be 4 or 8, got {n_paths}")
+    if not 0 <= p1 <= p2:
+        raise ValueError(f"SGM penalties need 0 <= p1 <= p2, got p1={p1}, p2={p2}")
+    if not tau > 0:
+        raise ValueError(f"tau must be > 0, got {tau}")
+    guide = np.zeros(size, np.float32) if guide is None else np.ascontiguousarray(guide, dtype=np.float32)
+    if guide.shape != tuple(size):
+        raise ValueError(f"guide {guide.shape} must match the cost's image size {tuple(size)}")
+    return guide
 
 
 def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads: int = 2,
@@ -160,18 +231,8 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     cost moves with a constant added to every cost). ``summed=False`` returns the two passes' sums
     (``out``, ``work``) without adding them (a pass over the volumes less, for a reader that adds them as
     it goes, e.g. :func:`psvs.dense.cost.pick`); it needs costs >= 0."""
-    if n_paths not in (4, 8):
-        raise ValueError(f"n_paths must be 4 or 8, got {n_paths}")
-    if not 0 <= p1 <= p2:
-        raise ValueError(f"SGM penalties need 0 <= p1 <= p2, got p1={p1}, p2={p2}")
-    if not tau > 0:
-        raise ValueError(f"tau must be > 0, got {tau}")
     cost = np.ascontiguousarray(cost, dtype=np.float32)
-    if guide is None:
-        guide = np.zeros(cost.shape[:2], np.float32)
-    guide = np.ascontiguousarray(guide, dtype=np.float32)
-    if guide.shape != cost.shape[:2]:
-        raise ValueError(f"guide {guide.shape} must match the cost's image size {cost.shape[:2]}")
+    guide = _checked(n_paths, p1, p2, tau, guide, cost.shape[:2])
     outs = []
     for buf in (out, work):
         if buf is None:
@@ -189,8 +250,9 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     args = (np.float32(p1), np.float32(p2), guide, np.float32(tau))
     diagonals = n_paths == 8
     if threads < 2:
+        none = np.empty((1, 1), np.float64)
         for k in range(2):
-            _pass(cost, outs[k], k == 0, diagonals, *args)
+            _pass(cost, outs[k], k == 0, diagonals, *args, False, outs[0], none, 0)
     else:
         _both_passes(cost, outs[0], outs[1], diagonals, *args)
     if not summed:
@@ -199,3 +261,40 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     if lowest < 0:
         outs[0] += np.float32(lowest * n_paths)
     return outs[0]
+
+
+def winners(costs: np.ndarray, n_valid: int, p1: float, p2: float, n_paths: int = 8, threads: int = 2,
+            guide: np.ndarray | None = None, tau: float = 1.0, sums: np.ndarray | None = None,
+            min_cost: float | None = None) -> np.ndarray:
+    """Winner-take-all of the SGM aggregation of two cost volumes at once: ``costs`` (2, H, W, D) >= 0,
+    parameters as :func:`aggregate`. For each volume and pixel, the index (float64 (2, H, W)) of the lowest
+    sum over the paths among the first ``n_valid`` <= D lags, plus a parabola's sub-pixel offset
+    (:func:`winner`); what :func:`psvs.dense.cost.pick` finds in :func:`aggregate`'s result. Each volume
+    runs on its own thread (``threads`` < 2: one after the other); its downward pass writes its sums into
+    ``sums`` (float32, the costs' shape: work space) and the upward pass adds them as it goes, keeping
+    only the winner: the upward pass's volume is neither written nor read back. ``min_cost``: a lower
+    bound of the costs when the caller knows one (a pass over the volumes less)."""
+    costs = np.ascontiguousarray(costs, dtype=np.float32)
+    if costs.ndim != 4 or costs.shape[0] != 2:
+        raise ValueError(f"winners needs two cost volumes (2, H, W, D), got shape {costs.shape}")
+    if not 1 <= n_valid <= costs.shape[3]:
+        raise ValueError(f"n_valid must lie in 1..{costs.shape[3]}, got {n_valid}")
+    guide = _checked(n_paths, p1, p2, tau, guide, costs.shape[1:3])
+    if sums is None:
+        sums = np.empty_like(costs)
+    elif sums.shape != costs.shape or sums.dtype != np.float32 or not sums.flags.c_contiguous:
+        raise ValueError(f"SGM buffers must be contiguous float32 {costs.shape}, got {sums.dtype} {sums.shape}")
+    elif np.shares_memory(sums, costs):
+        raise ValueError("SGM buffers must not overlap the cost or each other")
+    if (float(np.min(costs)) if min_cost is None else float(min_cost)) < 0:
+        raise ValueError("SGM winners need costs >= 0 (shift them by their minimum)")
+    best = np.empty(costs.shape[:3], np.float64)
+    args = (n_paths == 8, np.float32(p1), np.float32(p2), guide, np.float32(tau))
+    if threads < 2:
+        rows = np.empty((2, 1, *costs.shape[2:]), np.float32)
+        for i in range(2):
+            for down in (True, False):
+                _pass(costs[i], sums[i] if down else rows[i], down, *args, not down, sums[i], best[i], int(n_valid))
+    else:
+        _winners(costs, sums, best, int(n_valid), *args)
+    return best
