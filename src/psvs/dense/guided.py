@@ -170,12 +170,13 @@ def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):
                 if y >= 0:                         # row t − 2r: q = mean(a)·I + mean(b), weighted
                     _slide(col_a, ring_a, y, h, r, y == 0)
                     _slide(col_b, ring_b, y, h, r, y == 0)
-                    g, wt = guide[y], weight[y]
-                    for x in range(w):             # into p: a loop whose arrays never overlap vectorises
-                        p[x] = (col_a[x] * g[x] + col_b[x]) * scale * wt[x]    # alike in and out of place
-                    v, o = volume[k, y], out[k, y]
-                    for x in range(w):             # (in place: v[x] is read before o[x] is written)
-                        o[x] = missing_value if v[x] == missing_value else p[x]
+                    g, wt, v = guide[y], weight[y], volume[k, y]
+                    for x in range(w):             # into p, which overlaps nothing read: this vectorises,
+                        q = (col_a[x] * g[x] + col_b[x]) * scale * wt[x]     # alike in and out of place
+                        p[x] = missing_value if v[x] == missing_value else q
+                    o = out[k, y]                  # (a select stored over its own input compiles to a
+                    for x in range(w):             # conditional store: scalar code)
+                        o[x] = p[x]
     return out
 
 

@@ -36,12 +36,10 @@ def _median_rows(q, size, n_bins):  # pragma: no cover - compiled
                 yy = min(max(y + j, 0), h - 1)
                 v = q[yy, x_out]
                 hist[v] -= 1
-                if v < m:
-                    below -= 1
+                below -= 1 if v < m else 0       # a select, not a branch (mispredicted at random)
                 v = q[yy, x_in]
                 hist[v] += 1
-                if v < m:
-                    below += 1
+                below += 1 if v < m else 0
             while below > half:
                 m -= 1
                 below -= hist[m]
