@@ -179,19 +179,25 @@ def test_filter_volume_matches_opencv_box_filters_everywhere(radius, shape):
         filter_volume(vol, guide[:-1], radius, 0.01)
 
 
-@pytest.mark.parametrize("right_view", [False, True])
-def test_one_sided_cost_against_its_definition(right_view):
-    """Each pixel's cost, straight from the docstring: the fused cost where the view owns the pixel, zero in
-    the band where its twin may be outside, else the view's own echo (at x, or seen from x + d) negated and
-    shifted to a minimum of 0; the padding PAD_COST."""
-    from psvs.dense.cost import one_sided_cost, padded_lags
-    rng = np.random.default_rng(7 + right_view)
+@pytest.mark.parametrize("seed", [7, 8])
+def test_one_sided_costs_against_their_definition(seed):
+    """Each pixel's cost in both views, straight from the docstring: the fused cost where the view owns
+    the pixel, zero in the band where its twin may be outside, else the view's own echo (at x, or seen
+    from x + d) negated and shifted to a minimum of 0; the padding PAD_COST."""
+    from psvs.dense.cost import one_sided_costs, padded_lags
+    rng = np.random.default_rng(seed)
     lags = np.arange(3, 14)
     n, h, w = len(lags), 6, 40
     echo = rng.uniform(-1, 1, (n, h, w)).astype(np.float32)
     fused = rng.random((h, w, padded_lags(n))).astype(np.float32)
-    keep = rng.random((h, w)) < 0.3
-    got = one_sided_cost(echo, lags, fused, keep, right_view, np.full((h, w, padded_lags(n)), np.nan, np.float32))
+    keeps = rng.random((2, h, w)) < 0.3
+    both = one_sided_costs(echo, lags, fused, keeps[0], keeps[1], np.full((2, h, w, padded_lags(n)), np.nan, np.float32))
+    for right_view, keep, got in zip((False, True), keeps, both):
+        _check_one_sided(got, echo, lags, fused, keep, right_view)
+
+
+def _check_one_sided(got, echo, lags, fused, keep, right_view):
+    n, h, w = echo.shape
     for y in range(h):
         for x in range(w):
             if keep[y, x]:

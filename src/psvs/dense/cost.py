@@ -306,49 +306,43 @@ def _pick(agg, agg_more, two, echo, lags):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def one_sided_cost(echo, lags, fused, keep, right_view, cost):  # pragma: no cover - compiled
-    """Cost (H, W, D) of one view's map for the second pass: the fused cost where the pixel's own view
-    owns it (``keep``), else that view's own evidence alone — the echo at x (left view) or seen from x + d
-    (right view) — shifted to a minimum of 0. Pixels in the band whose twin may lie outside the image
-    (x < d_max for the left view, x ≥ W − d_max for the right) get a neutral, all-zero cost there. Written
-    into ``cost`` (H, W, D') float32 (:func:`padded_lags`, the padding :data:`PAD_COST`), which is
-    returned. Per row, the echo is read in lag-major order (as stored) into a buffer, then moved to
-    (x, lag) order."""
+def one_sided_costs(echo, lags, fused, keep_left, keep_right, cost):  # pragma: no cover - compiled
+    """Costs (2, H, W, D) of the two views' maps for the second pass, [0] the left view's, [1] the right's:
+    the fused cost where the pixel's own view owns it (``keep_left``, ``keep_right``), else that view's own
+    evidence alone — the echo at x (left view) or seen from x + d (right view) — shifted to a minimum of
+    0. Pixels in the band whose twin may lie outside the image (x < d_max for the left view, x ≥ W − d_max
+    for the right) get a neutral, all-zero cost there. Written into ``cost`` (2, H, W, D') float32
+    (:func:`padded_lags`, the padding :data:`PAD_COST`), which is returned. Per row, the echo is read once
+    in lag-major order (as stored) into a buffer, then moved to (x, lag) order for both views."""
     n, h, w = echo.shape
-    n_pad = cost.shape[2]
+    n_pad = cost.shape[3]
     d_max = lags[n - 1]
     for y in nb.prange(h):
-        buf = np.empty((n, w), np.float32)       # −(own evidence), lag-major
+        buf = np.empty((n, w), np.float32)       # −echo, lag-major
         for k in range(n):
-            d = lags[k]
             row, e = buf[k], echo[k, y]
-            if right_view:                       # seen from x + d; outside the image: no twin
-                m = max(w - d, 0)
-                ef = e[d:]
-                for x in range(m):
-                    row[x] = -ef[x]
-                for x in range(m, w):
-                    row[x] = -NO_TWIN
-            else:
-                for x in range(w):
-                    row[x] = -e[x]
-        for x in range(w):
-            out = cost[y, x]
-            for k in range(n, n_pad):
-                out[k] = PAD_COST
-            if keep[y, x]:
-                f = fused[y, x]
-                for k in range(n):
-                    out[k] = f[k]
-            elif (x < d_max) if not right_view else (x >= w - d_max):
-                for k in range(n):
-                    out[k] = 0.0
-            else:
-                best = np.float32(1e30)          # finite: the kernel uses fastmath
-                for k in range(n):
-                    v = buf[k, x]
-                    out[k] = v
-                    best = min(best, v)
-                for k in range(n):
-                    out[k] -= best
+            for x in range(w):
+                row[x] = -e[x]
+        for view in range(2):
+            right = view == 1
+            keep = keep_right if right else keep_left
+            for x in range(w):
+                out = cost[view, y, x]
+                for k in range(n, n_pad):
+                    out[k] = PAD_COST
+                if keep[y, x]:
+                    f = fused[y, x]
+                    for k in range(n):
+                        out[k] = f[k]
+                elif (x >= w - d_max) if right else (x < d_max):
+                    for k in range(n):
+                        out[k] = 0.0
+                else:                            # (right: x + d < w for every lag, outside the band)
+                    best = np.float32(1e30)      # finite: the kernel uses fastmath
+                    for k in range(n):
+                        v = buf[k, x + lags[k]] if right else buf[k, x]
+                        out[k] = v
+                        best = min(best, v)
+                    for k in range(n):
+                        out[k] -= best
     return cost

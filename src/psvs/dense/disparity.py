@@ -35,7 +35,7 @@ import numpy as np
 
 from psvs._memory import check_memory
 from psvs.dense.cost import (NO_TWIN, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost,
-                             one_sided_cost, padded_lags, pick)
+                             one_sided_costs, padded_lags, pick)
 from psvs.dense.median import median_filter
 from psvs.dense.sgm import aggregate as sgm_aggregate
 from psvs.dense.sgm import winners as sgm_winners
@@ -285,9 +285,7 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     dl, dr = fill_from_background(d, keep_l), fill_from_background(d, keep_r)
     ok_l, ok_r = consistent(dl, dr)
     if p.second_pass:  # each view's own evidence where the other view's texture dominated
-        one = vol("one_sided", (2, *cost_shape))
-        for k, (keep, right_view) in enumerate(((keep_l, False), (keep_r, True))):
-            one_sided_cost(echo, lags, fused, keep, right_view, one[k])
+        one = one_sided_costs(echo, lags, fused, keep_l, keep_r, vol("one_sided", (2, *cost_shape)))
         best = sgm_winners(one, len(lags), **penalties, sums=sgm, min_cost=0.0)   # one view per thread
         dl2, dr2 = lags[0] + best[0], lags[0] + best[1]     # (lags: consecutive whole px)
         ok2_l, ok2_r = consistent(dl2, dr2)
