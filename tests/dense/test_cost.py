@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from psvs.dense.cost import NO_TWIN, PAD_COST, _keys, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost, pick
+from psvs.dense.cost import NO_TWIN, PAD_COST, _keys, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost, echo_at_winner
 from tests.dense.planted import texture
 
 
@@ -85,22 +85,27 @@ def test_fused_cost_takes_either_end_of_a_pair():
     assert cost.shape == (1, 10, 8) and np.all(cost[..., 2:] == PAD_COST)  # padded to whole vectors
 
 
-def test_pick_finds_the_parabola_vertex():
+def test_winner_finds_the_parabola_vertex_and_the_echo_is_read_at_it():
+    from psvs.dense.sgm import winner
     lags = np.array([10, 11, 12, 13, 14])
     d_true = 12.3
-    agg = ((lags - d_true) ** 2).astype(np.float32)[None, None, :]
-    echo = np.zeros((5, 1, 1), np.float32)
-    d, own, other = pick(agg, echo, lags)
-    assert d[0, 0] == pytest.approx(d_true, abs=1e-6)
-    d, _, _ = pick(np.full_like(agg, np.nan), echo, lags)        # NaN costs: the search stays in the range
-    assert lags[0] <= d[0, 0] <= lags[-1]
-    with pytest.raises(ValueError, match=">= 0"):                 # the integer minimum needs costs >= 0
-        pick(agg - 5.0, echo, lags)
-    half = (agg / 2).astype(np.float32)                           # SGM's two passes, added as it goes
-    d2, _, _ = pick(half, echo, lags, agg - half)
-    assert d2[0, 0] == pytest.approx(d_true, abs=1e-6)
-    with pytest.raises(ValueError, match="differ in shape"):
-        pick(half, echo, lags, half[:, :, :3])
+    agg = ((lags - d_true) ** 2).astype(np.float32)
+    k, off = winner(agg, 5, agg.min())
+    assert k == 2 and lags[k] + off == pytest.approx(d_true, abs=1e-6)
+    nan = np.full(5, np.nan, np.float32)                          # NaN costs: the search stays in the range
+    assert 0 <= winner(nan, 5, np.float32(np.nan))[0] <= 4
+    assert winner(agg, 2, agg[:2].min()) == (1, 0.0)              # the last searched lag: no parabola
+    rng = np.random.default_rng(3)
+    echo = rng.uniform(-1, 1, (5, 3, 16)).astype(np.float32)
+    index = rng.integers(0, 5, (3, 16)).astype(np.int32)
+    own, other = echo_at_winner(echo, lags, index)
+    for y in range(3):
+        for x in range(16):
+            k = index[y, x]
+            assert own[y, x] == echo[k, y, x]
+            assert other[y, x] == (echo[k, y, x + lags[k]] if x + lags[k] < 16 else NO_TWIN)
+    with pytest.raises(ValueError, match="lag indices"):
+        echo_at_winner(echo, lags, index + 5)
 
 
 def test_bad_windows_and_lags_are_rejected():

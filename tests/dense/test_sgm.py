@@ -47,10 +47,6 @@ def test_aggregate_matches_reference_recursion(n_paths):
     # negative costs (the kernel needs >= 0): shifted in and out, still the recursion's result
     below = aggregate(cost - 0.6, 0.1, 0.4, n_paths=n_paths)
     np.testing.assert_allclose(below, want - 0.6 * n_paths, rtol=1e-5, atol=1e-5)
-    down, up = aggregate(cost, 0.1, 0.4, n_paths=n_paths, summed=False)   # the two passes, for pick to add
-    np.testing.assert_allclose(down + up, want, rtol=1e-5, atol=1e-5)
-    with pytest.raises(ValueError, match="unsummed"):
-        aggregate(cost - 0.6, 0.1, 0.4, summed=False)
     with pytest.raises(ValueError, match="SGM buffers"):
         aggregate(cost, 0.1, 0.4, out=np.empty((7, 9, 4), np.float32))
     with pytest.raises(ValueError, match="overlap"):
@@ -64,27 +60,30 @@ def reference_winner(agg, n_valid):
     c0, c1, c2 = (np.take_along_axis(agg, (kc + j)[..., None], -1)[..., 0] for j in (-1, 0, 1))
     den = c0 - 2 * c1 + c2
     off = np.where(den > 1e-9, np.clip(0.5 * (c0 - c2) / np.where(den > 1e-9, den, 1), -0.5, 0.5), 0.0)
-    return k + np.where((k > 0) & (k < n_valid - 1), off, 0.0)
+    return k + np.where((k > 0) & (k < n_valid - 1), off, 0.0), k
 
 
 @pytest.mark.parametrize("n_paths", [4, 8])
-@pytest.mark.parametrize("threads", [1, 2])
-def test_winners_are_the_aggregated_costs_lowest_lags(n_paths, threads):
-    """winners (two volumes at once, the upward pass adding the downward one's sums as it goes) finds
-    the lowest of the recursion's sums over the first n_valid lags, with the parabola's offset; the lags
-    past n_valid (padding) never win."""
-    rng = np.random.default_rng(5 + n_paths)
-    costs = rng.random((2, 8, 11, 8)).astype(np.float32)
+@pytest.mark.parametrize("h", [8, 9])
+def test_winners_are_the_aggregated_costs_lowest_lags(n_paths, h):
+    """winners finds the lowest of the recursion's sums over the first n_valid lags, with the parabola's
+    offset: one volume (the two passes meeting in the middle; odd and even heights) and two at once (one
+    per thread); the lags past n_valid (padding) never win."""
+    rng = np.random.default_rng(5 + n_paths + h)
+    costs = rng.random((2, h, 11, 8)).astype(np.float32)
     costs[:, :, :, 6:] = 0.0                     # padding that would win were it searched
-    guide = rng.random((8, 11)).astype(np.float32)
-    sums = np.full_like(costs, np.nan)
-    got = winners(costs, 6, 0.1, 0.4, n_paths=n_paths, threads=threads, guide=guide, tau=0.3, sums=sums)
+    guide = rng.random((h, 11)).astype(np.float32)
+    want = [reference_winner(reference_sgm(c.astype(np.float64), 0.1, 0.4, PATHS[:n_paths], guide.astype(np.float64),
+                                           0.3), 6) for c in costs]
+    args = dict(n_paths=n_paths, guide=guide, tau=0.3)
+    best, index = winners(costs, 6, 0.1, 0.4, **args, sums=np.full_like(costs, np.nan))
+    one = [winners(c, 6, 0.1, 0.4, **args, sums=np.full_like(c, np.nan)) for c in costs]
     for i in range(2):
-        want = reference_sgm(costs[i].astype(np.float64), 0.1, 0.4, PATHS[:n_paths], guide.astype(np.float64), 0.3)
-        np.testing.assert_allclose(got[i], reference_winner(want, 6), atol=1e-4)
-        assert np.all((got[i] >= 0) & (got[i] <= 5))
-    with pytest.raises(ValueError, match="two cost volumes"):
-        winners(costs[0], 6, 0.1, 0.4)
+        for b, k in ((best[i], index[i]), one[i]):
+            np.testing.assert_allclose(b, want[i][0], atol=1e-4)
+            assert np.array_equal(k, want[i][1]) and np.all(np.abs(b - k) <= 0.5)
+    with pytest.raises(ValueError, match="one cost volume"):
+        winners(costs[:, :, :, :, None], 6, 0.1, 0.4)
     with pytest.raises(ValueError, match="n_valid"):
         winners(costs, 9, 0.1, 0.4)
     with pytest.raises(ValueError, match="costs >= 0"):

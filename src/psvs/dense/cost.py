@@ -13,7 +13,6 @@ import numba as nb
 import numpy as np
 
 from psvs.dense.guided import guided_filter_volume, n_levels, row_sums
-from psvs.dense.sgm import winner
 
 NO_TWIN = np.float32(-1.0)  # correlation given to lags whose twin window lies outside the image
 #: Cost volumes (H, W, D') hold D' = the searched lags rounded up to a multiple of LANES: the extra entries
@@ -258,51 +257,30 @@ def _fused_cost(echo, lags, cost):  # pragma: no cover - compiled
     return cost
 
 
-def pick(agg: np.ndarray, echo: np.ndarray, lags: np.ndarray, agg_more: np.ndarray | None = None):
-    """Winner of the aggregated cost (H, W, D') >= 0 (plus ``agg_more`` of the same shape when given: SGM's
-    two passes, summed here instead of in a pass over the volume), over its first D = len(lags) entries,
-    with a parabola's sub-pixel offset: disparity (px), and the echo (D, H, W) seen from the left-view end
-    (``own``) and the right-view end (``other``) at that lag, each (H, W)."""
-    lags = np.ascontiguousarray(lags, dtype=np.int64)
-    if agg_more is not None and agg_more.shape != agg.shape:
-        raise ValueError(f"the two aggregated volumes differ in shape: {agg.shape} and {agg_more.shape}")
-    disp, own, other, negative = _pick(agg, agg if agg_more is None else agg_more, agg_more is not None, echo, lags)
-    if negative.any():
-        raise ValueError("aggregated costs must be >= 0 (shift them by their minimum)")
-    return disp, own, other
+def echo_at_winner(echo: np.ndarray, lags: np.ndarray, index: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The echo (D, H, W) at each pixel's winning lag (``index`` (H, W), into ``lags``), seen from the
+    left-view end (``own``, at x) and from the right-view end (``other``, at x + d; :data:`NO_TWIN` past the
+    image): float32 (H, W) each."""
+    index = np.ascontiguousarray(index, dtype=np.int32)
+    if index.shape != echo.shape[1:]:
+        raise ValueError(f"index {index.shape} must match the echo's slices {echo.shape[1:]}")
+    if index.size and (index.min() < 0 or index.max() >= echo.shape[0]):
+        raise ValueError(f"lag indices must lie in 0..{echo.shape[0] - 1}")
+    return _echo_at_winner(echo, np.ascontiguousarray(lags, dtype=np.int64), index)
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
-def _pick(agg, agg_more, two, echo, lags):  # pragma: no cover - compiled
-    h, w = agg.shape[0], agg.shape[1]
-    n = lags.shape[0]
-    disp = np.empty((h, w), np.float64)
+@nb.njit(cache=True, parallel=True)
+def _echo_at_winner(echo, lags, index):  # pragma: no cover - compiled
+    n, h, w = echo.shape
     own = np.empty((h, w), np.float32)
     other = np.empty((h, w), np.float32)
-    negative = np.zeros(h, np.bool_)
     for y in nb.prange(h):
-        a = np.empty(n, np.float32)
-        bits = a.view(np.int32)   # costs >= 0 order as their float32 bits do: an integer minimum vectorises
-        # (with a negative cost among them the minimum found is negative: the row is flagged)
         for x in range(w):
-            s, t = agg[y, x], agg_more[y, x]
-            if two:
-                for j in range(n):
-                    a[j] = s[j] + t[j]
-            else:
-                for j in range(n):
-                    a[j] = s[j]
-            m = np.int32(2147483647)
-            for j in range(n):
-                m = min(m, bits[j])
-            if m < 0:                             # the sign bit (the kernel uses fastmath: no float test of NaN)
-                negative[y] = True
-            k, off = winner(a, n, np.int32(m).view(np.float32))
-            disp[y, x] = lags[k] + off
+            k = index[y, x]
             own[y, x] = echo[k, y, x]
             xf = x + lags[k]
             other[y, x] = echo[k, y, xf] if xf < w else NO_TWIN
-    return disp, own, other, negative
+    return own, other
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)

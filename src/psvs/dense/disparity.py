@@ -34,10 +34,9 @@ import numba as nb
 import numpy as np
 
 from psvs._memory import check_memory
-from psvs.dense.cost import (NO_TWIN, aperture_weight, band_pass, echo_correlation, filter_volume, fused_cost,
-                             one_sided_costs, padded_lags, pick)
+from psvs.dense.cost import (NO_TWIN, aperture_weight, band_pass, echo_at_winner, echo_correlation, filter_volume,
+                             fused_cost, one_sided_costs, padded_lags)
 from psvs.dense.median import median_filter
-from psvs.dense.sgm import aggregate as sgm_aggregate
 from psvs.dense.sgm import winners as sgm_winners
 from psvs.match.correspondence import disparity_range
 from psvs.optics.rig import Rig
@@ -275,19 +274,20 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     guide = unit_scaled(img)
     echo = weighted_echo(img, lags, p, guide, img_right, out=vol("echo", (len(lags), h, w)))
     fused = fused_cost(echo, lags, vol("fused"))
-    sgm = vol("sgm", (2, *cost_shape))          # SGM's two passes' sums, then the second pass's work space
+    sgm = vol("sgm", (2, *cost_shape))          # SGM's sums (work space): one volume, then two
     penalties = dict(p1=p.p1, p2=p.p2, n_paths=p.n_paths, guide=cv2.GaussianBlur(guide, (0, 0), 1.0),
                      tau=p.edge_contrast)
-    passes = sgm_aggregate(fused, **penalties, out=sgm[0], work=sgm[1], min_cost=0.0, summed=False)  # costs >= 0
-    d, own, other = pick(passes[0], echo, lags, passes[1])     # (adds SGM's two passes)
+    best, index = sgm_winners(fused, len(lags), **penalties, sums=sgm[0], min_cost=0.0)   # costs >= 0
+    d = lags[0] + best                          # (lags: consecutive whole px)
+    own, other = echo_at_winner(echo, lags, index)
     keep_l = own >= other - p.ownership_margin
     keep_r = other >= own - p.ownership_margin
     dl, dr = fill_from_background(d, keep_l), fill_from_background(d, keep_r)
     ok_l, ok_r = consistent(dl, dr)
     if p.second_pass:  # each view's own evidence where the other view's texture dominated
         one = one_sided_costs(echo, lags, fused, keep_l, keep_r, vol("one_sided", (2, *cost_shape)))
-        best = sgm_winners(one, len(lags), **penalties, sums=sgm, min_cost=0.0)   # one view per thread
-        dl2, dr2 = lags[0] + best[0], lags[0] + best[1]     # (lags: consecutive whole px)
+        best = sgm_winners(one, len(lags), **penalties, sums=sgm, min_cost=0.0)[0]   # one view per thread
+        dl2, dr2 = lags[0] + best[0], lags[0] + best[1]
         ok2_l, ok2_r = consistent(dl2, dr2)
         dl = fill_from_background(np.where(~ok_l & ok2_l, dl2, dl), ok_l | ok2_l)
         dr = fill_from_background(np.where(~ok_r & ok2_r, dr2, dr), ok_r | ok2_r)

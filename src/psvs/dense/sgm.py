@@ -15,10 +15,11 @@ both passes (a descending stream through a volume runs at half the speed here). 
 on two threads (Numba's). The kernels need costs >= 0 (a path's minimum is taken on the float bits as
 integers); :func:`aggregate` shifts other costs, which shifts the result by the same amount per path.
 
-:func:`winners` aggregates two volumes at once for a caller that only wants each pixel's winner (the
-second pass of psvs.dense): each volume on its own thread, the downward pass writing its sums, the upward
-pass adding them row by row and keeping only the winner, so the upward pass's volume is neither written
-to memory nor read back.
+:func:`winners` is for a caller that only wants each pixel's winner (psvs.dense): a pass adds the other
+pass's sums row by row as it sweeps and keeps only the winner, so only one volume of sums is written and
+read back instead of two written and both read by a separate pick. One volume: the two passes meet in the
+middle (each sweeps its first half of the rows writing sums, then its second half picking; the state of
+its paths is kept between the halves). Two volumes: one per thread, downward then upward.
 """
 from __future__ import annotations
 
@@ -58,8 +59,6 @@ def _penalty(g, g_prev, p1, p2, tau):  # pragma: no cover - compiled
     return max(p1, p2 / (np.float32(1.0) + abs(g - g_prev) / tau))
 
 
-# psvs.dense.cost's pick compiles this in. Numba's cache only sees a kernel's own file: after an edit here,
-# touch cost.py (or clear __pycache__) so that its cached kernel is rebuilt.
 @nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
 def winner(a, n, lowest):  # pragma: no cover - compiled
     """The first index k < n of ``lowest`` (the minimum of the costs ``a`` (>= n,) float32) plus a parabola's
@@ -77,8 +76,9 @@ def winner(a, n, lowest):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True)
-def _pick_row(row, below, best, n_valid, total):  # pragma: no cover - compiled
-    """best[x] = the winner (:func:`winner`, as index + offset) of row[x] + below[x] (W, D) >= 0."""
+def _pick_row(row, below, best, index, n_valid, total):  # pragma: no cover - compiled
+    """best[x] = the winner (:func:`winner`, as index + offset) of row[x] + below[x] (W, D) >= 0, and
+    index[x] its index."""
     for x in range(row.shape[0]):
         a, b, bt = row[x], below[x], _INT_BIG
         for d in range(n_valid):
@@ -87,10 +87,12 @@ def _pick_row(row, below, best, n_valid, total):  # pragma: no cover - compiled
             bt = min(bt, _bits(v))
         k, off = winner(total, n_valid, _float(bt))
         best[x] = k + off
+        index[x] = k
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True)
-def _pass(cost, out, down, diagonals, p1, p2, guide, tau, pick, below, best, n_valid):  # pragma: no cover - compiled
+def _pass(cost, out, down, diagonals, p1, p2, guide, tau, pick, below, best, index, n_valid, bufs, mins, iy0,
+          iy1):  # pragma: no cover - compiled
     """Sum (written to ``out``, once per pixel) of the paths of one pass: down (rows top to bottom) takes
     the paths arriving from x − 1 in the row and from the previous row at x (and x − 1, x + 1 with
     ``diagonals``); up the mirror images. The costs must be >= 0. With ``pick``, ``out`` is one row of work
@@ -105,16 +107,17 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau, pick, below, best, n_v
     h, w, n = cost.shape
     s = 1 if down else -1
     n_k = 4 if diagonals else 2                  # path k: 0 the row's, 1 from above, 2 from x − s, 3 from x + s
-    prev = np.full((n_k, w + 2, n + 2), _BIG, np.float32)
-    cur = np.full((n_k, w + 2, n + 2), _BIG, np.float32)
-    prev[:, :, 1:n + 1] = 0.0                    # the first row's sources ...
-    cur[:, 0, 1:n + 1] = 0.0                     # ... and the columns outside the image: zero, minimum zero
-    cur[:, w + 1, 1:n + 1] = 0.0
-    prev_min = np.zeros((n_k, w + 2), np.float32)
-    cur_min = np.zeros((n_k, w + 2), np.float32)
+    if iy0 == 0:
+        bufs[:] = _BIG
+        bufs[0, :, :, 1:n + 1] = 0.0             # the first row's sources ...
+        bufs[1, :, 0, 1:n + 1] = 0.0             # ... and the columns outside the image: zero, minimum zero
+        bufs[1, :, w + 1, 1:n + 1] = 0.0
+        mins[:] = 0.0
     pen = np.empty((n_k, w), np.float32)         # the jump penalty from each path's previous pixel
     total = np.empty(n, np.float32)              # with pick: a pixel's sum of all paths
-    for iy in range(h):
+    for iy in range(iy0, iy1):
+        prev, cur = bufs[iy % 2], bufs[(iy + 1) % 2]
+        prev_min, cur_min = mins[iy % 2], mins[(iy + 1) % 2]
         y = iy if down else h - 1 - iy
         gy, gp = guide[y], guide[min(max(y - s, 0), h - 1)]
         for x in range(w):
@@ -167,9 +170,7 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau, pick, below, best, n_v
                     b1 = min(b1, _bits(l1))
             cur_min[1, xb] = _float(b1)
         if pick:
-            _pick_row(row, below[y], best[y], n_valid, total)
-        prev, cur = cur, prev
-        prev_min, cur_min = cur_min, prev_min
+            _pick_row(row, below[y], best[y], index[y], n_valid, total)
 
 
 @nb.njit(cache=True, parallel=True)
@@ -177,21 +178,50 @@ def _both_passes(cost, out, work, diagonals, p1, p2, guide, tau):  # pragma: no 
     """The downward pass into ``out`` and the upward one into ``work``, one per thread (Numba's pool: a
     Python thread pool started per call ran them at half the speed). The direction is a run-time value:
     a literal one makes Numba compile a specialisation of the pass that runs at half the speed."""
-    none = np.empty((1, 1), np.float64)
+    h, w, n = cost.shape
+    none, no_index = np.empty((1, 1), np.float64), np.empty((1, 1), np.int32)
+    bufs = np.empty((2, 2, 4 if diagonals else 2, w + 2, n + 2), np.float32)
+    mins = np.empty((2, 2, 4 if diagonals else 2, w + 2), np.float32)
     for k in nb.prange(2):
-        _pass(cost, out if k == 0 else work, k == 0, diagonals, p1, p2, guide, tau, k < 0, out, none, 0)
+        _pass(cost, out if k == 0 else work, k == 0, diagonals, p1, p2, guide, tau, k < 0, out, none, no_index, 0,
+              bufs[k], mins[k], 0, h)
 
 
 @nb.njit(cache=True, parallel=True)
-def _winners(costs, sums, best, n_valid, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
+def _winners_meet(cost, sums, best, index, n_valid, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
+    """The downward and the upward pass on two threads, meeting in the middle: first each sweeps its
+    first half of the rows writing its sums into ``sums`` (the down pass the top half, the up pass the
+    bottom half), then each sweeps the other half adding the other pass's sums row by row and keeping
+    each pixel's winner (best: index + offset; index)."""
+    h, w, n = cost.shape
+    m = h // 2
+    n_k = 4 if diagonals else 2
+    bufs = np.empty((2, 2, n_k, w + 2, n + 2), np.float32)   # each pass's state, kept between the halves
+    mins = np.empty((2, 2, n_k, w + 2), np.float32)
+    rows = np.empty((2, 1, w, n), np.float32)                # each pass's row of sums while picking
+    for half in range(2):
+        for i in nb.prange(2):
+            down, pick = i == 0, half == 1
+            first = m if down else h - m
+            iy0, iy1 = (0, first) if half == 0 else (first, h)
+            _pass(cost, rows[i] if pick else sums, down, diagonals, p1, p2, guide, tau, pick, sums, best, index,
+                  n_valid, bufs[i], mins[i], iy0, iy1)
+
+
+@nb.njit(cache=True, parallel=True)
+def _winners_each(costs, sums, best, index, n_valid, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
     """Each of the two volumes ``costs`` (2, H, W, D) on its own thread: the downward pass's sums into
-    ``sums[i]``, then the upward pass, which adds them and keeps each pixel's winner in ``best[i]``."""
-    rows = np.empty((2, 1, costs.shape[2], costs.shape[3]), np.float32)   # the upward pass's row of sums
+    ``sums[i]``, then the upward pass, which adds them row by row and keeps each pixel's winner."""
+    h, w, n = costs.shape[1:]
+    n_k = 4 if diagonals else 2
+    bufs = np.empty((2, 2, n_k, w + 2, n + 2), np.float32)
+    mins = np.empty((2, 2, n_k, w + 2), np.float32)
+    rows = np.empty((2, 1, w, n), np.float32)                # the upward pass's row of sums
     for i in nb.prange(2):
         for step in range(2):
             down = step == 0
             _pass(costs[i], sums[i] if down else rows[i], down, diagonals, p1, p2, guide, tau, not down, sums[i],
-                  best[i], n_valid)
+                  best[i], index[i], n_valid, bufs[i], mins[i], 0, h)
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
@@ -218,7 +248,7 @@ def _checked(n_paths: int, p1: float, p2: float, tau: float, guide: np.ndarray |
 
 def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads: int = 2,
               guide: np.ndarray | None = None, tau: float = 1.0, out: np.ndarray | None = None,
-              work: np.ndarray | None = None, min_cost: float | None = None, summed: bool = True):
+              work: np.ndarray | None = None, min_cost: float | None = None):
     """Sum over ``n_paths`` (4 or 8) of the SGM path costs of ``cost`` (H, W, D), float32 (H, W, D).
 
     ``p1`` penalises a one-step disparity change between neighbours, ``p2`` (≥ p1) any larger jump, both in
@@ -228,9 +258,8 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     aggregates several times reuses them, and fresh memory costs page faults. ``threads`` < 2 runs the
     two passes one after the other. ``min_cost``: a lower bound of the cost when the caller knows one (a
     pass over the volume less); negative costs are shifted to 0 and the result shifted back (each path's
-    cost moves with a constant added to every cost). ``summed=False`` returns the two passes' sums
-    (``out``, ``work``) without adding them (a pass over the volumes less, for a reader that adds them as
-    it goes, e.g. :func:`psvs.dense.cost.pick`); it needs costs >= 0."""
+    cost moves with a constant added to every cost). A caller that only wants each pixel's winner needs
+    :func:`winners` instead (one volume of sums less)."""
     cost = np.ascontiguousarray(cost, dtype=np.float32)
     guide = _checked(n_paths, p1, p2, tau, guide, cost.shape[:2])
     outs = []
@@ -243,43 +272,44 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
             raise ValueError("SGM buffers must not overlap the cost or each other")
         outs.append(buf)
     lowest = float(np.min(cost)) if min_cost is None else float(min_cost)
-    if lowest < 0 and not summed:
-        raise ValueError("SGM's two passes can be returned unsummed only for costs >= 0")
     if lowest < 0:
         cost = cost - np.float32(lowest)
     args = (np.float32(p1), np.float32(p2), guide, np.float32(tau))
     diagonals = n_paths == 8
     if threads < 2:
-        none = np.empty((1, 1), np.float64)
+        none, no_index = np.empty((1, 1), np.float64), np.empty((1, 1), np.int32)
+        h, w, n = cost.shape
+        bufs = np.empty((2, 4 if diagonals else 2, w + 2, n + 2), np.float32)
+        mins = np.empty((2, 4 if diagonals else 2, w + 2), np.float32)
         for k in range(2):
-            _pass(cost, outs[k], k == 0, diagonals, *args, False, outs[0], none, 0)
+            _pass(cost, outs[k], k == 0, diagonals, *args, False, outs[0], none, no_index, 0, bufs, mins, 0, h)
     else:
         _both_passes(cost, outs[0], outs[1], diagonals, *args)
-    if not summed:
-        return outs[0], outs[1]
     _add_into(outs[0], outs[1])
     if lowest < 0:
         outs[0] += np.float32(lowest * n_paths)
     return outs[0]
 
 
-def winners(costs: np.ndarray, n_valid: int, p1: float, p2: float, n_paths: int = 8, threads: int = 2,
+def winners(costs: np.ndarray, n_valid: int, p1: float, p2: float, n_paths: int = 8,
             guide: np.ndarray | None = None, tau: float = 1.0, sums: np.ndarray | None = None,
-            min_cost: float | None = None) -> np.ndarray:
-    """Winner-take-all of the SGM aggregation of two cost volumes at once: ``costs`` (2, H, W, D) >= 0,
-    parameters as :func:`aggregate`. For each volume and pixel, the index (float64 (2, H, W)) of the lowest
-    sum over the paths among the first ``n_valid`` <= D lags, plus a parabola's sub-pixel offset
-    (:func:`winner`); what :func:`psvs.dense.cost.pick` finds in :func:`aggregate`'s result. Each volume
-    runs on its own thread (``threads`` < 2: one after the other); its downward pass writes its sums into
-    ``sums`` (float32, the costs' shape: work space) and the upward pass adds them as it goes, keeping
-    only the winner: the upward pass's volume is neither written nor read back. ``min_cost``: a lower
-    bound of the costs when the caller knows one (a pass over the volumes less)."""
+            min_cost: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Winner-take-all of the SGM aggregation of one cost volume (H, W, D) or two at once (2, H, W, D),
+    costs >= 0, parameters as :func:`aggregate`. For each pixel, the lowest sum over the paths among the
+    first ``n_valid`` <= D lags: its index plus a parabola's sub-pixel offset (float64, :func:`winner`), and
+    its index (int32), each of the costs' leading shape ((H, W) or (2, H, W)).
+
+    A pass adds the other pass's sums row by row as it sweeps and keeps only the winner, so only one
+    volume of sums is written and read back (``sums``, float32, the costs' shape: work space).
+    One volume: the two passes run on two threads and meet in the middle (each first sweeps its half of
+    the rows writing its sums, then the other half picking). Two volumes: one per thread. ``min_cost``: a
+    lower bound of the costs when the caller knows one (a pass over the volumes less)."""
     costs = np.ascontiguousarray(costs, dtype=np.float32)
-    if costs.ndim != 4 or costs.shape[0] != 2:
-        raise ValueError(f"winners needs two cost volumes (2, H, W, D), got shape {costs.shape}")
-    if not 1 <= n_valid <= costs.shape[3]:
-        raise ValueError(f"n_valid must lie in 1..{costs.shape[3]}, got {n_valid}")
-    guide = _checked(n_paths, p1, p2, tau, guide, costs.shape[1:3])
+    if not (costs.ndim == 3 or (costs.ndim == 4 and costs.shape[0] == 2)):
+        raise ValueError(f"winners needs one cost volume (H, W, D) or two (2, H, W, D), got shape {costs.shape}")
+    if not 1 <= n_valid <= costs.shape[-1]:
+        raise ValueError(f"n_valid must lie in 1..{costs.shape[-1]}, got {n_valid}")
+    guide = _checked(n_paths, p1, p2, tau, guide, costs.shape[-3:-1])
     if sums is None:
         sums = np.empty_like(costs)
     elif sums.shape != costs.shape or sums.dtype != np.float32 or not sums.flags.c_contiguous:
@@ -288,13 +318,8 @@ def winners(costs: np.ndarray, n_valid: int, p1: float, p2: float, n_paths: int 
         raise ValueError("SGM buffers must not overlap the cost or each other")
     if (float(np.min(costs)) if min_cost is None else float(min_cost)) < 0:
         raise ValueError("SGM winners need costs >= 0 (shift them by their minimum)")
-    best = np.empty(costs.shape[:3], np.float64)
-    args = (n_paths == 8, np.float32(p1), np.float32(p2), guide, np.float32(tau))
-    if threads < 2:
-        rows = np.empty((2, 1, *costs.shape[2:]), np.float32)
-        for i in range(2):
-            for down in (True, False):
-                _pass(costs[i], sums[i] if down else rows[i], down, *args, not down, sums[i], best[i], int(n_valid))
-    else:
-        _winners(costs, sums, best, int(n_valid), *args)
-    return best
+    best = np.empty(costs.shape[:-1], np.float64)
+    index = np.empty(costs.shape[:-1], np.int32)
+    kernel = _winners_meet if costs.ndim == 3 else _winners_each
+    kernel(costs, sums, best, index, int(n_valid), n_paths == 8, np.float32(p1), np.float32(p2), guide, np.float32(tau))
+    return best, index
