@@ -64,11 +64,12 @@ def reference_winner(agg, n_valid):
 
 
 @pytest.mark.parametrize("n_paths", [4, 8])
-@pytest.mark.parametrize("h", [8, 9])
+@pytest.mark.parametrize("h", [1, 2, 3, 8, 9])
 def test_winners_are_the_aggregated_costs_lowest_lags(n_paths, h):
     """winners finds the lowest of the recursion's sums over the first n_valid lags, with the parabola's
-    offset: one volume (the two passes meeting in the middle; odd and even heights) and two at once (one
-    per thread); the lags past n_valid (padding) never win."""
+    offset: one volume (the two passes meeting in the middle; odd and even heights, down to one row,
+    where one pass has no rows in its first half) and two at once (one per thread); the lags past
+    n_valid (padding) never win; negative costs are refused, also when the caller vouched for them."""
     rng = np.random.default_rng(5 + n_paths + h)
     costs = rng.random((2, h, 11, 8)).astype(np.float32)
     costs[:, :, :, 6:] = 0.0                     # padding that would win were it searched
@@ -88,6 +89,9 @@ def test_winners_are_the_aggregated_costs_lowest_lags(n_paths, h):
         winners(costs, 9, 0.1, 0.4)
     with pytest.raises(ValueError, match="costs >= 0"):
         winners(costs - 0.5, 6, 0.1, 0.4)
+    for bad in (costs - 0.5, costs[0] - 0.5):                       # caught by the kernel's integer minimum
+        with pytest.raises(ValueError, match="costs >= 0"):
+            winners(bad, 6, 0.1, 0.4, min_cost=0.0)
     with pytest.raises(ValueError, match="overlap"):
         winners(costs, 6, 0.1, 0.4, sums=costs)
     with pytest.raises(ValueError, match="penalties"):

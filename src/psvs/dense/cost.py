@@ -34,7 +34,8 @@ def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
 
 
 # Inner loops run over 0-based slices of rows: an index with a variable offset (x + d) would bring Numba's
-# negative-index wrap-around into the loop, and then it does not vectorise.
+# negative-index wrap-around into the loop, and then it does not vectorise. (The moves from lag-major to
+# (x, lag) order are gathers either way.)
 
 # The shiftable windows' maxima are taken on integer keys of the float32 values: a float max (or select)
 # that updates a row in place, a[i] = max(a[i], b[i]), compiles to scalar code here (Numba 0.6x, LLVM),

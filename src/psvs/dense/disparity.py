@@ -125,9 +125,10 @@ def check_range(d_min: float, d_max: float, width: int) -> None:
         raise ValueError(f"disparity range {d_min}..{d_max} px holds no whole-pixel disparity to search")
 
 
-#: Peak bytes per cell (pixel x searched disparity) of the cost volumes at the working scale: six float32
-#: volumes (echo, fused cost, SGM's two sums, the second pass's two one-sided costs); and per pixel of the
-#: full image. (Measured on 640x480, 62 lags: 485 MB at the peak, the estimate 553 MB.)
+#: Peak bytes per cell (pixel x searched disparity, the lags padded to whole vectors) of the cost volumes
+#: at the working scale: six float32 volumes (echo, fused cost, SGM's two sums, the second pass's two
+#: one-sided costs); and per pixel of the full image. (Measured on 640x480, 62 lags: 485 MiB at the peak,
+#: the estimate 553 MiB.)
 CELL_BYTES = 24
 PIXEL_BYTES = 400
 
@@ -137,9 +138,9 @@ def dense_memory_bytes(h: int, w: int, d_min: float, d_max: float, params: "Dens
     p = params or DEFAULT
     s = p.scale
     n_lags = max(1, math.floor(d_max / s) - max(MIN_LAG_PX, math.ceil(d_min / s)) + 1)
-    cells = (h // s) * (w // s) * n_lags
+    cells = (h // s) * (w // s) * padded_lags(n_lags)
     if s == 1 and p.prune:   # the coarse pass's volumes, kept beside the full-resolution ones
-        cells += (h // COARSE.scale) * (w // COARSE.scale) * max(1, n_lags // COARSE.scale)
+        cells += (h // COARSE.scale) * (w // COARSE.scale) * padded_lags(max(1, n_lags // COARSE.scale))
     return int(CELL_BYTES * cells + PIXEL_BYTES * h * w)
 
 

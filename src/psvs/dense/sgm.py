@@ -78,7 +78,7 @@ def winner(a, n, lowest):  # pragma: no cover - compiled
 @nb.njit(cache=True, nogil=True, fastmath=True)
 def _pick_row(row, below, best, index, n_valid, total):  # pragma: no cover - compiled
     """best[x] = the winner (:func:`winner`, as index + offset) of row[x] + below[x] (W, D) >= 0, and
-    index[x] its index."""
+    index[x] its index; −1 where a sum is negative (a cost was: the integer minimum is then wrong)."""
     for x in range(row.shape[0]):
         a, b, bt = row[x], below[x], _INT_BIG
         for d in range(n_valid):
@@ -87,18 +87,23 @@ def _pick_row(row, below, best, index, n_valid, total):  # pragma: no cover - co
             bt = min(bt, _bits(v))
         k, off = winner(total, n_valid, _float(bt))
         best[x] = k + off
-        index[x] = k
+        index[x] = k if bt >= 0 else -1
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True)
 def _pass(cost, out, down, diagonals, p1, p2, guide, tau, pick, below, best, index, n_valid, bufs, mins, iy0,
           iy1):  # pragma: no cover - compiled
-    """Sum (written to ``out``, once per pixel) of the paths of one pass: down (rows top to bottom) takes
-    the paths arriving from x − 1 in the row and from the previous row at x (and x − 1, x + 1 with
-    ``diagonals``); up the mirror images. The costs must be >= 0. With ``pick``, ``out`` is one row of work
-    space (1, W, D): after each row, ``below`` (the other pass's sums, (H, W, D)) is added to it and
-    ``best[y, x]`` gets the lowest total's index among the first ``n_valid`` lags, with its sub-pixel
-    offset (:func:`winner`), while the row is still in cache.
+    """Sum (written to ``out[y, x]``) of the paths of one pass over its rows iy0..iy1 − 1 (counted in the
+    pass's direction): down (rows top to bottom) takes the paths arriving from x − 1 in the row and from
+    the previous row at x (and x − 1, x + 1 with ``diagonals``); up the mirror images. The costs must be
+    >= 0. With ``pick``, ``out`` is one row of work space (1, W, D) written over at every row: after each
+    row, ``below`` (the other pass's sums, (H, W, D)) is added to it, ``best[y, x]`` gets the winner among
+    the first ``n_valid`` lags as index + sub-pixel offset (:func:`_pick_row`) and ``index[y, x]`` its
+    index, while the row is still in cache.
+
+    ``bufs`` (2, paths, W + 2, D + 2) and ``mins`` (2, paths, W + 2) hold the paths' previous row: the
+    state after row iy is in bufs[(iy + 1) % 2]. A call with iy0 = 0 starts them afresh; a call that goes
+    on from iy0 > 0 needs the arrays of the call that ended there.
 
     Each row is swept twice: first along the row path's direction (for the up pass, right to left) into a
     row of path costs, then left to right for the paths from the previous row, adding that row and
@@ -182,9 +187,10 @@ def _both_passes(cost, out, work, diagonals, p1, p2, guide, tau):  # pragma: no 
     none, no_index = np.empty((1, 1), np.float64), np.empty((1, 1), np.int32)
     bufs = np.empty((2, 2, 4 if diagonals else 2, w + 2, n + 2), np.float32)
     mins = np.empty((2, 2, 4 if diagonals else 2, w + 2), np.float32)
+    zero = h - h                           # a run-time 0: a literal one compiles another specialisation
     for k in nb.prange(2):
-        _pass(cost, out if k == 0 else work, k == 0, diagonals, p1, p2, guide, tau, k < 0, out, none, no_index, 0,
-              bufs[k], mins[k], 0, h)
+        _pass(cost, out if k == 0 else work, k == 0, diagonals, p1, p2, guide, tau, k < 0, out, none, no_index,
+              zero, bufs[k], mins[k], zero, h)
 
 
 @nb.njit(cache=True, parallel=True)
@@ -217,11 +223,12 @@ def _winners_each(costs, sums, best, index, n_valid, diagonals, p1, p2, guide, t
     bufs = np.empty((2, 2, n_k, w + 2, n + 2), np.float32)
     mins = np.empty((2, 2, n_k, w + 2), np.float32)
     rows = np.empty((2, 1, w, n), np.float32)                # the upward pass's row of sums
+    zero = h - h                           # a run-time 0: a literal one compiles another specialisation
     for i in nb.prange(2):
         for step in range(2):
             down = step == 0
             _pass(costs[i], sums[i] if down else rows[i], down, diagonals, p1, p2, guide, tau, not down, sums[i],
-                  best[i], index[i], n_valid, bufs[i], mins[i], 0, h)
+                  best[i], index[i], n_valid, bufs[i], mins[i], zero, h)
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
@@ -322,4 +329,6 @@ def winners(costs: np.ndarray, n_valid: int, p1: float, p2: float, n_paths: int 
     index = np.empty(costs.shape[:-1], np.int32)
     kernel = _winners_meet if costs.ndim == 3 else _winners_each
     kernel(costs, sums, best, index, int(n_valid), n_paths == 8, np.float32(p1), np.float32(p2), guide, np.float32(tau))
+    if index.min() < 0:
+        raise ValueError("SGM winners need costs >= 0 (shift them by their minimum)")
     return best, index
