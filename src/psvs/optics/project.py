@@ -2,19 +2,21 @@
 
 The right view is a pinhole at O2 (pure reflections). The left view is not central: the M1 plate shifts
 each transmitted ray sideways by an amount that depends on its direction, so the pixel seeing a point is
-found by a fixed-point iteration: trace the current pixel, aim the camera ray at the point from where the
-traced ray leaves the rig, repeat. The plate shift changes by ~1e-3 mm per mm of ray displacement, so the
-iteration contracts by roughly (shift derivative) / (distance to the point) per step: a handful of
-iterations reach 1e-10 px.
+found by a fixed-point iteration: trace the current camera ray, aim the camera ray at the point from where
+the traced ray leaves the rig, repeat. The plate shift changes by ~1e-3 mm per mm of ray displacement, so
+the iteration contracts by roughly (shift derivative) / (distance to the point) per step: a handful of
+iterations reach 1e-10 px. The iteration runs on camera rays, not pixels: a pixel needs the lens's
+distortion inverted (an iteration of its own) before it can be traced, a ray only needs it applied
+(closed form) to give its pixel.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from psvs._validate import check_points
-from psvs.optics.mirrors import direction_map, virtual_centre
+from psvs.optics.mirrors import direction_map, path, virtual_centre
 from psvs.optics.rig import Rig
-from psvs.optics.trace import pixels_from_camera_dirs, trace_pixels
+from psvs.optics.trace import pixels_from_camera_dirs, trace_rays
 
 
 def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max_iter: int = 60):
@@ -52,10 +54,13 @@ def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max
     centre = virtual_centre(rig, view)
     finite = np.all(np.isfinite(pts), axis=1)
 
+    steps = path(rig, view)
+    at_camera = np.zeros_like(pts)
+
     def aim(origins):
         d = pts - origins
         d /= np.linalg.norm(d, axis=1, keepdims=True)
-        return pixels_from_camera_dirs(d @ R, cam)  # d_cam = R^T d_out, rows: d @ R
+        return d @ R                     # the camera ray: d_cam = R^T d_out, rows: d @ R
 
     def near_centre(rays):
         # Aim from the point of the traced ray nearest the virtual centre: there a change of direction
@@ -63,17 +68,18 @@ def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max
         o, d = rays.origins_mm, rays.dirs
         return o + np.einsum("ij,ij->i", centre - o, d)[:, None] * d
 
-    uv = aim(centre[None, :])
+    dirs = aim(centre[None, :])
+    uv = pixels_from_camera_dirs(dirs, cam)
     converged = np.zeros(len(pts), dtype=bool)
     for _ in range(max_iter):
-        rays = trace_pixels(uv, rig, view)
-        new = aim(near_centre(rays))
+        dirs = aim(near_centre(trace_rays(at_camera, dirs, steps)))
+        new = pixels_from_camera_dirs(dirs, cam)
         step = np.max(np.abs(new - uv), axis=1)
         uv = new
         converged = step <= tol_px
         if np.all(converged | ~np.isfinite(step)):
             break
-    rays = trace_pixels(uv, rig, view)
+    rays = trace_rays(at_camera, dirs, steps)
     ahead = np.einsum("ij,ij->i", pts - rays.origins_mm, rays.dirs) > 0
     valid = finite & converged & rays.valid & ahead
     uv[~valid] = np.nan
