@@ -178,6 +178,15 @@ def _pass(cost, out, down, diagonals, p1, p2, guide, tau, pick, below, best, ind
             _pick_row(row, below[y], best[y], index[y], n_valid, total)
 
 
+@nb.njit(cache=True)
+def _states(n_passes, diagonals, w, n):  # pragma: no cover - compiled
+    """Work space for the path state of ``n_passes`` passes (see :func:`_pass`): bufs (n_passes, 2, paths,
+    w + 2, n + 2) and mins (n_passes, 2, paths, w + 2), float32."""
+    n_k = 4 if diagonals else 2
+    return (np.empty((n_passes, 2, n_k, w + 2, n + 2), np.float32),
+            np.empty((n_passes, 2, n_k, w + 2), np.float32))
+
+
 @nb.njit(cache=True, parallel=True)
 def _both_passes(cost, out, work, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
     """The downward pass into ``out`` and the upward one into ``work``, one per thread (Numba's pool: a
@@ -185,8 +194,7 @@ def _both_passes(cost, out, work, diagonals, p1, p2, guide, tau):  # pragma: no 
     a literal one makes Numba compile a specialisation of the pass that runs at half the speed."""
     h, w, n = cost.shape
     none, no_index = np.empty((1, 1), np.float64), np.empty((1, 1), np.int32)
-    bufs = np.empty((2, 2, 4 if diagonals else 2, w + 2, n + 2), np.float32)
-    mins = np.empty((2, 2, 4 if diagonals else 2, w + 2), np.float32)
+    bufs, mins = _states(2, diagonals, w, n)
     zero = h - h                           # a run-time 0: a literal one compiles another specialisation
     for k in nb.prange(2):
         _pass(cost, out if k == 0 else work, k == 0, diagonals, p1, p2, guide, tau, k < 0, out, none, no_index,
@@ -201,9 +209,7 @@ def _winners_meet(cost, sums, best, index, n_valid, diagonals, p1, p2, guide, ta
     each pixel's winner (best: index + offset; index)."""
     h, w, n = cost.shape
     m = h // 2
-    n_k = 4 if diagonals else 2
-    bufs = np.empty((2, 2, n_k, w + 2, n + 2), np.float32)   # each pass's state, kept between the halves
-    mins = np.empty((2, 2, n_k, w + 2), np.float32)
+    bufs, mins = _states(2, diagonals, w, n)                 # each pass's state, kept between the halves
     rows = np.empty((2, 1, w, n), np.float32)                # each pass's row of sums while picking
     for half in range(2):
         for i in nb.prange(2):
@@ -219,9 +225,7 @@ def _winners_each(costs, sums, best, index, n_valid, diagonals, p1, p2, guide, t
     """Each of the two volumes ``costs`` (2, H, W, D) on its own thread: the downward pass's sums into
     ``sums[i]``, then the upward pass, which adds them row by row and keeps each pixel's winner."""
     h, w, n = costs.shape[1:]
-    n_k = 4 if diagonals else 2
-    bufs = np.empty((2, 2, n_k, w + 2, n + 2), np.float32)
-    mins = np.empty((2, 2, n_k, w + 2), np.float32)
+    bufs, mins = _states(2, diagonals, w, n)
     rows = np.empty((2, 1, w, n), np.float32)                # the upward pass's row of sums
     zero = h - h                           # a run-time 0: a literal one compiles another specialisation
     for i in nb.prange(2):
@@ -286,10 +290,9 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     if threads < 2:
         none, no_index = np.empty((1, 1), np.float64), np.empty((1, 1), np.int32)
         h, w, n = cost.shape
-        bufs = np.empty((2, 4 if diagonals else 2, w + 2, n + 2), np.float32)
-        mins = np.empty((2, 4 if diagonals else 2, w + 2), np.float32)
+        bufs, mins = _states(1, diagonals, w, n)
         for k in range(2):
-            _pass(cost, outs[k], k == 0, diagonals, *args, False, outs[0], none, no_index, 0, bufs, mins, 0, h)
+            _pass(cost, outs[k], k == 0, diagonals, *args, False, outs[0], none, no_index, 0, bufs[0], mins[0], 0, h)
     else:
         _both_passes(cost, outs[0], outs[1], diagonals, *args)
     _add_into(outs[0], outs[1])
