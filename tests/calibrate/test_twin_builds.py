@@ -24,12 +24,16 @@ import pytest
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from psvs.calibrate.sweep import pattern_layout
+from psvs.calibrate.table1 import HOLDER, PAPER_TABLE1
 from psvs.io.params import load_rig
 from psvs.measure.triangulate import triangulate
 from psvs.optics.mirrors import mirror_planes
 from psvs.optics.project import project_points
 from psvs.optics.rig import MIRROR_NAMES, MirrorError
 from psvs.optics.trace import trace_pixels
+from psvs.simulate.scene import Pose
+from tests.conftest import whole_field_points
 
 RIGS = Path(__file__).resolve().parents[2] / "examples" / "rigs"
 TILT = math.radians(0.3)    # the issue's build: mirrors tilted up to 0.3 deg, shifted up to 0.8 mm
@@ -37,23 +41,22 @@ SHIFT_MM = 0.8
 DEPTH_MM = 0.65             # how far in depth G moves the scene at frame C's origin
 
 
-def field_points(n=120, seed=1):
-    """Points over the common field of view at 400-1200 mm (N, 3)."""
-    rng = np.random.default_rng(seed)
-    z = rng.uniform(400.0, 1200.0, n)
-    return np.column_stack([rng.uniform(-0.12, 0.12, n) * z, rng.uniform(-0.09, 0.09, n) * z, z])
-
-
 def rigid(x, dz):
     """G: rotation vector x[0:3], translation (x[3], x[4], dz) mm."""
     return Rotation.from_rotvec(x[:3]).as_matrix(), np.array([x[3], x[4], dz])
+
+
+def off_line(gap, dirs):
+    """The part (N, 3) of each offset ``gap`` between two points across the line of direction ``dirs``: zero
+    when both points lie on one line."""
+    return gap - np.einsum("ij,ij->i", gap, dirs)[:, None] * dirs
 
 
 def twin_of(build, dz):
     """A build whose every image of the scene moved by G equals ``build``'s image of the scene, with G's
     depth shift ``dz`` mm: its mirror tilts, shifts and box turn (within the tolerances) and G's other
     five components by least squares on the projections of field points in both views."""
-    pts = field_points()
+    pts = whole_field_points(build, n_side=5)      # 125 points seen by both views at 400-1200 mm
     want = {v: project_points(pts, build, v)[0] for v in ("left", "right")}
     m = build.mirrors
 
@@ -98,8 +101,7 @@ def test_the_twin_is_a_build_within_the_tolerances(twins):
     uv = np.array([[100.0, 80.0], [320.0, 240.0], [560.0, 420.0]])
     for view in ("left", "right"):
         a, b = trace_pixels(uv, build, view), trace_pixels(uv, twin, view)
-        gap = b.origins_mm - a.origins_mm
-        assert np.abs(gap - np.einsum("ij,ij->i", gap, a.dirs)[:, None] * a.dirs).max() > 0.2
+        assert np.abs(off_line(b.origins_mm - a.origins_mm, a.dirs)).max() > 0.2
 
 
 def test_every_pixel_sees_the_same_scene_moved_rigidly(twins):
@@ -113,24 +115,22 @@ def test_every_pixel_sees_the_same_scene_moved_rigidly(twins):
         assert a.valid.all() and b.valid.all()
         moved_dirs, moved_origins = a.dirs @ R.T, a.origins_mm @ R.T + t
         assert np.abs(b.dirs - moved_dirs).max() < 1e-11
-        gap = b.origins_mm - moved_origins                  # must lie along the ray
-        off_line = gap - np.einsum("ij,ij->i", gap, b.dirs)[:, None] * b.dirs
-        assert np.abs(off_line).max() < 1e-8                # mm
+        assert np.abs(off_line(b.origins_mm - moved_origins, b.dirs)).max() < 1e-8     # mm
 
 
 def test_the_same_images_give_the_table_i_pattern_half_a_millimetre_apart(twins):
     """The Table I consequence. Pixel pairs of the build, triangulated with the twin (exact model), are the
-    points moved by G. Where Table I's pattern hangs (x 6 mm, y -4 mm, its five circles 20 mm apart along x,
-    at the paper's 440-1123 mm) G moves them over 0.5 mm in depth: half of that, over 0.25 mm, is what one
-    rig must be off on one of the two builds."""
+    points moved by G. Where Table I's pattern hangs (its five circle centres on the robot's holder at the
+    paper's 15 distances) G moves them over 0.5 mm in depth: half of that, over 0.25 mm, is what one rig
+    must be off on one of the two builds."""
     build, twin, R, t = twins
-    z = np.repeat(np.linspace(440.0, 1123.0, 15), 5)
-    x = 6.0 + np.tile(np.arange(-40.0, 41.0, 20.0), 15)
-    pts = np.column_stack([x, np.full_like(z, -4.0), z])
+    tilts = [HOLDER["tilt_x_deg"], HOLDER["tilt_y_deg"], 0.0]
+    pts = np.concatenate([Pose.from_euler_deg([HOLDER["x_mm"], HOLDER["y_mm"], z], tilts).to_world(pattern_layout())
+                          for z in PAPER_TABLE1[:, 0]])
     left, right = project_points(pts, build, "left")[0], project_points(pts, build, "right")[0]
     on_build = triangulate(left, right, build, model="exact").points_mm
     on_twin = triangulate(left, right, twin, model="exact").points_mm
     assert np.abs(on_build - pts).max() < 1e-6
     assert np.abs(on_twin - (pts @ R.T + t)).max() < 1e-6
-    depth_gap = (on_twin[:, 2] - on_build[:, 2]).reshape(15, 5).mean(axis=1)   # per pattern position
+    depth_gap = (on_twin[:, 2] - on_build[:, 2]).reshape(len(PAPER_TABLE1), -1).mean(axis=1)   # per position
     assert depth_gap.min() > 0.5 and depth_gap.mean() / 2 > 0.25
