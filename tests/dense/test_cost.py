@@ -169,7 +169,8 @@ def test_filter_volume_matches_opencv_box_filters_everywhere(radius, shape):
         np.testing.assert_allclose(got[i], want, atol=2e-5)
     inp = vol.copy()
     again = filter_volume(inp, guide, radius, 0.01, in_place=True)   # over its input: the same values
-    assert again is inp and np.array_equal(again, got)
+    assert again is inp
+    np.testing.assert_array_equal(again, got)      # exactly: on failure it says where and by how much
     weight = rng.random(shape).astype(np.float32)                    # weighted as it is written
     weighted = filter_volume(vol, guide, radius, 0.01, weight=weight)
     np.testing.assert_allclose(weighted, np.where(vol == NO_TWIN, NO_TWIN, got * weight), atol=1e-6)
