@@ -5,9 +5,10 @@ import cv2
 from psvs import default_rig
 from psvs.imaging.pipeline import PAPER
 from psvs.match.auto import match_auto
-from psvs.match.correspondence import disparity_range, match_image
+from psvs.match.correspondence import match_image
 from psvs.match.seeded import match_seeded
 from psvs.measure.triangulate import triangulate
+from psvs.optics.search_range import disparity_range
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
 

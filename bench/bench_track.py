@@ -7,10 +7,11 @@ import cv2
 import numpy as np
 
 from psvs import default_rig
+from psvs.optics.window import roi_rig
 from psvs.robot.arm import Arm
-from psvs.robot.cell import MOUNT_ERROR, cam2tool, tool2flange, tool_pose
 from psvs.robot.loop import HOME_Q, UP, TrackConfig
-from psvs.robot.sensor import SeamSensor, auto_seed, fit_seam_point, roi_rig
+from psvs.robot.mounting import MOUNT_ERROR, cam2tool, tool2flange, tool_pose
+from psvs.robot.sensor import SeamSensor, auto_seed, fit_seam_point
 from psvs.robot.workpiece import seam_workpiece
 from psvs.simulate.render import render
 from psvs.simulate.sequence import scene_in_rig_frame

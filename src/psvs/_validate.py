@@ -22,6 +22,14 @@ def check_points(arr, name: str, dim: int) -> np.ndarray:
     return a
 
 
+def check_grey(image, name: str = "image") -> np.ndarray:
+    """``image`` as an ndarray if it is a grey (H, W) uint8 image, else ValueError naming ``name``."""
+    a = np.asarray(image)
+    if a.ndim != 2 or a.dtype != np.uint8:
+        raise ValueError(f"{name} must be a grey (H, W) uint8 image, got shape {a.shape} {a.dtype}")
+    return a
+
+
 def check_same_length(a: np.ndarray, b: np.ndarray, name_a: str, name_b: str) -> None:
     if a.shape[0] != b.shape[0]:
         raise ValueError(f"{name_a} and {name_b} must have the same number of rows, got {a.shape[0]} and {b.shape[0]}")

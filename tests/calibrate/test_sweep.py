@@ -67,6 +67,7 @@ def test_calibrate_cli(capsys, tmp_path, sweep_dir):
     """The rig file it writes reads back (tomllib, then load_rig) with the values it printed."""
     import re
     import tomllib
+
     from psvs.io.params import load_rig
     out = tmp_path / "cal.toml"
     code, text, err = run(capsys, "calibrate", str(sweep_dir), "--rig", EXAMPLE, "-o", str(out))

@@ -86,12 +86,13 @@ def test_dense_depth_on_a_build(build, scene):
 def test_ideal_rig_unchanged_and_comparable():
     """On the paper's geometry the complex image itself is searched (no resampling): the same maps as
     dense_disparity; the build's share of bad pixels on the textured scene is within 3 points of it."""
-    from psvs.dense.disparity import dense_disparity, working_range_px
+    from psvs.dense.disparity import dense_disparity
+    from psvs.optics.search_range import disparity_range
     rig = default_rig()
     img = render(textured(), rig, seed=1).image
     ours = dense_on_rig(img, rig, fast=True)
     assert ours.rect is None
-    ref = dense_disparity(img, *working_range_px(rig, 400.0, 1200.0, img.shape[1]), fast=True)
+    ref = dense_disparity(img, *disparity_range(rig, 400.0, 1200.0, width_px=img.shape[1]), fast=True)
     np.testing.assert_array_equal(ours.result.disparity_left, ref.disparity_left)
     ideal = bad_share(errors_of("ideal", "textured"))
     built = bad_share(errors_of("misaligned", "textured"))

@@ -1,8 +1,17 @@
 import numpy as np
 import pytest
 
-from psvs.dense.cost import (NO_TWIN, PAD_COST, _keys, aperture_weight, band_pass, echo_at_winner, echo_correlation,
-                             filter_volume, fused_cost)
+from psvs.dense.cost import (
+    NO_TWIN,
+    PAD_COST,
+    _keys,
+    aperture_weight,
+    band_pass,
+    echo_at_winner,
+    echo_correlation,
+    filter_volume,
+    fused_cost,
+)
 from tests.dense.planted import texture
 
 

@@ -6,7 +6,7 @@ import pytest
 
 from psvs.dense import dense_disparity, disparity_cloud, psnr_db, separate_views
 from psvs.dense.evaluate import disparity_scores, evaluate_pair, mirrored, motorcycle, sgbm_reference, superimpose
-from psvs.match.correspondence import disparity_range
+from psvs.optics.search_range import disparity_range
 from psvs.simulate.builtin import textured
 from psvs.simulate.render import render
 from psvs.simulate.sensor import Sensor, expose

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from psvs.imaging import steps
-from psvs.imaging.pipeline import PAPER, load_pipeline, make_pipeline
+from psvs.imaging.pipeline import PAPER, make_pipeline
+from psvs.io.pipeline_file import load_pipeline
 
 
 def square_image(level=200, background=20):

@@ -27,7 +27,8 @@ def test_failure_leaves_the_old_file(tmp_path):
 def test_grey8_and_npy_helpers(tmp_path):
     import numpy as np
 
-    from psvs.io.images import to_grey8, write_npy
+    from psvs.imaging.grey import to_grey8
+    from psvs.io.images import write_npy
 
     np.testing.assert_array_equal(to_grey8(np.array([-3.0, 0.4, 0.6, 254.5, 300.0])), [0, 0, 1, 254, 255])
     path = tmp_path / "a.npy"

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from psvs.io.params import load_rig
-from psvs.match.correspondence import disparity_range, match_image, rectification_for
-from psvs.measure.triangulate import default_model
+from psvs.match.correspondence import match_image
 from psvs.match.seeded import match_seeded
-from psvs.measure.triangulate import triangulate
+from psvs.measure.triangulate import default_model, triangulate
 from psvs.optics.project import project_points
+from psvs.optics.search_range import disparity_range, rectification_for
 from psvs.simulate.render import render
 from psvs.simulate.sensor import Sensor
 from tests.match.test_overlap import CASES, assert_both_paired, overlap_scene

@@ -3,13 +3,13 @@ import numpy as np
 import pytest
 
 from psvs import default_rig
-from psvs.match.correspondence import disparity_range, match_image
+from psvs.match.correspondence import match_image
+from psvs.optics.search_range import disparity_range
 from psvs.optics.trace import trace_pixels
-from psvs.simulate.builtin import builtin_scene
+from psvs.simulate.builtin import builtin_scene, regulated_light
 from psvs.simulate.render import render
 from psvs.simulate.scene import Pose, Scene, SceneObject
 from psvs.simulate.textures import Uniform
-from psvs.simulate.builtin import regulated_light
 
 
 def pixel_errors(pair, truth):

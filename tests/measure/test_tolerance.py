@@ -2,12 +2,11 @@
 import json
 import math
 
-import numpy as np
 import pytest
 
 from psvs import default_rig
-from psvs.match.correspondence import disparity_range
 from psvs.measure.tolerance import TILT_STEP_RAD, field_points, tolerance_analysis
+from psvs.optics.search_range import disparity_range
 from tests.cli.test_cli import run
 
 

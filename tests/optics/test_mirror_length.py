@@ -3,8 +3,14 @@ import math
 import numpy as np
 import pytest
 
-from psvs.optics.mirror_length import (ab_eq1, bc_eq5, mirror_length_eq6, mirror_length_eq7, mirror_length_eq8,
-                                       segments_eq2_4)
+from psvs.optics.mirror_length import (
+    ab_eq1,
+    bc_eq5,
+    mirror_length_eq6,
+    mirror_length_eq7,
+    mirror_length_eq8,
+    segments_eq2_4,
+)
 from psvs.optics.surfaces import Plane, intersect
 
 RNG = np.random.default_rng(0)

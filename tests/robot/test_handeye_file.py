@@ -15,8 +15,15 @@ from psvs.optics.rig import default_rig
 from psvs.robot.arm import Arm
 from psvs.robot.handeye import HandEyeResult, calibrate_from_views
 from psvs.robot.handeye_io import dumps_handeye, load_handeye, read_views, save_handeye, write_views
-from psvs.robot.loop import CELL_GRID, CELL_TARGET2BASE, HOME_Q, TrackConfig, cell_views, nominal_cam2flange, \
-    true_cam2flange
+from psvs.robot.loop import (
+    CELL_GRID,
+    CELL_TARGET2BASE,
+    HOME_Q,
+    TrackConfig,
+    cell_views,
+    nominal_cam2flange,
+    true_cam2flange,
+)
 
 
 @pytest.fixture(scope="module")

@@ -3,13 +3,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from psvs.optics.rig import default_rig
+from psvs.optics.window import roi_rig
 from psvs.robot.arm import Arm, ArmLimits
-from psvs.robot.cell import tool2flange, tool_pose
 from psvs.robot.handeye import calibrate_hand_eye, rigid_fit
 from psvs.robot.loop import HOME_Q, TrackConfig
+from psvs.robot.mounting import tool2flange, tool_pose
 from psvs.robot.seam_model import SeamPath
-from psvs.robot.sensor import fit_seam_point, roi_rig
-from psvs.optics.rig import default_rig
+from psvs.robot.sensor import fit_seam_point
 
 
 def _T(rotvec, t):

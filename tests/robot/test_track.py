@@ -191,7 +191,7 @@ def _write_recording(run, path, tamper_cycle=None, cycles=None):
     from dataclasses import replace as dc_replace
 
     from psvs.io.telemetry import Telemetry
-    from psvs.robot.cell import tool2flange
+    from psvs.robot.mounting import tool2flange
     from psvs.robot.recording import CyclePublisher, publish_setup, publish_stop
     with Telemetry(path, t0_ns=1_700_000_000 * 10**9) as tel:
         publish_setup(tel, run.config, run.handeye.cam2flange, run.extras["taught_mm"], run.extras["travel"], None)
@@ -212,10 +212,10 @@ def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
     /tf decoded with protobuf), read back exactly by read_recording, and `psvs replay` reproducing every
     command; a recording whose command differs by 1 nm in one cycle fails the replay (exit 1)."""
     from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
-    from tests.conftest import read_mcap
 
     from psvs.robot.recording import TOPICS as REC_TOPICS
     from psvs.robot.recording import read_recording
+    from tests.conftest import read_mcap
     wp, run = gap10
     path = tmp_path / "run.mcap"
     _write_recording(run, path)

@@ -34,6 +34,7 @@ from scipy.spatial.transform import Rotation
 from psvs.optics.mirrors import direction_map, virtual_centre
 from psvs.optics.project import project_points
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
+from psvs.transforms import transform_from_rotvec
 
 #: Calibrated rig parameters, in the vector's order; tilts in rad.
 RIG_PARAMS = ("focal_length_mm", "cx_px", "cy_px", "k1", "k2", "p1", "p2", "k3", "plate_thickness_mm",
@@ -128,12 +129,6 @@ def rig_from_vector(x: np.ndarray, start: Rig) -> Rig:
                         baseline_mm=float(x[9]), box_rotation_rad=tuple(float(v) for v in x[22:25]),
                         refraction_l_mm=None, refraction_m_mm=None)
     return rig.with_errors(errors)
-
-
-def pose_matrix(rotvec, t) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = Rotation.from_rotvec(rotvec).as_matrix(), t
-    return T
 
 
 def initial_grid_pose(view: GridView, rig: Rig) -> np.ndarray:
@@ -358,7 +353,7 @@ def _result(prob: _Problem, sol) -> BundleResult:
         rms_px=float(np.sqrt(np.mean(img ** 2))),
         rms_by_view={"left": float(np.sqrt(np.mean(left ** 2))), "right": float(np.sqrt(np.mean(right ** 2)))},
         rms_by_image=per_image, residuals=residuals, observed=observed,
-        poses={g.name: pose_matrix(p[:3], p[3:]) for g, p in zip(prob.grids, poses)},
+        poses={g.name: transform_from_rotvec(p[:3], p[3:]) for g, p in zip(prob.grids, poses)},
         success=bool(sol.success), message=str(sol.message),
         sweep=dict(zip(SWEEP_PARAMS, map(float, s))) if prob.n_sweep else {},
         covariance=full_cov)

@@ -19,7 +19,6 @@ import numpy as np
 
 from psvs.calibrate.targets import dark_blobs, refine_circle
 
-
 #: A disc whose surroundings vary more than this (share of its contrast) is not trusted for calibration.
 MAX_BACKGROUND_SPREAD = 0.25
 

@@ -84,7 +84,5 @@ def render_grid_shots(rig: Rig, grid: CircleGrid, poses: list[Pose], seed: int =
         card = SceneObject("rectangle", pose, grid, size_mm=size)
         scene = Scene((card,), regulated_light(z), z + 400.0, Uniform(0.08))
         img = render(scene, rig, seed=seed + k, supersample=supersample).image
-        T = np.eye(4)
-        T[:3, :3], T[:3, 3] = pose.rotation, pose.position_mm
-        shots.append(GridShot(img, T, pose.to_world(local)))
+        shots.append(GridShot(img, pose.matrix, pose.to_world(local)))
     return shots

@@ -23,8 +23,8 @@ from psvs.calibrate.targets import detect_pattern
 from psvs.io.atomic import write_atomic
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 from psvs.simulate.builtin import builtin_scene
-from psvs.simulate.textures import CircleGrid
 from psvs.simulate.render import render
+from psvs.simulate.textures import CircleGrid
 
 #: Table I of the paper: Z meas., Z calc., d calc., a calc. (mm); d meas. = 10, a meas. = 80.
 PAPER_TABLE1 = np.array([

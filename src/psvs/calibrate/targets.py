@@ -17,6 +17,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from psvs._validate import check_grey
+
 
 @dataclass(frozen=True, eq=False)
 class Ellipse:
@@ -162,9 +164,7 @@ def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = 40) 
     """
     if not isinstance(count, int) or count < 2:
         raise ValueError(f"count must be an integer >= 2 (circles in the pattern), got {count!r}")
-    grey = np.asarray(grey)
-    if grey.ndim != 2 or grey.dtype != np.uint8:
-        raise ValueError(f"image must be a grey (H, W) uint8 image, got {grey.shape} {grey.dtype}")
+    grey = check_grey(grey)
     lo, hi, _, _ = cv2.minMaxLoc(grey)
     if hi - lo < 20:
         raise ValueError("image is blank (no contrast): no pattern to find")

@@ -6,8 +6,8 @@ import math
 
 from psvs.cli.common import add_rig_argument, check_output_path, check_working_range, rig_from_args
 from psvs.io.atomic import write_atomic
-from psvs.io.tomlfile import dumps_toml
 from psvs.io.params import rig_to_dict, save_rig
+from psvs.io.tomlfile import dumps_toml
 from psvs.measure.tolerance import Sensitivity, tolerance_analysis
 from psvs.optics.design import MirrorDesign, design_mirrors
 

@@ -9,12 +9,13 @@ import numpy as np
 from psvs.cli.common import check_output_path, check_working_range
 from psvs.dense import dense_disparity, separate_views, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud
-from psvs.dense.disparity import FAST, check_dense_memory, check_range, working_range_px
-from psvs.match.correspondence import disparity_range, rectification_for
+from psvs.dense.disparity import FAST, check_dense_memory, check_range
+from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
-from psvs.io.images import read_grey, to_grey8, write_npy, write_png
+from psvs.io.images import read_grey, write_npy, write_png
 from psvs.io.params import load_rig
 from psvs.measure.triangulate import MODELS
+from psvs.optics.search_range import disparity_range, rectification_for
 
 
 def add_parser(sub) -> None:
@@ -55,10 +56,7 @@ def _range(args, rig, rect, width: int) -> tuple[float, float]:
         return args.min_disparity, args.max_disparity
     if rig is None:
         raise ValueError("give --rig or --min-disparity and --max-disparity")
-    if rect is None:
-        return working_range_px(rig, args.near_mm, args.far_mm, width)
-    lo, hi = disparity_range(rig, args.near_mm, args.far_mm, rect)
-    return lo, min(hi, width - 1.0)
+    return disparity_range(rig, args.near_mm, args.far_mm, rect, width_px=width)
 
 
 def run(args) -> int:

@@ -6,9 +6,17 @@ import time
 
 import numpy as np
 
-from psvs.cli.common import (add_rig_argument, add_telemetry_arguments, check_output_path, check_working_range,
-                             open_telemetry, parse_seed, rig_from_args)
-from psvs.imaging.pipeline import PAPER, load_pipeline
+from psvs.cli.common import (
+    add_rig_argument,
+    add_telemetry_arguments,
+    check_output_path,
+    check_working_range,
+    open_telemetry,
+    parse_seed,
+    rig_from_args,
+)
+from psvs.imaging.pipeline import PAPER
+from psvs.io.pipeline_file import load_pipeline
 from psvs.live.dense import DenseSensor
 from psvs.live.log import write_log
 from psvs.live.source import VideoSource

@@ -4,9 +4,10 @@ from __future__ import annotations
 import sys
 
 from psvs.cli.common import add_rig_argument, check_output_path, check_working_range, parse_seed, rig_from_args
-from psvs.imaging.pipeline import PAPER, load_pipeline
+from psvs.imaging.pipeline import PAPER
 from psvs.io.atomic import output_batch
 from psvs.io.images import read_grey
+from psvs.io.pipeline_file import load_pipeline
 from psvs.match.correspondence import match_image
 from psvs.match.export import write_csv, write_json, write_ply
 from psvs.measure.triangulate import MODELS

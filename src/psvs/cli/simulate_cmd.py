@@ -55,9 +55,10 @@ def run(args) -> int:
         raise ValueError(f"--frames must be >= 1, got {args.frames}")
     try:
         move = np.array([float(v) for v in args.move_mm.split(",")])
-        assert move.shape == (3,) and np.all(np.isfinite(move))
-    except (ValueError, AssertionError):
-        raise ValueError(f"--move-mm must be 'dx,dy,dz', three finite numbers in mm, got {args.move_mm!r}") from None
+    except ValueError:
+        move = np.zeros(0)
+    if move.shape != (3,) or not np.all(np.isfinite(move)):
+        raise ValueError(f"--move-mm must be 'dx,dy,dz', three finite numbers in mm, got {args.move_mm!r}")
     if args.seed is not None and args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
     sensor = Sensor(args.blur_px, args.full_well_e, args.read_noise_e, args.gain, not args.no_shot_noise)

@@ -4,8 +4,14 @@ from __future__ import annotations
 import math
 import time
 
-from psvs.cli.common import (add_rig_argument, add_telemetry_arguments, check_output_folder, open_telemetry,
-                             parse_seed, rig_from_args)
+from psvs.cli.common import (
+    add_rig_argument,
+    add_telemetry_arguments,
+    check_output_folder,
+    open_telemetry,
+    parse_seed,
+    rig_from_args,
+)
 
 
 def add_parser(sub) -> None:
@@ -71,7 +77,7 @@ def run(args) -> int:
 
         def on_start(cam2flange, taught, travel):
             if tel is not None:
-                from psvs.robot.cell import tool2flange
+                from psvs.robot.mounting import tool2flange
                 from psvs.robot.recording import CyclePublisher, publish_setup
                 publish_setup(tel, cfg, cam2flange, taught, travel, seed)
                 publisher.append(CyclePublisher(tel, cam2flange, tool2flange()))

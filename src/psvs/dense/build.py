@@ -18,11 +18,11 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt
 
 from psvs.dense.cloud import Cloud, disparity_cloud
-from psvs.dense.disparity import DenseParams, DenseResult, Workspace, dense_disparity, working_range_px
-from psvs.match.correspondence import disparity_range, rectification_for
+from psvs.dense.disparity import DenseParams, DenseResult, Workspace, dense_disparity
 from psvs.measure.triangulate import default_model, triangulate
 from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
+from psvs.optics.search_range import disparity_range, rectification_for
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,10 +68,10 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     img = np.asarray(image)
     rect = rectification_for(rig, near_mm, far_mm)
     if rect is None:
-        lo, hi = d_range or working_range_px(rig, near_mm, far_mm, img.shape[1])
+        lo, hi = d_range or disparity_range(rig, near_mm, far_mm, width_px=img.shape[1])
         return RigDense(dense_disparity(img, lo, hi, fast=fast, params=params, workspace=workspace), None, img)
     a, b = rectified_images(img, rect)
-    lo, hi = d_range or disparity_range(rig, near_mm, far_mm, rect)
+    lo, hi = d_range or disparity_range(rig, near_mm, far_mm, rect, width_px=a.shape[1])
     res = dense_disparity(a, lo, min(hi, a.shape[1] - 1.0), fast=fast, params=params, image_right=b,
                           workspace=workspace)
     inside_l, inside_r = (rect.maps(v)[0] >= 0 for v in ("left", "right"))

@@ -7,8 +7,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import write_atomic
-from psvs.io.images import to_grey8
 from psvs.measure.triangulate import triangulate, twin_rows
 from psvs.optics.rig import Rig
 

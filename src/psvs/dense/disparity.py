@@ -34,12 +34,19 @@ import numba as nb
 import numpy as np
 
 from psvs._memory import check_memory
-from psvs.dense.cost import (NO_TWIN, aperture_weight, band_pass, echo_at_winner, echo_correlation, filter_volume,
-                             fused_cost, one_sided_costs, padded_lags)
+from psvs.dense.cost import (
+    NO_TWIN,
+    aperture_weight,
+    band_pass,
+    echo_at_winner,
+    echo_correlation,
+    filter_volume,
+    fused_cost,
+    one_sided_costs,
+    padded_lags,
+)
 from psvs.dense.median import median_filter
 from psvs.dense.sgm import winners as sgm_winners
-from psvs.match.correspondence import disparity_range
-from psvs.optics.rig import Rig
 
 MIN_LAG_PX = 3
 MIN_SIZE_PX = 16
@@ -149,13 +156,6 @@ def check_dense_memory(h: int, w: int, d_min: float, d_max: float, params: "Dens
     """ValueError naming ``what`` when the search d_min..d_max px on an (h, w) image does not fit in memory."""
     check_memory(dense_memory_bytes(h, w, d_min, d_max, params),
                  f"{what} {d_min:g}..{d_max:g} px on {w}x{h} px", "narrow the range or use --fast")
-
-
-def working_range_px(rig: Rig, near_mm: float, far_mm: float, width_px: int) -> tuple[float, float]:
-    """Disparities (px) to search for the rig's working depth near..far (mm), the far end of the range
-    (the largest disparity) cut at the image's last column."""
-    lo, hi = disparity_range(rig, near_mm, far_mm)
-    return lo, min(hi, width_px - 1.0)
 
 
 def fill_from_background(d: np.ndarray, keep: np.ndarray) -> np.ndarray:

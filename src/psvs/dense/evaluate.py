@@ -15,7 +15,7 @@ import numpy as np
 
 from psvs.dense.disparity import dense_disparity
 from psvs.dense.separate import psnr_db, separate_views
-from psvs.io.images import to_grey8
+from psvs.imaging.grey import to_grey8
 
 
 def superimpose(left, right, split: float = 0.5) -> np.ndarray:

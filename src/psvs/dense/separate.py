@@ -162,7 +162,7 @@ def separate_views(image, disparity_left, split: float = 0.5, disparity_right=No
         return x[:n].reshape(h, w), x[n:].reshape(h, w)
     data = sp.hstack([(1 - split) * _sampling(rect.pixel_table("left").reshape(-1, 2), h, w),
                       split * _sampling(rect.pixel_table("right").reshape(-1, 2), h, w)]).tocsr()
-    from psvs.dense.build import rectified_images    # (build imports this module's neighbours)
+    from psvs.dense.build import rectified_images  # (build imports this module's neighbours)
     start = np.concatenate([a.ravel() for a in rectified_images(c, rect)]).astype(np.float64)
     m = yy.size
     r = np.arange(m)

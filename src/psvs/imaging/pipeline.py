@@ -1,26 +1,16 @@
 """An ordered, configurable image pipeline; the paper's own (median 3x3, threshold 92, Roberts) is the default.
 
-A pipeline file is TOML:
-
-    [[steps]]
-    op = "median"
-    ksize = 3
-    [[steps]]
-    op = "threshold"
-    level = 92
-    [[steps]]
-    op = "roberts"
+Pipelines are read from TOML files by :func:`psvs.io.pipeline_file.load_pipeline`.
 """
 from __future__ import annotations
 
 import inspect
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
+from psvs._validate import check_grey
 from psvs.imaging.steps import STEPS
-from psvs.io.tomlfile import load_toml
 
 
 @dataclass(frozen=True)
@@ -52,8 +42,7 @@ class Pipeline:
 
     def run(self, grey: np.ndarray, keep: bool = False):
         """Edge map (H, W) bool; with ``keep``, also a list of (op, image) after every step."""
-        if grey.ndim != 2 or grey.dtype != np.uint8:
-            raise ValueError(f"image must be a grey (H, W) uint8 image, got shape {grey.shape} {grey.dtype}")
+        grey = check_grey(grey)
         stages = []
         img = grey
         for step in self.steps:
@@ -80,14 +69,3 @@ def make_pipeline(steps: list[dict]) -> Pipeline:
 
 #: The paper's pipeline (section IV.2): median filter, binary conversion at 92, Roberts edges.
 PAPER = make_pipeline([{"op": "median", "ksize": 3}, {"op": "threshold", "level": 92}, {"op": "roberts"}])
-
-
-def load_pipeline(path) -> Pipeline:
-    path = Path(path)
-    data = load_toml(path, "pipeline")
-    if set(data) != {"steps"} or not isinstance(data["steps"], list):
-        raise ValueError(f"{path}: a pipeline file holds one array of tables [[steps]]")
-    try:
-        return make_pipeline(data["steps"])
-    except (ValueError, TypeError) as exc:
-        raise type(exc)(f"{path}: {exc}") from None

@@ -7,22 +7,18 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from psvs._validate import check_grey
+from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import write_atomic
 
 
 def write_png(path, image: np.ndarray) -> None:
     """Write an (H, W) uint8 image as an 8-bit grey PNG, atomically."""
-    if image.dtype != np.uint8 or image.ndim != 2:
-        raise ValueError(f"image must be (H, W) uint8, got {image.shape} {image.dtype}")
+    image = check_grey(image)
     ok, buf = cv2.imencode(".png", image)
     if not ok:
         raise OSError(f"could not encode PNG for {path}")
     write_atomic(path, buf.tobytes())
-
-
-def to_grey8(image) -> np.ndarray:
-    """Grey levels (any real dtype, any shape) rounded and clipped to 0..255, uint8."""
-    return np.clip(np.rint(image), 0, 255).astype(np.uint8)
 
 
 def read_grey(path) -> np.ndarray:

@@ -201,8 +201,7 @@ class Telemetry:
 
     def lines(self, t_s: float, lines: dict[str, np.ndarray], frame_id: str = BASE_FRAME) -> None:
         """Polylines {id: (N, 3) mm} on /psvs/seam (one scene entity each, replacing the last of that id)."""
-        from foxglove.messages import (Color, LinePrimitive, LinePrimitiveLineType, Point3, SceneEntity,
-                                       SceneUpdate)
+        from foxglove.messages import Color, LinePrimitive, LinePrimitiveLineType, Point3, SceneEntity, SceneUpdate
         ns = self.ns(t_s)
         colours = {0: (1.0, 0.6, 0.1), 1: (0.2, 0.6, 1.0), 2: (0.9, 0.9, 0.9)}
         ents = []

@@ -16,6 +16,7 @@ from psvs.simulate.scene import Pose, Scene, SceneObject
 from psvs.simulate.sensor import Sensor, expose
 from psvs.simulate.sequence import scene_in_rig_frame
 from psvs.simulate.textures import Uniform
+from psvs.transforms import translation
 
 
 def disc_scene(z_mm: float = 700.0, radius_mm: float = 30.0, x_mm: float = 0.0, y_mm: float = 0.0) -> Scene:
@@ -61,9 +62,7 @@ class SimulatedSequence:
     def irradiance(self, k: int) -> np.ndarray:
         key = tuple(np.round(self.positions_mm[k], 9))
         if key not in self._irradiance:
-            T = np.eye(4)
-            T[:3, 3] = -self.positions_mm[k]
-            res = render(scene_in_rig_frame(self.scene, T), self.rig, supersample=self.supersample,
+            res = render(scene_in_rig_frame(self.scene, translation(-self.positions_mm[k])), self.rig, supersample=self.supersample,
                          sensor=self.sensor, seed=None)
             self._irradiance[key] = res.irradiance
         return self._irradiance[key]

@@ -15,11 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from psvs._validate import check_grey
 from psvs.imaging.pipeline import PAPER, Pipeline
-from psvs.match.correspondence import disparity_range, finish_pairs, rectification_for
+from psvs.match.correspondence import finish_pairs
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.optics.rig import Rig
+from psvs.optics.search_range import disparity_range, rectification_for
 
 
 @dataclass(frozen=True, eq=False)
@@ -88,9 +90,10 @@ class EdgeTracker:
                  search_px: float = 25.0, max_jump_px: float = 12.0, min_pairs: int = 10, candidates: int = 4):
         try:
             seed = np.array([float(c) for c in seed_px])
-            assert seed.shape == (2,) and np.all(np.isfinite(seed))
-        except (TypeError, ValueError, AssertionError):
-            raise ValueError(f"seed must be two numbers (u, v) in px, got {seed_px!r}") from None
+        except (TypeError, ValueError):
+            seed = np.zeros(0)
+        if seed.shape != (2,) or not np.all(np.isfinite(seed)):
+            raise ValueError(f"seed must be two numbers (u, v) in px, got {seed_px!r}")
         w, h = rig.camera.image_size_px
         if not (0 <= seed[0] < w and 0 <= seed[1] < h):
             raise ValueError(f"seed ({seed[0]:g}, {seed[1]:g}) is outside the {w}x{h} image")
@@ -111,10 +114,8 @@ class EdgeTracker:
     def step(self, grey: np.ndarray) -> TrackStep:
         """Process the next frame (H, W) uint8 and return its :class:`TrackStep`."""
         t0 = time.perf_counter()
-        grey = np.asarray(grey)
+        grey = check_grey(grey, "frame")
         w, h = self.rig.camera.image_size_px
-        if grey.ndim != 2 or grey.dtype != np.uint8:
-            raise ValueError(f"frame must be a grey (H, W) uint8 image, got shape {grey.shape} {grey.dtype}")
         if grey.shape != (h, w):
             raise ValueError(f"frame is {grey.shape[1]}x{grey.shape[0]} px but the rig's camera is {w}x{h} px")
         frame, self._frame = self._frame, self._frame + 1

@@ -12,18 +12,16 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from psvs._validate import check_grey
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.auto import Unmatched, match_auto
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.match.subpixel import refine_pairs
 from psvs.measure.triangulate import default_model, triangulate, twin_rows
-from psvs.optics.design import working_range
-from psvs.optics.rectify import Rectification, needs_rectification, rectify
+from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
-
-#: Extra disparity margin (px) around the working range's ideal disparities (plate shift, edge width).
-RANGE_MARGIN_PX = 4.0
+from psvs.optics.search_range import disparity_range, rectification_for
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,24 +34,6 @@ class MatchResult:
     edges: np.ndarray
     disparity_range_px: tuple[float, float]
     stages: list
-
-
-def disparity_range(rig: Rig, near_mm: float, far_mm: float, rect: Rectification | None = None) -> tuple[float, float]:
-    """Disparities (px) of the working range near..far, widened by :data:`RANGE_MARGIN_PX`; with ``rect``,
-    rectified disparities f' b' / z' (z' from the views' centres along the rectified axis)."""
-    if rect is None:
-        wr = working_range(rig, near_mm, far_mm)
-        lo, hi = wr.disparity_px
-    else:
-        wr = working_range(rig, near_mm, far_mm)          # checks the range
-        zc = 0.5 * (rect.centres_mm["left"] + rect.centres_mm["right"]) @ rect.rotation[2]
-        lo, hi = (rect.camera_matrix[0, 0] * rect.baseline_mm / (z - zc) for z in (far_mm, near_mm))
-    return (max(1.0, lo - RANGE_MARGIN_PX), hi + RANGE_MARGIN_PX)
-
-
-def rectification_for(rig: Rig, near_mm: float, far_mm: float) -> Rectification | None:
-    """The rig's dual rectification over near..far (cached), or None where its own rows serve."""
-    return rectify(rig, float(near_mm), float(far_mm)) if needs_rectification(rig) else None
 
 
 def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
@@ -116,9 +96,7 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     MatchResult
         Pairs in complex-image pixels; on a build their disparity is the rectified one.
     """
-    grey = np.asarray(grey)
-    if grey.ndim != 2 or grey.dtype != np.uint8:
-        raise ValueError(f"image must be a grey (H, W) uint8 image, got shape {grey.shape} {grey.dtype}")
+    grey = check_grey(grey)
     w, h = rig.camera.image_size_px
     if grey.shape != (h, w):
         raise ValueError(f"image is {grey.shape[1]}x{grey.shape[0]} px but the rig's camera is {w}x{h} px")

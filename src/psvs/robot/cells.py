@@ -24,8 +24,8 @@ import numpy as np
 
 from psvs.optics.rig import Rig
 from psvs.robot.arm import Arm, ServoStep
-from psvs.robot.cell import tool2flange
 from psvs.robot.controller import Command, Observation, SeamTracker
+from psvs.robot.mounting import tool2flange
 from psvs.robot.sensor import SeamSensor, auto_seed
 from psvs.robot.workpiece import Workpiece
 
@@ -34,6 +34,7 @@ REST_SPEED_RAD_S = 1e-4
 from psvs.simulate.render import render
 from psvs.simulate.sensor import Sensor
 from psvs.simulate.sequence import scene_in_rig_frame
+from psvs.transforms import invert_transform
 
 #: The largest joint change one control cycle may ask for (a path step of < 1 mm moves no joint by
 #: more than ~0.01 rad here): more means the solver switched arm configuration.
@@ -63,7 +64,7 @@ class SimulatedCell:
 
     def read(self) -> Frame:
         F = self.arm.fkine()
-        world2cam = np.linalg.inv(F @ self.cam)
+        world2cam = invert_transform(F @ self.cam)
         img = render(scene_in_rig_frame(self.workpiece.scene, world2cam), self.rig, supersample=self.supersample,
                      sensor=Sensor(), seed=self.noise_seed + self.k).image
         frame = Frame(self.k * self.dt, F, img)
@@ -71,7 +72,7 @@ class SimulatedCell:
         return frame
 
     def send(self, tool2base: np.ndarray) -> ServoStep:
-        q_t = self.arm.ikine(tool2base @ np.linalg.inv(self._tool), max_step_rad=MAX_IK_STEP_RAD)
+        q_t = self.arm.ikine(tool2base @ invert_transform(self._tool), max_step_rad=MAX_IK_STEP_RAD)
         return self.arm.servo(q_t, self.dt)
 
     def stop(self) -> ServoStep:

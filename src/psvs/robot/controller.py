@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psvs.robot.cell import tool_pose
+from psvs.robot.mounting import tool_pose
 from psvs.robot.seam_model import SeamPath
 from psvs.robot.sensor import SeamObservation, fit_seam_point
 

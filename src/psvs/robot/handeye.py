@@ -22,6 +22,7 @@ from psvs.calibrate.grid import detect_grid
 from psvs.measure.triangulate import triangulate
 from psvs.optics.rig import Rig
 from psvs.simulate.textures import CircleGrid
+from psvs.transforms import invert_transform, transform_from, transform_points
 
 
 def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
@@ -31,9 +32,8 @@ def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
     U, _, Vt = np.linalg.svd((src - cs).T @ (dst - cd))
     D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
     R = Vt.T @ D @ U.T
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, cd - R @ cs
-    res = dst - (src @ R.T + T[:3, 3])
+    T = transform_from(R, cd - R @ cs)
+    res = dst - transform_points(T, src)
     return T, float(np.sqrt(np.mean(np.sum(res ** 2, axis=1))))
 
 
@@ -76,7 +76,7 @@ def consistent_labellings(candidates: list[list[tuple[np.ndarray, float]]], flan
     out = [first]
     for cands, F in zip(candidates[1:], flange2base[1:]):
         want = _angle(np.linalg.solve(F, F0)[:3, :3])
-        out.append(min(cands, key=lambda c: abs(_angle((c[0] @ np.linalg.inv(first[0]))[:3, :3]) - want)))
+        out.append(min(cands, key=lambda c: abs(_angle((c[0] @ invert_transform(first[0]))[:3, :3]) - want)))
     return out
 
 
@@ -109,7 +109,7 @@ def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarra
     for i in range(len(F)):
         for j in range(i + 1, len(F)):
             A.append(np.linalg.solve(F[j], F[i]))
-            B.append(C[j] @ np.linalg.inv(C[i]))
+            B.append(C[j] @ invert_transform(C[i]))
     alpha = Rotation.from_matrix(np.array([a[:3, :3] for a in A])).as_rotvec()
     beta = Rotation.from_matrix(np.array([b[:3, :3] for b in B])).as_rotvec()
     turns = np.linalg.norm(alpha, axis=1) > 1e-6
@@ -121,9 +121,7 @@ def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarra
     R = R.as_matrix()
     lhs = np.concatenate([a[:3, :3] - np.eye(3) for a in A])
     rhs = np.concatenate([R @ b[:3, 3] - a[:3, 3] for a, b in zip(A, B)])
-    X = np.eye(4)
-    X[:3, :3], X[:3, 3] = R, np.linalg.lstsq(lhs, rhs, rcond=None)[0]
-    return X
+    return transform_from(R, np.linalg.lstsq(lhs, rhs, rcond=None)[0])
 
 
 def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray], rig: Rig, grid: CircleGrid,
@@ -137,7 +135,7 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
     if len(images) != len(flange2base):
         raise ValueError(f"{len(images)} images but {len(flange2base)} flange poses")
     if nominal_cam2flange is not None and target2base_guess is not None:
-        fits = [target_in_camera(img, rig, grid, np.linalg.inv(F @ nominal_cam2flange) @ target2base_guess)
+        fits = [target_in_camera(img, rig, grid, invert_transform(F @ nominal_cam2flange) @ target2base_guess)
                 for img, F in zip(images, flange2base)]
     else:
         fits = consistent_labellings([target_candidates(img, rig, grid) for img in images], flange2base)

@@ -35,6 +35,7 @@ from psvs.io.images import read_grey, write_png
 from psvs.io.tomlfile import dumps_toml, load_toml, single_table
 from psvs.robot.handeye import HandEyeResult
 from psvs.simulate.textures import CircleGrid
+from psvs.transforms import check_transform, transform_from
 
 METHOD = "park_martin"
 _KEYS = ("method", "source", "rig", "views", "cam2flange", "target_rms_mm", "spread_mm", "spread_deg")
@@ -74,11 +75,7 @@ def _from_dict(data: dict) -> HandEyeResult:
     X = _numbers(h["cam2flange"], "cam2flange")
     if X.shape != (4, 4):
         raise ValueError(f"handeye.cam2flange must be 4 rows of 4 numbers, got shape {X.shape}")
-    R = X[:3, :3]
-    if not np.allclose(X[3], [0.0, 0.0, 0.0, 1.0]) or not np.allclose(R.T @ R, np.eye(3), atol=1e-6) \
-            or np.linalg.det(R) < 0:
-        raise ValueError("handeye.cam2flange is not a rigid transform (its rotation is not orthonormal with "
-                         "det +1, or its last row is not 0, 0, 0, 1)")
+    check_transform(X, "handeye.cam2flange")
     rms = _numbers(h["target_rms_mm"], "target_rms_mm").ravel()
     if isinstance(h["views"], bool) or not isinstance(h["views"], int) or h["views"] != len(rms) or len(rms) < 3:
         raise ValueError(f"handeye.views must be the number of target_rms_mm values (>= 3), got {h['views']!r}")
@@ -142,8 +139,7 @@ def read_views(folder) -> tuple[list[np.ndarray], list[np.ndarray], CircleGrid]:
         if not np.all(np.isfinite(vals)) or abs(np.linalg.norm(q) - 1.0) > 1e-3:
             raise ValueError(f"{poses}: line {n}: the position must be finite and the quaternion of unit "
                              f"length (|q| = {np.linalg.norm(q):.4g})")
-        F = np.eye(4)
-        F[:3, :3], F[:3, 3] = Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), vals[:3]
+        F = transform_from(Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), vals[:3])
         images.append(read_grey(folder / row[0].strip()))
         flanges.append(F)
     if len(images) < 3:

@@ -13,17 +13,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from psvs.optics.rig import Rig
+from psvs.optics.window import roi_rig
 from psvs.robot.arm import Arm, ArmLimits
-from psvs.robot.cell import MOUNT_ERROR, cam2tool, tool2flange, tool_pose, transform
 from psvs.robot.cells import CycleResult, Frame, ReplayCell, SimulatedCell, control_loop
 from psvs.robot.controller import UP, SeamTracker, TrackConfig
 from psvs.robot.handeye import HandEyeResult, calibrate_from_views
-from psvs.robot.sensor import roi_rig
+from psvs.robot.mounting import MOUNT_ERROR, cam2tool, tool2flange, tool_pose
 from psvs.robot.workpiece import Workpiece
 from psvs.simulate.render import render
 from psvs.simulate.scene import Lighting, Pose, Scene, SceneObject
 from psvs.simulate.sequence import scene_in_rig_frame
 from psvs.simulate.textures import CircleGrid
+from psvs.transforms import invert_transform, transform_from
 
 #: A PUMA 560 configuration (right arm, elbow up) with the torch down over the table; IK starts here.
 HOME_Q = np.radians([23.0, 4.5, -168.0, -54.0, -53.0, 161.0])
@@ -87,7 +88,7 @@ def cell_lighting(cfg: TrackConfig) -> Lighting:
 
 #: The hand-eye session's target: a 4 x 5 circle grid lying face up on the table.
 CELL_GRID = CircleGrid(rows=4, cols=5, spacing_mm=15.0, diameter_mm=7.0)
-CELL_TARGET2BASE = transform(np.diag([1.0, -1.0, -1.0]), (550.0, 0.0, 0.0))
+CELL_TARGET2BASE = transform_from(np.diag([1.0, -1.0, -1.0]), (550.0, 0.0, 0.0))
 
 
 def nominal_cam2flange(cfg: TrackConfig) -> np.ndarray:
@@ -97,7 +98,7 @@ def nominal_cam2flange(cfg: TrackConfig) -> np.ndarray:
 
 def true_cam2flange(cfg: TrackConfig) -> np.ndarray:
     """Frame C on the flange as the simulated hardware really has it: the drawing and the bracket's
-    error (:data:`psvs.robot.cell.MOUNT_ERROR`); what a hand-eye calibration should find."""
+    error (:data:`psvs.robot.mounting.MOUNT_ERROR`); what a hand-eye calibration should find."""
     return nominal_cam2flange(cfg) @ MOUNT_ERROR
 
 
@@ -121,9 +122,9 @@ def cell_views(rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12,
         cam_R = tilt @ np.diag([1.0, -1.0, -1.0])   # camera looking down, turned and tilted
         cam_pos = CELL_TARGET2BASE[:3, 3] - cfg.camera_distance_mm * cam_R[:, 2] + \
             np.append(rng.uniform(-10, 10, 2), 0)
-        flange = transform(cam_R, cam_pos) @ np.linalg.inv(nominal)
+        flange = transform_from(cam_R, cam_pos) @ invert_transform(nominal)
         F = arm.fkine(arm.ikine(flange, HOME_Q))
-        img = render(scene_in_rig_frame(scene, np.linalg.inv(F @ true)), true_rig or rig, supersample=1,
+        img = render(scene_in_rig_frame(scene, invert_transform(F @ true)), true_rig or rig, supersample=1,
                      seed=100 + k).image
         images.append(img)
         flanges.append(F)
@@ -168,7 +169,7 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed
     p0, p1 = workpiece.seam_base([x0, x0 + 1.0])
     travel = (p1 - p0) / np.linalg.norm(p1 - p0)
     taught = p0 + 0.3 * np.cross(UP, travel)
-    arm.q = arm.ikine(tool_pose(taught + cfg.standoff_mm * UP, travel) @ np.linalg.inv(tool2flange()), HOME_Q)
+    arm.q = arm.ikine(tool_pose(taught + cfg.standoff_mm * UP, travel) @ invert_transform(tool2flange()), HOME_Q)
     near, far = sensor_range(cfg)
     # the sensor window (taller on a build: the twins' rows differ), decided from what the sensor knows
     roi, v0 = roi_rig(rig, cfg.roi_rows, span_mm=(near, far))

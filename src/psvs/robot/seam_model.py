@@ -13,7 +13,6 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import make_smoothing_spline
 
-
 #: How far behind the torch the spline's window starts, mm (6 smoothing lengths).
 BEHIND_MM = 30.0
 

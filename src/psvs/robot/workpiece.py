@@ -13,6 +13,7 @@ import numpy as np
 
 from psvs.simulate.builtin import parse_spec, seam_centre_line, weld_seam
 from psvs.simulate.scene import Pose, Scene, SceneObject
+from psvs.transforms import concat, invert_transform
 
 #: Where the workpiece lies: seam along base +y, 550 mm in front of the PUMA's base axis, on the table
 #: (base z = 0, the shoulder is 672 mm above it).
@@ -20,12 +21,6 @@ DEFAULT_PLACEMENT = np.array([[0.0, -1.0, 0.0, 550.0],
                               [1.0, 0.0, 0.0, 0.0],
                               [0.0, 0.0, 1.0, 0.0],
                               [0.0, 0.0, 0.0, 1.0]])
-
-
-def pose_matrix(pose: Pose) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = pose.rotation, pose.position_mm
-    return T
 
 
 @dataclass(frozen=True, eq=False)
@@ -82,15 +77,15 @@ def seam_workpiece(spec: str = "weld_seam", camera_distance_mm: float = 300.0,
     if params.get("gap_start_mm") is not None and params["gap_length_mm"] < 0:
         raise ValueError(f"weld_seam: gap_length_mm must be >= 0, got {params['gap_length_mm']!r}")
     scene = weld_seam(**params)
-    seam_pose = pose_matrix(scene.objects[-1].pose)          # local -> the scene's own frame
-    scene2base = np.asarray(local2base, float) @ np.linalg.inv(seam_pose)
+    seam_pose = scene.objects[-1].pose.matrix          # local -> the scene's own frame
+    scene2base = concat(invert_transform(seam_pose), local2base)
     objs = list(scene.objects)
     if scene.backdrop_z_mm is not None:   # the backdrop becomes the floor under the table: a 1.5 m square
         objs.append(SceneObject("rectangle", Pose(np.eye(3), np.array([0.0, 0.0, scene.backdrop_z_mm])),
                                 scene.backdrop_texture, size_mm=(1500.0, 1500.0), name="floor"))
     moved = []
     for o in objs:
-        T = scene2base @ pose_matrix(o.pose)
+        T = concat(o.pose.matrix, scene2base)
         moved.append(type(o)(o.kind, Pose(T[:3, :3], T[:3, 3]), o.texture, o.size_mm, o.radius_mm, o.height_mm,
                              o.vertices_mm, o.faces, o.name))
     base_scene = Scene(tuple(moved), scene.lighting, None, scene.backdrop_texture, scene.name)

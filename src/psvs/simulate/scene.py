@@ -12,6 +12,7 @@ import numpy as np
 
 from psvs._validate import check_finite, check_positive
 from psvs.simulate.textures import Texture, Uniform
+from psvs.transforms import transform_from
 
 KINDS = ("rectangle", "disc", "box", "cylinder", "sphere", "mesh")
 
@@ -22,6 +23,11 @@ class Pose:
 
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
     position_mm: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """local2world (4, 4) mm: the pose as a homogeneous transform."""
+        return transform_from(self.rotation, self.position_mm)
 
     def to_world(self, p_local: np.ndarray) -> np.ndarray:
         return p_local @ self.rotation.T + self.position_mm

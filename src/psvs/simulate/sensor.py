@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 
 from psvs._validate import check_nonnegative, check_positive
-from psvs.io.images import to_grey8
+from psvs.imaging.grey import to_grey8
 
 
 @dataclass(frozen=True)

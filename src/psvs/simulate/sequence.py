@@ -10,6 +10,7 @@ from psvs.simulate.geometry import backdrop_object
 from psvs.simulate.render import RenderResult, render
 from psvs.simulate.scene import Pose, Scene
 from psvs.simulate.sensor import Sensor
+from psvs.transforms import translation
 
 
 def scene_in_rig_frame(scene: Scene, world2rig: np.ndarray) -> Scene:
@@ -31,9 +32,7 @@ def straight_path(start_mm, end_mm, frames: int) -> list[np.ndarray]:
         raise ValueError(f"frames must be >= 1, got {frames!r}")
     out = []
     for s in np.linspace(0.0, 1.0, frames):
-        T = np.eye(4)
-        T[:3, 3] = -((1 - s) * np.asarray(start_mm, float) + s * np.asarray(end_mm, float))
-        out.append(T)
+        out.append(translation(-((1 - s) * np.asarray(start_mm, float) + s * np.asarray(end_mm, float))))
     return out
 
 

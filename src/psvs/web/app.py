@@ -23,9 +23,10 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from psvs.dense import separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud
+from psvs.imaging.grey import to_grey8
 from psvs.imaging.pipeline import PAPER, make_pipeline
 from psvs.imaging.steps import STEPS
-from psvs.io.images import grey8, to_grey8
+from psvs.io.images import grey8
 from psvs.live.dense import DenseSensor
 from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
 from psvs.match.correspondence import MatchResult, match_image

@@ -9,22 +9,17 @@ twins are found row by row, and its optical axis meets the work ``look_ahead_mm`
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+
+from psvs.transforms import concat, transform_from, transform_from_rotvec, translation
 
 #: Torch on the flange: 100 mm along the flange's z, a 45 deg bend about y, then 200 mm to the tip.
 NECK_MM, BEND_RAD, TORCH_MM = 100.0, np.pi / 4, 200.0
 
 
-def transform(R=np.eye(3), t=(0.0, 0.0, 0.0)) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, t
-    return T
-
-
 def tool2flange() -> np.ndarray:
     """The torch tip (tool frame T) in the flange frame, (4, 4) mm."""
-    Ry = Rotation.from_rotvec([0.0, BEND_RAD, 0.0]).as_matrix()
-    return transform(t=(0, 0, NECK_MM)) @ transform(Ry) @ transform(t=(0, 0, TORCH_MM))
+    return concat(translation((0, 0, TORCH_MM)), transform_from_rotvec((0.0, BEND_RAD, 0.0), np.zeros(3)),
+                  translation((0, 0, NECK_MM)))
 
 
 def cam2tool(look_ahead_mm: float, standoff_mm: float, camera_distance_mm: float) -> np.ndarray:
@@ -32,12 +27,12 @@ def cam2tool(look_ahead_mm: float, standoff_mm: float, camera_distance_mm: float
     Y = x_T (travel), Z = z_T (torch axis); its centre ``look_ahead_mm`` ahead of the tip and
     ``camera_distance_mm`` above the work when the tip is ``standoff_mm`` above it."""
     R = np.column_stack([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
-    return transform(R, (look_ahead_mm, 0.0, standoff_mm - camera_distance_mm))
+    return transform_from(R, (look_ahead_mm, 0.0, standoff_mm - camera_distance_mm))
 
 
 #: How the real bracket differs from its drawing (the simulated hardware; hand-eye calibration finds it):
 #: a rotation vector (rad) and an offset (mm) applied in frame C.
-MOUNT_ERROR = transform(Rotation.from_rotvec([0.006, -0.004, 0.008]).as_matrix(), (0.8, -0.5, 1.2))
+MOUNT_ERROR = transform_from_rotvec([0.006, -0.004, 0.008], (0.8, -0.5, 1.2))
 
 
 def tool_pose(position_mm, travel) -> np.ndarray:
@@ -46,4 +41,4 @@ def tool_pose(position_mm, travel) -> np.ndarray:
     x = np.array([travel[0], travel[1], 0.0])
     x /= np.linalg.norm(x)
     z = np.array([0.0, 0.0, -1.0])
-    return transform(np.column_stack([x, np.cross(z, x), z]), position_mm)
+    return transform_from(np.column_stack([x, np.cross(z, x), z]), position_mm)

@@ -1,0 +1,43 @@
+"""Where to look for a point's twin: the disparities (px) of a working depth range, on the complex image's
+own rows (the paper's geometry) or on the rows of a build's dual rectification (psvs.optics.rectify).
+
+Depth range to disparity range is eq. (12) inverted, d = b f / (z + b/2) over the sensor's pitch
+(:func:`psvs.optics.design.working_range`), widened by a margin for the plate's shift and the width of an
+edge; on a build the rectified views' own f' b' / z'.
+"""
+from __future__ import annotations
+
+from psvs.optics.design import working_range
+from psvs.optics.rectify import Rectification, needs_rectification, rectify
+from psvs.optics.rig import Rig
+
+#: Extra disparity margin (px) around the working range's ideal disparities (plate shift, edge width).
+RANGE_MARGIN_PX = 4.0
+
+
+def disparity_range(rig: Rig, near_mm: float, far_mm: float, rect: Rectification | None = None,
+                    width_px: int | None = None) -> tuple[float, float]:
+    """Disparities (px) of the working range near..far mm, widened by :data:`RANGE_MARGIN_PX`; with ``rect``,
+    rectified disparities f' b' / z' (z' from the views' centres along the rectified axis). With
+    ``width_px`` (the searched image's width), the largest is cut at its last column.
+
+    Examples
+    --------
+    >>> from psvs import default_rig
+    >>> lo, hi = disparity_range(default_rig(), 400.0, 1200.0)
+    >>> round(lo, 1), round(hi, 1)
+    (86.4, 255.1)
+    """
+    wr = working_range(rig, near_mm, far_mm)          # checks the range
+    if rect is None:
+        lo, hi = wr.disparity_px
+    else:
+        zc = 0.5 * (rect.centres_mm["left"] + rect.centres_mm["right"]) @ rect.rotation[2]
+        lo, hi = (rect.camera_matrix[0, 0] * rect.baseline_mm / (z - zc) for z in (far_mm, near_mm))
+    lo, hi = max(1.0, lo - RANGE_MARGIN_PX), hi + RANGE_MARGIN_PX
+    return (lo, hi) if width_px is None else (lo, min(hi, width_px - 1.0))
+
+
+def rectification_for(rig: Rig, near_mm: float, far_mm: float) -> Rectification | None:
+    """The rig's dual rectification over near..far mm (cached), or None where its own rows serve."""
+    return rectify(rig, float(near_mm), float(far_mm)) if needs_rectification(rig) else None
