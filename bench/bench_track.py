@@ -9,9 +9,10 @@ import numpy as np
 from psvs import default_rig
 from psvs.optics.window import roi_rig
 from psvs.robot.arm import Arm
-from psvs.robot.loop import HOME_Q, UP, TrackConfig
-from psvs.robot.mounting import MOUNT_ERROR, cam2tool, tool2flange, tool_pose
-from psvs.robot.sensor import SeamSensor, auto_seed, fit_seam_point
+from psvs.robot.controller import UP, TrackConfig
+from psvs.robot.mounting import HOME_Q, MOUNT_ERROR, cam2tool, tool2flange, tool_pose
+from psvs.robot.seam import fit_seam_point
+from psvs.robot.sensor import SeamSensor, auto_seed
 from psvs.robot.workpiece import seam_workpiece
 from psvs.simulate.render import render
 from psvs.simulate.sequence import scene_in_rig_frame
@@ -50,7 +51,7 @@ def _start_with_handeye():
 
     from psvs.robot.handeye import calibrate_from_views
     from psvs.robot.handeye_io import save_handeye
-    from psvs.robot.loop import CELL_GRID, cell_views
+    from psvs.robot.handeye_session import CELL_GRID, cell_views
     cfg = TrackConfig()
     images, flanges = cell_views(default_rig(), cfg, Arm(HOME_Q))
     tmp = Path(tempfile.mkdtemp())

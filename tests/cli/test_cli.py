@@ -50,7 +50,7 @@ def test_a_command_loads_only_its_own_module():
             "from psvs.cli.main import build_parser\n"
             "build_parser('track').parse_args(['track', 'weld_seam', '--rig', 'default', '-o', 'x'])\n"
             "from psvs.robot.arm import Arm\n"
-            "from psvs.robot.loop import HOME_Q\n"
+            "from psvs.robot.mounting import HOME_Q\n"
             "arm = Arm(HOME_Q)\n"
             "assert abs(arm.ikine(arm.fkine()) - HOME_Q).max() < 1e-9\n"
             "print(sorted(m for m in sys.modules if m.startswith('psvs.cli.')), 'roboticstoolbox' in sys.modules)\n")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from psvs.robot.controller import Observation, SeamTracker, TrackConfig
-from psvs.robot.sensor import SeamObservation
+from psvs.robot.seam import SeamObservation
 
 CFG = TrackConfig(speed_mm_s=10.0, rate_hz=25.0)
 

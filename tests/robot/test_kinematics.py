@@ -5,7 +5,7 @@ import roboticstoolbox as rtb
 
 from psvs.robot.arm import Arm
 from psvs.robot.kinematics import PUMA560, ikine_lm, rotation_error
-from psvs.robot.loop import HOME_Q
+from psvs.robot.mounting import HOME_Q
 
 TOOLBOX = rtb.models.DH.Puma560()
 

@@ -9,9 +9,7 @@
 """
 from __future__ import annotations
 
-from pathlib import Path
-
-from psvs.io.tomlfile import load_toml, single_table
+from psvs.io.tomlfile import load_table
 from psvs.simulate.textures import CircleGrid
 
 KINDS = ("circle_grid",)
@@ -20,16 +18,10 @@ _KEYS = ("kind", "rows", "cols", "spacing_mm", "diameter_mm")
 
 def load_target(path) -> CircleGrid:
     """The target described by a ``target.toml``; ValueError naming the file and the key otherwise."""
-    path = Path(path)
-    data = load_toml(path, "target")
-    try:
-        return target_from_dict(data)
-    except (ValueError, TypeError) as exc:
-        raise ValueError(f"{path}: {exc}") from None
+    return load_table(path, "target", "target", _KEYS, parse=_target)
 
 
-def target_from_dict(data: dict) -> CircleGrid:
-    t = single_table(data, "target", _KEYS)
+def _target(t: dict) -> CircleGrid:
     if t["kind"] not in KINDS:
         raise ValueError(f"target.kind must be one of {', '.join(KINDS)}, got {t['kind']!r}")
     for k in ("spacing_mm", "diameter_mm"):

@@ -33,9 +33,11 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from psvs.io.params import load_rig
     from psvs.robot.arm import Arm
+    from psvs.robot.controller import TrackConfig
     from psvs.robot.handeye import calibrate_from_views
     from psvs.robot.handeye_io import read_views, save_handeye, write_views
-    from psvs.robot.loop import CELL_GRID, HOME_Q, TrackConfig, cell_views, true_cam2flange
+    from psvs.robot.handeye_session import CELL_GRID, cell_views, true_cam2flange
+    from psvs.robot.mounting import HOME_Q
 
     out = check_output_path(args.output, (".toml",))
     if args.views is not None and (args.true_rig or args.save_views):
@@ -49,7 +51,7 @@ def run(args) -> int:
     else:
         true_rig = load_rig(args.true_rig) if args.true_rig else None
         cfg = TrackConfig()
-        images, flanges = cell_views(rig, cfg, Arm(HOME_Q), args.views_count, true_rig)
+        images, flanges = cell_views(true_rig or rig, cfg, Arm(HOME_Q), args.views_count)
         grid, source, truth = CELL_GRID, "simulated cell", true_cam2flange(cfg)
     he = calibrate_from_views(images, flanges, rig, grid)
     if save is not None:
@@ -58,6 +60,7 @@ def run(args) -> int:
     print(f"{len(images)} views; target fit RMS per view (mm): " + ", ".join(f"{r:.3f}" for r in he.target_rms_mm))
     print(f"consistency: the target's pose over the views spreads {he.spread_mm:.3f} mm, "
           f"{math.degrees(he.spread_rad):.3f} deg")
+    print(f"reprojection RMS of the discs in both views: {he.reprojection_rms_px:.3f} px")
     t = he.cam2flange[:3, 3]
     print(f"PSVS on the flange: ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm")
     if truth is not None:

@@ -44,63 +44,75 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
-def run(args) -> int:
-    from psvs.io.params import load_rig
-    from psvs.robot.bag import write_bag
-    from psvs.robot.loop import TrackConfig, track
-    from psvs.robot.report import write_report
-    from psvs.robot.workpiece import seam_workpiece
+class _Progress:
+    """Says when the first control cycle is done (what bench/bench_track.py times from the command's start)
+    and passes the run on to the recorder, if any."""
 
+    def __init__(self, recorder):
+        self.recorder, self.cycles = recorder, 0
+
+    def started(self, cam2flange, teach) -> None:
+        if self.recorder is not None:
+            self.recorder.started(cam2flange, teach)
+
+    def cycle(self, c) -> None:
+        if self.cycles == 0:
+            print("tracking: first control cycle done", flush=True)
+        self.cycles += 1
+        if self.recorder is not None:
+            self.recorder.cycle(c)
+
+
+def _job(args):
+    """The tracking job, the rigs and the workpiece the arguments ask for, checked before any work."""
+    from psvs.io.params import load_rig
+    from psvs.robot.controller import TrackConfig
+    from psvs.robot.workpiece import seam_workpiece
     for name, v in (("--speed", args.speed), ("--rate", args.rate)):
         if not (math.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be a number > 0, got {v!r}")
-    out = check_output_folder(args.output, "output")
-    if not out.parent.is_dir():
-        raise FileNotFoundError(f"output folder does not exist: {out.parent}")
-    seed = parse_seed(args.seed)
     cfg = TrackConfig(speed_mm_s=args.speed, rate_hz=args.rate, weld_length_mm=args.length, roi_rows=args.roi_rows)
     rig = rig_from_args(args)
     true_rig = load_rig(args.true_rig) if args.true_rig else None
     if true_rig is not None and true_rig.camera.image_size_px != rig.camera.image_size_px:
         raise ValueError(f"--true-rig's camera is {true_rig.camera.image_size_px} px but --rig's is "
                          f"{rig.camera.image_size_px} px: one camera")
-    wp = seam_workpiece(args.scene, cfg.camera_distance_mm)
+    return cfg, rig, true_rig, seam_workpiece(args.scene, cfg.camera_distance_mm)
+
+
+def run(args) -> int:
+    from psvs.robot.bag import write_bag
+    from psvs.robot.loop import track
+    from psvs.robot.report import write_report
+
+    out = check_output_folder(args.output, "output")
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"output folder does not exist: {out.parent}")
+    seed = parse_seed(args.seed)
+    cfg, rig, true_rig, wp = _job(args)
     handeye = None
     if args.handeye:
         from psvs.robot.handeye_io import load_handeye
-        from psvs.robot.loop import true_cam2flange
+        from psvs.robot.handeye_session import true_cam2flange
         handeye = (load_handeye(args.handeye), true_cam2flange(cfg))   # the simulated hardware's truth: scoring
     out.mkdir(exist_ok=True)                     # before the run: a recording may go into it
     t0_ns = time.time_ns()                       # the run's start: the recording's and the bag's time base
     with open_telemetry(args, t0_ns) as tel:
-        publisher = []
-
-        def on_start(cam2flange, taught, travel):
-            if tel is not None:
-                from psvs.robot.mounting import tool2flange
-                from psvs.robot.recording import CyclePublisher, publish_setup
-                publish_setup(tel, cfg, cam2flange, taught, travel, seed)
-                publisher.append(CyclePublisher(tel, cam2flange, tool2flange()))
-
-        started = []
-
-        def on_cycle(c):
-            if not started:     # the run has started (what bench/bench_track.py times from the command's start)
-                print("tracking: first control cycle done", flush=True)
-                started.append(True)
-            if publisher:
-                publisher[0](c)
-
-        result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, on_start=on_start,
-                       progress=on_cycle)
+        from psvs.robot.recording import RunRecorder, publish_stop
+        recorder = None if tel is None else RunRecorder(tel, cfg, seed)
+        result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, listener=_Progress(recorder))
         if tel is not None:
-            from psvs.robot.recording import publish_stop
             publish_stop(tel, result.cycles[-1].t_s, result.stop.reason)
-    s = write_report(result, wp, out)
+    summary = write_report(result, wp, out)
     if not args.no_bag:
         write_bag(result, out / "bag", args.bag_storage, t0_ns)
+    _print_summary(summary, bool(args.handeye))
+    return 0
+
+
+def _print_summary(s: dict, handeye_file: bool) -> None:
     lat, ver, wall = s["lateral_mm"], s["vertical_mm"], s["wall_ms"]
-    print(f"set-up before the first control cycle: {s['start_s']:.1f} s" + ("" if args.handeye else
+    print(f"set-up before the first control cycle: {s['start_s']:.1f} s" + ("" if handeye_file else
           " (the hand-eye calibration included; --handeye FILE skips it)"))
     print(f"{s['cycles']} cycles ({s['simulated_s']:.1f} s simulated), welded {s['welded_mm']:.1f} mm")
     if lat["rms"] is not None:
@@ -109,4 +121,3 @@ def run(args) -> int:
     print(f"wall time per cycle (median): sensor {wall['sensor']['median']:.1f} ms, "
           f"control {wall['control']['median']:.1f} ms, rendering {wall['render (simulation)']['median']:.0f} ms")
     print(f"stop: {s['stop']['reason']} (torch at s = {s['stop']['torch_s_mm']:.1f} mm)")
-    return 0

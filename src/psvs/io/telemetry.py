@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from psvs.io.jsonsafe import json_safe
+
 #: Frame ids (ROS-Industrial names): the robot's base, its flange, the PSVS frame C (X right, Y down, Z along
 #: the optical axis: an optical frame, REP 103), the torch tip.
 BASE_FRAME, FLANGE_FRAME, CAMERA_FRAME, TORCH_FRAME = "base_link", "flange", "psvs_optical_frame", "torch"
@@ -67,20 +69,6 @@ def _identity_pose():
 def _quat(R: np.ndarray) -> np.ndarray:
     from scipy.spatial.transform import Rotation
     return Rotation.from_matrix(R).as_quat()      # x, y, z, w
-
-
-def _json_safe(x):
-    if isinstance(x, dict):
-        return {k: _json_safe(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_json_safe(v) for v in x]
-    if isinstance(x, (float, np.floating)):
-        return float(x) if np.isfinite(x) else None
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, np.bool_):
-        return bool(x)
-    return x
 
 
 class Telemetry:
@@ -137,7 +125,7 @@ class Telemetry:
     def record(self, name: str, t_s: float, data: dict) -> None:
         """psvs's own record on ``/psvs/<name>`` (JSON; floats written exactly: ``repr`` round-trips; NaN and
         infinities, which JSON has not, as null)."""
-        self._channel(f"/psvs/{name}", "json").log(json.dumps(_json_safe(data), allow_nan=False).encode(),
+        self._channel(f"/psvs/{name}", "json").log(json.dumps(json_safe(data), allow_nan=False).encode(),
                                                    log_time=self.ns(t_s))
 
     def image(self, t_s: float, image: np.ndarray, frame_id: str = CAMERA_FRAME) -> None:

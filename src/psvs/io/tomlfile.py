@@ -22,19 +22,32 @@ def load_toml(path, what: str) -> dict:
         raise ValueError(f"{path}: malformed {'JSON' if is_json else 'TOML'}: {exc}") from None
 
 
-def single_table(data: dict, table: str, keys: tuple[str, ...]) -> dict:
-    """The one table ``[table]`` of a file's ``data``, with exactly ``keys``; ValueError naming the first
-    unknown or missing key otherwise."""
+def single_table(data: dict, table: str, keys: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
+    """The one table ``[table]`` of a file's ``data``, with every one of ``keys`` and any of ``optional``;
+    ValueError naming the first unknown or missing key otherwise."""
     if set(data) != {table} or not isinstance(data[table], dict):
         raise ValueError(f"expected one table [{table}]")
     t = data[table]
-    unknown = sorted(set(t) - set(keys))
+    unknown = sorted(set(t) - set(keys) - set(optional))
     if unknown:
-        raise ValueError(f"unknown key {table}.{unknown[0]} (allowed: {', '.join(keys)})")
+        raise ValueError(f"unknown key {table}.{unknown[0]} (allowed: {', '.join((*keys, *optional))})")
     missing = [k for k in keys if k not in t]
     if missing:
         raise ValueError(f"missing key {table}.{missing[0]}")
     return t
+
+
+def load_table(path, what: str, table: str, keys: tuple[str, ...], optional: tuple[str, ...] = (), parse=None):
+    """Read a file of one table ``[table]`` with every one of ``keys`` and any of ``optional``
+    (:func:`single_table`), and build its object with ``parse(table)`` (the table itself without);
+    ValueError names the file and the key."""
+    path = Path(path)
+    data = load_toml(path, what)
+    try:
+        t = single_table(data, table, keys, optional)
+        return t if parse is None else parse(t)
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{path}: {exc}") from None
 
 
 def dumps_toml(data: dict) -> str:

@@ -7,27 +7,29 @@ import json
 import numpy as np
 
 from psvs.io.atomic import write_atomic
+from psvs.io.jsonsafe import json_safe
 from psvs.match.correspondence import MatchResult
 
 
-def _clean(a: np.ndarray) -> list:
-    """Nested lists with NaN as None (JSON has no NaN)."""
-    return [None if (isinstance(x, float) and not np.isfinite(x)) else x for x in a.tolist()] if a.ndim == 1 else \
-        [_clean(row) for row in a]
+def result_to_dict(res: MatchResult, decimals: int | None = None) -> dict:
+    """``{"pairs": [...], "unmatched": [...], "disparity_range_px": [...]}`` (px and mm, NaN as null): the one
+    form of a match result for files (``psvs match -o``) and the web UI. Each pair: its id, component
+    labels, shape disparity, pixel count, median depth and disparity, the pixel pairs, their disparities
+    and 3-D points (frame C). ``decimals`` rounds the arrays (the web page's smaller answers)."""
+    def arr(a):
+        return json_safe(a if decimals is None else np.round(a, decimals))
 
-
-def result_to_dict(res: MatchResult) -> dict:
-    """``{"pairs": [...], "unmatched": [...], "disparity_range_px": [...]}``; px and mm."""
     pairs = []
     for k, p in enumerate(res.pairs):
         pts = p.points_mm if p.points_mm is not None else np.full((len(p), 3), np.nan)
         pairs.append({"id": k, "left_label": p.left_label, "right_label": p.right_label,
                       "shape_disparity_px": p.shape_disparity_px, "n": len(p),
                       "median_z_mm": p.median_z_mm() if len(p) else None,
-                      "left_px": _clean(p.left_px), "right_px": _clean(p.right_px),
-                      "disparity_px": _clean(p.disparity_px), "points_mm": _clean(pts)})
+                      "median_disparity_px": float(np.median(p.disparity_px)) if len(p) else None,
+                      "left_px": arr(p.left_px), "right_px": arr(p.right_px),
+                      "disparity_px": arr(p.disparity_px), "points_mm": arr(pts)})
     unmatched = [{"label": u.label, "n_pixels": u.n_pixels, "bbox_px": list(u.bbox_px)} for u in res.unmatched]
-    return {"pairs": pairs, "unmatched": unmatched, "disparity_range_px": list(res.disparity_range_px)}
+    return json_safe({"pairs": pairs, "unmatched": unmatched, "disparity_range_px": list(res.disparity_range_px)})
 
 
 def write_json(path, res: MatchResult) -> None:

@@ -34,7 +34,10 @@ class EdgePair:
                         self.shape_disparity_px, points_mm)
 
     def median_z_mm(self) -> float:
-        return float(np.nanmedian(self.points_mm[:, 2])) if self.points_mm is not None else float("nan")
+        """Median depth Z (mm) of the pair's valid points; NaN when it has none (or is not triangulated)."""
+        z = np.zeros(0) if self.points_mm is None else self.points_mm[:, 2]
+        z = z[np.isfinite(z)]
+        return float(np.median(z)) if len(z) else float("nan")
 
 
 def pair_rows(px, left_idx: np.ndarray, right_idx: np.ndarray, d_star, tol_px: float = 2.0):

@@ -1,41 +1,45 @@
 """Cells: what runs the seam-tracking controller (psvs.robot.controller) on an arm and a camera.
 
-A cell has three operations, all in the robot's base frame, millimetres and seconds:
+A cell (:class:`Cell`) has four operations, all in the robot's base frame, millimetres and seconds:
 
 - ``read() -> Frame``: the next camera frame (the sensor window of the complex image, (H, W) uint8), its
   time, and the flange pose flange2base (4, 4) *at the frame's exposure* (a real driver interpolates the
   arm's joint readings to the camera's time stamp);
-- ``send(tool2base) -> ServoStep``: carry out one command, the torch pose to reach by the next frame (the
-  cell's inverse kinematics and joint servo); ValueError when the arm cannot (unreachable, a joint limit,
-  a configuration switch): the controller then stops;
-- ``stop() -> ServoStep``: brake for one period.
+- ``send(tool2base) -> ServoStep | None``: carry out one command, the torch pose to reach by the next frame
+  (the cell's inverse kinematics and joint servo); ValueError when the arm cannot (unreachable, a joint
+  limit, a configuration switch): the controller then stops;
+- ``stop() -> ServoStep | None``: brake for one period;
+- ``at_rest() -> bool``: the arm no longer moves.
 
-:func:`control_loop` runs a controller on any cell: read, sensor, controller, send, once per frame, until
-the controller has stopped and the arm is at rest. :class:`SimulatedCell` is the PUMA 560 of
-psvs.robot.arm with the world rendered from the pose the joints really give; :class:`ReplayCell` plays a
-recorded run's frames and poses back and checks that the controller sends the recorded commands.
+``send`` and ``stop`` return the arm's joint state after the period, or None from a cell that has no arm to
+read (a replay). :func:`control_loop` runs a controller on any cell: read, sensor, controller, send, once
+per frame, until the controller has stopped and the arm is at rest. :class:`SimulatedCell` is the PUMA 560
+of psvs.robot.arm with the world rendered from the pose the joints really give; :class:`ReplayCell` plays
+a recorded run's frames and poses back and checks that the controller sends the recorded commands.
 """
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from psvs.optics.rig import Rig
-from psvs.robot.arm import Arm, ServoStep
+from psvs.robot.arm import Arm, ArmLimits, ServoStep
 from psvs.robot.controller import Command, Observation, SeamTracker
 from psvs.robot.mounting import tool2flange
-from psvs.robot.sensor import SeamSensor, auto_seed
+from psvs.robot.seam import SeamObservation
+from psvs.robot.sensor import SeamSensor, SensorSetup
 from psvs.robot.workpiece import Workpiece
-
-#: The arm is at rest when every joint turns slower than this (rad/s): the torch then moves < 0.3 mm/s.
-REST_SPEED_RAD_S = 1e-4
 from psvs.simulate.render import render
 from psvs.simulate.sensor import Sensor
 from psvs.simulate.sequence import scene_in_rig_frame
-from psvs.transforms import invert_transform
+from psvs.transforms import concat, invert_transform
 
+#: The arm is at rest when every joint turns slower than this (rad/s): the torch then moves < 0.3 mm/s.
+REST_SPEED_RAD_S = 1e-4
 #: The largest joint change one control cycle may ask for (a path step of < 1 mm moves no joint by
 #: more than ~0.01 rad here): more means the solver switched arm configuration.
 MAX_IK_STEP_RAD = 0.1
@@ -50,29 +54,62 @@ class Frame:
     image: np.ndarray
 
 
+class Cell(Protocol):
+    """The interface :func:`control_loop` runs a controller on (see the module docstring)."""
+
+    def read(self) -> Frame: ...
+
+    def send(self, tool2base: np.ndarray) -> ServoStep | None: ...
+
+    def stop(self) -> ServoStep | None: ...
+
+    def at_rest(self) -> bool: ...
+
+
+@dataclass(frozen=True)
+class SimulationConfig:
+    """How the simulated cell renders its frames and where the operator teaches the start.
+
+    start_offset_mm : the taught start, this far along the seam from the workpiece's end.
+    supersample : render anti-aliasing (samples per pixel side).  noise_seed : sensor noise seed.
+    limits : the simulated arm's joint limits and servo rate.
+    """
+
+    start_offset_mm: float = 50.0
+    supersample: int = 2
+    noise_seed: int = 0
+    limits: ArmLimits = ArmLimits()
+
+    def __post_init__(self):
+        if not isinstance(self.supersample, int) or self.supersample < 1:
+            raise ValueError(f"supersample must be an integer >= 1, got {self.supersample!r}")
+        if not isinstance(self.noise_seed, int) or self.noise_seed < 0:
+            raise ValueError(f"noise_seed must be an integer >= 0, got {self.noise_seed!r}")
+
+
 class SimulatedCell:
     """The simulated PUMA 560 cell: frames rendered through ``true_roi_rig`` (the sensor window of the rig
     as built) from the camera pose the joints really give (the true mounting ``cam2flange_true``), one per
     control period; commands through the arm's IK and its 500 Hz joint servo."""
 
     def __init__(self, arm: Arm, workpiece: Workpiece, true_roi_rig: Rig, cam2flange_true: np.ndarray,
-                 rate_hz: float, supersample: int = 2, noise_seed: int = 0):
-        self.arm, self.workpiece, self.rig, self.cam = arm, workpiece, true_roi_rig, cam2flange_true
-        self.dt, self.supersample, self.noise_seed = 1.0 / rate_hz, supersample, noise_seed
+                 rate_hz: float, sim: SimulationConfig = SimulationConfig()):
+        self.arm, self.workpiece, self.rig, self.cam2flange = arm, workpiece, true_roi_rig, cam2flange_true
+        self.dt, self.sim = 1.0 / rate_hz, sim
         self.k = 0
         self._tool = tool2flange()
 
     def read(self) -> Frame:
-        F = self.arm.fkine()
-        world2cam = invert_transform(F @ self.cam)
-        img = render(scene_in_rig_frame(self.workpiece.scene, world2cam), self.rig, supersample=self.supersample,
-                     sensor=Sensor(), seed=self.noise_seed + self.k).image
-        frame = Frame(self.k * self.dt, F, img)
+        flange2base = self.arm.fkine()
+        world2cam = invert_transform(concat(self.cam2flange, flange2base))
+        img = render(scene_in_rig_frame(self.workpiece.scene, world2cam), self.rig, supersample=self.sim.supersample,
+                     sensor=Sensor(), seed=self.sim.noise_seed + self.k).image
+        frame = Frame(self.k * self.dt, flange2base, img)
         self.k += 1
         return frame
 
     def send(self, tool2base: np.ndarray) -> ServoStep:
-        q_t = self.arm.ikine(tool2base @ invert_transform(self._tool), max_step_rad=MAX_IK_STEP_RAD)
+        q_t = self.arm.ikine(concat(invert_transform(self._tool), tool2base), max_step_rad=MAX_IK_STEP_RAD)
         return self.arm.servo(q_t, self.dt)
 
     def stop(self) -> ServoStep:
@@ -83,38 +120,46 @@ class SimulatedCell:
 
     def tcp_mm(self) -> np.ndarray:
         """(3,) the torch tip where the arm really is."""
-        return (self.arm.fkine() @ self._tool)[:3, 3]
+        return concat(self._tool, self.arm.fkine())[:3, 3]
 
 
 @dataclass(frozen=True, eq=False)
 class CycleResult:
     """What :func:`control_loop` hands back each cycle: the frame, the sensor's measurement, the command,
-    the servo step, the arm's fault ('' none) and the wall times (s) of reading, sensing, control."""
+    the servo step (None from a cell without an arm to read), the arm's fault ('' none) and the wall
+    times (s) of reading, sensing, control."""
 
     frame: Frame
-    seam: object
+    seam: SeamObservation
     command: Command
     step: ServoStep | None
     fault: str
     wall_s: tuple[float, float, float]
 
 
-def control_loop(cell, tracker: SeamTracker, sensor_rig: Rig, near_mm: float, far_mm: float, seed_px,
-                 max_cycles: int, on_cycle=None) -> tuple[list[CycleResult], SeamSensor | None, tuple]:
+@dataclass(frozen=True, eq=False)
+class LoopResult:
+    """A finished :func:`control_loop`: every cycle, the seam sensor (None if no frame was read) and the
+    seed it started from (u, v) px."""
+
+    cycles: list[CycleResult]
+    sensor: SeamSensor | None
+    seed_px: tuple[float, float] | None
+
+
+def control_loop(cell: Cell, tracker: SeamTracker, setup: SensorSetup, max_cycles: int,
+                 on_cycle: Callable[[CycleResult], None] | None = None) -> LoopResult:
     """Run ``tracker`` on ``cell`` until it has stopped and the arm is at rest, or ``max_cycles``.
 
-    The seam sensor (over ``sensor_rig``, the sensor window of the rig as calibrated) starts on the first
-    frame from ``seed_px`` (None: :func:`psvs.robot.sensor.auto_seed`) and tracks from every frame the
-    controller accepts. ``on_cycle(CycleResult)`` is called after every cycle. Returns (the cycles, the
-    sensor, the seed used)."""
+    The seam sensor starts on the first frame (:meth:`SensorSetup.start`) and tracks from every frame the
+    controller accepts. ``on_cycle(CycleResult)`` is called after every cycle."""
     sensor, results = None, []
     for _ in range(max_cycles):
         t0 = time.perf_counter()
         frame = cell.read()
         t1 = time.perf_counter()
         if sensor is None:
-            seed_px = auto_seed(frame.image) if seed_px is None else tuple(float(c) for c in seed_px)
-            sensor = SeamSensor(sensor_rig, seed_px, near_mm, far_mm)
+            sensor = setup.start(frame.image)
         seam = sensor.measure(frame.image)
         t2 = time.perf_counter()
         cmd = tracker.step(Observation(frame.t_s, frame.flange2base, seam))
@@ -133,14 +178,15 @@ def control_loop(cell, tracker: SeamTracker, sensor_rig: Rig, near_mm: float, fa
             on_cycle(res)
         if tracker.stopped and cell.at_rest():
             break
-    return results, sensor, seed_px
+    return LoopResult(results, sensor, None if sensor is None else sensor.seed_px)
 
 
 class ReplayCell:
     """A recorded run played back: ``frames`` (each :class:`Frame`), the commands the live controller
     sent (tool2base (4, 4) each) and the arm's faults ('' none) per frame. ``send`` records what the
     controller sends now and raises the recorded fault where there was one; the arm is at rest when the
-    recording ends. :attr:`mismatches` lists the frames whose command differs from the recorded one."""
+    recording ends. No arm is read: ``send`` and ``stop`` return None. :attr:`mismatches` lists the
+    frames whose command differs from the recorded one."""
 
     def __init__(self, frames: list[Frame], commands: list[np.ndarray], faults: list[str] | None = None):
         if len(frames) != len(commands):

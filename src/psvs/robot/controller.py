@@ -25,8 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.robot.mounting import tool_pose
+from psvs.robot.seam import SeamObservation, fit_seam_point
 from psvs.robot.seam_model import SeamPath
-from psvs.robot.sensor import SeamObservation, fit_seam_point
+from psvs.transforms import concat, transform_points
 
 UP = np.array([0.0, 0.0, 1.0])
 #: How fast the torch may turn about its axis to keep the PSVS on the seam ahead (a seam of radius
@@ -39,7 +40,8 @@ GAP_TOL_MM = 1.5
 
 @dataclass(frozen=True)
 class TrackConfig:
-    """A tracking job. Speeds mm/s, lengths mm, rates Hz.
+    """A tracking job: what the controller and its sensor need, on any cell. Speeds mm/s, lengths mm,
+    rates Hz. (How a simulated cell renders is :class:`psvs.robot.cells.SimulationConfig`.)
 
     speed_mm_s : travel speed.            rate_hz : control (and camera) rate.
     standoff_mm : torch tip above the seam root, along the torch axis.
@@ -47,8 +49,6 @@ class TrackConfig:
     roi_rows : sensor window rows (paired).  groove_depth_mm : root below the groove edges (joint drawing).
     bridge_mm : longest seam gap bridged.  accel_mm_s2 : travel acceleration / deceleration.
     weld_length_mm : stop after this much welding (None: to the end of the seam).
-    start_offset_mm : the taught start, this far along the seam from the workpiece's end.
-    supersample : render anti-aliasing.    noise_seed : sensor noise seed.
     """
 
     speed_mm_s: float = 10.0
@@ -61,9 +61,6 @@ class TrackConfig:
     bridge_mm: float = 10.0
     accel_mm_s2: float = 25.0
     weld_length_mm: float | None = None
-    start_offset_mm: float = 50.0
-    supersample: int = 2
-    noise_seed: int = 0
 
     def __post_init__(self):
         for name in ("speed_mm_s", "rate_hz", "standoff_mm", "look_ahead_mm", "camera_distance_mm",
@@ -86,6 +83,31 @@ class TrackConfig:
     def arc_on_mm(self) -> float:
         """Progress at which the arc is struck: the run-in until then fills the look-ahead."""
         return self.look_ahead_mm + 10.0
+
+
+@dataclass(frozen=True, eq=False)
+class TrackerSummary:
+    """Where a run stands (the controller's state as a record, base frame, mm).
+
+    s_mm, speed_mm_s : the torch's commanded progress along the path model and its speed (mm/s).
+    s_far_mm : the furthest seam arc length seen; last_seen_mm (3,) the seam's point there.
+    lost_at_s_mm : the torch's progress when the seam was last lost (None: it is seen).
+    decided_at_s_mm : the torch's progress when a stop was decided (None: none).
+    stopping_at_s_mm : where the torch is to stop (None: no stop decided); stop_reason : why ('' none).
+    gaps_bridged : (from, to) seam arc lengths of the gaps bridged, mm.
+    path_knots : (s (K,), points (K, 3)) of the path model, mm.
+    """
+
+    s_mm: float
+    speed_mm_s: float
+    s_far_mm: float
+    last_seen_mm: np.ndarray
+    lost_at_s_mm: float | None
+    decided_at_s_mm: float | None
+    stopping_at_s_mm: float | None
+    stop_reason: str
+    gaps_bridged: tuple[tuple[float, float], ...]
+    path_knots: tuple[np.ndarray, np.ndarray]
 
 
 @dataclass(frozen=True, eq=False)
@@ -141,7 +163,7 @@ class SeamTracker:
     """
 
     def __init__(self, cfg: TrackConfig, cam2flange: np.ndarray, taught_mm, travel, window_mm: float):
-        self.cfg, self.X, self.window_mm = cfg, np.asarray(cam2flange, float), float(window_mm)
+        self.cfg, self.cam2flange, self.window_mm = cfg, np.asarray(cam2flange, float), float(window_mm)
         taught, travel = np.asarray(taught_mm, float), np.asarray(travel, float)
         self.path = SeamPath(taught, travel)
         self.s_cmd, self.v, self.width = 0.0, 0.0, None
@@ -158,10 +180,10 @@ class SeamTracker:
     def step(self, obs: Observation) -> Command:
         cfg = self.cfg
         dt = 1.0 / cfg.rate_hz
-        cam2base = np.asarray(obs.flange2base, float) @ self.X
+        cam2base = concat(self.cam2flange, obs.flange2base)
         pts, seam, reason = np.empty((0, 3)), np.full(3, np.nan), obs.seam.reason
         if obs.seam.valid:
-            a, b = (e @ cam2base[:3, :3].T + cam2base[:3, 3] for e in obs.seam.edges_mm)
+            a, b = (transform_points(cam2base, e) for e in obs.seam.edges_mm)
             pts = np.vstack([a, b])
             sp = fit_seam_point(a, b, cfg.groove_depth_mm, UP)
             seam = sp.point_mm
@@ -176,8 +198,17 @@ class SeamTracker:
         self._advance(dt)
         tool = self._aim(dt)
         ahead = np.array([self.path.position(s) for s in np.linspace(self.s_cmd, max(self.s_cmd, self.path.s_end), 20)])
-        return Command(obs.t_s, tool, self.s_cmd, self.v, seam, pts, bool(obs.seam.valid and not reason), reason,
-                       bool(accepted), self.stopping_at is not None, ahead)
+        return Command(t_s=obs.t_s, tool2base=tool, s_mm=self.s_cmd, speed_mm_s=self.v, seam_mm=seam, points_mm=pts,
+                       valid=bool(obs.seam.valid and not reason), reason=reason, accepted=bool(accepted),
+                       stopping=self.stopping_at is not None, path_mm=ahead)
+
+    def summary(self) -> TrackerSummary:
+        """The run's state as a record (see :class:`TrackerSummary`)."""
+        return TrackerSummary(
+            s_mm=self.s_cmd, speed_mm_s=self.v, s_far_mm=self.s_far,
+            last_seen_mm=self.path.position(self.s_far), lost_at_s_mm=self.lost_at,
+            decided_at_s_mm=self.decided_at, stopping_at_s_mm=self.stopping_at, stop_reason=self.stop_reason,
+            gaps_bridged=tuple(self.gaps), path_knots=(np.array(self.path.s), np.array(self.path.p)))
 
     def fault(self, reason: str) -> None:
         """The arm could not carry out the last command (unreachable, a joint limit): stop where the torch

@@ -22,7 +22,7 @@ from psvs.calibrate.grid import detect_grid
 from psvs.measure.triangulate import triangulate
 from psvs.optics.rig import Rig
 from psvs.simulate.textures import CircleGrid
-from psvs.transforms import invert_transform, transform_from, transform_points
+from psvs.transforms import concat, invert_transform, transform_from, transform_points
 
 
 def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
@@ -37,36 +37,55 @@ def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
     return T, float(np.sqrt(np.mean(np.sum(res ** 2, axis=1))))
 
 
-def target_candidates(grey: np.ndarray, rig: Rig, grid: CircleGrid) -> list[tuple[np.ndarray, float]]:
-    """The four target2cam (4, 4, mm) a symmetric grid fits equally well in one complex image (its discs
-    labelled as they are, turned half about the grid's normal, or flipped over about either axis), each
-    with the fit's RMS residual (mm). The grid is found in both views and triangulated (exact model)."""
+@dataclass(frozen=True, eq=False)
+class TargetFit:
+    """The grid in one complex image under one labelling of its discs: target2cam (4, 4) mm, the rigid
+    fit's RMS residual (mm), and the detected disc centres in each view, (n, 2) px, row k the grid's
+    k-th disc (:meth:`psvs.simulate.textures.CircleGrid.centres_mm` order)."""
+
+    target2cam: np.ndarray
+    rms_mm: float
+    left_px: np.ndarray
+    right_px: np.ndarray
+
+
+def target_candidates(grey: np.ndarray, rig: Rig, grid: CircleGrid) -> list[TargetFit]:
+    """The four fits a symmetric grid gives equally well in one complex image (its discs labelled as they
+    are, turned half about the grid's normal, or flipped over about either axis). The grid is found in
+    both views and its discs triangulated (exact model)."""
     det = detect_grid(grey, grid.rows, grid.cols)
     pts = triangulate(det.left, det.right, rig, model="exact").points_mm
     if not np.all(np.isfinite(pts)):
         raise ValueError("grid discs could not be triangulated")
-    model = np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
+    model = grid_points(grid)
     idx = np.arange(grid.rows * grid.cols).reshape(grid.rows, grid.cols)
-    return [rigid_fit(model, pts[order.ravel()]) for order in (idx, idx[::-1], idx[:, ::-1], idx[::-1, ::-1])]
+    out = []
+    for order in (idx, idx[::-1], idx[:, ::-1], idx[::-1, ::-1]):
+        k = order.ravel()
+        out.append(TargetFit(*rigid_fit(model, pts[k]), det.left[k], det.right[k]))
+    return out
 
 
-def target_in_camera(grey: np.ndarray, rig: Rig, grid: CircleGrid, expected: np.ndarray | None = None
-                     ) -> tuple[np.ndarray, float]:
-    """target2cam (4, 4, mm) from one complex image of the grid, and the fit's RMS residual (mm): of the
-    four labellings (:func:`target_candidates`), the one whose rotation is nearest to ``expected`` (a
-    rough target2cam, e.g. from the nominal mounting), or the first."""
+def grid_points(grid: CircleGrid) -> np.ndarray:
+    """The grid's disc centres in its own frame (z = 0), (rows * cols, 3) mm."""
+    return np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
+
+
+def target_in_camera(grey: np.ndarray, rig: Rig, grid: CircleGrid, expected: np.ndarray | None = None) -> TargetFit:
+    """The grid's fit in one complex image: of the four labellings (:func:`target_candidates`), the one whose
+    rotation is nearest to ``expected`` (a rough target2cam (4, 4), e.g. from the nominal mounting), or the
+    first."""
     cands = target_candidates(grey, rig, grid)
     if expected is None:
         return cands[0]
-    return min(cands, key=lambda c: np.linalg.norm(c[0][:3, :3] - expected[:3, :3]))
+    return min(cands, key=lambda c: np.linalg.norm(c.target2cam[:3, :3] - expected[:3, :3]))
 
 
 def _angle(R: np.ndarray) -> float:
     return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
 
 
-def consistent_labellings(candidates: list[list[tuple[np.ndarray, float]]], flange2base: list[np.ndarray]
-                          ) -> list[tuple[np.ndarray, float]]:
+def consistent_labellings(candidates: list[list[TargetFit]], flange2base: list[np.ndarray]) -> list[TargetFit]:
     """One target2cam per view, labelled consistently without any pose guess: the first view's first
     labelling defines the target frame (X does not depend on it), and every other view takes the labelling
     whose motion relative to the first turns by the same angle as the flange's (A X = X B makes A and B
@@ -76,19 +95,22 @@ def consistent_labellings(candidates: list[list[tuple[np.ndarray, float]]], flan
     out = [first]
     for cands, F in zip(candidates[1:], flange2base[1:]):
         want = _angle(np.linalg.solve(F, F0)[:3, :3])
-        out.append(min(cands, key=lambda c: abs(_angle((c[0] @ invert_transform(first[0]))[:3, :3]) - want)))
+        out.append(min(cands, key=lambda c: abs(_angle(concat(invert_transform(first.target2cam),
+                                                              c.target2cam)[:3, :3]) - want)))
     return out
 
 
 @dataclass(frozen=True, eq=False)
 class HandEyeResult:
     """cam2flange (4, 4) mm; per-view target fit RMS (mm); the spread of the target's base pose over
-    the views (translation mm, rotation rad): the calibration's consistency."""
+    the views (translation mm, rotation rad): the calibration's consistency; and the reprojection RMS of
+    the grid's discs in both views at the solution (px; None when not known, e.g. an older file)."""
 
     cam2flange: np.ndarray
     target_rms_mm: np.ndarray
     spread_mm: float
     spread_rad: float
+    reprojection_rms_px: float | None = None
 
 
 def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarray]) -> np.ndarray:
@@ -129,9 +151,17 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
                          target2base_guess: np.ndarray | None = None) -> HandEyeResult:
     """Hand-eye calibration from complex images of the grid taken at the given flange poses.
 
+    Each view's grid is found and triangulated (:func:`target_candidates`); Park & Martin's closed form
+    (:func:`calibrate_hand_eye`) on those poses starts a least-squares refinement of cam2flange and the
+    target's pose in the base over the discs' reprojection error in both views through the exact optics
+    (:func:`psvs.robot.handeye_refine.refine_hand_eye`): the closed form weighs every pose alike and
+    carries each view's rotation noise into the translation, the refinement weighs each disc by what the
+    images see of it.
+
     ``nominal_cam2flange`` (the mounting drawing) and ``target2base_guess`` (roughly where the target
     lies) pick the grid's labelling in each view; without them the labellings are made consistent by the
     views' motions (:func:`consistent_labellings`). The result comes from the images either way."""
+    from psvs.robot.handeye_refine import refine_hand_eye
     if len(images) != len(flange2base):
         raise ValueError(f"{len(images)} images but {len(flange2base)} flange poses")
     if nominal_cam2flange is not None and target2base_guess is not None:
@@ -139,10 +169,11 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
                 for img, F in zip(images, flange2base)]
     else:
         fits = consistent_labellings([target_candidates(img, rig, grid) for img in images], flange2base)
-    t2c, rms = [f[0] for f in fits], [f[1] for f in fits]
-    X = calibrate_hand_eye(flange2base, t2c)
-    targets = [F @ X @ T for F, T in zip(flange2base, t2c)]
+    t2c = [f.target2cam for f in fits]
+    X0 = calibrate_hand_eye(flange2base, t2c)
+    X, _, rms_px = refine_hand_eye(flange2base, fits, grid_points(grid), rig, X0)
+    targets = [concat(T, X, F) for F, T in zip(flange2base, t2c)]
     pos = np.array([T[:3, 3] for T in targets])
     ang = [_angle(targets[0][:3, :3].T @ T[:3, :3]) for T in targets]
-    return HandEyeResult(X, np.array(rms), float(np.max(np.linalg.norm(pos - pos.mean(axis=0), axis=1))),
-                         float(np.max(ang)))
+    return HandEyeResult(X, np.array([f.rms_mm for f in fits]),
+                         float(np.max(np.linalg.norm(pos - pos.mean(axis=0), axis=1))), float(np.max(ang)), rms_px)

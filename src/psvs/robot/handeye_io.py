@@ -3,7 +3,8 @@
 ``handeye.toml`` (written by ``psvs handeye``, read by ``psvs track --handeye``)::
 
     [handeye]
-    method = "park_martin"       # AX = XB, Park & Martin (1994), closed form over all pairs of views
+    method = "reprojection"      # the discs' reprojection error over cam2flange and the target's pose,
+                                 # from Park & Martin's closed form (1994); older files: "park_martin"
     source = "simulated cell"    # or the views folder
     rig = "default"              # the rig the views were triangulated with
     views = 12
@@ -11,6 +12,7 @@
     target_rms_mm = [...]        # per view: the grid's rigid fit to its triangulated discs
     spread_mm = 0.05             # the target's base pose over the views (consistency)
     spread_deg = 0.02
+    reprojection_rms_px = 0.04   # the discs' reprojection RMS in both views at the solution (optional)
 
 frame C (the PSVS) in the flange frame: a 4 x 4 homogeneous transform, rotation and millimetres (the
 matrix is kept whole so that a file round-trips exactly; degrees appear only in ``spread_deg``).
@@ -32,13 +34,16 @@ from scipy.spatial.transform import Rotation
 from psvs.calibrate.target_file import dumps_target, load_target
 from psvs.io.atomic import write_atomic
 from psvs.io.images import read_grey, write_png
-from psvs.io.tomlfile import dumps_toml, load_toml, single_table
+from psvs.io.tomlfile import dumps_toml, load_table
 from psvs.robot.handeye import HandEyeResult
 from psvs.simulate.textures import CircleGrid
 from psvs.transforms import check_transform, transform_from
 
-METHOD = "park_martin"
+METHOD = "reprojection"
+#: Methods a file may name: this psvs's, and the closed form alone that earlier versions wrote.
+METHODS = (METHOD, "park_martin")
 _KEYS = ("method", "source", "rig", "views", "cam2flange", "target_rms_mm", "spread_mm", "spread_deg")
+_OPTIONAL = ("reprojection_rms_px",)
 POSES_CSV = "flange_poses.csv"
 POSE_COLUMNS = ("image", "x_mm", "y_mm", "z_mm", "qx", "qy", "qz", "qw")
 
@@ -50,6 +55,8 @@ def dumps_handeye(result: HandEyeResult, source: str, rig: str) -> str:
         "cam2flange": [[float(x) for x in row] for row in result.cam2flange],
         "target_rms_mm": [float(x) for x in result.target_rms_mm],
         "spread_mm": float(result.spread_mm), "spread_deg": math.degrees(result.spread_rad)}}
+    if result.reprojection_rms_px is not None:
+        data["handeye"]["reprojection_rms_px"] = float(result.reprojection_rms_px)
     return ("# psvs handeye: frame C (the PSVS) in the flange frame; rotation and mm (docs/robot.md)\n"
             + dumps_toml(data))
 
@@ -60,18 +67,12 @@ def save_handeye(path, result: HandEyeResult, source: str, rig: str) -> None:
 
 def load_handeye(path) -> HandEyeResult:
     """A ``handeye.toml``; ValueError naming the file and the key when it is not one."""
-    path = Path(path)
-    data = load_toml(path, "hand-eye")
-    try:
-        return _from_dict(data)
-    except (ValueError, TypeError) as exc:
-        raise ValueError(f"{path}: {exc}") from None
+    return load_table(path, "hand-eye", "handeye", _KEYS, _OPTIONAL, parse=_handeye)
 
 
-def _from_dict(data: dict) -> HandEyeResult:
-    h = single_table(data, "handeye", _KEYS)
-    if h["method"] != METHOD:
-        raise ValueError(f"handeye.method must be {METHOD!r}, got {h['method']!r}")
+def _handeye(h: dict) -> HandEyeResult:
+    if h["method"] not in METHODS:
+        raise ValueError(f"handeye.method must be one of {', '.join(map(repr, METHODS))}, got {h['method']!r}")
     X = _numbers(h["cam2flange"], "cam2flange")
     if X.shape != (4, 4):
         raise ValueError(f"handeye.cam2flange must be 4 rows of 4 numbers, got shape {X.shape}")
@@ -79,10 +80,10 @@ def _from_dict(data: dict) -> HandEyeResult:
     rms = _numbers(h["target_rms_mm"], "target_rms_mm").ravel()
     if isinstance(h["views"], bool) or not isinstance(h["views"], int) or h["views"] != len(rms) or len(rms) < 3:
         raise ValueError(f"handeye.views must be the number of target_rms_mm values (>= 3), got {h['views']!r}")
-    spreads = [_numbers(h[k], k).item() for k in ("spread_mm", "spread_deg")]
+    spreads = [_numbers(h[k], k).item() for k in ("spread_mm", "spread_deg", *(k for k in _OPTIONAL if k in h))]
     if np.any(rms < 0) or min(spreads) < 0:
         raise ValueError("handeye residuals must be >= 0")
-    return HandEyeResult(X, rms, spreads[0], math.radians(spreads[1]))
+    return HandEyeResult(X, rms, spreads[0], math.radians(spreads[1]), spreads[2] if len(spreads) > 2 else None)
 
 
 def _numbers(value, key: str) -> np.ndarray:

@@ -3,31 +3,33 @@
 every control cycle (1 / rate_hz of simulated time) the sensor window is rendered from the camera pose
 the arm's joints really give, the seam sensor matches both groove edges with their twins, the controller
 turns them into a torch pose, and the arm's IK and servo carry it out. Wall time of each stage is measured.
-Also the hand-eye session in the cell, and :func:`replay` of a recorded run.
+Also :func:`replay` of a recorded run.
+
+A run is three steps: the operator teaches the start (:func:`teach`), the sensor window is placed from
+what the sensor knows of the rig (:func:`sensor_setup`), then the loop runs (:func:`track`).
 """
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
 from psvs.optics.rig import Rig
 from psvs.optics.window import roi_rig
-from psvs.robot.arm import Arm, ArmLimits
-from psvs.robot.cells import CycleResult, Frame, ReplayCell, SimulatedCell, control_loop
+from psvs.robot.arm import Arm
+from psvs.robot.cells import CycleResult, Frame, ReplayCell, SimulatedCell, SimulationConfig, control_loop
 from psvs.robot.controller import UP, SeamTracker, TrackConfig
-from psvs.robot.handeye import HandEyeResult, calibrate_from_views
-from psvs.robot.mounting import MOUNT_ERROR, cam2tool, tool2flange, tool_pose
+from psvs.robot.handeye import HandEyeResult
+from psvs.robot.handeye_session import calibrate_cell
+from psvs.robot.mounting import HOME_Q, tool2flange, tool_pose
+from psvs.robot.sensor import SensorSetup
 from psvs.robot.workpiece import Workpiece
-from psvs.simulate.render import render
-from psvs.simulate.scene import Lighting, Pose, Scene, SceneObject
-from psvs.simulate.sequence import scene_in_rig_frame
-from psvs.simulate.textures import CircleGrid
-from psvs.transforms import invert_transform, transform_from
+from psvs.transforms import concat, invert_transform
 
-#: A PUMA 560 configuration (right arm, elbow up) with the torch down over the table; IK starts here.
-HOME_Q = np.radians([23.0, 4.5, -168.0, -54.0, -53.0, 161.0])
+#: How far the operator's teach point lies beside the true seam, mm (a careful jog, not a perfect one).
+TEACH_OFFSET_MM = 0.3
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,134 +74,53 @@ class Stop:
 
 
 @dataclass(frozen=True, eq=False)
+class Teach:
+    """What the operator teaches before the run: a point on the seam's start (3,) mm and the direction
+    of travel there (3,) unit, base frame."""
+
+    taught_mm: np.ndarray
+    travel: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
 class TrackRun:
+    """A finished run: its settings, every cycle, the stop, the hand-eye calibration used and the true
+    mounting (scoring), the teach, the seed pixel used (u, v) px, the path model's knots (s (K,), points
+    (K, 3)) mm, the gaps bridged ((from, to) arc lengths, mm) and the set-up time before the first cycle
+    (s, the hand-eye session included when it ran)."""
+
     config: TrackConfig
+    simulation: SimulationConfig
     cycles: list[Cycle]
     stop: Stop
     handeye: HandEyeResult
     cam2flange_true: np.ndarray
-    seed_px: tuple[float, float]
-    extras: dict = field(default_factory=dict)
+    teach: Teach
+    seed_px: tuple[float, float] | None
+    path_knots: tuple[np.ndarray, np.ndarray]
+    gaps_bridged: tuple[tuple[float, float], ...]
+    start_s: float
 
 
-def cell_lighting(cfg: TrackConfig) -> Lighting:
-    return Lighting(ambient=0.25, lamp=0.75, reference_mm=cfg.camera_distance_mm)
+class TrackListener(Protocol):
+    """Who watches a run (e.g. a recorder): told the start, then every cycle."""
+
+    def started(self, cam2flange: np.ndarray, teach: Teach) -> None: ...
+
+    def cycle(self, cycle: Cycle) -> None: ...
 
 
-#: The hand-eye session's target: a 4 x 5 circle grid lying face up on the table.
-CELL_GRID = CircleGrid(rows=4, cols=5, spacing_mm=15.0, diameter_mm=7.0)
-CELL_TARGET2BASE = transform_from(np.diag([1.0, -1.0, -1.0]), (550.0, 0.0, 0.0))
-
-
-def nominal_cam2flange(cfg: TrackConfig) -> np.ndarray:
-    """Frame C on the flange as the bracket drawing has it (4, 4) mm."""
-    return tool2flange() @ cam2tool(cfg.look_ahead_mm, cfg.standoff_mm, cfg.camera_distance_mm)
-
-
-def true_cam2flange(cfg: TrackConfig) -> np.ndarray:
-    """Frame C on the flange as the simulated hardware really has it: the drawing and the bracket's
-    error (:data:`psvs.robot.mounting.MOUNT_ERROR`); what a hand-eye calibration should find."""
-    return nominal_cam2flange(cfg) @ MOUNT_ERROR
-
-
-def cell_views(rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12,
-               true_rig: Rig | None = None) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """The hand-eye session in the simulated cell: :data:`CELL_GRID` on the table shown to the PSVS from
-    ``views`` flange poses (tilted up to ~20 deg, turned about the vertical), rendered through ``true_rig``
-    (default ``rig``) with the true mounting. Returns (complex images (H, W) uint8, flange2base (4, 4))."""
-    if not isinstance(views, int) or views < 3:
-        raise ValueError(f"the hand-eye session needs an integer >= 3 views, got {views!r}")
-    plate = SceneObject("rectangle", Pose(CELL_TARGET2BASE[:3, :3], CELL_TARGET2BASE[:3, 3]), CELL_GRID,
-                        size_mm=(320.0, 320.0), name="target")
-    scene = Scene((plate,), cell_lighting(cfg), None)
-    nominal, true = nominal_cam2flange(cfg), true_cam2flange(cfg)
-    rng = np.random.default_rng(7)
-    from scipy.spatial.transform import Rotation
-    images, flanges = [], []
-    for k in range(views):
-        yaw = np.pi / 2 + (k - (views - 1) / 2) * 0.05
-        tilt = Rotation.from_rotvec(np.append(rng.uniform(-0.35, 0.35, 2), yaw)).as_matrix()
-        cam_R = tilt @ np.diag([1.0, -1.0, -1.0])   # camera looking down, turned and tilted
-        cam_pos = CELL_TARGET2BASE[:3, 3] - cfg.camera_distance_mm * cam_R[:, 2] + \
-            np.append(rng.uniform(-10, 10, 2), 0)
-        flange = transform_from(cam_R, cam_pos) @ invert_transform(nominal)
-        F = arm.fkine(arm.ikine(flange, HOME_Q))
-        img = render(scene_in_rig_frame(scene, invert_transform(F @ true)), true_rig or rig, supersample=1,
-                     seed=100 + k).image
-        images.append(img)
-        flanges.append(F)
-    return images, flanges
-
-
-def calibrate_cell(rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12,
-                   true_rig: Rig | None = None) -> tuple[HandEyeResult, np.ndarray]:
-    """Hand-eye calibration session in the simulated cell (:func:`cell_views`), calibrated with ``rig``,
-    what the sensor knows of the rig; returns the result and the true cam2flange of the simulated hardware."""
-    images, flanges = cell_views(rig, cfg, arm, views, true_rig)
-    he = calibrate_from_views(images, flanges, rig, CELL_GRID, nominal_cam2flange(cfg), CELL_TARGET2BASE)
-    return he, true_cam2flange(cfg)
-
-
-def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), seed_px=None,
-          limits: ArmLimits = ArmLimits(), handeye: tuple[HandEyeResult, np.ndarray] | None = None,
-          progress=None, true_rig: Rig | None = None, on_start=None) -> TrackRun:
-    """Run the closed loop on the workpiece until the torch stops; see the module docstring.
-
-    Parameters
-    ----------
-    workpiece : Workpiece (base frame)
-    rig : Rig (the full camera; the sensor reads ``cfg.roi_rows`` rows of it): what the sensor knows
-    true_rig : Rig or None
-        The rig as built, through which the world is rendered (default ``rig``): e.g. the build's true
-        geometry while the sensor uses only what was calibrated from images, as on real glass.
-    seed_px : (u, v) or None
-        A pixel inside the left view's groove in the first ROI frame (teaching by showing); None: found
-        by :func:`psvs.robot.sensor.auto_seed`.
-    handeye : (HandEyeResult, true cam2flange) or None to run :func:`calibrate_cell` first.
-    progress : callable(Cycle) or None, called after every cycle.
-    on_start : callable(cam2flange (4, 4), taught_mm (3,), travel (3,)) or None, called once before the
-        first cycle with what the controller starts from (e.g. to record it).
-    """
-    t_enter = time.perf_counter()
-    arm = Arm(HOME_Q, limits)
-    he, cam_true = handeye if handeye is not None else calibrate_cell(rig, cfg, arm, true_rig=true_rig)
-    # the operator jogs the torch to the seam's start (a teach point, 0.3 mm off the seam) and teaches the
-    # direction of travel: the only use of the true seam in the loop (scoring aside)
-    x0 = workpiece.x_range_mm[0] + cfg.start_offset_mm
+def teach(workpiece: Workpiece, cfg: TrackConfig, sim: SimulationConfig, arm: Arm) -> Teach:
+    """The operator jogs the torch to the seam's start (``sim.start_offset_mm`` along it, a teach point
+    :data:`TEACH_OFFSET_MM` beside it) at the stand-off and teaches the direction of travel: the only use
+    of the true seam in the loop (scoring aside). Moves ``arm`` there."""
+    x0 = workpiece.x_range_mm[0] + sim.start_offset_mm
     p0, p1 = workpiece.seam_base([x0, x0 + 1.0])
     travel = (p1 - p0) / np.linalg.norm(p1 - p0)
-    taught = p0 + 0.3 * np.cross(UP, travel)
-    arm.q = arm.ikine(tool_pose(taught + cfg.standoff_mm * UP, travel) @ invert_transform(tool2flange()), HOME_Q)
-    near, far = sensor_range(cfg)
-    # the sensor window (taller on a build: the twins' rows differ), decided from what the sensor knows
-    roi, v0 = roi_rig(rig, cfg.roi_rows, span_mm=(near, far))
-    roi_true = roi if true_rig is None else roi_rig(true_rig, roi.camera.image_size_px[1], v0)[0]  # same rows
-    tracker = SeamTracker(cfg, he.cam2flange, taught, travel, window_length_mm(rig, cfg))
-    cell = SimulatedCell(arm, workpiece, roi_true, cam_true, cfg.rate_hz, cfg.supersample, cfg.noise_seed)
-    cycles: list[Cycle] = []
-    if on_start is not None:
-        on_start(he.cam2flange, taught, travel)
-
-    def record(res: CycleResult) -> None:
-        c, step = res.command, res.step
-        cyc = Cycle(res.frame.t_s, c.s_mm, tracker.v, cell.tcp_mm(), c.target_mm, c.seam_mm, c.valid, c.reason,
-                    step.q, step.qd, step.qdd_peak, res.frame.image, c.points_mm, c.path_mm, *res.wall_s,
-                    res.frame.flange2base, c.tool2base, res.fault)
-        cycles.append(cyc)
-        if progress is not None:
-            progress(cyc)
-
-    max_cycles = int((workpiece.params["length_mm"] + 100) / cfg.speed_mm_s * cfg.rate_hz * 2) + 200
-    start_s = time.perf_counter() - t_enter   # set-up (hand-eye calibration included) until the first cycle
-    _, sensor, seed_px = control_loop(cell, tracker, roi, near, far, seed_px, max_cycles, record)
-    stop_reason = tracker.stop_reason if tracker.stopped and cell.at_rest() else \
-        (tracker.stop_reason or "cycle limit reached")
-    path = tracker.path
-    stop = Stop(stop_reason, tracker.s_cmd, cycles[-1].tcp_mm, tracker.s_far, path.position(tracker.s_far),
-                tracker.lost_at if tracker.stopping_at is not None else None, tracker.decided_at)
-    return TrackRun(cfg, cycles, stop, he, cam_true, sensor.centre_px if sensor else (np.nan, np.nan),
-                    {"seed_px": seed_px, "path_knots": (np.array(path.s), np.array(path.p)),
-                     "gaps_bridged": tracker.gaps, "start_s": start_s, "taught_mm": taught, "travel": travel})
+    taught = p0 + TEACH_OFFSET_MM * np.cross(UP, travel)
+    tool2base = tool_pose(taught + cfg.standoff_mm * UP, travel)
+    arm.q = arm.ikine(concat(invert_transform(tool2flange()), tool2base), HOME_Q)
+    return Teach(taught, travel)
 
 
 def sensor_range(cfg: TrackConfig) -> tuple[float, float]:
@@ -213,24 +134,99 @@ def window_length_mm(rig: Rig, cfg: TrackConfig) -> float:
     return cfg.roi_rows * cam.pixel_pitch_mm[1] * cfg.camera_distance_mm / cam.focal_length_mm
 
 
+def sensor_setup(rig: Rig, cfg: TrackConfig, seed_px=None) -> tuple[SensorSetup, int]:
+    """The seam sensor's set-up from what it knows of the rig: its window (``cfg.roi_rows`` rows, taller
+    on a build by the twins' row offset over the sensor's depth range, :func:`psvs.optics.window.roi_rig`)
+    and its first row v0 in the full image."""
+    near, far = sensor_range(cfg)
+    roi, v0 = roi_rig(rig, cfg.roi_rows, span_mm=(near, far))
+    return SensorSetup(roi, near, far, None if seed_px is None else tuple(float(c) for c in seed_px)), v0
+
+
+def _cycle(res: CycleResult, tcp_mm: np.ndarray) -> Cycle:
+    """The record of one cycle of the simulated cell (its servo step always present); an arm fault stops
+    the torch (the controller's speed drops to 0 at once)."""
+    c, step = res.command, res.step
+    return Cycle(t_s=res.frame.t_s, s_mm=c.s_mm, speed_mm_s=0.0 if res.fault else c.speed_mm_s, tcp_mm=tcp_mm, target_mm=c.target_mm,
+                 seam_mm=c.seam_mm, valid=c.valid, reason=c.reason, q=step.q, qd=step.qd, qdd_peak=step.qdd_peak,
+                 image=res.frame.image, points_mm=c.points_mm, path_mm=c.path_mm, wall_render_s=res.wall_s[0],
+                 wall_sensor_s=res.wall_s[1], wall_control_s=res.wall_s[2], flange2base=res.frame.flange2base,
+                 tool2base=c.tool2base, fault=res.fault)
+
+
+def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,
+          sim: SimulationConfig = SimulationConfig(), true_rig: Rig | None = None,
+          handeye: tuple[HandEyeResult, np.ndarray] | None = None, seed_px=None,
+          listener: TrackListener | None = None) -> TrackRun:
+    """Run the closed loop on the workpiece until the torch stops; see the module docstring.
+
+    Parameters
+    ----------
+    workpiece : Workpiece (base frame)
+    rig : Rig (the full camera; the sensor reads ``cfg.roi_rows`` rows of it): what the sensor knows
+    cfg : TrackConfig
+        The tracking job.
+    sim : SimulationConfig
+        How the simulated cell renders and where the operator teaches.
+    true_rig : Rig or None
+        The rig as built, through which the world is rendered (default ``rig``): e.g. the build's true
+        geometry while the sensor uses only what was calibrated from images, as on real glass.
+    handeye : (HandEyeResult, true cam2flange) or None to run the session first
+        (:func:`psvs.robot.handeye_session.calibrate_cell`).
+    seed_px : (u, v) or None
+        A pixel inside the left view's groove in the first window frame (teaching by showing); None: found
+        by :func:`psvs.robot.sensor.auto_seed`.
+    listener : TrackListener or None
+        Told the start (the calibrated cam2flange and the teach) and every cycle (e.g. to record them).
+    """
+    t_enter = time.perf_counter()
+    arm = Arm(HOME_Q, sim.limits)
+    he, cam_true = handeye if handeye is not None else calibrate_cell(rig, cfg, arm, true_rig=true_rig)
+    taught = teach(workpiece, cfg, sim, arm)
+    setup, v0 = sensor_setup(rig, cfg, seed_px)
+    rows = setup.rig.camera.image_size_px[1]
+    roi_true = setup.rig if true_rig is None else roi_rig(true_rig, rows, v0)[0]   # the same rows, as built
+    tracker = SeamTracker(cfg, he.cam2flange, taught.taught_mm, taught.travel, window_length_mm(rig, cfg))
+    cell = SimulatedCell(arm, workpiece, roi_true, cam_true, cfg.rate_hz, sim)
+    cycles: list[Cycle] = []
+    if listener is not None:
+        listener.started(he.cam2flange, taught)
+
+    def record(res: CycleResult) -> None:
+        cycles.append(_cycle(res, cell.tcp_mm()))
+        if listener is not None:
+            listener.cycle(cycles[-1])
+
+    max_cycles = int((workpiece.params["length_mm"] + 100) / cfg.speed_mm_s * cfg.rate_hz * 2) + 200
+    start_s = time.perf_counter() - t_enter   # set-up (hand-eye calibration included) until the first cycle
+    loop = control_loop(cell, tracker, setup, max_cycles, record)
+    state = tracker.summary()
+    reason = state.stop_reason if tracker.stopped and cell.at_rest() else (state.stop_reason or "cycle limit reached")
+    stop = Stop(reason=reason, s_mm=state.s_mm, tcp_mm=cycles[-1].tcp_mm, last_seen_s_mm=state.s_far_mm,
+                last_seen_mm=state.last_seen_mm,
+                lost_at_s_mm=state.lost_at_s_mm if state.stopping_at_s_mm is not None else None,
+                decided_at_s_mm=state.decided_at_s_mm)
+    return TrackRun(config=cfg, simulation=sim, cycles=cycles, stop=stop, handeye=he, cam2flange_true=cam_true,
+                    teach=taught, seed_px=loop.seed_px, path_knots=state.path_knots,
+                    gaps_bridged=state.gaps_bridged, start_s=start_s)
+
+
 def replay(run: TrackRun, rig: Rig) -> ReplayCell:
     """Run a fresh controller and sensor on a recorded run's frames and flange poses (what a recording
-    holds: no simulation), with the run's configuration, hand-eye transform, teach point and seed, and
-    ``rig`` as the sensor's rig; returns the replay cell, whose ``mismatches`` lists the cycles where the
-    command differs from the recorded one (none: the controller is deterministic)."""
-    return replay_cell(run.config, run.handeye.cam2flange, run.extras["taught_mm"], run.extras["travel"],
-                       run.extras["seed_px"], [Frame(c.t_s, c.flange2base, c.image) for c in run.cycles],
-                       [c.tool2base for c in run.cycles], [c.fault for c in run.cycles], rig)
+    holds: no simulation), with the run's configuration, hand-eye transform, teach and seed, and ``rig`` as
+    the sensor's rig; returns the replay cell, whose ``mismatches`` lists the cycles where the command
+    differs from the recorded one (none: the controller is deterministic)."""
+    frames = [Frame(c.t_s, c.flange2base, c.image) for c in run.cycles]
+    cell = ReplayCell(frames, [c.tool2base for c in run.cycles], [c.fault for c in run.cycles])
+    return replay_cell(run.config, run.handeye.cam2flange, run.teach, run.seed_px, cell, rig)
 
 
-def replay_cell(cfg: TrackConfig, cam2flange: np.ndarray, taught_mm, travel, seed_px, frames: list[Frame],
-                commands: list[np.ndarray], faults: list[str], rig: Rig) -> ReplayCell:
+def replay_cell(cfg: TrackConfig, cam2flange: np.ndarray, taught: Teach, seed_px, cell: ReplayCell,
+                rig: Rig) -> ReplayCell:
     """:func:`replay` from its parts (e.g. read from a recording, :mod:`psvs.robot.recording`): seed_px None
-    finds the seed on the first frame as the live run did."""
-    near, far = sensor_range(cfg)
-    roi, _ = roi_rig(rig, cfg.roi_rows, span_mm=(near, far))
-    cell = ReplayCell(frames, commands, faults)
-    tracker = SeamTracker(cfg, cam2flange, np.asarray(taught_mm, float), np.asarray(travel, float),
+    finds the seed on the first frame as the live run did. Returns ``cell`` once played."""
+    setup, _ = sensor_setup(rig, cfg, seed_px)
+    tracker = SeamTracker(cfg, cam2flange, np.asarray(taught.taught_mm, float), np.asarray(taught.travel, float),
                           window_length_mm(rig, cfg))
-    control_loop(cell, tracker, roi, near, far, seed_px, len(frames))
+    control_loop(cell, tracker, setup, len(cell.frames))
     return cell

@@ -1,4 +1,4 @@
-"""The welding cell's fixed geometry: torch on the flange, the PSVS on the torch, the calibration target.
+"""The welding cell's fixed geometry: the arm's home pose, the torch on the flange, the PSVS on the torch.
 
 Tool frame T (the torch): z along the torch axis toward the work, x the direction of travel. The torch has
 a 45 deg bent neck (common on welding torches): with the torch vertical the PUMA's wrist stays ~50 deg
@@ -11,6 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from psvs.transforms import concat, transform_from, transform_from_rotvec, translation
+
+#: A PUMA 560 configuration (right arm, elbow up) with the torch down over the table; IK starts here.
+HOME_Q = np.radians([23.0, 4.5, -168.0, -54.0, -53.0, 161.0])
 
 #: Torch on the flange: 100 mm along the flange's z, a 45 deg bend about y, then 200 mm to the tip.
 NECK_MM, BEND_RAD, TORCH_MM = 100.0, np.pi / 4, 200.0

@@ -24,12 +24,17 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.io.telemetry import BASE_FRAME, CAMERA_FRAME, FLANGE_FRAME, TORCH_FRAME
-from psvs.robot.cells import Frame
+from psvs.robot.cells import Frame, ReplayCell
 from psvs.robot.controller import TrackConfig
+from psvs.robot.loop import Teach, replay_cell
+from psvs.robot.mounting import tool2flange
 
 #: Every topic of a ``psvs track`` recording.
 TOPICS = ("/psvs/setup", "/psvs/cycle", "/psvs/image", "/psvs/points", "/tf", "/psvs/seam", "/psvs/log",
           "/psvs/stop")
+#: Simulation settings that recordings written before they had their own record (SimulationConfig) kept in
+#: their configuration: they do not change what the controller does, and are left out when read.
+SIMULATION_KEYS = ("start_offset_mm", "supersample", "noise_seed")
 #: The torch path shown on /psvs/seam: a point every TORCH_STEP_MM, the last TORCH_POINTS of them.
 TORCH_STEP_MM, TORCH_POINTS = 1.0, 500
 
@@ -38,11 +43,11 @@ def _mat(a) -> list[float]:
     return [float(x) for x in np.asarray(a, float).ravel()]
 
 
-def publish_setup(tel, cfg: TrackConfig, cam2flange: np.ndarray, taught_mm, travel, seed_px) -> None:
+def publish_setup(tel, cfg: TrackConfig, cam2flange: np.ndarray, teach: Teach, seed_px) -> None:
     """The run's /psvs/setup record and a status line."""
     tel.record("setup", 0.0, {"config": {k: getattr(cfg, k) for k in cfg.__dataclass_fields__},
-                              "cam2flange": _mat(cam2flange), "taught_mm": _mat(taught_mm),
-                              "travel": _mat(travel), "seed_px": None if seed_px is None else _mat(seed_px)})
+                              "cam2flange": _mat(cam2flange), "taught_mm": _mat(teach.taught_mm),
+                              "travel": _mat(teach.travel), "seed_px": None if seed_px is None else _mat(seed_px)})
     tel.log(0.0, f"tracking at {cfg.speed_mm_s:g} mm/s, {cfg.rate_hz:g} Hz")
 
 
@@ -78,15 +83,30 @@ class CyclePublisher:
         self._last_reason = c.reason
 
 
+class RunRecorder:
+    """Records a run as it happens (a :class:`psvs.robot.loop.TrackListener`): /psvs/setup when it starts,
+    then every cycle (:class:`CyclePublisher`)."""
+
+    def __init__(self, tel, cfg: TrackConfig, seed_px):
+        self.tel, self.cfg, self.seed_px = tel, cfg, seed_px
+        self._publish: CyclePublisher | None = None
+
+    def started(self, cam2flange: np.ndarray, teach: Teach) -> None:
+        publish_setup(self.tel, self.cfg, cam2flange, teach, self.seed_px)
+        self._publish = CyclePublisher(self.tel, cam2flange, tool2flange())
+
+    def cycle(self, cycle) -> None:
+        self._publish(cycle)
+
+
 @dataclass(frozen=True, eq=False)
 class Recording:
-    """A recorded run: its configuration, hand-eye transform (4, 4), teach point (3,), direction of travel
-    (3,), seed (u, v) or None, and per cycle the frame, the command tool2base (4, 4) and the fault."""
+    """A recorded run: its configuration, hand-eye transform (4, 4), the teach, seed (u, v) or None, and
+    per cycle the frame, the command tool2base (4, 4) and the fault."""
 
     config: TrackConfig
     cam2flange: np.ndarray
-    taught_mm: np.ndarray
-    travel: np.ndarray
+    teach: Teach
     seed_px: tuple[float, float] | None
     frames: list[Frame]
     commands: list[np.ndarray]
@@ -147,8 +167,9 @@ def _read(path) -> Recording:
             commands.append(np.array(c["tool2base"], float).reshape(4, 4))
             faults.append(str(c["fault"]))
         seed = setup["seed_px"]
-        return Recording(TrackConfig(**setup["config"]), np.array(setup["cam2flange"], float).reshape(4, 4),
-                         np.array(setup["taught_mm"], float), np.array(setup["travel"], float),
+        config = {k: v for k, v in setup["config"].items() if k not in SIMULATION_KEYS}
+        return Recording(TrackConfig(**config), np.array(setup["cam2flange"], float).reshape(4, 4),
+                         Teach(np.array(setup["taught_mm"], float), np.array(setup["travel"], float)),
                          None if seed is None else tuple(seed), frames, commands, faults, stop)
     except (KeyError, TypeError) as exc:
         raise ValueError(f"a /psvs/setup or /psvs/cycle record lacks or mistypes {exc}") from None
@@ -158,7 +179,6 @@ def replay_recording(path, rig):
     """Run a fresh controller and seam sensor (over ``rig``) on a recording's frames and flange poses:
     :func:`psvs.robot.loop.replay_cell`; returns (the :class:`Recording`, the replay cell: ``mismatches``
     empty when every command was reproduced)."""
-    from psvs.robot.loop import replay_cell
     rec = read_recording(path)
-    return rec, replay_cell(rec.config, rec.cam2flange, rec.taught_mm, rec.travel, rec.seed_px, rec.frames,
-                            rec.commands, rec.faults, rig)
+    cell = ReplayCell(rec.frames, rec.commands, rec.faults)
+    return rec, replay_cell(rec.config, rec.cam2flange, rec.teach, rec.seed_px, cell, rig)

@@ -59,9 +59,9 @@ def summary(run: TrackRun, workpiece: Workpiece) -> dict:
     dq = np.max(np.abs(np.diff([c.q for c in run.cycles], axis=0)), axis=0) if len(run.cycles) > 1 else np.zeros(6)
     st = run.stop
     return {
-        "config": {k: getattr(run.config, k) for k in run.config.__dataclass_fields__},
+        "config": _fields(run.config), "simulation": _fields(run.simulation, skip=("limits",)),
         "cycles": len(run.cycles), "simulated_s": run.cycles[-1].t_s + 1 / run.config.rate_hz,
-        "start_s": run.extras.get("start_s"),
+        "start_s": run.start_s,
         "welded_mm": float(max(0.0, s[-1] - run.config.arc_on_mm)),
         "valid_frames": int(sum(c.valid for c in run.cycles)),
         "lateral_mm": stats(lat), "vertical_mm": stats(ver),
@@ -72,12 +72,17 @@ def summary(run: TrackRun, workpiece: Workpiece) -> dict:
         "handeye": {"target_fit_rms_mm": run.handeye.target_rms_mm.tolist(),
                     "consistency_mm": run.handeye.spread_mm, "consistency_rad": run.handeye.spread_rad,
                     "error_vs_true_mm": (run.handeye.cam2flange[:3, 3] - run.cam2flange_true[:3, 3]).tolist()},
-        "seed_px": list(run.extras.get("seed_px") or ()),
+        "seed_px": list(run.seed_px or ()),
         "stop": {"reason": st.reason, "torch_s_mm": st.s_mm, "torch_mm": st.tcp_mm.tolist(),
                  "last_seen_s_mm": st.last_seen_s_mm, "last_seen_mm": st.last_seen_mm.tolist(),
                  "lost_at_torch_s_mm": st.lost_at_s_mm, "decided_at_torch_s_mm": st.decided_at_s_mm},
-        "gaps_bridged_mm": [[a, b] for a, b in run.extras.get("gaps_bridged", [])],
+        "gaps_bridged_mm": [[a, b] for a, b in run.gaps_bridged],
     }
+
+
+def _fields(record, skip: tuple[str, ...] = ()) -> dict:
+    """A settings dataclass as a plain dict (for the report)."""
+    return {k: getattr(record, k) for k in record.__dataclass_fields__ if k not in skip}
 
 
 def log_csv(run: TrackRun, workpiece: Workpiece) -> str:

@@ -12,18 +12,60 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from psvs._validate import check_grey, check_pair, check_positive
 from psvs.imaging.pipeline import Pipeline, make_pipeline
-from psvs.match.correspondence import match_image
+from psvs.match.correspondence import finish_pairs
 from psvs.match.edges import edge_pixels
-from psvs.measure.equations import z_eq12
+from psvs.match.seeded import match_seeded
 from psvs.optics.rig import Rig
 from psvs.optics.search_range import disparity_range, rectification_for
+from psvs.robot.seam import SeamObservation
 
 #: The seam sensor's image pipeline: the paper's median 3x3 and Roberts cross, with Otsu's threshold in
 #: place of the fixed level 92: where one view shows the groove and the other the plate, the complex
 #: image sits near 92 (half of each), so a fixed level splits the groove band into fragments.
 SEAM_PIPELINE = make_pipeline([{"op": "median", "ksize": 3}, {"op": "threshold", "method": "otsu"},
                                {"op": "roberts"}])
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    """Tuning of the seam sensor; lengths in px of the sensor window.
+
+    first_search_px : float
+        Until the groove's width is taught, its edges are looked for this far either side of the seed
+        (then 1.6 times the taught half width plus 3 px).
+    width_band : (float, float)
+        A row shows the groove's full cross-section when its edges are this share of the taught width
+        apart (not where the groove starts or ends, its edges closing in).
+    twin_jump_px : float
+        Largest change of the twin band's disparity from one accepted frame to the next.
+    twin_span_px : float
+        Each edge's twin is matched within this many px of the twin band's disparity.
+    twin_col_px : float
+        The twin band's second edge lies within this many px of where the first one puts it.
+    line_tol_px : float
+        An edge keeps its pixels within this distance of the line fitted to its full-width rows.
+    min_rows : int
+        Fewest matched rows per edge for a valid frame.
+    """
+
+    first_search_px: float = 60.0
+    width_band: tuple[float, float] = (0.75, 1.3)
+    twin_jump_px: float = 15.0
+    twin_span_px: float = 14.0
+    twin_col_px: float = 3.0
+    line_tol_px: float = 1.5
+    min_rows: int = 8
+
+    def __post_init__(self):
+        for name in ("first_search_px", "twin_jump_px", "twin_span_px", "twin_col_px", "line_tol_px"):
+            check_positive(getattr(self, name), name, "px")
+        lo, hi = check_pair(self.width_band, "width_band")
+        if not 0 < lo < 1 < hi:
+            raise ValueError(f"width_band must satisfy 0 < low < 1 < high, got {self.width_band!r}")
+        if not isinstance(self.min_rows, int) or self.min_rows < 3:
+            raise ValueError(f"min_rows must be an integer >= 3, got {self.min_rows!r}")
 
 
 def auto_seed(grey: np.ndarray, pipeline: Pipeline = SEAM_PIPELINE, min_width_px: int = 6) -> tuple[float, float]:
@@ -49,21 +91,6 @@ def auto_seed(grey: np.ndarray, pipeline: Pipeline = SEAM_PIPELINE, min_width_px
     return (a + b - 1) / 2, float(grey.shape[0] // 2)
 
 
-@dataclass(frozen=True, eq=False)
-class SeamObservation:
-    """One frame's measurement. ``edges_mm``: the two groove edges' triangulated points, each (N, 3)
-    frame C, mm (empty when invalid); ``centre_px``: (u, v) of the groove centre in the left view;
-    ``reason``: why the frame is invalid ('' when valid); the twin band's disparity and the groove's
-    half width on the seed row, px."""
-
-    valid: bool
-    edges_mm: tuple[np.ndarray, np.ndarray]
-    centre_px: tuple[float, float]
-    reason: str = ""
-    disparity_px: float | None = None
-    half_width_px: float | None = None
-
-
 def _nearest_edges(edge_row: np.ndarray, u_c: float, max_px: float):
     cols = np.flatnonzero(edge_row)
     left = cols[(cols < u_c) & (cols >= u_c - max_px)]
@@ -73,7 +100,8 @@ def _nearest_edges(edge_row: np.ndarray, u_c: float, max_px: float):
     return int(left.max()), int(right.min())
 
 
-def _groove_edges(sides, half_width_px: float, band=(0.75, 1.3), tol_px: float = 1.5):
+def _groove_edges(sides, half_width_px: float, band: tuple[float, float] = SensorParams.width_band,
+                  tol_px: float = SensorParams.line_tol_px):
     """The two bevel tops' points (each (N, 3) mm) among the contour pixels traced from the seeds.
 
     Where the groove ends (or starts) in the window, its end outline (the V's end, oblique in the image)
@@ -114,87 +142,103 @@ def _groove_edges(sides, half_width_px: float, band=(0.75, 1.3), tol_px: float =
 
 
 class SeamSensor:
-    """Groove-edge tracking in the ROI images of one run (state: the last accepted groove centre and
-    disparity, the taught width; :meth:`commit` an observation to track from it).
+    """Groove-edge tracking in the sensor-window images of one run (state: the last accepted groove
+    centre and twin disparity, the taught width; :meth:`commit` an observation to track from it).
+
+    Each frame runs the image pipeline once: on its edge map the groove's two edges are found on the row
+    nearest the window's middle that shows the groove's full width and its twin band
+    (:meth:`_twin_disparity`); each edge is then matched with its twin by the paper's seeded algorithm
+    (:func:`psvs.match.seeded.match_seeded`) inside ``twin_span_px`` of that disparity, and the pairs are
+    refined to sub-pixel, corrected for the plate's row shift and triangulated with the exact model
+    (:func:`psvs.match.correspondence.finish_pairs`).
 
     Parameters
     ----------
     rig : Rig
-        The ROI rig (:func:`roi_rig`).
+        The sensor window's rig (:func:`psvs.optics.window.roi_rig`).
     seed_px : (u, v)
-        A pixel inside the left view's groove in the first frame, px (ROI coordinates).
-    near_mm, far_mm : working depth range (sets the disparities searched).
-    min_rows : int
-        Fewest matched rows per edge for a valid frame.
+        A pixel inside the left view's groove in the first frame, px (window coordinates).
+    near_mm, far_mm : float
+        Working depth range (sets the disparities searched).
+    params : SensorParams
+    pipeline : Pipeline
     """
 
-    def __init__(self, rig: Rig, seed_px, near_mm: float, far_mm: float, min_rows: int = 8,
+    def __init__(self, rig: Rig, seed_px, near_mm: float, far_mm: float, params: SensorParams = SensorParams(),
                  pipeline: Pipeline = SEAM_PIPELINE):
         w, h = rig.camera.image_size_px
         u, v = (float(c) for c in seed_px)
         if not (0 <= u < w and 0 <= v < h):
             raise ValueError(f"seed ({u:g}, {v:g}) is outside the {w}x{h} px sensor window")
-        self.rig, self.near_mm, self.far_mm, self.min_rows = rig, near_mm, far_mm, min_rows
-        self.pipeline = pipeline
+        self.rig, self.params, self.pipeline = rig, params, pipeline
         self.rect = rectification_for(rig, near_mm, far_mm)     # a build: twins on rectified rows
+        self.range_px = disparity_range(rig, near_mm, far_mm, self.rect)
         self.disparity_px: float | None = None
-        self.centre_px = (u, v)
+        self.seed_px = self.centre_px = (u, v)
         self.half_width_px: float | None = None
 
     def measure(self, grey: np.ndarray) -> SeamObservation:
-        """Match both groove edges of one ROI image (H, W) uint8 and triangulate them (exact model)."""
+        """Match both groove edges of one window image (H, W) uint8 and triangulate them (exact model)."""
+        grey = check_grey(grey, "sensor window image")
         edges = self.pipeline.run(grey)
-        h = grey.shape[0]
-        u_c = self.centre_px[0]
-        max_px = 60.0 if self.half_width_px is None else 1.6 * self.half_width_px + 3
-        order = np.argsort(np.abs(np.arange(h) - (h - 1) / 2), kind="stable")
         px = edge_pixels(edges, self.rect)
         found, seen = None, False
-        for v in order[: h // 2]:
-            e = _nearest_edges(edges[v], u_c, max_px)
+        for v in self._rows(grey.shape[0]):
+            e = self._groove_on_row(edges[v])
             if e is None:
                 continue
-            # a full groove width (not where the groove starts or ends, with its edges closing in)
-            if self.half_width_px is not None and not (0.75 < (e[1] - e[0]) / (2 * self.half_width_px) < 1.3):
-                continue
-            # the nearest such row whose twin band is in the window (on a build, the twins' rows differ
-            # and the window's outer rows hold only one view's part)
             seen = True
             d = self._twin_disparity(grey, px, int(v), *e)
-            if d is not None:
-                found = (e, int(v))
+            if d is not None:       # the nearest such row whose twin band is in the window
+                found = (e, int(v), d)
                 break
         if found is None:
-            reason = "no twin of the groove edges" if seen else "no groove edges near the track"
-            return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px, reason)
-        (ua, ub), v = found
-        cam = self.rig.camera
-        # the depths of disparities d +- 10 px (eq. (12) on sensor coordinates x = u * pitch)
-        near, far = (float(z_eq12(max(d + dd, 1.0) * cam.pixel_pitch_mm[0], 0.0, cam.focal_length_mm,
-                                  self.rig.mirrors.baseline_mm)) for dd in (10.0, -10.0))
-        sides = []
-        for u in (ua, ub):
-            res = match_image(grey, self.rig, seed_px=(u, v), pipeline=self.pipeline, near_mm=near,
-                              far_mm=far, model="exact", rect=self.rect)
-            if not res.pairs:
-                sides.append((np.empty((0, 2)), np.empty((0, 3))))
-                continue
-            pair = res.pairs[0]
-            # where the groove ends in the window, its end joins both edges into one contour: keep this
-            # edge's side of the groove centre
-            side = pair.left_px[:, 0] < (ua + ub) / 2 if u == ua else pair.left_px[:, 0] > (ua + ub) / 2
-            # a seam edge crosses each row once: rows where the edge runs along the row (where the groove
-            # starts or ends) give no usable twin disparity and are dropped
-            left_px, pts = pair.left_px[side], pair.points_mm[side]
-            v_rows = left_px[:, 1] if self.rect is None else self._rectified_rows(left_px)
-            rows, counts = np.unique(np.rint(v_rows), return_counts=True)      # (a build: rectified rows)
-            keep = np.isin(np.rint(v_rows), rows[counts == 1]) & np.all(np.isfinite(pts), axis=1)
-            sides.append((left_px[keep], pts[keep]))
-        sides = _groove_edges(sides, (ub - ua) / 2 if self.half_width_px is None else self.half_width_px)
-        if min(len(s) for s in sides) < self.min_rows:
-            return SeamObservation(False, (np.empty((0, 3)),) * 2, self.centre_px,
-                                   f"edge twins matched on fewer than {self.min_rows} rows")
+            return SeamObservation.invalid(self.centre_px, "no twin of the groove edges" if seen
+                                           else "no groove edges near the track")
+        (ua, ub), v, d = found
+        span = self.params.twin_span_px
+        sides = [self._edge_twins(grey, edges, (u, v), (max(1.0, d - span), d + span), (ua + ub) / 2, u == ua)
+                 for u in (ua, ub)]
+        sides = _groove_edges(sides, (ub - ua) / 2 if self.half_width_px is None else self.half_width_px,
+                              self.params.width_band, self.params.line_tol_px)
+        if min(len(s) for s in sides) < self.params.min_rows:
+            return SeamObservation.invalid(self.centre_px,
+                                           f"edge twins matched on fewer than {self.params.min_rows} rows")
         return SeamObservation(True, (sides[0], sides[1]), ((ua + ub) / 2, float(v)), "", d, (ub - ua) / 2)
+
+    @staticmethod
+    def _rows(h: int) -> np.ndarray:
+        """The window's middle half of rows, nearest the middle first."""
+        return np.argsort(np.abs(np.arange(h) - (h - 1) / 2), kind="stable")[: h // 2]
+
+    def _groove_on_row(self, edge_row: np.ndarray) -> tuple[int, int] | None:
+        """The edges (u_a, u_b) nearest the last groove centre on one edge-map row, if they show the
+        groove's full width (any width before it is taught)."""
+        p = self.params
+        max_px = p.first_search_px if self.half_width_px is None else 1.6 * self.half_width_px + 3
+        e = _nearest_edges(edge_row, self.centre_px[0], max_px)
+        if e is None or self.half_width_px is None:
+            return e
+        return e if p.width_band[0] < (e[1] - e[0]) / (2 * self.half_width_px) < p.width_band[1] else None
+
+    def _edge_twins(self, grey, edges, seed, d_range, centre_u, left_side) -> tuple[np.ndarray, np.ndarray]:
+        """One groove edge matched with its twin from ``seed`` (u, v) within ``d_range`` px, sub-pixel and
+        triangulated: (left-view pixels (N, 2), points (N, 3) mm) on the edge's own side of the groove's
+        centre column, one pixel per row."""
+        pair = match_seeded(edges, seed, d_range, rect=self.rect)
+        if len(pair) == 0:
+            return np.empty((0, 2)), np.empty((0, 3))
+        pair, = finish_pairs(grey, [pair], self.rig, model="exact", rect=self.rect)
+        # where the groove ends in the window, its end joins both edges into one contour: keep this
+        # edge's side of the groove centre
+        side = pair.left_px[:, 0] < centre_u if left_side else pair.left_px[:, 0] > centre_u
+        # a seam edge crosses each row once: rows where the edge runs along the row (where the groove
+        # starts or ends) give no usable twin disparity and are dropped
+        left_px, pts = pair.left_px[side], pair.points_mm[side]
+        v_rows = left_px[:, 1] if self.rect is None else self._rectified_rows(left_px)
+        rows, counts = np.unique(np.rint(v_rows), return_counts=True)      # (a build: rectified rows)
+        keep = np.isin(np.rint(v_rows), rows[counts == 1]) & np.all(np.isfinite(pts), axis=1)
+        return left_px[keep], pts[keep]
 
     def _rectified_rows(self, uv: np.ndarray) -> np.ndarray:
         """Rectified rows (N,) of left-view pixels (N, 2), from the rectification's pixel table (nearest
@@ -231,7 +275,7 @@ class SeamSensor:
         else:
             table = self.rect.pixel_table("left")
             (la, va), (lb, vb) = (np.rint(table[v, u]).astype(int) for u in (ua, ub))
-        d_lo, d_hi = disparity_range(self.rig, self.near_mm, self.far_mm, self.rect)
+        d_lo, d_hi = self.range_px
         row_a = np.flatnonzero(rv == va)
         row_b = np.flatnonzero(rv == vb)
         best = None
@@ -239,11 +283,11 @@ class SeamSensor:
             d = la - ru[c]
             if not d_lo <= d <= d_hi or pol(px.u[c], px.v[c]) != pol(ua, v):
                 continue
-            near_b = row_b[np.abs(ru[row_b] - (lb - d)) <= 3]
+            near_b = row_b[np.abs(ru[row_b] - (lb - d)) <= self.params.twin_col_px]
             if not any(pol(px.u[c2], px.v[c2]) == pol(ub, v) for c2 in near_b):
                 continue
             cost = 0.0 if self.disparity_px is None else abs(d - self.disparity_px)
-            if self.disparity_px is not None and cost > 15:
+            if self.disparity_px is not None and cost > self.params.twin_jump_px:
                 continue
             if best is None or cost < best[0]:
                 best = (cost, float(d))
@@ -251,32 +295,18 @@ class SeamSensor:
 
 
 @dataclass(frozen=True)
-class SeamPoint:
-    """The seam (groove root) at one frame, base frame: point (3,) mm, unit tangent (3,), groove width mm."""
+class SensorSetup:
+    """What a run's seam sensor starts from: the sensor window's rig (what the sensor knows: the design or
+    a calibrated build, :func:`psvs.optics.window.roi_rig`), the depth range searched (mm), the seed pixel
+    inside the left view's groove (None: found on the first frame by :func:`auto_seed`) and the tuning."""
 
-    point_mm: np.ndarray
-    tangent: np.ndarray
-    width_mm: float
+    rig: Rig
+    near_mm: float
+    far_mm: float
+    seed_px: tuple[float, float] | None = None
+    params: SensorParams = SensorParams()
 
-
-def fit_seam_point(edge_a: np.ndarray, edge_b: np.ndarray, depth_mm: float, up: np.ndarray) -> SeamPoint:
-    """The root of a V-groove from its two edges (each (N, 3) mm, same frame): a quadratic fit of each edge
-    along the seam direction (no chord bias on curved seams) evaluated at the middle; the root lies
-    ``depth_mm`` below the edges' midpoint along ``up`` (the groove's depth as the joint drawing gives it,
-    measured along the torch axis)."""
-    mean = np.vstack([edge_a, edge_b]).mean(axis=0)
-    # the seam direction: principal axis of both edges, each about its own centre (not across the groove)
-    _, _, vt = np.linalg.svd(np.vstack([edge_a - edge_a.mean(axis=0), edge_b - edge_b.mean(axis=0)]),
-                             full_matrices=False)
-    t = vt[0] * np.sign(vt[0] @ (edge_a[-1] - edge_a[0]) or 1.0)
-    fits = []
-    for e in (edge_a, edge_b):
-        tau = (e - mean) @ t
-        deg = 2 if np.ptp(tau) > 3.0 and len(e) >= 6 else 1
-        coef = [np.polyfit(tau, e[:, k], deg) for k in range(3)]
-        fits.append((np.array([np.polyval(c, 0.0) for c in coef]),
-                     np.array([np.polyval(np.polyder(c), 0.0) for c in coef])))
-    (pa, da), (pb, db) = fits
-    tangent = (da + db) / np.linalg.norm(da + db)
-    root = (pa + pb) / 2 - depth_mm * np.asarray(up, float)
-    return SeamPoint(root, tangent, float(np.linalg.norm(pa - pb)))
+    def start(self, first_image: np.ndarray) -> SeamSensor:
+        """The sensor, seeded on the run's first window image (H, W) uint8."""
+        seed = auto_seed(first_image) if self.seed_px is None else tuple(float(c) for c in self.seed_px)
+        return SeamSensor(self.rig, seed, self.near_mm, self.far_mm, self.params)

@@ -30,7 +30,7 @@ from psvs.io.images import grey8
 from psvs.live.dense import DenseSensor
 from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
 from psvs.match.correspondence import MatchResult, match_image
-from psvs.match.export import write_csv, write_json, write_ply
+from psvs.match.export import result_to_dict, write_csv, write_json, write_ply
 from psvs.measure.triangulate import MODELS, default_model
 from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
@@ -104,20 +104,6 @@ def _calibration_status(rig: Rig) -> dict:
                                                      "rms_right_px": cal.rms_right_px, "images": cal.images,
                                                      "kinds": cal.kinds},
             "default_model": default_model(rig)}
-
-
-def _result_json(res: MatchResult, seed) -> dict:
-    pairs = []
-    for k, p in enumerate(res.pairs):
-        z = p.points_mm[:, 2]
-        pairs.append({"id": k, "n": len(p), "median_z_mm": float(np.nanmedian(z)) if np.any(np.isfinite(z)) else None,
-                      "median_disparity_px": float(np.median(p.disparity_px)),
-                      "shape_disparity_px": p.shape_disparity_px,
-                      "left_px": np.round(p.left_px, 3).tolist(), "right_px": np.round(p.right_px, 3).tolist(),
-                      "disparity_px": np.round(p.disparity_px, 4).tolist(),
-                      "z_mm": [None if not np.isfinite(v) else round(float(v), 3) for v in z]})
-    return {"seed_px": seed, "pairs": pairs, "unmatched": len(res.unmatched),
-            "disparity_range_px": list(res.disparity_range_px)}
 
 
 def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastAPI:
@@ -200,7 +186,7 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
                           model=body.model)
         with lock:
             state["result"] = res
-        return _result_json(res, seed)
+        return {"seed_px": seed, **result_to_dict(res, decimals=4)}
 
     @app.post("/api/dense")
     def dense(body: DenseBody):

@@ -109,7 +109,7 @@ function showResult(res) {
   if (!res.pairs.length) {
     setStatus(res.seed_px ? "no twin found for this edge (double-click an edge of the left view)" : "no pair found");
   }
-  else setStatus(res.seed_px ? "edge matched" : `${res.pairs.length} edge pairs, ${res.unmatched} without a twin`, true);
+  else setStatus(res.seed_px ? "edge matched" : `${res.pairs.length} edge pairs, ${res.unmatched.length} without a twin`, true);
   plotFig8(res);
   draw();
 }
