@@ -14,7 +14,7 @@ import numpy as np
 
 from psvs._validate import check_grey
 from psvs.imaging.pipeline import PAPER, Pipeline
-from psvs.match.auto import Unmatched, match_auto
+from psvs.match.auto import AutoParams, Unmatched, match_auto
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.match.subpixel import refine_pairs
@@ -111,7 +111,7 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         pair = match_seeded(edges, seed_px, rng, n_seeds=n_seeds, rect=rect)
         pairs, unmatched = ([pair] if len(pair) else []), []
     else:
-        auto = match_auto(edges, rng, min_rows=min_rows, grey=grey, rect=rect)
+        auto = match_auto(edges, rng, params=AutoParams(min_rows=min_rows), grey=grey, rect=rect)
         pairs, unmatched = auto.pairs, auto.unmatched
     return MatchResult(finish_pairs(grey, pairs, rig, subpixel=subpixel, model=model, rect=rect), unmatched, edges,
                        rng, stages)
