@@ -1,8 +1,9 @@
-"""AutoParams: the automatic pairing's tuning, checked when built and used by match_auto."""
+"""AutoParams and MatchParams: the matching tuning, checked when built; match_auto uses its params."""
 import numpy as np
 import pytest
 
 from psvs.match.auto import AutoParams, match_auto
+from psvs.match.correspondence import MatchParams
 from tests.match.test_seeded import POLY, paper_edges
 
 
@@ -37,3 +38,14 @@ def test_match_auto_uses_its_params():
     assert not m.pairs and len(m.unmatched) == 2
     with pytest.raises(TypeError, match="params must be an AutoParams, got dict"):
         match_auto(edges, (80, 250), params={"min_rows": 300})
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"subpixel": 1}, r"subpixel must be True or False, got 1"),
+    ({"model": "pinhole"}, r"model must be one of paper, refraction, exact or None, got 'pinhole'"),
+    ({"n_seeds": 1}, r"n_seeds must be an integer in 2..100 \(the paper's range\), got 1"),
+    ({"auto": {"min_rows": 5}}, r"auto must be an AutoParams, got dict"),
+])
+def test_bad_match_params_are_refused(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        MatchParams(**kwargs)

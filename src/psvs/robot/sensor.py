@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.imaging.pipeline import Pipeline, make_pipeline
-from psvs.match.correspondence import match_image
+from psvs.match.correspondence import MatchParams, match_image
 from psvs.match.edges import edge_pixels
 from psvs.measure.equations import z_eq12
 from psvs.optics.rig import Rig
@@ -175,7 +175,7 @@ class SeamSensor:
         sides = []
         for u in (ua, ub):
             res = match_image(grey, self.rig, seed_px=(u, v), pipeline=self.pipeline, near_mm=near,
-                              far_mm=far, model="exact", rect=self.rect)
+                              far_mm=far, rect=self.rect, params=MatchParams(model="exact"))
             if not res.pairs:
                 sides.append((np.empty((0, 2)), np.empty((0, 3))))
                 continue
