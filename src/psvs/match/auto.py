@@ -261,12 +261,15 @@ def _row_span(px: EdgePixels, run: np.ndarray) -> int:
     return int(px.v[run].max() - px.v[run].min() + 1)
 
 
-def _long_runs(px: EdgePixels, pixels: np.ndarray, min_run: int) -> tuple[np.ndarray, int]:
-    """The distinct edge pixels among ``pixels`` that lie in 8-connected runs spanning at least ``min_run``
-    rows (indices into ``px``), and the longest such run's row span (0 if none)."""
-    runs = [r for r in _runs(px, _distinct(pixels, len(px.u))) if _row_span(px, r) >= min_run]
-    kept = np.concatenate(runs) if runs else np.zeros(0, int)
-    return kept, max((_row_span(px, r) for r in runs), default=0)
+def _long_runs(px: EdgePixels, pixels: np.ndarray, min_run: int) -> list[np.ndarray]:
+    """The 8-connected runs of the distinct edge pixels among ``pixels`` (indices into ``px``) that span at
+    least ``min_run`` rows."""
+    return [r for r in _runs(px, _distinct(pixels, len(px.u))) if _row_span(px, r) >= min_run]
+
+
+def _joined(runs: list[np.ndarray]) -> np.ndarray:
+    """The pixels of all ``runs``, one index array."""
+    return np.concatenate(runs) if runs else np.zeros(0, int)
 
 
 def _by_label(labels: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray]:
@@ -360,7 +363,8 @@ def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate]) -> list[Ca
         remaining[k] = False
         c = replace(cands[k], rank=float(rank[k]))
         votes = c.votes[claims.free[ev.p[c.votes]] & claims.free[ev.q[c.votes]]]
-        kept, longest = _long_runs(ev.px, ev.p[votes], ev.params.min_run)
+        runs = _long_runs(ev.px, ev.p[votes], ev.params.min_run)
+        kept, longest = _joined(runs), max((_row_span(ev.px, r) for r in runs), default=0)
         if not _strong_enough(ev, claims, c, kept, longest):
             if ev.polarity is not None and c.i != c.j:
                 later.append(c)
@@ -396,7 +400,7 @@ def _partly_hidden_twin(ev: Evidence, claims: Claims, c: Candidate,
     sel = sel[~claimed[1, px.v[q[sel]], px.u[q[sel]] + claims.pad]]
     if _n_rows(px.v[p[sel]]) < prm.min_rows:
         return None
-    kept, _ = _long_runs(px, p[sel], prm.min_run)
+    kept = _joined(_long_runs(px, p[sel], prm.min_run))
     if _n_rows(px.v[kept]) < prm.min_rows:
         return None
     left = pix_order[pix_start[i]:pix_start[i + 1]]
