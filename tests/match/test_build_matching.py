@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from psvs.io.params import load_rig
-from psvs.match.correspondence import match_image
+from psvs.match.correspondence import MatchParams, match_image
 from psvs.match.seeded import match_seeded
 from psvs.measure.triangulate import default_model, triangulate
 from psvs.optics.project import project_points
@@ -60,7 +60,7 @@ def test_seeded_matching_on_a_build():
     img = render(flat_discs_scene(), rig, seed=3).image
     top = DISCS[0] + [0.0, -18.0, 0.0]                            # the disc's top rim point
     uv, _ = project_points(top[None], rig, "left")
-    m0 = match_image(img, rig, subpixel=False)
+    m0 = match_image(img, rig, params=MatchParams(subpixel=False))
     edges = m0.edges
     v0 = int(np.rint(uv[0, 1]))
     cols = np.flatnonzero(edges[v0 - 1:v0 + 2].any(axis=0))

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from psvs import default_rig
-from psvs.match.correspondence import match_image
+from psvs.match.correspondence import MatchParams, match_image
 from psvs.optics.search_range import disparity_range
 from psvs.optics.trace import trace_pixels
 from psvs.simulate.builtin import builtin_scene, regulated_light
@@ -33,7 +33,7 @@ def test_builtin_scenes_pair_correctly(rendered, name):
     curved or turned objects are different 3-D curves in the two views). >= 95 % of the paired edge
     pixels belong to correct pairs; Figs. 5a and 5b: no wrong pair at all."""
     res = rendered[name]
-    m = match_image(res.image, default_rig(), subpixel=False)
+    m = match_image(res.image, default_rig(), params=MatchParams(subpixel=False))
     truth = res.truth.disparity_left_px
     correct = np.array([np.median(pixel_errors(p, truth)) <= 2.5 for p in m.pairs])
     sizes = np.array([len(p) for p in m.pairs])
@@ -79,7 +79,7 @@ def test_flat_objects_depth_and_subpixel_disparity():
     scene = flat_discs_scene()
     res = render(scene, rig, seed=2)
     for subpixel, limit in ((True, 0.1), (False, 0.5)):
-        m = match_image(res.image, rig, subpixel=subpixel)
+        m = match_image(res.image, rig, params=MatchParams(subpixel=subpixel))
         assert len(m.pairs) == 3
         errs = []
         for p in m.pairs:
@@ -96,9 +96,9 @@ def test_flat_objects_depth_and_subpixel_disparity():
 
 def test_seeded_match_on_a_rendered_scene(rendered):
     res = rendered["fig5a"]
-    m_auto = match_image(res.image, default_rig(), subpixel=False)
+    m_auto = match_image(res.image, default_rig(), params=MatchParams(subpixel=False))
     u, v = m_auto.pairs[0].left_px[0].astype(int)
-    m = match_image(res.image, default_rig(), seed_px=(u, v), subpixel=False)
+    m = match_image(res.image, default_rig(), seed_px=(u, v), params=MatchParams(subpixel=False))
     assert len(m.pairs) == 1
     assert np.median(pixel_errors(m.pairs[0], res.truth.disparity_left_px)) <= 2.5
 

@@ -8,7 +8,7 @@ from psvs.imaging.pipeline import PAPER
 from psvs.io.atomic import output_batch
 from psvs.io.images import read_grey
 from psvs.io.pipeline_file import load_pipeline
-from psvs.match.correspondence import match_image
+from psvs.match.correspondence import MatchParams, match_image
 from psvs.match.export import write_csv, write_json, write_ply
 from psvs.measure.triangulate import MODELS
 
@@ -55,9 +55,10 @@ def run(args) -> int:
     rig = rig_from_args(args)
     pipeline = load_pipeline(args.pipeline) if args.pipeline else PAPER
     image = read_grey(args.image)
-    seeds = {} if args.n_seeds is None else {"n_seeds": args.n_seeds}   # else match_image's default
+    seeds = {} if args.n_seeds is None else {"n_seeds": args.n_seeds}   # else MatchParams' default
+    params = MatchParams(subpixel=not args.no_subpixel, model=args.model, **seeds)
     res = match_image(image, rig, seed_px=seed, pipeline=pipeline, near_mm=args.near_mm, far_mm=args.far_mm,
-                      subpixel=not args.no_subpixel, model=args.model, **seeds)
+                      params=params)
     with output_batch():   # all outputs land together, or none replaces an earlier file
         write_json(out, res)
         if csv_path:

@@ -9,18 +9,85 @@ pixel ends up in at most one pair, as the left or the right view. Where the view
 the union holds pieces of both views in one component; such a component may pair with several others or
 with itself (both views of one object merged). A second pass then takes the left edges whose twin is
 mostly lost from the edge map where it fell on another object's view: its visible pieces pair, and the
-grey image (the sum of both views) must still show the rest. Edges without a strong enough twin are
-reported unmatched.
+grey image (the sum of both views) must still show the rest (:mod:`psvs.match.grey_steps`). Edges
+without a strong enough twin are reported unmatched.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 
-from psvs.match.edges import EdgePixels, edge_pixels, row_step, row_votes
+from psvs._validate import check_finite
+from psvs.match.edges import EdgePixels, edge_pixels, row_votes
+from psvs.match.grey_steps import polarity, step_image, twin_step_seen
 from psvs.match.pairs import EdgePair, grow_pairs
+
+
+def _check_count(value, name: str, least: int) -> None:
+    """ValueError naming ``name`` unless ``value`` is an integer >= ``least``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+        raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class AutoParams:
+    """Tuning of :func:`match_auto`; lengths in px of the complex image (of the rectified views on a build).
+
+    Parameters
+    ----------
+    min_rows : int
+        A twin must agree (same disparity +-1 px) on at least this many image rows.
+    min_fraction : float
+        ... and either on this share (0-1) of the rows of the smaller of the two edges, or along one
+        contiguous stretch of edge spanning at least ``long_run_rows`` rows (a partly hidden edge: its
+        visible part).
+    long_run_rows : int
+        See ``min_fraction``.
+    min_run : int
+        Agreeing pixels count only in contiguous stretches spanning at least this many rows.
+    tol_px : float
+        Pixel pairing tolerance around the shape disparity, px.
+    support_px : int
+        Candidates are ranked by their agreeing rows plus those of accepted candidates at the same
+        disparity (+-2 px) within this distance, px: the other edges of the same object (inner contours,
+        texture) back the true disparity, which settles repeated shapes (two identical objects).
+    standalone_rows : int
+        Rows needed by a twin that no accepted pair nearby at the same disparity supports.
+    polarity_level : float
+        With a grey image, a vote needs both pixels to step the same way across the edge along the row
+        (I(u+2) - I(u-2) of one sign); steps under this many grey levels match either: twins cross the
+        same object boundary.
+    seen_fraction : float
+        With a grey image, a second pass accepts a left edge whose twin the edge map keeps only in pieces
+        (merged with another object's view): the pieces, gathered over all components at one disparity,
+        must agree on ``min_rows`` rows, and the grey image must step the same way at the twin's column
+        on this share (0-1) of the edge's rows and on ``standalone_rows`` rows
+        (:func:`_partly_hidden_twin`).
+    """
+
+    min_rows: int = 10
+    min_fraction: float = 0.6
+    long_run_rows: int = 20
+    min_run: int = 4
+    tol_px: float = 2.0
+    support_px: int = 24
+    standalone_rows: int = 30
+    polarity_level: float = 8.0
+    seen_fraction: float = 0.8
+
+    def __post_init__(self):
+        for name in ("min_rows", "long_run_rows", "min_run", "standalone_rows"):
+            _check_count(getattr(self, name), name, 1)
+        _check_count(self.support_px, "support_px", 0)
+        for name in ("min_fraction", "seen_fraction"):
+            if not 0 <= check_finite(getattr(self, name), name) <= 1:
+                raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
+        if check_finite(self.tol_px, "tol_px") < 0:
+            raise ValueError(f"tol_px must be >= 0 px, got {self.tol_px!r}")
+        if check_finite(self.polarity_level, "polarity_level") < 0:
+            raise ValueError(f"polarity_level must be >= 0 grey levels, got {self.polarity_level!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -30,6 +97,136 @@ class Unmatched:
     label: int
     n_pixels: int
     bbox_px: tuple[int, int, int, int]
+
+
+@dataclass(frozen=True, eq=False)
+class AutoMatch:
+    """Result of :func:`match_auto`: ``pairs`` (integer pixel pairs, strongest first), ``unmatched`` edges
+    (complex-image boxes) and the labelled edge ``pixels``."""
+
+    pairs: list[EdgePair]
+    unmatched: list[Unmatched]
+    pixels: EdgePixels
+
+
+@dataclass(frozen=True, eq=False)
+class Candidate:
+    """A candidate twin: left component ``i`` is the left view of right component ``j`` at disparity ``d``
+    px (an integer).
+
+    ``votes`` (K,) int indexes the votes (p, q, d) of the two components within +-1 px of ``d``; ``rows``
+    is their agreeing rows, summed over d - 1, d, d + 1; ``box`` (u0, v0, u1, v1) px bounds their left
+    pixels in the complex image. ``rank`` is the candidate's support when its turn came: ``rows`` plus the
+    rows of the accepted candidates near it (NaN before ranking).
+    """
+
+    i: int
+    j: int
+    d: int
+    votes: np.ndarray
+    rows: float
+    box: tuple[int, int, int, int]
+    rank: float = float("nan")
+
+
+@dataclass(frozen=True, eq=False)
+class Evidence:
+    """What one call of :func:`match_auto` pairs from, fixed during the call: the labelled edge pixels, the
+    votes (p left pixel, q right pixel, d = u_p - u_q px; (V,) each, indices into ``px`` and disparities),
+    each pixel's polarity (N,) int8 and the padded step image of the grey image
+    (:func:`psvs.match.grey_steps.step_image`), both None without a grey image, and the tuning."""
+
+    px: EdgePixels
+    p: np.ndarray
+    q: np.ndarray
+    d: np.ndarray
+    polarity: np.ndarray | None
+    steps: tuple[np.ndarray, np.ndarray] | None
+    params: AutoParams
+
+
+class Claims:
+    """Which view each edge pixel has been given so far, and the pairs accepted.
+
+    Attributes
+    ----------
+    free : ndarray of bool, shape (N,)
+        Edge pixels in no pair yet.
+    explained : ndarray of bool, shape (N,)
+        Unpaired pixels of a pair whose twin the grey image shows (or saturation hides) where the edge
+        map lost it: not an unmatched edge.
+    claimed : ndarray of bool, shape (2, H, W + 2 pad)
+        Pixels known to belong to the left (0) or the right (1) view, column u at u + ``pad``.
+    pairs : list of EdgePair
+        The pairs accepted, in order.
+    """
+
+    def __init__(self, ev: Evidence, pad: int):
+        n = len(ev.px.u)
+        self.ev, self.pad = ev, pad
+        self.free = np.ones(n, dtype=bool)
+        self.explained = np.zeros(n, dtype=bool)
+        self.claimed = np.zeros((2, ev.px.shape[0], ev.px.shape[1] + 2 * pad), dtype=bool)
+        self.pairs: list[EdgePair] = []
+
+    def free_of(self, label: int) -> np.ndarray:
+        """Mask (N,) of the free pixels of component ``label``."""
+        return self.free & (self.ev.px.label == label)
+
+    def free_rows(self, label: int) -> int:
+        """Number of distinct rows holding a free pixel of component ``label``."""
+        return _n_rows(self.ev.px.v[self.free_of(label)])
+
+    def claim(self, idx: np.ndarray, view: int) -> None:
+        """Mark edge pixels ``idx`` as belonging to ``view`` (0 left, 1 right)."""
+        px = self.ev.px
+        self.claimed[view, px.v[idx], px.u[idx] + self.pad] = True
+
+    def accept(self, c: Candidate, kept: np.ndarray, votes: np.ndarray, right: np.ndarray | None = None) -> bool:
+        """Grow the pair (c.i, c.j) at disparity c.d from its agreeing left pixels ``kept`` along both edges
+        (the disparity may drift along a slanted edge); keep it if it holds ``min_rows`` pixel pairs.
+
+        ``votes`` are the candidate's votes still open: where c.i == c.j (both views merged in one outline)
+        the twins of ``kept`` among them are the right view. ``right``: the pixels that may hold the twin
+        (None: the free pixels of component c.j). Returns whether the pair was kept.
+        """
+        ev, prm = self.ev, self.ev.params
+        px, n = ev.px, len(ev.px.u)
+        in_kept = np.zeros(n, dtype=bool)
+        in_kept[kept] = True
+        if c.i == c.j:  # a merged outline: the agreeing pixels are the left view, their twins the right
+            left_set = kept
+            right = _distinct(ev.q[votes][in_kept[ev.p[votes]]], n)
+        else:
+            left_set = _distinct(np.concatenate([kept, np.flatnonzero(self.free_of(c.i))]), n)
+            if right is None:
+                right = np.flatnonzero(self.free_of(c.j))
+        li, ri = grow_pairs(px, left_set, right[~in_kept[right]], c.d, prm.tol_px, polarity=ev.polarity)
+        if len(li) < prm.min_rows:
+            return False
+        left_px = np.column_stack([a[li] for a in px.left_uv]).astype(float)
+        right_px = np.column_stack([a[ri] for a in px.right_uv]).astype(float)
+        self.pairs.append(EdgePair(left_px, right_px, left_px[:, 0] - right_px[:, 0], c.i, c.j, float(c.d)))
+        self.free[li] = False
+        self.free[ri] = False
+        self.claim(li, 0)
+        self.claim(ri, 1)
+        if ev.polarity is not None and c.i != c.j:
+            self._explain_leftovers(c, ri)
+        return True
+
+    def _explain_leftovers(self, c: Candidate, ri: np.ndarray) -> None:
+        """The accepted pair's leftover pixels (free pixels of its left component, and of the components
+        holding its right pixels ``ri``) whose twin steps the grey image where the edge map lost it are
+        explained and claimed for their view; those where saturation blinds the check are explained."""
+        px, prm = self.ev.px, self.ev.params
+        leftovers = ((np.flatnonzero(self.free_of(c.i)), c.d, 0),
+                     (np.flatnonzero(self.free & np.isin(px.label, px.label[ri])), -c.d, 1))
+        for idx, d, view in leftovers:   # the right view's check sees the left view's claims just made
+            seen, blind = twin_step_seen(self.ev.steps, px, idx, d, prm.tol_px, prm.polarity_level,
+                                         self.claimed[1 - view], view)
+            self.explained[idx[seen | blind]] = True
+            self.claim(idx[seen], view)
 
 
 def _n_rows(v: np.ndarray) -> int:
@@ -59,9 +256,34 @@ def _runs(px: EdgePixels, idx: np.ndarray) -> list[np.ndarray]:
     return np.split(idx[order], cuts)
 
 
-def _candidates(px: EdgePixels, p, q, d, d_min: int, min_rows: int) -> list[dict]:
+def _row_span(px: EdgePixels, run: np.ndarray) -> int:
+    """Rows spanned by edge pixels ``run``, first to last."""
+    return int(px.v[run].max() - px.v[run].min() + 1)
+
+
+def _long_runs(px: EdgePixels, pixels: np.ndarray, min_run: int) -> list[np.ndarray]:
+    """The 8-connected runs of the distinct edge pixels among ``pixels`` (indices into ``px``) that span at
+    least ``min_run`` rows."""
+    return [r for r in _runs(px, _distinct(pixels, len(px.u))) if _row_span(px, r) >= min_run]
+
+
+def _joined(runs: list[np.ndarray]) -> np.ndarray:
+    """The pixels of all ``runs``, one index array."""
+    return np.concatenate(runs) if runs else np.zeros(0, int)
+
+
+def _by_label(labels: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices sorted by label, and where each label's run starts (n_labels + 1 offsets): the entries
+    with label i are ``order[start[i]:start[i + 1]]``."""
+    order = np.argsort(labels, kind="stable")
+    return order, np.searchsorted(labels[order], np.arange(n_labels + 1))
+
+
+def _candidates(ev: Evidence, d_min: int) -> list[Candidate]:
     """Candidate twins (left component i, right component j, disparity d): every local maximum over d of
-    the agreeing rows of a component pair, with its votes (indices into p, q, d within +-1 px)."""
+    the agreeing rows of a component pair (smoothed over +-1 px) holding ``min_rows`` rows; ``d_min`` is
+    the smallest disparity searched, px."""
+    px, p, q, d = ev.px, ev.p, ev.q, ev.d
     n_lab = px.n_labels
     span = int(d.max()) - d_min + 3
     key = (px.label[p] * n_lab + px.label[q]) * span + (d - d_min + 1)
@@ -85,155 +307,108 @@ def _candidates(px: EdgePixels, p, q, d, d_min: int, min_rows: int) -> list[dict
     smooth = {k: rows.get(k - 1, 0) + rows[k] + rows.get(k + 1, 0) for k in uk.tolist()}
     cands = []
     for k, score in smooth.items():
-        if score < min_rows or any(smooth.get(k + o, 0) > score for o in (-2, -1, 1, 2)) \
+        if score < ev.params.min_rows or any(smooth.get(k + o, 0) > score for o in (-2, -1, 1, 2)) \
                 or smooth.get(k - 1, 0) == score or smooth.get(k - 2, 0) == score:
             continue
         pk = k // span
         idx = np.concatenate([order[slice(*slices[kk])] for kk in (k - 1, k, k + 1) if kk in slices])
         u, v = px.u[p[idx]], px.v[p[idx]]
-        cands.append({"i": pk // n_lab, "j": pk % n_lab, "d": int(k % span) + d_min - 1, "votes": idx,
-                      "rows": float(score), "box": (u.min(), v.min(), u.max(), v.max())})
+        cands.append(Candidate(pk // n_lab, pk % n_lab, int(k % span) + d_min - 1, idx, float(score),
+                               (int(u.min()), int(v.min()), int(u.max()), int(v.max()))))
     return cands
 
 
-def _by_support(cands: list[dict], support_px: int):
-    """Yield candidates best first: own agreeing rows plus the rows of already *accepted* candidates near
-    it (same disparity +-2 px, boxes within ``support_px``: the same object's other edges). The caller
-    sends back True when it accepted the candidate it got."""
-    if not cands:
-        return
-    rows = np.array([c["rows"] for c in cands])
-    dd = np.array([c["d"] for c in cands])
-    box = np.array([c["box"] for c in cands], dtype=float)
+def _neighbours(cands: list[Candidate], support_px: int) -> np.ndarray:
+    """(K, K) bool: candidate k supports candidate m when their disparities differ by at most 2 px and
+    their boxes come within ``support_px`` of each other (the same object's other edges); not itself."""
+    dd = np.array([c.d for c in cands])
+    box = np.array([c.box for c in cands], dtype=float)
     near = ((np.abs(dd[:, None] - dd[None, :]) <= 2)
             & (box[None, :, 0] <= box[:, None, 2] + support_px) & (box[None, :, 2] >= box[:, None, 0] - support_px)
             & (box[None, :, 1] <= box[:, None, 3] + support_px) & (box[None, :, 3] >= box[:, None, 1] - support_px))
     np.fill_diagonal(near, False)
+    return near
+
+
+def _strong_enough(ev: Evidence, claims: Claims, c: Candidate, kept: np.ndarray, longest: int) -> bool:
+    """Whether the edge map alone settles candidate ``c``: its agreeing pixels ``kept`` (in runs, the
+    longest spanning ``longest`` rows) cover enough rows of the smaller of its two edges' free pixels, or
+    one long stretch; a candidate no accepted neighbour supports needs ``standalone_rows`` rows."""
+    prm = ev.params
+    agree = _n_rows(ev.px.v[kept])                           # distinct agreeing rows
+    rows_i, rows_j = claims.free_rows(c.i), claims.free_rows(c.j)
+    # a merged outline (both views in one component) pairs with itself: half is left, half right
+    smaller = rows_i / 2 if c.i == c.j else min(rows_i, rows_j)
+    # an edge backed by no accepted pair at its disparity nearby needs stronger evidence of its own
+    need = prm.min_rows if c.rank > c.rows else prm.standalone_rows
+    return not (agree < need or (agree < prm.min_fraction * smaller and longest < prm.long_run_rows))
+
+
+def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate]) -> list[Candidate]:
+    """Accept candidates the edge map settles, best supported first; return those it does not settle
+    (with a grey image, and not a merged outline: left for the second pass), in the order they came.
+
+    A candidate's support is its own agreeing rows plus the rows of the accepted candidates near it
+    (:func:`_neighbours`): each acceptance raises the rank of the remaining candidates it supports, and the
+    next candidate is the remaining one of highest rank (the first such on ties)."""
+    later: list[Candidate] = []
+    if not cands:
+        return later
+    rows = np.array([c.rows for c in cands])
+    near = _neighbours(cands, ev.params.support_px)
     rank = rows.copy()
     remaining = np.ones(len(cands), dtype=bool)
     while remaining.any():
         k = int(np.argmax(np.where(remaining, rank, -np.inf)))
         remaining[k] = False
-        c = cands[k]
-        c["rank"] = float(rank[k])
-        if (yield c):
+        c = replace(cands[k], rank=float(rank[k]))
+        votes = c.votes[claims.free[ev.p[c.votes]] & claims.free[ev.q[c.votes]]]
+        runs = _long_runs(ev.px, ev.p[votes], ev.params.min_run)
+        kept, longest = _joined(runs), max((_row_span(ev.px, r) for r in runs), default=0)
+        if not _strong_enough(ev, claims, c, kept, longest):
+            if ev.polarity is not None and c.i != c.j:
+                later.append(c)
+        elif claims.accept(c, kept, votes):
             rank += near[:, k] * rows[k]
-            yield None  # answer to send()
+    return later
 
 
-def _polarity(grey: np.ndarray, px: EdgePixels, level: float) -> np.ndarray:
-    """Sign (-1, 0, +1) of the grey step along the row at each edge pixel (0: under ``level``)."""
-    if grey.shape != tuple(px.shape):
-        raise ValueError(f"grey must have the edge map's shape {tuple(px.shape)}, got {grey.shape}")
-    step = row_step(grey, px.u, px.v)
-    return np.where(np.abs(step) < level, 0, np.sign(step)).astype(np.int8)
-
-
-def _step_image(grey: np.ndarray, pad: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`row_step` at every pixel of a grey (H, W) image, and the headroom above the darker of its
-    two samples where the brighter one reaches the image's maximum (a step clipped by saturation), else
-    infinity; both zero-padded by ``pad`` columns each side: (H, W + 2 pad), column u at u + pad."""
-    h, w = grey.shape
-    u, v = np.arange(w)[None, :], np.arange(h)[:, None]
-    a, b = grey[v, np.clip(u - 2, 0, w - 1)], grey[v, np.clip(u + 2, 0, w - 1)]
-    top = grey.max()
-    steps, room = np.zeros((h, w + 2 * pad)), np.zeros((h, w + 2 * pad))
-    steps[:, pad:pad + w] = row_step(grey, u, v)
-    room[:, pad:pad + w] = np.where(np.maximum(a, b) >= top, top - np.minimum(a, b), np.inf)
-    room[:, :pad] = room[:, pad + w:] = np.inf
-    return steps, room
-
-
-def _twin_step_seen(steps, px: EdgePixels, idx: np.ndarray, d: float, tol_px: float,
-                    level: float, blocked: np.ndarray, view: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Masks (len(idx),) seen and blind, for the twins of edge pixels ``idx`` (taken in ``view``, 0 left or
-    1 right) at column u - d of their rows (+-tol_px; on a build, rows and columns of the rectified views,
-    :meth:`EdgePixels.twin_pixels`).
-
-    Seen: the grey image steps the same way there, by at least half as much (and ``level``; half the
-    headroom where saturation clips the step), and no ``blocked`` pixel lies there: an edge already
-    claimed *in the twin's view*. That step is another object's edge in the same view; an edge of the
-    *other* view there is what the twin may have merged with. Blind: saturation flattens the whole
-    neighbourhood, which can then neither show nor deny the twin. ``steps`` (step, headroom) and
-    ``blocked`` are padded images from :func:`_step_image` (same padding).
-
-    The complex image is the *sum* of the two views, so an edge of one view that falls on a bright object
-    of the other view still steps the grey level by its own contrast, although both sides of it land above
-    the binary threshold and the edge map loses it there.
-    """
-    step, room = steps
-    pad = (step.shape[1] - px.shape[1]) // 2
-    u, v = px.u[idx] + pad, px.v[idx]
-    own = step[v, u]
-    sign = np.sign(own)
-    seen = np.zeros(len(idx), dtype=bool)
-    other = np.zeros(len(idx), dtype=bool)
-    t = int(np.ceil(tol_px))
-    blind = np.ones(len(idx), dtype=bool)
-    for k in range(-t, t + 1):
-        tu, tv, inside = px.twin_pixels(idx, k - np.rint(d), view)
-        tu, tv = np.clip(tu + pad, 0, step.shape[1] - 1), np.clip(tv, 0, step.shape[0] - 1)
-        step_k = np.where(inside, step[tv, tu], 0.0)            # outside the image: as the zero padding
-        room_k = np.where(inside, room[tv, tu], np.inf)
-        need = np.maximum(level, 0.5 * np.minimum(np.abs(own), room_k))
-        seen |= sign * step_k >= need
-        other |= inside & blocked[tv, tu]
-        blind &= room_k < level
-    return seen & ~other & (sign != 0), blind & ~other
-
-
-def _claim(claimed: np.ndarray, px: EdgePixels, idx: np.ndarray, view: int) -> None:
-    """Mark edge pixels ``idx`` as belonging to ``view`` (0 left, 1 right) in ``claimed`` (2, H, W + 2 pad)."""
-    pad = (claimed.shape[2] - px.shape[1]) // 2
-    claimed[view, px.v[idx], px.u[idx] + pad] = True
-
-
-def _row_span(px: EdgePixels, run: np.ndarray) -> int:
-    return int(px.v[run].max() - px.v[run].min() + 1)
-
-
-def _by_label(labels: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray]:
-    """Indices sorted by label, and where each label's run starts (n_labels + 1 offsets): the entries
-    with label i are ``order[start[i]:start[i + 1]]``."""
-    order = np.argsort(labels, kind="stable")
-    return order, np.searchsorted(labels[order], np.arange(n_labels + 1))
-
-
-def _partly_hidden_twin(px: EdgePixels, votes, index, free, explained, claimed, steps, i: int, ds: int,
-                        min_rows: int, min_run: int, tol_px: float, standalone_rows: int, seen_fraction: float,
-                        level: float):
-    """Accept the twin of left edge ``i`` at disparity ``ds`` from its visible pieces, wherever they are.
+def _partly_hidden_twin(ev: Evidence, claims: Claims, c: Candidate,
+                        index: tuple) -> tuple[np.ndarray, np.ndarray] | None:
+    """The twin of left edge ``c.i`` at disparity ``c.d`` from its visible pieces, wherever they are.
 
     Where one object's view overlaps another object's view, the binary edge map keeps only part of its
     twin's outline, and that part is merged with the other object's outline (or its inner contour). The
-    visible pieces are gathered over *all* components at ``ds`` +-1 px (except pixels already claimed for
+    visible pieces are gathered over *all* components at ``c.d`` +-1 px (except pixels already claimed for
     the right view); they must agree on at least ``min_rows`` rows in stretches of ``min_run`` rows. The
-    rest of the twin must be explained: on at least ``standalone_rows`` rows of edge ``i``, and on
+    rest of the twin must be explained: on at least ``standalone_rows`` rows of edge ``c.i``, and on
     ``seen_fraction`` of its rows where saturation does not blind the grey image, the grey image steps the
-    same way at the twin's column (:func:`_twin_step_seen`), whether the edge map kept that piece or lost
-    it on the bright overlap.
+    same way at the twin's column (:func:`psvs.match.grey_steps.twin_step_seen`), whether the edge map
+    kept that piece or lost it on the bright overlap.
 
-    Returns (agreeing left pixels, free pixels of the components holding the twin's pieces) as indices
-    into ``px``, or None.
+    ``index`` holds the votes and the pixels by component, each as :func:`_by_label` gives them. Returns
+    (agreeing left pixels, free pixels of the components holding the twin's pieces) as indices into
+    ``ev.px``, or None.
     """
-    p, q, d = votes
+    px, p, q, prm = ev.px, ev.p, ev.q, ev.params
+    free, explained, claimed = claims.free, claims.explained, claims.claimed
     (vote_order, vote_start), (pix_order, pix_start) = index
+    i, ds = c.i, c.d
     sel = vote_order[vote_start[i]:vote_start[i + 1]]
-    sel = sel[(np.abs(d[sel] - ds) <= 1) & free[p[sel]] & ~explained[p[sel]] & free[q[sel]]
+    sel = sel[(np.abs(ev.d[sel] - ds) <= 1) & free[p[sel]] & ~explained[p[sel]] & free[q[sel]]
               & (px.label[q[sel]] != i)]
-    sel = sel[~claimed[1, px.v[q[sel]], px.u[q[sel]] + (claimed.shape[2] - px.shape[1]) // 2]]
-    if _n_rows(px.v[p[sel]]) < min_rows:
+    sel = sel[~claimed[1, px.v[q[sel]], px.u[q[sel]] + claims.pad]]
+    if _n_rows(px.v[p[sel]]) < prm.min_rows:
         return None
-    runs = [r for r in _runs(px, _distinct(p[sel], len(px.u))) if _row_span(px, r) >= min_run]
-    kept = np.concatenate(runs) if runs else np.zeros(0, int)
-    if _n_rows(px.v[kept]) < min_rows:
+    kept = _joined(_long_runs(px, p[sel], prm.min_run))
+    if _n_rows(px.v[kept]) < prm.min_rows:
         return None
     left = pix_order[pix_start[i]:pix_start[i + 1]]
     left = left[free[left] & ~explained[left]]                  # not already explained by an accepted pair
-    seen, blind = _twin_step_seen(steps, px, left, ds, tol_px, level, claimed[1])
+    seen, blind = twin_step_seen(ev.steps, px, left, ds, prm.tol_px, prm.polarity_level, claimed[1])
     seen_rows = _n_rows(px.v[left[seen]])
     blind_rows = _n_rows(px.v[left]) - _n_rows(px.v[left[~blind]])    # rows with all their twins blind
-    if seen_rows < standalone_rows or seen_rows < seen_fraction * (_n_rows(px.v[left]) - blind_rows):
+    if seen_rows < prm.standalone_rows or seen_rows < prm.seen_fraction * (_n_rows(px.v[left]) - blind_rows):
         return None
     in_kept = np.zeros(len(px.u), dtype=bool)
     in_kept[kept] = True
@@ -242,17 +417,40 @@ def _partly_hidden_twin(px: EdgePixels, votes, index, free, explained, claimed, 
     return kept, np.flatnonzero(free & holders[px.label])
 
 
-@dataclass(frozen=True, eq=False)
-class AutoMatch:
-    pairs: list[EdgePair]
-    unmatched: list[Unmatched]
-    pixels: EdgePixels
+def _second_pass(ev: Evidence, claims: Claims, later: list[Candidate]) -> None:
+    """Once the edge map has settled what it can (so this pass never takes a pixel a first-pass pair
+    needed), accept the candidates ``later`` whose twin is partly hidden on, or merged with, another
+    object's view (:func:`_partly_hidden_twin`). A left edge and disparity found wanting is not tried
+    again until some pair is accepted."""
+    px, prm = ev.px, ev.params
+    index = (_by_label(px.label[ev.p], px.n_labels), _by_label(px.label, px.n_labels))
+    tried: set[tuple[int, int]] = set()
+    for c in later:
+        if (c.i, c.d) in tried or claims.free_rows(c.i) < prm.standalone_rows:
+            continue
+        tried.add((c.i, c.d))
+        hidden = _partly_hidden_twin(ev, claims, c, index)
+        if hidden is not None and claims.accept(c, hidden[0], c.votes, hidden[1]):
+            tried.clear()
 
 
-def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_rows: int = 10,
-               min_fraction: float = 0.6, long_run_rows: int = 20, min_run: int = 4, tol_px: float = 2.0,
-               support_px: int = 24, standalone_rows: int = 30, grey: np.ndarray | None = None,
-               polarity_level: float = 8.0, seen_fraction: float = 0.8, rect=None) -> AutoMatch:
+def _unmatched(px: EdgePixels, claims: Claims) -> list[Unmatched]:
+    """The components not mostly paired (or explained): stray pixels of a paired edge are not an unmatched
+    edge. Each with its free pixels' count and bounding box."""
+    sizes = np.bincount(px.label, minlength=px.n_labels)
+    paired = np.bincount(px.label[~claims.free | claims.explained], minlength=px.n_labels)
+    out = []
+    for lab in range(px.n_labels):
+        if paired[lab] >= 0.5 * sizes[lab]:
+            continue
+        sel = (px.label == lab) & claims.free
+        u, v = px.u[sel], px.v[sel]
+        out.append(Unmatched(int(lab), int(sel.sum()), (int(u.min()), int(v.min()), int(u.max()), int(v.max()))))
+    return out
+
+
+def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], *, params: AutoParams = AutoParams(),
+               grey: np.ndarray | None = None, rect=None) -> AutoMatch:
     """Pair all edges of an (H, W) bool edge map with their twins.
 
     Parameters
@@ -260,30 +458,12 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
     edges : ndarray of bool, shape (H, W)
     disparity_range_px : (d_min, d_max)
         Disparities u_l - u_r the rig can produce in its working range, px.
-    min_rows : int
-        A twin must agree (same disparity +-1 px) on at least this many image rows.
-    min_fraction, long_run_rows : float, int
-        ... and either on this share of the rows of the smaller of the two edges, or along one contiguous
-        stretch of edge spanning at least ``long_run_rows`` rows (a partly hidden edge: its visible part).
-    min_run : int
-        Agreeing pixels count only in contiguous stretches spanning at least this many rows.
-    tol_px : float
-        Pixel pairing tolerance around the shape disparity, px.
+    params : AutoParams
+        The tuning (rows a twin must agree on, tolerances, support distance, grey-image checks).
     grey : ndarray, shape (H, W), optional
         The (filtered) grey image the edges came from. When given, a vote needs both pixels to step the
-        same way across the edge along the row (I(u+2) - I(u-2) of one sign; steps under
-        ``polarity_level`` grey levels match either): twins cross the same object boundary.
-    standalone_rows : int
-        Rows needed by a twin that no accepted pair nearby at the same disparity supports.
-    support_px : int
-        Candidates are ranked by their agreeing rows plus those of other candidates at the same
-        disparity (+-2 px) within this distance: the other edges of the same object (inner contours,
-        texture) back the true disparity, which settles repeated shapes (two identical objects).
-    seen_fraction : float
-        With ``grey``, a second pass accepts a left edge whose twin the edge map keeps only in pieces
-        (merged with another object's view): the pieces, gathered over all components at one disparity,
-        must agree on ``min_rows`` rows, and the grey image must step the same way at the twin's column
-        on this share of the edge's rows and on ``standalone_rows`` rows (:func:`_partly_hidden_twin`).
+        same way across the edge (``params.polarity_level``), and a second pass pairs the left edges whose
+        twin the edge map keeps only in pieces (``params.seen_fraction``).
     rect : psvs.optics.rectify.Rectification, optional
         A build's dual rectification: twins then share rows of the rectified views, and disparities are
         rectified ones. None: the complex image's own rows (the paper's geometry).
@@ -297,94 +477,21 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], min_r
     d_min, d_max = disparity_range_px
     if not 0 < d_min < d_max:
         raise ValueError(f"disparity range must satisfy 0 < d_min < d_max, got {disparity_range_px!r}")
+    if not isinstance(params, AutoParams):
+        raise TypeError(f"params must be an AutoParams, got {type(params).__name__}")
     px = edge_pixels(edges, rect)
-    sizes = np.bincount(px.label, minlength=px.n_labels)
     p, q, d = row_votes(px, d_min, d_max)
-    pol = None
+    pol = steps = None
+    pad = int(np.ceil(d_max + params.tol_px)) + 1
     if grey is not None and len(p):
-        pol = _polarity(np.asarray(grey, dtype=np.float64), px, polarity_level)
+        grey = np.asarray(grey, dtype=np.float64)
+        pol = polarity(grey, px, params.polarity_level)
         ok = (pol[p] == pol[q]) | (pol[p] == 0) | (pol[q] == 0)
         p, q, d = p[ok], q[ok], d[ok]
-    pairs: list[EdgePair] = []
-    free = np.ones(len(px.u), dtype=bool)                    # pixels not yet in any pair
-    explained = np.zeros(len(px.u), dtype=bool)              # unpaired pixels of a pair whose twin is hidden
-    pad = int(np.ceil(d_max + tol_px)) + 1
-    steps = None if pol is None else _step_image(np.asarray(grey, dtype=np.float64), pad)
-    claimed = np.zeros((2, px.shape[0], px.shape[1] + 2 * pad), dtype=bool)  # known left / right-view pixels
-
-    def accept(i: int, j: int, ds: int, kept: np.ndarray, sel: np.ndarray, right_set: np.ndarray | None) -> bool:
-        """Grow the pair (i, j) at disparity ds from its agreeing left pixels ``kept`` (votes ``sel``) along
-        both edges (the disparity may drift along a slanted edge); append it if it holds min_rows pixels."""
-        in_kept = np.zeros(len(px.u), dtype=bool)
-        in_kept[kept] = True
-        if i == j:  # a merged outline: the agreeing pixels are the left view, their twins the right
-            left_set = kept
-            right_set = _distinct(q[sel][in_kept[p[sel]]], len(px.u))
-        else:
-            left_set = _distinct(np.concatenate([kept, np.flatnonzero(free & (px.label == i))]), len(px.u))
-            if right_set is None:
-                right_set = np.flatnonzero(free & (px.label == j))
-        li, ri = grow_pairs(px, left_set, right_set[~in_kept[right_set]], ds, tol_px, polarity=pol)
-        if len(li) < min_rows:
-            return False
-        left = np.column_stack([c[li] for c in px.left_uv]).astype(float)
-        right = np.column_stack([c[ri] for c in px.right_uv]).astype(float)
-        pairs.append(EdgePair(left, right, left[:, 0] - right[:, 0], i, j, float(ds)))
-        free[li] = False
-        free[ri] = False
-        _claim(claimed, px, li, 0)
-        _claim(claimed, px, ri, 1)
-        if pol is not None and i != j:
-            # the pair's leftover pixels whose twin steps the grey image where the edge map lost it
-            for idx, dd, view in ((np.flatnonzero(free & (px.label == i)), ds, 0),
-                                  (np.flatnonzero(free & np.isin(px.label, px.label[ri])), -ds, 1)):
-                seen, blind = _twin_step_seen(steps, px, idx, dd, tol_px, polarity_level, claimed[1 - view], view)
-                explained[idx[seen | blind]] = True
-                _claim(claimed, px, idx[seen], view)
-        return True
-
-    later = []                                               # candidates the edge map alone does not settle
+        steps = step_image(grey, pad)
+    ev = Evidence(px, p, q, d, pol, steps, params)
+    claims = Claims(ev, pad)
     if len(p):
-        order = _by_support(_candidates(px, p, q, d, int(d_min), min_rows), support_px)
-        for c in order:
-            i, j, ds, sel = c["i"], c["j"], c["d"], c["votes"]
-            sel = sel[free[p[sel]] & free[q[sel]]]
-            runs = _runs(px, _distinct(p[sel], len(px.u)))
-            long_runs = [r for r in runs if _row_span(px, r) >= min_run]
-            kept = np.concatenate(long_runs) if long_runs else np.zeros(0, int)
-            agree = _n_rows(px.v[kept])                              # distinct agreeing rows
-            longest = max((_row_span(px, r) for r in long_runs), default=0)
-            rows_i = _n_rows(px.v[free & (px.label == i)])
-            rows_j = _n_rows(px.v[free & (px.label == j)])
-            # a merged outline (both views in one component) pairs with itself: half is left, half right
-            smaller = rows_i / 2 if i == j else min(rows_i, rows_j)
-            # an edge backed by no accepted pair at its disparity nearby needs stronger evidence of its own
-            need = min_rows if c["rank"] > c["rows"] else standalone_rows
-            if agree < need or (agree < min_fraction * smaller and longest < long_run_rows):
-                if pol is not None and i != j:
-                    later.append(c)
-                continue
-            if accept(i, j, ds, kept, sel, None):
-                order.send(True)
-    # Second pass, once the edge map has settled what it can (so it never takes a pixel a first-pass pair
-    # needed): twins partly hidden on, or merged with, another object's view.
-    index = (_by_label(px.label[p], px.n_labels), _by_label(px.label, px.n_labels))  # votes, pixels by component
-    tried = set()                                            # (i, d) found wanting since the last acceptance
-    for c in later:
-        i, ds = c["i"], c["d"]
-        if (i, ds) in tried or _n_rows(px.v[free & (px.label == i)]) < standalone_rows:
-            continue
-        tried.add((i, ds))
-        hidden = _partly_hidden_twin(px, (p, q, d), index, free, explained, claimed, steps, i, ds, min_rows,
-                                     min_run, tol_px, standalone_rows, seen_fraction, polarity_level)
-        if hidden is not None and accept(i, c["j"], ds, hidden[0], c["votes"], hidden[1]):
-            tried.clear()
-    unmatched = []
-    paired = np.bincount(px.label[~free | explained], minlength=px.n_labels)
-    for lab in range(px.n_labels):
-        if paired[lab] >= 0.5 * sizes[lab]:
-            continue  # mostly paired; stray pixels of a paired edge are not an unmatched edge
-        sel = (px.label == lab) & free
-        u, v = px.u[sel], px.v[sel]
-        unmatched.append(Unmatched(int(lab), int(sel.sum()), (int(u.min()), int(v.min()), int(u.max()), int(v.max()))))
-    return AutoMatch(pairs, unmatched, px)
+        later = _first_pass(ev, claims, _candidates(ev, int(d_min)))
+        _second_pass(ev, claims, later)
+    return AutoMatch(claims.pairs, _unmatched(px, claims), px)

@@ -1,5 +1,5 @@
 """From a complex image to matched, triangulated edges: pipeline -> match (seeded or automatic) ->
-sub-pixel refinement -> triangulation (issue 2's models, refraction-corrected by default).
+sub-pixel refinement -> triangulation (psvs.measure.triangulate's models, refraction-corrected by default).
 
 On a build (misaligned mirrors or a distorting lens, :func:`psvs.optics.rectify.needs_rectification`) the
 two views of a point no longer share a row of the complex image: matching then pairs edge pixels on the
@@ -14,14 +14,47 @@ import numpy as np
 
 from psvs._validate import check_grey
 from psvs.imaging.pipeline import PAPER, Pipeline
-from psvs.match.auto import Unmatched, match_auto
+from psvs.match.auto import AutoParams, Unmatched, match_auto
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.match.subpixel import refine_pairs
-from psvs.measure.triangulate import default_model, triangulate, twin_rows
+from psvs.measure.triangulate import MODELS, default_model, triangulate, twin_rows
 from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
 from psvs.optics.search_range import disparity_range, rectification_for
+
+
+@dataclass(frozen=True)
+class MatchParams:
+    """How :func:`match_image` matches and finishes the pairs.
+
+    Parameters
+    ----------
+    subpixel : bool
+        Refine every matched pixel to sub-pixel on the grey image.
+    model : {'paper', 'refraction', 'exact'}, optional
+        Triangulation model; default :func:`default_model` (exact on a build).
+    n_seeds : int
+        The seeded algorithm's seeds on the corresponding edge (2-100, the paper's range).
+    auto : AutoParams
+        The automatic mode's tuning (:func:`psvs.match.auto.match_auto`).
+    """
+
+    subpixel: bool = True
+    model: str | None = None
+    n_seeds: int = 10
+    auto: AutoParams = AutoParams()
+
+    def __post_init__(self):
+        if not isinstance(self.subpixel, (bool, np.bool_)):
+            raise ValueError(f"subpixel must be True or False, got {self.subpixel!r}")
+        if self.model is not None and self.model not in MODELS:
+            raise ValueError(f"model must be one of {', '.join(MODELS)} or None, got {self.model!r}")
+        if isinstance(self.n_seeds, bool) or not isinstance(self.n_seeds, (int, np.integer)) \
+                or not 2 <= self.n_seeds <= 100:
+            raise ValueError(f"n_seeds must be an integer in 2..100 (the paper's range), got {self.n_seeds!r}")
+        if not isinstance(self.auto, AutoParams):
+            raise ValueError(f"auto must be an AutoParams, got {type(self.auto).__name__}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -67,8 +100,8 @@ def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
 
 
 def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline = PAPER, near_mm: float = 400.0,
-                far_mm: float = 1200.0, subpixel: bool = True, model: str | None = None, n_seeds: int = 10,
-                min_rows: int = 10, rect: Rectification | None = None) -> MatchResult:
+                far_mm: float = 1200.0, rect: Rectification | None = None,
+                params: MatchParams = MatchParams()) -> MatchResult:
     """Match edges of a complex image and triangulate them.
 
     Parameters
@@ -83,13 +116,12 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         Filters, binarisation and edge detector (default: the paper's median 3x3, threshold 92, Roberts).
     near_mm, far_mm : float
         Working depth range: sets the disparities searched.
-    subpixel : bool
-        Refine every matched pixel to sub-pixel on the grey image.
-    model : {'paper', 'refraction', 'exact'}, optional
-        Triangulation model (issue 2); default :func:`default_model` (exact on a build).
     rect : Rectification, optional
         The build's dual rectification to use (default: the rig's over near..far, cached; a caller whose
         working range changes every frame passes one fitted over its whole range).
+    params : MatchParams
+        Sub-pixel refinement, triangulation model, and each mode's tuning (``n_seeds`` seeded, ``auto``
+        automatic).
 
     Returns
     -------
@@ -108,13 +140,13 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     rng = disparity_range(rig, near_mm, far_mm, rect)
     edges, stages = pipeline.run(grey, keep=True)
     if seed_px is not None:
-        pair = match_seeded(edges, seed_px, rng, n_seeds=n_seeds, rect=rect)
+        pair = match_seeded(edges, seed_px, rng, n_seeds=params.n_seeds, rect=rect)
         pairs, unmatched = ([pair] if len(pair) else []), []
     else:
-        auto = match_auto(edges, rng, min_rows=min_rows, grey=grey, rect=rect)
+        auto = match_auto(edges, rng, params=params.auto, grey=grey, rect=rect)
         pairs, unmatched = auto.pairs, auto.unmatched
-    return MatchResult(finish_pairs(grey, pairs, rig, subpixel=subpixel, model=model, rect=rect), unmatched, edges,
-                       rng, stages)
+    finished = finish_pairs(grey, pairs, rig, subpixel=params.subpixel, model=params.model, rect=rect)
+    return MatchResult(finished, unmatched, edges, rng, stages)
 
 
 def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel: bool = True,

@@ -29,7 +29,7 @@ from psvs.imaging.steps import STEPS
 from psvs.io.images import grey8
 from psvs.live.dense import DenseSensor
 from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
-from psvs.match.correspondence import MatchResult, match_image
+from psvs.match.correspondence import MatchParams, match_image
 from psvs.match.export import result_to_dict, write_csv, write_json, write_ply
 from psvs.measure.triangulate import MODELS, default_model
 from psvs.optics.rectify import needs_rectification
@@ -183,7 +183,7 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
                 raise ValueError(f"no edge within {SNAP_PX:g} px of ({u:.0f}, {v:.0f}): double-click on an edge")
             seed = [int(near[0][0]), int(near[0][1])]
         res = match_image(grey, rig, seed_px=seed, pipeline=pipeline, near_mm=body.near_mm, far_mm=body.far_mm,
-                          model=body.model)
+                          params=MatchParams(model=body.model))
         with lock:
             state["result"] = res
         return {"seed_px": seed, **result_to_dict(res, decimals=4)}
