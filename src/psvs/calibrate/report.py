@@ -30,7 +30,9 @@ def vertical_disagreement(rig: Rig, depth_mm: float, step_px: int = 16) -> tuple
 
 
 def write_report(folder, res: BundleResult, depth_mm: float = 700.0) -> list[Path]:
-    """residuals.png and vertical_disagreement.png in ``folder`` (which must exist)."""
+    """residuals.png and vertical_disagreement.png in ``folder`` (which must exist; ``psvs calibrate --report``
+    creates it). Both plot the image in pixels with equal axes (one px as long across as down), so each has
+    the image's shape; the twin map is :func:`vertical_disagreement` at ``depth_mm`` on a 16 px grid."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -56,13 +58,21 @@ def write_report(folder, res: BundleResult, depth_mm: float = 700.0) -> list[Pat
     out = [folder / "residuals.png", folder / "vertical_disagreement.png"]
     _save(fig, out[0])
 
-    u, v, dv = vertical_disagreement(rig, depth_mm)
+    step = 16
+    u, v, dv = vertical_disagreement(rig, depth_mm, step_px=step)
     fig, ax = plt.subplots(figsize=(8, 6.2))
     lim = max(float(np.nanmax(np.abs(dv))), 0.5) if np.isfinite(dv).any() else 1.0
-    im = ax.imshow(dv, extent=(u.min(), u.max(), v.max(), v.min()), cmap="coolwarm", vmin=-lim, vmax=lim)
+    # each grid value fills its step x step cell of pixels; the axes span the image's pixels, one unit a
+    # pixel both ways, so the map has the image's shape (a 1440 x 1080 image is 4:3, not square)
+    half = step / 2
+    im = ax.imshow(dv, extent=(u.min() - half, u.max() + half, v.max() + half, v.min() - half), cmap="coolwarm",
+                   vmin=-lim, vmax=lim, aspect="equal", interpolation="nearest")
     if np.isfinite(dv).sum() > 4 and np.nanmax(dv) - np.nanmin(dv) > 1e-3:
         cs = ax.contour(u, v, dv, colors="k", linewidths=0.6)
         ax.clabel(cs, fontsize=7, fmt="%.1f")
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)
+    ax.set_aspect("equal")
     fig.colorbar(im, ax=ax, label="v_right - v_left (px)")
     ax.set_xlabel("u, left view (px)")
     ax.set_ylabel("v, left view (px)")
