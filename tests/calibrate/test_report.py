@@ -1,6 +1,9 @@
-"""The calibration report's figures have the image's shape: read back with OpenCV, the plotted area of each
-PNG (inside the axes' frame) is as wide against as tall as the camera's image, for a 1440 x 1080 and a
-640 x 480 camera, also where matplotlib's settings would stretch an image to fill its axes."""
+"""The calibration report, read back by independent readers: residuals.csv (Python's csv) holds every
+detection and residual exactly; the figures (OpenCV) have the image's shape: the plotted area of each PNG
+(inside the axes' frame) is as wide against as tall as the camera's image, for a 1440 x 1080 and a 640 x 480
+camera, also where matplotlib's settings would stretch an image to fill its axes."""
+import csv
+
 import matplotlib
 import numpy as np
 import pytest
@@ -53,8 +56,26 @@ def test_figures_have_the_image_shape(tmp_path, camera, stretch):
     w, h = rig.camera.image_size_px
     with matplotlib.rc_context({"image.aspect": "auto"} if stretch else {}):
         written = write_report(tmp_path, bundle_result(rig))
-    assert [p.name for p in written] == ["residuals.png", "vertical_disagreement.png"]
-    for path in written:
+    assert [p.name for p in written] == ["residuals.csv", "residuals.png", "vertical_disagreement.png"]
+    for path in written[1:]:
         width, height = plot_frame_px(path)
         assert width / height == pytest.approx(w / h, rel=0.02), (path.name, width, height)
         assert width > 400                                   # the map is not shrunk to fit
+
+
+def test_residuals_csv_reads_back_exactly(tmp_path):
+    res = bundle_result(Rig(CAMERAS["640x480"], Mirrors()))
+    left_res = np.array([[0.0123456789012345, -1e-7], [2.5, -0.3]])
+    res.residuals["b"] = (left_res, -left_res)
+    res.observed["b"] = (np.array([[10.25, 20.5], [600.125, 470.0]]), np.array([[11.0, 21.0], [30.0, 40.0]]))
+    write_report(tmp_path, res)
+    with (tmp_path / "residuals.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert list(rows[0]) == ["image", "view", "u_px", "v_px", "du_px", "dv_px"]
+    assert len(rows) == 8
+    for name in ("a", "b"):
+        for k, view in enumerate(("left", "right")):
+            got = [r for r in rows if r["image"] == name and r["view"] == view]
+            uv = np.array([[float(r["u_px"]), float(r["v_px"])] for r in got])
+            duv = np.array([[float(r["du_px"]), float(r["dv_px"])] for r in got])
+            assert np.array_equal(uv, res.observed[name][k]) and np.array_equal(duv, res.residuals[name][k])

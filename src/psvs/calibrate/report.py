@@ -1,7 +1,9 @@
-"""Figures of a calibration (``psvs calibrate --report DIR``): the residuals over the image, and the map
-of the vertical disagreement between the two views of a point that the calibrated rig predicts."""
+"""A calibration's report (``psvs calibrate --report DIR``): every detection's residual as numbers
+(``residuals.csv``) and over the image (``residuals.png``), and the map of the vertical disagreement between
+the two views of a point that the calibrated rig predicts (``vertical_disagreement.png``)."""
 from __future__ import annotations
 
+import csv
 import io
 from pathlib import Path
 
@@ -29,10 +31,28 @@ def vertical_disagreement(rig: Rig, depth_mm: float, step_px: int = 16) -> tuple
     return u, v, dv.reshape(u.shape)
 
 
+RESIDUAL_COLUMNS = ("image", "view", "u_px", "v_px", "du_px", "dv_px")
+
+
+def residuals_csv(res: BundleResult) -> str:
+    """``residuals.csv``'s text: one row per detection (image, view 'left' or 'right', the detected centre
+    u_px, v_px and its residual du_px, dv_px = projection - detection, px), numbers as Python's ``repr`` so
+    they read back exactly; the RMS of the residuals is the calibration's."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(RESIDUAL_COLUMNS)
+    for name in res.residuals:
+        for k, view in enumerate(("left", "right")):
+            for (u, v), (du, dv) in zip(res.observed[name][k], res.residuals[name][k]):
+                writer.writerow([name, view, *(repr(float(x)) for x in (u, v, du, dv))])
+    return buf.getvalue()
+
+
 def write_report(folder, res: BundleResult, depth_mm: float = 700.0) -> list[Path]:
-    """residuals.png and vertical_disagreement.png in ``folder`` (which must exist; ``psvs calibrate --report``
-    creates it). Both plot the image in pixels with equal axes (one px as long across as down), so each has
-    the image's shape; the twin map is :func:`vertical_disagreement` at ``depth_mm`` on a 16 px grid."""
+    """residuals.csv (:func:`residuals_csv`), residuals.png and vertical_disagreement.png in ``folder``
+    (which must exist; ``psvs calibrate --report`` creates it). Both figures plot the image in pixels with
+    equal axes (one px as long across as down), so each has the image's shape; the twin map is
+    :func:`vertical_disagreement` at ``depth_mm`` on a 16 px grid."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -55,8 +75,9 @@ def write_report(folder, res: BundleResult, depth_mm: float = 700.0) -> list[Pat
     ax.set_title(f"Reprojection residuals x{scale:.0f} (RMS {res.rms_px:.3f} px)")
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
-    out = [folder / "residuals.png", folder / "vertical_disagreement.png"]
-    _save(fig, out[0])
+    out = [folder / "residuals.csv", folder / "residuals.png", folder / "vertical_disagreement.png"]
+    write_atomic(out[0], residuals_csv(res))
+    _save(fig, out[1])
 
     step = 16
     u, v, dv = vertical_disagreement(rig, depth_mm, step_px=step)
@@ -78,7 +99,7 @@ def write_report(folder, res: BundleResult, depth_mm: float = 700.0) -> list[Pat
     ax.set_ylabel("v, left view (px)")
     ax.set_title(f"Where the twin of a left-view pixel lies, rows off, at Z = {depth_mm:.0f} mm")
     fig.tight_layout()
-    _save(fig, out[1])
+    _save(fig, out[2])
     return out
 
 
