@@ -3,6 +3,7 @@
 The images are rendered through examples/rigs/misaligned.toml (mirrors 0.1-0.3 deg and up to 0.8 mm off,
 the box turned, k1 = -0.2 with tangential terms, f +1 %, principal point 5 px off); calibration starts from
 the nominal design (examples/rigs/clear.toml without mirror extents)."""
+import csv
 import math
 import re
 import tomllib
@@ -114,15 +115,21 @@ def test_vertical_disagreement_map_against_the_reference(card_dir):
 
 
 def test_cli_writes_a_rig_that_reads_back_and_a_report(capsys, card_dir, tmp_path):
+    """The rig file is the nominal file with the calibrated values (its comments kept: one planted beside
+    focal_length_mm), read back by tomllib; --report creates its folder (parents too) and residuals.csv holds
+    the residuals whose RMS the terminal and the rig file's [calibration] table report."""
     folder, _ = card_dir
     out = tmp_path / "rig.toml"
-    report = tmp_path / "report"
-    report.mkdir()
-    code, text, err = run(capsys, "calibrate", str(folder), "--rig", str(RIGS / "clear.toml"), "-o", str(out),
+    mine = "# my lens: 11.3 mm on the label"
+    nominal = tmp_path / "nominal.toml"
+    nominal.write_text((RIGS / "clear.toml").read_text().replace("[camera]\n", f"[camera]\n{mine}\n"))
+    report = tmp_path / "new" / "report"
+    code, text, err = run(capsys, "calibrate", str(folder), "--rig", str(nominal), "-o", str(out),
                           "--report", str(report))
     assert code == 0, err
     assert "skipped blank.png: found 0 disc(s)" in err
-    rms = float(re.search(r"reprojection RMS ([0-9.]+) px \(left view ([0-9.]+), right view ([0-9.]+)\)", text)[1])
+    found = re.search(r"reprojection RMS ([0-9.]+) px \(left view ([0-9.]+), right view ([0-9.]+)\)", text)
+    rms = float(found[1])
     assert rms <= 0.05
     assert len(re.findall(r"^  card_\d\d\.png\s+[0-9.]+ px$", text, re.M)) == 16
     printed = {m[0]: float(m[1]) for m in re.findall(r"^  (\w+)\s+(-?[0-9.]+)  \+-", text, re.M)}
@@ -132,10 +139,30 @@ def test_cli_writes_a_rig_that_reads_back_and_a_report(capsys, card_dir, tmp_pat
     assert rig.camera.distortion[0] == pytest.approx(printed["k1"], abs=1e-5)
     assert data["mirrors"]["m2"]["tilt_deg"][1] == pytest.approx(printed["m2_tilt_b_deg"], abs=1e-5)
     assert math.degrees(rig.mirrors.error("m3").tilt_rad[0]) == pytest.approx(printed["m3_tilt_a_deg"], abs=1e-5)
+    assert data["camera"]["focal_length_mm"] == pytest.approx(printed["focal_length_mm"], abs=1e-5)
+    # the nominal file's comments and layout: the planted line above focal_length_mm, the header, inline arrays
+    lines = out.read_text().splitlines()
+    assert lines[lines.index(mine) + 1].startswith("focal_length_mm = ")
+    assert lines[:6] == nominal.read_text().splitlines()[:6]
+    assert all(line.endswith("]") for line in lines if " = [" in line and not line.startswith("#"))
+    assert data["mirrors"]["m1"]["along_mm"] == [-6.866250675245926, 14.39631001284942]   # the extents stay
+    assert report.is_dir()
     for name, size in (("residuals.png", (620, 800)), ("vertical_disagreement.png", (620, 800))):
         img = cv2.imread(str(report / name))
         assert img is not None and img.shape[:2] == size
         assert (np.abs(img.astype(int) - 255).sum(axis=2) > 60).mean() > 0.02   # drawn, not blank
+    with (report / "residuals.csv").open(newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert {r["image"] for r in rows} == {f"card_{k:02d}.png" for k in range(16)}
+    cal = data["calibration"]
+    assert cal["images"] == 16 and cal["kinds"] == "16 grid"
+    for view, key, k in (("left", "rms_left_px", 2), ("right", "rms_right_px", 3)):
+        r = np.array([[float(x["du_px"]), float(x["dv_px"])] for x in rows if x["view"] == view])
+        assert len(r) > 16 * 8
+        assert np.sqrt(np.mean(r ** 2)) == pytest.approx(cal[key], rel=1e-12)
+        assert np.sqrt(np.mean(r ** 2)) == pytest.approx(float(found[k]), abs=5e-5)
+    all_r = np.array([[float(x["du_px"]), float(x["dv_px"])] for x in rows])
+    assert np.sqrt(np.mean(all_r ** 2)) == pytest.approx(cal["rms_px"], rel=1e-12)
 
 
 def test_target_file_errors(tmp_path):
@@ -173,4 +200,8 @@ def test_cli_bad_folders(capsys, card_dir, tmp_path):
     (few / "target.toml").write_text(dumps_target(CARD).replace("rows = 4", "rows = 5"))
     code, _, err = run(capsys, "calibrate", str(few), "--rig", str(RIGS / "clear.toml"), "-o", str(out))
     assert code == 2 and "got 0" in err and "expected 60" in err
+    assert out.read_text() == "keep"
+    # a report "folder" that is a file is refused before any work, in one line
+    code, _, err = run(capsys, "calibrate", str(card_dir[0]), "--rig", "clear", "-o", str(out), "--report", str(out))
+    assert code == 2 and f"report folder {out} is a file" in err and len(err.strip().splitlines()) == 1
     assert out.read_text() == "keep"

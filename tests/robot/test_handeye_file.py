@@ -68,14 +68,14 @@ def test_an_older_closed_form_file_still_reads(tmp_path):
     (lambda t: t.replace("spread_mm =", "spread_cm ="), "unknown key handeye.spread_cm"),
     (lambda t: t.replace('rig = "default"\n', ""), "missing key handeye.rig"),
     (lambda t: t.replace("views = 3", "views = 4"), "handeye.views must be"),
-    (lambda t: t.replace("0.0,\n        0.0,\n        0.0,\n        1.0", "0.0,\n        0.0,\n        0.0,\n        2.0"),
-     "not a rigid transform"),
+    (lambda t: t.replace("[0.0, 0.0, 0.0, 1.0]", "[0.0, 0.0, 0.0, 2.0]"), "not a rigid transform"),
     (lambda t: t.replace("-31.2", '"x"'), "must hold numbers"),
     (lambda t: t + "[[oops\n", "malformed TOML"),
 ])
 def test_bad_handeye_files(tmp_path, edit, msg):
     path = tmp_path / "he.toml"
     text = dumps_handeye(_result(), "simulated cell", "default")
+    assert edit(text) != text            # the edit finds what it changes in the written layout
     path.write_text(edit(text))
     with pytest.raises(ValueError, match=msg):
         load_handeye(path)

@@ -110,25 +110,58 @@ class BundleResult:
     covariance: np.ndarray | None = None   # (len(RIG_PARAMS),) * 2, of the rig parameters
 
 
-def rig_vector(rig: Rig) -> np.ndarray:
-    """The calibrated parameters of a rig, in :data:`RIG_PARAMS` order."""
+#: OpenCV's distortion terms, in :attr:`psvs.optics.rig.Camera.distortion`'s order.
+_LENS_TERMS = ("k1", "k2", "p1", "p2", "k3")
+#: The box's rotation vector (rad), in :attr:`psvs.optics.rig.Mirrors.box_rotation_rad`'s order.
+_BOX_TERMS = ("box_x_rad", "box_y_rad", "box_z_rad")
+
+
+def rig_values(rig: Rig) -> dict[str, float]:
+    """The calibrated parameters of a rig by name (the keys of :data:`RIG_PARAMS`, in its order; tilts in rad,
+    lengths in mm, the principal point in px)."""
     c, m = rig.camera, rig.mirrors
-    tilts = [t for name in MIRROR_NAMES for t in m.error(name).tilt_rad]
-    return np.array([c.focal_length_mm, *c.principal_point_px, *c.distortion, m.plate_thickness_mm,
-                     m.baseline_mm, *tilts, *(m.error(n).shift_mm for n in MIRROR_NAMES), *m.box_rotation_rad])
+    named = {"focal_length_mm": c.focal_length_mm, "cx_px": c.principal_point_px[0],
+             "cy_px": c.principal_point_px[1], **dict(zip(_LENS_TERMS, c.distortion)),
+             "plate_thickness_mm": m.plate_thickness_mm, "baseline_mm": m.baseline_mm,
+             **dict(zip(_BOX_TERMS, m.box_rotation_rad))}
+    for name in MIRROR_NAMES:
+        err = m.error(name)
+        named[f"{name}_tilt_a_rad"], named[f"{name}_tilt_b_rad"] = err.tilt_rad
+        named[f"{name}_shift_mm"] = err.shift_mm
+    return {p: float(named[p]) for p in RIG_PARAMS}
+
+
+def rig_from_values(values: dict, start: Rig) -> Rig:
+    """``start`` with every parameter of :data:`RIG_PARAMS` set from ``values`` (name -> value; tilts in rad).
+    The plate's thickness is clipped at 0 mm, and the plate's refraction terms l, m are derived again from
+    the new plate (a calibrated rig carries no override); ValueError naming a missing parameter."""
+    missing = [p for p in RIG_PARAMS if p not in values]
+    if missing:
+        raise ValueError(f"rig parameter {missing[0]} is missing")
+    v = {p: float(values[p]) for p in RIG_PARAMS}
+    errors = {name: MirrorError((v[f"{name}_tilt_a_rad"], v[f"{name}_tilt_b_rad"]), v[f"{name}_shift_mm"])
+              for name in MIRROR_NAMES}
+    rig = start.replace(focal_length_mm=v["focal_length_mm"], principal_point_px=(v["cx_px"], v["cy_px"]),
+                        distortion=tuple(v[p] for p in _LENS_TERMS),
+                        plate_thickness_mm=max(v["plate_thickness_mm"], 0.0), baseline_mm=v["baseline_mm"],
+                        box_rotation_rad=tuple(v[p] for p in _BOX_TERMS), refraction_l_mm=None, refraction_m_mm=None)
+    return rig.with_errors(errors)
+
+
+def rig_vector(rig: Rig) -> np.ndarray:
+    """The calibrated parameters of a rig as a vector, shape (len(RIG_PARAMS),): entry k is the parameter
+    named ``RIG_PARAMS[k]`` (:func:`rig_values`)."""
+    values = rig_values(rig)
+    return np.array([values[p] for p in RIG_PARAMS])
 
 
 def rig_from_vector(x: np.ndarray, start: Rig) -> Rig:
-    """``start`` with the calibrated parameters set from ``x`` (:data:`RIG_PARAMS` order)."""
-    m = start.mirrors
-    errors = {}
-    for k, name in enumerate(MIRROR_NAMES):
-        errors[name] = MirrorError((float(x[10 + 2 * k]), float(x[11 + 2 * k])), float(x[18 + k]))
-    rig = start.replace(focal_length_mm=float(x[0]), principal_point_px=(float(x[1]), float(x[2])),
-                        distortion=tuple(float(v) for v in x[3:8]), plate_thickness_mm=max(float(x[8]), 0.0),
-                        baseline_mm=float(x[9]), box_rotation_rad=tuple(float(v) for v in x[22:25]),
-                        refraction_l_mm=None, refraction_m_mm=None)
-    return rig.with_errors(errors)
+    """``start`` with the calibrated parameters set from ``x``, shape (len(RIG_PARAMS),), entry k the
+    parameter named ``RIG_PARAMS[k]`` (:func:`rig_from_values`)."""
+    x = np.asarray(x, dtype=float)
+    if x.shape != (len(RIG_PARAMS),):
+        raise ValueError(f"a rig vector holds {len(RIG_PARAMS)} parameters, got shape {x.shape}")
+    return rig_from_values(dict(zip(RIG_PARAMS, x)), start)
 
 
 def initial_grid_pose(view: GridView, rig: Rig) -> np.ndarray:
@@ -164,17 +197,25 @@ def initial_sweep(views: list[SweepView], local_mm: np.ndarray, rig: Rig) -> np.
         zs.append(p[2] - v.position_mm)
         xy.append(p[:2])
     x0, y0 = np.mean(xy, axis=0)
-    return np.array([float(np.mean(zs)), 0.0, 0.0, x0, y0])
+    start = {"offset_mm": float(np.mean(zs)), "ry_rad": 0.0, "rz_rad": 0.0, "x0_mm": x0, "y0_mm": y0}
+    return np.array([start[p] for p in SWEEP_PARAMS])
 
 
 def _sweep_points(s: np.ndarray, positions: np.ndarray, local_mm: np.ndarray) -> np.ndarray:
-    R = Rotation.from_euler("zy", [s[2], s[1]]).as_matrix()
+    """The sweep pattern's points in frame C (mm), shape (len(positions) * len(local_mm), 3): ``s`` holds
+    the sweep's parameters (:data:`SWEEP_PARAMS` order), ``positions`` the robot's Z readings (mm)."""
+    p = dict(zip(SWEEP_PARAMS, s))
+    R = Rotation.from_euler("zy", [p["rz_rad"], p["ry_rad"]]).as_matrix()
     pts = local_mm @ R.T
-    return np.concatenate([pts + [s[3], s[4], p + s[0]] for p in positions]) if len(positions) else np.zeros((0, 3))
+    if not len(positions):
+        return np.zeros((0, 3))
+    return np.concatenate([pts + [p["x0_mm"], p["y0_mm"], z + p["offset_mm"]] for z in positions])
 
 
 class _Problem:
-    """The residual function and its Jacobian over x = [rig (19), sweep (5, if any), poses (6 per grid)]."""
+    """The residual function and its Jacobian over x = [the free rig parameters (those of :data:`RIG_PARAMS`
+    not held, in its order), the sweep's :data:`SWEEP_PARAMS` (if any), 6 pose terms per grid view (rotation
+    vector rad, translation mm)]."""
 
     def __init__(self, grids, sweeps, local_mm, start: Rig, hold=()):
         self.grids, self.sweeps, self.local, self.start = grids, sweeps, local_mm, start
@@ -338,9 +379,9 @@ def _result(prob: _Problem, sol) -> BundleResult:
     idx = np.flatnonzero(prob.free)
     full_cov[np.ix_(idx, idx)] = cov[:prob.n_rig, :prob.n_rig]
     rig = prob.rig(x)
-    values = dict(zip(RIG_PARAMS, map(float, rig_vector(rig))))
-    values.update(zip(names[prob.n_rig:], map(float, x[prob.n_rig:k])))
-    sigma = {p: sigma.get(p, 0.0) for p in names[:0] + list(RIG_PARAMS)} | {n: sigma[n] for n in names[prob.n_rig:]}
+    sweep_names = names[prob.n_rig:]
+    values = rig_values(rig) | dict(zip(sweep_names, map(float, x[prob.n_rig:k])))
+    sigma = {p: sigma.get(p, 0.0) for p in RIG_PARAMS} | {n: sigma[n] for n in sweep_names}
     labels = [g.name for g in prob.grids] + [s.name for s in prob.sweeps]
     left, right = img[:n], img[n:]
     per_image = {name: float(np.sqrt(np.mean(np.concatenate([left[prob.owner == i], right[prob.owner == i]]) ** 2)))

@@ -1,7 +1,9 @@
-"""Figures of a calibration (``psvs calibrate --report DIR``): the residuals over the image, and the map
-of the vertical disagreement between the two views of a point that the calibrated rig predicts."""
+"""A calibration's report (``psvs calibrate --report DIR``): every detection's residual as numbers
+(``residuals.csv``) and over the image (``residuals.png``), and the map of the vertical disagreement between
+the two views of a point that the calibrated rig predicts (``vertical_disagreement.png``)."""
 from __future__ import annotations
 
+import csv
 import io
 from pathlib import Path
 
@@ -29,8 +31,28 @@ def vertical_disagreement(rig: Rig, depth_mm: float, step_px: int = 16) -> tuple
     return u, v, dv.reshape(u.shape)
 
 
+RESIDUAL_COLUMNS = ("image", "view", "u_px", "v_px", "du_px", "dv_px")
+
+
+def residuals_csv(res: BundleResult) -> str:
+    """``residuals.csv``'s text: one row per detection (image, view 'left' or 'right', the detected centre
+    u_px, v_px and its residual du_px, dv_px = projection - detection, px), numbers as Python's ``repr`` so
+    they read back exactly; the RMS of the residuals is the calibration's."""
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(RESIDUAL_COLUMNS)
+    for name in res.residuals:
+        for k, view in enumerate(("left", "right")):
+            for (u, v), (du, dv) in zip(res.observed[name][k], res.residuals[name][k]):
+                writer.writerow([name, view, *(repr(float(x)) for x in (u, v, du, dv))])
+    return buf.getvalue()
+
+
 def write_report(folder, res: BundleResult, depth_mm: float = 700.0) -> list[Path]:
-    """residuals.png and vertical_disagreement.png in ``folder`` (which must exist)."""
+    """residuals.csv (:func:`residuals_csv`), residuals.png and vertical_disagreement.png in ``folder``
+    (which must exist; ``psvs calibrate --report`` creates it). Both figures plot the image in pixels with
+    equal axes (one px as long across as down), so each has the image's shape; the twin map is
+    :func:`vertical_disagreement` at ``depth_mm`` on a 16 px grid."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -53,22 +75,31 @@ def write_report(folder, res: BundleResult, depth_mm: float = 700.0) -> list[Pat
     ax.set_title(f"Reprojection residuals x{scale:.0f} (RMS {res.rms_px:.3f} px)")
     ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
-    out = [folder / "residuals.png", folder / "vertical_disagreement.png"]
-    _save(fig, out[0])
+    out = [folder / "residuals.csv", folder / "residuals.png", folder / "vertical_disagreement.png"]
+    write_atomic(out[0], residuals_csv(res))
+    _save(fig, out[1])
 
-    u, v, dv = vertical_disagreement(rig, depth_mm)
+    step = 16
+    u, v, dv = vertical_disagreement(rig, depth_mm, step_px=step)
     fig, ax = plt.subplots(figsize=(8, 6.2))
     lim = max(float(np.nanmax(np.abs(dv))), 0.5) if np.isfinite(dv).any() else 1.0
-    im = ax.imshow(dv, extent=(u.min(), u.max(), v.max(), v.min()), cmap="coolwarm", vmin=-lim, vmax=lim)
+    # each grid value fills its step x step cell of pixels; the axes span the image's pixels, one unit a
+    # pixel both ways, so the map has the image's shape (a 1440 x 1080 image is 4:3, not square)
+    half = step / 2
+    im = ax.imshow(dv, extent=(u.min() - half, u.max() + half, v.max() + half, v.min() - half), cmap="coolwarm",
+                   vmin=-lim, vmax=lim, aspect="equal", interpolation="nearest")
     if np.isfinite(dv).sum() > 4 and np.nanmax(dv) - np.nanmin(dv) > 1e-3:
         cs = ax.contour(u, v, dv, colors="k", linewidths=0.6)
         ax.clabel(cs, fontsize=7, fmt="%.1f")
+    ax.set_xlim(-0.5, w - 0.5)
+    ax.set_ylim(h - 0.5, -0.5)
+    ax.set_aspect("equal")
     fig.colorbar(im, ax=ax, label="v_right - v_left (px)")
     ax.set_xlabel("u, left view (px)")
     ax.set_ylabel("v, left view (px)")
     ax.set_title(f"Where the twin of a left-view pixel lies, rows off, at Z = {depth_mm:.0f} mm")
     fig.tight_layout()
-    _save(fig, out[1])
+    _save(fig, out[2])
     return out
 
 

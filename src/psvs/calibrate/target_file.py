@@ -9,7 +9,7 @@
 """
 from __future__ import annotations
 
-from psvs.io.tomlfile import load_table
+from psvs.io.tomlfile import dumps_toml, load_table
 from psvs.simulate.textures import CircleGrid
 
 KINDS = ("circle_grid",)
@@ -36,6 +36,5 @@ def _target(t: dict) -> CircleGrid:
 
 def dumps_target(grid: CircleGrid) -> str:
     """The ``target.toml`` text of a circle grid (read back by :func:`load_target`)."""
-    import tomli_w
-    return tomli_w.dumps({"target": {"kind": "circle_grid", "rows": grid.rows, "cols": grid.cols,
-                                     "spacing_mm": float(grid.spacing_mm), "diameter_mm": float(grid.diameter_mm)}})
+    return dumps_toml({"target": {"kind": "circle_grid", "rows": grid.rows, "cols": grid.cols,
+                                  "spacing_mm": float(grid.spacing_mm), "diameter_mm": float(grid.diameter_mm)}})

@@ -4,13 +4,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import sys
-from pathlib import Path
 
 from psvs.calibrate.bundle import PRIOR_SIGMA
 from psvs.calibrate.folder import calibrate_folder
-from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
+from psvs.cli.common import add_rig_argument, check_output_folder, check_output_path, rig_from_args
 from psvs.io.atomic import output_batch
-from psvs.io.params import save_rig
+from psvs.io.params import rig_template, save_rig
 from psvs.optics.rig import Calibration
 
 
@@ -24,8 +23,10 @@ def add_parser(sub) -> None:
                                    "each mirror's tilts and the far mirrors' shifts, and every pose.")
     p.add_argument("folder", metavar="DIR", help="folder with the PNG images and target.toml and/or sweep.csv")
     add_rig_argument(p)
-    p.add_argument("-o", "--output", metavar="RIG.toml", required=True, help="calibrated rig file")
-    p.add_argument("--report", metavar="DIR", help="write residuals.png and vertical_disagreement.png here")
+    p.add_argument("-o", "--output", metavar="RIG.toml", required=True,
+                   help="calibrated rig file (TOML: in the --rig file's comments and layout; or .json)")
+    p.add_argument("--report", metavar="DIR",
+                   help="write residuals.csv, residuals.png and vertical_disagreement.png here (created if missing)")
     p.set_defaults(run=run)
 
 
@@ -37,14 +38,16 @@ def _fmt(name: str, value: float, sigma: float) -> str:
 
 def run(args) -> int:
     out = check_output_path(args.output, (".toml", ".json"))
-    if args.report is not None and not Path(args.report).is_dir():
-        raise FileNotFoundError(f"report folder does not exist: {args.report}")
-    res = calibrate_folder(args.folder, rig_from_args(args))
+    report = check_output_folder(args.report, "report folder") if args.report is not None else None
+    start = rig_from_args(args)
+    template = rig_template(args.rig)    # the nominal file's comments and layout, for the calibrated file
+    res = calibrate_folder(args.folder, start)
     b = res.bundle
     for name, reason in sorted(res.skipped.items()):
         print(f"skipped {name}: {reason}", file=sys.stderr)
     kinds = sorted(set(res.used.values()))
-    print(f"used {len(res.used)} image(s) ({', '.join(f'{sum(v == k for v in res.used.values())} {k}' for k in kinds)})")
+    kinds_text = ", ".join(f"{sum(v == k for v in res.used.values())} {k}" for k in kinds)
+    print(f"used {len(res.used)} image(s) ({kinds_text})")
     print(f"reprojection RMS {b.rms_px:.4f} px (left view {b.rms_by_view['left']:.4f}, right view "
           f"{b.rms_by_view['right']:.4f})")
     for name, rms in b.rms_by_image.items():
@@ -63,13 +66,13 @@ def run(args) -> int:
               "the images do not show them; more card views, tilted and over the whole field, would")
     print(f"solver: {b.message}")
     with output_batch():   # the rig file and the report land together
-        kinds_text = ", ".join(f"{sum(v == k for v in res.used.values())} {k}" for k in kinds)
         save_rig(dataclasses.replace(res.rig, calibration=Calibration(
-            b.rms_px, b.rms_by_view["left"], b.rms_by_view["right"], len(res.used), kinds_text)), out)
+            b.rms_px, b.rms_by_view["left"], b.rms_by_view["right"], len(res.used), kinds_text)), out, template)
         written = []
-        if args.report is not None:
+        if report is not None:
             from psvs.calibrate.report import write_report
-            written = write_report(args.report, b)
+            report.mkdir(parents=True, exist_ok=True)
+            written = write_report(report, b)
     for f in written:
         print(f"wrote {f}")
     return 0 if b.success else 1

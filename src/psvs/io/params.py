@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 
 from psvs.io.atomic import write_atomic
-from psvs.io.tomlfile import dumps_toml, load_toml
+from psvs.io.text import read_text
+from psvs.io.tomlfile import dumps_toml, load_toml, update_toml
 from psvs.optics.rig import MIRROR_NAMES, Calibration, Camera, MirrorError, MirrorExtent, Mirrors, Rig
 from psvs.rigs import SHIPPED, shipped_rig_path
 
@@ -239,17 +240,34 @@ def _plain(value):
     return float(value)
 
 
-def dumps_rig(rig: Rig, fmt: str = "toml") -> str:
-    """A rig file's text, ``fmt`` 'toml' or 'json'."""
+def dumps_rig(rig: Rig, fmt: str = "toml", template: str | None = None) -> str:
+    """A rig file's text, ``fmt`` 'toml' or 'json'.
+
+    With ``template``, the text of a TOML rig file (e.g. the nominal rig a calibration started from), the
+    TOML is that text with the rig's values in it: its comments, key order and layout stay wherever a value
+    is unchanged, changed values are replaced in place (their comments kept), keys the rig no longer has
+    are removed and new ones appended to their table (:func:`psvs.io.tomlfile.update_toml`). JSON has no
+    comments: ``template`` is ignored there.
+    """
     data = rig_to_dict(rig)
     if fmt == "json":
         return json.dumps(data, indent=2) + "\n"
-    if fmt == "toml":
-        return dumps_toml(data)
-    raise ValueError(f"fmt must be 'toml' or 'json', got {fmt!r}")
+    if fmt != "toml":
+        raise ValueError(f"fmt must be 'toml' or 'json', got {fmt!r}")
+    return dumps_toml(data) if template is None else update_toml(template, data, "TOML rig template")
 
 
-def save_rig(rig: Rig, path) -> None:
-    """Write a rig file atomically; the format follows the suffix (.json, else TOML)."""
+def save_rig(rig: Rig, path, template: str | None = None) -> None:
+    """Write a rig file atomically; the format follows the suffix (.json, else TOML), a TOML file in the
+    comments and layout of ``template`` when given (:func:`dumps_rig`)."""
     path = Path(path)
-    write_atomic(path, dumps_rig(rig, "json" if path.suffix.lower() == ".json" else "toml"))
+    write_atomic(path, dumps_rig(rig, "json" if path.suffix.lower() == ".json" else "toml", template))
+
+
+def rig_template(path) -> str | None:
+    """The text of the rig file a ``--rig`` argument names (:func:`rig_path`: a shipped rig's own file for its
+    name), for :func:`save_rig` to keep its comments and layout; None for a JSON rig file (no comments)."""
+    path = rig_path(path)
+    if path.suffix.lower() == ".json":
+        return None
+    return read_text(path, "TOML")
