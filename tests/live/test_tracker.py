@@ -8,7 +8,7 @@ from psvs.cli.main import main
 from psvs.io.video import write_video
 from psvs.live.simulated import ping_pong_positions
 from psvs.live.source import VideoSource, as_grey
-from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
+from psvs.live.tracker import EdgeTracker, TrackerParams, nearest_edge_pixels
 from psvs.optics.project import project_points
 from tests.conftest import EXAMPLES
 
@@ -70,7 +70,7 @@ def test_tracker_bad_input(rig):
     with pytest.raises(ValueError, match="seed must be two numbers"):
         EdgeTracker(rig, ("a", 1))
     with pytest.raises(ValueError, match="search_px must be > 0 px"):
-        EdgeTracker(rig, (10, 10), search_px=0)
+        EdgeTracker(rig, (10, 10), params=TrackerParams(search_px=0))
     tr = EdgeTracker(rig, (10, 10))
     with pytest.raises(ValueError, match="frame is 320x240 px but the rig's camera is 640x480 px"):
         tr.step(np.zeros((240, 320), np.uint8))
@@ -146,7 +146,7 @@ def test_tracker_follows_a_jump_after_losing_the_edge(disc_video):
     path, truth, rig, scene, positions = disc_video
     with VideoSource(video=str(path)) as src:
         frames = [src.read() for _ in range(8)]
-    tr = EdgeTracker(rig, rim_seed(rig, scene, positions[7]), max_jump_px=8.0)
+    tr = EdgeTracker(rig, rim_seed(rig, scene, positions[7]), params=TrackerParams(max_jump_px=8.0))
     steps = [tr.step(f) for f in (frames[7], frames[0], frames[0], frames[0])]
     assert steps[0].ok and not steps[1].ok
     assert steps[-1].ok and steps[-1].depth_mm == pytest.approx(truth[0], rel=0.005)

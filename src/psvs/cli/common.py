@@ -17,6 +17,39 @@ def add_rig_argument(parser, required: bool = True) -> None:
                              ("" if required else "; default: the paper's rig"))
 
 
+def add_range_arguments(parser, what: str = "working range") -> None:
+    """--near-mm and --far-mm: the depths (mm) of ``what`` (checked by :func:`range_from_args`)."""
+    parser.add_argument("--near-mm", type=float, default=400.0, help=f"near end of the {what}, mm (default 400)")
+    parser.add_argument("--far-mm", type=float, default=1200.0, help=f"far end of the {what}, mm (default 1200)")
+
+
+def range_from_args(args) -> tuple[float, float]:
+    """(near, far) mm of --near-mm/--far-mm, checked (:func:`check_working_range`)."""
+    return check_working_range(args.near_mm, args.far_mm)
+
+
+def add_model_argument(parser, default: str | None = None) -> None:
+    """--model: the triangulation model (default: the rig's own, refraction on the paper's geometry and
+    exact on a build, unless ``default`` names one)."""
+    from psvs.measure.triangulate import MODELS
+    what = "triangulation model: paper, eqs. (12)-(14); refraction, eqs. (15)-(17); exact, traced rays"
+    parser.add_argument("--model", choices=MODELS, default=default,
+                        help=f"{what} (default {default})" if default else
+                        f"{what} (default: refraction on the paper's geometry, exact on a build)")
+
+
+def add_pipeline_argument(parser) -> None:
+    """--pipeline P.toml: the image pipeline (:func:`pipeline_from_args`)."""
+    parser.add_argument("--pipeline", metavar="P.toml", help="image pipeline (default: median 3, threshold 92, Roberts)")
+
+
+def pipeline_from_args(args):
+    """The pipeline file of --pipeline, or the paper's pipeline."""
+    from psvs.imaging.pipeline import PAPER
+    from psvs.io.pipeline_file import load_pipeline
+    return load_pipeline(args.pipeline) if args.pipeline else PAPER
+
+
 def add_telemetry_arguments(parser) -> None:
     """--foxglove [HOST:]PORT and --mcap FILE (psvs.io.telemetry)."""
     parser.add_argument("--foxglove", metavar="[HOST:]PORT",

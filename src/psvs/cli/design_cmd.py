@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 import math
 
-from psvs.cli.common import add_rig_argument, check_output_path, check_working_range, rig_from_args
+from psvs.cli.common import add_range_arguments, add_rig_argument, check_output_path, range_from_args, rig_from_args
 from psvs.io.atomic import write_atomic
 from psvs.io.params import rig_to_dict, save_rig
 from psvs.io.tomlfile import dumps_toml
@@ -18,8 +18,7 @@ def add_parser(sub) -> None:
                                    "mirror or the M1 plate blocks a light path, and print the mirror table. "
                                    "Exit status 1 when the layout is blocked, 2 on bad input.")
     add_rig_argument(p)
-    p.add_argument("--near-mm", type=float, default=400.0, help="near end of the working range (default 400)")
-    p.add_argument("--far-mm", type=float, default=1200.0, help="far end of the working range (default 1200)")
+    add_range_arguments(p)
     p.add_argument("--margin-mm", type=float, default=0.0,
                    help="extra border on every mirror side, e.g. half the lens entrance pupil (default 0)")
     p.add_argument("--no-search", action="store_true", help="skip the search for clear M1/M2 positions")
@@ -127,7 +126,7 @@ def format_design(d: MirrorDesign) -> str:
 def run(args) -> int:
     out = check_output_path(args.output, (".json", ".toml"))
     rig_out = check_output_path(args.rig_out, (".json", ".toml"))
-    check_working_range(args.near_mm, args.far_mm)
+    range_from_args(args)
     if not (math.isfinite(args.margin_mm) and args.margin_mm >= 0):
         raise ValueError(f"--margin-mm must be a finite border >= 0 mm, got {args.margin_mm}")
     rig = rig_from_args(args)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from psvs.cli.common import check_output_folder
+from psvs.cli.common import add_range_arguments, check_output_folder, range_from_args
 from psvs.io.camera_info import write_calibration_files
 from psvs.io.params import load_rig
 from psvs.optics.pinhole_views import pinhole_views
@@ -23,16 +23,16 @@ def add_parser(sub) -> None:
     p.add_argument("rig", metavar="RIG.toml", help="a rig file, or a shipped rig's name (psvs rig list)")
     p.add_argument("-o", "--output", metavar="DIR", default="calibration",
                    help="folder for the three files (created; default: ./calibration)")
-    p.add_argument("--near-mm", type=float, default=400.0, help="working range's near end (default 400)")
-    p.add_argument("--far-mm", type=float, default=1200.0, help="working range's far end (default 1200)")
+    add_range_arguments(p)
     p.set_defaults(run=run)
 
 
 def run(args) -> int:
     out = check_output_folder(args.output)
     rig = load_rig(args.rig)
-    views = pinhole_views(rig, args.near_mm, args.far_mm)
-    for path in write_calibration_files(out, views, args.near_mm, args.far_mm, Path(args.rig).stem):
+    near_mm, far_mm = range_from_args(args)
+    views = pinhole_views(rig, near_mm, far_mm)
+    for path in write_calibration_files(out, views, near_mm, far_mm, Path(args.rig).stem):
         print(f"wrote {path}")
     for name, view in views.items():
         du, dv = view.error_px

@@ -7,21 +7,23 @@ import time
 import numpy as np
 
 from psvs.cli.common import (
+    add_model_argument,
+    add_pipeline_argument,
+    add_range_arguments,
     add_rig_argument,
     add_telemetry_arguments,
     check_output_path,
-    check_working_range,
     open_telemetry,
     parse_seed,
+    pipeline_from_args,
+    range_from_args,
     rig_from_args,
 )
-from psvs.imaging.pipeline import PAPER
-from psvs.io.pipeline_file import load_pipeline
 from psvs.live.dense import DenseSensor
 from psvs.live.log import write_log
 from psvs.live.source import VideoSource
 from psvs.live.tracker import EdgeTracker
-from psvs.measure.triangulate import MODELS
+from psvs.match.correspondence import MatchParams
 
 
 def add_parser(sub) -> None:
@@ -42,11 +44,9 @@ def add_parser(sub) -> None:
     p.add_argument("--dense-stride", type=int, default=4, metavar="N",
                    help="with --dense: triangulate one map pixel in N along each axis (default 4)")
     p.add_argument("-o", "--output", metavar="LOG.csv", help="per-frame log (CSV)")
-    p.add_argument("--pipeline", metavar="P.toml", help="image pipeline (default: median 3, threshold 92, Roberts)")
-    p.add_argument("--near-mm", type=float, default=400.0, help="working range near end (default 400)")
-    p.add_argument("--far-mm", type=float, default=1200.0, help="working range far end (default 1200)")
-    p.add_argument("--model", choices=MODELS, default=None,
-                   help="triangulation model (default: refraction on the paper's geometry, exact on a build)")
+    add_pipeline_argument(p)
+    add_range_arguments(p)
+    add_model_argument(p)
     p.add_argument("--max-frames", type=int, help="stop after N frames")
     p.add_argument("--quiet", action="store_true", help="print only the summary")
     add_telemetry_arguments(p)
@@ -55,8 +55,9 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
-def run(args) -> int:
-    out = check_output_path(args.output, (".csv",))
+def _sensors(args):
+    """The edge tracker and the dense sensor the arguments ask for (None each when not asked), checked
+    before any frame is read."""
     if args.max_frames is not None and args.max_frames < 1:
         raise ValueError(f"--max-frames must be >= 1, got {args.max_frames}")
     if args.seed is None and not args.dense:
@@ -65,52 +66,70 @@ def run(args) -> int:
         raise ValueError(f"--dense-stride must be >= 1, got {args.dense_stride}")
     seed = parse_seed(args.seed) if args.seed is not None else None
     rig = rig_from_args(args)
-    pipeline = load_pipeline(args.pipeline) if args.pipeline else PAPER
-    check_working_range(args.near_mm, args.far_mm)
-    tracker = None if seed is None else EdgeTracker(rig, seed, pipeline=pipeline, near_mm=args.near_mm,
-                                                    far_mm=args.far_mm, model=args.model)
-    dense = DenseSensor(rig, args.near_mm, args.far_mm, stride=args.dense_stride) if args.dense else None
+    pipeline = pipeline_from_args(args)
+    near_mm, far_mm = range_from_args(args)
+    tracker = None if seed is None else EdgeTracker(rig, seed, pipeline=pipeline, near_mm=near_mm, far_mm=far_mm,
+                                                    match=MatchParams(model=args.model))
+    dense = DenseSensor(rig, near_mm, far_mm, stride=args.dense_stride) if args.dense else None
+    return tracker, dense
+
+
+def _loop(args, source, tel, tracker, dense) -> tuple[list, list, float]:
+    """Every frame of ``source`` through the sensors (until --max-frames or Ctrl-C), published and printed
+    as it comes: (tracker steps, dense frames, wall time s)."""
     steps, dense_frames = [], []
+    period = 1.0 / source.fps if (args.video and source.fps > 0) else None
+    t0 = time.perf_counter()
+    try:
+        for frame in source:
+            k, arrived_s = len(steps), time.perf_counter() - t0
+            if args.realtime and period is not None:
+                time.sleep(max(0.0, t0 + k * period - time.perf_counter()))
+            step = tracker.step(frame) if tracker is not None else None
+            dstep = dense.step(frame) if dense is not None else None
+            steps.append(step)
+            dense_frames.append(dstep)
+            if tel is not None:   # a video's frames at its own rate; a camera's at their arrival
+                t_s = k * period if period is not None else arrived_s
+                tel.image(t_s, frame)
+                if step is not None:
+                    publish_step(tel, t_s, step)
+                if dstep is not None:
+                    publish_dense(tel, t_s, dstep, args.dense_stride)
+            if not args.quiet:
+                print(_frame_line(k, step, dstep), flush=True)
+            if args.max_frames is not None and len(steps) >= args.max_frames:
+                break
+    except KeyboardInterrupt:
+        pass
+    return steps, dense_frames, time.perf_counter() - t0
+
+
+def run(args) -> int:
+    out = check_output_path(args.output, (".csv",))
+    tracker, dense = _sensors(args)
     with VideoSource(video=args.video, camera=args.camera) as source, open_telemetry(args) as tel:
-        period = 1.0 / source.fps if (args.video and source.fps > 0) else None
-        t0 = time.perf_counter()
-        try:
-            for frame in source:
-                k, arrived_s = len(steps), time.perf_counter() - t0
-                if args.realtime and period is not None:
-                    time.sleep(max(0.0, t0 + k * period - time.perf_counter()))
-                step = tracker.step(frame) if tracker is not None else None
-                dstep = dense.step(frame) if dense is not None else None
-                steps.append(step)
-                dense_frames.append(dstep)
-                if tel is not None:   # a video's frames at its own rate; a camera's at their arrival
-                    t_s = k * period if period is not None else arrived_s
-                    tel.image(t_s, frame)
-                    if step is not None:
-                        publish_step(tel, t_s, step)
-                    if dstep is not None:
-                        publish_dense(tel, t_s, dstep, args.dense_stride)
-                if not args.quiet:
-                    print(_frame_line(k, step, dstep), flush=True)
-                if args.max_frames is not None and len(steps) >= args.max_frames:
-                    break
-        except KeyboardInterrupt:
-            pass
-        wall = time.perf_counter() - t0
+        steps, dense_frames, wall = _loop(args, source, tel, tracker, dense)
         if not steps:               # inside: a recording of nothing is discarded, not kept
             raise ValueError(f"no frame could be read from {source.name}")
     if out:
         write_log(out, steps, dense_frames if dense is not None else None)
+    return _summary(steps, dense_frames if dense is not None else None, wall, args.realtime)
+
+
+def _summary(steps: list, dense_frames: list | None, wall: float, realtime: bool) -> int:
+    """Print the run's summary; exit status 1 when nothing was measured."""
     n = len(steps)
-    pace = "paced by --realtime" if args.realtime else "reading + processing"
-    if dense is not None:
+    pace = "paced by --realtime" if realtime else "reading + processing"
+    z = np.zeros(0)
+    if dense_frames is not None:
         z = np.array([d.median_z_mm for d in dense_frames])
         z = z[np.isfinite(z)]
         print(f"dense: {n} frames, {len(z)} with depth, median Z "
               + (f"{np.median(z):.1f} mm" if len(z) else "none")
               + f", {np.mean([d.answered_pct for d in dense_frames]):.1f} % of pixels answered, "
               f"mean {1e3 * np.mean([d.elapsed_s for d in dense_frames]):.1f} ms per frame")
-    if tracker is None:
+    if steps[0] is None:
         print(f"{n} frames, {n / wall:.1f} frames/s ({pace})")
         if not len(z):
             print("no frame gave a dense depth (no texture in the working range?)", file=sys.stderr)

@@ -3,14 +3,21 @@ from __future__ import annotations
 
 import sys
 
-from psvs.cli.common import add_rig_argument, check_output_path, check_working_range, parse_seed, rig_from_args
-from psvs.imaging.pipeline import PAPER
+from psvs.cli.common import (
+    add_model_argument,
+    add_pipeline_argument,
+    add_range_arguments,
+    add_rig_argument,
+    check_output_path,
+    parse_seed,
+    pipeline_from_args,
+    range_from_args,
+    rig_from_args,
+)
 from psvs.io.atomic import output_batch
 from psvs.io.images import read_grey
-from psvs.io.pipeline_file import load_pipeline
 from psvs.match.correspondence import MatchParams, match_image
 from psvs.match.export import write_csv, write_json, write_ply
-from psvs.measure.triangulate import MODELS
 
 
 def add_parser(sub) -> None:
@@ -24,15 +31,13 @@ def add_parser(sub) -> None:
     mode = p.add_mutually_exclusive_group(required=True)
     mode.add_argument("--seed", metavar="U,V", help="a pixel on a left-view edge (the paper's double-click)")
     mode.add_argument("--auto", action="store_true", help="pair every edge with its twin automatically")
-    p.add_argument("--pipeline", metavar="P.toml", help="image pipeline (default: median 3, threshold 92, Roberts)")
+    add_pipeline_argument(p)
     p.add_argument("-o", "--output", metavar="OUT.json", required=True, help="pairs and unmatched edges (JSON)")
     p.add_argument("--csv", metavar="OUT.csv", help="one row per matched pixel")
     p.add_argument("--ply", metavar="OUT.ply", help="3-D points")
     p.add_argument("--figures", metavar="DIR", help="write fig7_views.png and fig8_disparity.png here")
-    p.add_argument("--near-mm", type=float, default=400.0, help="working range near end (default 400)")
-    p.add_argument("--far-mm", type=float, default=1200.0, help="working range far end (default 1200)")
-    p.add_argument("--model", choices=MODELS, default=None,
-                   help="triangulation model (default: refraction on the paper's geometry, exact on a build)")
+    add_range_arguments(p)
+    add_model_argument(p)
     p.add_argument("--n-seeds", type=int, help="seeds on the corresponding edge, 2-100 (default 10)")
     p.add_argument("--no-subpixel", action="store_true", help="keep integer pixel positions")
     p.set_defaults(run=run)
@@ -47,17 +52,17 @@ def run(args) -> int:
         if not Path(args.figures).is_dir():
             raise FileNotFoundError(f"figures folder does not exist: {args.figures}")
     seed = parse_seed(args.seed)
-    check_working_range(args.near_mm, args.far_mm)
+    near_mm, far_mm = range_from_args(args)
     if args.auto and args.n_seeds is not None:
         raise ValueError("--n-seeds applies to --seed (seeds on the edge the user picked), not to --auto")
     if args.n_seeds is not None and not 2 <= args.n_seeds <= 100:
         raise ValueError(f"--n-seeds must be 2-100, got {args.n_seeds}")
     rig = rig_from_args(args)
-    pipeline = load_pipeline(args.pipeline) if args.pipeline else PAPER
+    pipeline = pipeline_from_args(args)
     image = read_grey(args.image)
     seeds = {} if args.n_seeds is None else {"n_seeds": args.n_seeds}   # else MatchParams' default
     params = MatchParams(subpixel=not args.no_subpixel, model=args.model, **seeds)
-    res = match_image(image, rig, seed_px=seed, pipeline=pipeline, near_mm=args.near_mm, far_mm=args.far_mm,
+    res = match_image(image, rig, seed_px=seed, pipeline=pipeline, near_mm=near_mm, far_mm=far_mm,
                       params=params)
     with output_batch():   # all outputs land together, or none replaces an earlier file
         write_json(out, res)

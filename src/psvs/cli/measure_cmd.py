@@ -4,9 +4,8 @@ from __future__ import annotations
 import json
 
 from psvs.calibrate.measure import measure_pattern
-from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.cli.common import add_model_argument, add_rig_argument, rig_from_args
 from psvs.io.images import read_grey
-from psvs.measure.triangulate import MODELS
 
 
 def add_parser(sub) -> None:
@@ -17,7 +16,7 @@ def add_parser(sub) -> None:
     p.add_argument("target", choices=["circles"], help="what to measure")
     p.add_argument("image", metavar="IMAGE", help="complex image (PNG, grey)")
     add_rig_argument(p)
-    p.add_argument("--model", choices=MODELS, default="exact", help="triangulation model (default exact)")
+    add_model_argument(p, default="exact")
     p.add_argument("--count", type=int, default=5, help="circles in the pattern (default 5)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a summary")
     p.set_defaults(run=run)

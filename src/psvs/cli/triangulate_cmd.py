@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import sys
 
-from psvs.cli.common import add_rig_argument, check_output_path, rig_from_args
+from psvs.cli.common import add_model_argument, add_rig_argument, check_output_path, rig_from_args
 from psvs.io.points import points_csv_text, read_matches_csv, write_points_csv
-from psvs.measure.triangulate import MODELS, default_model, triangulate
+from psvs.measure.triangulate import default_model, triangulate
 
 
 def add_parser(sub) -> None:
@@ -14,9 +14,7 @@ def add_parser(sub) -> None:
                                    "Input CSV columns u_l,v_l,u_r,v_r (px); output X_mm,Y_mm,Z_mm,valid.")
     add_rig_argument(p)
     p.add_argument("points", metavar="POINTS.csv", help="CSV with header u_l,v_l,u_r,v_r")
-    p.add_argument("--model", choices=MODELS, default=None,
-                   help="paper: eqs. (12)-(14); refraction: eqs. (15)-(17); exact: traced rays (default: refraction "
-                        "on the paper's geometry, exact on a build)")
+    add_model_argument(p)
     p.add_argument("-o", "--output", metavar="OUT.csv", help="write here (atomically) instead of stdout")
     p.set_defaults(run=run)
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from psvs._validate import check_grey
 from psvs.imaging.pipeline import PAPER, Pipeline
-from psvs.match.correspondence import finish_pairs
+from psvs.match.correspondence import MatchParams, finish_pairs
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.optics.rig import Rig
@@ -61,18 +61,12 @@ def nearest_edge_pixels(edges: np.ndarray, point_px, radius_px: float, k: int = 
     return np.column_stack([uu[keep][order], vv[keep][order]])
 
 
-class EdgeTracker:
-    """Follow the left-view edge under ``seed_px`` frame to frame and report its depth.
+@dataclass(frozen=True)
+class TrackerParams:
+    """Tuning of :class:`EdgeTracker`.
 
     Parameters
     ----------
-    rig : Rig
-    seed_px : (u, v)
-        A point on (or within ``snap_px`` of) a left-view edge in the first frame, px.
-    pipeline : Pipeline
-        The image pipeline (default: the paper's median 3x3, threshold 92, Roberts).
-    near_mm, far_mm : float
-        Working depth range (sets the disparities searched).
     snap_px : float
         How far from the user's seed the first edge pixel may be, px.
     search_px : float
@@ -83,11 +77,46 @@ class EdgeTracker:
         (k + 1) times that.
     min_pairs : int
         Fewest matched pixel pairs for a frame to count as tracked.
+    candidates : int
+        Edge pixels tried, nearest the predicted seed first.
+    """
+
+    snap_px: float = 6.0
+    search_px: float = 25.0
+    max_jump_px: float = 12.0
+    min_pairs: int = 10
+    candidates: int = 4
+
+    def __post_init__(self):
+        for name in ("snap_px", "search_px", "max_jump_px"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
+                raise ValueError(f"{name} must be > 0 px, got {value!r}")
+        for name in ("min_pairs", "candidates"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+
+
+class EdgeTracker:
+    """Follow the left-view edge under ``seed_px`` frame to frame and report its depth.
+
+    Parameters
+    ----------
+    rig : Rig
+    seed_px : (u, v)
+        A point on (or within ``params.snap_px`` of) a left-view edge in the first frame, px.
+    pipeline : Pipeline
+        The image pipeline (default: the paper's median 3x3, threshold 92, Roberts).
+    near_mm, far_mm : float
+        Working depth range (sets the disparities searched).
+    match : MatchParams
+        Sub-pixel refinement and the triangulation model of each frame's pair.
+    params : TrackerParams
     """
 
     def __init__(self, rig: Rig, seed_px, *, pipeline: Pipeline = PAPER, near_mm: float = 400.0,
-                 far_mm: float = 1200.0, model: str | None = None, subpixel: bool = True, snap_px: float = 6.0,
-                 search_px: float = 25.0, max_jump_px: float = 12.0, min_pairs: int = 10, candidates: int = 4):
+                 far_mm: float = 1200.0, match: MatchParams = MatchParams(), params: TrackerParams = TrackerParams()):
         try:
             seed = np.array([float(c) for c in seed_px])
         except (TypeError, ValueError):
@@ -97,14 +126,9 @@ class EdgeTracker:
         w, h = rig.camera.image_size_px
         if not (0 <= seed[0] < w and 0 <= seed[1] < h):
             raise ValueError(f"seed ({seed[0]:g}, {seed[1]:g}) is outside the {w}x{h} image")
-        for name, value in (("snap_px", snap_px), ("search_px", search_px), ("max_jump_px", max_jump_px)):
-            if not value > 0:
-                raise ValueError(f"{name} must be > 0 px, got {value!r}")
-        self.rig, self.pipeline, self.model, self.subpixel = rig, pipeline, model, subpixel
+        self.rig, self.pipeline, self.match, self.params = rig, pipeline, match, params
         self.rect = rectification_for(rig, near_mm, far_mm)       # a build: twins on rectified rows
         self.range_px = disparity_range(rig, near_mm, far_mm, self.rect)
-        self.snap_px, self.search_px, self.max_jump_px = snap_px, search_px, max_jump_px
-        self.min_pairs, self.candidates = min_pairs, candidates
         self._seed = seed
         self._velocity = np.zeros(2)
         self._disparity = None          # last median disparity (px); None before the first match
@@ -122,18 +146,20 @@ class EdgeTracker:
         edges = self.pipeline.run(grey)
         first = self._disparity is None
         predicted = self._seed + self._velocity
-        radius = self.snap_px if first else self.search_px * (1 + self._lost) + float(np.hypot(*self._velocity))
-        cands = nearest_edge_pixels(edges, predicted, radius, self.candidates)
+        p = self.params
+        radius = p.snap_px if first else p.search_px * (1 + self._lost) + float(np.hypot(*self._velocity))
+        cands = nearest_edge_pixels(edges, predicted, radius, p.candidates)
         msg = "no edge pixel near the seed" if first else "edge lost"
         for cand in cands:
-            pair = match_seeded(edges, cand, self.range_px, rect=self.rect)
-            if len(pair) < self.min_pairs:
+            pair = match_seeded(edges, cand, self.range_px, n_seeds=self.match.n_seeds, rect=self.rect)
+            if len(pair) < p.min_pairs:
                 continue
             d = float(np.median(pair.disparity_px))
-            if not first and abs(d - self._disparity) > self.max_jump_px * (1 + self._lost):
+            if not first and abs(d - self._disparity) > p.max_jump_px * (1 + self._lost):
                 msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"
                 continue
-            pair, = finish_pairs(grey, [pair], self.rig, subpixel=self.subpixel, model=self.model, rect=self.rect)
+            pair, = finish_pairs(grey, [pair], self.rig, subpixel=self.match.subpixel, model=self.match.model,
+                                 rect=self.rect)
             z = pair.points_mm[:, 2]
             if not np.any(np.isfinite(z)):
                 continue
