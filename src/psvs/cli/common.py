@@ -66,7 +66,10 @@ def open_telemetry(args, t0_ns: int | None = None):
         yield None
         return
     from psvs.io.telemetry import Telemetry, parse_endpoint, url_host
-    serve = parse_endpoint(args.foxglove) if args.foxglove is not None else None
+    try:
+        serve = parse_endpoint(args.foxglove) if args.foxglove is not None else None
+    except ValueError as exc:
+        raise ValueError(f"--foxglove: {exc}") from None
     tel = Telemetry(mcap, serve, t0_ns)
     if serve is not None:
         print(f"Foxglove: ws://{url_host(serve[0])}:{tel.port} (Open connection > Foxglove WebSocket)", flush=True)

@@ -45,9 +45,9 @@ def parse_endpoint(text: str, default_host: str = "127.0.0.1") -> tuple[str, int
     try:
         p = int(port)
     except ValueError:
-        raise ValueError(f"--foxglove must be [HOST:]PORT with PORT an integer, got {text!r}") from None
+        raise ValueError(f"an endpoint must be [HOST:]PORT with PORT an integer, got {text!r}") from None
     if not 0 <= p <= 65535:
-        raise ValueError(f"--foxglove port must be in 0..65535, got {p}")
+        raise ValueError(f"an endpoint's port must be in 0..65535, got {p}")
     return host, p
 
 

@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
-from psvs.transforms import concat, invert_transform, transform_from_rotvec
+from psvs.transforms import concat, invert_transform, transform_from, transform_from_rotvec
 
 #: Soft-L1 loss scale (px): residuals beyond it count as outliers.
 LOSS_SCALE_PX = 0.5
@@ -55,8 +55,7 @@ def refine_hand_eye(flange2base: list[np.ndarray], fits: list, model_mm: np.ndar
     F = [np.asarray(f, dtype=np.float64) for f in flange2base]
     obs = np.concatenate([np.concatenate([f.left_px for f in fits]), np.concatenate([f.right_px for f in fits])])
     targets = [concat(f.target2cam, cam2flange, Fi) for f, Fi in zip(fits, F)]
-    start = targets[0].copy()
-    start[:3, 3] = np.mean([T[:3, 3] for T in targets], axis=0)
+    start = transform_from(targets[0][:3, :3], np.mean([T[:3, 3] for T in targets], axis=0))
 
     def residuals(x: np.ndarray) -> np.ndarray:
         X, T = _poses(x)

@@ -1,0 +1,124 @@
+"""The house rules, checked on the source itself: imports run one way between the packages (no arrow back up),
+no function over 80 lines or 8 parameters outside the Numba kernels, one module for rigid transforms, and the
+linter (ruff) clean."""
+import ast
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src" / "psvs"
+
+#: The packages' layers, lowest first: a module may import only from strictly lower layers (or its own
+#: package). imaging knows nothing about rigs; dense and match are peers (neither imports the other); the
+#: command line and the web app sit on top, and no library module imports them.
+LAYERS = [
+    {"errors", "_validate", "_memory", "transforms", "rigs"},
+    {"optics"},
+    {"measure", "imaging"},
+    {"simulate"},
+    {"io"},
+    {"match", "dense"},
+    {"calibrate", "live"},
+    {"robot"},
+    {"web"},
+    {"cli", "__init__"},
+    {"__main__"},
+]
+RANK = {name: k for k, layer in enumerate(LAYERS) for name in layer}
+MAX_LINES, MAX_PARAMS = 80, 8
+
+
+def _modules():
+    for path in sorted(SRC.rglob("*.py")):
+        yield path, ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+
+
+def _package(path: Path) -> str:
+    parts = path.relative_to(SRC).with_suffix("").parts
+    return parts[0]
+
+
+def _imported(tree) -> set[str]:
+    """The psvs packages a module imports (``from psvs import x`` counts as package x)."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "psvs":
+            parts = node.module.split(".")
+            out |= {parts[1]} if len(parts) > 1 else {a.name for a in node.names}
+        elif isinstance(node, ast.Import):
+            out |= {a.name.split(".")[1] for a in node.names if a.name.startswith("psvs.")}
+    return out
+
+
+def test_every_package_has_a_layer():
+    packages = {_package(path) for path, _ in _modules()}
+    assert packages <= set(RANK), f"packages without a layer: {sorted(packages - set(RANK))}"
+
+
+def test_imports_run_one_way():
+    """No import from a package's own layer or above it (the one arrow that ran back up, simulate -> io, and
+    dense -> match are gone); in particular no library module imports psvs.cli or psvs.web."""
+    wrong = []
+    for path, tree in _modules():
+        pkg = _package(path)
+        for target in _imported(tree) - {pkg}:
+            if target in RANK and RANK[target] >= RANK[pkg]:
+                wrong.append(f"{path.relative_to(ROOT)} imports psvs.{target}")
+    assert not wrong, "\n".join(wrong)
+
+
+def _is_kernel(node) -> bool:
+    """A Numba-compiled function (its Python driver takes a record; the kernel itself takes arrays)."""
+    return any("jit" in ast.unparse(d) or "vectorize" in ast.unparse(d) for d in node.decorator_list)
+
+
+def _functions():
+    for path, tree in _modules():
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and not _is_kernel(node):
+                yield path, node
+
+
+def test_no_function_over_80_lines_or_8_parameters():
+    long, wide = [], []
+    for path, node in _functions():
+        where = f"{path.relative_to(ROOT)}:{node.lineno} {node.name}"
+        lines = node.end_lineno - node.lineno + 1
+        if lines > MAX_LINES:
+            long.append(f"{where} ({lines} lines)")
+        a = node.args
+        names = [x.arg for x in a.posonlyargs + a.args + a.kwonlyargs if x.arg not in ("self", "cls")]
+        names += [x.arg for x in (a.vararg, a.kwarg) if x is not None]
+        if len(names) > MAX_PARAMS:
+            wide.append(f"{where} ({len(names)} parameters)")
+    assert not long and not wide, "\n".join(long + wide)
+
+
+def test_rigid_transforms_are_built_in_one_module():
+    """psvs.transforms builds 4 x 4 transforms; nowhere else fills a matrix's rotation and translation blocks by
+    hand (the code had ten such sites and three helpers of two names)."""
+    hand = []
+    for path, tree in _modules():
+        if path.name == "transforms.py":
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Assign):
+                text = ast.unparse(node.targets[0])
+                if "[:3, 3]" in text or "[:3, :3]" in text:
+                    hand.append(f"{path.relative_to(ROOT)}:{node.lineno} {text}")
+    assert not hand, "\n".join(hand)
+
+
+def test_the_linter_is_clean():
+    """ruff (pyproject.toml's rules: pycodestyle, pyflakes' unused names, import order, at most 8 parameters)
+    finds nothing in the sources, tests, benchmarks and examples."""
+    ruff = shutil.which("ruff", path=str(Path(sys.executable).parent)) or shutil.which("ruff")
+    if ruff is None:
+        pytest.fail("ruff is not installed (it is a test dependency: pip install -e .[test])")
+    res = subprocess.run([ruff, "check", "--no-cache", "src", "tests", "bench", "examples", "dev.py"], cwd=ROOT,
+                         capture_output=True, text=True)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-1000:]
