@@ -58,12 +58,24 @@ def test_blocked_layout_names_the_mirror():
     assert fixed.ok
 
 
-def test_far_m2_blocks_outgoing_left_beam():
-    """By hand (45 deg, no plate): the left view's inner edge ray clears M2's far end only while
-    c2 < b (1 - tan a)^2 / (4 tan a) ~ 45.4 mm; at c2 = 60 mm M2 is in the way."""
-    rig = default_rig().replace(m1_axis_distance_mm=20.0, m2_axis_distance_mm=60.0)
-    d = design_mirrors(rig, search=False)
-    assert any(p.startswith("M2 blocks the left view between M3 -> scene") for p in d.problems)
+@pytest.mark.parametrize("plate_mm", [0.0, 3.0])
+def test_far_m2_blocks_outgoing_left_beam(plate_mm):
+    """By hand (45 deg, no plate): the left view's edge ray (the image's last column, u = W - 0.5) clears M2's
+    far end only while c2 < b (1 - tan a)^2 / (4 tan a) ~ 45.4 mm. Without the plate the layout is clear
+    0.3 mm below that bound and blocked by that beam 0.3 mm above it, and at c2 = 60 mm M2 is in the way
+    with or without the plate, the example pixel on the last column."""
+    rig = default_rig().replace(plate_thickness_mm=plate_mm, m1_axis_distance_mm=20.0)
+    w = rig.camera.image_size_px[0]
+    bound = 100.0 * (1 - math.tan(rig.camera.half_fov_rad[0])) ** 2 / (4 * math.tan(rig.camera.half_fov_rad[0]))
+    beam = "M2 blocks the left view between M3 -> scene"
+    if plate_mm == 0.0:
+        assert design_mirrors(rig.replace(m2_axis_distance_mm=bound - 0.3), search=False).ok
+        above = design_mirrors(rig.replace(m2_axis_distance_mm=bound + 0.3), search=False).problems
+        assert len(above) == 1 and above[0].startswith(beam)
+    d = design_mirrors(rig.replace(m2_axis_distance_mm=60.0), search=False)
+    (problem,) = [p for p in d.problems if p.startswith(beam)]
+    u = float(problem.split("pixel (")[1].split(",")[0])
+    assert u == w - 0.5
 
 
 def test_m2_window_upper_end_matches_closed_form():

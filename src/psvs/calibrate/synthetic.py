@@ -1,6 +1,6 @@
 """Simulated calibration data: a hand-held circle-grid card shown to a rig at random poses.
 
-Poses follow what issue 14 asks a user to do (and what the independent check renders): the card 450-1000 mm
+Poses follow what docs/calibration.md asks a user to do (and what the independent check renders): the card 450-1000 mm
 away, tilted up to +-25 deg about both in-plane axes and turned a little about the optical axis, placed so
 that every disc of both views lies inside the image with a margin. Rendering goes through the rig's exact
 optics (:func:`psvs.simulate.render.render`), so a misaligned build gives the images that build would.

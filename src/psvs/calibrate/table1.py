@@ -2,7 +2,7 @@
 
 A robot holds the circle pattern (slightly turned and off-centre on its holder) and moves it along Z.
 The rig is calibrated either from a calibration sweep at 16 distances (425-1175 mm every 50 mm, not the test
-distances; the paper's method) or from 18 views of a hand-held 4x6 circle-grid card (issue 14), starting
+distances; the paper's method) or from 18 views of a hand-held 4x6 circle-grid card (:data:`CARD`), starting
 from a rough guess (f +10 %, b +10 mm, principal point off, plate 2 mm, no lens distortion, no mirror
 error) or from a given nominal design; the paper's 15 test distances are then measured with the calibrated
 rig: depth Z, circle diameter (10 mm) and first-last centre distance (80 mm). Everything is rendered through
@@ -36,7 +36,7 @@ PAPER_TABLE1 = np.array([
 SWEEP_Z_MM = np.arange(425.0, 1176.0, 50.0)   # 16 positions, none at a test distance
 HOLDER = dict(tilt_x_deg=2.0, tilt_y_deg=-3.0, x_mm=6.0, y_mm=-4.0)   # the pattern on the robot
 ROBOT_OFFSET_MM = -312.7                                              # robot reading = Z - offset
-CARD = CircleGrid(4, 6, 14.0, 7.0)                                    # the hand-held card of issue 14
+CARD = CircleGrid(4, 6, 14.0, 7.0)                                    # the hand-held card (docs/calibration.md)
 CARD_VIEWS = 18
 
 

@@ -1,5 +1,5 @@
 """Simulated live sequences: a scene seen by a rig that moves back and forth, rendered through the exact
-optics (issue 3's renderer), with fresh sensor noise on every frame.
+optics (psvs.simulate.render), with fresh sensor noise on every frame.
 
 Each distinct rig position is rendered once (its irradiance) and every frame is exposed with its own noise
 seed, so long sequences (a 30 s video at 30 frames/s) cost only as many renders as distinct positions.

@@ -4,8 +4,8 @@ The simulated cell's arm is the PUMA 560 of Corke's Robotics Toolbox (``robotics
 ``models.DH.Puma560``: the same DH table and joint range, in mm here). The tests check this module against
 the toolbox (table, forward kinematics, inverse kinematics). It is computed here, and not by the toolbox
 at run time, because importing the toolbox alone takes 2 s on a 2-core machine (it loads matplotlib,
-scipy.stats and its mobile-robot modules). That is the whole start-up budget of ``psvs track --handeye``
-(issue 16). The arm needs only forward kinematics, the Jacobian and a damped least-squares inverse.
+scipy.stats and its mobile-robot modules), the whole start-up budget of ``psvs track --handeye`` (2 s to
+the first control cycle). The arm needs only forward kinematics, the Jacobian and a damped least-squares inverse.
 
 Standard DH: link i maps frame i to frame i-1 by A_i = Rz(θ_i + offset_i) · Tz(d_i) · Tx(a_i) · Rx(α_i).
 """

@@ -4,7 +4,7 @@ fig5a      simple objects whose left and right views are separated (paper Fig. 5
 fig5b      two ashtray-like objects whose views partly overlap (Fig. 5b)
 fig6       a cluttered scene (Fig. 6)
 fig9       the accuracy pattern: 5 circles of 10 mm, 20 mm apart, on a sheet (Fig. 9), at any distance/pose
-weld_seam  two plates meeting along a curved, beveled seam (the arc-welding workpiece, issue 7)
+weld_seam  two plates meeting along a curved, beveled seam (the arc-welding workpiece, psvs track)
 textured   photo-textured objects and backdrop for dense disparity (docs/dense.md)
 """
 from __future__ import annotations
