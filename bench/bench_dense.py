@@ -7,8 +7,10 @@ import cv2
 import numba
 
 from psvs.dense import dense_disparity, separate_views
-from psvs.dense.disparity import Workspace
 from psvs.dense.evaluate import motorcycle, sgbm_reference, superimpose
+from psvs.dense.params import DEFAULT as DEFAULT_PARAMS
+from psvs.dense.params import FAST, DenseParams
+from psvs.dense.workspace import Workspace
 
 numba.set_num_threads(2)
 _state = {}
@@ -23,12 +25,12 @@ def _frame():
     return _state
 
 
-def _dense(fast: bool, d_max: float = 64):
+def _dense(params: DenseParams, d_max: float = 64):
     def setup():
         cv2.setNumThreads(2)
         c = _frame()["c"]
         ws = Workspace()     # as a live loop keeps it from frame to frame
-        return lambda: dense_disparity(c, 0, d_max, fast=fast, workspace=ws)
+        return lambda: dense_disparity(c, 0, d_max, params=params, workspace=ws)
     return setup
 
 
@@ -70,9 +72,10 @@ def _live_dense():
 
 
 def cases():
-    return [("dense --fast, 640x480, 64 disparities, 2 cores", _dense(True), 0.033),
-            (DEFAULT, _dense(False), 0.300),
-            ("dense (default mode), 640x480, 160 disparities (the rig's range), 2 cores", _dense(False, 160), 0.600),
+    return [("dense --fast, 640x480, 64 disparities, 2 cores", _dense(FAST), 0.033),
+            (DEFAULT, _dense(DEFAULT_PARAMS), 0.300),
+            ("dense (default mode), 640x480, 160 disparities (the rig's range), 2 cores", _dense(DEFAULT_PARAMS, 160),
+             0.600),
             ("view separation, 640x480", _separate, 0.300),
             (SGBM, _sgbm, float("inf")),
             ("psvs live --dense per frame: fast mode over the rig's 400-1200 mm + cloud", _live_dense, float("inf"))]
