@@ -66,7 +66,7 @@ def _window_max(src, dst, r):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # pragma: no cover - compiled
+def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # noqa: PLR0913  # pragma: no cover - compiled
     """The echo volume (D, H, W) into ``out``. Per lag, the slice streams down its rows in stages: row t's
     products f(x)·g(x − d) summed along the row (rows clamped at the ends); row t − r's window sums from
     the running column sums of those (rows clamped), its NCC from the windows' means and inverse

@@ -40,6 +40,7 @@ from psvs.dense.cost import echo_at_winner, fused_cost, one_sided_costs, padded_
 from psvs.dense.maps import consistent, echo_at, fill_from_background, finite_median, upsample
 from psvs.dense.params import COARSE, DEFAULT, FAST, MIN_LAG_PX, MIN_SIZE_PX, DenseParams
 from psvs.dense.prune import pruned_range, widened, worth_pruning
+from psvs.dense.sgm import Penalties
 from psvs.dense.sgm import winners as sgm_winners
 from psvs.dense.workspace import Workspace, volume
 
@@ -156,9 +157,8 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     echo = weighted_echo(img, lags, p, guide, img_right, out=volume(workspace, "echo", (len(lags), h, w)))
     fused = fused_cost(echo, lags, volume(workspace, "fused", cost_shape))
     sgm = volume(workspace, "sgm", (2, *cost_shape))          # SGM's sums (work space): one volume, then two
-    penalties = dict(p1=p.p1, p2=p.p2, n_paths=p.n_paths, guide=cv2.GaussianBlur(guide, (0, 0), 1.0),
-                     tau=p.edge_contrast)
-    best, index = sgm_winners(fused, len(lags), **penalties, sums=sgm[0], min_cost=0.0)   # costs >= 0
+    penalties = Penalties(p.p1, p.p2, p.n_paths, cv2.GaussianBlur(guide, (0, 0), 1.0), p.edge_contrast)
+    best, index = sgm_winners(fused, len(lags), penalties, sums=sgm[0], min_cost=0.0)   # costs >= 0
     d = lags[0] + best                          # (lags: consecutive whole px)
     own, other = echo_at_winner(echo, lags, index)
     keep_l = own >= other - p.ownership_margin
@@ -167,7 +167,7 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     ok_l, ok_r = consistent(dl, dr)
     if p.second_pass:  # each view's own evidence where the other view's texture dominated
         one = one_sided_costs(echo, lags, fused, keep_l, keep_r, volume(workspace, "one_sided", (2, *cost_shape)))
-        best = sgm_winners(one, len(lags), **penalties, sums=sgm, min_cost=0.0)[0]   # one view per thread
+        best = sgm_winners(one, len(lags), penalties, sums=sgm, min_cost=0.0)[0]   # one view per thread
         dl2, dr2 = lags[0] + best[0], lags[0] + best[1]
         ok2_l, ok2_r = consistent(dl2, dr2)
         dl = fill_from_background(np.where(~ok_l & ok2_l, dl2, dl), ok_l | ok2_l)
