@@ -7,6 +7,7 @@ import cv2
 import numpy as np
 
 from psvs.dense.build import dense_on_rig
+from psvs.dense.params import FAST
 from psvs.imaging.pipeline import PAPER
 from psvs.io.params import load_rig
 from psvs.match.correspondence import match_image
@@ -69,8 +70,8 @@ def _dense_fast(d_range=None):
     def setup():
         rig = load_rig("misaligned")
         img = render(textured(), rig, seed=1).image
-        dense_on_rig(img, rig, fast=True, d_range=d_range)    # the rectification and its tables, once per rig
-        return lambda: dense_on_rig(img, rig, fast=True, d_range=d_range)
+        dense_on_rig(img, rig, params=FAST, d_range=d_range)    # the rectification and its tables, once per rig
+        return lambda: dense_on_rig(img, rig, params=FAST, d_range=d_range)
     return setup
 
 

@@ -44,17 +44,23 @@ def test_disparity_writes_map_views_depth_and_cloud(capsys, tmp_path, planted):
 
 
 def test_fast_and_rig_range(capsys, tmp_path):
-    from psvs import default_rig
-    from psvs.simulate.builtin import textured
-    from psvs.simulate.render import render
-
-    img = tmp_path / "t.png"
-    write_png(img, render(textured(), default_rig(), supersample=1).image)
+    """The built-in textured scene rendered by `psvs simulate --truth`, its disparity by `psvs disparity
+    --fast` over the rig's range, read back and compared with the simulator's truth where the right view
+    sees the point. (--fast within 1 px: 71 % on noise seeds 0-3, 65-70 % with the scene at 650-900 mm.)"""
+    img, truth_path = tmp_path / "t.png", tmp_path / "t.npz"
+    code, _, err = run(capsys, "simulate", "textured", "--rig", EXAMPLE, "-o", str(img), "--truth", str(truth_path),
+                       "--supersample", "1")
+    assert code == 0, err
     out = tmp_path / "d.npy"
     code, text, err = run(capsys, "disparity", str(img), "--rig", EXAMPLE, "-o", str(out), "--fast")
     assert code == 0, err
     d = np.load(out)
     assert d.shape == (480, 640) and 86 <= np.nanmedian(d) <= 256   # the rig's 400-1200 mm range
+    with np.load(truth_path) as t:
+        truth, valid = t["disparity_left_px"], t["valid_left"]
+    assert truth.shape == d.shape and valid.mean() > 0.5
+    err_px = np.nan_to_num(np.abs(d[valid] - truth[valid]), nan=np.inf)   # no answer counts as wrong
+    assert np.mean(err_px <= 1) > 0.6 and np.median(err_px) < 1.0
 
 
 def test_constant_image_warns_and_writes_nan(capsys, tmp_path):

@@ -22,16 +22,16 @@ def layered_pair(h=200, w=320, d_bg=18, d_fg=31, rect=(40, 160, 90, 250), seed=0
     truth, as in the simulator's ground truth."""
     bg = texture(h, w + d_fg + 2, seed)
     fg = texture(h, w + d_fg + 2, seed + 1)
-    t, b, l, r = rect
+    top, bottom, first, last = rect
     rows = np.arange(h)[:, None]
     cols = np.arange(w)[None, :]
-    in_fg = (rows >= t) & (rows < b) & (cols >= l) & (cols < r)
+    in_fg = (rows >= top) & (rows < bottom) & (cols >= first) & (cols < last)
     left = np.where(in_fg, fg[:, :w], bg[:, :w])
     truth_left = np.where(in_fg, float(d_fg), float(d_bg))
     truth_left[cols - truth_left < 0] = np.nan
     # right view: column x' sees the foreground if x' + d_fg lies in the rectangle, else the background
     xf = cols + d_fg
-    sees_fg = (rows >= t) & (rows < b) & (xf >= l) & (xf < r)
+    sees_fg = (rows >= top) & (rows < bottom) & (xf >= first) & (xf < last)
     right = np.where(sees_fg, np.take_along_axis(fg, np.broadcast_to(xf, (h, w)), axis=1),
                      np.take_along_axis(bg, np.broadcast_to(cols + d_bg, (h, w)), axis=1))
     truth_right = np.where(sees_fg, float(d_fg), float(d_bg))

@@ -10,6 +10,7 @@ import pytest
 
 from psvs import default_rig
 from psvs.dense.build import dense_on_rig, rectified_images, rig_cloud
+from psvs.dense.params import DEFAULT, FAST
 from psvs.io.params import load_rig
 from psvs.optics.rectify import rectify
 from psvs.simulate.builtin import _at, _photo, regulated_light, textured
@@ -46,11 +47,11 @@ def errors_of(build: str, scene: str):
     return depth_errors(rig, SCENES[scene]())
 
 
-def depth_errors(rig, scene, seed=1, fast=False):
+def depth_errors(rig, scene, seed=1, params=DEFAULT):
     """Relative |Z error| on the dense map's grid, NaN where there is no truth (the right view does not see
     the point); missing answers are inf."""
     rr = render(scene, rig, truth=True, seed=seed)
-    dense = dense_on_rig(rr.image, rig, fast=fast)
+    dense = dense_on_rig(rr.image, rig, params=params)
     cloud = rig_cloud(dense, rig)
     truth = np.where(rr.truth.valid_left, rr.truth.depth_left_mm, np.nan)
     if dense.rect is not None:   # truth on the left view's rectified grid: the complex pixel each maps to
@@ -90,9 +91,9 @@ def test_ideal_rig_unchanged_and_comparable():
     from psvs.optics.search_range import disparity_range
     rig = default_rig()
     img = render(textured(), rig, seed=1).image
-    ours = dense_on_rig(img, rig, fast=True)
+    ours = dense_on_rig(img, rig, params=FAST)
     assert ours.rect is None
-    ref = dense_disparity(img, *disparity_range(rig, 400.0, 1200.0, width_px=img.shape[1]), fast=True)
+    ref = dense_disparity(img, *disparity_range(rig, 400.0, 1200.0, width_px=img.shape[1]), params=FAST)
     np.testing.assert_array_equal(ours.result.disparity_left, ref.disparity_left)
     ideal = bad_share(errors_of("ideal", "textured"))
     built = bad_share(errors_of("misaligned", "textured"))

@@ -207,7 +207,8 @@ def test_one_sided_costs_against_their_definition(seed):
     echo = rng.uniform(-1, 1, (n, h, w)).astype(np.float32)
     fused = rng.random((h, w, padded_lags(n))).astype(np.float32)
     keeps = rng.random((2, h, w)) < 0.3
-    both = one_sided_costs(echo, lags, fused, keeps[0], keeps[1], np.full((2, h, w, padded_lags(n)), np.nan, np.float32))
+    out = np.full((2, h, w, padded_lags(n)), np.nan, np.float32)
+    both = one_sided_costs(echo, lags, fused, keeps[0], keeps[1], out)
     for right_view, keep, got in zip((False, True), keeps, both):
         _check_one_sided(got, echo, lags, fused, keep, right_view)
 

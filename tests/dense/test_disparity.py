@@ -1,11 +1,12 @@
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from psvs.dense import dense_disparity
-from psvs.dense.disparity import fill_from_background
+from psvs.dense import DEFAULT, FAST, dense_disparity
 from psvs.dense.evaluate import disparity_scores, superimpose
+from psvs.dense.maps import fill_from_background
 from tests.dense.planted import layered_pair
 
 
@@ -36,7 +37,7 @@ def test_planted_layers_are_recovered(pair, split):
 
 def test_fast_mode_finds_both_layers(pair):
     left, right, tl, _ = pair
-    res = dense_disparity(superimpose(left, right), 0, 40, fast=True)
+    res = dense_disparity(superimpose(left, right), 0, 40, params=FAST)
     assert res.disparity_left.shape == left.shape
     assert _share_correct(res.disparity_left, tl, 31) > 0.7
     assert _share_correct(res.disparity_left, tl, 18) > 0.95
@@ -44,12 +45,23 @@ def test_fast_mode_finds_both_layers(pair):
 
 
 def test_confidence_is_zero_where_filled_and_high_where_owned(pair):
-    left, right, tl, _ = pair
+    """Against the planted truth (thresholds from 6 seeds x splits 0.5 and 0.3, with margin: pixels with a
+    confidence were within 1 px on 96-98 %, those above 0.5 on 97-99 %; 91-93 % of the pixels had one)."""
+    left, right, tl, tr = pair
     res = dense_disparity(superimpose(left, right), 0, 40)
     c = res.confidence_left
     assert c.min() >= 0 and c.max() <= 1
     good = np.abs(res.disparity_left - tl) <= 1
     assert np.mean(c[good]) > np.mean(c[~good & np.isfinite(tl)])
+    assert np.all(c[np.isnan(tl)] == 0)        # a twin outside the image (x < d): no evidence, filled
+    for d, conf, truth in ((res.disparity_left, c, tl), (res.disparity_right, res.confidence_right, tr)):
+        seen = np.isfinite(truth)
+        right_px = np.abs(d - truth) <= 1
+        owned = (conf > 0) & seen
+        assert owned.mean() > 0.85                          # most pixels carry their own evidence ...
+        assert np.mean(right_px[owned]) > 0.93              # ... and those are right within 1 px
+        assert np.mean(right_px[(conf > 0.5) & seen]) > 0.95
+        assert np.mean(conf[right_px & seen]) > 0.5         # high where right
 
 
 def test_fill_from_background_takes_the_farther_side():
@@ -68,12 +80,20 @@ def test_constant_image_gives_all_nan_with_a_warning():
     assert np.all(np.isnan(res.disparity_left)) and np.all(res.confidence_left == 0)
 
 
-def test_nearly_constant_image_gives_finite_maps_without_a_crash():
+@pytest.mark.parametrize("d, y, x", [(5, 10, 45), (12, 20, 30), (15, 30, 20)])
+def test_nearly_constant_image_gives_finite_maps_without_a_crash(d, y, x):
+    """A flat image with one bright point seen by both views: its left-view copy at x and its right-view
+    copy at x - d, two pixels of 2400, so the 1st and 99th percentiles are equal and the guide uses
+    min..max. The maps are finite, and the point's disparity d is found where it is seen (measured: within
+    0.7 px at d = 5, 8, 12, 15 px and three places each)."""
     img = np.full((40, 60), 128.0)
-    img[20, 30] = 200.0                       # the 1st and 99th percentiles are equal: the guide uses min..max
+    img[y, x] = img[y, x - d] = 200.0
+    assert np.percentile(img, 1) == np.percentile(img, 99)
     res = dense_disparity(img, 0, 20)
     assert res.disparity_left.shape == img.shape and np.isfinite(res.disparity_left).any()
     assert np.all((res.confidence_left >= 0) & (res.confidence_left <= 1))
+    assert abs(res.disparity_left[y, x] - d) <= 1           # the left view's copy, at its own pixel
+    assert abs(res.disparity_right[y, x - d] - d) <= 1      # the right view's copy, at its own pixel
 
 
 @pytest.mark.parametrize("image, lo, hi, message", [
@@ -92,24 +112,61 @@ def test_bad_input_is_named(image, lo, hi, message):
         dense_disparity(image, lo, hi)
 
 
+def test_the_mode_is_a_set_of_parameters():
+    """params= takes a DenseParams (the presets or one's own); None or a flag is refused by name, and there
+    is no second way (fast=) to choose the mode."""
+    img = np.random.default_rng(0).random((40, 60))
+    for bad in (None, True, "fast"):
+        with pytest.raises(TypeError, match="params must be a DenseParams"):
+            dense_disparity(img, 0, 20, params=bad)
+    with pytest.raises(TypeError):
+        dense_disparity(img, 0, 20, fast=True)   # the keyword is gone on purpose
+    own = dense_disparity(img, 0, 20, params=replace(FAST, n_paths=8))
+    assert own.disparity_left.shape == img.shape
+
+
+def test_widened_keeps_the_pruned_range_inside_the_range_asked_for():
+    from psvs.dense.prune import MIN_PRUNED_LAGS, widened, worth_pruning
+    assert widened(10.0, 30.0, 0.0, 100.0) == (10.0, 30.0)                   # wide enough: unchanged
+    assert widened(20.0, 22.0, 0.0, 100.0) == (17.0, 25.0)                   # about its middle
+    assert widened(28.0, 32.0, 0.0, 32.0) == (32.0 - MIN_PRUNED_LAGS, 32.0)  # shifted back inside
+    assert widened(0.0, 2.0, 0.0, 100.0) == (0.0, MIN_PRUNED_LAGS)
+    assert worth_pruning(0, 3 + 2 * MIN_PRUNED_LAGS + 1) and not worth_pruning(0, 3 + 2 * MIN_PRUNED_LAGS)
+
+
 def test_fast_mode_on_a_narrow_range_falls_back_to_full_resolution(pair):
+    """Ranges with no whole px to search at half size are searched at full resolution, in full-resolution
+    px: planted layers inside the range are recovered (thresholds from 6 seeds and two rectangles, with
+    margin: 90-95 % of the 3 px layer and 96-99.5 % of the 5 px layer within 1 px; the 21 px plane always)."""
     left, right, tl, _ = pair
-    res = dense_disparity(superimpose(left, right)[:, :60], 0, 5, fast=True)   # 5 px range: 2.5 at half size
+    res = dense_disparity(superimpose(left, right)[:, :60], 0, 5, params=FAST)   # 5 px range: 2.5 at half size
     assert res.disparity_left.shape == (200, 60)
-    res = dense_disparity(superimpose(left, right), 20.2, 21.8, fast=True)      # 10.1..10.9: no whole px
+    res = dense_disparity(superimpose(left, right), 20.2, 21.8, params=FAST)      # 10.1..10.9: no whole px
     assert res.disparity_left.shape == left.shape and np.nanmax(res.disparity_left) <= 21.8
+    # the same ranges on scenes whose truth lies inside them
+    left, right, tl, tr = layered_pair(d_bg=3, d_fg=5, rect=(60, 140, 15, 45))
+    res = dense_disparity(superimpose(left, right)[:, :60], 0, 5, params=FAST)
+    assert res.searched_px == (3.0, 5.0)
+    for d, truth in ((res.disparity_left, tl[:, :60]), (res.disparity_right, tr[:, :60])):
+        assert np.mean(np.abs(d[truth == 3] - 3) <= 1) > 0.85     # the background (answers >= 3: not 5)
+        assert np.mean(np.abs(d[truth == 5] - 5) <= 1) > 0.9      # the rectangle (not 3)
+    left, right, tl, tr = layered_pair(d_bg=21, d_fg=21)
+    res = dense_disparity(superimpose(left, right), 20.2, 21.8, params=FAST)
+    seen = np.isfinite(tl)
+    assert np.mean(np.abs(res.disparity_left[seen] - tl[seen]) <= 1) > 0.99
+    assert np.mean(np.abs(res.disparity_right - tr) <= 1) > 0.99
 
 
 def test_a_kept_workspace_gives_the_same_maps():
     """Volumes reused from call to call (a live loop), over frames of two sizes, two ranges and both modes:
     the same maps as fresh memory, and the volumes are the kept ones (a smaller one inside a larger)."""
-    from psvs.dense.disparity import Workspace
+    from psvs.dense.workspace import Workspace
     left, right, _, _ = layered_pair()
     c = superimpose(left, right)
     ws = Workspace()
-    for img, fast, hi in ((c, True, 40), (c, False, 40), (c[:, :150], True, 40), (c, False, 30), (c, True, 40)):
-        want = dense_disparity(img, 0, hi, fast=fast)
-        got = dense_disparity(img, 0, hi, fast=fast, workspace=ws)
+    for img, params, hi in ((c, FAST, 40), (c, DEFAULT, 40), (c[:, :150], FAST, 40), (c, DEFAULT, 30), (c, FAST, 40)):
+        want = dense_disparity(img, 0, hi, params=params)
+        got = dense_disparity(img, 0, hi, params=params, workspace=ws)
         for a, b in zip((want.disparity_left, want.disparity_right, want.confidence_left),
                         (got.disparity_left, got.disparity_right, got.confidence_left)):
             np.testing.assert_array_equal(a, b)
@@ -123,7 +180,8 @@ def test_a_kept_workspace_gives_the_same_maps():
 
 def test_pruned_range_keeps_the_supported_disparities_with_a_margin():
     """The coarse pass's consistent answers set the range; a few stray ones and filled pixels do not."""
-    from psvs.dense.disparity import PRUNE_MARGIN_PX, PRUNE_MARGIN_SHARE, DenseResult, pruned_range
+    from psvs.dense.disparity import DenseResult
+    from psvs.dense.prune import PRUNE_MARGIN_PX, PRUNE_MARGIN_SHARE, pruned_range
     rng = np.random.default_rng(3)
     d = np.where(rng.random((100, 200)) < 0.5, 20.0, 30.0).astype(np.float32)
     d[0, :5] = 90.0                                   # 5 stray pixels: below the support
@@ -141,9 +199,6 @@ def test_pruned_range_keeps_the_supported_disparities_with_a_margin():
 def test_a_wide_range_is_pruned_to_the_scene_and_gives_the_same_maps(pair):
     """Layers at 18 and 31 px searched over 0..120 px: the coarse pass narrows the search to about 12..38,
     and the maps are as good as those of the whole search."""
-    from dataclasses import replace
-
-    from psvs.dense.disparity import DEFAULT
     left, right, tl, tr = pair
     c = superimpose(left, right)
     wide = dense_disparity(c, 0, 120)
@@ -153,16 +208,14 @@ def test_a_wide_range_is_pruned_to_the_scene_and_gives_the_same_maps(pair):
         assert _share_correct(d, truth, 31) > 0.8 and _share_correct(d, truth, 18) > 0.95
     whole = dense_disparity(c, 0, 120, params=replace(DEFAULT, prune=False))
     assert whole.searched_px == (3.0, 120.0)
-    assert disparity_scores(wide.disparity_left, tl)["bad2_pct"] <= disparity_scores(whole.disparity_left, tl)["bad2_pct"] + 0.5
+    bad2 = lambda d: disparity_scores(d, tl)["bad2_pct"]  # noqa: E731
+    assert bad2(wide.disparity_left) <= bad2(whole.disparity_left) + 0.5
 
 
 @pytest.mark.parametrize("side", [40, 64])
 def test_pruning_keeps_a_small_object_whose_disparity_stands_apart(side):
     """A side x side px object at 40 px before a background at 12 px, searched over 0..100: the coarse pass
     finds the object, so the pruned search covers it and recovers it as the whole search does."""
-    from dataclasses import replace
-
-    from psvs.dense.disparity import DEFAULT
     left, right, tl, _ = layered_pair(d_bg=12, d_fg=40, rect=(100 - side // 2, 100 + side // 2,
                                                                160 - side // 2, 160 + side // 2))
     c = superimpose(left, right)
@@ -179,7 +232,7 @@ def test_pruning_keeps_a_small_object_whose_disparity_stands_apart(side):
 def test_one_depth_at_the_end_of_the_range_is_widened_not_searched_whole():
     """A single plane at 30 px searched over 0..32: the pruned range, clipped at 32, is widened inside the
     range to at least MIN_PRUNED_LAGS px instead of falling back to the whole range."""
-    from psvs.dense.disparity import MIN_PRUNED_LAGS
+    from psvs.dense.prune import MIN_PRUNED_LAGS
     left, right, tl, _ = layered_pair(d_bg=30, d_fg=30)
     res = dense_disparity(superimpose(left, right), 0, 32)
     lo, hi = res.searched_px

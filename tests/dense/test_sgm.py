@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from psvs.dense.sgm import PATHS, aggregate, winners
+from psvs.dense.sgm import PATHS, Penalties, aggregate, winners
 
 
 def reference_sgm(cost, p1, p2, paths, guide=None, tau=1.0):
@@ -37,20 +37,20 @@ def reference_sgm(cost, p1, p2, paths, guide=None, tau=1.0):
 def test_aggregate_matches_reference_recursion(n_paths):
     rng = np.random.default_rng(1)
     cost = rng.random((7, 9, 5)).astype(np.float32)
-    got = aggregate(cost, 0.1, 0.4, n_paths=n_paths)
+    got = aggregate(cost, Penalties(0.1, 0.4, n_paths=n_paths))
     want = reference_sgm(cost.astype(np.float64), 0.1, 0.4, PATHS[:n_paths])
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
     # one thread, and caller's buffers (written over, the result is the first)
     out, work = np.full_like(cost, np.nan), np.full_like(cost, np.nan)
-    again = aggregate(cost, 0.1, 0.4, n_paths=n_paths, threads=1, out=out, work=work)
+    again = aggregate(cost, Penalties(0.1, 0.4, n_paths=n_paths), threads=1, out=out, work=work)
     assert again is out and np.array_equal(again, got)
     # negative costs (the kernel needs >= 0): shifted in and out, still the recursion's result
-    below = aggregate(cost - 0.6, 0.1, 0.4, n_paths=n_paths)
+    below = aggregate(cost - 0.6, Penalties(0.1, 0.4, n_paths=n_paths))
     np.testing.assert_allclose(below, want - 0.6 * n_paths, rtol=1e-5, atol=1e-5)
     with pytest.raises(ValueError, match="SGM buffers"):
-        aggregate(cost, 0.1, 0.4, out=np.empty((7, 9, 4), np.float32))
+        aggregate(cost, Penalties(0.1, 0.4), out=np.empty((7, 9, 4), np.float32))
     with pytest.raises(ValueError, match="overlap"):
-        aggregate(cost, 0.1, 0.4, out=cost)
+        aggregate(cost, Penalties(0.1, 0.4), out=cost)
 
 
 def reference_winner(agg, n_valid):
@@ -77,36 +77,36 @@ def test_winners_are_the_aggregated_costs_lowest_lags(n_paths, h):
     want = [reference_winner(reference_sgm(c.astype(np.float64), 0.1, 0.4, PATHS[:n_paths], guide.astype(np.float64),
                                            0.3), 6) for c in costs]
     args = dict(n_paths=n_paths, guide=guide, tau=0.3)
-    best, index = winners(costs, 6, 0.1, 0.4, **args, sums=np.full_like(costs, np.nan))
-    one = [winners(c, 6, 0.1, 0.4, **args, sums=np.full_like(c, np.nan)) for c in costs]
+    best, index = winners(costs, 6, Penalties(0.1, 0.4, **args), sums=np.full_like(costs, np.nan))
+    one = [winners(c, 6, Penalties(0.1, 0.4, **args), sums=np.full_like(c, np.nan)) for c in costs]
     for i in range(2):
         for b, k in ((best[i], index[i]), one[i]):
             np.testing.assert_allclose(b, want[i][0], atol=1e-4)
             assert np.array_equal(k, want[i][1]) and np.all(np.abs(b - k) <= 0.5)
     with pytest.raises(ValueError, match="one cost volume"):
-        winners(costs[:, :, :, :, None], 6, 0.1, 0.4)
+        winners(costs[:, :, :, :, None], 6, Penalties(0.1, 0.4))
     with pytest.raises(ValueError, match="n_valid"):
-        winners(costs, 9, 0.1, 0.4)
+        winners(costs, 9, Penalties(0.1, 0.4))
     with pytest.raises(ValueError, match="costs >= 0"):
-        winners(costs - 0.5, 6, 0.1, 0.4)
+        winners(costs - 0.5, 6, Penalties(0.1, 0.4))
     for bad in (costs - 0.5, costs[0] - 0.5):                       # caught by the kernel's integer minimum
         with pytest.raises(ValueError, match="costs >= 0"):
-            winners(bad, 6, 0.1, 0.4, min_cost=0.0)
+            winners(bad, 6, Penalties(0.1, 0.4), min_cost=0.0)
     with pytest.raises(ValueError, match="overlap"):
-        winners(costs, 6, 0.1, 0.4, sums=costs)
+        winners(costs, 6, Penalties(0.1, 0.4), sums=costs)
     with pytest.raises(ValueError, match="penalties"):
-        winners(costs, 6, 0.5, 0.4)
+        winners(costs, 6, Penalties(0.5, 0.4))
 
 
 def test_guided_penalty_matches_reference_recursion():
     rng = np.random.default_rng(2)
     cost = rng.random((6, 8, 5)).astype(np.float32)
     guide = (rng.random((6, 8)) * 3).astype(np.float32)
-    got = aggregate(cost, 0.1, 0.9, guide=guide, tau=0.5)
+    got = aggregate(cost, Penalties(0.1, 0.9, guide=guide, tau=0.5))
     want = reference_sgm(cost.astype(np.float64), 0.1, 0.9, PATHS, guide.astype(np.float64), 0.5)
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-5)
-    flat = aggregate(cost, 0.1, 0.9, guide=np.ones((6, 8), np.float32), tau=0.5)
-    np.testing.assert_allclose(flat, aggregate(cost, 0.1, 0.9), rtol=1e-6)   # no edge: the plain penalty
+    flat = aggregate(cost, Penalties(0.1, 0.9, guide=np.ones((6, 8), np.float32), tau=0.5))
+    np.testing.assert_allclose(flat, aggregate(cost, Penalties(0.1, 0.9)), rtol=1e-6)   # no edge: the plain penalty
 
 
 def test_aggregation_fills_an_uninformative_gap():
@@ -114,16 +114,16 @@ def test_aggregation_fills_an_uninformative_gap():
     cost = np.ones((20, 20, 8), np.float32)
     cost[:, :, 3] = 0.0
     cost[8:12, 8:12, :] = 0.5
-    agg = aggregate(cost, 0.1, 1.0)
+    agg = aggregate(cost, Penalties(0.1, 1.0))
     assert np.all(np.argmin(agg, axis=2) == 3)
 
 
 def test_penalties_are_checked():
     with pytest.raises(ValueError, match="p1 <= p2"):
-        aggregate(np.zeros((3, 3, 2), np.float32), 1.0, 0.5)
+        aggregate(np.zeros((3, 3, 2), np.float32), Penalties(1.0, 0.5))
     with pytest.raises(ValueError, match="n_paths"):
-        aggregate(np.zeros((3, 3, 2), np.float32), 0.1, 0.5, n_paths=6)
+        aggregate(np.zeros((3, 3, 2), np.float32), Penalties(0.1, 0.5, n_paths=6))
     with pytest.raises(ValueError, match="tau"):
-        aggregate(np.zeros((3, 3, 2), np.float32), 0.1, 0.5, guide=np.zeros((3, 3)), tau=0.0)
+        aggregate(np.zeros((3, 3, 2), np.float32), Penalties(0.1, 0.5, guide=np.zeros((3, 3)), tau=0.0))
     with pytest.raises(ValueError, match="guide"):
-        aggregate(np.zeros((3, 3, 2), np.float32), 0.1, 0.5, guide=np.zeros((3, 4)))
+        aggregate(np.zeros((3, 3, 2), np.float32), Penalties(0.1, 0.5, guide=np.zeros((3, 4))))

@@ -60,6 +60,8 @@ def test_dense_sensor_and_cli_errors(capsys):
         DenseSensor(default_rig(), stride=0)
     with pytest.raises(ValueError, match="near < far"):
         DenseSensor(default_rig(), 800.0, 600.0)
+    with pytest.raises(TypeError, match="params must be a DenseParams"):
+        DenseSensor(default_rig(), params=None)
     assert main(["live", "--video", "x.avi", "--rig", "default"]) == 2
     assert "give --seed U,V" in capsys.readouterr().err
     assert main(["live", "--video", "x.avi", "--rig", "default", "--dense", "--dense-stride", "0"]) == 2

@@ -9,7 +9,8 @@ import numpy as np
 from psvs.cli.common import check_output_path, check_working_range
 from psvs.dense import dense_disparity, separate_views, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud
-from psvs.dense.disparity import FAST, check_dense_memory, check_range
+from psvs.dense.disparity import check_dense_memory, check_range
+from psvs.dense.params import DEFAULT, FAST
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
 from psvs.io.images import read_grey, write_npy, write_png
@@ -84,14 +85,15 @@ def run(args) -> int:
     shape = image.shape if rect is None else rect.size_px[::-1]
     lo, hi = _range(args, rig, rect, shape[1])
     check_range(lo, hi, shape[1])
-    check_dense_memory(*shape, lo, hi, FAST if args.fast else None,
+    params = FAST if args.fast else DEFAULT
+    check_dense_memory(*shape, lo, hi, params,
                        "--min-disparity/--max-disparity" if args.max_disparity is not None else "the rig's range")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", RuntimeWarning)
         if rig is None:
-            dense = RigDense(dense_disparity(image, lo, hi, fast=args.fast), None, image)
+            dense = RigDense(dense_disparity(image, lo, hi, params=params), None, image)
         else:
-            dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, fast=args.fast, d_range=(lo, hi))
+            dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi))
     res = dense.result
     for w in caught:
         print(f"psvs disparity: warning: {w.message}", file=sys.stderr)

@@ -18,7 +18,9 @@ import numpy as np
 from scipy.ndimage import distance_transform_edt
 
 from psvs.dense.cloud import Cloud, disparity_cloud
-from psvs.dense.disparity import DenseParams, DenseResult, Workspace, dense_disparity
+from psvs.dense.disparity import DenseResult, dense_disparity
+from psvs.dense.params import DEFAULT, DenseParams
+from psvs.dense.workspace import Workspace
 from psvs.measure.triangulate import default_model, triangulate
 from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
@@ -59,20 +61,21 @@ def rectified_images(image, rect: Rectification) -> tuple[np.ndarray, np.ndarray
     return out[0], out[1]
 
 
-def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, *, fast: bool = False,
-                 params: DenseParams | None = None, d_range: tuple[float, float] | None = None,
+def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, *,
+                 params: DenseParams = DEFAULT, d_range: tuple[float, float] | None = None,
                  workspace: Workspace | None = None) -> RigDense:
     """Dense disparity of a complex image (H, W) through ``rig``, searching the disparities of its working
-    range near..far mm (or ``d_range`` px). See the module docstring for the coordinates of the maps.
-    ``workspace``: as in :func:`psvs.dense.disparity.dense_disparity` (a live loop)."""
+    range near..far mm (or ``d_range``, px). See the module docstring for the coordinates of the maps.
+    ``params`` (:data:`~psvs.dense.params.DEFAULT`, :data:`~psvs.dense.params.FAST` or your own) and
+    ``workspace`` (a live loop): as in :func:`psvs.dense.disparity.dense_disparity`."""
     img = np.asarray(image)
     rect = rectification_for(rig, near_mm, far_mm)
     if rect is None:
         lo, hi = d_range or disparity_range(rig, near_mm, far_mm, width_px=img.shape[1])
-        return RigDense(dense_disparity(img, lo, hi, fast=fast, params=params, workspace=workspace), None, img)
+        return RigDense(dense_disparity(img, lo, hi, params=params, workspace=workspace), None, img)
     a, b = rectified_images(img, rect)
     lo, hi = d_range or disparity_range(rig, near_mm, far_mm, rect, width_px=a.shape[1])
-    res = dense_disparity(a, lo, min(hi, a.shape[1] - 1.0), fast=fast, params=params, image_right=b,
+    res = dense_disparity(a, lo, min(hi, a.shape[1] - 1.0), params=params, image_right=b,
                           workspace=workspace)
     inside_l, inside_r = (rect.maps(v)[0] >= 0 for v in ("left", "right"))
     nan = np.float32(np.nan)

@@ -13,6 +13,7 @@ import numba as nb
 import numpy as np
 
 from psvs.dense.guided import guided_filter_volume, n_levels, row_sums
+from psvs.dense.params import DenseParams
 
 NO_TWIN = np.float32(-1.0)  # correlation given to lags whose twin window lies outside the image
 #: Cost volumes (H, W, D') hold D' = the searched lags rounded up to a multiple of LANES: the extra entries
@@ -65,7 +66,7 @@ def _window_max(src, dst, r):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # pragma: no cover - compiled
+def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # noqa: PLR0913  # pragma: no cover - compiled
     """The echo volume (D, H, W) into ``out``. Per lag, the slice streams down its rows in stages: row t's
     products f(x)·g(x − d) summed along the row (rows clamped at the ends); row t − r's window sums from
     the running column sums of those (rows clamped), its NCC from the windows' means and inverse
@@ -325,3 +326,30 @@ def one_sided_costs(echo, lags, fused, keep_left, keep_right, cost):  # pragma: 
                     for k in range(n):
                         out[k] -= best
     return cost
+
+
+def unit_scaled(img: np.ndarray) -> np.ndarray:
+    """``img`` (H, W) mapped linearly so its 1st and 99th percentiles become 0 and 1, float32: the guide
+    for the echo filter and the SGM penalties, whatever the image's grey scale."""
+    lo, hi = np.percentile(img, (1.0, 99.0))
+    if hi <= lo:  # nearly all one value: use the full range (the image is not constant, it was checked)
+        lo, hi = float(img.min()), float(img.max())
+    return ((img - lo) / max(hi - lo, 1e-12)).astype(np.float32)
+
+
+def weighted_echo(img: np.ndarray, lags: np.ndarray, p: DenseParams, guide: np.ndarray,
+                  img_right: np.ndarray | None = None, out: np.ndarray | None = None) -> np.ndarray:
+    """The echo volume (D, H, W) of :func:`psvs.dense.disparity.dense_disparity` for the lags ``lags`` (px):
+    band-passed NCC, guided-filtered with ``guide`` (the image scaled by :func:`unit_scaled`), weighted by
+    each patch's aperture; :data:`NO_TWIN` where the twin lies outside the image (x < d). With ``img_right``
+    (a build) the twin's patch comes from it. Written into ``out`` (D, H, W) when given."""
+    features = band_pass(img, p.sigma_px)
+    right = None if img_right is None else band_pass(img_right, p.sigma_px)
+    echo = echo_correlation(features, lags, p.window, p.shift_window, right, out)
+    aperture = aperture_weight(features, p.aperture_window, p.aperture_share)
+    if p.guided_radius > 0:         # the filter weighs the slices as it writes them, NO_TWIN kept
+        return filter_volume(echo, guide, p.guided_radius, p.guided_eps, in_place=True, weight=aperture)
+    echo *= aperture[None]
+    for k, d in enumerate(lags):
+        echo[k, :, :d] = NO_TWIN
+    return echo

@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 
 from psvs.dense.disparity import dense_disparity
+from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.separate import psnr_db, separate_views
 from psvs.imaging.grey import to_grey8
 
@@ -104,9 +105,9 @@ def evaluate_pair(left, right, truth, d_min: float = 0.0, d_max: float = 64.0, s
     """Run the default and fast modes on the superimposed pair and StereoSGBM on the separate pair."""
     c = superimpose(left, right, split)
     scores, seconds, results = {}, {}, {}
-    for name, fast in (("psvs dense", False), ("psvs dense --fast", True)):
+    for name, params in (("psvs dense", DEFAULT), ("psvs dense --fast", FAST)):
         t0 = time.perf_counter()
-        results[name] = dense_disparity(c, d_min, d_max, fast=fast)
+        results[name] = dense_disparity(c, d_min, d_max, params=params)
         seconds[name] = time.perf_counter() - t0
         scores[name] = disparity_scores(results[name].disparity_left, truth)
     best = results["psvs dense"]

@@ -55,7 +55,7 @@ def _sampling(uv: np.ndarray, h: int, w: int) -> sp.csr_matrix:
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def _normal_apply(v, out, h, w, s, coupling, lam, tie_ptr, tie_x, tie_x0, tie_f):  # pragma: no cover - compiled
+def _normal_apply(v, out, h, w, s, coupling, lam, tie_ptr, tie_x, tie_x0, tie_f):  # noqa: PLR0913  # pragma: no cover - compiled
     """out = (DᵀD + coupling·TᵀT + lam·GᵀG) v for v = [L; R] (2·h·w,): D mixes each pixel's L and R, T ties
     L(y, x) to R(y, x0 + f) (the ties of row y are tie_ptr[y]:tie_ptr[y + 1]), G the 4-neighbour differences
     of each view (GᵀG: the graph Laplacian, no term across the border). Rows are independent: parallel."""

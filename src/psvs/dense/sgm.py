@@ -23,12 +23,28 @@ its paths is kept between the halves). Two volumes: one per thread, downward the
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numba as nb
 import numpy as np
 
 #: (dy, dx) of the 8 paths; the first 4 are the horizontal and vertical ones used by the fast mode.
 PATHS = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1))
 _BIG = np.float32(1e30)   # the padding of a path's row: never the minimum (finite: the kernels use fastmath)
+
+
+@dataclass(frozen=True, eq=False)
+class Penalties:
+    """The smoothness terms of the aggregation. ``p1`` penalises a one-step disparity change between
+    neighbours, ``p2`` (≥ p1) any larger jump, both in the cost's units; ``n_paths`` 4 or 8 (:data:`PATHS`).
+    With ``guide`` (H, W), a jump between neighbours whose guide values differ by g costs
+    max(p1, p2 / (1 + g / tau)) instead (``tau`` in the guide's units)."""
+
+    p1: float
+    p2: float
+    n_paths: int = 8
+    guide: np.ndarray | None = None
+    tau: float = 1.0
 
 
 # A pass keeps each path's previous row in a buffer (path, 1 + x, 1 + d): columns 0 and W + 1 stand for
@@ -91,7 +107,7 @@ def _pick_row(row, below, best, index, n_valid, total):  # pragma: no cover - co
 
 
 @nb.njit(cache=True, nogil=True, fastmath=True)
-def _pass(cost, out, down, diagonals, p1, p2, guide, tau, pick, below, best, index, n_valid, bufs, mins, iy0,
+def _pass(cost, out, down, diagonals, p1, p2, guide, tau, pick, below, best, index, n_valid, bufs, mins, iy0,  # noqa: PLR0913
           iy1):  # pragma: no cover - compiled
     """Sum (written to ``out[y, x]``) of the paths of one pass over its rows iy0..iy1 − 1 (counted in the
     pass's direction): down (rows top to bottom) takes the paths arriving from x − 1 in the row and from
@@ -202,7 +218,7 @@ def _both_passes(cost, out, work, diagonals, p1, p2, guide, tau):  # pragma: no 
 
 
 @nb.njit(cache=True, parallel=True)
-def _winners_meet(cost, sums, best, index, n_valid, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
+def _winners_meet(cost, sums, best, index, n_valid, diagonals, p1, p2, guide, tau):  # noqa: PLR0913  # pragma: no cover - compiled
     """The downward and the upward pass on two threads, meeting in the middle: first each sweeps its
     first half of the rows writing its sums into ``sums`` (the down pass the top half, the up pass the
     bottom half), then each sweeps the other half adding the other pass's sums row by row and keeping
@@ -221,7 +237,7 @@ def _winners_meet(cost, sums, best, index, n_valid, diagonals, p1, p2, guide, ta
 
 
 @nb.njit(cache=True, parallel=True)
-def _winners_each(costs, sums, best, index, n_valid, diagonals, p1, p2, guide, tau):  # pragma: no cover - compiled
+def _winners_each(costs, sums, best, index, n_valid, diagonals, p1, p2, guide, tau):  # noqa: PLR0913  # pragma: no cover - compiled
     """Each of the two volumes ``costs`` (2, H, W, D) on its own thread: the downward pass's sums into
     ``sums[i]``, then the upward pass, which adds them row by row and keeps each pixel's winner."""
     h, w, n = costs.shape[1:]
@@ -242,9 +258,10 @@ def _add_into(a, b):  # pragma: no cover - compiled
         a1[i] += b1[i]
 
 
-def _checked(n_paths: int, p1: float, p2: float, tau: float, guide: np.ndarray | None, size: tuple) -> np.ndarray:
-    """The guide as contiguous float32 (zeros when None) after checking the parameters; ValueError naming
-    the first wrong one."""
+def _checked(pen: Penalties, size: tuple) -> np.ndarray:
+    """The guide as contiguous float32 (H, W) = ``size`` (zeros when None) after checking the penalties;
+    ValueError naming the first wrong one."""
+    n_paths, p1, p2, tau, guide = pen.n_paths, pen.p1, pen.p2, pen.tau, pen.guide
     if n_paths not in (4, 8):
         raise ValueError(f"n_paths must be 4 or 8, got {n_paths}")
     if not 0 <= p1 <= p2:
@@ -257,14 +274,10 @@ def _checked(n_paths: int, p1: float, p2: float, tau: float, guide: np.ndarray |
     return guide
 
 
-def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads: int = 2,
-              guide: np.ndarray | None = None, tau: float = 1.0, out: np.ndarray | None = None,
+def aggregate(cost: np.ndarray, penalties: Penalties, threads: int = 2, out: np.ndarray | None = None,
               work: np.ndarray | None = None, min_cost: float | None = None):
-    """Sum over ``n_paths`` (4 or 8) of the SGM path costs of ``cost`` (H, W, D), float32 (H, W, D).
-
-    ``p1`` penalises a one-step disparity change between neighbours, ``p2`` (≥ p1) any larger jump, both in
-    the cost's units. With ``guide`` (H, W), a jump between neighbours whose guide values differ by g costs
-    max(p1, p2 / (1 + g / tau)) instead (``tau`` in the guide's units). ``out`` and ``work`` (float32, the
+    """Sum over ``penalties.n_paths`` (4 or 8) of the SGM path costs of ``cost`` (H, W, D) with the
+    smoothness terms ``penalties`` (:class:`Penalties`), float32 (H, W, D). ``out`` and ``work`` (float32, the
     cost's shape), when given, are used instead of new volumes (the result is ``out``): a caller that
     aggregates several times reuses them, and fresh memory costs page faults. ``threads`` < 2 runs the
     two passes one after the other. ``min_cost``: a lower bound of the cost when the caller knows one (a
@@ -272,7 +285,7 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     cost moves with a constant added to every cost). A caller that only wants each pixel's winner needs
     :func:`winners` instead (one volume of sums less)."""
     cost = np.ascontiguousarray(cost, dtype=np.float32)
-    guide = _checked(n_paths, p1, p2, tau, guide, cost.shape[:2])
+    guide = _checked(penalties, cost.shape[:2])
     outs = []
     for buf in (out, work):
         if buf is None:
@@ -285,8 +298,8 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
     lowest = float(np.min(cost)) if min_cost is None else float(min_cost)
     if lowest < 0:
         cost = cost - np.float32(lowest)
-    args = (np.float32(p1), np.float32(p2), guide, np.float32(tau))
-    diagonals = n_paths == 8
+    args = (np.float32(penalties.p1), np.float32(penalties.p2), guide, np.float32(penalties.tau))
+    diagonals = penalties.n_paths == 8
     if threads < 2:
         none, no_index = np.empty((1, 1), np.float64), np.empty((1, 1), np.int32)
         h, w, n = cost.shape
@@ -297,17 +310,16 @@ def aggregate(cost: np.ndarray, p1: float, p2: float, n_paths: int = 8, threads:
         _both_passes(cost, outs[0], outs[1], diagonals, *args)
     _add_into(outs[0], outs[1])
     if lowest < 0:
-        outs[0] += np.float32(lowest * n_paths)
+        outs[0] += np.float32(lowest * penalties.n_paths)
     return outs[0]
 
 
-def winners(costs: np.ndarray, n_valid: int, p1: float, p2: float, n_paths: int = 8,
-            guide: np.ndarray | None = None, tau: float = 1.0, sums: np.ndarray | None = None,
+def winners(costs: np.ndarray, n_valid: int, penalties: Penalties, sums: np.ndarray | None = None,
             min_cost: float | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Winner-take-all of the SGM aggregation of one cost volume (H, W, D) or two at once (2, H, W, D),
-    costs >= 0, parameters as :func:`aggregate`. For each pixel, the lowest sum over the paths among the
-    first ``n_valid`` <= D lags: its index plus a parabola's sub-pixel offset (float64, :func:`winner`), and
-    its index (int32), each of the costs' leading shape ((H, W) or (2, H, W)).
+    costs >= 0, with the smoothness terms ``penalties`` (:class:`Penalties`). For each pixel, the lowest sum
+    over the paths among the first ``n_valid`` <= D lags: its index plus a parabola's sub-pixel offset
+    (float64, :func:`winner`), and its index (int32), each of the costs' leading shape ((H, W) or (2, H, W)).
 
     A pass adds the other pass's sums row by row as it sweeps and keeps only the winner, so only one
     volume of sums is written and read back (``sums``, float32, the costs' shape: work space).
@@ -319,7 +331,7 @@ def winners(costs: np.ndarray, n_valid: int, p1: float, p2: float, n_paths: int 
         raise ValueError(f"winners needs one cost volume (H, W, D) or two (2, H, W, D), got shape {costs.shape}")
     if not 1 <= n_valid <= costs.shape[-1]:
         raise ValueError(f"n_valid must lie in 1..{costs.shape[-1]}, got {n_valid}")
-    guide = _checked(n_paths, p1, p2, tau, guide, costs.shape[-3:-1])
+    guide = _checked(penalties, costs.shape[-3:-1])
     if sums is None:
         sums = np.empty_like(costs)
     elif sums.shape != costs.shape or sums.dtype != np.float32 or not sums.flags.c_contiguous:
@@ -331,7 +343,8 @@ def winners(costs: np.ndarray, n_valid: int, p1: float, p2: float, n_paths: int 
     best = np.empty(costs.shape[:-1], np.float64)
     index = np.empty(costs.shape[:-1], np.int32)
     kernel = _winners_meet if costs.ndim == 3 else _winners_each
-    kernel(costs, sums, best, index, int(n_valid), n_paths == 8, np.float32(p1), np.float32(p2), guide, np.float32(tau))
+    kernel(costs, sums, best, index, int(n_valid), penalties.n_paths == 8, np.float32(penalties.p1),
+           np.float32(penalties.p2), guide, np.float32(penalties.tau))
     if index.min() < 0:
         raise ValueError("SGM winners need costs >= 0 (shift them by their minimum)")
     return best, index

@@ -1,5 +1,5 @@
-"""Dense depth of every live frame: the fast mode of psvs.dense (half resolution, 4 SGM paths) over the
-rig's working range, on any rig (on a build, on the rectified grids of psvs.dense.build).
+"""Dense depth of every live frame: by default the fast mode of psvs.dense (half resolution, 4 SGM paths)
+over the rig's working range, on any rig (on a build, on the rectified grids of psvs.dense.build).
 
 Each frame gives the left view's disparity map and, on a grid of every ``stride``-th pixel, the
 triangulated points (frame C, mm) and their depth: the full map would cost 0.2 s of exact ray tracing on
@@ -13,7 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.dense.build import dense_on_rig, rig_cloud
-from psvs.dense.disparity import Workspace
+from psvs.dense.params import FAST, DenseParams
+from psvs.dense.workspace import Workspace
 from psvs.optics.rig import Rig
 
 
@@ -46,26 +47,30 @@ class DenseSensor:
     rig : Rig
     near_mm, far_mm : float
         The working range whose disparities are searched.
-    fast : bool
-        The fast mode (default) or the default mode of psvs.dense.
+    params : DenseParams
+        The tuning of psvs.dense: :data:`~psvs.dense.params.FAST` (the default here, camera rate) or
+        :data:`~psvs.dense.params.DEFAULT` (the full-resolution mode), or your own.
     stride : int
         Triangulate one pixel in ``stride`` along each axis (>= 1).
     """
 
-    def __init__(self, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, *, fast: bool = True,
+    def __init__(self, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, *, params: DenseParams = FAST,
                  stride: int = 4):
         if not (isinstance(stride, (int, np.integer)) and stride >= 1):
             raise ValueError(f"stride must be an integer >= 1, got {stride!r}")
         if not 0 < near_mm < far_mm:
             raise ValueError(f"the working range needs 0 < near < far, got {near_mm}..{far_mm} mm")
-        self.rig, self.near_mm, self.far_mm, self.fast, self.stride = rig, near_mm, far_mm, fast, int(stride)
+        if not isinstance(params, DenseParams):
+            raise TypeError(f"params must be a DenseParams (FAST, DEFAULT or your own), got {params!r}")
+        self.rig, self.near_mm, self.far_mm, self.params, self.stride = rig, near_mm, far_mm, params, int(stride)
         self.frames = 0
         self._workspace = Workspace()     # the cost volumes, reused frame after frame
 
     def step(self, frame) -> DenseFrame:
         """The dense disparity and strided cloud of ``frame`` (H, W) grey."""
         t0 = time.perf_counter()
-        dense = dense_on_rig(frame, self.rig, self.near_mm, self.far_mm, fast=self.fast, workspace=self._workspace)
+        dense = dense_on_rig(frame, self.rig, self.near_mm, self.far_mm, params=self.params,
+                             workspace=self._workspace)
         d = dense.result.disparity_left
         grid = (slice(self.stride // 2, None, self.stride),) * 2
         mask = np.zeros(d.shape, bool)

@@ -21,14 +21,14 @@ from fastapi.responses import FileResponse, JSONResponse, Response
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, ConfigDict, Field
 
-from psvs.dense import separate_views
+from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud
 from psvs.imaging.grey import to_grey8
 from psvs.imaging.pipeline import PAPER, make_pipeline
 from psvs.imaging.steps import STEPS
 from psvs.io.images import grey8
 from psvs.live.dense import DenseSensor
-from psvs.live.tracker import EdgeTracker, nearest_edge_pixels
+from psvs.live.tracker import EdgeTracker, TrackerParams, nearest_edge_pixels
 from psvs.match.correspondence import MatchParams, match_image
 from psvs.match.export import result_to_dict, write_csv, write_json, write_ply
 from psvs.measure.triangulate import MODELS, default_model
@@ -190,13 +190,14 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
 
     @app.post("/api/dense")
     def dense(body: DenseBody):
-        """Dense disparity of the current image (issue 6, docs/dense.md), its median depth, and optionally
+        """Dense disparity of the current image (docs/dense.md), its median depth, and optionally
         the separated views, as PNG data URLs."""
         if not body.near_mm < body.far_mm:
             raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
         grey = state["still"]
         with DENSE_LOCK:
-            dense_res = dense_on_rig(grey, rig, body.near_mm, body.far_mm, fast=body.fast)
+            dense_res = dense_on_rig(grey, rig, body.near_mm, body.far_mm,
+                                     params=FAST if body.fast else DEFAULT)
         res = dense_res.result
         lo, hi = res.searched_px
         d = res.disparity_left       # on a build: on the left view's rectified grid
@@ -253,7 +254,7 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
             raise ValueError(f"near_mm must be < far_mm, got {body.near_mm} and {body.far_mm}")
         tracker = None if body.seed is None else EdgeTracker(
             rig, body.seed, pipeline=_pipeline(body.steps), near_mm=body.near_mm, far_mm=body.far_mm,
-            model=body.model if body.model in MODELS else None, snap_px=SNAP_PX)
+            match=MatchParams(model=body.model if body.model in MODELS else None), params=TrackerParams(snap_px=SNAP_PX))
         dense = DenseSensor(rig, body.near_mm, body.far_mm) if body.dense else None
         live.start(source, tracker, dense)
         return {"running": True}

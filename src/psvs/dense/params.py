@@ -1,0 +1,47 @@
+"""Tuning of the dense method (:func:`psvs.dense.disparity.dense_disparity`) and its two presets.
+
+:data:`DEFAULT` is the full-resolution mode; :data:`FAST` (``params=FAST``, ``--fast`` on the command line)
+works at half resolution with plain windows, no guided filter and 4 SGM paths. :data:`COARSE` is the pass
+that prunes the default mode's search (psvs.dense.prune).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: px: disparities below this cannot be told from the image's own smoothness and are not searched.
+MIN_LAG_PX = 3
+#: px: the smallest image side accepted (and the smallest side of the half-resolution image).
+MIN_SIZE_PX = 16
+
+
+@dataclass(frozen=True)
+class DenseParams:
+    """Tuning of :func:`~psvs.dense.disparity.dense_disparity`; lengths in px of the working scale."""
+
+    sigma_px: float = 0.7          # band-pass: image minus its Gaussian blur of this σ
+    window: int = 5                # NCC window side
+    shift_window: int = 5          # shiftable-window neighbourhood side (1: plain windows)
+    guided_radius: int = 4         # guided filter of the echo volume, box radius (0: none)
+    guided_eps: float = 0.01       # its regulariser, in (guide units)², the guide being C scaled to 0..1
+    aperture_window: int = 7       # side of the patch whose x-share of gradient energy weights the echo
+    aperture_share: float = 0.2    # x-share at which a patch counts as fully informative
+    p1: float = 0.3                # SGM penalty of a 1 px disparity step (NCC units)
+    p2: float = 16.0               # SGM penalty of a larger jump between like neighbours ...
+    edge_contrast: float = 0.06    # ... divided by 1 + |ΔC| / this (C blurred, scaled to 0..1) across edges
+    n_paths: int = 8               # SGM paths, 4 or 8
+    ownership_margin: float = 0.2  # a pixel's own echo may be this much below the other view's and still own it
+    scale: int = 1                 # 2: work at half resolution (the fast mode); lengths are at that scale
+    second_pass: bool = True       # re-match, from each view's own evidence, pixels the first pass left inconsistent
+    median_px: int = 11            # final median filter of each map (odd side; 1 = none): removes the fill's streaks
+    prune: bool = True             # full resolution: search only the lags a coarse pass (COARSE) finds in the scene
+
+
+#: The default mode: full resolution, shiftable windows, guided filter, 8 paths, second pass, median.
+DEFAULT = DenseParams()
+#: The fast mode: half resolution, plain 9 x 9 windows, no guided filter, 4 paths, one pass, no median.
+FAST = DenseParams(sigma_px=0.5, window=9, shift_window=1, guided_radius=0, n_paths=4, scale=2, second_pass=False,
+                   median_px=1, prune=False)
+#: The coarse pass that prunes the default mode's search: the fast mode. (At quarter resolution it would
+#: take 12 ms instead of 55 at 160 disparities, but it misses a 64 x 64 px object whose disparity stands
+#: apart: tests/dense/test_disparity.py.)
+COARSE = FAST
