@@ -122,6 +122,30 @@ def test_bad_match_requests(client, body, status, detail):
     assert r.status_code == status and detail in r.json()["detail"], r.json()
 
 
+@pytest.mark.parametrize("path, extra", [("/api/match", {}), ("/api/live/start", {"seed": [100.0, 100.0]}),
+                                         ("/api/live/start", {"dense": True}), ("/api/dense", {"views": True})])
+@pytest.mark.parametrize("near, far", [(900, 500), (700, 700)])
+def test_near_not_before_far_is_refused_by_every_endpoint(client, path, extra, near, far):
+    """near >= far gets 400 and one line naming it, from the match, live and dense bodies alike; a refused
+    body does not start live mode."""
+    r = client.post(path, json={**extra, "near_mm": near, "far_mm": far})
+    assert r.status_code == 400 and r.json() == {"detail": f"near_mm must be < far_mm, got {near} and {far}"}
+    assert not client.get("/api/live/state").json()["running"]
+
+
+@pytest.mark.parametrize("path, extra", [("/api/match", {}), ("/api/match", {"seed": [100.0, 100.0]}),
+                                         ("/api/live/start", {"seed": [100.0, 100.0]}),
+                                         ("/api/live/start", {"dense": True})])
+def test_unknown_model_is_refused_by_match_and_live(client, path, extra):
+    """An unknown triangulation model gets 400 and one line listing the models, from /api/match and from
+    /api/live/start alike (live mode does not start with the default model instead)."""
+    r = client.post(path, json={**extra, "model": "magic"})
+    assert r.status_code == 400 and r.json() == {"detail": "model must be one of paper, refraction, exact, got 'magic'"}
+    assert not client.get("/api/live/state").json()["running"]
+    r = client.post(path, json={**extra, "model": 3})
+    assert r.status_code == 422 and r.json()["detail"].startswith("malformed request: body.model: ")
+
+
 def test_malformed_bodies(client):
     js = {"content-type": "application/json"}
     assert client.post("/api/match", content=b"{not json", headers=js).status_code == 422
@@ -194,7 +218,7 @@ def test_right_view_edge_has_no_twin(client, disc_source):
 
 
 def test_dense_disparity_of_a_textured_scene():
-    """Issue 6 in the page: the dense map of a photo-textured scene, its median depth inside the scene."""
+    """The page's dense disparity: the dense map of a photo-textured scene, its median depth inside the scene."""
     from psvs import default_rig
     from psvs.simulate.builtin import textured
     from psvs.simulate.render import render
@@ -214,7 +238,7 @@ def test_dense_disparity_of_a_textured_scene():
 
 
 def test_calibrated_build_double_click_automatic_and_status():
-    """Issue 15: a calibrated build (its rig file carries the calibration's RMS): the page's info says so,
+    """A calibrated build (its rig file carries the calibration's RMS): the page's info says so,
     and a double-click and Automatic pair the discs, whose twins are rows apart, at their true depths."""
     import dataclasses
 

@@ -1,0 +1,86 @@
+"""Routes of the image and its pipeline: what the page opens with (``/api/info``), the current complex image,
+every pipeline stage of it (paper III.3 step 1), and uploading another complex image."""
+from __future__ import annotations
+
+import struct
+
+import cv2
+import numpy as np
+from fastapi import APIRouter, Request
+
+from psvs.imaging.pipeline import PAPER
+from psvs.imaging.steps import STEPS
+from psvs.io.images import grey8
+from psvs.measure.triangulate import MODELS, default_model
+from psvs.optics.rectify import needs_rectification
+from psvs.optics.rig import Rig
+from psvs.web.api_match import SNAP_PX
+from psvs.web.bodies import PipelineBody
+from psvs.web.png import data_url, png_response
+from psvs.web.session import SessionDep
+
+#: Largest request body (an uploaded PNG of a 640x480 grey image is ~0.3 MB); the app's body limit.
+MAX_BODY_BYTES = 8 * 1024 * 1024
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+router = APIRouter(prefix="/api")
+
+
+def calibration_status(rig: Rig) -> dict:
+    """What the page says of the rig: a build (matched on rectified rows) or the paper's geometry, and
+    the reprojection RMS of the calibration that wrote it (None for a design)."""
+    cal = rig.calibration
+    return {"build": needs_rectification(rig), "calibrated": cal is not None,
+            "calibration": None if cal is None else {"rms_px": cal.rms_px, "rms_left_px": cal.rms_left_px,
+                                                     "rms_right_px": cal.rms_right_px, "images": cal.images,
+                                                     "kinds": cal.kinds},
+            "default_model": default_model(rig)}
+
+
+@router.get("/info")
+def info(session: SessionDep):
+    """The source, the rig, the image size, the paper's pipeline and what the page may choose from."""
+    source, rig = session.source, session.rig
+    return {"source": {"kind": source.kind, "name": session.still().name, "live": source.live, "fps": source.fps},
+            "rig": {"name": session.rig_name, "focal_length_mm": rig.camera.focal_length_mm,
+                    "baseline_mm": rig.mirrors.baseline_mm, "plate_thickness_mm": rig.mirrors.plate_thickness_mm,
+                    **calibration_status(rig)},
+            "image_size_px": list(session.image_size_px), "pipeline": PAPER.to_dict()["steps"], "models": list(MODELS),
+            "steps": sorted(STEPS), "snap_px": SNAP_PX, "max_upload_bytes": MAX_BODY_BYTES}
+
+
+@router.get("/image.png")
+def image(session: SessionDep):
+    """The current complex image as a grey PNG."""
+    return png_response(session.still().grey)
+
+
+@router.post("/preview")
+def preview(body: PipelineBody, session: SessionDep):
+    """Every pipeline stage of the current image as a PNG data URL (binary images and the edge map)."""
+    _, stages = body.pipeline().run(session.still().grey, keep=True)
+    return {"stages": [{"op": op, "binary": img.dtype == bool, "png": data_url(img)} for op, img in stages]}
+
+
+def decode_upload(data: bytes, size_px: tuple[int, int]) -> np.ndarray:
+    """A PNG's bytes as an (H, W) uint8 grey image of ``size_px`` (W, H); the size is read from the PNG header
+    and checked before decoding, so a small file cannot decompress into a huge image."""
+    w, h = size_px
+    if not data.startswith(PNG_SIGNATURE) or len(data) < 33 or data[12:16] != b"IHDR":
+        raise ValueError("upload must be a PNG image")
+    pw, ph = struct.unpack(">II", data[16:24])
+    if (pw, ph) != (w, h):
+        raise ValueError(f"image is {pw}x{ph} px but the rig's camera is {w}x{h} px")
+    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    if img is None or img.shape[:2] != (h, w):
+        raise ValueError("not a readable PNG image")
+    return grey8(img, "uploaded image")   # colour -> luma, 16-bit scaled by its bit depth (as read_grey)
+
+
+@router.post("/upload")
+async def upload(request: Request, session: SessionDep):
+    """Replace the complex image by a PNG of the rig's size (the raw request body); the last match is
+    forgotten with the image it was of."""
+    img = decode_upload(await request.body(), session.image_size_px)
+    session.replace_still(img, "uploaded image")
+    return {"image_size_px": list(session.image_size_px)}

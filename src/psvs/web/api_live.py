@@ -1,0 +1,63 @@
+"""Routes of live mode: start and stop the session's live runner (an edge tracker, dense depth, or both, on
+the source's frames), and poll its state, its latest frame and its latest dense map."""
+from __future__ import annotations
+
+from fastapi import APIRouter
+from fastapi.responses import JSONResponse
+
+from psvs.live.dense import DenseSensor
+from psvs.live.tracker import EdgeTracker, TrackerParams
+from psvs.match.correspondence import MatchParams
+from psvs.web.api_match import SNAP_PX
+from psvs.web.bodies import LiveBody
+from psvs.web.png import colour_disparity, png_response
+from psvs.web.session import SessionDep
+
+router = APIRouter(prefix="/api/live")
+
+
+@router.post("/start")
+def live_start(body: LiveBody, session: SessionDep):
+    """Start (or restart) live mode: track the edge at ``seed`` (snapped within SNAP_PX on each frame) and/or
+    compute each frame's dense depth. A still image has no frames: the source refuses in one line."""
+    if body.seed is None and not body.dense:
+        raise ValueError("live mode tracks one edge or shows dense depth: double-click an edge first, "
+                         "or tick dense")
+    rig = session.rig
+    tracker = None if body.seed is None else EdgeTracker(
+        rig, body.seed, pipeline=body.pipeline(), near_mm=body.near_mm, far_mm=body.far_mm,
+        match=MatchParams(model=body.model), params=TrackerParams(snap_px=SNAP_PX))
+    dense = DenseSensor(rig, body.near_mm, body.far_mm) if body.dense else None
+    session.live.start(session.source, tracker, dense)
+    return {"running": True}
+
+
+@router.post("/stop")
+def live_stop(session: SessionDep):
+    """Stop live mode (the runner joins its thread)."""
+    session.live.stop()
+    return {"running": False}
+
+
+@router.get("/state")
+def live_state(session: SessionDep):
+    """The runner's latest results, frame rate and depth history (:meth:`LiveRunner.state`)."""
+    return session.live.state()
+
+
+@router.get("/frame.png")
+def live_frame(session: SessionDep):
+    """The latest live frame as a grey PNG; 404 before the first frame."""
+    frame = session.live.frame()
+    if frame is None:
+        return JSONResponse({"detail": "no live frame yet"}, status_code=404)
+    return png_response(frame)
+
+
+@router.get("/dense.png")
+def live_dense(session: SessionDep):
+    """The latest frame's dense disparity as a colour map; 404 before the first dense frame."""
+    d = session.live.dense()
+    if d is None:
+        return JSONResponse({"detail": "no dense frame yet: start live with dense"}, status_code=404)
+    return png_response(colour_disparity(d.disparity_px, *d.searched_px))

@@ -1,0 +1,65 @@
+"""Routes of matching and its exports: the paper's double-click matching (III.3 step 2) or automatic pairing
+of every edge, and the last match as CSV, JSON or PLY (the writers of ``psvs match``)."""
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from fastapi import APIRouter
+from fastapi.responses import JSONResponse, Response
+
+from psvs.imaging.pipeline import Pipeline
+from psvs.live.tracker import nearest_edge_pixels
+from psvs.match.correspondence import match_image
+from psvs.match.export import result_to_dict, write_csv, write_json, write_ply
+from psvs.web.bodies import MatchBody
+from psvs.web.session import SessionDep
+
+#: A double-click this close (px) to an edge selects it.
+SNAP_PX = 6.0
+EXPORTS = {"csv": (write_csv, "text/csv"), "json": (write_json, "application/json"), "ply": (write_ply, "text/plain")}
+
+router = APIRouter(prefix="/api")
+
+
+def snap_seed(grey: np.ndarray, pipeline: Pipeline, seed: tuple[float, float]) -> list[int]:
+    """The edge pixel [u, v] of ``pipeline``'s edge map of ``grey`` nearest to a double-clicked ``seed`` (u, v),
+    within SNAP_PX; ValueError for a click off the image or off every edge."""
+    h, w = grey.shape
+    u, v = seed
+    if not (np.isfinite(u) and np.isfinite(v) and -0.5 <= u < w - 0.5 and -0.5 <= v < h - 0.5):
+        raise ValueError(f"seed ({u:g}, {v:g}) is outside the {w}x{h} image")
+    near = nearest_edge_pixels(pipeline.run(grey), (u, v), SNAP_PX)
+    if len(near) == 0:
+        raise ValueError(f"no edge within {SNAP_PX:g} px of ({u:.0f}, {v:.0f}): double-click on an edge")
+    return [int(near[0][0]), int(near[0][1])]
+
+
+@router.post("/match")
+def match(body: MatchBody, session: SessionDep):
+    """The paper's algorithm from a double-clicked point (snapped to the nearest edge pixel within
+    SNAP_PX), or automatic pairing of every edge when no seed is given. The result is kept for the exports
+    unless the image was replaced while it was computed."""
+    still, pipeline = session.still(), body.pipeline()
+    seed = None if body.seed is None else snap_seed(still.grey, pipeline, body.seed)
+    res = match_image(still.grey, session.rig, seed_px=seed, pipeline=pipeline, near_mm=body.near_mm,
+                      far_mm=body.far_mm, params=body.params())
+    session.keep_result(res, still.generation)
+    return {"seed_px": seed, **result_to_dict(res, decimals=4)}
+
+
+@router.get("/export/{fmt}")
+def export(fmt: str, session: SessionDep):
+    """The last match of the current image as a download: 404 for an unknown format, 409 before any match."""
+    if fmt not in EXPORTS:
+        return JSONResponse({"detail": f"export format must be one of {', '.join(EXPORTS)}"}, status_code=404)
+    res = session.result()
+    if res is None:
+        return JSONResponse({"detail": "nothing to export yet: match an edge first"}, status_code=409)
+    writer, media = EXPORTS[fmt]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / f"psvs_match.{fmt}"
+        writer(path, res)
+        data = path.read_bytes()
+    return Response(data, media_type=media, headers={"Content-Disposition": f'attachment; filename="psvs_match.{fmt}"'})

@@ -1,0 +1,81 @@
+"""The JSON bodies the page posts, as pydantic models that refuse what they can judge alone.
+
+Types, bounds and unknown keys are checked field by field (a malformed body: 422). Rules between fields or
+against the library's names are checked here once, in validators that raise :class:`ValueError`: the app
+answers those with 400 and the validator's one-line message, like any other bad value (``psvs.web.app``).
+What needs the current image or the rig (a seed on the image, a pipeline the library can build) is checked
+by the routes.
+"""
+from __future__ import annotations
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from psvs.imaging.pipeline import PAPER, Pipeline, make_pipeline
+from psvs.match.correspondence import MatchParams
+from psvs.measure.triangulate import MODELS
+from psvs.web.limits import check_steps
+
+#: Largest near or far distance (mm) a body may ask for.
+MAX_RANGE_MM = 100000
+
+
+class Body(BaseModel):
+    """A request body: unknown keys are refused (a misspelt key is an error, not a silent default)."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+class RangeBody(Body):
+    """A body with a working range: the depths (mm) whose disparities are searched, near < far."""
+
+    near_mm: float = Field(400.0, gt=0, le=MAX_RANGE_MM)
+    far_mm: float = Field(1200.0, gt=0, le=MAX_RANGE_MM)
+
+    @model_validator(mode="after")
+    def _near_before_far(self):
+        if not self.near_mm < self.far_mm:
+            raise ValueError(f"near_mm must be < far_mm, got {self.near_mm:g} and {self.far_mm:g}")
+        return self
+
+
+class PipelineBody(Body):
+    """A body with an image pipeline: JSON steps as in pipeline files, or None for the paper's."""
+
+    steps: list[dict] | None = Field(default=None, description="pipeline steps; default: the paper's")
+
+    def pipeline(self) -> Pipeline:
+        """The pipeline of ``steps`` (bounded by :func:`psvs.web.limits.check_steps`, then built by the library,
+        which raises ValueError on an unknown step or a bad parameter)."""
+        return PAPER if self.steps is None else make_pipeline(check_steps(self.steps))
+
+
+class MatchBody(PipelineBody, RangeBody):
+    """``POST /api/match``: a double-clicked seed or automatic pairing, the pipeline, range and model."""
+
+    seed: tuple[float, float] | None = Field(default=None, description="double-clicked (u, v) px; None: automatic")
+    model: str | None = Field(default=None, description="triangulation model; default: refraction on the "
+                                                        "paper's geometry, exact on a build")
+
+    @field_validator("model")
+    @classmethod
+    def _known_model(cls, model: str | None) -> str | None:
+        if model is not None and model not in MODELS:
+            raise ValueError(f"model must be one of {', '.join(MODELS)}, got {model!r}")
+        return model
+
+    def params(self) -> MatchParams:
+        """The matcher's parameters this body sets (the model; the rest are the library's defaults)."""
+        return MatchParams(model=self.model)
+
+
+class LiveBody(MatchBody):
+    """``POST /api/live/start``: as a match (the seed is the edge to track), optionally with dense depth."""
+
+    dense: bool = Field(False, description="also a dense depth map of every frame (the fast mode)")
+
+
+class DenseBody(RangeBody):
+    """``POST /api/dense``: the dense disparity of the current image."""
+
+    fast: bool = True
+    views: bool = Field(False, description="also separate the left and right views (slower)")

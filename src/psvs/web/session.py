@@ -1,0 +1,115 @@
+"""What one ``psvs serve`` app remembers between requests: its source and rig, the current still image and its
+name, the last match result and the live-mode runner.
+
+One :class:`Session` belongs to one app (``app.state.session``); routes receive it through FastAPI's dependency
+injection (:data:`SessionDep`), so two apps in one process never share an image or a result. The still image,
+its name and the last result change together (an upload replaces the image and forgets the result), so they are
+read and written under one lock.
+"""
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass, field
+from typing import Annotated, NamedTuple
+
+import numpy as np
+from fastapi import Depends, Request
+
+from psvs.match.correspondence import MatchResult
+from psvs.optics.rig import Rig
+from psvs.web.live_runner import LiveRunner
+from psvs.web.sources import Source
+
+
+class Still(NamedTuple):
+    """The current still image as one request sees it.
+
+    Attributes
+    ----------
+    grey : ndarray
+        (H, W) uint8 complex image. It is never written in place: an upload replaces it by a new array.
+    name : str
+        What the page shows for it (the source's name, or "uploaded image").
+    generation : int
+        Counts the images this session has had; a result computed on this image is kept only while it is
+        still the current one (:meth:`Session.keep_result`).
+    """
+
+    grey: np.ndarray
+    name: str
+    generation: int
+
+
+@dataclass(eq=False)
+class Session:
+    """One app's state: one user, on their own machine.
+
+    Parameters
+    ----------
+    source : Source
+        What the app shows; its still image is the first current image and its frames feed live mode.
+    rig : Rig
+        The rig every computation uses.
+    rig_name : str
+        Shown with the rig's f, b and plate thickness (e.g. the calibrated rig file).
+    """
+
+    source: Source
+    rig: Rig
+    rig_name: str = "default rig"
+    live: LiveRunner = field(default_factory=LiveRunner)
+    _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
+    _still: np.ndarray = field(init=False, repr=False)
+    _name: str = field(init=False)
+    _generation: int = field(default=0, init=False)
+    _result: MatchResult | None = field(default=None, init=False, repr=False)
+
+    def __post_init__(self):
+        w, h = self.image_size_px
+        if self.source.still.shape != (h, w):
+            raise ValueError(f"{self.source.name} is {self.source.still.shape[1]}x{self.source.still.shape[0]} px "
+                             f"but the rig's camera is {w}x{h} px")
+        self._still, self._name = self.source.still, self.source.name
+
+    @property
+    def image_size_px(self) -> tuple[int, int]:
+        """(W, H) of the rig's camera: every image the session holds has this size."""
+        w, h = self.rig.camera.image_size_px
+        return int(w), int(h)
+
+    def still(self) -> Still:
+        """The current image, its name and generation, read together under the lock."""
+        with self._lock:
+            return Still(self._still, self._name, self._generation)
+
+    def replace_still(self, grey: np.ndarray, name: str) -> None:
+        """Make ``grey`` (H, W) uint8 the current image and forget the last result (it was of the old image)."""
+        w, h = self.image_size_px
+        if grey.shape != (h, w) or grey.dtype != np.uint8:
+            raise ValueError(f"{name} must be a {w}x{h} uint8 grey image, got {grey.dtype} {grey.shape}")
+        with self._lock:
+            self._still, self._name, self._result = grey, name, None
+            self._generation += 1
+
+    def keep_result(self, result: MatchResult, generation: int) -> bool:
+        """Remember ``result`` for the exports if it was computed on the current image (``generation`` from
+        :meth:`still`); a result of an image replaced meanwhile is not kept. Returns whether it was kept."""
+        with self._lock:
+            if generation != self._generation:
+                return False
+            self._result = result
+            return True
+
+    def result(self) -> MatchResult | None:
+        """The last match result of the current image, or None."""
+        with self._lock:
+            return self._result
+
+
+def get_session(request: Request) -> Session:
+    """FastAPI dependency: the session of the app that received ``request``."""
+    return request.app.state.session
+
+
+#: A route parameter annotated with this receives its app's :class:`Session`.
+SessionDep = Annotated[Session, Depends(get_session)]
