@@ -146,6 +146,25 @@ def test_seam_path_follows_a_noisy_circle_and_bridges_along_the_tangent():
     assert not path.add(pts[-1], t_end)   # not ahead of the last knot
 
 
+@pytest.mark.parametrize("seed", [2, 3, 4])
+def test_seam_path_bridges_a_gap_in_its_knots(seed):
+    """Knots (noise 0.03 mm) on a circle of radius 150 mm with a 14 mm stretch unseen (a filled gap and the
+    groove ends beside it): across the gap and near its edges the model stays within 0.05 mm of the curve
+    (it fits the knots on both sides, it does not extrapolate the last ones before the gap)."""
+    rng = np.random.default_rng(seed)
+    s_true = np.arange(0.0, 80.0, 0.4)
+    s_true = s_true[(s_true < 30.0) | (s_true > 44.0)]
+    pts = _circle(s_true) + rng.normal(0, 0.03, (len(s_true), 3))
+    path = SeamPath(pts[0], [1.0, 0.0, 0.0])
+    for p, s in zip(pts[1:], s_true[1:]):
+        t = _circle(np.array([s + 0.01]))[0] - _circle(np.array([s]))[0]
+        path.add(p, t / np.linalg.norm(t))
+    path.fit(25.0)
+    dense = _circle(np.arange(0.0, 80.0, 0.005))
+    for s in np.arange(26.0, 48.0, 0.5):
+        assert np.min(np.linalg.norm(dense - path.position(s), axis=1)) < 0.05, s
+
+
 def test_fit_seam_point_on_a_curved_groove():
     """Edges of a groove of half-width 6 mm around a circle of radius 150 mm (z up): the root is the centre
     line, depth below; quadratic fits leave no chord bias."""

@@ -4,9 +4,11 @@ Each valid frame adds one knot (the groove root the sensor fitted). Its arc leng
 knot's plus the step projected on the measured tangent (lateral noise does not lengthen the path). The
 path at arc length s is a local quadratic regression (LOESS of degree 2, Cleveland 1979) of the knots
 within ``2 * smoothing_mm`` of s, weighted by the tricube kernel: each coordinate's quadratic in the arc
-length, evaluated at s (its slope is the tangent). A quadratic reproduces a seam's curvature, so the fit
-has no bias where the knots end on one side (a smoothing spline's natural end conditions straighten a
-curved seam toward its last knot: 0.25 mm on a seam of radius 150 mm, exactly where the torch stops).
+length, evaluated at s (its slope is the tangent). The window widens where one side holds fewer knots
+than half a full window (across a gap, toward the last knot), so the fit never extrapolates a few noisy
+knots. A quadratic reproduces a seam's curvature, so the fit has no bias where the knots end on one side
+(a smoothing spline's natural end conditions straighten a curved seam toward its last knot: 0.25 mm on a
+seam of radius 150 mm, exactly where the torch stops).
 Beyond the last knot the model continues along the end tangent: that is how a gap is bridged (up to
 ``bridge_mm``).
 """
@@ -71,26 +73,33 @@ class SeamPath:
     def _local(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         """Position (3,) and derivative d/ds (3,) of the local quadratic fit at s (within the knots)."""
         S, P = self._knots
-        h = 2.0 * self.smoothing_mm
-        lo, hi = np.searchsorted(S, [s - h, s + h], side="left")
-        if hi - lo >= 4 and (s - h < S[0] or s + h > S[-1]):
-            # one-sided near an end of the knots: widen the window until it holds as many knots as a
-            # two-sided one would at the knots' spacing, so the last knots do not carry the fit alone
-            spacing = (S[hi - 1] - S[lo]) / (hi - lo - 1)
-            want = int(2 * h / spacing)
-            if s + h > S[-1]:
-                lo = max(0, min(lo, len(S) - want))
-                h = max(h, (s - S[lo]) * 1.001)
-            else:
-                hi = min(len(S), max(hi, want))
-                h = max(h, (S[hi - 1] - s) * 1.001)
-        d = S[lo:hi] - s
-        if len(d) < 4:          # too few knots for a smoothed fit: through the nearest ones
+        lo, hi, h = self._window(s)
+        if hi - lo < 4:         # too few knots for a smoothed fit: through the nearest ones
             return self._interp(s)
+        d = S[lo:hi] - s
         w = np.sqrt((1.0 - np.abs(d / h) ** 3) ** 3)
         A = np.column_stack([np.ones_like(d), d, d * d]) * w[:, None]
         coef = np.linalg.lstsq(A, P[lo:hi] * w[:, None], rcond=None)[0]
         return coef[0], coef[1]
+
+    def _window(self, s: float) -> tuple[int, int, float]:
+        """The knots [lo, hi) of the fit at s and its kernel's half width h (mm): 2 ``smoothing_mm``, widened
+        so that each side holds half the knots a full window holds at the knots' median spacing (a gap in
+        the seam, where the sensor saw nothing, is bridged by the knots beyond it), or the one side holds
+        them all at an end of the knots. The last knots never carry the fit alone."""
+        S, _ = self._knots
+        h = 2.0 * self.smoothing_mm
+        if len(S) < 4:
+            return 0, len(S), h
+        half = max(2, int(round(h / max(float(np.median(np.diff(S))), 1e-9))))
+        i = int(np.searchsorted(S, s, side="left"))      # knots [0, i) lie before s, [i, n) from s on
+        right = min(len(S) - i, half)                     # half the knots each side, a side short of them
+        left = min(i, 2 * half - right)                   # lending its share to the other
+        right = min(len(S) - i, 2 * half - left)
+        reach = [h, s - S[i - left] if left else 0.0, S[i + right - 1] - s if right else 0.0]
+        h = 1.001 * max(reach)
+        lo, hi = np.searchsorted(S, [s - h, s + h], side="left")
+        return int(lo), int(hi), h
 
     def _interp(self, s: float) -> tuple[np.ndarray, np.ndarray]:
         S, P = self._knots
