@@ -6,6 +6,15 @@ The slices run in parallel. A box sum is a sum along the rows by doubling (a few
 vectorise) and a running sum down the columns. Each slice streams down its rows with every intermediate
 in rings of a few rows that stay in cache (full-slice intermediates made the filter wait on memory);
 OpenCV's boxFilter per slice, called from Python, spent most of its time outside the arithmetic.
+
+The kernels are compiled without fastmath, so their float32 arithmetic is IEEE's, and so is every copy LLVM
+makes of a loop: the vector body, its remainder, and the scalar copy it runs when a run-time check on the
+arrays' addresses says the rows written might overlap those read (a check hoisted out of the loops around
+it, over bounds wider than the rows used, so it fails whenever the heap happens to put two work spaces
+close together). Under fastmath these copies did not agree: the vector copy divided by an approximate
+reciprocal (vrcp14ps and a Newton step), the scalar copy exactly, and the result's last bits depended on
+where the heap put the work spaces, from one call to the next. The one division per pixel and slice is a
+product with the guide's 1 / (var(I) + ε), computed once per call.
 """
 from __future__ import annotations
 
@@ -13,7 +22,7 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True, fastmath=True, inline="always")
+@nb.njit(cache=True, inline="always")
 def _reflect(i, n):  # pragma: no cover - compiled
     """OpenCV's BORDER_REFLECT (fedcba|abcdefgh|hgfedcb) for |overhang| <= n."""
     if i < 0:
@@ -33,7 +42,8 @@ def n_levels(r):  # pragma: no cover - compiled
 
 
 # psvs.dense.cost's echo kernel compiles this in. Numba's cache only sees a kernel's own file: after an
-# edit here, touch cost.py (or clear __pycache__) so that its cached kernel is rebuilt.
+# edit here, touch cost.py (or clear __pycache__) so that its cached kernel is rebuilt. Inlined, it is
+# compiled with its caller's flags (fastmath in the echo, IEEE in this module's kernels).
 @nb.njit(cache=True, fastmath=True, inline="always")
 def row_sums(row, out, r, levels, clamp):  # pragma: no cover - compiled
     """out[x] = Σ row[x + j], j = −r..r (row, out: (W,)), beyond the ends the row reflected (OpenCV's
@@ -72,7 +82,7 @@ def row_sums(row, out, r, levels, clamp):  # pragma: no cover - compiled
             off += 1 << b
 
 
-@nb.njit(cache=True, fastmath=True)
+@nb.njit(cache=True)
 def _box_mean(src, dst, tmp, r):  # pragma: no cover - compiled
     """dst = mean of src (H, W) over (2r + 1)² windows, reflected borders; tmp (H, W) is work space."""
     h, w = src.shape
@@ -95,7 +105,7 @@ def _box_mean(src, dst, tmp, r):  # pragma: no cover - compiled
             out[x] = col[x] * scale
 
 
-@nb.njit(cache=True, fastmath=True, inline="always")
+@nb.njit(cache=True, inline="always")
 def _slide(col, ring, y, h, r, first):  # pragma: no cover - compiled
     """The column sums ``col`` (W,) of the row sums in ``ring`` (2r + 2 rows, row i in slot i mod 2r + 2)
     moved to the window of row y, rows reflect(y − r .. y + r): summed afresh for the first row, else
@@ -115,7 +125,7 @@ def _slide(col, ring, y, h, r, first):  # pragma: no cover - compiled
             col[x] += add[x] - sub[x]
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
+@nb.njit(cache=True, parallel=True)
 def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):  # pragma: no cover - compiled
     """Each slice streams down its rows in three stages r rows apart: row t's p and I·p are summed along
     the row; row t − r gets its means from the running column sums of those, then its a, b and their row
@@ -123,18 +133,18 @@ def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):
     2r + 2 rows, in cache: a slice is read once and written once."""
     n, h, w = volume.shape
     mean_g = np.empty((h, w), np.float32)
-    var_g = np.empty((h, w), np.float32)
+    inv_var = np.empty((h, w), np.float32)   # mean(I²), then 1 / (var(I) + ε)
     work = np.empty((h, w), np.float32)
     _box_mean(guide, mean_g, work, r)
-    _box_mean(guide * guide, var_g, work, r)
+    _box_mean(guide * guide, inv_var, work, r)
+    one = np.float32(1.0)
     for y in range(h):
         for x in range(w):
-            var_g[y, x] = var_g[y, x] - mean_g[y, x] * mean_g[y, x] + eps
+            inv_var[y, x] = one / (inv_var[y, x] - mean_g[y, x] * mean_g[y, x] + eps)
     scale = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
     nr = 2 * r + 2
     n_lv = n_levels(r)
-    # work space per chunk of slices (one chunk per thread), allocated here rather than inside the parallel
-    # loop, whose loop-invariant allocations Numba hoists (numba/numba#9529; a flaky test stopped with this)
+    # work space per chunk of slices (one chunk per thread), allocated once, before the parallel loop
     rings = np.empty((n_chunks, 4, nr, w), np.float32)
     rows = np.empty((n_chunks, 6, w), np.float32)
     all_levels = np.empty((n_chunks, n_lv, w + 2 * r), np.float32)
@@ -158,10 +168,10 @@ def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):
                 if 0 <= y < h:                     # row t − r: its means, a and b (into p, gp), their row sums
                     _slide(col_p, ring_p, y, h, r, y == 0)
                     _slide(col_gp, ring_gp, y, h, r, y == 0)
-                    mg, vg = mean_g[y], var_g[y]
+                    mg, iv = mean_g[y], inv_var[y]
                     for x in range(w):
                         mp = col_p[x] * scale
-                        a = (col_gp[x] * scale - mg[x] * mp) / vg[x]
+                        a = (col_gp[x] * scale - mg[x] * mp) * iv[x]
                         p[x] = a
                         gp[x] = mp - a * mg[x]
                     row_sums(p, ring_a[y % nr], r, levels, False)
@@ -171,8 +181,8 @@ def _filter_slices(volume, guide, weight, r, eps, missing_value, n_chunks, out):
                     _slide(col_a, ring_a, y, h, r, y == 0)
                     _slide(col_b, ring_b, y, h, r, y == 0)
                     g, wt, v = guide[y], weight[y], volume[k, y]
-                    for x in range(w):             # into p, which overlaps nothing read: this vectorises,
-                        q = (col_a[x] * g[x] + col_b[x]) * scale * wt[x]     # alike in and out of place
+                    for x in range(w):             # into p, which overlaps nothing read: this vectorises
+                        q = (col_a[x] * g[x] + col_b[x]) * scale * wt[x]
                         p[x] = missing_value if v[x] == missing_value else q
                     o = out[k, y]                  # (a select stored over its own input compiles to a
                     for x in range(w):             # conditional store: scalar code)
