@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from psvs.cli.common import add_range_arguments, check_output_folder, range_from_args
+from psvs.cli.common import add_range_arguments, check_output_folder
 from psvs.io.camera_info import write_calibration_files
 from psvs.io.params import load_rig
 from psvs.optics.pinhole_views import pinhole_views
@@ -30,9 +30,8 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     out = check_output_folder(args.output)
     rig = load_rig(args.rig)
-    near_mm, far_mm = range_from_args(args)
-    views = pinhole_views(rig, near_mm, far_mm)
-    for path in write_calibration_files(out, views, near_mm, far_mm, Path(args.rig).stem):
+    views = pinhole_views(rig, args.near_mm, args.far_mm)      # checks the working range
+    for path in write_calibration_files(out, views, args.near_mm, args.far_mm, Path(args.rig).stem):
         print(f"wrote {path}")
     for name, view in views.items():
         du, dv = view.error_px
