@@ -20,7 +20,8 @@ from tests.match.test_overlap import CASES, assert_both_paired, overlap_scene
 from tests.match.test_scenes import flat_discs_scene
 from tests.optics.test_build import random_build
 
-BUILDS = {"misaligned": lambda: load_rig("misaligned"), **{f"random{s}": (lambda s=s: random_build(s)[0]) for s in (3, 6)}}
+BUILDS = {"misaligned": lambda: load_rig("misaligned"),
+          **{f"random{s}": (lambda s=s: random_build(s)[0]) for s in (3, 6)}}
 DISCS = np.array([[-40.0, -70.0, 450.0], [60.0, 80.0, 700.0], [10.0, 10.0, 1100.0]])   # flat_discs_scene
 
 

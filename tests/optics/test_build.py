@@ -13,7 +13,7 @@ from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import MirrorError
 from psvs.optics.trace import distort, undistort
 from tests.conftest import whole_field_points
-from tests.reference_build import ReferenceBuild
+from tests.reference_build import Lens, ReferenceBuild
 
 DIST = (-0.2, 0.08, 1.5e-3, -1.0e-3, -0.02)
 
@@ -31,7 +31,7 @@ def random_build(seed: int, tilt_deg=(0.1, 0.3), shift_mm=0.8, box_deg=0.3):
     rig = default_rig().replace(focal_length_mm=f, principal_point_px=(cx, cy), distortion=DIST,
                                 box_rotation_rad=tuple(box))
     rig = rig.with_errors({k: MirrorError(v[:2], v[2]) for k, v in errors.items()})
-    ref = ReferenceBuild(f=f, centre=(cx, cy), dist=DIST, errors=errors, box_rotvec=box)
+    ref = ReferenceBuild(Lens(f=f, centre=(cx, cy), dist=DIST), errors=errors, box_rotvec=box)
     return rig, ref
 
 

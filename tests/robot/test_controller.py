@@ -43,7 +43,8 @@ def test_straight_seam():
     assert cmds[-1].speed_mm_s == pytest.approx(CFG.speed_mm_s)     # at speed after the ramp
     assert np.all(np.diff([c.s_mm for c in cmds]) > 0)
     # the torch vertical, aimed along the seam
-    assert np.allclose(cmds[-1].tool2base[:3, 2], [0, 0, -1]) and np.allclose(cmds[-1].tool2base[:3, 0], [1, 0, 0], atol=1e-6)
+    tool = cmds[-1].tool2base
+    assert np.allclose(tool[:3, 2], [0, 0, -1]) and np.allclose(tool[:3, 0], [1, 0, 0], atol=1e-6)
     # every frame usable; the model takes a knot only where the seam runs on past its end
     assert all(c.valid for c in cmds) and sum(c.accepted for c in cmds) > len(cmds) / 2
 
