@@ -1,4 +1,4 @@
-"""Calibration of a misaligned build from a hand-held circle-grid card (issue 14): planted truth.
+"""Calibration of a misaligned build from a hand-held circle-grid card: planted truth.
 
 The images are rendered through examples/rigs/misaligned.toml (mirrors 0.1-0.3 deg and up to 0.8 mm off,
 the box turned, k1 = -0.2 with tangential terms, f +1 %, principal point 5 px off); calibration starts from

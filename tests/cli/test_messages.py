@@ -1,4 +1,4 @@
-"""Bad input answered in the user's words and units, in one line, before any work (issue 13, item 5)."""
+"""Bad input answered in the user's words and units, in one line, before any work."""
 import os
 
 import numpy as np

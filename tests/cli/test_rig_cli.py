@@ -1,4 +1,4 @@
-"""Shipped rigs (issue 13: a pip user gets rig files): ``--rig NAME``, ``psvs rig list|show``."""
+"""Shipped rigs (a pip user gets rig files): ``--rig NAME``, ``psvs rig list|show``."""
 import tomllib
 from pathlib import Path
 

@@ -1,4 +1,4 @@
-"""Calibration export (issue 16, item 5): ROS CameraInfo YAML and OpenCV FileStorage of both views, read
+"""Calibration export: ROS CameraInfo YAML and OpenCV FileStorage of both views, read
 back by independent readers (ruamel.yaml, cv2.FileStorage) and checked against the exact optics: the
 right view is a pinhole exactly, the left within the error the files state; Q gives back 3-D points."""
 import cv2

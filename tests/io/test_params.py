@@ -49,7 +49,7 @@ BASE = EXAMPLE.read_text()
     (lambda t: t.replace("focal_length_mm = 11.3", 'focal_length_mm = "long"'),
      r"camera\.focal_length_mm must be a number, got str"),
     (lambda t: t.replace("angle_deg = 45.0", "angle_deg = 95.0"), r"mirrors\.angle_deg must be in \(0, 90\)"),
-    # the user typed degrees: the message answers in degrees, not in radians (issue 13)
+    # the user typed degrees: the message answers in degrees, not in radians
     (lambda t: t.replace("angle_deg = 45.0", "angle_deg = 90"),
      r"mirrors\.angle_deg must be in \(0, 90\) degrees, got 90$"),
     (lambda t: t.replace("split_ratio = 0.5", "split_ratio = 1.0"),

@@ -1,9 +1,9 @@
-"""Matching on a build (issue 15, item 2): twins 3-16 rows apart in the complex image are paired on the rows
+"""Matching on a build: twins 3-16 rows apart in the complex image are paired on the rows
 of the dual rectification, refined there and triangulated with the build's exact model.
 
-Scenes: separated flat discs at 450-1100 mm and the overlap scenes of issue 13, on the shipped misaligned
-build and on random builds (tilts 0.1-0.3 deg, shifts up to 0.8 mm, a real lens); every object paired,
-every pair's median Z within 0.3 % of the truth, and each point near its object's plane.
+Scenes: separated flat discs at 450-1100 mm and the overlap scenes of tests/match/test_overlap.py, on the
+shipped misaligned build and on random builds (tilts 0.1-0.3 deg, shifts up to 0.8 mm, a real lens); every
+object paired, every pair's median Z within 0.3 % of the truth, and each point near its object's plane.
 """
 import numpy as np
 import pytest

@@ -66,9 +66,9 @@ def test_exact_triangulation_inverts_projection_on_a_build(seed):
 
 
 def test_a_build_breaks_the_rows_and_the_nominal_model():
-    """What the issue reports for a realistic build: twins 12-20 px apart vertically somewhere in the
-    field (here: a reasoned bound of > 3 px), and the nominal rig, fed the true correspondences, off by
-    tens of mm (> 10 mm mean) -- while the build's own model is exact (test above)."""
+    """What a realistic build does: twins up to 12-20 px apart vertically somewhere in the field (here: a
+    reasoned bound of > 3 px), and the nominal rig, fed the true correspondences, off by tens of mm
+    (> 10 mm mean) -- while the build's own model is exact (test above)."""
     rig, _ = random_build(0)
     pts = whole_field_points(default_rig(), n_side=7)
     left, _ = project_points(pts, rig, "left")

@@ -1,4 +1,4 @@
-"""The seam-tracking controller alone (issue 16): synthetic sensor measurements, no rendering, no arm.
+"""The seam-tracking controller alone: synthetic sensor measurements, no rendering, no arm.
 Frame C is the base frame here (flange at the origin, identity hand-eye), the seam a line along +x with
 its groove root at z = 0, edges 6 mm either side 3 mm above it; the sensor sees 10 mm of seam centred
 40 mm ahead of the torch (the look-ahead)."""

@@ -64,7 +64,7 @@ def test_tracking_accuracy_and_bridged_gap(gap10):
 
 @slow
 def test_replay_reproduces_every_command(gap10):
-    """Issue 16: a fresh controller and sensor on the run's recorded frames and flange poses (the replay
+    """Replay: a fresh controller and sensor on the run's recorded frames and flange poses (the replay
     cell: no simulation) send exactly the recorded commands, through the gap; a recording altered by
     0.01 mm in its flange poses from one cycle on does not replay the same (the check can fail)."""
     from dataclasses import replace as dc_replace
@@ -169,10 +169,10 @@ def test_cli_errors_are_one_line_exit_2(args, msg, tmp_path, monkeypatch, capsys
 
 @slow
 def test_tracking_on_a_misaligned_build():
-    """Issue 15: the world rendered through the misaligned build, the sensor matching on its rectified rows
-    (twins rows apart: the window is taller by their offset) with the build's own model, the hand-eye
-    calibrated through it too: lateral RMS <= 0.2 mm, max <= 0.5, and a 10 mm gap bridged as on the ideal
-    rig (measured within 1.5 mm, the torch on the seam across it)."""
+    """Tracking on a build: the world rendered through the misaligned build, the sensor matching on its
+    rectified rows (twins rows apart: the window is taller by their offset) with the build's own model, the
+    hand-eye calibrated through it too: lateral RMS <= 0.2 mm, max <= 0.5, and a 10 mm gap bridged as on
+    the ideal rig (measured within 1.5 mm, the torch on the seam across it)."""
     from psvs.io.params import load_rig
     build = load_rig("misaligned")
     wp = seam_workpiece("weld_seam:gap_start_mm=-15,gap_length_mm=10", CFG.camera_distance_mm)
@@ -211,7 +211,7 @@ def _write_recording(run, path, tamper_cycle=None, cycles=None):
 
 @slow
 def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
-    """Issue 16: the recording read with the `mcap` reader (schemas, channels, counts, rising time stamps,
+    """The MCAP recording: read with the `mcap` reader (schemas, channels, counts, rising time stamps,
     /tf decoded with protobuf), read back exactly by read_recording, and `psvs replay` reproducing every
     command; a recording whose command differs by 1 nm in one cycle fails the replay (exit 1)."""
     from google.protobuf import descriptor_pb2, descriptor_pool, message_factory

@@ -1,4 +1,4 @@
-"""Acceptance of issue 3 on the renderer (planted truth: simulate -> measure -> compare with the optics)."""
+"""The renderer against planted truth: simulate -> measure -> compare with the optics."""
 from pathlib import Path
 
 import numpy as np
