@@ -1,4 +1,4 @@
-"""Issue 14, 2 cores: calibrating a build from 20 hand-held card views (detection of both views' grids in
+"""Calibration, 2 cores: calibrating a build from 20 hand-held card views (detection of both views' grids in
 every image + the bundle adjustment over the exact optics), from PNG files on disk, <= 30 s."""
 import tempfile
 from pathlib import Path

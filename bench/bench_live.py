@@ -1,11 +1,11 @@
-"""Issue 8, one core: the headless live loop (what ``psvs live`` runs) on a 30 s, 30 frames/s, 640x480
+"""Live tracking, one core: the headless live loop (what ``psvs live`` runs) on a 30 s, 30 frames/s, 640x480
 lossless simulated video of a disc moving 300 mm in depth and 30 mm sideways: reading a frame + tracking
 the edge (the paper's pipeline, seeded match, sub-pixel, triangulation) <= 33.3 ms per frame (>= 30
 frames/s); the whole video <= 30 s. The first pass also checks every frame's depth against the truth
 (0.5 %) and prints the worst error.
 
 The video is made once into out/bench/ (60 distinct rig positions rendered through the exact optics,
-played back and forth, fresh sensor noise on every frame), with its truth in disc_30s_truth.csv. Issue 15:
+played back and forth, fresh sensor noise on every frame), with its truth in disc_30s_truth.csv. And
 the same through examples/rigs/misaligned.toml (twins rows apart: matched on the rectified rows), every
 frame within 0.2 %.
 """

@@ -1,4 +1,4 @@
-"""Issue 4, one core, 640x480 complex image of Fig. 5a: the paper's chain (median 3x3 + threshold 92 +
+"""Matching, one core, 640x480 complex image of Fig. 5a: the paper's chain (median 3x3 + threshold 92 +
 Roberts + one seeded match + triangulation) <= 2 ms per frame; automatic pairing (<= 20 edges) <= 10 ms."""
 import cv2
 

@@ -1,4 +1,4 @@
-"""Issue 15, one core, 640x480 complex image of Fig. 5a through examples/rigs/misaligned.toml: what the dual
+"""One core, 640x480 complex image of Fig. 5a through examples/rigs/misaligned.toml: what the dual
 rectification adds to matching on a build, per frame (<= 2 ms: the edge pixels' rectified coordinates, the
 two rectified images, pairs mapped back), and once per rig (reported); dense --fast on the build's two
 rectified grids (the built-in textured scene): <= 100 ms with bench_dense's 64 disparities, as on the ideal

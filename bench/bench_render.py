@@ -1,4 +1,4 @@
-"""Issue 3: render a 640x480 complex image with 2x2 supersampling and <= 20 primitives: <= 1 s on 2 cores.
+"""Rendering: a 640x480 complex image with 2x2 supersampling and <= 20 primitives: <= 1 s on 2 cores.
 
 The rig's ray bundle (every sub-pixel's chief ray through the mirrors and the plate) depends only on the
 rig and is computed once per rig (``view_rays`` cache); 'first frame' includes it, 'per frame' does not.

@@ -1,8 +1,8 @@
-"""Issue 7, one core: the seam sensor's stage of one control cycle (32-row window of the complex image:
-both groove edges matched with their twins, sub-pixel, exact triangulation, groove-root fit) <= 10 ms.
-Issue 15: the same on the misaligned build (a window taller by the twins' row offset, matching on the
-rectified rows). Issue 16: ``psvs track --handeye FILE`` starts tracking (the command in a fresh process: imports, the
-file, the rig's tables, the first control cycle) in <= 2 s."""
+"""Seam tracking, one core: the seam sensor's stage of one control cycle (32-row window of the complex
+image: both groove edges matched with their twins, sub-pixel, exact triangulation, groove-root fit) <= 10 ms.
+The same on the misaligned build (a window taller by the twins' row offset, matching on the rectified
+rows). ``psvs track --handeye FILE`` starts tracking (the command in a fresh process: imports, the file,
+the rig's tables, the first control cycle) in <= 2 s."""
 import cv2
 import numpy as np
 

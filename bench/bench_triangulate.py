@@ -1,4 +1,4 @@
-"""Issue 2: triangulating 10^6 correspondences, each model (exact <= 1 s, paper models <= 50 ms, one core)."""
+"""Triangulation: 10^6 correspondences, each model (exact <= 1 s, paper models <= 50 ms, one core)."""
 import numpy as np
 
 from psvs import default_rig

@@ -5,9 +5,9 @@
 
 Each bench module defines ``cases()`` returning a list of ``(name, setup_result_fn, target_s)`` where
 calling ``setup_result_fn()`` returns the zero-argument function to time (a function that returns a float
-has timed itself: that many seconds, best of 7), and may define ``RATIOS``, a list
-of ``(name, case_a, case_b)``: the ratio of two of its cases' times, measured in the same run. Time per call: the best of 7
-batches of back-to-back calls (timeit's method; one call per batch for cases slower than 50 ms).
+has timed itself: that many seconds, best of 7), and may define ``RATIOS``, a list of
+``(name, case_a, case_b)``: the ratio of two of its cases' times, measured in the same run. Time per call: the
+best of 7 batches of back-to-back calls (timeit's method; one call per batch for cases slower than 50 ms).
 BLAS/OpenMP are pinned to one thread; the render group uses its own thread pool (both cores).
 """
 from __future__ import annotations
@@ -45,7 +45,8 @@ def machine() -> str:
 
 def time_best(fn, repeat: int = 7) -> float:
     """Seconds per call, as timeit does: calls in batches (enough for ~50 ms a batch, as a frame loop runs
-    them back to back), the best batch's mean over ``repeat`` batches (the minimum: interference only ever adds time)."""
+    them back to back), the best batch's mean over ``repeat`` batches (the minimum: interference only ever
+    adds time)."""
     t0 = time.perf_counter()
     own = fn()
     single = time.perf_counter() - t0
@@ -88,7 +89,8 @@ def main(argv: list[str]) -> int:
             cells = [c.strip() for c in line.strip().strip("|").split("|")]
             if len(cells) == 5 and cells[0] not in ran and cells[0] not in ("group", "---"):
                 target = float("inf") if cells[3] in ("—", "inf") else float(cells[3]) / 1e3
-                rows.append((cells[0], cells[1], float(cells[2]) / 1e3, target, "—" if target == float("inf") else cells[4]))
+                met = "—" if target == float("inf") else cells[4]
+                rows.append((cells[0], cells[1], float(cells[2]) / 1e3, target, met))
             elif len(cells) == 3 and cells[0] not in ran and cells[0] not in ("group", "---"):
                 ratios.append((cells[0], cells[1], float(cells[2])))
     rows.sort(key=lambda r: r[0])

@@ -12,7 +12,7 @@ from tests.reference_optics import ReferenceRig
 
 @pytest.fixture
 def rig():
-    """The default rig of the issue (f 11.3, b 100, 3 mm plate, n 1.52), ideal unbounded mirrors."""
+    """The default rig (f 11.3, b 100, 3 mm plate, n 1.52), ideal unbounded mirrors."""
     return default_rig()
 
 

@@ -17,6 +17,7 @@ perpendicular to the ray), then is reflected by M2 and M3; projected by solving 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -40,11 +41,35 @@ def reflection(point, normal) -> np.ndarray:
     return M
 
 
+@dataclass(frozen=True)
+class Lens:
+    """The camera: focal length f and pixel pitch (mm), principal point (px), OpenCV's five distortion terms."""
+    f: float = 11.3
+    pitch: float = 0.01
+    centre: tuple = (319.5, 239.5)
+    dist: tuple = (0, 0, 0, 0, 0)
+
+
+@dataclass(frozen=True)
+class Box:
+    """The designed mirror box (mm): baseline b, the M1/M4 and M2/M3 axis distances c1 and c2, the M1
+    plate's thickness d and refractive index n."""
+    b: float = 100.0
+    c1: float = 22.0
+    c2: float = 44.0
+    d: float = 3.0
+    n: float = 1.52
+
+
 class ReferenceBuild:
-    def __init__(self, f=11.3, pitch=0.01, centre=(319.5, 239.5), dist=(0, 0, 0, 0, 0), b=100.0, c1=22.0,
-                 c2=44.0, d=3.0, n=1.52, errors=None, box_rotvec=(0.0, 0.0, 0.0)):
-        self.f, self.pitch, self.centre, self.dist = f, pitch, np.asarray(centre, float), np.asarray(dist, float)
-        self.d, self.n = d, n
+    """A build of ``box`` seen through ``lens``: ``errors`` maps a mirror name to its (tilt a, tilt b, shift)
+    (rad, rad, mm), ``box_rotvec`` turns the whole box about O."""
+
+    def __init__(self, lens=Lens(), box=Box(), errors=None, box_rotvec=(0.0, 0.0, 0.0)):
+        self.f, self.pitch = lens.f, lens.pitch
+        self.centre, self.dist = np.asarray(lens.centre, float), np.asarray(lens.dist, float)
+        self.d, self.n = box.d, box.n
+        b, c1, c2 = box.b, box.c1, box.c2
         r2 = 1 / math.sqrt(2)
         designed = {  # anchor, normal (facing the arriving light), in-plane horizontal axis (+Z part)
             "m1": ([0, 0, c1], [r2, 0, -r2], [r2, 0, r2]),
@@ -53,7 +78,7 @@ class ReferenceBuild:
             "m3": ([-b / 2, 0, c2], [r2, 0, r2], [-r2, 0, r2]),
         }
         rv = np.asarray(box_rotvec, float)
-        box = rodrigues(rv, np.linalg.norm(rv)) if np.linalg.norm(rv) > 0 else np.eye(3)
+        turn = rodrigues(rv, np.linalg.norm(rv)) if np.linalg.norm(rv) > 0 else np.eye(3)
         self.planes = {}
         for name, (a, nrm, s) in designed.items():
             tilt_a, tilt_b, shift = (errors or {}).get(name, (0.0, 0.0, 0.0))
@@ -61,7 +86,7 @@ class ReferenceBuild:
             R = rodrigues(yaw @ np.asarray(s, float), tilt_b) @ yaw
             normal = R @ np.asarray(nrm, float)
             point = np.asarray(a, float) + shift * normal
-            self.planes[name] = (box @ point, box @ normal)
+            self.planes[name] = (turn @ point, turn @ normal)
 
     # --- the lens ---------------------------------------------------------------------------------------
     def _K(self):

@@ -1,4 +1,4 @@
-"""The whole chain through the files each command writes, as a user runs it (issue 13):
+"""The whole chain through the files each command writes, as a user runs it:
 sweep-views -> calibrate -> measure -> match -> triangulate, and simulate -> disparity, every file read back
 by an independent reader (tomllib, json, csv, plyfile, NumPy, OpenCV) and compared by value."""
 import csv

@@ -1,4 +1,4 @@
-"""dev.py, the quickstart's launcher: psvs runs in the caller's folder (issue 13)."""
+"""dev.py, the quickstart's launcher: psvs runs in the caller's folder."""
 import json
 import subprocess
 import sys

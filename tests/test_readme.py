@@ -64,7 +64,7 @@ def run_server(args, cwd: Path) -> None:
 @pytest.mark.slow          # every CLI example: the lock suite runs it; .ci/latest runs psvs demo from the wheel
 def test_readme_examples_run_in_order(tmp_path, monkeypatch, capsys):
     run_examples(EXAMPLES, tmp_path, monkeypatch, capsys)
-    # every output lands in out/ (git-ignored), none in the folder the user runs from (issue 13)
+    # every output lands in out/ (git-ignored), none in the folder the user runs from
     assert sorted(p.name for p in tmp_path.iterdir()) == ["examples", "out"]
     assert (tmp_path / "out" / "demo").is_dir() and (tmp_path / "out" / "fig5b_match.json").is_file()
 

@@ -1,4 +1,4 @@
-"""Calibration of a misaligned build from a hand-held circle-grid card (issue 14): planted truth.
+"""Calibration of a misaligned build from a hand-held circle-grid card: planted truth.
 
 The images are rendered through examples/rigs/misaligned.toml (mirrors 0.1-0.3 deg and up to 0.8 mm off,
 the box turned, k1 = -0.2 with tangential terms, f +1 %, principal point 5 px off); calibration starts from
@@ -22,7 +22,7 @@ from psvs.io.params import load_rig
 from psvs.simulate.textures import CircleGrid
 from tests.cli.test_cli import run
 from tests.conftest import reconstruction_errors
-from tests.reference_build import ReferenceBuild
+from tests.reference_build import Box, Lens, ReferenceBuild
 
 #: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
 pytestmark = pytest.mark.slow
@@ -102,8 +102,8 @@ def test_vertical_disagreement_map_against_the_reference(card_dir):
     true = card_dir[1]
     c = true.camera
     errors = {n: (*true.mirrors.error(n).tilt_rad, true.mirrors.error(n).shift_mm) for n in ("m1", "m2", "m3", "m4")}
-    ref = ReferenceBuild(f=c.focal_length_mm, centre=c.principal_point_px, dist=c.distortion, c1=22.0, c2=44.0,
-                         errors=errors, box_rotvec=true.mirrors.box_rotation_rad)
+    ref = ReferenceBuild(Lens(f=c.focal_length_mm, centre=c.principal_point_px, dist=c.distortion),
+                         Box(c1=22.0, c2=44.0), errors=errors, box_rotvec=true.mirrors.box_rotation_rad)
     u, v, dv = vertical_disagreement(true, 700.0, step_px=80)
     for (uu, vv, d) in zip(u.ravel(), v.ravel(), dv.ravel()):
         if not np.isfinite(d):
@@ -172,7 +172,8 @@ def test_target_file_errors(tmp_path):
                            r"target\.kind must be one of circle_grid, got 'chessboard'"),
                           (good.replace("rows = 4\n", ""), r"missing key target\.rows"),
                           (good + "colour = 1\n", r"unknown key target\.colour"),
-                          (good.replace("diameter_mm = 7.0", "diameter_mm = 20.0"), r"diameter_mm must be < spacing_mm"),
+                          (good.replace("diameter_mm = 7.0", "diameter_mm = 20.0"),
+                           r"diameter_mm must be < spacing_mm"),
                           ("[card]\nrows = 3\n", r"expected one table \[target\]")):
         with pytest.raises(ValueError, match=message):
             load_target(_write(tmp_path, text))

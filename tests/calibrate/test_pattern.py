@@ -1,5 +1,5 @@
 """The paper's accuracy pattern (Fig. 9) in rendered complex images, measured with the known rig
-(issue 5's calibration is not done yet: these are the measurement's own errors)."""
+(nothing calibrated: these are the measurement's own errors)."""
 import json
 
 import numpy as np
@@ -29,7 +29,7 @@ def test_centres_at_the_true_projections_even_when_straddling(images):
     background changes under part of a circle). Circles clear of the band: within 0.1 px (sensor noise
     included) of the exact projection of their centre. Straddling ones: within 0.25 px. Known limitation:
     when the other sheet's border runs close along the rim it biases many rays alike; masking that border
-    is the next step (issue 5)."""
+    is the next step."""
     rig = default_rig()
     for dist, tilt in ((440, 0), (736, 10)):
         sheet = builtin_scene(f"fig9:distance_mm={dist},tilt_y_deg={tilt}").objects[0]
@@ -60,8 +60,8 @@ def test_table1_columns(images):
 @pytest.mark.parametrize("dist, tilt", [(470, 0), (760, 8), (1050, -6)])
 def test_diameters_on_a_misaligned_build(dist, tilt):
     """On a build (mirrors tilted and shifted, distorting lens, rows of the two views 3-16 px apart) a rim
-    point's twin lies on its epipolar curve, not on its row: the circles still measure 10 mm (issue 14;
-    they were NaN), measured with the build's own rig."""
+    point's twin lies on its epipolar curve, not on its row: the circles still measure 10 mm (they
+    used to be NaN), measured with the build's own rig."""
     rig = load_rig("misaligned")
     img = render(builtin_scene(f"fig9:distance_mm={dist},tilt_y_deg={tilt}"), rig, seed=dist).image
     m = measure_pattern(img, rig)

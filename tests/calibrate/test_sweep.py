@@ -47,7 +47,7 @@ def test_recovers_the_rig_from_a_rough_start(sweep_dir):
     assert abs(v["focal_length_mm"] - 11.3) < 0.01
     assert abs(res.baseline_mm - 100.0) < 0.5 and res.baseline_sigma_mm < 0.5
     # what the sweep saw -- the pattern's row, 450-1150 mm -- the calibrated rig measures: true
-    # correspondences of points there triangulate within 0.5 mm, issue 14's bound for a sweep alone (the
+    # correspondences of points there triangulate within 0.5 mm, the bound for a sweep alone (the
     # whole field needs card views; absolute depth rests on the design, since the robot's offset is free)
     zz, xx = np.meshgrid(np.linspace(450.0, 1150.0, 8), np.linspace(-40.0, 50.0, 7))
     pts = np.column_stack([xx.ravel(), np.full(xx.size, -4.0), zz.ravel()])

@@ -1,4 +1,4 @@
-"""The paper's experiment end to end (issue 5 acceptance figures, on our own renders)."""
+"""The paper's experiment end to end (the acceptance figures, on our own renders)."""
 import pytest
 
 from tests.cli.test_cli import run
@@ -17,7 +17,7 @@ def table1(tmp_path_factory):
 
 
 def test_ten_times_better_than_the_paper(table1):
-    """Issue 5's figures: mean |Z error| <= 0.25 mm, max <= 0.6 mm; diameter error <= 0.03 mm mean;
+    """The acceptance figures: mean |Z error| <= 0.25 mm, max <= 0.6 mm; diameter error <= 0.03 mm mean;
     first-last distance error <= 0.1 mm mean (the paper: 2.50, 8.61, 0.145 and 0.72 mm)."""
     t, _ = table1
     s = t.summary()["ours"]
@@ -61,9 +61,9 @@ def test_cli_help_and_bad_output(capsys, tmp_path):
 
 
 def test_table1_on_a_misaligned_build_from_the_sweep_alone():
-    """Issue 14: the paper's robot sweep through examples/rigs/misaligned.toml, calibrated from its design
-    (examples/rigs/clear.toml): mean |Z error| <= 0.5 mm on the 15 test distances, first-last distance
-    within 0.1 mm, diameters within 0.03 mm."""
+    """A build from the sweep alone: the paper's robot sweep through examples/rigs/misaligned.toml,
+    calibrated from its design (examples/rigs/clear.toml): mean |Z error| <= 0.5 mm on the 15 test
+    distances, first-last distance within 0.1 mm, diameters within 0.03 mm."""
     from pathlib import Path
 
     from psvs.calibrate.table1 import run_table1

@@ -1,5 +1,6 @@
-"""What no image of the rig can tell (issue 14): two builds, both within the issue's tolerances, one of
-which sees every scene the other sees, moved rigidly by G (0.65 mm in depth at frame C's origin).
+"""What no image of the rig can tell: two builds, both within the build tolerances (mirrors tilted up to
+0.3 deg, shifted up to 0.8 mm), one of which sees every scene the other sees, moved rigidly by G (0.65 mm
+in depth at frame C's origin).
 
 The camera sits behind the mirrors and is never seen itself. Each view is the camera reflected in two
 mirrors, so a rigid motion G of the scene that keeps both views "two reflections of the camera", with M1's
@@ -36,7 +37,7 @@ from psvs.simulate.scene import Pose
 from tests.conftest import whole_field_points
 
 RIGS = Path(__file__).resolve().parents[2] / "examples" / "rigs"
-TILT = math.radians(0.3)    # the issue's build: mirrors tilted up to 0.3 deg, shifted up to 0.8 mm
+TILT = math.radians(0.3)    # the build tolerances: mirrors tilted up to 0.3 deg, shifted up to 0.8 mm
 SHIFT_MM = 0.8
 DEPTH_MM = 0.65             # how far in depth G moves the scene at frame C's origin
 

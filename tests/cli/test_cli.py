@@ -55,7 +55,8 @@ def test_a_command_loads_only_its_own_module():
             "assert abs(arm.ikine(arm.fkine()) - HOME_Q).max() < 1e-9\n"
             "print(sorted(m for m in sys.modules if m.startswith('psvs.cli.')), 'roboticstoolbox' in sys.modules)\n")
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[2] / "src")}
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env).stdout.split()
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env)
+    out = proc.stdout.split()
     assert out == ["['psvs.cli.common',", "'psvs.cli.main',", "'psvs.cli.track_cmd']", "False"]
 
 
@@ -66,7 +67,7 @@ def matches_csv(tmp_path):
     left, _ = project_points(pts, rig, "left")
     right, _ = project_points(pts, rig, "right")
     p = tmp_path / "matches.csv"
-    rows = ["u_l,v_l,u_r,v_r"] + [",".join(repr(float(v)) for v in (*l, *r)) for l, r in zip(left, right)]
+    rows = ["u_l,v_l,u_r,v_r"] + [",".join(repr(float(v)) for v in (*uv_l, *uv_r)) for uv_l, uv_r in zip(left, right)]
     rows.append("300,239.5,310,239.5")  # x_l < x_r: invalid
     p.write_text("\n".join(rows) + "\n")
     return p, pts
@@ -181,7 +182,8 @@ def test_fit_refraction_writes_rig(capsys, tmp_path):
     assert code == 0 and "mean 3-D error" in text
     fitted = tomllib.loads(out.read_text())["mirrors"]
     assert 1.7 < fitted["refraction_l_mm"] < 2.2 and 0.95 < fitted["refraction_m_mm"] < 1.1
-    code, _, err = run(capsys, "fit-refraction", "--rig", EXAMPLE, str(tmp_path / "known.csv"), "-o", str(tmp_path / "x.yaml"))
+    code, _, err = run(capsys, "fit-refraction", "--rig", EXAMPLE, str(tmp_path / "known.csv"),
+                       "-o", str(tmp_path / "x.yaml"))
     assert code == 2 and "must end in .toml or .json" in err
     (tmp_path / "short.csv").write_text("u_l,v_l,u_r,v_r\n1,2,3,4\n")
     code, _, err = run(capsys, "fit-refraction", "--rig", EXAMPLE, str(tmp_path / "short.csv"))

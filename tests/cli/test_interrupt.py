@@ -1,4 +1,4 @@
-"""Ctrl-C (issue 13): one line, exit status 130, no traceback and no partial file -- from ``psvs`` and
+"""Ctrl-C: one line, exit status 130, no traceback and no partial file -- from ``psvs`` and
 from ``dev.py``, which passes the signal on and waits for psvs instead of killing it."""
 import os
 import select

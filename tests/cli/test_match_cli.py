@@ -97,7 +97,7 @@ def test_bad_images(capsys, tmp_path):
 
 def test_12bit_and_colour_images_match_like_the_8bit_one(capsys, tmp_path, fig5a_png):
     """The same complex image as a 12-bit camera (16-bit PNG, 0..4095) and as colour: both find the same two
-    pairs at the same depths as the 8-bit image (issue 13: a 12-bit PNG used to become 0..15)."""
+    pairs at the same depths as the 8-bit image (a 12-bit PNG used to become 0..15)."""
     img8 = cv2.imread(str(fig5a_png), cv2.IMREAD_GRAYSCALE)
     deep, colour = tmp_path / "deep.png", tmp_path / "colour.png"
     cv2.imwrite(str(deep), np.rint(img8.astype(float) * 4095 / 255).astype(np.uint16))
@@ -113,7 +113,7 @@ def test_12bit_and_colour_images_match_like_the_8bit_one(capsys, tmp_path, fig5a
 
 
 def test_auto_on_a_misaligned_build(capsys, tmp_path):
-    """`psvs match --auto --rig misaligned` (issue 15): fig5a rendered through the build, where a point's
+    """`psvs match --auto --rig misaligned`: fig5a rendered through the build, where a point's
     twin is rows away; both objects paired, each point against the renderer's depth map."""
     from psvs.io.params import load_rig
     res = render(builtin_scene("fig5a"), load_rig("misaligned"), seed=4, truth=True)

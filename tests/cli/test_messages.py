@@ -1,4 +1,4 @@
-"""Bad input answered in the user's words and units, in one line, before any work (issue 13, item 5)."""
+"""Bad input answered in the user's words and units, in one line, before any work."""
 import os
 
 import numpy as np
@@ -76,8 +76,8 @@ def test_atomic_write_error_names_the_target(tmp_path, monkeypatch):
     assert str(info.value) == f"cannot write {tmp_path / 'x.json'}: Permission denied"
 
 
-@pytest.mark.parametrize("argv", [["track", "weld_seam", "--rig", "default", "-o"], ["table1", "-o"], ["card-views", "--rig", "default"],
-                                  ["sweep-views", "--rig", "default"]])
+@pytest.mark.parametrize("argv", [["track", "weld_seam", "--rig", "default", "-o"], ["table1", "-o"],
+                                  ["card-views", "--rig", "default"], ["sweep-views", "--rig", "default"]])
 def test_unwritable_output_folder_is_refused_before_the_work(capsys, tmp_path, monkeypatch, argv):
     """track used to fail after 33 s of tracking; every folder output is checked first (os.access driven,
     as root can write anywhere)."""

@@ -1,4 +1,4 @@
-"""Shipped rigs (issue 13: a pip user gets rig files): ``--rig NAME``, ``psvs rig list|show``."""
+"""Shipped rigs (a pip user gets rig files): ``--rig NAME``, ``psvs rig list|show``."""
 import tomllib
 from pathlib import Path
 
@@ -20,7 +20,8 @@ def test_shipped_rigs_load_by_name_and_agree_with_the_repository_examples():
 
 
 def test_unknown_name_lists_the_shipped_rigs():
-    with pytest.raises(FileNotFoundError, match=r"rig file not found: nope \(shipped rigs: default, clear, misaligned\)"):
+    message = r"rig file not found: nope \(shipped rigs: default, clear, misaligned\)"
+    with pytest.raises(FileNotFoundError, match=message):
         load_rig("nope")
 
 

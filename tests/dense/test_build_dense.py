@@ -1,4 +1,4 @@
-"""Dense depth on a build (issue 15, item 3): the complex image resampled on both views' rectified grids,
+"""Dense depth on a build: the complex image resampled on both views' rectified grids,
 the twin sought along rectified rows, depth through the build's exact model. Photo-textured scenes (cards
 before a wall, a slanted panel, the built-in textured scene) on the misaligned build and a random one,
 against the renderer's depth: pixels with no answer or |Z error| > 2 % of Z at most 10 % of those the

@@ -44,13 +44,13 @@ def moto():
 
 
 def test_motorcycle_scores(moto):
-    """Issue 6 acceptance data set. The issue asks bad-2 <= 20 % (goal 15 %); measured 16.6 %."""
+    """The acceptance data set (Middlebury Motorcycle): the target is bad-2 <= 20 % (goal 15 %); measured 16.6 %."""
     left, _, gt, ev = moto
     assert left.shape == gt.shape == (500, 741)
     ours, fast, ref = (ev.scores[k] for k in ("psvs dense", "psvs dense --fast", "StereoSGBM, separate pair"))
     assert ours["bad2_pct"] < 17.5 and ours["coverage_pct"] == 100.0
     assert fast["bad2_pct"] < 25.0
-    assert 17.0 < ref["bad2_pct"] < 21.0            # the issue's reference figure: 18 %
+    assert 17.0 < ref["bad2_pct"] < 21.0            # StereoSGBM's reference figure on this pair: 18 %
     assert ev.psnr_left_db > 20.8 and ev.psnr_right_db > 20.8   # the pair itself is consistent to 22.8 dB
     assert ev.psnr_left_db > psnr_db(ev.complex_image, left) + 1.5
 

@@ -98,7 +98,9 @@ def test_stages_are_kept():
 
 def test_pipeline_file(tmp_path):
     p = tmp_path / "p.toml"
-    p.write_text('[[steps]]\nop = "median"\nksize = 5\n[[steps]]\nop = "threshold"\nmethod = "otsu"\n[[steps]]\nop = "sobel"\n')
+    p.write_text('[[steps]]\nop = "median"\nksize = 5\n'
+                 '[[steps]]\nop = "threshold"\nmethod = "otsu"\n'
+                 '[[steps]]\nop = "sobel"\n')
     pipe = load_pipeline(p)
     assert [s.op for s in pipe.steps] == ["median", "threshold", "sobel"]
 

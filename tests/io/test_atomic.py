@@ -56,7 +56,8 @@ def test_output_batch_lands_all_or_nothing(tmp_path):
 
 
 def test_match_keeps_the_earlier_json_when_a_later_output_fails(tmp_path, monkeypatch, capsys):
-    """issue 13: `match -o a.json --csv ...` used to replace a.json and then exit 2 on the CSV."""
+    """`match -o a.json --csv ...` failing on the CSV leaves the earlier a.json as it was (it used to replace
+    a.json and then exit 2 on the CSV)."""
     import numpy as np
 
     import psvs.cli.match_cmd as match_cmd

@@ -1,4 +1,4 @@
-"""Calibration export (issue 16, item 5): ROS CameraInfo YAML and OpenCV FileStorage of both views, read
+"""Calibration export: ROS CameraInfo YAML and OpenCV FileStorage of both views, read
 back by independent readers (ruamel.yaml, cv2.FileStorage) and checked against the exact optics: the
 right view is a pinhole exactly, the left within the error the files state; Q gives back 3-D points."""
 import cv2
@@ -75,9 +75,9 @@ def test_opencv_file_reads_back_by_value(exported):
     # R, T: the right view camera's pose relative to the left, X_2 = R X_1 + T
     R, T = fs.getNode("R").mat(), fs.getNode("T").mat().ravel()
     X = _points(rig, 20)
-    l, r = views["left"], views["right"]
-    X1 = (X - l.centre_mm) @ l.rotation
-    X2 = (X - r.centre_mm) @ r.rotation
+    left, right = views["left"], views["right"]
+    X1 = (X - left.centre_mm) @ left.rotation
+    X2 = (X - right.centre_mm) @ right.rotation
     assert np.allclose(X1 @ R.T + T, X2, atol=1e-9)
     fs.release()
 

@@ -11,7 +11,8 @@ from psvs.optics.rig import Calibration
 
 
 def test_calibration_round_trips_by_value(tmp_path):
-    rig = dataclasses.replace(load_rig("misaligned"), calibration=Calibration(0.0312, 0.0301, 0.0323, 17, "16 card, 1 sweep"))
+    calibration = Calibration(0.0312, 0.0301, 0.0323, 17, "16 card, 1 sweep")
+    rig = dataclasses.replace(load_rig("misaligned"), calibration=calibration)
     for suffix in (".toml", ".json"):
         path = tmp_path / f"rig{suffix}"
         save_rig(rig, path)

@@ -153,7 +153,7 @@ def test_tracker_follows_a_jump_after_losing_the_edge(disc_video):
 
 
 def test_tracker_on_a_build_every_frame_within_0p2_percent():
-    """Issue 15: on the misaligned build (twins rows apart) the tracker pairs on the rectified rows; 60
+    """On the misaligned build (twins rows apart) the tracker pairs on the rectified rows; 60
     frames of a disc moving in depth and sideways, every one tracked within 0.2 % of the true depth."""
     from psvs.io.params import load_rig
     from psvs.live.simulated import SimulatedSequence, disc_scene

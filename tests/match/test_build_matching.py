@@ -1,9 +1,9 @@
-"""Matching on a build (issue 15, item 2): twins 3-16 rows apart in the complex image are paired on the rows
+"""Matching on a build: twins 3-16 rows apart in the complex image are paired on the rows
 of the dual rectification, refined there and triangulated with the build's exact model.
 
-Scenes: separated flat discs at 450-1100 mm and the overlap scenes of issue 13, on the shipped misaligned
-build and on random builds (tilts 0.1-0.3 deg, shifts up to 0.8 mm, a real lens); every object paired,
-every pair's median Z within 0.3 % of the truth, and each point near its object's plane.
+Scenes: separated flat discs at 450-1100 mm and the overlap scenes of tests/match/test_overlap.py, on the
+shipped misaligned build and on random builds (tilts 0.1-0.3 deg, shifts up to 0.8 mm, a real lens); every
+object paired, every pair's median Z within 0.3 % of the truth, and each point near its object's plane.
 """
 import numpy as np
 import pytest
@@ -20,7 +20,8 @@ from tests.match.test_overlap import CASES, assert_both_paired, overlap_scene
 from tests.match.test_scenes import flat_discs_scene
 from tests.optics.test_build import random_build
 
-BUILDS = {"misaligned": lambda: load_rig("misaligned"), **{f"random{s}": (lambda s=s: random_build(s)[0]) for s in (3, 6)}}
+BUILDS = {"misaligned": lambda: load_rig("misaligned"),
+          **{f"random{s}": (lambda s=s: random_build(s)[0]) for s in (3, 6)}}
 DISCS = np.array([[-40.0, -70.0, 450.0], [60.0, 80.0, 700.0], [10.0, 10.0, 1100.0]])   # flat_discs_scene
 
 

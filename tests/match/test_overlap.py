@@ -1,4 +1,4 @@
-"""Automatic matching where one object's right view lands on another object's left view (issue 13, item 3).
+"""Automatic matching where one object's right view lands on another object's left view.
 
 A bright ring (dark centre) and a bright disc (or a square) at different depths, the second placed so that
 its right view overlaps the ring's left view: after the threshold their outlines merge, and only part of

@@ -1,4 +1,4 @@
-"""Acceptance of issue 4 on rendered complex images with the simulator's ground truth."""
+"""Matching on rendered complex images, checked against the simulator's ground truth."""
 import numpy as np
 import pytest
 

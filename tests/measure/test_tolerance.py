@@ -1,4 +1,4 @@
-"""Tolerance analysis (issue 14, item 4) against closed forms of small mirror and camera errors."""
+"""Tolerance analysis against closed forms of small mirror and camera errors."""
 import json
 import math
 

@@ -1,4 +1,4 @@
-"""Acceptance of issue 2: correspondences projected by an independent model through the default rig
+"""Triangulation: correspondences projected by an independent model through the default rig
 (3 mm plate, 400-1200 mm, whole field) are recovered by each triangulation model."""
 import numpy as np
 import pytest

@@ -13,7 +13,7 @@ from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import MirrorError
 from psvs.optics.trace import distort, undistort
 from tests.conftest import whole_field_points
-from tests.reference_build import ReferenceBuild
+from tests.reference_build import Lens, ReferenceBuild
 
 DIST = (-0.2, 0.08, 1.5e-3, -1.0e-3, -0.02)
 
@@ -31,7 +31,7 @@ def random_build(seed: int, tilt_deg=(0.1, 0.3), shift_mm=0.8, box_deg=0.3):
     rig = default_rig().replace(focal_length_mm=f, principal_point_px=(cx, cy), distortion=DIST,
                                 box_rotation_rad=tuple(box))
     rig = rig.with_errors({k: MirrorError(v[:2], v[2]) for k, v in errors.items()})
-    ref = ReferenceBuild(f=f, centre=(cx, cy), dist=DIST, errors=errors, box_rotvec=box)
+    ref = ReferenceBuild(Lens(f=f, centre=(cx, cy), dist=DIST), errors=errors, box_rotvec=box)
     return rig, ref
 
 
@@ -66,9 +66,9 @@ def test_exact_triangulation_inverts_projection_on_a_build(seed):
 
 
 def test_a_build_breaks_the_rows_and_the_nominal_model():
-    """What the issue reports for a realistic build: twins 12-20 px apart vertically somewhere in the
-    field (here: a reasoned bound of > 3 px), and the nominal rig, fed the true correspondences, off by
-    tens of mm (> 10 mm mean) -- while the build's own model is exact (test above)."""
+    """What a realistic build does: twins up to 12-20 px apart vertically somewhere in the field (here: a
+    reasoned bound of > 3 px), and the nominal rig, fed the true correspondences, off by tens of mm
+    (> 10 mm mean) -- while the build's own model is exact (test above)."""
     rig, _ = random_build(0)
     pts = whole_field_points(default_rig(), n_side=7)
     left, _ = project_points(pts, rig, "left")

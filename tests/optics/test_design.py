@@ -38,7 +38,8 @@ def test_clear_layout_has_no_obstruction(clear_rig):
 
 
 def test_default_layout_is_clear():
-    """The project's default rig (c1 = 22, c2 = 44 mm) clears both light paths (issue 13)."""
+    """The project's default rig (c1 = 22, c2 = 44 mm) clears both light paths (c1 = 25, c2 = 45 mm does
+    not: the next test)."""
     d = design_mirrors(default_rig())
     assert d.ok and d.problems == []
     lo, hi = d.m2_window_mm

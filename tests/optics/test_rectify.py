@@ -1,4 +1,4 @@
-"""Dual rectification (issue 15, item 1): each view's epipolar curves become rows, checked with twin pixels
+"""Dual rectification: each view's epipolar curves become rows, checked with twin pixels
 from the exact projection of random points (not the fit's own samples) on several builds."""
 import numpy as np
 import pytest
@@ -39,7 +39,7 @@ def test_twins_share_a_rectified_row_over_the_working_range(name):
     assert len(pts) > 1000
     vl = rect.to_rectified(left, "left")
     vr = rect.to_rectified(right, "right")
-    assert np.abs(vl[:, 1] - vr[:, 1]).max() <= 0.05           # the issue's bound, px
+    assert np.abs(vl[:, 1] - vr[:, 1]).max() <= 0.05           # the required bound, px
     assert rect.residual_px <= 0.05
     if not rig.as_designed:
         assert np.abs(left[:, 1] - right[:, 1]).max() > 5     # ... where the raw rows are far apart

@@ -1,4 +1,4 @@
-"""The seam-tracking controller alone (issue 16): synthetic sensor measurements, no rendering, no arm.
+"""The seam-tracking controller alone: synthetic sensor measurements, no rendering, no arm.
 Frame C is the base frame here (flange at the origin, identity hand-eye), the seam a line along +x with
 its groove root at z = 0, edges 6 mm either side 3 mm above it; the sensor sees 10 mm of seam centred
 40 mm ahead of the torch (the look-ahead)."""
@@ -43,7 +43,8 @@ def test_straight_seam():
     assert cmds[-1].speed_mm_s == pytest.approx(CFG.speed_mm_s)     # at speed after the ramp
     assert np.all(np.diff([c.s_mm for c in cmds]) > 0)
     # the torch vertical, aimed along the seam
-    assert np.allclose(cmds[-1].tool2base[:3, 2], [0, 0, -1]) and np.allclose(cmds[-1].tool2base[:3, 0], [1, 0, 0], atol=1e-6)
+    tool = cmds[-1].tool2base
+    assert np.allclose(tool[:3, 2], [0, 0, -1]) and np.allclose(tool[:3, 0], [1, 0, 0], atol=1e-6)
     # every frame usable; the model takes a knot only where the seam runs on past its end
     assert all(c.valid for c in cmds) and sum(c.accepted for c in cmds) > len(cmds) / 2
 

@@ -1,4 +1,4 @@
-"""Acceptance of issue 3 on the renderer (planted truth: simulate -> measure -> compare with the optics)."""
+"""The renderer against planted truth: simulate -> measure -> compare with the optics."""
 from pathlib import Path
 
 import numpy as np
@@ -20,6 +20,11 @@ def centroid(img, around, half=60):
     win = img[v0 - half:v0 + half + 1, u0 - half:u0 + half + 1]
     vv, uu = np.mgrid[v0 - half:v0 + half + 1, u0 - half:u0 + half + 1]
     return np.array([(win * uu).sum() / win.sum(), (win * vv).sum() / win.sum()])
+
+
+def upright(x_mm: float, y_mm: float, z_mm: float) -> Pose:
+    """The pose of an unturned object (a rectangle faces the camera) centred at (x, y, z) mm."""
+    return Pose(np.eye(3), np.array([x_mm, y_mm, z_mm]))
 
 
 MISALIGNED = Path(__file__).resolve().parents[2] / "examples" / "rigs" / "misaligned.toml"
@@ -45,8 +50,8 @@ def test_point_appears_at_its_projection(x_mm, y_mm, z_mm, build):
 @pytest.mark.parametrize("build", [False, True], ids=["designed", "misaligned"])
 def test_truth_disparity_is_the_optics_disparity(build):
     rig = load_rig(MISALIGNED) if build else default_rig()
-    scene = Scene((SceneObject("rectangle", Pose(np.eye(3), np.array([0.0, 0.0, 700.0])), Checker(15),
-                               size_mm=(200.0, 150.0)),), FLAT_LIGHT, 1200.0, Noise(30))
+    scene = Scene((SceneObject("rectangle", upright(0.0, 0.0, 700.0), Checker(15), size_mm=(200.0, 150.0)),),
+                  FLAT_LIGHT, 1200.0, Noise(30))
     res = render(scene, rig, supersample=1, sensor=IDEAL, truth=True)
     t = res.truth
     assert t.valid_left.mean() > 0.5 and t.valid_right.mean() > 0.5
@@ -66,7 +71,7 @@ def test_truth_disparity_is_the_optics_disparity(build):
 @pytest.mark.parametrize("rig_name", ["default", "clear"])
 def test_uniform_white_scene_gives_uniform_image(rig_name, clear_rig):
     rig = default_rig() if rig_name == "default" else clear_rig
-    wall = SceneObject("rectangle", Pose(np.eye(3), np.array([0.0, 0.0, 800.0])), Uniform(1.0), size_mm=(5000.0, 5000.0))
+    wall = SceneObject("rectangle", upright(0.0, 0.0, 800.0), Uniform(1.0), size_mm=(5000.0, 5000.0))
     res = render(Scene((wall,), FLAT_LIGHT), rig, supersample=1, sensor=IDEAL)
     assert np.all(res.image == 255)
     np.testing.assert_allclose(res.irradiance, 1.0, atol=1e-12)
@@ -104,7 +109,7 @@ def pinhole_render(rig, z_rect, size, texture, z_back, back_texture, supersample
 def test_zero_plate_left_view_is_a_pinhole_render_from_o1(small_rig):
     rig = small_rig.replace(plate_thickness_mm=0.0)
     tex, back = Noise(8, 2, 0.1, 0.9), Checker(40, 0.2, 0.6)
-    scene = Scene((SceneObject("rectangle", Pose(np.eye(3), np.array([0.0, 0.0, 650.0])), tex, size_mm=(220.0, 160.0)),),
+    scene = Scene((SceneObject("rectangle", upright(0.0, 0.0, 650.0), tex, size_mm=(220.0, 160.0)),),
                   FLAT_LIGHT, 1100.0, back)
     res = render(scene, rig, supersample=3, sensor=IDEAL)
     ref = pinhole_render(rig, 650.0, (220.0, 160.0), tex, 1100.0, back, 3)
@@ -115,7 +120,7 @@ def test_lamp_inverse_square_and_lambert():
     """One white wall, lamp only, at 600 mm = reference: the centre pixel gets exactly `lamp`; at 1200 mm a quarter."""
     rig = default_rig()
     for z, expect in ((600.0, 0.8), (1200.0, 0.2)):
-        wall = SceneObject("rectangle", Pose(np.eye(3), np.array([0.0, 0.0, z])), Uniform(1.0), size_mm=(4000.0, 4000.0))
+        wall = SceneObject("rectangle", upright(0.0, 0.0, z), Uniform(1.0), size_mm=(4000.0, 4000.0))
         from psvs.simulate.scene import Lighting
         res = render(Scene((wall,), Lighting(0.0, 0.8, (0.0, 0.0, 0.0), 600.0)), rig, supersample=1, sensor=IDEAL)
         (u, v), = project_points([[0.0, 0.0, z]], rig, "right")[0]
@@ -127,8 +132,8 @@ def test_shadow_is_cast():
     left view (from O1, 50 mm to the side of the lamp) sees that spot past the box."""
     from psvs.simulate.scene import Lighting
     rig = default_rig()
-    wall = SceneObject("rectangle", Pose(np.eye(3), np.array([0.0, 0.0, 1000.0])), Uniform(1.0), size_mm=(4000.0, 4000.0))
-    box = SceneObject("box", Pose(np.eye(3), np.array([-150.0, 0.0, 500.0])), Uniform(1.0), size_mm=(20.0, 20.0, 20.0))
+    wall = SceneObject("rectangle", upright(0.0, 0.0, 1000.0), Uniform(1.0), size_mm=(4000.0, 4000.0))
+    box = SceneObject("box", upright(-150.0, 0.0, 500.0), Uniform(1.0), size_mm=(20.0, 20.0, 20.0))
     lit = Lighting(0.2, 0.8, (0.0, 0.0, 0.0), 1000.0, True)
     res = render(Scene((wall, box), lit), rig, supersample=1, sensor=IDEAL, truth=True)
     behind = np.array([[-300.0, 0.0, 1000.0]])       # lamp ray through the box centre meets the wall here

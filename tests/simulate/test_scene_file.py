@@ -71,10 +71,10 @@ def test_fig5a_views_are_separated_and_fig5b_overlap(small_rig):
         res = render(scene, small_rig, supersample=1, sensor=IDEAL, truth=True)
         back = scene.backdrop_z_mm
         return (res.truth.depth_left_mm < back - 1), (res.truth.depth_right_mm < back - 1)
-    l, r = object_masks(builtin_scene("fig5a"))
-    assert l.sum() > 100 and r.sum() > 100 and not (l & r).any()
-    l, r = object_masks(builtin_scene("fig5b"))
-    assert (l & r).sum() > 100
+    left, right = object_masks(builtin_scene("fig5a"))
+    assert left.sum() > 100 and right.sum() > 100 and not (left & right).any()
+    left, right = object_masks(builtin_scene("fig5b"))
+    assert (left & right).sum() > 100
 
 
 def test_fig9_pattern_geometry():

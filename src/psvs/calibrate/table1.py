@@ -119,13 +119,16 @@ def run_table1(true_rig: Rig, progress=None, start: Rig | None = None, method: s
 
 def table_markdown(t: Table1) -> str:
     r, p, s = t.rows(), PAPER_TABLE1, t.summary()
-    lines = ["| Z meas. (mm) | Z calc. paper | Z calc. psvs | d calc. paper | d calc. psvs | a calc. paper | a calc. psvs |",
+    lines = ["| Z meas. (mm) | Z calc. paper | Z calc. psvs | d calc. paper | d calc. psvs "
+             "| a calc. paper | a calc. psvs |",
              "|---:|---:|---:|---:|---:|---:|---:|"]
     lines += [f"| {a[0]:.1f} | {b[1]:.3f} | {a[1]:.3f} | {b[2]:.3f} | {a[2]:.3f} | {b[3]:.3f} | {a[3]:.3f} |"
               for a, b in zip(r, p)]
     lines += ["", "| error (d meas. = 10 mm, a meas. = 80 mm) | paper | psvs |", "|---|---:|---:|"]
-    for key, label in (("mean_abs_z_error_mm", "mean \\|Z error\\| (mm)"), ("max_abs_z_error_mm", "max \\|Z error\\| (mm)"),
-                       ("mean_diameter_error_mm", "mean \\|d error\\| (mm)"), ("mean_distance_error_mm", "mean \\|a error\\| (mm)")):
+    errors = (("mean_abs_z_error_mm", "mean \\|Z error\\| (mm)"), ("max_abs_z_error_mm", "max \\|Z error\\| (mm)"),
+              ("mean_diameter_error_mm", "mean \\|d error\\| (mm)"),
+              ("mean_distance_error_mm", "mean \\|a error\\| (mm)"))
+    for key, label in errors:
         lines.append(f"| {label} | {s['paper'][key]:.3f} | {s['ours'][key]:.3f} |")
     return "\n".join(lines) + "\n"
 

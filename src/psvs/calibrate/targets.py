@@ -7,8 +7,9 @@ profile crosses half-way between *that ray's* inside and outside levels, so a ch
 half of a circle (the border of the other view's sheet) does not bias it. An ellipse is fitted to those
 sub-pixel rim points (rim points far off the fit, where a sheet border runs right along the rim, are
 dropped and the ellipse refitted). Blur pulls the half-level contour of a small circle inward by about
-sigma^2 / (2 R); sigma is measured from the rim profiles' steepest slopes and the axes are corrected. The pattern spans 0.8 of the baseline (80 mm vs 100 mm), so the two views' circles
-never interleave: sorted by u, the first ``count`` belong to the right view, the last ``count`` to the left.
+sigma^2 / (2 R); sigma is measured from the rim profiles' steepest slopes and the axes are corrected. The
+pattern spans 0.8 of the baseline (80 mm vs 100 mm), so the two views' circles never interleave: sorted by
+u, the first ``count`` belong to the right view, the last ``count`` to the left.
 """
 from __future__ import annotations
 
@@ -181,6 +182,7 @@ def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = 40) 
     circles = [refine_circle(grey, c, r) for c, r in blobs]
     right, left = circles[:count], circles[count:]
     rows = np.array([e.centre_px[1] for e in circles])
-    if np.ptp(rows) > 0.5 * np.mean([np.mean(e.axes_px) for e in circles]) + 0.1 * np.ptp([e.centre_px[0] for e in circles]):
+    mean_axis = np.mean([np.mean(e.axes_px) for e in circles])
+    if np.ptp(rows) > 0.5 * mean_axis + 0.1 * np.ptp([e.centre_px[0] for e in circles]):
         raise ValueError("the circles do not lie along one row: not the accuracy pattern")
     return PatternDetection(left, right)

@@ -40,7 +40,8 @@ def add_model_argument(parser, default: str | None = None) -> None:
 
 def add_pipeline_argument(parser) -> None:
     """--pipeline P.toml: the image pipeline (:func:`pipeline_from_args`)."""
-    parser.add_argument("--pipeline", metavar="P.toml", help="image pipeline (default: median 3, threshold 92, Roberts)")
+    parser.add_argument("--pipeline", metavar="P.toml",
+                        help="image pipeline (default: median 3, threshold 92, Roberts)")
 
 
 def pipeline_from_args(args):

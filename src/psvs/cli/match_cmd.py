@@ -74,7 +74,8 @@ def run(args) -> int:
             from psvs.match.figures import write_figures
             write_figures(args.figures, res, image)
     for k, p in enumerate(res.pairs):
-        print(f"edge {k}: {len(p)} pixel pairs, disparity {p.shape_disparity_px:.0f} px, median Z {p.median_z_mm():.1f} mm")
+        print(f"edge {k}: {len(p)} pixel pairs, disparity {p.shape_disparity_px:.0f} px, "
+              f"median Z {p.median_z_mm():.1f} mm")
     if res.unmatched:
         print(f"{len(res.unmatched)} edge(s) without a twin: {', '.join(str(u.label) for u in res.unmatched)}")
     if not res.pairs:

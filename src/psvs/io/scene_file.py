@@ -54,7 +54,8 @@ def _texture(spec, where: str, base: Path, object_size) -> tx.Texture:
     params = {k: v for k, v in spec.items() if k != "type"}
     unknown = sorted(set(params) - allowed)
     if unknown:
-        raise ValueError(f"{where}: unknown key {unknown[0]!r} for a {kind} texture (allowed: {', '.join(sorted(allowed))})")
+        raise ValueError(f"{where}: unknown key {unknown[0]!r} for a {kind} texture "
+                         f"(allowed: {', '.join(sorted(allowed))})")
     if kind != "image":
         return cls(**params)
     if "file" not in params:

@@ -1,7 +1,7 @@
 """Live views and recordings in Foxglove's formats (the ``foxglove-sdk`` package): one set of channels, sent
 to a Foxglove WebSocket server (``ws://HOST:PORT``; Foxglove's WebSocket protocol, which foxglove-sdk
-0.30 names ``foxglove.sdk.v1``; open it in Foxglove with "Open connection") and/or written to an MCAP file (open it in Foxglove, or read it with the
-``mcap`` package).
+0.30 names ``foxglove.sdk.v1``; open it in Foxglove with "Open connection") and/or written to an MCAP file
+(open it in Foxglove, or read it with the ``mcap`` package).
 
 Channels (Foxglove's schemas, protobuf-encoded, unless said otherwise):
 

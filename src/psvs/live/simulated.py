@@ -62,8 +62,8 @@ class SimulatedSequence:
     def irradiance(self, k: int) -> np.ndarray:
         key = tuple(np.round(self.positions_mm[k], 9))
         if key not in self._irradiance:
-            res = render(scene_in_rig_frame(self.scene, translation(-self.positions_mm[k])), self.rig, supersample=self.supersample,
-                         sensor=self.sensor, seed=None)
+            scene = scene_in_rig_frame(self.scene, translation(-self.positions_mm[k]))
+            res = render(scene, self.rig, supersample=self.supersample, sensor=self.sensor, seed=None)
             self._irradiance[key] = res.irradiance
         return self._irradiance[key]
 

@@ -84,7 +84,8 @@ def path(rig: Rig, view: str) -> list[tuple]:
     """The surfaces of one view's optical path, in the order light from the camera meets them.
 
     Each step is ``("reflect", plane)``, ``("refract", plane, eta)`` with eta = n_before / n_after, or
-    ``("pass", plane)`` (a zero-thickness plate: the light only has to cross the face). The left view is *transmitted* through the M1 plate, the right view is *reflected* at its front face.
+    ``("pass", plane)`` (a zero-thickness plate: the light only has to cross the face). The left view is
+    *transmitted* through the M1 plate, the right view is *reflected* at its front face.
     """
     planes = mirror_planes(rig)
     if view == "right":

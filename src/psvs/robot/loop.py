@@ -147,11 +147,11 @@ def _cycle(res: CycleResult, tcp_mm: np.ndarray) -> Cycle:
     """The record of one cycle of the simulated cell (its servo step always present); an arm fault stops
     the torch (the controller's speed drops to 0 at once)."""
     c, step = res.command, res.step
-    return Cycle(t_s=res.frame.t_s, s_mm=c.s_mm, speed_mm_s=0.0 if res.fault else c.speed_mm_s, tcp_mm=tcp_mm, target_mm=c.target_mm,
-                 seam_mm=c.seam_mm, valid=c.valid, reason=c.reason, q=step.q, qd=step.qd, qdd_peak=step.qdd_peak,
-                 image=res.frame.image, points_mm=c.points_mm, path_mm=c.path_mm, wall_render_s=res.wall_s[0],
-                 wall_sensor_s=res.wall_s[1], wall_control_s=res.wall_s[2], flange2base=res.frame.flange2base,
-                 tool2base=c.tool2base, fault=res.fault)
+    return Cycle(t_s=res.frame.t_s, s_mm=c.s_mm, speed_mm_s=0.0 if res.fault else c.speed_mm_s, tcp_mm=tcp_mm,
+                 target_mm=c.target_mm, seam_mm=c.seam_mm, valid=c.valid, reason=c.reason, q=step.q, qd=step.qd,
+                 qdd_peak=step.qdd_peak, image=res.frame.image, points_mm=c.points_mm, path_mm=c.path_mm,
+                 wall_render_s=res.wall_s[0], wall_sensor_s=res.wall_s[1], wall_control_s=res.wall_s[2],
+                 flange2base=res.frame.flange2base, tool2base=c.tool2base, fault=res.fault)
 
 
 def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,

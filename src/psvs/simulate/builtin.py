@@ -67,7 +67,8 @@ def fig6(seed: int = 6, count: int = 14) -> Scene:
         rot = rng.uniform(-40, 40, 3)
         tex = (Noise(rng.uniform(3, 12), int(rng.integers(1000)), 0.8, 0.95) if i % 3 else
                Checker(rng.uniform(8, 20), 0.1, 0.95))
-        kw = {"box": {"size_mm": tuple(rng.uniform(30, 80, 3))}, "rectangle": {"size_mm": tuple(rng.uniform(40, 90, 2))},
+        kw = {"box": {"size_mm": tuple(rng.uniform(30, 80, 3))},
+              "rectangle": {"size_mm": tuple(rng.uniform(40, 90, 2))},
               "cylinder": {"radius_mm": rng.uniform(12, 30), "height_mm": rng.uniform(30, 80)},
               "sphere": {"radius_mm": rng.uniform(15, 35)}, "disc": {"radius_mm": rng.uniform(15, 35)}}[kind]
         objs.append(SceneObject(kind, _at(x, y, z, *rot), tex, name=f"{kind}_{i}", **kw))
@@ -109,7 +110,8 @@ def seam_mesh(radius_mm: float = 150.0, length_mm: float = 240.0, width_mm: floa
     a = (i * nw + j).ravel()
     b, c, d = a + nw, a + nw + 1, a + 1
     F = np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)])
-    cell_in_groove = ((np.abs(W[:-1, :-1] + W[1:, 1:]) / 2 < bevel_width_mm) & ~(filled[:-1, :-1] & filled[1:, 1:])).ravel()
+    cell_near_seam = np.abs(W[:-1, :-1] + W[1:, 1:]) / 2 < bevel_width_mm
+    cell_in_groove = (cell_near_seam & ~(filled[:-1, :-1] & filled[1:, 1:])).ravel()
     in_groove = np.concatenate([cell_in_groove, cell_in_groove])
     return V, F[~in_groove], F[in_groove]
 

@@ -42,7 +42,8 @@ def _local_mesh(o: SceneObject) -> tuple[np.ndarray, np.ndarray]:
         r = o.radius_mm / np.cos(np.pi / SECTIONS)
         a = 2 * np.pi * np.arange(SECTIONS) / SECTIONS
         v = np.vstack([[0, 0, 0], np.column_stack([r * np.cos(a), r * np.sin(a), np.zeros(SECTIONS)])])
-        f = np.column_stack([np.zeros(SECTIONS, int), 1 + np.arange(SECTIONS), 1 + (np.arange(SECTIONS) + 1) % SECTIONS])
+        k = np.arange(SECTIONS)   # the centre vertex 0, then rim vertices 1..SECTIONS: one fan triangle each
+        f = np.column_stack([np.zeros(SECTIONS, int), 1 + k, 1 + (k + 1) % SECTIONS])
         return v, f
     if o.kind == "box":
         m = trimesh.creation.box(extents=o.size_mm)
