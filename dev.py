@@ -89,7 +89,12 @@ def main(argv: list[str]) -> int:
     if cmd == "demo":
         args = [py, "-m", "psvs", "demo", *rest]
     elif cmd == "test":
-        args = [py, "-m", "pytest", "-q", *_workers(rest), *rest]
+        workers = _workers(rest)
+        args = [py, "-m", "pytest", "-q", *workers, *rest]
+        if workers:    # the cores shared out: each worker's Numba kernels (tests/conftest.py) and BLAS on its share
+            share = str(max(1, (os.cpu_count() or 1) // int(workers[1])))
+            for var in ("PSVS_WORKER_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+                env.setdefault(var, share)
     elif cmd == "bench":
         args = [py, str(ROOT / "bench" / "run.py"), *rest]
     else:

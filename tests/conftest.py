@@ -1,4 +1,5 @@
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -8,6 +9,16 @@ from psvs import default_rig
 from psvs.io.params import load_rig
 from psvs.optics.design import design_mirrors
 from tests.reference_optics import ReferenceRig
+
+
+def pytest_configure(config):
+    """Under pytest-xdist, dev.py shares the cores out (PSVS_WORKER_THREADS): each worker's Numba kernels run
+    on its share of them, so that two workers do not each start a thread per core (tests/dense/test_threads.py
+    checks the kernels on every core)."""
+    share = os.environ.get("PSVS_WORKER_THREADS")
+    if share and hasattr(config, "workerinput"):
+        import numba
+        numba.set_num_threads(max(1, min(int(share), numba.config.NUMBA_NUM_THREADS)))
 
 
 @pytest.fixture
