@@ -3,41 +3,43 @@ image: both groove edges matched with their twins, sub-pixel, exact triangulatio
 The same on the misaligned build (a window taller by the twins' row offset, matching on the rectified
 rows). ``psvs track --handeye FILE`` starts tracking (the command in a fresh process: imports, the file,
 the rig's tables, the first control cycle) in <= 2 s."""
+from dataclasses import replace
+
 import cv2
-import numpy as np
 
 from psvs import default_rig
-from psvs.optics.window import roi_rig
 from psvs.robot.arm import Arm
+from psvs.robot.cells import SimulationConfig
 from psvs.robot.controller import UP, TrackConfig
-from psvs.robot.mounting import HOME_Q, MOUNT_ERROR, cam2tool, tool2flange, tool_pose
+from psvs.robot.handeye_session import true_cam2flange
+from psvs.robot.loop import sensor_setup, teach
+from psvs.robot.mounting import HOME_Q
 from psvs.robot.seam import fit_seam_point
-from psvs.robot.sensor import SeamSensor, auto_seed
+from psvs.robot.sensor import auto_seed
 from psvs.robot.workpiece import seam_workpiece
 from psvs.simulate.render import render
 from psvs.simulate.sequence import scene_in_rig_frame
+from psvs.transforms import concat, invert_transform, transform_points
 
 cv2.setNumThreads(1)
 
 
 def _sensor_stage(rig=None):
+    """The first frame of a run (the torch at the taught start, the true mounting), rendered once; timed:
+    the sensor started on it, both edges measured, the groove root fitted in the base frame."""
     rig = rig or default_rig()
     cfg = TrackConfig()
     wp = seam_workpiece("weld_seam", cfg.camera_distance_mm)
-    x0 = wp.x_range_mm[0] + cfg.start_offset_mm
-    p0, p1 = wp.seam_base([x0, x0 + 1.0])
     arm = Arm(HOME_Q)
-    arm.q = arm.ikine(tool_pose(p0 + cfg.standoff_mm * UP, p1 - p0) @ np.linalg.inv(tool2flange()), HOME_Q)
-    cam = arm.fkine() @ tool2flange() @ cam2tool(cfg.look_ahead_mm, cfg.standoff_mm, cfg.camera_distance_mm) \
-        @ MOUNT_ERROR
-    roi, _ = roi_rig(rig, cfg.roi_rows, span_mm=(220.0, 420.0))
-    img = render(scene_in_rig_frame(wp.scene, np.linalg.inv(cam)), roi, seed=1).image
-    seed = auto_seed(img)
+    teach(wp, cfg, SimulationConfig(), arm)
+    cam2base = concat(true_cam2flange(cfg), arm.fkine())
+    setup, _ = sensor_setup(rig, cfg)
+    img = render(scene_in_rig_frame(wp.scene, invert_transform(cam2base)), setup.rig, seed=1).image
+    setup = replace(setup, seed_px=auto_seed(img))
 
     def run():
-        sensor = SeamSensor(roi, seed, 220.0, 420.0)
-        obs = sensor.measure(img)
-        a, b = (e @ cam[:3, :3].T + cam[:3, 3] for e in obs.edges_mm)
+        obs = setup.start(img).measure(img)
+        a, b = (transform_points(cam2base, e) for e in obs.edges_mm)
         fit_seam_point(a, b, cfg.groove_depth_mm, UP)
     return run
 

@@ -39,11 +39,76 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+def _move(text: str) -> np.ndarray:
+    """--move-mm 'dx,dy,dz' as (3,) mm, or a one-line ValueError."""
+    try:
+        move = np.array([float(v) for v in text.split(",")])
+    except ValueError:
+        move = np.zeros(0)
+    if move.shape != (3,) or not np.all(np.isfinite(move)):
+        raise ValueError(f"--move-mm must be 'dx,dy,dz', three finite numbers in mm, got {text!r}")
+    return move
+
+
+def _write_truth(path, res, rig) -> None:
+    """One frame's ground truth (.npz): both views, the irradiance, depths, disparities, validity."""
+    t = res.truth
+    write_npz(path, left=res.left.astype(np.float32), right=res.right.astype(np.float32),
+              irradiance=res.irradiance.astype(np.float32), depth_left_mm=t.depth_left_mm,
+              depth_right_mm=t.depth_right_mm, disparity_left_px=t.disparity_left_px,
+              disparity_right_px=t.disparity_right_px, valid_left=t.valid_left, valid_right=t.valid_right,
+              split_ratio=rig.mirrors.split_ratio)
+
+
 def run(args) -> int:
     if args.list:
         for name, doc, params in describe():
             print(f"{name:<10} {doc}\n{'':<10} parameters: {params}")
         return 0
+    if args.scene is None or args.output is None:
+        raise ValueError("give a SCENE and -o OUT.png (or --list)")
+    out = check_output_path(args.output, (".png", *VIDEO_SUFFIXES))
+    video = out.suffix.lower() in VIDEO_SUFFIXES
+    if video and not args.fps > 0:
+        raise ValueError(f"--fps must be > 0, got {args.fps}")
+    truth_path = check_output_path(args.truth, (".npz",))
+    if args.frames < 1:
+        raise ValueError(f"--frames must be >= 1, got {args.frames}")
+    move = _move(args.move_mm)
+    if args.seed is not None and args.seed < 0:
+        raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    sensor = Sensor(args.blur_px, args.full_well_e, args.read_noise_e, args.gain, not args.no_shot_noise)
+    rig = rig_from_args(args)
+    scene = load_scene_spec(args.scene)
+    check_supersample(rig, args.supersample, "--supersample")
+    if args.frames == 1 and not video:
+        results = [render(scene, rig, supersample=args.supersample, sensor=sensor, seed=args.seed,
+                          truth=truth_path is not None)]
+        names = [out]
+    else:
+        results = render_sequence(scene, rig, straight_path([0, 0, 0], move, args.frames),
+                                  supersample=args.supersample, sensor=sensor, seed=args.seed,
+                                  truth=truth_path is not None)
+        names = [out.with_name(f"{out.stem}_{i:03d}.png") for i in range(args.frames)]
+
+    def frames():
+        for i, (res, name) in enumerate(zip(results, names)):
+            if not video:
+                write_png(name, res.image)
+            if truth_path is not None:
+                _write_truth(truth_path if args.frames == 1 else
+                             truth_path.with_name(f"{truth_path.stem}_{i:03d}.npz"), res, rig)
+            h, w = res.image.shape
+            print(f"{f'frame {i}' if video else name}: {w}x{h}, mean grey {res.image.mean():.1f}", file=sys.stderr)
+            yield res.image
+
+    if video:
+        n = write_video(out, frames(), fps=args.fps)
+        print(f"{out}: {n} frames, FFV1, {args.fps:g} frames/s", file=sys.stderr)
+    else:
+        for _ in frames():
+            pass
+    return 0
     if args.scene is None or args.output is None:
         raise ValueError("give a SCENE and -o OUT.png (or --list)")
     out = check_output_path(args.output, (".png", *VIDEO_SUFFIXES))

@@ -1,0 +1,64 @@
+"""docs/benchmarks.md, as bench/run.py wrote it, read back by value: each case's verdict agrees with its time
+and target, and each ratio (e.g. the dense default mode over OpenCV's StereoSGBM 3-way on all cores, the
+reference) equals the quotient of its two cases' times in the same table."""
+import datetime
+import importlib.util
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+DOC = ROOT / "docs" / "benchmarks.md"
+
+
+def _table_rows(text: str, cells: int) -> list[list[str]]:
+    rows = []
+    for line in text.splitlines():
+        parts = [c.strip() for c in line.strip().strip("|").split("|")]
+        header = parts[0] in ("group", "") or parts[0].startswith("-")
+        if line.startswith("|") and len(parts) == cells and not header:
+            rows.append(parts)
+    return rows
+
+
+@pytest.fixture(scope="module")
+def doc():
+    text = DOC.read_text(encoding="utf-8")
+    cases = {(g, name): (float(t), None if target == "—" else float(target), met)
+             for g, name, t, target, met in _table_rows(text, 5)}
+    ratios = {(g, name): float(v) for g, name, v in _table_rows(text, 3)}
+    return text, cases, ratios
+
+
+def test_the_machine_and_the_date_are_named(doc):
+    text, _, _ = doc
+    date = re.search(r"^- Date: (\d{4}-\d{2}-\d{2})$", text, re.M)
+    assert date and datetime.date.fromisoformat(date.group(1))
+    assert re.search(r"^- Machine: .+, \d+ cores, Python 3\.\d+", text, re.M)
+
+
+def test_each_verdict_agrees_with_its_time_and_target(doc):
+    _, cases, _ = doc
+    assert len(cases) >= 20
+    for (group, name), (t, target, met) in cases.items():
+        assert t > 0, name
+        if target is None:
+            assert met == "—", name
+        else:
+            assert met == ("yes" if t <= target else "NO"), name
+
+
+def test_each_ratio_is_the_quotient_of_its_cases(doc):
+    _, cases, ratios = doc
+    found = 0
+    for path in sorted((ROOT / "bench").glob("bench_*.py")):
+        spec = importlib.util.spec_from_file_location(path.stem, path)
+        mod = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(mod)
+        group = path.stem.removeprefix("bench_")
+        for name, a, b in getattr(mod, "RATIOS", []):
+            value = ratios[(group, name)]
+            assert value == pytest.approx(cases[(group, a)][0] / cases[(group, b)][0], rel=0.01), name
+            found += 1
+    assert found >= 2     # the dense default mode over StereoSGBM 3-way on all cores (the reference), on 1 thread
