@@ -58,6 +58,13 @@ def check_finite(value, name: str) -> float:
     return v
 
 
+def check_count(value, name: str, least: int = 1) -> int:
+    """``value`` as an int if it is a whole number >= ``least`` (not a bool), else ValueError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
+        raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
+    return int(value)
+
+
 def check_pair(value, name: str) -> tuple[float, float]:
     if not isinstance(value, (tuple, list)) or len(value) != 2:
         raise ValueError(f"{name} must be a pair of numbers, got {value!r}")

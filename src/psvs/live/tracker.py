@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psvs._validate import check_grey
+from psvs._validate import check_count, check_grey, check_positive
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.correspondence import MatchParams, finish_pairs
 from psvs.match.pairs import EdgePair
@@ -89,13 +89,9 @@ class TrackerParams:
 
     def __post_init__(self):
         for name in ("snap_px", "search_px", "max_jump_px"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not value > 0:
-                raise ValueError(f"{name} must be > 0 px, got {value!r}")
+            check_positive(getattr(self, name), name, "px")
         for name in ("min_pairs", "candidates"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+            check_count(getattr(self, name), name)
 
 
 class EdgeTracker:

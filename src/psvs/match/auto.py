@@ -19,16 +19,10 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from psvs._validate import check_finite
+from psvs._validate import check_count, check_finite
 from psvs.match.edges import EdgePixels, edge_pixels, row_votes
 from psvs.match.grey_steps import polarity, step_image, twin_step_seen
 from psvs.match.pairs import EdgePair, grow_pairs
-
-
-def _check_count(value, name: str, least: int) -> None:
-    """ValueError naming ``name`` unless ``value`` is an integer >= ``least``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < least:
-        raise ValueError(f"{name} must be an integer >= {least}, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -79,8 +73,8 @@ class AutoParams:
 
     def __post_init__(self):
         for name in ("min_rows", "long_run_rows", "min_run", "standalone_rows"):
-            _check_count(getattr(self, name), name, 1)
-        _check_count(self.support_px, "support_px", 0)
+            check_count(getattr(self, name), name, 1)
+        check_count(self.support_px, "support_px", 0)
         for name in ("min_fraction", "seen_fraction"):
             if not 0 <= check_finite(getattr(self, name), name) <= 1:
                 raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")

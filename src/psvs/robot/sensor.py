@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psvs._validate import check_grey, check_pair, check_positive
+from psvs._validate import check_count, check_grey, check_pair, check_positive
 from psvs.imaging.pipeline import Pipeline, make_pipeline
 from psvs.match.correspondence import finish_pairs
 from psvs.match.edges import edge_pixels
@@ -64,8 +64,7 @@ class SensorParams:
         lo, hi = check_pair(self.width_band, "width_band")
         if not 0 < lo < 1 < hi:
             raise ValueError(f"width_band must satisfy 0 < low < 1 < high, got {self.width_band!r}")
-        if not isinstance(self.min_rows, int) or self.min_rows < 3:
-            raise ValueError(f"min_rows must be an integer >= 3, got {self.min_rows!r}")
+        check_count(self.min_rows, "min_rows", 3)
 
 
 def auto_seed(grey: np.ndarray, pipeline: Pipeline = SEAM_PIPELINE, min_width_px: int = 6) -> tuple[float, float]:

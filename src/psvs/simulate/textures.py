@@ -11,12 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psvs._validate import check_finite, check_positive
-
-
-def _check_count(value, name: str, minimum: int) -> None:
-    if not isinstance(value, int) or isinstance(value, bool) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r}")
+from psvs._validate import check_count, check_finite, check_positive
 
 
 def _check_levels(**levels):
@@ -104,7 +99,7 @@ class Circles:
     def __post_init__(self):
         check_positive(self.diameter_mm, "diameter_mm", "mm")
         check_positive(self.spacing_mm, "spacing_mm", "mm")
-        _check_count(self.count, "count", 1)
+        check_count(self.count, "count", 1)
         _check_levels(low=self.low, high=self.high)
 
     def centres_mm(self) -> np.ndarray:
@@ -133,8 +128,8 @@ class Chessboard:
     high: float = 0.9
 
     def __post_init__(self):
-        _check_count(self.squares_x, "squares_x", 3)
-        _check_count(self.squares_y, "squares_y", 3)
+        check_count(self.squares_x, "squares_x", 3)
+        check_count(self.squares_y, "squares_y", 3)
         check_positive(self.square_mm, "square_mm", "mm")
         _check_levels(low=self.low, high=self.high)
 
@@ -160,8 +155,8 @@ class CircleGrid:
     high: float = 0.9
 
     def __post_init__(self):
-        _check_count(self.rows, "rows", 2)
-        _check_count(self.cols, "cols", 2)
+        check_count(self.rows, "rows", 2)
+        check_count(self.cols, "cols", 2)
         check_positive(self.spacing_mm, "spacing_mm", "mm")
         check_positive(self.diameter_mm, "diameter_mm", "mm")
         if self.diameter_mm >= self.spacing_mm:
