@@ -10,7 +10,7 @@ import argparse
 import importlib
 import sys
 
-from psvs.errors import RigGeometryError
+from psvs.errors import MeasurementError, RigGeometryError
 
 COMMANDS = ("demo", "rig", "design", "triangulate", "fit-refraction", "simulate", "match", "measure", "calibrate",
             "card-views", "sweep-views", "table1", "disparity", "dense-eval", "serve", "live", "handeye", "track",
@@ -46,12 +46,21 @@ def main(argv: list[str] | None = None) -> int:
         # is left half-written (a write in progress removes its temporary file)
         print(f"\npsvs {args.command}: interrupted", file=sys.stderr)
         return 130
+    except MeasurementError as exc:     # well-formed input that cannot give a right answer: say why, no number
+        print(f"psvs {args.command}: cannot measure: {_one_line(exc)}", file=sys.stderr)
+        return 1
     except (ValueError, TypeError, OSError, RigGeometryError) as exc:
-        msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        msg = _one_line(exc)
         if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
             msg = f"{msg}: {exc.filename}"
         print(f"psvs {args.command}: error: {msg}", file=sys.stderr)
         return 2
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception's message as one line (its first), or its type's name when it has none."""
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
 
 
 if __name__ == "__main__":
