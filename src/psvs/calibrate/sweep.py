@@ -18,7 +18,7 @@ import numpy as np
 from psvs.calibrate.bundle import BundleResult, SweepView, bundle_adjust
 from psvs.calibrate.targets import PatternDetection, detect_pattern
 from psvs.io.images import read_grey
-from psvs.io.text import read_text
+from psvs.io.text import read_csv_rows
 from psvs.optics.rig import Rig
 
 SPACING_MM = 20.0   # the paper's pattern: circles 20 mm apart (Fig. 9)
@@ -46,16 +46,22 @@ def read_sweep(folder) -> list[tuple[Path, float]]:
     table = folder / "sweep.csv"
     if not table.is_file():
         raise FileNotFoundError(f"sweep file not found: {table}")
-    with io.StringIO(read_text(table, "CSV"), newline="") as fh:
-        reader = csv.DictReader(fh)
-        if reader.fieldnames is None or not {"image", "position_mm"} <= set(reader.fieldnames):
-            raise ValueError(f"{table}: expected columns image,position_mm, got {reader.fieldnames}")
-        out = []
-        for n, row in enumerate(reader, start=2):
-            try:
-                out.append((folder / row["image"], float(row["position_mm"])))
-            except ValueError:
-                raise ValueError(f"{table}:{n}: position_mm is not a number: {row['position_mm']!r}") from None
+    rows = read_csv_rows(table)
+    header = rows[0] if rows else None
+    if header is None or not {"image", "position_mm"} <= set(header):
+        raise ValueError(f"{table}: expected columns image,position_mm, got {header}")
+    col = {name: header.index(name) for name in ("image", "position_mm")}
+    out = []
+    for n, row in enumerate(rows[1:], start=2):
+        if not row:
+            continue
+        if len(row) <= max(col.values()):
+            raise ValueError(f"{table}:{n}: expected columns image,position_mm, got {len(row)} cells")
+        image, position = row[col["image"]], row[col["position_mm"]]
+        try:
+            out.append((folder / image, float(position)))
+        except ValueError:
+            raise ValueError(f"{table}:{n}: position_mm is not a number: {position!r}") from None
     if not out:
         raise ValueError(f"{table}: no images listed")
     return out

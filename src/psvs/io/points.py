@@ -1,14 +1,13 @@
 """CSV tables of correspondences (u_l, v_l, u_r, v_r px) and of triangulated points (X, Y, Z mm, valid)."""
 from __future__ import annotations
 
-import csv
 import io
 from pathlib import Path
 
 import numpy as np
 
 from psvs.io.atomic import write_atomic
-from psvs.io.text import read_text
+from psvs.io.text import read_csv_rows
 
 MATCH_COLUMNS = ("u_l", "v_l", "u_r", "v_r")
 POINT_COLUMNS = ("X_mm", "Y_mm", "Z_mm", "valid")
@@ -28,28 +27,26 @@ def read_csv_columns(path, columns: tuple[str, ...]) -> np.ndarray:
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"points file not found: {path}")
-    with io.StringIO(read_text(path, "CSV"), newline="") as fh:
-        reader = csv.reader(fh)
-        header = next(reader, None)
-        if header is None:
-            raise ValueError(f"{path}: empty file, expected a header {','.join(columns)}")
-        header = [h.strip() for h in header]
-        missing = [c for c in columns if c not in header]
-        if missing:
-            raise ValueError(f"{path}: missing column(s) {', '.join(missing)}; expected header "
-                             f"{','.join(columns)}, got {','.join(header)}")
-        idx = [header.index(c) for c in columns]
-        rows = []
-        for lineno, row in enumerate(reader, start=2):
-            if not row or all(not cell.strip() for cell in row):
-                continue
-            if len(row) < len(header):
-                raise ValueError(f"{path}:{lineno}: expected {len(header)} columns, got {len(row)}")
-            try:
-                rows.append([float(row[i]) if row[i].strip() else np.nan for i in idx])
-            except ValueError:
-                bad = next(row[i] for i in idx if not _is_float(row[i]))
-                raise ValueError(f"{path}:{lineno}: not a number: {bad!r}") from None
+    table = read_csv_rows(path)
+    if not table:
+        raise ValueError(f"{path}: empty file, expected a header {','.join(columns)}")
+    header = [h.strip() for h in table[0]]
+    missing = [c for c in columns if c not in header]
+    if missing:
+        raise ValueError(f"{path}: missing column(s) {', '.join(missing)}; expected header "
+                         f"{','.join(columns)}, got {','.join(header)}")
+    idx = [header.index(c) for c in columns]
+    rows = []
+    for lineno, row in enumerate(table[1:], start=2):
+        if not row or all(not cell.strip() for cell in row):
+            continue
+        if len(row) < len(header):
+            raise ValueError(f"{path}:{lineno}: expected {len(header)} columns, got {len(row)}")
+        try:
+            rows.append([float(row[i]) if row[i].strip() else np.nan for i in idx])
+        except ValueError:
+            bad = next(row[i] for i in idx if not _is_float(row[i]))
+            raise ValueError(f"{path}:{lineno}: not a number: {bad!r}") from None
     return np.array(rows, dtype=float).reshape(-1, len(columns))
 
 

@@ -18,17 +18,22 @@ from psvs.io.text import read_text
 
 
 def load_toml(path, what: str) -> dict:
-    """Parse a TOML file (or JSON, by its suffix); raise FileNotFoundError("<what> file not found: ...")
-    or ValueError("<path>: malformed TOML: ...")."""
+    """Parse a TOML file (or JSON, by its suffix; UTF-8, a byte-order mark allowed); raise
+    FileNotFoundError("<what> file not found: ...") or ValueError("<path>: malformed TOML: ...").
+
+    Arrays or tables nested thousands deep exhaust the parsers' recursion (RecursionError): that is
+    "<path>: malformed TOML: nested too deep", as no psvs file nests more than a few levels."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{what} file not found: {path}")
-    is_json = path.suffix.lower() == ".json"
-    text = read_text(path, "JSON" if is_json else "TOML")
+    kind = "JSON" if path.suffix.lower() == ".json" else "TOML"
+    text = read_text(path, kind)
     try:
-        return json.loads(text) if is_json else tomllib.loads(text)
+        return json.loads(text) if kind == "JSON" else tomllib.loads(text)
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: malformed {'JSON' if is_json else 'TOML'}: {exc}") from None
+        raise ValueError(f"{path}: malformed {kind}: {exc}") from None
+    except RecursionError:
+        raise ValueError(f"{path}: malformed {kind}: nested too deep") from None
 
 
 def single_table(data: dict, table: str, keys: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
@@ -136,7 +141,8 @@ def update_toml(text: str, data: dict, what: str = "TOML") -> str:
     A key whose value is equal (``==``, so ``100`` stays for ``100.0``) is left as written; a changed value is
     replaced in place, keeping its end-of-line comment at its column; keys and tables that ``data`` lacks are
     removed; new ones are appended to their table (new tables at the end) in :func:`toml_item`'s layout.
-    ValueError("malformed <what>: ...") when ``text`` is not TOML.
+    ValueError("malformed <what>: ...") when ``text`` is not TOML (tomlkit refuses more than 100 levels of
+    nesting itself).
     """
     import tomlkit
     from tomlkit.exceptions import ParseError

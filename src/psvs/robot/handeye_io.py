@@ -34,6 +34,7 @@ from scipy.spatial.transform import Rotation
 from psvs.calibrate.target_file import dumps_target, load_target
 from psvs.io.atomic import write_atomic
 from psvs.io.images import read_grey, write_png
+from psvs.io.text import read_csv_rows
 from psvs.io.tomlfile import dumps_toml, load_table
 from psvs.robot.handeye import HandEyeResult
 from psvs.simulate.textures import CircleGrid
@@ -122,8 +123,7 @@ def read_views(folder) -> tuple[list[np.ndarray], list[np.ndarray], CircleGrid]:
     poses = folder / POSES_CSV
     if not poses.is_file():
         raise FileNotFoundError(f"{folder} has no {POSES_CSV} (image,x_mm,y_mm,z_mm,qx,qy,qz,qw)")
-    with poses.open(newline="", encoding="utf-8") as f:
-        rows = list(csv.reader(f))
+    rows = read_csv_rows(poses)
     if not rows or tuple(c.strip() for c in rows[0]) != POSE_COLUMNS:
         raise ValueError(f"{poses}: the header must be {','.join(POSE_COLUMNS)}")
     images, flanges = [], []
