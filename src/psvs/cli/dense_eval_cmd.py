@@ -3,12 +3,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import cv2
 import numpy as np
 
+from psvs._memory import check_memory
 from psvs.dense.evaluate import evaluate_pair, motorcycle
 from psvs.dense.report import scores_markdown, write_report
-from psvs.io.images import read_grey
+from psvs.io.images import read_grey, read_image
 
 
 def add_parser(sub) -> None:
@@ -32,14 +32,20 @@ def _truth(path: str) -> np.ndarray:
     if not p.is_file():
         raise FileNotFoundError(f"ground truth not found: {p}")
     if p.suffix.lower() == ".npy":
-        gt = np.load(p, allow_pickle=False)
+        try:    # mapped, not read: a header claiming more data than the file holds is refused, not allocated
+            gt = np.load(p, mmap_mode="r", allow_pickle=False)
+        except (ValueError, EOFError) as exc:    # not an .npy file, or one cut short
+            text = str(exc).strip()
+            why = "its header claims more data than the file holds" if "mmap length" in text else \
+                "no .npy header, or an array of Python objects" if "pickled" in text else text or "empty file"
+            raise ValueError(f"not a readable .npy file: {p} ({why})") from None
+        if gt.ndim == 2:
+            check_memory(3 * 8 * gt.size, f"ground truth {p} ({gt.shape[1]}x{gt.shape[0]} px)")
     elif p.suffix.lower() == ".pfm":
-        gt = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
-        if gt is None:
-            raise ValueError(f"not a readable PFM file: {p}")
+        gt = read_image(p)          # its size checked from the header first; "not a readable image" otherwise
     else:
         raise ValueError(f"ground truth must be .pfm or .npy, got {p.name}")
-    gt = np.asarray(gt, dtype=np.float64)
+    gt = np.array(gt, dtype=np.float64)      # a copy: the .npy is mapped read-only
     if gt.ndim != 2:
         raise ValueError(f"ground truth must be one channel (H, W), got shape {gt.shape}")
     gt[~np.isfinite(gt)] = np.nan

@@ -7,9 +7,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from psvs._memory import check_memory
 from psvs._validate import check_grey
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import write_atomic
+from psvs.io.cstderr import c_stderr_captured, library_reason
+from psvs.io.image_header import HeaderError, ImageHeader, read_header
 
 
 def write_png(path, image: np.ndarray) -> None:
@@ -21,19 +24,73 @@ def write_png(path, image: np.ndarray) -> None:
     write_atomic(path, buf.tobytes())
 
 
-def read_grey(path) -> np.ndarray:
+#: Largest image :func:`read_grey` decodes, pixels (100 megapixels: 10000 x 10000 px, far above any sensor psvs
+#: is used with), whatever the memory available.
+MAX_IMAGE_PIXELS = 100_000_000
+
+
+def read_grey(path, expect_size: tuple[int, int] | None = None) -> np.ndarray:
     """Read an image file as (H, W) uint8 grey; raise naming the file when it is missing or unreadable.
+
+    The file is decoded by :func:`read_image`: refused from its header, before decoding, when its size
+    differs from ``expect_size`` (W, H) px (e.g. the rig's sensor), exceeds :data:`MAX_IMAGE_PIXELS` or would
+    not fit in the memory available.
 
     Colour images become grey by OpenCV's luma (0.299 R + 0.587 G + 0.114 B). A 16-bit image is scaled by
     its sensor's bit depth, found from its largest value (10, 12, 14 or 16 bits): a 12-bit camera's
     0..4095 becomes 0..255, not 0..15 (:func:`grey8_from_deep`)."""
+    return grey8(read_image(path, expect_size), Path(path))
+
+
+def read_image(path, expect_size: tuple[int, int] | None = None) -> np.ndarray:
+    """An image file decoded as it is stored (``cv2.IMREAD_UNCHANGED``: (H, W) or (H, W, C), any depth).
+
+    The size is read from the file's header first (:func:`psvs.io.image_header.read_header`: PNG, JPEG, BMP,
+    TIFF, PNM) and the image refused before decoding when it differs from ``expect_size`` (W, H) px, exceeds
+    :data:`MAX_IMAGE_PIXELS` or would not fit in the memory available: a small file claiming a huge image
+    never reaches the decoder. What the decoder's libraries print (libpng's "libpng error: ...") is caught,
+    never shown, and named in the one-line ValueError of a file that does not decode.
+    FileNotFoundError("image not found: ...") when there is no such file."""
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"image not found: {path}")
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    with path.open("rb") as f:
+        try:
+            header = read_header(f)
+        except HeaderError as exc:
+            raise ValueError(f"not a readable image: {path} ({exc})") from None
+        _check_size(path, header, expect_size, path.stat().st_size)
+        f.seek(0)
+        data = np.frombuffer(f.read(), np.uint8)
+    failure = None
+    with c_stderr_captured() as said:
+        try:
+            img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED)
+        except cv2.error as exc:
+            img, failure = None, str(exc)
     if img is None:
-        raise ValueError(f"not a readable image: {path}")
-    return grey8(img, path)
+        reason = library_reason([*said, *([failure] if failure else [])])
+        raise ValueError(f"not a readable image: {path}" + (f" ({reason})" if reason else ""))
+    if img.shape[:2] != (header.height, header.width):
+        raise ValueError(f"not a readable image: {path} (its header says {header.width}x{header.height} px, "
+                         f"it decodes to {img.shape[1]}x{img.shape[0]} px)")
+    return img
+
+
+def _check_size(path: Path, header: ImageHeader, expect_size, file_bytes: int) -> None:
+    """Refuse an image, from its header, whose size differs from ``expect_size`` (W, H) px, exceeds
+    :data:`MAX_IMAGE_PIXELS` or whose decoding (the file, the decoded pixels and the grey copies made of them)
+    would not fit in the memory available."""
+    w, h = header.width, header.height
+    if expect_size is not None and (w, h) != tuple(expect_size):
+        ew, eh = expect_size
+        raise ValueError(f"{path}: image is {w}x{h} px but the rig's camera is {ew}x{eh} px")
+    if header.pixels > MAX_IMAGE_PIXELS:
+        raise ValueError(f"{path}: image is {w}x{h} px ({header.pixels / 1e6:.0f} megapixels), more than the "
+                         f"{MAX_IMAGE_PIXELS / 1e6:.0f} megapixels psvs reads")
+    # decoded pixels, then the grey copy: a colour conversion (1 byte), or a 16-bit scaling in float64
+    per_pixel = header.bytes_per_pixel + (24 if header.sample_bytes > 1 else 1)
+    check_memory(file_bytes + header.pixels * per_pixel, f"image {path} ({w}x{h} px)")
 
 
 def grey8(img: np.ndarray, name) -> np.ndarray:
