@@ -58,6 +58,30 @@ def test_bad_scene_files(tmp_path, text, exc, message):
     assert str(path) in str(info.value)
 
 
+MESH = '[[objects]]\ntype = "mesh"\nfile = "{file}"\n'
+
+
+@pytest.mark.parametrize("file, content, message", [
+    ("photo.png", None, r"not a mesh trimesh can read \(STL, OBJ, PLY, ...\): .*photo\.png \(file_type 'png' not"),
+    ("broken.obj", b"v 1 2\nf 1 2 3\n", r"not a mesh trimesh can read .*broken\.obj \("),
+    ("empty.stl", b"", r".*empty\.stl holds no triangles"),
+    ("points.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+     b"property float z\nend_header\n0 0 0\n", r".*points\.ply holds no triangles"),
+])
+def test_a_mesh_file_that_is_no_mesh(tmp_path, file, content, message):
+    """trimesh's own errors (NotImplementedError for a PNG, IndexError inside a broken OBJ) or an empty mesh:
+    one line naming the scene file, the object's key and the mesh file."""
+    from psvs.io.images import write_png
+    if content is None:
+        write_png(tmp_path / file, np.full((8, 8), 7, np.uint8))
+    else:
+        (tmp_path / file).write_bytes(content)
+    path = write(tmp_path, MESH.format(file=file))
+    with pytest.raises(ValueError, match=rf"^{path}: objects\[0\]\.file: {message}") as info:
+        load_scene(path)
+    assert "\n" not in str(info.value)
+
+
 def test_builtins_render(small_rig):
     for name in BUILTINS:
         res = render(builtin_scene(name), small_rig, supersample=1, sensor=IDEAL)
@@ -93,6 +117,10 @@ def test_builtin_errors():
         builtin_scene("fig9:depth=3")
     with pytest.raises(ValueError, match="fig9: distance_mm must be a number"):
         builtin_scene("fig9:distance_mm=far")
+    with pytest.raises(ValueError, match="^fig9: distance_mm needs a value: distance_mm=<number>$"):
+        builtin_scene("fig9:distance_mm")
+    with pytest.raises(ValueError, match="^fig9: distance_mm is given twice$"):
+        builtin_scene("fig9:distance_mm=700,distance_mm=800")
 
 
 def test_seam_centre_line_lies_on_the_groove_bottom():

@@ -73,6 +73,27 @@ def _texture(spec, where: str, base: Path, object_size) -> tx.Texture:
     return tx.ImageTexture(img.astype(float) / 255.0, tuple(_vec(size, 2, f"{where}.size_mm")), str(file))
 
 
+def _mesh(file: Path, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices (N, 3), triangles (M, 3)) of a mesh file read by trimesh; ValueError naming ``where`` and the
+    file when trimesh cannot read it or it holds no triangles.
+
+    trimesh's loaders fail in their own ways -- NotImplementedError for a type it does not know (a PNG),
+    ValueError, IndexError or KeyError from inside a damaged file's parser, or a missing optional
+    package -- so every error but the machine's own (memory, the file system) means "not a mesh"."""
+    import trimesh
+    try:
+        mesh = trimesh.load(file, force="mesh")
+        vertices, faces = np.asarray(mesh.vertices, float), np.asarray(mesh.faces)
+    except (MemoryError, OSError):
+        raise
+    except Exception as exc:
+        reason = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ValueError(f"{where}: not a mesh trimesh can read (STL, OBJ, PLY, ...): {file} ({reason})") from None
+    if faces.ndim != 2 or faces.shape[1] != 3 or not len(faces):
+        raise ValueError(f"{where}: {file} holds no triangles")
+    return vertices, faces
+
+
 def _object(spec: dict, i: int, base: Path) -> SceneObject:
     if not isinstance(spec, dict):
         raise ValueError(f"objects[{i}] must be a table, got {type(spec).__name__}")
@@ -98,10 +119,8 @@ def _object(spec: dict, i: int, base: Path) -> SceneObject:
         file = base / spec["file"]
         if not file.is_file():
             raise FileNotFoundError(f"{label}: mesh file not found: {file}")
-        import trimesh
-        mesh = trimesh.load(file, force="mesh")
-        kw["vertices_mm"] = np.asarray(mesh.vertices, float) * float(spec.get("scale", 1.0))
-        kw["faces"] = np.asarray(mesh.faces)
+        vertices, kw["faces"] = _mesh(file, f"{label}.file")
+        kw["vertices_mm"] = vertices * float(spec.get("scale", 1.0))
     albedo = spec.get("albedo", 0.8)
     texture = _texture(spec["texture"], f"{label}.texture", base, kw.get("size_mm") if kind == "rectangle" else None) \
         if "texture" in spec else tx.Uniform(albedo)

@@ -185,7 +185,9 @@ def builtin_scene(spec: str) -> Scene:
 
 
 def parse_spec(spec: str) -> tuple[str, dict]:
-    """(name, keyword arguments) of a built-in scene spec ``name[:key=value,...]``; ValueError if unknown."""
+    """(name, keyword arguments) of a built-in scene spec ``name[:key=value,...]``; ValueError naming the
+    parameter when a key is unknown, given twice or without its ``=value``, or a value is not a number or out
+    of range."""
     name, _, args = spec.partition(":")
     if name not in BUILTINS:
         raise ValueError(f"unknown built-in scene {name!r} (known: {', '.join(BUILTINS)})")
@@ -193,9 +195,13 @@ def parse_spec(spec: str) -> tuple[str, dict]:
     params = inspect.signature(fn).parameters
     kwargs = {}
     for item in filter(None, args.split(",")):
-        key, eq, value = item.partition("=")
-        if not eq or key not in params:
+        key, eq, value = (s.strip() for s in item.partition("="))
+        if key not in params:
             raise ValueError(f"{name}: unknown parameter {key!r} (known: {', '.join(params)})")
+        if not eq:
+            raise ValueError(f"{name}: {key} needs a value: {key}=<number>")
+        if key in kwargs:
+            raise ValueError(f"{name}: {key} is given twice")
         try:
             kwargs[key] = type(params[key].default)(value) if params[key].default is not None else float(value)
         except ValueError:
