@@ -1,9 +1,6 @@
 """``psvs disparity``: dense disparity (and separated views, depth, point cloud) of one complex image."""
 from __future__ import annotations
 
-import sys
-import warnings
-
 import numpy as np
 
 from psvs.cli.common import add_model_argument, add_range_arguments, check_output_path, range_from_args
@@ -121,14 +118,11 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
 def run(args) -> int:
     out = _outputs(args)
     rig, image, rect, split, (lo, hi), params = _inputs(args)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", RuntimeWarning)
-        if rig is None:
-            dense = RigDense(dense_disparity(image, lo, hi, params=params), None, image)
-        else:
-            dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi))
-    for w in caught:
-        print(f"psvs disparity: warning: {w.message}", file=sys.stderr)
+    # a warning (e.g. "complex image is constant") is printed as one line by psvs.cli.main
+    if rig is None:
+        dense = RigDense(dense_disparity(image, lo, hi, params=params), None, image)
+    else:
+        dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi))
     cloud = _write(out, dense, image, rig, split, args.model)
     res = dense.result
     d = res.disparity_left[np.isfinite(res.disparity_left)]

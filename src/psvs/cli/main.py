@@ -1,4 +1,6 @@
-"""``psvs`` entry point: one subcommand per module; bad input exits 2 with a one-line message.
+"""``psvs`` entry point: one subcommand per module; a result, or one line on stderr and a non-zero status
+(bad input 2, a measurement the data cannot give 1, anything unexpected 1 as an "internal error") -- never
+a traceback, unless PSVS_DEBUG=1 asks for it.
 
 A command's module is psvs.cli.<command>_cmd (dashes as underscores). ``psvs COMMAND ...`` imports only that
 command's module, so a command starts without loading every other command's libraries (``psvs track``
@@ -7,9 +9,12 @@ must reach its first control cycle within 2 s); ``psvs --help`` and an unknown c
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import os
 import sys
 
+from psvs._quiet import quiet_libraries
 from psvs.errors import MeasurementError, RigGeometryError
 
 COMMANDS = ("demo", "rig", "design", "triangulate", "fit-refraction", "simulate", "match", "measure", "calibrate",
@@ -31,30 +36,75 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+#: Set (to anything but 0) to let an internal error end in Python's traceback, and to leave OpenCV's log,
+#: numpy's floating-point warnings and other libraries' warnings as the libraries print them.
+DEBUG_ENV = "PSVS_DEBUG"
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run ``psvs COMMAND ...``: a result and exit status 0, or one line on stderr and a non-zero status.
+
+    Bad input (ValueError, TypeError, OSError, RigGeometryError) exits 2, a measurement the data cannot give
+    (MeasurementError) 1 with "cannot measure: ...", Ctrl-C 130, and any other exception -- a fault of psvs
+    or of a library under it -- 1 with "internal error: <its type>: <its message>", never a traceback unless
+    :data:`DEBUG_ENV` is set. While the command runs, what libraries print on their own is kept off the
+    terminal (:func:`quiet_libraries`)."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    try:        # the command's module (and its libraries) load here: Ctrl-C then ends as it does later on
-        parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
-    except KeyboardInterrupt:
-        print("\npsvs: interrupted", file=sys.stderr)
-        return 130
-    args = parser.parse_args(argv)
+    command = argv[0] if argv and argv[0] in COMMANDS else None
+    debug = os.environ.get(DEBUG_ENV, "").strip() not in ("", "0")
+    name = f"psvs {command}" if command else "psvs"
+    with contextlib.ExitStack() as stack:
+        try:        # the command's module (and its libraries) load here: Ctrl-C then ends as it does later on
+            if not debug:
+                stack.enter_context(quiet_libraries(name))
+            args = build_parser(command).parse_args(argv)
+        except KeyboardInterrupt:
+            print("\npsvs: interrupted", file=sys.stderr)
+            return 130
+        except Exception as exc:        # a library that does not load
+            if debug:
+                raise
+            return _internal_error(name, exc)
+        return _run(args, debug)
+
+
+def _run(args, debug: bool) -> int:
+    """Run the parsed command; its exceptions become the exit status and one line (:func:`main`)."""
+    name = f"psvs {args.command}"
     try:
         return int(args.run(args) or 0)
     except KeyboardInterrupt:
         # Ctrl-C: one line and the shell's status for SIGINT; files are written atomically, so no output
         # is left half-written (a write in progress removes its temporary file)
-        print(f"\npsvs {args.command}: interrupted", file=sys.stderr)
+        print(f"\n{name}: interrupted", file=sys.stderr)
         return 130
     except MeasurementError as exc:     # well-formed input that cannot give a right answer: say why, no number
-        print(f"psvs {args.command}: cannot measure: {_one_line(exc)}", file=sys.stderr)
+        print(f"{name}: cannot measure: {_one_line(exc)}", file=sys.stderr)
         return 1
+    except BrokenPipeError:
+        # the reader of the output went away (``psvs ... | head``): nothing left to say, and nothing more
+        # written to that pipe (Python would complain of it again when it flushes stdout at exit)
+        with contextlib.suppress(OSError, ValueError, AttributeError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
     except (ValueError, TypeError, OSError, RigGeometryError) as exc:
         msg = _one_line(exc)
         if isinstance(exc, OSError) and exc.filename and str(exc.filename) not in msg:
             msg = f"{msg}: {exc.filename}"
-        print(f"psvs {args.command}: error: {msg}", file=sys.stderr)
+        print(f"{name}: error: {msg}", file=sys.stderr)
         return 2
+    except Exception as exc:
+        if debug:
+            raise
+        return _internal_error(name, exc)
+
+
+def _internal_error(name: str, exc: Exception) -> int:
+    """One line naming an exception psvs did not expect and how to see where it came from; exit status 1."""
+    text = str(exc).strip()
+    what = f"{type(exc).__name__}: {text.splitlines()[0]}" if text else type(exc).__name__
+    print(f"{name}: internal error: {what} ({DEBUG_ENV}=1 shows the traceback)", file=sys.stderr)
+    return 1
 
 
 def _one_line(exc: BaseException) -> str:

@@ -8,6 +8,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from psvs.io.cstderr import c_stderr_captured, library_reason
+
 
 class VideoSource:
     """Frames from ``cv2.VideoCapture``: a file path (or printf-style image sequence) or a camera index.
@@ -24,14 +26,20 @@ class VideoSource:
             if "%" not in video and not Path(video).is_file():
                 raise FileNotFoundError(f"video not found: {video}")
             self.name = video
-            self._cap = cv2.VideoCapture(video)
+            with c_stderr_captured() as said:       # FFmpeg's complaints ("moov atom not found")
+                self._cap = cv2.VideoCapture(video)
+            if not self._cap.isOpened():
+                reason = library_reason(said)
+                raise ValueError(f"cannot open {video}: not a video or image sequence OpenCV can decode"
+                                 + (f" ({reason})" if reason else ""))
         else:
             if not isinstance(camera, int) or camera < 0:
                 raise ValueError(f"camera must be an index >= 0, got {camera!r}")
             self.name = f"camera {camera}"
-            self._cap = cv2.VideoCapture(camera)
-        if not self._cap.isOpened():
-            raise OSError(f"cannot open {self.name} with OpenCV")
+            with c_stderr_captured():               # OpenCV's and V4L2's log of each backend it tried
+                self._cap = cv2.VideoCapture(camera)
+            if not self._cap.isOpened():
+                raise OSError(f"cannot open camera {camera}: no such camera, or another program is using it")
         self.fps = float(self._cap.get(cv2.CAP_PROP_FPS) or 0.0)
         self.frame_count = int(self._cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
 
