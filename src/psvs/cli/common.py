@@ -58,6 +58,17 @@ def add_telemetry_arguments(parser) -> None:
     parser.add_argument("--mcap", metavar="FILE.mcap", help="record the same channels to an MCAP file")
 
 
+def check_telemetry_arguments(args) -> None:
+    """--mcap's path and --foxglove's address checked before any work (nothing is opened or bound)."""
+    check_output_path(args.mcap, (".mcap",))
+    if args.foxglove is not None:
+        from psvs.io.telemetry import parse_endpoint
+        try:
+            parse_endpoint(args.foxglove)
+        except ValueError as exc:
+            raise ValueError(f"--foxglove: {exc}") from None
+
+
 @contextmanager
 def open_telemetry(args, t0_ns: int | None = None):
     """The :class:`psvs.io.telemetry.Telemetry` the options ask for (None when neither), closed on exit: the
@@ -96,6 +107,31 @@ def check_output_path(path: str | None, suffixes: tuple[str, ...]) -> Path | Non
     if not os.access(p.parent, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
         raise PermissionError(f"cannot write {p}: permission denied")
     return p
+
+
+def check_distinct(outputs: dict, inputs: dict | None = None) -> None:
+    """ValueError when two outputs name one file (the second would silently replace the first) or an output
+    names one of the inputs (it would be overwritten by what was computed from it). ``outputs`` and
+    ``inputs`` map an option's name (as the user typed it, e.g. ``"--rig-out"``) to its path or None; a rig
+    given by a shipped name stands for its file."""
+    from psvs.io.params import rig_path
+    seen: dict[Path, str] = {}
+    for option, path in outputs.items():
+        if path is None:
+            continue
+        key = Path(path).resolve()
+        if key in seen:
+            raise ValueError(f"{seen[key]} and {option} name the same file {path}: give each its own")
+        seen[key] = option
+    for option, path in (inputs or {}).items():
+        if path is None:
+            continue
+        try:
+            key = (rig_path(path) if option.endswith("rig") else Path(path)).resolve()
+        except FileNotFoundError:
+            continue             # a missing input is reported where it is read
+        if key in seen:
+            raise ValueError(f"{seen[key]} names the input {option} ({path}): it would be overwritten")
 
 
 def check_output_folder(path: str, option: str = "output folder") -> Path:

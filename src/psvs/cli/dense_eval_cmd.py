@@ -6,6 +6,7 @@ from pathlib import Path
 import numpy as np
 
 from psvs._memory import check_memory
+from psvs.cli.common import check_distinct, check_output_folder
 from psvs.dense.evaluate import evaluate_pair, motorcycle
 from psvs.dense.report import scores_markdown, write_report
 from psvs.io.images import read_grey, read_image
@@ -56,8 +57,8 @@ def run(args) -> int:
     own = [args.left, args.right, args.truth]
     if any(own) and not all(own):
         raise ValueError("--left, --right and --truth go together")
-    if args.output is not None and not Path(args.output).is_dir():
-        raise FileNotFoundError(f"output folder does not exist: {args.output}")
+    out = None if args.output is None else check_output_folder(args.output)
+    check_distinct({"-o": args.output}, {"--left": args.left, "--right": args.right, "--truth": args.truth})
     if all(own):
         left, right, gt = read_grey(args.left), read_grey(args.right), _truth(args.truth)
         title = f"{Path(args.left).name} + {Path(args.right).name}"
@@ -69,7 +70,8 @@ def run(args) -> int:
     ev = evaluate_pair(left, right, gt, args.min_disparity, args.max_disparity, args.split)
     print(scores_markdown(ev, f"{title}, split {args.split}, disparities "
                               f"{args.min_disparity:g}..{args.max_disparity:g}"))
-    if args.output:
-        for p in write_report(args.output, ev, title, args.max_disparity):
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
+        for p in write_report(out, ev, title, args.max_disparity):
             print(f"wrote {p}")
     return 0

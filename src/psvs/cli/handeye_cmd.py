@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from psvs.cli.common import add_rig_argument, check_output_folder, check_output_path, rig_from_args
+from psvs.cli.common import add_rig_argument, check_distinct, check_output_folder, check_output_path, rig_from_args
 
 
 def add_parser(sub) -> None:
@@ -43,6 +43,8 @@ def run(args) -> int:
     if args.views is not None and (args.true_rig or args.save_views):
         raise ValueError("--true-rig and --save-views are for the simulated cell, not a views folder")
     save = check_output_folder(args.save_views, "--save-views folder") if args.save_views else None
+    check_distinct({"-o": args.output, "--save-views": args.save_views},
+                   {"VIEWS_DIR": args.views, "--rig": args.rig, "--true-rig": args.true_rig})
     rig = rig_from_args(args)
     truth = None
     if args.views is not None:

@@ -12,7 +12,9 @@ from psvs.cli.common import (
     add_range_arguments,
     add_rig_argument,
     add_telemetry_arguments,
+    check_distinct,
     check_output_path,
+    check_telemetry_arguments,
     open_telemetry,
     parse_seed,
     pipeline_from_args,
@@ -107,6 +109,9 @@ def _loop(args, source, tel, tracker, dense) -> tuple[list, list, float]:
 
 def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
+    check_telemetry_arguments(args)
+    check_distinct({"-o": args.output, "--mcap": args.mcap}, {"--video": args.video, "--rig": args.rig,
+                                                             "--pipeline": args.pipeline})
     tracker, dense = _sensors(args)
     with VideoSource(video=args.video, camera=args.camera) as source, open_telemetry(args) as tel:
         steps, dense_frames, wall = _loop(args, source, tel, tracker, dense)

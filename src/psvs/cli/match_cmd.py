@@ -8,6 +8,7 @@ from psvs.cli.common import (
     add_pipeline_argument,
     add_range_arguments,
     add_rig_argument,
+    check_distinct,
     check_output_path,
     parse_seed,
     pipeline_from_args,
@@ -47,6 +48,8 @@ def run(args) -> int:
     out = check_output_path(args.output, (".json",))
     csv_path = check_output_path(args.csv, (".csv",))
     ply_path = check_output_path(args.ply, (".ply",))
+    check_distinct({"-o": args.output, "--csv": args.csv, "--ply": args.ply},
+                   {"IMAGE": args.image, "--rig": args.rig, "--pipeline": args.pipeline})
     if args.figures is not None:
         from pathlib import Path
         if not Path(args.figures).is_dir():
@@ -59,7 +62,7 @@ def run(args) -> int:
         raise ValueError(f"--n-seeds must be 2-100, got {args.n_seeds}")
     rig = rig_from_args(args)
     pipeline = pipeline_from_args(args)
-    image = read_grey(args.image)
+    image = read_grey(args.image, expect_size=rig.camera.image_size_px)
     seeds = {} if args.n_seeds is None else {"n_seeds": args.n_seeds}   # else MatchParams' default
     params = MatchParams(subpixel=not args.no_subpixel, model=args.model, **seeds)
     res = match_image(image, rig, seed_px=seed, pipeline=pipeline, near_mm=near_mm, far_mm=far_mm,
