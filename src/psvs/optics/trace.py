@@ -7,6 +7,7 @@ mirror or plate face is vignetted: its row stays computed but ``valid`` is False
 """
 from __future__ import annotations
 
+import threading
 from collections import OrderedDict
 from typing import NamedTuple
 
@@ -97,6 +98,7 @@ def ideal_sensor_from_pixels(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
 #: the same few hundred field pixels of one camera through up to a thousand trial layouts, and undoing a
 #: strong lens's distortion is most of a layout's cost.
 _DIRS_CACHE: OrderedDict = OrderedDict()
+_DIRS_LOCK = threading.Lock()
 _DIRS_CACHE_SIZE, _DIRS_CACHE_MAX_PX = 16, 1024
 
 
@@ -105,9 +107,12 @@ def camera_dirs(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
     when N is small: such calls are remembered)."""
     uv = np.ascontiguousarray(uv_px, dtype=np.float64)
     key = (camera, uv.shape, uv.tobytes()) if len(uv) <= _DIRS_CACHE_MAX_PX else None
-    if key is not None and key in _DIRS_CACHE:
-        _DIRS_CACHE.move_to_end(key)
-        return _DIRS_CACHE[key]
+    if key is not None:
+        with _DIRS_LOCK:   # the web app traces from several threads
+            d = _DIRS_CACHE.get(key)
+            if d is not None:
+                _DIRS_CACHE.move_to_end(key)
+                return d
     xy = ideal_sensor_from_pixels(uv, camera)
     d = np.empty((len(xy), 3))
     d[:, :2] = xy
@@ -115,9 +120,10 @@ def camera_dirs(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     if key is not None:
         d.setflags(write=False)
-        _DIRS_CACHE[key] = d
-        if len(_DIRS_CACHE) > _DIRS_CACHE_SIZE:
-            _DIRS_CACHE.popitem(last=False)
+        with _DIRS_LOCK:
+            _DIRS_CACHE[key] = d
+            if len(_DIRS_CACHE) > _DIRS_CACHE_SIZE:
+                _DIRS_CACHE.popitem(last=False)
     return d
 
 
