@@ -117,10 +117,13 @@ def test_dense_eval_on_own_pair(capsys, tmp_path, planted):
 
 @pytest.mark.parametrize("extra, message", [
     (["--left", "a.png"], "go together"),
-    (["-o", "no/such/dir"], "does not exist"),
+    (["-o", "afile"], "is a file"),
 ])
-def test_dense_eval_bad_input(capsys, extra, message):
+def test_dense_eval_bad_input(capsys, extra, message, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "afile").write_text("keep")
     code, _, err = run(capsys, "dense-eval", *extra)
+    assert (tmp_path / "afile").read_text() == "keep"
     assert code == 2 and message in err
 
 

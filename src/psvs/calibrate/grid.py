@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from psvs.calibrate.targets import dark_blobs, refine_circle
+from psvs.calibrate.targets import MAX_DIAMETER_PX, dark_blobs, refine_circle
 
 #: A disc whose surroundings vary more than this (share of its contrast) is not trusted for calibration.
 MAX_BACKGROUND_SPREAD = 0.25
@@ -73,7 +73,7 @@ def _pair_orders(left: np.ndarray, right: np.ndarray, rows: int, cols: int) -> n
     return turns[int(np.argmin(spread))].reshape(-1, 2)
 
 
-def detect_grid(grey: np.ndarray, rows: int, cols: int, max_diameter_px: int = 40) -> GridDetection:
+def detect_grid(grey: np.ndarray, rows: int, cols: int, max_diameter_px: int = MAX_DIAMETER_PX) -> GridDetection:
     """Both views of a ``rows`` x ``cols`` circle grid; ValueError naming the problem when it is not there."""
     n = rows * cols
     blobs = dark_blobs(grey, max_diameter_px)

@@ -7,10 +7,12 @@ optics (:func:`psvs.simulate.render.render`), so a misaligned build gives the im
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
+from psvs.calibrate.targets import MAX_DIAMETER_PX, MIN_AREA_PX
 from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import Rig
 from psvs.simulate.scene import Pose, Scene, SceneObject
@@ -32,11 +34,43 @@ def card_size_mm(grid: CircleGrid) -> tuple[float, float]:
     return (grid.cols + 1) * grid.spacing_mm, (grid.rows + 1) * grid.spacing_mm
 
 
+def check_card_fits(rig: Rig, grid: CircleGrid, n: int, z_range_mm=(450.0, 1000.0), tilt_deg: float = 25.0,
+                    margin_px: float = 12.0) -> None:
+    """ValueError, before any pose is tried, when no pose of :func:`random_poses` could show the grid: too
+    wide or too high for the views at the nearest of the ``n`` depth strata (both copies of the grid side by
+    side in the image, ``margin_px`` inside it, and apart by two disc diameters; the tilt foreshortening
+    it by at most cos ``tilt_deg``), or discs outside what the detector finds (psvs.calibrate.targets:
+    :data:`MIN_AREA_PX` at the farthest poses, :data:`MAX_DIAMETER_PX` at the nearest). Each view is the
+    rig's pinhole at its virtual centre; the test is lenient, so a grid it passes may still find no pose."""
+    cam, b, zv = rig.camera, rig.mirrors.baseline_mm, rig.virtual_z_mm
+    (w, h), (px, py), f = cam.image_size_px, cam.pixel_pitch_mm, cam.focal_length_mm
+    z0, z1 = z_range_mm
+    near, far = z0 + (z1 - z0) / n, z1 - (z1 - z0) / n     # the nearest stratum's far end, the farthest's near end
+    d, cos_t = grid.diameter_mm, math.cos(math.radians(tilt_deg))
+    size = ((grid.cols - 1) * grid.spacing_mm + d, (grid.rows - 1) * grid.spacing_mm + d)
+    most = (min(b - 2 * d, (w - 1 - 2 * margin_px) * px * (near - zv) / f - b - d) / cos_t,
+            ((h - 1 - 2 * margin_px) * py * (near - zv) / f - d) / cos_t)
+    if size[0] > most[0] or size[1] > most[1]:
+        raise ValueError(f"the grid of discs is {size[0]:g} x {size[1]:g} mm ({grid.cols} x {grid.rows} discs "
+                         f"{grid.spacing_mm:g} mm apart, {d:g} mm across); this rig's views hold at most "
+                         f"{max(most[0], 0):.0f} x {max(most[1], 0):.0f} mm of it at {z0:g}-{near:.0f} mm, the "
+                         f"nearest of the {n} poses (both copies of the grid side by side, apart)")
+    smallest, largest = 2 * math.sqrt(MIN_AREA_PX / math.pi), MAX_DIAMETER_PX
+    at_far, at_near = d * f / (px * (far - zv)), d * f / (px * (near - zv))
+    if at_far < smallest or at_near > largest:
+        where = (f"{at_far:.2g} px across at {far:.0f}-{z1:g} mm, the farthest poses" if at_far < smallest else
+                 f"{at_near:.3g} px across at {z0:g}-{near:.0f} mm, the nearest poses")
+        raise ValueError(f"the discs ({d:g} mm) are {where}, through this rig; the detector finds discs "
+                         f"{smallest:.1f}-{largest} px across: none of the {grid.cols * grid.rows} would be found")
+
+
 def random_poses(rig: Rig, grid: CircleGrid, n: int, seed: int = 0, z_range_mm=(450.0, 1000.0),
                  tilt_deg: float = 25.0, margin_px: float = 12.0, max_tries: int = 2000) -> list[Pose]:
     """``n`` card poses spread over the depth range (stratified), tilted up to ``tilt_deg`` about X and Y,
     turned up to 8 deg about Z, with every disc seen in both views ``margin_px`` inside the image and the
-    two copies of the grid apart (no disc of one view within two diameters of the other view's grid)."""
+    two copies of the grid apart (no disc of one view within two diameters of the other view's grid).
+    A grid no pose could show is refused first (:func:`check_card_fits`)."""
+    check_card_fits(rig, grid, n, z_range_mm, tilt_deg, margin_px)
     rng = np.random.default_rng(seed)
     local = np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
     r_disc = grid.diameter_mm / 2

@@ -19,12 +19,12 @@ import numpy as np
 from psvs.calibrate.bundle import BundleResult, bundle_adjust
 from psvs.calibrate.measure import PatternMeasurement, measure_pattern
 from psvs.calibrate.sweep import calibrate_sweep
-from psvs.calibrate.targets import detect_pattern
+from psvs.calibrate.targets import MAX_DIAMETER_PX, MIN_AREA_PX, detect_pattern
 from psvs.io.atomic import write_atomic
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
-from psvs.simulate.textures import CircleGrid
+from psvs.simulate.textures import CircleGrid, Circles
 
 #: Table I of the paper: Z meas., Z calc., d calc., a calc. (mm); d meas. = 10, a meas. = 80.
 PAPER_TABLE1 = np.array([
@@ -38,6 +38,37 @@ HOLDER = dict(tilt_x_deg=2.0, tilt_y_deg=-3.0, x_mm=6.0, y_mm=-4.0)   # the patt
 ROBOT_OFFSET_MM = -312.7                                              # robot reading = Z - offset
 CARD = CircleGrid(4, 6, 14.0, 7.0)                                    # the hand-held card (docs/calibration.md)
 CARD_VIEWS = 18
+PATTERN = Circles()                                                   # Fig. 9's row of circles (builtin fig9)
+SUPERSAMPLE = 2                                                       # of every render (render's default)
+
+
+def pattern_depths_mm(rig: Rig, margin_px: float = 12.0) -> tuple[float, float]:
+    """The depths (mm) at which :func:`pattern_image` shows the pattern so that
+    :func:`~psvs.calibrate.targets.detect_pattern` can find it through ``rig``: both copies of its row of
+    circles ``margin_px`` inside the image, each circle :data:`~psvs.calibrate.targets.MIN_AREA_PX` to
+    :data:`~psvs.calibrate.targets.MAX_DIAMETER_PX` across (each view the rig's pinhole at its virtual
+    centre; lenient: the holder's small turn and offset are left out). Empty (lo > hi) when no depth is.
+    ValueError when the pattern is wider than the baseline: its two copies then overlap at every depth."""
+    cam, b, zv = rig.camera, rig.mirrors.baseline_mm, rig.virtual_z_mm
+    (w, _), px, f = cam.image_size_px, cam.pixel_pitch_mm[0], cam.focal_length_mm
+    d, width = PATTERN.diameter_mm, (PATTERN.count - 1) * PATTERN.spacing_mm + PATTERN.diameter_mm
+    if width >= b:
+        raise ValueError(f"the Fig. 9 pattern ({width:g} mm wide) is wider than this rig's baseline ({b:g} mm): "
+                         f"its two copies overlap at every depth")
+    smallest = 2 * np.sqrt(MIN_AREA_PX / np.pi)
+    lo = zv + max((width + b) * f / (px * max(w - 1 - 2 * margin_px, 1e-9)), d * f / (MAX_DIAMETER_PX * px))
+    return float(lo), float(zv + d * f / (smallest * px))
+
+
+def check_pattern_depths(rig: Rig, near_mm: float, far_mm: float, what: str) -> None:
+    """ValueError naming ``what`` (the depths the user asked for) unless ``near_mm``..``far_mm`` lie within
+    :func:`pattern_depths_mm`: the pattern would not be found in some image."""
+    lo, hi = pattern_depths_mm(rig)
+    if not lo <= near_mm <= far_mm <= hi:
+        where = f"lie outside {lo:.0f}-{hi:.0f} mm, where" if lo <= hi else "are no use: at no depth"
+        raise ValueError(f"{what} {near_mm:g}-{far_mm:g} mm {where} this rig shows the Fig. 9 pattern so that it "
+                         f"is found (both copies of its row of circles in the image, each circle "
+                         f"{2 * np.sqrt(MIN_AREA_PX / np.pi):.1f}-{MAX_DIAMETER_PX} px across)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,7 +96,7 @@ class Table1:
 def pattern_image(rig: Rig, z: float, seed: int) -> np.ndarray:
     """The Fig. 9 pattern on the robot's holder (:data:`HOLDER`) at depth ``z`` mm, rendered through ``rig``."""
     spec = ",".join(f"{k}={v}" for k, v in HOLDER.items())
-    return render(builtin_scene(f"fig9:distance_mm={z},{spec}"), rig, seed=seed).image
+    return render(builtin_scene(f"fig9:distance_mm={z},{spec}"), rig, seed=seed, supersample=SUPERSAMPLE).image
 
 
 def rough_start(rig: Rig) -> Rig:
@@ -78,14 +109,30 @@ def rough_start(rig: Rig) -> Rig:
     return rough.with_errors({name: MirrorError() for name in MIRROR_NAMES})
 
 
+def check_table1(true_rig: Rig, method: str = "sweep") -> int:
+    """The number of renders :func:`run_table1` makes through ``true_rig``, after checking, before any of
+    them, that the pattern is found at every depth (:func:`check_pattern_depths`), that the card fits the
+    views (``method='grid'``: :func:`~psvs.calibrate.synthetic.check_card_fits`) and that the renders fit
+    in memory and time (:func:`~psvs.simulate.render.check_render_work`)."""
+    from psvs.calibrate.synthetic import check_card_fits
+    from psvs.simulate.render import check_render_work
+    if method not in ("sweep", "grid"):
+        raise ValueError(f"method must be 'sweep' or 'grid', got {method!r}")
+    depths = np.concatenate([SWEEP_Z_MM if method == "sweep" else [], PAPER_TABLE1[:, 0]])
+    check_pattern_depths(true_rig, float(depths.min()), float(depths.max()), "Table I's depths")
+    if method == "grid":
+        check_card_fits(true_rig, CARD, CARD_VIEWS)
+    n = (len(SWEEP_Z_MM) if method == "sweep" else CARD_VIEWS) + len(PAPER_TABLE1)
+    check_render_work(true_rig, SUPERSAMPLE, n, f"Table I's {n} renders", "a rig with a smaller camera")
+    return n
+
+
 def run_table1(true_rig: Rig, progress=None, start: Rig | None = None, method: str = "sweep") -> Table1:
     """Render the calibration images and the test images through ``true_rig``, calibrate from ``start``
     (default :func:`rough_start`) by the robot sweep (``method='sweep'``) or hand-held card views
-    (``'grid'``), and measure the 15 test distances."""
-    if method not in ("sweep", "grid"):
-        raise ValueError(f"method must be 'sweep' or 'grid', got {method!r}")
-    n_cal = len(SWEEP_Z_MM) if method == "sweep" else CARD_VIEWS
-    total = n_cal + len(PAPER_TABLE1)
+    (``'grid'``), and measure the 15 test distances. What cannot be done is refused first
+    (:func:`check_table1`)."""
+    total = check_table1(true_rig, method)
     step = 0
 
     def tick(what):

@@ -58,7 +58,13 @@ class PatternDetection:
     right: list[Ellipse]
 
 
-def dark_blobs(grey: np.ndarray, max_diameter_px: int = 40, min_area_px: float = 12.0):
+#: The discs the detector finds: at most this wide (its black-hat kernel) and at least this large in area
+#: (smaller blobs are noise), px: a disc whose image lies outside is never detected.
+MAX_DIAMETER_PX = 40
+MIN_AREA_PX = 12.0
+
+
+def dark_blobs(grey: np.ndarray, max_diameter_px: int = MAX_DIAMETER_PX, min_area_px: float = MIN_AREA_PX):
     """Candidate dark round blobs: list of (centre (2,), equivalent radius px)."""
     k = 2 * (max_diameter_px // 2) + 3
     kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (k, k))
@@ -158,7 +164,7 @@ def _radial_residual(e: Ellipse, pts: np.ndarray) -> np.ndarray:
     return (np.hypot(x, y) - 1) * np.mean(e.axes_px)
 
 
-def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = 40) -> PatternDetection:
+def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_DIAMETER_PX) -> PatternDetection:
     """Find the pattern's ``count`` circles in both views of a complex image.
 
     Raises ValueError naming the problem: blank image, wrong number of circles, circles not on one row.

@@ -3,6 +3,9 @@ from __future__ import annotations
 
 from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
 
+#: Samples per pixel side of each view (render_grid_shots' default).
+RENDER_SUPERSAMPLE = 2
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser("card-views", help="render hand-held card views through a rig, for psvs calibrate",
@@ -22,10 +25,11 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    from psvs.calibrate.synthetic import random_poses, render_grid_shots
+    from psvs.calibrate.synthetic import check_card_fits, random_poses, render_grid_shots
     from psvs.calibrate.target_file import dumps_target
     from psvs.io.atomic import write_atomic
     from psvs.io.images import write_png
+    from psvs.simulate.render import check_render_work
     from psvs.simulate.textures import CircleGrid
 
     if not 3 <= args.views <= 60:
@@ -38,7 +42,14 @@ def run(args) -> int:
     except ValueError as exc:
         raise ValueError(f"card: {str(exc).replace('_mm', '-mm')}") from None
     rig = rig_from_args(args)
-    shots = render_grid_shots(rig, card, random_poses(rig, card, args.views, seed=args.seed), seed=args.seed)
+    try:   # before any pose is tried: a card no pose shows would be searched for 2000 times a view
+        check_card_fits(rig, card, args.views)
+    except ValueError as exc:
+        raise ValueError(f"card (--rows {args.rows} --cols {args.cols} --spacing-mm {args.spacing_mm:g} "
+                         f"--diameter-mm {args.diameter_mm:g}): {exc}") from None
+    check_render_work(rig, RENDER_SUPERSAMPLE, args.views, f"--views {args.views}", "fewer --views")
+    shots = render_grid_shots(rig, card, random_poses(rig, card, args.views, seed=args.seed), seed=args.seed,
+                              supersample=RENDER_SUPERSAMPLE)
     folder.mkdir(parents=True, exist_ok=True)
     for k, shot in enumerate(shots):
         write_png(folder / f"card_{k:02d}.png", shot.image)

@@ -5,8 +5,8 @@ import json
 import math
 
 from psvs.cli.common import add_range_arguments, add_rig_argument, check_output_path, range_from_args, rig_from_args
-from psvs.io.atomic import write_atomic
-from psvs.io.params import rig_to_dict, save_rig
+from psvs.io.atomic import output_batch, write_atomic
+from psvs.io.params import dumps_rig, rig_to_dict
 from psvs.io.tomlfile import dumps_toml
 from psvs.measure.tolerance import Sensitivity, tolerance_analysis
 from psvs.optics.design import MirrorDesign, design_mirrors
@@ -46,6 +46,8 @@ def design_to_dict(d: MirrorDesign) -> dict:
     if d.suggestion_mm is not None:
         out["checks"]["suggested_m1_axis_distance_mm"] = d.suggestion_mm[0]
         out["checks"]["suggested_m2_axis_distance_mm"] = d.suggestion_mm[1]
+    if d.search_note:
+        out["checks"]["search_note"] = d.search_note
     if d.working_range is not None:
         wr = d.working_range
         out["working_range"] = {
@@ -112,6 +114,8 @@ def format_design(d: MirrorDesign) -> str:
     if d.suggestion_mm is not None:
         lines.append(f"  Suggestion: m1_axis_distance_mm = {d.suggestion_mm[0]:.2f}, "
                      f"m2_axis_distance_mm = {d.suggestion_mm[1]:.2f}")
+    if d.search_note:
+        lines.append(f"  Note: {d.search_note}")
     if d.working_range is not None:
         wr = d.working_range
         lines += ["", f"Working range {wr.near_mm:g}-{wr.far_mm:g} mm: disparity {wr.disparity_px[0]:.1f}-"
@@ -136,11 +140,15 @@ def run(args) -> int:
     tol = tolerance_analysis(d.rig, args.near_mm, args.far_mm) if args.tolerance else None
     if tol is not None:
         print(format_tolerance(tol, args.near_mm, args.far_mm))
-    if out is not None:
-        data = design_to_dict(d)
-        if tol is not None:
-            data["tolerance"] = tolerance_to_dict(tol)
-        write_atomic(out, json.dumps(data, indent=2) + "\n" if out.suffix.lower() == ".json" else dumps_toml(data))
-    if rig_out is not None:
-        save_rig(d.rig, rig_out)
+    # the designed rig's file first: a design outside the rig bounds (e.g. a mirror metres long) is refused
+    # before either file is written
+    rig_text = None if rig_out is None else dumps_rig(d.rig, "json" if rig_out.suffix.lower() == ".json" else "toml")
+    with output_batch():
+        if out is not None:
+            data = design_to_dict(d)
+            if tol is not None:
+                data["tolerance"] = tolerance_to_dict(tol)
+            write_atomic(out, json.dumps(data, indent=2) + "\n" if out.suffix.lower() == ".json" else dumps_toml(data))
+        if rig_text is not None:
+            write_atomic(rig_out, rig_text)
     return 0 if d.ok else 1

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from psvs._memory import check_memory
 from psvs.cli.common import add_rig_argument, check_distinct, check_output_folder, check_output_path, rig_from_args
 
 
@@ -30,13 +31,25 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+def _check_cell_work(views: int, rig, supersample: int) -> None:
+    """--views-count: at least 3, and its renders (and the images, all held until the calibration) within
+    the time and memory limits, before any is rendered."""
+    from psvs.simulate.render import check_render_work
+    if views < 3:
+        raise ValueError(f"--views-count must be at least 3 (the hand-eye session needs them), got {views}")
+    check_render_work(rig, supersample, views, f"--views-count {views}", "fewer --views-count")
+    w, h = rig.camera.image_size_px
+    check_memory(views * w * h, f"--views-count {views} ({views} images of {w}x{h} px held at once)",
+                 "fewer --views-count")
+
+
 def run(args) -> int:
     from psvs.io.params import load_rig
     from psvs.robot.arm import Arm
     from psvs.robot.controller import TrackConfig
     from psvs.robot.handeye import calibrate_from_views
     from psvs.robot.handeye_io import read_views, save_handeye, write_views
-    from psvs.robot.handeye_session import CELL_GRID, cell_views, true_cam2flange
+    from psvs.robot.handeye_session import CELL_GRID, CELL_SUPERSAMPLE, cell_views, true_cam2flange
     from psvs.robot.mounting import HOME_Q
 
     out = check_output_path(args.output, (".toml",))
@@ -52,6 +65,7 @@ def run(args) -> int:
         source = str(Path(args.views))
     else:
         true_rig = load_rig(args.true_rig) if args.true_rig else None
+        _check_cell_work(args.views_count, true_rig or rig, CELL_SUPERSAMPLE)
         cfg = TrackConfig()
         images, flanges = cell_views(true_rig or rig, cfg, Arm(HOME_Q), args.views_count)
         grid, source, truth = CELL_GRID, "simulated cell", true_cam2flange(cfg)

@@ -6,6 +6,7 @@ import time
 
 import numpy as np
 
+from psvs._memory import check_memory
 from psvs.cli.common import (
     add_model_argument,
     add_pipeline_argument,
@@ -90,7 +91,7 @@ def _loop(args, source, tel, tracker, dense) -> tuple[list, list, float]:
             step = tracker.step(frame) if tracker is not None else None
             dstep = dense.step(frame) if dense is not None else None
             steps.append(step)
-            dense_frames.append(dstep)
+            dense_frames.append(dstep.brief() if dstep is not None else None)   # the log keeps no maps
             if tel is not None:   # a video's frames at its own rate; a camera's at their arrival
                 t_s = k * period if period is not None else arrived_s
                 tel.image(t_s, frame)
@@ -107,16 +108,34 @@ def _loop(args, source, tel, tracker, dense) -> tuple[list, list, float]:
     return steps, dense_frames, time.perf_counter() - t0
 
 
+#: What a run keeps of each frame for its log and summary, bytes: the tracked edge's pair (up to ~500 pixel
+#: pairs with their points) and the dense frame's numbers, rounded up.
+KEPT_BYTES_PER_FRAME = 32 * 1024
+
+
+def _check_frames(args, source) -> None:
+    """ValueError, before any frame is read, when the frames the run would keep (--max-frames, or a video's
+    own count when smaller) do not fit in memory. A camera without --max-frames runs until Ctrl-C."""
+    counts = [n for n in (args.max_frames, source.frame_count if args.video else 0) if n is not None and n > 0]
+    if counts:
+        n = min(counts)
+        what = f"--max-frames {args.max_frames}" if n == args.max_frames else f"{source.name}'s {n} frames"
+        check_memory(n * KEPT_BYTES_PER_FRAME, f"{what} ({KEPT_BYTES_PER_FRAME // 1024} KiB kept a frame for "
+                     "the log)", "fewer --max-frames")
+
+
 def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
     check_telemetry_arguments(args)
     check_distinct({"-o": args.output, "--mcap": args.mcap}, {"--video": args.video, "--rig": args.rig,
                                                              "--pipeline": args.pipeline})
     tracker, dense = _sensors(args)
-    with VideoSource(video=args.video, camera=args.camera) as source, open_telemetry(args) as tel:
-        steps, dense_frames, wall = _loop(args, source, tel, tracker, dense)
-        if not steps:               # inside: a recording of nothing is discarded, not kept
-            raise ValueError(f"no frame could be read from {source.name}")
+    with VideoSource(video=args.video, camera=args.camera) as source:
+        _check_frames(args, source)
+        with open_telemetry(args) as tel:
+            steps, dense_frames, wall = _loop(args, source, tel, tracker, dense)
+            if not steps:               # inside: a recording of nothing is discarded, not kept
+                raise ValueError(f"no frame could be read from {source.name}")
     if out:
         write_log(out, steps, dense_frames if dense is not None else None)
     return _summary(steps, dense_frames if dense is not None else None, wall, args.realtime)

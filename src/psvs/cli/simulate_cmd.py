@@ -9,8 +9,8 @@ from psvs.cli.common import add_rig_argument, check_output_path, load_scene_spec
 from psvs.io.images import write_npz, write_png
 from psvs.io.video import VIDEO_SUFFIXES, write_video
 from psvs.simulate.builtin import describe
-from psvs.simulate.render import check_supersample, render
-from psvs.simulate.sensor import Sensor
+from psvs.simulate.render import check_render_work, check_supersample, render
+from psvs.simulate.sensor import MAX_BLUR_PX, Sensor
 from psvs.simulate.sequence import render_sequence, straight_path
 
 
@@ -77,10 +77,14 @@ def run(args) -> int:
     move = _move(args.move_mm)
     if args.seed is not None and args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
+    if not args.blur_px <= MAX_BLUR_PX:
+        raise ValueError(f"--blur-px must be at most {MAX_BLUR_PX:g} px (a lens's blur), got {args.blur_px}")
     sensor = Sensor(args.blur_px, args.full_well_e, args.read_noise_e, args.gain, not args.no_shot_noise)
     rig = rig_from_args(args)
-    scene = load_scene_spec(args.scene)
     check_supersample(rig, args.supersample, "--supersample")
+    check_render_work(rig, args.supersample, args.frames, f"--frames {args.frames} x --supersample {args.supersample}",
+                      "fewer --frames or a smaller --supersample", truth=truth_path is not None)
+    scene = load_scene_spec(args.scene)
     if args.frames == 1 and not video:
         results = [render(scene, rig, supersample=args.supersample, sensor=sensor, seed=args.seed,
                           truth=truth_path is not None)]

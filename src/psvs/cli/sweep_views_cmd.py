@@ -25,9 +25,10 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from psvs.calibrate.sweep import dumps_sweep
-    from psvs.calibrate.table1 import ROBOT_OFFSET_MM, pattern_image
+    from psvs.calibrate.table1 import ROBOT_OFFSET_MM, SUPERSAMPLE, check_pattern_depths, pattern_image
     from psvs.io.atomic import write_atomic
     from psvs.io.images import write_png
+    from psvs.simulate.render import check_render_work
 
     for name in ("from_mm", "to_mm", "step_mm"):
         v = getattr(args, name)
@@ -35,13 +36,16 @@ def run(args) -> int:
             raise ValueError(f"--{name.replace('_', '-')} must be a finite number > 0 mm, got {v}")
     if args.to_mm < args.from_mm:
         raise ValueError(f"--to-mm ({args.to_mm} mm) must not be less than --from-mm ({args.from_mm} mm)")
+    n = math.ceil((args.to_mm + 1e-9 - args.from_mm) / args.step_mm)   # np.arange's count, before any array
+    if not 3 <= n <= 60:
+        raise ValueError(f"the sweep has {n} positions; give 3-60 (--from-mm, --to-mm, --step-mm)")
     depths = np.arange(args.from_mm, args.to_mm + 1e-9, args.step_mm)
-    if not 3 <= len(depths) <= 60:
-        raise ValueError(f"the sweep has {len(depths)} positions; give 3-60 (--from-mm, --to-mm, --step-mm)")
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
     folder = check_output_folder(args.folder)
     rig = rig_from_args(args)
+    check_pattern_depths(rig, float(depths[0]), float(depths[-1]), "--from-mm/--to-mm: the sweep's depths")
+    check_render_work(rig, SUPERSAMPLE, n, f"the sweep's {n} positions", "fewer positions (a larger --step-mm)")
     images = [pattern_image(rig, float(z), args.seed + k) for k, z in enumerate(depths)]
     folder.mkdir(parents=True, exist_ok=True)
     rows = []

@@ -77,7 +77,35 @@ def _job(args):
     if true_rig is not None and true_rig.camera.image_size_px != rig.camera.image_size_px:
         raise ValueError(f"--true-rig's camera is {true_rig.camera.image_size_px} px but --rig's is "
                          f"{rig.camera.image_size_px} px: one camera")
-    return cfg, rig, true_rig, seam_workpiece(args.scene, cfg.camera_distance_mm)
+    if args.roi_rows > rig.camera.image_size_px[1]:
+        raise ValueError(f"--roi-rows must be at most the camera's {rig.camera.image_size_px[1]} rows, "
+                         f"got {args.roi_rows}")
+    wp = seam_workpiece(args.scene, cfg.camera_distance_mm)
+    _check_work(args, cfg, true_rig or rig, wp.params["length_mm"])
+    return cfg, rig, true_rig, wp
+
+
+def _check_work(args, cfg, rig, seam_mm: float) -> None:
+    """The run's renders and cycles within the time and memory limits, before the hand-eye session: the
+    session's views (unless --handeye), then every control cycle of welding --length (or the whole seam)."""
+    from psvs._work import check_time
+    from psvs.robot.cells import SimulationConfig
+    from psvs.robot.handeye_session import CELL_SUPERSAMPLE, CELL_VIEWS
+    from psvs.robot.loop import CYCLE_SECONDS, RUN_IN_OUT_MM, cycle_seconds, track_cycles
+    from psvs.simulate.render import check_render_work, render_seconds
+    setup_s = 0.0
+    if not args.handeye:
+        check_render_work(rig, CELL_SUPERSAMPLE, CELL_VIEWS, f"the hand-eye session's {CELL_VIEWS} views",
+                          "--handeye FILE (psvs handeye) skips them")
+        setup_s = render_seconds(rig, CELL_SUPERSAMPLE, CELL_VIEWS)
+    length = seam_mm if args.length is None else min(args.length, seam_mm)
+    cycles = track_cycles(length, cfg)
+    w, k = rig.camera.image_size_px[0], SimulationConfig().supersample
+    check_time(setup_s + cycles * cycle_seconds(rig, cfg),
+               f"--length/--speed/--rate: {cycles} control cycles ({length:g} mm of seam and {RUN_IN_OUT_MM:g} mm "
+               f"to start and stop at {args.speed:g} mm/s, {args.rate:g} Hz), each a {w}x{cfg.roi_rows} px window "
+               f"x {k * k} samples and {CYCLE_SECONDS * 1e3:g} ms of sensing,",
+               "a higher --speed, a lower --rate or a shorter --length")
 
 
 def run(args) -> int:

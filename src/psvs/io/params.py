@@ -20,6 +20,7 @@ import numpy as np
 from psvs.io.atomic import write_atomic
 from psvs.io.text import read_text
 from psvs.io.tomlfile import dumps_toml, load_toml, update_toml
+from psvs.optics.bounds import check_rig_bounds
 from psvs.optics.rig import MIRROR_NAMES, Calibration, Camera, MirrorError, MirrorExtent, Mirrors, Rig
 from psvs.rigs import SHIPPED, shipped_rig_path
 
@@ -101,7 +102,8 @@ def _deg_out(rad: float) -> float:
 
 
 def rig_from_dict(data: dict) -> Rig:
-    """Build a :class:`Rig` from the nested dict of a rig file (degrees converted to radians)."""
+    """Build a :class:`Rig` from the nested dict of a rig file (degrees converted to radians); a value
+    outside what real hardware has is refused (:mod:`psvs.optics.bounds`)."""
     if not isinstance(data, dict):
         raise ValueError(f"a rig file must hold tables [camera] and [mirrors], got {type(data).__name__}")
     unknown = sorted(set(data) - {"camera", "mirrors", "calibration"})
@@ -169,7 +171,9 @@ def rig_from_dict(data: dict) -> Rig:
                 tilt = _degrees_to_rad(_pair(tab.get("tilt_deg", [0.0, 0.0]), f"{where}.tilt_deg"), f"{where}.tilt_deg")
                 kwargs[f"{name}_error"] = _build(MirrorError, where, tilt_rad=tilt, shift_mm=tab.get("shift_mm", 0.0))
     mirrors = _build(Mirrors, "mirrors", **kwargs)
-    return Rig(camera, mirrors, calibration)
+    rig = Rig(camera, mirrors, calibration)
+    check_rig_bounds(rig, "distortion_k" if "distortion_k" in cam_t else "distortion")
+    return rig
 
 
 def _build(cls, where: str, **kwargs):
@@ -247,8 +251,10 @@ def dumps_rig(rig: Rig, fmt: str = "toml", template: str | None = None) -> str:
     TOML is that text with the rig's values in it: its comments, key order and layout stay wherever a value
     is unchanged, changed values are replaced in place (their comments kept), keys the rig no longer has
     are removed and new ones appended to their table (:func:`psvs.io.tomlfile.update_toml`). JSON has no
-    comments: ``template`` is ignored there.
+    comments: ``template`` is ignored there. A rig with a value outside :mod:`psvs.optics.bounds` is refused
+    (ValueError naming the key): psvs never writes a rig file it would not read back.
     """
+    check_rig_bounds(rig, memory=False)
     data = rig_to_dict(rig)
     if fmt == "json":
         return json.dumps(data, indent=2) + "\n"

@@ -8,7 +8,7 @@ a build; one pixel in 16 keeps the cloud's shape and its median depth at a fract
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -36,6 +36,13 @@ class DenseFrame:
     median_z_mm: float
     answered_pct: float
     elapsed_s: float
+
+    def brief(self) -> "DenseFrame":
+        """This frame without its map and cloud (empty arrays): what a run's log and summary keep of every
+        frame. A camera runs for as long as it is let, and the maps would fill the memory (1.2 MB a frame at
+        640x480: 4 GB an hour at 30 frames/s)."""
+        return replace(self, disparity_px=np.zeros((0, 0), np.float32), points_mm=np.zeros((0, 3)),
+                       pixels=np.zeros((0, 2)), depth_mm=np.zeros((0, 0)))
 
 
 class DenseSensor:

@@ -58,6 +58,7 @@ class MirrorDesign:
     working_range: WorkingRange | None
     m2_window_mm: tuple[float, float] | None = None    # clear c2 range for this c1 (see clear_m2_window)
     suggestion_mm: tuple[float, float] | None = None   # a clear (c1, c2) when this layout is not
+    search_note: str = ""                              # why the search stopped short ('' it did not)
 
     @property
     def ok(self) -> bool:
@@ -162,41 +163,85 @@ def design_mirrors(rig: Rig, *, margin_mm: float = 0.0, near_mm: float | None = 
     obstructions = tuple(find_obstructions(designed, pixels))
     collisions = tuple(find_collisions(designed))
     wr = working_range(rig, near_mm, far_mm) if near_mm is not None and far_mm is not None else None
-    window = clear_m2_window(rig, margin_mm) if search else None
-    blocked = bool(obstructions or collisions)
-    suggestion = suggest_layout(rig, margin_mm) if search and blocked else None
-    return MirrorDesign(designed, tuple(specs), obstructions, collisions, wr, window, suggestion)
+    window, suggestion, note = _search(rig, margin_mm, bool(obstructions or collisions)) if search else (None, None, "")
+    return MirrorDesign(designed, tuple(specs), obstructions, collisions, wr, window, suggestion, note)
 
 
-def _clear(rig: Rig, c1: float, c2: float, margin_mm: float, pixels: np.ndarray) -> bool:
+def _search(rig: Rig, margin_mm: float, blocked: bool):
+    """(the clear M2 range for the rig's c1, a clear (c1, c2) when the rig is blocked, why the search
+    stopped short or ''), within one :class:`SearchBudget`."""
+    budget = SearchBudget()
+    window = suggestion = None
+    try:
+        window = clear_m2_window(rig, margin_mm, budget=budget)
+        suggestion = suggest_layout(rig, margin_mm, budget=budget) if blocked else None
+    except SearchLimit as exc:
+        return window, None, str(exc)
+    return window, suggestion, ""
+
+
+#: The most trial layouts (c1, c2) one design's searches trace (:func:`clear_m2_window`, :func:`suggest_layout`):
+#: a layout costs 3-10 ms, so a search answers in a few seconds whatever the rig; when it has spent them all
+#: it stops and says so (:attr:`MirrorDesign.search_note`).
+SEARCH_LAYOUTS = 1000
+#: The most M2 positions one scan of c1 < c2 <= c1 + b tries: its step grows past ``step_mm`` on a wide rig.
+SCAN_POSITIONS = 200
+#: The most M1 positions :func:`suggest_layout` tries spread over its range before it bisects.
+C1_PROBES = 6
+
+
+class SearchLimit(Exception):
+    """A search has traced :data:`SEARCH_LAYOUTS` layouts (raised by :class:`SearchBudget`)."""
+
+
+class SearchBudget:
+    """Counts the trial layouts a search traces; :meth:`spend` raises :class:`SearchLimit` past ``layouts``."""
+
+    def __init__(self, layouts: int = SEARCH_LAYOUTS):
+        self.layouts, self.spent = int(layouts), 0
+
+    def spend(self) -> None:
+        if self.spent >= self.layouts:
+            raise SearchLimit(f"the search for a clear layout stopped after {self.layouts} trial layouts (its limit)")
+        self.spent += 1
+
+
+def _clear(rig: Rig, c1: float, c2: float, margin_mm: float, pixels: np.ndarray,
+           budget: SearchBudget | None = None) -> bool:
+    if budget is not None:
+        budget.spend()
     trial = rig.replace(m1_axis_distance_mm=c1, m2_axis_distance_mm=c2)
     trial = trial.with_extents(footprint_extents(trial, pixels, margin_mm))
     return not find_obstructions(trial, pixels) and not find_collisions(trial)
 
 
-def clear_m2_window(rig: Rig, margin_mm: float = 0.0, step_mm: float = 0.5,
-                    tol_mm: float = 0.01) -> tuple[float, float] | None:
+def clear_m2_window(rig: Rig, margin_mm: float = 0.0, step_mm: float = 0.5, tol_mm: float = 0.01,
+                    budget: SearchBudget | None = None, positions: int = SCAN_POSITIONS) -> tuple[float, float] | None:
     """The range of c2 (M2's axis distance, mm) for which no path is blocked and no parts collide.
 
     Too close, M2 cuts into the plate or the right beam; too far, M2 grows into the left view's
     outgoing beam (for 45 deg mirrors and no plate: c2 < b (1 - tan a)^2 / (4 tan a)). Scans
-    c1 < c2 <= c1 + b in ``step_mm`` steps for the first clear run, then bisects both ends to ``tol_mm``.
-    Returns None when no position is clear.
+    c1 < c2 <= c1 + b in ``step_mm`` steps (wider on a rig whose b needs more than ``positions`` of them)
+    up to the end of the first clear run, then bisects both ends to ``tol_mm``. Returns None when no
+    position is clear. ``budget`` counts the layouts traced (:class:`SearchBudget`).
     """
     pixels = field_pixels(rig.camera, per_side=33, interior=5)
     c1, b = rig.mirrors.m1_axis_distance_mm, rig.mirrors.baseline_mm
+    step = max(step_mm, b / positions)
 
     def clear(c2):
-        return _clear(rig, c1, c2, margin_mm, pixels)
+        return _clear(rig, c1, c2, margin_mm, pixels, budget)
 
-    grid = np.arange(c1 + step_mm, c1 + b + 1e-9, step_mm)
-    ok = [clear(c2) for c2 in grid]
-    if not any(ok):
+    grid = np.arange(c1 + step, c1 + b + 1e-9, step)
+    first = last = None
+    for k, c2 in enumerate(grid):
+        if clear(c2):
+            first = k if first is None else first
+            last = k
+        elif first is not None:
+            break
+    if first is None:
         return None
-    first = ok.index(True)
-    last = first
-    while last + 1 < len(ok) and ok[last + 1]:
-        last += 1
 
     def bisect(good, bad):
         while abs(good - bad) > tol_mm:
@@ -209,15 +254,45 @@ def clear_m2_window(rig: Rig, margin_mm: float = 0.0, step_mm: float = 0.5,
     return float(lo), float(hi)
 
 
-def suggest_layout(rig: Rig, margin_mm: float = 0.0, min_window_mm: float = 2.0,
-                   step_mm: float = 0.5) -> tuple[float, float] | None:
-    """A clear (c1, c2), mm: the largest M1 distance up to the rig's own whose M2 window is at least
-    ``min_window_mm`` wide, with M2 in the middle of that window. None when even c1 = 1 mm fails."""
-    c1 = rig.mirrors.m1_axis_distance_mm
-    while c1 >= 1.0:
-        trial = rig.replace(m1_axis_distance_mm=c1, m2_axis_distance_mm=c1 + rig.mirrors.baseline_mm)
-        window = clear_m2_window(trial, margin_mm)
-        if window is not None and window[1] - window[0] >= min_window_mm:
-            return float(c1), 0.5 * (window[0] + window[1])
-        c1 -= step_mm
-    return None
+def suggest_layout(rig: Rig, margin_mm: float = 0.0, min_window_mm: float = 2.0, step_mm: float = 0.5,
+                   budget: SearchBudget | None = None) -> tuple[float, float] | None:
+    """A clear (c1, c2), mm: the largest M1 distance up to the rig's own, on a ``step_mm`` grid, whose M2
+    window is at least ``min_window_mm`` wide, with M2 in the middle of that window. None when even
+    c1 = 1 mm fails.
+
+    The window narrows as M1 moves out (the plate nears M2), so the search tries :data:`C1_PROBES` M1
+    positions spread from the rig's own down to 1 mm and bisects between the last that fails and the first
+    that clears; each scan steps M2 by ``min_window_mm / 2`` (no wide enough window falls between two
+    steps; wider steps on a wide rig: at most half of :data:`SCAN_POSITIONS`).
+    ``budget`` counts the layouts traced (:class:`SearchBudget`).
+    """
+    c1_max = rig.mirrors.m1_axis_distance_mm
+    if c1_max < 1.0:
+        return None
+    grid = c1_max - step_mm * np.arange(int((c1_max - 1.0) / step_mm) + 1)   # descending, down to >= 1 mm
+    windows: dict[int, tuple[float, float] | None] = {}
+
+    def wide(i: int) -> bool:
+        if i not in windows:
+            c1 = float(grid[i])
+            trial = rig.replace(m1_axis_distance_mm=c1, m2_axis_distance_mm=c1 + rig.mirrors.baseline_mm)
+            w = clear_m2_window(trial, margin_mm, step_mm=max(step_mm, min_window_mm / 2), budget=budget,
+                                positions=SCAN_POSITIONS // 2)
+            windows[i] = w if w is not None and w[1] - w[0] >= min_window_mm else None
+        return windows[i] is not None
+
+    stride = max(1, math.ceil((len(grid) - 1) / max(1, C1_PROBES - 1)))
+    probes = sorted(set(range(0, len(grid), stride)) | {len(grid) - 1})
+    bad, good = -1, None                        # the last probe that fails (none yet), the first that clears
+    for i in probes:
+        if wide(i):
+            good = i
+            break
+        bad = i
+    if good is None:
+        return None
+    while good - bad > 1:
+        mid = (good + bad) // 2
+        good, bad = (mid, bad) if wide(mid) else (good, mid)
+    lo, hi = windows[good]
+    return float(grid[good]), 0.5 * (lo + hi)

@@ -7,6 +7,8 @@ mirror or plate face is vignetted: its row stays computed but ``valid`` is False
 """
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from typing import NamedTuple
 
 import numpy as np
@@ -92,13 +94,37 @@ def ideal_sensor_from_pixels(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
     return undistort(xy / f, camera.distortion) * f
 
 
+#: Few-pixel calls of :func:`camera_dirs` remembered (read-only results): the mirror design's searches trace
+#: the same few hundred field pixels of one camera through up to a thousand trial layouts, and undoing a
+#: strong lens's distortion is most of a layout's cost.
+_DIRS_CACHE: OrderedDict = OrderedDict()
+_DIRS_LOCK = threading.Lock()
+_DIRS_CACHE_SIZE, _DIRS_CACHE_MAX_PX = 16, 1024
+
+
 def camera_dirs(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
-    """Unit directions (N, 3) in frame C of the real camera's rays through pixels (N, 2) px."""
-    xy = ideal_sensor_from_pixels(uv_px, camera)
+    """Unit directions (N, 3) in frame C of the real camera's rays through pixels (N, 2) px (read-only
+    when N is small: such calls are remembered)."""
+    uv = np.ascontiguousarray(uv_px, dtype=np.float64)
+    key = (camera, uv.shape, uv.tobytes()) if len(uv) <= _DIRS_CACHE_MAX_PX else None
+    if key is not None:
+        with _DIRS_LOCK:   # the web app traces from several threads
+            d = _DIRS_CACHE.get(key)
+            if d is not None:
+                _DIRS_CACHE.move_to_end(key)
+                return d
+    xy = ideal_sensor_from_pixels(uv, camera)
     d = np.empty((len(xy), 3))
     d[:, :2] = xy
     d[:, 2] = camera.focal_length_mm
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    if key is not None:
+        d.setflags(write=False)
+        with _DIRS_LOCK:
+            _DIRS_CACHE[key] = d
+            if len(_DIRS_CACHE) > _DIRS_CACHE_SIZE:
+                _DIRS_CACHE.popitem(last=False)
+    return d
 
 
 def pixels_from_camera_dirs(dirs: np.ndarray, camera: Camera) -> np.ndarray:

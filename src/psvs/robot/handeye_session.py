@@ -21,6 +21,9 @@ from psvs.transforms import concat, invert_transform, transform_from
 #: The hand-eye session's target: a 4 x 5 circle grid lying face up on the table.
 CELL_GRID = CircleGrid(rows=4, cols=5, spacing_mm=15.0, diameter_mm=7.0)
 CELL_TARGET2BASE = transform_from(np.diag([1.0, -1.0, -1.0]), (550.0, 0.0, 0.0))
+#: The session's views by default, and the samples per pixel side each is rendered with.
+CELL_VIEWS = 12
+CELL_SUPERSAMPLE = 1
 
 
 def cell_lighting(cfg: TrackConfig) -> Lighting:
@@ -39,7 +42,8 @@ def true_cam2flange(cfg: TrackConfig) -> np.ndarray:
     return concat(MOUNT_ERROR, nominal_cam2flange(cfg))
 
 
-def cell_views(true_rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12) -> tuple[list[np.ndarray], list[np.ndarray]]:
+def cell_views(true_rig: Rig, cfg: TrackConfig, arm: Arm,
+               views: int = CELL_VIEWS) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """The hand-eye session in the simulated cell: :data:`CELL_GRID` on the table shown to the PSVS from
     ``views`` flange poses (tilted up to ~20 deg, turned about the vertical), rendered through ``true_rig``
     (the rig as built) with the true mounting. Returns (complex images (H, W) uint8, flange2base (4, 4))."""
@@ -59,14 +63,14 @@ def cell_views(true_rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12) -> tu
             np.append(rng.uniform(-10, 10, 2), 0)
         flange = concat(invert_transform(nominal), transform_from(cam_R, cam_pos))
         F = arm.fkine(arm.ikine(flange, HOME_Q))
-        img = render(scene_in_rig_frame(scene, invert_transform(concat(true, F))), true_rig, supersample=1,
-                     seed=100 + k).image
+        img = render(scene_in_rig_frame(scene, invert_transform(concat(true, F))), true_rig,
+                     supersample=CELL_SUPERSAMPLE, seed=100 + k).image
         images.append(img)
         flanges.append(F)
     return images, flanges
 
 
-def calibrate_cell(rig: Rig, cfg: TrackConfig, arm: Arm, views: int = 12,
+def calibrate_cell(rig: Rig, cfg: TrackConfig, arm: Arm, views: int = CELL_VIEWS,
                    true_rig: Rig | None = None) -> tuple[HandEyeResult, np.ndarray]:
     """Hand-eye calibration session in the simulated cell (:func:`cell_views`, rendered through
     ``true_rig``, default ``rig``), calibrated with ``rig``, what the sensor knows of the rig; returns the

@@ -26,10 +26,30 @@ from psvs.robot.handeye_session import calibrate_cell
 from psvs.robot.mounting import HOME_Q, tool2flange, tool_pose
 from psvs.robot.sensor import SensorSetup
 from psvs.robot.workpiece import Workpiece
+from psvs.simulate.render import SAMPLE_SECONDS
 from psvs.transforms import concat, invert_transform
 
 #: How far the operator's teach point lies beside the true seam, mm (a careful jog, not a perfect one).
 TEACH_OFFSET_MM = 0.3
+#: Seam the torch travels besides what it welds, mm: the run-in to the arc's start and the stop.
+RUN_IN_OUT_MM = 100.0
+#: Seconds a control cycle costs besides rendering its window: the seam sensor and the controller (4.5 and
+#: 4.7 ms median on the reference host, docs/benchmarks.md), rounded up.
+CYCLE_SECONDS = 0.01
+
+
+def track_cycles(length_mm: float, cfg: TrackConfig) -> int:
+    """The control cycles a run welding ``length_mm`` of seam takes: the length and :data:`RUN_IN_OUT_MM`
+    at ``cfg.speed_mm_s``, one cycle every 1 / ``cfg.rate_hz`` s."""
+    return int((length_mm + RUN_IN_OUT_MM) / cfg.speed_mm_s * cfg.rate_hz)
+
+
+def cycle_seconds(rig: Rig, cfg: TrackConfig, sim: SimulationConfig = SimulationConfig()) -> float:
+    """Estimated wall time of one simulated control cycle, s: rendering the sensor window (``cfg.roi_rows``
+    rows of the camera at ``sim.supersample``; :data:`psvs.simulate.render.SAMPLE_SECONDS` a sample) and
+    :data:`CYCLE_SECONDS` of sensing and control."""
+    w = rig.camera.image_size_px[0]
+    return w * cfg.roi_rows * sim.supersample ** 2 * SAMPLE_SECONDS + CYCLE_SECONDS
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,7 +217,7 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,
         if listener is not None:
             listener.cycle(cycles[-1])
 
-    max_cycles = int((workpiece.params["length_mm"] + 100) / cfg.speed_mm_s * cfg.rate_hz * 2) + 200
+    max_cycles = int((workpiece.params["length_mm"] + RUN_IN_OUT_MM) / cfg.speed_mm_s * cfg.rate_hz * 2) + 200
     start_s = time.perf_counter() - t_enter   # set-up (hand-eye calibration included) until the first cycle
     loop = control_loop(cell, tracker, setup, max_cycles, record)
     state = tracker.summary()

@@ -124,6 +124,11 @@ def seam_centre_line(x_mm: np.ndarray, radius_mm: float = 150.0, length_mm: floa
                      height_amplitude_mm * np.sin(np.pi * x / length_mm) - bevel_depth_mm], axis=-1)
 
 
+#: The longest seam :func:`weld_seam` builds, mm: its mesh grows with the length (two vertex columns a mm),
+#: and no cell's arm follows a longer one.
+MAX_SEAM_MM = 2000.0
+
+
 def weld_seam(distance_mm: float = 450.0, radius_mm: float = 150.0, height_amplitude_mm: float = 20.0,
               gap_start_mm: float | None = None, gap_length_mm: float = 0.0, length_mm: float = 240.0,
               width_mm: float = 160.0) -> Scene:
@@ -132,6 +137,9 @@ def weld_seam(distance_mm: float = 450.0, radius_mm: float = 150.0, height_ampli
     gap = None if gap_start_mm is None else (gap_start_mm, gap_start_mm + gap_length_mm)
     if not 0 < length_mm <= 2 * radius_mm:
         raise ValueError(f"weld_seam: length_mm must be in (0, 2 radius_mm], got {length_mm!r}")
+    if not length_mm <= MAX_SEAM_MM:
+        raise ValueError(f"weld_seam: length_mm must be at most {MAX_SEAM_MM:g} mm (the mesh holds two vertex "
+                         f"columns a mm; a PUMA 560 reaches 0.86 m), got {length_mm!r}")
     V, plates, groove = seam_mesh(radius_mm=radius_mm, length_mm=length_mm, width_mm=width_mm,
                                   height_amplitude_mm=height_amplitude_mm, gap=gap,
                                   steps=max(2, int(2 * length_mm)))

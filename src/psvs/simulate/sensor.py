@@ -34,6 +34,10 @@ class Sensor:
         check_positive(self.gain, "gain")
 
 
+#: The widest optical blur a sensor may be given, sigma px: a lens blurring more is out of focus beyond use,
+#: and the Gaussian kernel (+-4 sigma) costs time in proportion (2 s per 640x480 frame at 1000 px).
+MAX_BLUR_PX = 100.0
+
 #: A noiseless, blur-free sensor: quantisation only (for tests and ground-truth comparisons).
 IDEAL = Sensor(blur_sigma_px=0.0, read_noise_e=0.0, shot_noise=False)
 
