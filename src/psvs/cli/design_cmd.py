@@ -4,7 +4,14 @@ from __future__ import annotations
 import json
 import math
 
-from psvs.cli.common import add_range_arguments, add_rig_argument, check_output_path, range_from_args, rig_from_args
+from psvs.cli.common import (
+    add_range_arguments,
+    add_rig_argument,
+    check_distinct,
+    check_output_path,
+    range_from_args,
+    rig_from_args,
+)
 from psvs.io.atomic import output_batch, write_atomic
 from psvs.io.params import dumps_rig, rig_to_dict
 from psvs.io.tomlfile import dumps_toml
@@ -130,6 +137,7 @@ def format_design(d: MirrorDesign) -> str:
 def run(args) -> int:
     out = check_output_path(args.output, (".json", ".toml"))
     rig_out = check_output_path(args.rig_out, (".json", ".toml"))
+    check_distinct({"-o": args.output, "--rig-out": args.rig_out}, {"--rig": args.rig})
     range_from_args(args)
     if not (math.isfinite(args.margin_mm) and args.margin_mm >= 0):
         raise ValueError(f"--margin-mm must be a finite border >= 0 mm, got {args.margin_mm}")

@@ -5,7 +5,7 @@ import sys
 
 import numpy as np
 
-from psvs.cli.common import add_rig_argument, check_output_path, load_scene_spec, rig_from_args
+from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, load_scene_spec, rig_from_args
 from psvs.io.images import write_npz, write_png
 from psvs.io.video import VIDEO_SUFFIXES, write_video
 from psvs.simulate.builtin import describe
@@ -72,6 +72,7 @@ def run(args) -> int:
     if video and not args.fps > 0:
         raise ValueError(f"--fps must be > 0, got {args.fps}")
     truth_path = check_output_path(args.truth, (".npz",))
+    check_distinct({"-o": args.output, "--truth": args.truth}, {"SCENE": args.scene, "--rig": args.rig})
     if args.frames < 1:
         raise ValueError(f"--frames must be >= 1, got {args.frames}")
     move = _move(args.move_mm)

@@ -7,7 +7,9 @@ import time
 from psvs.cli.common import (
     add_rig_argument,
     add_telemetry_arguments,
+    check_distinct,
     check_output_folder,
+    check_telemetry_arguments,
     open_telemetry,
     parse_seed,
     rig_from_args,
@@ -108,6 +110,10 @@ def _check_work(args, cfg, rig, seam_mm: float) -> None:
                "a higher --speed, a lower --rate or a shorter --length")
 
 
+#: What a run writes into its output folder (besides the bag/ folder).
+REPORT_FILES = ("report.json", "log.csv", "top_view.png", "error.png")
+
+
 def run(args) -> int:
     from psvs.robot.bag import write_bag
     from psvs.robot.loop import track
@@ -116,6 +122,9 @@ def run(args) -> int:
     out = check_output_folder(args.output, "output")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"output folder does not exist: {out.parent}")
+    check_telemetry_arguments(args)
+    outputs = {"--mcap": args.mcap, **{f"-o {out}/{name}": out / name for name in REPORT_FILES}}
+    check_distinct(outputs, {"--rig": args.rig, "--true-rig": args.true_rig, "--handeye": args.handeye})
     seed = parse_seed(args.seed)
     cfg, rig, true_rig, wp = _job(args)
     handeye = None
