@@ -8,6 +8,15 @@ Models
                 e.g. from :func:`fit_refraction_terms`).
 ``exact``       both pixels traced through the exact optics (Snell at both plate faces), the two rays
                 intersected (midpoint of their closest approach).
+
+Every model answers only what the rig can see. A row is NaN and invalid when a pixel lies off the sensor
+(u outside -0.5..W-0.5 or v outside -0.5..H-0.5: no pixel of the camera saw it), when the disparity is
+not positive or the rays diverge (they meet behind the rig, if at all), or when the point they give is not
+*in front of the rig*: beyond the mirror box, Z greater than the far reach of its mirrors
+(:func:`psvs.optics.mirrors.front_z_mm`: the far mirrors' corners, or M3/M4's anchors for unbounded
+mirrors). A point behind the camera or inside the box cannot be seen through the mirrors, so a pair of
+pixels that triangulates there was mismatched (left and right swapped, a wrong twin), and no number is
+given for it.
 """
 from __future__ import annotations
 
@@ -17,8 +26,9 @@ import numpy as np
 
 from psvs._validate import check_points, check_same_length
 from psvs.measure.equations import x_eq13, y_eq14, z_eq12, z_eq15
+from psvs.optics.mirrors import front_z_mm
 from psvs.optics.plate import refraction_terms
-from psvs.optics.project import project_points
+from psvs.optics.project import in_image, project_points
 from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
 from psvs.optics.trace import ideal_sensor_from_pixels, trace_pixels
@@ -54,8 +64,9 @@ def triangulate(left_px, right_px, rig: Rig, model: str = "refraction") -> Trian
     Returns
     -------
     Triangulation
-        ``points_mm`` (N, 3) mm and ``valid`` (N,). Rows with x_l <= x_r, NaN input, parallel or
-        diverging rays, or (exact) vignetted rays are NaN and invalid.
+        ``points_mm`` (N, 3) mm and ``valid`` (N,). Rows with x_l <= x_r, NaN input, a pixel off the
+        sensor, parallel or diverging rays, a point not in front of the rig (Z <= the mirrors' far reach,
+        see the module docstring) or (exact) vignetted rays are NaN and invalid.
 
     Examples
     --------
@@ -71,7 +82,25 @@ def triangulate(left_px, right_px, rig: Rig, model: str = "refraction") -> Trian
     if model not in MODELS:
         raise ValueError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
     if model == "exact":
-        return _triangulate_exact(left, right, rig)
+        res = _triangulate_exact(left, right, rig)
+    else:
+        res = _triangulate_closed_form(left, right, rig, model)
+    return _seen_by_the_rig(res, left, right, rig)
+
+
+def _seen_by_the_rig(res: Triangulation, left: np.ndarray, right: np.ndarray, rig: Rig) -> Triangulation:
+    """``res`` with the rows no scene point can give made NaN and invalid: a pixel off the sensor, or the
+    point not beyond the mirror box (Z <= :func:`psvs.optics.mirrors.front_z_mm`)."""
+    pts, valid = res.points_mm, res.valid
+    with np.errstate(invalid="ignore"):
+        valid = valid & in_image(left, rig) & in_image(right, rig) & (pts[:, 2] > front_z_mm(rig))
+    if not valid.all():
+        pts[~valid] = np.nan
+    return Triangulation(pts, valid)
+
+
+def _triangulate_closed_form(left: np.ndarray, right: np.ndarray, rig: Rig, model: str) -> Triangulation:
+    """Eqs. (12)-(14) (``paper``) or (15)-(17) (``refraction``) on matched pixels (N, 2) px."""
     cam, m = rig.camera, rig.mirrors
     f, b, zv = cam.focal_length_mm, m.baseline_mm, rig.virtual_z_mm
     if cam.distorted:
