@@ -32,3 +32,43 @@ def test_triangulate_marks_rows_no_point_can_give(capsys, tmp_path):
         got = np.loadtxt(out, delimiter=",", skiprows=1)
         assert got[:, 3].tolist() == [1, 1, 1, 0, 0, 0] and np.isnan(got[3:, :3]).all()
         assert np.abs(got[:3, 2] - pts[:3, 2]).max() < (1e-6 if model == "exact" else 15.0)
+
+
+FIT_COLUMNS = ("u_l", "v_l", "u_r", "v_r", "X_mm", "Y_mm", "Z_mm")
+
+
+def test_fit_refraction_refuses_what_the_points_cannot_pin(capsys, tmp_path):
+    """README's example fits and writes the rig; six copies of one of its points, one point 40 mm off in
+    Z, and points along the optical axis are refused in one line (exit 1) and the earlier rig file is kept;
+    a point behind the rig is bad input (exit 2)."""
+    from tests.conftest import EXAMPLES
+    rig_file = str(EXAMPLES / "rigs" / "clear.toml")
+    data = np.loadtxt(EXAMPLES / "known_points.csv", delimiter=",", skiprows=1)
+    out = tmp_path / "fitted.toml"
+    code, text, err = run(capsys, "fit-refraction", "--rig", rig_file, str(EXAMPLES / "known_points.csv"),
+                          "-o", str(out))
+    assert code == 0, err
+    assert "fit on 6 points: RMS depth residual 0.1" in text and "mean 3-D error" in text
+    written = out.read_text()
+    assert "refraction_l_mm" in written
+    wrong = data.copy()
+    wrong[2, 6] += 40.0
+    from psvs.io.params import load_rig
+    axis = np.array([[0.0, 0.0, 500.0], [0.0, 0.0, 650.0], [0.0, 0.0, 800.0], [0.0, 0.0, 1100.0]])
+    rig = load_rig(rig_file)
+    axis_rows = np.column_stack([project_points(axis, rig, "left")[0], project_points(axis, rig, "right")[0], axis])
+    cases = {"copies": (np.tile(data[:1], (6, 1)), "6 rows hold 1 distinct point(s)"),
+             "wrong_z": (wrong, "RMS depth residual 14.6 mm is 5.6 times the 2.6 mm RMS"),
+             "axis": (axis_rows, "do not pin l and m of eq. (15): the fit's condition number is 9.3")}
+    for name, (rows, message) in cases.items():
+        csv = write_csv(tmp_path / f"{name}.csv", FIT_COLUMNS, rows)
+        code, text, err = run(capsys, "fit-refraction", "--rig", rig_file, str(csv), "-o", str(out))
+        assert code == 1 and text == "", (name, err)
+        assert err.startswith("psvs fit-refraction: cannot measure: ") and message in err, (name, err)
+        assert len(err.strip().splitlines()) == 1 and out.read_text() == written
+    behind = data.copy()
+    behind[0, 6] = -10.0
+    csv = write_csv(tmp_path / "behind.csv", FIT_COLUMNS, behind)
+    code, _, err = run(capsys, "fit-refraction", "--rig", rig_file, str(csv), "-o", str(out))
+    assert code == 2 and "points_mm row 1: Z = -10 mm is not in front of the rig" in err
+    assert out.read_text() == written

@@ -26,6 +26,7 @@ import numpy as np
 
 from psvs._validate import check_points, check_same_length
 from psvs.measure.equations import x_eq13, y_eq14, z_eq12, z_eq15
+from psvs.measure.refraction_fit import fit_refraction_terms as fit_refraction_terms  # the fit of l, m: its home
 from psvs.optics.mirrors import front_z_mm
 from psvs.optics.plate import refraction_terms
 from psvs.optics.project import in_image, project_points
@@ -153,40 +154,3 @@ def _triangulate_exact(left: np.ndarray, right: np.ndarray, rig: Rig) -> Triangu
     valid &= np.all(np.isfinite(pts), axis=1)
     pts[~valid] = np.nan
     return Triangulation(pts, valid)
-
-
-def fit_refraction_terms(left_px, right_px, points_mm, rig: Rig) -> tuple[float, float]:
-    """Fit l and m of eq. (15), mm, to matched pixels of known 3-D points (least squares in depth).
-
-    Eq. (15) is linear in (l, m): z - z_v - b f / D = x_l l / D + f m / D with D = x_l - x_r, so the
-    fit minimises the squared depth error over all valid rows.
-
-    Parameters
-    ----------
-    left_px, right_px : array_like, shape (N, 2)
-        Matched pixels, px.
-    points_mm : array_like, shape (N, 3)
-        The points they see, frame C, mm (only Z is used).
-    rig : Rig
-
-    Returns
-    -------
-    (l_mm, m_mm) : tuple of float
-    """
-    left = check_points(left_px, "left_px", 2)
-    right = check_points(right_px, "right_px", 2)
-    pts = check_points(points_mm, "points_mm", 3)
-    check_same_length(left, right, "left_px", "right_px")
-    check_same_length(left, pts, "left_px", "points_mm")
-    cam, m = rig.camera, rig.mirrors
-    f, b = cam.focal_length_mm, m.baseline_mm
-    xl = ideal_sensor_from_pixels(left, cam)[:, 0]
-    xr = ideal_sensor_from_pixels(right, cam)[:, 0]
-    disp = xl - xr
-    ok = np.isfinite(disp) & (disp > 0) & np.isfinite(pts[:, 2])
-    if ok.sum() < 2:
-        raise ValueError(f"fit_refraction_terms needs >= 2 valid correspondences with x_l > x_r, got {int(ok.sum())}")
-    A = np.stack([xl[ok] / disp[ok], f / disp[ok]], axis=1)
-    rhs = pts[ok, 2] - rig.virtual_z_mm - b * f / disp[ok]
-    (l_mm, m_mm), *_ = np.linalg.lstsq(A, rhs, rcond=None)
-    return float(l_mm), float(m_mm)
