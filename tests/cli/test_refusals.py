@@ -2,6 +2,7 @@
 in one line ("cannot measure: ...", exit status 1) with nothing written; rows that no scene point can give
 are marked invalid. Planted truth throughout."""
 import numpy as np
+import pytest
 
 from psvs import default_rig
 from psvs.optics.project import project_points
@@ -72,3 +73,47 @@ def test_fit_refraction_refuses_what_the_points_cannot_pin(capsys, tmp_path):
     code, _, err = run(capsys, "fit-refraction", "--rig", rig_file, str(csv), "-o", str(out))
     assert code == 2 and "points_mm row 1: Z = -10 mm is not in front of the rig" in err
     assert out.read_text() == written
+
+
+@pytest.fixture(scope="module")
+def fig9_images(tmp_path_factory):
+    """Fig. 9 at 640 mm through the default rig and through the misaligned build, and the first resized."""
+    import cv2
+
+    from psvs.io.images import write_png
+    from psvs.io.params import load_rig
+    from psvs.simulate.builtin import builtin_scene
+    from psvs.simulate.render import render
+    folder = tmp_path_factory.mktemp("fig9")
+    paths = {}
+    for name in ("default", "misaligned"):
+        paths[name] = folder / f"{name}.png"
+        write_png(paths[name], render(builtin_scene("fig9:distance_mm=640"), load_rig(name), seed=7).image)
+    paths["small"] = folder / "small.png"
+    write_png(paths["small"], cv2.resize(cv2.imread(str(paths["default"]), cv2.IMREAD_GRAYSCALE), (480, 360)))
+    return paths
+
+
+@pytest.mark.parametrize("image, extra, code, message", [
+    ("default", ["--json"], 0, None),
+    ("small", [], 2, "psvs measure: error: image is 480x360 px but the rig's camera is 640x480 px"),
+    ("default", ["--count", "3"], 1, "psvs measure: cannot measure: found 10 circles, expected 6 (3 per view)"),
+    ("misaligned", [], 1, "psvs measure: cannot measure: circle 1's right-view centre is"),
+    ("default", ["--rig", "misaligned"], 1, "from its twin's epipolar curve through this rig, tolerance 1 px"),
+    ("default", ["--diameter-mm", "12"], 1, "the pattern's 12 mm, tolerance 0.61"),
+    ("default", ["--spacing-mm", "0"], 2, "--spacing-mm must be > 0 mm"),
+    ("default", ["--diameter-mm", "25"], 2, "--diameter-mm (25 mm) must be less than --spacing-mm (20 mm)"),
+])
+def test_measure_circles_checks_what_it_found(capsys, fig9_images, image, extra, code, message):
+    """Good: Table I's columns (exit 0). A resized image is bad input (exit 2); --count 3 on the 5-circle
+    pattern, the misaligned build's image through the default rig and the default rig's through the build,
+    and a pattern of other circles: one line naming the check, nothing on stdout (exit 1)."""
+    import json
+    argv = ["measure", "circles", str(fig9_images[image]), "--rig", "default", *extra]
+    got, out, err = run(capsys, *argv)
+    assert got == code, err
+    if code == 0:
+        data = json.loads(out)
+        assert abs(data["Z_mm"] - 640) < 0.5 and abs(data["diameter_mm"] - 10) < 0.1
+    else:
+        assert out == "" and len(err.strip().splitlines()) == 1 and message in err, err

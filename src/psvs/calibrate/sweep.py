@@ -17,6 +17,7 @@ import numpy as np
 
 from psvs.calibrate.bundle import BundleResult, SweepView, bundle_adjust
 from psvs.calibrate.targets import PatternDetection, detect_pattern
+from psvs.errors import MeasurementError
 from psvs.io.images import read_grey
 from psvs.io.text import read_text
 from psvs.optics.rig import Rig
@@ -67,7 +68,7 @@ def detect_sweep(items: list[tuple[Path, float]], count: int = 5):
     for path, pos in items:
         try:
             ok.append((path.name, pos, detect_pattern(read_grey(path), count)))
-        except (ValueError, FileNotFoundError) as exc:
+        except (ValueError, FileNotFoundError, MeasurementError) as exc:
             skipped[path.name] = str(exc)
     return ok, skipped
 
