@@ -117,3 +117,32 @@ def test_measure_circles_checks_what_it_found(capsys, fig9_images, image, extra,
         assert abs(data["Z_mm"] - 640) < 0.5 and abs(data["diameter_mm"] - 10) < 0.1
     else:
         assert out == "" and len(err.strip().splitlines()) == 1 and message in err, err
+
+
+def test_calibrate_refuses_a_folder_that_repeats_an_image(capsys, tmp_path):
+    """sweep.csv listing one image four times used to calibrate ('images = 1' in the rig written); a card
+    folder holding one view twice (a copy under another name) too. Both: one line naming the duplicates,
+    exit 2, the earlier rig file kept."""
+    from psvs.calibrate.table1 import CARD
+    from psvs.calibrate.target_file import dumps_target
+    from psvs.io.images import write_png
+    rng = np.random.default_rng(1)
+    out = tmp_path / "rig.toml"
+    out.write_text("earlier")
+    sweep = tmp_path / "sweep"
+    sweep.mkdir()
+    write_png(sweep / "z700.png", rng.integers(0, 255, (480, 640), dtype=np.uint8))
+    (sweep / "sweep.csv").write_text("image,position_mm\n" + "".join(f"z700.png,{700 + 50 * k}\n" for k in range(4)))
+    code, text, err = run(capsys, "calibrate", str(sweep), "--rig", "clear", "-o", str(out))
+    assert code == 2 and text == "" and len(err.strip().splitlines()) == 1
+    assert "psvs calibrate: error: sweep.csv lists z700.png 4 times: each row must be its own image" in err
+    cards = tmp_path / "cards"
+    cards.mkdir()
+    (cards / "target.toml").write_text(dumps_target(CARD))
+    for k in range(3):
+        write_png(cards / f"card_{k}.png", rng.integers(0, 255, (480, 640), dtype=np.uint8))
+    (cards / "card_3.png").write_bytes((cards / "card_1.png").read_bytes())
+    code, text, err = run(capsys, "calibrate", str(cards), "--rig", "clear", "-o", str(out))
+    assert code == 2 and text == "" and len(err.strip().splitlines()) == 1
+    assert "card_1.png and card_3.png are the same image (byte-identical files)" in err
+    assert out.read_text() == "earlier"
