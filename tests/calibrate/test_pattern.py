@@ -158,6 +158,9 @@ def test_diameters_and_spacings_are_checked_against_the_pattern(images):
     with pytest.raises(MeasurementError, match=r"circle 5's diameter is 27\.300 mm, the pattern's 10 mm"):
         check_geometry(wide, rig, 20.0, 10.0)
     check_geometry(PatternMeasurement(640.0, np.full(5, 10.3), 10.3, 80.0, centres), rig, 20.0, 10.0)
+    unpaired = PatternMeasurement(640.0, np.array([10.0, np.nan, 10.0, 10.0, 10.0]), 10.0, 80.0, centres)
+    with pytest.raises(MeasurementError, match="circle 2's diameter cannot be measured"):
+        check_geometry(unpaired, rig, 20.0, 10.0)
     with pytest.raises(ValueError, match=r"diameter_mm \(20 mm\) must be less than spacing_mm \(20 mm\)"):
         measure_pattern(img, rig, diameter_mm=20.0)
 

@@ -192,6 +192,9 @@ def check_geometry(m: PatternMeasurement, rig: Rig, spacing_mm: float, diameter_
     tol_d = MARGIN * 2 * EDGE_PX * px
     err = np.abs(m.diameters_mm - diameter_mm)
     k = int(np.argmax(np.nan_to_num(err, nan=np.inf)))
+    if np.isnan(err[k]):
+        raise MeasurementError(f"circle {k + 1}'s diameter cannot be measured: too few of its rim points have a "
+                               "twin on their epipolar curves through this rig")
     if not err[k] <= tol_d:
         raise MeasurementError(f"circle {k + 1}'s diameter is {m.diameters_mm[k]:.3f} mm, the pattern's "
                                f"{diameter_mm:g} mm, tolerance {tol_d:.3f} mm at Z = {z:.0f} mm "
