@@ -98,3 +98,99 @@ def test_cli(capsys, tmp_path, images):
     write_png(blank, np.full((480, 640), 40, np.uint8))
     code, _, err = run(capsys, "measure", "circles", str(blank), "--rig", EXAMPLE)
     assert code == 2 and "image is blank" in err
+
+
+# --- a measurement is checked against the pattern it claims to be (psvs.calibrate.measure) ---
+
+from psvs.errors import MeasurementError  # noqa: E402
+
+
+def test_an_image_of_another_size_is_refused(images):
+    """A resized or cropped image moves every pixel's ray (it measured Z = 868 mm at 640 mm, all circles
+    10 mm): bad input, like psvs match."""
+    import cv2
+    img = images[(589, 0)]
+    rig = default_rig()
+    for small, size in ((cv2.resize(img, (480, 360)), "480x360"), (img[:, :600], "600x480")):
+        with pytest.raises(ValueError, match=f"image is {size} px but the rig's camera is 640x480 px"):
+            measure_pattern(small, rig)
+
+
+def test_a_count_other_than_the_images_is_refused(images):
+    """--count 3 on the 5-circle pattern measured Z = 1870 mm at 1123 mm: 3 of 10 circles picked. More
+    circles than the count is not that pattern; fewer is a circle missing."""
+    img, rig = images[(1123, 0)], default_rig()
+    with pytest.raises(MeasurementError, match=r"found 10 circles, expected 6 \(3 per view\): the image shows "
+                                               r"more circles than the pattern's 3"):
+        measure_pattern(img, rig, count=3)
+    with pytest.raises(ValueError, match=r"found 10 circle\(s\), expected 12 \(6 per view\)"):
+        measure_pattern(img, rig, count=6)
+
+
+@pytest.mark.parametrize("shot, used", [("misaligned", "default"), ("default", "misaligned")])
+def test_another_builds_image_is_refused(shot, used):
+    """The misaligned build's image measured with the ideal rig gave circles of 24-27 mm (and the other way
+    round 25-29 mm) at about the right depth: every twin lies ~9 px off its epipolar curve through the
+    rig used, against a 1 px tolerance."""
+    img = render(builtin_scene("fig9:distance_mm=640"), load_rig(shot), seed=5).image
+    with pytest.raises(MeasurementError, match=r"circle \d's right-view centre is (8|9|10)\.\d\d px from its "
+                                               r"twin's epipolar curve through this rig, tolerance 1 px"):
+        measure_pattern(img, load_rig(used))
+    assert abs(measure_pattern(img, load_rig(shot)).diameter_mm - 10.0) < 0.1      # its own rig measures it
+
+
+def test_diameters_and_spacings_are_checked_against_the_pattern(images):
+    """Asked for 12 mm circles or a 25 mm spacing, the paper's pattern is refused with the numbers and the
+    tolerance (1 px, 0.57 mm at 589 mm); the diameter check on a measurement of 25 mm circles (another
+    build's optics) names it."""
+    from psvs.calibrate.measure import PatternMeasurement, check_geometry, footprint_mm
+    img, rig = images[(589, 0)], default_rig()
+    px = footprint_mm(rig, 589.0)
+    assert px == pytest.approx((589 + 50) * 0.01 / 11.3) and 0.56 < px < 0.57
+    with pytest.raises(MeasurementError, match=r"circle \d's diameter is 9\.\d+ mm, the pattern's 12 mm, "
+                                               r"tolerance 0\.56\d mm at Z = 589 mm \(1 px of"):
+        measure_pattern(img, rig, diameter_mm=12.0)
+    with pytest.raises(MeasurementError, match=r"circles (\d) and \d are (19\.9|20\.0)\d+ mm apart, the pattern's "
+                                               r"spacing 25 mm, tolerance 0\.\d+ mm at Z = 589 mm"):
+        measure_pattern(img, rig, spacing_mm=25.0)
+    centres = np.column_stack([np.arange(5) * 20.0, np.zeros(5), np.full(5, 640.0)])
+    wide = PatternMeasurement(640.0, np.array([24.0, 26.0, 23.1, 25.5, 27.3]), 25.2, 80.0, centres)
+    with pytest.raises(MeasurementError, match=r"circle 5's diameter is 27\.300 mm, the pattern's 10 mm"):
+        check_geometry(wide, rig, 20.0, 10.0)
+    check_geometry(PatternMeasurement(640.0, np.full(5, 10.3), 10.3, 80.0, centres), rig, 20.0, 10.0)
+    unpaired = PatternMeasurement(640.0, np.array([10.0, np.nan, 10.0, 10.0, 10.0]), 10.0, 80.0, centres)
+    with pytest.raises(MeasurementError, match="circle 2's diameter cannot be measured"):
+        check_geometry(unpaired, rig, 20.0, 10.0)
+    with pytest.raises(ValueError, match=r"diameter_mm \(20 mm\) must be less than spacing_mm \(20 mm\)"):
+        measure_pattern(img, rig, diameter_mm=20.0)
+
+
+def test_another_printed_pattern_measures_with_its_sizes():
+    """Four 8 mm circles 15 mm apart (`--count 4 --spacing-mm 15 --diameter-mm 8`) at 700 mm."""
+    from dataclasses import replace
+    rig = default_rig()
+    scene = builtin_scene("fig9:distance_mm=700")
+    sheet = scene.objects[0]
+    texture = replace(sheet.texture, count=4, diameter_mm=8.0, spacing_mm=15.0)
+    img = render(replace(scene, objects=(replace(sheet, texture=texture),)), rig, seed=2).image
+    m = measure_pattern(img, rig, count=4, spacing_mm=15.0, diameter_mm=8.0)
+    assert abs(m.Z_mm - 700) < 0.5 and np.abs(m.diameters_mm - 8.0).max() < 0.2
+    assert abs(m.first_last_distance_mm - 45.0) < 0.2
+    with pytest.raises(MeasurementError, match="the pattern's 10 mm"):
+        measure_pattern(img, rig, count=4, spacing_mm=15.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("rig_name", ["default", "misaligned"])
+def test_good_images_at_every_table1_distance_still_measure(rig_name):
+    """The paper's 15 distances, on the robot's holder (psvs table1's images) and flat (`fig9:distance_mm=`),
+    measured with the rig they were taken through: every check passes and the accuracy is what it was
+    (|Z error| <= 0.6 mm, diameters within 0.1 mm on average, first-last distance within 0.25 mm)."""
+    from psvs.calibrate.table1 import PAPER_TABLE1, pattern_image
+    rig = load_rig(rig_name)
+    for z in PAPER_TABLE1[:, 0]:
+        for img in (pattern_image(rig, z, int(z) + 1), render(builtin_scene(f"fig9:distance_mm={z}"), rig,
+                                                                 seed=int(z)).image):
+            m = measure_pattern(img, rig)
+            assert abs(m.Z_mm - z) <= 0.6 and abs(m.diameter_mm - 10.0) <= 0.1, (z, m.to_dict())
+            assert abs(m.first_last_distance_mm - 80.0) <= 0.25, (z, m.to_dict())

@@ -97,3 +97,30 @@ def test_bad_sweeps(capsys, tmp_path, sweep_dir):
     obs = [("a", 700.0, detect_pattern(pattern_image(default_rig(), 400.0 - ROBOT_OFFSET_MM + ROBOT_OFFSET_MM, 1)))]
     with pytest.raises(ValueError, match="needs at least 3 usable sweep images, got 1"):
         calibrate_sweep(obs, default_rig())
+
+
+def test_a_sweep_that_repeats_an_image_or_a_position_is_refused(tmp_path, sweep_dir):
+    """One image listed four times (it calibrated, 'used 1 image(s)', and wrote a rig), one robot position
+    for two images, and one image copied under another name: refused before any work, naming them."""
+    import shutil
+    names = sorted(p.name for p in sweep_dir.glob("z*.png"))
+    for name in names:
+        shutil.copy(sweep_dir / name, tmp_path / name)
+    rows = lambda pairs: "image,position_mm\n" + "".join(f"{n},{z}\n" for n, z in pairs)  # noqa: E731
+    (tmp_path / "sweep.csv").write_text(rows([(names[0], 700 + k) for k in range(4)]))
+    with pytest.raises(ValueError, match=f"sweep.csv lists {names[0]} 4 times: each row must be its own image"):
+        read_sweep(tmp_path)
+    (tmp_path / "sweep.csv").write_text(rows([(names[0], 700), (f"./{names[0]}", 710), (names[1], 720)]))
+    with pytest.raises(ValueError, match=f"lists {names[0]} 2 times"):          # the same file by another path
+        read_sweep(tmp_path)
+    (tmp_path / "sweep.csv").write_text(rows([(names[0], 700), (names[1], 700.0), (names[2], 720)]))
+    with pytest.raises(ValueError, match=f"sweep.csv lists robot position 700 mm for 2 images \\({names[0]}, "
+                                         f"{names[1]}\\): each sweep image must be at its own position"):
+        read_sweep(tmp_path)
+    shutil.copy(tmp_path / names[0], tmp_path / "copy.png")
+    (tmp_path / "sweep.csv").write_text(rows([(names[0], 700), ("copy.png", 710), (names[2], 720)]))
+    with pytest.raises(ValueError, match=f"{names[0]} and copy.png are the same image \\(byte-identical files\\)"):
+        calibrate_folder(tmp_path, default_rig())
+    obs = [("a", 700.0, None), ("b", 700.0, None), ("c", 720.0, None)]
+    with pytest.raises(ValueError, match=r"the sweep lists robot position 700 mm for 2 images \(a, b\)"):
+        calibrate_sweep(obs, default_rig())

@@ -24,11 +24,21 @@ def planted(tmp_path_factory):
     return paths, tl
 
 
+def small_rig(tmp_path, shape):
+    """The example rig with a camera of the planted image's size (W x H px, principal point at its centre)."""
+    from psvs.io.params import load_rig, save_rig
+    h, w = shape
+    path = tmp_path / "small_rig.toml"
+    save_rig(load_rig(EXAMPLE).replace(image_size_px=(w, h), principal_point_px=((w - 1) / 2, (h - 1) / 2)), path)
+    return str(path)
+
+
 def test_disparity_writes_map_views_depth_and_cloud(capsys, tmp_path, planted):
     paths, tl = planted
     out, conf, right = tmp_path / "d.npy", tmp_path / "c.npy", tmp_path / "dr.npy"
     lv, rv, depth, ply = tmp_path / "l.png", tmp_path / "r.png", tmp_path / "z.npy", tmp_path / "p.ply"
-    code, text, err = run(capsys, "disparity", str(paths["complex"]), "--rig", EXAMPLE, "--min-disparity", "0",
+    rig = small_rig(tmp_path, tl.shape)      # the rig's camera takes images of this size
+    code, text, err = run(capsys, "disparity", str(paths["complex"]), "--rig", rig, "--min-disparity", "0",
                           "--max-disparity", "40", "-o", str(out), "--confidence", str(conf), "--right", str(right),
                           "--views", str(lv), str(rv), "--depth", str(depth), "--cloud", str(ply))
     assert code == 0, err
@@ -168,3 +178,54 @@ def test_memory_is_checked_before_the_cost_volume(capsys, tmp_path, planted, mon
                        "--max-disparity", str(w - 1))
     assert code == 2 and len(err.strip().splitlines()) == 1 and not out.exists()
     assert f"--min-disparity/--max-disparity 0..{w - 1} px on {w}x{h} px needs about" in err
+
+
+def test_an_image_of_another_size_than_the_rigs_camera_is_refused(capsys, tmp_path, planted):
+    """Only a build's rectification used to check it: the ideal rig took the 320x200 image as the corner
+    of its 640x480 sensor and triangulated every pixel through the wrong rays."""
+    paths, _ = planted
+    out = tmp_path / "d.npy"
+    code, _, err = run(capsys, "disparity", str(paths["complex"]), "--rig", EXAMPLE, "-o", str(out))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not out.exists()
+    assert "image is 320x200 px but the rig's camera is 640x480 px" in err
+
+
+@pytest.mark.parametrize("kind", ["noise", "wall"])
+def test_an_image_without_echo_is_refused_and_nothing_written(capsys, tmp_path, kind):
+    """Independent random pixels, or a wall (grey 128 and sensor noise): the maps used to answer 100 % of
+    the pixels. No answer stands above chance: one line, exit 1, the earlier map kept, nothing else written."""
+    rng = np.random.default_rng(11)
+    img = (rng.integers(0, 256, (480, 640)) if kind == "noise" else 128 + rng.normal(0, 2, (480, 640)))
+    path = tmp_path / f"{kind}.png"
+    write_png(path, np.clip(img, 0, 255).astype(np.uint8))
+    out, conf = tmp_path / "d.npy", tmp_path / "c.npy"
+    out.write_bytes(b"earlier")
+    code, text, err = run(capsys, "disparity", str(path), "--rig", EXAMPLE, "-o", str(out), "--confidence",
+                          str(conf), "--fast")
+    assert code == 1 and text == "" and len(err.strip().splitlines()) == 1, err
+    assert err.startswith("psvs disparity: cannot measure: no answer stands above chance: the largest consistent "
+                          "region carries ")
+    assert "a 1% false alarm): the image shows no echo of the disparities 88..254 px" in err
+    assert out.read_bytes() == b"earlier" and not conf.exists()
+
+
+def test_a_textured_scene_says_how_much_it_trusts(capsys, tmp_path):
+    """The built-in textured scene: every pixel answered, about half of them (49 % in the fast mode: the
+    left quarter has no twin in the image) with confidence; the confidence map is 0 elsewhere."""
+    from psvs.io.params import load_rig
+    from psvs.simulate.builtin import textured
+    from psvs.simulate.render import render
+    path = tmp_path / "t.png"
+    write_png(path, render(textured(), load_rig(EXAMPLE), seed=2).image)
+    out, conf = tmp_path / "d.npy", tmp_path / "c.npy"
+    code, text, err = run(capsys, "disparity", str(path), "--rig", EXAMPLE, "-o", str(out), "--confidence",
+                          str(conf), "--fast")
+    assert code == 0, err
+    import re
+    m = re.search(r"307200 of 307200 px answered, (\d+) \((\d+)%\) with confidence \(in a consistent region of "
+                  r"excess echo over (\d+); chance on this image makes up to (\d+)\)", text)
+    assert m, text
+    trusted, pct, limit, chance = map(int, m.groups())
+    c = np.load(conf)
+    assert (c > 0).sum() <= trusted and 0.4 < trusted / 307200 < 0.8 and pct == round(100 * trusted / 307200)
+    assert limit > chance and np.isfinite(np.load(out)).all()

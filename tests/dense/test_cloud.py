@@ -8,14 +8,24 @@ from psvs.dense import disparity_cloud, write_cloud_ply
 from psvs.optics.project import project_points
 
 
+def on_sensor(block: np.ndarray, d: float) -> np.ndarray:
+    """A map (H, d + w) holding ``block`` (H, w) at columns d.., NaN left of it: its pixels' twins u - d
+    lie on the sensor (a twin left of u = -0.5 was seen by no pixel, and gives no point)."""
+    out = np.full((block.shape[0], int(d) + block.shape[1]), np.nan)
+    out[:, int(d):] = block
+    return out
+
+
 def test_paper_model_depth_is_eq_12(rig):
-    """A constant disparity of d px is Z = b f / (d pitch) - b/2 (eq. 12) at every pixel."""
+    """A constant disparity of d px is Z = b f / (d pitch) - b/2 (eq. 12) at every pixel whose twin u - d
+    is on the sensor; none where it is not."""
     r = rig.replace(plate_thickness_mm=0.0)
-    d = np.full((6, 8), 120.0)
+    d = np.full((6, 128), 120.0)
     cloud = disparity_cloud(d, r, model="paper")
     b, f, p = r.mirrors.baseline_mm, r.camera.focal_length_mm, r.camera.pixel_pitch_mm[0]
     assert cloud.points_mm.shape == (48, 3)
-    np.testing.assert_allclose(cloud.depth_mm, b * f / (120.0 * p) - b / 2, rtol=1e-12)
+    np.testing.assert_allclose(cloud.depth_mm[:, 120:], b * f / (120.0 * p) - b / 2, rtol=1e-12)
+    assert np.isnan(cloud.depth_mm[:, :120]).all()       # twins off the sensor (u - d < -0.5)
 
 
 def test_exact_model_recovers_planted_points(rig):
@@ -39,11 +49,12 @@ def test_exact_model_recovers_planted_points(rig):
 
 
 def test_ply_is_binary_and_complete(tmp_path, rig):
-    d = np.full((4, 5), 100.0)
-    d[0, 0] = np.nan
+    block = np.full((4, 5), 100.0)
+    block[0, 0] = np.nan
+    d = on_sensor(block, 100)
     cloud = disparity_cloud(d, rig)
     path = tmp_path / "c.ply"
-    write_cloud_ply(path, cloud, grey=np.arange(20, dtype=np.uint8).reshape(4, 5))
+    write_cloud_ply(path, cloud, grey=np.nan_to_num(on_sensor(np.arange(20).reshape(4, 5), 100)).astype(np.uint8))
     raw = path.read_bytes()
     head, body = raw.split(b"end_header\n", 1)
     assert b"format binary_little_endian 1.0" in head and b"element vertex 19" in head
@@ -53,7 +64,7 @@ def test_ply_is_binary_and_complete(tmp_path, rig):
 
 
 def test_mask_and_bad_shape(rig):
-    d = np.full((4, 5), 100.0)
-    assert len(disparity_cloud(d, rig, mask=np.eye(4, 5, dtype=bool)).points_mm) == 4
+    d = on_sensor(np.full((4, 5), 100.0), 100)
+    assert len(disparity_cloud(d, rig, mask=on_sensor(np.eye(4, 5), 100) == 1).points_mm) == 4
     with pytest.raises(ValueError, match=r"\(H, W\)"):
         disparity_cloud(np.zeros(5), default_rig())

@@ -4,21 +4,24 @@ import numpy as np
 import pytest
 
 from psvs.measure.triangulate import fit_refraction_terms, triangulate
-from psvs.optics.project import project_points
+from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import MirrorExtent
 from tests.conftest import whole_field_points
 
 
 @pytest.fixture(scope="module")
 def reference_matches(reference):
-    """Planted points over the whole field and their pixels from the independent reference model."""
+    """Planted points over the whole field and their pixels from the independent reference model, kept
+    where both pixels lie on the sensor (the plate moves the left view's outermost columns of the grid up
+    to 2 px off it: no camera sees those, and triangulation refuses them, tested below)."""
     from psvs import default_rig
     rig = default_rig()
     def make(depths, n_side):
         pts = whole_field_points(rig, n_side=n_side, depths=depths)
         left = np.array([reference.project_left(p) for p in pts])
         right = np.array([reference.project_right(p) for p in pts])
-        return pts, left, right
+        seen = in_image(left, rig) & in_image(right, rig)
+        return pts[seen], left[seen], right[seen]
     test = make(np.linspace(400, 1200, 9), 9)
     train = make(np.linspace(425, 1175, 6), 7)  # other points, for fitting l and m
     return test, train
@@ -113,3 +116,77 @@ def test_example_matches_recover_their_truth(clear_rig):
     res = triangulate(left, right, clear_rig, model="exact")
     assert res.valid.all()
     np.testing.assert_allclose(res.points_mm, truth, atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def planted_pairs():
+    """Three points through the clear rig (finite mirrors) and their exact pixels in both views."""
+    from psvs.io.params import load_rig
+    rig = load_rig("clear")
+    pts = np.array([[0.0, 0.0, 500.0], [40.0, -30.0, 800.0], [-60.0, 20.0, 1100.0]])
+    left, okl = project_points(pts, rig, "left")
+    right, okr = project_points(pts, rig, "right")
+    assert (okl & okr & in_image(left, rig) & in_image(right, rig)).all()
+    return rig, pts, left, right
+
+
+@pytest.mark.parametrize("model", ["paper", "refraction", "exact"])
+def test_pixels_off_the_sensor_are_refused(planted_pairs, model):
+    """A pixel outside -0.5..W-0.5 x -0.5..H-0.5 (in either view) was seen by no pixel of the camera: NaN,
+    valid = 0, for every model; the sensor's outer edges themselves still count."""
+    rig, pts, left, right = planted_pairs
+    good = triangulate(left, right, rig, model=model)
+    assert good.valid.all()
+    tol = 1e-6 if model == "exact" else 0.02 * pts[:, 2].max()
+    assert np.abs(good.points_mm - pts).max() < tol
+    w, h = rig.camera.image_size_px
+    moves = [(0, 0, -0.51), (0, 0, w - 0.49), (0, 1, -0.51), (0, 1, h - 0.49),
+             (1, 0, -0.51), (1, 0, w - 0.49), (1, 1, -0.51), (1, 1, h - 0.49)]
+    for view, axis, value in moves:
+        pair = [left.copy(), right.copy()]
+        pair[view][0, axis] = value
+        res = triangulate(*pair, rig, model=model)
+        assert res.valid.tolist() == [False, True, True], (view, axis, value)
+        assert np.isnan(res.points_mm[0]).all() and np.isfinite(res.points_mm[1:]).all()
+    edge = triangulate([[w - 0.5, 239.5]], [[w - 100.5, 239.5]], rig, model=model)
+    assert edge.valid.all()
+
+
+@pytest.mark.parametrize("model", ["paper", "refraction", "exact"])
+def test_rays_that_do_not_meet_in_front_of_the_rig_are_refused(planted_pairs, model):
+    """Left and right swapped (the point would be behind the rig: the rays diverge) and negative
+    disparities: NaN, valid = 0."""
+    rig, _, left, right = planted_pairs
+    swapped = triangulate(right, left, rig, model=model)
+    assert not swapped.valid.any() and np.isnan(swapped.points_mm).all()
+    back = right.copy()
+    back[:, 0] = left[:, 0] + 7.0                     # x_l - x_r = -7 px
+    res = triangulate(left, back, rig, model=model)
+    assert not res.valid.any() and np.isnan(res.points_mm).all()
+
+
+@pytest.mark.parametrize("model", ["paper", "refraction", "exact"])
+def test_points_inside_the_mirror_box_are_refused(model):
+    """With a 4 mm lens a disparity of 500 px on the sensor puts the point at Z ~ 30 mm: inside the mirror
+    box (its far mirror M3 at Z = 44 mm), where no scene point is seen through the mirrors; 400 px puts it
+    at ~50 mm, beyond the box."""
+    from psvs.optics.mirrors import front_z_mm
+    rig = default_rig_with(focal_length_mm=4.0)
+    assert front_z_mm(rig) == pytest.approx(44.0)
+    res = triangulate([[600.0, 239.5], [500.0, 239.5]], [[100.0, 239.5], [100.0, 239.5]], rig, model=model)
+    assert res.valid.tolist() == [False, True]
+    assert 44.0 < res.points_mm[1, 2] < 60.0
+
+
+def default_rig_with(**changes):
+    from psvs import default_rig
+    return default_rig().replace(**changes)
+
+
+def test_the_front_of_the_rig():
+    """Unbounded mirrors: M3's anchor at Z = c2 (44 mm); finite ones: their far corners (M3 of the clear rig
+    reaches 44 + 53.72 cos 45 deg = 81.99 mm)."""
+    from psvs.io.params import load_rig
+    from psvs.optics.mirrors import front_z_mm
+    assert front_z_mm(default_rig_with()) == pytest.approx(44.0)
+    assert front_z_mm(load_rig("clear")) == pytest.approx(44.0 + 53.72226252195192 * np.sqrt(0.5))

@@ -5,7 +5,10 @@ and/or ``sweep.csv`` (the paper's robot sweep, :mod:`psvs.calibrate.sweep`). Ima
 are sweep images; every other PNG is a view of the card. Each image is detected on its own; one that
 cannot be used is skipped with its reason (no grid found, too few discs on an even ground, or -- after a
 first adjustment -- a target that fits no pose), and the bundle adjustment
-(:func:`psvs.calibrate.bundle.bundle_adjust`) runs on the rest.
+(:func:`psvs.calibrate.bundle.bundle_adjust`) runs on the rest. A folder that repeats a view is refused
+before any work (``ValueError`` naming the duplicates): ``sweep.csv`` listing one image twice or one robot
+position for two images, or two byte-identical images (a copy under another name). A repeat adds no
+evidence, yet the adjustment would weigh it as new and count it as an image used.
 """
 from __future__ import annotations
 
@@ -64,15 +67,15 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
         raise ValueError(f"{folder} holds neither target.toml (hand-held card views) nor sweep.csv (robot sweep)")
     skipped: dict[str, str] = {}
     sweeps = []
-    sweep_names: set[str] = set()
+    items = read_sweep(folder) if has_sweep else []
+    sweep_names = {p.name for p, _ in items}
+    others = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".png" and p.name not in sweep_names)
+    check_distinct_images([p for p, _ in items] + (others if has_target else []))
     if has_sweep:
-        items = read_sweep(folder)
-        sweep_names = {p.name for p, _ in items}
         found, bad = detect_sweep(items, COUNT)
         skipped.update(bad)
         sweeps = sweep_views(found)
     grids = []
-    others = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".png" and p.name not in sweep_names)
     if has_target:
         grid = load_target(folder / "target.toml")
         for path in others:
@@ -96,6 +99,22 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
     used = {**{g.name: "grid" for g in grids}, **{s.name: "sweep" for s in sweeps}}
     b, sb = effective_baseline(res)
     return CalibrationResult(res, used, skipped, b, sb)
+
+
+def check_distinct_images(paths: list[Path]) -> None:
+    """ValueError naming two images of the folder that are one photograph: byte-identical files (a copy
+    under another name). A copy adds no view, yet the bundle adjustment would weigh it as new evidence
+    (and report one image more than the folder holds views)."""
+    import hashlib
+    first: dict[bytes, Path] = {}
+    for path in paths:
+        if not path.is_file():
+            continue          # a listed image that is missing is skipped later, with its reason
+        digest = hashlib.sha256(path.read_bytes()).digest()
+        if digest in first:
+            raise ValueError(f"{first[digest].name} and {path.name} are the same image (byte-identical files): "
+                             "each view must be its own photograph")
+        first[digest] = path
 
 
 def _enough(grids, sweeps, skipped) -> None:

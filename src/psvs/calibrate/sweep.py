@@ -17,6 +17,7 @@ import numpy as np
 
 from psvs.calibrate.bundle import BundleResult, SweepView, bundle_adjust
 from psvs.calibrate.targets import PatternDetection, detect_pattern
+from psvs.errors import MeasurementError
 from psvs.io.images import read_grey
 from psvs.io.text import read_csv_rows
 from psvs.optics.rig import Rig
@@ -64,7 +65,28 @@ def read_sweep(folder) -> list[tuple[Path, float]]:
             raise ValueError(f"{table}:{n}: position_mm is not a number: {position!r}") from None
     if not out:
         raise ValueError(f"{table}: no images listed")
+    check_sweep_rows(out, table.name)
     return out
+
+
+def check_sweep_rows(items: list[tuple[Path | str, float]], where: str = "the sweep") -> None:
+    """ValueError naming the duplicates when the sweep lists one image twice (the same file, by name or by
+    its resolved path) or one robot position for two images: a repeated row adds no view and no position,
+    yet the bundle adjustment would weigh it as new evidence and count it as an image used."""
+    seen: dict = {}
+    for name, _ in items:
+        key = Path(name).resolve() if isinstance(name, Path) else name
+        seen.setdefault(key, []).append(Path(name).name)
+    for names in seen.values():
+        if len(names) > 1:
+            raise ValueError(f"{where} lists {names[0]} {len(names)} times: each row must be its own image")
+    at: dict[float, list[str]] = {}
+    for name, pos in items:
+        at.setdefault(float(pos), []).append(Path(name).name)
+    for pos, names in at.items():
+        if len(names) > 1:
+            raise ValueError(f"{where} lists robot position {pos:g} mm for {len(names)} images ({', '.join(names)}): "
+                             "each sweep image must be at its own position")
 
 
 def detect_sweep(items: list[tuple[Path, float]], count: int = 5):
@@ -73,7 +95,7 @@ def detect_sweep(items: list[tuple[Path, float]], count: int = 5):
     for path, pos in items:
         try:
             ok.append((path.name, pos, detect_pattern(read_grey(path), count)))
-        except (ValueError, FileNotFoundError) as exc:
+        except (ValueError, FileNotFoundError, MeasurementError) as exc:
             skipped[path.name] = str(exc)
     return ok, skipped
 
@@ -86,6 +108,7 @@ def sweep_views(observations: list[tuple[str, float, PatternDetection]]) -> list
 
 def calibrate_sweep(observations, start: Rig, count: int = COUNT) -> BundleResult:
     """Calibrate from sweep detections [(name, robot position mm, PatternDetection)] alone, from ``start``."""
+    check_sweep_rows([(name, pos) for name, pos, _ in observations])
     if len(observations) < 3:
         raise ValueError(f"calibration needs at least 3 usable sweep images, got {len(observations)}")
     return bundle_adjust([], sweep_views(observations), start, sweep_local_mm=pattern_layout(count))

@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 
 from psvs._validate import check_grey
+from psvs.errors import MeasurementError
 
 
 @dataclass(frozen=True, eq=False)
@@ -167,7 +168,9 @@ def _radial_residual(e: Ellipse, pts: np.ndarray) -> np.ndarray:
 def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_DIAMETER_PX) -> PatternDetection:
     """Find the pattern's ``count`` circles in both views of a complex image.
 
-    Raises ValueError naming the problem: blank image, wrong number of circles, circles not on one row.
+    Raises ValueError naming the problem: blank image, fewer circles than ``count`` in a view (a circle
+    missing or out of view), circles not on one row; MeasurementError for more circles than ``count`` (the
+    image shows another pattern than the one asked for: the count is checked, never chosen from).
     """
     if not isinstance(count, int) or count < 2:
         raise ValueError(f"count must be an integer >= 2 (circles in the pattern), got {count!r}")
@@ -179,11 +182,9 @@ def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_
     if len(blobs) < 2 * count:
         raise ValueError(f"found {len(blobs)} circle(s), expected {2 * count} ({count} per view): a circle is "
                          f"missing or the pattern is partly out of view")
-    if len(blobs) > 2 * count:
-        # keep the 2*count blobs closest to the row most of them share
-        v = np.array([c[1] for c, _ in blobs])
-        med = np.median(v)
-        blobs = [blobs[i] for i in np.argsort(np.abs(v - med))[:2 * count]]
+    if len(blobs) > 2 * count:     # more circles than the pattern asked for: not that pattern, nothing to pick
+        raise MeasurementError(f"found {len(blobs)} circles, expected {2 * count} ({count} per view): the image "
+                               f"shows more circles than the pattern's {count}")
     blobs.sort(key=lambda b: b[0][0])
     circles = [refine_circle(grey, c, r) for c, r in blobs]
     right, left = circles[:count], circles[count:]

@@ -5,9 +5,11 @@ import numpy as np
 
 from psvs.cli.common import add_model_argument, add_range_arguments, check_output_path, range_from_args
 from psvs.dense import dense_disparity, separate_views, write_cloud_ply
-from psvs.dense.build import RigDense, dense_on_rig, rig_cloud
+from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_trust
 from psvs.dense.disparity import check_dense_memory, check_range
 from psvs.dense.params import DEFAULT, FAST
+from psvs.dense.trust import ALPHA, EchoTrust, trusted_maps
+from psvs.errors import MeasurementError
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
 from psvs.io.images import read_grey, write_npy, write_png
@@ -24,7 +26,10 @@ def add_parser(sub) -> None:
                                    "(misaligned mirrors or a distorting lens) every map, the views and the "
                                    "disparities (also --min/--max-disparity) are in the rectified coordinates "
                                    "of the views (docs/optics.md): the left map on the left view's rectified "
-                                   "grid, u'_l - u'_r px.")
+                                   "grid, u'_l - u'_r px. The confidence map and the summary say which answers "
+                                   "the echo supports beyond chance (a consistent region larger than chance "
+                                   "makes on the image itself); when none does (noise, a blank wall) it exits 1 "
+                                   "and writes nothing.")
     p.add_argument("image", metavar="IMAGE", help="complex image (PNG, grey)")
     p.add_argument("--rig", metavar="RIG.toml", help="rig file: disparity range from --near-mm..--far-mm, split "
                                                       "ratio, and the triangulation for --depth/--cloud")
@@ -35,7 +40,8 @@ def add_parser(sub) -> None:
                                                               "rig's split_ratio, else 0.5)")
     p.add_argument("-o", "--output", metavar="DISP.npy", required=True, help="left-view disparity map")
     p.add_argument("--right", metavar="DISP_R.npy", help="also the right view's disparity map")
-    p.add_argument("--confidence", metavar="CONF.npy", help="also the left map's confidence (0..1)")
+    p.add_argument("--confidence", metavar="CONF.npy", help="also the left map's confidence (0..1; 0 where the "
+                                                            "answer is not trusted: docs/dense.md)")
     p.add_argument("--views", nargs=2, metavar=("LEFT.png", "RIGHT.png"), help="separated left and right views")
     p.add_argument("--depth", metavar="DEPTH.npy", help="Z (mm) of each left-view pixel (needs --rig)")
     p.add_argument("--cloud", metavar="OUT.ply", help="point cloud, binary PLY, mm (needs --rig)")
@@ -76,11 +82,10 @@ def _inputs(args):
     rect = None
     if rig is not None:
         near_mm, far_mm = range_from_args(args)
-        rect = rectification_for(rig, near_mm, far_mm)
         w, h = rig.camera.image_size_px
-        if rect is not None and image.shape != (h, w):
-            raise ValueError(f"image is {image.shape[1]}x{image.shape[0]} px but the rig's camera is {w}x{h} px "
-                             "(a build's rectification needs the camera's full frame)")
+        if image.shape != (h, w):      # another size: every pixel's ray, and so the range and depths, are wrong
+            raise ValueError(f"image is {image.shape[1]}x{image.shape[0]} px but the rig's camera is {w}x{h} px")
+        rect = rectification_for(rig, near_mm, far_mm)
     shape = image.shape if rect is None else rect.size_px[::-1]
     lo, hi = _range(args, rig, rect, shape[1])
     check_range(lo, hi, shape[1])
@@ -115,6 +120,35 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
     return cloud
 
 
+def _trusted(image, dense: RigDense, params) -> tuple[RigDense, EchoTrust | None]:
+    """``dense`` with its confidence 0 where the echo does not support the answer beyond chance, and that
+    judgement (None when the maps answer nothing); MeasurementError when they answer but nothing is trusted."""
+    res = dense.result
+    if not np.isfinite(res.disparity_left).any():
+        return dense, None
+    trust = rig_trust(image, dense, params)
+    if trust.count == 0:
+        lo, hi = res.searched_px
+        raise MeasurementError(
+            f"no answer stands above chance: the largest consistent region carries {trust.largest_excess:.0f} of "
+            f"excess echo, chance on this image up to {trust.null_largest_excess:.0f} (trusted beyond "
+            f"{trust.min_excess:.0f}, a {ALPHA:.0%} false alarm): the image shows no echo of the disparities "
+            f"{lo:.0f}..{hi:.0f} px")
+    return RigDense(trusted_maps(res, trust), dense.rect, dense.left_image), trust
+
+
+def _summary(dense: RigDense, trust: EchoTrust | None) -> str:
+    res = dense.result
+    d = res.disparity_left[np.isfinite(res.disparity_left)]
+    if not d.size:
+        return "no disparity found"
+    n = res.disparity_left.size
+    return (f"{d.size} of {n} px answered, {trust.count} ({trust.count / n:.0%}) with confidence (in a consistent "
+            f"region of excess echo over {trust.min_excess:.0f}; chance on this image makes up to "
+            f"{trust.null_largest_excess:.0f}), disparity {np.median(d):.1f} px median ({res.searched_px[0]:.0f}.."
+            f"{res.searched_px[1]:.0f} searched)")
+
+
 def run(args) -> int:
     out = _outputs(args)
     rig, image, rect, split, (lo, hi), params = _inputs(args)
@@ -123,10 +157,8 @@ def run(args) -> int:
         dense = RigDense(dense_disparity(image, lo, hi, params=params), None, image)
     else:
         dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi))
+    dense, trust = _trusted(image, dense, params)
     cloud = _write(out, dense, image, rig, split, args.model)
-    res = dense.result
-    d = res.disparity_left[np.isfinite(res.disparity_left)]
-    summary = (f"{d.size} of {res.disparity_left.size} px answered, disparity {np.median(d):.1f} px median "
-               f"({res.searched_px[0]:.0f}..{res.searched_px[1]:.0f} searched)") if d.size else "no disparity found"
-    print(f"{out['disparity']}: {summary}" + (f"; {len(cloud.points_mm)} points" if cloud is not None else ""))
+    print(f"{out['disparity']}: {_summary(dense, trust)}"
+          + (f"; {len(cloud.points_mm)} points" if cloud is not None else ""))
     return 0

@@ -20,6 +20,7 @@ from scipy.ndimage import distance_transform_edt
 from psvs.dense.cloud import Cloud, disparity_cloud
 from psvs.dense.disparity import DenseResult, dense_disparity
 from psvs.dense.params import DEFAULT, DenseParams
+from psvs.dense.trust import EchoTrust, echo_trust
 from psvs.dense.workspace import Workspace
 from psvs.measure.triangulate import default_model, triangulate
 from psvs.optics.rectify import Rectification
@@ -83,6 +84,17 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
                       np.where(inside_l, res.confidence_left, 0).astype(np.float32),
                       np.where(inside_r, res.confidence_right, 0).astype(np.float32), res.searched_px)
     return RigDense(res, rect, a)
+
+
+def rig_trust(image, dense: RigDense, params: DenseParams = DEFAULT) -> EchoTrust:
+    """Which pixels of ``dense`` (the maps of ``image`` with ``params``) the echo supports beyond chance
+    (:func:`psvs.dense.trust.echo_trust`); on a build, on the two rectified grids, chance's maps cut to
+    each view's field as the maps are."""
+    if dense.rect is None:
+        return echo_trust(image, dense.result, params)
+    a, b = rectified_images(image, dense.rect)
+    inside = tuple(dense.rect.maps(v)[0] >= 0 for v in ("left", "right"))
+    return echo_trust(a, dense.result, params, image_right=b, inside=inside)
 
 
 def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) -> Cloud:

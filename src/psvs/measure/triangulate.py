@@ -8,6 +8,15 @@ Models
                 e.g. from :func:`fit_refraction_terms`).
 ``exact``       both pixels traced through the exact optics (Snell at both plate faces), the two rays
                 intersected (midpoint of their closest approach).
+
+Every model answers only what the rig can see. A row is NaN and invalid when a pixel lies off the sensor
+(u outside -0.5..W-0.5 or v outside -0.5..H-0.5: no pixel of the camera saw it), when the disparity is
+not positive or the rays diverge (they meet behind the rig, if at all), or when the point they give is not
+*in front of the rig*: beyond the mirror box, Z greater than the far reach of its mirrors
+(:func:`psvs.optics.mirrors.front_z_mm`: the far mirrors' corners, or M3/M4's anchors for unbounded
+mirrors). A point behind the camera or inside the box cannot be seen through the mirrors, so a pair of
+pixels that triangulates there was mismatched (left and right swapped, a wrong twin), and no number is
+given for it.
 """
 from __future__ import annotations
 
@@ -17,8 +26,10 @@ import numpy as np
 
 from psvs._validate import check_points, check_same_length
 from psvs.measure.equations import x_eq13, y_eq14, z_eq12, z_eq15
+from psvs.measure.refraction_fit import fit_refraction_terms as fit_refraction_terms  # the fit of l, m: its home
+from psvs.optics.mirrors import front_z_mm
 from psvs.optics.plate import refraction_terms
-from psvs.optics.project import project_points
+from psvs.optics.project import in_image, project_points
 from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
 from psvs.optics.trace import ideal_sensor_from_pixels, trace_pixels
@@ -54,8 +65,9 @@ def triangulate(left_px, right_px, rig: Rig, model: str = "refraction") -> Trian
     Returns
     -------
     Triangulation
-        ``points_mm`` (N, 3) mm and ``valid`` (N,). Rows with x_l <= x_r, NaN input, parallel or
-        diverging rays, or (exact) vignetted rays are NaN and invalid.
+        ``points_mm`` (N, 3) mm and ``valid`` (N,). Rows with x_l <= x_r, NaN input, a pixel off the
+        sensor, parallel or diverging rays, a point not in front of the rig (Z <= the mirrors' far reach,
+        see the module docstring) or (exact) vignetted rays are NaN and invalid.
 
     Examples
     --------
@@ -71,7 +83,25 @@ def triangulate(left_px, right_px, rig: Rig, model: str = "refraction") -> Trian
     if model not in MODELS:
         raise ValueError(f"model must be one of {', '.join(MODELS)}; got {model!r}")
     if model == "exact":
-        return _triangulate_exact(left, right, rig)
+        res = _triangulate_exact(left, right, rig)
+    else:
+        res = _triangulate_closed_form(left, right, rig, model)
+    return _seen_by_the_rig(res, left, right, rig)
+
+
+def _seen_by_the_rig(res: Triangulation, left: np.ndarray, right: np.ndarray, rig: Rig) -> Triangulation:
+    """``res`` with the rows no scene point can give made NaN and invalid: a pixel off the sensor, or the
+    point not beyond the mirror box (Z <= :func:`psvs.optics.mirrors.front_z_mm`)."""
+    pts, valid = res.points_mm, res.valid
+    with np.errstate(invalid="ignore"):
+        valid = valid & in_image(left, rig) & in_image(right, rig) & (pts[:, 2] > front_z_mm(rig))
+    if not valid.all():
+        pts[~valid] = np.nan
+    return Triangulation(pts, valid)
+
+
+def _triangulate_closed_form(left: np.ndarray, right: np.ndarray, rig: Rig, model: str) -> Triangulation:
+    """Eqs. (12)-(14) (``paper``) or (15)-(17) (``refraction``) on matched pixels (N, 2) px."""
     cam, m = rig.camera, rig.mirrors
     f, b, zv = cam.focal_length_mm, m.baseline_mm, rig.virtual_z_mm
     if cam.distorted:
@@ -124,40 +154,3 @@ def _triangulate_exact(left: np.ndarray, right: np.ndarray, rig: Rig) -> Triangu
     valid &= np.all(np.isfinite(pts), axis=1)
     pts[~valid] = np.nan
     return Triangulation(pts, valid)
-
-
-def fit_refraction_terms(left_px, right_px, points_mm, rig: Rig) -> tuple[float, float]:
-    """Fit l and m of eq. (15), mm, to matched pixels of known 3-D points (least squares in depth).
-
-    Eq. (15) is linear in (l, m): z - z_v - b f / D = x_l l / D + f m / D with D = x_l - x_r, so the
-    fit minimises the squared depth error over all valid rows.
-
-    Parameters
-    ----------
-    left_px, right_px : array_like, shape (N, 2)
-        Matched pixels, px.
-    points_mm : array_like, shape (N, 3)
-        The points they see, frame C, mm (only Z is used).
-    rig : Rig
-
-    Returns
-    -------
-    (l_mm, m_mm) : tuple of float
-    """
-    left = check_points(left_px, "left_px", 2)
-    right = check_points(right_px, "right_px", 2)
-    pts = check_points(points_mm, "points_mm", 3)
-    check_same_length(left, right, "left_px", "right_px")
-    check_same_length(left, pts, "left_px", "points_mm")
-    cam, m = rig.camera, rig.mirrors
-    f, b = cam.focal_length_mm, m.baseline_mm
-    xl = ideal_sensor_from_pixels(left, cam)[:, 0]
-    xr = ideal_sensor_from_pixels(right, cam)[:, 0]
-    disp = xl - xr
-    ok = np.isfinite(disp) & (disp > 0) & np.isfinite(pts[:, 2])
-    if ok.sum() < 2:
-        raise ValueError(f"fit_refraction_terms needs >= 2 valid correspondences with x_l > x_r, got {int(ok.sum())}")
-    A = np.stack([xl[ok] / disp[ok], f / disp[ok]], axis=1)
-    rhs = pts[ok, 2] - rig.virtual_z_mm - b * f / disp[ok]
-    (l_mm, m_mm), *_ = np.linalg.lstsq(A, rhs, rcond=None)
-    return float(l_mm), float(m_mm)

@@ -73,6 +73,27 @@ def _planes(m) -> dict[str, Plane]:
     return out
 
 
+def front_z_mm(rig: Rig) -> float:
+    """Where the rig ends toward the scene: the largest Z (mm, frame C) that any of its mirrors reaches.
+
+    A finite mirror reaches as far as the corners of its rectangle; an unbounded one (the paper's ideal
+    plane, no size in the rig file) is taken at its anchor, where its path's axis crosses it (M3 at z = c2
+    and M4 at z = c1 for omega_1 = 45 deg, the far mirrors). Tilts, shifts and the box's turn of a build
+    are included. Light from a point at a smaller Z would have to start inside the mirror box (or behind
+    the camera): no scene point is seen there, so a triangulation that lands there is not a measurement.
+    """
+    z = []
+    for plane in mirror_planes(rig).values():
+        if plane.extent is None:
+            z.append(float(plane.point[2]))
+            continue
+        (s0, s1), (t0, t1) = plane.extent.along_mm, plane.extent.height_mm
+        for s in (s0, s1):
+            for t in (t0, t1):
+                z.append(float(plane.point[2] + s * plane.s_axis[2] + t * plane.t_axis[2]))
+    return max(z)
+
+
 def _tilt_matrix(tilt_rad: tuple[float, float], s_axis: np.ndarray) -> np.ndarray:
     """Rotation (3, 3) of a mirror's tilt (a, b): by a about +Y, then by b about the turned s axis."""
     yaw = Rotation.from_rotvec([0.0, tilt_rad[0], 0.0])

@@ -1,0 +1,150 @@
+"""Fit l and m of eq. (15) to matched pixels of known points, and refuse a fit the points cannot pin.
+
+Eq. (15) is linear in (l, m): z - z_v - b f / D = x_l l / D + f m / D with D = x_l - x_r, so the fit is a
+least-squares line through the rows (x_l / D, f / D) -> that depth remainder. A number written into a rig
+file is used for every later depth, so the fit answers only when the points support it:
+
+* **Bad input** (``ValueError``): a non-finite value, or a known point not in front of the rig (Z not beyond
+  the mirror box, :func:`psvs.optics.mirrors.front_z_mm`: no camera sees it through the mirrors).
+* **Too few distinct points** (:class:`~psvs.errors.MeasurementError`): two unknowns need three distinct
+  points, two to pin l and m and a third to check them (two are fitted exactly, whatever they are worth).
+* **Ill-conditioned** (``MeasurementError``): each point's depth is uncertain by what a sub-pixel
+  disparity error does at its depth, dz = (z - z_v)^2 dd / (f b) (eq. 12 differentiated), with
+  dd = :data:`DISPARITY_NOISE_PX` px. With the rows weighted by 1/dz and the two columns scaled to unit
+  length, the fit's condition number kappa sets the 1-sigma of each term exactly:
+  sigma_k = (kappa + 1/kappa) / (2 c_k), c_k the column's length. The limit is the kappa at which that noise
+  moves l or m by their own size (the values derived from d, n, omega_1, at least :data:`TERM_FLOOR_MM`):
+  kappa_max = g + sqrt(g^2 - 1), g = min_k size_k c_k; beyond it the fit cannot tell the terms from zero.
+  A rank-deficient system (every point on one column, say) has kappa ~ 1e16.
+* **Residual above the noise** (``MeasurementError``): the RMS of the fitted depths' residuals is compared
+  with the RMS of dz over the points; more than :data:`RESIDUAL_FACTOR` times that means the matches or the
+  known points disagree with eq. (15) (a wrong match, a mistyped point, another rig's pixels).
+"""
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from psvs._validate import check_points, check_same_length
+from psvs.errors import MeasurementError
+from psvs.optics.mirrors import front_z_mm
+from psvs.optics.plate import derived_refraction_terms
+from psvs.optics.rig import Rig
+from psvs.optics.trace import ideal_sensor_from_pixels
+
+#: px: the disparity error of a sub-pixel match, the upper end of the 0.1-0.3 px that refined matches reach
+#: (docs/matching.md): the noise the checks allow for.
+DISPARITY_NOISE_PX = 0.3
+#: How many times the noise's RMS depth error the fit's RMS residual may reach.
+RESIDUAL_FACTOR = 3.0
+#: mm: the smallest term size the conditioning check asks the fit to resolve (a rig without a plate has
+#: derived l = m = 0).
+TERM_FLOOR_MM = 0.1
+
+
+class RefractionFit(NamedTuple):
+    """l_mm, m_mm of eq. (15); the rows used; the RMS depth residual and the RMS depth noise (mm) that
+    :data:`DISPARITY_NOISE_PX` explains at the points' depths; the fit's condition number and its limit."""
+
+    l_mm: float
+    m_mm: float
+    n_rows: int
+    rms_residual_mm: float
+    noise_rms_mm: float
+    condition: float
+    condition_limit: float
+
+
+def fit_refraction(left_px, right_px, points_mm, rig: Rig) -> RefractionFit:
+    """Fit l and m of eq. (15) (least squares in depth) after the checks of the module docstring.
+
+    Parameters
+    ----------
+    left_px, right_px : array_like, shape (N, 2)
+        Matched pixels, px. Rows with x_l <= x_r are left out.
+    points_mm : array_like, shape (N, 3)
+        The points they see, frame C, mm (only Z enters eq. 15).
+    rig : Rig
+
+    Raises
+    ------
+    ValueError
+        Bad input: shapes, a non-finite value, a point not in front of the rig, fewer than 2 rows with x_l > x_r.
+    MeasurementError
+        The points cannot pin l and m, or they disagree with eq. (15) beyond the noise.
+    """
+    left = check_points(left_px, "left_px", 2)
+    right = check_points(right_px, "right_px", 2)
+    pts = check_points(points_mm, "points_mm", 3)
+    check_same_length(left, right, "left_px", "right_px")
+    check_same_length(left, pts, "left_px", "points_mm")
+    _check_input(left, right, pts, rig)
+    cam = rig.camera
+    f, b = cam.focal_length_mm, rig.mirrors.baseline_mm
+    xl = ideal_sensor_from_pixels(left, cam)[:, 0]
+    disp = xl - ideal_sensor_from_pixels(right, cam)[:, 0]
+    ok = disp > 0
+    if ok.sum() < 2:
+        raise ValueError(f"fit_refraction_terms needs >= 2 valid correspondences with x_l > x_r, got {int(ok.sum())}")
+    distinct = len(np.unique(pts[ok], axis=0))
+    if distinct < 3:
+        raise MeasurementError(f"{int(ok.sum())} rows hold {distinct} distinct point(s): l and m of eq. (15) need 3 "
+                               "distinct points (two pin them, the third checks them)")
+    A = np.stack([xl[ok] / disp[ok], f / disp[ok]], axis=1)
+    rhs = pts[ok, 2] - rig.virtual_z_mm - b * f / disp[ok]
+    dz = (pts[ok, 2] - rig.virtual_z_mm) ** 2 * (DISPARITY_NOISE_PX * cam.pixel_pitch_mm[0]) / (f * b)
+    kappa, limit = _conditioning(A, dz, rig)
+    (l_mm, m_mm), *_ = np.linalg.lstsq(A, rhs, rcond=None)
+    rms = float(np.sqrt(np.mean((rhs - A @ np.array([l_mm, m_mm])) ** 2)))
+    noise = float(np.sqrt(np.mean(dz ** 2)))
+    if rms > RESIDUAL_FACTOR * noise:
+        raise MeasurementError(
+            f"the fit's RMS depth residual {rms:.3g} mm is {rms / noise:.1f} times the {noise:.3g} mm RMS that a "
+            f"{DISPARITY_NOISE_PX} px disparity error explains at these depths (limit {RESIDUAL_FACTOR:g} times): "
+            "the matches or the known points disagree with eq. (15) (a wrong match, a mistyped point, another rig)")
+    return RefractionFit(float(l_mm), float(m_mm), int(ok.sum()), rms, noise, kappa, limit)
+
+
+def fit_refraction_terms(left_px, right_px, points_mm, rig: Rig) -> tuple[float, float]:
+    """(l_mm, m_mm) of eq. (15) fitted to matched pixels of known points: :func:`fit_refraction`'s terms
+    (same checks, same errors)."""
+    fit = fit_refraction(left_px, right_px, points_mm, rig)
+    return fit.l_mm, fit.m_mm
+
+
+def _check_input(left: np.ndarray, right: np.ndarray, pts: np.ndarray, rig: Rig) -> None:
+    """ValueError naming the first row with a non-finite value or a point not in front of the rig."""
+    for name, arr in (("left_px", left), ("right_px", right), ("points_mm", pts)):
+        bad = np.flatnonzero(~np.all(np.isfinite(arr), axis=1))
+        if len(bad):
+            raise ValueError(f"{name} row {bad[0] + 1} is not finite ({', '.join(f'{v:g}' for v in arr[bad[0]])}): "
+                             "every known point needs both pixels and X, Y, Z")
+    front = front_z_mm(rig)
+    behind = np.flatnonzero(pts[:, 2] <= front)
+    if len(behind):
+        k = behind[0]
+        raise ValueError(f"points_mm row {k + 1}: Z = {pts[k, 2]:g} mm is not in front of the rig (beyond its "
+                         f"mirrors, Z > {front:.1f} mm): no camera sees it through the mirrors")
+
+
+def _conditioning(A: np.ndarray, dz: np.ndarray, rig: Rig) -> tuple[float, float]:
+    """The condition number of the fit (rows weighted by 1/dz, columns scaled to unit length) and its limit
+    (module docstring); MeasurementError when it is above the limit."""
+    W = A / dz[:, None]
+    c = np.linalg.norm(W, axis=0)
+    size = np.maximum(np.abs(derived_refraction_terms(rig)), TERM_FLOOR_MM)
+    s = np.linalg.svd(W / np.where(c > 0, c, 1.0), compute_uv=False)
+    kappa = float(s[0] / s[1]) if s[1] > 0 else math.inf
+    g = float(np.min(size * c))
+    limit = g + math.sqrt(g * g - 1.0) if g >= 1.0 else 1.0
+    if kappa > limit or g < 1.0:
+        with np.errstate(divide="ignore"):
+            sigma = (kappa + 1.0 / kappa) / (2.0 * c) if math.isfinite(kappa) else np.full(2, math.inf)
+        raise MeasurementError(
+            f"the points do not pin l and m of eq. (15): the fit's condition number is {kappa:.3g} (rows weighted "
+            f"by a {DISPARITY_NOISE_PX} px disparity error at their depths, columns scaled), limit {limit:.3g}, "
+            f"where that error moves l or m by their own size ({size[0]:.2f}, {size[1]:.2f} mm): l +- "
+            f"{sigma[0]:.3g} mm, m +- {sigma[1]:.3g} mm; spread the points over more columns and depths")
+    return kappa, limit

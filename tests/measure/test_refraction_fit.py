@@ -1,0 +1,93 @@
+"""Fitting l and m of eq. (15): a fit the points cannot pin is refused, with why (planted data)."""
+import numpy as np
+import pytest
+
+from psvs.errors import MeasurementError
+from psvs.io.params import load_rig
+from psvs.measure.refraction_fit import DISPARITY_NOISE_PX, RESIDUAL_FACTOR, fit_refraction, fit_refraction_terms
+from psvs.optics.project import project_points
+from tests.conftest import EXAMPLES
+
+
+@pytest.fixture(scope="module")
+def known():
+    """examples/known_points.csv (6 points through examples/rigs/clear.toml) and that rig."""
+    d = np.loadtxt(EXAMPLES / "known_points.csv", delimiter=",", skiprows=1)
+    return load_rig(EXAMPLES / "rigs" / "clear.toml"), d[:, :2], d[:, 2:4], d[:, 4:]
+
+
+def planted(rig, pts):
+    left, okl = project_points(pts, rig, "left")
+    right, okr = project_points(pts, rig, "right")
+    assert (okl & okr).all()
+    return left, right
+
+
+def test_the_example_fits_and_says_how_well(known):
+    """Six points over the field at 450-1200 mm: the fit answers, its residual far below the noise."""
+    rig, left, right, pts = known
+    fit = fit_refraction(left, right, pts, rig)
+    assert (fit.l_mm, fit.m_mm) == fit_refraction_terms(left, right, pts, rig)
+    assert 1.7 < fit.l_mm < 2.2 and 0.95 < fit.m_mm < 1.1
+    assert fit.n_rows == 6 and fit.rms_residual_mm < 0.2 < 2.0 < fit.noise_rms_mm
+    assert fit.condition < fit.condition_limit
+
+
+@pytest.mark.parametrize("copies, distinct", [((6,), 1), ((3, 3), 2), ((2,), 1)])
+def test_fewer_than_three_distinct_points_are_refused(known, copies, distinct):
+    """Six copies of one point gave 'mean 3-D error 0.0000 mm' and a rig; two distinct points are fitted
+    exactly whatever they are worth."""
+    rig, left, right, pts = known
+    rows = np.concatenate([np.full(n, k) for k, n in enumerate(copies)])
+    with pytest.raises(MeasurementError, match=f"{len(rows)} rows hold {distinct} distinct point"):
+        fit_refraction(left[rows], right[rows], pts[rows], rig)
+
+
+def test_an_ill_conditioned_fit_is_refused_with_its_condition_number(known):
+    """Points on the optical axis at four depths: x_l / D and f / D nearly proportional, so a 0.3 px
+    disparity error moves l by ~6 mm (3 times its size): the condition number and its limit are named."""
+    rig = known[0]
+    pts = np.array([[0.0, 0.0, 500.0], [0.0, 0.0, 650.0], [0.0, 0.0, 800.0], [0.0, 0.0, 1100.0]])
+    left, right = planted(rig, pts)
+    with pytest.raises(MeasurementError, match=r"do not pin l and m .* condition number is 9\.\d+ .* limit 2\.\d+"):
+        fit_refraction(left, right, pts, rig)
+    same_column = np.array([[0.0, 0.0, 600.0], [0.0, 30.0, 600.0], [0.0, -40.0, 600.0]])   # one depth: ~rank 1
+    left, right = planted(rig, same_column)
+    with pytest.raises(MeasurementError, match="condition number is (inf|[0-9.]+e\\+[0-9]+)"):
+        fit_refraction(left, right, same_column, rig)
+
+
+def test_a_residual_above_the_noise_is_refused(known):
+    """One known point 40 mm off in Z: the fit's RMS residual (14.6 mm) is above 3 times what a 0.3 px
+    disparity error explains (2.6 mm); 2 mm off is within the noise and fits."""
+    rig, left, right, pts = known
+    wrong = pts.copy()
+    wrong[2, 2] += 40.0
+    with pytest.raises(MeasurementError, match=r"RMS depth residual 1\d\.\d mm is \d\.\d times the 2\.\d+ mm RMS "
+                                               r"that a 0\.3 px disparity error explains .* \(limit 3 times\)"):
+        fit_refraction(left, right, wrong, rig)
+    wrong[2, 2] = pts[2, 2] + 2.0
+    fit = fit_refraction(left, right, wrong, rig)
+    assert fit.rms_residual_mm < RESIDUAL_FACTOR * fit.noise_rms_mm and DISPARITY_NOISE_PX == 0.3
+
+
+@pytest.mark.parametrize("z, message", [(-5.0, "Z = -5 mm is not in front of the rig"),
+                                        (0.0, "Z = 0 mm is not in front of the rig"),
+                                        (60.0, r"Z = 60 mm is not in front of the rig \(beyond its mirrors, "
+                                               r"Z > 82\.0 mm\)")])
+def test_points_behind_the_rig_are_bad_input(known, z, message):
+    rig, left, right, pts = known
+    bad = pts.copy()
+    bad[3, 2] = z
+    with pytest.raises(ValueError, match=f"points_mm row 4: {message}"):
+        fit_refraction(left, right, bad, rig)
+
+
+@pytest.mark.parametrize("which", [0, 1, 2])
+def test_non_finite_values_are_bad_input(known, which):
+    rig, *arrays = known
+    arrays = [a.copy() for a in arrays]
+    arrays[which][1, 0] = np.inf if which else np.nan
+    name = ("left_px", "right_px", "points_mm")[which]
+    with pytest.raises(ValueError, match=f"{name} row 2 is not finite"):
+        fit_refraction(*arrays, rig)
