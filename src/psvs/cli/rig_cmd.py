@@ -26,7 +26,7 @@ def run(args) -> int:
             rig = load_rig(name)
             m = rig.mirrors
             kind = "as designed" if rig.as_designed else "a misaligned build"
-            print(f"{name:<11} f {rig.camera.focal_length_mm:g} mm, b {m.baseline_mm:g} mm, M1 at "
+            print(f"{name:<18} f {rig.camera.focal_length_mm:g} mm, b {m.baseline_mm:g} mm, M1 at "
                   f"{m.m1_axis_distance_mm:g} mm, M2 at {m.m2_axis_distance_mm:g} mm, {kind}")
         return 0
     if args.rig is None:

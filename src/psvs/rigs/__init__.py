@@ -1,9 +1,13 @@
-"""Rig files shipped with psvs, so a pip user has them: ``--rig default`` (or ``clear``, ``misaligned``).
+"""Rig files shipped with psvs, so a pip user has them: ``--rig default`` (or any name in :data:`SHIPPED`).
 
 - ``default``: the paper's camera (f 11.3 mm, 640x480, 10 um pixels) and b = 100 mm, M1 at 22 mm, M2 at
   44 mm (a clear layout), unbounded mirrors.
 - ``clear``: the same with the finite mirror sizes ``psvs design --rig-out`` gives.
 - ``misaligned``: a build of ``clear`` with mirror tilts and shifts, a rotated box and a distorting lens.
+- ``mv1440``: a machine-vision camera (f 8 mm, 1440x1080, 3.45 um pixels, its lens's barrel distortion),
+  b = 100 mm, a 2 mm BK7 plate splitting 45/55, M1 at 16 mm, M2 at 34.75 mm, the designed mirror sizes.
+- ``mv1440_misaligned``: a build of ``mv1440`` with mirror tilts and shifts, a rotated box and the lens as
+  it really is.
 
 ``examples/rigs/`` in the repository links to these files.
 """
@@ -12,7 +16,7 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
-SHIPPED = ("default", "clear", "misaligned")
+SHIPPED = ("default", "clear", "misaligned", "mv1440", "mv1440_misaligned")
 
 
 def shipped_rig_path(name: str) -> Path:
