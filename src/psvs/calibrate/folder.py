@@ -72,7 +72,7 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
     others = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".png" and p.name not in sweep_names)
     check_distinct_images([p for p, _ in items] + (others if has_target else []))
     if has_sweep:
-        found, bad = detect_sweep(items, COUNT)
+        found, bad = detect_sweep(items, COUNT, expect_size=start.camera.image_size_px)
         skipped.update(bad)
         sweeps = sweep_views(found)
     grids = []
@@ -80,7 +80,7 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
         grid = load_target(folder / "target.toml")
         for path in others:
             try:
-                grids.append(grid_view(path.name, read_grey(path), grid))
+                grids.append(grid_view(path.name, read_grey(path, expect_size=start.camera.image_size_px), grid))
             except ValueError as exc:
                 skipped[path.name] = str(exc)
     else:

@@ -89,12 +89,13 @@ def check_sweep_rows(items: list[tuple[Path | str, float]], where: str = "the sw
                              "each sweep image must be at its own position")
 
 
-def detect_sweep(items: list[tuple[Path, float]], count: int = 5):
-    """Detect the pattern in every image; returns ([(name, position, detection)], {name: error})."""
+def detect_sweep(items: list[tuple[Path, float]], count: int = 5, expect_size: tuple[int, int] | None = None):
+    """Detect the pattern in every image (of ``expect_size`` (W, H) px when given: the camera's); returns
+    ([(name, position, detection)], {name: error})."""
     ok, skipped = [], {}
     for path, pos in items:
         try:
-            ok.append((path.name, pos, detect_pattern(read_grey(path), count)))
+            ok.append((path.name, pos, detect_pattern(read_grey(path, expect_size=expect_size), count)))
         except (ValueError, FileNotFoundError, MeasurementError) as exc:
             skipped[path.name] = str(exc)
     return ok, skipped

@@ -7,7 +7,7 @@ import sys
 
 from psvs.calibrate.bundle import PRIOR_SIGMA
 from psvs.calibrate.folder import calibrate_folder
-from psvs.cli.common import add_rig_argument, check_output_folder, check_output_path, rig_from_args
+from psvs.cli.common import add_rig_argument, check_distinct, check_output_folder, check_output_path, rig_from_args
 from psvs.io.atomic import output_batch
 from psvs.io.params import rig_template, save_rig
 from psvs.optics.rig import Calibration
@@ -39,6 +39,7 @@ def _fmt(name: str, value: float, sigma: float) -> str:
 def run(args) -> int:
     out = check_output_path(args.output, (".toml", ".json"))
     report = check_output_folder(args.report, "report folder") if args.report is not None else None
+    check_distinct({"-o": args.output}, {"--rig": args.rig})
     start = rig_from_args(args)
     template = rig_template(args.rig)    # the nominal file's comments and layout, for the calibrated file
     res = calibrate_folder(args.folder, start)

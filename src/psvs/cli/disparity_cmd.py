@@ -3,7 +3,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from psvs.cli.common import add_model_argument, add_range_arguments, check_output_path, range_from_args
+from psvs.cli.common import (
+    add_model_argument,
+    add_range_arguments,
+    check_distinct,
+    check_output_path,
+    range_from_args,
+)
 from psvs.dense import dense_disparity, separate_views, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_trust
 from psvs.dense.disparity import check_dense_memory, check_range
@@ -66,6 +72,10 @@ def _outputs(args) -> dict:
            "confidence": check_output_path(args.confidence, (".npy",)),
            "depth": check_output_path(args.depth, (".npy",)), "cloud": check_output_path(args.cloud, (".ply",)),
            "views": [check_output_path(v, (".png",)) for v in args.views] if args.views else None}
+    named = {"-o": args.output, "--right": args.right, "--confidence": args.confidence, "--depth": args.depth,
+             "--cloud": args.cloud}
+    named.update({f"--views {i + 1}": v for i, v in enumerate(args.views or [])})
+    check_distinct(named, {"IMAGE": args.image, "--rig": args.rig})
     if (out["depth"] or out["cloud"]) and not args.rig:
         raise ValueError("--depth and --cloud need --rig (the triangulation)")
     return out
@@ -78,13 +88,11 @@ def _inputs(args):
     split = args.split if args.split is not None else (rig.mirrors.split_ratio if rig else 0.5)
     if not 0.0 < split < 1.0:
         raise ValueError(f"--split must lie strictly between 0 and 1, got {split}")
-    image = read_grey(args.image)
+    # another size than the rig's camera: every pixel's ray, and so the range and depths, would be wrong
+    image = read_grey(args.image, expect_size=rig.camera.image_size_px if rig else None)
     rect = None
     if rig is not None:
         near_mm, far_mm = range_from_args(args)
-        w, h = rig.camera.image_size_px
-        if image.shape != (h, w):      # another size: every pixel's ray, and so the range and depths, are wrong
-            raise ValueError(f"image is {image.shape[1]}x{image.shape[0]} px but the rig's camera is {w}x{h} px")
         rect = rectification_for(rig, near_mm, far_mm)
     shape = image.shape if rect is None else rect.size_px[::-1]
     lo, hi = _range(args, rig, rect, shape[1])

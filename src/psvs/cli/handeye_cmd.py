@@ -61,7 +61,7 @@ def run(args) -> int:
     rig = rig_from_args(args)
     truth = None
     if args.views is not None:
-        images, flanges, grid = read_views(args.views)
+        images, flanges, grid = read_views(args.views, expect_size=rig.camera.image_size_px)
         source = str(Path(args.views))
     else:
         true_rig = load_rig(args.true_rig) if args.true_rig else None

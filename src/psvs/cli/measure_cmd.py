@@ -32,7 +32,8 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     rig = rig_from_args(args)
     check_pattern_sizes(args.spacing_mm, args.diameter_mm, ("--spacing-mm", "--diameter-mm"))
-    m = measure_pattern(read_grey(args.image), rig, model=args.model, count=args.count,
+    image = read_grey(args.image, expect_size=rig.camera.image_size_px)
+    m = measure_pattern(image, rig, model=args.model, count=args.count,
                         spacing_mm=args.spacing_mm, diameter_mm=args.diameter_mm)
     if args.json:
         print(json.dumps(m.to_dict()))

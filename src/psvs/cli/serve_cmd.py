@@ -37,7 +37,7 @@ def make_source(args, rig):
             raise ValueError(f"--true-rig's camera is {true_rig.camera.image_size_px} px but --rig's is "
                              f"{rig.camera.image_size_px} px: one camera")
     if args.image:
-        return sources.image_source(args.image, read_grey(args.image))
+        return sources.image_source(args.image, read_grey(args.image, expect_size=rig.camera.image_size_px))
     if args.video:
         return sources.video_source(args.video)
     if args.camera is not None:

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import sys
 
-from psvs.cli.common import add_model_argument, add_rig_argument, check_output_path, rig_from_args
+from psvs.cli.common import add_model_argument, add_rig_argument, check_distinct, check_output_path, rig_from_args
 from psvs.io.points import points_csv_text, read_matches_csv, write_points_csv
 from psvs.measure.triangulate import default_model, triangulate
 
@@ -21,6 +21,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
+    check_distinct({"-o": args.output}, {"POINTS.csv": args.points, "--rig": args.rig})
     rig = rig_from_args(args)
     left, right = read_matches_csv(args.points)
     model = args.model or default_model(rig)

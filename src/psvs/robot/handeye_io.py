@@ -113,9 +113,10 @@ def write_views(folder, images: list[np.ndarray], flange2base: list[np.ndarray],
     write_atomic(folder / POSES_CSV, buf.getvalue())
 
 
-def read_views(folder) -> tuple[list[np.ndarray], list[np.ndarray], CircleGrid]:
+def read_views(folder, expect_size: tuple[int, int] | None = None
+               ) -> tuple[list[np.ndarray], list[np.ndarray], CircleGrid]:
     """(complex images, flange2base (4, 4) mm, the target) of a hand-eye views folder; ValueError naming
-    the file and the row when it is not one."""
+    the file and the row when it is not one, or an image is not ``expect_size`` (W, H) px (the camera's)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"hand-eye views folder not found: {folder}")
@@ -141,7 +142,7 @@ def read_views(folder) -> tuple[list[np.ndarray], list[np.ndarray], CircleGrid]:
             raise ValueError(f"{poses}: line {n}: the position must be finite and the quaternion of unit "
                              f"length (|q| = {np.linalg.norm(q):.4g})")
         F = transform_from(Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), vals[:3])
-        images.append(read_grey(folder / row[0].strip()))
+        images.append(read_grey(folder / row[0].strip(), expect_size=expect_size))
         flanges.append(F)
     if len(images) < 3:
         raise ValueError(f"{poses}: the hand-eye calibration needs >= 3 views, found {len(images)}")
