@@ -96,7 +96,7 @@ def fig9_images(tmp_path_factory):
 
 @pytest.mark.parametrize("image, extra, code, message", [
     ("default", ["--json"], 0, None),
-    ("small", [], 2, "psvs measure: error: image is 480x360 px but the rig's camera is 640x480 px"),
+    ("small", [], 2, "small.png: image is 480x360 px but the rig's camera is 640x480 px"),
     ("default", ["--count", "3"], 1, "psvs measure: cannot measure: found 10 circles, expected 6 (3 per view)"),
     ("misaligned", [], 1, "psvs measure: cannot measure: circle 1's right-view centre is"),
     ("default", ["--rig", "misaligned"], 1, "from its twin's epipolar curve through this rig, tolerance 1 px"),

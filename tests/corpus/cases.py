@@ -1,0 +1,451 @@
+"""The corpus of named bad inputs, command by command: each must be refused in one line (exit 2: bad input;
+exit 1: the data cannot give a right answer), leave every earlier output as it was, and never hang."""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+
+from tests.corpus.files import (
+    BOM,
+    DEFAULT_RIG,
+    flat_png,
+    nested,
+    noise_png,
+    png,
+    png_claiming,
+    rig_text,
+    texture_png,
+    truncated_png,
+)
+from tests.corpus.runner import Case
+
+R = ("--rig", "rig.toml")
+
+
+@lru_cache(maxsize=None)
+def pattern_png(rig_name: str = "default", distance_mm: float = 640.0, crop: bool = False) -> bytes:
+    """The paper's Fig. 9 pattern rendered through a shipped rig (cropped to 600 x 440 px with ``crop``)."""
+    from psvs.io.params import load_rig
+    from psvs.simulate.builtin import builtin_scene
+    from psvs.simulate.render import render
+    img = render(builtin_scene(f"fig9:distance_mm={distance_mm:g}"), load_rig(rig_name), seed=3).image
+    return png(img[20:460, 20:620] if crop else img)
+
+
+def _rig_cases(command: tuple[str, ...], stem: str) -> list[Case]:
+    """Bad rig files given to ``command`` (its --rig is rig.toml)."""
+    bad = {
+        "missing": (None, "not found"),
+        "malformed": ("[camera\nfocal_length_mm = 11.3\n", "malformed"),
+        "nested-deep": (nested(), ""),
+        "binary": (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR" + bytes(40), ""),
+        "unknown-key": (rig_text(extra="\n[camera2]\nx = 1\n"), "unknown"),
+        "missing-key": (rig_text("focal_length_mm = 11.3\n", ""), "focal_length_mm"),
+        "negative-focal": (rig_text("focal_length_mm = 11.3", "focal_length_mm = -11.3"), "focal_length_mm"),
+        "huge-focal": (rig_text("focal_length_mm = 11.3", "focal_length_mm = 1e308"), "focal_length_mm"),
+        "nan-focal": (rig_text("focal_length_mm = 11.3", "focal_length_mm = nan"), "focal_length_mm"),
+        "string-focal": (rig_text("focal_length_mm = 11.3", 'focal_length_mm = "long"'), "focal_length_mm"),
+        "principal-point-far": (rig_text("principal_point_px = [319.5, 239.5]",
+                                         "principal_point_px = [1e12, 239.5]"), "principal_point"),
+        "distortion-huge": (rig_text(extra="", base=DEFAULT_RIG.replace(
+            "principal_point_px = [319.5, 239.5]",
+            "principal_point_px = [319.5, 239.5]\ndistortion = [1e6, 0, 0, 0, 0]")), "distortion"),
+        "refraction-huge": (rig_text("split_ratio = 0.5", "split_ratio = 0.5\nrefraction_l_mm = 1e300\n"
+                                                          "refraction_m_mm = -1e300"), "refraction"),
+        "sensor-huge": (rig_text("image_size_px = [640, 480]", "image_size_px = [200000, 200000]"), "image_size"),
+        "tilt-89": (rig_text(extra="\n[mirrors.m2]\ntilt_deg = [89.0, 0.0]\n"), "tilt"),
+        "box-turned": (rig_text("split_ratio = 0.5", "split_ratio = 0.5\nbox_rotation_deg = [1e9, 0, 0]"), "box"),
+        "split-one": (rig_text("split_ratio = 0.5", "split_ratio = 1.0"), "split_ratio"),
+        "index-below-one": (rig_text("refractive_index = 1.52", "refractive_index = 0.5"), "refractive_index"),
+        "m2-before-m1": (rig_text("m2_axis_distance_mm = 44.0", "m2_axis_distance_mm = 10.0"), "m2_axis"),
+        "pitch-zero": (rig_text("pixel_pitch_mm = [0.01, 0.01]", "pixel_pitch_mm = [0.0, 0.01]"), "pixel_pitch"),
+    }
+    cases = []
+    for name, (content, says) in bad.items():
+        files = {} if content is None else {"rig.toml": content}
+        cases.append(Case(f"{stem}-rig-{name}", command, 2, says, files))
+    return cases
+
+
+def _design() -> list[Case]:
+    base = ("design", *R)
+    good = {"rig.toml": DEFAULT_RIG}
+    return _rig_cases(base, "design") + [
+        Case("design-same-output-twice", (*base, "-o", "out.toml", "--rig-out", "out.toml"), 2, "out.toml", good,
+             ("out.toml",)),
+        Case("design-output-over-its-rig", (*base, "--rig-out", "rig.toml"), 2, "rig.toml", good),
+        Case("design-output-suffix", (*base, "-o", "table.txt"), 2, ".json", good),
+        Case("design-output-folder-missing", (*base, "-o", "nowhere/table.json"), 2, "does not exist", good),
+        Case("design-near-beyond-far", (*base, "--near-mm", "900", "--far-mm", "500"), 2, "near", good),
+        Case("design-negative-margin", (*base, "--margin-mm", "-1"), 2, "margin", good),
+        Case("design-nan-near", (*base, "--near-mm", "nan"), 2, "near", good),
+        Case("design-rig-is-a-folder", ("design", "--rig", "examples"), 2, "", good),
+    ]
+
+
+MATCHES = "u_l,v_l,u_r,v_r\n435.23,239.5,206.5,239.5\n478.21,195.96,302.11,196.03\n"
+
+
+def _triangulate() -> list[Case]:
+    base = ("triangulate", "--rig", "examples/rigs/clear.toml")
+    return [
+        Case("triangulate-missing-points", (*base, "none.csv"), 2, "not found"),
+        Case("triangulate-wrong-columns", (*base, "m.csv"), 2, "u_l", {"m.csv": "a,b,c,d\n1,2,3,4\n"}),
+        Case("triangulate-not-a-number", (*base, "m.csv"), 2, "not a number",
+             {"m.csv": "u_l,v_l,u_r,v_r\n1,2,x,4\n"}),
+        Case("triangulate-short-row", (*base, "m.csv"), 2, "columns", {"m.csv": "u_l,v_l,u_r,v_r\n1,2,3\n"}),
+        Case("triangulate-binary", (*base, "m.csv"), 2, "", {"m.csv": b"\x00\xff\xfe" * 50}),
+        Case("triangulate-output-over-input", (*base, "m.csv", "-o", "m.csv"), 2, "m.csv", {"m.csv": MATCHES}),
+        Case("triangulate-output-folder-missing", (*base, "m.csv", "-o", "no/p.csv"), 2, "does not exist",
+             {"m.csv": MATCHES}),
+        Case("triangulate-bad-model", (*base, "m.csv", "--model", "magic"), 2, "model", {"m.csv": MATCHES}),
+        Case("triangulate-empty-file", (*base, "m.csv"), 2, "empty", {"m.csv": ""}),
+        Case("triangulate-points-is-folder", (*base, "examples"), 2, ""),
+    ] + _rig_cases(("triangulate", *R, "examples/matches.csv"), "triangulate")[:6]
+
+
+def _known(rows: list[tuple]) -> str:
+    head = "u_l,v_l,u_r,v_r,X_mm,Y_mm,Z_mm\n"
+    return head + "".join(",".join(f"{v}" for v in r) + "\n" for r in rows)
+
+
+def _fit_refraction() -> list[Case]:
+    base = ("fit-refraction", "--rig", "examples/rigs/clear.toml", "k.csv", "-o", "fitted.toml")
+    one = (435.2326270743, 239.5, 206.5, 239.5, 0, 0, 450)
+    return [
+        Case("fit-refraction-one-point-six-times", base, 1, "distinct", {"k.csv": _known([one] * 6)},
+             ("fitted.toml",)),
+        Case("fit-refraction-two-points", base, 1, "distinct",
+             {"k.csv": _known([one, (478.21, 195.96, 302.11, 196.03, 40, -25, 600)])}, ("fitted.toml",)),
+        Case("fit-refraction-behind-the-rig", base, 2, "",
+             {"k.csv": lambda f: _shifted_known(f, z_scale=-1.0)}, ("fitted.toml",)),
+        Case("fit-refraction-nan-depths", base, 2, "",
+             {"k.csv": lambda f: _shifted_known(f, z_nan=True)}, ("fitted.toml",)),
+        Case("fit-refraction-depths-fit-no-rig", base, 1, "",
+             {"k.csv": lambda f: _shifted_known(f, z_scale=0.5)}, ("fitted.toml",)),
+        Case("fit-refraction-missing-columns", base, 2, "X_mm", {"k.csv": MATCHES}, ("fitted.toml",)),
+        Case("fit-refraction-output-over-rig", ("fit-refraction", *R, "examples/known_points.csv", "-o",
+                                                "rig.toml"), 2, "rig.toml", {"rig.toml": DEFAULT_RIG}),
+        Case("fit-refraction-output-suffix", ("fit-refraction", "--rig", "examples/rigs/clear.toml",
+                                              "examples/known_points.csv", "-o", "f.csv"), 2, ".toml"),
+    ]
+
+
+def _shifted_known(folder, z_scale: float = 1.0, z_nan: bool = False) -> str:
+    """examples/known_points.csv with every depth scaled (points behind the rig, or depths no rig gives) or
+    NaN."""
+    lines = (folder / "examples" / "known_points.csv").read_text().splitlines()
+    out = [lines[0]]
+    for line in lines[1:]:
+        cells = line.split(",")
+        cells[6] = "nan" if z_nan else repr(float(cells[6]) * z_scale)
+        out.append(",".join(cells))
+    return "\n".join(out) + "\n"
+
+
+def _simulate() -> list[Case]:
+    return [
+        Case("simulate-unknown-scene", ("simulate", "nosuch", "-o", "a.png"), 2, "nosuch", outputs=("a.png",)),
+        Case("simulate-key-without-value", ("simulate", "fig9:distance_mm", "-o", "a.png"), 2, "distance_mm",
+             outputs=("a.png",)),
+        Case("simulate-unknown-parameter", ("simulate", "fig9:colour=3", "-o", "a.png"), 2, "colour",
+             outputs=("a.png",)),
+        Case("simulate-negative-distance", ("simulate", "fig9:distance_mm=-5", "-o", "a.png"), 2, "distance",
+             outputs=("a.png",)),
+        Case("simulate-mesh-is-an-image", ("simulate", "s.toml", "-o", "a.png"), 2, "mesh",
+             {"s.toml": '[[objects]]\ntype = "mesh"\nfile = "examples/scenes/assets/label.png"\n'
+                        'position_mm = [0, 0, 600]\n'}, ("a.png",)),
+        Case("simulate-scene-malformed", ("simulate", "s.toml", "-o", "a.png"), 2, "malformed",
+             {"s.toml": "[[objects]\n"}, ("a.png",)),
+        Case("simulate-scene-nested-deep", ("simulate", "s.toml", "-o", "a.png"), 2, "",
+             {"s.toml": "x = " + "[" * 5000 + "]" * 5000 + "\n"}, ("a.png",)),
+        Case("simulate-supersample-huge", ("simulate", "fig5b", "--supersample", "200", "-o", "a.png"), 2,
+             "supersample", outputs=("a.png",)),
+        Case("simulate-frames-zero", ("simulate", "fig5b", "--frames", "0", "-o", "a.avi"), 2, "frames",
+             outputs=("a.avi",)),
+        Case("simulate-move-not-numbers", ("simulate", "fig5b", "--frames", "2", "--move-mm", "a,b,c", "-o",
+                                           "a.avi"), 2, "move", outputs=("a.avi",)),
+        Case("simulate-output-suffix", ("simulate", "fig5b", "-o", "a.jpg"), 2, ".png"),
+        Case("simulate-truth-over-output", ("simulate", "fig5b", "-o", "a.png", "--truth", "a.png"), 2, "",
+             outputs=("a.png",)),
+        Case("simulate-negative-seed", ("simulate", "fig5b", "--seed", "-1", "-o", "a.png"), 2, "seed",
+             outputs=("a.png",)),
+        Case("simulate-frames-huge", ("simulate", "fig5b", "--frames", "100000", "-o", "a.avi"), 2, "frames",
+             outputs=("a.avi",)),
+    ]
+
+
+def _match() -> list[Case]:
+    base = ("match", "img.png", "--rig", "default", "--auto", "-o", "m.json")
+    tex = {"img.png": texture_png()}
+    return [
+        Case("match-missing-image", base, 2, "not found", outputs=("m.json",)),
+        Case("match-image-is-text", base, 2, "img.png", {"img.png": "not an image"}, ("m.json",)),
+        Case("match-truncated-png", base, 2, "img.png", {"img.png": truncated_png()}, ("m.json",)),
+        Case("match-png-bomb", base, 2, "100000", {"img.png": png_claiming(100000, 100000)}, ("m.json",)),
+        Case("match-image-too-small", base, 2, "640x480", {"img.png": texture_png(320, 240)}, ("m.json",)),
+        Case("match-blank-image", base, 2, "blank", {"img.png": flat_png()}, ("m.json",)),
+        Case("match-same-output-twice", (*base[:-2], "-o", "m.json", "--csv", "m.json"), 2, "m.json", tex,
+             ("m.json",)),
+        Case("match-seed-outside", ("match", "img.png", "--rig", "default", "--seed", "900,10", "-o", "m.json"),
+             2, "seed", tex, ("m.json",)),
+        Case("match-seed-not-numbers", ("match", "img.png", "--rig", "default", "--seed", "x", "-o", "m.json"),
+             2, "seed", tex, ("m.json",)),
+        Case("match-n-seeds-one", (*base[:4], "--seed", "100,100", "--n-seeds", "1", "-o", "m.json"), 2,
+             "n-seeds", tex, ("m.json",)),
+        Case("match-near-beyond-far", (*base, "--near-mm", "900", "--far-mm", "500"), 2, "near", tex,
+             ("m.json",)),
+        Case("match-pipeline-malformed", (*base, "--pipeline", "p.toml"), 2, "p.toml",
+             {**tex, "p.toml": "[[steps]\n"}, ("m.json",)),
+        Case("match-pipeline-unknown-op", (*base, "--pipeline", "p.toml"), 2, "blur9",
+             {**tex, "p.toml": '[[steps]]\nop = "blur9"\n'}, ("m.json",)),
+        Case("match-pipeline-no-edges", (*base, "--pipeline", "p.toml"), 2, "edge",
+             {**tex, "p.toml": '[[steps]]\nop = "median"\nksize = 3\n'}, ("m.json",)),
+        Case("match-figures-folder-missing", (*base, "--figures", "nowhere"), 2, "nowhere", tex, ("m.json",)),
+        Case("match-image-16bit-wrong-size", base, 2, "640x480",
+             {"img.png": png(np.full((100, 100), 4000, np.uint16))}, ("m.json",)),
+    ] + _rig_cases(("match", "img.png", *R, "--auto", "-o", "m.json"), "match")[:4]
+
+
+def _measure() -> list[Case]:
+    base = ("measure", "circles", "img.png", "--rig", "default")
+    return [
+        Case("measure-image-smaller-than-sensor", base, 2, "640x480",
+             {"img.png": lambda f: pattern_png(crop=True)}),
+        Case("measure-count-three-of-five", (*base, "--count", "3"), 1, "",
+             {"img.png": lambda f: pattern_png()}),
+        Case("measure-another-builds-rig", base, 1, "", {"img.png": lambda f: pattern_png("misaligned")}),
+        Case("measure-with-a-build-rig-on-the-ideal", ("measure", "circles", "img.png", "--rig", "misaligned"), 1,
+             "", {"img.png": lambda f: pattern_png()}),
+        Case("measure-blank-image", base, 2, "blank", {"img.png": flat_png()}),
+        Case("measure-noise-image", base, 2, "", {"img.png": noise_png()}),
+        Case("measure-missing-image", base, 2, "not found"),
+        Case("measure-count-one", (*base, "--count", "1"), 2, "count", {"img.png": lambda f: pattern_png()}),
+        Case("measure-bad-target", ("measure", "squares", "img.png", "--rig", "default"), 2, "squares"),
+        Case("measure-png-bomb", base, 2, "100000", {"img.png": png_claiming(100000, 100000)}),
+    ]
+
+
+def _card_views() -> list[Case]:
+    base = ("card-views", "cards", "--rig", "default")
+    return [
+        Case("card-views-rows-cols-huge", (*base, "--rows", "1000", "--cols", "1000"), 2, "rows"),
+        Case("card-views-zero-views", (*base, "--views", "0"), 2, "views"),
+        Case("card-views-too-many-views", (*base, "--views", "1000"), 2, "views"),
+        Case("card-views-zero-diameter", (*base, "--diameter-mm", "0"), 2, "diameter"),
+        Case("card-views-negative-spacing", (*base, "--spacing-mm", "-1"), 2, "spacing"),
+        Case("card-views-discs-overlap", (*base, "--diameter-mm", "20", "--spacing-mm", "14"), 2, "diameter"),
+        Case("card-views-folder-is-a-file", ("card-views", "afile", "--rig", "default"), 2, "afile",
+             outputs=("afile",)),
+        Case("card-views-one-row", (*base, "--rows", "1"), 2, "rows"),
+        Case("card-views-card-larger-than-view", (*base, "--spacing-mm", "200", "--diameter-mm", "20"), 2, ""),
+    ]
+
+
+def _sweep_views() -> list[Case]:
+    base = ("sweep-views", "sweep", "--rig", "default")
+    return [
+        Case("sweep-views-zero-step", (*base, "--step-mm", "0"), 2, "step"),
+        Case("sweep-views-tiny-step", (*base, "--step-mm", "0.001"), 2, "step"),
+        Case("sweep-views-from-beyond-to", (*base, "--from-mm", "900", "--to-mm", "500"), 2, ""),
+        Case("sweep-views-folder-is-a-file", ("sweep-views", "afile", "--rig", "default"), 2, "afile",
+             outputs=("afile",)),
+        Case("sweep-views-negative-depth", (*base, "--from-mm", "-100"), 2, ""),
+    ]
+
+
+def _folder_with(files: dict) -> dict:
+    return {f"cal/{k}": v for k, v in files.items()}
+
+
+TARGET = '[target]\nkind = "circle_grid"\nrows = 4\ncols = 6\nspacing_mm = 14.0\ndiameter_mm = 7.0\n'
+
+
+def _calibrate() -> list[Case]:
+    base = ("calibrate", "cal", "--rig", "default", "-o", "built.toml")
+    img = {"a.png": lambda f: pattern_png()}
+    return [
+        Case("calibrate-missing-folder", base, 2, "cal", outputs=("built.toml",)),
+        Case("calibrate-empty-folder", base, 2, "", {"cal/.keep": ""}, ("built.toml",)),
+        Case("calibrate-sweep-one-image-four-times", base, 2, "lists a.png 4 times",
+             _folder_with({**img, "sweep.csv": "image,position_mm\n" + "".join(f"a.png,{700 + 50 * k}\n"
+                                                                               for k in range(4))}),
+             ("built.toml",)),
+        Case("calibrate-sweep-same-position", base, 2, "each sweep image must be at its own position",
+             _folder_with({"a.png": lambda f: pattern_png(), "b.png": lambda f: pattern_png(distance_mm=700),
+                           "c.png": lambda f: pattern_png(distance_mm=760),
+                           "sweep.csv": "image,position_mm\na.png,700\nb.png,700\nc.png,760\n"}), ("built.toml",)),
+        Case("calibrate-sweep-missing-column", base, 2, "position",
+             _folder_with({**img, "sweep.csv": "image,z\na.png,700\n"}), ("built.toml",)),
+        Case("calibrate-sweep-image-missing", base, 2, "b.png",
+             _folder_with({**img, "sweep.csv": "image,position_mm\na.png,700\nb.png,750\nc.png,800\n"}),
+             ("built.toml",)),
+        Case("calibrate-target-unknown-kind", base, 2, "kind",
+             _folder_with({"target.toml": TARGET.replace("circle_grid", "hexagons"), **img}), ("built.toml",)),
+        Case("calibrate-target-malformed", base, 2, "malformed", _folder_with({"target.toml": "[target\n", **img}),
+             ("built.toml",)),
+        Case("calibrate-output-over-rig", ("calibrate", "cal", *R, "-o", "rig.toml"), 2, "rig.toml",
+             {"rig.toml": DEFAULT_RIG, **_folder_with({"target.toml": TARGET, **img})}),
+        Case("calibrate-report-is-a-file", (*base, "--report", "afile"), 2, "afile",
+             _folder_with({"target.toml": TARGET, **img}), ("built.toml", "afile")),
+        Case("calibrate-too-few-cards", base, 2, "",
+             _folder_with({"target.toml": TARGET, **img}), ("built.toml",)),
+    ]
+
+
+def _disparity() -> list[Case]:
+    base = ("disparity", "img.png", "--rig", "default", "-o", "d.npy")
+    tex = {"img.png": texture_png()}
+    return [
+        Case("disparity-image-wrong-size-for-rig", base, 2, "640x480", {"img.png": texture_png(500, 400)},
+             ("d.npy",)),
+        Case("disparity-same-output-twice", (*base, "--right", "d.npy"), 2, "d.npy", tex, ("d.npy",)),
+        Case("disparity-views-over-each-other", (*base, "--views", "v.png", "v.png"), 2, "v.png", tex,
+             ("d.npy", "v.png")),
+        Case("disparity-min-only", ("disparity", "img.png", "--min-disparity", "10", "-o", "d.npy"), 2, "both",
+             tex, ("d.npy",)),
+        Case("disparity-range-wider-than-image", ("disparity", "img.png", "--min-disparity", "10",
+                                                  "--max-disparity", "5000", "-o", "d.npy"), 2, "wider", tex,
+             ("d.npy",)),
+        Case("disparity-range-empty", ("disparity", "img.png", "--min-disparity", "50", "--max-disparity", "20",
+                                       "-o", "d.npy"), 2, "empty", tex, ("d.npy",)),
+        Case("disparity-split-beyond-one", (*base, "--split", "1.5"), 2, "split", tex, ("d.npy",)),
+        Case("disparity-depth-without-rig", ("disparity", "img.png", "--min-disparity", "10", "--max-disparity",
+                                             "60", "--depth", "z.npy", "-o", "d.npy"), 2, "--rig", tex,
+             ("d.npy", "z.npy")),
+        Case("disparity-output-suffix", ("disparity", "img.png", "--rig", "default", "-o", "d.png"), 2, ".npy",
+             tex),
+        Case("disparity-missing-image", base, 2, "not found", outputs=("d.npy",)),
+        Case("disparity-truncated-png", base, 2, "img.png", {"img.png": truncated_png()}, ("d.npy",)),
+        Case("disparity-png-bomb", base, 2, "100000", {"img.png": png_claiming(100000, 100000)}, ("d.npy",)),
+        Case("disparity-near-beyond-far", (*base, "--near-mm", "900", "--far-mm", "500"), 2, "near", tex,
+             ("d.npy",)),
+        Case("disparity-cloud-over-depth", (*base, "--depth", "z.npy", "--cloud", "z.npy"), 2, "", tex,
+             ("d.npy", "z.npy")),
+    ]
+
+
+def _live() -> list[Case]:
+    return [
+        Case("live-missing-video", ("live", "--video", "none.avi", "--rig", "default", "--dense"), 2, "none.avi"),
+        Case("live-video-is-text", ("live", "--video", "v.avi", "--rig", "default", "--dense"), 2, "v.avi",
+             {"v.avi": "not a video"}),
+        Case("live-camera-that-does-not-open", ("live", "--camera", "99", "--rig", "default", "--dense"), 2,
+             "camera"),
+        Case("live-no-seed-no-dense", ("live", "--video", "v.avi", "--rig", "default"), 2, "seed",
+             {"v.avi": "x"}),
+        Case("live-zero-frames", ("live", "--video", "v.avi", "--rig", "default", "--dense", "--max-frames", "0"),
+             2, "max-frames", {"v.avi": "x"}),
+        Case("live-zero-stride", ("live", "--video", "v.avi", "--rig", "default", "--dense", "--dense-stride",
+                                  "0"), 2, "stride", {"v.avi": "x"}),
+        Case("live-bad-foxglove", ("live", "--video", "v.avi", "--rig", "default", "--dense", "--foxglove",
+                                   "host:port"), 2, "foxglove", {"v.avi": "x"}),
+        Case("live-log-suffix", ("live", "--video", "v.avi", "--rig", "default", "--dense", "-o", "log.txt"), 2,
+             ".csv", {"v.avi": "x"}),
+        Case("live-seed-not-numbers", ("live", "--video", "v.avi", "--rig", "default", "--seed", "a,b"), 2,
+             "seed", {"v.avi": "x"}),
+    ]
+
+
+def _serve() -> list[Case]:
+    return [
+        Case("serve-missing-image", ("serve", "--image", "none.png", "--rig", "default"), 2, "not found"),
+        Case("serve-image-wrong-size", ("serve", "--image", "img.png", "--rig", "default"), 2, "640x480",
+             {"img.png": texture_png(320, 240)}),
+        Case("serve-bad-port", ("serve", "--image", "img.png", "--port", "70000"), 2, "port",
+             {"img.png": texture_png()}),
+        Case("serve-missing-video", ("serve", "--video", "none.avi"), 2, "none.avi"),
+        Case("serve-unknown-scene", ("serve", "--scene", "nosuch"), 2, "nosuch"),
+        Case("serve-png-bomb", ("serve", "--image", "img.png"), 2, "100000",
+             {"img.png": png_claiming(100000, 100000)}),
+    ] + _rig_cases(("serve", "--image", "examples/scenes/assets/label.png", *R), "serve")[:3]
+
+
+HANDEYE_OK = ('[handeye]\nmethod = "reprojection"\nsource = "x"\nrig = "default"\nviews = 3\n'
+              "cam2flange = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], "
+              "[0.0, 0.0, 0.0, 1.0]]\ntarget_rms_mm = [0.05, 0.05, 0.05]\nspread_mm = 0.1\nspread_deg = 0.1\n")
+
+
+def _track() -> list[Case]:
+    base = ("track", "weld_seam", "--rig", "default", "-o", "run")
+    return [
+        Case("track-not-a-seam", ("track", "fig5b", "--rig", "default", "-o", "run"), 2, "weld_seam"),
+        Case("track-negative-speed", (*base, "--speed", "-3"), 2, "speed"),
+        Case("track-zero-rate", (*base, "--rate", "0"), 2, "rate"),
+        Case("track-output-is-a-file", ("track", "weld_seam", "--rig", "default", "-o", "afile"), 2, "afile",
+             outputs=("afile",)),
+        Case("track-handeye-malformed", (*base, "--handeye", "he.toml"), 2, "he.toml", {"he.toml": "[handeye\n"}),
+        Case("track-handeye-not-rigid", (*base, "--handeye", "he.toml"), 2, "rigid",
+             {"he.toml": HANDEYE_OK.replace("[1.0, 0.0, 0.0, 0.0]", "[2.0, 0.0, 0.0, 0.0]")}),
+        Case("track-true-rig-other-camera", (*base, "--true-rig", "rig.toml"), 2, "camera",
+             {"rig.toml": rig_text("image_size_px = [640, 480]", "image_size_px = [320, 240]").replace(
+                 "principal_point_px = [319.5, 239.5]", "principal_point_px = [159.5, 119.5]")}),
+        Case("track-negative-length", (*base, "--length", "-5"), 2, "length"),
+        Case("track-few-roi-rows", (*base, "--roi-rows", "3"), 2, "roi"),
+        Case("track-seed-not-numbers", (*base, "--seed", "x"), 2, "seed"),
+        Case("track-gap-negative", ("track", "weld_seam:gap_start_mm=0,gap_length_mm=-5", "--rig", "default", "-o",
+                                    "run"), 2, "gap_length"),
+        Case("track-mcap-suffix", (*base, "--mcap", "run.txt"), 2, ".mcap"),
+    ]
+
+
+def _handeye() -> list[Case]:
+    base = ("handeye", "views", "--rig", "default", "-o", "he.toml")
+    return [
+        Case("handeye-missing-folder", base, 2, "views", outputs=("he.toml",)),
+        Case("handeye-two-views", ("handeye", "--rig", "default", "--views-count", "2", "-o", "he.toml"), 2,
+             "views", outputs=("he.toml",)),
+        Case("handeye-poses-bad-quaternion", base, 2, "quaternion",
+             {"views/target.toml": TARGET, "views/view_00.png": lambda f: pattern_png(),
+              "views/flange_poses.csv": "image,x_mm,y_mm,z_mm,qx,qy,qz,qw\nview_00.png,0,0,0,0,0,0,0.5\n"},
+             ("he.toml",)),
+        Case("handeye-poses-bad-header", base, 2, "header",
+             {"views/target.toml": TARGET, "views/flange_poses.csv": "a,b\n1,2\n"}, ("he.toml",)),
+        Case("handeye-output-suffix", ("handeye", "--rig", "default", "-o", "he.json"), 2, ".toml"),
+        Case("handeye-true-rig-with-folder", (*base, "--true-rig", "default"), 2, "true-rig",
+             {"views/target.toml": TARGET}, ("he.toml",)),
+    ]
+
+
+def _small() -> list[Case]:
+    """Commands with few options: replay, export-calibration, rig, table1, dense-eval, demo."""
+    return [
+        Case("replay-missing", ("replay", "none.mcap", "--rig", "default"), 2, "none.mcap"),
+        Case("replay-junk", ("replay", "r.mcap", "--rig", "default"), 2, "r.mcap",
+             {"r.mcap": b"\x89MCAP0\r\n" + bytes(40)}),
+        Case("replay-text", ("replay", "r.mcap", "--rig", "default"), 2, "r.mcap", {"r.mcap": "hello"}),
+        Case("replay-folder", ("replay", "examples", "--rig", "default"), 2, "folder"),
+        Case("export-calibration-missing-rig", ("export-calibration", "none.toml", "-o", "cal"), 2, "not found"),
+        Case("export-calibration-output-is-a-file", ("export-calibration", "default", "-o", "afile"), 2, "afile",
+             outputs=("afile",)),
+        Case("export-calibration-near-beyond-far", ("export-calibration", "default", "--near-mm", "900",
+                                                    "--far-mm", "500"), 2, "range"),
+        Case("rig-show-missing", ("rig", "show", "none.toml"), 2, "not found"),
+        Case("rig-show-malformed", ("rig", "show", "rig.toml"), 2, "malformed", {"rig.toml": "[camera\n"}),
+        Case("rig-show-bom-and-nested", ("rig", "show", "rig.toml"), 2, "", {"rig.toml": BOM + nested()}),
+        Case("rig-list-with-argument", ("rig", "list", "x"), 2, "list"),
+        Case("table1-output-is-a-file", ("table1", "--rig", "default", "-o", "afile"), 2, "afile",
+             outputs=("afile",)),
+        Case("table1-bad-start", ("table1", "--rig", "default", "--start", "none.toml", "-o", "t"), 2,
+             "not found"),
+        Case("dense-eval-missing-truth", ("dense-eval", "--left", "a.png", "--right", "a.png", "--truth",
+                                          "none.pfm", "-o", "ev"), 2, "", {"a.png": texture_png()}),
+        Case("dense-eval-left-without-right", ("dense-eval", "--left", "a.png", "-o", "ev"), 2, "",
+             {"a.png": texture_png()}),
+        Case("dense-eval-truth-malformed", ("dense-eval", "--left", "a.png", "--right", "a.png", "--truth",
+                                            "t.npy", "-o", "ev"), 2, "t.npy",
+             {"a.png": texture_png(), "t.npy": b"junk"}),
+        Case("demo-rig-missing", ("demo", "--rig", "none.toml", "--out", "d"), 2, "not found"),
+        Case("demo-out-is-a-file", ("demo", "--out", "afile"), 2, "afile", outputs=("afile",)),
+        Case("unknown-command", ("frobnicate",), 2, ""),
+    ]
+
+
+def all_cases() -> list[Case]:
+    cases = (_design() + _triangulate() + _fit_refraction() + _simulate() + _match() + _measure()
+             + _card_views() + _sweep_views() + _calibrate() + _disparity() + _live() + _serve() + _track()
+             + _handeye() + _small())
+    names = [c.name for c in cases]
+    assert len(names) == len(set(names)), "case names must be unique"
+    return cases
