@@ -16,7 +16,8 @@ from psvs.optics.rig import MirrorError
 from tests.cli.test_cli import run
 
 ROOT = Path(__file__).resolve().parents[2]
-#: A hang detector, not a benchmark: every refusal comes before any work.
+#: A hang detector, not a benchmark: every refusal comes before any work. CPU time of this process (every
+#: thread), which a machine busy with other work does not stretch.
 QUICK_S = 10.0
 
 
@@ -24,9 +25,9 @@ def refused(capsys, argv, expected: str, keep=()):
     """Run ``psvs ARGV`` in-process: exit status 2, one line on stderr holding ``expected``, within
     :data:`QUICK_S`, and the files ``keep`` unchanged."""
     before = {p: p.read_bytes() for p in keep}
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     code, _, err = run(capsys, *[str(a) for a in argv])
-    took = time.perf_counter() - t0
+    took = time.process_time() - t0
     assert code == 2, err
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
     assert expected in err, err
@@ -284,9 +285,9 @@ def test_design_answers_in_seconds_on_the_extreme_rigs(capsys, tmp_path, name):
                                for n in ("m1", "m2", "m3", "m4")})
     path = tmp_path / "extreme.toml"
     save_rig(rig, path)
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     code, out, err = run(capsys, "design", "--rig", str(path), "-o", str(tmp_path / "t.json"))
-    took = time.perf_counter() - t0
+    took = time.process_time() - t0
     assert took < QUICK_S, f"{took:.1f} s"
     assert code in (0, 1, 2), err
     if code == 2:     # the field reaches no mirror: refused in one line

@@ -16,6 +16,9 @@ from psvs.cli.main import main
 
 #: A case taking longer than this hangs (a refusal must come before the work, in well under it).
 HANG_S = 10.0
+#: The wall-clock alarm: a case blocked (waiting, not working) this long is a hang. The 10 s limit itself is on
+#: the CPU time the case uses (its own work, every thread), which a busy machine does not stretch.
+WALL_S = 60.0
 #: What a planted earlier output holds; the refusal must leave it so.
 PLANTED = b"an earlier result that a refused command must not touch\n"
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -48,7 +51,7 @@ class Hang(Exception):
 
 
 def _alarm(signum, frame):
-    raise Hang(f"no answer within {HANG_S:g} s")
+    raise Hang(f"no answer within {WALL_S:g} s")
 
 
 def _write(folder: Path, rel: str, content) -> None:
@@ -76,8 +79,8 @@ def run_case(case: Case, folder: Path, capfd, monkeypatch, prepare: Callable[[Pa
     monkeypatch.chdir(folder)
     capfd.readouterr()
     previous = signal.signal(signal.SIGALRM, _alarm)
-    signal.setitimer(signal.ITIMER_REAL, HANG_S)
-    t0 = time.perf_counter()
+    signal.setitimer(signal.ITIMER_REAL, WALL_S)
+    t0 = time.process_time()
     try:
         code = main(list(case.argv))
     except SystemExit as exc:              # argparse's usage errors
@@ -85,7 +88,7 @@ def run_case(case: Case, folder: Path, capfd, monkeypatch, prepare: Callable[[Pa
     finally:
         signal.setitimer(signal.ITIMER_REAL, 0)
         signal.signal(signal.SIGALRM, previous)
-    elapsed = time.perf_counter() - t0
+    elapsed = time.process_time() - t0
     out, err = capfd.readouterr()
     lines = err.strip().splitlines()
     assert "Traceback" not in out + err, err
