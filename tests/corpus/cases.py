@@ -255,6 +255,26 @@ def _sweep_views() -> list[Case]:
     ]
 
 
+def _capture() -> list[Case]:
+    video = ("--video", "none.avi")
+    base = ("capture", "--target", "target.toml", "--rig", "default", "-o", "views")
+    target = {"target.toml": TARGET}
+    return [
+        Case("capture-camera-missing", ("capture", "--camera", "97", *base[1:]), 2, "cannot open camera 97", target),
+        Case("capture-target-unknown-kind", (*base, *video), 2, "kind",
+             {"target.toml": TARGET.replace("circle_grid", "hexagons")}),
+        Case("capture-target-missing", (*base, *video), 2, "not found"),
+        Case("capture-discs-too-small-far", (*base, *video, "--far-mm", "1500"), 2, "too small to see at the far end",
+             {"target.toml": TARGET.replace("diameter_mm = 7.0", "diameter_mm = 2.5")}),
+        Case("capture-folder-holds-views", (*base, *video), 2, "already holds view_00.png",
+             {**target, "views/view_00.png": texture_png()}),
+        Case("capture-video-not-a-video", (*base, "--video", "a.avi"), 2, "cannot open a.avi",
+             {**target, "a.avi": b"RIFF junk, not a video" * 10}),
+        Case("capture-zero-views", (*base, *video, "--views", "0"), 2, "views", target),
+        Case("capture-near-beyond-far", (*base, *video, "--near-mm", "900", "--far-mm", "500"), 2, "", target),
+    ]
+
+
 def _folder_with(files: dict) -> dict:
     return {f"cal/{k}": v for k, v in files.items()}
 
@@ -444,7 +464,7 @@ def _small() -> list[Case]:
 
 def all_cases() -> list[Case]:
     cases = (_design() + _triangulate() + _fit_refraction() + _simulate() + _match() + _measure()
-             + _card_views() + _sweep_views() + _calibrate() + _disparity() + _live() + _serve() + _track()
+             + _card_views() + _sweep_views() + _capture() + _calibrate() + _disparity() + _live() + _serve() + _track()
              + _handeye() + _small())
     names = [c.name for c in cases]
     assert len(names) == len(set(names)), "case names must be unique"
