@@ -366,12 +366,19 @@ def event_lines(step: CaptureStep, name: str | None, views: int) -> list[str]:
     if name is not None:
         p = step.pose
         tilt = f"faces {_side(p.turn_x_rad, 'left', 'right')} and {_side(p.turn_y_rad, 'up', 'down')}"
-        added = ", ".join(b.split(":")[1] for b in step.new_bins) or "a new pose"
+        added = "; ".join(_words(step.new_bins)) or "a new pose"
         out.append(f"frame {step.frame}: saved {name} ({step.saved}/{views}): {p.distance_mm:.0f} mm, {tilt}; "
                    f"adds {added}")
     if step.said is not None:
         out.append(f"frame {step.frame}: {step.said}")
     return out
+
+
+def _words(bins) -> list[str]:
+    """Bins in words, a kind at a time: 'field top, top-right', 'far', 'tilted up'."""
+    names = {kind: [b.split(":")[1] for b in bins if b.startswith(kind + ":")] for kind in ("field", "depth", "tilt")}
+    return ([f"field {', '.join(names['field'])}"] if names["field"] else []) + names["depth"] \
+        + [("flat" if t == "flat" else f"tilted {t}") for t in names["tilt"]]
 
 
 def _side(turn_rad: float, low: str, high: str) -> str:
