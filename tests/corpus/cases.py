@@ -240,6 +240,7 @@ def _card_views() -> list[Case]:
              outputs=("afile",)),
         Case("card-views-one-row", (*base, "--rows", "1"), 2, "rows"),
         Case("card-views-card-larger-than-view", (*base, "--spacing-mm", "200", "--diameter-mm", "20"), 2, ""),
+        Case("card-views-video-not-lossless", (*base, "--video", "hand.mp4"), 2, ".avi or .mkv"),
     ]
 
 
