@@ -380,6 +380,14 @@ def _serve() -> list[Case]:
         Case("serve-unknown-scene", ("serve", "--scene", "nosuch"), 2, "nosuch"),
         Case("serve-png-bomb", ("serve", "--image", "img.png"), 2, "100000",
              {"img.png": png_claiming(100000, 100000)}),
+        Case("serve-target-without-folder", ("serve", "--image", "img.png", "--target", "target.toml"), 2,
+             "--target and --capture-to go together", {"img.png": texture_png(), "target.toml": TARGET}),
+        Case("serve-capture-folder-holds-views", ("serve", "--image", "img.png", "--target", "target.toml",
+                                                  "--capture-to", "views"), 2, "already holds view_00.png",
+             {"img.png": texture_png(), "target.toml": TARGET, "views/view_00.png": texture_png()}),
+        Case("serve-capture-target-unknown-kind", ("serve", "--image", "img.png", "--target", "target.toml",
+                                                   "--capture-to", "views"), 2, "kind",
+             {"img.png": texture_png(), "target.toml": TARGET.replace("circle_grid", "hexagons")}),
     ] + _rig_cases(("serve", "--image", "examples/scenes/assets/label.png", *R), "serve")[:3]
 
 
