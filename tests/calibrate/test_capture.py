@@ -130,6 +130,7 @@ def _saved(text: str) -> dict[int, str]:
     return {int(k): name for k, name in re.findall(r"^frame (\d+): saved (view_\d\d\.png)", text, re.M)}
 
 
+@pytest.mark.slow          # ~45 frames detected (about 30 s on two free cores), after the video's renders
 def test_capture_on_a_hand_held_video(capsys, hand_video, tmp_path):
     """The hand holds 11 poses (3 frames each) through the misaligned build; the assistant works through the
     nominal (clear) rig. It saves one view per pose it keeps, only of a still card wholly in view, each pose

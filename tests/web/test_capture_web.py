@@ -2,6 +2,7 @@
 enough, its refusals, and the page in headless Chromium showing progress and saved views."""
 import time
 
+import pytest
 from fastapi.testclient import TestClient
 
 from psvs.calibrate.capture import ALL_BINS
@@ -19,6 +20,7 @@ def _app(hand_video, folder):
     return create_app(video_source(str(hand_video.path)), load_rig("clear"), "clear", setup)
 
 
+@pytest.mark.slow          # the whole video through the detector
 def test_capture_api_until_enough(hand_video, tmp_path):
     """Start on the video (9 views), poll until the set is enough: every bin covered, the files the state names
     are the folder's, target.toml copied, the events the terminal's words."""

@@ -93,9 +93,9 @@ def _out_of_view(pose: Pose, rig: Rig, grid: CircleGrid) -> Pose:
     p = pose.position_mm.copy()
     for _ in range(400):
         p[0] += 2.0
-        uv, _ = project_points(Pose(pose.rotation, p).to_world(local), rig, "left")
-        if np.nanmax(uv[:, 0]) > w - 1 + 1.5 * grid.spacing_mm * rig.camera.focal_length_mm \
-                / rig.camera.pixel_pitch_mm[0] / p[2]:
+        uv, ok = project_points(Pose(pose.rotation, p).to_world(local), rig, "left")
+        reach = w - 1 + 1.5 * grid.spacing_mm * rig.camera.focal_length_mm / rig.camera.pixel_pitch_mm[0] / p[2]
+        if not ok.all() or uv[:, 0].max() > reach:      # discs off the image or off the view's mirrors
             break
     return Pose(pose.rotation, p)
 
