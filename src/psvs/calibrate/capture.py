@@ -28,6 +28,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -232,7 +233,7 @@ class CaptureAssistant:
         try:
             view = detect_card(grey, self.target, self.rig)
             pose = card_pose(view, self.rig)
-        except ValueError as exc:
+        except (ValueError, cv2.error) as exc:        # no card (the detector's reason), or no pose fits it
             self._last = None
             return self._record(CaptureStep(self._frame, "no card", reason=str(exc)),
                                 "show the whole card to both views")
