@@ -107,7 +107,8 @@ def test_a_card_the_rig_cannot_see(tmp_path):
         check_card_visible(default, CircleGrid(4, 8, 14.0, 7.0), CaptureParams())
     check_card_visible(mv, CARD, CaptureParams())
     for bad, message in (({"views": 2}, "views must be an integer 3-200"), ({"near_mm": 900.0}, "must be < far_mm"),
-                         ({"far_mm": math.nan}, "far_mm must be a finite depth")):
+                         ({"far_mm": math.nan}, "far_mm must be a finite depth"),
+                         ({"max_speed_px_s": 0.0}, "max_speed_px_s must be > 0")):
         with pytest.raises(ValueError, match=message):
             CaptureParams(**bad)
 
@@ -202,6 +203,7 @@ def test_refusals(capsys, hand_video, tmp_path):
              (["--video", str(hand_video.path), "--target", target, "--rig", "mv1440", "-o", str(out)],
               "frames are 640x480 px but the rig's camera is 1440x1080 px"),
              (["--video", str(hand_video.path), *base, "--views", "1"], "--views must be an integer 3-200"),
+             (["--video", str(hand_video.path), *base, "--max-speed-px-s", "-1"], "--max-speed-px-s must be > 0"),
              (["--video", str(hand_video.path), "--target", str(keep / "target.toml"), "--rig", "clear", "-o",
                str(keep)], "names the input --target")]
     for argv, message in cases:

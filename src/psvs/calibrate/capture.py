@@ -15,12 +15,13 @@ into coverage bins of three kinds:
 Directions are those of the image (the preview): left is toward column 0 (-X), up toward row 0 (-Y). A card
 "tilted left" faces the image's left side: its right-hand edge, as the image shows it, is nearer the camera.
 
-A view is saved once: when the card is still (its discs moved less than :data:`MAX_SPEED_PX_S` since the
-previous frame's detection), and the view adds a bin not yet covered or differs from every saved view by
-:data:`NEW_TURN_RAD` of orientation, :data:`NEW_DEPTH_FRACTION` of distance or :data:`NEW_SHIFT_FRACTION`
-of the image's width. The set is enough when every bin is covered and ``views`` views are saved.
-:class:`CaptureAssistant` keeps that state over time; its :meth:`~CaptureAssistant.step` returns a frozen
-record and never prints or writes (:class:`CaptureFolder` writes).
+A view is saved once: when the card is still (its discs moved slower than ``max_speed_px_s``, by default
+:data:`MAX_SPEED_PX_S`, since the previous frame's detection), and the view adds a bin not yet covered or
+differs from every saved view by :data:`NEW_TURN_RAD` of orientation, :data:`NEW_DEPTH_FRACTION` of distance
+or :data:`NEW_SHIFT_FRACTION` of the image's width. The set is enough when every bin is covered and
+``views`` views are saved. :class:`CaptureAssistant` keeps that state over time; its
+:meth:`~CaptureAssistant.step` returns a frozen record and never prints or writes (:class:`CaptureFolder`
+writes).
 """
 from __future__ import annotations
 
@@ -51,7 +52,8 @@ ALL_BINS = tuple(f"field:{b}" for b in FIELD_BINS) + tuple(f"depth:{b}" for b in
 #: A tilt bin needs the card turned at least this far toward its side; flat is both turns under FLAT_MAX_RAD.
 TILT_MIN_RAD = math.radians(15.0)
 FLAT_MAX_RAD = math.radians(8.0)
-#: A card whose discs move faster than this (px/s; 1 px a frame at 30 frames/s) is moving: not saved.
+#: A card whose discs move faster than this (px/s; 1 px a frame at 30 frames/s) is moving: not saved. A hand's
+#: tremor (tenths of a mm at ~10 Hz) can exceed it on a long lens up close: rest the card, or allow more.
 MAX_SPEED_PX_S = 30.0
 #: A view adding no bin is still new when it differs from every saved view by one of these.
 NEW_TURN_RAD = math.radians(10.0)
@@ -66,11 +68,13 @@ HINT_FRAMES = 2
 
 @dataclass(frozen=True)
 class CaptureParams:
-    """How many views to save and the depth range (mm) whose thirds are the depth bins."""
+    """How many views to save, the depth range (mm) whose thirds are the depth bins, and the fastest a card
+    may move and still be saved (px/s)."""
 
     views: int = DEFAULT_VIEWS
     near_mm: float = 400.0
     far_mm: float = 900.0
+    max_speed_px_s: float = MAX_SPEED_PX_S
 
     def __post_init__(self):
         if isinstance(self.views, bool) or not isinstance(self.views, int) or not MIN_VIEWS <= self.views <= 200:
@@ -81,6 +85,8 @@ class CaptureParams:
                 raise ValueError(f"{name} must be a finite depth > 0 mm, got {v!r}")
         if self.near_mm >= self.far_mm:
             raise ValueError(f"near_mm ({self.near_mm:g}) must be < far_mm ({self.far_mm:g})")
+        if not 0 < self.max_speed_px_s <= 1000 or not math.isfinite(self.max_speed_px_s):
+            raise ValueError(f"max_speed_px_s must be > 0 and at most 1000 px/s, got {self.max_speed_px_s!r}")
 
 
 def detect_card(grey: np.ndarray, target: CircleGrid, rig: Rig) -> GridView:
@@ -241,7 +247,7 @@ class CaptureAssistant:
         speed = _speed_px_s(view, last[0] if last else None, t_s - last[1] if last else 0.0)
         bins = pose_bins(pose, self.rig, self.params)
         base = dict(pose=pose, bins=bins, speed_px_s=speed)
-        if speed > MAX_SPEED_PX_S:
+        if speed > self.params.max_speed_px_s:
             return self._record(CaptureStep(self._frame, "moving", **base), "hold still")
         new = tuple(b for b in ALL_BINS if b in bins and not self.covered[b])
         if self.complete or not (new or (len(self.saved) < self.params.views

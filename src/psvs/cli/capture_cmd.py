@@ -33,6 +33,9 @@ def add_parser(sub) -> None:
     p.add_argument("--views", type=int, default=20, help="views to save at least (3-200, default 20)")
     p.add_argument("--near-mm", type=float, default=400.0, help="near end of the depths to cover, mm (default 400)")
     p.add_argument("--far-mm", type=float, default=900.0, help="far end of the depths to cover, mm (default 900)")
+    p.add_argument("--max-speed-px-s", type=float, default=30.0,
+                   help="a card whose discs move faster (px/s, between frames) is not saved: hold still "
+                        "(default 30: 1 px a frame at 30 frames/s)")
     p.set_defaults(run=run)
 
 
@@ -44,9 +47,9 @@ def _setup(args):
     from psvs.calibrate.target_file import load_target
     near, far = check_working_range(args.near_mm, args.far_mm)
     try:
-        params = CaptureParams(views=args.views, near_mm=near, far_mm=far)
+        params = CaptureParams(views=args.views, near_mm=near, far_mm=far, max_speed_px_s=args.max_speed_px_s)
     except ValueError as exc:
-        raise ValueError(f"--{exc}") from None
+        raise ValueError(f"--{str(exc).replace('max_speed_px_s', 'max-speed-px-s')}") from None
     out = check_output_folder(args.output)
     check_distinct({"-o (its target.toml)": out / "target.toml"},
                    {"--target": args.target, "--rig": args.rig, "--video": args.video})
