@@ -1,3 +1,4 @@
+import dataclasses
 import math
 import os
 from pathlib import Path
@@ -133,3 +134,44 @@ def reconstruction_errors(calibrated, true_rig, depths=(400.0, 600.0, 800.0, 100
     R, t = kabsch(got, pts[seen])
     aligned = np.linalg.norm(got @ R.T + t - pts[seen], axis=1)
     return raw, aligned, pts[seen]
+
+
+#: The hand-held card of the capture tests (psvs card-views' default card).
+HAND_CARD = (4, 6, 14.0, 7.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class HandVideo:
+    """A simulated hand-held video (FFV1): its path, the frames' plan (kind and true poses, frame C), the
+    target file, the rig it was rendered through."""
+
+    path: Path
+    plan: list
+    target: Path
+    rig: object
+
+
+def write_hand_video(folder, rig_name: str = "misaligned", holds: int = 11, seed: int = 1, card=HAND_CARD,
+                     frames: int | None = None, **hand) -> HandVideo:
+    """A hand-held card (psvs.calibrate.handheld) through a shipped rig: ``holds`` poses, the first ``frames``
+    frames of the path (all by default), written to FOLDER/hand.avi with FOLDER/target.toml."""
+    from psvs.calibrate.handheld import HandParams, hand_path, render_hand_video
+    from psvs.calibrate.target_file import dumps_target
+    from psvs.io.video import write_video
+    from psvs.simulate.textures import CircleGrid
+    folder = Path(folder)
+    rig, grid = load_rig(rig_name), CircleGrid(*card)
+    plan = hand_path(rig, grid, holds, seed=seed, hand=HandParams(**hand))[:frames]
+    (folder / "target.toml").write_text(dumps_target(grid))
+    path = folder / "hand.avi"
+    assert write_video(path, render_hand_video(rig, grid, plan, seed=seed), fps=30.0) == len(plan)
+    return HandVideo(path, plan, folder / "target.toml", rig)
+
+
+@pytest.fixture(scope="session")
+def hand_video(tmp_path_factory):
+    """11 poses of the card through the misaligned build (640x480), held 3 frames each, one moving frame
+    between them (2 renders over its exposure), every 4th pose settling slowly into place, the 6th partly
+    out of the image."""
+    return write_hand_video(tmp_path_factory.mktemp("hand"), hold_frames=3, move_frames=1, blur_samples=2,
+                            out_every=6, settle_every=4)

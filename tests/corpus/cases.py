@@ -240,6 +240,7 @@ def _card_views() -> list[Case]:
              outputs=("afile",)),
         Case("card-views-one-row", (*base, "--rows", "1"), 2, "rows"),
         Case("card-views-card-larger-than-view", (*base, "--spacing-mm", "200", "--diameter-mm", "20"), 2, ""),
+        Case("card-views-video-not-lossless", (*base, "--video", "hand.mp4"), 2, ".avi or .mkv"),
     ]
 
 
@@ -252,6 +253,26 @@ def _sweep_views() -> list[Case]:
         Case("sweep-views-folder-is-a-file", ("sweep-views", "afile", "--rig", "default"), 2, "afile",
              outputs=("afile",)),
         Case("sweep-views-negative-depth", (*base, "--from-mm", "-100"), 2, ""),
+    ]
+
+
+def _capture() -> list[Case]:
+    video = ("--video", "none.avi")
+    base = ("capture", "--target", "target.toml", "--rig", "default", "-o", "views")
+    target = {"target.toml": TARGET}
+    return [
+        Case("capture-camera-missing", ("capture", "--camera", "97", *base[1:]), 2, "cannot open camera 97", target),
+        Case("capture-target-unknown-kind", (*base, *video), 2, "kind",
+             {"target.toml": TARGET.replace("circle_grid", "hexagons")}),
+        Case("capture-target-missing", (*base, *video), 2, "not found"),
+        Case("capture-discs-too-small-far", (*base, *video, "--far-mm", "1500"), 2, "too small to see at the far end",
+             {"target.toml": TARGET.replace("diameter_mm = 7.0", "diameter_mm = 2.5")}),
+        Case("capture-folder-holds-views", (*base, *video), 2, "already holds view_00.png",
+             {**target, "views/view_00.png": texture_png()}),
+        Case("capture-video-not-a-video", (*base, "--video", "a.avi"), 2, "cannot open a.avi",
+             {**target, "a.avi": b"RIFF junk, not a video" * 10}),
+        Case("capture-zero-views", (*base, *video, "--views", "0"), 2, "views", target),
+        Case("capture-near-beyond-far", (*base, *video, "--near-mm", "900", "--far-mm", "500"), 2, "", target),
     ]
 
 
@@ -359,6 +380,14 @@ def _serve() -> list[Case]:
         Case("serve-unknown-scene", ("serve", "--scene", "nosuch"), 2, "nosuch"),
         Case("serve-png-bomb", ("serve", "--image", "img.png"), 2, "100000",
              {"img.png": png_claiming(100000, 100000)}),
+        Case("serve-target-without-folder", ("serve", "--image", "img.png", "--target", "target.toml"), 2,
+             "--target and --capture-to go together", {"img.png": texture_png(), "target.toml": TARGET}),
+        Case("serve-capture-folder-holds-views", ("serve", "--image", "img.png", "--target", "target.toml",
+                                                  "--capture-to", "views"), 2, "already holds view_00.png",
+             {"img.png": texture_png(), "target.toml": TARGET, "views/view_00.png": texture_png()}),
+        Case("serve-capture-target-unknown-kind", ("serve", "--image", "img.png", "--target", "target.toml",
+                                                   "--capture-to", "views"), 2, "kind",
+             {"img.png": texture_png(), "target.toml": TARGET.replace("circle_grid", "hexagons")}),
     ] + _rig_cases(("serve", "--image", "examples/scenes/assets/label.png", *R), "serve")[:3]
 
 
@@ -444,7 +473,7 @@ def _small() -> list[Case]:
 
 def all_cases() -> list[Case]:
     cases = (_design() + _triangulate() + _fit_refraction() + _simulate() + _match() + _measure()
-             + _card_views() + _sweep_views() + _calibrate() + _disparity() + _live() + _serve() + _track()
+             + _card_views() + _sweep_views() + _capture() + _calibrate() + _disparity() + _live() + _serve() + _track()
              + _handeye() + _small())
     names = [c.name for c in cases]
     assert len(names) == len(set(names)), "case names must be unique"

@@ -5,6 +5,9 @@ from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
 
 #: Samples per pixel side of each view (render_grid_shots' default).
 RENDER_SUPERSAMPLE = 2
+#: --video: frames a pose is held, moving frames between poses, renders per moving frame, and one pose in
+#: OUT_EVERY held partly out of the image (psvs.calibrate.handheld).
+HOLD_FRAMES, MOVE_FRAMES, BLUR_SAMPLES, OUT_EVERY = 3, 1, 3, 7
 
 
 def add_parser(sub) -> None:
@@ -21,6 +24,12 @@ def add_parser(sub) -> None:
     p.add_argument("--cols", type=int, default=6)
     p.add_argument("--spacing-mm", type=float, default=14.0)
     p.add_argument("--diameter-mm", type=float, default=7.0)
+    p.add_argument("--video", metavar="FILE.avi", help="instead of still views, a hand-held video (lossless FFV1, "
+                                                      "30 frames/s): the card held still at --views poses "
+                                                      f"({HOLD_FRAMES} frames each) at 400-900 mm, moved smoothly "
+                                                      "between them (motion-blurred), one pose in "
+                                                      f"{OUT_EVERY} partly out of the image; DIR gets target.toml "
+                                                      "(for psvs capture)")
     p.set_defaults(run=run)
 
 
@@ -43,10 +52,12 @@ def run(args) -> int:
         raise ValueError(f"card: {str(exc).replace('_mm', '-mm')}") from None
     rig = rig_from_args(args)
     try:   # before any pose is tried: a card no pose shows would be searched for 2000 times a view
-        check_card_fits(rig, card, args.views)
+        check_card_fits(rig, card, args.views, (400.0, 900.0) if args.video else (450.0, 1000.0))
     except ValueError as exc:
         raise ValueError(f"card (--rows {args.rows} --cols {args.cols} --spacing-mm {args.spacing_mm:g} "
                          f"--diameter-mm {args.diameter_mm:g}): {exc}") from None
+    if args.video:
+        return _video(args, rig, card, folder)
     check_render_work(rig, RENDER_SUPERSAMPLE, args.views, f"--views {args.views}", "fewer --views")
     shots = render_grid_shots(rig, card, random_poses(rig, card, args.views, seed=args.seed), seed=args.seed,
                               supersample=RENDER_SUPERSAMPLE)
@@ -55,4 +66,27 @@ def run(args) -> int:
         write_png(folder / f"card_{k:02d}.png", shot.image)
     write_atomic(folder / "target.toml", dumps_target(card))
     print(f"wrote {len(shots)} card views and target.toml to {folder}")
+    return 0
+
+
+def _video(args, rig, card, folder) -> int:
+    """--video: a simulated hand-held video of the card, and target.toml in the folder."""
+    from psvs.calibrate.handheld import HandParams, hand_path, render_hand_video
+    from psvs.calibrate.target_file import dumps_target
+    from psvs.cli.common import check_distinct, check_output_path
+    from psvs.io.atomic import output_batch, write_atomic
+    from psvs.io.video import VIDEO_SUFFIXES, write_video
+    from psvs.simulate.render import check_render_work
+    video = check_output_path(args.video, VIDEO_SUFFIXES)
+    check_distinct({"--video": video, "DIR/target.toml": folder / "target.toml"}, {"--rig": args.rig})
+    renders = args.views + (args.views - 1) * MOVE_FRAMES * BLUR_SAMPLES
+    check_render_work(rig, 1, renders, f"--views {args.views} (a video of {renders} renders)", "fewer --views")
+    hand = HandParams(HOLD_FRAMES, MOVE_FRAMES, BLUR_SAMPLES, OUT_EVERY)
+    path = hand_path(rig, card, args.views, seed=args.seed, hand=hand)
+    folder.mkdir(parents=True, exist_ok=True)
+    with output_batch():
+        write_atomic(folder / "target.toml", dumps_target(card))
+        n = write_video(video, render_hand_video(rig, card, path, seed=args.seed))
+    print(f"wrote a {n}-frame hand-held video of the card at {args.views} poses to {video}, and target.toml to "
+          f"{folder}")
     return 0

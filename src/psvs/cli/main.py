@@ -18,8 +18,8 @@ from psvs._quiet import quiet_libraries
 from psvs.errors import MeasurementError, RigGeometryError
 
 COMMANDS = ("demo", "rig", "design", "triangulate", "fit-refraction", "simulate", "match", "measure", "calibrate",
-            "card-views", "sweep-views", "table1", "disparity", "dense-eval", "serve", "live", "handeye", "track",
-            "replay", "export-calibration")
+            "card-views", "sweep-views", "capture", "table1", "disparity", "dense-eval", "serve", "live", "handeye",
+            "track", "replay", "export-calibration")
 
 
 class _Parser(argparse.ArgumentParser):

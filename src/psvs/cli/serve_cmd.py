@@ -20,6 +20,9 @@ def add_parser(sub) -> None:
     add_rig_argument(p, required=False)
     p.add_argument("--true-rig", metavar="RIG", help="with --scene: render through this rig, the build as it "
                                                      "is (name or file), while matching uses --rig")
+    p.add_argument("--target", metavar="TARGET.toml", help="the card of the capture panel (docs/calibration.md)")
+    p.add_argument("--capture-to", metavar="DIR", help="with --target: the folder the capture panel saves views "
+                                                     "to (created; must not hold images or target.toml yet)")
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=int, default=8000, help="port (default 8000; 0 picks a free one)")
     p.set_defaults(run=run)
@@ -46,6 +49,24 @@ def make_source(args, rig):
     return sources.scene_source(spec, load_scene_spec(spec), true_rig or rig)
 
 
+def capture_setup(args):
+    """The capture panel's card and folder (--target and --capture-to, both or neither), checked now."""
+    if (args.target is None) != (args.capture_to is None):
+        raise ValueError("--target and --capture-to go together: the card, and the folder for its views")
+    if args.target is None:
+        return None
+    from pathlib import Path
+
+    from psvs.calibrate.capture import check_capture_folder
+    from psvs.calibrate.target_file import load_target
+    from psvs.cli.common import check_distinct, check_output_folder
+    from psvs.web.capture_runner import CaptureSetup
+    folder = check_output_folder(args.capture_to, "--capture-to folder")
+    check_capture_folder(folder)
+    check_distinct({"--capture-to (its target.toml)": folder / "target.toml"}, {"--target": args.target})
+    return CaptureSetup(load_target(args.target), Path(args.target).read_bytes(), str(folder))
+
+
 def run(args) -> int:
     if not 0 <= args.port <= 65535:
         raise ValueError(f"--port must be 0-65535, got {args.port}")
@@ -53,7 +74,8 @@ def run(args) -> int:
 
     from psvs.web.app import create_app
     rig = rig_from_args(args)
-    app = create_app(make_source(args, rig), rig, args.rig or "default rig")
+    capture = capture_setup(args)
+    app = create_app(make_source(args, rig), rig, args.rig or "default rig", capture)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"psvs serve: warning: listening on {args.host}: anyone who can reach it can use the UI")
     config = uvicorn.Config(app, host=args.host, port=args.port, log_level="warning")

@@ -46,7 +46,18 @@ def info(session: SessionDep):
                     "baseline_mm": rig.mirrors.baseline_mm, "plate_thickness_mm": rig.mirrors.plate_thickness_mm,
                     **calibration_status(rig)},
             "image_size_px": list(session.image_size_px), "pipeline": PAPER.to_dict()["steps"], "models": list(MODELS),
-            "steps": sorted(STEPS), "snap_px": SNAP_PX, "max_upload_bytes": MAX_BODY_BYTES}
+            "steps": sorted(STEPS), "snap_px": SNAP_PX, "max_upload_bytes": MAX_BODY_BYTES,
+            "capture": capture_info(session)}
+
+
+def capture_info(session) -> dict | None:
+    """The capture panel's card and folder, or None when the app has none (psvs serve --target --capture-to)."""
+    setup = session.capture.setup
+    if setup is None:
+        return None
+    t = setup.target
+    return {"target": f"{t.rows}x{t.cols} discs, {t.diameter_mm:g} mm across, {t.spacing_mm:g} mm apart",
+            "folder": setup.folder}
 
 
 @router.get("/image.png")

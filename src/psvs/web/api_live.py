@@ -28,6 +28,7 @@ def live_start(body: LiveBody, session: SessionDep):
         rig, body.seed, pipeline=body.pipeline(), near_mm=body.near_mm, far_mm=body.far_mm,
         match=MatchParams(model=body.model), params=TrackerParams(snap_px=SNAP_PX))
     dense = DenseSensor(rig, body.near_mm, body.far_mm) if body.dense else None
+    session.capture.stop()                 # one reader of the source at a time
     session.live.start(session.source, tracker, dense)
     return {"running": True}
 

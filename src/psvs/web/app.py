@@ -1,11 +1,13 @@
 """``psvs serve``'s web app: the complex image, the pipeline with live previews, the paper's double-click
-matching (III.3 step 2) with Fig. 7c/d- and Fig. 8-like views, automatic pairing, exports and live mode.
+matching (III.3 step 2) with Fig. 7c/d- and Fig. 8-like views, automatic pairing, exports, live mode and the
+capture assistant for calibration views.
 
 :func:`create_app` builds one app from a source and a rig. Its routes are grouped by concern in routers
 (``api_image``: info, the image, previews, uploads; ``api_match``: matching and exports; ``api_dense``: dense
-disparity; ``api_live``: live mode) that read the app's :class:`~psvs.web.session.Session` through FastAPI's
-dependency injection, so each app has its own image and results. Everything the page needs comes from these
-routes and the files in ``static/``; no route takes a file path, so nothing else on the machine can be read.
+disparity; ``api_live``: live mode; ``api_capture``: the capture assistant) that read the app's
+:class:`~psvs.web.session.Session` through FastAPI's dependency injection, so each app has its own image and
+results. Everything the page needs comes from these routes and the files in ``static/``; no route takes a file
+path, so nothing else on the machine can be read (the capture's card and folder come from the command line).
 Request bodies are capped (:class:`~psvs.web.limits.BodyLimit`); bad requests get a 4xx answer with a
 one-line ``detail``.
 """
@@ -21,8 +23,9 @@ from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from psvs.optics.rig import Rig
-from psvs.web import api_dense, api_image, api_live, api_match
+from psvs.web import api_capture, api_dense, api_image, api_live, api_match
 from psvs.web.api_image import MAX_BODY_BYTES
+from psvs.web.capture_runner import CaptureRunner, CaptureSetup
 from psvs.web.limits import BodyLimit
 from psvs.web.session import Session
 from psvs.web.sources import Source
@@ -58,7 +61,7 @@ async def bad_request(request: Request, exc: RequestValidationError) -> JSONResp
     return JSONResponse({"detail": detail[:MAX_DETAIL]}, status_code=422)
 
 
-def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastAPI:
+def create_app(source: Source, rig: Rig, rig_name: str = "default rig", capture: CaptureSetup | None = None) -> FastAPI:
     """The web app for one source and rig.
 
     Parameters
@@ -70,19 +73,22 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
         The rig every computation uses.
     rig_name : str
         Shown with the rig's f, b and plate thickness (e.g. the calibrated rig file).
+    capture : CaptureSetup, optional
+        The card and the folder of the capture assistant (``/api/capture``); without it capture is refused.
 
     Returns
     -------
     FastAPI
         The app, with its own :class:`~psvs.web.session.Session` (``app.state.session``): one user, on their
-        own machine. Its live runner stops when the app shuts down.
+        own machine. Its live runner and capture stop when the app shuts down.
     """
-    session = Session(source, rig, rig_name)
+    session = Session(source, rig, rig_name, capture=CaptureRunner(capture))
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI):
         yield
         app.state.session.live.stop()
+        app.state.session.capture.stop()
 
     app = FastAPI(title="psvs", docs_url=None, redoc_url=None, openapi_url=None, lifespan=lifespan)
     app.state.session = session
@@ -96,6 +102,6 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig") -> FastA
         return FileResponse(STATIC / "index.html", media_type="text/html")
 
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
-    for module in (api_image, api_match, api_dense, api_live):
+    for module in (api_image, api_match, api_dense, api_live, api_capture):
         app.include_router(module.router)
     return app

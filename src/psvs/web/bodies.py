@@ -79,3 +79,17 @@ class DenseBody(RangeBody):
 
     fast: bool = True
     views: bool = Field(False, description="also separate the left and right views (slower)")
+
+
+class CaptureBody(Body):
+    """``POST /api/capture/start``: views to save at least, and the depths (mm) whose thirds are covered."""
+
+    views: int = Field(20, ge=3, le=200)
+    near_mm: float = Field(400.0, gt=0, le=MAX_RANGE_MM)
+    far_mm: float = Field(900.0, gt=0, le=MAX_RANGE_MM)
+
+    @model_validator(mode="after")
+    def _near_before_far(self):
+        if not self.near_mm < self.far_mm:
+            raise ValueError(f"near_mm must be < far_mm, got {self.near_mm:g} and {self.far_mm:g}")
+        return self

@@ -17,6 +17,7 @@ from fastapi import Depends, Request
 
 from psvs.match.correspondence import MatchResult
 from psvs.optics.rig import Rig
+from psvs.web.capture_runner import CaptureRunner
 from psvs.web.live_runner import LiveRunner
 from psvs.web.sources import Source
 
@@ -52,12 +53,15 @@ class Session:
         The rig every computation uses.
     rig_name : str
         Shown with the rig's f, b and plate thickness (e.g. the calibrated rig file).
+    capture : CaptureRunner
+        The capture assistant (its card and folder, when the app has them).
     """
 
     source: Source
     rig: Rig
     rig_name: str = "default rig"
     live: LiveRunner = field(default_factory=LiveRunner)
+    capture: CaptureRunner = field(default_factory=lambda: CaptureRunner(None))
     _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
     _still: np.ndarray = field(init=False, repr=False)
     _name: str = field(init=False)

@@ -232,6 +232,74 @@ $("live-stop").addEventListener("click", async () => {
   state.live = false; draw();
 });
 
+const FIELD = ["top-left", "top", "top-right", "left", "centre", "right", "bottom-left", "bottom", "bottom-right"];
+let capturing = false;
+
+function showCoverage(covered) {
+  const body = $("capture-field").querySelector("tbody");
+  body.innerHTML = "";
+  for (let r = 0; r < 3; r++) {
+    const tr = document.createElement("tr");
+    for (let c = 0; c < 3; c++) {
+      const name = FIELD[3 * r + c], n = covered["field:" + name] || 0, td = document.createElement("td");
+      td.textContent = n; td.title = name; td.dataset.bin = "field:" + name;
+      if (n) td.className = "covered";
+      tr.appendChild(td);
+    }
+    body.appendChild(tr);
+  }
+  for (const [id, kind, names] of [["capture-depth", "depth", ["near", "mid", "far"]],
+                                   ["capture-tilt", "tilt", ["flat", "left", "right", "up", "down"]]]) {
+    $(id).innerHTML = "";
+    names.forEach((name) => {
+      const span = document.createElement("span"), n = covered[kind + ":" + name] || 0;
+      span.textContent = `${name} ${n}`; span.dataset.bin = kind + ":" + name;
+      if (n) span.className = "covered";
+      $(id).appendChild(span);
+    });
+  }
+}
+
+async function capturePoll() {
+  try {
+    const s = await api("/api/capture/state");
+    if (s.views !== undefined) {
+      $("capture-saved").textContent = `${s.saved} / ${s.views}`;
+      $("capture-saved").dataset.n = s.saved;
+      $("capture-frame-no").textContent = s.frame ?? "–";
+      $("capture-status").textContent = s.status ?? "–";
+      $("capture-distance").textContent = fmt(s.distance_mm, 0, "mm");
+      $("capture-hint").textContent = s.complete ? "enough to calibrate" : (s.hint || "");
+      $("capture-missing").textContent = s.complete ? `saved in ${s.folder}` : (s.missing ? "missing: " + s.missing : "");
+      showCoverage(s.covered);
+      const ol = $("capture-events");
+      ol.innerHTML = "";
+      s.events.forEach((line) => { const li = document.createElement("li"); li.textContent = line; ol.appendChild(li); });
+      ol.scrollTop = ol.scrollHeight;
+      if (s.frame !== undefined) $("capture-image").src = "/api/capture/frame.png?t=" + Date.now();
+      document.body.dataset.captureComplete = s.complete ? "1" : "";
+    }
+    if (s.error) setStatus("capture: " + s.error);
+    if (!s.running) { capturing = false; return; }
+  } catch (e) { setStatus("capture: " + e.message); }
+  if (capturing) setTimeout(capturePoll, 250);
+}
+
+$("capture-start").addEventListener("click", async () => {
+  try {
+    await api("/api/capture/start", { views: Number($("capture-views").value), near_mm: Number($("capture-near").value),
+                                      far_mm: Number($("capture-far").value) });
+    state.live = false;                            // the capture reads the source now
+    capturing = true; setStatus("capturing: show the card", true);
+    capturePoll();
+  } catch (e) { setStatus("capture: " + e.message); }
+});
+
+$("capture-stop").addEventListener("click", async () => {
+  try { await api("/api/capture/stop", {}); } catch (e) { setStatus(e.message); }
+  capturing = false; capturePoll();
+});
+
 $("upload").addEventListener("change", async (ev) => {
   const file = ev.target.files[0];
   if (!file) return;
@@ -256,6 +324,11 @@ $("upload").addEventListener("change", async (ev) => {
       `plate ${rig.plate_thickness_mm.toFixed(2)} mm) — ${status}; ` +
       (rig.build ? "a build: twins matched on rectified rows" : "the paper's geometry: twins on image rows");
     $("live-start").disabled = !info.source.live;
+    $("capture-start").disabled = !info.source.live || !info.capture;
+    if (info.capture) $("capture-folder").textContent = `Show the printed card (${info.capture.target}) to both views; ` +
+      `each good pose is saved once into ${info.capture.folder}.`;
+    else $("capture-folder").textContent = "Start psvs serve with --target TARGET.toml --capture-to DIR to capture " +
+      "calibration views here.";
     await loadImage();
     await preview();
     document.body.dataset.ready = "1";

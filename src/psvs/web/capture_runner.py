@@ -1,0 +1,144 @@
+"""The web UI's capture assistant: a background thread that reads the source's frames through a
+:class:`~psvs.calibrate.capture.CaptureAssistant`, saves each good view into the capture folder, and keeps
+the latest frame, step and events for the page to poll (the same words ``psvs capture`` prints)."""
+from __future__ import annotations
+
+import collections
+import threading
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.calibrate.capture import (
+    CaptureAssistant,
+    CaptureFolder,
+    CaptureParams,
+    CaptureStep,
+    check_card_visible,
+    event_lines,
+)
+from psvs.optics.rig import Rig
+from psvs.simulate.textures import CircleGrid
+from psvs.web.sources import Source
+
+EVENTS = 200            # event lines kept for the page
+
+
+@dataclass(frozen=True, eq=False)
+class CaptureSetup:
+    """What ``psvs serve --target T --capture-to DIR`` gives the page: the card, its file's bytes (copied as
+    the folder's target.toml) and the folder."""
+
+    target: CircleGrid
+    target_text: bytes
+    folder: str
+
+
+class CaptureRunner:
+    """Start with a source, a rig and params; poll :meth:`state` and :meth:`frame`; stop with :meth:`stop`.
+    A second start in one app resumes the same set (its coverage, its folder) with the new params' count."""
+
+    def __init__(self, setup: CaptureSetup | None):
+        self.setup = setup
+        self._lock = threading.Lock()
+        self._control = threading.Lock()
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+        self._assistant: CaptureAssistant | None = None
+        self._folder: CaptureFolder | None = None
+        self._frame, self._step, self._error, self._progress = None, None, "", None
+        self._events: collections.deque = collections.deque(maxlen=EVENTS)
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def start(self, source: Source, rig: Rig, params: CaptureParams) -> None:
+        """Check the card against the rig and the range, then watch the source (ValueError, one line, else)."""
+        if self.setup is None:
+            raise ValueError("capture needs a card and a folder: start psvs serve with --target TARGET.toml and "
+                             "--capture-to DIR")
+        check_card_visible(rig, self.setup.target, params)
+        with self._control:
+            self._stop_locked()
+            frames = source.frames()
+            with self._lock:
+                if self._folder is None:
+                    self._folder = CaptureFolder(self.setup.folder, self.setup.target_text)
+                old = self._assistant
+                self._assistant = CaptureAssistant(self.setup.target, rig, params)
+                if old is not None:          # resume: what was saved stays saved and covered
+                    self._assistant.covered, self._assistant.saved = old.covered, old.saved
+                self._progress = _progress(self._assistant, self._folder)
+                self._error = ""
+            self._stop.clear()
+            self._thread = threading.Thread(target=self._loop, args=(frames, source.fps), daemon=True,
+                                            name="psvs-capture")
+            self._thread.start()
+
+    def stop(self) -> None:
+        with self._control:
+            self._stop_locked()
+
+    def _stop_locked(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=10)
+        self._thread = None
+
+    def _loop(self, frames, fps: float) -> None:
+        assistant, folder = self._assistant, self._folder
+        t0 = time.monotonic()
+        try:
+            for k, frame in enumerate(frames):
+                if self._stop.is_set():
+                    break
+                step = assistant.step(frame, k / fps if fps > 0 else time.monotonic() - t0)
+                name = folder.save(frame) if step.status == "saved" else None
+                with self._lock:
+                    self._frame, self._step = frame, step
+                    self._progress = _progress(assistant, folder)
+                    self._events.extend(event_lines(step, name, assistant.params.views))
+                    if step.complete:
+                        self._events.append(f"enough to calibrate: {step.saved} views in {folder.folder}")
+                if step.complete:
+                    break
+        except Exception as exc:   # shown on the page; the server keeps running
+            with self._lock:
+                self._error = f"{type(exc).__name__}: {exc}"
+        finally:
+            close = getattr(frames, "close", None)
+            if close:
+                close()
+
+    def frame(self) -> np.ndarray | None:
+        with self._lock:
+            return self._frame
+
+    def state(self) -> dict:
+        """The set's progress: views saved and asked for, what each bin holds, what is missing, the latest
+        step's status and hint, the event lines, the saved files."""
+        with self._lock:        # the progress and the events of one frame, together
+            step, progress = self._step, self._progress
+            out = {"available": self.setup is not None, "running": self.running, "error": self._error,
+                   "events": list(self._events), "folder": self.setup.folder if self.setup else None}
+        if progress is not None:
+            out.update(progress)
+        if step is not None:
+            out.update(_step_fields(step))
+        return out
+
+
+def _progress(a: CaptureAssistant, folder: CaptureFolder) -> dict:
+    """The set's progress after a frame (copied: the loop goes on changing the assistant)."""
+    return {"views": a.params.views, "saved": len(a.saved), "complete": a.complete, "covered": dict(a.covered),
+            "missing": a.describe_missing(), "names": list(folder.names)}
+
+
+def _step_fields(step: CaptureStep) -> dict:
+    pose = step.pose
+    return {"frame": step.frame, "status": step.status, "hint": step.hint, "reason": step.reason,
+            "distance_mm": round(pose.distance_mm, 1) if pose else None,
+            "speed_px_s": round(step.speed_px_s, 1) if np.isfinite(step.speed_px_s) else None,
+            "bins": sorted(step.bins)}
