@@ -40,6 +40,7 @@ from psvs.dense.cost import echo_at_winner, fused_cost, one_sided_costs, padded_
 from psvs.dense.maps import consistent, echo_at, fill_from_background, finite_median, upsample
 from psvs.dense.params import COARSE, DEFAULT, FAST, MIN_LAG_PX, MIN_SIZE_PX, DenseParams
 from psvs.dense.prune import pruned_range, widened, worth_pruning
+from psvs.dense.pyramid import coarse_maps_up, halved, pyramid_levels, refine_level
 from psvs.dense.sgm import Penalties
 from psvs.dense.sgm import winners as sgm_winners
 from psvs.dense.workspace import Workspace, volume
@@ -109,12 +110,19 @@ def _check_params(params) -> DenseParams:
 #: the estimate 553 MiB.)
 CELL_BYTES = 24
 PIXEL_BYTES = 400
+#: Bytes per pixel and band lag of a pyramid's finer level: both maps' band costs and sums, float32.
+BAND_BYTES = 16
 
 
 def dense_memory_bytes(h: int, w: int, d_min: float, d_max: float, params: DenseParams = DEFAULT) -> int:
     """Estimated peak memory (bytes) of :func:`dense_disparity` with ``params`` on an (h, w) image searching
-    d_min..d_max px."""
+    d_min..d_max px (with a pyramid: its coarse level's search, and the band volumes of the finest level)."""
     p = _check_params(params)
+    levels = pyramid_levels(h, w, d_min, d_max) if p.pyramid else 0
+    if levels:
+        k = 2 ** levels * p.scale
+        coarse = dense_memory_bytes(max(1, h // k), max(1, w // k), d_min / k, d_max / k, _top(p))
+        return coarse + BAND_BYTES * p.band_lags * (h // p.scale) * (w // p.scale) + PIXEL_BYTES * h * w
     s = p.scale
     n_lags = max(1, math.floor(d_max / s) - max(MIN_LAG_PX, math.ceil(d_min / s)) + 1)
     cells = (h // s) * (w // s) * padded_lags(n_lags)
@@ -227,6 +235,48 @@ def _reduced(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, right:
                        (m.searched_px[0] * fx, m.searched_px[1] * fx))
 
 
+def _top(p: DenseParams) -> DenseParams:
+    """The parameters of a pyramid's coarse level: ``p.top`` or ``p``, at scale 1 and without a pyramid."""
+    return replace(p if p.top is None else p.top, scale=1, pyramid=False)
+
+
+def _coarse_to_fine(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, right: np.ndarray | None,
+                    workspace: Workspace | None, levels: int) -> DenseResult:
+    """:func:`dense_disparity` through an image pyramid (psvs.dense.pyramid): the whole range searched by
+    ``p`` (at scale 1) on the image halved ``levels`` times beyond ``p``'s working scale, then each finer
+    level down to the working scale searched in a band about the coarser answer; the maps brought back
+    to full size and px."""
+    base = max(0, round(math.log2(p.scale)))      # the working level: 0 (full resolution) or 1 (the fast mode)
+    pyr, pyr_r = [img], [right]
+    for _ in range(base + levels):
+        pyr.append(halved(pyr[-1]))
+        pyr_r.append(None if right is None else halved(pyr_r[-1]))
+    top = pyr[-1]
+    f = img.shape[1] / top.shape[1]
+    with warnings.catch_warnings():   # a reduced image may be constant where the full one is not
+        warnings.simplefilter("ignore", RuntimeWarning)
+        coarse = dense_disparity(top, d_min / f, min(d_max / f, top.shape[1] - 1.0),
+                                 params=_top(p), image_right=pyr_r[-1], workspace=workspace)
+    dl, dr = coarse.disparity_left, coarse.disparity_right
+    cl, cr = coarse.confidence_left, coarse.confidence_right
+    for level in range(base + levels - 1, base - 1, -1):
+        im = pyr[level]
+        fl = img.shape[1] / im.shape[1]
+        up = coarse_maps_up(dl, dr, im.shape)
+        dl, dr, cl, cr = refine_level(im, pyr_r[level], up, (d_min / fl, min(d_max / fl, im.shape[1] - 1.0)), p,
+                                      workspace)[:4]
+    if p.refine_median_px > 1:
+        dl, dr = (finite_median(m, p.refine_median_px) for m in (dl, dr))
+    h, w = img.shape
+    fw = w / dl.shape[1]
+    searched = (coarse.searched_px[0] * f, coarse.searched_px[1] * f)
+    if dl.shape == img.shape:
+        f32 = lambda a: a.astype(np.float32)  # noqa: E731
+        return DenseResult(f32(dl), f32(dr), f32(cl), f32(cr), searched)
+    return DenseResult(upsample(dl, (h, w), fw), upsample(dr, (h, w), fw), upsample(cl, (h, w)),
+                       upsample(cr, (h, w)), searched)
+
+
 def dense_disparity(image, d_min: float, d_max: float, *, params: DenseParams = DEFAULT, image_right=None,
                     workspace: Workspace | None = None) -> DenseResult:
     """Left- and right-view disparity maps (px) of a complex image, searching d_min..d_max px.
@@ -270,6 +320,9 @@ def dense_disparity(image, d_min: float, d_max: float, *, params: DenseParams = 
         nan = np.full((h, w), np.nan, np.float32)
         return DenseResult(nan, nan.copy(), np.zeros((h, w), np.float32), np.zeros((h, w), np.float32),
                            (float(d_min), float(d_max)))
+    levels = pyramid_levels(h, w, float(d_min), float(d_max)) if p.pyramid else 0
+    if levels:
+        return _coarse_to_fine(img, float(d_min), float(d_max), p, right, workspace, levels)
     if p.scale == 1:
         return _full_resolution(img, d_min, d_max, p, right, workspace)
     return _reduced(img, d_min, d_max, p, right, workspace)

@@ -159,6 +159,12 @@ def region_threshold(null_excess: np.ndarray, alpha: float = ALPHA) -> float:
     return float(e[0] * ((1.0 - alpha) / alpha) ** tau)
 
 
+def _unpruned(params: DenseParams) -> DenseParams:
+    """``params`` searching the whole range asked for (at a pyramid's coarse level too)."""
+    top = None if params.top is None else replace(params.top, prune=False)
+    return replace(params, prune=False, top=top)
+
+
 def echo_trust(image, result: DenseResult, params: DenseParams = DEFAULT, image_right=None,
                inside: tuple[np.ndarray, np.ndarray] | None = None) -> EchoTrust:
     """Which pixels of ``result`` (the maps :func:`~psvs.dense.disparity.dense_disparity` gave for ``image``
@@ -170,7 +176,7 @@ def echo_trust(image, result: DenseResult, params: DenseParams = DEFAULT, image_
     lo, hi = result.searched_px
     with warnings.catch_warnings():            # a constant image warns once, for the real run
         warnings.simplefilter("ignore", RuntimeWarning)
-        null = dense_disparity(left, lo, hi, params=replace(params, prune=False), image_right=null_image(right))
+        null = dense_disparity(left, lo, hi, params=_unpruned(params), image_right=null_image(right))
     maps = [(null.disparity_left, null.confidence_left), (null.disparity_right, null.confidence_right)]
     if inside is not None:
         maps = [(d, np.where(mask, c, 0)) for (d, c), mask in zip(maps, inside)]
