@@ -25,22 +25,27 @@ _BIG = np.float32(1e30)    # a lane outside a band: never a path's minimum (fini
 
 
 @nb.njit(cache=True, parallel=True, fastmath=True)
-def _band_costs(fp, grp, stats, off, r, right_view, d_hi, cost, top):  # noqa: PLR0913  # pragma: no cover - compiled
-    """The band costs (H, W, B) of one view's map into ``cost`` (>= 0, a pixel's best lane 0) and each
-    pixel's best echo into ``top`` (so echo = top − cost on a lane with a twin).
+def _band_costs(fp, grp, stats, offs, r, d_hi, costs, tops):  # noqa: PLR0913  # pragma: no cover - compiled
+    """The band costs (H, W, B) of both views' maps into ``costs`` (2, H, W, B) (>= 0, a pixel's best lane
+    0; [0] the left view's, [1] the right view's) and each pixel's best echo into ``tops`` (2, H, W) (so
+    echo = top − cost on a lane with a twin), rows of both views in parallel.
 
     ``fp`` (H + 2r, W + 2P) the left features padded by replication (P = r + B + 1 columns, r rows);
     ``grp`` the right features padded the same way and with its columns reversed (so a window at x − d
     for the lags of a band runs forward); ``stats`` (5, H, W + 2P) rows of: the left features' window mean,
     inverse deviation, the aperture weight (padded as ``fp``), the right features' mean and inverse deviation
-    (padded and reversed as ``grp``); ``off`` (H, W) int64 the bands' first lags; lanes above ``d_hi`` or
+    (padded and reversed as ``grp``); ``offs`` (2, H, W) int64 the bands' first lags; lanes above ``d_hi`` or
     without a twin in the image take the pixel's worst cost (never favoured), a pixel without any
     an all-zero (neutral) cost."""
-    h, w, nb_ = cost.shape
+    h, w, nb_ = costs.shape[1:]
     wp = fp.shape[1]
     pad = (wp - w) // 2
     inv = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
-    for y in nb.prange(h):
+    for task in nb.prange(2 * h):
+        t = np.int64(task)
+        right_view = t >= h
+        y = t - h if right_view else t
+        off, cost, top = offs[1 if right_view else 0], costs[1 if right_view else 0], tops[1 if right_view else 0]
         acc = np.empty(nb_, np.float32)
         e = np.empty(nb_, np.float32)
         mu_f, isd_f, ap = stats[0, y], stats[1, y], stats[2, y]
@@ -233,6 +238,5 @@ def band_costs(features_left: np.ndarray, features_right: np.ndarray, stats: tup
     costs = np.empty((2, h, w, n_lanes), np.float32) if out is None else out
     top = np.empty((2, h, w), np.float32)
     offsets = np.ascontiguousarray(offsets, dtype=np.int64)
-    for view in range(2):
-        _band_costs(fp, grp, st, offsets[view], radius, view == 1, int(d_hi), costs[view], top[view])
+    _band_costs(fp, grp, st, offsets, radius, int(d_hi), costs, top)
     return costs, top

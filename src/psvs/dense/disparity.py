@@ -23,6 +23,8 @@ Method (docs/dense.md):
 
 Disparities below :data:`~psvs.dense.params.MIN_LAG_PX` cannot be told from the image's own smoothness and are
 not searched. The default mode first narrows the range to the lags a coarse pass finds (psvs.dense.prune).
+A large image or range is searched coarse to fine (psvs.dense.pyramid): the steps above on the image halved
+as often as :func:`~psvs.dense.pyramid.pyramid_levels` says, then a band of lags per pixel at each finer level.
 Tuning and presets: psvs.dense.params (``params=FAST`` for the fast mode); the map kernels: psvs.dense.maps;
 the echo volume: psvs.dense.cost; the volumes kept from call to call: psvs.dense.workspace.
 """
@@ -40,7 +42,7 @@ from psvs.dense.cost import echo_at_winner, fused_cost, one_sided_costs, padded_
 from psvs.dense.maps import consistent, echo_at, fill_from_background, finite_median, upsample
 from psvs.dense.params import COARSE, DEFAULT, FAST, MIN_LAG_PX, MIN_SIZE_PX, DenseParams
 from psvs.dense.prune import pruned_range, widened, worth_pruning
-from psvs.dense.pyramid import coarse_maps_up, halved, pyramid_levels, refine_level
+from psvs.dense.pyramid import coarse_level, coarse_maps_up, pyramid_levels, refine_level
 from psvs.dense.sgm import Penalties
 from psvs.dense.sgm import winners as sgm_winners
 from psvs.dense.workspace import Workspace, volume
@@ -121,7 +123,7 @@ def dense_memory_bytes(h: int, w: int, d_min: float, d_max: float, params: Dense
     levels = pyramid_levels(h, w, d_min, d_max) if p.pyramid else 0
     if levels:
         k = 2 ** levels * p.scale
-        coarse = dense_memory_bytes(max(1, h // k), max(1, w // k), d_min / k, d_max / k, _top(p))
+        coarse = dense_memory_bytes(max(1, h // k), max(1, w // k), d_min / k, d_max / k, top_params(p))
         return coarse + BAND_BYTES * p.band_lags * (h // p.scale) * (w // p.scale) + PIXEL_BYTES * h * w
     s = p.scale
     n_lags = max(1, math.floor(d_max / s) - max(MIN_LAG_PX, math.ceil(d_min / s)) + 1)
@@ -235,7 +237,12 @@ def _reduced(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, right:
                        (m.searched_px[0] * fx, m.searched_px[1] * fx))
 
 
-def _top(p: DenseParams) -> DenseParams:
+def working_level(p: DenseParams) -> int:
+    """The pyramid level ``p`` works at: 0 (full resolution) or 1 (half, the fast mode)."""
+    return max(0, round(math.log2(p.scale)))
+
+
+def top_params(p: DenseParams) -> DenseParams:
     """The parameters of a pyramid's coarse level: ``p.top`` or ``p``, at scale 1 and without a pyramid."""
     return replace(p if p.top is None else p.top, scale=1, pyramid=False)
 
@@ -246,25 +253,22 @@ def _coarse_to_fine(img: np.ndarray, d_min: float, d_max: float, p: DenseParams,
     ``p`` (at scale 1) on the image halved ``levels`` times beyond ``p``'s working scale, then each finer
     level down to the working scale searched in a band about the coarser answer; the maps brought back
     to full size and px."""
-    base = max(0, round(math.log2(p.scale)))      # the working level: 0 (full resolution) or 1 (the fast mode)
-    pyr, pyr_r = [img], [right]
-    for _ in range(base + levels):
-        pyr.append(halved(pyr[-1]))
-        pyr_r.append(None if right is None else halved(pyr_r[-1]))
+    base = working_level(p)
+    pyr, pyr_r = coarse_level(img, right, base + levels)
     top = pyr[-1]
     f = img.shape[1] / top.shape[1]
     with warnings.catch_warnings():   # a reduced image may be constant where the full one is not
         warnings.simplefilter("ignore", RuntimeWarning)
         coarse = dense_disparity(top, d_min / f, min(d_max / f, top.shape[1] - 1.0),
-                                 params=_top(p), image_right=pyr_r[-1], workspace=workspace)
+                                 params=top_params(p), image_right=pyr_r[-1], workspace=workspace)
     dl, dr = coarse.disparity_left, coarse.disparity_right
     cl, cr = coarse.confidence_left, coarse.confidence_right
     for level in range(base + levels - 1, base - 1, -1):
         im = pyr[level]
         fl = img.shape[1] / im.shape[1]
-        up = coarse_maps_up(dl, dr, im.shape)
+        up = coarse_maps_up((dl, dr, cl, cr), im.shape)
         dl, dr, cl, cr = refine_level(im, pyr_r[level], up, (d_min / fl, min(d_max / fl, im.shape[1] - 1.0)), p,
-                                      workspace)[:4]
+                                      workspace)
     if p.refine_median_px > 1:
         dl, dr = (finite_median(m, p.refine_median_px) for m in (dl, dr))
     h, w = img.shape
@@ -290,7 +294,8 @@ def dense_disparity(image, d_min: float, d_max: float, *, params: DenseParams = 
         :data:`~psvs.dense.params.MIN_LAG_PX` up are searched.
     params : DenseParams
         The tuning: :data:`~psvs.dense.params.DEFAULT` (full resolution, the range pruned to the scene),
-        :data:`~psvs.dense.params.FAST` (half resolution, 4 SGM paths), or your own.
+        :data:`~psvs.dense.params.FAST` (half resolution, 4 SGM paths), or your own. A large image or range is
+        searched coarse to fine with either (psvs.dense.pyramid; ``DenseParams(pyramid=False)``: one level).
     image_right : array_like (H, W), optional
         On a build (psvs.dense.build): ``image`` is the complex image resampled on the left view's rectified
         grid and this one on the right view's; a left pixel's twin is then sought in it, and the maps are

@@ -61,6 +61,16 @@ def halved(img: np.ndarray) -> np.ndarray:
     return cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA)
 
 
+def coarse_level(img: np.ndarray, right: np.ndarray | None, times: int) -> tuple[list, list]:
+    """The pyramid of ``img`` (and ``right``, a build's right grid, or None): the image halved 0..``times``
+    times (:func:`halved`), two lists from the finest."""
+    pyr, pyr_r = [img], [right]
+    for _ in range(times):
+        pyr.append(halved(pyr[-1]))
+        pyr_r.append(None if right is None else halved(pyr_r[-1]))
+    return pyr, pyr_r
+
+
 def _bands(d: np.ndarray, lo: int, hi: int, n_lanes: int) -> np.ndarray:
     """Each pixel's first lag (int64 (h, w)) of a band of ``n_lanes`` about ``d`` (h, w, px; the coarser
     level's map brought to this level): centred on its 5 x 5 neighbourhood's span when that fits in the
@@ -80,12 +90,18 @@ def _stats(f: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
     return mu, (1.0 / np.sqrt(np.maximum(box(f * f) - mu * mu, 1e-6))).astype(np.float32)
 
 
-def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple[np.ndarray, np.ndarray],
-                 d_range: tuple[float, float], p: DenseParams, workspace: Workspace | None = None):
+def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple, d_range: tuple[float, float],
+                 p: DenseParams, workspace: Workspace | None = None):
     """One finer level (module docstring): ``img`` (h, w) (``right``: the right view's grid on a build),
-    ``coarse`` the two maps of the coarser level brought to (h, w) and to this level's px, ``d_range`` the
-    disparities asked for (px of this level). Returns (left map, right map, left confidence, right
-    confidence, the left-right check of each), float64 / bool (h, w)."""
+    ``coarse`` the two maps of the coarser level and their confidences brought to (h, w) (the maps in this
+    level's px), ``d_range`` the disparities asked for (px of this level). Returns (left map, right map,
+    left confidence, right confidence), float64 (h, w).
+
+    A pixel keeps the coarser level's confidence (ultimately the coarse level's echo at its disparity,
+    from the windows tuned to tell an echo from chance) where this level's maps pass the left-right check,
+    and has none elsewhere. Both maps come from bands about the same coarser answer, so their agreement
+    alone is no test (on an image without echo they agree over whole regions), and a finer level's 3 x 3
+    windows correlate about 0.5 by chance."""
     h, w = img.shape
     lo = max(MIN_LAG_PX, math.ceil(d_range[0]))
     hi = min(math.floor(d_range[1]), w - 1)
@@ -96,25 +112,22 @@ def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple[np.nda
     mu_f, isd_f = _stats(f, r)
     mu_g, isd_g = (mu_f, isd_f) if right is None else _stats(g, r)
     aperture = aperture_weight(f, p.aperture_window, p.aperture_share)
-    offsets = np.stack([_bands(c, lo, hi, n) for c in coarse])
-    costs, top = band_costs(f, g, (mu_f, isd_f, mu_g, isd_g, aperture), offsets, hi, n, r,
+    offsets = np.stack([_bands(c, lo, hi, n) for c in coarse[:2]])
+    costs, _ = band_costs(f, g, (mu_f, isd_f, mu_g, isd_g, aperture), offsets, hi, n, r,
                             out=volume(workspace, "band", (2, h, w, n)))
     guide = cv2.GaussianBlur(unit_scaled(img), (0, 0), 1.0)
     best = band_winners(costs, offsets, p.p1, p.p2, p.n_paths, guide, p.edge_contrast,
                         sums=volume(workspace, "band_sums", (2, h, w, n)))
-    ok_l, ok_r = consistent(best[0], best[1])
-    conf = []
-    for view, ok in ((0, ok_l), (1, ok_r)):
-        k = np.clip(np.rint(best[view]).astype(np.int64) - offsets[view], 0, n - 1)
-        echo = top[view] - np.take_along_axis(costs[view], k[..., None], axis=2)[..., 0]
-        conf.append(np.where(ok, np.clip(echo, 0, 1), 0.0))
-    dl = np.where(ok_l, best[0], coarse[0])
-    dr = np.where(ok_r, best[1], coarse[1])
-    return dl, dr, conf[0], conf[1], ok_l, ok_r
+    ok = consistent(best[0], best[1])
+    out = []
+    for view in range(2):
+        out.append(np.where(ok[view], best[view], coarse[view]))
+        out.append(np.where(ok[view], coarse[2 + view], 0.0))
+    return out[0], out[2], out[1], out[3]
 
 
-def coarse_maps_up(dl: np.ndarray, dr: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
-    """The two maps (h, w, px) of a coarser level brought to ``shape`` (H, W) and its px (nearest
-    neighbour: a depth edge stays sharp), float64."""
-    factor = shape[1] / dl.shape[1]
-    return tuple(upsample(m, shape, factor).astype(np.float64) for m in (dl, dr))
+def coarse_maps_up(maps: tuple, shape: tuple[int, int]) -> tuple:
+    """The two maps (h, w, px) of a coarser level and their two confidences brought to ``shape`` (H, W),
+    the maps to its px (nearest neighbour: a depth edge stays sharp), float64."""
+    factor = shape[1] / maps[0].shape[1]
+    return tuple(upsample(m, shape, factor if k < 2 else 1.0).astype(np.float64) for k, m in enumerate(maps))
