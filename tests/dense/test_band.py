@@ -145,3 +145,17 @@ def test_band_parameters_are_checked():
         replace(DEFAULT, refine_window=4)
     with pytest.raises(ValueError, match="refine_median_px must be an odd number"):
         replace(DEFAULT, refine_median_px=0)
+
+
+def test_a_kept_workspace_gives_the_same_maps_through_the_pyramid(large_pair):
+    """The band volumes are kept in the Workspace with the coarse level's: a second frame with it gives the
+    same maps as a call without one, and a first frame of another range too (the volumes regrow)."""
+    from psvs.dense import Workspace
+    left, right, _, _ = large_pair
+    c = superimpose(left, right)
+    ws = Workspace()
+    for d_max in (200, 200, 150):
+        ref = dense_disparity(c, 0, d_max, params=FAST)
+        res = dense_disparity(c, 0, d_max, params=FAST, workspace=ws)
+        np.testing.assert_array_equal(res.disparity_left, ref.disparity_left)
+        np.testing.assert_array_equal(res.confidence_right, ref.confidence_right)
