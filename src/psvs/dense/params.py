@@ -36,7 +36,7 @@ class DenseParams:
     median_px: int = 11            # final median filter of each map (odd side; 1 = none): removes the fill's streaks
     prune: bool = True             # full resolution: search only the lags a coarse pass (COARSE) finds in the scene
     pyramid: bool = True           # a large image or range: coarse to fine (psvs.dense.pyramid), else one level
-    band_lags: int = 8             # the lags each pixel searches at a finer level of the pyramid
+    band_lags: int = 6             # the lags each pixel searches at a finer level of the pyramid
     refine_window: int = 3         # the NCC window side at a finer level (plain windows, no guided filter)
     refine_median_px: int = 11     # the pyramid's final median of each map at the working scale (odd side; 1 = none)
     top: DenseParams | None = None  # the pyramid's coarse level: these parameters (None: the mode's own, at scale 1)
