@@ -95,6 +95,8 @@ def test_band_costs_are_the_windows_ncc():
 def test_levels_come_from_the_size_and_the_range():
     assert pyramid_levels(480, 640, 86, 255) == 0        # the default rig: the method as it was
     assert pyramid_levels(480, 640, 0, 64) == 0
+    assert pyramid_levels(500, 741, 0, 160) == 0         # Motorcycle over the widest range its tests search
+    assert pyramid_levels(509, 663, 84, 255) == 0        # the misaligned rig's rectified grids, 400-1200 mm
     assert pyramid_levels(1130, 1502, 200, 392) == 1     # mv1440 rectified, 550-1100 mm
     assert pyramid_levels(1080, 1440, 181, 519) == 2     # mv1440, 400-1200 mm
     assert pyramid_levels(2160, 2880, 0, 120) == 2       # a large image, a small range: by its size
