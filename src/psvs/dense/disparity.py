@@ -23,6 +23,8 @@ Method (docs/dense.md):
 
 Disparities below :data:`~psvs.dense.params.MIN_LAG_PX` cannot be told from the image's own smoothness and are
 not searched. The default mode first narrows the range to the lags a coarse pass finds (psvs.dense.prune).
+A large image or range is searched coarse to fine (psvs.dense.pyramid): the steps above on the image halved
+as often as :func:`~psvs.dense.pyramid.pyramid_levels` says, then a band of lags per pixel at each finer level.
 Tuning and presets: psvs.dense.params (``params=FAST`` for the fast mode); the map kernels: psvs.dense.maps;
 the echo volume: psvs.dense.cost; the volumes kept from call to call: psvs.dense.workspace.
 """
@@ -40,6 +42,7 @@ from psvs.dense.cost import echo_at_winner, fused_cost, one_sided_costs, padded_
 from psvs.dense.maps import consistent, echo_at, fill_from_background, finite_median, upsample
 from psvs.dense.params import COARSE, DEFAULT, FAST, MIN_LAG_PX, MIN_SIZE_PX, DenseParams
 from psvs.dense.prune import pruned_range, widened, worth_pruning
+from psvs.dense.pyramid import coarse_level, coarse_maps_up, pyramid_levels, refine_level
 from psvs.dense.sgm import Penalties
 from psvs.dense.sgm import winners as sgm_winners
 from psvs.dense.workspace import Workspace, volume
@@ -109,12 +112,19 @@ def _check_params(params) -> DenseParams:
 #: the estimate 553 MiB.)
 CELL_BYTES = 24
 PIXEL_BYTES = 400
+#: Bytes per pixel and band lag of a pyramid's finer level: both maps' band costs and sums, float32.
+BAND_BYTES = 16
 
 
 def dense_memory_bytes(h: int, w: int, d_min: float, d_max: float, params: DenseParams = DEFAULT) -> int:
     """Estimated peak memory (bytes) of :func:`dense_disparity` with ``params`` on an (h, w) image searching
-    d_min..d_max px."""
+    d_min..d_max px (with a pyramid: its coarse level's search, and the band volumes of the finest level)."""
     p = _check_params(params)
+    levels = pyramid_levels(h, w, d_min, d_max) if p.pyramid else 0
+    if levels:
+        k = 2 ** levels * p.scale
+        coarse = dense_memory_bytes(max(1, h // k), max(1, w // k), d_min / k, d_max / k, top_params(p))
+        return coarse + BAND_BYTES * p.band_lags * (h // p.scale) * (w // p.scale) + PIXEL_BYTES * h * w
     s = p.scale
     n_lags = max(1, math.floor(d_max / s) - max(MIN_LAG_PX, math.ceil(d_min / s)) + 1)
     cells = (h // s) * (w // s) * padded_lags(n_lags)
@@ -227,6 +237,50 @@ def _reduced(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, right:
                        (m.searched_px[0] * fx, m.searched_px[1] * fx))
 
 
+def working_level(p: DenseParams) -> int:
+    """The pyramid level ``p`` works at: 0 (full resolution) or 1 (half, the fast mode)."""
+    return max(0, round(math.log2(p.scale)))
+
+
+def top_params(p: DenseParams) -> DenseParams:
+    """The parameters of a pyramid's coarse level: ``p.top`` or ``p``, at scale 1 and without a pyramid."""
+    return replace(p if p.top is None else p.top, scale=1, pyramid=False)
+
+
+def _coarse_to_fine(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, right: np.ndarray | None,
+                    workspace: Workspace | None, levels: int) -> DenseResult:
+    """:func:`dense_disparity` through an image pyramid (psvs.dense.pyramid): the whole range searched by
+    ``p`` (at scale 1) on the image halved ``levels`` times beyond ``p``'s working scale, then each finer
+    level down to the working scale searched in a band about the coarser answer; the maps brought back
+    to full size and px."""
+    base = working_level(p)
+    pyr, pyr_r = coarse_level(img, right, base + levels)
+    top = pyr[-1]
+    f = img.shape[1] / top.shape[1]
+    with warnings.catch_warnings():   # a reduced image may be constant where the full one is not
+        warnings.simplefilter("ignore", RuntimeWarning)
+        coarse = dense_disparity(top, d_min / f, min(d_max / f, top.shape[1] - 1.0),
+                                 params=top_params(p), image_right=pyr_r[-1], workspace=workspace)
+    dl, dr = coarse.disparity_left, coarse.disparity_right
+    cl, cr = coarse.confidence_left, coarse.confidence_right
+    for level in range(base + levels - 1, base - 1, -1):
+        im = pyr[level]
+        fl = img.shape[1] / im.shape[1]
+        up = coarse_maps_up((dl, dr, cl, cr), im.shape)
+        dl, dr, cl, cr = refine_level(im, pyr_r[level], up, (d_min / fl, min(d_max / fl, im.shape[1] - 1.0)), p,
+                                      workspace)
+    if p.refine_median_px > 1:
+        dl, dr = (finite_median(m, p.refine_median_px) for m in (dl, dr))
+    h, w = img.shape
+    fw = w / dl.shape[1]
+    searched = (coarse.searched_px[0] * f, coarse.searched_px[1] * f)
+    if dl.shape == img.shape:
+        f32 = lambda a: a.astype(np.float32)  # noqa: E731
+        return DenseResult(f32(dl), f32(dr), f32(cl), f32(cr), searched)
+    return DenseResult(upsample(dl, (h, w), fw), upsample(dr, (h, w), fw), upsample(cl, (h, w)),
+                       upsample(cr, (h, w)), searched)
+
+
 def dense_disparity(image, d_min: float, d_max: float, *, params: DenseParams = DEFAULT, image_right=None,
                     workspace: Workspace | None = None) -> DenseResult:
     """Left- and right-view disparity maps (px) of a complex image, searching d_min..d_max px.
@@ -240,7 +294,8 @@ def dense_disparity(image, d_min: float, d_max: float, *, params: DenseParams = 
         :data:`~psvs.dense.params.MIN_LAG_PX` up are searched.
     params : DenseParams
         The tuning: :data:`~psvs.dense.params.DEFAULT` (full resolution, the range pruned to the scene),
-        :data:`~psvs.dense.params.FAST` (half resolution, 4 SGM paths), or your own.
+        :data:`~psvs.dense.params.FAST` (half resolution, 4 SGM paths), or your own. A large image or range is
+        searched coarse to fine with either (psvs.dense.pyramid; ``DenseParams(pyramid=False)``: one level).
     image_right : array_like (H, W), optional
         On a build (psvs.dense.build): ``image`` is the complex image resampled on the left view's rectified
         grid and this one on the right view's; a left pixel's twin is then sought in it, and the maps are
@@ -270,6 +325,9 @@ def dense_disparity(image, d_min: float, d_max: float, *, params: DenseParams = 
         nan = np.full((h, w), np.nan, np.float32)
         return DenseResult(nan, nan.copy(), np.zeros((h, w), np.float32), np.zeros((h, w), np.float32),
                            (float(d_min), float(d_max)))
+    levels = pyramid_levels(h, w, float(d_min), float(d_max)) if p.pyramid else 0
+    if levels:
+        return _coarse_to_fine(img, float(d_min), float(d_max), p, right, workspace, levels)
     if p.scale == 1:
         return _full_resolution(img, d_min, d_max, p, right, workspace)
     return _reduced(img, d_min, d_max, p, right, workspace)

@@ -16,7 +16,8 @@ MIN_SIZE_PX = 16
 
 @dataclass(frozen=True)
 class DenseParams:
-    """Tuning of :func:`~psvs.dense.disparity.dense_disparity`; lengths in px of the working scale."""
+    """Tuning of :func:`~psvs.dense.disparity.dense_disparity`; lengths in px of the working scale (of a
+    pyramid's level: psvs.dense.pyramid)."""
 
     sigma_px: float = 0.7          # band-pass: image minus its Gaussian blur of this σ
     window: int = 5                # NCC window side
@@ -34,13 +35,28 @@ class DenseParams:
     second_pass: bool = True       # re-match, from each view's own evidence, pixels the first pass left inconsistent
     median_px: int = 11            # final median filter of each map (odd side; 1 = none): removes the fill's streaks
     prune: bool = True             # full resolution: search only the lags a coarse pass (COARSE) finds in the scene
+    pyramid: bool = True           # a large image or range: coarse to fine (psvs.dense.pyramid), else one level
+    band_lags: int = 6             # the lags each pixel searches at a finer level of the pyramid
+    refine_window: int = 3         # the NCC window side at a finer level (plain windows, no guided filter)
+    refine_median_px: int = 11     # the pyramid's final median of each map at the working scale (odd side; 1 = none)
+    top: DenseParams | None = None  # the pyramid's coarse level: these parameters (None: the mode's own, at scale 1)
+
+    def __post_init__(self):
+        if self.band_lags < 4:
+            raise ValueError(f"band_lags must be >= 4, got {self.band_lags}")
+        if self.refine_window < 1 or self.refine_window % 2 == 0:
+            raise ValueError(f"refine_window must be an odd number of px, got {self.refine_window}")
+        if self.refine_median_px < 1 or self.refine_median_px % 2 == 0:
+            raise ValueError(f"refine_median_px must be an odd number >= 1, got {self.refine_median_px}")
 
 
 #: The default mode: full resolution, shiftable windows, guided filter, 8 paths, second pass, median.
 DEFAULT = DenseParams()
 #: The fast mode: half resolution, plain 9 x 9 windows, no guided filter, 4 paths, one pass, no median.
+#: With a pyramid (a large image or range) its coarse level runs the default mode (it is small), and the
+#: finer levels down to half resolution search their bands on 4 paths, with a 5 x 5 median at the end.
 FAST = DenseParams(sigma_px=0.5, window=9, shift_window=1, guided_radius=0, n_paths=4, scale=2, second_pass=False,
-                   median_px=1, prune=False)
+                   median_px=1, prune=False, refine_median_px=5, top=DEFAULT)
 #: The coarse pass that prunes the default mode's search: the fast mode. (At quarter resolution it would
 #: take 12 ms instead of 55 at 160 disparities, but it misses a 64 x 64 px object whose disparity stands
 #: apart: tests/dense/test_disparity.py.)

@@ -37,11 +37,13 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass, replace
 
+import cv2
 import numba as nb
 import numpy as np
 
-from psvs.dense.disparity import DenseResult, dense_disparity
+from psvs.dense.disparity import DenseResult, dense_disparity, top_params
 from psvs.dense.params import DEFAULT, DenseParams
+from psvs.dense.pyramid import coarse_level, pyramid_levels
 
 #: The false-alarm rate: the chance that an image without echo has any trusted pixel.
 ALPHA = 0.01
@@ -159,6 +161,38 @@ def region_threshold(null_excess: np.ndarray, alpha: float = ALPHA) -> float:
     return float(e[0] * ((1.0 - alpha) / alpha) ** tau)
 
 
+def _coarse_trust(image: np.ndarray, image_right, result: DenseResult, params: DenseParams, levels: int,
+                  inside) -> EchoTrust:
+    """:func:`echo_trust` of a pyramid's maps (psvs.dense.pyramid): judged at its coarse level, where the
+    windows were tuned to tell an echo from chance (a finer level's maps follow the coarse answer, and
+    would agree with each other over whole regions even on an image without echo). The coarse level's
+    maps are made again (the default mode's coarse search, on the image halved ``levels`` times: the fast
+    mode's own coarse level is halved once more, too small for chance's regions to show their tail), its
+    trusted pixels brought to full size and kept where ``result`` has a confidence."""
+    times = levels       # the fast mode's coarse level is one more halving: too small to judge chance's tail
+    pyr, pyr_r = coarse_level(image, None if image_right is None else np.asarray(image_right, np.float64), times)
+    top, top_r = pyr[-1], pyr_r[-1]
+    f = image.shape[1] / top.shape[1]
+    lo, hi = result.searched_px
+    p = top_params(params)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        coarse = dense_disparity(top, lo / f, min(hi / f, top.shape[1] - 1.0), params=p, image_right=top_r)
+    shrink = None if inside is None else tuple(
+        cv2.resize(m.astype(np.uint8), top.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0 for m in inside)
+    t = echo_trust(top, coarse, p, image_right=top_r, inside=shrink)
+    size = image.shape[::-1]
+    up = lambda m: cv2.resize(m.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0  # noqa: E731
+    return EchoTrust(up(t.trusted_left) & (result.confidence_left > 0), up(t.trusted_right) &
+                     (result.confidence_right > 0), t.min_excess, t.largest_excess, t.null_largest_excess, t.chance)
+
+
+def _unpruned(params: DenseParams) -> DenseParams:
+    """``params`` searching the whole range asked for (at a pyramid's coarse level too)."""
+    top = None if params.top is None else replace(params.top, prune=False)
+    return replace(params, prune=False, top=top)
+
+
 def echo_trust(image, result: DenseResult, params: DenseParams = DEFAULT, image_right=None,
                inside: tuple[np.ndarray, np.ndarray] | None = None) -> EchoTrust:
     """Which pixels of ``result`` (the maps :func:`~psvs.dense.disparity.dense_disparity` gave for ``image``
@@ -168,9 +202,12 @@ def echo_trust(image, result: DenseResult, params: DenseParams = DEFAULT, image_
     left = np.asarray(image, dtype=np.float64)
     right = left if image_right is None else np.asarray(image_right, dtype=np.float64)
     lo, hi = result.searched_px
+    levels = pyramid_levels(*left.shape, lo, hi) if params.pyramid else 0
+    if levels:
+        return _coarse_trust(left, image_right, result, params, levels, inside)
     with warnings.catch_warnings():            # a constant image warns once, for the real run
         warnings.simplefilter("ignore", RuntimeWarning)
-        null = dense_disparity(left, lo, hi, params=replace(params, prune=False), image_right=null_image(right))
+        null = dense_disparity(left, lo, hi, params=_unpruned(params), image_right=null_image(right))
     maps = [(null.disparity_left, null.confidence_left), (null.disparity_right, null.confidence_right)]
     if inside is not None:
         maps = [(d, np.where(mask, c, 0)) for (d, c), mask in zip(maps, inside)]

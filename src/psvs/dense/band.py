@@ -1,0 +1,242 @@
+"""The band search of the coarse-to-fine pyramid (psvs.dense.pyramid): each pixel searches only B
+consecutive disparities o(p) .. o(p) + B − 1 around what the coarser level found there, as tSGM does
+(Rothermel et al. 2012), so a level costs pixels × B instead of pixels × the whole range.
+
+Each view's map is refined from its own evidence. The echo of a left-view point at x with disparity d is
+the normalised cross-correlation of C's band-passed window at x with the window at x − d (on a build, the
+right view's rectified grid at x − d); a right-view point at x is seen from its left-view end, x + d.
+Both are computed directly, window by window, for the pixel's B lags only (no volume over the range), and
+weighted by the aperture of the left-view end's patch (psvs.dense.cost.aperture_weight).
+
+Semi-global aggregation (Hirschmüller 2008) runs over the bands: along a path from q to p, lane k of p
+(disparity o(p) + k) continues lane k + o(p) − o(q) of q, with the usual P1 for a one-step change and P2
+(lowered across the guide's edges) for a jump; a lane outside q's band continues nothing but the jump.
+Two passes (down: from the left, above and the two upper diagonals; up: the opposite ones) on each map,
+the two maps on two threads; the up pass adds the down pass's sums and keeps each pixel's winner.
+"""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+from psvs.dense.sgm import _penalty, winner
+
+_BIG = np.float32(1e30)    # a lane outside a band: never a path's minimum (finite: fastmath)
+
+
+@nb.njit(cache=True, parallel=True, fastmath=True)
+def _band_costs(fp, grp, stats, offs, r, d_hi, costs, tops):  # noqa: PLR0913  # pragma: no cover - compiled
+    """The band costs (H, W, B) of both views' maps into ``costs`` (2, H, W, B) (>= 0, a pixel's best lane
+    0; [0] the left view's, [1] the right view's) and each pixel's best echo into ``tops`` (2, H, W) (so
+    echo = top − cost on a lane with a twin), rows of both views in parallel.
+
+    ``fp`` (H + 2r, W + 2P) the left features padded by replication (P = r + B + 1 columns, r rows);
+    ``grp`` the right features padded the same way and with its columns reversed (so a window at x − d
+    for the lags of a band runs forward); ``stats`` (5, H, W + 2P) rows of: the left features' window mean,
+    inverse deviation, the aperture weight (padded as ``fp``), the right features' mean and inverse deviation
+    (padded and reversed as ``grp``); ``offs`` (2, H, W) int64 the bands' first lags; lanes above ``d_hi`` or
+    without a twin in the image take the pixel's worst cost (never favoured), a pixel without any
+    an all-zero (neutral) cost."""
+    h, w, nb_ = costs.shape[1:]
+    wp = fp.shape[1]
+    pad = (wp - w) // 2
+    inv = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
+    for task in nb.prange(2 * h):
+        t = np.int64(task)
+        right_view = t >= h
+        y = t - h if right_view else t
+        off, cost, top = offs[1 if right_view else 0], costs[1 if right_view else 0], tops[1 if right_view else 0]
+        acc = np.empty(nb_, np.float32)
+        e = np.empty(nb_, np.float32)
+        mu_f, isd_f, ap = stats[0, y], stats[1, y], stats[2, y]
+        mu_g, isd_g = stats[3, y], stats[4, y]
+        for x in range(w):
+            o = off[y, x]
+            n_ok = min(nb_, d_hi - o + 1, (w - x - o) if right_view else (x - o + 1))
+            out = cost[y, x]
+            if n_ok <= 0:
+                for k in range(nb_):
+                    out[k] = 0.0
+                top[y, x] = 0.0
+                continue
+            for k in range(nb_):
+                acc[k] = 0.0
+            for j in range(2 * r + 1):
+                fy, gy = fp[y + j], grp[y + j]
+                for i in range(-r, r + 1):
+                    if right_view:        # Σ f(x + d + i) g(x + i): f runs forward with the lag
+                        gv = gy[wp - 1 - (x + i + pad)]
+                        fs = fy[x + i + o + pad:x + i + o + pad + nb_]
+                        for k in range(nb_):
+                            acc[k] += fs[k] * gv
+                    else:                 # Σ f(x + i) g(x − d + i): g reversed runs forward with the lag
+                        fv = fy[x + i + pad]
+                        c0 = wp - 1 - (x + i - o + pad)
+                        gs = gy[c0:c0 + nb_]
+                        for k in range(nb_):
+                            acc[k] += fv * gs[k]
+            if right_view:
+                c0 = x + o + pad
+                mf, sf, a = mu_f[c0:c0 + nb_], isd_f[c0:c0 + nb_], ap[c0:c0 + nb_]
+                mg, sg = mu_g[wp - 1 - (x + pad)], isd_g[wp - 1 - (x + pad)]
+                for k in range(nb_):
+                    e[k] = (acc[k] * inv - mf[k] * mg) * (sf[k] * sg) * a[k]
+            else:
+                mf, sf, a = mu_f[x + pad], isd_f[x + pad], ap[x + pad]
+                c0 = wp - 1 - (x - o + pad)
+                mg, sg = mu_g[c0:c0 + nb_], isd_g[c0:c0 + nb_]
+                for k in range(nb_):
+                    e[k] = (acc[k] * inv - mf * mg[k]) * (sf * sg[k]) * a
+            best = e[0]
+            for k in range(1, n_ok):
+                best = max(best, e[k])
+            worst = np.float32(0.0)
+            for k in range(n_ok):
+                out[k] = best - e[k]
+                worst = max(worst, out[k])
+            for k in range(n_ok, nb_):
+                out[k] = worst
+            top[y, x] = best
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True)
+def _band_pass(cost, off, down, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
+    """One pass of the band aggregation (module docstring) over all rows: ``down`` writes its sum of paths
+    into ``sums`` (H, W, B); the up pass adds ``sums`` and writes each pixel's winner, as the disparity
+    o + lane + sub-pixel offset, into ``best`` (H, W) float64."""
+    h, w, nb_ = cost.shape
+    pad = nb_ + 2                                    # lanes of padding each side of a band in the states
+    n_k = 4 if diagonals else 2                      # 0 the row's path, 1 from above, 2 from x − s, 3 from x + s
+    s = 1 if down else -1
+    state = np.full((2, n_k, w + 2, nb_ + 2 * pad), _BIG, np.float32)
+    mins = np.zeros((2, n_k, w + 2), np.float32)
+    state[:, :, 0, :] = 0.0                          # outside the image: a zero source, minimum zero (L = c)
+    state[:, :, w + 1, :] = 0.0
+    zero = np.zeros(nb_ + 2 * pad, np.float32)       # the row before the first: L = c
+    offs = np.zeros(w + 2, np.int64)                 # the bands' first lags, columns shifted by one
+    prev_offs = np.zeros(w + 2, np.int64)
+    pen = np.empty((n_k, w), np.float32)
+    row_sum = np.empty(nb_, np.float32)
+    lim = nb_ + 1
+    for iy in range(h):
+        prev, cur = state[iy % 2], state[(iy + 1) % 2]
+        pmin, cmin = mins[iy % 2], mins[(iy + 1) % 2]
+        y = iy if down else h - 1 - iy
+        yp = min(max(y - s, 0), h - 1)
+        for x in range(w):
+            offs[x + 1] = off[y, x]
+            prev_offs[x + 1] = off[yp, x] if iy > 0 else off[y, x]
+        gy, gp = guide[y], guide[yp]
+        for x in range(w):
+            pen[0, x] = _penalty(gy[x], gy[min(max(x - s, 0), w - 1)], p1, p2, tau)
+            pen[1, x] = _penalty(gy[x], gp[x], p1, p2, tau)
+            if diagonals:
+                pen[2, x] = _penalty(gy[x], gp[min(max(x - s, 0), w - 1)], p1, p2, tau)
+                pen[3, x] = _penalty(gy[x], gp[min(max(x + s, 0), w - 1)], p1, p2, tau)
+        for ix in range(w):                          # the row's path, in its own direction
+            x = ix if down else w - 1 - ix
+            xb, xq = x + 1, x + 1 - s
+            dl = 0 if (xq == 0 or xq == w + 1) else min(max(offs[xb] - offs[xq], -lim), lim)
+            _step(cost[y, x], cur[0, xq], cmin[0, xq], pen[0, x], p1, pad + dl, cur[0, xb], cmin[0], xb)
+        for x in range(w):                           # the paths from the previous row
+            xb = x + 1
+            for kk in range(1, n_k):
+                xq = xb if kk == 1 else (xb - s if kk == 2 else xb + s)
+                if iy == 0:
+                    _step(cost[y, x], zero, np.float32(0.0), pen[kk, x], p1, pad, cur[kk, xb], cmin[kk], xb)
+                    continue
+                dl = 0 if (xq == 0 or xq == w + 1) else min(max(offs[xb] - prev_offs[xq], -lim), lim)
+                _step(cost[y, x], prev[kk, xq], pmin[kk, xq], pen[kk, x], p1, pad + dl, cur[kk, xb], cmin[kk], xb)
+            for k in range(nb_):
+                row_sum[k] = cur[0, xb, pad + k]
+            for kk in range(1, n_k):
+                src = cur[kk, xb]
+                for k in range(nb_):
+                    row_sum[k] += src[pad + k]
+            if down:
+                sums[y, x, :] = row_sum
+            else:
+                tot = sums[y, x]
+                lowest = np.float32(3e38)
+                for k in range(nb_):
+                    row_sum[k] += tot[k]
+                    lowest = min(lowest, row_sum[k])
+                k, frac = winner(row_sum, nb_, lowest)
+                best[y, x] = offs[xb] + k + frac
+
+
+@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+def _step(c, src, m, pen, p1, at, dst, dst_min, xb):  # noqa: PLR0913  # pragma: no cover - compiled
+    """One path's step into pixel ``xb``: L(k) = c(k) + min(L_q(k'), L_q(k' ± 1) + p1, m + pen) − m with
+    k' = k + shift (``at`` = the padding plus the shift, into ``src``, q's padded state row); ``m``: q's
+    minimum. Writes dst[pad + k] and dst_min[xb]."""
+    nb_ = c.shape[0]
+    a = src[at - 1:at + nb_ + 1]
+    j = m + pen
+    lo = np.float32(3e38)
+    base = (dst.shape[0] - nb_) // 2
+    for k in range(nb_):
+        v = c[k] + min(min(a[k], a[k + 2]) + p1, min(a[k + 1], j)) - m
+        dst[base + k] = v
+        lo = min(lo, v)
+    dst_min[xb] = lo
+
+
+@nb.njit(cache=True, parallel=True)
+def _band_winners(costs, offs, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
+    """Both maps' aggregation, one per thread: down pass into sums[i], up pass picking into best[i]."""
+    for i in nb.prange(costs.shape[0]):
+        _band_pass(costs[i], offs[i], True, diagonals, p1, p2, guide, tau, sums[i], best[i])
+        _band_pass(costs[i], offs[i], False, diagonals, p1, p2, guide, tau, sums[i], best[i])
+
+
+def band_winners(costs: np.ndarray, offsets: np.ndarray, p1: float, p2: float, n_paths: int, guide: np.ndarray,
+                 tau: float, sums: np.ndarray | None = None) -> np.ndarray:
+    """Each pixel's winning disparity (px, float64 (2, H, W): lag o + lane + a parabola's sub-pixel offset)
+    of the SGM aggregation over the bands of two maps: ``costs`` (2, H, W, B) >= 0 (lane k of pixel p is
+    disparity offsets[i, p] + k), ``offsets`` (2, H, W) int, penalties ``p1`` <= ``p2`` (the jump's lowered
+    to max(p1, p2 / (1 + |Δguide| / tau)) across ``guide`` (H, W)'s edges), ``n_paths`` 4 or 8. ``sums``:
+    work space of the costs' shape."""
+    costs = np.ascontiguousarray(costs, dtype=np.float32)
+    if costs.ndim != 4 or costs.shape[0] != 2:
+        raise ValueError(f"band costs must have shape (2, H, W, B), got {costs.shape}")
+    offsets = np.ascontiguousarray(offsets, dtype=np.int64)
+    if offsets.shape != costs.shape[:3]:
+        raise ValueError(f"band offsets {offsets.shape} must match the costs' {costs.shape[:3]}")
+    if n_paths not in (4, 8):
+        raise ValueError(f"n_paths must be 4 or 8, got {n_paths}")
+    if not 0 <= p1 <= p2:
+        raise ValueError(f"SGM penalties need 0 <= p1 <= p2, got p1={p1}, p2={p2}")
+    guide = np.ascontiguousarray(guide, dtype=np.float32)
+    if guide.shape != costs.shape[1:3]:
+        raise ValueError(f"guide {guide.shape} must match the cost's image size {costs.shape[1:3]}")
+    if sums is None:
+        sums = np.empty_like(costs)
+    best = np.empty(costs.shape[:3], np.float64)
+    _band_winners(costs, offsets, n_paths == 8, np.float32(p1), np.float32(p2), guide, np.float32(tau), sums, best)
+    return best
+
+
+def band_costs(features_left: np.ndarray, features_right: np.ndarray, stats: tuple, offsets: np.ndarray,
+               d_hi: int, n_lanes: int, radius: int, out: np.ndarray | None = None):
+    """The band costs of both maps (psvs.dense.band module docstring): float32 (2, H, W, B) >= 0, [0] the
+    left view's (echo at x, twin at x − d), [1] the right view's (echo seen from x + d), lane k the lag
+    offsets[i] + k (lags above ``d_hi`` and those without a twin in the image get the pixel's worst cost),
+    and each pixel's best echo (2, H, W), so the echo of a lane is best − cost. ``features_*`` (H, W)
+    band-passed images (the same one on the paper's geometry); ``stats``: (mean, inverse deviation) of
+    each over the (2 radius + 1)² window and the left one's aperture weight, each (H, W)."""
+    f = np.asarray(features_left, dtype=np.float32)
+    h, w = f.shape
+    pad = radius + n_lanes + 1
+    wide = lambda a: np.pad(np.asarray(a, np.float32), ((0, 0), (pad, pad)), mode="edge")  # noqa: E731
+    fp = np.pad(f, ((radius, radius), (pad, pad)), mode="edge")
+    grp = np.ascontiguousarray(np.pad(np.asarray(features_right, np.float32), ((radius, radius), (pad, pad)),
+                                      mode="edge")[:, ::-1])
+    mu_f, isd_f, mu_g, isd_g, aperture = stats
+    st = np.stack([wide(mu_f), wide(isd_f), wide(aperture), wide(mu_g)[:, ::-1], wide(isd_g)[:, ::-1]])
+    st = np.ascontiguousarray(st)
+    costs = np.empty((2, h, w, n_lanes), np.float32) if out is None else out
+    top = np.empty((2, h, w), np.float32)
+    offsets = np.ascontiguousarray(offsets, dtype=np.int64)
+    _band_costs(fp, grp, st, offsets, radius, int(d_hi), costs, top)
+    return costs, top
