@@ -60,11 +60,11 @@ def test_the_renderer_renders_it_blocked():
 
 
 def test_design_and_the_trace_agree_on_a_blocked_layout():
-    """misaligned's build with the k1 = -0.2 lens it had before, mirrors sized for its whole field: design
+    """misaligned's build with the lens it had before (k2 = 0.11), mirrors sized for its whole field: design
     finds M2 in the left view's light leaving M3 on a share of the field; the trace blocks exactly those
     field rays, and no ray of the right view."""
     rig = load_rig("misaligned")
-    rig = rig.replace(distortion=(-0.2,) + rig.camera.distortion[1:])
+    rig = rig.replace(distortion=(-0.2, 0.11) + rig.camera.distortion[2:])
     designed = design_mirrors(rig, search=False)
     assert not designed.ok
     (obs,) = designed.obstructions
@@ -78,7 +78,7 @@ def test_design_and_the_trace_agree_on_a_blocked_layout():
 
 
 def test_the_shipped_misaligned_build_is_clear():
-    """`psvs design --rig misaligned --no-search`: clear (its lens, k1 = -0.15, keeps M2 at 44 mm in the window)."""
+    """`psvs design --rig misaligned --no-search`: clear (its lens, k2 = 0.45, keeps M2 at 44 mm in the window)."""
     d = design_mirrors(load_rig("misaligned"), search=False)
     assert d.ok, d.problems
     w, h = d.rig.camera.image_size_px

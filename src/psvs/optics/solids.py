@@ -25,44 +25,69 @@ SCENE_DEPTH_MM = 2000.0
 
 def hits_rectangle(p0: np.ndarray, p1: np.ndarray, plane: Plane) -> np.ndarray:
     """Mask (N,) of segments p0 -> p1 (N, 3) crossing the plane strictly inside its rectangle."""
-    d0 = (p0 - plane.point) @ plane.normal
-    d1 = (p1 - plane.point) @ plane.normal
-    cross = (d0 * d1) < 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = d0 / (d0 - d1)
-        x = p0 + t[:, None] * (p1 - p0)
+    off = float(plane.point @ plane.normal)
+    d0 = p0 @ plane.normal - off
+    d1 = p1 @ plane.normal - off
+    out = (d0 * d1) < 0
+    idx = np.flatnonzero(out)            # only segments that cross the plane can meet its rectangle
+    if idx.size:
+        a, b = d0[idx], d1[idx]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = p0[idx] + (a / (a - b))[:, None] * (p1[idx] - p0[idx])
         loc = plane.local(x)
-    (s0, s1), (t0, t1) = plane.extent.along_mm, plane.extent.height_mm
-    inside = (loc[:, 0] > s0) & (loc[:, 0] < s1) & (loc[:, 1] > t0) & (loc[:, 1] < t1)
-    return cross & inside
+        (s0, s1), (t0, t1) = plane.extent.along_mm, plane.extent.height_mm
+        out[idx] = (loc[:, 0] > s0) & (loc[:, 0] < s1) & (loc[:, 1] > t0) & (loc[:, 1] < t1)
+    return out
 
 
 def hits_plate(p0: np.ndarray, p1: np.ndarray, front: Plane, thickness_mm: float) -> np.ndarray:
     """Mask (N,) of segments p0 -> p1 that pass through the plate box (slab method in plate coordinates)."""
+    off = float(front.point @ front.normal)
+    za, zb = off - p0 @ front.normal, off - p1 @ front.normal       # depth into the glass
+    out = ~(((za <= 0) & (zb <= 0)) | ((za >= thickness_mm) & (zb >= thickness_mm)))
+    out &= np.isfinite(za) & np.isfinite(zb)
+    idx = np.flatnonzero(out)            # only segments reaching the slab between the faces can meet the box
+    if not idx.size:
+        return out
     (s0, s1), (t0, t1) = front.extent.along_mm, front.extent.height_mm
     lo = np.array([s0, t0, 0.0])
     hi = np.array([s1, t1, thickness_mm])
-
-    def coords(p):  # (s, t, depth into the glass)
-        return np.column_stack([front.local(p), (front.point - p) @ front.normal])
-
-    a, b = coords(p0), coords(p1)
+    a = np.column_stack([front.local(p0[idx]), za[idx]])
+    b = np.column_stack([front.local(p1[idx]), zb[idx]])
     d = b - a
     with np.errstate(divide="ignore", invalid="ignore"):
         ta, tb = (lo - a) / d, (hi - a) / d
     t_enter = np.nanmax(np.where(d != 0, np.minimum(ta, tb), -np.inf), axis=1)
     t_exit = np.nanmin(np.where(d != 0, np.maximum(ta, tb), np.inf), axis=1)
     outside_slab = np.any((d == 0) & ((a <= lo) | (a >= hi)), axis=1)
-    return ~outside_slab & (t_enter < t_exit) & (t_exit > 1e-9) & (t_enter < 1 - 1e-9)
+    out[idx] = ~outside_slab & (t_enter < t_exit) & (t_exit > 1e-9) & (t_enter < 1 - 1e-9)
+    return out
 
 
 def segments_hit(p0s: np.ndarray, p1s: np.ndarray, solid: str, rig: Rig) -> np.ndarray:
-    """Mask (N,) of segments p0s -> p1s (N, 3) through ``solid`` (one of :data:`SOLIDS`, finite)."""
+    """Mask (N,) of segments p0s -> p1s (N, 3) through ``solid`` (one of :data:`SOLIDS`, finite). Only the
+    segments whose bounding box meets the solid's are tested exactly."""
     planes = mirror_planes(rig)
     d = rig.mirrors.plate_thickness_mm
-    if solid == "M1 plate" and d > 0:
-        return hits_plate(p0s, p1s, planes["m1"], d)
-    return hits_rectangle(p0s, p1s, planes["m1" if solid == "M1 plate" else solid.lower()])
+    plane = planes["m1" if solid == "M1 plate" else solid.lower()]
+    lo, hi = _box(plane, d if solid == "M1 plate" else 0.0)
+    idx = np.flatnonzero(((np.maximum(p0s, p1s) >= lo) & (np.minimum(p0s, p1s) <= hi)).all(axis=1))
+    out = np.zeros(len(p0s), dtype=bool)
+    if idx.size:
+        if solid == "M1 plate" and d > 0:
+            out[idx] = hits_plate(p0s[idx], p1s[idx], plane, d)
+        else:
+            out[idx] = hits_rectangle(p0s[idx], p1s[idx], plane)
+    return out
+
+
+def _box(plane: Plane, thickness_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Axis-aligned bounds (lo (3,), hi (3,)) mm of a mirror's rectangle, extruded by ``thickness_mm`` behind
+    its face (the plate), widened by 1e-6 mm."""
+    (s0, s1), (t0, t1) = plane.extent.along_mm, plane.extent.height_mm
+    c = np.array([plane.point + s * plane.s_axis + t * plane.t_axis for s in (s0, s1) for t in (t0, t1)])
+    c = np.concatenate([c, c - thickness_mm * plane.normal])
+    return c.min(axis=0) - 1e-6, c.max(axis=0) + 1e-6
 
 
 def finite_solids(rig: Rig) -> tuple[str, ...]:
