@@ -15,6 +15,9 @@ pass the same lens.
 """
 from __future__ import annotations
 
+import functools
+
+import cv2
 import numpy as np
 
 from psvs.optics.rig import Camera
@@ -72,3 +75,33 @@ def ri_range(camera: Camera, samples: int = 513) -> tuple[float, float]:
         q = np.append(q, -a2 / (2 * a4))
     ri = ri_of_rho2(q, (a2, a4))
     return float(ri.min()), float(ri.max())
+
+
+@functools.lru_cache(maxsize=8)
+def _gain(camera: Camera) -> np.ndarray:
+    """1 / RI (H, W) float32, read-only: the flat-field gain of a camera (cached: a live loop asks every frame)."""
+    g = (1.0 / illumination_map(camera)).astype(np.float32)
+    g.setflags(write=False)
+    return g
+
+
+def flat_field(grey: np.ndarray, camera: Camera) -> np.ndarray:
+    """The (H, W) uint8 image as a flat lens would have recorded it: each pixel divided by the lens's
+    relative illumination there (the shading correction of a machine-vision camera), rounded and saturated
+    at 255. The image itself when the camera's field is flat. Fixed grey-level thresholds (the paper's 92)
+    and the sub-pixel edge model then see the same contrast in the corners as on the axis.
+
+    Examples
+    --------
+    >>> cam = Camera(focal_length_mm=1.0, pixel_pitch_mm=(0.5, 0.5), image_size_px=(3, 1),
+    ...              principal_point_px=(1.0, 0.0), relative_illumination=(-0.5, 0.0))
+    >>> flat_field(np.array([[75, 100, 75]], np.uint8), cam)      # RI = 0.875, 1, 0.875
+    array([[ 86, 100,  86]], dtype=uint8)
+    """
+    if not camera.vignetted:
+        return grey
+    gain = _gain(camera)
+    if grey.shape != gain.shape:
+        raise ValueError(f"image is {grey.shape[1]}x{grey.shape[0]} px but the camera is "
+                         f"{gain.shape[1]}x{gain.shape[0]} px")
+    return cv2.multiply(grey, gain, dtype=cv2.CV_8U)
