@@ -20,7 +20,7 @@ def test_shipped_rigs_load_by_name_and_agree_with_the_repository_examples():
 
 
 def test_unknown_name_lists_the_shipped_rigs():
-    message = r"rig file not found: nope \(shipped rigs: default, clear, misaligned\)"
+    message = r"rig file not found: nope \(shipped rigs: default, clear, misaligned, mv1440, mv1440_misaligned\)"
     with pytest.raises(FileNotFoundError, match=message):
         load_rig("nope")
 
