@@ -45,3 +45,25 @@ def test_auto_pairs_every_object(name, tmp_path, capsys):
         assert got == pytest.approx(want, rel=0.005)
     d = [p["median_disparity_px"] for p in data["pairs"]]
     assert max(d) > 255 and min(d) > 150    # beyond 8 bits: the range comes from the rig
+
+
+def test_the_fall_off_is_undone_before_the_fixed_threshold():
+    """A patch of grey 110 as a flat lens would record it: in mv1440_misaligned's corner (RI 0.70-0.78 over
+    the patch) the sensor records it as 77-86, under the paper's threshold 92, so the paper's pipeline finds
+    no edge there; the flat-fielded image (what match_image, the tracker, the seam sensor and serve pipe)
+    gives it back."""
+    from psvs.imaging.pipeline import PAPER
+    from psvs.optics.illumination import flat_field, illumination_map
+    cam = load_rig("mv1440_misaligned").camera
+    ri = illumination_map(cam)
+    flat = np.full((1080, 1440), 20.0)
+    flat[20:120, 20:140] = 110.0                              # the top-left corner
+    flat[490:590, 660:780] = 110.0                            # on the axis
+    recorded = np.rint(flat * ri).astype(np.uint8)
+    assert recorded[20:120, 20:140].max() < 92 and recorded[540, 720] == 110
+    raw = PAPER.run(recorded)
+    assert not raw[10:130, 10:150].any() and raw[480:600, 650:790].any()
+    fixed = flat_field(recorded, cam)
+    assert np.abs(fixed.astype(int) - flat.astype(int)).max() <= 1
+    edges = PAPER.run(fixed)
+    assert edges[10:130, 10:150].sum() == pytest.approx(edges[480:600, 650:790].sum(), rel=0.02)
