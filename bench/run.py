@@ -2,6 +2,8 @@
 
     python3 dev.py bench            # all
     python3 dev.py bench triangulate
+    python3 dev.py bench --case mv1440 render match   # only the cases whose name holds "mv1440"
+    python3 dev.py bench --case "mv1440|paper chain"  # ... or "paper chain" (| separates alternatives)
 
 Each bench module defines ``cases()`` returning a list of ``(name, setup_result_fn, target_s)`` where
 calling ``setup_result_fn()`` returns the zero-argument function to time (a function that returns a float
@@ -63,6 +65,13 @@ def time_best(fn, repeat: int = 7) -> float:
 
 
 def main(argv: list[str]) -> int:
+    load0 = os.getloadavg()[0]
+    argv = list(argv)
+    case = None
+    if "--case" in argv:
+        k = argv.index("--case")
+        case = argv[k + 1]
+        del argv[k:k + 2]
     modules = sorted(HERE.glob("bench_*.py"))
     if argv:
         modules = [m for m in modules if any(a in m.stem for a in argv)]
@@ -72,6 +81,8 @@ def main(argv: list[str]) -> int:
         mod = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(mod)
         for name, setup, target in mod.cases():
+            if case is not None and not any(c in name for c in case.split("|")):
+                continue
             fn = setup()
             t = time_best(fn)
             ok = "—" if target == float("inf") else ("yes" if t <= target else "NO")
@@ -80,18 +91,25 @@ def main(argv: list[str]) -> int:
                                                            f"(target {target * 1e3:.0f} ms: {ok})"), flush=True)
         times = {r[1]: r[2] for r in rows if r[0] == path.stem.removeprefix("bench_")}
         for name, a, b in getattr(mod, "RATIOS", []):
+            if a not in times or b not in times:
+                continue
             ratios.append((path.stem.removeprefix("bench_"), name, times[a] / times[b]))
             print(f"{name:<55} {ratios[-1][2]:10.2f}", flush=True)
-    # keep the rows of groups not run this time (python3 dev.py bench GROUP re-measures one group)
-    ran = {r[0] for r in rows}
+    # keep the rows of cases not run this time (python3 dev.py bench GROUP re-measures one group, --case
+    # SUBSTR the cases whose name holds SUBSTR)
+    ran = {r[0] for r in rows} if case is None else set()
+    measured = {(r[0], r[1]) for r in rows}
+    ran_ratios = {(r[0], r[1]) for r in ratios}
     if OUT.exists():
         for line in OUT.read_text().splitlines():
             cells = [c.strip() for c in line.strip().strip("|").split("|")]
-            if len(cells) == 5 and cells[0] not in ran and cells[0] not in ("group", "---"):
+            if len(cells) == 5 and cells[0] not in ran and (cells[0], cells[1]) not in measured \
+                    and cells[0] not in ("group", "---"):
                 target = float("inf") if cells[3] in ("—", "inf") else float(cells[3]) / 1e3
                 met = "—" if target == float("inf") else cells[4]
                 rows.append((cells[0], cells[1], float(cells[2]) / 1e3, target, met))
-            elif len(cells) == 3 and cells[0] not in ran and cells[0] not in ("group", "---"):
+            elif len(cells) == 3 and cells[0] not in ran and (cells[0], cells[1]) not in ran_ratios \
+                    and cells[0] not in ("group", "---"):
                 ratios.append((cells[0], cells[1], float(cells[2])))
     rows.sort(key=lambda r: r[0])
     ratios.sort(key=lambda r: r[0])
@@ -99,10 +117,13 @@ def main(argv: list[str]) -> int:
              "Written by `python3 dev.py bench` (bench/run.py): time per call, best of 7 batches of back-to-back calls",
              "(one call a batch above 50 ms). Triangulation, projection and matching run on",
              "one thread; rendering uses both cores (its own thread pool).", "",
-             f"- Date: {datetime.date.today().isoformat()}", f"- Machine: {machine()}", "",
+             f"- Date: {datetime.date.today().isoformat()}", f"- Machine: {machine()}",
+             f"- Load average (1 min) at the start and the end of the run: {load0:.1f} and {os.getloadavg()[0]:.1f}"
+             f" ({os.cpu_count()} cores; above that, other work shared them and slowed every case measured)", "",
              "| group | case | time (ms) | target (ms) | met |", "|---|---|---:|---:|---|"]
-    lines += [f"| {g} | {n} | {t * 1e3:.1f} | {'—' if tg == float('inf') else f'{tg * 1e3:.0f}'} | {ok} |"
-              for g, n, t, tg, ok in rows]
+    # 3 significant digits at least (a ratio of two ms-scale cases is read back from these to 1 %)
+    lines += [f"| {g} | {n} | {t * 1e3:.{1 if t >= 0.01 else 2}f} | "
+              f"{'—' if tg == float('inf') else f'{tg * 1e3:.0f}'} | {ok} |" for g, n, t, tg, ok in rows]
     if ratios:
         lines += ["", "Ratios of two cases' times measured in the same run:", "",
                   "| group | ratio | value |", "|---|---|---:|"]

@@ -1,7 +1,7 @@
 """Calibration of a misaligned build from a hand-held circle-grid card: planted truth.
 
 The images are rendered through examples/rigs/misaligned.toml (mirrors 0.1-0.3 deg and up to 0.8 mm off,
-the box turned, k1 = -0.2 with tangential terms, f +1 %, principal point 5 px off); calibration starts from
+the box turned, k1 = -0.2, k2 = 0.45 with tangential terms, f +1 %, principal point 5 px off); calibration starts from
 the nominal design (examples/rigs/clear.toml without mirror extents)."""
 import csv
 import math

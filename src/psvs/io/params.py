@@ -3,7 +3,8 @@
 Format (docs/rig_file.md). Required: ``[camera] focal_length_mm, pixel_pitch_mm, image_size_px`` and
 ``[mirrors] baseline_mm, m1_axis_distance_mm, m2_axis_distance_mm, plate_thickness_mm, refractive_index``.
 Optional: ``principal_point_px`` (image centre), ``distortion`` ([k1, k2, p1, p2, k3], OpenCV's order; the
-older ``distortion_k = [k1, k2]`` still loads), ``angle_deg`` (45), ``split_ratio`` (0.5),
+older ``distortion_k = [k1, k2]`` still loads), ``relative_illumination`` ([a2, a4], the lens's fall-off:
+:mod:`psvs.optics.illumination`; flat when absent), ``angle_deg`` (45), ``split_ratio`` (0.5),
 ``refraction_l_mm`` / ``refraction_m_mm`` (derived from d, n, omega_1), ``box_rotation_deg`` ([0, 0, 0]), and
 per-mirror tables ``[mirrors.m1]`` .. ``[mirrors.m4]`` with an extent (``along_mm = [min, max]`` and
 ``height_mm = [min, max]``, unbounded when absent) and the build's pose error (``tilt_deg = [a, b]``,
@@ -25,7 +26,7 @@ from psvs.optics.rig import MIRROR_NAMES, Calibration, Camera, MirrorError, Mirr
 from psvs.rigs import SHIPPED, shipped_rig_path
 
 _CAMERA_REQUIRED = ("focal_length_mm", "pixel_pitch_mm", "image_size_px")
-_CAMERA_OPTIONAL = ("principal_point_px", "distortion", "distortion_k")
+_CAMERA_OPTIONAL = ("principal_point_px", "distortion", "distortion_k", "relative_illumination")
 _MIRRORS_REQUIRED = ("baseline_mm", "m1_axis_distance_mm", "m2_axis_distance_mm",
                      "plate_thickness_mm", "refractive_index")
 _MIRRORS_OPTIONAL = ("angle_deg", "split_ratio", "refraction_l_mm", "refraction_m_mm", "box_rotation_deg")
@@ -133,9 +134,10 @@ def rig_from_dict(data: dict) -> Rig:
         dist = (*_pair(cam_t["distortion_k"], "camera.distortion_k"), 0.0, 0.0, 0.0)
     else:
         dist = _numbers(cam_t.get("distortion", [0.0] * 5), "camera.distortion", 5)
+    ri = _numbers(cam_t.get("relative_illumination", [0.0, 0.0]), "camera.relative_illumination", 2)
     camera = _build(Camera, "camera", focal_length_mm=cam_t["focal_length_mm"],
                     pixel_pitch_mm=_pair(cam_t["pixel_pitch_mm"], "camera.pixel_pitch_mm"),
-                    image_size_px=size, principal_point_px=cpp, distortion=dist)
+                    image_size_px=size, principal_point_px=cpp, distortion=dist, relative_illumination=ri)
 
     kwargs = {k: scalars[k] for k in _MIRRORS_REQUIRED}
     for k in ("split_ratio", "refraction_l_mm", "refraction_m_mm"):
@@ -224,6 +226,7 @@ def rig_to_dict(rig: Rig) -> dict:
             "image_size_px": list(c.image_size_px),
             "principal_point_px": list(c.principal_point_px),
             **lens,
+            **({"relative_illumination": list(c.relative_illumination)} if c.vignetted else {}),
         },
         "mirrors": mirrors,
         **calibration,

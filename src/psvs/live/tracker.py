@@ -11,7 +11,7 @@ follows the edge as the object moves and changes size.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -20,7 +20,9 @@ from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.correspondence import MatchParams, finish_pairs
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
+from psvs.optics.illumination import flat_field
 from psvs.optics.rig import Rig
+from psvs.optics.scale import pixel_scale
 from psvs.optics.search_range import disparity_range, rectification_for
 
 
@@ -79,6 +81,10 @@ class TrackerParams:
         Fewest matched pixel pairs for a frame to count as tracked.
     candidates : int
         Edge pixels tried, nearest the predicted seed first.
+
+    The three lengths are in px of the paper's camera (1130 px per unit tan(angle)): :class:`EdgeTracker`
+    scales them to its rig's camera (:func:`psvs.optics.scale.pixel_scale`, :meth:`scaled`), so an edge
+    moving so many mm is followed alike on a 640x480 and a 1440x1080 camera.
     """
 
     snap_px: float = 6.0
@@ -93,6 +99,11 @@ class TrackerParams:
         for name in ("min_pairs", "candidates"):
             check_count(getattr(self, name), name)
 
+    def scaled(self, factor: float) -> "TrackerParams":
+        """The same tuning with its lengths (snap, search, jump) times ``factor`` (a camera's pixel scale)."""
+        return replace(self, snap_px=self.snap_px * factor, search_px=self.search_px * factor,
+                       max_jump_px=self.max_jump_px * factor)
+
 
 class EdgeTracker:
     """Follow the left-view edge under ``seed_px`` frame to frame and report its depth.
@@ -101,7 +112,8 @@ class EdgeTracker:
     ----------
     rig : Rig
     seed_px : (u, v)
-        A point on (or within ``params.snap_px`` of) a left-view edge in the first frame, px.
+        A point on (or within ``params.snap_px``, scaled to the camera, of) a left-view edge in the first
+        frame, px.
     pipeline : Pipeline
         The image pipeline (default: the paper's median 3x3, threshold 92, Roberts).
     near_mm, far_mm : float
@@ -122,7 +134,8 @@ class EdgeTracker:
         w, h = rig.camera.image_size_px
         if not (0 <= seed[0] < w and 0 <= seed[1] < h):
             raise ValueError(f"seed ({seed[0]:g}, {seed[1]:g}) is outside the {w}x{h} image")
-        self.rig, self.pipeline, self.match, self.params = rig, pipeline, match, params
+        self.rig, self.pipeline, self.match = rig, pipeline, match
+        self.params = params.scaled(pixel_scale(rig.camera))   # the paper camera's px to this camera's
         self.rect = rectification_for(rig, near_mm, far_mm)       # a build: twins on rectified rows
         self.range_px = disparity_range(rig, near_mm, far_mm, self.rect)
         self._seed = seed
@@ -139,6 +152,7 @@ class EdgeTracker:
         if grey.shape != (h, w):
             raise ValueError(f"frame is {grey.shape[1]}x{grey.shape[0]} px but the rig's camera is {w}x{h} px")
         frame, self._frame = self._frame, self._frame + 1
+        grey = flat_field(grey, self.rig.camera)    # the lens's fall-off undone (psvs.optics.illumination)
         edges = self.pipeline.run(grey)
         first = self._disparity is None
         predicted = self._seed + self._velocity

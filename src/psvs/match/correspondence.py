@@ -19,6 +19,7 @@ from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.match.subpixel import refine_pairs
 from psvs.measure.triangulate import MODELS, default_model, triangulate, twin_rows
+from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
 from psvs.optics.search_range import disparity_range, rectification_for
@@ -135,6 +136,7 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     lo, hi, _, _ = cv2.minMaxLoc(grey)
     if lo == hi:
         raise ValueError("image is blank (one grey level): nothing to match")
+    grey = flat_field(grey, rig.camera)     # the lens's fall-off undone: the pipeline's levels hold everywhere
     if rect is None:
         rect = rectification_for(rig, near_mm, far_mm)
     rng = disparity_range(rig, near_mm, far_mm, rect)

@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass
 
 from psvs import _memory
+from psvs.optics.illumination import corner_rho2, ri_range
 from psvs.optics.rig import MIRROR_NAMES, Rig
 
 
@@ -59,6 +60,8 @@ BOUNDS = (
     Bound("camera.principal_point_px", -0.5, math.inf, "px", "the sensor"),   # hi: W - 0.5, H - 0.5
     Bound("camera.distortion (k1, k2, k3)", -3.0, 3.0, "", "what lenses have"),
     Bound("camera.distortion (p1, p2)", -0.3, 0.3, "", "what lenses have"),
+    Bound("camera.relative_illumination (a2, a4)", -50.0, 50.0, "", "what lenses have"),
+    Bound("camera.relative_illumination (RI over the sensor)", 0.05, 1.0, "", "what lenses pass"),
     Bound("mirrors.baseline_mm", 5.0, 1000.0, "mm", "a mirror rig's size"),
     Bound("mirrors.m1_axis_distance_mm", 1.0, 1000.0, "mm", "a mirror rig's size"),
     Bound("mirrors.m2_axis_distance_mm", 1.0, 1000.0, "mm", "a mirror rig's size"),
@@ -112,6 +115,22 @@ def _check_camera(rig: Rig, lens_key: str, memory: bool) -> None:
     radial, tangential = bound("camera.distortion (k1, k2, k3)"), bound("camera.distortion (p1, p2)")
     for k, (name, value) in enumerate(zip(("k1", "k2", "p1", "p2", "k3"), c.distortion)):
         (radial if name.startswith("k") else tangential).check(value, f"camera.{lens_key}[{k}] ({name})")
+    _check_illumination(c)
+
+
+def _check_illumination(c) -> None:
+    """Each term within its bound, then RI over the whole sensor (axis to farthest corner) within what a lens
+    passes: never more light off the axis than on it, and at least 5 % in the corners."""
+    for k, (name, value) in enumerate(zip(("a2", "a4"), c.relative_illumination)):
+        bound("camera.relative_illumination (a2, a4)").check(value, f"camera.relative_illumination[{k}] ({name})")
+    ri = bound("camera.relative_illumination (RI over the sensor)")
+    lo, hi = ri_range(c)
+    if lo < ri.lo or hi > ri.hi + 1e-12:
+        a2, a4 = c.relative_illumination
+        bad = lo if lo < ri.lo else hi
+        raise ValueError(f"camera.relative_illumination = [{a2:.12g}, {a4:.12g}] gives RI = {bad:.3g} on the "
+                         f"sensor (1 + a2 rho^2 + a4 rho^4 up to its corner, rho = {corner_rho2(c) ** 0.5:.3g}), "
+                         f"outside {ri.what} ({ri.range})")
 
 
 def _deg(rad: float) -> float:

@@ -16,6 +16,7 @@ import numpy as np
 from psvs._validate import check_points
 from psvs.optics.mirrors import direction_map, path, virtual_centre
 from psvs.optics.rig import Rig
+from psvs.optics.solids import finite_solids, occluded
 from psvs.optics.trace import pixels_from_camera_dirs, trace_rays
 
 
@@ -37,8 +38,8 @@ def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max
     uv_px : ndarray, shape (N, 2)
         (u, v) in px; may lie outside the image (check with :func:`in_image`). NaN where invalid.
     valid : ndarray of bool, shape (N,)
-        False where the chief ray is vignetted by a finite mirror, the point is behind the rig, the
-        input is NaN, or the iteration did not converge.
+        False where the chief ray is vignetted by a finite mirror or blocked by another one (or the
+        plate's box), the point is behind the rig, the input is NaN, or the iteration did not converge.
 
     Examples
     --------
@@ -79,9 +80,12 @@ def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max
         converged = step <= tol_px
         if np.all(converged | ~np.isfinite(step)):
             break
-    rays = trace_rays(at_camera, dirs, steps)
+    hits: list | None = [] if finite_solids(rig) else None
+    rays = trace_rays(at_camera, dirs, steps, hits)
     ahead = np.einsum("ij,ij->i", pts - rays.origins_mm, rays.dirs) > 0
     valid = finite & converged & rays.valid & ahead
+    if hits is not None:   # another mirror or the plate's box in the way (psvs.optics.solids)
+        valid &= ~occluded(rig, hits, rays.origins_mm, rays.dirs)
     uv[~valid] = np.nan
     return uv, valid
 

@@ -32,6 +32,8 @@ class Camera:
     ``distortion = (k1, k2, p1, p2, k3)``: an ideal ray (x, y) = (X/Z, Y/Z), r^2 = x^2 + y^2, lands at
     x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2),
     y_d = y (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y^2) + 2 p2 x y, then x = f x_d (mm).
+    ``relative_illumination = (a2, a4)``: the lens's fall-off of light away from the axis,
+    RI = 1 + a2 rho^2 + a4 rho^4 with rho = sqrt(x_d^2 + y_d^2) (:mod:`psvs.optics.illumination`); (0, 0) is flat.
     """
 
     focal_length_mm: float = 11.3
@@ -39,6 +41,7 @@ class Camera:
     image_size_px: tuple[int, int] = (640, 480)              # width, height
     principal_point_px: tuple[float, float] = (319.5, 239.5)  # cx, cy
     distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)  # k1, k2, p1, p2, k3 (OpenCV's order)
+    relative_illumination: tuple[float, float] = (0.0, 0.0)    # a2, a4 of RI(rho) = 1 + a2 rho^2 + a4 rho^4
 
     def __post_init__(self):
         check_positive(self.focal_length_mm, "focal_length_mm", "mm")
@@ -54,6 +57,8 @@ class Camera:
         if not isinstance(dist, (tuple, list)) or len(dist) != 5:
             raise ValueError(f"distortion must be five numbers (k1, k2, p1, p2, k3), got {dist!r}")
         object.__setattr__(self, "distortion", tuple(check_finite(c, f"distortion[{k}]") for k, c in enumerate(dist)))
+        object.__setattr__(self, "relative_illumination",
+                           check_pair(self.relative_illumination, "relative_illumination"))
         object.__setattr__(self, "pixel_pitch_mm", (px, py))
         object.__setattr__(self, "image_size_px", (int(size[0]), int(size[1])))
         object.__setattr__(self, "principal_point_px", tuple(float(c) for c in self.principal_point_px))
@@ -61,6 +66,11 @@ class Camera:
     @property
     def distorted(self) -> bool:
         return any(c != 0.0 for c in self.distortion)
+
+    @property
+    def vignetted(self) -> bool:
+        """True when the lens's relative illumination is not flat."""
+        return self.relative_illumination != (0.0, 0.0)
 
     @property
     def half_fov_rad(self) -> tuple[float, float]:

@@ -3,7 +3,8 @@
 A pixel's chief ray leaves O along (x, y, f) with x = (u - cx) pitch_x, y = (v - cy) pitch_y, then
 follows its view's path (:func:`psvs.optics.mirrors.path`): two mirrors for the right view; the M1
 plate (Snell refraction at both faces) and two mirrors for the left view. A ray that misses a finite
-mirror or plate face is vignetted: its row stays computed but ``valid`` is False.
+mirror or plate face is vignetted: its row stays computed but ``valid`` is False; so is one that another
+finite mirror, or the plate's box, blocks on its way (:mod:`psvs.optics.solids`).
 """
 from __future__ import annotations
 
@@ -16,7 +17,11 @@ import numpy as np
 from psvs._validate import check_points
 from psvs.optics.mirrors import path
 from psvs.optics.rig import Camera, Rig
+from psvs.optics.solids import finite_solids, occluded
 from psvs.optics.surfaces import intersect, reflect, refract
+
+#: Rays traced at a time when other mirrors may block them (their path's points are held for the test).
+OCCLUSION_CHUNK = 1 << 18
 
 
 class Rays(NamedTuple):
@@ -177,7 +182,9 @@ def trace_pixels(uv_px, rig: Rig, view: str, hits: list | None = None) -> Rays:
     Returns
     -------
     Rays
-        Origins (N, 3) mm on the view's last mirror, unit directions (N, 3), validity (N,).
+        Origins (N, 3) mm on the view's last mirror, unit directions (N, 3), validity (N,): False where
+        the ray misses one of its own finite mirrors, or where another finite mirror or the plate's box
+        blocks it on its way (:func:`psvs.optics.solids.occluded`, the test ``psvs design`` reports).
 
     Examples
     --------
@@ -188,4 +195,18 @@ def trace_pixels(uv_px, rig: Rig, view: str, hits: list | None = None) -> Rays:
     """
     uv = check_points(uv_px, "uv_px", 2)
     dirs = camera_dirs(uv, rig.camera)
-    return trace_rays(np.zeros_like(dirs), dirs, path(rig, view), hits)
+    steps = path(rig, view)
+    if not finite_solids(rig):
+        return trace_rays(np.zeros_like(dirs), dirs, steps, hits)
+    if hits is not None:
+        rays = trace_rays(np.zeros_like(dirs), dirs, steps, hits)
+        return rays._replace(valid=rays.valid & ~occluded(rig, hits, rays.origins_mm, rays.dirs))
+    parts = []
+    for a in range(0, len(dirs), OCCLUSION_CHUNK):   # the path's points of a chunk at a time
+        d = dirs[a:a + OCCLUSION_CHUNK]
+        rec: list = []
+        rays = trace_rays(np.zeros_like(d), d, steps, rec)
+        parts.append(rays._replace(valid=rays.valid & ~occluded(rig, rec, rays.origins_mm, rays.dirs)))
+    if len(parts) == 1:
+        return parts[0]
+    return Rays(*(np.concatenate([getattr(p, f) for p in parts]) for f in Rays._fields))

@@ -8,7 +8,7 @@ nearest the previous frame's groove centre on the same row.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -17,7 +17,9 @@ from psvs.imaging.pipeline import Pipeline, make_pipeline
 from psvs.match.correspondence import finish_pairs
 from psvs.match.edges import edge_pixels
 from psvs.match.seeded import match_seeded
+from psvs.optics.illumination import flat_field
 from psvs.optics.rig import Rig
+from psvs.optics.scale import pixel_scale
 from psvs.optics.search_range import disparity_range, rectification_for
 from psvs.robot.seam import SeamObservation
 
@@ -34,7 +36,7 @@ class SensorParams:
 
     first_search_px : float
         Until the groove's width is taught, its edges are looked for this far either side of the seed
-        (then 1.6 times the taught half width plus 3 px).
+        (then 1.6 times the taught half width plus 3 px of the paper's camera).
     width_band : (float, float)
         A row shows the groove's full cross-section when its edges are this share of the taught width
         apart (not where the groove starts or ends, its edges closing in).
@@ -48,6 +50,9 @@ class SensorParams:
         An edge keeps its pixels within this distance of the line fitted to its full-width rows.
     min_rows : int
         Fewest matched rows per edge for a valid frame.
+
+    The lengths are in px of the paper's camera (1130 px per unit tan(angle)): :class:`SeamSensor` scales
+    them to its rig's camera (:func:`psvs.optics.scale.pixel_scale`, :meth:`scaled`).
     """
 
     first_search_px: float = 60.0
@@ -65,6 +70,11 @@ class SensorParams:
         if not 0 < lo < 1 < hi:
             raise ValueError(f"width_band must satisfy 0 < low < 1 < high, got {self.width_band!r}")
         check_count(self.min_rows, "min_rows", 3)
+
+    def scaled(self, factor: float) -> "SensorParams":
+        """The same tuning with its lengths in px times ``factor`` (a camera's pixel scale)."""
+        return replace(self, **{k: getattr(self, k) * factor for k in
+                                ("first_search_px", "twin_jump_px", "twin_span_px", "twin_col_px", "line_tol_px")})
 
 
 def auto_seed(grey: np.ndarray, pipeline: Pipeline = SEAM_PIPELINE, min_width_px: int = 6) -> tuple[float, float]:
@@ -169,7 +179,9 @@ class SeamSensor:
         u, v = (float(c) for c in seed_px)
         if not (0 <= u < w and 0 <= v < h):
             raise ValueError(f"seed ({u:g}, {v:g}) is outside the {w}x{h} px sensor window")
-        self.rig, self.params, self.pipeline = rig, params, pipeline
+        self.rig, self.pipeline = rig, pipeline
+        self.scale = pixel_scale(rig.camera)
+        self.params = params.scaled(self.scale)   # the paper camera's px to this camera's
         self.rect = rectification_for(rig, near_mm, far_mm)     # a build: twins on rectified rows
         self.range_px = disparity_range(rig, near_mm, far_mm, self.rect)
         self.disparity_px: float | None = None
@@ -178,7 +190,7 @@ class SeamSensor:
 
     def measure(self, grey: np.ndarray) -> SeamObservation:
         """Match both groove edges of one window image (H, W) uint8 and triangulate them (exact model)."""
-        grey = check_grey(grey, "sensor window image")
+        grey = flat_field(check_grey(grey, "sensor window image"), self.rig.camera)   # the lens's fall-off undone
         edges = self.pipeline.run(grey)
         px = edge_pixels(edges, self.rect)
         found, seen = None, False
@@ -214,7 +226,7 @@ class SeamSensor:
         """The edges (u_a, u_b) nearest the last groove centre on one edge-map row, if they show the
         groove's full width (any width before it is taught)."""
         p = self.params
-        max_px = p.first_search_px if self.half_width_px is None else 1.6 * self.half_width_px + 3
+        max_px = p.first_search_px if self.half_width_px is None else 1.6 * self.half_width_px + 3 * self.scale
         e = _nearest_edges(edge_row, self.centre_px[0], max_px)
         if e is None or self.half_width_px is None:
             return e
@@ -307,5 +319,7 @@ class SensorSetup:
 
     def start(self, first_image: np.ndarray) -> SeamSensor:
         """The sensor, seeded on the run's first window image (H, W) uint8."""
-        seed = auto_seed(first_image) if self.seed_px is None else tuple(float(c) for c in self.seed_px)
+        min_width = max(1, round(6 * pixel_scale(self.rig.camera)))   # 6 px of the paper's camera
+        seed = auto_seed(first_image, min_width_px=min_width) if self.seed_px is None else \
+            tuple(float(c) for c in self.seed_px)
         return SeamSensor(self.rig, seed, self.near_mm, self.far_mm, self.params)

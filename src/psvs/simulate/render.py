@@ -3,8 +3,9 @@
 For every pixel and every one of K x K sub-pixel samples, the left and right chief rays are traced
 through the rig (:func:`psvs.optics.trace.trace_pixels`: the M1 plate's refraction, mirror extents and
 vignetting), intersected with the scene (:class:`~psvs.simulate.geometry.SceneGeometry`) and shaded
-(ambient + the rig's lamp, Lambertian, with shadows). The complex image is
-C = (1 - s) L + s R with s the rig's split ratio (the share reflected at M1, the right view).
+(ambient + the rig's lamp, Lambertian, with shadows). The complex image on the sensor is
+C = RI (1 - s) L + RI s R with s the rig's split ratio (the share reflected at M1, the right view) and RI the
+lens's relative illumination at the pixel (:mod:`psvs.optics.illumination`; 1 for a flat field).
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs import _memory, _work
+from psvs.optics.illumination import illumination_map
 from psvs.optics.mirrors import mirror_planes
 from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import Rig
@@ -45,8 +47,9 @@ class GroundTruth:
 
 @dataclass(frozen=True, eq=False)
 class RenderResult:
-    """image (H, W) uint8 through the sensor; irradiance (H, W) the noiseless complex image (1.0 = full
-    well); left, right (H, W) each view's radiance alone (before the split); truth or None."""
+    """image (H, W) uint8 through the sensor; irradiance (H, W) the noiseless complex image on the sensor
+    (1.0 = full well; the lens's relative illumination included); left, right (H, W) each view's radiance
+    alone (before the split and the lens's fall-off); truth or None."""
 
     image: np.ndarray
     irradiance: np.ndarray
@@ -264,5 +267,7 @@ def render(scene: Scene, rig: Rig, *, supersample: int = 2, sensor: Sensor = Sen
     left, right = render_views(scene, rig, supersample, geom)
     s = rig.mirrors.split_ratio
     irradiance = (1.0 - s) * left + s * right
+    if rig.camera.vignetted:
+        irradiance *= illumination_map(rig.camera)
     image = expose(irradiance, sensor, seed)
     return RenderResult(image, irradiance, left, right, ground_truth(scene, rig, geom) if truth else None)

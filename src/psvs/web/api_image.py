@@ -12,6 +12,7 @@ from psvs.imaging.pipeline import PAPER
 from psvs.imaging.steps import STEPS
 from psvs.io.images import grey8
 from psvs.measure.triangulate import MODELS, default_model
+from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
 from psvs.web.api_match import SNAP_PX
@@ -69,7 +70,8 @@ def image(session: SessionDep):
 @router.post("/preview")
 def preview(body: PipelineBody, session: SessionDep):
     """Every pipeline stage of the current image as a PNG data URL (binary images and the edge map)."""
-    _, stages = body.pipeline().run(session.still().grey, keep=True)
+    # what the matcher sees: the lens's fall-off undone (psvs.optics.illumination)
+    _, stages = body.pipeline().run(flat_field(session.still().grey, session.rig.camera), keep=True)
     return {"stages": [{"op": op, "binary": img.dtype == bool, "png": data_url(img)} for op, img in stages]}
 
 

@@ -13,6 +13,7 @@ from psvs.imaging.pipeline import Pipeline
 from psvs.live.tracker import nearest_edge_pixels
 from psvs.match.correspondence import match_image
 from psvs.match.export import result_to_dict, write_csv, write_json, write_ply
+from psvs.optics.illumination import flat_field
 from psvs.web.bodies import MatchBody
 from psvs.web.session import SessionDep
 
@@ -42,7 +43,7 @@ def match(body: MatchBody, session: SessionDep):
     SNAP_PX), or automatic pairing of every edge when no seed is given. The result is kept for the exports
     unless the image was replaced while it was computed."""
     still, pipeline = session.still(), body.pipeline()
-    seed = None if body.seed is None else snap_seed(still.grey, pipeline, body.seed)
+    seed = None if body.seed is None else snap_seed(flat_field(still.grey, session.rig.camera), pipeline, body.seed)
     res = match_image(still.grey, session.rig, seed_px=seed, pipeline=pipeline, near_mm=body.near_mm,
                       far_mm=body.far_mm, params=body.params())
     session.keep_result(res, still.generation)
