@@ -20,6 +20,7 @@ from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
 from psvs.io.images import read_grey, write_npy, write_png
 from psvs.io.params import load_rig
+from psvs.optics.illumination import flat_field
 from psvs.optics.search_range import disparity_range, rectification_for
 
 
@@ -115,7 +116,8 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
             write_npy(out["confidence"], res.confidence_left)
         if out["views"]:
             if np.isfinite(res.disparity_left).any():
-                lv, rv = separate_views(image, res.disparity_left, split, res.disparity_right, rect=dense.rect)
+                seen = flat_field(image, rig.camera) if rig is not None else image   # as the maps saw it
+                lv, rv = separate_views(seen, res.disparity_left, split, res.disparity_right, rect=dense.rect)
             else:  # nothing to separate by: a constant image is two identical constant views
                 lv = rv = np.asarray(dense.left_image, dtype=np.float64)
             for path, v in zip(out["views"], (lv, rv)):
@@ -128,13 +130,13 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
     return cloud
 
 
-def _trusted(image, dense: RigDense, params) -> tuple[RigDense, EchoTrust | None]:
+def _trusted(image, dense: RigDense, params, rig) -> tuple[RigDense, EchoTrust | None]:
     """``dense`` with its confidence 0 where the echo does not support the answer beyond chance, and that
     judgement (None when the maps answer nothing); MeasurementError when they answer but nothing is trusted."""
     res = dense.result
     if not np.isfinite(res.disparity_left).any():
         return dense, None
-    trust = rig_trust(image, dense, params)
+    trust = rig_trust(image, dense, params, camera=rig.camera if rig is not None else None)
     if trust.count == 0:
         lo, hi = res.searched_px
         raise MeasurementError(
@@ -165,7 +167,7 @@ def run(args) -> int:
         dense = RigDense(dense_disparity(image, lo, hi, params=params), None, image)
     else:
         dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi))
-    dense, trust = _trusted(image, dense, params)
+    dense, trust = _trusted(image, dense, params, rig)
     cloud = _write(out, dense, image, rig, split, args.model)
     print(f"{out['disparity']}: {_summary(dense, trust)}"
           + (f"; {len(cloud.points_mm)} points" if cloud is not None else ""))

@@ -23,8 +23,9 @@ from psvs.dense.params import DEFAULT, DenseParams
 from psvs.dense.trust import EchoTrust, echo_trust
 from psvs.dense.workspace import Workspace
 from psvs.measure.triangulate import default_model, triangulate
+from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import Rectification
-from psvs.optics.rig import Rig
+from psvs.optics.rig import Camera, Rig
 from psvs.optics.search_range import disparity_range, rectification_for
 
 
@@ -68,8 +69,10 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     """Dense disparity of a complex image (H, W) through ``rig``, searching the disparities of its working
     range near..far mm (or ``d_range``, px). See the module docstring for the coordinates of the maps.
     ``params`` (:data:`~psvs.dense.params.DEFAULT`, :data:`~psvs.dense.params.FAST` or your own) and
-    ``workspace`` (a live loop): as in :func:`psvs.dense.disparity.dense_disparity`."""
-    img = np.asarray(image)
+    ``workspace`` (a live loop): as in :func:`psvs.dense.disparity.dense_disparity`. A lens whose field is
+    not flat (the camera's relative illumination) is first undone (:func:`psvs.optics.illumination.flat_field`),
+    so the view separation's model C = (1 - s) L + s R holds in the corners as on the axis."""
+    img = flat_field(np.asarray(image), rig.camera)
     rect = rectification_for(rig, near_mm, far_mm)
     if rect is None:
         lo, hi = d_range or disparity_range(rig, near_mm, far_mm, width_px=img.shape[1])
@@ -86,7 +89,7 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     return RigDense(res, rect, a)
 
 
-def rig_trust(image, dense: RigDense, params: DenseParams = DEFAULT) -> EchoTrust:
+def rig_trust(image, dense: RigDense, params: DenseParams = DEFAULT, camera: Camera | None = None) -> EchoTrust:
     """Which pixels of ``dense`` (the maps of ``image`` with ``params``) the echo supports beyond chance
     (:func:`psvs.dense.trust.echo_trust`); on a build, on the two rectified grids, chance's maps cut to
     each view's field as the maps are."""

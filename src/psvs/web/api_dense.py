@@ -9,6 +9,7 @@ from fastapi import APIRouter
 from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud
 from psvs.imaging.grey import to_grey8
+from psvs.optics.illumination import flat_field
 from psvs.web.bodies import DenseBody
 from psvs.web.live_runner import DENSE_LOCK
 from psvs.web.png import colour_disparity, data_url
@@ -34,6 +35,7 @@ def dense(body: DenseBody, session: SessionDep):
            "median_z_mm": float(np.nanmedian(z)) if np.isfinite(z).any() else None}
     if body.views and np.isfinite(d).any():
         with DENSE_LOCK:
-            lv, rv = separate_views(grey, d, rig.mirrors.split_ratio, res.disparity_right, rect=dense_res.rect)
+            lv, rv = separate_views(flat_field(grey, rig.camera), d, rig.mirrors.split_ratio, res.disparity_right,
+                                    rect=dense_res.rect)
         out.update(left_png=data_url(to_grey8(lv)), right_png=data_url(to_grey8(rv)))
     return out
