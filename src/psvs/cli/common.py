@@ -8,12 +8,13 @@ from pathlib import Path
 
 from psvs.io.params import load_rig
 from psvs.optics.rig import Rig, default_rig
+from psvs.rigs import SHIPPED
 
 
 def add_rig_argument(parser, required: bool = True) -> None:
     parser.add_argument("--rig", metavar="RIG.toml", required=required,
-                        help="rig file (TOML or JSON; see docs/rig_file.md), or a shipped rig: default, clear, "
-                             "misaligned (psvs rig list)" +
+                        help="rig file (TOML or JSON; see docs/rig_file.md), or a shipped rig: "
+                             f"{', '.join(SHIPPED)} (psvs rig list)" +
                              ("" if required else "; default: the paper's rig"))
 
 
