@@ -169,7 +169,8 @@ def test_target_file_errors(tmp_path):
     good = dumps_target(CARD)
     assert load_target(_write(tmp_path, good)) == CARD
     for text, message in ((good.replace('kind = "circle_grid"', 'kind = "chessboard"'),
-                           r"target\.kind must be one of circle_grid, got 'chessboard'"),
+                           r"target\.kind must be one of circle_grid, asymmetric_circle_grid, charuco, "
+                           r"got 'chessboard'"),
                           (good.replace("rows = 4\n", ""), r"missing key target\.rows"),
                           (good + "colour = 1\n", r"unknown key target\.colour"),
                           (good.replace("diameter_mm = 7.0", "diameter_mm = 20.0"),
