@@ -47,13 +47,16 @@ Target = CircleGrid | AsymmetricCircleGrid | CharucoBoard
 class TargetDetection:
     """One complex image's target points: ids (n,) int, indices into :func:`target_points_mm`; left, right
     (n, 2) px, the same target point in both views; reliable (n,) bool: both images located without bias
-    (no neighbour or other view's edge disturbing them); ``complete``: every point of the target found."""
+    (no neighbour or other view's edge disturbing them); ``complete``: every point of the target found;
+    ``ids_certain``: the ids are the target's own (False where part of a symmetric grid fits it at several
+    places: the ids are then right up to a shift along the grid, the same in both views)."""
 
     ids: np.ndarray
     left: np.ndarray
     right: np.ndarray
     reliable: np.ndarray
     complete: bool
+    ids_certain: bool = True
 
     def object_mm(self, target: Target) -> np.ndarray:
         """The points' positions on the target (n, 3) mm, z = 0."""
@@ -127,19 +130,25 @@ def _detect_circles(grey: np.ndarray, target, rig: Rig, depths_mm) -> TargetDete
     radius = np.array([d.radius_px for d in discs])
     lattice, to_units, nn_mm = _lattice_of(target)
     reach = REACH_OVER_STEP * radius * nn_mm / (target.diameter_mm / 2)
-    pairs = pair_twins(pts, reach, rig, sizes_px=radius)
+    merged = radius > MERGED_SIZE * np.median(radius)           # two discs in one blob: one of each view
+    pairs = pair_twins(pts, reach, rig, sizes_px=radius, prefer=lambda p: _size_misfit(pts, p, rig, nn_mm),
+                       shared=merged, weights=[len(d.ellipse.rim_px) / RIM_RAYS for d in discs])
     if len(pairs) < 4:
         raise ValueError(f"found {len(discs)} disc(s) but only {len(pairs)} twin pair(s) along the rig's epipolar "
                          "curves: hold the whole card in both views (nearer the middle of the image)")
+    size = 2 * float(np.median(radius[pairs]))
+    if size < MIN_DISC_PX:
+        raise ValueError(f"the card's discs are {size:.1f} px across, below the {MIN_DISC_PX:g} px that are located "
+                         "to a tenth of a pixel: hold the card closer")
     labels = label_lattice(pts[pairs[:, 0]])
     ok = labels[:, 0] != -9999
     pairs, labels = pairs[ok], labels[ok]
-    ids = None
+    ids, certain = None, False
     if len(pairs) >= 4:
         # image directions of the label axes: an affine fit of the labelled left-view points
         A = np.column_stack([labels, np.ones(len(labels))])
         coef, *_ = np.linalg.lstsq(A, pts[pairs[:, 0]], rcond=None)
-        ids = place_on_target(labels, lattice, to_units, coef[:2])
+        ids, certain = place_on_target(labels, lattice, to_units, coef[:2])
     if ids is None:
         raise ValueError(f"{len(pairs)} paired disc(s) do not form the {_name(target)}: "
                          + _advice_partial(pts[pairs[:, 0]] if len(pairs) else pts, grey, radius))
@@ -147,10 +156,46 @@ def _detect_circles(grey: np.ndarray, target, rig: Rig, depths_mm) -> TargetDete
     pairs, ids = pairs[keep], ids[keep]
     even = np.array([d.ellipse.background_spread <= MAX_BACKGROUND_SPREAD
                      and len(d.ellipse.rim_px) >= MIN_RIM_SHARE * RIM_RAYS for d in discs])
-    reliable = even[pairs[:, 0]] & even[pairs[:, 1]]
+    even &= ~merged
+    reliable = even[pairs[:, 0]] & even[pairs[:, 1]] & _like_neighbours(labels[keep], radius[pairs])
     order = np.argsort(ids)
     return TargetDetection(ids[order], pts[pairs[order, 0]], pts[pairs[order, 1]], reliable[order],
-                           len(ids) == n_target)
+                           len(ids) == n_target, certain)
+
+
+def _size_misfit(pts: np.ndarray, pairs: np.ndarray, rig: Rig, nn_mm: float) -> float:
+    """How far (mm) the pairs' points, triangulated through the nominal rig, are from the target's nearest
+    neighbour distance (median over points): a pairing one column off puts the card at another depth and
+    another size. The nominal rig's depth may be off by far more on a build, so this only breaks ties."""
+    from scipy.spatial import cKDTree
+
+    from psvs.measure.triangulate import triangulate
+    xyz = triangulate(pts[pairs[:, 0]], pts[pairs[:, 1]], rig, model="exact").points_mm
+    xyz = xyz[np.isfinite(xyz).all(axis=1)]
+    if len(xyz) < 2:
+        return np.inf
+    d, _ = cKDTree(xyz).query(xyz, k=2)
+    return float(abs(np.median(d[:, 1]) - nn_mm))
+
+
+#: A blob this much larger than the median disc is taken for two discs merged (a card tilted 25 deg at
+#: 400 mm changes its discs' size by 6 % across).
+MERGED_SIZE = 1.2
+#: A disc more than this much larger or smaller than its lattice neighbours (same view) is two discs
+#: merged into one blob (a union too round to split) or part of one: not trusted.
+MAX_SIZE_CHANGE = 0.12
+
+
+def _like_neighbours(labels: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Pairs (n,) whose discs' radii (n, 2: left, right view) are within :data:`MAX_SIZE_CHANGE` of the
+    median of their lattice neighbours' in the same view (a tilted card changes it far less per step)."""
+    ok = np.ones(len(labels), bool)
+    for k, lab in enumerate(labels):
+        near = np.abs(labels - lab).max(axis=1) == 1
+        if near.sum() >= 2:
+            ref = np.median(radii[near], axis=0)
+            ok[k] = bool((np.abs(radii[k] / ref - 1) <= MAX_SIZE_CHANGE).all())
+    return ok
 
 
 def _consistent_shifts(labels: np.ndarray, shifts_px: np.ndarray, axes_px: np.ndarray) -> np.ndarray:

@@ -86,8 +86,11 @@ _TURNS = [np.array(m) for m in (((1, 0), (0, 1)), ((0, -1), (1, 0)), ((-1, 0), (
 
 
 def place_on_target(labels: np.ndarray, lattice: np.ndarray, to_units: np.ndarray,
-                    x_dir_px: np.ndarray) -> np.ndarray | None:
-    """Each label's index into the target's points, or None when no placement puts them all on it.
+                    x_dir_px: np.ndarray) -> tuple[np.ndarray | None, bool]:
+    """Each label's index into the target's points (None when no placement puts them all on it), and
+    whether that placement is the only one: part of a symmetric grid (a column missing) fits it at several
+    places, one taken (the ids are then right up to a shift along the grid, which a calibration does not
+    mind: the pose takes it up).
 
     Parameters
     ----------
@@ -103,7 +106,7 @@ def place_on_target(labels: np.ndarray, lattice: np.ndarray, to_units: np.ndarra
     """
     index = {tuple(p): k for k, p in enumerate(np.asarray(lattice).tolist())}
     units = labels @ to_units.T
-    best, best_cos = None, -np.inf
+    best, best_cos, count = None, -np.inf, 0
     for turn in _TURNS:
         c = units @ turn.T
         for t in sorted({tuple(np.array(p) - c[0]) for p in index}):
@@ -116,5 +119,7 @@ def place_on_target(labels: np.ndarray, lattice: np.ndarray, to_units: np.ndarra
             direction = step @ x_dir_px
             cos = direction[0] / (np.linalg.norm(direction) + 1e-12)
             if cos > best_cos + 1e-9:
-                best, best_cos = np.array(ids), cos
-    return best
+                best, best_cos, count = np.array(ids), cos, 1
+            elif cos > best_cos - 1e-9:
+                count += 1
+    return best, count == 1

@@ -70,6 +70,7 @@ def twin_candidates(points_px: np.ndarray, rig: Rig, depths_mm=SEARCH_DEPTHS_MM)
 
 
 def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: np.ndarray | None = None,
+               prefer=None, shared: np.ndarray | None = None, weights: np.ndarray | None = None,
                depths_mm=SEARCH_DEPTHS_MM) -> np.ndarray:
     """The pairing of points into (left, right) twins that explains the most of them.
 
@@ -83,6 +84,18 @@ def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: 
         The nominal design (its epipolar geometry; a build may be a degree off, :data:`BAND_DEG`).
     sizes_px : ndarray, shape (n,), optional
         The features' sizes: twins differ by less than a factor 1.4.
+    prefer : callable, optional
+        pairs (m, 2) -> cost: of pairings that explain nearly as many points (:data:`NEAR_TIE`), the
+        cheapest is taken (where a column of each view merges with the other's, a pairing one column off
+        explains as many or more); without it, the largest.
+    weights : ndarray, shape (n,), optional
+        How much each point counts (a pair counts as its lesser point): a blob split off a larger dark
+        region may be a fragment of something else (the dark gap between the two copies of a card), so it
+        counts less than a clean disc. The pairing of the most weight wins. Default: 1 each.
+    shared : ndarray, shape (n,) bool, optional
+        Points that may be used twice, once as a left image and once as a right one: two discs of the two
+        views merged into one blob (where columns of the two views coincide, a pairing one column off
+        would otherwise explain more discs than the true one).
 
     Returns
     -------
@@ -90,25 +103,45 @@ def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: 
         Indices (left, right) into ``points_px``; m = 0 when no feature has a twin.
     """
     pts = np.asarray(points_px, float)
+    shared = np.zeros(len(pts), bool) if shared is None else np.asarray(shared, bool)
     cands = twin_candidates(pts, rig, depths_mm)
     if sizes_px is not None:
         s = np.asarray(sizes_px, float)
         cands = [[j for j in c if 1 / 1.4 < s[i] / s[j] < 1.4] for i, c in enumerate(cands)]
     tree = cKDTree(pts)
     near = [tree.query_ball_point(p, r) for p, r in zip(pts, reach_px)]
-    best: list[tuple[int, int]] = []
+    grown_sets: list[list[tuple[int, int]]] = []
     seen: set[tuple[int, int]] = set()
     for i, c in enumerate(cands):
         for j in c:
-            if (i, j) in seen:
-                continue
-            grown = _grow(i, j, pts, cands, near)
-            seen.update(grown)
-            if len(grown) > len(best):
-                best = grown
-    pairs = np.array(best, dtype=int).reshape(-1, 2)
+            if (i, j) not in seen:
+                grown = _grow(i, j, pts, cands, near, shared)
+                seen.update(grown)
+                grown_sets.append(grown)
+    if not grown_sets:
+        return np.zeros((0, 2), int)
     step = float(np.median(reach_px)) / REACH_OVER_STEP
-    return _repair(pts, pairs, cands, step) if len(pairs) >= 6 else pairs
+    w = np.ones(len(pts)) if weights is None else np.asarray(weights, float)
+
+    def score(p):
+        return float(np.minimum(w[p[:, 0]], w[p[:, 1]]).sum()) if len(p) else 0.0
+
+    most = max(score(np.array(g)) for g in grown_sets)
+    found = []
+    for g in grown_sets:
+        pairs = np.array(g, dtype=int).reshape(-1, 2)
+        if score(pairs) >= NEAR_TIE * most - 1.0:           # repairing may gain a pair or two
+            found.append(_repair(pts, pairs, cands, step, shared) if len(pairs) >= 6 else pairs)
+    most = max(score(p) for p in found)
+    tied = [p for p in found if score(p) >= NEAR_TIE * most]
+    if prefer is None or len(tied) == 1:
+        return max(tied, key=len)
+    return min(tied, key=prefer)                 # a pose can make two pairings equally large
+
+
+#: Pairings explaining at least this share of the most explained are told apart by ``prefer`` (only exact
+#: ties: the nominal rig's sizes may be a fifth off on a build, as much as a pairing one column off).
+NEAR_TIE = 1.0
 
 
 #: How much farther than a target's step its neighbours are looked for (:func:`pair_twins`' ``reach_px``).
@@ -152,7 +185,8 @@ def _inliers(p: np.ndarray, shift: np.ndarray, tol: float) -> np.ndarray:
     return best
 
 
-def _repair(pts: np.ndarray, pairs: np.ndarray, cands: list[list[int]], step_px: float) -> np.ndarray:
+def _repair(pts: np.ndarray, pairs: np.ndarray, cands: list[list[int]], step_px: float,
+            shared: np.ndarray) -> np.ndarray:
     """Pair again with the grown pairing's smooth shift model: every candidate pair within
     :data:`MODEL_TOL` steps of the model, taken best first, each point used once. The growth is greedy (a
     column of the other view a few px off the true one may be taken on the way); the model, fitted to the
@@ -165,39 +199,58 @@ def _repair(pts: np.ndarray, pairs: np.ndarray, cands: list[list[int]], step_px:
     model = _shift_model(p[keep], shift[keep])
     pred = pts - model(pts)                              # where each point's twin lies, were it a left one
     edges = sorted((float(np.linalg.norm(pts[j] - pred[i])), i, j) for i, c in enumerate(cands) for j in c)
-    used: set[int] = set()
+    used = _Roles(shared)
     out = []
     for cost, i, j in edges:
         if cost > tol:
             break
-        if i not in used and j not in used:
-            used.update((i, j))
+        if used.free(i, "left") and used.free(j, "right"):
+            used.take(i, j)
             out.append((i, j))
     return np.array(out, dtype=int).reshape(-1, 2)
 
 
-def _grow(i: int, j: int, pts: np.ndarray, cands: list[list[int]], near: list[list[int]]) -> list[tuple[int, int]]:
+class _Roles:
+    """Which points a pairing has used, as a left and as a right image: a point is used once, except a
+    ``shared`` one (two discs merged into one blob), which may be one view's disc and the other's twin."""
+
+    def __init__(self, shared: np.ndarray):
+        self.shared, self.left, self.right = shared, set(), set()
+
+    def free(self, k: int, role: str) -> bool:
+        mine, other = (self.left, self.right) if role == "left" else (self.right, self.left)
+        return k not in mine and (k not in other or bool(self.shared[k]))
+
+    def take(self, i: int, j: int) -> None:
+        self.left.add(i)
+        self.right.add(j)
+
+
+def _grow(i: int, j: int, pts: np.ndarray, cands: list[list[int]], near: list[list[int]],
+          shared: np.ndarray) -> list[tuple[int, int]]:
     """The pairs reached from (i, j) over image neighbours of the left members, each pair's shift
-    (left - right) within :data:`SHIFT_TOL` of the neighbour's it was reached from; every point used once."""
-    used = {i, j}
+    (left - right) within :data:`SHIFT_TOL` of the neighbour's it was reached from; every point used once
+    (a ``shared`` one once per role)."""
+    used = _Roles(shared)
+    used.take(i, j)
     pairs = [(i, j)]
     queue = deque(pairs)
     while queue:
         a, b = queue.popleft()
         shift = pts[a] - pts[b]
         for k in near[a]:
-            if k in used:
+            if not used.free(k, "left"):
                 continue
             tol = SHIFT_TOL * np.linalg.norm(pts[k] - pts[a])
             best, err = -1, tol
             for m in cands[k]:
-                if m in used:
+                if m == k or not used.free(m, "right"):
                     continue
                 e = np.linalg.norm(pts[k] - pts[m] - shift)
                 if e <= err:
                     best, err = m, e
             if best >= 0:
-                used.update((k, best))
+                used.take(k, best)
                 pairs.append((k, best))
                 queue.append((k, best))
     return pairs
