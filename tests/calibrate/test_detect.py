@@ -181,3 +181,63 @@ def test_views_that_cannot_be_read_say_what_to_do():
     board = CharucoBoard(6, 4, 14.0, 10.0)
     with pytest.raises(ValueError, match="found no ArUco marker"):
         detect_target(np.full((480, 640), 60, np.uint8), board, rig)
+
+
+@pytest.mark.parametrize("target", [CircleGrid(5, 7, 16.0, 7.0), AsymmetricCircleGrid(11, 4, 10.0, 8.0),
+                                    CharucoBoard(6, 4, 14.0, 10.0, "DICT_5X5_100")])
+def test_target_file_round_trip(tmp_path, target):
+    """dumps_target writes what load_target reads back, equal by value; an independent reader (tomllib)
+    sees the kind and every key with its value."""
+    import tomllib
+
+    from psvs.calibrate.target_file import KEYS, dumps_target, load_target
+    path = tmp_path / "target.toml"
+    path.write_text(dumps_target(target))
+    assert load_target(path) == target
+    table = tomllib.loads(path.read_text())["target"]
+    kind = table.pop("kind")
+    assert set(table) == set(KEYS[kind])
+    assert all(table[k] == getattr(target, k) for k in table)
+
+
+def test_target_file_refusals(tmp_path, capsys):
+    """Another kind, a key of another kind, a missing key, a bad dictionary: one line naming it; through
+    psvs calibrate exit 2 and nothing written."""
+    from psvs.calibrate.target_file import load_target
+    from tests.cli.test_cli import run
+    path = tmp_path / "target.toml"
+    for text, message in (('kind = "dots"\nrows = 3\n', r"target\.kind must be one of circle_grid, "
+                                                         r"asymmetric_circle_grid, charuco, got 'dots'"),
+                          ('kind = "charuco"\nsquares_x = 5\nsquares_y = 4\nsquare_mm = 20\nmarker_mm = 15\n',
+                           r"missing key target\.dictionary \(a charuco needs"),
+                          ('kind = "asymmetric_circle_grid"\nrows = 5\ncols = 4\nspacing_mm = 10\n'
+                           'diameter_mm = 8\nmarker_mm = 3\n', r"unknown key target\.marker_mm for a asymmetric"),
+                          ('kind = "charuco"\nsquares_x = 5\nsquares_y = 4\nsquare_mm = 20\nmarker_mm = 15\n'
+                           'dictionary = "DICT_9X9_1"\n', r"dictionary must be one of DICT_4X4_50")):
+        path.write_text("[target]\n" + text)
+        with pytest.raises(ValueError, match=message):
+            load_target(path)
+    path.write_text('[target]\nkind = "dots"\nrows = 3\n')
+    cv2.imwrite(str(tmp_path / "card_00.png"), np.full((480, 640), 90, np.uint8))
+    out = tmp_path / "rig.toml"
+    code, _, err = run(capsys, "calibrate", str(tmp_path), "--rig", "default", "-o", str(out))
+    assert code == 2 and "target.kind must be one of" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_card_views_renders_any_target(tmp_path, capsys):
+    """psvs card-views --target: the views of that target and its target.toml, which detect_target reads
+    through the rig (here an asymmetric grid on the paper's camera, its copies free to interleave)."""
+    from psvs.calibrate.target_file import dumps_target, load_target
+    from psvs.io.images import read_grey
+    from tests.cli.test_cli import run
+    grid = AsymmetricCircleGrid(5, 3, 10.0, 7.0)
+    (tmp_path / "t.toml").write_text(dumps_target(grid))
+    out = tmp_path / "views"
+    code, text, err = run(capsys, "card-views", str(out), "--rig", "default", "--views", "3", "--target",
+                          str(tmp_path / "t.toml"), "--interleave", "--seed", "4")
+    assert code == 0, err
+    assert load_target(out / "target.toml") == grid
+    for k in range(3):
+        det = detect_target(read_grey(out / f"card_{k:02d}.png"), grid, default_rig())
+        assert det.complete and det.ids_certain
