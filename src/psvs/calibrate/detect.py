@@ -47,7 +47,8 @@ Target = CircleGrid | AsymmetricCircleGrid | CharucoBoard
 class TargetDetection:
     """One complex image's target points: ids (n,) int, indices into :func:`target_points_mm`; left, right
     (n, 2) px, the same target point in both views; reliable (n,) bool: both images located without bias
-    (no neighbour or other view's edge disturbing them); ``complete``: every point of the target found;
+    (no neighbour or other view's edge disturbing them; an untrusted point may be several px off: the centre
+    of two merged discs); ``complete``: every point of the target found;
     ``ids_certain``: the ids are the target's own (False where part of a symmetric grid fits it at several
     places: the ids are then right up to a shift along the grid, the same in both views)."""
 
@@ -120,6 +121,7 @@ def _lattice_of(target) -> tuple[np.ndarray, np.ndarray, float]:
 
 
 def _detect_circles(grey: np.ndarray, target, rig: Rig, depths_mm) -> TargetDetection:
+    """A circle grid (symmetric or asymmetric) in both views: discs, twins, labels, trust (module docstring)."""
     n_target = len(target.centres_mm())
     far_px, near_px = disc_size_px(target, rig, depths_mm)
     discs = find_discs(grey, (max(MIN_DISC_PX, 0.5 * far_px), 1.25 * near_px))
