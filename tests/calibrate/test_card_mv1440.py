@@ -82,3 +82,30 @@ def test_charuco_board_calibrates(tmp_path_factory):
     assert res.bundle.rms_px <= 0.3
     _, aligned, _ = reconstruction_errors(res.rig, BUILD)
     assert np.mean(aligned) <= 1.0
+
+
+@pytest.mark.parametrize("seed", [2, 3])
+def test_every_interleaving_view_is_read(tmp_path_factory, seed):
+    """Other poses (two more seeds, 10 views each at 400-900 mm): every view is read through the nominal
+    design, each with at least 6 trusted points, trusted points within 0.15 px of the build's exact
+    projections and with their own ids (up to a shift along the card where detect_target says the ids are
+    uncertain)."""
+    from psvs.calibrate.detect import detect_target
+    from psvs.io.images import read_grey
+    card = CircleGrid(5, 7, 16.0, 7.0)
+    folder, interleaved = folder_of(tmp_path_factory, card, 10, seed=seed)
+    assert interleaved == 10
+    poses = random_poses(BUILD, card, 10, seed=seed, z_range_mm=(400.0, 900.0), apart=False)
+    local = np.column_stack([card.centres_mm(), np.zeros(35)])
+    for k, pose in enumerate(poses):
+        det = detect_target(read_grey(folder / f"card_{k:02d}.png"), card, NOMINAL)
+        tl, tr = (project_points(pose.to_world(local), BUILD, v)[0] for v in ("left", "right"))
+        t = det.reliable
+        assert t.sum() >= 6, k
+        row, col = np.divmod(det.ids[t], 7)
+        moves = [(0, 0)] if det.ids_certain else [(r, c) for r in range(-2, 3) for c in range(-3, 4)
+                                                  if (0 <= row + r).all() and (row + r < 5).all()
+                                                  and (0 <= col + c).all() and (col + c < 7).all()]
+        err = min(max(np.abs(det.left[t] - tl[(row + r) * 7 + col + c]).max(),
+                      np.abs(det.right[t] - tr[(row + r) * 7 + col + c]).max()) for r, c in moves)
+        assert err < 0.15, (k, err)
