@@ -112,6 +112,19 @@ def disc_size_px(target, rig: Rig, depths_mm) -> tuple[float, float]:
     return target.diameter_mm * f_px / far, target.diameter_mm * f_px / near
 
 
+#: How far a build's disparity may be from the nominal design's, as a factor either way (the mv1440
+#: build's is up to 40 % off at 1.2 m).
+DISPARITY_SLACK = 2.0
+
+
+def disparity_per_size(rig: Rig, diameter_mm: float) -> np.ndarray:
+    """The disparity a disc of ``diameter_mm`` has per px of its image's widest diameter, (least, most): each
+    view a pinhole at its virtual centre, both scale as 1 / (z - z_v), so their ratio is about the baseline
+    over the diameter at any depth; widened by :data:`DISPARITY_SLACK` either way for a build."""
+    ratio = rig.mirrors.baseline_mm / diameter_mm
+    return np.array([ratio / DISPARITY_SLACK, ratio * DISPARITY_SLACK])
+
+
 def _lattice_of(target) -> tuple[np.ndarray, np.ndarray, float]:
     """The target's lattice (N, 2) int units, a label step -> units map, the nearest neighbours' mm."""
     if isinstance(target, AsymmetricCircleGrid):
@@ -133,8 +146,10 @@ def _detect_circles(grey: np.ndarray, target, rig: Rig, depths_mm) -> TargetDete
     lattice, to_units, nn_mm = _lattice_of(target)
     reach = REACH_OVER_STEP * radius * nn_mm / (target.diameter_mm / 2)
     merged = radius > MERGED_SIZE * np.median(radius)           # two discs in one blob: one of each view
+    widest = np.array([2 * max(d.ellipse.axes_px) for d in discs])
     pairs = pair_twins(pts, reach, rig, sizes_px=radius, prefer=lambda p: _size_misfit(pts, p, rig, nn_mm),
-                       shared=merged, weights=[len(d.ellipse.rim_px) / RIM_RAYS for d in discs])
+                       shared=merged, weights=[len(d.ellipse.rim_px) / RIM_RAYS for d in discs],
+                       shift_px=disparity_per_size(rig, target.diameter_mm) * widest[:, None])
     if len(pairs) < 4:
         raise ValueError(f"found {len(discs)} disc(s) but only {len(pairs)} twin pair(s) along the rig's epipolar "
                          "curves: hold the whole card in both views (nearer the middle of the image)")

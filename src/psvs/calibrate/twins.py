@@ -71,7 +71,7 @@ def twin_candidates(points_px: np.ndarray, rig: Rig, depths_mm=SEARCH_DEPTHS_MM)
 
 def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: np.ndarray | None = None,
                prefer=None, shared: np.ndarray | None = None, weights: np.ndarray | None = None,
-               depths_mm=SEARCH_DEPTHS_MM) -> np.ndarray:
+               shift_px: np.ndarray | None = None) -> np.ndarray:
     """The pairing of points into (left, right) twins that explains the most of them.
 
     Parameters
@@ -92,6 +92,10 @@ def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: 
         How much each point counts (a pair counts as its lesser point): a blob split off a larger dark
         region may be a fragment of something else (the dark gap between the two copies of a card), so it
         counts less than a clean disc. The pairing of the most weight wins. Default: 1 each.
+    shift_px : ndarray, shape (n, 2), optional
+        The least and most a point's twin may lie to its left (u_l - u_r, px), e.g. from its own size
+        (:func:`psvs.calibrate.detect.disparity_per_size`): the epipolar curve over the search depths
+        alone also reaches a neighbour of the same view (one step of the card) at the far depths.
     shared : ndarray, shape (n,) bool, optional
         Points that may be used twice, once as a left image and once as a right one: two discs of the two
         views merged into one blob (where columns of the two views coincide, a pairing one column off
@@ -104,10 +108,13 @@ def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: 
     """
     pts = np.asarray(points_px, float)
     shared = np.zeros(len(pts), bool) if shared is None else np.asarray(shared, bool)
-    cands = twin_candidates(pts, rig, depths_mm)
+    cands = twin_candidates(pts, rig)
     if sizes_px is not None:
         s = np.asarray(sizes_px, float)
         cands = [[j for j in c if 1 / 1.4 < s[i] / s[j] < 1.4] for i, c in enumerate(cands)]
+    if shift_px is not None:
+        lo, hi = np.asarray(shift_px, float).T
+        cands = [[j for j in c if lo[i] <= pts[i, 0] - pts[j, 0] <= hi[i]] for i, c in enumerate(cands)]
     tree = cKDTree(pts)
     near = [tree.query_ball_point(p, r) for p, r in zip(pts, reach_px)]
     grown_sets: list[list[tuple[int, int]]] = []
