@@ -6,9 +6,11 @@ or, worse, keeps with its centre between the two. Each blob is examined with its
 distance to the border of a convex region is a concave function, so a single disc (or ellipse) has one
 maximum; two maxima farther apart than the smaller one's distance mean two discs, and the blob is split by a
 watershed of the distance transform from those maxima (scikit-image). Discs found this way are marked
-``crowded``: the other disc runs into their rim (usable to label the grid; calibration does not trust them).
-Discs that come close without touching are located as well as any (each rim point is the half-level
-crossing of its own ray's levels): on mv1440 renders within 0.1 px at a gap of 1 px.
+``crowded``: the other disc runs into their rim. A disc's rays that would run into a neighbouring disc are
+not read (:func:`psvs.calibrate.targets.refine_circle`'s ``avoid``), so discs that touch or come close are
+located from the rest of their rim: on mv1440 renders within 0.1 px where at least 3/4 of the rim was read
+(psvs.calibrate.detect trusts those). Two discs so far on top of each other that their union is convex
+stay one blob (psvs.calibrate.detect: "merged").
 """
 from __future__ import annotations
 
