@@ -28,5 +28,26 @@ def _calibrate_20():
     return run
 
 
+def _calibrate_mv1440():
+    """20 views of a 5x7 card wider than its disparity (every view interleaved) through mv1440_misaligned,
+    calibrated from mv1440 (the acceptance of tests/calibrate/test_card_mv1440.py)."""
+    from psvs.rigs import shipped_rig_path
+    card = CircleGrid(5, 7, 16.0, 7.0)
+    true = load_rig(shipped_rig_path("mv1440_misaligned"))
+    folder = Path(tempfile.mkdtemp(prefix="psvs-bench-cal1440-"))
+    poses = random_poses(true, card, 20, seed=1, z_range_mm=(400.0, 900.0), apart=False)
+    for k, shot in enumerate(render_grid_shots(true, card, poses, seed=1)):
+        write_png(folder / f"card_{k:02d}.png", shot.image)
+    (folder / "target.toml").write_text(dumps_target(card))
+    nominal = load_rig(shipped_rig_path("mv1440"))
+
+    def run():
+        res = calibrate_folder(folder, nominal)
+        assert len(res.used) >= 18 and res.bundle.rms_px < 0.05
+    return run
+
+
 def cases():
-    return [("calibrate a build from 20 card views (detect + bundle adjustment)", _calibrate_20, 30.0)]
+    return [("calibrate a build from 20 card views (detect + bundle adjustment)", _calibrate_20, 30.0),
+            ("calibrate mv1440 from 20 interleaving card views, 1440x1080 (detect + bundle adjustment)",
+             _calibrate_mv1440, float("inf"))]

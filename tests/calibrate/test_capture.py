@@ -94,17 +94,22 @@ def test_speed_of_a_card_between_detections():
 
 
 def test_a_card_the_rig_cannot_see(tmp_path):
-    """Discs under the detector's smallest at the far end, over its largest at the near end, or a grid as wide
-    as the baseline: refused before any frame, saying which. 2 mm discs at 1200 mm through the default rig:
-    2 x 1130 px / 1250 mm = 1.8 px < 3.9 px; 10 mm discs at 400 mm through mv1440: 10 x 2319 / 450 = 52 px > 40."""
+    """Features under the detector's smallest at the far end, or a range outside the depths the detector looks
+    at: refused before any frame, saying which. 2 mm discs at 1200 mm through the default rig:
+    2 x 1130 px / 1250 mm = 1.8 px < 4 px; 2 mm ChArUco markers there: 1.8 px, where OpenCV's ArUco detector
+    needs a perimeter of 3 % of 640 px, a side of 4.8 px. A grid wider than the baseline (its two copies
+    interleave) is fine: they are separated through the rig."""
+    from psvs.simulate.textures import CharucoBoard
     default, mv = load_rig("default"), load_rig("mv1440")
     with pytest.raises(ValueError, match=r"too small to see at the far end: its 2 mm discs are 1\.8 px across at "
-                                         r"1200 mm .* 3\.9-40 px"):
+                                         r"1200 mm .* needs 4\.0 px"):
         check_card_visible(default, CircleGrid(4, 6, 5.0, 2.0), CaptureParams(near_mm=400, far_mm=1200))
-    with pytest.raises(ValueError, match=r"too large at the near end: 10 mm discs are 52 px across at 400 mm"):
-        check_card_visible(mv, CircleGrid(4, 5, 20.0, 10.0), CaptureParams())
-    with pytest.raises(ValueError, match=r"interleave"):
-        check_card_visible(default, CircleGrid(4, 8, 14.0, 7.0), CaptureParams())
+    with pytest.raises(ValueError, match=r"its 2 mm markers are 1\.8 px across at 1200 mm .* needs 4\.8 px"):
+        check_card_visible(default, CharucoBoard(5, 4, 3.0, 2.0), CaptureParams(near_mm=400, far_mm=1200))
+    with pytest.raises(ValueError, match=r"the range 250-900 mm reaches outside the 300-2000 mm"):
+        check_card_visible(default, CARD, CaptureParams(near_mm=250))
+    check_card_visible(default, CircleGrid(4, 8, 14.0, 7.0), CaptureParams())
+    check_card_visible(mv, CircleGrid(4, 5, 20.0, 10.0), CaptureParams())
     check_card_visible(mv, CARD, CaptureParams())
     for bad, message in (({"views": 2}, "views must be an integer 3-200"), ({"near_mm": 900.0}, "must be < far_mm"),
                          ({"far_mm": math.nan}, "far_mm must be a finite depth"),

@@ -59,7 +59,7 @@ def test_capture_refusals(hand_video, tmp_path):
         r = c.post("/api/capture/start", json={"near_mm": 900, "far_mm": 400})
         assert r.status_code == 400 and r.json()["detail"] == "near_mm must be < far_mm, got 900 and 400"
         r = c.post("/api/capture/start", json={"far_mm": 9000})
-        assert r.status_code == 400 and "too small to see at the far end" in r.json()["detail"]
+        assert r.status_code == 400 and "reaches outside the 300-2000 mm" in r.json()["detail"]
     assert not folder.exists()
 
 

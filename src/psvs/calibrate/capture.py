@@ -34,13 +34,16 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from psvs.calibrate.bundle import GridView, initial_grid_pose
+from psvs.calibrate.detect import CARD_DEPTHS_MM, MIN_DISC_PX, Target
 from psvs.calibrate.folder import grid_view
-from psvs.calibrate.targets import MAX_DIAMETER_PX, MIN_AREA_PX
 from psvs.errors import MeasurementError
 from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
-from psvs.simulate.textures import CircleGrid
+from psvs.simulate.textures import CharucoBoard
 from psvs.transforms import transform_from_rotvec
+
+#: OpenCV ArUco detector's default minMarkerPerimeterRate: a marker's perimeter over the image's larger side
+MIN_MARKER_PERIMETER_RATE = 0.03
 
 FIELD_BINS = ("top-left", "top", "top-right", "left", "centre", "right", "bottom-left", "bottom", "bottom-right")
 DEPTH_BINS = ("near", "mid", "far")
@@ -89,11 +92,11 @@ class CaptureParams:
             raise ValueError(f"max_speed_px_s must be > 0 and at most 1000 px/s, got {self.max_speed_px_s!r}")
 
 
-def detect_card(grey: np.ndarray, target: CircleGrid, rig: Rig) -> GridView:
+def detect_card(grey: np.ndarray, target: Target, rig: Rig) -> GridView:
     """The card's trusted discs in both views of one frame; ValueError naming what is wrong otherwise.
 
     The one place the capture assistant detects a target (swap in another detector here)."""
-    return grid_view("frame", grey, target)
+    return grid_view("frame", grey, target, rig)
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,28 +171,31 @@ def _speed_px_s(view: GridView, last: GridView | None, dt_s: float) -> float:
     return float(np.mean(moved)) / dt_s
 
 
-def check_card_visible(rig: Rig, target: CircleGrid, params: CaptureParams) -> None:
-    """ValueError, before any frame is read, when the card cannot be detected over the range through this
-    rig: its discs smaller than the detector finds at ``far_mm`` (psvs.calibrate.targets: :data:`MIN_AREA_PX`)
-    or larger at ``near_mm`` (:data:`MAX_DIAMETER_PX`), both on the rig's pinhole at its virtual centres; or
-    the grid too wide for its two copies to lie apart (its width plus a disc over the baseline)."""
-    cam, b, zv = rig.camera, rig.mirrors.baseline_mm, rig.virtual_z_mm
-    d, f, pitch = target.diameter_mm, cam.focal_length_mm, max(cam.pixel_pitch_mm)
-    smallest, largest = 2 * math.sqrt(MIN_AREA_PX / math.pi), float(MAX_DIAMETER_PX)
-    at_far, at_near = d * f / (pitch * (params.far_mm - zv)), d * f / (min(cam.pixel_pitch_mm) * (params.near_mm - zv))
-    finds = f"the detector finds discs {smallest:.1f}-{largest:g} px across"
+def check_card_visible(rig: Rig, target: Target, params: CaptureParams) -> None:
+    """ValueError, before any frame is read, when the target cannot be detected over the range through this
+    rig: its features (a disc's diameter; a ChArUco marker's side) at ``far_mm`` smaller than the detector
+    locates (:data:`psvs.calibrate.detect.MIN_DISC_PX`; OpenCV's ArUco detector: a marker's perimeter at
+    least :data:`MIN_MARKER_PERIMETER_RATE` of the image's larger side), both on the rig's pinhole at its
+    virtual centres; or the range outside the depths the detector looks for features at
+    (:data:`psvs.calibrate.detect.CARD_DEPTHS_MM`). A card wider than its disparity is fine: its two copies
+    are separated through the rig's epipolar geometry."""
+    cam, zv = rig.camera, rig.virtual_z_mm
+    lo, hi = CARD_DEPTHS_MM
+    if params.near_mm < lo or params.far_mm > hi:
+        raise ValueError(f"the range {params.near_mm:g}-{params.far_mm:g} mm reaches outside the {lo:g}-{hi:g} mm "
+                         "a card is looked for at")
+    f_px = cam.focal_length_mm / max(cam.pixel_pitch_mm)
+    if isinstance(target, CharucoBoard):
+        size, what = target.marker_mm, "markers"
+        smallest = MIN_MARKER_PERIMETER_RATE * max(cam.image_size_px) / 4
+    else:
+        size, what = target.diameter_mm, "discs"
+        smallest = MIN_DISC_PX
+    at_far = size * f_px / (params.far_mm - zv)
     if at_far < smallest:
-        raise ValueError(f"the card is too small to see at the far end: its {d:g} mm discs are {at_far:.1f} px "
-                         f"across at {params.far_mm:g} mm through this rig, and {finds} (a card with larger discs, "
-                         f"or a nearer far end)")
-    if at_near > largest:
-        raise ValueError(f"the card's discs are too large at the near end: {d:g} mm discs are {at_near:.0f} px "
-                         f"across at {params.near_mm:g} mm through this rig, and {finds} (a card with smaller "
-                         f"discs, or a farther near end)")
-    width = (target.cols - 1) * target.spacing_mm + 2 * d
-    if width >= b:
-        raise ValueError(f"the card's grid is {width:g} mm wide with a disc's margin each side, not under the "
-                         f"baseline {b:g} mm: its two views would interleave (a card with fewer columns)")
+        raise ValueError(f"the card is too small to see at the far end: its {size:g} mm {what} are {at_far:.1f} px "
+                         f"across at {params.far_mm:g} mm through this rig, and the detector needs {smallest:.1f} px "
+                         f"(a card with larger {what}, or a nearer far end)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -217,7 +223,7 @@ class CaptureAssistant:
     """Coverage and decisions over a stream of frames (module docstring). ``step(grey, t_s)`` per frame, in
     order, with the frame's time (s)."""
 
-    def __init__(self, target: CircleGrid, rig: Rig, params: CaptureParams = CaptureParams()):
+    def __init__(self, target: Target, rig: Rig, params: CaptureParams = CaptureParams()):
         self.target, self.rig, self.params = target, rig, params
         self.covered: dict[str, int] = {b: 0 for b in ALL_BINS}
         self.saved: list[CardPose] = []

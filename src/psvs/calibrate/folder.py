@@ -18,15 +18,14 @@ from pathlib import Path
 import numpy as np
 
 from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
-from psvs.calibrate.grid import detect_grid
+from psvs.calibrate.detect import Target, TargetDetection, detect_target, target_points_mm
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
 from psvs.calibrate.target_file import load_target
 from psvs.io.images import read_grey
 from psvs.optics.mirrors import virtual_centre
 from psvs.optics.rig import Rig
-from psvs.simulate.textures import CircleGrid
 
-MIN_GRID_POINTS = 8        # fewer trusted discs than this: the view is skipped
+MIN_GRID_POINTS = 6        # fewer trusted points than this (x 2 views: 24 residuals, 6 pose unknowns): skipped
 MAX_IMAGE_RMS_PX = 1.0     # an image whose points miss their fitted pose by more: skipped, refitted
 
 
@@ -46,15 +45,21 @@ class CalibrationResult:
         return self.bundle.rig
 
 
-def grid_view(name: str, grey: np.ndarray, grid: CircleGrid) -> GridView:
-    """The trusted discs of one card view (both views of each disc on an even ground)."""
-    det = detect_grid(grey, grid.rows, grid.cols)
-    keep = det.reliable if det.reliable is not None else np.ones(len(det.left), bool)
+def grid_view(name: str, grey: np.ndarray, target: Target, rig: Rig) -> GridView:
+    """The trusted points of one card view (both images of each point located without bias), found
+    through the nominal ``rig`` (:func:`psvs.calibrate.detect.detect_target`)."""
+    return card_view(name, grey, target, rig)[0]
+
+
+def card_view(name: str, grey: np.ndarray, target: Target, rig: Rig) -> tuple[GridView, TargetDetection]:
+    """:func:`grid_view` and the detection it came from."""
+    det = detect_target(grey, target, rig)
+    keep = det.reliable
     if keep.sum() < MIN_GRID_POINTS:
-        raise ValueError(f"only {int(keep.sum())} of {len(keep)} discs lie on an even ground in both views "
-                         f"(another view's card crosses them); need {MIN_GRID_POINTS}")
-    local = np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
-    return GridView(name, local[keep], det.left[keep], det.right[keep])
+        raise ValueError(f"only {int(keep.sum())} of the {len(keep)} points found are located without bias in both "
+                         f"views (a disc touching another, or another view's card edge across it); need "
+                         f"{MIN_GRID_POINTS}: turn the card a little so that its two copies overlap less")
+    return GridView(name, det.object_mm(target)[keep], det.left[keep], det.right[keep]), det
 
 
 def calibrate_folder(folder, start: Rig) -> CalibrationResult:
@@ -78,11 +83,16 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
     grids = []
     if has_target:
         grid = load_target(folder / "target.toml")
+        most = 0
         for path in others:
             try:
-                grids.append(grid_view(path.name, read_grey(path, expect_size=start.camera.image_size_px), grid))
+                view, det = card_view(path.name, read_grey(path, expect_size=start.camera.image_size_px), grid, start)
             except ValueError as exc:
                 skipped[path.name] = str(exc)
+                continue
+            grids.append(view)
+            most = max(most, len(det.ids))
+        _whole_target_seen(grids, most, grid)
     else:
         skipped.update({p.name: "not in sweep.csv, and no target.toml describes a card" for p in others})
     _enough(grids, sweeps, skipped)
@@ -115,6 +125,16 @@ def check_distinct_images(paths: list[Path]) -> None:
             raise ValueError(f"{first[digest].name} and {path.name} are the same image (byte-identical files): "
                              "each view must be its own photograph")
         first[digest] = path
+
+
+def _whole_target_seen(grids: list, most: int, target: Target) -> None:
+    """ValueError when card views were read but none shows the whole target: a target read only in part in
+    every view is likely not the one target.toml describes (a 4x6 card described as 5x6 reads as part of
+    it in every view)."""
+    n = len(target_points_mm(target))
+    if grids and most < n:
+        raise ValueError(f"no card view shows the whole target of target.toml ({n} points; at most {most} found in "
+                         "a view): check target.toml's size against the printed card, or show the whole card")
 
 
 def _enough(grids, sweeps, skipped) -> None:

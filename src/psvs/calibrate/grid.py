@@ -1,5 +1,9 @@
 """OpenCV-style circle grids and chessboards in complex images, and a generic stereo calibration (OpenCV).
 
+Without a rig: :func:`detect_grid` needs the card's two copies apart. With the rig, a card whose copies
+interleave or touch, an asymmetric grid or a ChArUco board: :func:`psvs.calibrate.detect.detect_target`
+(what ``psvs calibrate`` uses).
+
 Each disc appears twice. All dark blobs are found and refined as for the paper's pattern
 (:mod:`psvs.calibrate.targets`), split into the two views by a two-cluster split along u (the grid must
 be narrower than its disparity, so the copies do not interleave: the left view is the right-hand copy),

@@ -16,7 +16,7 @@ from psvs.calibrate.targets import MAX_DIAMETER_PX, MIN_AREA_PX
 from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import Rig
 from psvs.simulate.scene import Pose, Scene, SceneObject
-from psvs.simulate.textures import CircleGrid, Uniform
+from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid, Uniform
 
 
 @dataclass(frozen=True, eq=False)
@@ -29,17 +29,24 @@ class GridShot:
     centres_mm: np.ndarray
 
 
-def card_size_mm(grid: CircleGrid) -> tuple[float, float]:
-    """A card one spacing wider than the grid on every side, mm (width, height)."""
+def card_size_mm(grid) -> tuple[float, float]:
+    """A card one spacing wider than a circle grid on every side (an asymmetric grid's: one spacing beyond
+    its outer discs' rims), or a ChArUco board with half a square of white around it, mm (width, height)."""
+    if isinstance(grid, CharucoBoard):
+        return (grid.squares_x + 1) * grid.square_mm, (grid.squares_y + 1) * grid.square_mm
+    if isinstance(grid, AsymmetricCircleGrid):
+        span = np.ptp(grid.centres_mm(), axis=0) + grid.diameter_mm + 2 * grid.spacing_mm
+        return float(span[0]), float(span[1])
     return (grid.cols + 1) * grid.spacing_mm, (grid.rows + 1) * grid.spacing_mm
 
 
 def check_card_fits(rig: Rig, grid: CircleGrid, n: int, z_range_mm=(450.0, 1000.0), tilt_deg: float = 25.0,
-                    margin_px: float = 12.0) -> None:
+                    margin_px: float = 12.0, apart: bool = True) -> None:
     """ValueError, before any pose is tried, when no pose of :func:`random_poses` could show the grid: too
     wide or too high for the views at the nearest of the ``n`` depth strata (both copies of the grid side by
     side in the image, ``margin_px`` inside it, and apart by two disc diameters; the tilt foreshortening
-    it by at most cos ``tilt_deg``), or discs outside what the detector finds (psvs.calibrate.targets:
+    it by at most cos ``tilt_deg``; with ``apart`` False the copies may interleave, so only both side by
+    side must fit), or discs outside what the detector finds (psvs.calibrate.targets:
     :data:`MIN_AREA_PX` at the farthest poses, :data:`MAX_DIAMETER_PX` at the nearest). Each view is the
     rig's pinhole at its virtual centre; the test is lenient, so a grid it passes may still find no pose."""
     cam, b, zv = rig.camera, rig.mirrors.baseline_mm, rig.virtual_z_mm
@@ -48,7 +55,8 @@ def check_card_fits(rig: Rig, grid: CircleGrid, n: int, z_range_mm=(450.0, 1000.
     near, far = z0 + (z1 - z0) / n, z1 - (z1 - z0) / n     # the nearest stratum's far end, the farthest's near end
     d, cos_t = grid.diameter_mm, math.cos(math.radians(tilt_deg))
     size = ((grid.cols - 1) * grid.spacing_mm + d, (grid.rows - 1) * grid.spacing_mm + d)
-    most = (min(b - 2 * d, (w - 1 - 2 * margin_px) * px * (near - zv) / f - b - d) / cos_t,
+    fits = (w - 1 - 2 * margin_px) * px * (near - zv) / f - b - d
+    most = ((min(b - 2 * d, fits) if apart else fits) / cos_t,
             ((h - 1 - 2 * margin_px) * py * (near - zv) / f - d) / cos_t)
     if size[0] > most[0] or size[1] > most[1]:
         raise ValueError(f"the grid of discs is {size[0]:g} x {size[1]:g} mm ({grid.cols} x {grid.rows} discs "
@@ -64,16 +72,22 @@ def check_card_fits(rig: Rig, grid: CircleGrid, n: int, z_range_mm=(450.0, 1000.
                          f"{smallest:.1f}-{largest} px across: none of the {grid.cols * grid.rows} would be found")
 
 
-def random_poses(rig: Rig, grid: CircleGrid, n: int, seed: int = 0, z_range_mm=(450.0, 1000.0),
-                 tilt_deg: float = 25.0, margin_px: float = 12.0, max_tries: int = 2000) -> list[Pose]:
+def random_poses(rig: Rig, grid, n: int, seed: int = 0, z_range_mm=(450.0, 1000.0),
+                 tilt_deg: float = 25.0, margin_px: float = 12.0, apart: bool = True) -> list[Pose]:
     """``n`` card poses spread over the depth range (stratified), tilted up to ``tilt_deg`` about X and Y,
-    turned up to 8 deg about Z, with every disc seen in both views ``margin_px`` inside the image and the
-    two copies of the grid apart (no disc of one view within two diameters of the other view's grid).
-    A grid no pose could show is refused first (:func:`check_card_fits`)."""
-    check_card_fits(rig, grid, n, z_range_mm, tilt_deg, margin_px)
+    turned up to 8 deg about Z, with every target point seen in both views ``margin_px`` inside the image.
+    With ``apart`` the two copies of the grid are apart (no disc of one view within two diameters of the
+    other view's grid); without, they may interleave as a hand-held card's do, only no two discs of the
+    two views closer than a radius (discs on top of each other are one blob). A grid no pose could show is
+    refused first (:func:`check_card_fits`); ``grid`` may be any target (psvs.calibrate.detect.Target)."""
+    from psvs.calibrate.detect import target_points_mm
+    if isinstance(grid, CircleGrid):
+        check_card_fits(rig, grid, n, z_range_mm, tilt_deg, margin_px, apart)
+    max_tries = 2000
     rng = np.random.default_rng(seed)
-    local = np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
-    r_disc = grid.diameter_mm / 2
+    local = target_points_mm(grid)
+    local = np.column_stack([local, np.zeros(len(local))])
+    r_disc = getattr(grid, "diameter_mm", 0.0) / 2
     w, h = rig.camera.image_size_px
     out = []
     edges = np.linspace(*z_range_mm, n + 1)
@@ -96,7 +110,10 @@ def random_poses(rig: Rig, grid: CircleGrid, n: int, seed: int = 0, z_range_mm=(
                 seen.append(uv)
             # the two copies of the grid must not interleave: every right-view disc left of every left-view
             # disc by more than two disc diameters (the cards themselves may touch or overlap)
-            ok &= bool(seen[0][:, 0].min() - seen[1][:, 0].max() > 4 * r_px)
+            if apart:
+                ok &= bool(seen[0][:, 0].min() - seen[1][:, 0].max() > 4 * r_px)
+            else:
+                ok &= bool(np.linalg.norm(seen[0][:, None] - seen[1][None], axis=2).min() > max(r_px, 3.0))
             if ok:
                 out.append(pose)
                 break
@@ -107,11 +124,14 @@ def random_poses(rig: Rig, grid: CircleGrid, n: int, seed: int = 0, z_range_mm=(
 
 def render_grid_shots(rig: Rig, grid: CircleGrid, poses: list[Pose], seed: int = 0,
                       supersample: int = 2) -> list[GridShot]:
-    """Render the card at each pose through ``rig`` (realistic sensor: blur and noise, seeded)."""
+    """Render the card (any target: its printed image) at each pose through ``rig`` (realistic sensor: blur
+    and noise, seeded)."""
+    from psvs.calibrate.detect import target_points_mm
     from psvs.simulate.builtin import regulated_light
     from psvs.simulate.render import render
     size = card_size_mm(grid)
-    local = np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
+    local = target_points_mm(grid)
+    local = np.column_stack([local, np.zeros(len(local))])
     shots = []
     for k, pose in enumerate(poses):
         z = float(pose.position_mm[2])

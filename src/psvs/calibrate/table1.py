@@ -154,7 +154,7 @@ def run_table1(true_rig: Rig, progress=None, start: Rig | None = None, method: s
         views = []
         for k, pose in enumerate(random_poses(true_rig, CARD, CARD_VIEWS, seed=14)):
             shot, = render_grid_shots(true_rig, CARD, [pose], seed=100 + k)
-            views.append(grid_view(f"card_{k:02d}", shot.image, CARD))
+            views.append(grid_view(f"card_{k:02d}", shot.image, CARD, start))
             tick(f"card view {k + 1}")
         cal = bundle_adjust(views, [], start)
     meas = []

@@ -6,35 +6,57 @@
     cols = 6
     spacing_mm = 14.0      # centre to centre
     diameter_mm = 7.0
+
+``kind = "asymmetric_circle_grid"`` takes the same keys (OpenCV's asymmetric grid: ``rows`` rows of ``cols``
+discs, rows ``spacing_mm`` apart, discs along a row twice that apart, odd rows shifted by ``spacing_mm``);
+``kind = "charuco"`` takes ``squares_x``, ``squares_y``, ``square_mm``, ``marker_mm`` and ``dictionary``
+(an OpenCV ArUco dictionary's name, e.g. "DICT_4X4_50").
 """
 from __future__ import annotations
 
 from psvs.io.tomlfile import dumps_toml, load_table
-from psvs.simulate.textures import CircleGrid
+from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid
 
-KINDS = ("circle_grid",)
-_KEYS = ("kind", "rows", "cols", "spacing_mm", "diameter_mm")
+#: The kinds of target and each one's keys (besides ``kind``).
+KEYS = {
+    "circle_grid": ("rows", "cols", "spacing_mm", "diameter_mm"),
+    "asymmetric_circle_grid": ("rows", "cols", "spacing_mm", "diameter_mm"),
+    "charuco": ("squares_x", "squares_y", "square_mm", "marker_mm", "dictionary"),
+}
+KINDS = tuple(KEYS)
+_CLASSES = {"circle_grid": CircleGrid, "asymmetric_circle_grid": AsymmetricCircleGrid, "charuco": CharucoBoard}
+_ALL = tuple(sorted({k for keys in KEYS.values() for k in keys}))
 
 
-def load_target(path) -> CircleGrid:
+def load_target(path) -> CircleGrid | AsymmetricCircleGrid | CharucoBoard:
     """The target described by a ``target.toml``; ValueError naming the file and the key otherwise."""
-    return load_table(path, "target", "target", _KEYS, parse=_target)
+    return load_table(path, "target", "target", ("kind",), optional=_ALL, parse=_target)
 
 
-def _target(t: dict) -> CircleGrid:
-    if t["kind"] not in KINDS:
-        raise ValueError(f"target.kind must be one of {', '.join(KINDS)}, got {t['kind']!r}")
-    for k in ("spacing_mm", "diameter_mm"):
-        if isinstance(t[k], bool) or not isinstance(t[k], (int, float)):
+def _target(t: dict):
+    kind = t["kind"]
+    if kind not in KEYS:
+        raise ValueError(f"target.kind must be one of {', '.join(KINDS)}, got {kind!r}")
+    for k in KEYS[kind]:
+        if k not in t:
+            raise ValueError(f"missing key target.{k} (a {kind} needs {', '.join(KEYS[kind])})")
+    for k in t:
+        if k != "kind" and k not in KEYS[kind]:
+            raise ValueError(f"unknown key target.{k} for a {kind} (its keys: {', '.join(KEYS[kind])})")
+    for k in KEYS[kind]:
+        if k.endswith("_mm") and (isinstance(t[k], bool) or not isinstance(t[k], (int, float))):
             raise ValueError(f"target.{k} must be a number (mm), got {t[k]!r}")
+        if k == "dictionary" and not isinstance(t[k], str):
+            raise ValueError(f"target.dictionary must be a string (an OpenCV ArUco dictionary), got {t[k]!r}")
+    args = {k: float(t[k]) if k.endswith("_mm") else t[k] for k in KEYS[kind]}
     try:
-        return CircleGrid(rows=t["rows"], cols=t["cols"], spacing_mm=float(t["spacing_mm"]),
-                          diameter_mm=float(t["diameter_mm"]))
-    except ValueError as exc:
+        return _CLASSES[kind](**args)
+    except (ValueError, TypeError) as exc:
         raise ValueError(f"target.{exc}") from None
 
 
-def dumps_target(grid: CircleGrid) -> str:
-    """The ``target.toml`` text of a circle grid (read back by :func:`load_target`)."""
-    return dumps_toml({"target": {"kind": "circle_grid", "rows": grid.rows, "cols": grid.cols,
-                                  "spacing_mm": float(grid.spacing_mm), "diameter_mm": float(grid.diameter_mm)}})
+def dumps_target(target) -> str:
+    """The ``target.toml`` text of a target (read back by :func:`load_target`)."""
+    kind = next(k for k, cls in _CLASSES.items() if type(target) is cls)
+    values = {k: float(getattr(target, k)) if k.endswith("_mm") else getattr(target, k) for k in KEYS[kind]}
+    return dumps_toml({"target": {"kind": kind, **values}})

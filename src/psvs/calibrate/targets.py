@@ -90,10 +90,17 @@ def dark_blobs(grey: np.ndarray, max_diameter_px: int = MAX_DIAMETER_PX, min_are
     return out
 
 
-def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int = 64) -> Ellipse:
-    """Sub-pixel rim points along ``rays`` rays (per-ray half-level crossing) and a fitted ellipse."""
+def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int = 64,
+                  avoid: np.ndarray | None = None) -> Ellipse:
+    """Sub-pixel rim points along ``rays`` rays (per-ray half-level crossing) and a fitted ellipse.
+    ``avoid`` (k, 3): other discs (u, v, radius px) nearby; rays whose profile would run into one (within
+    2 px of its rim) are not read, so a neighbour neither moves the rim nor counts as an uneven ground."""
     img = np.asarray(grey, dtype=np.float32)
     ang = 2 * np.pi * np.arange(rays) / rays
+    if avoid is not None and len(avoid):
+        clear = _clear_rays(np.asarray(centre, float), radius, ang, np.asarray(avoid, float))
+        if clear.sum() >= rays // 4:            # else read them all: the spread will tell the ground is uneven
+            ang = ang[clear]
     dr = min(0.05 * radius, 0.25)                        # sample spacing along a ray, px
     rr = np.arange(0.4 * radius, 1.8 * radius + 2.5, dr)
     xs = centre[0] + np.cos(ang)[:, None] * rr[None, :]
@@ -104,7 +111,7 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
     win = (rr[:-1] >= 0.6 * radius) & (rr[:-1] <= 1.4 * radius)
     step = int(np.ceil(max(0.15 * radius, 2.0) / dr))    # levels read +-max(0.15 r, 2 px) around the step
     pts, widths, levels = [], [], []
-    for i in range(rays):
+    for i in range(len(ang)):
         d = np.where(win, dp[i], -np.inf)
         top = d.max()
         if not np.isfinite(top) or top <= 0:
@@ -149,6 +156,16 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
     p10, p90 = np.percentile(lo_hi[:, 1], [10, 90])
     spread = float((p90 - p10) / max(np.median(lo_hi[:, 1] - lo_hi[:, 0]), 1e-6))
     return Ellipse(e.centre_px, (a + sigma2 / (2 * a), b + sigma2 / (2 * b)), e.angle_rad, e.rim_px, spread)
+
+
+def _clear_rays(centre: np.ndarray, radius: float, ang: np.ndarray, avoid: np.ndarray) -> np.ndarray:
+    """Which rays' profiles (out to 1.4 r plus the level window) keep 2 px clear of every disc in ``avoid``."""
+    reach = 1.4 * radius + max(0.15 * radius, 2.0)
+    d = np.column_stack([np.cos(ang), np.sin(ang)])                 # (rays, 2)
+    rel = avoid[:, :2] - centre                                     # (k, 2)
+    t = np.clip(rel @ d.T, 0.0, reach)                              # (k, rays): nearest point along the ray
+    gap = np.linalg.norm(rel[:, None, :] - t[..., None] * d[None], axis=2) - avoid[:, 2:3]
+    return (gap > 2.0).all(axis=0)
 
 
 def _fit(pts: np.ndarray) -> Ellipse:

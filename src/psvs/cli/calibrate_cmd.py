@@ -16,7 +16,8 @@ from psvs.optics.rig import Calibration
 def add_parser(sub) -> None:
     p = sub.add_parser("calibrate", help="calibrate the rig from views of a card (or a robot sweep)",
                        description="Calibrate a build from the complex images in DIR: views of a hand-held "
-                                   "circle-grid card at free poses (DIR/target.toml describes it) and/or the "
+                                   "card at free poses (DIR/target.toml describes it: circle_grid, "
+                                   "asymmetric_circle_grid or charuco; its two copies may interleave) and/or the "
                                    "paper's robot sweep of the circle pattern (DIR/sweep.csv: image,position_mm). "
                                    "A bundle adjustment over the exact optics, starting from the nominal design "
                                    "(--rig), solves the lens (f, principal point, k1 k2 p1 p2 k3), the plate, "

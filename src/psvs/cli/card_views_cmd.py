@@ -13,7 +13,8 @@ HOLD_FRAMES, MOVE_FRAMES, BLUR_SAMPLES, OUT_EVERY = 3, 1, 3, 7
 def add_parser(sub) -> None:
     p = sub.add_parser("card-views", help="render hand-held card views through a rig, for psvs calibrate",
                        description="Render N views of a circle-grid card (4x6 discs, 14 mm apart, 7 mm across, "
-                                   "unless --rows/--cols/--spacing-mm/--diameter-mm) at random poses (450-1000 mm, "
+                                   "unless --rows/--cols/--spacing-mm/--diameter-mm, or any target --target "
+                                   "describes) at random poses (450-1000 mm, "
                                    "tilted up to 25 deg) through the rig, and write card_NN.png and target.toml into "
                                    "DIR: a calibration folder as a user would make with a printed card.")
     p.add_argument("folder", metavar="DIR", help="output folder (created if missing)")
@@ -30,6 +31,11 @@ def add_parser(sub) -> None:
                                                       "between them (motion-blurred), one pose in "
                                                       f"{OUT_EVERY} partly out of the image; DIR gets target.toml "
                                                       "(for psvs capture)")
+    p.add_argument("--target", metavar="TARGET.toml",
+                   help="render this target instead (any kind psvs calibrate reads: circle_grid, "
+                        "asymmetric_circle_grid, charuco; docs/calibration.md)")
+    p.add_argument("--interleave", action="store_true",
+                   help="let the card's two copies interleave, as a hand-held card wider than its disparity does")
     p.set_defaults(run=run)
 
 
@@ -46,21 +52,30 @@ def run(args) -> int:
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
     folder = check_output_folder(args.folder)
-    try:
-        card = CircleGrid(args.rows, args.cols, args.spacing_mm, args.diameter_mm)
-    except ValueError as exc:
-        raise ValueError(f"card: {str(exc).replace('_mm', '-mm')}") from None
+    if args.target is not None:
+        from psvs.calibrate.target_file import load_target
+        card = load_target(args.target)
+    else:
+        try:
+            card = CircleGrid(args.rows, args.cols, args.spacing_mm, args.diameter_mm)
+        except ValueError as exc:
+            raise ValueError(f"card: {str(exc).replace('_mm', '-mm')}") from None
     rig = rig_from_args(args)
-    try:   # before any pose is tried: a card no pose shows would be searched for 2000 times a view
-        check_card_fits(rig, card, args.views, (400.0, 900.0) if args.video else (450.0, 1000.0))
-    except ValueError as exc:
-        raise ValueError(f"card (--rows {args.rows} --cols {args.cols} --spacing-mm {args.spacing_mm:g} "
-                         f"--diameter-mm {args.diameter_mm:g}): {exc}") from None
+    apart = not args.interleave
+    if args.video and (args.interleave or not isinstance(card, CircleGrid)):
+        raise ValueError("--video renders a circle-grid card held apart from its copy: not with --interleave or "
+                         "another kind of --target")
+    if isinstance(card, CircleGrid):
+        try:   # before any pose is tried: a card no pose shows would be searched for 2000 times a view
+            check_card_fits(rig, card, args.views, (400.0, 900.0) if args.video else (450.0, 1000.0), apart=apart)
+        except ValueError as exc:
+            raise ValueError(f"card (--rows {card.rows} --cols {card.cols} --spacing-mm {card.spacing_mm:g} "
+                             f"--diameter-mm {card.diameter_mm:g}): {exc}") from None
     if args.video:
         return _video(args, rig, card, folder)
     check_render_work(rig, RENDER_SUPERSAMPLE, args.views, f"--views {args.views}", "fewer --views")
-    shots = render_grid_shots(rig, card, random_poses(rig, card, args.views, seed=args.seed), seed=args.seed,
-                              supersample=RENDER_SUPERSAMPLE)
+    poses = random_poses(rig, card, args.views, seed=args.seed, apart=apart)
+    shots = render_grid_shots(rig, card, poses, seed=args.seed, supersample=RENDER_SUPERSAMPLE)
     folder.mkdir(parents=True, exist_ok=True)
     for k, shot in enumerate(shots):
         write_png(folder / f"card_{k:02d}.png", shot.image)

@@ -180,6 +180,129 @@ class CircleGrid:
         return np.where(inside, self.low, self.high)
 
 
+@dataclass(frozen=True)
+class AsymmetricCircleGrid:
+    """OpenCV's asymmetric circle grid: ``rows`` rows of ``cols`` dark discs (``diameter_mm``); disc (r, c) at
+    ((2 c + r mod 2) s, r s) with s = ``spacing_mm`` (OpenCV's unit: rows s apart, discs along a row 2 s apart,
+    nearest neighbours s sqrt 2 apart), centred on the origin, colour ``low`` on a ground of ``high``."""
+
+    rows: int = 7
+    cols: int = 4
+    spacing_mm: float = 10.0
+    diameter_mm: float = 8.0
+    low: float = 0.05
+    high: float = 0.9
+
+    def __post_init__(self):
+        check_count(self.rows, "rows", 3)
+        check_count(self.cols, "cols", 2)
+        check_positive(self.spacing_mm, "spacing_mm", "mm")
+        check_positive(self.diameter_mm, "diameter_mm", "mm")
+        if self.diameter_mm >= self.spacing_mm * np.sqrt(2):
+            raise ValueError(f"diameter_mm must be < spacing_mm * sqrt(2) (nearest neighbours' distance), got "
+                             f"{self.diameter_mm!r} >= {self.spacing_mm * np.sqrt(2):.4g}")
+        _check_levels(low=self.low, high=self.high)
+
+    def lattice(self) -> np.ndarray:
+        """Disc positions in units of ``spacing_mm``, (rows * cols, 2) int, OpenCV's order (row by row)."""
+        c, r = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
+        return np.column_stack([2 * c.ravel() + r.ravel() % 2, r.ravel()])
+
+    def centres_mm(self) -> np.ndarray:
+        """Disc centres (rows * cols, 2) mm, OpenCV's order, centred on the origin."""
+        g = self.lattice().astype(float)
+        return (g - 0.5 * (g.max(axis=0) + g.min(axis=0))) * self.spacing_mm
+
+    def __call__(self, xy_mm):
+        c = self.centres_mm()
+        s = self.spacing_mm
+        # the nearest disc: rows are s apart; within a row discs are 2 s apart, odd rows shifted by s
+        gy = np.rint((xy_mm[:, 1] - c[0, 1]) / s)
+        shift = np.where(gy % 2 == 1, s, 0.0)
+        gx = np.rint((xy_mm[:, 0] - c[0, 0] - shift) / (2 * s))
+        on = (gy >= 0) & (gy < self.rows) & (gx >= 0) & (gx < self.cols)
+        dx = xy_mm[:, 0] - (c[0, 0] + shift + 2 * s * gx)
+        dy = xy_mm[:, 1] - (c[0, 1] + s * gy)
+        inside = on & (dx * dx + dy * dy <= (self.diameter_mm / 2) ** 2)
+        return np.where(inside, self.low, self.high)
+
+
+#: The ArUco dictionaries a ChArUco board may use (OpenCV's predefined names).
+ARUCO_DICTIONARIES = ("DICT_4X4_50", "DICT_4X4_100", "DICT_5X5_50", "DICT_5X5_100", "DICT_6X6_50",
+                      "DICT_6X6_250")
+
+
+@functools.lru_cache(maxsize=8)
+def aruco_cells(dictionary: str, count: int) -> np.ndarray:
+    """The first ``count`` markers of an OpenCV ArUco dictionary as cells, (count, n + 2, n + 2) bool (True
+    white), n the marker's bits per side, with OpenCV's one-cell black border."""
+    import cv2
+    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary))
+    n = d.markerSize + 2
+    if count > d.bytesList.shape[0]:
+        raise ValueError(f"{dictionary} holds {d.bytesList.shape[0]} markers, the board needs {count}")
+    return np.stack([d.generateImageMarker(k, n, borderBits=1) > 127 for k in range(count)])
+
+
+@dataclass(frozen=True)
+class CharucoBoard:
+    """OpenCV's ChArUco board (cv2.aruco.CharucoBoard, its layout as OpenCV >= 4.6 draws it): ``squares_x``
+    x ``squares_y`` chessboard squares of ``square_mm``, the top-left one black, and in each white square an
+    ArUco marker of ``marker_mm`` from ``dictionary`` (ids 0, 1, ... row by row), centred on the origin
+    (OpenCV's board x and y, here shifted by half the board)."""
+
+    squares_x: int = 7
+    squares_y: int = 5
+    square_mm: float = 20.0
+    marker_mm: float = 15.0
+    dictionary: str = "DICT_4X4_50"
+    low: float = 0.05
+    high: float = 0.9
+
+    def __post_init__(self):
+        check_count(self.squares_x, "squares_x", 3)
+        check_count(self.squares_y, "squares_y", 3)
+        check_positive(self.square_mm, "square_mm", "mm")
+        check_positive(self.marker_mm, "marker_mm", "mm")
+        if self.marker_mm >= self.square_mm:
+            raise ValueError(f"marker_mm must be < square_mm, got {self.marker_mm!r} >= {self.square_mm!r}")
+        if self.dictionary not in ARUCO_DICTIONARIES:
+            raise ValueError(f"dictionary must be one of {', '.join(ARUCO_DICTIONARIES)}, got {self.dictionary!r}")
+        _check_levels(low=self.low, high=self.high)
+
+    @property
+    def marker_count(self) -> int:
+        return (self.squares_x * self.squares_y) // 2
+
+    def corners_mm(self) -> np.ndarray:
+        """The inner chessboard corners ((squares_x - 1) * (squares_y - 1), 2) mm, OpenCV's ChArUco ids'
+        order (row by row), centred on the origin."""
+        j, i = np.meshgrid(np.arange(1, self.squares_x), np.arange(1, self.squares_y))
+        return np.column_stack([(j.ravel() - self.squares_x / 2) * self.square_mm,
+                                (i.ravel() - self.squares_y / 2) * self.square_mm])
+
+    def __call__(self, xy_mm):
+        s = self.square_mm
+        bx = xy_mm[:, 0] / s + self.squares_x / 2          # board coordinates in squares, from the top-left
+        by = xy_mm[:, 1] / s + self.squares_y / 2
+        gx, gy = np.floor(bx).astype(np.int64), np.floor(by).astype(np.int64)
+        on = (gx >= 0) & (gx < self.squares_x) & (gy >= 0) & (gy < self.squares_y)
+        white = on & ((gx + gy) % 2 == 1)
+        cells = aruco_cells(self.dictionary, self.marker_count)
+        n = cells.shape[1]
+        margin = 0.5 * (1 - self.marker_mm / s)
+        mx = (bx - gx - margin) / (1 - 2 * margin)          # position in the marker, 0..1
+        my = (by - gy - margin) / (1 - 2 * margin)
+        in_marker = white & (mx >= 0) & (mx < 1) & (my >= 0) & (my < 1)
+        out = np.where(on & ~white, self.low, self.high)
+        k = np.flatnonzero(in_marker)
+        ids = (gy[k] * self.squares_x + gx[k]) // 2         # white squares row by row
+        cx = np.minimum((mx[k] * n).astype(np.int64), n - 1)
+        cy = np.minimum((my[k] * n).astype(np.int64), n - 1)
+        out[k] = np.where(cells[ids, cy, cx], self.high, self.low)
+        return out
+
+
 @dataclass(frozen=True, eq=False)
 class ImageTexture:
     """A grey image (H, W) in [0, 1] stretched over ``size_mm`` (width, height) centred on the origin.
@@ -205,4 +328,5 @@ class ImageTexture:
         return top * (1 - fv) + bot * fv
 
 
-Texture = Uniform | Checker | Chessboard | Noise | Circles | CircleGrid | ImageTexture
+Texture = (Uniform | Checker | Chessboard | Noise | Circles | CircleGrid | AsymmetricCircleGrid | CharucoBoard
+           | ImageTexture)

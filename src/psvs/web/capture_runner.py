@@ -18,8 +18,8 @@ from psvs.calibrate.capture import (
     check_card_visible,
     event_lines,
 )
+from psvs.calibrate.detect import Target
 from psvs.optics.rig import Rig
-from psvs.simulate.textures import CircleGrid
 from psvs.web.sources import Source
 
 EVENTS = 200            # event lines kept for the page
@@ -30,7 +30,7 @@ class CaptureSetup:
     """What ``psvs serve --target T --capture-to DIR`` gives the page: the card, its file's bytes (copied as
     the folder's target.toml) and the folder."""
 
-    target: CircleGrid
+    target: Target
     target_text: bytes
     folder: str
 

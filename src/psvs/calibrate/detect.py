@@ -1,0 +1,254 @@
+"""Find a calibration target in both views of one complex image: :func:`detect_target`.
+
+The target is what ``target.toml`` describes (:mod:`psvs.calibrate.target_file`): a symmetric circle grid,
+OpenCV's asymmetric circle grid or a ChArUco board. The answer is each view's points with their ids on the
+target (so a capture assistant can use it frame by frame), or a ValueError saying why the image cannot be
+read and what to do about it ("hold the card closer", "farther", "turn the card", ...).
+
+Circle grids (docs/calibration.md, "Target kinds"): every dark disc is found, touching discs split apart
+(:mod:`psvs.calibrate.blobs`); the discs are paired into twins through the nominal rig's epipolar geometry,
+the pairing that explains the most discs winning (:mod:`psvs.calibrate.twins`), so the card's two views may
+interleave; the left view's discs are labelled on the target's lattice (:mod:`psvs.calibrate.lattice`) and
+each twin takes its left disc's label. A disc that touches or nearly touches another, or that another view's
+card edge crosses, is kept for the labels but not trusted (``reliable`` False): its centre is biased. A disc
+whose rim is read on at least :data:`MIN_RIM_SHARE` of its rays (those running into a neighbour are not
+read) on an even ground is trusted, touching or not: on mv1440 renders such discs lie within 0.1 px.
+ChArUco boards: :mod:`psvs.calibrate.charuco`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs._validate import check_grey
+from psvs.calibrate.blobs import find_discs
+from psvs.calibrate.lattice import label_lattice, place_on_target
+from psvs.calibrate.twins import REACH_OVER_STEP, pair_twins
+from psvs.optics.rig import Rig
+from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid
+
+#: A disc whose surroundings vary more than this (share of its contrast) is not trusted for calibration.
+MAX_BACKGROUND_SPREAD = 0.25
+#: A disc is trusted when its rim was read on at least this share of its rays (the others ran into a
+#: touching disc, or found no clear step).
+MIN_RIM_SHARE = 0.75
+RIM_RAYS = 64
+#: The depths (mm) a hand-held card is looked for at: the disc sizes searched follow from them.
+CARD_DEPTHS_MM = (300.0, 2000.0)
+#: The smallest disc (px across) located to a tenth of a pixel.
+MIN_DISC_PX = 4.0
+
+Target = CircleGrid | AsymmetricCircleGrid | CharucoBoard
+
+
+@dataclass(frozen=True, eq=False)
+class TargetDetection:
+    """One complex image's target points: ids (n,) int, indices into :func:`target_points_mm`; left, right
+    (n, 2) px, the same target point in both views; reliable (n,) bool: both images located without bias
+    (no neighbour or other view's edge disturbing them; an untrusted point may be several px off: the centre
+    of two merged discs); ``complete``: every point of the target found;
+    ``ids_certain``: the ids are the target's own (False where part of a symmetric grid fits it at several
+    places: the ids are then right up to a shift along the grid, the same in both views)."""
+
+    ids: np.ndarray
+    left: np.ndarray
+    right: np.ndarray
+    reliable: np.ndarray
+    complete: bool
+    ids_certain: bool = True
+
+    def object_mm(self, target: Target) -> np.ndarray:
+        """The points' positions on the target (n, 3) mm, z = 0."""
+        local = target_points_mm(target)[self.ids]
+        return np.column_stack([local, np.zeros(len(local))])
+
+
+def target_points_mm(target: Target) -> np.ndarray:
+    """The target's calibration points (N, 2) mm in its own frame (centred), in its id order."""
+    if isinstance(target, CharucoBoard):
+        return target.corners_mm()
+    return target.centres_mm()
+
+
+def detect_target(grey: np.ndarray, target: Target, rig: Rig, depths_mm=CARD_DEPTHS_MM) -> TargetDetection:
+    """Both views of ``target`` in one complex image, through the nominal ``rig``'s geometry.
+
+    Parameters
+    ----------
+    grey : ndarray, shape (H, W)
+        The complex image (uint8, or float in [0, 1]).
+    target : CircleGrid, AsymmetricCircleGrid or CharucoBoard
+    rig : Rig
+        The nominal design (a build may differ from it by a fraction of a degree).
+    depths_mm : (float, float)
+        Where the target may be: the sizes its features are looked for at.
+
+    Returns
+    -------
+    TargetDetection
+
+    Raises
+    ------
+    ValueError
+        The image cannot be read; the message says why and what pose to hold instead.
+    """
+    grey = check_grey(grey)
+    if grey.dtype != np.uint8:
+        grey = np.clip(np.rint(grey * 255), 0, 255).astype(np.uint8)
+    if isinstance(target, CharucoBoard):
+        from psvs.calibrate.charuco import detect_charuco
+        return detect_charuco(grey, target, rig)
+    return _detect_circles(grey, target, rig, depths_mm)
+
+
+def disc_size_px(target, rig: Rig, depths_mm) -> tuple[float, float]:
+    """The discs' diameters (px) at the far and near ends of ``depths_mm`` (each view: a pinhole at its
+    virtual centre)."""
+    c = rig.camera
+    f_px = c.focal_length_mm / min(c.pixel_pitch_mm)
+    near, far = (z - rig.virtual_z_mm for z in depths_mm)
+    return target.diameter_mm * f_px / far, target.diameter_mm * f_px / near
+
+
+#: How far a build's disparity may be from the nominal design's, as a factor either way (the mv1440
+#: build's is up to 40 % off at 1.2 m).
+DISPARITY_SLACK = 2.0
+
+
+def disparity_per_size(rig: Rig, diameter_mm: float) -> np.ndarray:
+    """The disparity a disc of ``diameter_mm`` has per px of its image's widest diameter, (least, most): each
+    view a pinhole at its virtual centre, both scale as 1 / (z - z_v), so their ratio is about the baseline
+    over the diameter at any depth; widened by :data:`DISPARITY_SLACK` either way for a build."""
+    ratio = rig.mirrors.baseline_mm / diameter_mm
+    return np.array([ratio / DISPARITY_SLACK, ratio * DISPARITY_SLACK])
+
+
+def _lattice_of(target) -> tuple[np.ndarray, np.ndarray, float]:
+    """The target's lattice (N, 2) int units, a label step -> units map, the nearest neighbours' mm."""
+    if isinstance(target, AsymmetricCircleGrid):
+        return target.lattice(), np.array([[1, -1], [1, 1]]), target.spacing_mm * math.sqrt(2)
+    j, i = np.meshgrid(np.arange(target.cols), np.arange(target.rows))
+    return np.column_stack([j.ravel(), i.ravel()]), np.eye(2, dtype=int), target.spacing_mm
+
+
+def _detect_circles(grey: np.ndarray, target, rig: Rig, depths_mm) -> TargetDetection:
+    """A circle grid (symmetric or asymmetric) in both views: discs, twins, labels, trust (module docstring)."""
+    n_target = len(target.centres_mm())
+    far_px, near_px = disc_size_px(target, rig, depths_mm)
+    discs = find_discs(grey, (max(MIN_DISC_PX, 0.5 * far_px), 1.25 * near_px))
+    if len(discs) < 4:
+        raise ValueError(f"found {len(discs)} disc(s), expected {2 * n_target} ({n_target} per view): "
+                         + _advice_none(grey, far_px))
+    pts = np.array([d.centre_px for d in discs])
+    radius = np.array([d.radius_px for d in discs])
+    lattice, to_units, nn_mm = _lattice_of(target)
+    reach = REACH_OVER_STEP * radius * nn_mm / (target.diameter_mm / 2)
+    merged = radius > MERGED_SIZE * np.median(radius)           # two discs in one blob: one of each view
+    widest = np.array([2 * max(d.ellipse.axes_px) for d in discs])
+    pairs = pair_twins(pts, reach, rig, sizes_px=radius, prefer=lambda p: _size_misfit(pts, p, rig, nn_mm),
+                       shared=merged, weights=[len(d.ellipse.rim_px) / RIM_RAYS for d in discs],
+                       shift_px=disparity_per_size(rig, target.diameter_mm) * widest[:, None])
+    if len(pairs) < 4:
+        raise ValueError(f"found {len(discs)} disc(s) but only {len(pairs)} twin pair(s) along the rig's epipolar "
+                         "curves: hold the whole card in both views (nearer the middle of the image)")
+    size = 2 * float(np.median(radius[pairs]))
+    if size < MIN_DISC_PX:
+        raise ValueError(f"the card's discs are {size:.1f} px across, below the {MIN_DISC_PX:g} px that are located "
+                         "to a tenth of a pixel: hold the card closer")
+    labels = label_lattice(pts[pairs[:, 0]])
+    ok = labels[:, 0] != -9999
+    pairs, labels = pairs[ok], labels[ok]
+    ids, certain = None, False
+    if len(pairs) >= 4:
+        # image directions of the label axes: an affine fit of the labelled left-view points
+        A = np.column_stack([labels, np.ones(len(labels))])
+        coef, *_ = np.linalg.lstsq(A, pts[pairs[:, 0]], rcond=None)
+        ids, certain = place_on_target(labels, lattice, to_units, coef[:2])
+    if ids is None:
+        raise ValueError(f"{len(pairs)} paired disc(s) do not form the {_name(target)}: "
+                         + _advice_partial(pts[pairs[:, 0]] if len(pairs) else pts, grey, radius))
+    keep = _consistent_shifts(labels, pts[pairs[:, 0]] - pts[pairs[:, 1]], coef[:2])
+    pairs, ids = pairs[keep], ids[keep]
+    even = np.array([d.ellipse.background_spread <= MAX_BACKGROUND_SPREAD
+                     and len(d.ellipse.rim_px) >= MIN_RIM_SHARE * RIM_RAYS for d in discs])
+    even &= ~merged
+    reliable = even[pairs[:, 0]] & even[pairs[:, 1]] & _like_neighbours(labels[keep], radius[pairs])
+    order = np.argsort(ids)
+    return TargetDetection(ids[order], pts[pairs[order, 0]], pts[pairs[order, 1]], reliable[order],
+                           len(ids) == n_target, certain)
+
+
+def _size_misfit(pts: np.ndarray, pairs: np.ndarray, rig: Rig, nn_mm: float) -> float:
+    """How far (mm) the pairs' points, triangulated through the nominal rig, are from the target's nearest
+    neighbour distance (median over points): a pairing one column off puts the card at another depth and
+    another size. The nominal rig's depth may be off by far more on a build, so this only breaks ties."""
+    from scipy.spatial import cKDTree
+
+    from psvs.measure.triangulate import triangulate
+    xyz = triangulate(pts[pairs[:, 0]], pts[pairs[:, 1]], rig, model="exact").points_mm
+    xyz = xyz[np.isfinite(xyz).all(axis=1)]
+    if len(xyz) < 2:
+        return np.inf
+    d, _ = cKDTree(xyz).query(xyz, k=2)
+    return float(abs(np.median(d[:, 1]) - nn_mm))
+
+
+#: A blob this much larger than the median disc is taken for two discs merged (a card tilted 25 deg at
+#: 400 mm changes its discs' size by 6 % across).
+MERGED_SIZE = 1.2
+#: A disc more than this much larger or smaller than its lattice neighbours (same view) is two discs
+#: merged into one blob (a union too round to split) or part of one: not trusted.
+MAX_SIZE_CHANGE = 0.12
+
+
+def _like_neighbours(labels: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Pairs (n,) whose discs' radii (n, 2: left, right view) are within :data:`MAX_SIZE_CHANGE` of the
+    median of their lattice neighbours' in the same view (a tilted card changes it far less per step)."""
+    ok = np.ones(len(labels), bool)
+    for k, lab in enumerate(labels):
+        near = np.abs(labels - lab).max(axis=1) == 1
+        if near.sum() >= 2:
+            ref = np.median(radii[near], axis=0)
+            ok[k] = bool((np.abs(radii[k] / ref - 1) <= MAX_SIZE_CHANGE).all())
+    return ok
+
+
+def _consistent_shifts(labels: np.ndarray, shifts_px: np.ndarray, axes_px: np.ndarray) -> np.ndarray:
+    """Pairs whose twin shift (left - right, px) agrees with their lattice neighbours' (median of those
+    within one step) to a quarter of the shorter step: a twin taken from the wrong disc is a step off."""
+    step = float(min(np.linalg.norm(axes_px, axis=1)))
+    keep = np.ones(len(labels), bool)
+    for k, lab in enumerate(labels):
+        near = np.abs(labels - lab).max(axis=1) == 1
+        if near.sum() >= 2:
+            keep[k] = np.linalg.norm(shifts_px[k] - np.median(shifts_px[near], axis=0)) <= 0.25 * step
+    return keep
+
+
+def _name(target) -> str:
+    if isinstance(target, AsymmetricCircleGrid):
+        return f"{target.rows}x{target.cols} asymmetric circle grid"
+    return f"{target.rows}x{target.cols} circle grid"
+
+
+def _advice_none(grey: np.ndarray, far_px: float) -> str:
+    if float(grey.max()) - float(grey.min()) < 20:
+        return "the image is blank (no contrast)"
+    return ("no target in view: hold the whole card in both views, within the working range "
+            f"(its discs at least {MIN_DISC_PX:g} px across; {far_px:.1f} px at the farthest)")
+
+
+def _advice_partial(pts: np.ndarray, grey: np.ndarray, radius: np.ndarray) -> str:
+    """What to change: a card at the image's border is partly out of view; discs near the detector's
+    smallest are too far; otherwise the views are too entangled (turn the card)."""
+    h, w = grey.shape
+    r = float(np.median(radius))
+    if (pts[:, 0] < 3 * r).any() or (pts[:, 0] > w - 1 - 3 * r).any() or (pts[:, 1] < 3 * r).any() \
+            or (pts[:, 1] > h - 1 - 3 * r).any():
+        return "the card is partly out of view: move it toward the middle of the image"
+    if 2 * r < 2 * MIN_DISC_PX:
+        return f"its discs are {2 * r:.1f} px across, too small to separate: hold the card closer"
+    return ("the two views' discs lie on top of each other: turn the card (about the vertical) or hold it "
+            "farther, so that the two copies of the card overlap less")
