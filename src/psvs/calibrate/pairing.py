@@ -174,10 +174,14 @@ def order_along_row(pairs: np.ndarray, centres_mm: np.ndarray, circles: list[Ell
 #: curves: a build's mirrors within a builder's tolerance (tilts of +-0.3 deg, a box turned as much) turn
 #: the two views by up to about 2 deg against each other.
 START_VIEW_TURN_RAD = math.radians(2.0)
-#: ...and misjudge depth (f, b) by up to this factor: the working range is widened by it.
+#: ...and misjudge depth (f, b) by up to this factor: the working range is widened by it, and the views'
+#: turn moves a twin along its curve as far as across it (a disparity off by the same px). The row's
+#: triangulated gaps may then be off the printed spacing by up to this factor either way (a turn of the
+#: views changes depth most at the far end: 40 % at 1200 mm on mv1440_misaligned).
 START_SCALE = 1.3
+START_SPACING_FACTOR = 2.0
 #: With a start rig the pattern's row is checked for its shape only: consecutive gaps equal within this
-#: fraction of their mean, their mean within START_SCALE - 1 of the printed spacing...
+#: fraction of their mean, their mean within START_SPACING_FACTOR of the printed spacing...
 START_GAP_TOLERANCE = 0.1
 #: ...and every centre within this fraction of a gap of the line through the first and the last (a lens
 #: the start rig does not model bows the row: 3.3 mm in 88 at 425 mm, mv1440 seen without its k1 = -0.27).
@@ -189,10 +193,10 @@ def pair_with_start(circles: list[Ellipse], start: Rig, count: int, spacing_mm: 
     """The one assignment of ``circles`` (both views, unpaired) to twins consistent with a *start* rig (not
     yet calibrated: its optics and scale are only roughly right): twins within
     :data:`START_VIEW_TURN_RAD` (as px at the focal length) of their epipolar curves over the working range
-    widened by :data:`START_SCALE`, and triangulated twins forming a row of equal gaps
-    (:data:`START_GAP_TOLERANCE`, :data:`START_ROW_TOLERANCE`) whose mean is the printed spacing within
-    START_SCALE - 1. Returns the PatternDetection (left[k] twin of right[k], along the row);
-    MeasurementError when no assignment, or more than one, is consistent."""
+    widened by :data:`START_SCALE` (across the curve and along it), and triangulated twins forming a row of
+    equal gaps (:data:`START_GAP_TOLERANCE`, :data:`START_ROW_TOLERANCE`) whose mean is the printed spacing
+    within a factor :data:`START_SPACING_FACTOR`. Returns the PatternDetection (left[k] twin of right[k],
+    along the row); MeasurementError when no assignment, or more than one, is consistent."""
     from psvs.calibrate.targets import PatternDetection
     from psvs.measure.triangulate import triangulate
     cpx = np.array([e.centre_px for e in circles])
@@ -200,7 +204,7 @@ def pair_with_start(circles: list[Ellipse], start: Rig, count: int, spacing_mm: 
     near, far = zv + (z_mm[0] - zv) / START_SCALE, zv + (z_mm[1] - zv) * START_SCALE
     band = start.camera.focal_length_mm / min(start.camera.pixel_pitch_mm) * math.tan(START_VIEW_TURN_RAD)
     across, beyond = twin_distances_px(cpx, start, near, far)
-    edges = (across <= band) & (beyond <= 1.0)
+    edges = np.hypot(across, beyond) <= band
     ways = perfect_matchings(edges)
     a, b = np.nonzero(edges)
     pts = dict(zip(zip(a.tolist(), b.tolist()), triangulate(cpx[a], cpx[b], start, model="exact").points_mm))
@@ -217,7 +221,7 @@ def pair_with_start(circles: list[Ellipse], start: Rig, count: int, spacing_mm: 
         off = np.linalg.norm(np.cross(c - c[0], row), axis=1)
         g = gaps.mean()
         if (np.abs(gaps - g).max() <= START_GAP_TOLERANCE * g and off.max() <= START_ROW_TOLERANCE * g
-                and abs(g - spacing_mm) <= (START_SCALE - 1) * spacing_mm):
+                and spacing_mm / START_SPACING_FACTOR <= g <= spacing_mm * START_SPACING_FACTOR):
             fits.append(pairs)
     if len(fits) != 1:
         what = "none" if not fits else f"{len(fits)}"
