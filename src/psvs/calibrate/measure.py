@@ -6,14 +6,20 @@ A measurement is checked against the pattern it claims to be before it is given
 tolerance when they disagree). The image must be the rig's sensor size (``ValueError``: a resized or cropped
 image changes every pixel's ray). Then, in this order:
 
-1. **The count.** Exactly ``count`` circles in each view (:func:`psvs.calibrate.targets.detect_pattern`):
-   more is not the pattern asked for, not something to choose from.
-2. **Twins.** Each circle's left-view centre lies right of its right-view twin (disparity x_l - x_r > 0),
-   and on the twin's epipolar curve: the right-view curve of the left centre's ray, traced through the
-   rig's exact optics (mirror errors, lens). Another build's image, or the wrong rig, puts twins pixels off
-   their curves.
-3. **Diameters.** Each circle's diameter matches the pattern's.
-4. **Spacings.** Consecutive centres lie the pattern's spacing apart (3-D distance).
+1. **The count.** Exactly 2 ``count`` circles (:func:`psvs.calibrate.targets.detect_circles`, at the sizes
+   the rig gives the pattern over the working range): more is not the pattern asked for, not something to
+   choose from; one fewer is a circle one view shows and the other does not.
+2. **Pairing** (:mod:`psvs.calibrate.pairing`, :func:`pair_pattern`). Every assignment of the circles to
+   twins is enumerated: a circle's right-view twin lies on its epipolar curve between the working range's
+   near and far depths (the rig's exact optics: mirror errors, lens; disparity x_l - x_r > 0 inside the
+   rig's range), every circle used once. Another build's image, or the wrong rig, puts twins pixels off
+   their curves: no assignment.
+3. **Spacings.** An assignment's triangulated centres, along their row: consecutive ones the pattern's
+   spacing apart and the first and last (n - 1) spacings (3-D distances).
+4. **Diameters.** Each circle's diameter matches the pattern's.
+
+Exactly one assignment must pass 3 and 4; none (the nearest one's failed check is named) or more than one
+is a MeasurementError.
 
 The tolerances come from how precisely the detector locates an edge, :data:`EDGE_PX` px in one view
 (a rim point or an ellipse centre), converted to mm by the pixel footprint at the pattern's depth,
