@@ -96,7 +96,7 @@ def fig9_images(tmp_path_factory):
 
 @pytest.mark.parametrize("image, extra, code, message", [
     ("default", ["--json"], 0, None),
-    ("small", [], 2, "psvs measure: error: image is 480x360 px but the rig's camera is 640x480 px"),
+    ("small", [], 2, "small.png: image is 480x360 px but the rig's camera is 640x480 px"),
     ("default", ["--count", "3"], 1, "psvs measure: cannot measure: found 10 circles, expected 6 (3 per view)"),
     ("misaligned", [], 1, "psvs measure: cannot measure: no pairing of the 10 circles puts every twin on its "
                           "epipolar curve through this rig within 400-1200 mm"),
