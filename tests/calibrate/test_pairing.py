@@ -196,3 +196,19 @@ def test_table1_on_mv1440_misaligned():
     t = run_table1(load_rig("mv1440_misaligned"), start=design)
     assert t.calibration.rms_px < 0.1
     _table1_acceptance(t.rows())
+
+
+def test_two_consistent_pairings_are_refused_not_picked():
+    """mv1440_misaligned at 925 mm on the robot's holder: a circle of each view overlaps one of the other
+    (12 px apart). Before calibration (its design as the start rig: twins within 2 deg of view turn, a row
+    of equal gaps) swapping those two circles' views also fits: 2 assignments, refused. The build's own
+    rig (1 px, the printed spacing and diameters) leaves one, 925 mm within 0.3 mm."""
+    from psvs.calibrate.pairing import detect_with_start
+    from psvs.calibrate.table1 import pattern_image
+    build = load_rig("mv1440_misaligned")
+    design = load_rig("mv1440").with_extents({k: None for k in ("m1", "m2", "m3", "m4")})
+    img = pattern_image(build, 925.0, 925)
+    with pytest.raises(MeasurementError, match=r"^2 of the \d+ ways to pair the 10 circles on their epipolar curves "
+                                               r"through the start rig form a row of 5 circles 20 mm apart"):
+        detect_with_start(img, design)
+    assert abs(measure_pattern(img, build).Z_mm - 925.0) <= 0.3
