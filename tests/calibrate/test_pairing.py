@@ -93,6 +93,7 @@ POSES = [  # (rig, z, tilt_x, tilt_y, x, y): near (discs up to 47 px), tilted bo
     ("default", 440, 20, -10, 30, 0)]
 
 
+@pytest.mark.slow  # renders through the 1440x1080 rigs (the first of each rig ~1 min)
 @pytest.mark.parametrize("rig_name, z, tx, ty, x, y", POSES)
 def test_planted_poses_measure(rig_name, z, tx, ty, x, y):
     """The pattern turned and moved, through each rig, measured with that rig: |Z error| <= 0.3 mm, every
@@ -106,6 +107,7 @@ def test_planted_poses_measure(rig_name, z, tx, ty, x, y):
     assert abs(m.first_last_distance_mm - 80.0) <= 0.2, m.to_dict()
 
 
+@pytest.mark.slow  # renders through the 1440x1080 rigs (the first of each rig ~1 min)
 @pytest.mark.parametrize("rig_name, z, ty", [("default", 520, 10), ("mv1440", 450, 0), ("mv1440", 1000, -15)])
 def test_interleaved_views_pair(rig_name, z, ty):
     """Four circles 40 mm apart (a 130 mm row, wider than the 100 mm baseline): the two views' circles
@@ -198,6 +200,7 @@ def test_table1_on_mv1440_misaligned():
     _table1_acceptance(t.rows())
 
 
+@pytest.mark.slow  # renders through the 1440x1080 rigs (the first of each rig ~1 min)
 def test_two_consistent_pairings_are_refused_not_picked():
     """mv1440_misaligned at 925 mm on the robot's holder: a circle of each view overlaps one of the other
     (12 px apart). Before calibration (its design as the start rig: twins within 2 deg of view turn, a row
