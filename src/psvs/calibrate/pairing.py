@@ -30,7 +30,6 @@ scale over the field.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -38,7 +37,7 @@ from psvs.calibrate.targets import MIN_AREA_PX, Ellipse
 from psvs.errors import MeasurementError
 from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
-from psvs.optics.trace import distort, trace_pixels
+from psvs.optics.trace import distort, trace_pixels, undistort
 
 #: At most this many assignments are enumerated: more means the rig's geometry cannot tell the views apart.
 MAX_ASSIGNMENTS = 20000
@@ -48,15 +47,6 @@ WIDEN = 1.25
 NARROWEST = 0.25
 
 
-@dataclass(frozen=True)
-class Pairing:
-    """One assignment: ``pairs`` (n, 2) int, (left circle, right circle) indices into the detected list,
-    ordered along the pattern's row (first: the smallest left-view u); ``centres_mm`` (n, 3) frame C."""
-
-    pairs: np.ndarray
-    centres_mm: np.ndarray
-
-
 def lens_scale_range(rig: Rig, samples: int = 15) -> tuple[float, float]:
     """The smallest and largest local scale (ratio of a distorted to an ideal length, any direction) of the
     rig's lens over its sensor: (1, 1) without distortion; a barrel lens shrinks the field's edge."""
@@ -64,7 +54,6 @@ def lens_scale_range(rig: Rig, samples: int = 15) -> tuple[float, float]:
     if not cam.distorted:
         return 1.0, 1.0
     (w, h), (cx, cy), (px, py), f = cam.image_size_px, cam.principal_point_px, cam.pixel_pitch_mm, cam.focal_length_mm
-    from psvs.optics.trace import undistort
     uu, vv = np.meshgrid(np.linspace(-0.5, w - 0.5, samples), np.linspace(-0.5, h - 0.5, samples))
     xd = np.column_stack([(uu.ravel() - cx) * px / f, (vv.ravel() - cy) * py / f])
     x = undistort(xd, cam.distortion)
