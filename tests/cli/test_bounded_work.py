@@ -104,7 +104,8 @@ def test_card_views_refuses_a_render_beyond_the_memory(capsys, tmp_path, monkeyp
     (["--from-mm", "1", "--to-mm", "1e300", "--step-mm", "1e299"], "the sweep's depths 1-9e+299 mm lie outside"),
     (["--from-mm", "1", "--to-mm", "1e9", "--step-mm", "1e8"],
      "--from-mm/--to-mm: the sweep's depths 1-9e+08 mm lie outside 299-2841 mm, where this rig shows the Fig. 9 "
-     "pattern so that it is found (both copies of its row of circles in the image, each circle 3.9-40 px across)"),
+     "pattern so that it is found (both copies of its row of circles in the image, each circle at least 3.9 px "
+     "across)"),
     (["--from-mm", "100", "--to-mm", "300", "--step-mm", "100"], "the sweep's depths 100-300 mm lie outside"),
 ])
 def test_sweep_views_refuses_a_step_or_range_it_cannot_use(capsys, tmp_path, args, expected):
@@ -157,11 +158,14 @@ def test_table1_refuses_renders_beyond_the_time_limit(capsys, tmp_path, plenty_o
 
 
 def test_table1_refuses_a_rig_that_cannot_see_the_pattern(capsys, tmp_path):
+    """1 um pixels: the Fig. 9 pattern's discs (230 px at 440 mm) are found at the sizes the rig gives them
+    (psvs.calibrate.pairing.disc_size_range_px), but the hand-held card's (found at 3.9-40 px) are not."""
     rig = rig_file(tmp_path, image_size_px=(6400, 4800), pixel_pitch_mm=(0.001, 0.001),
                    principal_point_px=(3199.5, 2399.5))
     table = earlier(tmp_path / "t1" / "table1.csv")
     refused(capsys, ["table1", "--rig", rig, "-o", tmp_path / "t1", "--card"],
-            "Table I's depths 440-1123 mm lie outside 2775-", [table])
+            "the discs (7 mm) are 149 px across at 450-481 mm, the nearest poses, through this rig; the detector "
+            "finds discs 3.9-40 px across", [table])
 
 
 def test_table1_refuses_a_narrow_rig(capsys, tmp_path):

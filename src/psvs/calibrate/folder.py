@@ -77,7 +77,7 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
     others = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".png" and p.name not in sweep_names)
     check_distinct_images([p for p, _ in items] + (others if has_target else []))
     if has_sweep:
-        found, bad = detect_sweep(items, COUNT, expect_size=start.camera.image_size_px)
+        found, bad = detect_sweep(items, COUNT, expect_size=start.camera.image_size_px, start=start)
         skipped.update(bad)
         sweeps = sweep_views(found)
     grids = []

@@ -6,14 +6,20 @@ A measurement is checked against the pattern it claims to be before it is given
 tolerance when they disagree). The image must be the rig's sensor size (``ValueError``: a resized or cropped
 image changes every pixel's ray). Then, in this order:
 
-1. **The count.** Exactly ``count`` circles in each view (:func:`psvs.calibrate.targets.detect_pattern`):
-   more is not the pattern asked for, not something to choose from.
-2. **Twins.** Each circle's left-view centre lies right of its right-view twin (disparity x_l - x_r > 0),
-   and on the twin's epipolar curve: the right-view curve of the left centre's ray, traced through the
-   rig's exact optics (mirror errors, lens). Another build's image, or the wrong rig, puts twins pixels off
-   their curves.
-3. **Diameters.** Each circle's diameter matches the pattern's.
-4. **Spacings.** Consecutive centres lie the pattern's spacing apart (3-D distance).
+1. **The count.** Exactly 2 ``count`` circles (:func:`psvs.calibrate.targets.detect_circles`, at the sizes
+   the rig gives the pattern over the working range): more is not the pattern asked for, not something to
+   choose from; one fewer is a circle one view shows and the other does not.
+2. **Pairing** (:mod:`psvs.calibrate.pairing`, :func:`pair_pattern`). Every assignment of the circles to
+   twins is enumerated: a circle's right-view twin lies on its epipolar curve between the working range's
+   near and far depths (the rig's exact optics: mirror errors, lens; disparity x_l - x_r > 0 inside the
+   rig's range), every circle used once. Another build's image, or the wrong rig, puts twins pixels off
+   their curves: no assignment.
+3. **Spacings.** An assignment's triangulated centres, along their row: consecutive ones the pattern's
+   spacing apart and the first and last (n - 1) spacings (3-D distances).
+4. **Diameters.** Each circle's diameter matches the pattern's.
+
+Exactly one assignment must pass 3 and 4; none (the nearest one's failed check is named) or more than one
+is a MeasurementError.
 
 The tolerances come from how precisely the detector locates an edge, :data:`EDGE_PX` px in one view
 (a rim point or an ellipse centre), converted to mm by the pixel footprint at the pattern's depth,
@@ -33,7 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs._validate import check_positive
-from psvs.calibrate.targets import Ellipse, PatternDetection, detect_pattern
+from psvs.calibrate.pairing import disc_size_range_px, order_along_row, perfect_matchings, twin_distances_px
+from psvs.calibrate.targets import Ellipse, PatternDetection, detect_circles
 from psvs.errors import MeasurementError
 from psvs.measure.triangulate import triangulate
 from psvs.optics.mirrors import front_z_mm
@@ -184,36 +191,60 @@ def check_twins(det: PatternDetection, rig: Rig) -> None:
                                f"{MARGIN:g}): the image was taken through other optics than the rig's")
 
 
-def check_geometry(m: PatternMeasurement, rig: Rig, spacing_mm: float, diameter_mm: float) -> None:
-    """MeasurementError unless every diameter matches ``diameter_mm`` and every pair of consecutive centres
-    lies ``spacing_mm`` apart, within the tolerances of the module docstring at the pattern's depth."""
-    z = m.Z_mm
-    px = footprint_mm(rig, z)
+def diameter_problem(diameters_mm: np.ndarray, z_mm: float, rig: Rig, diameter_mm: float) -> tuple[float, str]:
+    """(worst error / tolerance, the reason when it is over 1, else '') of circle diameters (n,) mm against
+    ``diameter_mm`` at depth ``z_mm`` (the module docstring); NaN diameters are infinitely wrong."""
+    px = footprint_mm(rig, z_mm)
     tol_d = MARGIN * 2 * EDGE_PX * px
-    err = np.abs(m.diameters_mm - diameter_mm)
+    err = np.abs(diameters_mm - diameter_mm)
     k = int(np.argmax(np.nan_to_num(err, nan=np.inf)))
     if np.isnan(err[k]):
-        raise MeasurementError(f"circle {k + 1}'s diameter cannot be measured: too few of its rim points have a "
-                               "twin on their epipolar curves through this rig")
-    if not err[k] <= tol_d:
-        raise MeasurementError(f"circle {k + 1}'s diameter is {m.diameters_mm[k]:.3f} mm, the pattern's "
-                               f"{diameter_mm:g} mm, tolerance {tol_d:.3f} mm at Z = {z:.0f} mm "
-                               f"({MARGIN * 2 * EDGE_PX:g} px of {px:.3f} mm: two rims within {EDGE_PX} px, "
-                               f"margin {MARGIN:g})")
-    c = m.centres_mm
-    gaps = np.linalg.norm(np.diff(c, axis=0), axis=1)
+        return np.inf, (f"circle {k + 1}'s diameter cannot be measured: too few of its rim points have a twin on "
+                        "their epipolar curves through this rig")
+    ratio = float(err[k] / tol_d)
+    return ratio, ("" if ratio <= 1 else
+                   f"circle {k + 1}'s diameter is {diameters_mm[k]:.3f} mm, the pattern's {diameter_mm:g} mm, "
+                   f"tolerance {tol_d:.3f} mm at Z = {z_mm:.0f} mm ({MARGIN * 2 * EDGE_PX:g} px of {px:.3f} mm: "
+                   f"two rims within {EDGE_PX} px, margin {MARGIN:g})")
+
+
+def spacing_problem(centres_mm: np.ndarray, rig: Rig, spacing_mm: float) -> tuple[float, str]:
+    """(worst error / tolerance, the reason when it is over 1, else '') of centres (n, 3) mm in row order:
+    consecutive centres ``spacing_mm`` apart and the first and the last (n - 1) ``spacing_mm`` (a straight
+    row), within the tolerance of the module docstring at their mean depth."""
+    c = centres_mm
+    z = float(c[:, 2].mean())
+    px = footprint_mm(rig, z)
     row = c[-1] - c[0]
-    slope = abs(row[2]) / max(float(np.linalg.norm(row)), 1e-12)       # sin of the row's angle out of the image
+    length = max(float(np.linalg.norm(row)), 1e-12)
+    slope = abs(row[2]) / length                                       # sin of the row's angle out of the image
     cam = rig.camera
     dz = ((z - rig.virtual_z_mm) ** 2 * cam.pixel_pitch_mm[0] * 2 * EDGE_PX
           / (cam.focal_length_mm * rig.mirrors.baseline_mm))      # a centre's depth for a 2 EDGE_PX disparity
     tol_s = MARGIN * (2 * EDGE_PX * px + 2 * dz * slope)
+    n = len(c)
+    gaps = np.linalg.norm(np.diff(c, axis=0), axis=1)
     err = np.abs(gaps - spacing_mm)
     k = int(np.argmax(err))
-    if not err[k] <= tol_s:
-        raise MeasurementError(f"circles {k + 1} and {k + 2} are {gaps[k]:.3f} mm apart, the pattern's spacing "
-                               f"{spacing_mm:g} mm, tolerance {tol_s:.3f} mm at Z = {z:.0f} mm (two centres within "
-                               f"{EDGE_PX} px across and in depth, margin {MARGIN:g})")
+    span_err = abs(length - (n - 1) * spacing_mm)                     # a bent row is shorter than straight
+    ratio = float(max(err[k], span_err) / tol_s)
+    if ratio <= 1:
+        return ratio, ""
+    i, j, gap, want = (k, k + 1, gaps[k], spacing_mm) if err[k] >= span_err else (0, n - 1, length,
+                                                                                     (n - 1) * spacing_mm)
+    return ratio, (f"circles {i + 1} and {j + 1} are {gap:.3f} mm apart, the pattern's "
+                   f"{'spacing ' if j == i + 1 else ''}{want:g} mm, tolerance {tol_s:.3f} mm at Z = {z:.0f} mm "
+                   f"(two centres within {EDGE_PX} px across and in depth, margin {MARGIN:g})")
+
+
+def check_geometry(m: PatternMeasurement, rig: Rig, spacing_mm: float, diameter_mm: float) -> None:
+    """MeasurementError unless every diameter matches ``diameter_mm`` and the centres lie on a row, each
+    pair of consecutive ones ``spacing_mm`` apart, within the tolerances of the module docstring at the
+    pattern's depth."""
+    for ratio, why in (diameter_problem(m.diameters_mm, m.Z_mm, rig, diameter_mm),
+                       spacing_problem(m.centres_mm, rig, spacing_mm)):
+        if why:
+            raise MeasurementError(why)
 
 
 def check_pattern_sizes(spacing_mm: float, diameter_mm: float,
@@ -229,29 +260,119 @@ def check_pattern_sizes(spacing_mm: float, diameter_mm: float,
 
 def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int = 5,
                     detection: PatternDetection | None = None, spacing_mm: float = 20.0,
-                    diameter_mm: float = 10.0) -> PatternMeasurement:
+                    diameter_mm: float = 10.0, z_mm: tuple[float, float] = (400.0, 1200.0)) -> PatternMeasurement:
     """Table I's columns for one complex image of a pattern of ``count`` circles of ``diameter_mm``,
-    ``spacing_mm`` apart (the paper's: 5, 10 mm, 20 mm), after the checks of the module docstring.
+    ``spacing_mm`` apart (the paper's: 5, 10 mm, 20 mm) somewhere in the working range ``z_mm`` = (near,
+    far) mm, after the checks of the module docstring.
 
-    Raises ValueError for an image that is not the rig's sensor size (or not the pattern: blank, circles
-    missing or not on one row) and MeasurementError when what was found disagrees with the pattern."""
+    The circles are found at the sizes the rig gives them over the working range
+    (:func:`psvs.calibrate.pairing.disc_size_range_px`) and paired by the rig's geometry
+    (:func:`pair_pattern`); a given ``detection`` is taken as paired (left[k] twin of right[k]) and only
+    checked. Raises ValueError for an image that is not the rig's sensor size (or not the pattern: blank,
+    circles missing or not on one row) and MeasurementError when what was found disagrees with the pattern
+    or pairs in more than one consistent way."""
     spacing_mm, diameter_mm = check_pattern_sizes(spacing_mm, diameter_mm)
+    near_mm, far_mm = (float(z) for z in z_mm)
+    if not 0 < near_mm < far_mm:
+        raise ValueError(f"working range must satisfy 0 < near < far, got near={near_mm!r}, far={far_mm!r}")
     grey = np.asarray(grey)
     w, h = rig.camera.image_size_px
     if grey.shape[:2] != (h, w):
         raise ValueError(f"image is {grey.shape[1]}x{grey.shape[0]} px but the rig's camera is {w}x{h} px")
-    det = detection or detect_pattern(grey, count)
-    check_twins(det, rig)
-    lc = np.array([e.centre_px for e in det.left])
-    rc = np.array([e.centre_px for e in det.right])
+    if detection is not None:
+        check_twins(detection, rig)
+        circles = list(detection.left) + list(detection.right)
+        n = len(detection.left)
+        return _measure_given(circles, np.column_stack([np.arange(n), n + np.arange(n)]), rig, model,
+                              spacing_mm, diameter_mm)
+    min_area, max_diameter = disc_size_range_px(rig, diameter_mm, near_mm, far_mm)
+    circles = detect_circles(grey, count, max_diameter_px=max_diameter, min_area_px=min_area)
+    return pair_pattern(circles, rig, model, (near_mm, far_mm), spacing_mm, diameter_mm)
+
+
+def _measurement(circles: list[Ellipse], pairs: np.ndarray, centres: np.ndarray, rig: Rig,
+                 model: str) -> PatternMeasurement:
+    diam = np.array([_circle_diameter(_rim_points(circles[a], circles[b], rig, model, float(c[2])))
+                     for (a, b), c in zip(pairs, centres)])
+    return PatternMeasurement(float(centres[:, 2].mean()), diam, float(np.nanmean(diam)) if np.any(np.isfinite(diam))
+                              else float("nan"), float(np.linalg.norm(centres[-1] - centres[0])), centres)
+
+
+def _measure_given(circles, pairs, rig, model, spacing_mm, diameter_mm) -> PatternMeasurement:
+    lc = np.array([circles[a].centre_px for a, _ in pairs])
+    rc = np.array([circles[b].centre_px for _, b in pairs])
     centres = triangulate(lc, rc, rig, model=model).points_mm
     if not np.all(np.isfinite(centres)):
         k = int(np.flatnonzero(~np.all(np.isfinite(centres), axis=1))[0])
         raise MeasurementError(f"circle {k + 1}'s twins do not triangulate to a point in front of the rig "
                                f"(beyond Z = {front_z_mm(rig):.1f} mm) with the {model} model")
-    diam = np.array([_circle_diameter(_rim_points(lft, rgt, rig, model, float(c[2])))
-                     for lft, rgt, c in zip(det.left, det.right, centres)])
-    m = PatternMeasurement(float(centres[:, 2].mean()), diam, float(np.nanmean(diam)),
-                           float(np.linalg.norm(centres[-1] - centres[0])), centres)
+    m = _measurement(circles, pairs, centres, rig, model)
     check_geometry(m, rig, spacing_mm, diameter_mm)
     return m
+
+
+def _no_twins(dist: np.ndarray, tol: float, circles: list[Ellipse], z_mm: tuple[float, float]) -> str:
+    """The reason no assignment exists: the circle farthest from any twin (as a left or a right view)."""
+    best = np.minimum(dist.min(axis=1), dist.min(axis=0))
+    k = int(np.argmax(best))
+    u, v = circles[k].centre_px
+    near = "no curve" if not np.isfinite(best[k]) else f"{best[k]:.2f} px from the nearest"
+    lone = (f"the circle at ({u:.1f}, {v:.1f}) px has no twin: {near}, tolerance {tol:g} px (two centres within "
+            f"{EDGE_PX} px, margin {MARGIN:g})" if best[k] > tol else "the candidate twins leave a circle unpaired")
+    return (f"no pairing of the {len(circles)} circles puts every twin on its epipolar curve through this rig "
+            f"within {z_mm[0]:g}-{z_mm[1]:g} mm: {lone}: the image was taken through other optics than the rig's, "
+            f"or the pattern lies outside the working range")
+
+
+def pair_pattern(circles: list[Ellipse], rig: Rig, model: str, z_mm: tuple[float, float], spacing_mm: float,
+                 diameter_mm: float) -> PatternMeasurement:
+    """The measurement of the one assignment of ``circles`` (both views, unpaired) to twins that the rig's
+    geometry and the pattern allow (:mod:`psvs.calibrate.pairing`): twins within MARGIN x 2 EDGE_PX px of
+    their epipolar curves between z_mm = (near, far), then the row's spacing, then the diameters. None, or
+    more than one, is a MeasurementError."""
+    cpx = np.array([e.centre_px for e in circles])
+    across, beyond = twin_distances_px(cpx, rig, *z_mm)
+    dist = np.hypot(across, beyond)
+    tol = MARGIN * 2 * EDGE_PX
+    ways = perfect_matchings(dist <= tol)
+    if not ways:
+        raise MeasurementError(_no_twins(dist, tol, circles, z_mm))
+    a, b = np.nonzero(dist <= tol)
+    pts = dict(zip(zip(a.tolist(), b.tolist()), triangulate(cpx[a], cpx[b], rig, model=model).points_mm))
+    tried = []                     # (stage reached, error ratio, reason, pairs, centres)
+    for way in ways:
+        pairs = np.array(way)
+        c = np.array([pts[tuple(p)] for p in way])
+        if not np.all(np.isfinite(c)):
+            tried.append((0, np.inf, f"a pair of twins does not triangulate in front of the rig with the {model} "
+                                     "model", pairs, c))
+            continue
+        order = order_along_row(pairs, c, circles)
+        ratio, why = spacing_problem(c[order], rig, spacing_mm)
+        tried.append((1, ratio, why, pairs[order], c[order]))
+    fits = []
+    for k, (stage, ratio, why, pairs, c) in enumerate(tried):
+        if stage == 1 and not why:
+            m = _measurement(circles, pairs, c, rig, model)
+            ratio, why = diameter_problem(m.diameters_mm, m.Z_mm, rig, diameter_mm)
+            tried[k] = (2, ratio, why, pairs, c)
+            if not why:
+                fits.append(m)
+    if len(fits) == 1:
+        return fits[0]
+    if len(fits) > 1:
+        zs = ", ".join(f"{m.Z_mm:.1f}" for m in sorted(fits, key=lambda m: m.Z_mm))
+        raise MeasurementError(f"the {len(circles)} circles pair consistently with the pattern in {len(fits)} ways "
+                               f"(Z = {zs} mm): the image cannot tell which circle is whose twin")
+    def nearness(t):     # the furthest check passed; among rows, the gaps nearest the spacing (in spacings)
+        stage, ratio, _, _, c = t
+        if stage != 1:
+            return stage, -ratio
+        gaps = np.linalg.norm(np.diff(c, axis=0), axis=1)
+        return stage, -float(np.abs(gaps - spacing_mm).max() / spacing_mm)
+
+    stage, ratio, why, _, c = max(tried, key=nearness)
+    if len(ways) == 1:
+        raise MeasurementError(why)
+    raise MeasurementError(f"none of the {len(ways)} ways to pair the circles on their epipolar curves fits the "
+                           f"pattern; the nearest (Z = {np.nanmean(c[:, 2]):.0f} mm): {why}")

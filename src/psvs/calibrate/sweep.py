@@ -89,13 +89,19 @@ def check_sweep_rows(items: list[tuple[Path | str, float]], where: str = "the sw
                              "each sweep image must be at its own position")
 
 
-def detect_sweep(items: list[tuple[Path, float]], count: int = 5, expect_size: tuple[int, int] | None = None):
-    """Detect the pattern in every image (of ``expect_size`` (W, H) px when given: the camera's); returns
-    ([(name, position, detection)], {name: error})."""
+def detect_sweep(items: list[tuple[Path, float]], count: int = 5, expect_size: tuple[int, int] | None = None,
+                 start: Rig | None = None):
+    """Detect the pattern in every image (of ``expect_size`` (W, H) px when given: the camera's), its two
+    views paired by the ``start`` rig's geometry when given (:func:`psvs.calibrate.pairing.detect_with_start`),
+    else split by u (:func:`psvs.calibrate.targets.detect_pattern`); returns ([(name, position, detection)],
+    {name: error})."""
+    from psvs.calibrate.pairing import detect_with_start
     ok, skipped = [], {}
     for path, pos in items:
         try:
-            ok.append((path.name, pos, detect_pattern(read_grey(path, expect_size=expect_size), count)))
+            grey = read_grey(path, expect_size=expect_size)
+            det = detect_pattern(grey, count) if start is None else detect_with_start(grey, start, count, SPACING_MM)
+            ok.append((path.name, pos, det))
         except (ValueError, FileNotFoundError, MeasurementError) as exc:
             skipped[path.name] = str(exc)
     return ok, skipped

@@ -18,8 +18,10 @@ import numpy as np
 
 from psvs.calibrate.bundle import BundleResult, bundle_adjust
 from psvs.calibrate.measure import PatternMeasurement, measure_pattern
+from psvs.calibrate.pairing import detect_with_start
 from psvs.calibrate.sweep import calibrate_sweep
-from psvs.calibrate.targets import MAX_DIAMETER_PX, MIN_AREA_PX, detect_pattern
+from psvs.calibrate.targets import MIN_AREA_PX
+from psvs.errors import MeasurementError
 from psvs.io.atomic import write_atomic
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 from psvs.simulate.builtin import builtin_scene
@@ -44,10 +46,11 @@ SUPERSAMPLE = 2                                                       # of every
 
 def pattern_depths_mm(rig: Rig, margin_px: float = 12.0) -> tuple[float, float]:
     """The depths (mm) at which :func:`pattern_image` shows the pattern so that
-    :func:`~psvs.calibrate.targets.detect_pattern` can find it through ``rig``: both copies of its row of
-    circles ``margin_px`` inside the image, each circle :data:`~psvs.calibrate.targets.MIN_AREA_PX` to
-    :data:`~psvs.calibrate.targets.MAX_DIAMETER_PX` across (each view the rig's pinhole at its virtual
-    centre; lenient: the holder's small turn and offset are left out). Empty (lo > hi) when no depth is.
+    it can be found through ``rig``: both copies of its row of circles ``margin_px`` inside the image, each
+    circle at least :data:`~psvs.calibrate.targets.MIN_AREA_PX` in area (each view the rig's pinhole at its
+    virtual centre; lenient: the holder's small turn and offset are left out; the detector's largest disc
+    comes from the rig and the depths, :func:`psvs.calibrate.pairing.disc_size_range_px`). Empty (lo > hi)
+    when no depth is.
     ValueError when the pattern is wider than the baseline: its two copies then overlap at every depth."""
     cam, b, zv = rig.camera, rig.mirrors.baseline_mm, rig.virtual_z_mm
     (w, _), px, f = cam.image_size_px, cam.pixel_pitch_mm[0], cam.focal_length_mm
@@ -56,7 +59,7 @@ def pattern_depths_mm(rig: Rig, margin_px: float = 12.0) -> tuple[float, float]:
         raise ValueError(f"the Fig. 9 pattern ({width:g} mm wide) is wider than this rig's baseline ({b:g} mm): "
                          f"its two copies overlap at every depth")
     smallest = 2 * np.sqrt(MIN_AREA_PX / np.pi)
-    lo = zv + max((width + b) * f / (px * max(w - 1 - 2 * margin_px, 1e-9)), d * f / (MAX_DIAMETER_PX * px))
+    lo = zv + (width + b) * f / (px * max(w - 1 - 2 * margin_px, 1e-9))
     return float(lo), float(zv + d * f / (smallest * px))
 
 
@@ -67,8 +70,8 @@ def check_pattern_depths(rig: Rig, near_mm: float, far_mm: float, what: str) -> 
     if not lo <= near_mm <= far_mm <= hi:
         where = f"lie outside {lo:.0f}-{hi:.0f} mm, where" if lo <= hi else "are no use: at no depth"
         raise ValueError(f"{what} {near_mm:g}-{far_mm:g} mm {where} this rig shows the Fig. 9 pattern so that it "
-                         f"is found (both copies of its row of circles in the image, each circle "
-                         f"{2 * np.sqrt(MIN_AREA_PX / np.pi):.1f}-{MAX_DIAMETER_PX} px across)")
+                         f"is found (both copies of its row of circles in the image, each circle at least "
+                         f"{2 * np.sqrt(MIN_AREA_PX / np.pi):.1f} px across)")
 
 
 @dataclass(frozen=True, eq=False)
@@ -145,7 +148,11 @@ def run_table1(true_rig: Rig, progress=None, start: Rig | None = None, method: s
     if method == "sweep":
         sweep = []
         for z in SWEEP_Z_MM:
-            sweep.append((f"sweep_{z:.0f}", z - ROBOT_OFFSET_MM, detect_pattern(pattern_image(true_rig, z, int(z)))))
+            try:               # paired by the start rig's geometry; an image that cannot be is skipped
+                det = detect_with_start(pattern_image(true_rig, z, int(z)), start)
+                sweep.append((f"sweep_{z:.0f}", z - ROBOT_OFFSET_MM, det))
+            except (ValueError, MeasurementError):
+                pass
             tick(f"sweep {z:.0f} mm")
         cal = calibrate_sweep(sweep, start)
     else:

@@ -8,8 +8,8 @@ half of a circle (the border of the other view's sheet) does not bias it. An ell
 sub-pixel rim points (rim points far off the fit, where a sheet border runs right along the rim, are
 dropped and the ellipse refitted). Blur pulls the half-level contour of a small circle inward by about
 sigma^2 / (2 R); sigma is measured from the rim profiles' steepest slopes and the axes are corrected. The
-pattern spans 0.8 of the baseline (80 mm vs 100 mm), so the two views' circles never interleave: sorted by
-u, the first ``count`` belong to the right view, the last ``count`` to the left.
+two views' copies are paired by the rig's geometry (:mod:`psvs.calibrate.pairing`): sorted by u, the first
+``count`` belong to the right view only while the copies sit apart (:func:`detect_pattern`).
 """
 from __future__ import annotations
 
@@ -65,8 +65,9 @@ MAX_DIAMETER_PX = 40
 MIN_AREA_PX = 12.0
 
 
-def dark_blobs(grey: np.ndarray, max_diameter_px: int = MAX_DIAMETER_PX, min_area_px: float = MIN_AREA_PX):
-    """Candidate dark round blobs: list of (centre (2,), equivalent radius px)."""
+def blob_contours(grey: np.ndarray, max_diameter_px: int = MAX_DIAMETER_PX, min_area_px: float = MIN_AREA_PX):
+    """Dark blobs of at least ``min_area_px`` narrower than ``max_diameter_px`` (black-hat, Otsu): list of
+    (contour (K, 2) px, area px, roundness 4 pi area / perimeter^2)."""
     k = 2 * (max_diameter_px // 2) + 3
     kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (k, k))
     hat = cv2.morphologyEx(grey, cv2.MORPH_BLACKHAT, kernel)
@@ -81,13 +82,45 @@ def dark_blobs(grey: np.ndarray, max_diameter_px: int = MAX_DIAMETER_PX, min_are
     for c in contours:
         area = cv2.contourArea(c)
         per = cv2.arcLength(c, True)
-        if area < min_area_px or per == 0:
-            continue
-        if 4 * np.pi * area / per ** 2 < 0.6:
-            continue  # not round
-        m = cv2.moments(c)
-        out.append((np.array([m["m10"] / m["m00"], m["m01"] / m["m00"]]), float(np.sqrt(area / np.pi))))
+        if area >= min_area_px and per > 0:
+            out.append((c.reshape(-1, 2).astype(np.float64), float(area), float(4 * np.pi * area / per ** 2)))
     return out
+
+
+def _centre(contour: np.ndarray) -> np.ndarray:
+    m = cv2.moments(contour.astype(np.float32).reshape(-1, 1, 2))
+    return np.array([m["m10"] / m["m00"], m["m01"] / m["m00"]])
+
+
+def dark_blobs(grey: np.ndarray, max_diameter_px: int = MAX_DIAMETER_PX, min_area_px: float = MIN_AREA_PX):
+    """Candidate dark round blobs (:func:`blob_contours`, roundness >= 0.6): list of (centre (2,),
+    equivalent radius px)."""
+    return [(_centre(c), float(np.sqrt(a / np.pi))) for c, a, r in blob_contours(grey, max_diameter_px, min_area_px)
+            if r >= 0.6]
+
+
+def split_two_discs(contour: np.ndarray) -> tuple[tuple[np.ndarray, float], tuple[np.ndarray, float]] | None:
+    """Two overlapping discs' (centre (2,), radius px) from the outline of their union (K, 2) px: a
+    least-squares fit of two circles (each outline point to the nearer), started along the outline's long
+    axis. None when the outline is one disc (the centres closer than a third of a radius)."""
+    from scipy.optimize import least_squares
+    p = contour
+    m = p.mean(axis=0)
+    _, _, vt = np.linalg.svd(p - m)
+    along, across = (p - m) @ vt[0], (p - m) @ vt[1]
+    r0 = 0.5 * float(np.ptp(across))
+    half = max(0.5 * float(np.ptp(along)) - r0, 0.2 * r0)
+    x0 = np.concatenate([m - half * vt[0], [r0], m + half * vt[0], [r0]])
+
+    def res(x):
+        d1 = np.linalg.norm(p - x[:2], axis=1) - x[2]
+        d2 = np.linalg.norm(p - x[3:5], axis=1) - x[5]
+        return np.where(np.abs(d1) < np.abs(d2), d1, d2)
+
+    x = least_squares(res, x0, loss="soft_l1", f_scale=1.0).x
+    if np.linalg.norm(x[:2] - x[3:5]) < min(x[2], x[5]) / 3 or min(x[2], x[5]) <= 0:
+        return None
+    return (x[:2], float(x[2])), (x[3:5], float(x[5]))
 
 
 def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int = 64,
@@ -182,31 +215,81 @@ def _radial_residual(e: Ellipse, pts: np.ndarray) -> np.ndarray:
     return (np.hypot(x, y) - 1) * np.mean(e.axes_px)
 
 
-def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_DIAMETER_PX) -> PatternDetection:
-    """Find the pattern's ``count`` circles in both views of a complex image.
+def detect_circles(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_DIAMETER_PX,
+                   min_area_px: float = MIN_AREA_PX) -> list[Ellipse]:
+    """The pattern's 2 ``count`` circles (both views, unpaired, ordered by u) in a complex image: dark round
+    blobs ``min_area_px`` to ``max_diameter_px`` (:func:`dark_blobs`), refined (:func:`refine_circle`). Where
+    a circle of one view overlaps one of the other (a build whose views are turned against each other, a
+    pattern wider than the baseline), their union is split in two (:func:`split_two_discs`) when the round
+    blobs are too few.
 
-    Raises ValueError naming the problem: blank image, fewer circles than ``count`` in a view (a circle
-    missing or out of view), circles not on one row; MeasurementError for more circles than ``count`` (the
-    image shows another pattern than the one asked for: the count is checked, never chosen from).
+    Raises ValueError naming the problem: blank image, fewer than 2 ``count`` - 1 circles (circles missing or
+    the pattern out of view), circles not on one row; MeasurementError for more circles than 2 ``count``
+    (the image shows another pattern than the one asked for: the count is checked, never chosen from) or
+    exactly one fewer (one view shows a circle the other does not: the views disagree).
     """
-    if not isinstance(count, int) or count < 2:
+    if not isinstance(count, int) or isinstance(count, bool) or count < 2:
         raise ValueError(f"count must be an integer >= 2 (circles in the pattern), got {count!r}")
     grey = check_grey(grey)
     lo, hi, _, _ = cv2.minMaxLoc(grey)
     if hi - lo < 20:
         raise ValueError("image is blank (no contrast): no pattern to find")
-    blobs = dark_blobs(grey, max_diameter_px)
+    found = blob_contours(grey, max_diameter_px, min_area_px)
+    blobs = [(_centre(c), float(np.sqrt(a / np.pi))) for c, a, r in found if r >= 0.6]
     if len(blobs) < 2 * count:
-        raise ValueError(f"found {len(blobs)} circle(s), expected {2 * count} ({count} per view): a circle is "
-                         f"missing or the pattern is partly out of view")
+        blobs = _split_merged(found, 2 * count) or blobs
     if len(blobs) > 2 * count:     # more circles than the pattern asked for: not that pattern, nothing to pick
         raise MeasurementError(f"found {len(blobs)} circles, expected {2 * count} ({count} per view): the image "
                                f"shows more circles than the pattern's {count}")
+    if len(blobs) == 2 * count - 1:
+        raise MeasurementError(f"found {len(blobs)} circles, expected {2 * count} ({count} per view): one view "
+                               f"shows a circle the other does not (covered, out of its field, or a blot)")
+    if len(blobs) < 2 * count:
+        raise ValueError(f"found {len(blobs)} circle(s), expected {2 * count} ({count} per view): a circle is "
+                         f"missing or the pattern is partly out of view")
     blobs.sort(key=lambda b: b[0][0])
     circles = [refine_circle(grey, c, r) for c, r in blobs]
-    right, left = circles[:count], circles[count:]
     rows = np.array([e.centre_px[1] for e in circles])
     mean_axis = np.mean([np.mean(e.axes_px) for e in circles])
     if np.ptp(rows) > 0.5 * mean_axis + 0.1 * np.ptp([e.centre_px[0] for e in circles]):
         raise ValueError("the circles do not lie along one row: not the accuracy pattern")
-    return PatternDetection(left, right)
+    return circles
+
+
+def _split_merged(found, want: int) -> list | None:
+    """Blobs with ``want`` discs when some of ``found`` (:func:`blob_contours`) are two discs of the two
+    views overlapping: blobs of 1.15-2.2 times the round blobs' median area, the not-round ones first
+    (two discs just touching), then the largest, split in two (:func:`split_two_discs`) until there are
+    ``want``; None when that does not give exactly ``want``."""
+    singles = [a for _, a, r in found if r >= 0.6]
+    if not singles:
+        return None
+    med = float(np.median(singles))
+    merged = sorted((i for i, (_, a, _) in enumerate(found) if 1.15 * med <= a <= 2.2 * med),
+                    key=lambda i: (found[i][2] >= 0.6, -found[i][1]))
+    count, chosen = len(singles), []
+    for i in merged:
+        if count >= want:
+            break
+        chosen.append(i)
+        count += 1 if found[i][2] >= 0.6 else 2
+    if count != want:
+        return None
+    out = [(_centre(c), float(np.sqrt(a / np.pi))) for i, (c, a, r) in enumerate(found)
+           if r >= 0.6 and i not in chosen]
+    for i in chosen:
+        two = split_two_discs(found[i][0])
+        if two is None:
+            return None
+        out += list(two)
+    return out
+
+
+def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_DIAMETER_PX,
+                   min_area_px: float = MIN_AREA_PX) -> PatternDetection:
+    """Find the pattern's ``count`` circles in both views of a complex image (:func:`detect_circles`) and
+    split them by u, the first ``count`` the right view: right only where the two copies sit apart, not
+    interleaved. A rig pairs them by its geometry instead (:func:`psvs.calibrate.pairing.pair_with_start`,
+    :func:`psvs.calibrate.measure.measure_pattern`)."""
+    circles = detect_circles(grey, count, max_diameter_px, min_area_px)
+    return PatternDetection(circles[count:], circles[:count])

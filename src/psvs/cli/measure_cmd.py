@@ -4,7 +4,7 @@ from __future__ import annotations
 import json
 
 from psvs.calibrate.measure import check_pattern_sizes, measure_pattern
-from psvs.cli.common import add_model_argument, add_rig_argument, rig_from_args
+from psvs.cli.common import add_model_argument, add_range_arguments, add_rig_argument, range_from_args, rig_from_args
 from psvs.io.images import read_grey
 
 
@@ -13,9 +13,11 @@ def add_parser(sub) -> None:
                        description="Measure the paper's accuracy pattern (Fig. 9: 5 circles of 10 mm, 20 mm apart) "
                                    "in a complex image: depth Z, the circles' diameters and the distance between "
                                    "the first and the last circle centres. What is found is checked against the "
-                                   "pattern (docs/calibration.md): --count circles per view, twins on their "
-                                   "epipolar curves through the rig, the diameters and spacings within what "
-                                   "the pixels resolve at that depth; a disagreement exits 1 naming the check.")
+                                   "pattern (docs/calibration.md): --count circles per view, paired by the rig's "
+                                   "geometry (twins on their epipolar curves within the working range, equal "
+                                   "spacing along the row, the diameters, all within what the pixels resolve at "
+                                   "that depth); no consistent pairing, more than one, or a disagreement exits 1 "
+                                   "naming the check.")
     p.add_argument("target", choices=["circles"], help="what to measure")
     p.add_argument("image", metavar="IMAGE", help="complex image (PNG, grey)")
     add_rig_argument(p)
@@ -25,6 +27,7 @@ def add_parser(sub) -> None:
                                                                    "(default 20, the paper's)")
     p.add_argument("--diameter-mm", type=float, default=10.0, help="diameter of the circles, mm (default 10, "
                                                                     "the paper's)")
+    add_range_arguments(p, "working range (where the pattern may be; it sets the circles' sizes and disparities)")
     p.add_argument("--json", action="store_true", help="print JSON instead of a summary")
     p.set_defaults(run=run)
 
@@ -32,9 +35,10 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     rig = rig_from_args(args)
     check_pattern_sizes(args.spacing_mm, args.diameter_mm, ("--spacing-mm", "--diameter-mm"))
+    z_mm = range_from_args(args)
     image = read_grey(args.image, expect_size=rig.camera.image_size_px)
     m = measure_pattern(image, rig, model=args.model, count=args.count,
-                        spacing_mm=args.spacing_mm, diameter_mm=args.diameter_mm)
+                        spacing_mm=args.spacing_mm, diameter_mm=args.diameter_mm, z_mm=z_mm)
     if args.json:
         print(json.dumps(m.to_dict()))
     else:
