@@ -156,7 +156,7 @@ def test_capture_on_a_hand_held_video(capsys, hand_video, tmp_path):
     for k, line in ((k, line) for line in text.splitlines() for k in saved if line.startswith(f"frame {k}: saved")):
         z = float(re.search(r": (\d+) mm", line)[1])
         assert abs(z / plan[k].poses[0].position_mm[2] - 1) < 0.03, line
-    assert len(text.splitlines()) < len(plan) / 2
+    assert len(text.splitlines()) < 0.6 * len(plan)     # one line an event: a card held, lost, found again
     assert re.search(r"^frame \d+: hold still$", text, re.M)
     assert re.search(r"^frame \d+: (closer|farther) \(\d+-\d+ mm\)$", text, re.M)
     assert sorted(p.name for p in out.iterdir()) == ["target.toml", *sorted(saved.values())]
@@ -165,7 +165,7 @@ def test_capture_on_a_hand_held_video(capsys, hand_video, tmp_path):
     from psvs.io.images import read_grey
     target = load_target(out / "target.toml")
     for name in saved.values():
-        assert len(grid_view(name, read_grey(out / name, expect_size=(640, 480)), target).left) >= 20
+        assert len(grid_view(name, read_grey(out / name, expect_size=(640, 480)), target, load_rig("clear")).left) >= 20
 
 
 def test_a_video_that_ends_too_soon(capsys, tmp_path):

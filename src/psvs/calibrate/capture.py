@@ -34,8 +34,8 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from psvs.calibrate.bundle import GridView, initial_grid_pose
-from psvs.calibrate.detect import CARD_DEPTHS_MM, MIN_DISC_PX, Target
-from psvs.calibrate.folder import grid_view
+from psvs.calibrate.detect import CARD_DEPTHS_MM, MIN_DISC_PX, Target, target_points_mm
+from psvs.calibrate.folder import card_view
 from psvs.errors import MeasurementError
 from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
@@ -93,10 +93,16 @@ class CaptureParams:
 
 
 def detect_card(grey: np.ndarray, target: Target, rig: Rig) -> GridView:
-    """The card's trusted discs in both views of one frame; ValueError naming what is wrong otherwise.
+    """The card's trusted discs in both views of one frame; ValueError naming what is wrong otherwise: a
+    view worth saving shows the whole card, each point known for which of the card's it is (a part of a
+    symmetric grid fits it at several places).
 
     The one place the capture assistant detects a target (swap in another detector here)."""
-    return grid_view("frame", grey, target, rig)
+    view, det = card_view("frame", grey, target, rig)
+    if not det.complete or not det.ids_certain:
+        raise ValueError(f"{len(det.ids)} of the card's {len(target_points_mm(target))} points found, not told apart "
+                         "for certain: show the whole card to both views")
+    return view
 
 
 @dataclass(frozen=True, eq=False)

@@ -26,6 +26,7 @@ from psvs._validate import check_grey
 from psvs.calibrate.blobs import find_discs
 from psvs.calibrate.lattice import label_lattice, place_on_target
 from psvs.calibrate.twins import REACH_OVER_STEP, pair_twins
+from psvs.optics.illumination import flat_field
 from psvs.optics.rig import Rig
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid
 
@@ -97,6 +98,7 @@ def detect_target(grey: np.ndarray, target: Target, rig: Rig, depths_mm=CARD_DEP
     grey = check_grey(grey)
     if grey.dtype != np.uint8:
         grey = np.clip(np.rint(grey * 255), 0, 255).astype(np.uint8)
+    grey = flat_field(grey, rig.camera)      # the lens's fall-off undone: the same contrast in the corners
     if isinstance(target, CharucoBoard):
         from psvs.calibrate.charuco import detect_charuco
         return detect_charuco(grey, target, rig)

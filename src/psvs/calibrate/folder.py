@@ -54,6 +54,10 @@ def grid_view(name: str, grey: np.ndarray, target: Target, rig: Rig) -> GridView
 def card_view(name: str, grey: np.ndarray, target: Target, rig: Rig) -> tuple[GridView, TargetDetection]:
     """:func:`grid_view` and the detection it came from."""
     det = detect_target(grey, target, rig)
+    if not det.ids_certain:      # a shifted labelling in one view's part would pull every view's fit
+        raise ValueError(f"{len(det.ids)} points found, but which of the card's they are is not certain (part of "
+                         "a symmetric grid fits them at several places): show the whole card, or turn it so that "
+                         "its two copies overlap less")
     keep = det.reliable
     if keep.sum() < MIN_GRID_POINTS:
         raise ValueError(f"only {int(keep.sum())} of the {len(keep)} points found are located without bias in both "
