@@ -72,9 +72,16 @@ def main(argv: list[str]) -> int:
         k = argv.index("--case")
         case = argv[k + 1]
         del argv[k:k + 2]
+    if any(a.startswith("-") for a in argv):
+        print(__doc__.strip(), file=sys.stderr)       # -h, --help or an option it does not know: write nothing
+        return 0 if set(argv) <= {"-h", "--help"} else 2
     modules = sorted(HERE.glob("bench_*.py"))
     if argv:
         modules = [m for m in modules if any(a in m.stem for a in argv)]
+        if not modules:
+            print(f"no benchmark group matches {' '.join(argv)} (groups: "
+                  f"{', '.join(m.stem[6:] for m in sorted(HERE.glob('bench_*.py')))})", file=sys.stderr)
+            return 2
     rows, ratios = [], []
     for path in modules:
         spec = importlib.util.spec_from_file_location(path.stem, path)

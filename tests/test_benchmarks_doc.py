@@ -62,3 +62,16 @@ def test_each_ratio_is_the_quotient_of_its_cases(doc):
             assert value == pytest.approx(cases[(group, a)][0] / cases[(group, b)][0], rel=0.01), name
             found += 1
     assert found >= 2     # the dense default mode over StereoSGBM 3-way on all cores (the reference), on 1 thread
+
+
+def test_help_and_unknown_groups_write_nothing(capsys):
+    """``bench/run.py --help`` prints its usage and an unknown option or group exits 2, all before any case
+    runs: docs/benchmarks.md is left as it was."""
+    spec = importlib.util.spec_from_file_location("bench_run", ROOT / "bench" / "run.py")
+    run = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(run)
+    before = DOC.read_bytes()
+    assert run.main(["--help"]) == 0 and "Run the benchmarks" in capsys.readouterr().err
+    assert run.main(["--bogus"]) == 2
+    assert run.main(["nosuchgroup"]) == 2 and "groups: calibrate" in capsys.readouterr().err
+    assert DOC.read_bytes() == before
