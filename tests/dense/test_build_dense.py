@@ -55,17 +55,23 @@ def depth_errors(rig, scene, seed=1, params=DEFAULT):
     dense = dense_on_rig(rr.image, rig, params=params)
     cloud = rig_cloud(dense, rig)
     truth = np.where(rr.truth.valid_left, rr.truth.depth_left_mm, np.nan)
-    if dense.rect is not None:   # truth on the left view's rectified grid: the complex pixel each maps to
-        h, w = cloud.depth_mm.shape
-        uu, vv = np.meshgrid(np.arange(w), np.arange(h))
-        c = dense.rect.lookup(np.column_stack([uu.ravel(), vv.ravel()]).astype(float), "left")
-        z = np.full(h * w, np.nan)
-        ok = np.all(np.isfinite(c), axis=1)
-        ci = np.rint(c[ok]).astype(int)
-        z[ok] = truth[ci[:, 1], ci[:, 0]]
-        truth = z.reshape(h, w)
+    if dense.rect is not None:
+        truth = truth_on_left_grid(truth, dense.rect, cloud.depth_mm.shape)
     err = np.abs(cloud.depth_mm - truth) / truth
     return np.where(np.isfinite(truth), np.nan_to_num(err, nan=np.inf), np.nan)
+
+
+def truth_on_left_grid(truth, rect, shape):
+    """A complex-image map ``truth`` (H, W) on the left view's rectified grid ``shape`` (H', W'): each grid
+    pixel takes the complex pixel it maps to (NaN where it maps to none)."""
+    h, w = shape
+    uu, vv = np.meshgrid(np.arange(w), np.arange(h))
+    c = rect.lookup(np.column_stack([uu.ravel(), vv.ravel()]).astype(float), "left")
+    z = np.full(h * w, np.nan)
+    ok = np.all(np.isfinite(c), axis=1)
+    ci = np.rint(c[ok]).astype(int)
+    z[ok] = truth[ci[:, 1], ci[:, 0]]
+    return z.reshape(h, w)
 
 
 def bad_share(err):

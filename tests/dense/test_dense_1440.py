@@ -14,6 +14,7 @@ from psvs.dense.pyramid import pyramid_levels
 from psvs.io.params import load_rig
 from psvs.simulate.render import render
 from tests.dense.facade import cards_before_facade
+from tests.dense.test_build_dense import truth_on_left_grid
 
 pytestmark = pytest.mark.slow
 
@@ -39,14 +40,7 @@ def right_pixels(rig_name: str, seed: int, params):
     dense = dense_on_rig(rr.image, rig, NEAR_MM, FAR_MM, params=params)
     depth = rig_cloud(dense, rig).depth_mm
     truth = np.where(rr.truth.valid_left, rr.truth.depth_left_mm, np.nan)
-    h, w = depth.shape
-    uu, vv = np.meshgrid(np.arange(w), np.arange(h))
-    c = dense.rect.lookup(np.column_stack([uu.ravel(), vv.ravel()]).astype(float), "left")
-    z = np.full(h * w, np.nan)
-    ok = np.all(np.isfinite(c), axis=1)
-    ci = np.rint(c[ok]).astype(int)
-    z[ok] = truth[ci[:, 1], ci[:, 0]]
-    truth = z.reshape(h, w)
+    truth = truth_on_left_grid(truth, dense.rect, depth.shape)
     seen = np.isfinite(truth)
     with np.errstate(invalid="ignore"):
         right = np.abs(depth - truth) <= 0.02 * truth                    # NaN (no answer) is not right
