@@ -250,3 +250,13 @@ def test_track_config_checks():
         TrackConfig(roi_rows=4)
     with pytest.raises(ValueError, match="bridge_mm must be in"):
         TrackConfig(bridge_mm=50.0)
+
+
+def test_hand_eye_from_views_needs_three_readable_views():
+    """Blank images: no grid in any view; the error names how many were read and why the first was not."""
+    from psvs.optics.rig import default_rig
+    from psvs.robot.handeye import calibrate_from_views
+    from psvs.simulate.textures import CircleGrid
+    blank = [np.full((480, 640), 128, np.uint8)] * 4
+    with pytest.raises(ValueError, match=r"needs >= 3 readable views, 0 of 4 read; view 0: found 0 disc"):
+        calibrate_from_views(blank, [np.eye(4)] * 4, default_rig(), CircleGrid(4, 5, 15.0, 7.0))

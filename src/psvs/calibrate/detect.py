@@ -171,11 +171,13 @@ def _detect_circles(grey: np.ndarray, target, rig: Rig, depths_mm) -> TargetDete
     if ids is None:
         raise ValueError(f"{len(pairs)} paired disc(s) do not form the {_name(target)}: "
                          + _advice_partial(pts[pairs[:, 0]] if len(pairs) else pts, grey, radius))
-    keep = _consistent_shifts(labels, pts[pairs[:, 0]] - pts[pairs[:, 1]], coef[:2])
-    pairs, ids = pairs[keep], ids[keep]
     even = np.array([d.ellipse.background_spread <= MAX_BACKGROUND_SPREAD
                      and len(d.ellipse.rim_px) >= MIN_RIM_SHARE * RIM_RAYS for d in discs])
     even &= ~merged
+    shifts = pts[pairs[:, 0]] - pts[pairs[:, 1]]
+    keep = _consistent_shifts(labels, shifts, coef[:2]) \
+        & _on_one_plane(labels, pts[pairs], rig, nn_mm, even[pairs[:, 0]] & even[pairs[:, 1]])
+    pairs, ids = pairs[keep], ids[keep]
     reliable = even[pairs[:, 0]] & even[pairs[:, 1]] & _like_neighbours(labels[keep], radius[pairs])
     order = np.argsort(ids)
     return TargetDetection(ids[order], pts[pairs[order, 0]], pts[pairs[order, 1]], reliable[order],
@@ -227,6 +229,39 @@ def _consistent_shifts(labels: np.ndarray, shifts_px: np.ndarray, axes_px: np.nd
         if near.sum() >= 2:
             keep[k] = np.linalg.norm(shifts_px[k] - np.median(shifts_px[near], axis=0)) <= 0.25 * step
     return keep
+
+
+#: A pair triangulated farther than this share of the target's step from the plane lattice its neighbours
+#: fit took a disc of the other view for its twin (where the two views' columns meet).
+LATTICE_TOL = 0.25
+
+
+def _on_one_plane(labels: np.ndarray, pairs_px: np.ndarray, rig: Rig, nn_mm: float,
+                  even: np.ndarray) -> np.ndarray:
+    """Pairs (n, 2, 2: left and right px) to keep: those of discs read on an even ground (``even`` (n,)
+    bool) whose triangulated point lies within :data:`LATTICE_TOL` steps of the card's lattice, and every
+    other (kept for its label, not trusted: a merged disc's centre is biased anyway). A plane lattice is
+    affine in its labels (3-D = origin + i a + j b), so an affine fit of the labels to the even pairs'
+    points triangulated through the nominal rig (whose errors on a build bend it smoothly, by far less than
+    a step) explains every true twin; the fit is trimmed (points beyond three median deviations left out,
+    five rounds). A wrong twin a quarter step off in the image puts its point a tenth of the depth off
+    the card, which a neighbours' shift median (:func:`_consistent_shifts`) lets pass where the two views'
+    columns meet."""
+    from psvs.measure.triangulate import triangulate
+    xyz = triangulate(pairs_px[:, 0], pairs_px[:, 1], rig, model="exact").points_mm
+    ok = np.isfinite(xyz).all(axis=1)
+    fit = ok & even
+    if fit.sum() < 6:
+        return np.ones(len(labels), bool)
+    xyz = np.where(ok[:, None], xyz, 0.0)
+    T = np.column_stack([labels, np.ones(len(labels))]).astype(np.float64)
+    for _ in range(5):
+        A, *_ = np.linalg.lstsq(T[fit], xyz[fit], rcond=None)
+        r = np.where(ok, np.linalg.norm(xyz - T @ A, axis=1), np.inf)
+        fit = ok & even & (r <= max(3 * 1.4826 * float(np.median(r[fit])), 0.02 * nn_mm))
+        if fit.sum() < 6:
+            return np.ones(len(labels), bool)
+    return ~even | (r <= LATTICE_TOL * nn_mm)
 
 
 def _name(target) -> str:

@@ -3,6 +3,7 @@ views folder, or rendered in the simulated cell), written as handeye.toml for ``
 from __future__ import annotations
 
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -73,7 +74,10 @@ def run(args) -> int:
     if save is not None:
         write_views(save, images, flanges, grid)
     save_handeye(out, he, source, Path(args.rig).stem if args.rig else "default")
-    print(f"{len(images)} views; target fit RMS per view (mm): " + ", ".join(f"{r:.3f}" for r in he.target_rms_mm))
+    for k, why in he.skipped:
+        print(f"skipped view {k}: {why}", file=sys.stderr)
+    print(f"{len(images) - len(he.skipped)} of {len(images)} views used; target fit RMS per view (mm): "
+          + ", ".join(f"{r:.3f}" for r in he.target_rms_mm))
     print(f"consistency: the target's pose over the views spreads {he.spread_mm:.3f} mm, "
           f"{math.degrees(he.spread_rad):.3f} deg")
     print(f"reprojection RMS of the discs in both views: {he.reprojection_rms_px:.3f} px")

@@ -1,7 +1,8 @@
 """Hand-eye calibration: where the PSVS (frame C) sits on the flange, from views of a circle-grid target.
 
 The robot shows the target to the PSVS from several flange poses. In each complex image the grid is found
-in both views (:func:`psvs.calibrate.grid.detect_grid`), its disc centres are triangulated (exact model),
+in both views through the rig's epipolar geometry (:func:`psvs.calibrate.detect.detect_target`: the two
+views may interleave, discs may touch), its disc centres are triangulated (exact model),
 and the rigid transform target -> frame C is the least-squares fit of the grid's known layout to them
 (Kabsch). With the flange poses from the arm's kinematics, AX = XB is solved for X = cam2flange by
 Park & Martin's closed form [1] (OpenCV 4's ``calibrateHandEye`` with ``CALIB_HAND_EYE_PARK``; OpenCV 5's
@@ -18,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from psvs.calibrate.grid import detect_grid
+from psvs.calibrate.detect import detect_target
 from psvs.measure.triangulate import triangulate
 from psvs.optics.rig import Rig
 from psvs.simulate.textures import CircleGrid
@@ -41,7 +42,7 @@ def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
 class TargetFit:
     """The grid in one complex image under one labelling of its discs: target2cam (4, 4) mm, the rigid
     fit's RMS residual (mm), and the detected disc centres in each view, (n, 2) px, row k the grid's
-    k-th disc (:meth:`psvs.simulate.textures.CircleGrid.centres_mm` order)."""
+    k-th disc (:meth:`psvs.simulate.textures.CircleGrid.centres_mm` order), NaN where it was not read."""
 
     target2cam: np.ndarray
     rms_mm: float
@@ -52,18 +53,40 @@ class TargetFit:
 def target_candidates(grey: np.ndarray, rig: Rig, grid: CircleGrid) -> list[TargetFit]:
     """The four fits a symmetric grid gives equally well in one complex image (its discs labelled as they
     are, turned half about the grid's normal, or flipped over about either axis). The grid is found in
-    both views and its discs triangulated (exact model)."""
-    det = detect_grid(grey, grid.rows, grid.cols)
-    pts = triangulate(det.left, det.right, rig, model="exact").points_mm
-    if not np.all(np.isfinite(pts)):
+    both views and its discs triangulated (exact model). ValueError when the image does not show every disc
+    of the grid in both views, told apart for certain."""
+    left, right = grid_views(grey, rig, grid)
+    seen = np.isfinite(left[:, 0])
+    pts = np.full((len(left), 3), np.nan)
+    pts[seen] = triangulate(left[seen], right[seen], rig, model="exact").points_mm
+    if not np.all(np.isfinite(pts[seen])):
         raise ValueError("grid discs could not be triangulated")
     model = grid_points(grid)
     idx = np.arange(grid.rows * grid.cols).reshape(grid.rows, grid.cols)
     out = []
     for order in (idx, idx[::-1], idx[:, ::-1], idx[::-1, ::-1]):
         k = order.ravel()
-        out.append(TargetFit(*rigid_fit(model, pts[k]), det.left[k], det.right[k]))
+        fit = seen[k]
+        out.append(TargetFit(*rigid_fit(model[fit], pts[k][fit]), left[k], right[k]))
     return out
+
+
+def grid_views(grey: np.ndarray, rig: Rig, grid: CircleGrid) -> tuple[np.ndarray, np.ndarray]:
+    """The discs of ``grid`` in both views of one complex image, (rows * cols, 2) px each, row k the grid's
+    k-th disc; NaN where the disc was not found or cannot be trusted (two views' discs merged, out of the
+    frame). ValueError (what to do) when under half the discs are read, or their ids are not certain."""
+    det = detect_target(grey, grid, rig)
+    n = grid.rows * grid.cols
+    if not det.ids_certain:
+        raise ValueError("the grid's discs cannot be told apart in this view: show the whole target, "
+                         "not only part of it")
+    good = det.reliable
+    if good.sum() < max(n // 2, 6):
+        raise ValueError(f"only {int(good.sum())} of the {grid.rows}x{grid.cols} grid's {n} discs read in both "
+                         "views: show the whole target to the camera")
+    left, right = np.full((n, 2), np.nan), np.full((n, 2), np.nan)
+    left[det.ids[good]], right[det.ids[good]] = det.left[good], det.right[good]
+    return left, right
 
 
 def grid_points(grid: CircleGrid) -> np.ndarray:
@@ -71,14 +94,10 @@ def grid_points(grid: CircleGrid) -> np.ndarray:
     return np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
 
 
-def target_in_camera(grey: np.ndarray, rig: Rig, grid: CircleGrid, expected: np.ndarray | None = None) -> TargetFit:
-    """The grid's fit in one complex image: of the four labellings (:func:`target_candidates`), the one whose
-    rotation is nearest to ``expected`` (a rough target2cam (4, 4), e.g. from the nominal mounting), or the
-    first."""
-    cands = target_candidates(grey, rig, grid)
-    if expected is None:
-        return cands[0]
-    return min(cands, key=lambda c: np.linalg.norm(c.target2cam[:3, :3] - expected[:3, :3]))
+def labelled_as(candidates: list[TargetFit], expected: np.ndarray) -> TargetFit:
+    """Of one image's four labellings (:func:`target_candidates`), the one whose rotation is nearest to
+    ``expected`` (a rough target2cam (4, 4), e.g. from the nominal mounting)."""
+    return min(candidates, key=lambda c: np.linalg.norm(c.target2cam[:3, :3] - expected[:3, :3]))
 
 
 def _angle(R: np.ndarray) -> float:
@@ -104,13 +123,15 @@ def consistent_labellings(candidates: list[list[TargetFit]], flange2base: list[n
 class HandEyeResult:
     """cam2flange (4, 4) mm; per-view target fit RMS (mm); the spread of the target's base pose over
     the views (translation mm, rotation rad): the calibration's consistency; and the reprojection RMS of
-    the grid's discs in both views at the solution (px; None when not known, e.g. an older file)."""
+    the grid's discs in both views at the solution (px; None when not known, e.g. an older file); the
+    views left out as unreadable, (index, reason) each (a session's fact, not kept in handeye.toml)."""
 
     cam2flange: np.ndarray
     target_rms_mm: np.ndarray
     spread_mm: float
     spread_rad: float
     reprojection_rms_px: float | None = None
+    skipped: tuple = ()
 
 
 def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarray]) -> np.ndarray:
@@ -160,15 +181,28 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
 
     ``nominal_cam2flange`` (the mounting drawing) and ``target2base_guess`` (roughly where the target
     lies) pick the grid's labelling in each view; without them the labellings are made consistent by the
-    views' motions (:func:`consistent_labellings`). The result comes from the images either way."""
+    views' motions (:func:`consistent_labellings`). The result comes from the images either way. A view
+    whose grid cannot be read (:func:`grid_views`) is left out and listed in ``skipped``; ValueError when
+    fewer than 3 views are read."""
     from psvs.robot.handeye_refine import refine_hand_eye
     if len(images) != len(flange2base):
         raise ValueError(f"{len(images)} images but {len(flange2base)} flange poses")
+    cands, used, skipped = [], [], []
+    for k, img in enumerate(images):
+        try:
+            cands.append(target_candidates(img, rig, grid))
+            used.append(k)
+        except ValueError as e:
+            skipped.append((k, str(e)))
+    if len(used) < 3:
+        raise ValueError(f"hand-eye calibration needs >= 3 readable views, {len(used)} of {len(images)} read"
+                         + "".join(f"; view {k}: {why}" for k, why in skipped[:3]))
+    flange2base = [flange2base[k] for k in used]
     if nominal_cam2flange is not None and target2base_guess is not None:
-        fits = [target_in_camera(img, rig, grid, invert_transform(F @ nominal_cam2flange) @ target2base_guess)
-                for img, F in zip(images, flange2base)]
+        fits = [labelled_as(c, invert_transform(F @ nominal_cam2flange) @ target2base_guess)
+                for c, F in zip(cands, flange2base)]
     else:
-        fits = consistent_labellings([target_candidates(img, rig, grid) for img in images], flange2base)
+        fits = consistent_labellings(cands, flange2base)
     t2c = [f.target2cam for f in fits]
     X0 = calibrate_hand_eye(flange2base, t2c)
     X, _, rms_px = refine_hand_eye(flange2base, fits, grid_points(grid), rig, X0)
@@ -176,4 +210,5 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
     pos = np.array([T[:3, 3] for T in targets])
     ang = [_angle(targets[0][:3, :3].T @ T[:3, :3]) for T in targets]
     return HandEyeResult(X, np.array([f.rms_mm for f in fits]),
-                         float(np.max(np.linalg.norm(pos - pos.mean(axis=0), axis=1))), float(np.max(ang)), rms_px)
+                         float(np.max(np.linalg.norm(pos - pos.mean(axis=0), axis=1))), float(np.max(ang)), rms_px,
+                         tuple(skipped))

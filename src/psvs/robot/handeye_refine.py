@@ -43,7 +43,7 @@ def refine_hand_eye(flange2base: list[np.ndarray], fits: list, model_mm: np.ndar
     ----------
     flange2base : list of (4, 4) mm, one per view.
     fits : list of :class:`psvs.robot.handeye.TargetFit`, one per view: the detected centres (n, 2) px in
-        each view, row k the target's disc k, and the view's target2cam (4, 4) mm.
+        each view, row k the target's disc k (NaN: not read, left out), and the view's target2cam (4, 4) mm.
     model_mm : (n, 3) the discs' centres in the target's frame, mm.
     rig : the rig the images are seen through (what the sensor knows of it).
     cam2flange : (4, 4) the closed-form start.
@@ -56,6 +56,7 @@ def refine_hand_eye(flange2base: list[np.ndarray], fits: list, model_mm: np.ndar
     obs = np.concatenate([np.concatenate([f.left_px for f in fits]), np.concatenate([f.right_px for f in fits])])
     targets = [concat(f.target2cam, cam2flange, Fi) for f, Fi in zip(fits, F)]
     start = transform_from(targets[0][:3, :3], np.mean([T[:3, 3] for T in targets], axis=0))
+    unread = np.isnan(obs)
 
     def residuals(x: np.ndarray) -> np.ndarray:
         X, T = _poses(x)
@@ -68,9 +69,10 @@ def refine_hand_eye(flange2base: list[np.ndarray], fits: list, model_mm: np.ndar
             out.append(uv)
         r = np.concatenate(out) - obs
         r[~np.isfinite(r)] = MISS_PX
+        r[unread] = 0.0                             # a disc not read in a view says nothing
         return r.ravel()
 
     x0 = np.concatenate([_params(cam2flange), _params(start)])
     sol = least_squares(residuals, x0, method="trf", loss="soft_l1", f_scale=LOSS_SCALE_PX, x_scale="jac")
     X, T = _poses(sol.x)
-    return X, T, float(np.sqrt(np.mean(residuals(sol.x) ** 2)))
+    return X, T, float(np.sqrt(np.mean(residuals(sol.x)[~unread.ravel()] ** 2)))

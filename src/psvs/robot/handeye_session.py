@@ -43,13 +43,13 @@ def true_cam2flange(cfg: TrackConfig) -> np.ndarray:
 
 
 def cell_views(true_rig: Rig, cfg: TrackConfig, arm: Arm,
-               views: int = CELL_VIEWS) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """The hand-eye session in the simulated cell: :data:`CELL_GRID` on the table shown to the PSVS from
+               views: int = CELL_VIEWS, grid: CircleGrid = CELL_GRID) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The hand-eye session in the simulated cell: ``grid`` (:data:`CELL_GRID`) on the table shown to the PSVS from
     ``views`` flange poses (tilted up to ~20 deg, turned about the vertical), rendered through ``true_rig``
     (the rig as built) with the true mounting. Returns (complex images (H, W) uint8, flange2base (4, 4))."""
     if not isinstance(views, int) or views < 3:
         raise ValueError(f"the hand-eye session needs an integer >= 3 views, got {views!r}")
-    plate = SceneObject("rectangle", Pose(CELL_TARGET2BASE[:3, :3], CELL_TARGET2BASE[:3, 3]), CELL_GRID,
+    plate = SceneObject("rectangle", Pose(CELL_TARGET2BASE[:3, :3], CELL_TARGET2BASE[:3, 3]), grid,
                         size_mm=(320.0, 320.0), name="target")
     scene = Scene((plate,), cell_lighting(cfg), None)
     nominal, true = nominal_cam2flange(cfg), true_cam2flange(cfg)
