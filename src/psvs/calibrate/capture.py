@@ -92,16 +92,24 @@ class CaptureParams:
             raise ValueError(f"max_speed_px_s must be > 0 and at most 1000 px/s, got {self.max_speed_px_s!r}")
 
 
+#: A view is worth saving when at least this share of the card's points are found (with their ids certain):
+#: where a card wider than its disparity has the two views' columns meet, a disc of each view may sit on
+#: the other's and be lost; the rest calibrate as well.
+MIN_FOUND_SHARE = 0.75
+
+
 def detect_card(grey: np.ndarray, target: Target, rig: Rig) -> GridView:
     """The card's trusted discs in both views of one frame; ValueError naming what is wrong otherwise: a
-    view worth saving shows the whole card, each point known for which of the card's it is (a part of a
-    symmetric grid fits it at several places).
+    view worth saving shows the card, at least :data:`MIN_FOUND_SHARE` of its points found, each known for
+    which of the card's it is (a part of a symmetric grid fits it at several places).
 
     The one place the capture assistant detects a target (swap in another detector here)."""
     view, det = card_view("frame", grey, target, rig)
-    if not det.complete or not det.ids_certain:
-        raise ValueError(f"{len(det.ids)} of the card's {len(target_points_mm(target))} points found, not told apart "
-                         "for certain: show the whole card to both views")
+    n = len(target_points_mm(target))
+    if not det.ids_certain or len(det.ids) < MIN_FOUND_SHARE * n:
+        raise ValueError(f"{len(det.ids)} of the card's {n} points found"
+                         + ("" if det.ids_certain else ", not told apart for certain")
+                         + ": show the whole card to both views")
     return view
 
 

@@ -42,9 +42,9 @@ class HandFrame:
     poses: tuple
 
 
-def _visible(pose: Pose, rig: Rig, local: np.ndarray, margin_px: float) -> tuple[bool, list]:
-    """Whether every disc lies ``margin_px`` inside the image in both views, the copies apart; the copies'
-    centres (u, v) px."""
+def _visible(pose: Pose, rig: Rig, local: np.ndarray, margin_px: float, apart: bool = True) -> tuple[bool, list]:
+    """Whether every disc lies ``margin_px`` inside the image in both views, with ``apart`` the copies apart
+    too (else they may interleave); the copies' centres (u, v) px."""
     w, h = rig.camera.image_size_px
     pts = pose.to_world(local)
     seen, centres = [], []
@@ -58,12 +58,14 @@ def _visible(pose: Pose, rig: Rig, local: np.ndarray, margin_px: float) -> tuple
             return False, []
         seen.append(uv)
         centres.append(uv.mean(axis=0))
-    return bool(seen[0][:, 0].min() - seen[1][:, 0].max() > margin_px), centres
+    return bool(not apart or seen[0][:, 0].min() - seen[1][:, 0].max() > margin_px), centres
 
 
-def _hold_pose(rig: Rig, grid: CircleGrid, z: float, tilt: str, cell: int, rng, tries: int = 400) -> Pose:
+def _hold_pose(rig: Rig, grid: CircleGrid, z: float, tilt: str, cell: int, rng, apart: bool = True,
+               tries: int = 400) -> Pose:
     """A pose at depth ``z`` facing ``tilt`` with a copy's centre in image cell ``cell`` (0-8, row by row)
-    when one of ``tries`` random places gives it; else any place showing the whole card."""
+    when one of ``tries`` random places gives it; else any place showing the whole card (with ``apart``,
+    its two copies apart)."""
     local = np.column_stack([grid.centres_mm(), np.zeros(grid.rows * grid.cols)])
     w, h = rig.camera.image_size_px
     margin = grid.diameter_mm * rig.camera.focal_length_mm / rig.camera.pixel_pitch_mm[0] / z
@@ -75,7 +77,7 @@ def _hold_pose(rig: Rig, grid: CircleGrid, z: float, tilt: str, cell: int, rng, 
     for _ in range(tries):
         x, y = rng.uniform(-0.3, 0.3) * z, rng.uniform(-0.25, 0.25) * z
         pose = Pose.from_euler_deg([x, y, z], angles)
-        ok, centres = _visible(pose, rig, local, margin)
+        ok, centres = _visible(pose, rig, local, margin, apart)
         if not ok:
             continue
         fallback = fallback or pose
@@ -106,7 +108,8 @@ class HandParams:
     of ``blur_samples`` renders each; every ``out_every``-th hold (0: none) partly out of the image; depths
     over ``z_range_mm``. Every ``settle_every``-th hold (0: none) starts with :data:`SETTLE_FRAMES` frames of
     the card drifting slowly into place (:data:`SETTLE_FRACTION` of its distance a frame, sideways), as a
-    hand settles: seen, but moving."""
+    hand settles: seen, but moving. With ``apart`` False the card's two copies may interleave (a card wider
+    than its disparity, as a 5 x 7 card on a 1.6 MP camera is)."""
 
     hold_frames: int = 3
     move_frames: int = 2
@@ -114,6 +117,7 @@ class HandParams:
     out_every: int = 0
     settle_every: int = 0
     z_range_mm: tuple = (400.0, 900.0)
+    apart: bool = True
 
     def __post_init__(self):
         if self.hold_frames < 1 or self.move_frames < 0 or self.blur_samples < 1 or self.out_every < 0 \
@@ -137,7 +141,7 @@ def hand_path(rig: Rig, grid: CircleGrid, holds: int, seed: int = 0, hand: HandP
         z = rng.uniform(edges[k % 3], edges[k % 3 + 1])
         tilt = TILTS[k % len(TILTS)]
         out = out_every and k % out_every == out_every - 1
-        pose = _hold_pose(rig, grid, z, tilt, int(cells[shown % 9]), rng)
+        pose = _hold_pose(rig, grid, z, tilt, int(cells[shown % 9]), rng, hand.apart)
         shown += not out                   # a pose pushed out of view aims at no cell
         if out:
             pose = _out_of_view(pose, rig, grid)
