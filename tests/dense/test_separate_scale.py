@@ -71,6 +71,7 @@ def _scene(rig_name: str, seed: int) -> dict:
             "scale": pixel_scale(rig.camera) if rect is None else None}
 
 
+@functools.lru_cache(maxsize=None)
 def separated(rig_name: str, seed: int = 0, params: SeparationParams = SeparationParams(),
               pixel_scale_override: float | None = None) -> dict:
     """{'mixture' | 'true' | 'estimated': (left dB, right dB)} of the scene through ``rig_name``; the prior
