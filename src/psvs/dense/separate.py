@@ -30,9 +30,10 @@ the data) only when λ grows as k². (Two caveats: the mixing's null space, an o
 2d/(2j+1), costs nothing in the data, so any λ > 0 picks the same least-oscillating answer once converged;
 and with independent noise per pixel a fixed λ would be the maximum a posteriori choice, the finer image
 holding k² samples per coarse pixel. Measured, the two choices differ by under 0.3 dB.)
-Measured on one scene through the clear rig and mv1440 (docs/dense.md, "The prior in scene terms"): the
-PSNR is flat in λ over 0.0125-0.2 on the 640x480 rig (±0.2 dB) and over 0.05-0.21 on the 1440x1080 rigs (−0.27 to +0.11
-dB), and their views come out 0.5-3.2 dB closer to the truth than the 640x480 rig's either way.
+Measured on one scene through the clear rig and the 1440x1080 rigs (docs/dense.md, "The prior in scene
+terms"): the PSNR is flat in λ over 0.0125-0.2 on the 640x480 rig (±0.2 dB); λ·k² against λ per px moves
+the 1440x1080 views by −0.27 to +0.11 dB, and they come out 0.5-3.2 dB closer to the truth than the
+640x480 rig's either way.
 """
 from __future__ import annotations
 
