@@ -21,6 +21,7 @@ from psvs.io.atomic import output_batch
 from psvs.io.images import read_grey, write_npy, write_png
 from psvs.io.params import load_rig
 from psvs.optics.illumination import flat_field
+from psvs.optics.scale import pixel_scale as camera_pixel_scale
 from psvs.optics.search_range import disparity_range, rectification_for
 
 
@@ -117,7 +118,9 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
         if out["views"]:
             if np.isfinite(res.disparity_left).any():
                 seen = flat_field(image, rig.camera) if rig is not None else image   # as the maps saw it
-                lv, rv = separate_views(seen, res.disparity_left, split, res.disparity_right, rect=dense.rect)
+                k = camera_pixel_scale(rig.camera) if rig is not None and dense.rect is None else None
+                lv, rv = separate_views(seen, res.disparity_left, split, res.disparity_right, rect=dense.rect,
+                                        pixel_scale=k)   # the prior in scene terms (psvs.dense.separate)
             else:  # nothing to separate by: a constant image is two identical constant views
                 lv = rv = np.asarray(dense.left_image, dtype=np.float64)
             for path, v in zip(out["views"], (lv, rv)):

@@ -10,6 +10,7 @@ from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud
 from psvs.imaging.grey import to_grey8
 from psvs.optics.illumination import flat_field
+from psvs.optics.scale import pixel_scale as camera_pixel_scale
 from psvs.web.bodies import DenseBody
 from psvs.web.live_runner import DENSE_LOCK
 from psvs.web.png import colour_disparity, data_url
@@ -35,7 +36,8 @@ def dense(body: DenseBody, session: SessionDep):
            "median_z_mm": float(np.nanmedian(z)) if np.isfinite(z).any() else None}
     if body.views and np.isfinite(d).any():
         with DENSE_LOCK:
+            k = camera_pixel_scale(rig.camera) if dense_res.rect is None else None   # the prior in scene terms
             lv, rv = separate_views(flat_field(grey, rig.camera), d, rig.mirrors.split_ratio, res.disparity_right,
-                                    rect=dense_res.rect)
+                                    rect=dense_res.rect, pixel_scale=k)
         out.update(left_png=data_url(to_grey8(lv)), right_png=data_url(to_grey8(rv)))
     return out

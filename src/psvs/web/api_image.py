@@ -15,7 +15,7 @@ from psvs.measure.triangulate import MODELS, default_model
 from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
-from psvs.web.api_match import SNAP_PX
+from psvs.web.api_match import snap_px
 from psvs.web.bodies import PipelineBody
 from psvs.web.png import data_url, png_response
 from psvs.web.session import SessionDep
@@ -47,7 +47,7 @@ def info(session: SessionDep):
                     "baseline_mm": rig.mirrors.baseline_mm, "plate_thickness_mm": rig.mirrors.plate_thickness_mm,
                     **calibration_status(rig)},
             "image_size_px": list(session.image_size_px), "pipeline": PAPER.to_dict()["steps"], "models": list(MODELS),
-            "steps": sorted(STEPS), "snap_px": SNAP_PX, "max_upload_bytes": MAX_BODY_BYTES,
+            "steps": sorted(STEPS), "snap_px": snap_px(rig), "max_upload_bytes": MAX_BODY_BYTES,
             "capture": capture_info(session)}
 
 

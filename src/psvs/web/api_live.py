@@ -18,8 +18,10 @@ router = APIRouter(prefix="/api/live")
 
 @router.post("/start")
 def live_start(body: LiveBody, session: SessionDep):
-    """Start (or restart) live mode: track the edge at ``seed`` (snapped within SNAP_PX on each frame) and/or
-    compute each frame's dense depth. A still image has no frames: the source refuses in one line."""
+    """Start (or restart) live mode: track the edge at ``seed`` and/or compute each frame's dense depth. The
+    seed snaps within SNAP_PX of the paper's camera, which EdgeTracker scales to the rig's camera (as
+    :func:`~psvs.web.api_match.snap_px` does for a double-click). A still image has no frames: the source
+    refuses in one line."""
     if body.seed is None and not body.dense:
         raise ValueError("live mode tracks one edge or shows dense depth: double-click an edge first, "
                          "or tick dense")

@@ -14,37 +14,49 @@ from psvs.live.tracker import nearest_edge_pixels
 from psvs.match.correspondence import match_image
 from psvs.match.export import result_to_dict, write_csv, write_json, write_ply
 from psvs.optics.illumination import flat_field
+from psvs.optics.rig import Rig
+from psvs.optics.scale import pixel_scale
 from psvs.web.bodies import MatchBody
 from psvs.web.session import SessionDep
 
-#: A double-click this close (px) to an edge selects it.
+#: A double-click this close to an edge selects it, in px of the paper's camera (1130 px per unit
+#: tan(angle)): :func:`snap_px` scales it to the rig's camera, so a click snaps within the same angle
+#: (about 0.3°) on a 640x480 and on a 1440x1080 camera.
 SNAP_PX = 6.0
 EXPORTS = {"csv": (write_csv, "text/csv"), "json": (write_json, "application/json"), "ply": (write_ply, "text/plain")}
 
 router = APIRouter(prefix="/api")
 
 
-def snap_seed(grey: np.ndarray, pipeline: Pipeline, seed: tuple[float, float]) -> list[int]:
+def snap_px(rig: Rig) -> float:
+    """The snap radius on ``rig``'s camera, px: :data:`SNAP_PX` times its pixel scale
+    (:func:`psvs.optics.scale.pixel_scale`; 6 px on the paper's camera, 12.3 px on mv1440's)."""
+    return SNAP_PX * pixel_scale(rig.camera)
+
+
+def snap_seed(grey: np.ndarray, pipeline: Pipeline, seed: tuple[float, float], radius_px: float = SNAP_PX) -> list[int]:
     """The edge pixel [u, v] of ``pipeline``'s edge map of ``grey`` nearest to a double-clicked ``seed`` (u, v),
-    within SNAP_PX; ValueError for a click off the image or off every edge."""
+    within ``radius_px`` (:func:`snap_px` of the rig); ValueError for a click off the image or off every edge."""
     h, w = grey.shape
     u, v = seed
     if not (np.isfinite(u) and np.isfinite(v) and -0.5 <= u < w - 0.5 and -0.5 <= v < h - 0.5):
         raise ValueError(f"seed ({u:g}, {v:g}) is outside the {w}x{h} image")
-    near = nearest_edge_pixels(pipeline.run(grey), (u, v), SNAP_PX)
+    near = nearest_edge_pixels(pipeline.run(grey), (u, v), radius_px)
     if len(near) == 0:
-        raise ValueError(f"no edge within {SNAP_PX:g} px of ({u:.0f}, {v:.0f}): double-click on an edge")
+        raise ValueError(f"no edge within {radius_px:.3g} px of ({u:.0f}, {v:.0f}): double-click on an edge")
     return [int(near[0][0]), int(near[0][1])]
 
 
 @router.post("/match")
 def match(body: MatchBody, session: SessionDep):
     """The paper's algorithm from a double-clicked point (snapped to the nearest edge pixel within
-    SNAP_PX), or automatic pairing of every edge when no seed is given. The result is kept for the exports
-    unless the image was replaced while it was computed."""
+    :func:`snap_px` of the rig), or automatic pairing of every edge when no seed is given. The result is kept
+    for the exports unless the image was replaced while it was computed."""
     still, pipeline = session.still(), body.pipeline()
-    seed = None if body.seed is None else snap_seed(flat_field(still.grey, session.rig.camera), pipeline, body.seed)
-    res = match_image(still.grey, session.rig, seed_px=seed, pipeline=pipeline, near_mm=body.near_mm,
+    rig = session.rig
+    seed = None if body.seed is None else snap_seed(flat_field(still.grey, rig.camera), pipeline, body.seed,
+                                                    snap_px(rig))
+    res = match_image(still.grey, rig, seed_px=seed, pipeline=pipeline, near_mm=body.near_mm,
                       far_mm=body.far_mm, params=body.params())
     session.keep_result(res, still.generation)
     return {"seed_px": seed, **result_to_dict(res, decimals=4)}
