@@ -48,8 +48,11 @@ def write_frames(folder: Path, rig_name: str, bits: int):
     return video, served, f"{u:.1f},{v:.1f}"
 
 
-def serve(folder) -> list[str]:
-    return ["--camera-set", "TestImageSelector=Off", "--camera-set", "ImageFileMode=On",
+def serve(folder, size=None) -> list[str]:
+    """--camera-set options serving ``folder``; ``size`` (W, H): the camera's region of interest (the
+    emulator's default, 1024x1040, crops a larger image)."""
+    roi = [] if size is None else ["--camera-set", f"Width={size[0]}", "--camera-set", f"Height={size[1]}"]
+    return roi + ["--camera-set", "TestImageSelector=Off", "--camera-set", "ImageFileMode=On",
             "--camera-set", f"ImageFilename={folder}"]
 
 
@@ -67,7 +70,8 @@ def test_the_emulated_camera_tracks_exactly_as_the_video(rig_name, fmt, tmp_path
     common = ["--rig", rig_name, "--seed", seed, "--quiet", "--max-frames", str(FRAMES)]
     assert main(["live", "--video", str(video), "-o", str(tmp_path / "v.csv"), *common]) == 0
     assert main(["live", "--camera", "basler:0", "--pixel-format", fmt, "--trigger", "software",
-                 *serve(served), "-o", str(tmp_path / "c.csv"), "--mcap", str(tmp_path / "c.mcap"), *common]) == 0
+                 *serve(served, load_rig(rig_name).camera.image_size_px), "-o", str(tmp_path / "c.csv"),
+                 "--mcap", str(tmp_path / "c.mcap"), *common]) == 0
     out = capsys.readouterr().out
     assert "basler:0815-0000 (Basler Emulation" in out and "0 frames dropped (frame counters 0-4)" in out
     v_rows, c_rows = (list(csv.DictReader((tmp_path / n).open())) for n in ("v.csv", "c.csv"))
