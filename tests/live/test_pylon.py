@@ -206,3 +206,36 @@ def test_psvs_cameras_lists_the_emulated_camera(capsys):
     out = capsys.readouterr().out
     assert "Basler" in out and "Emulation" in out and "0815-0000" in out and "basler:0815-0000" in out
     assert "OpenCV" in out
+
+
+def test_capture_keeps_its_views_when_the_camera_is_lost(tmp_path, capsys, monkeypatch):
+    """psvs capture from the emulated camera serving a hand-held card (four poses held two frames each), the
+    device closed under the grabber after frame 5: it stops, keeps the views saved with the camera's settings
+    beside them, names the last frame and exits 1 saying what is missing."""
+    from psvs.live.pylon import PylonSource
+    from tests.conftest import write_hand_video
+    video = write_hand_video(tmp_path, holds=4, seed=2, hold_frames=2, move_frames=0)
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    cap = cv2.VideoCapture(str(video.path))
+    k = 0
+    while (got := cap.read())[0]:
+        cv2.imwrite(str(frames / f"f{k:03d}.png"), cv2.cvtColor(got[1], cv2.COLOR_BGR2GRAY))
+        k += 1
+    cap.release()
+    grab = PylonSource.grab
+
+    def grab_then_unplug(self):
+        frame = grab(self)
+        if frame.index == 5:
+            self._cam.Close()
+        return frame
+    monkeypatch.setattr(PylonSource, "grab", grab_then_unplug)
+    out = tmp_path / "views"
+    code = main(["capture", "--camera", "basler:0", "--trigger", "software", *serve(frames), "--target",
+                 str(video.target), "--rig", "clear", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 1 and "camera lost" in err and "the last frame was 5 (camera frame 5)" in err, err
+    views = sorted(p.name for p in out.glob("view_*.png"))
+    assert 1 <= len(views) <= 3 and (out / "camera.toml").is_file() and (out / "camera.pfs").is_file()
+    assert f"(kept {len(views)} in {out})" in err
