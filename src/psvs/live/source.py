@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from psvs.io.cstderr import c_stderr_captured, library_reason
-from psvs.live.camera import Acquisition, Frame
+from psvs.live.camera import Acquisition, CameraLost, Frame
 
 #: Image files a folder given as a sequence may hold (read in name order).
 SEQUENCE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".pgm", ".jpg", ".jpeg")
@@ -82,7 +82,7 @@ class VideoSource(_Source):
             raise ValueError("give exactly one of video (a file) or camera (an index)")
         if camera is not None and (not isinstance(camera, int) or camera < 0):
             raise ValueError(f"camera must be an index >= 0, got {camera!r}")
-        self._video, self._camera, self._cap = video, camera, None
+        self._video, self._camera, self._cap, self._last = video, camera, None, None
         self.name = str(video) if video is not None else f"camera {camera}"
         if video is not None and "%" not in str(video) and not Path(video).is_file():
             raise FileNotFoundError(f"video not found: {video}")
@@ -113,8 +113,11 @@ class VideoSource(_Source):
             raise ValueError(f"{self.name} is not open")
         ok, image = self._cap.read()
         if not ok:
+            if self._video is None:             # a camera has no end: it stopped delivering
+                raise CameraLost(f"{self.name} gives no more frames", self._last)
             return None
-        return self._frame(as_grey(image), self._video is not None)
+        self._last = self._frame(as_grey(image), self._video is not None)
+        return self._last
 
     def close(self) -> None:
         if self._cap is not None:
