@@ -22,7 +22,8 @@ from pypylon import genicam, pylon
 from psvs.io.images import grey8_from_bits
 from psvs.live.camera import Acquisition, CameraLost, Frame
 
-#: Grey pixel formats psvs takes and their significant bits (packed ones are unpacked by pylon).
+#: Grey pixel formats psvs takes and their significant bits (packed ones are unpacked by pylon: a grab
+#: result's Array is uint16, LSB-aligned, for Mono10p/Mono12p too, basler/pypylon#668).
 MONO_BITS = {"Mono8": 8, "Mono10": 10, "Mono10p": 10, "Mono10Packed": 10, "Mono12": 12, "Mono12p": 12,
              "Mono12Packed": 12}
 
@@ -125,9 +126,11 @@ class PylonSource:
     def grab(self) -> Frame | None:
         """The next frame (one per call with ``trigger="software"``); CameraLost when the camera is gone."""
         cam = self._cam
-        if cam is None or not cam.IsGrabbing():
-            if cam is None or self._index == 0 and not cam.IsOpen():
-                raise ValueError(f"{self.name} is not open")
+        if cam is None:
+            raise ValueError(f"{self.name} is not open")
+        if not cam.IsGrabbing():
+            if self._last is None and cam.IsOpen():
+                raise ValueError(f"{self.name} is not configured (configure() starts grabbing)")
             raise CameraLost(f"{self.name} is no longer grabbing", self._last)
         try:
             if self._trigger == "software":
