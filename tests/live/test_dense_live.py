@@ -38,7 +38,8 @@ def test_live_dense_depth_every_frame_log_and_mcap(wall_video, tmp_path, capsys)
     topics, counts, msgs = read_mcap(rec)
     assert topics == {"/psvs/image": ("foxglove.RawImage", "protobuf"),
                       "/psvs/dense/depth": ("foxglove.RawImage", "protobuf"),
-                      "/psvs/dense/points": ("foxglove.PointCloud", "protobuf"), "/psvs/dense": ("psvs.dense", "json")}
+                      "/psvs/dense/points": ("foxglove.PointCloud", "protobuf"), "/psvs/dense": ("psvs.dense", "json"),
+                      "/psvs/frame": ("psvs.frame", "json")}
     assert counts == {t: 6 for t in topics}
     schemas = {c.topic: s for s, c, _ in msgs}
     Raw = proto_class("foxglove.RawImage", schemas["/psvs/dense/depth"].data)

@@ -125,8 +125,14 @@ def test_live_mcap_reads_back_with_the_mcap_reader(disc_video, tmp_path, capsys)
     topics, counts, msgs = read_mcap(out)
     assert topics == {"/psvs/image": ("foxglove.RawImage", "protobuf"),
                       "/psvs/edges": ("foxglove.ImageAnnotations", "protobuf"),
-                      "/psvs/points": ("foxglove.PointCloud", "protobuf"), "/psvs/depth": ("psvs.depth", "json")}
+                      "/psvs/points": ("foxglove.PointCloud", "protobuf"), "/psvs/depth": ("psvs.depth", "json"),
+                      "/psvs/frame": ("psvs.frame", "json")}
     assert counts == {t: 20 for t in topics}
+    # each frame's source record: a file's frames on its own clock, 1/30 s apart, counted 0..19, none dropped
+    frames = [json.loads(m.data) for s, c, m in msgs if c.topic == "/psvs/frame"]
+    assert [f["camera_frame"] for f in frames] == list(range(20)) and {f["clock"] for f in frames} == {"file"}
+    assert np.allclose([f["timestamp_s"] for f in frames], np.arange(20) / 30, atol=1e-9)
+    assert sum(f["dropped"] for f in frames) == 0
     depth = {m.log_time: json.loads(m.data) for s, c, m in msgs if c.topic == "/psvs/depth"}
     stamps = sorted(depth)
     assert np.allclose(np.diff(stamps), 1e9 / 30, atol=1)

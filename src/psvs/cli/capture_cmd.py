@@ -2,8 +2,8 @@
 from __future__ import annotations
 
 import sys
-import time
 
+from psvs.cli.camera_args import add_source_arguments, check_source_arguments, open_source
 from psvs.cli.common import (
     add_rig_argument,
     check_distinct,
@@ -23,9 +23,7 @@ def add_parser(sub) -> None:
                                    "the set is enough: every cell of the field, near/mid/far, tilts left/right/up/"
                                    "down and flat, and --views views. A video that ends (or Ctrl-C) before that "
                                    "exits 1 saying what is missing, keeping the views saved.")
-    src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--video", metavar="F", help="video file or printf-style image sequence (OpenCV)")
-    src.add_argument("--camera", metavar="N", type=int, help="camera index (OpenCV VideoCapture)")
+    add_source_arguments(p)
     p.add_argument("--target", metavar="TARGET.toml", required=True, help="the card (docs/calibration.md)")
     add_rig_argument(p)
     p.add_argument("-o", "--output", metavar="DIR", required=True, help="folder for the views (created; must "
@@ -51,8 +49,11 @@ def _setup(args):
     except ValueError as exc:
         raise ValueError(f"--{str(exc).replace('max_speed_px_s', 'max-speed-px-s')}") from None
     out = check_output_folder(args.output)
-    check_distinct({"-o (its target.toml)": out / "target.toml"},
-                   {"--target": args.target, "--rig": args.rig, "--video": args.video})
+    from psvs.cli.recording import settings_paths
+    check_distinct({"-o (its target.toml)": out / "target.toml", **settings_paths(args, None, out)},
+                   {"--target": args.target, "--rig": args.rig, "--video": args.video,
+                    "--camera-settings": args.camera_settings})
+    check_source_arguments(args)
     rig = rig_from_args(args)
     target = load_target(args.target)
     check_card_visible(rig, target, params)
@@ -62,23 +63,27 @@ def _setup(args):
 
 def run(args) -> int:
     from psvs.calibrate.capture import event_lines
-    from psvs.errors import MeasurementError
-    from psvs.live.source import VideoSource
+    from psvs.cli.recording import record_settings
+    from psvs.live.camera import CameraLost
     assistant, folder, rig = _setup(args)
     w, h = rig.camera.image_size_px
-    source = VideoSource(video=args.video) if args.video else VideoSource(camera=args.camera)
+    source = open_source(args)
     with source:
-        period = 1.0 / source.fps if args.video and source.fps > 0 else (1 / 30 if args.video else None)
-        t0 = time.monotonic()
         print(f"psvs capture: watching {source.name}; show the card ({assistant.params.views} views, "
               f"{assistant.params.near_mm:g}-{assistant.params.far_mm:g} mm)", flush=True)
+        last = None
         try:
-            for k, frame in enumerate(source):
-                if frame.shape != (h, w):
-                    raise ValueError(f"{source.name}'s frames are {frame.shape[1]}x{frame.shape[0]} px but the "
-                                     f"rig's camera is {w}x{h} px")
-                step = assistant.step(frame, k * period if period else time.monotonic() - t0)
-                name = folder.save(frame) if step.status == "saved" else None
+            while (frame := source.grab()) is not None:
+                if frame.image.shape != (h, w):
+                    raise ValueError(f"{source.name}'s frames are {frame.image.shape[1]}x{frame.image.shape[0]} px "
+                                     f"but the rig's camera is {w}x{h} px")
+                last = frame
+                # a file without a rate: 30 frames/s, as a camera
+                t_s = frame.index / 30 if frame.clock == "host" and args.video else frame.timestamp_s
+                step = assistant.step(frame.image, t_s)
+                name = folder.save(frame.image) if step.status == "saved" else None
+                if name is not None and len(folder.names) == 1:     # the folder is made by its first view
+                    record_settings(args, None, source, folder.folder)
                 for line in event_lines(step, name, assistant.params.views):
                     print(line, flush=True)
                 if step.complete:
@@ -87,6 +92,15 @@ def run(args) -> int:
                     return 0
         except KeyboardInterrupt:
             pass
+        except CameraLost as exc:
+            where = f"the last frame was {last.index} (camera frame {last.counter})" if last else "no frame came"
+            print(f"psvs capture: camera lost: {exc}; {where}", file=sys.stderr, flush=True)
+    return _incomplete(assistant, folder)
+
+
+def _incomplete(assistant, folder) -> int:
+    """Exit status 1 saying what is missing (the views saved are kept), or 0 when the set is enough."""
+    from psvs.errors import MeasurementError
     try:
         assistant.require_enough()
     except MeasurementError as exc:

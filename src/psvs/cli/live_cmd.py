@@ -3,10 +3,12 @@ from __future__ import annotations
 
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 
 from psvs._memory import check_memory
+from psvs.cli.camera_args import add_source_arguments, check_source_arguments, open_source
 from psvs.cli.common import (
     add_model_argument,
     add_pipeline_argument,
@@ -22,9 +24,10 @@ from psvs.cli.common import (
     range_from_args,
     rig_from_args,
 )
+from psvs.cli.recording import record_settings, settings_paths
+from psvs.live.camera import CameraLost
 from psvs.live.dense import DenseSensor
 from psvs.live.log import write_log
-from psvs.live.source import VideoSource
 from psvs.live.tracker import EdgeTracker
 from psvs.match.correspondence import MatchParams
 
@@ -36,9 +39,7 @@ def add_parser(sub) -> None:
                                    "paper's algorithm on the first frame and re-seeded at its new position on "
                                    "every later frame. Prints one line per frame (depth, disparity, latency); "
                                    "Ctrl-C stops a camera and still writes the log.")
-    src = p.add_mutually_exclusive_group(required=True)
-    src.add_argument("--video", metavar="F", help="video file or printf-style image sequence (OpenCV)")
-    src.add_argument("--camera", metavar="N", type=int, help="camera index (OpenCV VideoCapture)")
+    add_source_arguments(p)
     add_rig_argument(p)
     p.add_argument("--seed", metavar="U,V", help="a point on a left-view edge in the first frame (px); required "
                                                  "unless --dense")
@@ -77,35 +78,58 @@ def _sensors(args):
     return tracker, dense
 
 
-def _loop(args, source, tel, tracker, dense) -> tuple[list, list, float]:
-    """Every frame of ``source`` through the sensors (until --max-frames or Ctrl-C), published and printed
-    as it comes: (tracker steps, dense frames, wall time s)."""
-    steps, dense_frames = [], []
-    period = 1.0 / source.fps if (args.video and source.fps > 0) else None
+def _loop(args, source, tel, tracker, dense) -> tuple[list, list, list, float, bool]:
+    """Every frame of ``source`` through the sensors (until --max-frames, Ctrl-C or a camera lost), published
+    and printed as it comes: (tracker steps, dense frames, the frames' metadata without images, wall time s,
+    whether the camera was lost)."""
+    steps, dense_frames, metas, lost = [], [], [], False
     t0 = time.perf_counter()
+    t_first = None
     try:
-        for frame in source:
-            k, arrived_s = len(steps), time.perf_counter() - t0
-            if args.realtime and period is not None:
-                time.sleep(max(0.0, t0 + k * period - time.perf_counter()))
-            step = tracker.step(frame) if tracker is not None else None
-            dstep = dense.step(frame) if dense is not None else None
+        while (frame := source.grab()) is not None:
+            if t_first is None:
+                t_first = frame.timestamp_s
+            t_s = frame.timestamp_s - t_first       # a video's frames at its own rate; a camera's on its clock
+            if args.realtime and frame.clock == "file":
+                time.sleep(max(0.0, t0 + t_s - time.perf_counter()))
+            step = tracker.step(frame.image) if tracker is not None else None
+            dstep = dense.step(frame.image) if dense is not None else None
             steps.append(step)
             dense_frames.append(dstep.brief() if dstep is not None else None)   # the log keeps no maps
-            if tel is not None:   # a video's frames at its own rate; a camera's at their arrival
-                t_s = k * period if period is not None else arrived_s
-                tel.image(t_s, frame)
-                if step is not None:
-                    publish_step(tel, t_s, step)
-                if dstep is not None:
-                    publish_dense(tel, t_s, dstep, args.dense_stride)
+            metas.append(replace(frame, image=None))
+            if tel is not None:
+                _publish_frame(tel, t_s, frame, step, dstep, args.dense_stride)
             if not args.quiet:
-                print(_frame_line(k, step, dstep), flush=True)
+                print(_frame_line(len(steps) - 1, step, dstep) + _dropped_note(frame), flush=True)
             if args.max_frames is not None and len(steps) >= args.max_frames:
                 break
     except KeyboardInterrupt:
         pass
-    return steps, dense_frames, time.perf_counter() - t0
+    except CameraLost as exc:                # stop cleanly: what was grabbed is kept, logged and summarised
+        last = metas[-1] if metas else None
+        where = (f"the last frame was {last.index} (camera frame {last.counter})" if last is not None
+                 else "no frame was delivered")
+        print(f"psvs live: camera lost: {exc}; {where}", file=sys.stderr, flush=True)
+        lost = True
+        if tel is not None:
+            tel.log(time.perf_counter() - t0, f"camera lost: {exc}; {where}", "error")
+    return steps, dense_frames, metas, time.perf_counter() - t0, lost
+
+
+def _dropped_note(frame) -> str:
+    return f" ({frame.dropped} frame{'s' * (frame.dropped > 1)} dropped before it)" if frame.dropped else ""
+
+
+def _publish_frame(tel, t_s: float, frame, step, dstep, stride: int) -> None:
+    """A frame's image, its /psvs/frame record {frame, camera_frame, timestamp_s, clock, dropped} and what the
+    sensors found in it."""
+    tel.image(t_s, frame.image)
+    tel.record("frame", t_s, {"frame": frame.index, "camera_frame": frame.counter,
+                              "timestamp_s": frame.timestamp_s, "clock": frame.clock, "dropped": frame.dropped})
+    if step is not None:
+        publish_step(tel, t_s, step)
+    if dstep is not None:
+        publish_dense(tel, t_s, dstep, stride)
 
 
 #: What a run keeps of each frame for its log and summary, bytes: the tracked edge's pair (up to ~500 pixel
@@ -116,7 +140,7 @@ KEPT_BYTES_PER_FRAME = 32 * 1024
 def _check_frames(args, source) -> None:
     """ValueError, before any frame is read, when the frames the run would keep (--max-frames, or a video's
     own count when smaller) do not fit in memory. A camera without --max-frames runs until Ctrl-C."""
-    counts = [n for n in (args.max_frames, source.frame_count if args.video else 0) if n is not None and n > 0]
+    counts = [n for n in (args.max_frames, source.frame_count) if n is not None and n > 0]
     if counts:
         n = min(counts)
         what = f"--max-frames {args.max_frames}" if n == args.max_frames else f"{source.name}'s {n} frames"
@@ -127,18 +151,27 @@ def _check_frames(args, source) -> None:
 def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
     check_telemetry_arguments(args)
-    check_distinct({"-o": args.output, "--mcap": args.mcap}, {"--video": args.video, "--rig": args.rig,
-                                                             "--pipeline": args.pipeline})
+    check_distinct({"-o": args.output, "--mcap": args.mcap, **settings_paths(args, out)},
+                   {"--video": args.video, "--rig": args.rig, "--pipeline": args.pipeline,
+                    "--camera-settings": args.camera_settings})
+    check_source_arguments(args)
     tracker, dense = _sensors(args)
-    with VideoSource(video=args.video, camera=args.camera) as source:
+    source = open_source(args)
+    with source:
         _check_frames(args, source)
         with open_telemetry(args) as tel:
-            steps, dense_frames, wall = _loop(args, source, tel, tracker, dense)
+            steps, dense_frames, metas, wall, lost = _loop(args, source, tel, tracker, dense)
             if not steps:               # inside: a recording of nothing is discarded, not kept
                 raise ValueError(f"no frame could be read from {source.name}")
+        record_settings(args, out, source)
     if out:
-        write_log(out, steps, dense_frames if dense is not None else None)
-    return _summary(steps, dense_frames if dense is not None else None, wall, args.realtime)
+        write_log(out, steps, dense_frames if dense is not None else None, metas)
+    dropped = sum(m.dropped for m in metas)
+    if args.camera is not None or dropped:
+        print(f"{source.name}: {dropped} frame{'s' * (dropped != 1)} dropped (frame counters {metas[0].counter}-"
+              f"{metas[-1].counter}), timestamps on the {metas[-1].clock} clock")
+    status = _summary(steps, dense_frames if dense is not None else None, wall, args.realtime)
+    return max(status, 1) if lost else status
 
 
 def _summary(steps: list, dense_frames: list | None, wall: float, realtime: bool) -> int:

@@ -1,6 +1,7 @@
 """``psvs serve``: the browser UI (FastAPI + uvicorn) on a complex image, a video, a camera or a simulated scene."""
 from __future__ import annotations
 
+from psvs.cli.camera_args import CAMERA_HELP, add_acquisition_arguments
 from psvs.cli.common import add_rig_argument, load_scene_spec, rig_from_args
 from psvs.io.images import read_grey
 
@@ -14,10 +15,11 @@ def add_parser(sub) -> None:
     src = p.add_mutually_exclusive_group()
     src.add_argument("--image", metavar="F", help="complex image (PNG, grey)")
     src.add_argument("--video", metavar="F", help="video file (live mode plays it in a loop)")
-    src.add_argument("--camera", metavar="N", type=int, help="camera index (OpenCV VideoCapture)")
+    src.add_argument("--camera", metavar="N|basler:SERIAL", help=CAMERA_HELP)
     src.add_argument("--scene", metavar="S", help="simulated scene: a built-in (e.g. fig5b) or a scene file "
                                                   "(the default is fig5b)")
     add_rig_argument(p, required=False)
+    add_acquisition_arguments(p)
     p.add_argument("--true-rig", metavar="RIG", help="with --scene: render through this rig, the build as it "
                                                      "is (name or file), while matching uses --rig")
     p.add_argument("--target", metavar="TARGET.toml", help="the card of the capture panel (docs/calibration.md)")
@@ -39,12 +41,14 @@ def make_source(args, rig):
         if true_rig.camera.image_size_px != rig.camera.image_size_px:
             raise ValueError(f"--true-rig's camera is {true_rig.camera.image_size_px} px but --rig's is "
                              f"{rig.camera.image_size_px} px: one camera")
+    from psvs.cli.camera_args import check_source_arguments
+    spec, acquisition = check_source_arguments(args)    # acquisition settings without --camera: refused
     if args.image:
         return sources.image_source(args.image, read_grey(args.image, expect_size=rig.camera.image_size_px))
     if args.video:
         return sources.video_source(args.video)
-    if args.camera is not None:
-        return sources.camera_source(args.camera)
+    if spec is not None:
+        return sources.camera_source(spec, acquisition)
     spec = args.scene or "fig5b"
     return sources.scene_source(spec, load_scene_spec(spec), true_rig or rig)
 

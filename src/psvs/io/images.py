@@ -117,6 +117,19 @@ def grey8_from_deep(image: np.ndarray) -> np.ndarray:
     its largest value: grey8 = round(value * 255 / (2**bits - 1))."""
     top = int(image.max()) if image.size else 0
     bits = next(b for b in DEEP_BITS if top < 2 ** b)
+    return grey8_from_bits(image, bits)
+
+
+def grey8_from_bits(image: np.ndarray, bits: int) -> np.ndarray:
+    """An (H, W) integer image of ``bits`` significant bits (a Mono10 or Mono12 camera's frame, known from its
+    pixel format) as uint8: grey8 = round(value * 255 / (2**bits - 1)), the scaling :func:`grey8_from_deep`
+    applies to a 16-bit file.
+
+    >>> grey8_from_bits(np.array([[0, 2048, 4095]], np.uint16), 12).tolist()
+    [[0, 128, 255]]
+    """
+    if bits == 8 and image.dtype == np.uint8:
+        return image
     return to_grey8(image.astype(np.float64) * (255.0 / (2 ** bits - 1)))
 
 

@@ -116,6 +116,7 @@ def rig_from_dict(data: dict) -> Rig:
         _check_keys(cal_t, "calibration", ("rms_px", "rms_left_px", "rms_right_px", "images"), ("kinds",))
         calibration = _build(Calibration, "calibration", **cal_t)
     cam_t, mir_t = _table(data, "camera"), _table(data, "mirrors")
+    cam_t = {k: v for k, v in cam_t.items() if k != "acquisition"}   # the camera's settings: psvs.io.acquisition
     _check_keys(cam_t, "camera", _CAMERA_REQUIRED, _CAMERA_OPTIONAL)
     scalars = {k: v for k, v in mir_t.items() if k not in MIRROR_NAMES}
     _check_keys(scalars, "mirrors", _MIRRORS_REQUIRED, _MIRRORS_OPTIONAL)

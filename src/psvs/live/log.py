@@ -1,14 +1,18 @@
 """Per-frame logs of ``psvs live``: CSV rows ``frame,tracked,seed_u,seed_v,n_pairs,disparity_px,depth_mm,
-latency_ms`` for the tracked edge, and with ``--dense`` the columns ``dense_median_z_mm,dense_answered_pct,
-dense_ms`` (the edge's columns empty when no edge is tracked)."""
+latency_ms`` for the tracked edge, with ``--dense`` the columns ``dense_median_z_mm,dense_answered_pct,
+dense_ms`` (the edge's columns empty when no edge is tracked), and last the frame's source columns
+``camera_frame,timestamp_s,clock,dropped``: the camera's own frame counter, its timestamp (s) on ``clock``
+(camera, host or file: psvs.live.camera.CLOCKS) and the frames lost just before it."""
 from __future__ import annotations
 
 from psvs.io.atomic import write_atomic
+from psvs.live.camera import Frame
 from psvs.live.dense import DenseFrame
 from psvs.live.tracker import TrackStep
 
 HEADER = "frame,tracked,seed_u,seed_v,n_pairs,disparity_px,depth_mm,latency_ms\n"
 DENSE_COLUMNS = "dense_median_z_mm,dense_answered_pct,dense_ms"
+SOURCE_COLUMNS = "camera_frame,timestamp_s,clock,dropped"
 
 
 def log_row(step: TrackStep) -> str:
@@ -19,13 +23,24 @@ def log_row(step: TrackStep) -> str:
             f"{step.elapsed_s * 1e3:.3f}\n")
 
 
-def write_log(path, steps: list[TrackStep | None], dense: list[DenseFrame] | None = None) -> None:
-    """The log of ``steps`` (None: no edge tracked), with the dense columns when ``dense`` (one per step)."""
-    if dense is None:
-        write_atomic(path, HEADER + "".join(log_row(s) for s in steps))
-        return
+def source_cells(f: Frame) -> str:
+    """A frame's source columns (no newline): counter, timestamp s (9 decimals: ns), clock, dropped."""
+    return f"{f.counter},{f.timestamp_s:.9f},{f.clock},{f.dropped}"
+
+
+def write_log(path, steps: list[TrackStep | None], dense: list[DenseFrame] | None = None,
+              frames: list[Frame] | None = None) -> None:
+    """The log of ``steps`` (None: no edge tracked), with the dense columns when ``dense`` (one per step) and
+    the source columns when ``frames`` (the grabbed frames' metadata, one per step)."""
+    header = HEADER[:-1] + ("," + DENSE_COLUMNS if dense is not None else "") + \
+        ("," + SOURCE_COLUMNS if frames is not None else "") + "\n"
     rows = []
-    for k, (s, d) in enumerate(zip(steps, dense)):
-        edge = log_row(s)[:-1] if s is not None else f"{k},,,,,,,"
-        rows.append(f"{edge},{d.median_z_mm:.4f},{d.answered_pct:.3f},{d.elapsed_s * 1e3:.3f}\n")
-    write_atomic(path, HEADER[:-1] + "," + DENSE_COLUMNS + "\n" + "".join(rows))
+    for k, s in enumerate(steps):
+        row = log_row(s)[:-1] if s is not None else f"{k},,,,,,,"
+        if dense is not None:
+            d = dense[k]
+            row += f",{d.median_z_mm:.4f},{d.answered_pct:.3f},{d.elapsed_s * 1e3:.3f}"
+        if frames is not None:
+            row += "," + source_cells(frames[k])
+        rows.append(row + "\n")
+    write_atomic(path, header + "".join(rows))

@@ -1,7 +1,11 @@
-"""Frame sources for live sensing: OpenCV VideoCapture (a video file, an image sequence such as
-``seq_%03d.png``, or a camera index) and in-memory frames. Every source yields grey (H, W) uint8 frames."""
+"""Frame sources for live sensing that need no vendor SDK: OpenCV's VideoCapture (a video file or a camera
+index) and image sequences (a printf pattern such as ``seq_%03d.png``, or a folder of images). Each is a
+:class:`psvs.live.camera.FrameSource`; every frame is grey (H, W) uint8 (16-bit images scaled by their bit
+depth, :func:`psvs.io.images.read_grey`)."""
 from __future__ import annotations
 
+import re
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -9,59 +13,168 @@ import cv2
 import numpy as np
 
 from psvs.io.cstderr import c_stderr_captured, library_reason
+from psvs.live.camera import Acquisition, CameraLost, Frame
+
+#: Image files a folder given as a sequence may hold (read in name order).
+SEQUENCE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".pgm", ".jpg", ".jpeg")
 
 
-class VideoSource:
-    """Frames from ``cv2.VideoCapture``: a file path (or printf-style image sequence) or a camera index.
+class _Source:
+    """What the sources here share: frames counted, iteration over images, ``with``, no settings."""
 
-    Colour frames are converted to grey. ``fps`` is the source's nominal rate (0 when unknown).
-    Use as an iterator (frames until the end of the stream) and close it (or use ``with``).
-    """
+    name: str = ""
+    fps: float = 0.0
+    frame_count: int = 0
+    _index: int = 0
+    _t0: float | None = None
 
-    def __init__(self, video: str | None = None, camera: int | None = None):
-        if (video is None) == (camera is None):
-            raise ValueError("give exactly one of video (a file) or camera (an index)")
-        if video is not None:
-            video = str(video)
-            if "%" not in video and not Path(video).is_file():
-                raise FileNotFoundError(f"video not found: {video}")
-            self.name = video
-            with c_stderr_captured() as said:       # FFmpeg's complaints ("moov atom not found")
-                self._cap = cv2.VideoCapture(video)
-            if not self._cap.isOpened():
-                reason = library_reason(said)
-                raise ValueError(f"cannot open {video}: not a video or image sequence OpenCV can decode"
-                                 + (f" ({reason})" if reason else ""))
-        else:
-            if not isinstance(camera, int) or camera < 0:
-                raise ValueError(f"camera must be an index >= 0, got {camera!r}")
-            self.name = f"camera {camera}"
-            with c_stderr_captured():               # OpenCV's and V4L2's log of each backend it tried
-                self._cap = cv2.VideoCapture(camera)
-            if not self._cap.isOpened():
-                raise OSError(f"cannot open camera {camera}: no such camera, or another program is using it")
-        self.fps = float(self._cap.get(cv2.CAP_PROP_FPS) or 0.0)
-        self.frame_count = int(self._cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+    def configure(self, acquisition: Acquisition) -> None:
+        if acquisition.asks_anything():
+            raise ValueError(f"{self.name} takes no acquisition settings (exposure, gain, frame rate, pixel "
+                             "format, trigger, features): those are for a machine-vision camera "
+                             "(--camera basler:SERIAL)")
+
+    def settings(self) -> dict:
+        return {"source": self.name}
+
+    def feature_file(self) -> str | None:
+        return None
+
+    def _frame(self, image: np.ndarray, file_clock: bool) -> Frame:
+        """The next Frame: on the file's clock (k / fps) when it has a rate, else the host's at arrival."""
+        k = self._index
+        self._index += 1
+        now = time.monotonic()
+        if self._t0 is None:
+            self._t0 = now
+        if file_clock and self.fps > 0:
+            return Frame(image, k, k, k / self.fps, "file")
+        return Frame(image, k, k, now - self._t0, "host")
 
     def read(self) -> np.ndarray | None:
-        """The next frame (H, W) uint8, or None at the end of the stream."""
-        ok, frame = self._cap.read()
-        if not ok:
-            return None
-        return as_grey(frame)
+        """The next frame's image (H, W) uint8, or None at the end of the stream."""
+        frame = self.grab()
+        return None if frame is None else frame.image
 
     def __iter__(self) -> Iterator[np.ndarray]:
         while (frame := self.read()) is not None:
             yield frame
 
-    def close(self) -> None:
-        self._cap.release()
-
     def __enter__(self):
+        self.open()
         return self
 
     def __exit__(self, *exc):
         self.close()
+
+
+class VideoSource(_Source):
+    """Frames from ``cv2.VideoCapture``: a file path or a camera index (a printf pattern or a folder is an
+    :class:`ImageSequence`: use :func:`open_video`).
+
+    Colour frames are converted to grey. ``fps`` is the source's nominal rate (0 when unknown). Opened at
+    construction unless ``defer`` (then by :meth:`open` or ``with``); iterate for images or :meth:`grab`
+    for :class:`~psvs.live.camera.Frame`s, and close it (or use ``with``).
+    """
+
+    def __init__(self, video: str | None = None, camera: int | None = None, defer: bool = False):
+        if (video is None) == (camera is None):
+            raise ValueError("give exactly one of video (a file) or camera (an index)")
+        if camera is not None and (not isinstance(camera, int) or camera < 0):
+            raise ValueError(f"camera must be an index >= 0, got {camera!r}")
+        self._video, self._camera, self._cap, self._last = video, camera, None, None
+        self.name = str(video) if video is not None else f"camera {camera}"
+        if video is not None and "%" not in str(video) and not Path(video).is_file():
+            raise FileNotFoundError(f"video not found: {video}")
+        if not defer:
+            self.open()
+
+    def open(self) -> None:
+        if self._cap is not None:
+            return
+        if self._video is not None:
+            with c_stderr_captured() as said:       # FFmpeg's complaints ("moov atom not found")
+                cap = cv2.VideoCapture(str(self._video))
+            if not cap.isOpened():
+                reason = library_reason(said)
+                raise ValueError(f"cannot open {self._video}: not a video or image sequence OpenCV can decode"
+                                 + (f" ({reason})" if reason else ""))
+        else:
+            with c_stderr_captured():               # OpenCV's and V4L2's log of each backend it tried
+                cap = cv2.VideoCapture(self._camera)
+            if not cap.isOpened():
+                raise OSError(f"cannot open camera {self._camera}: no such camera, or another program is using it")
+        self._cap = cap
+        self.fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
+        self.frame_count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+
+    def grab(self) -> Frame | None:
+        if self._cap is None:
+            raise ValueError(f"{self.name} is not open")
+        ok, image = self._cap.read()
+        if not ok:
+            if self._video is None:             # a camera has no end: it stopped delivering
+                raise CameraLost(f"{self.name} gives no more frames", self._last)
+            return None
+        self._last = self._frame(as_grey(image), self._video is not None)
+        return self._last
+
+    def close(self) -> None:
+        if self._cap is not None:
+            self._cap.release()
+            self._cap = None
+
+
+class ImageSequence(_Source):
+    """Frames from image files: a printf pattern (``seq_%03d.png``: from the first index 0..999 that exists to
+    the first missing one) or a folder (its images in name order). Each is read with
+    :func:`psvs.io.images.read_grey`: colour becomes grey, a 16-bit image is scaled by its bit depth."""
+
+    def __init__(self, pattern: str, fps: float = 0.0):
+        self.name, self.fps = str(pattern), float(fps)
+        self._files = _sequence_files(str(pattern))
+        if not self._files:
+            raise FileNotFoundError(f"no image of the sequence {pattern} found")
+        self.frame_count = len(self._files)
+        self._open = False
+
+    def open(self) -> None:
+        self._open = True
+
+    def grab(self) -> Frame | None:
+        from psvs.io.images import read_grey
+        if not self._open:
+            raise ValueError(f"{self.name} is not open")
+        if self._index >= len(self._files):
+            return None
+        return self._frame(read_grey(self._files[self._index]), True)
+
+    def close(self) -> None:
+        self._open = False
+
+
+def _sequence_files(pattern: str) -> list[Path]:
+    path = Path(pattern)
+    if path.is_dir():
+        return sorted(p for p in path.iterdir() if p.suffix.lower() in SEQUENCE_SUFFIXES and p.is_file())
+    if not re.search(r"%0?\d*d", pattern):
+        return []
+    start = next((k for k in range(1000) if Path(pattern % k).is_file()), None)
+    files, k = [], start
+    while k is not None and Path(pattern % k).is_file():
+        files.append(Path(pattern % k))
+        k += 1
+    return files
+
+
+def open_video(video: str, fps: float = 0.0) -> _Source:
+    """The source of a ``--video``: an image sequence for a printf pattern or a folder, else a video file
+    (opened now; FileNotFoundError or a one-line ValueError when it is not one)."""
+    if "%" in str(video) or Path(video).is_dir():
+        source = ImageSequence(video, fps)
+        source.open()
+        return source
+    return VideoSource(video=video)
 
 
 def as_grey(frame: np.ndarray) -> np.ndarray:

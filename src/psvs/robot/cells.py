@@ -26,6 +26,8 @@ from typing import Protocol
 
 import numpy as np
 
+from psvs.live.camera import Acquisition
+from psvs.live.camera import Frame as CameraFrame
 from psvs.optics.rig import Rig
 from psvs.robot.arm import Arm, ArmLimits, ServoStep
 from psvs.robot.controller import Command, Observation, SeamTracker
@@ -96,17 +98,27 @@ class SimulatedCell:
                  rate_hz: float, sim: SimulationConfig = SimulationConfig()):
         self.arm, self.workpiece, self.rig, self.cam2flange = arm, workpiece, true_roi_rig, cam2flange_true
         self.dt, self.sim = 1.0 / rate_hz, sim
-        self.k = 0
         self._tool = tool2flange()
+        self._flange2base = None
+        self.camera = RenderedCamera(self, "simulated sensor window")
+
+    @property
+    def k(self) -> int:
+        """Frames read so far."""
+        return self.camera.index
 
     def read(self) -> Frame:
-        flange2base = self.arm.fkine()
-        world2cam = invert_transform(concat(self.cam2flange, flange2base))
-        img = render(scene_in_rig_frame(self.workpiece.scene, world2cam), self.rig, supersample=self.sim.supersample,
-                     sensor=Sensor(), seed=self.sim.noise_seed + self.k).image
-        frame = Frame(self.k * self.dt, flange2base, img)
-        self.k += 1
-        return frame
+        """A frame from the cell's camera (a :class:`psvs.live.camera.FrameSource`, as a real cell's would be,
+        e.g. a Basler camera on a hardware trigger), with the flange pose at its exposure."""
+        self._flange2base = self.arm.fkine()
+        shot = self.camera.grab()
+        return Frame(shot.timestamp_s, self._flange2base, shot.image)
+
+    def render_now(self, k: int) -> np.ndarray:
+        """Frame ``k`` rendered from the camera pose the joints gave at :meth:`read` (H, W) uint8."""
+        world2cam = invert_transform(concat(self.cam2flange, self._flange2base))
+        return render(scene_in_rig_frame(self.workpiece.scene, world2cam), self.rig, supersample=self.sim.supersample,
+                      sensor=Sensor(), seed=self.sim.noise_seed + k).image
 
     def send(self, tool2base: np.ndarray) -> ServoStep:
         q_t = self.arm.ikine(concat(invert_transform(self._tool), tool2base), max_step_rad=MAX_IK_STEP_RAD)
@@ -179,6 +191,38 @@ def control_loop(cell: Cell, tracker: SeamTracker, setup: SensorSetup, max_cycle
         if tracker.stopped and cell.at_rest():
             break
     return LoopResult(results, sensor, None if sensor is None else sensor.seed_px)
+
+
+class RenderedCamera:
+    """The simulated cell's camera as a :class:`psvs.live.camera.FrameSource`: each grab renders the world
+    from the pose the arm has at that moment (``cell.render_now``); its clock is the cell's simulated time
+    (frame k at k / rate, the "camera" clock); it takes no acquisition settings."""
+
+    frame_count: int = 0
+
+    def __init__(self, cell: SimulatedCell, name: str):
+        self.cell, self.name, self.fps, self.index = cell, name, 1.0 / cell.dt, 0
+
+    def open(self) -> None:
+        pass
+
+    def configure(self, acquisition: Acquisition) -> None:
+        if acquisition.asks_anything():
+            raise ValueError(f"{self.name} takes no acquisition settings")
+
+    def grab(self) -> CameraFrame:
+        k = self.index
+        self.index += 1
+        return CameraFrame(self.cell.render_now(k), k, k, k * self.cell.dt, "camera")
+
+    def close(self) -> None:
+        pass
+
+    def settings(self) -> dict:
+        return {"source": self.name, "frame_rate_hz": self.fps}
+
+    def feature_file(self) -> str | None:
+        return None
 
 
 class ReplayCell:

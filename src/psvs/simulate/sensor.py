@@ -50,8 +50,10 @@ def blur(image: np.ndarray, sigma_px: float) -> np.ndarray:
     return cv2.GaussianBlur(image, (k, k), sigmaX=sigma_px, sigmaY=sigma_px, borderType=cv2.BORDER_REFLECT)
 
 
-def expose(irradiance: np.ndarray, sensor: Sensor, seed: int | None = 0) -> np.ndarray:
-    """Turn an (H, W) irradiance image (1.0 = full well) into an 8-bit image (H, W) uint8."""
+def expose(irradiance: np.ndarray, sensor: Sensor, seed: int | None = 0, bits: int = 8) -> np.ndarray:
+    """Turn an (H, W) irradiance image (1.0 = full well) into an 8-bit image (H, W) uint8, or with ``bits``
+    10, 12, 14 or 16 a deeper sensor's (H, W) uint16 image of values 0..2**bits - 1 (a Mono12 camera's
+    frame: grey level = gain * (2**bits - 1) * electrons / full_well_e, the same noise)."""
     rng = np.random.default_rng(seed)
     e = blur(np.asarray(irradiance, dtype=np.float64), sensor.blur_sigma_px) * sensor.full_well_e
     e = np.clip(e, 0, None)
@@ -59,5 +61,10 @@ def expose(irradiance: np.ndarray, sensor: Sensor, seed: int | None = 0) -> np.n
         e = rng.poisson(e).astype(np.float64)
     if sensor.read_noise_e > 0:
         e = e + rng.normal(0.0, sensor.read_noise_e, e.shape)
-    dn = sensor.gain * 255.0 * e / sensor.full_well_e
-    return to_grey8(dn)
+    top = 2 ** bits - 1
+    dn = sensor.gain * float(top) * e / sensor.full_well_e
+    if bits == 8:
+        return to_grey8(dn)
+    if bits not in (10, 12, 14, 16):
+        raise ValueError(f"bits must be 8, 10, 12, 14 or 16, got {bits!r}")
+    return np.clip(np.rint(dn), 0, top).astype(np.uint16)

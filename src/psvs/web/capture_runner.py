@@ -4,7 +4,6 @@ the latest frame, step and events for the page to poll (the same words ``psvs ca
 from __future__ import annotations
 
 import collections
-import threading
 import time
 from dataclasses import dataclass
 
@@ -20,6 +19,7 @@ from psvs.calibrate.capture import (
 )
 from psvs.calibrate.detect import Target
 from psvs.optics.rig import Rig
+from psvs.web.runner import BackgroundRunner, close_frames
 from psvs.web.sources import Source
 
 EVENTS = 200            # event lines kept for the page
@@ -35,24 +35,20 @@ class CaptureSetup:
     folder: str
 
 
-class CaptureRunner:
+class CaptureRunner(BackgroundRunner):
     """Start with a source, a rig and params; poll :meth:`state` and :meth:`frame`; stop with :meth:`stop`.
     A second start in one app resumes the same set (its coverage, its folder) with the new params' count."""
 
     def __init__(self, setup: CaptureSetup | None):
+        super().__init__()
         self.setup = setup
-        self._lock = threading.Lock()
-        self._control = threading.Lock()
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
         self._assistant: CaptureAssistant | None = None
         self._folder: CaptureFolder | None = None
         self._frame, self._step, self._error, self._progress = None, None, "", None
         self._events: collections.deque = collections.deque(maxlen=EVENTS)
 
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
+    #: The capture loop's frame may take longer (detecting the card in both views of a large frame).
+    STOP_TIMEOUT_S = 10.0
 
     def start(self, source: Source, rig: Rig, params: CaptureParams) -> None:
         """Check the card against the rig and the range, then watch the source (ValueError, one line, else)."""
@@ -60,8 +56,8 @@ class CaptureRunner:
             raise ValueError("capture needs a card and a folder: start psvs serve with --target TARGET.toml and "
                              "--capture-to DIR")
         check_card_visible(rig, self.setup.target, params)
-        with self._control:
-            self._stop_locked()
+
+        def prepare():
             frames = source.frames()
             with self._lock:
                 if self._folder is None:
@@ -72,20 +68,8 @@ class CaptureRunner:
                     self._assistant.covered, self._assistant.saved = old.covered, old.saved
                 self._progress = _progress(self._assistant, self._folder)
                 self._error = ""
-            self._stop.clear()
-            self._thread = threading.Thread(target=self._loop, args=(frames, source.fps), daemon=True,
-                                            name="psvs-capture")
-            self._thread.start()
-
-    def stop(self) -> None:
-        with self._control:
-            self._stop_locked()
-
-    def _stop_locked(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=10)
-        self._thread = None
+            return frames, source.fps
+        self._start_loop(prepare, self._loop, "psvs-capture")
 
     def _loop(self, frames, fps: float) -> None:
         assistant, folder = self._assistant, self._folder
@@ -108,9 +92,7 @@ class CaptureRunner:
             with self._lock:
                 self._error = f"{type(exc).__name__}: {exc}"
         finally:
-            close = getattr(frames, "close", None)
-            if close:
-                close()
+            close_frames(frames)
 
     def frame(self) -> np.ndarray | None:
         with self._lock:

@@ -11,6 +11,7 @@ import numpy as np
 
 from psvs.live.dense import DenseFrame, DenseSensor
 from psvs.live.tracker import EdgeTracker, TrackStep
+from psvs.web.runner import BackgroundRunner, close_frames
 from psvs.web.sources import Source
 
 #: Serialises the dense computations of the page's requests and of the live loop: Numba's parallel kernels
@@ -21,14 +22,11 @@ HISTORY = 600          # depth samples kept for the plot
 SHOWN_PAIRS = 400      # pixel pairs sent to the page per frame (evenly subsampled)
 
 
-class LiveRunner:
+class LiveRunner(BackgroundRunner):
     """Start with a source and a tracker; poll :meth:`state` and :meth:`frame`; stop with :meth:`stop`."""
 
     def __init__(self):
-        self._lock = threading.Lock()          # guards the latest frame, step and history
-        self._control = threading.Lock()       # serialises start and stop
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
+        super().__init__()
         self._reset()
 
     def _reset(self):
@@ -40,34 +38,17 @@ class LiveRunner:
         self._error = ""
         self._t0 = time.perf_counter()
 
-    @property
-    def running(self) -> bool:
-        return self._thread is not None and self._thread.is_alive()
-
     def start(self, source: Source, tracker: EdgeTracker | None, dense: DenseSensor | None = None) -> None:
         """Stop any running loop and start a new one (one loop at a time, even with concurrent requests),
         with an edge tracker, a dense sensor, or both."""
         if tracker is None and dense is None:
             raise ValueError("live mode needs an edge to track or dense depth")
-        with self._control:
-            self._stop_locked()
+        def prepare():
             frames = source.frames()
             with self._lock:
                 self._reset()
-            self._stop.clear()
-            self._thread = threading.Thread(target=self._loop, args=(frames, tracker, dense, source.fps), daemon=True,
-                                            name="psvs-live")
-            self._thread.start()
-
-    def stop(self) -> None:
-        with self._control:
-            self._stop_locked()
-
-    def _stop_locked(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=5)
-        self._thread = None
+            return frames, tracker, dense, source.fps
+        self._start_loop(prepare, self._loop, "psvs-live")
 
     def _loop(self, frames, tracker: EdgeTracker | None, dense: DenseSensor | None, fps: float) -> None:
         period = 1.0 / fps if fps > 0 else 0.0
@@ -93,9 +74,7 @@ class LiveRunner:
             with self._lock:
                 self._error = f"{type(exc).__name__}: {exc}"
         finally:
-            close = getattr(frames, "close", None)
-            if close:
-                close()
+            close_frames(frames)
 
     def frame(self) -> np.ndarray | None:
         with self._lock:

@@ -10,8 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from psvs.live.camera import Acquisition, CameraSpec, open_camera
 from psvs.live.simulated import SimulatedSequence, ping_pong_positions
-from psvs.live.source import VideoSource
+from psvs.live.source import open_video
 from psvs.optics.rig import Rig
 from psvs.simulate.render import render
 from psvs.simulate.scene import Scene
@@ -47,7 +48,8 @@ def image_source(name: str, grey: np.ndarray) -> Source:
 
 
 def video_source(path: str) -> Source:
-    with VideoSource(video=path) as v:
+    """A video file, an image sequence or a folder of images, played in a loop."""
+    with open_video(path) as v:
         first, fps = v.read(), v.fps
     if first is None:
         raise ValueError(f"no frame could be read from {path}")
@@ -55,7 +57,7 @@ def video_source(path: str) -> Source:
     def frames():
         while True:
             n = 0
-            with VideoSource(video=path) as v:
+            with open_video(path) as v:
                 for frame in v:
                     n += 1
                     yield frame
@@ -64,16 +66,29 @@ def video_source(path: str) -> Source:
     return Source("video", path, first, fps or 30.0, frames)
 
 
-def camera_source(index: int) -> Source:
-    with VideoSource(camera=index) as v:
-        first = v.read()
+def camera_source(spec: CameraSpec, acquisition: Acquisition = Acquisition()) -> Source:
+    """A camera (``--camera``: an OpenCV index or a machine-vision camera), opened and configured now to
+    check it and take its first frame (one-line ValueError/OSError when it cannot), and again for each live
+    run (a camera serves one program at a time: released between runs)."""
+    def opened():
+        source = open_camera(spec)
+        try:
+            source.open()
+            source.configure(acquisition if spec.kind != "opencv" else Acquisition())
+        except BaseException:
+            source.close()
+            raise
+        return source
+
+    with opened() as cam:
+        first = cam.read()
     if first is None:
-        raise OSError(f"camera {index} gives no frames")
+        raise OSError(f"camera {spec} gives no frames")
 
     def frames():
-        with VideoSource(camera=index) as v:
-            yield from v
-    return Source("camera", f"camera {index}", first, 0.0, frames)
+        with opened() as cam:
+            yield from cam
+    return Source("camera", f"camera {spec}", first, 0.0, frames)
 
 
 def scene_source(name: str, scene: Scene, rig: Rig) -> Source:

@@ -1,0 +1,50 @@
+"""What the web UI's background loops (live mode, the capture assistant) share: one loop thread at a time,
+started and stopped under a lock even with concurrent requests, its latest state guarded by another."""
+from __future__ import annotations
+
+import threading
+
+
+class BackgroundRunner:
+    """A loop thread: :meth:`_start_loop` stops any running one and starts a new one; :meth:`stop` ends it.
+    Subclasses hold ``self._lock`` while they read or write the state the page polls."""
+
+    #: How long a stop waits for the loop to end (its current frame's work), s.
+    STOP_TIMEOUT_S = 5.0
+
+    def __init__(self):
+        self._lock = threading.Lock()          # guards the loop's latest state
+        self._control = threading.Lock()       # serialises start and stop
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+
+    @property
+    def running(self) -> bool:
+        return self._thread is not None and self._thread.is_alive()
+
+    def _start_loop(self, prepare, target, name: str) -> None:
+        """Under the control lock: stop the running loop, call ``prepare()`` (its return value is the args of
+        ``target``), then run ``target(*args)`` in a new daemon thread."""
+        with self._control:
+            self._stop_locked()
+            args = prepare()
+            self._stop.clear()
+            self._thread = threading.Thread(target=target, args=args, daemon=True, name=name)
+            self._thread.start()
+
+    def stop(self) -> None:
+        with self._control:
+            self._stop_locked()
+
+    def _stop_locked(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=self.STOP_TIMEOUT_S)
+        self._thread = None
+
+
+def close_frames(frames) -> None:
+    """Close a frame iterator (a generator releases its camera or file)."""
+    close = getattr(frames, "close", None)
+    if close:
+        close()

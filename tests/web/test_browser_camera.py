@@ -1,0 +1,41 @@
+"""The web UI's live page from a Basler camera: pylon's emulator (PYLON_CAMEMU) serving psvs's simulated
+complex images through the real pypylon path, in headless Chromium."""
+import os
+
+import numpy as np
+
+os.environ.setdefault("PYLON_CAMEMU", "1")       # before pypylon is first imported
+
+from psvs.io.params import load_rig  # noqa: E402
+from psvs.live.camera import Acquisition, parse_camera  # noqa: E402
+from psvs.web.app import create_app  # noqa: E402
+from psvs.web.sources import camera_source  # noqa: E402
+from tests.live.test_pylon import FRAMES, write_frames  # noqa: E402
+from tests.web.conftest import serving  # noqa: E402
+from tests.web.test_browser import dblclick_px, page, shot  # noqa: E402, F401  (page: the browser fixture)
+
+
+def test_live_page_from_the_emulated_basler_camera(page, tmp_path):  # noqa: F811
+    """serve --camera basler:0 (software trigger): the still is the camera's first frame; double-click the disc's
+    rim, start live: the page shows the camera's frames and each one's depth within 1 % of its truth (the
+    emulator serves the folder's five frames in a loop: frame k is file k mod 5)."""
+    _, served, seed = write_frames(tmp_path, "default", 8)
+    truth = 700.0 + np.array([0.0, 25.0, 50.0, 25.0, 0.0])
+    features = (("TestImageSelector", "Off"), ("ImageFileMode", "On"), ("ImageFilename", str(served)))
+    source = camera_source(parse_camera("basler:0"), Acquisition(trigger="software", features=features))
+    assert source.kind == "camera" and source.still.shape == (480, 640)
+    with serving(create_app(source, load_rig("default"))) as url:
+        page.goto(url + "/")
+        page.wait_for_selector("body[data-ready='1']", timeout=30000)
+        dblclick_px(page, *map(float, seed.split(",")))
+        page.wait_for_function("document.getElementById('depth').dataset.mm", timeout=30000)
+        z0 = float(page.get_attribute("#depth", "data-mm"))
+        assert abs(z0 - truth[0]) <= 0.01 * truth[0]
+        page.click("#live-start")
+        page.wait_for_function("Number(document.getElementById('live-frame').textContent) >= 12", timeout=60000)
+        page.click("#live-stop")
+        frame, z = page.evaluate("() => [Number(document.getElementById('live-frame').textContent), "
+                                 "Number(document.getElementById('live-depth').dataset.mm)]")
+        assert abs(z - truth[frame % FRAMES]) <= 0.01 * truth[frame % FRAMES], (frame, z)
+        assert float(page.inner_text("#live-fps")) > 0
+        shot(page, "web_live_basler.png")
