@@ -155,13 +155,7 @@ class CircleGrid:
     high: float = 0.9
 
     def __post_init__(self):
-        check_count(self.rows, "rows", 2)
-        check_count(self.cols, "cols", 2)
-        check_positive(self.spacing_mm, "spacing_mm", "mm")
-        check_positive(self.diameter_mm, "diameter_mm", "mm")
-        if self.diameter_mm >= self.spacing_mm:
-            raise ValueError(f"diameter_mm must be < spacing_mm, got {self.diameter_mm!r} >= {self.spacing_mm!r}")
-        _check_levels(low=self.low, high=self.high)
+        _check_disc_grid(self, 2, self.spacing_mm, "spacing_mm")
 
     def centres_mm(self) -> np.ndarray:
         """Disc centres (rows * cols, 2) mm, row by row (OpenCV's object-point order)."""
@@ -180,6 +174,18 @@ class CircleGrid:
         return np.where(inside, self.low, self.high)
 
 
+def _check_disc_grid(grid, min_rows: int, nearest_mm: float, nearest_name: str) -> None:
+    """A circle grid's fields: rows >= ``min_rows``, cols >= 2, positive sizes, discs narrower than the
+    nearest neighbours' distance ``nearest_mm`` (named ``nearest_name``), levels in [0, 1]."""
+    check_count(grid.rows, "rows", min_rows)
+    check_count(grid.cols, "cols", 2)
+    check_positive(grid.spacing_mm, "spacing_mm", "mm")
+    check_positive(grid.diameter_mm, "diameter_mm", "mm")
+    if grid.diameter_mm >= nearest_mm:
+        raise ValueError(f"diameter_mm must be < {nearest_name}, got {grid.diameter_mm!r} >= {nearest_mm:.4g}")
+    _check_levels(low=grid.low, high=grid.high)
+
+
 @dataclass(frozen=True)
 class AsymmetricCircleGrid:
     """OpenCV's asymmetric circle grid: ``rows`` rows of ``cols`` dark discs (``diameter_mm``); disc (r, c) at
@@ -194,14 +200,7 @@ class AsymmetricCircleGrid:
     high: float = 0.9
 
     def __post_init__(self):
-        check_count(self.rows, "rows", 3)
-        check_count(self.cols, "cols", 2)
-        check_positive(self.spacing_mm, "spacing_mm", "mm")
-        check_positive(self.diameter_mm, "diameter_mm", "mm")
-        if self.diameter_mm >= self.spacing_mm * np.sqrt(2):
-            raise ValueError(f"diameter_mm must be < spacing_mm * sqrt(2) (nearest neighbours' distance), got "
-                             f"{self.diameter_mm!r} >= {self.spacing_mm * np.sqrt(2):.4g}")
-        _check_levels(low=self.low, high=self.high)
+        _check_disc_grid(self, 3, self.spacing_mm * np.sqrt(2), "spacing_mm * sqrt(2) (nearest neighbours' distance)")
 
     def lattice(self) -> np.ndarray:
         """Disc positions in units of ``spacing_mm``, (rows * cols, 2) int, OpenCV's order (row by row)."""
