@@ -438,7 +438,8 @@ def _handeye() -> list[Case]:
 
 
 def _small() -> list[Case]:
-    """Commands with few options: replay, export-calibration, rig, table1, dense-eval, demo."""
+    """Commands with few options: replay, export-calibration, rig, cameras, table1, dense-eval, demo; the
+    camera specs of live (a vendor psvs does not know, a Basler serial that is not connected)."""
     return [
         Case("replay-missing", ("replay", "none.mcap", "--rig", "default"), 2, "none.mcap"),
         Case("replay-junk", ("replay", "r.mcap", "--rig", "default"), 2, "r.mcap",
@@ -454,6 +455,11 @@ def _small() -> list[Case]:
         Case("rig-show-malformed", ("rig", "show", "rig.toml"), 2, "malformed", {"rig.toml": "[camera\n"}),
         Case("rig-show-bom-and-nested", ("rig", "show", "rig.toml"), 2, "", {"rig.toml": BOM + nested()}),
         Case("rig-list-with-argument", ("rig", "list", "x"), 2, "list"),
+        Case("cameras-unknown-option", ("cameras", "--serial", "x"), 2, "--serial"),
+        Case("live-camera-of-an-unknown-vendor", ("live", "--camera", "flir:0", "--rig", "default", "--dense"), 2,
+             "flir:0"),
+        Case("live-basler-not-connected", ("live", "--camera", "basler:12345678", "--rig", "default", "--dense",
+                                           "-o", "log.csv"), 2, "Basler", outputs=("log.csv",)),
         Case("table1-output-is-a-file", ("table1", "--rig", "default", "-o", "afile"), 2, "afile",
              outputs=("afile",)),
         Case("table1-bad-start", ("table1", "--rig", "default", "--start", "none.toml", "-o", "t"), 2,

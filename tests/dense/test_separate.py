@@ -48,12 +48,54 @@ def test_bad_input_is_named(pair, kwargs, message):
         separate_views(**args)
 
 
+def _differences(h: int, w: int, offset: int, n_unknowns: int):
+    """G: the 4-neighbour differences of one view (h, w) at ``offset`` among ``n_unknowns``, as scipy
+    builds it (the reference the matrix-free operators are checked against)."""
+    import scipy.sparse as sp
+    idx = np.arange(h * w).reshape(h, w)
+    blocks = []
+    for a, b in ((idx[:, 1:], idx[:, :-1]), (idx[1:, :], idx[:-1, :])):
+        a, b = a.ravel() + offset, b.ravel() + offset
+        r = np.arange(a.size)
+        blocks.append(sp.csr_matrix((np.r_[np.ones(a.size), -np.ones(a.size)], (np.r_[r, r], np.r_[a, b])),
+                                    shape=(a.size, n_unknowns)))
+    return sp.vstack(blocks).tocsr()
+
+
+def test_rectified_normal_equations_match_scipy_sparse():
+    """The rectified path's operator (any sampling D, e.g. a build's bilinear one) is DᵀD + c·TᵀT + λ·GᵀG as
+    scipy builds it explicitly."""
+    import scipy.sparse as sp
+
+    from psvs.dense.separate import _rect_apply, _sampling, _ties
+    rng = np.random.default_rng(5)
+    h, w, s, coupling, lam = 8, 11, 0.45, 0.9, 0.2
+    n = h * w
+    uv = np.column_stack([rng.uniform(-1, w, 70), rng.uniform(-1, h, 70)])    # some off the grid
+    uv[3] = np.nan
+    data = sp.hstack([(1 - s) * _sampling(uv, h, w), s * _sampling(uv + [2.3, 0.4], h, w)]).tocsr()
+    dl = rng.uniform(0, 5, (h, w))
+    dl[1, 2] = np.nan
+    yy, xx, x0, f = _ties(dl, None, w)
+    m, r = yy.size, np.arange(yy.size)
+    ties = sp.csr_matrix((np.r_[-np.ones(m), 1 - f, f], (np.r_[r, r, r], np.r_[
+        yy * w + xx, n + yy * w + x0, n + yy * w + np.minimum(x0 + 1, w - 1)])), shape=(m, 2 * n))
+    grad = sp.vstack([_differences(h, w, 0, 2 * n), _differences(h, w, n, 2 * n)]).tocsr()
+    normal = data.T @ data + coupling * (ties.T @ ties) + lam * (grad.T @ grad)
+    apply = _rect_apply(data, data.T.tocsr(), (yy, xx, x0, f), (h, w), coupling, lam)
+    out = np.empty(2 * n)
+    for _ in range(3):
+        v = rng.normal(0, 1, 2 * n)
+        apply(v, out)
+        np.testing.assert_allclose(out, normal @ v, atol=1e-12)
+
+
 def test_matrix_free_normal_equations_match_scipy_sparse():
     """The Numba operator is DᵀD + c·TᵀT + λ·GᵀG as scipy builds it, and the solve follows scipy's cg."""
     import scipy.sparse as sp
     import scipy.sparse.linalg as spl
 
-    from psvs.dense.separate import _cg_matrix_free, _differences, _normal_apply, _ties
+    from psvs.dense.separate import _cg_matrix_free, _normal_apply, _ties
     rng = np.random.default_rng(3)
     h, w, s, coupling, lam = 9, 13, 0.4, 0.7, 0.05
     n = h * w
