@@ -22,9 +22,8 @@ two screws, H (trims tilt a) and V (trims tilt b). The guide finds the turns x (
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import itertools
+from dataclasses import dataclass
 
 import numpy as np
 

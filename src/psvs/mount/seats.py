@@ -71,7 +71,7 @@ class Seat:
         check_positive(self.pitch_mm, "pitch_mm", "mm")
         check_finite(self.back_offset_mm, "back_offset_mm")
         pts = self.contacts_st_mm
-        area = np.cross(pts[1] - pts[0], pts[2] - pts[0])
+        area = _cross2(pts[1] - pts[0], pts[2] - pts[0])
         if not np.all(np.isfinite(pts)) or abs(area) < 1e-6:
             raise ValueError(f"{self.mirror}'s three contacts must be finite and not on one line, got {pts.tolist()}")
 
@@ -84,8 +84,13 @@ class Seat:
     def levers_mm(self) -> tuple[float, float]:
         """Lever arms, mm: H's distance from the line P-V, V's distance from the line P-H."""
         p, h, v = self.contacts_st_mm
-        area = abs(float(np.cross(h - p, v - p)))
+        area = abs(_cross2(h - p, v - p))
         return area / float(np.linalg.norm(v - p)), area / float(np.linalg.norm(h - p))
+
+
+def _cross2(a: np.ndarray, b: np.ndarray) -> float:
+    """z of the cross product of two 2-vectors (twice the signed area of their triangle)."""
+    return float(a[0] * b[1] - a[1] * b[0])
 
 
 def seats_for(rig: Rig, *, pitch_mm: float = DEFAULT_PITCH_MM, inset: float = DEFAULT_INSET,
