@@ -1,6 +1,7 @@
 """The alignment guide (psvs.mount.guide, psvs adjust) with planted truth: on an exactly known build (no
 calibration) its turns bring the twins onto the same rows; planted turns on the design are undone."""
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -71,6 +72,9 @@ def test_adjust_cli_and_its_json(capsys, tmp_path):
     code, text, err = run(capsys, "adjust", "misaligned", "--rig", "clear", "--json", str(out))
     assert code == 0, err
     assert "clockwise" in text and "row offset before: largest 13.29 px" in text
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "mount.md").read_text().splitlines()
+    start = doc.index("$ psvs adjust misaligned --rig clear --json out/turns.json") + 1
+    assert doc[start:doc.index("```", start)] == text.splitlines()     # docs/mount.md's example, as printed
     data = json.loads(out.read_text())
     g = alignment_guide(load_rig(shipped_rig_path("misaligned")), seats_for(load_rig(shipped_rig_path("clear"))))
     assert data == guide_to_dict(g)

@@ -67,10 +67,9 @@ def format_guide(g: AlignmentGuide) -> str:
     lines.append(f"twins' row offset after the turns (predicted): largest {g.after_px[0]:.2f} px, "
                  f"RMS {g.after_px[1]:.2f} px ({g.after_unquantised_px[0]:.2f} px with turns not rounded to 1/16)")
     if g.null_space:
-        lines.append(f"{len(g.null_space)} combination(s) of turns move no twin off its row (< 0.02 px per turn: "
-                     "they only move twins along their rows, or are a motion no image sees, docs/calibration.md "
-                     "'What images cannot see'), so the rows cannot tell them apart; the smallest turns were "
-                     "taken, none of:")
+        lines.append(f"{len(g.null_space)} combination(s) of turns move no twin off its partner's row (< 0.02 px "
+                     "per turn: they move both twins alike, or along their rows), so the rows cannot tell them "
+                     "apart; the smallest turns were taken, none of:")
         names = [f"{t.mirror.upper()} {t.screw}" for t in g.turns]
         for v in g.null_space:
             big = sorted(range(len(v)), key=lambda k: -abs(v[k]))[:3]

@@ -28,6 +28,10 @@ def add_parser(sub) -> None:
                    help="calibrated rig file (TOML: in the --rig file's comments and layout; or .json)")
     p.add_argument("--report", metavar="DIR",
                    help="write residuals.csv, residuals.png and vertical_disagreement.png here (created if missing)")
+    p.add_argument("--adjust", action="store_true",
+                   help="also print the alignment guide: the screw turns on the seats of the --rig design's "
+                        "mirrors (M3 x 0.5) that bring the build's twins onto the same rows over 400-1200 mm "
+                        "(as psvs adjust OUTPUT --rig RIG; docs/mount.md)")
     p.set_defaults(run=run)
 
 
@@ -77,4 +81,9 @@ def run(args) -> int:
             written = write_report(report, b)
     for f in written:
         print(f"wrote {f}")
+    if args.adjust:
+        from psvs.cli.adjust_cmd import format_guide
+        from psvs.mount.guide import alignment_guide
+        from psvs.mount.seats import seats_for
+        print(format_guide(alignment_guide(res.rig, seats_for(start))))
     return 0 if b.success else 1

@@ -13,9 +13,14 @@ two screws, H (trims tilt a) and V (trims tilt b). The guide finds the turns x (
   range, kept where both views see them (:func:`psvs.measure.tolerance.field_points`).
 - **Turns**: Gauss-Newton on the exact optics (:func:`psvs.optics.project.project_points`) and the exact
   seat (:func:`psvs.mount.seats.apply_turns`), least squares on the row offsets with a small Tikhonov
-  weight toward zero turns. Turn combinations that move no row (singular values of the row-offset Jacobian
-  under :data:`NULL_PX_PER_TURN`, RMS px per turn) are what the rows -- and so the calibration, for this
-  purpose -- cannot tell apart: the guide says so and takes none of them (the minimum-norm turns).
+  weight toward zero turns. Turn combinations that move no twin off its partner's row (singular values of
+  the row-offset Jacobian under :data:`NULL_PX_PER_TURN`, RMS px per turn: they move both twins alike, or
+  along their rows) cannot be told apart by the rows: the guide says so and takes none of them (the
+  minimum-norm turns).
+- **What calibration cannot see** (docs/calibration.md): a build that differs from the calibrated rig by a
+  change no image sees (a periscope moved along its normal, the box's turn traded for mirror tilts, a rigid
+  motion of frame C) gives the same images, so the same twins' rows: the turns found on the calibrated rig
+  hold for the true build too, up to how the screws' effect itself differs between the two (second order).
 - **Quantised** to 1/16 turn: every screw within two steps of its nearest rounding is tried (5^8
   combinations), then a descent (:func:`_quantise`); the choice has the smallest predicted largest row
   offset plus :data:`TURN_COST_PX` per turn. The offset after those turns is then computed exactly.
