@@ -41,6 +41,14 @@ def _fmt(name: str, value: float, sigma: float) -> str:
     return f"  {name:<22}{value:12.5f}  +- {sigma:.5f}"
 
 
+def _guide(rig, design) -> str:
+    """The alignment guide of the calibrated ``rig`` on the seats of ``design``'s mirrors (docs/mount.md)."""
+    from psvs.cli.adjust_cmd import format_guide
+    from psvs.mount.guide import alignment_guide
+    from psvs.mount.seats import seats_for
+    return format_guide(alignment_guide(rig, seats_for(design)))
+
+
 def run(args) -> int:
     out = check_output_path(args.output, (".toml", ".json"))
     report = check_output_folder(args.report, "report folder") if args.report is not None else None
@@ -71,6 +79,7 @@ def run(args) -> int:
         print(f"{len(b.held_by_prior)} parameter(s) held near nominal by their priors ({priors}): "
               "the images do not show them; more card views, tilted and over the whole field, would")
     print(f"solver: {b.message}")
+    guide = _guide(res.rig, start) if args.adjust else None    # before any file: a guide that fails writes none
     with output_batch():   # the rig file and the report land together
         save_rig(dataclasses.replace(res.rig, calibration=Calibration(
             b.rms_px, b.rms_by_view["left"], b.rms_by_view["right"], len(res.used), kinds_text)), out, template)
@@ -81,9 +90,6 @@ def run(args) -> int:
             written = write_report(report, b)
     for f in written:
         print(f"wrote {f}")
-    if args.adjust:
-        from psvs.cli.adjust_cmd import format_guide
-        from psvs.mount.guide import alignment_guide
-        from psvs.mount.seats import seats_for
-        print(format_guide(alignment_guide(res.rig, seats_for(start))))
+    if guide is not None:
+        print(guide)
     return 0 if b.success else 1
