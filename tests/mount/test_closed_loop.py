@@ -20,10 +20,12 @@ from tests.cli.test_cli import run
 pytestmark = pytest.mark.slow
 
 UNBOUNDED = {k: None for k in ("m1", "m2", "m3", "m4")}
-#: (design, build, card, views, pose options): the fewest views that calibrate each build
+#: (design, build, card, views, pose options): few views: calibrate needs 3 usable; one more to spare (3, 4, 5,
+#: 6 and 8 views measured 0.41, 0.43, 0.33, 0.31, 0.34 px after the turns on misaligned; 4, 5, 6, 8 and 10
+#: views 0.58, 0.52, 0.52, 0.53, 0.53 px on mv1440)
 CASES = {
-    "misaligned": ("clear", "misaligned", CircleGrid(4, 6, 14.0, 7.0), 8, {}),
-    "mv1440": ("mv1440", "mv1440_misaligned", CircleGrid(5, 7, 16.0, 7.0), 10,
+    "misaligned": ("clear", "misaligned", CircleGrid(4, 6, 14.0, 7.0), 4, {}),
+    "mv1440": ("mv1440", "mv1440_misaligned", CircleGrid(5, 7, 16.0, 7.0), 4,
                {"z_range_mm": (400.0, 900.0), "margin_px": 12.0, "apart": False}),
 }
 
@@ -51,10 +53,10 @@ def calibrated(capsys, tmp_path, case):
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_turns_from_a_calibration_align_the_true_build(capsys, tmp_path, case):
     """The guide on the calibrated rig; its turns on the true build: largest row offset <= 1 px (it was
-    10-40 px). Measured (docs/mount.md): misaligned 13.29 -> 0.34 px (8 views, RMS 0.026 px; the guide
-    predicted 0.28 px), mv1440 13.76 -> 0.53 px (10 views, RMS 0.018 px; predicted 0.62 px)."""
+    10-40 px). Measured (docs/mount.md): misaligned 13.29 -> 0.43 px (4 views, RMS 0.027 px; the guide
+    predicted 0.33 px), mv1440 13.76 -> 0.58 px (4 views, RMS 0.018 px; predicted 0.65 px)."""
     nominal, true, rig, printed = calibrated(capsys, tmp_path, case)
-    assert rig.calibration.rms_px <= 0.1 and rig.calibration.images == CASES[case][3]
+    assert rig.calibration.rms_px <= 0.1 and rig.calibration.images >= 3
     seats = seats_for(nominal)
     guide = alignment_guide(rig, seats)
     assert f"row offset before: largest {guide.before_px[0]:.2f} px" in printed
