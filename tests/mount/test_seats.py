@@ -1,6 +1,8 @@
 """The seat model (psvs.mount.seats) against independent derivations: rad/turn = pitch / lever arm from the
 mirror's rectangle, and the exact turned plane against the three contacts moved along their screws."""
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -146,3 +148,18 @@ def test_bad_seats_are_refused():
         seats_for(MV1440, glass_mm=-1.0)
     with pytest.raises(ValueError, match="no seat for mirror"):
         apply_turns(MV1440, {}, {"m1": (1.0, 0.0)})
+
+
+def test_docs_table_is_the_clear_designs_seats():
+    """docs/mount.md's table of the clear design's seats, as seats_for and screw_rates give them."""
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "mount.md").read_text()
+    seats = seats_for(CLEAR)
+    for name in MIRROR_NAMES:
+        row = re.search(rf"^\| {name.upper()}[^|]*\|(.*)$", doc, re.M).group(1).replace("−", "-")
+        nums = [float(x) for x in re.findall(r"-?\d+\.\d+", row)]
+        rates = screw_rates(seats[name], handedness(CLEAR, name))
+        want = [*seats[name].levers_mm, math.degrees(rates["H"].tilt_rad_per_turn[0]),
+                math.degrees(rates["V"].tilt_rad_per_turn[1]), rates["H"].shift_mm_per_turn,
+                rates["V"].shift_mm_per_turn]
+        printed = [round(w, 1) for w in want[:2]] + [round(w, 3) for w in want[2:]]
+        assert printed == nums, (name, nums, want)
