@@ -19,7 +19,7 @@ LAYERS = [
     {"errors", "_validate", "_memory", "_quiet", "_work", "transforms", "rigs"},
     {"optics"},
     {"measure", "imaging"},
-    {"simulate"},
+    {"simulate", "mount"},
     {"io"},
     {"match", "dense"},
     {"calibrate", "live"},

@@ -477,10 +477,28 @@ def _small() -> list[Case]:
     ]
 
 
+def _adjust() -> list[Case]:
+    """psvs adjust: the calibrated build (a file or a shipped rig) and its design (--rig)."""
+    base = ("adjust", "default", *R)
+    good = {"rig.toml": DEFAULT_RIG}
+    own = ("adjust", "build.toml", *R)
+    return _rig_cases(base, "adjust") + [
+        Case("adjust-build-missing", ("adjust", "none.toml", *R), 2, "not found", good),
+        Case("adjust-build-malformed", own, 2, "malformed", {"build.toml": "[camera\n", **good}),
+        Case("adjust-other-design", own, 2, "not one design",
+             {"build.toml": rig_text("baseline_mm = 100.0", "baseline_mm = 120.0"), **good}),
+        Case("adjust-pitch-nan", (*base, "--pitch-mm", "nan"), 2, "pitch", good),
+        Case("adjust-pitch-zero", (*base, "--pitch-mm", "0"), 2, "pitch", good),
+        Case("adjust-json-suffix", (*base, "--json", "turns.txt"), 2, ".json", good),
+        Case("adjust-json-over-its-design", (*base, "--json", "rig.toml"), 2, "", good),
+        Case("adjust-near-beyond-far", (*base, "--near-mm", "900", "--far-mm", "500"), 2, "near", good),
+    ]
+
+
 def all_cases() -> list[Case]:
     cases = (_design() + _triangulate() + _fit_refraction() + _simulate() + _match() + _measure()
              + _card_views() + _sweep_views() + _capture() + _calibrate() + _disparity() + _live() + _serve() + _track()
-             + _handeye() + _small())
+             + _handeye() + _adjust() + _small())
     names = [c.name for c in cases]
     assert len(names) == len(set(names)), "case names must be unique"
     return cases

@@ -28,6 +28,10 @@ def add_parser(sub) -> None:
                    help="calibrated rig file (TOML: in the --rig file's comments and layout; or .json)")
     p.add_argument("--report", metavar="DIR",
                    help="write residuals.csv, residuals.png and vertical_disagreement.png here (created if missing)")
+    p.add_argument("--adjust", action="store_true",
+                   help="also print the alignment guide: the screw turns on the seats of the --rig design's "
+                        "mirrors (M3 x 0.5) that bring the build's twins onto the same rows over 400-1200 mm "
+                        "(as psvs adjust OUTPUT --rig RIG; docs/mount.md)")
     p.set_defaults(run=run)
 
 
@@ -35,6 +39,14 @@ def _fmt(name: str, value: float, sigma: float) -> str:
     if name.endswith("_rad"):
         return f"  {name[:-4] + '_deg':<22}{math.degrees(value):12.5f}  +- {math.degrees(sigma):.5f}"
     return f"  {name:<22}{value:12.5f}  +- {sigma:.5f}"
+
+
+def _guide(rig, design) -> str:
+    """The alignment guide of the calibrated ``rig`` on the seats of ``design``'s mirrors (docs/mount.md)."""
+    from psvs.cli.adjust_cmd import format_guide
+    from psvs.mount.guide import alignment_guide
+    from psvs.mount.seats import seats_for
+    return format_guide(alignment_guide(rig, seats_for(design)))
 
 
 def run(args) -> int:
@@ -67,6 +79,7 @@ def run(args) -> int:
         print(f"{len(b.held_by_prior)} parameter(s) held near nominal by their priors ({priors}): "
               "the images do not show them; more card views, tilted and over the whole field, would")
     print(f"solver: {b.message}")
+    guide = _guide(res.rig, start) if args.adjust else None    # before any file: a guide that fails writes none
     with output_batch():   # the rig file and the report land together
         save_rig(dataclasses.replace(res.rig, calibration=Calibration(
             b.rms_px, b.rms_by_view["left"], b.rms_by_view["right"], len(res.used), kinds_text)), out, template)
@@ -77,4 +90,6 @@ def run(args) -> int:
             written = write_report(report, b)
     for f in written:
         print(f"wrote {f}")
+    if guide is not None:
+        print(guide)
     return 0 if b.success else 1

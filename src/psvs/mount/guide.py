@@ -1,0 +1,234 @@
+"""The alignment guide: which screw of which mirror to turn, which way and how far, so that the twins of
+every scene point land on the same rows.
+
+A build's mirrors are glued a little off; calibration (``psvs calibrate``) measures each mirror's
+(tilt a, tilt b, shift) as a rig file. Each mirror sits on a seat (:mod:`psvs.mount.seats`): a pivot and
+two screws, H (trims tilt a) and V (trims tilt b). The guide finds the turns x (8,) of the eight screws
+(M1 H, M1 V, ..., M4 V; clockwise seen from behind > 0) that bring the twins' rows together:
+
+- **Row offset** of a scene point: (v_left - v_right) through the build, minus the same through the build's
+  design (the same camera and lens, every mirror as designed, the box not turned). The lens's distortion
+  and the plate's own small row shift are in both and cancel; what is left is what the mirrors' errors do,
+  and what the screws can undo. Points: the left view's pixel grid (11 x 9) at 3 depths over the working
+  range, kept where both views see them (:func:`psvs.measure.tolerance.field_points`).
+- **Turns**: Gauss-Newton on the exact optics (:func:`psvs.optics.project.project_points`) and the exact
+  seat (:func:`psvs.mount.seats.apply_turns`), least squares on the row offsets with a small Tikhonov
+  weight toward zero turns. Turn combinations that move no twin off its partner's row (singular values of
+  the row-offset Jacobian under :data:`NULL_PX_PER_TURN`, RMS px per turn: they move both twins alike, or
+  along their rows) cannot be told apart by the rows: the guide says so and takes none of them (the
+  minimum-norm turns).
+- **What calibration cannot see** (docs/calibration.md): a build that differs from the calibrated rig by a
+  change no image sees (a periscope moved along its normal, the box's turn traded for mirror tilts, a rigid
+  motion of frame C) gives the same images, so the same twins' rows: the turns found on the calibrated rig
+  hold for the true build too, up to how the screws' effect itself differs between the two (second order).
+- **Quantised** to 1/16 turn: every screw within two steps of its nearest rounding is tried (5^8
+  combinations), then a descent (:func:`_quantise`); the choice has the smallest predicted largest row
+  offset plus :data:`TURN_COST_PX` per turn. The offset after those turns is then computed exactly.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.measure.tolerance import field_points
+from psvs.mount.seats import SCREWS, Seat, apply_turns, handedness, screw_rates
+from psvs.optics.project import project_points
+from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
+
+#: Turns are given in steps of this (a builder can set a screw to 1/16 of a turn by its hex key).
+TURN_STEP = 1.0 / 16.0
+#: A turn combination that moves the twins' rows by less than this (RMS px per turn) is not seen.
+NULL_PX_PER_TURN = 0.02
+#: Tikhonov weight toward zero turns, px (RMS) per turn: small against any screw that matters.
+REGULARISE_PX_PER_TURN = 0.01
+#: In the rounding to 1/16 turn, a turn in all (any screw) costs as much as this many px of row offset.
+TURN_COST_PX = 0.1
+#: The rounding tries every screw this many 1/16-turn steps either side of its nearest rounding.
+SEARCH_STEPS = 2
+#: The order of the eight turns.
+SCREW_ORDER = tuple((m, s) for m in MIRROR_NAMES for s in SCREWS)
+
+
+@dataclass(frozen=True)
+class ScrewTurn:
+    """One screw's turn: ``turns`` (a multiple of 1/16, clockwise seen from behind > 0), and what one turn
+    does (small angles): ``rad_per_turn`` of its tilt (``tilt`` 'a' about the vertical or 'b' out of
+    vertical, the rig's sign convention) and ``shift_mm_per_turn`` along the normal at the anchor."""
+
+    mirror: str
+    screw: str
+    tilt: str
+    turns: float
+    rad_per_turn: float
+    shift_mm_per_turn: float
+
+    @property
+    def direction(self) -> str:
+        return "clockwise" if self.turns > 0 else "counter-clockwise" if self.turns < 0 else "none"
+
+
+@dataclass(frozen=True)
+class AlignmentGuide:
+    """The guide's result. ``turns``: all eight screws in :data:`SCREW_ORDER`; ``before_px``/``after_px``:
+    (largest, RMS) |row offset| over the ``n_points`` field points before and after the quantised turns,
+    px; ``after_unquantised_px``: the same for the turns before rounding; ``null_space``: unit turn
+    combinations (each (8,) in SCREW_ORDER) that move no row; ``singular_px``: RMS px per turn along each
+    singular direction, largest first."""
+
+    turns: tuple[ScrewTurn, ...]
+    before_px: tuple[float, float]
+    after_px: tuple[float, float]
+    after_unquantised_px: tuple[float, float]
+    null_space: tuple[tuple[float, ...], ...]
+    singular_px: tuple[float, ...]
+    near_mm: float
+    far_mm: float
+    n_points: int
+    pitch_mm: float
+
+    @property
+    def turns_by_mirror(self) -> dict[str, tuple[float, float]]:
+        """``{mirror: (turns of H, turns of V)}``, as :func:`psvs.mount.seats.apply_turns` takes them."""
+        out = {m: [0.0, 0.0] for m in MIRROR_NAMES}
+        for t in self.turns:
+            out[t.mirror][SCREWS.index(t.screw)] = t.turns
+        return {m: (h, v) for m, (h, v) in out.items()}
+
+
+def designed_twin(rig: Rig) -> Rig:
+    """The build's design: the same camera, every mirror as designed, the box not turned."""
+    return rig.with_errors({n: MirrorError() for n in MIRROR_NAMES}).replace(box_rotation_rad=(0.0, 0.0, 0.0))
+
+
+def twin_rows_px(rig: Rig, points_mm: np.ndarray) -> np.ndarray:
+    """v_left - v_right (N,) px of scene points (N, 3) mm through ``rig``; NaN where a view misses one."""
+    left, _ = project_points(points_mm, rig, "left")
+    right, _ = project_points(points_mm, rig, "right")
+    return left[:, 1] - right[:, 1]
+
+
+def row_offsets_px(rig: Rig, points_mm: np.ndarray) -> np.ndarray:
+    """The twins' row offset (N,) px of scene points (N, 3) mm: :func:`twin_rows_px` through the build
+    minus through its :func:`designed_twin` (0 for a build as designed)."""
+    return twin_rows_px(rig, points_mm) - twin_rows_px(designed_twin(rig), points_mm)
+
+
+def working_points(rig: Rig, near_mm: float, far_mm: float) -> np.ndarray:
+    """(N, 3) mm: the field points the guide weighs (11 x 9 pixels of the left view at 3 depths)."""
+    return field_points(designed_twin(rig), near_mm, far_mm, n_u=11, n_v=9, n_z=3)
+
+
+def _stats(r: np.ndarray) -> tuple[float, float]:
+    r = r[np.isfinite(r)]
+    return float(np.max(np.abs(r))), float(np.sqrt(np.mean(r ** 2)))
+
+
+def _as_dict(x: np.ndarray) -> dict[str, tuple[float, float]]:
+    return {m: (float(x[2 * k]), float(x[2 * k + 1])) for k, m in enumerate(MIRROR_NAMES)}
+
+
+def alignment_guide(built: Rig, seats: dict[str, Seat], near_mm: float = 400.0, far_mm: float = 1200.0,
+                    iterations: int = 4) -> AlignmentGuide:
+    """The screw turns that bring the twins of ``built`` (a calibrated rig) onto the same rows over
+    ``near_mm`` .. ``far_mm`` (see the module's notes); ``seats`` from :func:`psvs.mount.seats.seats_for`
+    on the nominal design."""
+    missing = [m for m in MIRROR_NAMES if m not in seats]
+    if missing:
+        raise ValueError(f"seats must hold all four mirrors, missing {', '.join(missing)}")
+    pts = working_points(built, near_mm, far_mm)
+    base = twin_rows_px(designed_twin(built), pts)
+    r0 = twin_rows_px(built, pts) - base
+    keep = np.isfinite(r0)
+    if keep.sum() < 10:
+        raise ValueError(f"the views share too few field points ({int(keep.sum())}) over {near_mm}-{far_mm} mm")
+    pts, base, r0 = pts[keep], base[keep], r0[keep]
+
+    def residual(x):
+        return twin_rows_px(apply_turns(built, seats, _as_dict(x)), pts) - base
+
+    J = _jacobian(residual, len(SCREW_ORDER))
+    steady = np.all(np.isfinite(J), axis=1)     # a point a mirror's edge cuts off as the screws turn: not weighed
+    if steady.sum() < 10:
+        raise ValueError(f"too few field points ({int(steady.sum())}) stay in both views as the screws turn")
+    pts, base, r0, J = pts[steady], base[steady], r0[steady], J[steady]
+    m = len(pts)
+    _, sv, vt = np.linalg.svd(J / np.sqrt(m), full_matrices=False)
+    seen = sv >= NULL_PX_PER_TURN
+    A = J @ vt[seen].T                                   # the turns the rows see, in their own basis
+    y = np.zeros(int(seen.sum()))
+    lam = m * REGULARISE_PX_PER_TURN ** 2
+    r = r0
+    for _ in range(iterations):
+        ok = np.isfinite(r)
+        y = np.linalg.solve(A[ok].T @ A[ok] + lam * np.eye(len(y)), A[ok].T @ (A[ok] @ y - r[ok]))
+        r = residual(vt[seen].T @ y)
+    x_cont = vt[seen].T @ y
+    x = _quantise(x_cont, r, J)
+    after = residual(x) if np.any(x) else r0
+    return AlignmentGuide(_screw_turns(built, seats, x), _stats(r0), _stats(after), _stats(r),
+                          tuple(tuple(float(c) for c in v) for v in vt[~seen]), tuple(float(s) for s in sv),
+                          float(near_mm), float(far_mm), m, float(seats["m1"].pitch_mm))
+
+
+def _jacobian(residual, n: int, h: float = TURN_STEP) -> np.ndarray:
+    """(M, n) px per turn: central differences of ``residual`` at zero turns, steps of ``h`` turn."""
+    cols = []
+    for j in range(n):
+        e = np.zeros(n)
+        e[j] = h
+        cols.append((residual(e) - residual(-e)) / (2 * h))
+    return np.column_stack(cols)
+
+
+def _quantise(x: np.ndarray, r: np.ndarray, J: np.ndarray, step: float = TURN_STEP) -> np.ndarray:
+    """Turns on the 1/16 lattice near ``x`` (n,) whose predicted row offsets r + J (x_q - x) have the
+    smallest cost: the largest |offset| (px) plus :data:`TURN_COST_PX` per turn in all. Every screw within
+    :data:`SEARCH_STEPS` steps of its nearest rounding is tried (5^8 combinations), then a descent moves one
+    to three screws by one step while the cost falls. The best may leave a screw off its rounding where
+    others make up for its step better: 1/16 turn of M1's screw V is ~0.18 deg, several px of rows."""
+    ok = np.isfinite(r)
+    r, J = r[ok], J[ok]
+    near = np.round(x / step)
+
+    def cost(xq):
+        return np.abs(r + (xq - x) @ J.T).max(axis=-1) + TURN_COST_PX * np.abs(xq).sum(axis=-1)
+
+    offsets = np.arange(-SEARCH_STEPS, SEARCH_STEPS + 1, dtype=float)
+    grid = np.stack(np.meshgrid(*[offsets] * len(x), indexing="ij"), axis=-1).reshape(-1, len(x))
+    best, now = near * step, float(cost(near * step))
+    for chunk in np.array_split(grid, max(1, len(grid) // 16384)):
+        c = cost((near + chunk) * step)
+        k = int(np.argmin(c))
+        if c[k] < now:
+            best, now = (near + chunk[k]) * step, float(c[k])
+    moves = _moves(len(x)) * step
+    for _ in range(200):
+        c = cost(best[None, :] + moves)
+        k = int(np.argmin(c))
+        if c[k] >= now - 1e-9:
+            break
+        best, now = best + moves[k], float(c[k])
+    return best
+
+
+def _moves(n: int, most: int = 3) -> np.ndarray:
+    """(K, n): every change of one to ``most`` of n screws by one step each way."""
+    out = []
+    for k in range(1, most + 1):
+        for idx in itertools.combinations(range(n), k):
+            for signs in itertools.product((-1.0, 1.0), repeat=k):
+                e = np.zeros(n)
+                e[list(idx)] = signs
+                out.append(e)
+    return np.array(out)
+
+
+def _screw_turns(built: Rig, seats: dict[str, Seat], x: np.ndarray) -> tuple[ScrewTurn, ...]:
+    out = []
+    for k, (mirror, screw) in enumerate(SCREW_ORDER):
+        rate = screw_rates(seats[mirror], handedness(built, mirror))[screw]
+        j = SCREWS.index(screw)
+        out.append(ScrewTurn(mirror, screw, "ab"[j], float(x[k]), rate.tilt_rad_per_turn[j], rate.shift_mm_per_turn))
+    return tuple(out)
