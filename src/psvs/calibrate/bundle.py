@@ -295,7 +295,8 @@ class _Problem:
 
 
 def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
-                  sweep_local_mm: np.ndarray | None = None, max_nfev: int = 60, hold=None) -> BundleResult:
+                  sweep_local_mm: np.ndarray | None = None, max_nfev: int = 60, hold=None,
+                  init: Rig | None = None) -> BundleResult:
     """Calibrate a build from grid views and/or sweep views, starting from ``start`` (the nominal design).
 
     Parameters
@@ -314,6 +315,9 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
         point and the pattern's pose): first :data:`DESIGN_HOLDS` (the design's mirrors, as the paper's
         model), and only if that leaves the images unexplained (RMS > :data:`DESIGN_FITS_PX`) again with
         the mirror errors free, :data:`SWEEP_HOLDS`.
+    init : Rig, optional
+        Where the solver starts (e.g. an earlier adjustment of a subset of the images); the priors stay
+        centred on ``start``. Default: ``start``.
     """
     if len(grids) + len(sweeps) < 3:
         raise ValueError(f"calibration needs at least 3 usable images, got {len(grids) + len(sweeps)}")
@@ -321,15 +325,16 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
         raise ValueError("sweep views need the pattern's layout (sweep_local_mm)")
     local = np.zeros((0, 3)) if sweep_local_mm is None else np.asarray(sweep_local_mm, float)
     if hold is None and not grids:
-        first = bundle_adjust(grids, sweeps, start, sweep_local_mm, max_nfev, hold=DESIGN_HOLDS)
+        first = bundle_adjust(grids, sweeps, start, sweep_local_mm, max_nfev, hold=DESIGN_HOLDS, init=init)
         if first.rms_px <= DESIGN_FITS_PX:
             return first
         hold = SWEEP_HOLDS
     prob = _Problem(grids, sweeps, local, start, tuple(hold or ()))
-    x0 = [prob.x_start]
+    first_guess = start if init is None else init
+    x0 = [rig_vector(first_guess)[prob.free]]
     if sweeps:
-        x0.append(initial_sweep(sweeps, local, start))
-    x0 += [initial_grid_pose(g, start) for g in grids]
+        x0.append(initial_sweep(sweeps, local, first_guess))
+    x0 += [initial_grid_pose(g, first_guess) for g in grids]
     x0 = np.concatenate(x0)
     lo, hi = np.full(len(x0), -np.inf), np.full(len(x0), np.inf)
     for k, name in enumerate(prob.names):

@@ -106,10 +106,26 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
     if bad:
         for name, rms in bad.items():
             skipped[name] = f"the target fits no pose (reprojection RMS {rms:.2f} px after adjustment)"
-        grids = [g for g in grids if g.name not in bad]
-        sweeps = [s for s in sweeps if s.name not in bad]
-        _enough(grids, sweeps, skipped)
-        res = bundle_adjust(grids, sweeps, start, sweep_local_mm=local if sweeps else None)
+        kept_g, kept_s = [g for g in grids if g.name not in bad], [s for s in sweeps if s.name not in bad]
+        _enough(kept_g, kept_s, skipped)
+        res = bundle_adjust(kept_g, kept_s, start, sweep_local_mm=local if kept_s else None)
+        # a start far from the build can leave good views unexplained (the first adjustment settles with
+        # them as outliers): all of them again, from where the rest put the rig; those that fit now are kept
+        again = bundle_adjust(grids, sweeps, start, sweep_local_mm=local, init=res.rig)
+        still = {n for n, r in again.rms_by_image.items() if r > MAX_IMAGE_RMS_PX}
+        if len(still) < len(bad):
+            for name in set(bad) - still:
+                del skipped[name]
+            for name in still:
+                skipped[name] = (f"the target fits no pose (reprojection RMS {again.rms_by_image[name]:.2f} px "
+                                 "after adjustment)")
+            if still:
+                grids, sweeps = [g for g in grids if g.name not in still], [s for s in sweeps if s.name not in still]
+                _enough(grids, sweeps, skipped)
+                again = bundle_adjust(grids, sweeps, start, sweep_local_mm=local if sweeps else None, init=res.rig)
+            res = again
+        else:
+            grids, sweeps = kept_g, kept_s
     used = {**{g.name: "grid" for g in grids}, **{s.name: "sweep" for s in sweeps}}
     b, sb = effective_baseline(res)
     return CalibrationResult(res, used, skipped, b, sb)
