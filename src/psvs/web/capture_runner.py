@@ -19,7 +19,7 @@ from psvs.calibrate.capture import (
 )
 from psvs.calibrate.detect import Target
 from psvs.optics.rig import Rig
-from psvs.web.runner import BackgroundRunner, close_frames
+from psvs.web.runner import BackgroundRunner
 from psvs.web.sources import Source
 
 EVENTS = 200            # event lines kept for the page
@@ -74,29 +74,19 @@ class CaptureRunner(BackgroundRunner):
     def _loop(self, frames, fps: float) -> None:
         assistant, folder = self._assistant, self._folder
         t0 = time.monotonic()
-        try:
-            for k, frame in enumerate(frames):
-                if self._stop.is_set():
-                    break
-                step = assistant.step(frame, k / fps if fps > 0 else time.monotonic() - t0)
-                name = folder.save(frame) if step.status == "saved" else None
-                with self._lock:
-                    self._frame, self._step = frame, step
-                    self._progress = _progress(assistant, folder)
-                    self._events.extend(event_lines(step, name, assistant.params.views))
-                    if step.complete:
-                        self._events.append(f"enough to calibrate: {step.saved} views in {folder.folder}")
-                if step.complete:
-                    break
-        except Exception as exc:   # shown on the page; the server keeps running
+        for k, frame in enumerate(frames):
+            if self._stop.is_set():
+                break
+            step = assistant.step(frame, k / fps if fps > 0 else time.monotonic() - t0)
+            name = folder.save(frame) if step.status == "saved" else None
             with self._lock:
-                self._error = f"{type(exc).__name__}: {exc}"
-        finally:
-            close_frames(frames)
-
-    def frame(self) -> np.ndarray | None:
-        with self._lock:
-            return self._frame
+                self._frame, self._step = frame, step
+                self._progress = _progress(assistant, folder)
+                self._events.extend(event_lines(step, name, assistant.params.views))
+                if step.complete:
+                    self._events.append(f"enough to calibrate: {step.saved} views in {folder.folder}")
+            if step.complete:
+                break
 
     def state(self) -> dict:
         """The set's progress: views saved and asked for, what each bin holds, what is missing, the latest

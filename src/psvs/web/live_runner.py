@@ -11,7 +11,7 @@ import numpy as np
 
 from psvs.live.dense import DenseFrame, DenseSensor
 from psvs.live.tracker import EdgeTracker, TrackStep
-from psvs.web.runner import BackgroundRunner, close_frames
+from psvs.web.runner import BackgroundRunner
 from psvs.web.sources import Source
 
 #: Serialises the dense computations of the page's requests and of the live loop: Numba's parallel kernels
@@ -53,32 +53,22 @@ class LiveRunner(BackgroundRunner):
     def _loop(self, frames, tracker: EdgeTracker | None, dense: DenseSensor | None, fps: float) -> None:
         period = 1.0 / fps if fps > 0 else 0.0
         next_t = time.perf_counter()
-        try:
-            for frame in frames:
-                if self._stop.is_set():
-                    break
-                step = tracker.step(frame) if tracker is not None else None
-                dstep = None
-                if dense is not None:
-                    with DENSE_LOCK:
-                        dstep = dense.step(frame)
-                now = time.perf_counter()
-                with self._lock:
-                    self._frame, self._step, self._dense = frame, step, dstep
-                    self._times.append(now)
-                    self._history.append((now - self._t0, step.depth_mm if step is not None else dstep.median_z_mm))
-                if period:   # play files and simulations at their nominal rate
-                    next_t = max(next_t + period, now - period)
-                    self._stop.wait(max(0.0, next_t - time.perf_counter()))
-        except Exception as exc:   # shown on the page; the server keeps running
+        for frame in frames:
+            if self._stop.is_set():
+                break
+            step = tracker.step(frame) if tracker is not None else None
+            dstep = None
+            if dense is not None:
+                with DENSE_LOCK:
+                    dstep = dense.step(frame)
+            now = time.perf_counter()
             with self._lock:
-                self._error = f"{type(exc).__name__}: {exc}"
-        finally:
-            close_frames(frames)
-
-    def frame(self) -> np.ndarray | None:
-        with self._lock:
-            return self._frame
+                self._frame, self._step, self._dense = frame, step, dstep
+                self._times.append(now)
+                self._history.append((now - self._t0, step.depth_mm if step is not None else dstep.median_z_mm))
+            if period:   # play files and simulations at their nominal rate
+                next_t = max(next_t + period, now - period)
+                self._stop.wait(max(0.0, next_t - time.perf_counter()))
 
     def dense(self) -> DenseFrame | None:
         with self._lock:

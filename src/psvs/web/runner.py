@@ -13,6 +13,8 @@ class BackgroundRunner:
     STOP_TIMEOUT_S = 5.0
 
     def __init__(self):
+        self._frame = None                     # the latest frame the loop read (H, W) uint8
+        self._error = ""                       # what stopped the loop, for the page
         self._lock = threading.Lock()          # guards the loop's latest state
         self._control = threading.Lock()       # serialises start and stop
         self._thread: threading.Thread | None = None
@@ -24,13 +26,30 @@ class BackgroundRunner:
 
     def _start_loop(self, prepare, target, name: str) -> None:
         """Under the control lock: stop the running loop, call ``prepare()`` (its return value is the args of
-        ``target``), then run ``target(*args)`` in a new daemon thread."""
+        ``target``, the first a frame iterator), then run ``target(*args)`` in a new daemon thread
+        (:meth:`_guarded`)."""
         with self._control:
             self._stop_locked()
             args = prepare()
             self._stop.clear()
-            self._thread = threading.Thread(target=target, args=args, daemon=True, name=name)
+            self._thread = threading.Thread(target=self._guarded, args=(target, *args), daemon=True, name=name)
             self._thread.start()
+
+    def _guarded(self, target, frames, *args) -> None:
+        """``target(frames, *args)``: an exception it raises is kept for the page (the server keeps running);
+        the frames are closed either way."""
+        try:
+            target(frames, *args)
+        except Exception as exc:
+            with self._lock:
+                self._error = f"{type(exc).__name__}: {exc}"
+        finally:
+            close_frames(frames)
+
+    def frame(self):
+        """The latest frame the loop read, (H, W) uint8, or None."""
+        with self._lock:
+            return self._frame
 
     def stop(self) -> None:
         with self._control:
