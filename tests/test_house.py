@@ -21,7 +21,7 @@ LAYERS = [
     {"measure", "imaging"},
     {"simulate", "mount"},
     {"io"},
-    {"match", "dense"},
+    {"match", "dense", "cluster"},
     {"calibrate", "live"},
     {"robot"},
     {"web"},

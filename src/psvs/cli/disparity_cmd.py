@@ -18,7 +18,7 @@ from psvs.dense.trust import ALPHA, EchoTrust, trusted_maps
 from psvs.errors import MeasurementError
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
-from psvs.io.images import read_grey, write_npy, write_png
+from psvs.io.images import check_frame_size, read_grey, write_npy, write_png
 from psvs.io.params import load_rig
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale as camera_pixel_scale
@@ -83,15 +83,17 @@ def _outputs(args) -> dict:
     return out
 
 
-def _inputs(args):
+def _inputs(args, image=None):
     """(rig or None, the image (H, W) uint8, the build's rectification or None, split, (lo, hi) px, params),
-    checked against each other before any work."""
+    checked against each other before any work. ``image``: already read (a frame of ``psvs batch``), else
+    read from args.image."""
     rig = load_rig(args.rig) if args.rig else None
     split = args.split if args.split is not None else (rig.mirrors.split_ratio if rig else 0.5)
     if not 0.0 < split < 1.0:
         raise ValueError(f"--split must lie strictly between 0 and 1, got {split}")
     # another size than the rig's camera: every pixel's ray, and so the range and depths, would be wrong
-    image = read_grey(args.image, expect_size=rig.camera.image_size_px if rig else None)
+    size = rig.camera.image_size_px if rig else None
+    image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)
     rect = None
     if rig is not None:
         near_mm, far_mm = range_from_args(args)
@@ -162,9 +164,17 @@ def _summary(dense: RigDense, trust: EchoTrust | None) -> str:
             f"{res.searched_px[1]:.0f} searched)")
 
 
-def run(args) -> int:
+def prepare(args, image=None) -> tuple:
+    """Every check of the command's arguments and inputs, before any work: (the output paths, the inputs of
+    :func:`_inputs`). ``image``: already read (``psvs batch``), else read from args.image."""
     out = _outputs(args)
-    rig, image, rect, split, (lo, hi), params = _inputs(args)
+    return out, _inputs(args, image)
+
+
+def compute(args, image=None) -> tuple[dict, RigDense, EchoTrust | None, object]:
+    """The command's work and its files: (output paths, the maps, their trust, the point cloud or None).
+    MeasurementError when no answer stands above chance (nothing written)."""
+    out, (rig, image, rect, split, (lo, hi), params) = prepare(args, image)
     # a warning (e.g. "complex image is constant") is printed as one line by psvs.cli.main
     if rig is None:
         dense = RigDense(dense_disparity(image, lo, hi, params=params), None, image)
@@ -172,6 +182,19 @@ def run(args) -> int:
         dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi))
     dense, trust = _trusted(image, dense, params, rig)
     cloud = _write(out, dense, image, rig, split, args.model)
+    return out, dense, trust, cloud
+
+
+def summary_row(dense: RigDense, trust: EchoTrust | None) -> dict:
+    """The figures of the summary line as scalars (a row of ``psvs batch``'s results)."""
+    d = dense.result.disparity_left
+    answered = np.isfinite(d)
+    return {"answered_px": int(answered.sum()), "trusted_px": int(trust.count) if trust is not None else 0,
+            "median_disparity_px": float(np.median(d[answered])) if answered.any() else None}
+
+
+def run(args) -> int:
+    out, dense, trust, cloud = compute(args)
     print(f"{out['disparity']}: {_summary(dense, trust)}"
           + (f"; {len(cloud.points_mm)} points" if cloud is not None else ""))
     return 0

@@ -16,7 +16,7 @@ from psvs.cli.common import (
     rig_from_args,
 )
 from psvs.io.atomic import output_batch
-from psvs.io.images import read_grey
+from psvs.io.images import check_frame_size, read_grey
 from psvs.match.correspondence import MatchParams, match_image
 from psvs.match.export import write_csv, write_json, write_ply
 
@@ -44,7 +44,9 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
-def run(args) -> int:
+def prepare(args, image=None) -> tuple:
+    """Every check of the arguments and inputs before any work: (the output paths, the matching's
+    arguments). ``image``: already read (a frame of ``psvs batch``), else read from args.image."""
     out = check_output_path(args.output, (".json",))
     csv_path = check_output_path(args.csv, (".csv",))
     ply_path = check_output_path(args.ply, (".ply",))
@@ -62,11 +64,18 @@ def run(args) -> int:
         raise ValueError(f"--n-seeds must be 2-100, got {args.n_seeds}")
     rig = rig_from_args(args)
     pipeline = pipeline_from_args(args)
-    image = read_grey(args.image, expect_size=rig.camera.image_size_px)
+    size = rig.camera.image_size_px
+    image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)
     seeds = {} if args.n_seeds is None else {"n_seeds": args.n_seeds}   # else MatchParams' default
     params = MatchParams(subpixel=not args.no_subpixel, model=args.model, **seeds)
-    res = match_image(image, rig, seed_px=seed, pipeline=pipeline, near_mm=near_mm, far_mm=far_mm,
-                      params=params)
+    return (out, csv_path, ply_path), dict(grey=image, rig=rig, seed_px=seed, pipeline=pipeline, near_mm=near_mm,
+                                           far_mm=far_mm, params=params)
+
+
+def compute(args, image=None):
+    """The matching and its files: the :class:`~psvs.match.correspondence.MatchResult`."""
+    (out, csv_path, ply_path), work = prepare(args, image)
+    res = match_image(**work)
     with output_batch():   # all outputs land together, or none replaces an earlier file
         write_json(out, res)
         if csv_path:
@@ -75,7 +84,18 @@ def run(args) -> int:
             write_ply(ply_path, res)
         if args.figures:
             from psvs.match.figures import write_figures
-            write_figures(args.figures, res, image)
+            write_figures(args.figures, res, work["grey"])
+    return res
+
+
+def summary_row(res) -> dict:
+    """What the command prints, as scalars (a row of ``psvs batch``'s results)."""
+    return {"pairs": len(res.pairs), "unmatched": len(res.unmatched),
+            "pixel_pairs": int(sum(len(p) for p in res.pairs))}
+
+
+def run(args) -> int:
+    res = compute(args)
     for k, p in enumerate(res.pairs):
         print(f"edge {k}: {len(p)} pixel pairs, disparity {p.shape_disparity_px:.0f} px, "
               f"median Z {p.median_z_mm():.1f} mm")

@@ -5,7 +5,7 @@ import json
 
 from psvs.calibrate.measure import check_pattern_sizes, measure_pattern
 from psvs.cli.common import add_model_argument, add_range_arguments, add_rig_argument, range_from_args, rig_from_args
-from psvs.io.images import read_grey
+from psvs.io.images import check_frame_size, read_grey
 
 
 def add_parser(sub) -> None:
@@ -32,13 +32,27 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
-def run(args) -> int:
+def prepare(args, image=None) -> tuple:
+    """Every check of the arguments and the image before any work: (image, rig, (near, far) mm).
+    ``image``: already read (a frame of ``psvs batch``), else read from args.image."""
     rig = rig_from_args(args)
     check_pattern_sizes(args.spacing_mm, args.diameter_mm, ("--spacing-mm", "--diameter-mm"))
     z_mm = range_from_args(args)
-    image = read_grey(args.image, expect_size=rig.camera.image_size_px)
-    m = measure_pattern(image, rig, model=args.model, count=args.count,
-                        spacing_mm=args.spacing_mm, diameter_mm=args.diameter_mm, z_mm=z_mm)
+    size = rig.camera.image_size_px
+    image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)
+    return image, rig, z_mm
+
+
+def compute(args, image=None):
+    """The measurement (:class:`~psvs.calibrate.measure.PatternMeasurement`); MeasurementError when the
+    pattern is not found as asked."""
+    image, rig, z_mm = prepare(args, image)
+    return measure_pattern(image, rig, model=args.model, count=args.count,
+                           spacing_mm=args.spacing_mm, diameter_mm=args.diameter_mm, z_mm=z_mm)
+
+
+def run(args) -> int:
+    m = compute(args)
     if args.json:
         print(json.dumps(m.to_dict()))
     else:

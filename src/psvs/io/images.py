@@ -77,6 +77,16 @@ def read_image(path, expect_size: tuple[int, int] | None = None) -> np.ndarray:
     return img
 
 
+def check_frame_size(image: np.ndarray, expect_size: tuple[int, int] | None, name) -> np.ndarray:
+    """``image`` (H, W), already decoded (a video's frame), when it is ``expect_size`` (W, H) px or that is
+    None; else the ValueError :func:`read_grey` gives a file of another size than the rig's camera."""
+    h, w = image.shape[:2]
+    if expect_size is not None and (w, h) != tuple(expect_size):
+        ew, eh = expect_size
+        raise ValueError(f"{name}: image is {w}x{h} px but the rig's camera is {ew}x{eh} px")
+    return image
+
+
 def _check_size(path: Path, header: ImageHeader, expect_size, file_bytes: int) -> None:
     """Refuse an image, from its header, whose size differs from ``expect_size`` (W, H) px, exceeds
     :data:`MAX_IMAGE_PIXELS` or whose decoding (the file, the decoded pixels and the grey copies made of them)

@@ -38,3 +38,50 @@ def write_video(path, frames, fps: float = 30.0) -> int:
             writer.release()
         tmp.unlink(missing_ok=True)
     return n
+
+
+def _open(path):
+    from psvs.io.cstderr import c_stderr_captured, library_reason
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"video not found: {path}")
+    with c_stderr_captured() as said:           # FFmpeg's complaints ("moov atom not found")
+        cap = cv2.VideoCapture(str(path))
+    if not cap.isOpened():
+        reason = library_reason(said)
+        raise ValueError(f"cannot open {path}: not a video OpenCV can decode" + (f" ({reason})" if reason else ""))
+    return cap
+
+
+def video_frames(path) -> tuple[int, tuple[int, int]]:
+    """(frame count, (W, H) px) of a video file, from its header; the frames counted by reading when the
+    header does not say. ValueError when it does not open or holds no frame."""
+    cap = _open(path)
+    try:
+        n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
+        size = (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
+        if n <= 0:
+            while cap.grab():
+                n += 1
+    finally:
+        cap.release()
+    if n <= 0:
+        raise ValueError(f"{path}: the video holds no frame")
+    return n, size
+
+
+def read_video_frame(path, index: int):
+    """Frame ``index`` (from 0) of a video file as grey (H, W) uint8 (OpenCV's luma of a colour frame, as
+    ``psvs live`` reads it); the frame is sought, not read through (exact for FFV1, whose every frame is a
+    key frame). ValueError when the video has no such frame."""
+    from psvs.io.images import grey8
+    cap = _open(path)
+    try:
+        if index > 0 and not cap.set(cv2.CAP_PROP_POS_FRAMES, index):
+            raise ValueError(f"{path}: cannot seek to frame {index}")
+        ok, frame = cap.read()
+    finally:
+        cap.release()
+    if not ok:
+        raise ValueError(f"{path}: no frame {index}")
+    return grey8(frame, f"{path} frame {index}")

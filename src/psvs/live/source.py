@@ -132,7 +132,7 @@ class ImageSequence(_Source):
 
     def __init__(self, pattern: str, fps: float = 0.0):
         self.name, self.fps = str(pattern), float(fps)
-        self._files = _sequence_files(str(pattern))
+        self._files = sequence_files(str(pattern))
         if not self._files:
             raise FileNotFoundError(f"no image of the sequence {pattern} found")
         self.frame_count = len(self._files)
@@ -153,7 +153,9 @@ class ImageSequence(_Source):
         self._open = False
 
 
-def _sequence_files(pattern: str) -> list[Path]:
+def sequence_files(pattern: str) -> list[Path]:
+    """The image files of a sequence: a folder's images (:data:`SEQUENCE_SUFFIXES`) in name order, or a printf
+    pattern's files from the first index 0..999 that exists to the first missing one; [] when none."""
     path = Path(pattern)
     if path.is_dir():
         return sorted(p for p in path.iterdir() if p.suffix.lower() in SEQUENCE_SUFFIXES and p.is_file())

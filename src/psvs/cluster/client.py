@@ -1,0 +1,61 @@
+"""A ``dask.distributed`` client: a LocalCluster on this machine's cores (processes, one thread each), or an
+existing scheduler that other machines' workers joined (``tcp://HOST:8786``, docs/cluster.md)."""
+from __future__ import annotations
+
+import logging
+import os
+import re
+
+#: How long to wait for an existing scheduler to answer before saying it cannot be reached, s.
+CONNECT_TIMEOUT_S = 5.0
+#: The most workers a local cluster starts (a bound on a mistyped --workers, far above any one machine).
+MAX_LOCAL_WORKERS = 512
+_ADDRESS = re.compile(r"^(?:(tcp|tls)://)?(\[[0-9a-fA-F:.]+\]|[A-Za-z0-9_.-]+):(\d{1,5})$")
+
+
+def local_workers() -> int:
+    """The cores this process may run on: the default worker count of a local cluster."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+def scheduler_address(text: str) -> str:
+    """``HOST:PORT`` or ``tcp://HOST:PORT`` (or ``tls://``) as a scheduler address; ValueError when it is not
+    one.
+
+    >>> scheduler_address("10.0.0.5:8786")
+    'tcp://10.0.0.5:8786'
+    """
+    m = _ADDRESS.match(text.strip())
+    if m is None or not 1 <= int(m.group(3)) <= 65535:
+        raise ValueError(f"--scheduler must be tcp://HOST:PORT (e.g. tcp://10.0.0.5:8786), got {text!r}")
+    return f"{m.group(1) or 'tcp'}://{m.group(2)}:{int(m.group(3))}"
+
+
+def connect(scheduler: str | None = None, workers: int | None = None, timeout_s: float = CONNECT_TIMEOUT_S):
+    """A ``distributed.Client``: on the scheduler at ``scheduler`` (its workers are its own), or, when None, on
+    a new LocalCluster of ``workers`` processes (default :func:`local_workers`) with one thread each, its logs
+    at ERROR only and no dashboard. Close it (``with connect(...) as client:``): a local cluster closes with it.
+
+    An address that is not one, or a scheduler that does not answer within ``timeout_s``, is a one-line
+    ValueError; nothing is started or written."""
+    if scheduler is not None and workers is not None:
+        raise ValueError("--workers sets a local cluster's size; the workers of --scheduler are those started "
+                         "for it (dask worker tcp://HOST:PORT, docs/cluster.md)")
+    if workers is not None and not 1 <= workers <= MAX_LOCAL_WORKERS:
+        raise ValueError(f"--workers must be 1-{MAX_LOCAL_WORKERS}, got {workers}")
+    import dask
+    from distributed import Client
+    if scheduler is None:
+        # the workers' environment is this process's: distributed would set MALLOC_TRIM_THRESHOLD_ (glibc then
+        # returns every freed array to the system: a dense disparity map takes 2.5 times as long) and one
+        # OpenMP/BLAS thread, and a task must compute what the single command computes
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": {}}):
+            return Client(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
+                          dashboard_address=None, scheduler_kwargs={"dashboard": False}, silence_logs=logging.ERROR,
+                          set_as_default=False)
+    address = scheduler_address(scheduler)
+    try:
+        return Client(address, timeout=timeout_s, set_as_default=False)
+    except Exception as exc:   # OSError (refused, timed out), or whatever a non-Dask server's reply raises
+        text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ValueError(f"cannot reach the Dask scheduler at {address}: {text[:200]}") from None

@@ -1,0 +1,146 @@
+"""A run's folder: its parameters (``study.json``) and its results in Parquet, one small part file per batch
+of finished results (``parts/part-NNNNNN.parquet``, each written atomically), merged into ``results.parquet``
+when a run completes. A row is one task's flat dict of scalars with its ``key``; a key is done when any file
+holds its row, so a run stopped at any point (Ctrl-C, a killed process, a lost machine) keeps every result
+already written and a later run computes only the rest."""
+from __future__ import annotations
+
+import io
+import json
+import math
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from psvs.io.atomic import write_atomic
+
+PARAMS_FILE = "study.json"
+RESULTS_FILE = "results.parquet"
+PARTS_DIR = "parts"
+KEY = "key"
+#: A row's values: what a Parquet column of scalars holds.
+SCALARS = (bool, int, float, str, type(None))
+
+
+def record_params(out_dir: Path, params: dict) -> None:
+    """Write ``params`` (JSON-able) to ``out_dir/study.json``, or check that the file already there holds the
+    same: a folder made with other parameters is refused in one line naming the first difference (its results
+    would mix two runs)."""
+    path = Path(out_dir) / PARAMS_FILE
+    text = json.dumps(params, sort_keys=True, indent=1, allow_nan=False)
+    wanted = json.loads(text)
+    if not path.exists():
+        write_atomic(path, text + "\n")
+        return
+    try:
+        held = json.loads(path.read_text(encoding="utf-8-sig"))
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path} is not a run's parameter file ({exc}); give another folder") from None
+    if held != wanted:
+        name = _first_difference(held, wanted)
+        raise ValueError(f"{out_dir} holds a run made with other parameters ({name}: {held.get(name)!r} there, "
+                         f"{wanted.get(name)!r} now); give another folder, or the same parameters to resume")
+
+
+def _first_difference(a, b) -> str:
+    if not isinstance(a, dict) or not isinstance(b, dict):
+        return "the parameters"
+    return next((k for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)), "the parameters")
+
+
+def check_row(row, key) -> dict:
+    """``row`` as a flat dict of Parquet scalars (numpy scalars unwrapped) with ``key`` added; TypeError naming
+    what is not one."""
+    if not isinstance(row, dict):
+        raise TypeError(f"a task must return a dict of scalars, got {type(row).__name__} for key {key!r}")
+    out = {KEY: key}
+    for name, value in row.items():
+        if not isinstance(name, str) or name == KEY:
+            raise TypeError(f"task result for key {key!r}: column names are strings other than {KEY!r}, got {name!r}")
+        if hasattr(value, "item") and not isinstance(value, SCALARS):
+            value = value.item()          # a numpy scalar
+        if not isinstance(value, SCALARS):
+            raise TypeError(f"task result for key {key!r}: {name} is a {type(value).__name__}, not a scalar")
+        out[name] = value
+    return out
+
+
+class ResultStore:
+    """The Parquet files of one run folder (see the module's docstring)."""
+
+    def __init__(self, out_dir):
+        self.out_dir = Path(out_dir)
+        self.parts = self.out_dir / PARTS_DIR
+        self._next = None
+
+    def _part_files(self) -> list[Path]:
+        return sorted(self.parts.glob("part-*.parquet")) if self.parts.is_dir() else []
+
+    def append(self, rows: list[dict]) -> Path | None:
+        """Write ``rows`` as one new part file, atomically; its path (None for no rows)."""
+        if not rows:
+            return None
+        self.parts.mkdir(exist_ok=True)
+        if self._next is None:
+            files = self._part_files()
+            self._next = int(files[-1].stem.split("-")[1]) + 1 if files else 0
+        path = self.parts / f"part-{self._next:06d}.parquet"
+        self._next += 1
+        _write_table(path, pa.Table.from_pylist(rows))
+        return path
+
+    def read(self) -> pa.Table | None:
+        """Every row written (results.parquet, then the parts in order), each key once (its first row), sorted
+        by key; None when nothing is written yet."""
+        files = ([self.out_dir / RESULTS_FILE] if (self.out_dir / RESULTS_FILE).is_file() else [])
+        tables = [pq.read_table(f) for f in files + self._part_files()]
+        tables = [t for t in tables if t.num_rows]
+        if not tables:
+            return None
+        table = pa.concat_tables(tables, promote_options="permissive")
+        seen, keep = set(), []
+        for i, k in enumerate(table.column(KEY).to_pylist()):
+            if k not in seen:
+                seen.add(k)
+                keep.append(i)
+        return table.take(keep).sort_by(KEY)
+
+    def done_keys(self) -> set:
+        table = self.read()
+        return set() if table is None else set(table.column(KEY).to_pylist())
+
+    def compact(self) -> None:
+        """Merge every part into results.parquet (written atomically before the parts are removed: a crash in
+        between leaves rows twice, which :meth:`read` reads once)."""
+        parts = self._part_files()
+        if not parts:
+            return
+        table = self.read()
+        _write_table(self.out_dir / RESULTS_FILE, table)
+        for p in parts:
+            p.unlink(missing_ok=True)
+        if not any(self.parts.iterdir()):
+            self.parts.rmdir()
+
+
+def _write_table(path: Path, table: pa.Table) -> None:
+    buf = io.BytesIO()
+    pq.write_table(table, buf)
+    write_atomic(path, buf.getvalue())
+
+
+def read_results(out_dir) -> pa.Table:
+    """The results of the run in ``out_dir``: one row per finished key (column ``key`` and the task's
+    columns), sorted by key; FileNotFoundError when the folder holds no run, an empty table when nothing
+    finished yet."""
+    out_dir = Path(out_dir)
+    if not (out_dir / PARAMS_FILE).is_file():
+        raise FileNotFoundError(f"no run in {out_dir} (no {PARAMS_FILE})")
+    table = ResultStore(out_dir).read()
+    return pa.table({KEY: pa.array([], pa.string())}) if table is None else table
+
+
+def finite_or_none(x: float) -> float | None:
+    """A float for a results column: None for NaN or infinity (Parquet holds them, JSON does not)."""
+    return float(x) if x is not None and math.isfinite(x) else None
