@@ -10,6 +10,7 @@ import json
 import math
 from pathlib import Path
 
+import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
@@ -58,7 +59,7 @@ def check_row(row, key) -> dict:
     for name, value in row.items():
         if not isinstance(name, str) or name == KEY:
             raise TypeError(f"task result for key {key!r}: column names are strings other than {KEY!r}, got {name!r}")
-        if hasattr(value, "item") and not isinstance(value, SCALARS):
+        if isinstance(value, np.generic):
             value = value.item()          # a numpy scalar
         if not isinstance(value, SCALARS):
             raise TypeError(f"task result for key {key!r}: {name} is a {type(value).__name__}, not a scalar")
