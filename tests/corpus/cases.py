@@ -495,10 +495,52 @@ def _adjust() -> list[Case]:
     ]
 
 
+@lru_cache(maxsize=None)
+def video_bytes(w: int = 640, h: int = 480, frames: int = 2) -> bytes:
+    """A lossless FFV1 video of textured frames."""
+    import tempfile
+    from pathlib import Path
+
+    from psvs.io.video import write_video
+    rng = np.random.default_rng(2)
+    with tempfile.TemporaryDirectory() as tmp:
+        write_video(Path(tmp) / "v.avi", [rng.integers(0, 256, (h, w), dtype=np.uint8) for _ in range(frames)])
+        return (Path(tmp) / "v.avi").read_bytes()
+
+
+def _batch() -> list[Case]:
+    """psvs batch: refused before any cluster starts or any file is written (the scheduler: before a file)."""
+    base = ("batch", "disparity", "v.avi", "--rig", "default", "-o", "out")
+    video = {"v.avi": lambda f: video_bytes()}
+    return [
+        Case("batch-scheduler-unreachable", (*base, "--scheduler", "tcp://127.0.0.1:9"), 2, "cannot reach", video),
+        Case("batch-scheduler-not-an-address", (*base, "--scheduler", "http://x"), 2, "tcp://HOST:PORT", video),
+        Case("batch-workers-zero", (*base, "--workers", "0"), 2, "--workers", video),
+        Case("batch-workers-and-scheduler", (*base, "--workers", "2", "--scheduler", "tcp://127.0.0.1:9"), 2,
+             "--workers", video),
+        Case("batch-missing-input", base, 2, "not found"),
+        Case("batch-one-image", ("batch", "match", "a.png", "--rig", "default", "-o", "out", "--auto"), 2,
+             "one image", {"a.png": texture_png()}),
+        Case("batch-empty-folder", ("batch", "match", "in", "--rig", "default", "-o", "out", "--auto"), 2,
+             "no image", {"in/notes.txt": "no images here"}),
+        Case("batch-not-a-video", base, 2, "v.avi", {"v.avi": b"RIFF" + bytes(100)}),
+        Case("batch-video-wrong-size", base, 2, "640x480", {"v.avi": lambda f: video_bytes(320, 240)}),
+        Case("batch-bad-option", (*base, "--split", "1.5"), 2, "split", video),
+        Case("batch-figures-per-frame", ("batch", "match", "v.avi", "--rig", "default", "-o", "out", "--auto",
+                                         "--figures", "."), 2, "--figures", video),
+        Case("batch-output-is-a-file", base, 2, "out", video, ("out",)),
+        Case("batch-other-parameters", base, 2, "parameter file", video, ("out/study.json",)),
+        Case("batch-rig-missing", ("batch", "disparity", "v.avi", "--rig", "none.toml", "-o", "out"), 2,
+             "not found", video),
+        Case("batch-no-rig", ("batch", "disparity", "v.avi", "-o", "out", "--min-disparity", "5",
+                              "--max-disparity", "50"), 2, "--rig", video),
+    ]
+
+
 def all_cases() -> list[Case]:
     cases = (_design() + _triangulate() + _fit_refraction() + _simulate() + _match() + _measure()
              + _card_views() + _sweep_views() + _capture() + _calibrate() + _disparity() + _live() + _serve() + _track()
-             + _handeye() + _adjust() + _small())
+             + _handeye() + _adjust() + _small() + _batch())
     names = [c.name for c in cases]
     assert len(names) == len(set(names)), "case names must be unique"
     return cases

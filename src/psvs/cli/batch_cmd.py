@@ -154,7 +154,7 @@ def frame_task(job: dict, key: str) -> dict:
     from psvs._quiet import quiet_libraries
     from psvs.errors import MeasurementError, RigGeometryError
     args = frame_args(job, key)
-    row = {"frame": key, "output": Path(args.output).name, "status": "ok", "message": ""}
+    row = {"output": Path(args.output).name, "status": "ok", "message": ""}
     with quiet_libraries("psvs batch"), warnings.catch_warnings(record=True) as caught:
         try:
             image = None
@@ -212,6 +212,7 @@ def _out_dir(text: str) -> Path:
 
 def run(args) -> int:
     from psvs.cluster import RunOptions, connect, read_results, run_tasks
+    from psvs.cluster.store import check_params
     if args.rig is None:
         raise ValueError("psvs batch needs --rig (the frames' camera and the disparity range)")
     out_dir = _out_dir(args.output)
@@ -221,6 +222,7 @@ def run(args) -> int:
     out_dir.mkdir(exist_ok=True)         # the command's own checks want its outputs' folder
     try:
         _preflight(job, frames)
+        check_params(out_dir, _params(job))
         client = connect(args.scheduler, args.workers)
     except BaseException:
         if created:                      # refused: nothing left behind

@@ -28,26 +28,35 @@ def record_params(out_dir: Path, params: dict) -> None:
     """Write ``params`` (JSON-able) to ``out_dir/study.json``, or check that the file already there holds the
     same: a folder made with other parameters is refused in one line naming the first difference (its results
     would mix two runs)."""
+    if not check_params(out_dir, params):
+        text = json.dumps(params, sort_keys=True, indent=1, allow_nan=False)
+        write_atomic(Path(out_dir) / PARAMS_FILE, text + "\n")
+
+
+def check_params(out_dir: Path, params: dict) -> bool:
+    """Whether ``out_dir`` holds a run made with ``params`` (False: no run there yet); ValueError when it holds
+    one made with other parameters, or a parameter file that is not one. Nothing is written."""
     path = Path(out_dir) / PARAMS_FILE
-    text = json.dumps(params, sort_keys=True, indent=1, allow_nan=False)
-    wanted = json.loads(text)
+    wanted = json.loads(json.dumps(params, sort_keys=True, allow_nan=False))
     if not path.exists():
-        write_atomic(path, text + "\n")
-        return
+        return False
     try:
         held = json.loads(path.read_text(encoding="utf-8-sig"))
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"{path} is not a run's parameter file ({exc}); give another folder") from None
     if held != wanted:
-        name = _first_difference(held, wanted)
-        raise ValueError(f"{out_dir} holds a run made with other parameters ({name}: {held.get(name)!r} there, "
-                         f"{wanted.get(name)!r} now); give another folder, or the same parameters to resume")
+        name, there, now = _first_difference(held, wanted)
+        raise ValueError(f"{out_dir} holds a run made with other parameters ({name}: {there!r} there, {now!r} "
+                         f"now); give another folder, or the same parameters to resume")
+    return True
 
 
-def _first_difference(a, b) -> str:
+def _first_difference(a, b, name: str = "the parameters") -> tuple:
+    """(dotted name, value in a, value in b) of the first entry where nested dicts a and b differ."""
     if not isinstance(a, dict) or not isinstance(b, dict):
-        return "the parameters"
-    return next((k for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)), "the parameters")
+        return name, a, b
+    k = next(k for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k))
+    return _first_difference(a.get(k), b.get(k), k if name == "the parameters" else f"{name}.{k}")
 
 
 def check_row(row, key) -> dict:

@@ -1,0 +1,128 @@
+"""``psvs batch`` end to end on a 2-worker local cluster: each frame's file equals what the single command
+writes on that frame (byte for byte), a second run computes nothing, a damaged image is a row that says so,
+and a bad option is refused once, in one line, with nothing written."""
+import json
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from psvs.cli.main import main
+from psvs.io.images import write_png
+from psvs.io.video import read_video_frame
+from psvs.live.source import open_video
+from tests.cli.test_cli import run
+
+
+def _video_and_frames(folder, scene: str, n: int, move: str):
+    """A simulated FFV1 video of ``n`` frames (the rig moving by ``move`` mm over them), and its frames as
+    PNG files, decoded in order (not sought as batch's workers do)."""
+    video = folder / "run.avi"
+    assert main(["simulate", scene, "--rig", "default", "--frames", str(n), "--move-mm", move, "--supersample",
+                 "1", "-o", str(video)]) == 0
+    pngs = folder / "frames"
+    pngs.mkdir()
+    with open_video(str(video)) as source:
+        for i, frame in enumerate(source):
+            write_png(pngs / f"f{i:02d}.png", frame)
+    assert i == n - 1
+    return video, sorted(pngs.iterdir())
+
+
+@pytest.fixture(scope="module")
+def fig9(tmp_path_factory):
+    """The Fig. 9 pattern at 600, 525 and 450 mm."""
+    return _video_and_frames(tmp_path_factory.mktemp("fig9"), "fig9:distance_mm=600", 3, "0,0,150")
+
+
+def test_a_sought_frame_is_the_frame_read_in_order(fig9):
+    from psvs.io.images import read_grey
+    video, pngs = fig9
+    for i in (2, 0, 1):
+        assert np.array_equal(read_video_frame(video, i), read_grey(pngs[i]))
+    with pytest.raises(ValueError, match="no frame 3"):
+        read_video_frame(video, 3)
+
+
+def test_batch_measure_over_a_video_gives_each_frame_what_measure_json_prints(capsys, tmp_path, fig9):
+    """Three frames of the Fig. 9 pattern at 600, 525 and 450 mm: each frame's JSON is the line `psvs measure
+    --json` prints for it, its depth within 0.5 mm of the planted one; a second run computes nothing."""
+    video, pngs = fig9
+    code, out, err = run(capsys, "batch", "measure", "circles", str(video), "--rig", "default", "-o",
+                         str(tmp_path / "m"), "--workers", "2")
+    assert code == 0, err
+    assert "3 frames, 3 ok (3 computed now, 0 before" in out
+    assert "psvs batch measure: 3/3" in err                     # the progress (plain lines: not a terminal)
+    for i, png in enumerate(pngs):
+        code, single, _ = run(capsys, "measure", "circles", str(png), "--rig", "default", "--json")
+        assert (tmp_path / "m" / f"frame_{i:06d}.json").read_text() == single
+        assert json.loads(single)["Z_mm"] == pytest.approx(600 - 75 * i, abs=0.5)
+    rows = pq.read_table(tmp_path / "m" / "results.parquet").to_pylist()
+    assert [r["key"] for r in rows] == [f"frame_{i:06d}" for i in range(3)] and {r["status"] for r in rows} == {"ok"}
+    assert rows[1]["Z_mm"] == pytest.approx(525, abs=0.5)
+    code, out, err = run(capsys, "batch", "measure", "circles", str(video), "--rig", "default", "-o",
+                         str(tmp_path / "m"), "--workers", "2")
+    assert code == 0 and "(0 computed now, 3 before" in out and err == ""
+
+
+def test_batch_over_a_folder_records_a_damaged_image_and_a_missed_pattern(capsys, tmp_path, fig9):
+    """A folder of the frames, a truncated PNG and a blank image: the frames measure, the damaged file is a
+    "bad input" row with the one line `psvs measure` gives, the blank one a "cannot measure" row or "bad
+    input" (as the single command answers it), and neither leaves a file."""
+    _, pngs = fig9
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for p in pngs:
+        (folder / p.name).write_bytes(p.read_bytes())
+    (folder / "g_broken.png").write_bytes(pngs[0].read_bytes()[:300])
+    write_png(folder / "h_blank.png", np.full((480, 640), 90, np.uint8))
+    code, out, err = run(capsys, "batch", "measure", "circles", str(folder), "--rig", "default", "-o",
+                         str(tmp_path / "m"), "--workers", "2")
+    assert code == 0, err
+    rows = {r["key"]: r for r in pq.read_table(tmp_path / "m" / "results.parquet").to_pylist()}
+    assert sorted(rows) == ["f00.png", "f01.png", "f02.png", "g_broken.png", "h_blank.png"]
+    assert rows["g_broken.png"]["status"] == "bad input" and "g_broken.png" in rows["g_broken.png"]["message"]
+    code, _, single_err = run(capsys, "measure", "circles", str(folder / "h_blank.png"), "--rig", "default")
+    assert rows["h_blank.png"]["message"] in single_err and code in (1, 2)
+    assert rows["h_blank.png"]["status"] == {1: "cannot measure", 2: "bad input"}[code]
+    assert sorted(p.name for p in (tmp_path / "m").glob("f*")) == ["f00.json", "f01.json", "f02.json"]
+    assert "5 frames, 3 ok" in out
+
+
+def test_batch_match_writes_the_single_commands_json_and_its_other_outputs_per_frame(capsys, tmp_path, fig9):
+    video, pngs = fig9
+    code, out, err = run(capsys, "batch", "match", str(video), "--rig", "default", "-o", str(tmp_path / "b"),
+                         "--auto", "--csv", "pairs.csv", "--workers", "2")
+    assert code == 0, err
+    for i, png in enumerate(pngs):
+        single = tmp_path / f"s{i}.json"
+        assert run(capsys, "match", str(png), "--rig", "default", "--auto", "-o", str(single))[0] == 0
+        assert (tmp_path / "b" / f"frame_{i:06d}.json").read_bytes() == single.read_bytes()
+        assert (tmp_path / "b" / f"frame_{i:06d}.pairs.csv").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_batch_disparity_over_a_video_equals_disparity_on_each_frame(capsys, tmp_path):
+    """The acceptance of issue 29: psvs batch disparity over a short simulated video on 2 workers gives,
+    byte for byte, the maps of separate psvs disparity calls on each frame."""
+    video, pngs = _video_and_frames(tmp_path, "textured", 6, "0,0,-30")
+    capsys.readouterr()
+    code, out, err = run(capsys, "batch", "disparity", str(video), "--rig", "default", "-o", str(tmp_path / "b"),
+                         "--workers", "2")
+    assert code == 0, err
+    assert "6 frames, 6 ok" in out
+    for i, png in enumerate(pngs):
+        single = tmp_path / f"s{i}.npy"
+        assert run(capsys, "disparity", str(png), "--rig", "default", "-o", str(single))[0] == 0
+        assert (tmp_path / "b" / f"frame_{i:06d}.npy").read_bytes() == single.read_bytes()
+
+
+def test_a_bad_option_is_refused_once_with_nothing_written(capsys, tmp_path, fig9):
+    video, _ = fig9
+    code, out, err = run(capsys, "batch", "disparity", str(video), "--rig", "default", "-o", str(tmp_path / "b"),
+                         "--split", "1.5")
+    assert code == 2 and "--split must lie strictly between 0 and 1" in err and len(err.splitlines()) == 1
+    assert not (tmp_path / "b").exists()
+    code, out, err = run(capsys, "batch", "disparity", str(video), "--rig", "mv1440", "-o", str(tmp_path / "b"))
+    assert code == 2 and "frames are 640x480 px but the rig's camera is 1440x1080 px" in err
+    assert not (tmp_path / "b").exists()
