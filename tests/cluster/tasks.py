@@ -33,3 +33,8 @@ def fails_on(bad: int, key: int) -> dict:
 
 def not_a_row(key: int):
     return {"array": np.zeros(3)}
+
+
+def numba_threads(key: int) -> dict:
+    import numba
+    return {"threads": numba.get_num_threads()}

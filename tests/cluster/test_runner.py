@@ -184,3 +184,14 @@ def test_workers_are_for_a_local_cluster_only():
         connect("tcp://127.0.0.1:8786", workers=2)
     with pytest.raises(ValueError, match="--workers must be 1-512"):
         connect(None, workers=0)
+
+
+def test_a_local_clusters_tasks_share_the_cores(client, tmp_path):
+    """Two workers on this machine's cores: each task's Numba loops get its share (at least one thread), not a
+    thread per core each."""
+    from psvs.cluster import local_workers, task_threads
+    from tests.cluster.tasks import numba_threads
+    share = task_threads(client)
+    assert share == max(1, local_workers() // 2)
+    run_tasks(client, numba_threads, range(4), tmp_path / "run", {}, RunOptions(progress=False, threads=share))
+    assert {r["threads"] for r in read_results(tmp_path / "run").to_pylist()} == {share}

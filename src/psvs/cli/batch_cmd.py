@@ -211,7 +211,7 @@ def _out_dir(text: str) -> Path:
 
 
 def run(args) -> int:
-    from psvs.cluster import RunOptions, connect, read_results, run_tasks
+    from psvs.cluster import RunOptions, connect, read_results, run_tasks, task_threads
     from psvs.cluster.store import check_params
     if args.rig is None:
         raise ValueError("psvs batch needs --rig (the frames' camera and the disparity range)")
@@ -230,7 +230,7 @@ def run(args) -> int:
         raise
     with client:
         summary = run_tasks(client, functools.partial(frame_task, job), frames.keys, out_dir, _params(job),
-                            RunOptions(label=f"psvs batch {job['command']}"))
+                            RunOptions(label=f"psvs batch {job['command']}", threads=task_threads(client)))
     status = read_results(out_dir).column("status").to_pylist()
     counts = {s: status.count(s) for s in ("ok", "cannot measure", "bad input") if status.count(s)}
     print(f"{out_dir}: {len(frames.keys)} frames, " + ", ".join(f"{n} {s}" for s, n in counts.items())

@@ -59,3 +59,13 @@ def connect(scheduler: str | None = None, workers: int | None = None, timeout_s:
     except Exception as exc:   # OSError (refused, timed out), or whatever a non-Dask server's reply raises
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise ValueError(f"cannot reach the Dask scheduler at {address}: {text[:200]}") from None
+
+
+def task_threads(client) -> int | None:
+    """The threads a task may use on ``client``'s workers: on a local cluster this machine's cores shared
+    among its workers (at least 1), so that N workers of Numba's parallel loops do not each start a thread per
+    core; None on an existing scheduler (its workers' own setting)."""
+    cluster = getattr(client, "cluster", None)
+    if cluster is None:
+        return None
+    return max(1, local_workers() // max(1, len(cluster.workers)))

@@ -24,12 +24,16 @@ class RunOptions:
     progress : a progress bar on stderr (redrawn on a terminal, plain lines in a log; False: none).
     label : the progress bar's name.
     compact_every : part files after which they are merged into results.parquet during a run.
+    threads : Numba threads a task runs its parallel loops on (``numba.set_num_threads`` in the task's thread;
+        None: the worker's default, every core). :func:`psvs.cluster.client.task_threads` gives a local
+        cluster's share. It changes no result psvs computes, only the time (tests/cli/test_batch_cli.py).
     """
 
     retries: int = 2
     progress: bool = True
     label: str = "tasks"
     compact_every: int = 256
+    threads: int | None = None
 
     def __post_init__(self):
         if not 0 <= self.retries <= 10:
@@ -52,8 +56,12 @@ class RunSummary:
         return self.skipped + self.computed == self.total
 
 
-def _task(fn, key):
-    """What a worker runs: ``fn(key)`` checked to be a flat row of scalars, with its key."""
+def _task(fn, threads, key):
+    """What a worker runs: ``fn(key)`` (on ``threads`` Numba threads when not None) checked to be a flat row of
+    scalars, with its key."""
+    if threads is not None:
+        import numba
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     return check_row(fn(key), key)
 
 
@@ -106,7 +114,8 @@ def _submit_and_collect(client, fn, todo: list, store: ResultStore, options: Run
     bar = Progress(options.label, len(todo), skipped) if options.progress else None
     tag = f"psvs-{time.time_ns():x}"     # task names unique to this run (a client may run several)
     names = {f"{tag}-{i}": k for i, k in enumerate(todo)}
-    futures = client.map(functools.partial(_task, fn), todo, key=list(names), retries=options.retries, pure=False)
+    futures = client.map(functools.partial(_task, fn, options.threads), todo, key=list(names),
+                         retries=options.retries, pure=False)
     computed, failed, parts = 0, {}, 0
     pending = set(futures)
     try:
