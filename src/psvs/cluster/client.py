@@ -5,6 +5,10 @@ from __future__ import annotations
 import logging
 import os
 import re
+import signal
+import threading
+
+from distributed.diagnostics.plugin import WorkerPlugin
 
 #: How long to wait for an existing scheduler to answer before saying it cannot be reached, s.
 CONNECT_TIMEOUT_S = 5.0
@@ -50,15 +54,28 @@ def connect(scheduler: str | None = None, workers: int | None = None, timeout_s:
         # returns every freed array to the system: a dense disparity map takes 2.5 times as long) and one
         # OpenMP/BLAS thread, and a task must compute what the single command computes
         with dask.config.set({"distributed.nanny.pre-spawn-environ": {}}):
-            return Client(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
-                          dashboard_address=None, scheduler_kwargs={"dashboard": False}, silence_logs=logging.ERROR,
-                          set_as_default=False)
+            client = Client(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
+                            dashboard_address=":0", scheduler_kwargs={"dashboard": False},
+                            silence_logs=logging.ERROR, set_as_default=False)
+        client.register_plugin(_IgnoreInterrupt())
+        return client
     address = scheduler_address(scheduler)
     try:
         return Client(address, timeout=timeout_s, set_as_default=False)
     except Exception as exc:   # OSError (refused, timed out), or whatever a non-Dask server's reply raises
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise ValueError(f"cannot reach the Dask scheduler at {address}: {text[:200]}") from None
+
+
+class _IgnoreInterrupt(WorkerPlugin):
+    """Ctrl-C in the terminal reaches the local workers too (one process group): they ignore it (each would
+    print a traceback), and the client that started them stops the run and closes them."""
+
+    name = "psvs-ignore-interrupt"
+
+    def setup(self, worker):
+        if threading.current_thread() is threading.main_thread():
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def task_threads(client) -> int | None:
