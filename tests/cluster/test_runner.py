@@ -195,3 +195,37 @@ def test_a_local_clusters_tasks_share_the_cores(client, tmp_path):
     assert share == max(1, local_workers() // 2)
     run_tasks(client, numba_threads, range(4), tmp_path / "run", {}, RunOptions(progress=False, threads=share))
     assert {r["threads"] for r in read_results(tmp_path / "run").to_pylist()} == {share}
+
+
+def test_an_existing_scheduler_with_a_worker_of_its_own(tmp_path):
+    """``dask scheduler`` and ``dask worker tcp://...`` started as a user starts them on other machines: the
+    run goes through them, with the results of the serial run."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root / "src"), str(root)]))
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    procs = [subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_scheduler", "--port", str(port),
+                               "--dashboard-address", ":0"], cwd=root, env=env, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)]
+    try:
+        procs.append(subprocess.Popen([sys.executable, "-m", "distributed.cli.dask_worker", address, "--nworkers",
+                                       "1", "--nthreads", "1"], cwd=root, env=env, stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.DEVNULL))
+        t0 = time.monotonic()
+        while True:
+            try:
+                client = connect(address, timeout_s=2.0)
+                break
+            except ValueError:
+                assert time.monotonic() - t0 < 60, "the scheduler did not start within 60 s"
+        with client:
+            client.wait_for_workers(1, timeout=60)
+            s = run_tasks(client, sample, range(5), tmp_path / "run", {"seed": 7}, QUIET)
+        assert s.computed == 5 and _rows(tmp_path / "run") == {k: sample(k) for k in range(5)}
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+            p.wait(timeout=30)
