@@ -59,3 +59,16 @@ def test_the_progress_bar_writes_plain_lines_to_a_log():
     lines = out.getvalue().splitlines()
     assert len(lines) == 10 and lines[-1].startswith("work: 20/20 (5 done before)")
     assert "\r" not in out.getvalue()
+
+
+def test_the_progress_bar_redraws_one_line_on_a_terminal():
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+    out = Terminal()
+    bar = Progress("work", 4, stream=out)
+    bar.update(4, 1)
+    bar.close()
+    text = out.getvalue()
+    assert text.startswith("\rwork [") and text.endswith("\n") and text.count("\n") == 1
+    assert "4/4, 1 failed" in text and "#" * 30 in text
