@@ -32,6 +32,8 @@ def add_parser(sub) -> None:
     add_range_arguments(p)
     p.add_argument("--pitch-mm", type=float, default=DEFAULT_PITCH_MM,
                    help=f"screw pitch, mm per turn (default {DEFAULT_PITCH_MM}: M3 x 0.5)")
+    p.add_argument("--mount", metavar="MOUNT_DIR",
+                   help="the seats psvs mount wrote there (mount.toml) instead of the default ones")
     p.add_argument("--json", metavar="FILE.json", help="also write the guide here")
     p.set_defaults(run=run)
 
@@ -103,7 +105,12 @@ def run(args) -> int:
         raise ValueError(f"--pitch-mm must be a screw pitch in (0, 5] mm, got {args.pitch_mm}")
     built, nominal = load_rig(args.calibrated), load_rig(args.rig)
     check_same_design(built, nominal)
-    g = alignment_guide(built, seats_for(nominal, pitch_mm=args.pitch_mm), near, far)
+    if args.mount is not None:
+        from psvs.mount.files import read_mount
+        seats = read_mount(args.mount)[1]
+    else:
+        seats = seats_for(nominal, pitch_mm=args.pitch_mm)
+    g = alignment_guide(built, seats, near, far)
     print(format_guide(g))
     if out is not None:
         write_atomic(out, json.dumps(guide_to_dict(g), indent=2) + "\n")

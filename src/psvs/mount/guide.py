@@ -44,9 +44,12 @@ NULL_PX_PER_TURN = 0.02
 #: Tikhonov weight toward zero turns, px (RMS) per turn: small against any screw that matters.
 REGULARISE_PX_PER_TURN = 0.01
 #: In the rounding to 1/16 turn, a turn in all (any screw) costs as much as this many px of row offset.
-TURN_COST_PX = 0.1
+TURN_COST_PX = 0.3
 #: The rounding tries every screw this many 1/16-turn steps either side of its nearest rounding.
 SEARCH_STEPS = 2
+#: Along the turns the rows cannot see, lattice points up to this far (turns) are tried, the best few descended.
+NULL_REACH_TURNS = 1.0
+NULL_STARTS = 8
 #: The order of the eight turns.
 SCREW_ORDER = tuple((m, s) for m in MIRROR_NAMES for s in SCREWS)
 
@@ -165,7 +168,7 @@ def alignment_guide(built: Rig, seats: dict[str, Seat], near_mm: float = 400.0, 
         y = np.linalg.solve(A[ok].T @ A[ok] + lam * np.eye(len(y)), A[ok].T @ (A[ok] @ y - r[ok]))
         r = residual(vt[seen].T @ y)
     x_cont = vt[seen].T @ y
-    x = _quantise(x_cont, r, J)
+    x = _quantise(x_cont, r, J, vt[~seen])
     after = residual(x) if np.any(x) else r0
     return AlignmentGuide(_screw_turns(built, seats, x), _stats(r0), _stats(after), _stats(r),
                           tuple(tuple(float(c) for c in v) for v in vt[~seen]), tuple(float(s) for s in sv),
@@ -182,12 +185,15 @@ def _jacobian(residual, n: int, h: float = TURN_STEP) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def _quantise(x: np.ndarray, r: np.ndarray, J: np.ndarray, step: float = TURN_STEP) -> np.ndarray:
+def _quantise(x: np.ndarray, r: np.ndarray, J: np.ndarray, null: np.ndarray | None = None,
+              step: float = TURN_STEP) -> np.ndarray:
     """Turns on the 1/16 lattice near ``x`` (n,) whose predicted row offsets r + J (x_q - x) have the
     smallest cost: the largest |offset| (px) plus :data:`TURN_COST_PX` per turn in all. Every screw within
-    :data:`SEARCH_STEPS` steps of its nearest rounding is tried (5^8 combinations), then a descent moves one
-    to three screws by one step while the cost falls. The best may leave a screw off its rounding where
-    others make up for its step better: 1/16 turn of M1's screw V is ~0.18 deg, several px of rows."""
+    :data:`SEARCH_STEPS` steps of its nearest rounding is tried (5^8 combinations); so are the roundings of
+    points moved from ``x`` along the turns the rows cannot see (``null`` (k, n), unit rows; up to
+    :data:`NULL_REACH_TURNS` each way), since a lattice point that fits may lie along them far from ``x``;
+    then a descent moves one to three screws by one step while the cost falls, from the best few. The best
+    may leave a screw off its rounding where others make up for its step better."""
     ok = np.isfinite(r)
     r, J = r[ok], J[ok]
     near = np.round(x / step)
@@ -203,14 +209,31 @@ def _quantise(x: np.ndarray, r: np.ndarray, J: np.ndarray, step: float = TURN_ST
         k = int(np.argmin(c))
         if c[k] < now:
             best, now = (near + chunk[k]) * step, float(c[k])
+    starts = [best]
+    if null is not None and len(null):
+        reach = np.arange(-NULL_REACH_TURNS, NULL_REACH_TURNS + 1e-9, 2 * step)
+        coef = np.stack(np.meshgrid(*[reach] * len(null), indexing="ij"), axis=-1).reshape(-1, len(null))
+        cand = np.unique(np.round((x + coef @ null) / step), axis=0) * step
+        c = cost(cand)
+        starts += list(cand[np.argsort(c)[:NULL_STARTS]])
     moves = _moves(len(x)) * step
+    out, out_cost = best, now
+    for xq in starts:
+        xq, c_now = _descend(xq, float(cost(xq)), moves, cost)
+        if c_now < out_cost - 1e-12:
+            out, out_cost = xq, c_now
+    return out
+
+
+def _descend(xq: np.ndarray, now: float, moves: np.ndarray, cost) -> tuple[np.ndarray, float]:
+    """Move by the best of ``moves`` while the cost falls (at most 200 moves)."""
     for _ in range(200):
-        c = cost(best[None, :] + moves)
+        c = cost(xq[None, :] + moves)
         k = int(np.argmin(c))
         if c[k] >= now - 1e-9:
             break
-        best, now = best + moves[k], float(c[k])
-    return best
+        xq, now = xq + moves[k], float(c[k])
+    return xq, now
 
 
 def _moves(n: int, most: int = 3) -> np.ndarray:
