@@ -18,7 +18,7 @@ from psvs.io.params import load_rig
 from psvs.mount.build import make_mount
 from psvs.mount.check import check_mount, printable_mesh
 from psvs.mount.files import read_mount
-from psvs.mount.layout import MountError, MountParams, field_segments
+from psvs.mount.layout import CLIP_BORDER_MM, MountError, MountParams, field_segments
 from psvs.mount.seats import handedness, screw_rates, seats_for
 from psvs.optics.design import design_mirrors
 from psvs.optics.mirrors import mirror_planes
@@ -128,7 +128,7 @@ def test_drawing_dimensions_are_the_designs(made):
         assert abs(angle) == pytest.approx(45.0, abs=0.006) and angle == pytest.approx(want, abs=0.006)
         glass = next(t for t in texts if t.startswith(f"{n} glass"))
         w, h, _ = (float(v) for v in re.findall(r"(\d+\.\d+)", glass))
-        want_h = spec.extent.size_mm[1] + (2 * border if spec.name == "m1" else 0.0)
+        want_h = spec.extent.size_mm[1] + 2 * (border if spec.name == "m1" else CLIP_BORDER_MM)
         assert (w, h) == pytest.approx((spec.extent.size_mm[0], want_h), abs=0.006)
 
 

@@ -3,6 +3,7 @@ input or without the cad extra), and that a refusal leaves the folder as it was;
 calibrate --adjust DIR take the seats it wrote."""
 from __future__ import annotations
 
+import re
 import sys
 import tomllib
 
@@ -71,6 +72,18 @@ def test_a_mount_that_cannot_be_built_exits_1_and_writes_nothing(capsys, tmp_pat
     code, text, err = run(capsys, "mount", "--rig", rig, "-o", str(out), *extra)
     assert code == 1 and len(err.strip().splitlines()) == 1 and says in err, err
     assert sorted(p.name for p in out.iterdir()) == ["mount.toml"] and (out / "mount.toml").read_text() == "old"
+
+
+def test_docs_refusal_example_is_what_psvs_prints(capsys, tmp_path):
+    """docs/mount.md's refused layout, as printed; the border it suggests then builds."""
+    from pathlib import Path
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "mount.md").read_text().splitlines()
+    k = doc.index("psvs mount --rig default -o out --m1-border-mm 8     # exit status 1, nothing written:")
+    code, _, err = run(capsys, "mount", "--rig", "default", "-o", str(tmp_path / "out"), "--m1-border-mm", "8")
+    assert code == 1 and err.strip() == doc[k + 1]
+    border = re.search(r"--m1-border-mm (\d+) \(now", err).group(1)
+    code, _, err = run(capsys, "mount", "--rig", "default", "-o", str(tmp_path / "out"), "--m1-border-mm", border)
+    assert code == 0, err
 
 
 def test_without_the_cad_extra_exit_2_naming_it(capsys, tmp_path, monkeypatch):

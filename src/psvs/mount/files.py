@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from psvs.io.tomlfile import dumps_toml, load_toml
-from psvs.mount.layout import CLAMP_SLIT_MM, SCREW_CLEARANCE_MM, MountLayout, MountParams
+from psvs.mount.layout import CLAMP_SLIT_MM, CLIP_BORDER_MM, SCREW_CLEARANCE_MM, MountLayout, MountParams
 from psvs.mount.seats import SCREWS, Seat, handedness, screw_rates
 from psvs.optics.mirrors import mirror_planes
 from psvs.optics.rig import MIRROR_NAMES
@@ -46,7 +46,8 @@ def bom_rows(layout: MountLayout) -> list[dict]:
                          f"{p.m1_border_mm:g} mm borders above and below"))
         else:
             rows.append((name.upper(), 1, "front-surface mirror", f"{w:.2f} x {h:.2f} x {p.glass_mm:.2f} mm",
-                         "coating toward the light"))
+                         f"coating toward the light; the springs press on the {CLIP_BORDER_MM:g} mm borders above "
+                         "and below"))
     n_mirrors = len(MIRROR_NAMES)
     screw = _stock(p.plate_mm + p.standoff_mm + 5.0)
     rows += [("mount", 1, "printed mount (mount.stl)", f"{layout.volume_mm3 / 1000:.1f} cm^3",
@@ -56,7 +57,8 @@ def bom_rows(layout: MountLayout) -> list[dict]:
              ("insert", 2 * n_mirrors, "M3 heat-set insert", "Ø4.0 x 4 mm", "pressed into each seat's two holes"),
              ("lock nut", 2 * n_mirrors, "M3 thin nut", "M3", "locks each screw after alignment"),
              ("spring clip", 2 * n_mirrors, "spring clip or leaf spring", "~2 N",
-              "two per mirror, pressing the glass onto its three contacts from the front, outside the light")]
+              "two per mirror, pressing the glass onto its three contacts from the front, on its borders "
+              "outside the light")]
     if p.interface == "clamp":
         rows.append(("clamp screw", 1, "M3 socket head screw + nut",
                      f"M3 x {_stock(2 * (p.lens_diameter_mm / 2 + p.plate_mm) + 3)} mm",

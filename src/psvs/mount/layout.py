@@ -49,6 +49,8 @@ SCREW_CLEARANCE_MM = 3.4
 FLANGE_DISTANCE_MM = {"c": 17.526, "cs": 12.526}
 INTERFACES = ("clamp", "c", "cs")
 CLAMP_SLIT_MM = 1.5
+#: M2, M3 and M4 are cut this much taller than their light above and below: the springs press there.
+CLIP_BORDER_MM = 3.0
 
 
 class MountError(ValueError):
@@ -244,11 +246,13 @@ def _ccw_hull(points_xz: np.ndarray) -> np.ndarray:
 
 
 def glass_extents(design: MirrorDesign, params: MountParams) -> dict[str, MirrorExtent]:
-    """Each mirror's glass rectangle: the design's, M1's ``m1_border_mm`` taller above and below."""
-    out = {n: design.rig.mirrors.extent(n) for n in MIRROR_NAMES}
-    e = out["m1"]
-    b = params.m1_border_mm
-    out["m1"] = MirrorExtent(e.along_mm, (e.height_mm[0] - b, e.height_mm[1] + b))
+    """Each mirror's glass rectangle: the design's, taller above and below by ``m1_border_mm`` for M1 (its
+    contacts) and :data:`CLIP_BORDER_MM` for the others (their springs), so nothing touches the light."""
+    out = {}
+    for n in MIRROR_NAMES:
+        e = design.rig.mirrors.extent(n)
+        b = params.m1_border_mm if n == "m1" else CLIP_BORDER_MM
+        out[n] = MirrorExtent(e.along_mm, (e.height_mm[0] - b, e.height_mm[1] + b))
     return out
 
 
