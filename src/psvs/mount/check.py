@@ -66,7 +66,7 @@ def check_mount(layout: MountLayout, mesh: trimesh.Trimesh, segments: list, samp
                 seed: int = 0) -> MountChecks:
     """Run every check on ``mesh`` (:func:`printable_mesh`) against ``layout`` and the field rays'
     ``segments`` (:func:`psvs.mount.layout.field_segments`)."""
-    rays = len(segments[0][0]) + len(segments[-1][0])   # the first leg of each view holds every ray
+    rays = sum(len(legs[0][0]) for legs in by_view(segments))
     blocked, by = _light(layout, mesh, segments)
     errors, intrusion = _glass(layout, mesh)
     return MountChecks(int(rays), blocked, by, errors, intrusion, bool(mesh.is_watertight),
@@ -86,13 +86,21 @@ def _first_hit(mesh, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray,
     return dist, where
 
 
+def by_view(segments: list) -> list[list]:
+    """The legs of :func:`psvs.mount.layout.field_segments` grouped by view: each view's first leg starts at
+    the camera's centre O (the origin)."""
+    out: list[list] = []
+    for p0, p1 in segments:
+        if not np.any(p0) or not out:
+            out.append([])
+        out[-1].append((p0, p1))
+    return out
+
+
 def _light(layout: MountLayout, mesh, segments) -> tuple[int, dict]:
     """Rays blocked by the mesh on any leg, and how many per part (named from the layout)."""
-    n_views = 2
-    per_view = len(segments) // n_views
     blocked_total, by = 0, {}
-    for v in range(n_views):
-        legs = segments[v * per_view:(v + 1) * per_view]
+    for legs in by_view(segments):
         hit_any = np.zeros(len(legs[0][0]), dtype=bool)
         for p0, p1 in legs:
             d = p1 - p0
