@@ -3,6 +3,8 @@ in, the screw turns that bring its twins onto the same rows out, as ``psvs adjus
 twins' row-offset maps before and after the turns for the page's heat maps."""
 from __future__ import annotations
 
+import math
+
 from fastapi import APIRouter
 
 from psvs.io.params import load_rig, rig_from_text
@@ -47,14 +49,25 @@ def adjust_seats(body: AdjustBody, nominal: Rig) -> dict[str, Seat]:
 @router.post("/adjust")
 def adjust(body: AdjustBody, session: SessionDep):
     """The alignment guide of the calibrated build on the design's seats (or the mount's), as
-    :func:`psvs.mount.report.guide_to_dict` gives it and as ``psvs adjust`` prints it (``text``), each turn
-    as an instruction ("3/16 turn clockwise", "leave"), the note on what the rows cannot tell apart, and the
-    row-offset maps (:func:`psvs.mount.report.row_offset_maps`) before and after the turns."""
+    :func:`psvs.mount.report.guide_to_dict` gives it and as ``psvs adjust`` prints it (``text``), its table
+    (mirror, screw, the tilt it trims, degrees per turn, the turn: "3/16 turn clockwise" or "leave"), the
+    note on what the rows cannot tell apart (``null_space_text``), and the row-offset maps before and after
+    the turns (:func:`psvs.mount.report.row_offset_maps`)."""
     built = rig_from_text(body.calibrated, "calibrated rig file")
     nominal, design_name = design_rig(body.design, session)
     report.check_same_design(built, nominal, f"the design ({design_name})")
     seats = adjust_seats(body, nominal)
     g = alignment_guide(built, seats, body.near_mm, body.far_mm)
+    table = [{"mirror": t.mirror.upper(), "screw": t.screw, "trims": report.TILTS[t.tilt],
+              "deg_per_turn": math.degrees(t.rad_per_turn), "turn": report.turn_instruction(t.turns, t.direction)}
+             for t in g.turns]
     return {"design": design_name, "guide": report.guide_to_dict(g), "text": report.format_guide(g).splitlines(),
-            "instructions": [report.turn_instruction(t.turns, t.direction) for t in g.turns],
-            "null_space_text": report.null_space_lines(g), "maps": report.row_offset_maps(built, seats, g)}
+            "table": table, "null_space_text": report.null_space_lines(g),
+            "maps": report.row_offset_maps(built, seats, g)}
+
+
+@router.get("/adjust/designs")
+def adjust_designs(session: SessionDep):
+    """What the Alignment panel offers as the design: the app's rig (by its name) or a shipped rig, and the
+    default seats' screw pitch."""
+    return {"served": session.rig_name, "shipped": list(SHIPPED), "pitch_mm": DEFAULT_PITCH_MM}
