@@ -6,9 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from psvs.cli.adjust_cmd import guide_to_dict, turns_text
 from psvs.io.params import load_rig
 from psvs.mount.guide import TURN_STEP, alignment_guide, row_offsets_px, working_points
+from psvs.mount.report import guide_to_dict, turns_text
 from psvs.mount.seats import apply_turns, seats_for
 from psvs.rigs import shipped_rig_path
 from tests.cli.test_cli import run

@@ -36,7 +36,7 @@ def test_adjust_on_the_mounts_seats(capsys, mount_dir):
     those seats (its first line, the offsets and every turn's line)."""
     code, text, err = run(capsys, "adjust", "misaligned", "--rig", "clear", "--mount", str(mount_dir))
     assert code == 0, err
-    from psvs.cli.adjust_cmd import format_guide
+    from psvs.mount.report import format_guide
     g = alignment_guide(load_rig(shipped_rig_path("misaligned")), read_mount(mount_dir)[1])
     assert text.strip() == format_guide(g).strip()
 

@@ -44,8 +44,8 @@ def _fmt(name: str, value: float, sigma: float) -> str:
 def _guide(rig, design, mount_dir) -> str:
     """The alignment guide of the calibrated ``rig`` on the seats of ``design``'s mirrors, or on those of the
     mount in ``mount_dir`` (docs/mount.md)."""
-    from psvs.cli.adjust_cmd import format_guide
     from psvs.mount.guide import alignment_guide
+    from psvs.mount.report import format_guide
     from psvs.mount.seats import seats_for
     if mount_dir is True:
         return format_guide(alignment_guide(rig, seats_for(design)))

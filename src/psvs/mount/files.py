@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from psvs.io.tomlfile import dumps_toml, load_toml
+from psvs.io.tomlfile import dumps_toml, load_toml, parse_text
 from psvs.mount.layout import CLAMP_SLIT_MM, CLIP_BORDER_MM, SCREW_CLEARANCE_MM, MountLayout, MountParams
 from psvs.mount.seats import SCREWS, Seat, handedness, screw_rates
 from psvs.optics.mirrors import mirror_planes
@@ -113,14 +113,28 @@ def read_mount(folder) -> tuple[MountParams, dict[str, Seat]]:
     path = Path(folder) / "mount.toml"
     if not path.is_file():
         raise ValueError(f"{folder}: no mount.toml (a folder psvs mount wrote)")
-    data = load_toml(path, "mount file")
+    return mount_from_dict(load_toml(path, "mount file"), str(path))
+
+
+def read_mount_text(text: str, where: str = "mount.toml") -> tuple[MountParams, dict[str, Seat]]:
+    """:func:`read_mount` on the text of a ``mount.toml`` (e.g. uploaded to the web page); errors name
+    ``where``."""
+    return mount_from_dict(parse_text(text, where), where)
+
+
+def mount_from_dict(data: dict, where: str) -> tuple[MountParams, dict[str, Seat]]:
+    """The parameters and seats of a parsed ``mount.toml`` (ValueError naming ``where`` and what is wrong)."""
     try:
         names = {f.name for f in fields(MountParams)}
         params = MountParams(**{k: v for k, v in data["mount"]["params"].items() if k in names})
         seats = {n: Seat(n, tuple(s["pivot_st_mm"]), tuple(s["h_st_mm"]), tuple(s["v_st_mm"]),
                          float(s["back_offset_mm"]), float(s["pitch_mm"])) for n, s in data["seats"].items()}
-    except (KeyError, TypeError) as exc:
-        raise ValueError(f"{path}: not a mount file psvs wrote (missing {exc})") from None
+    except KeyError as exc:
+        raise ValueError(f"{where}: not a mount file psvs wrote (missing {exc})") from None
+    except (TypeError, AttributeError) as exc:
+        raise ValueError(f"{where}: not a mount file psvs wrote ({exc})") from None
+    except ValueError as exc:
+        raise ValueError(f"{where}: {str(exc).splitlines()[0]}") from None
     if sorted(seats) != sorted(MIRROR_NAMES):
-        raise ValueError(f"{path}: seats for {', '.join(sorted(seats))}, expected {', '.join(MIRROR_NAMES)}")
+        raise ValueError(f"{where}: seats for {', '.join(sorted(seats))}, expected {', '.join(MIRROR_NAMES)}")
     return params, seats

@@ -78,7 +78,8 @@ class AlignmentGuide:
     (largest, RMS) |row offset| over the ``n_points`` field points before and after the quantised turns,
     px; ``after_unquantised_px``: the same for the turns before rounding; ``null_space``: unit turn
     combinations (each (8,) in SCREW_ORDER) that move no row; ``singular_px``: RMS px per turn along each
-    singular direction, largest first."""
+    singular direction, largest first; ``weighed``: the indices of the :func:`working_points` the offsets
+    are over (both views see them, and still do as the screws turn)."""
 
     turns: tuple[ScrewTurn, ...]
     before_px: tuple[float, float]
@@ -90,6 +91,7 @@ class AlignmentGuide:
     far_mm: float
     n_points: int
     pitch_mm: float
+    weighed: tuple[int, ...] = ()
 
     @property
     def turns_by_mirror(self) -> dict[str, tuple[float, float]]:
@@ -144,6 +146,7 @@ def alignment_guide(built: Rig, seats: dict[str, Seat], near_mm: float = 400.0, 
     base = twin_rows_px(designed_twin(built), pts)
     r0 = twin_rows_px(built, pts) - base
     keep = np.isfinite(r0)
+    idx = np.flatnonzero(keep)
     if keep.sum() < 10:
         raise ValueError(f"the views share too few field points ({int(keep.sum())}) over {near_mm}-{far_mm} mm")
     pts, base, r0 = pts[keep], base[keep], r0[keep]
@@ -155,7 +158,7 @@ def alignment_guide(built: Rig, seats: dict[str, Seat], near_mm: float = 400.0, 
     steady = np.all(np.isfinite(J), axis=1)     # a point a mirror's edge cuts off as the screws turn: not weighed
     if steady.sum() < 10:
         raise ValueError(f"too few field points ({int(steady.sum())}) stay in both views as the screws turn")
-    pts, base, r0, J = pts[steady], base[steady], r0[steady], J[steady]
+    pts, base, r0, J, idx = pts[steady], base[steady], r0[steady], J[steady], idx[steady]
     m = len(pts)
     _, sv, vt = np.linalg.svd(J / np.sqrt(m), full_matrices=False)
     seen = sv >= NULL_PX_PER_TURN
@@ -172,7 +175,7 @@ def alignment_guide(built: Rig, seats: dict[str, Seat], near_mm: float = 400.0, 
     after = residual(x) if np.any(x) else r0
     return AlignmentGuide(_screw_turns(built, seats, x), _stats(r0), _stats(after), _stats(r),
                           tuple(tuple(float(c) for c in v) for v in vt[~seen]), tuple(float(s) for s in sv),
-                          float(near_mm), float(far_mm), m, float(seats["m1"].pitch_mm))
+                          float(near_mm), float(far_mm), m, float(seats["m1"].pitch_mm), tuple(int(i) for i in idx))
 
 
 def _jacobian(residual, n: int, h: float = TURN_STEP) -> np.ndarray:
