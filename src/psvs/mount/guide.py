@@ -79,7 +79,9 @@ class AlignmentGuide:
     px; ``after_unquantised_px``: the same for the turns before rounding; ``null_space``: unit turn
     combinations (each (8,) in SCREW_ORDER) that move no row; ``singular_px``: RMS px per turn along each
     singular direction, largest first; ``weighed``: the indices of the :func:`working_points` the offsets
-    are over (both views see them, and still do as the screws turn)."""
+    are over (both views see them, and still do as the screws turn); ``lost_after``: how many of those a view
+    misses after the quantised turns (a turned mirror's edge moves into the field): ``after_px`` is over
+    the others."""
 
     turns: tuple[ScrewTurn, ...]
     before_px: tuple[float, float]
@@ -92,6 +94,7 @@ class AlignmentGuide:
     n_points: int
     pitch_mm: float
     weighed: tuple[int, ...] = ()
+    lost_after: int = 0
 
     @property
     def turns_by_mirror(self) -> dict[str, tuple[float, float]]:
@@ -175,7 +178,8 @@ def alignment_guide(built: Rig, seats: dict[str, Seat], near_mm: float = 400.0, 
     after = residual(x) if np.any(x) else r0
     return AlignmentGuide(_screw_turns(built, seats, x), _stats(r0), _stats(after), _stats(r),
                           tuple(tuple(float(c) for c in v) for v in vt[~seen]), tuple(float(s) for s in sv),
-                          float(near_mm), float(far_mm), m, float(seats["m1"].pitch_mm), tuple(int(i) for i in idx))
+                          float(near_mm), float(far_mm), m, float(seats["m1"].pitch_mm), tuple(int(i) for i in idx),
+                          int(np.sum(~np.isfinite(after))))
 
 
 def _jacobian(residual, n: int, h: float = TURN_STEP) -> np.ndarray:

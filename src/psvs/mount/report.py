@@ -60,6 +60,10 @@ def format_guide(g: AlignmentGuide) -> str:
         lines.append(f"{t.mirror.upper():6} {t.screw:5} {TILTS[t.tilt]:29} {math.degrees(t.rad_per_turn):9.3f}  {how}")
     lines.append(f"twins' row offset after the turns (predicted): largest {g.after_px[0]:.2f} px, "
                  f"RMS {g.after_px[1]:.2f} px ({g.after_unquantised_px[0]:.2f} px with turns not rounded to 1/16)")
+    if g.lost_after:
+        lines.append(f"  over {g.n_points - g.lost_after} points: {g.lost_after} of the {g.n_points} leave a view "
+                     "after the turns (a turned mirror's edge moves into the field; psvs design --margin-mm "
+                     "sizes the mirrors with room for it)")
     lines += null_space_lines(g)
     return "\n".join(lines)
 
@@ -70,7 +74,7 @@ def null_space_lines(g: AlignmentGuide) -> list[str]:
         return []
     lines = [f"{len(g.null_space)} combination(s) of turns move no twin off its partner's row (< 0.02 px "
              "per turn: they move both twins alike, or along their rows), so the rows cannot tell them "
-             "apart; the smallest turns were taken, none of:"]
+             "apart; the turns start from the smallest that fit, and rounding them to 1/16 may move along:"]
     names = [f"{t.mirror.upper()} {t.screw}" for t in g.turns]
     for v in g.null_space:
         big = sorted(range(len(v)), key=lambda k: -abs(v[k]))[:3]
@@ -85,6 +89,7 @@ def guide_to_dict(g: AlignmentGuide) -> dict:
         "row_offset_before_px": {"max": g.before_px[0], "rms": g.before_px[1]},
         "row_offset_after_px": {"max": g.after_px[0], "rms": g.after_px[1]},
         "row_offset_after_unrounded_px": {"max": g.after_unquantised_px[0], "rms": g.after_unquantised_px[1]},
+        "points_lost_after": g.lost_after,
         "turns": [{"mirror": t.mirror.upper(), "screw": t.screw, "tilt": t.tilt, "turns": t.turns,
                    "direction": t.direction, "deg_per_turn": math.degrees(t.rad_per_turn),
                    "shift_mm_per_turn": t.shift_mm_per_turn} for t in g.turns],
