@@ -74,6 +74,18 @@ def apply_deviations(nominal: Rig, dev: dict) -> Rig:
 
 def draw_build(nominal: Rig, tol: Tolerances, seed: int, index: int) -> tuple[Rig, dict]:
     """Build ``index`` of a study seeded ``seed``: the rig as built and its drawn deviations (file units,
-    :func:`draw_deviations`)."""
+    :func:`draw_deviations`).
+
+    Examples
+    --------
+    >>> from psvs.io.params import load_rig
+    >>> from psvs.study.tolerances import tolerances_from_dict
+    >>> tol = tolerances_from_dict({"tolerances": {"mirror_tilt_deg": {"uniform": 0.2}}})
+    >>> rig, dev = draw_build(load_rig("default"), tol, seed=1, index=0)
+    >>> abs(dev["m1_tilt_b_deg"]) <= 0.2, dev["m1_shift_mm"], dev == draw_build(load_rig("default"), tol, 1, 0)[1]
+    (True, 0.0, True)
+    >>> bool(np.isclose(np.degrees(rig.mirrors.m1_error.tilt_rad[1]), dev["m1_tilt_b_deg"]))
+    True
+    """
     dev = draw_deviations(tol, seed, index)
     return apply_deviations(nominal, dev), dev
