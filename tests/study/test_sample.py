@@ -138,3 +138,16 @@ def test_table1_is_scored_when_asked():
     assert row["table1_note"] == ""
     assert 0 < row["table1_z_rms_mm"] <= row["table1_z_max_mm"] < 2.0 and row["table1_a_mm"] < 0.5
     assert dataclasses.asdict(tol.test)["table1"] is True
+
+
+@pytest.mark.slow
+def test_a_sample_on_the_1440_camera():
+    """Nothing assumes the 640x480 camera: the mv1440 rig (1440x1080, 3.45 um, k1 -0.27) with a 5x7 card
+    whose copies interleave, 4 views at 1x1: calibrated, sub-0.1 px, and its row offset in its own pixels."""
+    tol = tolerances_from_dict({**SMALL, "calibration": {
+        "views": 4, "supersample": 1, "near_mm": 400.0, "far_mm": 900.0, "interleave": True,
+        "card": {"rows": 5, "cols": 7, "spacing_mm": 16.0, "diameter_mm": 7.0}}})
+    row = run_sample(load_rig("mv1440"), tol, 3, 0)
+    assert row["ok"], row["reason"]
+    assert row["images_used"] >= 3 and row["reproj_rms_px"] < 0.1 and row["row_offset_px"] > 1.0
+    assert 0 < row["rms_3d_mm"] < 5.0

@@ -52,6 +52,7 @@ BAD = [
     ("[calibration]\ncard = { spacing_mm = 5, diameter_mm = 7 }\n", "calibration.card:"),
     ("[calibration]\nrobot = true\n", "unknown key calibration.robot"),
     ("[test]\ntable1 = 1\n", "test.table1 must be true or false"),
+    ("[calibration]\ninterleave = \"yes\"\n", "calibration.interleave must be true or false"),
     ("[test]\ngrid = 1\n", "test.grid must be a whole number 2-50"),
     ("[targets]\nrms_mm = 1\n", "unknown key targets.rms_mm"),
     ("[targets]\nrms_3d_mm = 0\n", "targets.rms_3d_mm must be > 0"),
@@ -68,6 +69,13 @@ def test_bad_tol_files_are_refused_in_one_line(tmp_path, text, message):
         load_tolerances(path)
     text = str(info.value)
     assert message in text and str(path) in text and "\n" not in text
+
+
+def test_tolerances_pickle_for_the_workers():
+    """A runner ships the tolerances to other processes: they pickle and come back equal."""
+    import pickle
+    tol = load_tolerances("default")
+    assert pickle.loads(pickle.dumps(tol)) == tol
 
 
 def test_a_missing_file_is_named(tmp_path):

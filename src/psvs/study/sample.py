@@ -49,8 +49,8 @@ COLUMNS = ("index", "seed", "views_seed", "ok", "reason", *SCORES, "images_used"
 
 
 def render_card_folder(build: Rig, procedure: Procedure, seed: int, folder) -> None:
-    """What ``psvs card-views FOLDER --rig BUILD --views N --seed SEED`` writes (``card_NN.png`` and
-    ``target.toml``), with the procedure's depths, tilt, supersampling and sensor."""
+    """What ``psvs card-views FOLDER --rig BUILD --views N --seed SEED [--interleave]`` writes
+    (``card_NN.png`` and ``target.toml``), with the procedure's depths, tilt, supersampling and sensor."""
     from psvs.calibrate.synthetic import check_card_fits, random_poses, render_grid_shots
     from psvs.calibrate.target_file import dumps_target
     from psvs.io.atomic import write_atomic
@@ -58,8 +58,9 @@ def render_card_folder(build: Rig, procedure: Procedure, seed: int, folder) -> N
     from psvs.simulate.sensor import Sensor
     p, folder = procedure, Path(folder)
     z_range = (p.near_mm, p.far_mm)
-    check_card_fits(build, p.card, p.views, z_range, tilt_deg=p.tilt_deg)
-    poses = random_poses(build, p.card, p.views, seed=seed, z_range_mm=z_range, tilt_deg=p.tilt_deg)
+    check_card_fits(build, p.card, p.views, z_range, tilt_deg=p.tilt_deg, apart=not p.interleave)
+    poses = random_poses(build, p.card, p.views, seed=seed, z_range_mm=z_range, tilt_deg=p.tilt_deg,
+                         apart=not p.interleave)
     sensor = Sensor(blur_sigma_px=p.blur_px, read_noise_e=p.read_noise_e)
     shots = render_grid_shots(build, p.card, poses, seed=seed, supersample=p.supersample, sensor=sensor)
     for k, shot in enumerate(shots):

@@ -18,7 +18,7 @@ one-line ``ValueError`` naming the key::
     [calibration]                      # the card views a user takes (psvs card-views' defaults)
     views = 16  near_mm = 450  far_mm = 1000  tilt_deg = 25
     card = { rows = 4, cols = 6, spacing_mm = 14, diameter_mm = 7 }
-    supersample = 2  read_noise_e = 15  blur_px = 0.6
+    supersample = 2  read_noise_e = 15  blur_px = 0.6  interleave = false
 
     [test]                             # how each calibrated build is scored
     near_mm = 400  far_mm = 1200  depths = 5  grid = 9  table1 = false
@@ -76,7 +76,8 @@ class Dist:
 class Procedure:
     """The calibration simulated per build: ``views`` card views (``card``) at ``near_mm``..``far_mm``,
     tilted up to ``tilt_deg`` (psvs card-views' poses), rendered at ``supersample`` with the sensor's
-    ``read_noise_e`` (electrons) and lens blur ``blur_px`` (sigma, px)."""
+    ``read_noise_e`` (electrons) and lens blur ``blur_px`` (sigma, px); with ``interleave`` the card's two
+    copies may interleave (``psvs card-views --interleave``: a card wider than its disparity)."""
 
     views: int = 16
     near_mm: float = 450.0
@@ -86,6 +87,7 @@ class Procedure:
     supersample: int = 2
     read_noise_e: float = 15.0
     blur_px: float = 0.6
+    interleave: bool = False
 
 
 @dataclass(frozen=True)
@@ -185,7 +187,10 @@ def _procedure(table: dict) -> Procedure:
     blur = _number(t.get("blur_px", d.blur_px), "calibration.blur_px")
     if blur > MAX_BLUR_PX:
         raise ValueError(f"calibration.blur_px must be <= {MAX_BLUR_PX:g}, got {blur:g}")
-    return Procedure(views, near, far, tilt, card, ss, noise, blur)
+    interleave = t.get("interleave", d.interleave)
+    if not isinstance(interleave, bool):
+        raise ValueError(f"calibration.interleave must be true or false, got {interleave!r}")
+    return Procedure(views, near, far, tilt, card, ss, noise, blur, interleave)
 
 
 def _test(table: dict) -> TestSet:
