@@ -7,6 +7,9 @@ from the study's Parquet file).
 - **Yield**: the fraction of *all* builds meeting each target of ``[targets]`` (a build whose calibration
   failed, or whose score is NaN, does not meet it), and the fraction whose calibration failed, with the
   reasons counted.
+- **RSS sensitivity** (:mod:`psvs.study.sensitivity`): for each score, the root-sum-square model of
+  optical tolerancing fitted to the builds: the score one standard deviation of each tolerance adds in
+  quadrature, ranked; it sees the deviations' signs, so it finds errors that add or cancel with others.
 - **Sensitivity ranking**: for each score, Spearman's rank correlation (:func:`scipy.stats.spearmanr`) of
   each drawn deviation's *magnitude* |dev| with the score, over the successful builds, ranked by
   |rho|. The magnitude: a tilt either way worsens a build alike, so the signed deviation would hide it.
@@ -14,7 +17,8 @@ from the study's Parquet file).
 
 Figures (matplotlib, Agg): ``histograms.png`` (one panel per score, its target marked with the fraction
 meeting it), ``yield.png`` (the fraction of builds at or below each value of each score: read any target
-off it) and ``sensitivity.png`` (the ranking's top deviations per score). Every file is written
+off it), ``sensitivity.png`` (the rank correlations' top deviations per score) and ``sensitivity_rss.png``
+(the RSS fit's). Every file is written
 atomically, all together (:func:`psvs.io.atomic.output_batch`).
 """
 from __future__ import annotations
@@ -83,6 +87,25 @@ def sensitivity(cols: dict, ok: np.ndarray) -> dict:
     return out
 
 
+def rss(cols: dict, ok: np.ndarray) -> dict:
+    """score -> :func:`psvs.study.sensitivity.rss_ranking` over the successful builds with a finite score
+    (scores it cannot be fitted to are left out)."""
+    from psvs.study.sensitivity import rss_ranking
+    devs = [k for k in cols if k.startswith("dev_")]
+    out = {}
+    for score in SCORES:
+        if score not in cols:
+            continue
+        y = _floats(cols[score])
+        use = ok & np.isfinite(y)
+        if use.sum() == 0 or np.ptp(y[use]) == 0:
+            continue
+        fit = rss_ranking({d[4:]: _floats(cols[d])[use] for d in devs}, y[use])
+        if fit is not None:
+            out[score] = fit
+    return out
+
+
 def summarise(rows, targets: dict | None = None) -> dict:
     """What ``scores.json`` holds: samples, failures (fraction and reasons), each score's statistics, each
     target's yield and the sensitivity ranking."""
@@ -100,7 +123,7 @@ def summarise(rows, targets: dict | None = None) -> dict:
         yields[name] = {"target": float(limit), "fraction": float(met.sum() / n), "met": int(met.sum())}
     return {"samples": n, "ok": int(ok.sum()), "failed_fraction": float(1 - ok.sum() / n),
             "failure_reasons": dict(reasons.most_common()), "scores": scores, "targets": yields,
-            "sensitivity": sensitivity(cols, ok)}
+            "sensitivity": sensitivity(cols, ok), "rss_sensitivity": rss(cols, ok)}
 
 
 def _png(fig) -> bytes:
@@ -155,6 +178,16 @@ def _figures(cols: dict, summary: dict) -> dict:
         ax.set_title(f"{s}: Spearman rho of |deviation|", fontsize=9)
         ax.tick_params(labelsize=7)
     out["sensitivity.png"] = _png(fig)
+    fitted = [s for s in shown if s in summary["rss_sensitivity"]]
+    fig, axes = _grid(max(len(fitted), 1))
+    for ax, s in zip(axes, fitted):
+        f = summary["rss_sensitivity"][s]
+        top = f["ranking"][:TOP][::-1]
+        ax.barh([r["parameter"] for r in top], [r["per_sigma"] for r in top], color="tab:orange")
+        ax.set_xlabel(f"{s} added in quadrature per 1 sigma")
+        ax.set_title(f"{s}: RSS fit, R^2 {f['r2']:.2f}, floor {f['floor']:.3g}", fontsize=9)
+        ax.tick_params(labelsize=7)
+    out["sensitivity_rss.png"] = _png(fig)
     return out
 
 
@@ -178,12 +211,20 @@ def report_markdown(summary: dict) -> str:
     for name, ranking in s["sensitivity"].items():
         top = ", ".join(f"{r['parameter']} {r['rho']:+.2f}" for r in ranking[:TOP])
         lines.append(f"- **{name}**: {top}")
-    lines += ["", "![histograms](histograms.png)", "", "![yield](yield.png)", "", "![sensitivity](sensitivity.png)"]
+    n = max(s["ok"], 1)
+    lines.append(f"\n|rho| under 2/sqrt(N) = {2 / math.sqrt(n):.2f} is chance at these {s['ok']} builds.")
+    lines += ["", "## Sensitivity (RSS fit: the score one standard deviation of each tolerance adds in quadrature)",
+              ""]
+    for name, f in s["rss_sensitivity"].items():
+        top = ", ".join(f"{r['parameter']} {r['per_sigma']:.3g}" for r in f["ranking"][:TOP])
+        lines.append(f"- **{name}** (R^2 {f['r2']:.2f}, floor {f['floor']:.3g}): {top}")
+    lines += ["", "![histograms](histograms.png)", "", "![yield](yield.png)", "", "![sensitivity](sensitivity.png)",
+              "", "![RSS sensitivity](sensitivity_rss.png)"]
     return "\n".join(lines) + "\n"
 
 
 def write_report(rows, folder, targets: dict | None = None) -> list[Path]:
-    """Write scores.json, report.md, histograms.png, yield.png and sensitivity.png into ``folder`` (which
+    """Write scores.json, report.md, histograms.png, yield.png, sensitivity.png and sensitivity_rss.png into ``folder`` (which
     must exist), all or none; returns their paths."""
     folder = Path(folder)
     cols = _columns(rows)
