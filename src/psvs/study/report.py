@@ -224,8 +224,8 @@ def report_markdown(summary: dict) -> str:
 
 
 def write_report(rows, folder, targets: dict | None = None) -> list[Path]:
-    """Write scores.json, report.md, histograms.png, yield.png, sensitivity.png and sensitivity_rss.png into ``folder`` (which
-    must exist), all or none; returns their paths."""
+    """Write scores.json, report.md, histograms.png, yield.png, sensitivity.png and sensitivity_rss.png into
+    ``folder`` (which must exist), all or none; returns their paths."""
     folder = Path(folder)
     cols = _columns(rows)
     summary = summarise(cols, targets)
