@@ -151,3 +151,27 @@ def test_a_sample_on_the_1440_camera():
     assert row["ok"], row["reason"]
     assert row["images_used"] >= 3 and row["reproj_rms_px"] < 0.1 and row["row_offset_px"] > 1.0
     assert 0 < row["rms_3d_mm"] < 5.0
+
+
+@pytest.mark.slow
+def test_a_sweep_sample_is_the_build_calibrated_alone_through_the_cli(capsys, tmp_path):
+    """method = "sweep": the paper's robot sweep (6 positions, 425-1175 mm every 150 mm) of a drawn build,
+    equal to `psvs sweep-views` of that build then `psvs calibrate` from the nominal design."""
+    tol = tolerances_from_dict({**SMALL, "calibration": {"method": "sweep", "sweep": {"step_mm": 150.0}}})
+    nominal = load_rig("default")
+    row = run_sample(nominal, tol, 8, 2)
+    assert row["ok"], row["reason"]
+    assert row["images_used"] == 6 and row["reproj_rms_px"] < 0.2
+    build, _ = draw_build(nominal, tol, 8, 2)
+    save_rig(build, tmp_path / "build.toml")
+    code, _, err = run(capsys, "sweep-views", str(tmp_path / "sweep"), "--rig", str(tmp_path / "build.toml"),
+                       "--step-mm", "150", "--seed", str(row["views_seed"]))
+    assert code == 0, err
+    code, out, err = run(capsys, "calibrate", str(tmp_path / "sweep"), "--rig", "default",
+                         "-o", str(tmp_path / "calibrated.toml"))
+    assert code == 0, err
+    calibrated = load_rig(tmp_path / "calibrated.toml")
+    assert calibrated.calibration.rms_px == pytest.approx(row["reproj_rms_px"], abs=1e-9)
+    got = reconstruction_errors(calibrated, build, scoring_points_mm(nominal, tol.test))
+    for key in ("rms_3d_mm", "max_3d_mm", "raw_rms_3d_mm", "test_points"):
+        assert got[key] == pytest.approx(row[key], abs=1e-6), key

@@ -68,6 +68,24 @@ def render_card_folder(build: Rig, procedure: Procedure, seed: int, folder) -> N
     write_atomic(folder / "target.toml", dumps_target(p.card))
 
 
+def render_sweep_folder(build: Rig, procedure: Procedure, seed: int, folder) -> None:
+    """What ``psvs sweep-views FOLDER --rig BUILD --from-mm A --to-mm B --step-mm S --seed SEED`` writes
+    (``sweep_NNNN_N.png`` and ``sweep.csv``: the Fig. 9 pattern on the robot's holder at each depth)."""
+    from psvs.calibrate.sweep import dumps_sweep
+    from psvs.calibrate.table1 import ROBOT_OFFSET_MM, check_pattern_depths, pattern_image
+    from psvs.io.atomic import write_atomic
+    from psvs.io.images import write_png
+    lo, hi, step = procedure.sweep_mm
+    depths = np.arange(lo, hi + 1e-9, step)
+    check_pattern_depths(build, float(depths[0]), float(depths[-1]), "the sweep's depths")
+    rows = []
+    for k, z in enumerate(depths):
+        name = f"sweep_{z:06.1f}.png".replace(".", "_", 1)
+        write_png(Path(folder) / name, pattern_image(build, float(z), seed + k))
+        rows.append((name, float(z) - ROBOT_OFFSET_MM))
+    write_atomic(Path(folder) / "sweep.csv", dumps_sweep(rows))
+
+
 def scoring_points_mm(nominal: Rig, test: TestSet) -> np.ndarray:
     """(N, 3) mm: the test set's scene points (a ``grid`` x ``grid`` lattice of the nominal design's left
     view at ``depths`` depths over the working range, seen by both of its views)."""
@@ -130,7 +148,8 @@ def _empty_row(seed: int, index: int, dev: dict) -> dict:
 def _calibrate_and_score(row: dict, nominal: Rig, build: Rig, tol: Tolerances) -> None:
     """Render, calibrate and score into ``row``; ValueError/MeasurementError when calibration fails."""
     with tempfile.TemporaryDirectory(prefix="psvs-study-") as tmp:
-        render_card_folder(build, tol.procedure, row["views_seed"], tmp)
+        render = render_sweep_folder if tol.procedure.method == "sweep" else render_card_folder
+        render(build, tol.procedure, row["views_seed"], tmp)
         res = calibrate_folder(tmp, nominal)
     b = res.bundle
     row.update(images_used=len(res.used), images_skipped=len(res.skipped), reproj_rms_px=float(b.rms_px))

@@ -19,6 +19,8 @@ one-line ``ValueError`` naming the key::
     views = 16  near_mm = 450  far_mm = 1000  tilt_deg = 25
     card = { rows = 4, cols = 6, spacing_mm = 14, diameter_mm = 7 }
     supersample = 2  read_noise_e = 15  blur_px = 0.6  interleave = false
+    method = "card"                    # or "sweep": the paper's robot sweep (psvs sweep-views) instead
+    sweep = { from_mm = 425, to_mm = 1175, step_mm = 50 }
 
     [test]                             # how each calibrated build is scored
     near_mm = 400  far_mm = 1200  depths = 5  grid = 9  table1 = false
@@ -77,7 +79,9 @@ class Procedure:
     """The calibration simulated per build: ``views`` card views (``card``) at ``near_mm``..``far_mm``,
     tilted up to ``tilt_deg`` (psvs card-views' poses), rendered at ``supersample`` with the sensor's
     ``read_noise_e`` (electrons) and lens blur ``blur_px`` (sigma, px); with ``interleave`` the card's two
-    copies may interleave (``psvs card-views --interleave``: a card wider than its disparity)."""
+    copies may interleave (``psvs card-views --interleave``: a card wider than its disparity). With
+    ``method`` "sweep", the paper's robot sweep instead (``psvs sweep-views``: the Fig. 9 pattern from
+    ``sweep_mm`` = (from, to, step) mm, rendered as that command does; the card keys do not apply)."""
 
     views: int = 16
     near_mm: float = 450.0
@@ -88,6 +92,8 @@ class Procedure:
     read_noise_e: float = 15.0
     blur_px: float = 0.6
     interleave: bool = False
+    method: str = "card"
+    sweep_mm: tuple = (425.0, 1175.0, 50.0)
 
 
 @dataclass(frozen=True)
@@ -171,7 +177,8 @@ def _card(value) -> CircleGrid:
 
 
 def _procedure(table: dict) -> Procedure:
-    t = _check_keys(table, "calibration", tuple(Procedure.__dataclass_fields__))
+    keys = tuple("sweep" if k == "sweep_mm" else k for k in Procedure.__dataclass_fields__)
+    t = _check_keys(table, "calibration", keys)
     d = Procedure()
     views = _integer(t.get("views", d.views), "calibration.views", 3, 60)
     near = _number(t.get("near_mm", d.near_mm), "calibration.near_mm", 0.0, False)
@@ -190,7 +197,22 @@ def _procedure(table: dict) -> Procedure:
     interleave = t.get("interleave", d.interleave)
     if not isinstance(interleave, bool):
         raise ValueError(f"calibration.interleave must be true or false, got {interleave!r}")
-    return Procedure(views, near, far, tilt, card, ss, noise, blur, interleave)
+    method = t.get("method", d.method)
+    if method not in ("card", "sweep"):
+        raise ValueError(f"calibration.method must be \"card\" or \"sweep\", got {method!r}")
+    return Procedure(views, near, far, tilt, card, ss, noise, blur, interleave, method, _sweep(t.get("sweep", {})))
+
+
+def _sweep(value) -> tuple:
+    t = _check_keys(value, "calibration.sweep", ("from_mm", "to_mm", "step_mm"))
+    d = dict(zip(("from_mm", "to_mm", "step_mm"), Procedure().sweep_mm))
+    lo, hi, step = (_number(t.get(k, d[k]), f"calibration.sweep.{k}", 0.0, False) for k in d)
+    if hi < lo:
+        raise ValueError(f"calibration.sweep.to_mm must be >= calibration.sweep.from_mm ({lo:g}), got {hi:g}")
+    n = math.ceil((hi + 1e-9 - lo) / step)
+    if not 3 <= n <= 60:
+        raise ValueError(f"calibration.sweep has {n} positions; give 3-60 (from_mm, to_mm, step_mm)")
+    return lo, hi, step
 
 
 def _test(table: dict) -> TestSet:
