@@ -178,3 +178,26 @@ def test_a_sweep_sample_is_the_build_calibrated_alone_through_the_cli(capsys, tm
     got = reconstruction_errors(calibrated, build, scoring_points_mm(nominal, tol.test))
     for key in ("rms_3d_mm", "max_3d_mm", "raw_rms_3d_mm", "test_points"):
         assert got[key] == pytest.approx(row[key], abs=1e-6), key
+
+
+def test_a_study_the_design_cannot_run_is_refused_before_any_sample():
+    """check_study: the shipped study passes on the default rig and on mv1440; a card wider than the views,
+    a sweep nearer than the pattern fits, Table I through a rig too narrow for its depths are one-line
+    ValueErrors naming the TOL key."""
+    from psvs.study.sample import check_study
+    check_study(load_rig("default"), tolerances_from_dict(SMALL))
+    check_study(load_rig("mv1440"), tolerances_from_dict({"calibration": {
+        "interleave": True, "near_mm": 400.0, "far_mm": 900.0,
+        "card": {"rows": 5, "cols": 7, "spacing_mm": 16.0, "diameter_mm": 7.0}}}))
+    cases = [({"calibration": {"card": {"rows": 4, "cols": 12, "spacing_mm": 14.0}}}, "calibration.card: the grid"),
+             ({"calibration": {"method": "sweep", "sweep": {"from_mm": 150.0, "to_mm": 600.0}}},
+              "calibration.sweep's depths 150-600 mm lie outside 299-"),
+             ({"test": {"table1": True}}, None)]
+    for data, message in cases:
+        tol = tolerances_from_dict(data)
+        if message is None:
+            check_study(load_rig("default"), tol)
+            continue
+        with pytest.raises(ValueError, match=message) as info:
+            check_study(load_rig("default"), tol)
+        assert "\n" not in str(info.value)
