@@ -85,3 +85,13 @@ def test_tolerances_pickle_for_the_workers():
 def test_a_missing_file_is_named(tmp_path):
     with pytest.raises(FileNotFoundError, match="tolerances file not found: .*nope.toml"):
         load_tolerances(tmp_path / "nope.toml")
+
+
+def test_the_documented_file_is_the_shipped_one():
+    """docs/tolerancing.md's TOML block reads to the same Tolerances as the shipped file."""
+    import re
+    import tomllib
+    from pathlib import Path
+    text = (Path(__file__).resolve().parents[2] / "docs" / "tolerancing.md").read_text(encoding="utf-8")
+    block = re.search(r"```toml\n(.*?)```", text, re.S).group(1)
+    assert tolerances_from_dict(tomllib.loads(block)) == load_tolerances("default")

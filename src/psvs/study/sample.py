@@ -191,7 +191,7 @@ def _calibrate_and_score(row: dict, nominal: Rig, build: Rig, tol: Tolerances) -
         try:
             row.update(table1_errors(res.rig, build))
         except (ValueError, MeasurementError) as exc:
-            row["table1_note"] = str(exc)
+            row["table1_note"] = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
 
 
 def run_sample(nominal: Rig, tol: Tolerances, seed: int, index: int) -> dict:
