@@ -23,7 +23,7 @@ LAYERS = [
     {"io"},
     {"match", "dense", "mount"},
     {"calibrate", "live"},
-    {"robot"},
+    {"robot", "study"},
     {"web"},
     {"cli", "__init__"},
     {"__main__"},
