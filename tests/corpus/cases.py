@@ -537,10 +537,27 @@ def _batch() -> list[Case]:
     ]
 
 
+def _mount() -> list[Case]:
+    """psvs mount: the design (--rig), the output folder and the builder's choices."""
+    base = ("mount", *R, "-o", "m")
+    good = {"rig.toml": DEFAULT_RIG}
+    return _rig_cases(base, "mount") + [
+        Case("mount-output-is-a-file", ("mount", *R, "-o", "afile"), 2, "afile", good, ("afile",)),
+        Case("mount-wall-negative", (*base, "--wall-mm", "-2"), 2, "wall_mm", good),
+        Case("mount-wall-nan", (*base, "--wall-mm", "nan"), 2, "wall_mm", good),
+        Case("mount-clearance-huge", (*base, "--clearance-mm", "9"), 2, "clearance_mm", good),
+        Case("mount-lens-zero", (*base, "--lens-diameter-mm", "0"), 2, "lens_diameter_mm", good),
+        Case("mount-lens-front-inf", (*base, "--lens-front-mm", "inf"), 2, "lens_front_mm", good),
+        Case("mount-interface-unknown", (*base, "--interface", "m42"), 2, "invalid choice", good),
+        Case("mount-pitch-text", (*base, "--pitch-mm", "fine"), 2, "pitch", good),
+        Case("mount-near-beyond-far", (*base, "--near-mm", "900", "--far-mm", "500"), 2, "near", good),
+    ]
+
+
 def all_cases() -> list[Case]:
     cases = (_design() + _triangulate() + _fit_refraction() + _simulate() + _match() + _measure()
              + _card_views() + _sweep_views() + _capture() + _calibrate() + _disparity() + _live() + _serve() + _track()
-             + _handeye() + _adjust() + _small() + _batch())
+             + _handeye() + _adjust() + _mount() + _small() + _batch())
     names = [c.name for c in cases]
     assert len(names) == len(set(names)), "case names must be unique"
     return cases

@@ -6,9 +6,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from psvs.cli.adjust_cmd import guide_to_dict, turns_text
 from psvs.io.params import load_rig
 from psvs.mount.guide import TURN_STEP, alignment_guide, row_offsets_px, working_points
+from psvs.mount.report import guide_to_dict, turns_text
 from psvs.mount.seats import apply_turns, seats_for
 from psvs.rigs import shipped_rig_path
 from tests.cli.test_cli import run
@@ -98,3 +98,18 @@ def test_adjust_refuses_bad_input_in_one_line(capsys, argv, says):
                                          (0.0, "0"), (0.5, "1/2 turn")])
 def test_turns_text(turns, want):
     assert turns_text(turns) == want
+
+
+def test_points_lost_after_the_turns_are_counted_and_said():
+    """On mv1440_misaligned some weighed points leave a view once the screws are turned: the guide counts
+    them (as the turned build, projected anew, misses them), its 'after' figure is over the rest, and the
+    printed guide says so."""
+    from psvs.mount.report import format_guide
+    build, nominal = load_rig(shipped_rig_path("mv1440_misaligned")), load_rig(shipped_rig_path("mv1440"))
+    seats = seats_for(nominal)
+    g = alignment_guide(build, seats)
+    pts = working_points(build, 400.0, 1200.0)[list(g.weighed)]
+    after = row_offsets_px(apply_turns(build, seats, g.turns_by_mirror), pts)
+    assert g.lost_after == int(np.sum(~np.isfinite(after))) > 0
+    assert g.after_px[0] == pytest.approx(float(np.nanmax(np.abs(after))), abs=1e-9)
+    assert f"{g.lost_after} of the {g.n_points} leave a view after the turns" in format_guide(g)

@@ -10,6 +10,7 @@ import pytest
 from psvs.io.params import load_rig
 from psvs.mount.seats import (
     DEFAULT_INSET,
+    DEFAULT_M1_BORDER_MM,
     Seat,
     apply_turns,
     handedness,
@@ -35,13 +36,15 @@ def test_rate_is_pitch_over_lever_arm(rig, pitch):
         ext = rig.mirrors.extent(name)
         w, h = ext.size_mm
         lever_h, lever_v = (1 - 2 * DEFAULT_INSET) * w, (1 - 2 * DEFAULT_INSET) * h
+        t_pivot = ext.height_mm[0] + DEFAULT_INSET * h
+        if name == "m1":   # M1's contacts in the middle of its borders, outside the light
+            lever_v, t_pivot = h + DEFAULT_M1_BORDER_MM, ext.height_mm[0] - DEFAULT_M1_BORDER_MM / 2
         rates = screw_rates(seats[name], handedness(rig, name))
         assert abs(rates["H"].tilt_rad_per_turn[0]) == pytest.approx(pitch / lever_h, rel=1e-12)
         assert abs(rates["V"].tilt_rad_per_turn[1]) == pytest.approx(pitch / lever_v, rel=1e-12)
         assert rates["H"].tilt_rad_per_turn[1] == pytest.approx(0, abs=1e-15)
         assert rates["V"].tilt_rad_per_turn[0] == pytest.approx(0, abs=1e-15)
         s_pivot = ext.along_mm[0] + DEFAULT_INSET * w
-        t_pivot = ext.height_mm[0] + DEFAULT_INSET * h
         assert rates["H"].shift_mm_per_turn == pytest.approx(pitch * -s_pivot / lever_h, rel=1e-12)
         assert rates["V"].shift_mm_per_turn == pytest.approx(pitch * -t_pivot / lever_v, rel=1e-12)
 

@@ -123,9 +123,9 @@ def random_poses(rig: Rig, grid, n: int, seed: int = 0, z_range_mm=(450.0, 1000.
 
 
 def render_grid_shots(rig: Rig, grid: CircleGrid, poses: list[Pose], seed: int = 0,
-                      supersample: int = 2) -> list[GridShot]:
+                      supersample: int = 2, sensor=None) -> list[GridShot]:
     """Render the card (any target: its printed image) at each pose through ``rig`` (realistic sensor: blur
-    and noise, seeded)."""
+    and noise, seeded; ``sensor`` a :class:`psvs.simulate.sensor.Sensor`, the renderer's default when None)."""
     from psvs.calibrate.detect import target_points_mm
     from psvs.simulate.builtin import regulated_light
     from psvs.simulate.render import render
@@ -137,6 +137,7 @@ def render_grid_shots(rig: Rig, grid: CircleGrid, poses: list[Pose], seed: int =
         z = float(pose.position_mm[2])
         card = SceneObject("rectangle", pose, grid, size_mm=size)
         scene = Scene((card,), regulated_light(z), z + 400.0, Uniform(0.08))
-        img = render(scene, rig, seed=seed + k, supersample=supersample).image
+        extra = {} if sensor is None else {"sensor": sensor}
+        img = render(scene, rig, seed=seed + k, supersample=supersample, **extra).image
         shots.append(GridShot(img, pose.matrix, pose.to_world(local)))
     return shots

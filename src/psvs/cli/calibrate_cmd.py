@@ -28,10 +28,10 @@ def add_parser(sub) -> None:
                    help="calibrated rig file (TOML: in the --rig file's comments and layout; or .json)")
     p.add_argument("--report", metavar="DIR",
                    help="write residuals.csv, residuals.png and vertical_disagreement.png here (created if missing)")
-    p.add_argument("--adjust", action="store_true",
+    p.add_argument("--adjust", nargs="?", const=True, default=None, metavar="MOUNT_DIR",
                    help="also print the alignment guide: the screw turns on the seats of the --rig design's "
-                        "mirrors (M3 x 0.5) that bring the build's twins onto the same rows over 400-1200 mm "
-                        "(as psvs adjust OUTPUT --rig RIG; docs/mount.md)")
+                        "mirrors (M3 x 0.5; or those psvs mount wrote to MOUNT_DIR) that bring the build's twins "
+                        "onto the same rows over 400-1200 mm (as psvs adjust OUTPUT --rig RIG; docs/mount.md)")
     p.set_defaults(run=run)
 
 
@@ -41,12 +41,16 @@ def _fmt(name: str, value: float, sigma: float) -> str:
     return f"  {name:<22}{value:12.5f}  +- {sigma:.5f}"
 
 
-def _guide(rig, design) -> str:
-    """The alignment guide of the calibrated ``rig`` on the seats of ``design``'s mirrors (docs/mount.md)."""
-    from psvs.cli.adjust_cmd import format_guide
+def _guide(rig, design, mount_dir) -> str:
+    """The alignment guide of the calibrated ``rig`` on the seats of ``design``'s mirrors, or on those of the
+    mount in ``mount_dir`` (docs/mount.md)."""
     from psvs.mount.guide import alignment_guide
+    from psvs.mount.report import format_guide
     from psvs.mount.seats import seats_for
-    return format_guide(alignment_guide(rig, seats_for(design)))
+    if mount_dir is True:
+        return format_guide(alignment_guide(rig, seats_for(design)))
+    from psvs.mount.files import read_mount
+    return format_guide(alignment_guide(rig, read_mount(mount_dir)[1]))
 
 
 def run(args) -> int:
@@ -55,6 +59,9 @@ def run(args) -> int:
     check_distinct({"-o": args.output}, {"--rig": args.rig})
     start = rig_from_args(args)
     template = rig_template(args.rig)    # the nominal file's comments and layout, for the calibrated file
+    if args.adjust not in (None, True):  # a mount folder: read before the work
+        from psvs.mount.files import read_mount
+        read_mount(args.adjust)
     res = calibrate_folder(args.folder, start)
     b = res.bundle
     for name, reason in sorted(res.skipped.items()):
@@ -79,7 +86,8 @@ def run(args) -> int:
         print(f"{len(b.held_by_prior)} parameter(s) held near nominal by their priors ({priors}): "
               "the images do not show them; more card views, tilted and over the whole field, would")
     print(f"solver: {b.message}")
-    guide = _guide(res.rig, start) if args.adjust else None    # before any file: a guide that fails writes none
+    # before any file: a guide that fails writes none
+    guide = _guide(res.rig, start, args.adjust) if args.adjust else None
     with output_batch():   # the rig file and the report land together
         save_rig(dataclasses.replace(res.rig, calibration=Calibration(
             b.rms_px, b.rms_by_view["left"], b.rms_by_view["right"], len(res.used), kinds_text)), out, template)

@@ -20,7 +20,7 @@ import numpy as np
 
 from psvs.io.atomic import write_atomic
 from psvs.io.text import read_text
-from psvs.io.tomlfile import dumps_toml, load_toml, update_toml
+from psvs.io.tomlfile import dumps_toml, load_toml, parse_text, update_toml
 from psvs.optics.bounds import check_rig_bounds
 from psvs.optics.rig import MIRROR_NAMES, Calibration, Camera, MirrorError, MirrorExtent, Mirrors, Rig
 from psvs.rigs import SHIPPED, shipped_rig_path
@@ -54,6 +54,16 @@ def load_rig(path) -> Rig:
         return rig_from_dict(data)
     except (ValueError, TypeError) as exc:
         raise type(exc)(f"{path}: {exc}") from None
+
+
+def rig_from_text(text: str, where: str = "rig file") -> Rig:
+    """A rig from the TOML text of a rig file (as ``psvs calibrate`` writes it, e.g. uploaded to the web
+    page); errors name ``where`` and the key, as :func:`load_rig`'s name the file."""
+    data = parse_text(text, where)
+    try:
+        return rig_from_dict(data)
+    except (ValueError, TypeError) as exc:
+        raise type(exc)(f"{where}: {exc}") from None
 
 
 def _table(data: dict, name: str) -> dict:

@@ -27,13 +27,19 @@ def load_toml(path, what: str) -> dict:
     if not path.is_file():
         raise FileNotFoundError(f"{what} file not found: {path}")
     kind = "JSON" if path.suffix.lower() == ".json" else "TOML"
-    text = read_text(path, kind)
+    return parse_text(read_text(path, kind), str(path), kind)
+
+
+def parse_text(text: str, where: str, kind: str = "TOML") -> dict:
+    """Parse TOML (or JSON: ``kind``) text that did not come from a file (e.g. a web page's upload); a
+    leading byte-order mark is dropped; ValueError("<where>: malformed <kind>: ...") as :func:`load_toml`."""
+    text = text.removeprefix("\ufeff")
     try:
         return json.loads(text) if kind == "JSON" else tomllib.loads(text)
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-        raise ValueError(f"{path}: malformed {kind}: {exc}") from None
+        raise ValueError(f"{where}: malformed {kind}: {exc}") from None
     except RecursionError:
-        raise ValueError(f"{path}: malformed {kind}: nested too deep") from None
+        raise ValueError(f"{where}: malformed {kind}: nested too deep") from None
 
 
 def single_table(data: dict, table: str, keys: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:

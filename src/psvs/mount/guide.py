@@ -44,9 +44,12 @@ NULL_PX_PER_TURN = 0.02
 #: Tikhonov weight toward zero turns, px (RMS) per turn: small against any screw that matters.
 REGULARISE_PX_PER_TURN = 0.01
 #: In the rounding to 1/16 turn, a turn in all (any screw) costs as much as this many px of row offset.
-TURN_COST_PX = 0.1
+TURN_COST_PX = 0.3
 #: The rounding tries every screw this many 1/16-turn steps either side of its nearest rounding.
 SEARCH_STEPS = 2
+#: Along the turns the rows cannot see, lattice points up to this far (turns) are tried, the best few descended.
+NULL_REACH_TURNS = 1.0
+NULL_STARTS = 8
 #: The order of the eight turns.
 SCREW_ORDER = tuple((m, s) for m in MIRROR_NAMES for s in SCREWS)
 
@@ -75,7 +78,10 @@ class AlignmentGuide:
     (largest, RMS) |row offset| over the ``n_points`` field points before and after the quantised turns,
     px; ``after_unquantised_px``: the same for the turns before rounding; ``null_space``: unit turn
     combinations (each (8,) in SCREW_ORDER) that move no row; ``singular_px``: RMS px per turn along each
-    singular direction, largest first."""
+    singular direction, largest first; ``weighed``: the indices of the :func:`working_points` the offsets
+    are over (both views see them, and still do as the screws turn); ``lost_after``: how many of those a view
+    misses after the quantised turns (a turned mirror's edge moves into the field): ``after_px`` is over
+    the others."""
 
     turns: tuple[ScrewTurn, ...]
     before_px: tuple[float, float]
@@ -87,6 +93,8 @@ class AlignmentGuide:
     far_mm: float
     n_points: int
     pitch_mm: float
+    weighed: tuple[int, ...] = ()
+    lost_after: int = 0
 
     @property
     def turns_by_mirror(self) -> dict[str, tuple[float, float]]:
@@ -141,6 +149,7 @@ def alignment_guide(built: Rig, seats: dict[str, Seat], near_mm: float = 400.0, 
     base = twin_rows_px(designed_twin(built), pts)
     r0 = twin_rows_px(built, pts) - base
     keep = np.isfinite(r0)
+    idx = np.flatnonzero(keep)
     if keep.sum() < 10:
         raise ValueError(f"the views share too few field points ({int(keep.sum())}) over {near_mm}-{far_mm} mm")
     pts, base, r0 = pts[keep], base[keep], r0[keep]
@@ -152,7 +161,7 @@ def alignment_guide(built: Rig, seats: dict[str, Seat], near_mm: float = 400.0, 
     steady = np.all(np.isfinite(J), axis=1)     # a point a mirror's edge cuts off as the screws turn: not weighed
     if steady.sum() < 10:
         raise ValueError(f"too few field points ({int(steady.sum())}) stay in both views as the screws turn")
-    pts, base, r0, J = pts[steady], base[steady], r0[steady], J[steady]
+    pts, base, r0, J, idx = pts[steady], base[steady], r0[steady], J[steady], idx[steady]
     m = len(pts)
     _, sv, vt = np.linalg.svd(J / np.sqrt(m), full_matrices=False)
     seen = sv >= NULL_PX_PER_TURN
@@ -165,11 +174,12 @@ def alignment_guide(built: Rig, seats: dict[str, Seat], near_mm: float = 400.0, 
         y = np.linalg.solve(A[ok].T @ A[ok] + lam * np.eye(len(y)), A[ok].T @ (A[ok] @ y - r[ok]))
         r = residual(vt[seen].T @ y)
     x_cont = vt[seen].T @ y
-    x = _quantise(x_cont, r, J)
+    x = _quantise(x_cont, r, J, vt[~seen])
     after = residual(x) if np.any(x) else r0
     return AlignmentGuide(_screw_turns(built, seats, x), _stats(r0), _stats(after), _stats(r),
                           tuple(tuple(float(c) for c in v) for v in vt[~seen]), tuple(float(s) for s in sv),
-                          float(near_mm), float(far_mm), m, float(seats["m1"].pitch_mm))
+                          float(near_mm), float(far_mm), m, float(seats["m1"].pitch_mm), tuple(int(i) for i in idx),
+                          int(np.sum(~np.isfinite(after))))
 
 
 def _jacobian(residual, n: int, h: float = TURN_STEP) -> np.ndarray:
@@ -182,12 +192,15 @@ def _jacobian(residual, n: int, h: float = TURN_STEP) -> np.ndarray:
     return np.column_stack(cols)
 
 
-def _quantise(x: np.ndarray, r: np.ndarray, J: np.ndarray, step: float = TURN_STEP) -> np.ndarray:
+def _quantise(x: np.ndarray, r: np.ndarray, J: np.ndarray, null: np.ndarray | None = None,
+              step: float = TURN_STEP) -> np.ndarray:
     """Turns on the 1/16 lattice near ``x`` (n,) whose predicted row offsets r + J (x_q - x) have the
     smallest cost: the largest |offset| (px) plus :data:`TURN_COST_PX` per turn in all. Every screw within
-    :data:`SEARCH_STEPS` steps of its nearest rounding is tried (5^8 combinations), then a descent moves one
-    to three screws by one step while the cost falls. The best may leave a screw off its rounding where
-    others make up for its step better: 1/16 turn of M1's screw V is ~0.18 deg, several px of rows."""
+    :data:`SEARCH_STEPS` steps of its nearest rounding is tried (5^8 combinations); so are the roundings of
+    points moved from ``x`` along the turns the rows cannot see (``null`` (k, n), unit rows; up to
+    :data:`NULL_REACH_TURNS` each way), since a lattice point that fits may lie along them far from ``x``;
+    then a descent moves one to three screws by one step while the cost falls, from the best few. The best
+    may leave a screw off its rounding where others make up for its step better."""
     ok = np.isfinite(r)
     r, J = r[ok], J[ok]
     near = np.round(x / step)
@@ -203,14 +216,31 @@ def _quantise(x: np.ndarray, r: np.ndarray, J: np.ndarray, step: float = TURN_ST
         k = int(np.argmin(c))
         if c[k] < now:
             best, now = (near + chunk[k]) * step, float(c[k])
+    starts = [best]
+    if null is not None and len(null):
+        reach = np.arange(-NULL_REACH_TURNS, NULL_REACH_TURNS + 1e-9, 2 * step)
+        coef = np.stack(np.meshgrid(*[reach] * len(null), indexing="ij"), axis=-1).reshape(-1, len(null))
+        cand = np.unique(np.round((x + coef @ null) / step), axis=0) * step
+        c = cost(cand)
+        starts += list(cand[np.argsort(c)[:NULL_STARTS]])
     moves = _moves(len(x)) * step
+    out, out_cost = best, now
+    for xq in starts:
+        xq, c_now = _descend(xq, float(cost(xq)), moves, cost)
+        if c_now < out_cost - 1e-12:
+            out, out_cost = xq, c_now
+    return out
+
+
+def _descend(xq: np.ndarray, now: float, moves: np.ndarray, cost) -> tuple[np.ndarray, float]:
+    """Move by the best of ``moves`` while the cost falls (at most 200 moves)."""
     for _ in range(200):
-        c = cost(best[None, :] + moves)
+        c = cost(xq[None, :] + moves)
         k = int(np.argmin(c))
         if c[k] >= now - 1e-9:
             break
-        best, now = best + moves[k], float(c[k])
-    return best
+        xq, now = xq + moves[k], float(c[k])
+    return xq, now
 
 
 def _moves(n: int, most: int = 3) -> np.ndarray:

@@ -48,6 +48,9 @@ DEFAULT_PITCH_MM = 0.5
 DEFAULT_GLASS_MM = 3.0
 #: Contacts moved in from the mirror's corners by this share of its width and height.
 DEFAULT_INSET = 0.1
+#: The M1 plate is this much taller than its light footprint above and below (mm): the left view passes
+#: through the plate, so its contacts and carrier sit in these borders, outside the light.
+DEFAULT_M1_BORDER_MM = 18.0
 
 
 @dataclass(frozen=True)
@@ -94,31 +97,39 @@ def _cross2(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def seats_for(rig: Rig, *, pitch_mm: float = DEFAULT_PITCH_MM, inset: float = DEFAULT_INSET,
-              glass_mm: float = DEFAULT_GLASS_MM) -> dict[str, Seat]:
+              glass_mm: float = DEFAULT_GLASS_MM, m1_border_mm: float = DEFAULT_M1_BORDER_MM) -> dict[str, Seat]:
     """The seats of the four mirrors (keys ``m1`` .. ``m4``), placed on each mirror's designed rectangle.
 
     The rectangle is the rig's mirror extent; a rig without one (an unbounded plane) is sized first by
     :func:`psvs.optics.design.design_mirrors`. ``inset`` (0 <= inset < 0.5): the contacts' distance from
     the corners as a share of the width and height; ``glass_mm``: a front-surface mirror's glass, mm (M1's
-    back is the rig's plate thickness behind its coated face)."""
+    back is the rig's plate thickness behind its coated face). ``m1_border_mm`` > 0: the M1 plate is that
+    much taller than its rectangle above and below, and its contacts sit in the middle of those borders
+    (the left view passes through the plate; contacts inside its rectangle would shade it); 0: inset like
+    the others."""
     check_positive(pitch_mm, "pitch_mm", "mm")
     if not (math.isfinite(inset) and 0 <= inset < 0.5):
         raise ValueError(f"inset must be in [0, 0.5), got {inset!r}")
     if not (math.isfinite(glass_mm) and glass_mm >= 0):
         raise ValueError(f"glass_mm must be a finite thickness >= 0 mm, got {glass_mm!r}")
+    if not (math.isfinite(m1_border_mm) and m1_border_mm >= 0):
+        raise ValueError(f"m1_border_mm must be a finite width >= 0 mm, got {m1_border_mm!r}")
     extents = {n: rig.mirrors.extent(n) for n in MIRROR_NAMES}
     if any(e is None for e in extents.values()):
         from psvs.optics.design import design_mirrors
         sized = design_mirrors(rig, search=False).rig
         extents = {n: extents[n] or sized.mirrors.extent(n) for n in MIRROR_NAMES}
-    return {n: _seat(n, extents[n], pitch_mm, inset,
-                     rig.mirrors.plate_thickness_mm if n == "m1" else glass_mm) for n in MIRROR_NAMES}
+    out = {n: _seat(n, extents[n], pitch_mm, inset, glass_mm) for n in MIRROR_NAMES[1:]}
+    return {"m1": _seat("m1", extents["m1"], pitch_mm, inset, rig.mirrors.plate_thickness_mm, m1_border_mm), **out}
 
 
-def _seat(name: str, ext: MirrorExtent, pitch_mm: float, inset: float, back_mm: float) -> Seat:
+def _seat(name: str, ext: MirrorExtent, pitch_mm: float, inset: float, back_mm: float,
+          border_mm: float = 0.0) -> Seat:
     (s0, s1), (t0, t1) = ext.along_mm, ext.height_mm
     ds, dt = inset * (s1 - s0), inset * (t1 - t0)
     lo_s, hi_s, lo_t, hi_t = s0 + ds, s1 - ds, t0 + dt, t1 - dt
+    if border_mm > 0:                     # in the middle of the borders above and below the light
+        lo_t, hi_t = t0 - border_mm / 2, t1 + border_mm / 2
     return Seat(name, (lo_s, lo_t), (hi_s, lo_t), (lo_s, hi_t), back_mm, pitch_mm)
 
 

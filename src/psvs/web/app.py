@@ -4,10 +4,11 @@ capture assistant for calibration views.
 
 :func:`create_app` builds one app from a source and a rig. Its routes are grouped by concern in routers
 (``api_image``: info, the image, previews, uploads; ``api_match``: matching and exports; ``api_dense``: dense
-disparity; ``api_live``: live mode; ``api_capture``: the capture assistant) that read the app's
-:class:`~psvs.web.session.Session` through FastAPI's dependency injection, so each app has its own image and
-results. Everything the page needs comes from these routes and the files in ``static/``; no route takes a file
-path, so nothing else on the machine can be read (the capture's card and folder come from the command line).
+disparity; ``api_live``: live mode; ``api_capture``: the capture assistant; ``api_adjust``: the alignment
+guide of a calibrated build) that read the app's :class:`~psvs.web.session.Session` through FastAPI's
+dependency injection, so each app has its own image and results. Everything the page needs comes from these
+routes and the files in ``static/``; no route takes a file path, so nothing else on the machine can be read
+(the capture's card and folder come from the command line; files the page sends arrive as text in the body).
 Request bodies are capped (:class:`~psvs.web.limits.BodyLimit`); bad requests get a 4xx answer with a
 one-line ``detail``.
 """
@@ -23,7 +24,7 @@ from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from psvs.optics.rig import Rig
-from psvs.web import api_capture, api_dense, api_image, api_live, api_match
+from psvs.web import api_adjust, api_capture, api_dense, api_image, api_live, api_match
 from psvs.web.api_image import MAX_BODY_BYTES
 from psvs.web.capture_runner import CaptureRunner, CaptureSetup
 from psvs.web.limits import BodyLimit
@@ -102,6 +103,6 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig", capture:
         return FileResponse(STATIC / "index.html", media_type="text/html")
 
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
-    for module in (api_image, api_match, api_dense, api_live, api_capture):
+    for module in (api_image, api_match, api_dense, api_live, api_capture, api_adjust):
         app.include_router(module.router)
     return app

@@ -93,3 +93,23 @@ class CaptureBody(Body):
         if not self.near_mm < self.far_mm:
             raise ValueError(f"near_mm must be < far_mm, got {self.near_mm:g} and {self.far_mm:g}")
         return self
+
+
+#: Longest rig file or mount.toml text a body may carry (characters; psvs writes a few kB).
+MAX_FILE_CHARS = 1_000_000
+
+
+class AdjustBody(RangeBody):
+    """``POST /api/adjust``: the alignment guide of a calibrated build (docs/mount.md), the working range
+    whose field points it weighs, and where the seats come from."""
+
+    calibrated: str = Field(min_length=1, max_length=MAX_FILE_CHARS,
+                            description="the calibrated rig file's text (TOML, as psvs calibrate writes it)")
+    design: str | None = Field(default=None, min_length=1, max_length=MAX_FILE_CHARS,
+                               description="the design: a shipped rig's name or a rig file's text; "
+                                           "default: the rig the app serves")
+    mount: str | None = Field(default=None, min_length=1, max_length=MAX_FILE_CHARS,
+                              description="mount.toml's text (the seats psvs mount wrote); default: the seats "
+                                          "on the design's mirrors")
+    pitch_mm: float | None = Field(default=None, gt=0, le=5,
+                                   description="screw pitch, mm per turn, of the default seats (M3 x 0.5)")

@@ -313,6 +313,134 @@ $("upload").addEventListener("change", async (ev) => {
 ["filter", "filter-size", "binarise", "level", "edges"].forEach((id) => $(id).addEventListener("change", schedulePreview));
 ["show-edges", "sel-colour", "twin-colour"].forEach((id) => $(id).addEventListener("input", draw));
 
+// Alignment panel (POST /api/adjust, docs/mount.md): the guide's turns, and the twins' row offset before and
+// after them as two heat maps on one symmetric colour scale.
+const adjust = { res: null };
+
+function offsetColour(x, limit) {
+  // diverging: blue (negative) - white (0) - red (positive); |x| >= limit saturated
+  const t = Math.max(-1, Math.min(1, x / limit)), w = [247, 247, 247];
+  const end = t < 0 ? [33, 102, 172] : [178, 24, 43], a = Math.abs(t);
+  return `rgb(${w.map((c, i) => Math.round(c + (end[i] - c) * a)).join(",")})`;
+}
+
+function mapCells(depths, mode) {
+  // one cell per grid pixel: at one depth, or the signed offset of largest |offset| over the depths
+  const chosen = mode === "max" ? depths : depths.filter((d) => String(d.z_mm) === mode);
+  const cells = new Map();
+  chosen.forEach((d) => d.u_px.forEach((u, i) => {
+    const key = `${u.toFixed(2)},${d.v_px[i].toFixed(2)}`, x = d.offset_px[i];
+    const c = cells.get(key) || { u: u, v: d.v_px[i], x: null, weighed: false };
+    if (x !== null && (c.x === null || Math.abs(x) > Math.abs(c.x))) c.x = x;
+    c.weighed = c.weighed || d.weighed[i];
+    cells.set(key, c);
+  }));
+  return [...cells.values()];
+}
+
+function gridStep(values) {
+  const s = [...new Set(values.map((x) => x.toFixed(2)))].map(Number).sort((a, b) => a - b);
+  return s.length > 1 ? Math.min(...s.slice(1).map((x, i) => x - s[i])) : 1;
+}
+
+function drawHeatmap(id, cells, size, limit) {
+  const c = $(id), g = c.getContext("2d"), scale = c.width / size[0];
+  c.height = Math.round(c.width * size[1] / size[0]);
+  g.clearRect(0, 0, c.width, c.height);
+  const du = gridStep(cells.map((p) => p.u)) * scale, dv = gridStep(cells.map((p) => p.v)) * scale;
+  cells.forEach((p) => {
+    const x = (p.u + 0.5) * scale - du / 2, y = (p.v + 0.5) * scale - dv / 2;
+    g.fillStyle = p.x === null ? "#78909c" : offsetColour(p.x, limit);
+    g.fillRect(x + 0.5, y + 0.5, du - 1, dv - 1);
+    if (!p.weighed && p.x !== null) { g.strokeStyle = "#000"; g.strokeRect(x + 1, y + 1, du - 2, dv - 2); }
+  });
+}
+
+function drawLegend(limit) {
+  const c = $("adjust-legend"), g = c.getContext("2d"), m = 30, w = c.width - 2 * m;
+  g.clearRect(0, 0, c.width, c.height);
+  for (let i = 0; i < w; i++) { g.fillStyle = offsetColour((2 * i / (w - 1) - 1) * limit, limit); g.fillRect(m + i, 2, 1, 14); }
+  g.strokeStyle = "#444"; g.strokeRect(m, 2, w, 14); g.fillStyle = "#444"; g.font = "11px sans-serif";
+  [-1, -0.5, 0, 0.5, 1].forEach((f) => {
+    const label = (f * limit).toFixed(limit < 2 ? 2 : 1) + (f === 1 ? " px" : "");
+    g.fillText(label, m + (f + 1) / 2 * w - 10, 30);
+  });
+}
+
+function drawAdjustMaps() {
+  const res = adjust.res;
+  if (!res) return;
+  const mode = $("adjust-depth").value, size = res.maps.image_size_px;
+  const before = mapCells(res.maps.before, mode), after = mapCells(res.maps.after, mode);
+  const all = before.concat(after).filter((p) => p.x !== null).map((p) => Math.abs(p.x));
+  const limit = Math.max(0.1, ...all);
+  drawHeatmap("adjust-before", before, size, limit);
+  drawHeatmap("adjust-after", after, size, limit);
+  drawLegend(limit);
+  $("adjust-legend").dataset.limitPx = String(limit);
+  const which = mode === "max" ? "each cell: the largest |offset| over the depths " +
+    res.maps.before.map((d) => d.z_mm).join(", ") + " mm, with its sign" : `each cell: the offset at ${mode} mm`;
+  $("adjust-map-note").textContent = `Twins' row offset (v_left − v_right minus the design's, px) at the left ` +
+    `view's pixel grid, over the image (${size[0]} × ${size[1]} px); ${which}. Both maps share the colour scale ` +
+    `±${limit.toFixed(2)} px; grey: a view misses the point; outlined: not weighed by the guide.`;
+}
+
+function showAdjust(res) {
+  adjust.res = res;
+  const tbody = $("adjust-turns").querySelector("tbody"), g = res.guide;
+  tbody.innerHTML = "";
+  res.table.forEach((row, k) => {
+    const tr = document.createElement("tr");
+    [row.mirror, row.screw, row.trims, row.deg_per_turn.toFixed(3), row.turn].forEach((text) => {
+      const td = document.createElement("td"); td.textContent = text; tr.appendChild(td);
+    });
+    tr.lastChild.className = "turn"; tr.lastChild.dataset.turns = String(g.turns[k].turns);
+    tbody.appendChild(tr);
+  });
+  for (const [id, value] of [["adjust-before-max", g.row_offset_before_px.max], ["adjust-before-rms", g.row_offset_before_px.rms],
+                             ["adjust-after-max", g.row_offset_after_px.max], ["adjust-after-rms", g.row_offset_after_px.rms]]) {
+    $(id).textContent = fmt(value, 2, "px"); $(id).dataset.px = String(value);
+  }
+  $("adjust-null").textContent = res.null_space_text.join(" ");
+  const sel = $("adjust-depth"), mode = sel.value;
+  fillSelect(sel, [["max", "largest |offset| over the depths"], ...res.maps.before.map((d) => [String(d.z_mm), `at ${d.z_mm} mm`])]);
+  sel.value = [...sel.options].some((o) => o.value === mode) ? mode : "max";
+  drawAdjustMaps();
+}
+
+function fillSelect(sel, options) {
+  sel.replaceChildren(...options.map(([value, text]) => { const o = document.createElement("option");
+                                                          o.value = value; o.textContent = text; return o; }));
+}
+
+function adjustStatus(text, ok) { const s = $("adjust-status"); s.textContent = text || ""; s.className = ok ? "ok" : ""; }
+
+$("adjust-run").addEventListener("click", async () => {
+  const rig = $("adjust-rig").files[0], mount = $("adjust-mount").files[0];
+  if (!rig) { adjustStatus("pick the calibrated rig file (psvs calibrate -o)"); return; }
+  document.body.dataset.adjustDone = "";
+  adjustStatus("finding the turns…", true);
+  try {
+    const body = { calibrated: await rig.text(), near_mm: Number($("adjust-near").value),
+                   far_mm: Number($("adjust-far").value) };
+    if ($("adjust-design").value) body.design = $("adjust-design").value;
+    if (mount) body.mount = await mount.text(); else body.pitch_mm = Number($("adjust-pitch").value);
+    const res = await api("/api/adjust", body);
+    showAdjust(res);
+    adjustStatus(`${rig.name} on the seats of ${mount ? mount.name : res.design + "'s mirrors"}: ${res.guide.points} ` +
+                 `field points over ${res.guide.near_mm}-${res.guide.far_mm} mm`, true);
+    document.body.dataset.adjustDone = "1";
+  } catch (e) { adjustStatus("alignment: " + e.message); document.body.dataset.adjustDone = "error"; }
+});
+
+$("adjust-depth").addEventListener("change", drawAdjustMaps);
+
+async function adjustInit() {
+  const d = await api("/api/adjust/designs");
+  fillSelect($("adjust-design"), [["", `served: ${d.served}`], ...d.shipped.map((n) => [n, n])]);
+  $("adjust-pitch").value = d.pitch_mm;
+}
+
 (async function init() {
   try {
     const info = await api("/api/info");
@@ -329,6 +457,7 @@ $("upload").addEventListener("change", async (ev) => {
       `each good pose is saved once into ${info.capture.folder}.`;
     else $("capture-folder").textContent = "Start psvs serve with --target TARGET.toml --capture-to DIR to capture " +
       "calibration views here.";
+    await adjustInit();
     await loadImage();
     await preview();
     document.body.dataset.ready = "1";

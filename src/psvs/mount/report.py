@@ -1,0 +1,136 @@
+"""The alignment guide as a builder reads it, shared by ``psvs adjust`` / ``psvs calibrate --adjust`` and the
+web page's Alignment panel: the check that a calibrated build and a design are one mirror box, the turns as
+text ("3/16 turn clockwise"), the guide as printed lines and as plain data (JSON), and the twins' row-offset
+maps before and after the turns (:func:`row_offset_maps`)."""
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+
+import numpy as np
+
+from psvs.mount.guide import AlignmentGuide, designed_twin, twin_rows_px, working_points
+from psvs.mount.seats import Seat, apply_turns
+from psvs.optics.project import project_points
+from psvs.optics.rig import Rig
+
+TILTS = {"a": "tilt a (about the vertical)", "b": "tilt b (out of vertical)"}
+#: Design values a calibrated build must share with the rig it was calibrated from (the same mirror box):
+#: within 5 % (calibration refines the baseline, e.g. 99.1 mm for a 100 mm design) or 1 deg.
+DESIGN_FIELDS = ("baseline_mm", "m1_axis_distance_mm", "m2_axis_distance_mm", "angle_rad")
+DESIGN_REL_TOL, DESIGN_ANGLE_TOL_RAD = 0.05, math.radians(1.0)
+
+
+def check_same_design(built: Rig, nominal: Rig, design: str = "--rig") -> None:
+    """ValueError unless the calibrated build and the design (called ``design`` in the message) share the
+    mirror box's layout (:data:`DESIGN_FIELDS`)."""
+    for name in DESIGN_FIELDS:
+        a, b = getattr(built.mirrors, name), getattr(nominal.mirrors, name)
+        close = abs(a - b) <= DESIGN_ANGLE_TOL_RAD if name == "angle_rad" else abs(a - b) <= DESIGN_REL_TOL * abs(b)
+        if not close:
+            unit = "deg" if name.endswith("rad") else "mm"
+            conv = math.degrees if unit == "deg" else float
+            raise ValueError(f"the calibrated rig and {design} are not one design: {name.replace('_rad', '')} "
+                             f"{conv(a):g} vs {conv(b):g} {unit} (give the design the build was calibrated from)")
+
+
+def turns_text(turns: float) -> str:
+    """'1 3/16 turn', '1/4 turn', '0' for a multiple of 1/16 turn (sign dropped)."""
+    f = Fraction(abs(turns)).limit_denominator(16)
+    whole, rest = divmod(f, 1)
+    if f == 0:
+        return "0"
+    parts = ([str(whole)] if whole else []) + ([f"{rest.numerator}/{rest.denominator}"] if rest else [])
+    return " ".join(parts) + (" turns" if f > 1 else " turn")
+
+
+def turn_instruction(turns: float, direction: str) -> str:
+    """What to do with one screw: 'leave', or e.g. '3/16 turn clockwise'."""
+    return "leave" if turns == 0 else f"{turns_text(turns)} {direction}"
+
+
+def format_guide(g: AlignmentGuide) -> str:
+    """The guide as a table a builder follows at the bench."""
+    lines = [f"alignment guide: {g.n_points} field points over {g.near_mm:g}-{g.far_mm:g} mm, screws of "
+             f"{g.pitch_mm:g} mm pitch (clockwise = seen from behind the mirror)",
+             f"twins' row offset before: largest {g.before_px[0]:.2f} px, RMS {g.before_px[1]:.2f} px",
+             f"{'mirror':6} {'screw':5} {'trims':29} {'deg/turn':>9}  turn"]
+    for t in g.turns:
+        how = turn_instruction(t.turns, t.direction)
+        lines.append(f"{t.mirror.upper():6} {t.screw:5} {TILTS[t.tilt]:29} {math.degrees(t.rad_per_turn):9.3f}  {how}")
+    lines.append(f"twins' row offset after the turns (predicted): largest {g.after_px[0]:.2f} px, "
+                 f"RMS {g.after_px[1]:.2f} px ({g.after_unquantised_px[0]:.2f} px with turns not rounded to 1/16)")
+    if g.lost_after:
+        lines.append(f"  over {g.n_points - g.lost_after} points: {g.lost_after} of the {g.n_points} leave a view "
+                     "after the turns (a turned mirror's edge moves into the field; psvs design --margin-mm "
+                     "sizes the mirrors with room for it)")
+    lines += null_space_lines(g)
+    return "\n".join(lines)
+
+
+def null_space_lines(g: AlignmentGuide) -> list[str]:
+    """The guide's note on the turn combinations the rows cannot tell apart (none: an empty list)."""
+    if not g.null_space:
+        return []
+    lines = [f"{len(g.null_space)} combination(s) of turns move no twin off its partner's row (< 0.02 px "
+             "per turn: they move both twins alike, or along their rows), so the rows cannot tell them "
+             "apart; the turns start from the smallest that fit, and rounding them to 1/16 may move along:"]
+    names = [f"{t.mirror.upper()} {t.screw}" for t in g.turns]
+    for v in g.null_space:
+        big = sorted(range(len(v)), key=lambda k: -abs(v[k]))[:3]
+        lines.append("  " + ", ".join(f"{v[k]:+.2f} {names[k]}" for k in big) + " ...")
+    return lines
+
+
+def guide_to_dict(g: AlignmentGuide) -> dict:
+    """The guide as plain data (JSON)."""
+    return {
+        "near_mm": g.near_mm, "far_mm": g.far_mm, "points": g.n_points, "pitch_mm": g.pitch_mm,
+        "row_offset_before_px": {"max": g.before_px[0], "rms": g.before_px[1]},
+        "row_offset_after_px": {"max": g.after_px[0], "rms": g.after_px[1]},
+        "row_offset_after_unrounded_px": {"max": g.after_unquantised_px[0], "rms": g.after_unquantised_px[1]},
+        "points_lost_after": g.lost_after,
+        "turns": [{"mirror": t.mirror.upper(), "screw": t.screw, "tilt": t.tilt, "turns": t.turns,
+                   "direction": t.direction, "deg_per_turn": math.degrees(t.rad_per_turn),
+                   "shift_mm_per_turn": t.shift_mm_per_turn} for t in g.turns],
+        "null_space": [list(v) for v in g.null_space],
+        "singular_px_per_turn": list(g.singular_px),
+    }
+
+
+def _finite_or_none(a: np.ndarray) -> list[float | None]:
+    return [float(x) if np.isfinite(x) else None for x in a]
+
+
+def row_offset_maps(built: Rig, seats: dict[str, Seat], g: AlignmentGuide) -> dict:
+    """The twins' row offset over the guide's field points, before the turns (``built``) and after them
+    (:func:`~psvs.mount.seats.apply_turns` of ``g``'s turns on ``built``), as plain data (JSON).
+
+    The points are :func:`~psvs.mount.guide.working_points` (the left view's 11 x 9 pixel grid at 3
+    depths, where both views see them); ``u_px``, ``v_px`` are where each lands in the left view of the
+    build's design (the grid pixels, the same before and after, so the maps compare point for point). The
+    offset is :func:`~psvs.mount.guide.row_offsets_px`, px, None where a view misses the point; ``weighed``
+    marks the points the guide's numbers are over (``g.weighed``), so the largest |offset| of the weighed
+    points after the turns is ``g.after_px[0]``.
+
+    Returns
+    -------
+    dict
+        ``image_size_px`` [W, H]; ``before`` and ``after``: one entry per depth, near to far, each
+        ``{"z_mm", "u_px", "v_px", "offset_px", "weighed"}`` (lists of one length).
+    """
+    pts = working_points(built, g.near_mm, g.far_mm)
+    design = designed_twin(built)
+    uv, _ = project_points(pts, design, "left")
+    base = twin_rows_px(design, pts)
+    offsets = {"before": twin_rows_px(built, pts) - base,
+               "after": twin_rows_px(apply_turns(built, seats, g.turns_by_mirror), pts) - base}
+    weighed = np.zeros(len(pts), bool)
+    weighed[list(g.weighed)] = True
+    depths = np.round(pts[:, 2], 6)
+    out = {"image_size_px": [int(s) for s in built.camera.image_size_px]}
+    for when, r in offsets.items():
+        out[when] = [{"z_mm": float(z), "u_px": _finite_or_none(uv[depths == z, 0]),
+                      "v_px": _finite_or_none(uv[depths == z, 1]), "offset_px": _finite_or_none(r[depths == z]),
+                      "weighed": [bool(w) for w in weighed[depths == z]]} for z in np.unique(depths)]
+    return out
