@@ -521,6 +521,8 @@ def _batch() -> list[Case]:
         Case("batch-missing-input", base, 2, "not found"),
         Case("batch-one-image", ("batch", "match", "a.png", "--rig", "default", "-o", "out", "--auto"), 2,
              "one image", {"a.png": texture_png()}),
+        Case("batch-output-is-the-input-folder", ("batch", "match", "in", "--rig", "default", "-o", "in", "--auto"),
+             2, "folder of the images", {"in/a.png": texture_png()}),
         Case("batch-empty-folder", ("batch", "match", "in", "--rig", "default", "-o", "out", "--auto"), 2,
              "no image", {"in/notes.txt": "no images here"}),
         Case("batch-not-a-video", base, 2, "v.avi", {"v.avi": b"RIFF" + bytes(100)}),

@@ -217,6 +217,9 @@ def run(args) -> int:
         raise ValueError("psvs batch needs --rig (the frames' camera and the disparity range)")
     out_dir = _out_dir(args.output)
     frames = list_frames(args.image)
+    if not frames.video and out_dir == Path(frames.folder):
+        raise ValueError(f"-o {args.output} is the folder of the images: give another (a result there could be "
+                         "read as a frame by the next run)")
     job = _job(args, frames, out_dir)
     created = not out_dir.exists()
     out_dir.mkdir(exist_ok=True)         # the command's own checks want its outputs' folder
