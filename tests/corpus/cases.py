@@ -556,10 +556,32 @@ def _mount() -> list[Case]:
     ]
 
 
+def _montecarlo() -> list[Case]:
+    """psvs montecarlo: the nominal rig, the tolerance file, the counts, the folder and the cluster."""
+    base = ("montecarlo", *R, "--tolerances", "tol.toml", "-n", "2", "-o", "s")
+    good = {"rig.toml": DEFAULT_RIG, "tol.toml": "[calibration]\nviews = 4\n"}
+    return _rig_cases(base, "montecarlo") + [
+        Case("montecarlo-tol-missing", (*base[:3], "--tolerances", "none.toml", *base[5:]), 2, "not found",
+             {"rig.toml": DEFAULT_RIG}),
+        Case("montecarlo-tol-malformed", base, 2, "malformed", {**good, "tol.toml": "[calibration\n"}),
+        Case("montecarlo-tol-unknown-key", base, 2, "lens_tilt", {**good, "tol.toml": "[tolerances]\nlens_tilt = 1\n"}),
+        Case("montecarlo-tol-negative-width", base, 2, "uniform", {**good, "tol.toml":
+             "[tolerances]\nm1_shift_mm = { uniform = -0.5 }\n"}),
+        Case("montecarlo-n-zero", (*base[:5], "-n", "0", "-o", "s"), 2, "-n", good),
+        Case("montecarlo-n-text", (*base[:5], "-n", "many", "-o", "s"), 2, "-n", good),
+        Case("montecarlo-seed-negative", (*base, "--seed", "-3"), 2, "--seed", good),
+        Case("montecarlo-output-is-a-file", (*base[:7], "-o", "afile"), 2, "afile", good, ("afile",)),
+        Case("montecarlo-scheduler-not-an-address", (*base, "--scheduler", "nowhere"), 2, "--scheduler", good),
+        Case("montecarlo-workers-zero", (*base, "--workers", "0"), 2, "--workers", good),
+        Case("montecarlo-card-too-wide", base, 2, "calibration.card", {**good, "tol.toml":
+             "[calibration]\ncard = { rows = 9, cols = 15, spacing_mm = 30.0, diameter_mm = 12.0 }\n"}),
+    ]
+
+
 def all_cases() -> list[Case]:
     cases = (_design() + _triangulate() + _fit_refraction() + _simulate() + _match() + _measure()
              + _card_views() + _sweep_views() + _capture() + _calibrate() + _disparity() + _live() + _serve() + _track()
-             + _handeye() + _adjust() + _mount() + _small() + _batch())
+             + _handeye() + _adjust() + _mount() + _montecarlo() + _small() + _batch())
     names = [c.name for c in cases]
     assert len(names) == len(set(names)), "case names must be unique"
     return cases

@@ -19,7 +19,7 @@ from psvs.errors import MeasurementError, RigGeometryError
 
 COMMANDS = ("demo", "rig", "design", "triangulate", "fit-refraction", "simulate", "match", "measure", "calibrate",
             "card-views", "sweep-views", "capture", "table1", "disparity", "dense-eval", "serve", "live", "handeye",
-            "track", "replay", "export-calibration", "cameras", "adjust", "mount", "batch")
+            "track", "replay", "export-calibration", "cameras", "adjust", "mount", "batch", "montecarlo")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -11,6 +11,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from psvs._threads import thread_share
 from psvs.cluster.progress import Progress
 from psvs.cluster.store import ResultStore, check_row, record_params
 
@@ -62,7 +63,8 @@ def _task(fn, threads, key):
     if threads is not None:
         import numba
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
-    return check_row(fn(key), key)
+    with thread_share(threads):          # the renderer's and Embree's pools too
+        return check_row(fn(key), key)
 
 
 def _one_line(exc: BaseException) -> str:

@@ -7,7 +7,6 @@ the mesh *circumscribes* the true surface; each candidate hit is then recomputed
 """
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
@@ -15,6 +14,7 @@ import numpy as np
 import trimesh
 from embreex import mesh_construction, rtcore_scene
 
+from psvs._threads import pool_size
 from psvs.simulate.scene import Pose, Scene, SceneObject
 
 SECTIONS = 128                 # polygon sides for discs and cylinders
@@ -96,7 +96,7 @@ class SceneGeometry:
         self.face_offsets = np.einsum("ij,ij->i", self.face_normals, self.triangles[:, 0])
         self._embree = rtcore_scene.EmbreeScene()
         mesh_construction.TriangleMesh(self._embree, self.triangles.astype(np.float32))
-        self._threads = max(1, min(os.cpu_count() or 1, 8))
+        self._threads = pool_size(8)
         # per object index (plus one slot for "no object"): does it need exact curved refinement?
         self._curved = np.array([o.kind in ("disc", "sphere", "cylinder") for o in self.objects] + [False])
 

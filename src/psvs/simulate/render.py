@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import functools
 import math
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
 from psvs import _memory, _work
+from psvs._threads import pool_size
 from psvs.optics.illumination import illumination_map
 from psvs.optics.mirrors import mirror_planes
 from psvs.optics.project import in_image, project_points
@@ -145,7 +145,7 @@ def radiance(geom: SceneGeometry, scene: Scene, rays) -> np.ndarray:
             ok = np.flatnonzero(valid) + a
             out[ok] = shade(geom, scene, geom.intersect(rays.origins_mm[ok], rays.dirs[ok], refine=False))
 
-    with ThreadPoolExecutor(max(1, os.cpu_count() or 1)) as ex:
+    with ThreadPoolExecutor(pool_size()) as ex:
         list(ex.map(one, range(0, n, CHUNK_RAYS)))
     return out
 

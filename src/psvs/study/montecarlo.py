@@ -1,0 +1,75 @@
+"""A Monte-Carlo study on Dask: :func:`psvs.study.sample.run_sample` for samples 0 .. n-1 as tasks
+(:func:`psvs.cluster.run_tasks`), their rows streamed to Parquet in the study's folder, then the report
+(:func:`psvs.study.report.write_report`). A sample is seeded from (seed, index), so a row does not depend on
+the worker that ran it; a study resumes where it stopped, and a larger ``n`` over a finished folder computes
+only the new samples (docs/tolerancing.md)."""
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from pathlib import Path
+
+from psvs.cluster import RunOptions, read_results, run_tasks
+from psvs.cluster.store import check_params
+from psvs.io.params import rig_to_dict
+from psvs.optics.rig import Rig
+from psvs.study.report import write_report
+from psvs.study.sample import check_study, run_sample
+from psvs.study.tolerances import Tolerances
+
+#: The most samples one study may ask for.
+MAX_SAMPLES = 1_000_000
+
+
+@dataclass(frozen=True)
+class StudyResult:
+    """``summary``: the run (:class:`psvs.cluster.RunSummary`); ``rows``: every sample's row in the folder
+    (this run's and earlier ones'), by index; ``files``: the report's files."""
+
+    summary: object
+    rows: list
+    files: list
+
+
+def study_params(nominal: Rig, tol_data: dict, seed: int) -> dict:
+    """What makes a study's rows what they are (recorded in the folder's study.json): the nominal rig, the
+    tolerance file's content and the seed; not the number of samples (a larger -n adds samples)."""
+    return {"study": "psvs montecarlo", "seed": int(seed), "rig": rig_to_dict(nominal), "tolerances": tol_data}
+
+
+def check_samples(n: int, seed: int) -> None:
+    if not 1 <= n <= MAX_SAMPLES:
+        raise ValueError(f"-n must be 1-{MAX_SAMPLES}, got {n}")
+    if not 0 <= seed < 2 ** 63:
+        raise ValueError(f"--seed must be an integer in [0, 2^63), got {seed}")
+
+
+def prepare_study(nominal: Rig, tol: Tolerances, tol_data: dict, n: int, seed: int, out_dir) -> dict:
+    """Every check before a cluster starts: the counts, the study the nominal design can run at all
+    (:func:`check_study`), the folder (a file, a missing parent, another study's folder: ValueError). The
+    study's parameters."""
+    check_samples(n, seed)
+    check_study(nominal, tol)
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"-o {out} is a file; psvs montecarlo writes a folder")
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"output folder's parent does not exist: {out.parent}")
+    params = study_params(nominal, tol_data, seed)
+    if out.is_dir():
+        check_params(out, params)
+    return params
+
+
+def run_study(client, nominal: Rig, tol: Tolerances, n: int, out_dir, params: dict,
+              options: RunOptions = RunOptions(label="psvs montecarlo")) -> StudyResult:
+    """Samples 0 .. n-1 of the study on ``client`` (those already in ``out_dir`` are not computed again),
+    then the report over every sample in the folder up to n-1."""
+    fn = functools.partial(run_sample, nominal, tol, int(params["seed"]))
+    summary = run_tasks(client, fn, range(n), out_dir, params, options)
+    table = read_results(out_dir)
+    rows = [r for r in table.to_pylist() if r["key"] < n]
+    for r in rows:
+        r.pop("key")
+    files = write_report(rows, out_dir, tol.targets) if rows else []
+    return StudyResult(summary, rows, files)

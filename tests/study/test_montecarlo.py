@@ -1,0 +1,119 @@
+"""psvs montecarlo on a real 2-worker LocalCluster: each sample of a study is exactly what that build gives
+calibrated alone; a worker killed mid-study loses no finished sample and the study completes; a second run
+over a finished folder computes nothing (a larger -n only the new samples); an unreachable scheduler is one
+line, exit 2, nothing written."""
+from __future__ import annotations
+
+import math
+import os
+import signal
+import threading
+import time
+
+import pyarrow.parquet as pq
+import pytest
+
+from psvs.cluster import RunOptions, connect, read_results
+from psvs.io.params import load_rig
+from psvs.study.montecarlo import prepare_study, run_study
+from psvs.study.sample import TIMING, run_sample
+from psvs.study.tolerances import tolerances_from_dict
+from tests.cli.test_cli import run
+
+#: A cheap study: the default rig's shipped tolerances, 4 card views at 1x1, a small test set.
+SMALL = {"tolerances": {"mirror_tilt_deg": {"uniform": 0.2}, "mirror_shift_mm": {"uniform": 0.5},
+                        "focal_length_mm": {"normal": 0.1}},
+         "calibration": {"views": 4, "supersample": 1}, "test": {"depths": 3, "grid": 5},
+         "targets": {"rms_3d_mm": 5.0}}
+QUIET = RunOptions(progress=False, label="montecarlo")
+SEED = 11
+
+
+@pytest.fixture(scope="module")
+def client():
+    with connect(workers=2) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def study():
+    nominal, tol = load_rig("default"), tolerances_from_dict(SMALL)
+    return nominal, tol
+
+
+def _parts(out) -> list:
+    """The part files a running study has written so far."""
+    return sorted((out / "parts").glob("part-*.parquet")) if (out / "parts").is_dir() else []
+
+
+def _same(a: dict, b: dict, skip=TIMING) -> bool:
+    """Equal rows (NaN equal to NaN), the columns ``skip`` aside."""
+    keys = set(a) - set(skip)
+    return keys == set(b) - set(skip) and all(
+        a[k] == b[k] or (isinstance(a[k], float) and math.isnan(a[k]) and math.isnan(b[k])) for k in keys)
+
+
+@pytest.mark.slow
+def test_each_sample_is_what_its_build_gives_alone_and_a_rerun_computes_nothing(client, study, tmp_path):
+    nominal, tol = study
+    out = tmp_path / "study"
+    params = prepare_study(nominal, tol, SMALL, 6, SEED, out)
+    res = run_study(client, nominal, tol, 6, out, params, QUIET)
+    assert res.summary.computed == 6 and res.summary.failed == {}
+    assert [r["index"] for r in res.rows] == list(range(6))
+    for r in res.rows:
+        assert _same(r, run_sample(nominal, tol, SEED, r["index"])), r["index"]
+    assert len({r["dev_m1_tilt_b_deg"] for r in res.rows}) == 6         # six different builds
+    again = run_study(client, nominal, tol, 6, out, prepare_study(nominal, tol, SMALL, 6, SEED, out), QUIET)
+    assert again.summary.computed == 0 and again.summary.skipped == 6
+    assert all(_same(a, b) for a, b in zip(again.rows, res.rows))
+    more = run_study(client, nominal, tol, 7, out, params, QUIET)
+    assert more.summary.computed == 1 and len(more.rows) == 7
+    import json
+    scores = json.loads((out / "scores.json").read_text())
+    assert scores["samples"] == 7 and scores["ok"] == sum(r["ok"] for r in more.rows)
+
+
+@pytest.mark.slow
+def test_a_killed_worker_loses_no_finished_sample(client, study, tmp_path):
+    nominal, tol = study
+    out = tmp_path / "study"
+    params = prepare_study(nominal, tol, SMALL, 6, SEED + 1, out)
+    result = {}
+    runner = threading.Thread(target=lambda: result.update(r=run_study(client, nominal, tol, 6, out, params, QUIET)))
+    runner.start()
+    t0 = time.monotonic()
+    while not _parts(out):
+        assert time.monotonic() - t0 < 300, "no sample finished within 300 s"
+        time.sleep(0.1)
+    finished = {r["key"]: r for f in _parts(out) for r in pq.read_table(f).to_pylist()}
+    pids = client.run(os.getpid)
+    os.kill(next(iter(pids.values())), signal.SIGKILL)
+    runner.join(timeout=600)
+    assert not runner.is_alive()
+    res = result["r"]
+    assert res.summary.complete and res.summary.failed == {} and len(res.rows) == 6
+    table = {r["key"]: r for r in read_results(out).to_pylist()}
+    assert all(_same(table[k], r, ()) for k, r in finished.items())   # what was written before the kill, as it was
+    for k in range(6):
+        assert _same({c: v for c, v in table[k].items() if c != "key"}, run_sample(nominal, tol, SEED + 1, k))
+    client.wait_for_workers(2, timeout=60)
+
+
+def test_an_unreachable_scheduler_is_one_line_and_writes_nothing(capsys, tmp_path):
+    out = tmp_path / "study"
+    code, text, err = run(capsys, "montecarlo", "--rig", "default", "--tolerances", "default", "-n", "4", "-o",
+                          str(out), "--scheduler", "tcp://127.0.0.1:9")
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "cannot reach the Dask scheduler" in err, err
+    assert not out.exists()
+
+
+def test_a_folder_of_another_study_is_refused_before_any_work(study, tmp_path):
+    nominal, tol = study
+    out = tmp_path / "study"
+    out.mkdir()
+    (out / "study.json").write_text('{"study": "psvs montecarlo", "seed": 1}')
+    with pytest.raises(ValueError, match="other parameters"):
+        prepare_study(nominal, tol, SMALL, 6, SEED, out)
+    with pytest.raises(ValueError, match="-n must be"):
+        prepare_study(nominal, tol, SMALL, 0, SEED, tmp_path / "other")
