@@ -26,8 +26,9 @@ from psvs.optics.rig import MIRROR_NAMES
 from psvs.rigs import shipped_rig_path
 
 CASES = {"default": ("default", MountParams()), "mv1440": ("mv1440", MountParams()),
-         "default-cs": ("default", MountParams(interface="cs", lens_diameter_mm=34.0, flange_mm=30.0,
-                                               hole_square_mm=40.0, wall_mm=2.5, clearance_mm=0.2))}
+         "default-cs-margin": ("default", MountParams(interface="cs", lens_diameter_mm=34.0, flange_mm=30.0,
+                                                      hole_square_mm=40.0, wall_mm=2.5, clearance_mm=0.2,
+                                                      margin_mm=1.0))}
 
 
 @pytest.fixture(scope="module", params=list(CASES))
@@ -73,7 +74,7 @@ def test_no_field_ray_meets_the_mount(made):
     """>= 10 000 field rays of both views, every leg cast against the STL: none hits it before its end."""
     rig, m, folder = made
     mesh = _mesh(folder)
-    design = design_mirrors(rig, search=False)
+    design = design_mirrors(rig, margin_mm=m.layout.params.margin_mm, search=False)
     legs = field_segments(design.rig, 1200.0)
     n_rays = len(legs[0][0]) + len(legs[-1][0])
     assert n_rays >= 10_000
@@ -92,7 +93,7 @@ def test_glass_lands_on_its_designed_planes(made):
     the screws' holes are open along their axes, and the library's seated-glass check agrees."""
     rig, m, folder = made
     mesh = _mesh(folder)
-    planes = mirror_planes(design_mirrors(rig, search=False).rig)
+    planes = mirror_planes(design_mirrors(rig, margin_mm=m.layout.params.margin_mm, search=False).rig)
     for name in MIRROR_NAMES:
         seat, p = m.layout.seats[name], planes[name]
         q = [p.point + s * p.s_axis + np.array([0.0, t, 0.0]) - seat.back_offset_mm * p.normal
@@ -115,7 +116,7 @@ def test_drawing_dimensions_are_the_designs(made):
     """Read the SVG's text back: every mirror's centre, angle and glass size are design_mirrors's numbers."""
     rig, m, folder = made
     texts = _svg_texts(folder / "drawing.svg")
-    design = design_mirrors(rig, search=False)
+    design = design_mirrors(rig, margin_mm=m.layout.params.margin_mm, search=False)
     border = m.layout.params.m1_border_mm
     for spec in design.mirrors:
         n = spec.name.upper()
@@ -137,7 +138,7 @@ def test_bom_and_mount_file_read_back(made):
     degrees per turn of each screw as seats_for and screw_rates give them; read_mount returns the seats."""
     rig, m, folder = made
     rows = list(csv.DictReader(io.StringIO((folder / "bom.csv").read_text())))
-    design = design_mirrors(rig, search=False).rig
+    design = design_mirrors(rig, margin_mm=m.layout.params.margin_mm, search=False).rig
     for name in MIRROR_NAMES:
         row = next(r for r in rows if r["item"] == name.upper())
         w, h, t = (float(v) for v in re.findall(r"\d+\.\d+", row["size"]))
@@ -181,3 +182,60 @@ def test_the_ray_check_names_the_part_in_the_light(made, tmp_path):
     assert all(re.fullmatch(r"m[1-4] carrier( lower| upper)?|floor|lid|lens clamp|C?S?-?mount flange plate", k)
                for k in checks.blocked_by), checks.blocked_by
     assert any(p.startswith("the ") and "blocks" in p for p in checks.problems(m.layout))
+
+
+def test_hardware_is_out_of_the_light_and_a_spring_in_it_is_named(made):
+    """Eight set screws behind the carriers and eight springs' rooms are cast against the light: none is met;
+    a spring's room moved onto M3's middle (in the light) is named with the rays it stops."""
+    from dataclasses import replace
+
+    from psvs.mount.check import _hardware_light
+    from psvs.mount.layout import Box, Cylinder
+    rig, m, _ = made
+    ko = m.layout.keepouts
+    assert sum(isinstance(k, Cylinder) for k in ko) == 8 and sum(isinstance(k, Box) for k in ko) == 8
+    assert m.checks.hardware_blocked_by == {}
+    p = mirror_planes(m.layout.rig)["m3"]
+    spring = next(k for k in ko if isinstance(k, Box) and k.name.startswith("M3"))
+    mid = p.point + 0.5 * sum(m.layout.glass["m3"].along_mm) * p.s_axis + 20.0 * p.normal
+    moved = replace(m.layout, keepouts=(replace(spring, centre=tuple(mid)),))
+    legs = field_segments(design_mirrors(rig, margin_mm=m.layout.params.margin_mm, search=False).rig, 1200.0)
+    by = _hardware_light(moved, legs)
+    assert list(by) == [spring.name] and by[spring.name] > 100
+
+
+def test_boxes_overlap_agrees_with_sampled_points():
+    """The separating-axis test against points sampled in one box and tested in the other (their local
+    coordinates within the half sizes), on random pairs; touching boxes do not overlap."""
+    from psvs.mount.layout import Box, boxes_overlap
+    rng = np.random.default_rng(5)
+
+    def box(c):
+        x = rng.normal(size=3)
+        x /= np.linalg.norm(x)
+        z = np.cross(x, rng.normal(size=3))
+        z /= np.linalg.norm(z)
+        return Box("b", tuple(c), tuple(x), tuple(z), tuple(rng.uniform(1, 4, 3)))
+
+    def inside(b, pts):
+        ax = np.stack([b.x_dir, np.cross(b.z_dir, b.x_dir), b.z_dir])
+        return np.all(np.abs((pts - b.centre) @ ax.T) <= np.asarray(b.size) / 2, axis=1)
+
+    agree = 0
+    for _ in range(60):
+        a, b = box(np.zeros(3)), box(rng.uniform(-4, 4, 3))
+        ax = np.stack([a.x_dir, np.cross(a.z_dir, a.x_dir), a.z_dir])
+        pts = a.centre + (rng.uniform(-0.5, 0.5, (40000, 3)) * np.asarray(a.size)) @ ax
+        sampled = bool(inside(b, pts).any())
+        if sampled:
+            assert boxes_overlap(a, b)           # a shared point is an overlap
+        agree += boxes_overlap(a, b) == sampled
+    assert agree >= 57                           # sampling may miss a sliver of overlap
+    a = Box("a", (0, 0, 0), (1, 0, 0), (0, 0, 1), (2, 2, 2))
+    assert not boxes_overlap(a, Box("b", (2, 0, 0), (1, 0, 0), (0, 0, 1), (2, 2, 2)))
+
+
+def test_m1_strips_beside_m2s_glass_are_refused_with_a_border_that_fits():
+    rig = load_rig(shipped_rig_path("default"))
+    with pytest.raises(MountError, match="another mirror's glass beside its strips.*--m1-border-mm 28"):
+        make_mount(rig, MountParams(m1_border_mm=18.0))

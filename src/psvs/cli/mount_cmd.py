@@ -35,6 +35,9 @@ def add_parser(sub) -> None:
                    help=f"c/cs: the camera's front face behind O (default {d.flange_mm:g})")
     p.add_argument("--hole-square-mm", type=float, default=d.hole_square_mm,
                    help=f"c/cs: the camera's four front M3 holes on this square (default {d.hole_square_mm:g})")
+    p.add_argument("--margin-mm", type=float, default=d.margin_mm,
+                   help="every mirror's border beyond its chief rays, and the free space around the light: about "
+                        "half the lens's entrance pupil (psvs design --margin-mm; default 0)")
     p.add_argument("--wall-mm", type=float, default=d.wall_mm,
                    help=f"the thinnest wall your printer makes (default {d.wall_mm:g})")
     p.add_argument("--clearance-mm", type=float, default=d.clearance_mm,
@@ -51,7 +54,7 @@ def params_from_args(args) -> MountParams:
     return MountParams(interface=args.interface, lens_diameter_mm=args.lens_diameter_mm,
                        lens_front_mm=args.lens_front_mm, flange_mm=args.flange_mm,
                        hole_square_mm=args.hole_square_mm, wall_mm=args.wall_mm, clearance_mm=args.clearance_mm,
-                       pitch_mm=args.pitch_mm, m1_border_mm=args.m1_border_mm)
+                       pitch_mm=args.pitch_mm, m1_border_mm=args.m1_border_mm, margin_mm=args.margin_mm)
 
 
 def run(args) -> int:

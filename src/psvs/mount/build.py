@@ -35,7 +35,7 @@ def make_mount(rig: Rig, params: MountParams = MountParams(), near_mm: float = 4
     from psvs.mount.check import check_mount, printable_mesh
     from psvs.mount.drawing import render_drawing
     from psvs.mount.files import bom_csv, mount_toml
-    design = design_mirrors(rig, near_mm=near_mm, far_mm=far_mm, search=False)
+    design = design_mirrors(rig, margin_mm=params.margin_mm, near_mm=near_mm, far_mm=far_mm, search=False)
     if not design.ok:
         raise MountError("the layout is blocked: " + "; ".join(design.problems))
     segments = field_segments(design.rig, far_mm)
@@ -60,7 +60,7 @@ def make_mount(rig: Rig, params: MountParams = MountParams(), near_mm: float = 4
         raise MountError("; ".join(problems))
     lo, hi = mesh.bounds
     svg, png = render_drawing(layout, segments, tuple(float(v) for v in hi - lo))
-    summary = {**{k: v for k, v in asdict(checks).items() if k != "blocked_by"},
+    summary = {**{k: v for k, v in asdict(checks).items() if k not in ("blocked_by", "hardware_blocked_by")},
                "step_solids": n_solids, "step_volume_mm3": volume, "far_mm": far_mm}
     files.update({"drawing.svg": svg, "drawing.png": png, "bom.csv": bom_csv(layout).encode(),
                   "mount.toml": mount_toml(layout, summary).encode()})

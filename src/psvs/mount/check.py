@@ -35,6 +35,7 @@ class MountChecks:
     rays: int
     blocked: int
     blocked_by: dict
+    hardware_blocked_by: dict
     glass_error_mm: dict
     glass_intrusion: tuple
     watertight: bool
@@ -44,6 +45,8 @@ class MountChecks:
         """One line per failed check (empty when the mount is right)."""
         p = layout.params
         out = [f"the {part} blocks {n} of {self.rays} field rays" for part, n in self.blocked_by.items()]
+        out += [f"the {part} would block {n} of {self.rays} field rays"
+                for part, n in self.hardware_blocked_by.items()]
         out += [f"{m.upper()} sits {e:.3f} mm off its designed plane (more than the clearance {p.clearance_mm:g} mm)"
                 for m, e in self.glass_error_mm.items() if e > p.clearance_mm]
         out += [f"the mount cuts into {m.upper()}'s glass" for m in self.glass_intrusion]
@@ -68,9 +71,48 @@ def check_mount(layout: MountLayout, mesh: trimesh.Trimesh, segments: list, samp
     ``segments`` (:func:`psvs.mount.layout.field_segments`)."""
     rays = sum(len(legs[0][0]) for legs in by_view(segments))
     blocked, by = _light(layout, mesh, segments)
+    hardware = _hardware_light(layout, segments)
     errors, intrusion = _glass(layout, mesh)
-    return MountChecks(int(rays), blocked, by, errors, intrusion, bool(mesh.is_watertight),
+    return MountChecks(int(rays), blocked, by, hardware, errors, intrusion, bool(mesh.is_watertight),
                        _min_wall(mesh, samples, seed))
+
+
+def hardware_mesh(layout: MountLayout) -> trimesh.Trimesh | None:
+    """The layout's keep-outs (the set screws behind the carriers, the springs' room) as one mesh (None: none)."""
+    parts = []
+    for c in layout.keepouts:
+        if isinstance(c, Box):
+            x, z = np.asarray(c.x_dir, float), np.asarray(c.z_dir, float)
+            tf = np.eye(4)
+            tf[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+            tf[:3, 3] = c.centre
+            parts.append(trimesh.creation.box(extents=c.size, transform=tf))
+            continue
+        tf = trimesh.geometry.align_vectors([0.0, 0.0, 1.0], np.asarray(c.axis, float))
+        tf[:3, 3] = c.centre
+        parts.append(trimesh.creation.cylinder(radius=c.radius_mm, height=c.length_mm, sections=32, transform=tf))
+    return trimesh.util.concatenate(parts) if parts else None
+
+
+def _hardware_light(layout: MountLayout, segments) -> dict:
+    """Field rays that would meet a keep-out, counted by the nearest keep-out's name."""
+    mesh = hardware_mesh(layout)
+    by: dict = {}
+    if mesh is None:
+        return by
+    centres = np.array([c.centre for c in layout.keepouts])
+    for legs in by_view(segments):
+        hit_any = np.zeros(len(legs[0][0]), dtype=bool)
+        for p0, p1 in legs:
+            d = p1 - p0
+            length = np.linalg.norm(d, axis=1)
+            dist, where = _first_hit(mesh, p0, d / length[:, None])
+            hit = dist < length - 1e-6
+            for k in np.flatnonzero(hit & ~hit_any):
+                name = layout.keepouts[int(np.argmin(np.linalg.norm(centres - where[k], axis=1)))].name
+                by[name] = by.get(name, 0) + 1
+            hit_any |= hit
+    return by
 
 
 def _first_hit(mesh, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

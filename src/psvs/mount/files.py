@@ -13,7 +13,14 @@ from pathlib import Path
 import numpy as np
 
 from psvs.io.tomlfile import dumps_toml, load_toml, parse_text
-from psvs.mount.layout import CLAMP_SLIT_MM, CLIP_BORDER_MM, SCREW_CLEARANCE_MM, MountLayout, MountParams
+from psvs.mount.layout import (
+    CLAMP_SLIT_MM,
+    CLIP_BORDER_MM,
+    SCREW_CLEARANCE_MM,
+    SPRING_REACH_MM,
+    MountLayout,
+    MountParams,
+)
 from psvs.mount.seats import SCREWS, Seat, handedness, screw_rates
 from psvs.optics.mirrors import mirror_planes
 from psvs.optics.rig import MIRROR_NAMES
@@ -49,16 +56,21 @@ def bom_rows(layout: MountLayout) -> list[dict]:
                          f"coating toward the light; the springs press on the {CLIP_BORDER_MM:g} mm borders above "
                          "and below"))
     n_mirrors = len(MIRROR_NAMES)
-    screw = _stock(p.plate_mm + p.standoff_mm + 5.0)
+    screw = _stock(p.plate_mm + p.standoff_mm + 1.0)
     rows += [("mount", 1, "printed mount (mount.stl)", f"{layout.volume_mm3 / 1000:.1f} cm^3",
               f"{layout.volume_mm3 / 1000 * PLA_G_PER_CM3:.0f} g in PLA at 100 % infill; walls >= {p.wall_mm:g} mm"),
-             ("screw", 2 * n_mirrors, f"M3 x {p.pitch_mm:g} screw, nylon or ball tip", f"M3 x {screw} mm",
-              "H and V of each seat: the tip carries the glass; a thumb head or knurled nut to turn it"),
-             ("insert", 2 * n_mirrors, "M3 heat-set insert", "Ø4.0 x 4 mm", "pressed into each seat's two holes"),
-             ("lock nut", 2 * n_mirrors, "M3 thin nut", "M3", "locks each screw after alignment"),
-             ("spring clip", 2 * n_mirrors, "spring clip or leaf spring", "~2 N",
-              "two per mirror, pressing the glass onto its three contacts from the front, on its borders "
-              "outside the light")]
+             ("screw", 2 * n_mirrors, f"M3 x {p.pitch_mm:g} set screw (grub screw), nylon tip, nylon-patch lock",
+              f"M3 x {screw} mm", "H and V of each seat: the tip carries the glass, turned from behind with a "
+              "1.5 mm hex key; headless, so nothing stands in the light behind the carrier (checked: "
+              "4 mm of screw behind it)"),
+             ("insert", 4 * n_mirrors, f"M3 heat-set insert ({2 * n_mirrors} of them M3 x {p.pitch_mm:g} for the "
+              "set screws)", "Ø4.0 x 4 mm",
+              "melted into each seat's two Ø4.0 mm holes and each spring's hole in the floor and lid (no "
+              "clearance added: the insert needs the grip)"),
+             ("leaf spring", 2 * n_mirrors, "leaf spring (e.g. 0.2 mm spring steel, 8 mm wide)", "~2 N",
+              f"two per mirror, screwed into the floor's and the lid's insert {SPRING_REACH_MM:g} mm in front "
+              "of the glass's middle, pressing its border (outside the light) onto the three contacts"),
+             ("spring screw", 2 * n_mirrors, "M3 button head screw", "M3 x 6 mm", "one per leaf spring")]
     if p.interface == "clamp":
         rows.append(("clamp screw", 1, "M3 socket head screw + nut",
                      f"M3 x {_stock(2 * (p.lens_diameter_mm / 2 + p.plate_mm) + 3)} mm",

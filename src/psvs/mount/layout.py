@@ -37,8 +37,17 @@ from psvs.optics.design import MirrorDesign
 from psvs.optics.mirrors import mirror_planes
 from psvs.optics.rig import MIRROR_NAMES, MirrorExtent, Rig
 
-#: Free space kept between any traced ray and the floor, lid or M1's strips, mm.
+#: Free space kept between any traced ray and the floor, lid or M1's strips at least, mm (or the margin).
 LIGHT_MARGIN_MM = 1.0
+#: Behind each carrier, the seat's set screw (M3: 1.6 mm radius) may stand out this far as it is backed off:
+#: no light may pass there either.
+SCREW_KEEPOUT_MM = 4.0
+SCREW_KEEPOUT_RADIUS_MM = 1.6
+#: Each glass is held on its contacts by two leaf springs, one screwed into the floor and one into the lid,
+#: their M3 inserts this far in front of the glass's middle; the spring's room: this wide along the glass
+#: and reaching 3 mm past its insert.
+SPRING_REACH_MM = 6.0
+SPRING_WIDTH_MM = 8.0
 #: A carrier (and the floor and lid) is at least this thick: an M3 heat-set insert (4 mm) and 1 mm more.
 CARRIER_MIN_MM = 5.0
 #: Hole for an M3 heat-set insert (Ø4.0 mm, 4 mm long) before the printer's clearance; the clamp's screw
@@ -62,8 +71,11 @@ class MountParams:
     """What the builder chooses (mm). ``interface``: 'clamp' (a block bored for the lens barrel) or 'c' /
     'cs' (a plate at the camera's mount flange); ``lens_diameter_mm``: the barrel; ``lens_front_mm``: its
     front face along the axis from O (the entrance pupil, the rig's origin), > 0 ahead of O;
-    ``flange_mm``: for 'c'/'cs', the flange plane behind O (> 0); ``hole_square_mm``: the camera's four
-    front-face holes on a square of this side; ``wall_mm``: the thinnest wall the printer makes;
+    ``flange_mm``: for 'c'/'cs', the flange plane behind O (> 0; the same plate for both: the mount's name
+    goes to the bill of materials); ``hole_square_mm``: the camera's four front-face holes on a square of
+    this side; ``margin_mm``: every mirror's border beyond its chief rays' footprint (``psvs design
+    --margin-mm``), and the free space around the light: about half the lens's entrance pupil, since the
+    traced rays are chief rays through O; ``wall_mm``: the thinnest wall the printer makes;
     ``clearance_mm``: the printer's clearance, added to every hole and fit; ``standoff_mm``: the contacts'
     height above their carrier."""
 
@@ -78,6 +90,7 @@ class MountParams:
     pitch_mm: float = DEFAULT_PITCH_MM
     glass_mm: float = DEFAULT_GLASS_MM
     m1_border_mm: float = DEFAULT_M1_BORDER_MM
+    margin_mm: float = 0.0
 
     def __post_init__(self):
         if self.interface not in INTERFACES:
@@ -87,6 +100,8 @@ class MountParams:
             check_positive(getattr(self, name), name, "mm")
         if not (math.isfinite(self.clearance_mm) and 0 <= self.clearance_mm <= 2):
             raise ValueError(f"clearance_mm must be in [0, 2] mm, got {self.clearance_mm!r}")
+        if not (math.isfinite(self.margin_mm) and 0 <= self.margin_mm <= 10):
+            raise ValueError(f"margin_mm must be in [0, 10] mm, got {self.margin_mm!r}")
         if not math.isfinite(self.lens_front_mm):
             raise ValueError(f"lens_front_mm must be finite, got {self.lens_front_mm!r}")
 
@@ -97,7 +112,13 @@ class MountParams:
 
     @property
     def insert_radius_mm(self) -> float:
-        return (INSERT_HOLE_MM + self.clearance_mm) / 2
+        """A heat-set insert's hole: undersized by design (the insert melts into it), no clearance added."""
+        return INSERT_HOLE_MM / 2
+
+    @property
+    def light_margin_mm(self) -> float:
+        """Free space kept between any field ray and the part, mm: the margin, at least 1 mm."""
+        return max(LIGHT_MARGIN_MM, self.margin_mm)
 
 
 @dataclass(frozen=True)
@@ -173,7 +194,9 @@ class MountLayout:
     """Every part of the mount (mm, the rig's frame): ``solids`` are unioned, ``cuts`` (holes, and the
     clamp's split as a :class:`Box`) taken away; ``extra_volume_mm3`` corrects what a cut shares with
     another cut (the split with the bore); ``glass`` each mirror's glass rectangle (M1's with its borders),
-    ``seats`` each mirror's contacts; ``floor_y_mm`` the floor's top (the lid's underside at minus it)."""
+    ``seats`` each mirror's contacts; ``floor_y_mm`` the floor's top (the lid's underside at minus it);
+    ``keepouts``: where the bought hardware stands (each set screw behind its carrier, :class:`Cylinder`),
+    not printed, but no light may pass there."""
 
     rig: Rig
     params: MountParams
@@ -186,6 +209,7 @@ class MountLayout:
     m1_strip_y_mm: float
     extra_volume_mm3: float = 0.0
     notes: tuple = field(default_factory=tuple)
+    keepouts: tuple = ()
 
     @property
     def volume_mm3(self) -> float:
@@ -276,25 +300,76 @@ def mount_layout(design: MirrorDesign, params: MountParams = MountParams(), far_
     ranges = {n: carrier_range(n, planes[n], glass[n], seats[n], params, segs) for n in MIRROR_NAMES[1:]}
     ranges["m1"] = (glass["m1"].along_mm[0] - params.plate_mm, glass["m1"].along_mm[1] + params.plate_mm)
     feet = {n: _carrier_footprint(planes[n], ranges[n], seats[n], params) for n in MIRROR_NAMES}
-    strip = max_abs_y_over(_ccw_hull(feet["m1"]), segs) + LIGHT_MARGIN_MM
+    strip = _m1_strip_start(planes, glass, seats, params, ranges,
+                            max_abs_y_over(_ccw_hull(feet["m1"]), segs) + params.light_margin_mm)
     iface = _interface_footprint(params)
     hull = _ccw_hull(np.concatenate(list(feet.values()) + [iface]))
     top = max(max(abs(v) for e in glass.values() for v in e.height_mm) + params.clearance_mm,
-              max_abs_y_over(hull, segs) + LIGHT_MARGIN_MM, params.lens_diameter_mm / 2 + params.plate_mm)
+              max_abs_y_over(hull, segs) + params.light_margin_mm, params.lens_diameter_mm / 2 + params.plate_mm,
+              _clamp_height(params) + params.wall_mm if params.interface == "clamp" else 0.0)
     _check_m1_contacts(seats["m1"], design.rig.mirrors.extent("m1"), strip, top, params)
     solids = [Slab("floor", tuple(map(tuple, hull)), top, top + params.plate_mm),
               Slab("lid", tuple(map(tuple, hull)), -top - params.plate_mm, -top)]
-    cuts, balls = [], []
+    cuts, balls, keepouts = [], [], []
     for name in MIRROR_NAMES:
         spans = [(strip, top), (-top, -strip)] if name == "m1" else [(-top, top)]
         s_parts, s_cuts, s_balls = _carrier(name, planes[name], ranges[name], seats[name], params, spans)
         solids += s_parts
         cuts += s_cuts
         balls += s_balls
+        keepouts += [Cylinder(c.name.replace("screw", "set screw"), tuple(np.asarray(c.centre) - (
+            0.5 * (c.length_mm + SCREW_KEEPOUT_MM)) * planes[name].normal), c.axis,
+            SCREW_KEEPOUT_RADIUS_MM + params.light_margin_mm, SCREW_KEEPOUT_MM) for c in s_cuts]
+    springs, spring_room = _spring_anchors(planes, glass, design.rig, params, top, hull)
+    cuts += springs
+    keepouts += spring_room
     i_solids, i_cuts, extra = _interface(params, top)
     _check_lens(rig, params, segs)
+    _check_apart([b for b in solids + i_solids + keepouts if isinstance(b, Box)]
+                 + _glass_boxes(planes, glass, seats, params))
     return MountLayout(rig, params, tuple(solids + i_solids), tuple(cuts + i_cuts), tuple(balls), glass, seats,
-                       float(top), float(strip), extra)
+                       float(top), float(strip), extra, keepouts=tuple(keepouts))
+
+
+def boxes_overlap(a: Box, b: Box, tol_mm: float = 1e-6) -> bool:
+    """Do two blocks share volume (deeper than ``tol_mm``; touching faces do not)? The separating-axis test:
+    the 3 + 3 face normals and their 9 cross products."""
+    ax_a, ax_b = (np.stack([np.asarray(x.x_dir, float), np.cross(x.z_dir, x.x_dir), np.asarray(x.z_dir, float)])
+                  for x in (a, b))
+    ha, hb = np.asarray(a.size, float) / 2, np.asarray(b.size, float) / 2
+    d = np.asarray(b.centre, float) - np.asarray(a.centre, float)
+    axes = list(ax_a) + list(ax_b) + [np.cross(u, v) for u in ax_a for v in ax_b]
+    for axis in axes:
+        n = np.linalg.norm(axis)
+        if n < 1e-9:
+            continue
+        axis = axis / n
+        reach = np.abs(ax_a @ axis) @ ha + np.abs(ax_b @ axis) @ hb
+        if abs(d @ axis) >= reach - tol_mm:
+            return False
+    return True
+
+
+def _glass_boxes(planes: dict, glass: dict, seats: dict, params: MountParams) -> list:
+    """Each glass with the gap behind it to its carrier's face (the contacts' standoff), as blocks."""
+    out = []
+    for name in MIRROR_NAMES:
+        p, e, seat = planes[name], glass[name], seats[name]
+        (s0, s1), (t0, t1) = e.along_mm, e.height_mm
+        depth = seat.back_offset_mm + params.standoff_mm
+        c = p.point + 0.5 * (s0 + s1) * p.s_axis + np.array([0.0, 0.5 * (t0 + t1), 0.0]) - 0.5 * depth * p.normal
+        out.append(Box(f"{name.upper()} glass (and its seat's gap)", tuple(c), tuple(p.s_axis), tuple(p.normal),
+                       (s1 - s0, t1 - t0, depth)))
+    return out
+
+
+def _check_apart(boxes: list) -> None:
+    """MountError naming two parts that would cut through each other (the floor and lid touch them by design)."""
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            if boxes_overlap(a, b):
+                raise MountError(f"the {a.name} runs into the {b.name} (a smaller --margin-mm or --m1-border-mm, "
+                                 "or a layout with more room: psvs design)")
 
 
 def _check_glass_clear(rig: Rig, glass: dict) -> None:
@@ -349,8 +424,8 @@ def carrier_range(name: str, plane, ext: MirrorExtent, seat: Seat, params: Mount
         below, above = (z < mid), (a > mid)
         if np.any(~below & ~above & (z > lo) & (a < hi)):
             raise MountError(f"light crosses behind {name.upper()}'s glass: its carrier has no place")
-        lo = max([lo] + list(z[below & (z > lo)] + LIGHT_MARGIN_MM))
-        hi = min([hi] + list(a[above & (a < hi)] - LIGHT_MARGIN_MM))
+        lo = max([lo] + list(z[below & (z > lo)] + params.light_margin_mm))
+        hi = min([hi] + list(a[above & (a < hi)] - params.light_margin_mm))
     r = max(params.insert_radius_mm, params.standoff_mm) + params.wall_mm
     s_c = seat.contacts_st_mm[:, 0]
     if s_c.min() - r < lo or s_c.max() + r > hi:
@@ -358,6 +433,50 @@ def carrier_range(name: str, plane, ext: MirrorExtent, seat: Seat, params: Mount
                          f"({lo:.1f} .. {hi:.1f} mm), too little for its contacts ({s_c.min():.1f} .. "
                          f"{s_c.max():.1f} mm, Ø{2 * r:.1f} mm with walls)")
     return float(lo), float(hi)
+
+
+def _spring_anchors(planes: dict, glass: dict, rig: Rig, params: MountParams, top: float,
+                    hull: np.ndarray) -> tuple[list, list]:
+    """Per mirror, two spring anchors: an M3 insert hole in the floor and one in the lid, :data:`SPRING_REACH_MM`
+    in front of the glass's middle; and the springs' room (kept out of the light): from the light's edge plus
+    the margin to the floor or lid. MountError when an anchor falls off the floor's outline."""
+    holes, room = [], []
+    r = params.insert_radius_mm
+    edges = np.roll(hull, -1, axis=0) - hull
+    for name in MIRROR_NAMES:
+        p, g, light = planes[name], glass[name], rig.mirrors.extent(name)
+        s_mid = 0.5 * sum(g.along_mm)
+        at = p.point + s_mid * p.s_axis + SPRING_REACH_MM * p.normal
+        q = at[[0, 2]] - hull
+        inside = (edges[:, 0] * q[:, 1] - edges[:, 1] * q[:, 0]) / np.linalg.norm(edges, axis=1)  # > 0 inside
+        if inside.min() < r + params.wall_mm:
+            raise MountError(f"{name.upper()}'s spring anchor ({at[0]:.1f}, {at[2]:.1f}) mm falls off the floor")
+        for side, t_light in ((1.0, light.height_mm[1]), (-1.0, light.height_mm[0])):
+            holes.append(Cylinder(f"{name} spring insert {'floor' if side > 0 else 'lid'}",
+                                  (at[0], side * (top + params.plate_mm / 2), at[2]), (0.0, 1.0, 0.0), r,
+                                  params.plate_mm))             # through: a blind hole would leave 1 mm
+            y0 = abs(t_light) + params.light_margin_mm
+            if y0 < top:
+                c = p.point + s_mid * p.s_axis + 0.5 * (SPRING_REACH_MM + 3.0) * p.normal
+                c = c + np.array([0.0, side * 0.5 * (y0 + top), 0.0])
+                room.append(Box(f"{name.upper()} spring ({'floor' if side > 0 else 'lid'})", tuple(c), tuple(p.s_axis),
+                                tuple(p.normal), (SPRING_WIDTH_MM, top - y0, SPRING_REACH_MM + 3.0)))
+    return holes, room
+
+
+def _m1_strip_start(planes: dict, glass: dict, seats: dict, params: MountParams, ranges: dict,
+                    light_mm: float) -> float:
+    """How far from the axis plane (|Y|, mm) M1's strips start: beyond the light behind the plate and beyond
+    any other mirror's glass (with its seat's gap) that shares their footprint seen from above (M2's end
+    sits right behind the plate's on the paper's layout), by the clearance."""
+    tall = 1e3
+    strip = _carrier("m1", planes["m1"], ranges["m1"], seats["m1"], params, [(-tall, tall)])[0][0]
+    start = light_mm
+    for box, name in zip(_glass_boxes(planes, glass, seats, params), MIRROR_NAMES):
+        if name != "m1" and boxes_overlap(strip, Box(box.name, box.centre, box.x_dir, box.z_dir,
+                                                          (box.size[0], 2 * tall, box.size[2]))):
+            start = max(start, max(abs(v) for v in glass[name].height_mm) + params.clearance_mm)
+    return float(start)
 
 
 def _carrier(name, plane, s_range: tuple[float, float], seat: Seat, params: MountParams, spans):
@@ -389,7 +508,8 @@ def _check_m1_contacts(seat: Seat, ext: MirrorExtent, strip: float, top: float, 
         if abs(t) - r < strip + params.wall_mm or abs(t) + r > top - params.wall_mm:
             raise MountError(
                 f"M1's contact {what} at {abs(t):.1f} mm from the axis plane lies in the light or off its strip "
-                f"(the light behind the plate reaches {strip:.1f} mm): make the plate's border wider, "
+                f"(the light behind the plate, or another mirror's glass beside its strips, reaches {strip:.1f} mm): "
+                f"make the plate's border wider, "
                 f"--m1-border-mm {math.ceil(max(need, params.m1_border_mm) + 0.5)} (now {params.m1_border_mm:g})")
 
 
@@ -430,7 +550,7 @@ def _interface(params: MountParams, top: float):
         holes += [Cylinder(f"camera screw {k + 1}", (sx * a, sy * a, zc), axis, hole_r, length)
                   for k, (sx, sy) in enumerate(((-1, -1), (1, -1), (1, 1), (-1, 1)))]
         return [plate], holes, 0.0
-    y_top = -(r + params.plate_mm + SCREW_CLEARANCE_MM + 2 * params.wall_mm)
+    y_top = -_clamp_height(params)
     if y_top <= -top:
         raise MountError(f"the lens clamp (barrel Ø{params.lens_diameter_mm:g} mm) does not fit under the lid")
     block = Box("lens clamp", (0.0, 0.5 * (y_top + top), zc), (1.0, 0.0, 0.0), axis,
@@ -444,6 +564,12 @@ def _interface(params: MountParams, top: float):
     shared = length * _segment_area(r, w / 2)
     shared_screw = math.pi * screw_r ** 2 * w
     return [block], [Cylinder("lens bore", (0.0, 0.0, zc), axis, r, length), slit, screw], shared + shared_screw
+
+
+def _clamp_height(params: MountParams) -> float:
+    """How far above the axis the lens clamp's block reaches (its split and screw above the bore), mm."""
+    r = params.lens_diameter_mm / 2 + params.clearance_mm / 2
+    return r + params.plate_mm + SCREW_CLEARANCE_MM + 2 * params.wall_mm
 
 
 def _segment_area(r: float, half_w: float) -> float:

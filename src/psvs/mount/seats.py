@@ -50,7 +50,7 @@ DEFAULT_GLASS_MM = 3.0
 DEFAULT_INSET = 0.1
 #: The M1 plate is this much taller than its light footprint above and below (mm): the left view passes
 #: through the plate, so its contacts and carrier sit in these borders, outside the light.
-DEFAULT_M1_BORDER_MM = 18.0
+DEFAULT_M1_BORDER_MM = 28.0
 
 
 @dataclass(frozen=True)
