@@ -50,6 +50,7 @@ SEARCH_STEPS = 2
 #: Along the turns the rows cannot see, lattice points up to this far (turns) are tried, the best few descended.
 NULL_REACH_TURNS = 1.0
 NULL_STARTS = 8
+NULL_MOST = 4
 #: The order of the eight turns.
 SCREW_ORDER = tuple((m, s) for m in MIRROR_NAMES for s in SCREWS)
 
@@ -218,10 +219,11 @@ def _quantise(x: np.ndarray, r: np.ndarray, J: np.ndarray, null: np.ndarray | No
             best, now = (near + chunk[k]) * step, float(c[k])
     starts = [best]
     if null is not None and len(null):
+        null = null[:NULL_MOST]                      # 17^k points: at most 17^4 (the shipped rigs have 3)
         reach = np.arange(-NULL_REACH_TURNS, NULL_REACH_TURNS + 1e-9, 2 * step)
         coef = np.stack(np.meshgrid(*[reach] * len(null), indexing="ij"), axis=-1).reshape(-1, len(null))
         cand = np.unique(np.round((x + coef @ null) / step), axis=0) * step
-        c = cost(cand)
+        c = np.concatenate([cost(chunk) for chunk in np.array_split(cand, max(1, len(cand) // 4096))])
         starts += list(cand[np.argsort(c)[:NULL_STARTS]])
     moves = _moves(len(x)) * step
     out, out_cost = best, now
