@@ -21,6 +21,7 @@ import trimesh
 from psvs.mount.layout import Box, MountLayout, Slab
 from psvs.optics.mirrors import mirror_planes
 from psvs.optics.rig import MIRROR_NAMES
+from psvs.transforms import transform_from
 
 #: Numerical slack for the mesh's tessellation in the glass and wall checks, mm.
 MESH_TOL_MM = 0.05
@@ -83,13 +84,11 @@ def hardware_mesh(layout: MountLayout) -> trimesh.Trimesh | None:
     for c in layout.keepouts:
         if isinstance(c, Box):
             x, z = np.asarray(c.x_dir, float), np.asarray(c.z_dir, float)
-            tf = np.eye(4)
-            tf[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-            tf[:3, 3] = c.centre
+            tf = transform_from(np.column_stack([x, np.cross(z, x), z]), c.centre)
             parts.append(trimesh.creation.box(extents=c.size, transform=tf))
             continue
-        tf = trimesh.geometry.align_vectors([0.0, 0.0, 1.0], np.asarray(c.axis, float))
-        tf[:3, 3] = c.centre
+        turn = trimesh.geometry.align_vectors([0.0, 0.0, 1.0], np.asarray(c.axis, float))
+        tf = transform_from(turn[:3, :3], c.centre)
         parts.append(trimesh.creation.cylinder(radius=c.radius_mm, height=c.length_mm, sections=32, transform=tf))
     return trimesh.util.concatenate(parts) if parts else None
 
@@ -97,22 +96,11 @@ def hardware_mesh(layout: MountLayout) -> trimesh.Trimesh | None:
 def _hardware_light(layout: MountLayout, segments) -> dict:
     """Field rays that would meet a keep-out, counted by the nearest keep-out's name."""
     mesh = hardware_mesh(layout)
-    by: dict = {}
     if mesh is None:
-        return by
+        return {}
     centres = np.array([c.centre for c in layout.keepouts])
-    for legs in by_view(segments):
-        hit_any = np.zeros(len(legs[0][0]), dtype=bool)
-        for p0, p1 in legs:
-            d = p1 - p0
-            length = np.linalg.norm(d, axis=1)
-            dist, where = _first_hit(mesh, p0, d / length[:, None])
-            hit = dist < length - 1e-6
-            for k in np.flatnonzero(hit & ~hit_any):
-                name = layout.keepouts[int(np.argmin(np.linalg.norm(centres - where[k], axis=1)))].name
-                by[name] = by.get(name, 0) + 1
-            hit_any |= hit
-    return by
+    return _blocked(mesh, segments,
+                    lambda q: layout.keepouts[int(np.argmin(np.linalg.norm(centres - q, axis=1)))].name)[1]
 
 
 def _first_hit(mesh, origins: np.ndarray, dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -141,6 +129,12 @@ def by_view(segments: list) -> list[list]:
 
 def _light(layout: MountLayout, mesh, segments) -> tuple[int, dict]:
     """Rays blocked by the mesh on any leg, and how many per part (named from the layout)."""
+    return _blocked(mesh, segments, lambda q: _part_at(layout, q))
+
+
+def _blocked(mesh, segments, name_of) -> tuple[int, dict]:
+    """Field rays that meet ``mesh`` on any leg before its end: how many, and how many per ``name_of(point)``
+    of the first point met (a ray counted once)."""
     blocked_total, by = 0, {}
     for legs in by_view(segments):
         hit_any = np.zeros(len(legs[0][0]), dtype=bool)
@@ -150,7 +144,7 @@ def _light(layout: MountLayout, mesh, segments) -> tuple[int, dict]:
             dist, where = _first_hit(mesh, p0, d / length[:, None])
             hit = dist < length - 1e-6
             for k in np.flatnonzero(hit & ~hit_any):
-                name = _part_at(layout, where[k])
+                name = name_of(where[k])
                 by[name] = by.get(name, 0) + 1
             hit_any |= hit
         blocked_total += int(hit_any.sum())
