@@ -26,7 +26,7 @@ cannot be built: a blocked design, a contact in the light, the lens in the glass
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import ConvexHull
@@ -54,8 +54,6 @@ CARRIER_MIN_MM = 5.0
 #: passes a Ø3.4 mm clearance hole.
 INSERT_HOLE_MM = 4.0
 SCREW_CLEARANCE_MM = 3.4
-#: Camera mount flange focal distances (sensor to flange), mm: C and CS mount.
-FLANGE_DISTANCE_MM = {"c": 17.526, "cs": 12.526}
 INTERFACES = ("clamp", "c", "cs")
 CLAMP_SLIT_MM = 1.5
 #: M2, M3 and M4 are cut this much taller than their light above and below: the springs press there.
@@ -208,7 +206,6 @@ class MountLayout:
     floor_y_mm: float
     m1_strip_y_mm: float
     extra_volume_mm3: float = 0.0
-    notes: tuple = field(default_factory=tuple)
     keepouts: tuple = ()
 
     @property
