@@ -202,12 +202,8 @@ def _preflight(job: dict, frames: Frames) -> None:
 
 
 def _out_dir(text: str) -> Path:
-    out = Path(text)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"-o {out} is a file; psvs batch writes a folder")
-    if not out.parent.is_dir():
-        raise FileNotFoundError(f"output folder's parent does not exist: {out.parent}")
-    return out.resolve()
+    from psvs.cluster.store import check_run_folder
+    return check_run_folder(text, "psvs batch")
 
 
 def run(args) -> int:

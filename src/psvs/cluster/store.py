@@ -24,6 +24,17 @@ KEY = "key"
 SCALARS = (bool, int, float, str, type(None))
 
 
+def check_run_folder(out, command: str) -> Path:
+    """The folder a run writes (resolved): ValueError when it is a file, FileNotFoundError when its parent is
+    missing; nothing is created."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"-o {out} is a file; {command} writes a folder")
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"output folder's parent does not exist: {out.parent}")
+    return out.resolve()
+
+
 def record_params(out_dir: Path, params: dict) -> None:
     """Write ``params`` (JSON-able) to ``out_dir/study.json``, or check that the file already there holds the
     same: a folder made with other parameters is refused in one line naming the first difference (its results

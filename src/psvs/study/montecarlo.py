@@ -7,10 +7,9 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from pathlib import Path
 
 from psvs.cluster import RunOptions, read_results, run_tasks
-from psvs.cluster.store import check_params
+from psvs.cluster.store import check_params, check_run_folder
 from psvs.io.params import rig_to_dict
 from psvs.optics.rig import Rig
 from psvs.study.report import write_report
@@ -50,11 +49,7 @@ def prepare_study(nominal: Rig, tol: Tolerances, tol_data: dict, n: int, seed: i
     study's parameters."""
     check_samples(n, seed)
     check_study(nominal, tol)
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"-o {out} is a file; psvs montecarlo writes a folder")
-    if not out.parent.is_dir():
-        raise FileNotFoundError(f"output folder's parent does not exist: {out.parent}")
+    out = check_run_folder(out_dir, "psvs montecarlo")
     params = study_params(nominal, tol_data, seed)
     if out.is_dir():
         check_params(out, params)
