@@ -23,3 +23,20 @@ def test_values_on_the_grid_are_exact_and_errors_are_named():
         median_filter(d, 4)
     with pytest.raises(ValueError, match="finite"):
         median_filter(np.full((20, 20), np.nan), 3)
+
+
+@pytest.mark.parametrize("seed", [0, 7])
+def test_a_tiny_change_of_one_pixel_moves_only_the_medians_whose_window_holds_it(seed):
+    """Values on the absolute grid k / LEVELS_PER_PX: the map's minimum moving by 1e-7 px (as another
+    rounding upstream might move it) changes no median outside that pixel's window, and none by a value
+    off the grid."""
+    rng = np.random.default_rng(seed)
+    d = rng.uniform(20.0, 60.0, (40, 50))
+    y, x = np.unravel_index(np.argmin(d), d.shape)
+    before = median_filter(d, 7)
+    d[y, x] += 1e-7
+    after = median_filter(d, 7)
+    moved = before != after
+    moved[max(y - 3, 0):y + 4, max(x - 3, 0):x + 4] = False
+    assert not moved.any()
+    np.testing.assert_array_equal(np.rint(after * LEVELS_PER_PX), after * LEVELS_PER_PX)

@@ -19,12 +19,13 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from psvs.dense.fastmath import SAFE_MATH
 from psvs.dense.sgm import _penalty, winner
 
 _BIG = np.float32(1e30)    # a lane outside a band: never a path's minimum (finite: fastmath)
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _band_costs(fp, grp, stats, offs, r, d_hi, costs, tops):  # noqa: PLR0913  # pragma: no cover - compiled
     """The band costs (H, W, B) of both views' maps into ``costs`` (2, H, W, B) (>= 0, a pixel's best lane
     0; [0] the left view's, [1] the right view's) and each pixel's best echo into ``tops`` (2, H, W) (so
@@ -99,7 +100,7 @@ def _band_costs(fp, grp, stats, offs, r, d_hi, costs, tops):  # noqa: PLR0913  #
             top[y, x] = best
 
 
-@nb.njit(cache=True, nogil=True, fastmath=True)
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH)
 def _band_pass(cost, off, down, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
     """One pass of the band aggregation (module docstring) over all rows: ``down`` writes its sum of paths
     into ``sums`` (H, W, B); the up pass adds ``sums`` and writes each pixel's winner, as the disparity
@@ -165,7 +166,7 @@ def _band_pass(cost, off, down, diagonals, p1, p2, guide, tau, sums, best):  # n
                 best[y, x] = offs[xb] + k + frac
 
 
-@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH, inline="always")
 def _step(c, src, m, pen, p1, at, dst, dst_min, xb):  # noqa: PLR0913  # pragma: no cover - compiled
     """One path's step into pixel ``xb``: L(k) = c(k) + min(L_q(k'), L_q(k' ± 1) + p1, m + pen) − m with
     k' = k + shift (``at`` = the padding plus the shift, into ``src``, q's padded state row); ``m``: q's

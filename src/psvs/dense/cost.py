@@ -12,6 +12,7 @@ import cv2
 import numba as nb
 import numpy as np
 
+from psvs.dense.fastmath import SAFE_MATH
 from psvs.dense.guided import guided_filter_volume, n_levels, row_sums
 from psvs.dense.params import DenseParams
 
@@ -42,7 +43,7 @@ def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
 # that updates a row in place, a[i] = max(a[i], b[i]), compiles to scalar code here (Numba 0.6x, LLVM),
 # the same on int32 vectorises (4x faster; the echo 93 -> 58 ms). _keys maps a float's bits to an int32
 # that orders as the float does (negative floats' magnitude bits flipped); it is its own inverse.
-@nb.njit(cache=True, fastmath=True, inline="always")
+@nb.njit(cache=True, fastmath=SAFE_MATH, inline="always")
 def _keys(a):  # pragma: no cover - compiled
     """Turn the int32 row ``a`` (a float32 row's bits) into order-preserving keys, or back, in place."""
     for i in range(a.shape[0]):
@@ -50,7 +51,7 @@ def _keys(a):  # pragma: no cover - compiled
         a[i] = b ^ ((b >> 31) & np.int32(0x7FFFFFFF))
 
 
-@nb.njit(cache=True, fastmath=True, inline="always")
+@nb.njit(cache=True, fastmath=SAFE_MATH, inline="always")
 def _window_max(src, dst, r):  # pragma: no cover - compiled
     """dst[i] = max src[i + j], j = −r..r, over the indices inside the row (int32 rows)."""
     n = src.shape[0]
@@ -65,7 +66,7 @@ def _window_max(src, dst, r):  # pragma: no cover - compiled
                 a[i] = v if v > a[i] else a[i]
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # noqa: PLR0913  # pragma: no cover - compiled
     """The echo volume (D, H, W) into ``out``. Per lag, the slice streams down its rows in stages: row t's
     products f(x)·g(x − d) summed along the row (rows clamped at the ends); row t − r's window sums from
@@ -227,7 +228,7 @@ def fused_cost(echo: np.ndarray, lags: np.ndarray, out: np.ndarray | None = None
     return _fused_cost(echo, np.ascontiguousarray(lags, dtype=np.int64), _volume(out, (h, w, padded_lags(n))))
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _fused_cost(echo, lags, cost):  # pragma: no cover - compiled
     """Per row: the costs in lag-major order, vectorised along x, then moved to (x, lag) order."""
     n, h, w = echo.shape
@@ -285,7 +286,7 @@ def _echo_at_winner(echo, lags, index):  # pragma: no cover - compiled
     return own, other
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def one_sided_costs(echo, lags, fused, keep_left, keep_right, cost):  # pragma: no cover - compiled
     """Costs (2, H, W, D) of the two views' maps for the second pass, [0] the left view's, [1] the right's:
     the fused cost where the pixel's own view owns it (``keep_left``, ``keep_right``), else that view's own

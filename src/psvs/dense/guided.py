@@ -7,19 +7,21 @@ vectorise) and a running sum down the columns. Each slice streams down its rows 
 in rings of a few rows that stay in cache (full-slice intermediates made the filter wait on memory);
 OpenCV's boxFilter per slice, called from Python, spent most of its time outside the arithmetic.
 
-The kernels are compiled without fastmath, so their float32 arithmetic is IEEE's, and so is every copy LLVM
-makes of a loop: the vector body, its remainder, and the scalar copy it runs when a run-time check on the
-arrays' addresses says the rows written might overlap those read (a check hoisted out of the loops around
-it, over bounds wider than the rows used, so it fails whenever the heap happens to put two work spaces
-close together). Under fastmath these copies did not agree: the vector copy divided by an approximate
-reciprocal (vrcp14ps and a Newton step), the scalar copy exactly, and the result's last bits depended on
-where the heap put the work spaces, from one call to the next. The one division per pixel and slice is a
-product with the guide's 1 / (var(I) + ε), computed once per call.
+The kernels are compiled without value-changing fast math (psvs.dense.fastmath), so their float32
+arithmetic is IEEE's, and so is every copy LLVM makes of a loop: the vector body, its remainder, and the
+scalar copy it runs when a run-time check on the arrays' addresses says the rows written might overlap those
+read (a check hoisted out of the loops around it, over bounds wider than the rows used, so it fails whenever
+the heap happens to put two work spaces close together). Under fastmath these copies did not agree: the
+vector copy divided by an approximate reciprocal (vrcp14ps and a Newton step), the scalar copy exactly, and
+the result's last bits depended on where the heap put the work spaces, from one call to the next. The one
+division per pixel and slice is a product with the guide's 1 / (var(I) + ε), computed once per call.
 """
 from __future__ import annotations
 
 import numba as nb
 import numpy as np
+
+from psvs.dense.fastmath import SAFE_MATH
 
 
 @nb.njit(cache=True, inline="always")
@@ -44,7 +46,7 @@ def n_levels(r):  # pragma: no cover - compiled
 # psvs.dense.cost's echo kernel compiles this in. Numba's cache only sees a kernel's own file: after an
 # edit here, touch cost.py (or clear __pycache__) so that its cached kernel is rebuilt. Inlined, it is
 # compiled with its caller's flags (fastmath in the echo, IEEE in this module's kernels).
-@nb.njit(cache=True, fastmath=True, inline="always")
+@nb.njit(cache=True, fastmath=SAFE_MATH, inline="always")
 def row_sums(row, out, r, levels, clamp):  # pragma: no cover - compiled
     """out[x] = Σ row[x + j], j = −r..r (row, out: (W,)), beyond the ends the row reflected (OpenCV's
     BORDER_REFLECT) or with ``clamp`` its end values repeated, by doubling: the extended row into

@@ -2,8 +2,9 @@
 
 Disparities are quantised to 1/:data:`LEVELS_PER_PX` px, so the window's histogram is small; sliding the
 window one column changes 2·size entries, and the median's bin moves by a few steps, so a pixel costs
-O(size) instead of a sort of size² values (scipy.ndimage.median_filter). The result differs from the exact
-median by at most half a quantum (1/64 px), far below a disparity map's own precision.
+O(size) instead of a sort of size² values (scipy.ndimage.median_filter). The result is a multiple of the
+quantum and differs from the exact median by at most half of it (1/64 px), far below a disparity map's own
+precision.
 """
 from __future__ import annotations
 
@@ -60,6 +61,9 @@ def median_filter(d: np.ndarray, size: int) -> np.ndarray:
         raise ValueError("median_filter needs a finite map")
     if size == 1:
         return a.copy()
-    lo = float(a.min())
-    q = np.rint((a - lo) * LEVELS_PER_PX).astype(np.int32)
-    return _median_rows(q, size, int(q.max()) + 1) / LEVELS_PER_PX + lo
+    # on the absolute grid k / LEVELS_PER_PX, not one from the map's minimum: a tiny change of one pixel
+    # then moves only the medians whose window holds it, not every median by that change
+    k = np.rint(a * LEVELS_PER_PX)
+    k0 = k.min()
+    q = (k - k0).astype(np.int32)
+    return (_median_rows(q, size, int(q.max()) + 1) + k0) / LEVELS_PER_PX

@@ -45,6 +45,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from psvs.dense.disparity import check_image
+from psvs.dense.fastmath import SAFE_MATH
 from psvs.optics.scale import PAPER_FOCAL_PX
 
 
@@ -85,6 +86,10 @@ def grid_pixel_scale(rect) -> float:
     return float(rect.camera_matrix[0, 0]) / PAPER_FOCAL_PX
 
 
+#: The chunks of :func:`_dot`: a fixed number, so its order of summation does not depend on the threads.
+_DOT_CHUNKS = 64
+
+
 def _sampling(uv: np.ndarray, h: int, w: int) -> sp.csr_matrix:
     """(N, h*w) bilinear interpolation weights of the grid (h, w) at points uv (N, 2); rows of points off
     the grid are empty."""
@@ -100,7 +105,7 @@ def _sampling(uv: np.ndarray, h: int, w: int) -> sp.csr_matrix:
     return sp.csr_matrix((vals, (rows, cols)), shape=(n, h * w))
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _normal_apply(v, out, h, w, s, coupling, lam, tie_ptr, tie_x, tie_x0, tie_f, mix=True):  # noqa: PLR0913  # pragma: no cover - compiled
     """out = (DᵀD + coupling·TᵀT + lam·GᵀG) v for v = [L; R] (2·h·w,): D mixes each pixel's L and R, T ties
     L(y, x) to R(y, x0 + f) (the ties of row y are tie_ptr[y]:tie_ptr[y + 1]), G the 4-neighbour differences
@@ -137,7 +142,7 @@ def _normal_apply(v, out, h, w, s, coupling, lam, tie_ptr, tie_x, tie_x0, tie_f,
             out[i1] += f * e
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _csr_matvec(indptr, indices, data, x, out, add):  # pragma: no cover - compiled
     """out (+)= A x for A in CSR (indptr, indices, data): rows in parallel."""
     for i in nb.prange(indptr.shape[0] - 1):
@@ -147,15 +152,25 @@ def _csr_matvec(indptr, indices, data, x, out, add):  # pragma: no cover - compi
         out[i] = out[i] + acc if add else acc
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _dot(a, b):  # pragma: no cover - compiled
-    acc = 0.0
-    for i in nb.prange(a.shape[0]):
-        acc += a[i] * b[i]
-    return acc
+    """a · b summed in a fixed order (:data:`_DOT_CHUNKS` chunks in parallel, then their sums in turn): the
+    same bits on any number of threads (a prange reduction splits the sum by the threads)."""
+    n = a.shape[0]
+    step = (n + _DOT_CHUNKS - 1) // _DOT_CHUNKS
+    part = np.zeros(_DOT_CHUNKS)
+    for c in nb.prange(_DOT_CHUNKS):
+        acc = 0.0
+        for i in range(c * step, min(n, (c + 1) * step)):
+            acc += a[i] * b[i]
+        part[c] = acc
+    total = 0.0
+    for c in range(_DOT_CHUNKS):
+        total += part[c]
+    return total
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _axpy(alpha, x, y):  # pragma: no cover - compiled
     for i in nb.prange(x.shape[0]):
         y[i] += alpha * x[i]

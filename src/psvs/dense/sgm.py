@@ -28,6 +28,8 @@ from dataclasses import dataclass
 import numba as nb
 import numpy as np
 
+from psvs.dense.fastmath import SAFE_MATH
+
 #: (dy, dx) of the 8 paths; the first 4 are the horizontal and vertical ones used by the fast mode.
 PATHS = ((0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1))
 _BIG = np.float32(1e30)   # the padding of a path's row: never the minimum (finite: the kernels use fastmath)
@@ -58,24 +60,24 @@ _INT_BIG = np.int32(2147483647)
 # A path's minimum over the disparities is taken as the costs are computed, on their float32 bits read as
 # int32: path costs are >= 0, and non-negative floats order as their bits do. An integer minimum
 # vectorises; a float one with one accumulator does not.
-@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH, inline="always")
 def _bits(v):  # pragma: no cover - compiled
     return np.float32(v).view(np.int32)
 
 
-@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH, inline="always")
 def _float(b):  # pragma: no cover - compiled
     return np.int32(b).view(np.float32)
 
 
-@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH, inline="always")
 def _penalty(g, g_prev, p1, p2, tau):  # pragma: no cover - compiled
     """The jump penalty between neighbours of guide values g and g_prev, float32 (no float64 promotion:
     it would turn the disparity loop into double precision)."""
     return max(p1, p2 / (np.float32(1.0) + abs(g - g_prev) / tau))
 
 
-@nb.njit(cache=True, nogil=True, fastmath=True, inline="always")
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH, inline="always")
 def winner(a, n, lowest):  # pragma: no cover - compiled
     """The first index k < n of ``lowest`` (the minimum of the costs ``a`` (>= n,) float32) plus a parabola's
     sub-pixel offset through a[k − 1], a[k], a[k + 1] (within ±0.5, none at the ends): (k, offset)."""
@@ -91,7 +93,7 @@ def winner(a, n, lowest):  # pragma: no cover - compiled
     return k, off
 
 
-@nb.njit(cache=True, nogil=True, fastmath=True)
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH)
 def _pick_row(row, below, best, index, n_valid, total):  # pragma: no cover - compiled
     """best[x] = the winner (:func:`winner`, as index + offset) of row[x] + below[x] (W, D) >= 0, and
     index[x] its index; −1 where a sum is negative (a cost was: the integer minimum is then wrong)."""
@@ -106,7 +108,7 @@ def _pick_row(row, below, best, index, n_valid, total):  # pragma: no cover - co
         index[x] = k if bt >= 0 else -1
 
 
-@nb.njit(cache=True, nogil=True, fastmath=True)
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH)
 def _pass(cost, out, down, diagonals, p1, p2, guide, tau, pick, below, best, index, n_valid, bufs, mins, iy0,  # noqa: PLR0913
           iy1):  # pragma: no cover - compiled
     """Sum (written to ``out[y, x]``) of the paths of one pass over its rows iy0..iy1 − 1 (counted in the
@@ -251,7 +253,7 @@ def _winners_each(costs, sums, best, index, n_valid, diagonals, p1, p2, guide, t
                   best[i], index[i], n_valid, bufs[i], mins[i], zero, h)
 
 
-@nb.njit(cache=True, parallel=True, fastmath=True)
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _add_into(a, b):  # pragma: no cover - compiled
     a1, b1 = a.reshape(-1), b.reshape(-1)
     for i in nb.prange(a1.shape[0]):
