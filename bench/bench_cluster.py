@@ -5,15 +5,20 @@ the case returns the same number to run.py's best-of-7):
   on 2 local workers, against 100 separate ``psvs disparity`` calls on the same frames (PNG files), one
   after the other; both are whole command lines (a process each, as a user runs them). Issue 29 asks the
   batch in less than half the serial time, with the same maps (checked here byte for byte).
-- Samples per hour on 1 and 2 local workers of :data:`SAMPLE` (any pure callable of an integer key: a sample
-  of the default Monte-Carlo study, psvs.study.run_sample, or the one-second stand-in :func:`fig9_sample`),
-  reported as seconds per sample, and each worker's peak memory (printed: maximum resident set size).
+- Samples per hour of :data:`SAMPLE` (any pure callable of an integer key: a sample of the default
+  Monte-Carlo study, psvs.study.run_sample, or the one-second stand-in :func:`fig9_sample`), reported as
+  seconds per sample, and each worker's peak memory (printed: maximum resident set size): on 1 worker held to
+  one core, on 2 workers on two cores (the scaling with the cluster's size: near-linear means twice the
+  rate), and on 1 worker free to use both cores (what one worker gets here: a sample's rendering uses every
+  core, its calibration one).
 
 Run it on a small input: ``python bench/bench_cluster.py 10 2`` (10 frames, 2 samples).
 """
 from __future__ import annotations
 
+import contextlib
 import functools
+import os
 import resource
 import subprocess
 import sys
@@ -101,12 +106,26 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0     # KiB on Linux
 
 
-def samples_per_hour(workers: int, n: int = SAMPLES, fn=None) -> dict:
+@contextlib.contextmanager
+def _on_cores(n: int | None):
+    """Within the block this process, and the worker processes it starts, run on its first ``n`` cores
+    (None: all it may use)."""
+    allowed = os.sched_getaffinity(0)
+    if n is not None:
+        os.sched_setaffinity(0, sorted(allowed)[:n])
+    try:
+        yield
+    finally:
+        os.sched_setaffinity(0, allowed)
+
+
+def samples_per_hour(workers: int, n: int = SAMPLES, fn=None, cores: int | None = None) -> dict:
     """Samples per hour of ``fn`` (default :data:`SAMPLE`) over ``n`` keys on a new local cluster of
-    ``workers`` (its start-up not counted), and each worker's peak resident memory, MB."""
+    ``workers`` (its start-up not counted) held to ``cores`` cores (None: all), and each worker's peak
+    resident memory, MB."""
     from psvs.cluster import RunOptions, connect, run_tasks, task_threads
     fn = fn or SAMPLE
-    with connect(workers=workers) as client, tempfile.TemporaryDirectory() as tmp:
+    with _on_cores(cores), connect(workers=workers) as client, tempfile.TemporaryDirectory() as tmp:
         client.run(_peak_rss_mb)                     # workers up
         t0 = time.perf_counter()
         summary = run_tasks(client, fn, range(n), Path(tmp) / "run", {"bench": fn.__name__},
@@ -116,7 +135,8 @@ def samples_per_hour(workers: int, n: int = SAMPLES, fn=None) -> dict:
     if not summary.complete:
         raise AssertionError(f"samples failed: {summary.failed}")
     rate = 3600.0 * n / wall
-    print(f"{fn.__name__} on {workers} worker(s): {rate:.0f} samples/h ({wall / n:.2f} s a sample), peak memory "
+    on = f"{cores} core(s)" if cores else "every core"
+    print(f"{fn.__name__} on {workers} worker(s), {on}: {rate:.0f} samples/h ({wall / n:.2f} s a sample), peak memory "
           f"per worker {', '.join(f'{m:.0f}' for m in memory)} MB", flush=True)
     return {"s_per_sample": wall / n, "rate_per_h": rate, "memory_mb": memory}
 
@@ -140,10 +160,12 @@ def cases():
          _once("pair", pair, "batch_s"), inf),
         (f"{FRAMES} psvs disparity calls on its frames, one after the other (measured once)",
          _once("pair", pair, "serial_s"), inf),
-        (f"{SAMPLE.__name__}: seconds per sample on 1 local worker ({SAMPLES} samples, measured once)",
-         _once("one", functools.partial(samples_per_hour, 1), "s_per_sample"), inf),
-        (f"{SAMPLE.__name__}: seconds per sample on 2 local workers ({SAMPLES} samples, measured once)",
+        (f"{SAMPLE.__name__}: seconds per sample on 1 local worker held to 1 core ({SAMPLES} samples, measured "
+         "once)", _once("one", functools.partial(samples_per_hour, 1, cores=1), "s_per_sample"), inf),
+        (f"{SAMPLE.__name__}: seconds per sample on 2 local workers, 2 cores ({SAMPLES} samples, measured once)",
          _once("two", functools.partial(samples_per_hour, 2), "s_per_sample"), inf),
+        (f"{SAMPLE.__name__}: seconds per sample on 1 local worker free to use 2 cores ({SAMPLES} samples, "
+         "measured once)", _once("one_free", functools.partial(samples_per_hour, 1), "s_per_sample"), inf),
     ]
 
 
@@ -151,5 +173,6 @@ if __name__ == "__main__":
     frames, samples = (int(a) for a in (sys.argv[1:] + ["10", "2"])[:2])
     if frames:
         batch_vs_serial(frames, 2)
-    for w in (1, 2):
-        samples_per_hour(w, samples)
+    samples_per_hour(1, samples, cores=1)
+    samples_per_hour(2, samples)
+    samples_per_hour(1, samples)

@@ -156,3 +156,23 @@ def test_on_a_build_chance_is_cut_to_the_views_fields():
     assert trust.trusted_left[inside].mean() > 0.35 and not trust.trusted_left[~inside].any()
     noise = np.random.default_rng(4).integers(0, 256, (480, 640)).astype(np.uint8)
     assert rig_trust(noise, dense_on_rig(noise, rig, params=FAST), FAST).count == 0
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_chance_run_in_the_maps_workspace_judges_as_in_fresh_memory(mode):
+    """psvs batch keeps one workspace per worker: the maps and then chance's run in it, frame after frame
+    (two images, two ranges), give the trust fresh memory gives, pixel for pixel."""
+    from psvs.dense.workspace import Workspace
+    from tests.dense.planted import layered_pair
+    ws = Workspace()
+    for seed, hi in ((0, 40), (3, 34), (0, 40)):
+        left, right, _, _ = layered_pair(seed=seed)
+        image = superimpose(left, right)
+        want = echo_trust(image, dense_disparity(image, 0, hi, params=MODES[mode]), MODES[mode])
+        res = dense_disparity(image, 0, hi, params=MODES[mode], workspace=ws)
+        got = echo_trust(image, res, MODES[mode], workspace=ws)
+        np.testing.assert_array_equal(got.trusted_left, want.trusted_left)
+        np.testing.assert_array_equal(got.trusted_right, want.trusted_right)
+        assert (got.min_excess, got.null_largest_excess, got.chance) == (want.min_excess, want.null_largest_excess,
+                                                                          want.chance)
+        assert got.trusted_left.any()

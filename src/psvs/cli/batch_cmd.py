@@ -15,6 +15,7 @@ import importlib
 import json
 import shutil
 import sys
+import threading
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +32,7 @@ COMMANDS = {
 #: What batch adds to a command's arguments (not passed to the command).
 _OWN = ("command", "batch_command", "run", "scheduler", "workers", "image", "output")
 _PSVS_DIR = str(Path(__file__).resolve().parents[1])
+_WORKER = threading.local()          # what a worker thread keeps between its frames (:func:`_workspace`)
 
 
 def add_parser(sub) -> None:
@@ -134,11 +136,22 @@ def _frame_index(job: dict, key: str) -> int:
     return int(key.rsplit("_", 1)[1]) if job["video"] else -1
 
 
+def _workspace():
+    """This worker thread's dense workspace (psvs.dense.workspace): its cost volumes kept from one frame to
+    the next, as a live loop keeps them (fresh memory costs page faults on every frame: a quarter of a
+    640x480 map's time). It holds the largest frame's volumes until the worker closes."""
+    from psvs.dense.workspace import Workspace
+    ws = getattr(_WORKER, "workspace", None)
+    if ws is None:
+        ws = _WORKER.workspace = Workspace()
+    return ws
+
+
 def _compute(job: dict, args, image) -> dict:
     """The command on one frame: its files written, its summary as a row."""
     module = importlib.import_module(f"psvs.cli.{COMMANDS[job['command']][0]}")
     if job["command"] == "disparity":
-        _, dense, trust, _ = module.compute(args, image)
+        _, dense, trust, _ = module.compute(args, image, _workspace())
         return module.summary_row(dense, trust)
     if job["command"] == "match":
         return module.summary_row(module.compute(args, image))

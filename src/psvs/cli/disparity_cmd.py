@@ -15,6 +15,7 @@ from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_trust
 from psvs.dense.disparity import check_dense_memory, check_range
 from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.trust import ALPHA, EchoTrust, trusted_maps
+from psvs.dense.workspace import Workspace
 from psvs.errors import MeasurementError
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
@@ -135,13 +136,13 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
     return cloud
 
 
-def _trusted(image, dense: RigDense, params, rig) -> tuple[RigDense, EchoTrust | None]:
+def _trusted(image, dense: RigDense, params, rig, workspace=None) -> tuple[RigDense, EchoTrust | None]:
     """``dense`` with its confidence 0 where the echo does not support the answer beyond chance, and that
     judgement (None when the maps answer nothing); MeasurementError when they answer but nothing is trusted."""
     res = dense.result
     if not np.isfinite(res.disparity_left).any():
         return dense, None
-    trust = rig_trust(image, dense, params, camera=rig.camera if rig is not None else None)
+    trust = rig_trust(image, dense, params, camera=rig.camera if rig is not None else None, workspace=workspace)
     if trust.count == 0:
         lo, hi = res.searched_px
         raise MeasurementError(
@@ -171,16 +172,20 @@ def prepare(args, image=None) -> tuple:
     return out, _inputs(args, image)
 
 
-def compute(args, image=None) -> tuple[dict, RigDense, EchoTrust | None, object]:
+def compute(args, image=None, workspace=None) -> tuple[dict, RigDense, EchoTrust | None, object]:
     """The command's work and its files: (output paths, the maps, their trust, the point cloud or None).
-    MeasurementError when no answer stands above chance (nothing written)."""
+    MeasurementError when no answer stands above chance (nothing written). ``workspace``
+    (psvs.dense.workspace.Workspace): kept from one frame to the next by ``psvs batch``'s workers; a new one
+    otherwise (chance's run then reuses the maps' volumes)."""
     out, (rig, image, rect, split, (lo, hi), params) = prepare(args, image)
+    workspace = Workspace() if workspace is None else workspace
     # a warning (e.g. "complex image is constant") is printed as one line by psvs.cli.main
     if rig is None:
-        dense = RigDense(dense_disparity(image, lo, hi, params=params), None, image)
+        dense = RigDense(dense_disparity(image, lo, hi, params=params, workspace=workspace), None, image)
     else:
-        dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi))
-    dense, trust = _trusted(image, dense, params, rig)
+        dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi),
+                             workspace=workspace)
+    dense, trust = _trusted(image, dense, params, rig, workspace)
     cloud = _write(out, dense, image, rig, split, args.model)
     return out, dense, trust, cloud
 

@@ -89,15 +89,17 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     return RigDense(res, rect, a)
 
 
-def rig_trust(image, dense: RigDense, params: DenseParams = DEFAULT, camera: Camera | None = None) -> EchoTrust:
+def rig_trust(image, dense: RigDense, params: DenseParams = DEFAULT, camera: Camera | None = None,
+              workspace: Workspace | None = None) -> EchoTrust:
     """Which pixels of ``dense`` (the maps of ``image`` with ``params``) the echo supports beyond chance
     (:func:`psvs.dense.trust.echo_trust`); on a build, on the two rectified grids, chance's maps cut to
-    each view's field as the maps are."""
+    each view's field as the maps are. ``workspace``: where chance's volumes are made (a loop over frames:
+    the one the maps were made in)."""
     if dense.rect is None:
-        return echo_trust(image, dense.result, params)
+        return echo_trust(image, dense.result, params, workspace=workspace)
     a, b = rectified_images(image, dense.rect)
     inside = tuple(dense.rect.maps(v)[0] >= 0 for v in ("left", "right"))
-    return echo_trust(a, dense.result, params, image_right=b, inside=inside)
+    return echo_trust(a, dense.result, params, image_right=b, inside=inside, workspace=workspace)
 
 
 def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) -> Cloud:

@@ -44,6 +44,7 @@ import numpy as np
 from psvs.dense.disparity import DenseResult, dense_disparity, top_params
 from psvs.dense.params import DEFAULT, DenseParams
 from psvs.dense.pyramid import coarse_level, pyramid_levels
+from psvs.dense.workspace import Workspace
 
 #: The false-alarm rate: the chance that an image without echo has any trusted pixel.
 ALPHA = 0.01
@@ -162,7 +163,7 @@ def region_threshold(null_excess: np.ndarray, alpha: float = ALPHA) -> float:
 
 
 def _coarse_trust(image: np.ndarray, image_right, result: DenseResult, params: DenseParams, levels: int,
-                  inside) -> EchoTrust:
+                  inside, workspace: Workspace | None) -> EchoTrust:
     """:func:`echo_trust` of a pyramid's maps (psvs.dense.pyramid): judged at its coarse level, where the
     windows were tuned to tell an echo from chance (a finer level's maps follow the coarse answer, and
     would agree with each other over whole regions even on an image without echo). The coarse level's
@@ -180,7 +181,7 @@ def _coarse_trust(image: np.ndarray, image_right, result: DenseResult, params: D
         coarse = dense_disparity(top, lo / f, min(hi / f, top.shape[1] - 1.0), params=p, image_right=top_r)
     shrink = None if inside is None else tuple(
         cv2.resize(m.astype(np.uint8), top.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0 for m in inside)
-    t = echo_trust(top, coarse, p, image_right=top_r, inside=shrink)
+    t = echo_trust(top, coarse, p, image_right=top_r, inside=shrink, workspace=workspace)
     size = image.shape[::-1]
     up = lambda m: cv2.resize(m.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0  # noqa: E731
     return EchoTrust(up(t.trusted_left) & (result.confidence_left > 0), up(t.trusted_right) &
@@ -194,20 +195,22 @@ def _unpruned(params: DenseParams) -> DenseParams:
 
 
 def echo_trust(image, result: DenseResult, params: DenseParams = DEFAULT, image_right=None,
-               inside: tuple[np.ndarray, np.ndarray] | None = None) -> EchoTrust:
+               inside: tuple[np.ndarray, np.ndarray] | None = None, workspace: Workspace | None = None) -> EchoTrust:
     """Which pixels of ``result`` (the maps :func:`~psvs.dense.disparity.dense_disparity` gave for ``image``
     with ``params``, and ``image_right`` on a build) the echo supports beyond chance (module docstring).
     ``inside``: the (left, right) masks of the pixels inside each view's field (a build's rectified grids),
-    applied to chance's maps as they were to ``result``'s. Runs the method once more, on the null pair."""
+    applied to chance's maps as they were to ``result``'s. Runs the method once more, on the null pair, in
+    ``workspace``'s volumes when given (a loop over frames: those ``result`` was made in, free again)."""
     left = np.asarray(image, dtype=np.float64)
     right = left if image_right is None else np.asarray(image_right, dtype=np.float64)
     lo, hi = result.searched_px
     levels = pyramid_levels(*left.shape, lo, hi) if params.pyramid else 0
     if levels:
-        return _coarse_trust(left, image_right, result, params, levels, inside)
+        return _coarse_trust(left, image_right, result, params, levels, inside, workspace)
     with warnings.catch_warnings():            # a constant image warns once, for the real run
         warnings.simplefilter("ignore", RuntimeWarning)
-        null = dense_disparity(left, lo, hi, params=_unpruned(params), image_right=null_image(right))
+        null = dense_disparity(left, lo, hi, params=_unpruned(params), image_right=null_image(right),
+                               workspace=workspace)
     maps = [(null.disparity_left, null.confidence_left), (null.disparity_right, null.confidence_right)]
     if inside is not None:
         maps = [(d, np.where(mask, c, 0)) for (d, c), mask in zip(maps, inside)]
