@@ -45,7 +45,7 @@ def n_levels(r):  # pragma: no cover - compiled
 
 # psvs.dense.cost's echo kernel compiles this in. Numba's cache only sees a kernel's own file: after an
 # edit here, touch cost.py (or clear __pycache__) so that its cached kernel is rebuilt. Inlined, it is
-# compiled with its caller's flags (fastmath in the echo, IEEE in this module's kernels).
+# compiled with its caller's flags (SAFE_MATH in the echo, no fast math in this module's kernels: IEEE values in both).
 @nb.njit(cache=True, fastmath=SAFE_MATH, inline="always")
 def row_sums(row, out, r, levels, clamp):  # pragma: no cover - compiled
     """out[x] = Σ row[x + j], j = −r..r (row, out: (W,)), beyond the ends the row reflected (OpenCV's
