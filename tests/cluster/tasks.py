@@ -38,3 +38,9 @@ def not_a_row(key: int):
 def numba_threads(key: int) -> dict:
     import numba
     return {"threads": numba.get_num_threads()}
+
+
+def environ(key: int) -> dict:
+    """The worker's settings of the thread pools that Dask's default environment would set."""
+    names = ("OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "OMP_NUM_THREADS", "MALLOC_TRIM_THRESHOLD_")
+    return {n: os.environ.get(n, "unset") for n in names}

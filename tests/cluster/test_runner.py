@@ -197,6 +197,18 @@ def test_a_local_clusters_tasks_share_the_cores(client, tmp_path):
     assert {r["threads"] for r in read_results(tmp_path / "run").to_pylist()} == {share}
 
 
+def test_a_local_clusters_blas_pools_get_the_share_and_the_rest_of_the_environment_is_ours(client, tmp_path):
+    """Each local worker's OpenBLAS/MKL pool is held to its share of the cores (their idle threads spin and took
+    the other worker's core); OMP_NUM_THREADS and glibc's trim threshold stay as in this process."""
+    from psvs.cluster import local_workers
+    from tests.cluster.tasks import environ
+    run_tasks(client, environ, range(4), tmp_path / "run", {}, QUIET)
+    share = str(max(1, local_workers() // 2))
+    mine = {n: os.environ.get(n, "unset") for n in ("OMP_NUM_THREADS", "MALLOC_TRIM_THRESHOLD_")}
+    rows = [{k: v for k, v in r.items() if k != "key"} for r in read_results(tmp_path / "run").to_pylist()]
+    assert rows == [{"OPENBLAS_NUM_THREADS": share, "MKL_NUM_THREADS": share, **mine}] * 4
+
+
 def test_an_existing_scheduler_with_a_worker_of_its_own(tmp_path):
     """``dask scheduler`` and ``dask worker tcp://...`` started as a user starts them on other machines: the
     run goes through them, with the results of the serial run."""

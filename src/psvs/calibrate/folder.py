@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from psvs._threads import one_blas_thread
 from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
 from psvs.calibrate.detect import Target, TargetDetection, detect_target, target_points_mm
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
@@ -67,7 +68,13 @@ def card_view(name: str, grey: np.ndarray, target: Target, rig: Rig) -> tuple[Gr
 
 
 def calibrate_folder(folder, start: Rig) -> CalibrationResult:
-    """Detect, adjust, drop images that fit no pose and adjust again (see the module docstring)."""
+    """Detect, adjust, drop images that fit no pose and adjust again (see the module docstring), on one BLAS
+    thread: the result is the same on every machine (:func:`psvs._threads.one_blas_thread`)."""
+    with one_blas_thread():
+        return _calibrate_folder(folder, start)
+
+
+def _calibrate_folder(folder, start: Rig) -> CalibrationResult:
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"calibration folder not found: {folder}")

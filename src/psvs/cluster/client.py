@@ -50,11 +50,9 @@ def connect(scheduler: str | None = None, workers: int | None = None, timeout_s:
     import dask
     from distributed import Client
     if scheduler is None:
-        # the workers' environment is this process's: distributed would set MALLOC_TRIM_THRESHOLD_ (glibc then
-        # returns every freed array to the system: a dense disparity map takes 2.5 times as long) and one
-        # OpenMP/BLAS thread, and a task must compute what the single command computes
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": {}}):
-            client = Client(n_workers=workers or local_workers(), threads_per_worker=1, processes=True,
+        n = workers or local_workers()
+        with dask.config.set({"distributed.nanny.pre-spawn-environ": blas_environ(n)}):
+            client = Client(n_workers=n, threads_per_worker=1, processes=True,
                             dashboard_address=":0", scheduler_kwargs={"dashboard": False},
                             silence_logs=logging.ERROR, set_as_default=False)
         client.register_plugin(_IgnoreInterrupt())
@@ -76,6 +74,23 @@ class _IgnoreInterrupt(WorkerPlugin):
     def setup(self, worker):
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def blas_environ(workers: int) -> dict:
+    """The environment a local cluster's ``workers`` start with besides this process's: their BLAS pools
+    (OpenBLAS, MKL) held to :func:`local_workers` shared among them, as Dask's default holds them to one.
+
+    An idle OpenBLAS thread spins for a while after each call: two workers' spinning threads took the cores
+    the other worker's calibration ran on, and a study sample took 1.6 times as long on 2 workers as alone
+    (docs/cluster.md#speed). The rest of Dask's default is left out: MALLOC_TRIM_THRESHOLD_ (glibc then
+    returns every freed array to the system: a dense disparity map took 2.5 times as long) and
+    OMP_NUM_THREADS (Numba's loops get their share in the task, :func:`task_threads`).
+
+    >>> blas_environ(local_workers())        # a worker per core: one BLAS thread each
+    {'OPENBLAS_NUM_THREADS': '1', 'MKL_NUM_THREADS': '1'}
+    """
+    share = str(max(1, local_workers() // max(1, workers)))
+    return {"OPENBLAS_NUM_THREADS": share, "MKL_NUM_THREADS": share}
 
 
 def task_threads(client) -> int | None:
