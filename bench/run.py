@@ -125,7 +125,10 @@ def main(argv: list[str]) -> int:
              "(one call a batch above 50 ms). Triangulation, projection and matching run on",
              "one thread; rendering uses both cores (its own thread pool).", "",
              f"- Date: {datetime.date.today().isoformat()}", f"- Machine: {machine()}",
-             f"- Load average (1 min) at the start and the end of the run: {load0:.1f} and {os.getloadavg()[0]:.1f}"
+             f"- The last run measured {', '.join(sorted({g for g, _ in measured})) or 'nothing'}"
+             f"{'' if case is None else f' (cases matching {case!r})'}"
+             f"{'; the other rows are from earlier runs' if len(rows) > len(measured) else ''}",
+             f"- Load average (1 min) at the start and the end of the last run: {load0:.1f} and {os.getloadavg()[0]:.1f}"
              f" ({os.cpu_count()} cores; above that, other work shared them and slowed every case measured)", "",
              "| group | case | time (ms) | target (ms) | met |", "|---|---|---:|---:|---|"]
     # 3 significant digits at least (a ratio of two ms-scale cases is read back from these to 1 %)

@@ -38,6 +38,18 @@ def test_the_machine_and_the_date_are_named(doc):
     assert re.search(r"^- Machine: .+, \d+ cores, Python 3\.\d+", text, re.M)
 
 
+
+def test_the_last_run_names_groups_of_the_table(doc):
+    """The date and load are the last run's; it names the groups it measured (the other rows are older)."""
+    text, cases, _ = doc
+    last = re.search(r"^- The last run measured ([a-z0-9_, ]+?)(?: \(cases matching .*\))?(;.*)?$", text, re.M)
+    assert last, "no '- The last run measured ...' line"
+    groups = set(last.group(1).split(", "))
+    assert groups and groups <= {g for g, _ in cases}
+    if groups != {g for g, _ in cases}:
+        assert last.group(2) == "; the other rows are from earlier runs"
+
+
 def test_each_verdict_agrees_with_its_time_and_target(doc):
     _, cases, _ = doc
     assert len(cases) >= 20
