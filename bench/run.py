@@ -128,7 +128,8 @@ def main(argv: list[str]) -> int:
              f"- The last run measured {', '.join(sorted({g for g, _ in measured})) or 'nothing'}"
              f"{'' if case is None else f' (cases matching {case!r})'}"
              f"{'; the other rows are from earlier runs' if len(rows) > len(measured) else ''}",
-             f"- Load average (1 min) at the start and the end of the last run: {load0:.1f} and {os.getloadavg()[0]:.1f}"
+             f"- Load average (1 min) at the start and the end of the last run: {load0:.1f} and "
+             f"{os.getloadavg()[0]:.1f}"
              f" ({os.cpu_count()} cores; above that, other work shared them and slowed every case measured)", "",
              "| group | case | time (ms) | target (ms) | met |", "|---|---|---:|---:|---|"]
     # 3 significant digits at least (a ratio of two ms-scale cases is read back from these to 1 %)
