@@ -102,6 +102,9 @@ def main(argv: list[str]) -> int:
                 continue
             ratios.append((path.stem.removeprefix("bench_"), name, times[a] / times[b]))
             print(f"{name:<55} {ratios[-1][2]:10.2f}", flush=True)
+    if not rows:
+        print(f"no case matches --case {case!r}: docs/benchmarks.md left as it was", file=sys.stderr)
+        return 2
     # keep the rows of cases not run this time (python3 dev.py bench GROUP re-measures one group, --case
     # SUBSTR the cases whose name holds SUBSTR)
     ran = {r[0] for r in rows} if case is None else set()

@@ -38,7 +38,6 @@ def test_the_machine_and_the_date_are_named(doc):
     assert re.search(r"^- Machine: .+, \d+ cores, Python 3\.\d+", text, re.M)
 
 
-
 def test_the_last_run_names_groups_of_the_table(doc):
     """The date and load are the last run's; it names the groups it measured (the other rows are older)."""
     text, cases, _ = doc
@@ -77,7 +76,7 @@ def test_each_ratio_is_the_quotient_of_its_cases(doc):
 
 
 def test_help_and_unknown_groups_write_nothing(capsys):
-    """``bench/run.py --help`` prints its usage and an unknown option or group exits 2, all before any case
+    """``bench/run.py --help`` prints its usage and an unknown option, group or case exits 2, all before any case
     runs: docs/benchmarks.md is left as it was."""
     spec = importlib.util.spec_from_file_location("bench_run", ROOT / "bench" / "run.py")
     run = importlib.util.module_from_spec(spec)
@@ -86,4 +85,5 @@ def test_help_and_unknown_groups_write_nothing(capsys):
     assert run.main(["--help"]) == 0 and "Run the benchmarks" in capsys.readouterr().err
     assert run.main(["--bogus"]) == 2
     assert run.main(["nosuchgroup"]) == 2 and "groups: calibrate" in capsys.readouterr().err
+    assert run.main(["triangulate", "--case", "no such case"]) == 2 and "no case matches" in capsys.readouterr().err
     assert DOC.read_bytes() == before

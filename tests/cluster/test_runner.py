@@ -197,16 +197,29 @@ def test_a_local_clusters_tasks_share_the_cores(client, tmp_path):
     assert {r["threads"] for r in read_results(tmp_path / "run").to_pylist()} == {share}
 
 
-def test_a_local_clusters_blas_pools_get_the_share_and_the_rest_of_the_environment_is_ours(client, tmp_path):
+def test_a_local_clusters_blas_pools_get_the_share_and_the_rest_of_the_environment_is_ours(tmp_path, monkeypatch):
     """Each local worker's OpenBLAS/MKL pool is held to its share of the cores (their idle threads spin and took
-    the other worker's core); OMP_NUM_THREADS and glibc's trim threshold stay as in this process."""
+    the other worker's core) unless this process's environment sets it (Dask's rule: the user's word wins);
+    OMP_NUM_THREADS and glibc's trim threshold stay as in this process."""
     from psvs.cluster import local_workers
     from tests.cluster.tasks import environ
-    run_tasks(client, environ, range(4), tmp_path / "run", {}, QUIET)
-    share = str(max(1, local_workers() // 2))
-    mine = {n: os.environ.get(n, "unset") for n in ("OMP_NUM_THREADS", "MALLOC_TRIM_THRESHOLD_")}
+    monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "97")
+    monkeypatch.setenv("OMP_NUM_THREADS", "5")
+    monkeypatch.delenv("MALLOC_TRIM_THRESHOLD_", raising=False)
+    with connect(workers=1) as one:
+        run_tasks(one, environ, range(2), tmp_path / "run", {}, QUIET)
     rows = [{k: v for k, v in r.items() if k != "key"} for r in read_results(tmp_path / "run").to_pylist()]
-    assert rows == [{"OPENBLAS_NUM_THREADS": share, "MKL_NUM_THREADS": share, **mine}] * 4
+    assert rows == [{"OPENBLAS_NUM_THREADS": str(local_workers()), "MKL_NUM_THREADS": "97", "OMP_NUM_THREADS": "5",
+                     "MALLOC_TRIM_THRESHOLD_": "unset"}] * 2
+
+
+def test_the_blas_share_is_the_cores_over_the_workers(monkeypatch):
+    import psvs.cluster.client as cc
+    monkeypatch.setattr(cc, "local_workers", lambda: 8)
+    assert cc.blas_environ(2) == {"OPENBLAS_NUM_THREADS": "4", "MKL_NUM_THREADS": "4"}
+    assert cc.blas_environ(3) == {"OPENBLAS_NUM_THREADS": "2", "MKL_NUM_THREADS": "2"}
+    assert cc.blas_environ(16) == {"OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
 def test_an_existing_scheduler_with_a_worker_of_its_own(tmp_path):

@@ -31,6 +31,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from psvs._threads import one_blas_thread
 from psvs.optics.mirrors import direction_map, virtual_centre
 from psvs.optics.project import project_points
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
@@ -294,6 +295,7 @@ class _Problem:
         return J
 
 
+@one_blas_thread()     # the same numbers on any core count
 def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
                   sweep_local_mm: np.ndarray | None = None, max_nfev: int = 60, hold=None,
                   init: Rig | None = None) -> BundleResult:

@@ -67,14 +67,10 @@ def card_view(name: str, grey: np.ndarray, target: Target, rig: Rig) -> tuple[Gr
     return GridView(name, det.object_mm(target)[keep], det.left[keep], det.right[keep]), det
 
 
+@one_blas_thread()
 def calibrate_folder(folder, start: Rig) -> CalibrationResult:
     """Detect, adjust, drop images that fit no pose and adjust again (see the module docstring), on one BLAS
-    thread: the result is the same on every machine (:func:`psvs._threads.one_blas_thread`)."""
-    with one_blas_thread():
-        return _calibrate_folder(folder, start)
-
-
-def _calibrate_folder(folder, start: Rig) -> CalibrationResult:
+    thread: the result does not depend on the core count (:func:`psvs._threads.one_blas_thread`)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise FileNotFoundError(f"calibration folder not found: {folder}")

@@ -78,11 +78,12 @@ class _IgnoreInterrupt(WorkerPlugin):
 
 def blas_environ(workers: int) -> dict:
     """The environment a local cluster's ``workers`` start with besides this process's: their BLAS pools
-    (OpenBLAS, MKL) held to :func:`local_workers` shared among them, as Dask's default holds them to one.
+    (OpenBLAS, MKL) held to :func:`local_workers` shared among them, as Dask's default holds them to one. A
+    variable set in this process's environment wins (Dask's rule: ``OPENBLAS_NUM_THREADS=4 psvs montecarlo``).
 
-    An idle OpenBLAS thread spins for a while after each call: two workers' spinning threads took the cores
-    the other worker's calibration ran on, and a study sample took 1.6 times as long on 2 workers as alone
-    (docs/cluster.md#speed). The rest of Dask's default is left out: MALLOC_TRIM_THRESHOLD_ (glibc then
+    An idle OpenBLAS thread spins for a while after each call: two workers' spinning threads took the core the
+    other worker's calibration ran on, and 2 workers gave 1.2 times the study samples an hour of one, 1.9 times
+    once held (docs/cluster.md#speed). The rest of Dask's default is left out: MALLOC_TRIM_THRESHOLD_ (glibc then
     returns every freed array to the system: a dense disparity map took 2.5 times as long) and
     OMP_NUM_THREADS (Numba's loops get their share in the task, :func:`task_threads`).
 

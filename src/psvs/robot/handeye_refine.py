@@ -17,6 +17,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from psvs._threads import one_blas_thread
 from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
 from psvs.transforms import concat, invert_transform, transform_from, transform_from_rotvec
@@ -35,6 +36,7 @@ def _poses(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return transform_from_rotvec(x[:3], x[3:6]), transform_from_rotvec(x[6:9], x[9:12])
 
 
+@one_blas_thread()     # the same numbers on any core count
 def refine_hand_eye(flange2base: list[np.ndarray], fits: list, model_mm: np.ndarray, rig: Rig,
                     cam2flange: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """Refine cam2flange (4, 4) mm over the discs' reprojection error (see the module docstring).
