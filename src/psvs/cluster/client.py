@@ -22,6 +22,12 @@ def local_workers() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
+def core_share(workers: int) -> int:
+    """The threads each of ``workers`` local workers may use: this machine's cores shared among them, at
+    least 1."""
+    return max(1, local_workers() // max(1, workers))
+
+
 def scheduler_address(text: str) -> str:
     """``HOST:PORT`` or ``tcp://HOST:PORT`` (or ``tls://``) as a scheduler address; ValueError when it is not
     one.
@@ -90,7 +96,7 @@ def blas_environ(workers: int) -> dict:
     >>> blas_environ(local_workers())        # a worker per core: one BLAS thread each
     {'OPENBLAS_NUM_THREADS': '1', 'MKL_NUM_THREADS': '1'}
     """
-    share = str(max(1, local_workers() // max(1, workers)))
+    share = str(core_share(workers))
     return {"OPENBLAS_NUM_THREADS": share, "MKL_NUM_THREADS": share}
 
 
@@ -101,4 +107,4 @@ def task_threads(client) -> int | None:
     cluster = getattr(client, "cluster", None)
     if cluster is None:
         return None
-    return max(1, local_workers() // max(1, len(cluster.workers)))
+    return core_share(len(cluster.workers))
