@@ -168,3 +168,20 @@ def test_ctrl_c_stops_the_batch_in_one_line_and_keeps_what_finished(tmp_path):
     assert all((out / f"{k}.npy").is_file() for k in rows)
     done = subprocess.run(argv, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0 and f"({4 - len(rows)} computed now, {len(rows)} before" in done.stdout
+
+
+def test_batch_whose_every_frame_is_refused_exits_1(capsys, tmp_path):
+    """Two frames of sensor noise: each a "cannot measure" row, no map written, and the run itself exits 1
+    saying so (a folder of refusals is no result), with the first frame's reason."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    rng = np.random.default_rng(2)
+    for k in range(2):
+        write_png(folder / f"n{k}.png", rng.integers(0, 256, (480, 640)).astype(np.uint8))
+    code, out, err = run(capsys, "batch", "disparity", str(folder), "--rig", "default", "-o", str(tmp_path / "d"),
+                         "--fast", "--workers", "2")
+    assert code == 1 and "2 frames, 2 cannot measure" in out
+    last = err.strip().splitlines()[-1]
+    assert last.startswith("psvs batch: no frame gave a result; the first said: no part of the image echoes beyond "
+                           "chance: "), err
+    assert not list((tmp_path / "d").glob("*.npy"))

@@ -193,7 +193,8 @@ def test_an_image_of_another_size_than_the_rigs_camera_is_refused(capsys, tmp_pa
 @pytest.mark.parametrize("kind", ["noise", "wall"])
 def test_an_image_without_echo_is_refused_and_nothing_written(capsys, tmp_path, kind):
     """Independent random pixels, or a wall (grey 128 and sensor noise): the maps used to answer 100 % of
-    the pixels. No answer stands above chance: one line, exit 1, the earlier map kept, nothing else written."""
+    the pixels. No part of the image echoes beyond chance: one line, exit 1, the earlier map kept, nothing else
+    written; the line's figures say why (its strongest echo below chance's level)."""
     rng = np.random.default_rng(11)
     img = (rng.integers(0, 256, (480, 640)) if kind == "noise" else 128 + rng.normal(0, 2, (480, 640)))
     path = tmp_path / f"{kind}.png"
@@ -203,15 +204,22 @@ def test_an_image_without_echo_is_refused_and_nothing_written(capsys, tmp_path, 
     code, text, err = run(capsys, "disparity", str(path), "--rig", EXAMPLE, "-o", str(out), "--confidence",
                           str(conf), "--fast")
     assert code == 1 and text == "" and len(err.strip().splitlines()) == 1, err
-    assert err.startswith("psvs disparity: cannot measure: no answer stands above chance: the largest consistent "
-                          "region carries ")
-    assert "a 1% false alarm): the image shows no echo of the disparities 88..254 px" in err
+    import re
+    m = re.match(r"psvs disparity: cannot measure: no part of the image echoes beyond chance: its strongest echo, a "
+                 r"(\d+)x\1 px patch centred at \((\d+), (\d+)\) that repeats (\d+) px to its left, stands "
+                 r"([\d.]+) spreads above the patch's correlation at other lags, where chance on this image reaches "
+                 r"([\d.]+) \(the 1% false-alarm level read from the correlations' negative side, which no echo "
+                 r"reaches\): the image shows no echo of the disparities 88..254 px$", err.strip())
+    assert m, err
+    side, u, v, lag = map(int, m.groups()[:4])
+    assert float(m.group(5)) < float(m.group(6)) and side in (32, 64) and 88 <= lag <= 254
+    assert 0 <= u < 640 and 0 <= v < 480
     assert out.read_bytes() == b"earlier" and not conf.exists()
 
 
 def test_a_textured_scene_says_how_much_it_trusts(capsys, tmp_path):
-    """The built-in textured scene: every pixel answered, about half of them (49 % in the fast mode: the
-    left quarter has no twin in the image) with confidence; the confidence map is 0 elsewhere."""
+    """The built-in textured scene: every pixel answered, about half of them (53 % in the fast mode: the
+    left quarter has no twin in the image) trusted; the confidence map is 0 elsewhere."""
     from psvs.io.params import load_rig
     from psvs.simulate.builtin import textured
     from psvs.simulate.render import render
@@ -222,10 +230,11 @@ def test_a_textured_scene_says_how_much_it_trusts(capsys, tmp_path):
                           str(conf), "--fast")
     assert code == 0, err
     import re
-    m = re.search(r"307200 of 307200 px answered, (\d+) \((\d+)%\) with confidence \(in a consistent region of "
-                  r"excess echo over (\d+); chance on this image makes up to (\d+)\)", text)
+    m = re.search(r"307200 of 307200 px answered, (\d+) \((\d+)%\) trusted \(on surfaces whose echo stands above "
+                  r"chance: the strongest ([\d.]+) spreads, chance up to ([\d.]+)\)", text)
     assert m, text
-    trusted, pct, limit, chance = map(int, m.groups())
+    trusted, pct = map(int, m.groups()[:2])
+    strongest, chance = map(float, m.groups()[2:])
     c = np.load(conf)
     assert (c > 0).sum() <= trusted and 0.4 < trusted / 307200 < 0.8 and pct == round(100 * trusted / 307200)
-    assert limit > chance and np.isfinite(np.load(out)).all()
+    assert strongest > chance and np.isfinite(np.load(out)).all()

@@ -252,4 +252,8 @@ def run(args) -> int:
         print(f"psvs batch: {len(summary.failed)} frame(s) failed and were not written (a second run tries them "
               f"again); {key}: {reason}", file=sys.stderr)
         return 1
+    if status and "ok" not in counts:     # every frame refused: the folder holds no result
+        first = next(m for m in read_results(out_dir).column("message").to_pylist() if m)
+        print(f"psvs batch: no frame gave a result; the first said: {first}", file=sys.stderr)
+        return 1
     return 0

@@ -36,9 +36,9 @@ def add_parser(sub) -> None:
                                    "disparities (also --min/--max-disparity) are in the rectified coordinates "
                                    "of the views (docs/optics.md): the left map on the left view's rectified "
                                    "grid, u'_l - u'_r px. The confidence map and the summary say which answers "
-                                   "the echo supports beyond chance (a consistent region larger than chance "
-                                   "makes on the image itself); when none does (noise, a blank wall) it exits 1 "
-                                   "and writes nothing.")
+                                   "the echo supports beyond chance (surfaces where a patch correlates with its "
+                                   "twin beyond what chance gives on the image itself, 1%% false alarm); when "
+                                   "none does (noise, a blank wall) it exits 1 and writes nothing.")
     p.add_argument("image", metavar="IMAGE", help="complex image (PNG, grey)")
     p.add_argument("--rig", metavar="RIG.toml", help="rig file: disparity range from --near-mm..--far-mm, split "
                                                       "ratio, and the triangulation for --depth/--cloud")
@@ -136,21 +136,30 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
     return cloud
 
 
-def _trusted(image, dense: RigDense, params, rig, workspace=None) -> tuple[RigDense, EchoTrust | None]:
+def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust | None]:
     """``dense`` with its confidence 0 where the echo does not support the answer beyond chance, and that
     judgement (None when the maps answer nothing); MeasurementError when they answer but nothing is trusted."""
     res = dense.result
     if not np.isfinite(res.disparity_left).any():
         return dense, None
-    trust = rig_trust(image, dense, params, camera=rig.camera if rig is not None else None, workspace=workspace)
+    trust = rig_trust(dense)
     if trust.count == 0:
         lo, hi = res.searched_px
-        raise MeasurementError(
-            f"no answer stands above chance: the largest consistent region carries {trust.largest_excess:.0f} of "
-            f"excess echo, chance on this image up to {trust.null_largest_excess:.0f} (trusted beyond "
-            f"{trust.min_excess:.0f}, a {ALPHA:.0%} false alarm): the image shows no echo of the disparities "
-            f"{lo:.0f}..{hi:.0f} px")
-    return RigDense(trusted_maps(res, trust), dense.rect, dense.left_image), trust
+        raise MeasurementError(f"no part of the image echoes beyond chance: {strongest_echo(trust)}: the image "
+                               f"shows no echo of the disparities {lo:.0f}..{hi:.0f} px")
+    return RigDense(trusted_maps(res, trust), dense.rect, dense.left_image, dense.right_image), trust
+
+
+def strongest_echo(trust: EchoTrust) -> str:
+    """The echo test's strongest patch in words a user can check on the image (px of the maps' grid)."""
+    t = trust.test
+    k = 2 ** trust.level
+    u, v, side, lag = t.strongest_at
+    return (f"its strongest echo, a {side * k}x{side * k} px patch centred at ({(u + 0.5) * k - 0.5:.0f}, "
+            f"{(v + 0.5) * k - 0.5:.0f}) that repeats {lag * k} px to its left, stands {t.strongest_z:.1f} spreads "
+            f"above the patch's correlation at other lags, where chance on this image reaches "
+            f"{t.strongest_threshold:.1f} (the {ALPHA:.0%} false-alarm level read from the correlations' negative "
+            "side, which no echo reaches)")
 
 
 def _summary(dense: RigDense, trust: EchoTrust | None) -> str:
@@ -159,10 +168,10 @@ def _summary(dense: RigDense, trust: EchoTrust | None) -> str:
     if not d.size:
         return "no disparity found"
     n = res.disparity_left.size
-    return (f"{d.size} of {n} px answered, {trust.count} ({trust.count / n:.0%}) with confidence (in a consistent "
-            f"region of excess echo over {trust.min_excess:.0f}; chance on this image makes up to "
-            f"{trust.null_largest_excess:.0f}), disparity {np.median(d):.1f} px median ({res.searched_px[0]:.0f}.."
-            f"{res.searched_px[1]:.0f} searched)")
+    return (f"{d.size} of {n} px answered, {trust.count} ({trust.count / n:.0%}) trusted (on surfaces whose echo "
+            f"stands above chance: the strongest {trust.test.strongest_z:.1f} spreads, chance up to "
+            f"{trust.test.strongest_threshold:.1f}), disparity {np.median(d):.1f} px median "
+            f"({res.searched_px[0]:.0f}..{res.searched_px[1]:.0f} searched)")
 
 
 def prepare(args, image=None) -> tuple:
@@ -185,7 +194,7 @@ def compute(args, image=None, workspace=None) -> tuple[dict, RigDense, EchoTrust
     else:
         dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi),
                              workspace=workspace)
-    dense, trust = _trusted(image, dense, params, rig, workspace)
+    dense, trust = _trusted(dense)
     cloud = _write(out, dense, image, rig, split, args.model)
     return out, dense, trust, cloud
 

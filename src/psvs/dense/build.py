@@ -25,19 +25,21 @@ from psvs.dense.workspace import Workspace
 from psvs.measure.triangulate import default_model, triangulate
 from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import Rectification
-from psvs.optics.rig import Camera, Rig
+from psvs.optics.rig import Rig
 from psvs.optics.search_range import disparity_range, rectification_for
 
 
 @dataclass(frozen=True, eq=False)
 class RigDense:
     """The dense result, the rectification it is expressed in (None: complex-image coordinates, the
-    paper's geometry), and the image the left map is aligned with (H', W') (the complex image itself, or
-    its left-grid resampling), e.g. for grey levels of the cloud."""
+    paper's geometry), the image the left map is aligned with (H', W') (the complex image itself, or its
+    left-grid resampling), e.g. for grey levels of the cloud, and on a build the right grid's (None on the
+    paper's geometry): the images the maps were made of."""
 
     result: DenseResult
     rect: Rectification | None
     left_image: np.ndarray
+    right_image: np.ndarray | None = None
 
 
 @lru_cache(maxsize=8)
@@ -86,20 +88,17 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     res = DenseResult(np.where(inside_l, res.disparity_left, nan), np.where(inside_r, res.disparity_right, nan),
                       np.where(inside_l, res.confidence_left, 0).astype(np.float32),
                       np.where(inside_r, res.confidence_right, 0).astype(np.float32), res.searched_px)
-    return RigDense(res, rect, a)
+    return RigDense(res, rect, a, b)
 
 
-def rig_trust(image, dense: RigDense, params: DenseParams = DEFAULT, camera: Camera | None = None,
-              workspace: Workspace | None = None) -> EchoTrust:
-    """Which pixels of ``dense`` (the maps of ``image`` with ``params``) the echo supports beyond chance
-    (:func:`psvs.dense.trust.echo_trust`); on a build, on the two rectified grids, chance's maps cut to
-    each view's field as the maps are. ``workspace``: where chance's volumes are made (a loop over frames:
-    the one the maps were made in)."""
+def rig_trust(dense: RigDense) -> EchoTrust:
+    """Which pixels of ``dense`` the echo supports beyond chance (:func:`psvs.dense.trust.echo_trust`), tested
+    on the images the maps were made of; on a build, on the two rectified grids, each view's texture counted
+    inside its field only."""
     if dense.rect is None:
-        return echo_trust(image, dense.result, params, workspace=workspace)
-    a, b = rectified_images(image, dense.rect)
+        return echo_trust(dense.left_image, dense.result)
     inside = tuple(dense.rect.maps(v)[0] >= 0 for v in ("left", "right"))
-    return echo_trust(a, dense.result, params, image_right=b, inside=inside, workspace=workspace)
+    return echo_trust(dense.left_image, dense.result, image_right=dense.right_image, inside=inside)
 
 
 def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) -> Cloud:

@@ -1,0 +1,398 @@
+"""Does a complex image echo, and where, at which disparities? A test against chance with a stated false alarm.
+
+A complex image C = (1 - s) L + s R shows each left-view point at x again at x - d (its right-view twin), so
+a patch of C correlates with the patch d px to its left when its left-view content lies at disparity d. On an
+image without echo (sensor noise, a blank wall, a texture whose twin is not in the frame) a patch correlates
+with the patches along its row only by chance. The test asks, for every patch and every lag, whether the
+correlation stands above what chance gives on *this* image, with a known false-alarm rate, using the image's
+own statistics (no second run of the dense method, no threshold tuned to a camera).
+
+**The statistic.** The image is split into bands (differences of Gaussians, :data:`BANDS_PX`), each band's
+values divided by their local RMS (so every pixel weighs about the same: one strong edge cannot dominate a
+patch). For square patches of :data:`CELL_PX` x m px (m in :data:`BLOCK_CELLS`, on a grid of one cell) and
+every lag d, the normalised cross-correlation of the patch at x with the patch at x - d (on a build: the
+left view's rectified grid against the right view's) is one number, rho(b, d), a sum over the patch's
+pixels. Each patch's profile over the lags is centred on its median and divided by its spread (the 10-90 %
+quantile range over 2.563, which is the standard deviation for a normal profile): z(b, d). A real echo is a
+peak of several spreads at the patch's disparity; chance makes z of either sign.
+
+**The null, from the same numbers.** Without echo, the correlation of a patch with an unrelated patch is as
+likely to be negative as positive (the band-passed values have zero mean; NCC is odd in either patch), so
+the negative side of the z values is chance's positive side mirrored, and an echo (always positive) never
+touches it. Chance's tail is read there by peaks over threshold: with u the (k+1)-th largest of -z and beta
+the mean excess of the k largest over u (its upper 2-sigma bound, beta (1 + 2 / sqrt(k))), the level that
+n tests exceed with probability at most alpha is ``u + beta ln(k / alpha)`` (an exponential tail above u,
+P(z > u + x) = (k / n) exp(-x / beta); exceeded by n tests alpha times in all: the union bound). The bands
+and patch sizes are :data:`BANDS_PX` x :data:`BLOCK_CELLS` families, each at alpha / families.
+
+**What chance is not.** At small lags a smooth texture correlates with itself (the image's own
+autocorrelation, the same sign in every patch): lags below the first beyond which the median over all
+patches stays within half a spread of zero are not tested (:func:`autocorrelation_lags`), as the dense
+method does not search below :data:`~psvs.dense.params.MIN_LAG_PX`. A patch's profile needs at least
+:data:`MIN_LAGS` lags with its twin patch inside the image to be standardised; narrower searches are
+standardised over a wider span of lags (:func:`standardising_lags`), only the searched lags are judged.
+
+Measured (bench/bench_echo_test.py, docs/dense.md): on 400 images without echo of random size 200-700 px
+(random pixels, walls with sensor noise, blurred noise, vignetted walls saved as JPEG) and random lag ranges,
+2 judged an echo at alpha = 1 %.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numba as nb
+import numpy as np
+
+from psvs.dense.fastmath import SAFE_MATH
+from psvs.dense.params import MIN_LAG_PX
+
+#: The false-alarm rate: the chance that an image without echo is judged to echo anywhere.
+ALPHA = 0.01
+#: px (at the judged level): the bands, C - blur(0.7) and blur(0.7) - blur(1.4) (differences of Gaussians).
+BANDS_PX = (0.7, 1.4)
+#: px: the side of a cell; patches are BLOCK_CELLS cells a side (powers of 2), one cell apart.
+CELL_PX = 16
+BLOCK_CELLS = (2, 4)
+#: px: the local RMS that normalises each band is taken over this square.
+RMS_WINDOW_PX = 7
+#: The least number of lags a patch's profile is standardised over (a search over fewer is widened).
+MIN_LAGS = 48
+#: Exceedances of chance's (negative) tail that estimate its scale; more on a large test.
+TAIL = 50
+#: A negative z within this many lags of a positive one LOBE_RATIO times its size is that echo's side lobe.
+LOBE_LAGS = 3
+LOBE_RATIO = 2.0
+#: A band of scale sigma px is not judged at lags below SHORT_LAGS x sigma: a patch of smooth texture still
+#: correlates with itself there (its own autocorrelation, beyond what the image's median shows).
+SHORT_LAGS = 6.0
+#: The largest lag (px, judged level) at which the image's own autocorrelation is looked for.
+AUTOCORRELATION_MAX_PX = 40
+
+
+def band_features(image: np.ndarray, sigma_px: float) -> np.ndarray:
+    """The band of ``image`` (H, W) between scales sigma/2 and sigma (C - blur(sigma) for sigma below 1 px),
+    divided by its RMS over :data:`RMS_WINDOW_PX`: float64 (H, W), about unit size where there is texture."""
+    a = np.asarray(image, dtype=np.float32)
+    fine = cv2.GaussianBlur(a, (0, 0), sigma_px / 2, borderType=cv2.BORDER_REFLECT) if sigma_px > 1.0 else a
+    band = fine - cv2.GaussianBlur(a, (0, 0), sigma_px, borderType=cv2.BORDER_REFLECT)
+    energy = cv2.boxFilter(band * band, -1, (RMS_WINDOW_PX, RMS_WINDOW_PX), borderType=cv2.BORDER_REFLECT)
+    floor = 1e-3 * max(float(energy.mean()), 1e-20)
+    return (band / np.sqrt(energy + floor)).astype(np.float64)
+
+
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
+def _cell_sums(f, g2col, g, lags, cell, fg, gg):  # pragma: no cover - compiled
+    """Per lag and cell whose twin lies wholly inside the image: sum f(x) g(x - d) into ``fg`` and sum
+    g(x - d)^2 into ``gg`` (D, ny, nx); cells whose twin leaves the image stay 0. The products of a row of
+    cells are summed down its rows first (elementwise along x, in vectors), then along each cell; ``g2col``
+    (ny, W + 1) holds the running sums along x of g^2 summed down each row of cells."""
+    w = f.shape[1]
+    ny, nx = fg.shape[1], fg.shape[2]
+    for k in nb.prange(len(lags)):
+        d = lags[k]
+        acc = np.empty(w, np.float64)
+        for cy in range(ny):
+            n = w - d
+            a = acc[:n]
+            a[:] = 0.0
+            for y in range(cy * cell, cy * cell + cell):
+                fr, gr = f[y, d:], g[y, :n]
+                for i in range(n):
+                    a[i] += fr[i] * gr[i]
+            for cx in range(nx):
+                x0 = cx * cell - d
+                if x0 < 0:
+                    continue
+                s = 0.0
+                for i in range(x0, x0 + cell):
+                    s += a[i]
+                fg[k, cy, cx] = s
+                gg[k, cy, cx] = g2col[cy, x0 + cell] - g2col[cy, x0]
+    return fg, gg
+
+
+def _box(a: np.ndarray, m: int) -> np.ndarray:
+    """Sums over m x m windows (m a power of 2) of the last two axes, one cell apart: (..., ny - m + 1,
+    nx - m + 1), by halves: the sum of 2k x 2k is four sums of k x k, k apart."""
+    k = 1
+    while k < m:
+        a = a[..., :-k, :-k] + a[..., k:, :-k] + a[..., :-k, k:] + a[..., k:, k:]
+        k *= 2
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class CellSums:
+    """The sums behind every patch correlation of one band: ``fg``/``gg`` (D, ny, nx) sum f(x) g(x - d) and
+    sum g(x - d)^2 over each cell (0 where the twin cell leaves the image), ``ff`` (ny, nx) sum f^2."""
+
+    fg: np.ndarray
+    gg: np.ndarray
+    ff: np.ndarray
+
+
+def cell_sums(f: np.ndarray, g: np.ndarray, lags: np.ndarray, cell: int = CELL_PX) -> CellSums:
+    """:class:`CellSums` of ``f`` against ``g`` (H, W) over cells of ``cell`` px for each lag of ``lags`` (px)."""
+    h, w = f.shape
+    ny, nx = h // cell, w // cell
+    lags = np.ascontiguousarray(lags, dtype=np.int64)
+    f, g = np.ascontiguousarray(f, np.float64), np.ascontiguousarray(g, np.float64)
+    g2col = np.zeros((ny, w + 1))
+    g2col[:, 1:] = np.cumsum((g[:ny * cell] ** 2).reshape(ny, cell, w).sum(axis=1), axis=1)
+    fg = np.zeros((len(lags), ny, nx))
+    gg = np.zeros_like(fg)
+    _cell_sums(f, g2col, g, lags, cell, fg, gg)
+    ff = (f[:ny * cell, :nx * cell] ** 2).reshape(ny, cell, nx, cell).sum(axis=(1, 3))
+    return CellSums(fg, gg, ff)
+
+
+def patch_correlations(sums: CellSums, m: int) -> np.ndarray:
+    """rho (D, ny - m + 1, nx - m + 1): the NCC of each patch of m x m cells with the patch d px to its left
+    in the other image, for each lag of the :class:`CellSums`; NaN where the twin patch leaves the image or
+    either patch has no texture."""
+    inside = _box((sums.gg > 0).astype(np.float64), m) == m * m
+    num, den = _box(sums.fg, m), _box(sums.gg, m) * _box(sums.ff[None], m)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(inside & (den > 0), num / np.sqrt(np.where(den > 0, den, 1.0)), np.nan)
+
+
+@nb.njit(cache=True)
+def _quantile(s, p):  # pragma: no cover - compiled
+    """The p-quantile of a sorted 1-D array (the nearest rank)."""
+    return s[min(s.shape[0] - 1, int(p * (s.shape[0] - 1) + 0.5))]
+
+
+@nb.njit(cache=True, parallel=True)
+def _standardise(rho, min_lags, z, spread):  # pragma: no cover - compiled
+    d, n = rho.shape
+    for j in nb.prange(n):
+        v = rho[:, j]
+        ok = np.isfinite(v)
+        if ok.sum() < min_lags:
+            continue
+        s = np.sort(v[ok])
+        med, sd = _quantile(s, 0.5), (_quantile(s, 0.9) - _quantile(s, 0.1)) / 2.563
+        if sd <= 0:
+            continue
+        spread[j] = sd
+        for k in range(d):
+            if ok[k]:
+                z[k, j] = (v[k] - med) / sd
+
+
+def standardised(rho: np.ndarray, min_lags: int = MIN_LAGS) -> tuple[np.ndarray, np.ndarray]:
+    """(z, spread): z (D, ...) of patch correlations ``rho`` (D, ...), each patch's profile over the lags
+    centred on its median and divided by its spread, the 10-90 % range / 2.563 ((...), NaN for patches with
+    fewer than ``min_lags`` finite lags or a flat profile, whose z are NaN too)."""
+    flat = np.ascontiguousarray(rho.reshape(rho.shape[0], -1), dtype=np.float64)
+    z = np.full_like(flat, np.nan)
+    spread = np.full(flat.shape[1], np.nan)
+    _standardise(flat, int(min_lags), z, spread)
+    return z.reshape(rho.shape), spread.reshape(rho.shape[1:])
+
+
+@nb.njit(cache=True, parallel=True)
+def _lag_medians(rho, out):  # pragma: no cover - compiled
+    for k in nb.prange(rho.shape[0]):
+        v = rho[k]
+        v = v[np.isfinite(v)]
+        if v.size:
+            out[k] = _quantile(np.sort(v), 0.5)
+
+
+@dataclass(frozen=True)
+class ChanceLevel:
+    """Where chance's tail puts a family of n tests: ``threshold`` (z) is exceeded by chance with
+    probability at most ``alpha`` in all; ``largest`` the largest z of chance's side (-z), ``scale`` the
+    tail's scale beta (upper bound), ``tests`` n."""
+
+    threshold: float
+    largest: float
+    scale: float
+    tests: int
+
+
+@nb.njit(cache=True, parallel=True)
+def _chance_side(z, reach, ratio, out):  # pragma: no cover - compiled
+    d, n = z.shape
+    for j in nb.prange(n):
+        for k in range(d):
+            v = z[k, j]
+            if not v < 0:
+                continue
+            lobe = False
+            for i in range(max(0, k - reach), min(d, k + reach + 1)):
+                if z[i, j] >= -ratio * v:
+                    lobe = True
+                    break
+            if not lobe:
+                out[k, j] = -v
+
+
+def chance_side(z: np.ndarray) -> np.ndarray:
+    """-z (D, ...) where z < 0 and is no side lobe of an echo (NaN elsewhere): a band-passed texture's
+    correlation dips either side of its peak, so a value within :data:`LOBE_LAGS` lags of a positive one
+    :data:`LOBE_RATIO` times its size, in the same patch, belongs to that peak, not to chance."""
+    flat = np.ascontiguousarray(z.reshape(z.shape[0], -1))
+    out = np.full_like(flat, np.nan)
+    _chance_side(flat, LOBE_LAGS, LOBE_RATIO, out)
+    return out.reshape(z.shape)
+
+
+def chance_level(z: np.ndarray, alpha: float) -> ChanceLevel:
+    """The level of a family of z tests (D, ...; NaN ignored) that chance exceeds with probability at
+    most ``alpha``, from their negative side (module docstring, :func:`chance_side`): u + beta ln(k / alpha)."""
+    v = z[np.isfinite(z)]
+    neg = chance_side(z)
+    neg = neg[np.isfinite(neg)]
+    if neg.size < 2 * TAIL:
+        return ChanceLevel(math.inf, float(neg.max(initial=0.0)), math.nan, int(v.size))
+    k = max(TAIL, v.size // 500)
+    k = min(k, neg.size - 1)
+    top = np.sort(np.partition(neg, neg.size - k - 1)[neg.size - k - 1:])[::-1]
+    u = float(top[k])
+    beta = float(top[:k].mean() - u) * (1.0 + 2.0 / math.sqrt(k))
+    return ChanceLevel(u + beta * math.log(k / alpha), float(top[0]), beta, int(v.size))
+
+
+def autocorrelation_lags(rho: np.ndarray, spread: float, lags: np.ndarray) -> int:
+    """The first lag (px) free of the image's own autocorrelation: scanning up from the first of ``lags`` (when
+    it is within :data:`AUTOCORRELATION_MAX_PX`), the first where the median over all patches of ``rho`` (D,
+    ...) is within half the patches' median ``spread`` of zero, or stops falling. (A smooth texture
+    correlates with itself at small lags in every patch alike, a lobe falling from lag 1; an echo further up,
+    even one that fills the image, is not touched.)"""
+    if lags[0] > AUTOCORRELATION_MAX_PX:
+        return int(lags[0])
+    trend = np.full(rho.shape[0], np.nan)
+    _lag_medians(np.ascontiguousarray(rho.reshape(rho.shape[0], -1)), trend)
+    for k in range(len(lags)):
+        bottom = k + 1 < len(lags) and trend[k + 1] >= trend[k]     # the lobe falling from lag 1 ends here
+        if lags[k] > AUTOCORRELATION_MAX_PX or abs(trend[k]) <= 0.5 * spread or bottom:
+            return int(lags[k])
+    return int(lags[-1]) + 1
+
+
+def standardising_lags(lo: int, hi: int, width: int) -> np.ndarray:
+    """The lags (px) a search of lo..hi px is standardised over: lo..hi widened (downward first, then
+    upward) to at least :data:`MIN_LAGS` where the image is wide enough; from 1 px when lo is within
+    :data:`AUTOCORRELATION_MAX_PX` (:func:`autocorrelation_lags`), and then up to at least MIN_LAGS beyond
+    that reach (what the autocorrelation takes away leaves enough)."""
+    lo, hi = max(1, lo), min(hi, width - 1)
+    if lo <= AUTOCORRELATION_MAX_PX:
+        lo, least = 1, AUTOCORRELATION_MAX_PX + MIN_LAGS
+    else:
+        lo, least = max(1, lo - max(0, MIN_LAGS - (hi - lo + 1))), MIN_LAGS
+    return np.arange(lo, min(width - 1, max(hi, lo + least - 1)) + 1)
+
+
+@dataclass(frozen=True, eq=False)
+class EchoTest:
+    """The test's outcome on one image (pair) at its judged level. ``echo`` (D, ny, nx) bool: lag k of
+    ``lags`` echoes beyond chance in some patch covering cell (cy, cx) (any band, any patch size);
+    ``lags`` (D,) px; ``cell_px``; ``strongest`` the largest z of any judged test relative to its family's
+    threshold (> 1: an echo), with ``strongest_z``/``strongest_threshold`` and where it is
+    (``strongest_at``: (u, v) px of the patch's centre, its side px, its lag px); ``first_lag`` the
+    smallest lag judged (the autocorrelation's end); ``patches`` judged (patch, lag) tests in all."""
+
+    echo: np.ndarray
+    lags: np.ndarray
+    cell_px: int
+    strongest: float
+    strongest_z: float
+    strongest_threshold: float
+    strongest_at: tuple[float, float, int, int]
+    first_lag: int
+    tests: int
+
+    @property
+    def echoes(self) -> bool:
+        """Whether any patch echoes beyond chance."""
+        return bool(self.echo.any())
+
+    def covers(self, d: np.ndarray, u: np.ndarray, v: np.ndarray, tol_px: float) -> np.ndarray:
+        """Whether pixels (u, v) (px, this level; any shape) have an echoing lag within ``tol_px`` of their
+        disparity ``d`` (px, this level) in a patch that covers them: bool of their shape (False where d is
+        not finite or (u, v) outside the cells)."""
+        return _covers(self.echo, np.asarray(self.lags, np.int64), self.cell_px, np.asarray(d, np.float64).ravel(),
+                       np.asarray(u, np.float64).ravel(), np.asarray(v, np.float64).ravel(),
+                       float(tol_px)).reshape(np.shape(d))
+
+
+@nb.njit(cache=True, parallel=True)
+def _covers(echo, lags, cell, d, u, v, tol):  # pragma: no cover - compiled
+    n = d.shape[0]
+    _, ny, nx = echo.shape
+    out = np.zeros(n, np.bool_)
+    l0, l1 = lags[0], lags[-1]
+    for i in nb.prange(n):
+        if not np.isfinite(d[i]):
+            continue
+        cy, cx = int(v[i] // cell), int(u[i] // cell)
+        if cy < 0 or cy >= ny or cx < 0 or cx >= nx:
+            continue
+        a = max(l0, int(math.ceil(d[i] - tol)))
+        b = min(l1, int(math.floor(d[i] + tol)))
+        for lag in range(a, b + 1):
+            if echo[lag - l0, cy, cx]:
+                out[i] = True
+                break
+    return out
+
+
+def _spread_to_cells(sig: np.ndarray, m: int) -> np.ndarray:
+    """(D, ny - m + 1, nx - m + 1) patch flags -> (D, ny, nx): a cell is flagged when a patch covering it is."""
+    d, by, bx = sig.shape
+    out = np.zeros((d, by + m - 1, bx + m - 1), bool)
+    for i in range(m):
+        for j in range(m):
+            out[:, i:i + by, j:j + bx] |= sig
+    return out
+
+
+def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.ndarray | None = None,
+              inside: tuple[np.ndarray, np.ndarray] | None = None, alpha: float = ALPHA) -> EchoTest:
+    """Which lags of d_min..d_max px echo beyond chance, and where, in ``image`` (H, W) (on a build its left
+    view's rectified grid, and ``image_right`` the right view's; ``inside`` the two grids' field masks,
+    features outside them count as none). Module docstring; false alarm ``alpha`` for the whole image."""
+    left = np.asarray(image, dtype=np.float64)
+    right = left if image_right is None else np.asarray(image_right, dtype=np.float64)
+    h, w = left.shape
+    lags = standardising_lags(max(1, math.ceil(d_min)), math.floor(d_max), w)
+    families = len(BANDS_PX) * len(BLOCK_CELLS)
+    ny, nx = h // CELL_PX, w // CELL_PX
+    echo = np.zeros((len(lags), ny, nx), bool)
+    best = (-math.inf, 0.0, 1.0, (0.0, 0.0, 0, 0))
+    first, tests = int(lags[0]), 0
+    judged = (lags >= math.ceil(d_min)) & (lags <= math.floor(d_max))
+    for sigma in BANDS_PX:
+        f, g = band_features(left, sigma), band_features(right, sigma)
+        if inside is not None:
+            f, g = np.where(inside[0], f, 0.0), np.where(inside[1], g, 0.0)
+        sums = cell_sums(f, g, lags)
+        for m in BLOCK_CELLS:
+            if ny < m or nx < m:
+                continue
+            rho = patch_correlations(sums, m)
+            z, spread = standardised(rho)
+            if not np.isfinite(spread).any():
+                continue
+            start = max(MIN_LAG_PX, math.ceil(SHORT_LAGS * sigma),
+                        autocorrelation_lags(rho, float(np.nanmedian(spread)), lags))
+            first = max(first, start)
+            if start > lags[0]:        # standardised again without them
+                rho[lags < start] = np.nan
+                z, spread = standardised(rho)
+            level = chance_level(z, alpha / families)
+            tests += level.tests
+            zj = np.where(judged[:, None, None], z, np.nan)
+            if np.isfinite(zj).any():
+                k, by, bx = np.unravel_index(np.nanargmax(zj), zj.shape)
+                ratio = zj[k, by, bx] / level.threshold
+                if ratio > best[0]:
+                    side = m * CELL_PX
+                    best = (ratio, float(zj[k, by, bx]), level.threshold,
+                            (bx * CELL_PX + side / 2 - 0.5, by * CELL_PX + side / 2 - 0.5, side, int(lags[k])))
+            echo |= _spread_to_cells(np.nan_to_num(zj, nan=-np.inf) > level.threshold, m)
+    return EchoTest(echo, lags, CELL_PX, float(best[0]), float(best[1]), float(best[2]), best[3], first, tests)
