@@ -39,11 +39,27 @@ def rotation(R) -> np.ndarray:
     return transform_from(R, np.zeros(3))
 
 
+def matrix_from_rotvec(rotvec) -> np.ndarray:
+    """The rotation (3, 3) of rotation vector ``rotvec`` (3,) rad (axis times angle), by Rodrigues' formula
+    R = I + sin(t) K + (1 - cos(t)) K^2 (K the cross-product matrix of the unit axis); its series near t = 0.
+    (What scipy's Rotation.from_rotvec gives, without loading scipy.spatial on a command's start.)"""
+    v = np.asarray(rotvec, dtype=np.float64)
+    if v.shape != (3,):
+        raise ValueError(f"rotvec must have shape (3,), got {v.shape}")
+    t2 = float(v @ v)
+    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    if t2 < 1e-12:      # sin(t)/t and (1 - cos t)/t^2 by their series
+        a, b = 1.0 - t2 / 6.0, 0.5 - t2 / 24.0
+    else:
+        t = np.sqrt(t2)
+        a, b = np.sin(t) / t, (1.0 - np.cos(t)) / t2
+    return np.eye(3) + a * K + b * (K @ K)
+
+
 def transform_from_rotvec(rotvec, p) -> np.ndarray:
     """The transform (4, 4) with the rotation of rotation vector ``rotvec`` (3,) rad and translation ``p``
     (3,) mm."""
-    from scipy.spatial.transform import Rotation
-    return transform_from(Rotation.from_rotvec(np.asarray(rotvec, dtype=np.float64)).as_matrix(), p)
+    return transform_from(matrix_from_rotvec(rotvec), p)
 
 
 def invert_transform(A2B) -> np.ndarray:

@@ -17,10 +17,10 @@ import math
 from functools import lru_cache
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from psvs.optics.rig import Rig
 from psvs.optics.surfaces import Plane
+from psvs.transforms import matrix_from_rotvec
 
 #: The two views of the complex image: "left" (transmitted through the M1 plate), "right" (reflected).
 VIEWS = ("left", "right")
@@ -57,7 +57,7 @@ def _planes(m) -> dict[str, Plane]:
     if m.as_designed:
         planes = designed
     else:
-        box = Rotation.from_rotvec(m.box_rotation_rad).as_matrix()
+        box = matrix_from_rotvec(m.box_rotation_rad)
         planes = {}
         for name, p in designed.items():
             err = m.error(name)
@@ -96,9 +96,9 @@ def front_z_mm(rig: Rig) -> float:
 
 def _tilt_matrix(tilt_rad: tuple[float, float], s_axis: np.ndarray) -> np.ndarray:
     """Rotation (3, 3) of a mirror's tilt (a, b): by a about +Y, then by b about the turned s axis."""
-    yaw = Rotation.from_rotvec([0.0, tilt_rad[0], 0.0])
-    lean = Rotation.from_rotvec(tilt_rad[1] * yaw.apply(s_axis))
-    return (lean * yaw).as_matrix()
+    yaw = matrix_from_rotvec([0.0, tilt_rad[0], 0.0])
+    lean = matrix_from_rotvec(tilt_rad[1] * (yaw @ s_axis))
+    return lean @ yaw
 
 
 def path(rig: Rig, view: str) -> list[tuple]:
