@@ -1,6 +1,8 @@
 import dataclasses
 import math
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +12,15 @@ from psvs import default_rig
 from psvs.io.params import load_rig
 from psvs.optics.design import design_mirrors
 from tests.reference_optics import ReferenceRig
+
+#: The session's own cache folder (psvs.dense.rig_cache): the tests never read or write the user's, and each
+#: session starts empty. Set at import, before any test or command runs (subprocesses inherit it).
+SESSION_CACHE = tempfile.mkdtemp(prefix="psvs-test-cache-")
+os.environ["PSVS_CACHE_DIR"] = SESSION_CACHE
+
+
+def pytest_unconfigure(config):
+    shutil.rmtree(SESSION_CACHE, ignore_errors=True)
 
 
 def pytest_configure(config):
