@@ -14,7 +14,10 @@ import numpy as np
 import pytest
 from scipy.ndimage import distance_transform_edt
 
+from psvs.dense.build import RigDense, rig_cloud
 from psvs.dense.depth_table import CHECK_MM, DepthTable, build_depth_table, exact_points, table_points, table_range
+from psvs.dense.disparity import DenseResult
+from psvs.dense.rig_cache import depth_table
 from psvs.io.params import load_rig
 from psvs.measure.triangulate import triangulate
 from psvs.optics.mirrors import front_z_mm
@@ -22,15 +25,6 @@ from psvs.optics.rectify import rectify
 from tests.optics.test_build import random_build
 
 TOL_MM = 0.01           # the required agreement, X, Y and Z
-
-_TABLES = {}
-
-
-def depth_table(rect):
-    """One table per rectification in this module."""
-    if rect not in _TABLES:
-        _TABLES[rect] = build_depth_table(rect)
-    return _TABLES[rect]
 
 
 def vignetting_build():
@@ -109,6 +103,38 @@ def test_what_the_exact_model_rejects_is_nan():
     np.testing.assert_array_equal(got.valid, before.valid)
     assert np.array_equal(got.points_mm[5], before.points_mm[5])          # beyond the table: the exact path
     assert np.abs(got.points_mm[6] - before.points_mm[6]).max() <= TOL_MM
+
+
+def test_rig_cloud_on_a_build_goes_through_the_table(monkeypatch):
+    """rig_cloud keeps its meaning (points, left-grid pixels, depth on the grid, NaN where no point) and, with
+    the exact model, its numbers within 0.01 mm: a slanted plane's disparities over the whole grid."""
+    rig = load_rig("misaligned")
+    rect = rectify(rig)
+    w, h = rect.size_px
+    u, v = np.meshgrid(np.arange(w), np.arange(h))
+    zc = 0.5 * (rect.centres_mm["left"] + rect.centres_mm["right"]) @ rect.rotation[2]
+    z = 700.0 + 0.4 * (u - w / 2)                            # a plane slanted about the vertical, mm
+    d = (rect.camera_matrix[0, 0] * rect.baseline_mm / (z - zc)).astype(np.float32)
+    res = DenseResult(d, d, np.ones_like(d), np.ones_like(d), (1.0, 300.0))
+    dense = RigDense(res, rect, np.zeros_like(d))
+    calls = []
+    monkeypatch.setattr("psvs.dense.build.table_points", lambda *a: calls.append(1) or table_points(*a))
+    cloud = rig_cloud(dense, rig)
+    assert calls == [1]
+    keep = np.isfinite(d) & (d > 0)
+    vv, uu = np.nonzero(keep)
+    before = exact_points(rect, np.column_stack([uu, vv]).astype(float), d[vv, uu].astype(float))
+    np.testing.assert_array_equal(cloud.pixels, np.column_stack([uu, vv])[before.valid])
+    np.testing.assert_array_equal(np.isfinite(cloud.depth_mm[vv, uu]), before.valid)
+    assert np.abs(cloud.points_mm - before.points_mm[before.valid]).max() <= TOL_MM
+    np.testing.assert_array_equal(cloud.depth_mm[vv[before.valid], uu[before.valid]], cloud.points_mm[:, 2])
+    assert len(cloud.points_mm) > 0.5 * keep.sum()
+    # another model, or another rig than the rectification's: the exact path, as before
+    refr = rig_cloud(dense, rig, model="refraction", mask=keep & (u % 7 == 0))
+    ref = exact_points(rect, np.column_stack([uu, vv]).astype(float), d[vv, uu].astype(float), "refraction")
+    sub = (uu % 7 == 0) & ref.valid
+    np.testing.assert_allclose(refr.points_mm, ref.points_mm[sub], rtol=0, atol=1e-9)
+    assert calls == [1]
 
 
 def test_exact_points_is_the_old_path():
