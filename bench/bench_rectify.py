@@ -99,7 +99,6 @@ def _table():
 
 CLOUD_TABLE = "rig_cloud of that map: cloud through the depth table"
 CLOUD_EXACT = "rig_cloud of that map: cloud by the exact trace (before the table)"
-RATIOS = [("exact trace / depth table, a whole map's cloud on the build (same run)", CLOUD_EXACT, CLOUD_TABLE)]
 
 
 def cases():
