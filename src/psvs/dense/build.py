@@ -113,7 +113,8 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
         tri = table_points(depth_table(rect), rect, left_rect, d[v, u])
     else:
         tri = exact_points(rect, left_rect, d[v, u], model, rig=rig)
-    u, v, left_rect = u[tri.valid], v[tri.valid], left_rect[tri.valid]
+    ok = np.flatnonzero(tri.valid)           # once, for the four arrays it selects from
+    pts = tri.points_mm[ok]
     depth = np.full(d.shape, np.nan)
-    depth[v, u] = tri.points_mm[tri.valid, 2]
-    return Cloud(tri.points_mm[tri.valid], left_rect, depth)
+    depth[v[ok], u[ok]] = pts[:, 2]
+    return Cloud(pts, left_rect[ok], depth)

@@ -336,6 +336,7 @@ def _table_kernel(uv, d, map_l, map_r, slopes, cells_l, cells_r, rot, centres, c
     consts: f'_x, f'_y, c'_x, c'_y, step, d_min, d_max, z_ref − C_l,z, the mirror box's far reach z."""
     fx, fy, cx, cy, step, d_lo, d_hi, dz_ref, front = (consts[0], consts[1], consts[2], consts[3], consts[4],
                                                       consts[5], consts[6], consts[7], consts[8])
+    ifx, ify, istep = 1.0 / fx, 1.0 / fy, 1.0 / step     # products, not quotients: a division is slow
     nv, nu = slopes.shape[0], slopes.shape[1]
     for n in nb.prange(len(d)):
         x, y, dd = uv[n, 0], uv[n, 1], d[n]
@@ -346,25 +347,26 @@ def _table_kernel(uv, d, map_l, map_r, slopes, cells_l, cells_r, rot, centres, c
         if not (dd >= d_lo and dd <= d_hi):
             status[n] = 2
             continue
-        fu, fv, fr = x / step, y / step, xr / step
+        fu, fv, fr = x * istep, y * istep, xr * istep
         i, j, k = min(int(fu), nu - 2), min(int(fv), nv - 2), min(int(fr), nu - 2)
         if not (cells_l[j, i] and cells_r[j, k]):
             status[n] = 2
             continue
         a, b = fu - i, fv - j
         w00, w01, w10, w11 = (1 - a) * (1 - b), a * (1 - b), (1 - a) * b, a * b
-        s00, s01, s10, s11 = slopes[j, i], slopes[j, i + 1], slopes[j + 1, i], slopes[j + 1, i + 1]
-        p = w00 * s00[0] + w01 * s01[0] + w10 * s10[0] + w11 * s11[0]
-        q = w00 * s00[1] + w01 * s01[1] + w10 * s10[1] + w11 * s11[1]
+        p = w00 * slopes[j, i, 0] + w01 * slopes[j, i + 1, 0] + w10 * slopes[j + 1, i, 0] + (
+            w11 * slopes[j + 1, i + 1, 0])          # scalars, not row views: a view costs an atomic refcount
+        q = w00 * slopes[j, i, 1] + w01 * slopes[j, i + 1, 1] + w10 * slopes[j + 1, i, 1] + (
+            w11 * slopes[j + 1, i + 1, 1])
         # Q: the left pinhole ray's point at Z = z_ref, in the rectified frame with C_r at the origin
-        ax, ay = (x - cx) / fx, (y - cy) / fy
+        ax, ay = (x - cx) * ifx, (y - cy) * ify
         t = dz_ref / (rot[0, 2] * ax + rot[1, 2] * ay + rot[2, 2])
         qx, qy, qz = centres[0, 0] + t * ax, centres[0, 1] + t * ay, centres[0, 2] + t
-        nl = math.sqrt(p * p + q * q + 1.0)
-        lx, ly, lz = p / nl, q / nl, 1.0 / nl
-        rx, ry = (xr - cx) / fx, ay
-        nr = math.sqrt(rx * rx + ry * ry + 1.0)
-        rx, ry, rz = rx / nr, ry / nr, 1.0 / nr
+        inl = 1.0 / math.sqrt(p * p + q * q + 1.0)
+        lx, ly, lz = p * inl, q * inl, inl
+        rx = (xr - cx) * ifx
+        inr = 1.0 / math.sqrt(rx * rx + ay * ay + 1.0)
+        rx, ry, rz = rx * inr, ay * inr, inr
         # closest approach of Q + s l and 0 + t r (psvs.measure.triangulate's exact model)
         bb = lx * rx + ly * ry + lz * rz
         dl = lx * qx + ly * qy + lz * qz
@@ -373,7 +375,8 @@ def _table_kernel(uv, d, map_l, map_r, slopes, cells_l, cells_r, rot, centres, c
         if not den > 1e-14:
             status[n] = 1
             continue
-        s, tt = (bb * er - dl) / den, (er - bb * dl) / den
+        iden = 1.0 / den
+        s, tt = (bb * er - dl) * iden, (er - bb * dl) * iden
         px, py, pz = qx + s * lx, qy + s * ly, qz + s * lz          # on the left ray
         sx, sy, sz = tt * rx, tt * ry, tt * rz                      # on the right ray
         mx, my, mz = 0.5 * (px + sx), 0.5 * (py + sy), 0.5 * (pz + sz)
