@@ -59,12 +59,12 @@ from psvs.optics.search_range import disparity_range
 from psvs.optics.trace import trace_pixels
 
 #: The largest difference (mm, in X, Y or Z) between the table and the exact model over the build's check
-#: points; a table that misses it is rebuilt with half the node spacing.
+#: points; a table that misses it is rebuilt with half the node spacing (down to :data:`MIN_STEP_PX`).
 CHECK_MM = 0.002
 #: Check points per table (half at cell centres, where bilinear interpolation errs most, half at random).
 CHECK_POINTS = 4096
-#: Node spacing (px) = STEP_SCALE · (the table's smallest disparity) / b', at most :data:`MAX_STEP_PX`: the
-#: interpolation error grows as (spacing / f')² · Z_max², and f' / Z_max = d_min / b'.
+#: Node spacing (px) = STEP_SCALE · (the table's smallest disparity) / b', from :data:`MIN_STEP_PX` to
+#: :data:`MAX_STEP_PX`: the interpolation error grows as (spacing / f')² · Z_max², and f' / Z_max = d_min / b'.
 STEP_SCALE = 12.0
 MAX_STEP_PX, MIN_STEP_PX = 8, 2
 #: Disparities (px) added beyond :func:`psvs.optics.search_range.disparity_range` at the far end (small:
@@ -131,8 +131,9 @@ def build_depth_table(rect: Rectification, disparity_px: tuple[float, float] | N
     disparity_px : (float, float), optional
         The disparities (px) to answer; default :func:`table_range`.
     step_px : int, optional
-        Node spacing, px; default from the far end of the range, halved until the check passes
-        (:data:`CHECK_MM`). Given, it is kept whatever the check finds.
+        Node spacing, px; default from the far end of the range (:data:`STEP_SCALE`), halved until the
+        check passes (:data:`CHECK_MM`) or it reaches :data:`MIN_STEP_PX`. Given, it is kept whatever the
+        check finds (:attr:`DepthTable.max_error_mm` says what it found).
 
     Returns
     -------
