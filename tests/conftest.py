@@ -1,3 +1,4 @@
+import atexit
 import dataclasses
 import math
 import os
@@ -14,13 +15,11 @@ from psvs.optics.design import design_mirrors
 from tests.reference_optics import ReferenceRig
 
 #: The session's own cache folder (psvs.dense.rig_cache): the tests never read or write the user's, and each
-#: session starts empty. Set at import, before any test or command runs (subprocesses inherit it).
+#: session starts empty. Set at import, before any test or command runs (subprocesses inherit it); removed
+#: when the process ends (also when a script, not pytest, imports this module).
 SESSION_CACHE = tempfile.mkdtemp(prefix="psvs-test-cache-")
 os.environ["PSVS_CACHE_DIR"] = SESSION_CACHE
-
-
-def pytest_unconfigure(config):
-    shutil.rmtree(SESSION_CACHE, ignore_errors=True)
+atexit.register(shutil.rmtree, SESSION_CACHE, ignore_errors=True)
 
 
 def pytest_configure(config):
