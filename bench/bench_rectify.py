@@ -2,17 +2,20 @@
 rectification adds to matching on a build, per frame (<= 2 ms: the edge pixels' rectified coordinates, the
 two rectified images, pairs mapped back), and once per rig (reported); dense --fast on the build's two
 rectified grids (the built-in textured scene): <= 100 ms with bench_dense's 64 disparities, as on the ideal
-rig; the rig's whole working range (171 disparities on a 663x509 grid) reported."""
+rig; the rig's whole working range (171 disparities on a 663x509 grid) reported; the depth and cloud of that
+map (rig_cloud) through the build's depth table and by the exact trace it replaces, and the table's build,
+reported."""
 import cv2
 import numpy as np
 
-from psvs.dense.build import dense_on_rig
+from psvs.dense.build import dense_on_rig, rig_cloud
+from psvs.dense.depth_table import build_depth_table, exact_points
 from psvs.dense.params import FAST
 from psvs.imaging.pipeline import PAPER
 from psvs.io.params import load_rig
 from psvs.match.correspondence import match_image
 from psvs.match.edges import edge_coords, roles_of
-from psvs.optics.rectify import rectify
+from psvs.optics.rectify import forget, rectify
 from psvs.simulate.builtin import builtin_scene, textured
 from psvs.simulate.render import render
 
@@ -34,7 +37,7 @@ def _once():
     rig = load_rig("misaligned")
 
     def run():
-        rectify.cache_clear()
+        forget()
         r = rectify(rig)
         r.pixel_table("left"), r.pixel_table("right"), r.maps("left"), r.maps("right")
     return run
@@ -75,6 +78,29 @@ def _dense_fast(d_range=None):
     return setup
 
 
+def _cloud(table: bool):
+    def setup():
+        rig = load_rig("misaligned")
+        dense = dense_on_rig(render(textured(), rig, seed=1).image, rig, params=FAST)
+        if table:
+            rig_cloud(dense, rig)                                # the table, once per rig
+            return lambda: rig_cloud(dense, rig)
+        d = dense.result.disparity_left.astype(np.float64)
+        v, u = np.nonzero(np.isfinite(d) & (d > 0))
+        uv = np.column_stack([u, v]).astype(np.float64)
+        return lambda: exact_points(dense.rect, uv, d[v, u])    # rig_cloud's triangulation before the table
+    return setup
+
+
+def _table():
+    rect = rectify(load_rig("misaligned"))
+    return lambda: build_depth_table(rect)
+
+
+CLOUD_TABLE = "rig_cloud of that map: cloud through the depth table"
+CLOUD_EXACT = "rig_cloud of that map: cloud by the exact trace (before the table)"
+
+
 def cases():
     return [
         ("rectify a build: fit, pixel tables, remaps (once per rig)", _once, float("inf")),
@@ -85,4 +111,7 @@ def cases():
          _dense_fast((100.0, 164.0)), 0.100),
         ("dense --fast on the build, the rig's whole 400-1200 mm range (171 disparities)", _dense_fast(),
          float("inf")),
+        (CLOUD_TABLE, _cloud(True), float("inf")),
+        (CLOUD_EXACT, _cloud(False), float("inf")),
+        ("the build's depth table (once per rig; then from the cache folder)", _table, float("inf")),
     ]

@@ -1,6 +1,9 @@
+import atexit
 import dataclasses
 import math
 import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +13,13 @@ from psvs import default_rig
 from psvs.io.params import load_rig
 from psvs.optics.design import design_mirrors
 from tests.reference_optics import ReferenceRig
+
+#: The session's own cache folder (psvs.dense.rig_cache): the tests never read or write the user's, and each
+#: session starts empty. Set at import, before any test or command runs (subprocesses inherit it); removed
+#: when the process ends (also when a script, not pytest, imports this module).
+SESSION_CACHE = tempfile.mkdtemp(prefix="psvs-test-cache-")
+os.environ["PSVS_CACHE_DIR"] = SESSION_CACHE
+atexit.register(shutil.rmtree, SESSION_CACHE, ignore_errors=True)
 
 
 def pytest_configure(config):

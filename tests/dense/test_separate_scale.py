@@ -10,11 +10,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from psvs.dense.build import dense_on_rig, rectification_for, rectified_images
+from psvs.dense.build import dense_on_rig, rectified_images
 from psvs.dense.separate import SeparationParams, grid_pixel_scale, psnr_db, separate_views
 from psvs.io.params import load_rig
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale
+from psvs.optics.search_range import rectification_for
 from psvs.simulate.render import render
 from psvs.simulate.sensor import Sensor, expose
 from tests.dense.facade import cards_before_facade

@@ -78,3 +78,17 @@ def test_match_keeps_the_earlier_json_when_a_later_output_fails(tmp_path, monkey
     assert code == 2 and "No space left on device" in err
     assert (tmp_path / "a.json").read_text() == "earlier" and not (tmp_path / "a.csv").exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "c.png"]
+
+
+def test_a_write_outside_the_batch_lands_at_once(tmp_path):
+    """batch=False (a cache file): renamed into place at once inside output_batch, and kept when the batch
+    fails; the batch's own outputs are not."""
+    from psvs.io.atomic import output_batch
+    out, cache = tmp_path / "out.txt", tmp_path / "cache.bin"
+    with pytest.raises(RuntimeError), output_batch():
+        write_atomic(out, "output")
+        write_atomic(cache, b"cached", batch=False)
+        assert cache.read_bytes() == b"cached" and not out.exists()
+        raise RuntimeError("a later output fails")
+    assert cache.read_bytes() == b"cached" and not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cache.bin"]

@@ -120,3 +120,28 @@ def test_cache_and_errors():
         rectify(rig).to_rectified([[1.0, 2.0]], "centre")
     with pytest.raises(ValueError, match="0 < near < far"):
         rectify(rig, 900.0, 500.0)
+
+
+def test_memory_is_shared_and_seeded():
+    """rectify keeps one rectification per rig and range (keyword or positional, int or float range);
+    remember seeds it with one read back from a store unless one is kept already; preload_maps takes only
+    maps of the rectified grid's shape, float32."""
+    import dataclasses
+
+    from psvs.optics.rectify import forget, remember, remembered
+    rig = load_rig("misaligned")
+    forget()
+    assert remembered(rig) is None
+    rect = rectify(rig)
+    assert rectify(rig, 400, 1200) is rect and remembered(rig, 400.0, 1200.0) is rect
+    forget()
+    assert remember(rect) is rect and rectify(rig) is rect
+    assert remember(dataclasses.replace(rect)) is rect          # another object of the same key: the kept one
+    w, h = rect.size_px
+    with pytest.raises(ValueError, match=rf"map_u must be a float32 array of shape \({h}, {w}\), got float64"):
+        rect.preload_maps("left", np.zeros((h, w)), np.zeros((h, w), np.float32))
+    with pytest.raises(ValueError, match=rf"map_v must be a float32 array of shape \({h}, {w}\)"):
+        rect.preload_maps("left", np.zeros((h, w), np.float32), np.zeros((h, w - 1), np.float32))
+    mu, mv = rect.maps("right")
+    rect.preload_maps("right", mu.copy(), mv.copy())
+    assert np.array_equal(rect.maps("right")[0], mu)

@@ -14,6 +14,7 @@ from psvs.dense import dense_disparity, separate_views, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_trust
 from psvs.dense.disparity import check_dense_memory, check_range
 from psvs.dense.params import DEFAULT, FAST
+from psvs.dense.rig_cache import rectification
 from psvs.dense.trust import ALPHA, EchoTrust, trusted_maps
 from psvs.dense.workspace import Workspace
 from psvs.errors import MeasurementError
@@ -23,7 +24,7 @@ from psvs.io.images import check_frame_size, read_grey, write_npy, write_png
 from psvs.io.params import load_rig
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale as camera_pixel_scale
-from psvs.optics.search_range import disparity_range, rectification_for
+from psvs.optics.search_range import disparity_range
 
 
 def add_parser(sub) -> None:
@@ -98,7 +99,7 @@ def _inputs(args, image=None):
     rect = None
     if rig is not None:
         near_mm, far_mm = range_from_args(args)
-        rect = rectification_for(rig, near_mm, far_mm)
+        rect = rectification(rig, near_mm, far_mm)     # with its remaps, from the cache when it holds them
     shape = image.shape if rect is None else rect.size_px[::-1]
     lo, hi = _range(args, rig, rect, shape[1])
     check_range(lo, hi, shape[1])

@@ -7,26 +7,29 @@ is sought along the same row of the right-grid image (the echo becomes a cross-c
 two, docs/dense.md). The maps are then in rectified coordinates: ``disparity_left`` on the left view's
 rectified grid (u'_l − u'_r, px), ``disparity_right`` on the right view's; pixels outside a view's field
 are NaN. Depth and points come from the exact model of the build: each left-grid pixel and its twin
-u' − d on the right grid are mapped back to complex-image pixels and triangulated.
+u' − d on the right grid, triangulated through the build's depth table (:mod:`psvs.dense.depth_table`: the
+left view's exact rays tabled once per calibration, within 0.002 mm of tracing both pixels' rays exactly).
+The rectification, its remaps and the table are made once per rig content (:mod:`psvs.dense.rig_cache`: in
+memory and in the user's cache folder).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
 from psvs.dense.cloud import Cloud, disparity_cloud
+from psvs.dense.depth_table import exact_points, table_points
 from psvs.dense.disparity import DenseResult, dense_disparity
 from psvs.dense.params import DEFAULT, DenseParams
+from psvs.dense.rig_cache import depth_table, nearest_inside, rectification
 from psvs.dense.trust import EchoTrust, echo_trust
 from psvs.dense.workspace import Workspace
-from psvs.measure.triangulate import default_model, triangulate
+from psvs.measure.triangulate import default_model
 from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
-from psvs.optics.search_range import disparity_range, rectification_for
+from psvs.optics.search_range import disparity_range
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,17 +45,6 @@ class RigDense:
     right_image: np.ndarray | None = None
 
 
-@lru_cache(maxsize=8)
-def _nearest_inside(rect: Rectification, view: str) -> tuple[np.ndarray, np.ndarray]:
-    """Index arrays (rows, cols) giving, for every rectified pixel, the nearest one inside the view's field."""
-    outside = rect.maps(view)[0] < 0
-    if not outside.any():
-        h, w = outside.shape
-        return np.indices((h, w))
-    _, (iv, iu) = distance_transform_edt(outside, return_indices=True)
-    return iv, iu
-
-
 def rectified_images(image, rect: Rectification) -> tuple[np.ndarray, np.ndarray]:
     """The complex image (H, W) resampled on the left and on the right view's rectified grid, float32
     (H', W'); outside a view's field each pixel repeats the nearest inside one (no artificial edge)."""
@@ -60,8 +52,7 @@ def rectified_images(image, rect: Rectification) -> tuple[np.ndarray, np.ndarray
     out = []
     for view in ("left", "right"):
         a = rect.remap(img, view)
-        iv, iu = _nearest_inside(rect, view)
-        out.append(a[iv, iu])
+        out.append(np.take(a, nearest_inside(rect, view)))
     return out[0], out[1]
 
 
@@ -75,7 +66,7 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     not flat (the camera's relative illumination) is first undone (:func:`psvs.optics.illumination.flat_field`),
     so the view separation's model C = (1 - s) L + s R holds in the corners as on the axis."""
     img = flat_field(np.asarray(image), rig.camera)
-    rect = rectification_for(rig, near_mm, far_mm)
+    rect = rectification(rig, near_mm, far_mm)
     if rect is None:
         lo, hi = d_range or disparity_range(rig, near_mm, far_mm, width_px=img.shape[1])
         return RigDense(dense_disparity(img, lo, hi, params=params, workspace=workspace), None, img)
@@ -103,8 +94,10 @@ def rig_trust(dense: RigDense) -> EchoTrust:
 
 def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) -> Cloud:
     """Depth map (on the left map's grid) and point cloud (frame C, mm) of a :class:`RigDense`: on the
-    paper's geometry :func:`psvs.dense.cloud.disparity_cloud`; on a build each left-grid pixel and its twin
-    are mapped back to the complex image and triangulated with ``model`` (default: exact on a build)."""
+    paper's geometry :func:`psvs.dense.cloud.disparity_cloud`; on a build each left-grid pixel (u', v') and
+    its twin (u' − d, v') triangulated with ``model`` (default: exact on a build), the exact model through
+    the build's depth table (:mod:`psvs.dense.depth_table`; its rectification's own rig), any other by
+    mapping both back to the complex image. ``mask`` (H', W' bool) keeps a subset of the map's pixels."""
     model = default_model(rig) if model is None else model
     d = np.asarray(dense.result.disparity_left, dtype=np.float64)
     if dense.rect is None:
@@ -114,11 +107,13 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
         keep &= np.asarray(mask, dtype=bool)
     v, u = np.nonzero(keep)
     left_rect = np.column_stack([u, v]).astype(np.float64)
-    left = dense.rect.lookup(left_rect, "left")
-    right = dense.rect.lookup(np.column_stack([u - d[v, u], v]), "right")
-    ok = np.all(np.isfinite(left), axis=1) & np.all(np.isfinite(right), axis=1)
-    tri = triangulate(left[ok], right[ok], rig, model=model)
-    u, v, left_rect = u[ok][tri.valid], v[ok][tri.valid], left_rect[ok][tri.valid]
+    rect = dense.rect
+    if model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors:
+        tri = table_points(depth_table(rect), rect, left_rect, d[v, u])
+    else:
+        tri = exact_points(rect, left_rect, d[v, u], model, rig=rig)
+    ok = np.flatnonzero(tri.valid)           # once, for the four arrays it selects from
+    pts = tri.points_mm[ok]
     depth = np.full(d.shape, np.nan)
-    depth[v, u] = tri.points_mm[tri.valid, 2]
-    return Cloud(tri.points_mm[tri.valid], left_rect, depth)
+    depth[v[ok], u[ok]] = pts[:, 2]
+    return Cloud(pts, left_rect[ok], depth)

@@ -12,11 +12,12 @@ from pathlib import Path
 _BATCH: contextvars.ContextVar[list | None] = contextvars.ContextVar("psvs_output_batch", default=None)
 
 
-def write_atomic(path, data: str | bytes) -> None:
+def write_atomic(path, data: str | bytes, *, batch: bool = True) -> None:
     """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``.
 
     A crash or error part-way leaves any earlier file at ``path`` untouched. Inside :func:`output_batch` the
-    temporary file is only renamed into place when the whole batch has been written.
+    temporary file is only renamed into place when the whole batch has been written; with ``batch=False``
+    at once, as outside a batch (a cache file, which is none of a command's outputs).
     """
     path = Path(path)
     if not path.parent.is_dir():
@@ -32,9 +33,9 @@ def write_atomic(path, data: str | bytes) -> None:
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give the file the permissions open() would
         with os.fdopen(fd, mode, **({} if mode == "wb" else {"encoding": "utf-8", "newline": ""})) as fh:
             fh.write(data)
-        batch = _BATCH.get()
-        if batch is not None:
-            batch.append((tmp, path))
+        pending = _BATCH.get() if batch else None
+        if pending is not None:
+            pending.append((tmp, path))
             return
         os.replace(tmp, path)
     except OSError as exc:

@@ -2,8 +2,10 @@
 over the rig's working range, on any rig (on a build, on the rectified grids of psvs.dense.build).
 
 Each frame gives the left view's disparity map and, on a grid of every ``stride``-th pixel, the
-triangulated points (frame C, mm) and their depth: the full map would cost 0.2 s of exact ray tracing on
-a build; one pixel in 16 keeps the cloud's shape and its median depth at a fraction of it.
+triangulated points (frame C, mm) and their depth (:func:`psvs.dense.build.rig_cloud`: on a build through
+its depth table, :mod:`psvs.dense.depth_table`, made on the first frame or read from the cache folder,
+:mod:`psvs.dense.rig_cache`); one pixel in 16 keeps the cloud's shape and its median depth at a sixteenth
+of the points to log and send.
 """
 from __future__ import annotations
 

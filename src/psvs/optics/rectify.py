@@ -20,12 +20,14 @@ complex-image pixels, so it moves no point either.
 
 A view's remap (rectified -> complex pixel) is exact at the nodes of an 8 px grid and bicubic in between
 (under 1e-3 px on a real lens), and the rectified coordinates of every complex-image pixel are tabled
-once (:meth:`Rectification.pixel_table`); :func:`rectify` caches one per rig and working range.
+once (:meth:`Rectification.pixel_table`); :func:`rectify` keeps the last few in memory, one per rig and
+working range, and :func:`remember` puts one read back from a store (psvs.dense.rig_cache) among them.
 """
 from __future__ import annotations
 
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -41,6 +43,11 @@ from psvs.optics.trace import trace_pixels
 VIEWS = ("left", "right")
 _GRID_STEP_PX = 8          # the remaps are exact on this grid, bicubic in between
 _MAX_GROWTH = 1.6          # a rectified image may be at most this much wider / taller than the camera's
+_KEPT = 8                  # rectifications kept in memory (the most recently used)
+
+# (rig, near_mm, far_mm) -> Rectification, the most recently used last
+_MEMORY: OrderedDict = OrderedDict()
+_MEMORY_LOCK = threading.Lock()
 
 
 def needs_rectification(rig: Rig) -> bool:
@@ -156,6 +163,17 @@ class Rectification:
             self._maps[view] = _build_maps(self, view)
         return self._maps[view]
 
+    def preload_maps(self, view: str, map_u: np.ndarray, map_v: np.ndarray) -> None:
+        """Give :meth:`maps` of one view without computing them: (map_u, map_v) float32 (H', W') as
+        :meth:`maps` returned them for this rectification's values (read back from a store)."""
+        view = _check_view(view)
+        w, h = self.size_px
+        for name, m in (("map_u", map_u), ("map_v", map_v)):
+            if not (isinstance(m, np.ndarray) and m.dtype == np.float32 and m.shape == (h, w)):
+                raise ValueError(f"{name} must be a float32 array of shape ({h}, {w}), got "
+                                 f"{getattr(m, 'dtype', type(m).__name__)} {getattr(m, 'shape', '')}")
+        self._maps[view] = (map_u, map_v)
+
     def remap(self, image: np.ndarray, view: str, interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
         """The complex image resampled on the rectified grid of one view (H', W'): that view's content with
         its epipolar curves as rows (the other view's content is warped along, not rectified)."""
@@ -260,9 +278,38 @@ def _samples(rig: Rig, near_mm: float, far_mm: float) -> tuple[np.ndarray, np.nd
     return lefts[ok], right[ok]
 
 
-@lru_cache(maxsize=8)
+def remembered(rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0) -> Rectification | None:
+    """The rectification :func:`rectify` keeps in memory for this rig and range, or None (nothing is fitted)."""
+    key = (rig, float(near_mm), float(far_mm))
+    with _MEMORY_LOCK:
+        rect = _MEMORY.get(key)
+        if rect is not None:
+            _MEMORY.move_to_end(key)
+        return rect
+
+
+def remember(rect: Rectification) -> Rectification:
+    """Make ``rect`` what :func:`rectify` returns for its rig and range from now on in this process (a
+    rectification read back from a store, with the same values); when one is already kept, that one stays
+    and is returned, so every caller shares one object (and its maps)."""
+    key = (rect.rig, rect.near_mm, rect.far_mm)
+    with _MEMORY_LOCK:
+        kept = _MEMORY.setdefault(key, rect)
+        _MEMORY.move_to_end(key)
+        while len(_MEMORY) > _KEPT:
+            _MEMORY.popitem(last=False)
+        return kept
+
+
+def forget() -> None:
+    """Empty the memory of :func:`rectify` (the next call fits again)."""
+    with _MEMORY_LOCK:
+        _MEMORY.clear()
+
+
 def rectify(rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0) -> Rectification:
-    """The dual rectification of a rig over the working range near..far (mm), cached per rig and range.
+    """The dual rectification of a rig over the working range near..far (mm), kept in memory per rig and
+    range (the last few used; :func:`remembered`).
 
     Fitted: the left centre's height and depth (its x only moves the disparity's origin) and z_ref, so
     that the two views' rectified rows agree on twin pixels of points spread over the field and over the
@@ -278,6 +325,12 @@ def rectify(rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0) -> Rectifi
     """
     if not 0 < near_mm < far_mm:
         raise ValueError(f"working range must satisfy 0 < near < far, got near={near_mm!r}, far={far_mm!r}")
+    rect = remembered(rig, near_mm, far_mm)
+    return rect if rect is not None else remember(_fit(rig, float(near_mm), float(far_mm)))
+
+
+def _fit(rig: Rig, near_mm: float, far_mm: float) -> Rectification:
+    """:func:`rectify`'s work, without the memory."""
     cam = rig.camera
     fx, fy = cam.focal_length_mm / cam.pixel_pitch_mm[0], cam.focal_length_mm / cam.pixel_pitch_mm[1]
     c_right = virtual_centre(rig, "right")
