@@ -35,7 +35,6 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from scipy.ndimage import distance_transform_edt
 
 from psvs.dense.depth_table import DepthTable, build_depth_table, node_counts
 from psvs.io.atomic import write_atomic
@@ -156,6 +155,7 @@ def nearest_inside(rect: Rectification, view: str) -> np.ndarray:
         outside = rect.maps(view)[0] < 0
         h, w = outside.shape
         if outside.any():
+            from scipy.ndimage import distance_transform_edt  # a cached rig does not need scipy.ndimage
             _, (iv, iu) = distance_transform_edt(outside, return_indices=True)
             index = (iv * w + iu).astype(np.int32)
         else:

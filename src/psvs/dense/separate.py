@@ -42,7 +42,6 @@ from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
-import scipy.sparse as sp
 
 from psvs.dense.disparity import check_image
 from psvs.dense.fastmath import SAFE_MATH
@@ -90,9 +89,10 @@ def grid_pixel_scale(rect) -> float:
 _DOT_CHUNKS = 64
 
 
-def _sampling(uv: np.ndarray, h: int, w: int) -> sp.csr_matrix:
+def _sampling(uv: np.ndarray, h: int, w: int):
     """(N, h*w) bilinear interpolation weights of the grid (h, w) at points uv (N, 2); rows of points off
     the grid are empty."""
+    import scipy.sparse as sp  # only view separation on a build: not loaded with psvs.dense
     n = len(uv)
     ok = np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)
     r = np.flatnonzero(ok)
@@ -273,9 +273,10 @@ def _rect_apply(data, data_t, ties, shape, coupling: float, smoothness: float):
 _DATA: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
-def _rect_data(rect, h: int, w: int, split: float) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+def _rect_data(rect, h: int, w: int, split: float):
     """D (H·W, 2·h·w): each complex-image pixel as (1 − s)·L + s·R sampled bilinearly where it lies on
     each view's rectified grid (h, w), and Dᵀ, both CSR; built once per rectification and split."""
+    import scipy.sparse as sp
     per_rect = _DATA.setdefault(rect, {})
     key = (h, w, split)
     if key not in per_rect:
