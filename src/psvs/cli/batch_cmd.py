@@ -235,6 +235,9 @@ def run(args) -> int:
     try:
         _preflight(job, frames)
         check_params(out_dir, _params(job))
+        if job["command"] == "disparity":       # the workers compile them, once each (psvs.dense.compiled)
+            from psvs.dense.compiled import announce_dense
+            announce_dense("psvs batch disparity")
         client = connect(args.scheduler, args.workers)
     except BaseException:
         if created:                      # refused: nothing left behind

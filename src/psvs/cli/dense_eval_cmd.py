@@ -7,6 +7,7 @@ import numpy as np
 
 from psvs._memory import check_memory
 from psvs.cli.common import check_distinct, check_output_folder
+from psvs.dense.compiled import announce_dense
 from psvs.dense.evaluate import evaluate_pair, motorcycle
 from psvs.dense.report import scores_markdown, write_report
 from psvs.io.images import read_grey, read_image
@@ -67,6 +68,7 @@ def run(args) -> int:
     else:
         left, right, gt = motorcycle()
         title = "Middlebury 2014 Motorcycle (scikit-image), grey, full size"
+    announce_dense("psvs dense-eval")
     ev = evaluate_pair(left, right, gt, args.min_disparity, args.max_disparity, args.split)
     print(scores_markdown(ev, f"{title}, split {args.split}, disparities "
                               f"{args.min_disparity:g}..{args.max_disparity:g}"))

@@ -12,6 +12,7 @@ from psvs.cli.common import (
 )
 from psvs.dense import dense_disparity, separate_views, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_trust
+from psvs.dense.compiled import announce_dense
 from psvs.dense.disparity import check_dense_memory, check_range
 from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.rig_cache import rectification
@@ -182,12 +183,16 @@ def prepare(args, image=None) -> tuple:
     return out, _inputs(args, image)
 
 
-def compute(args, image=None, workspace=None) -> tuple[dict, RigDense, EchoTrust | None, object]:
+def compute(args, image=None, workspace=None, say_compiling: str | None = None) -> tuple[dict, RigDense,
+                                                                                        EchoTrust | None, object]:
     """The command's work and its files: (output paths, the maps, their trust, the point cloud or None).
     MeasurementError when no answer stands above chance (nothing written). ``workspace``
     (psvs.dense.workspace.Workspace): kept from one frame to the next by ``psvs batch``'s workers; a new one
-    otherwise (chance's run then reuses the maps' volumes)."""
+    otherwise. ``say_compiling``: the command's name, to say in a line, once its inputs are checked, that the
+    dense kernels compile on this run (psvs.dense.compiled)."""
     out, (rig, image, rect, split, (lo, hi), params) = prepare(args, image)
+    if say_compiling:
+        announce_dense(say_compiling)
     workspace = Workspace() if workspace is None else workspace
     # a warning (e.g. "complex image is constant") is printed as one line by psvs.cli.main
     if rig is None:
@@ -209,7 +214,7 @@ def summary_row(dense: RigDense, trust: EchoTrust | None) -> dict:
 
 
 def run(args) -> int:
-    out, dense, trust, cloud = compute(args)
+    out, dense, trust, cloud = compute(args, say_compiling="psvs disparity")
     print(f"{out['disparity']}: {_summary(dense, trust)}"
           + (f"; {len(cloud.points_mm)} points" if cloud is not None else ""))
     return 0

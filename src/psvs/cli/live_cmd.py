@@ -25,6 +25,7 @@ from psvs.cli.common import (
     rig_from_args,
 )
 from psvs.cli.recording import record_settings, settings_paths
+from psvs.dense.compiled import announce_dense
 from psvs.live.camera import CameraLost
 from psvs.live.dense import DenseSensor
 from psvs.live.log import write_log
@@ -159,6 +160,8 @@ def run(args) -> int:
     source = open_source(args)
     with source:
         _check_frames(args, source)
+        if dense is not None:
+            announce_dense("psvs live")
         with open_telemetry(args) as tel:
             steps, dense_frames, metas, wall, lost = _loop(args, source, tel, tracker, dense)
             if not steps:               # inside: a recording of nothing is discarded, not kept
