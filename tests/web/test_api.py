@@ -101,6 +101,17 @@ def test_upload_replaces_the_image(client):
     assert client.post("/api/upload", content=b"\0" * (MAX_BODY_BYTES + 1), headers=PNG).status_code == 413
 
 
+def test_a_truncated_upload_is_refused_in_one_line_and_libpng_says_nothing(client, capfd):
+    """libpng writes "libpng error: ..." to file descriptor 2 on a damaged file: the server's terminal must not
+    show it; the answer names it."""
+    _, png = cv2.imencode(".png", np.random.default_rng(0).integers(0, 256, (480, 640), np.uint8))
+    capfd.readouterr()
+    r = client.post("/api/upload", content=png.tobytes()[:len(png) // 2], headers=PNG)
+    out, err = capfd.readouterr()
+    assert r.status_code == 400 and r.json()["detail"].startswith("not a readable PNG image (libpng error: ")
+    assert (out, err) == ("", "")
+
+
 @pytest.mark.parametrize("body, status, detail", [
     ({"seed": [5, 5]}, 400, "no edge within 6 px of (5, 5): double-click on an edge"),
     ({"seed": [900, 5]}, 400, "seed (900, 5) is outside the 640x480 image"),
