@@ -34,9 +34,11 @@ from psvs.web.limits import BodyLimit
 from psvs.web.session import Session
 from psvs.web.sources import Source
 
-__all__ = ["MAX_BODY_BYTES", "STATIC", "create_app"]
+__all__ = ["MAX_BODY_BYTES", "ROUTERS", "STATIC", "create_app"]
 
 STATIC = Path(__file__).resolve().parent / "static"
+#: The routers of the API, one per concern.
+ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_adjust)
 #: Longest ``detail`` of a 4xx answer (characters).
 MAX_DETAIL = 300
 
@@ -113,6 +115,6 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig", capture:
         return FileResponse(STATIC / "index.html", media_type="text/html")
 
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
-    for module in (api_image, api_match, api_dense, api_live, api_capture, api_adjust):
+    for module in ROUTERS:
         app.include_router(module.router)
     return app
