@@ -369,26 +369,53 @@ def _live() -> list[Case]:
     ]
 
 
+@lru_cache(maxsize=None)
+def busy_port() -> int:
+    """A port on 127.0.0.1 that a socket of this process listens on for the whole run (never accepting)."""
+    import socket
+    sock = socket.socket()
+    sock.bind(("127.0.0.1", 0))
+    sock.listen()
+    _BUSY.append(sock)
+    return sock.getsockname()[1]
+
+
+_BUSY: list = []
+
+
 def _serve() -> list[Case]:
+    # serve binds its address before it reads its inputs: every case but the address's own takes a free port,
+    # so that none depends on port 8000 being free (another server, or a parallel case)
+    free = ("--port", "0")
+    img = {"img.png": texture_png()}
     return [
-        Case("serve-missing-image", ("serve", "--image", "none.png", "--rig", "default"), 2, "not found"),
-        Case("serve-image-wrong-size", ("serve", "--image", "img.png", "--rig", "default"), 2, "640x480",
+        Case("serve-missing-image", ("serve", "--image", "none.png", "--rig", "default", *free), 2, "not found"),
+        Case("serve-image-wrong-size", ("serve", "--image", "img.png", "--rig", "default", *free), 2, "640x480",
              {"img.png": texture_png(320, 240)}),
-        Case("serve-bad-port", ("serve", "--image", "img.png", "--port", "70000"), 2, "port",
-             {"img.png": texture_png()}),
-        Case("serve-missing-video", ("serve", "--video", "none.avi"), 2, "none.avi"),
-        Case("serve-unknown-scene", ("serve", "--scene", "nosuch"), 2, "nosuch"),
-        Case("serve-png-bomb", ("serve", "--image", "img.png"), 2, "100000",
+        Case("serve-bad-port", ("serve", "--image", "img.png", "--port", "70000"), 2, "port", img),
+        Case("serve-port-not-a-number", ("serve", "--image", "img.png", "--port", "eighty"), 2, "--port", img),
+        Case("serve-port-in-use", ("serve", "--image", "img.png", "--port", str(busy_port())), 2, "in use", img),
+        Case("serve-host-does-not-resolve", ("serve", "--image", "img.png", "--host", "nosuch.invalid", *free), 2,
+             "does not resolve", img),
+        Case("serve-host-not-this-machine", ("serve", "--image", "img.png", "--host", "198.51.100.7", *free), 2,
+             "not an address of this machine", img),
+        Case("serve-host-a-url", ("serve", "--image", "img.png", "--host", "http://localhost", *free), 2, "--host",
+             img),
+        Case("serve-allow-host-malformed", ("serve", "--image", "img.png", "--allow-host", "a b", *free), 2,
+             "--allow-host", img),
+        Case("serve-missing-video", ("serve", "--video", "none.avi", *free), 2, "none.avi"),
+        Case("serve-unknown-scene", ("serve", "--scene", "nosuch", *free), 2, "nosuch"),
+        Case("serve-png-bomb", ("serve", "--image", "img.png", *free), 2, "100000",
              {"img.png": png_claiming(100000, 100000)}),
-        Case("serve-target-without-folder", ("serve", "--image", "img.png", "--target", "target.toml"), 2,
+        Case("serve-target-without-folder", ("serve", "--image", "img.png", "--target", "target.toml", *free), 2,
              "--target and --capture-to go together", {"img.png": texture_png(), "target.toml": TARGET}),
         Case("serve-capture-folder-holds-views", ("serve", "--image", "img.png", "--target", "target.toml",
-                                                  "--capture-to", "views"), 2, "already holds view_00.png",
+                                                  "--capture-to", "views", *free), 2, "already holds view_00.png",
              {"img.png": texture_png(), "target.toml": TARGET, "views/view_00.png": texture_png()}),
         Case("serve-capture-target-unknown-kind", ("serve", "--image", "img.png", "--target", "target.toml",
-                                                   "--capture-to", "views"), 2, "kind",
+                                                   "--capture-to", "views", *free), 2, "kind",
              {"img.png": texture_png(), "target.toml": TARGET.replace("circle_grid", "hexagons")}),
-    ] + _rig_cases(("serve", "--image", "examples/scenes/assets/label.png", *R), "serve")[:3]
+    ] + _rig_cases(("serve", "--image", "examples/scenes/assets/label.png", *free, *R), "serve")[:3]
 
 
 HANDEYE_OK = ('[handeye]\nmethod = "reprojection"\nsource = "x"\nrig = "default"\nviews = 3\n'

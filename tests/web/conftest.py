@@ -6,6 +6,7 @@ import time
 import numpy as np
 import pytest
 import uvicorn
+from fastapi.testclient import TestClient
 
 from psvs import default_rig
 from psvs.live.simulated import disc_scene
@@ -14,6 +15,8 @@ from psvs.web.sources import scene_source
 
 #: The browser test's object: a fronto-parallel disc; every point of its rim is at this depth (mm).
 DISC = {"z_mm": 650.0, "radius_mm": 30.0, "x_mm": -10.0, "y_mm": 15.0}
+#: The headers of an upload as the page sends it (the PNG's bytes as the body).
+PNG = {"Content-Type": "image/png"}
 
 
 @pytest.fixture(scope="session")
@@ -26,6 +29,13 @@ def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def local_client(app) -> TestClient:
+    """A TestClient as a script on this machine drives the app: ``Host: 127.0.0.1`` (a name the app answers to)
+    and the app's token (``Authorization: Bearer``; psvs.web.guard)."""
+    return TestClient(app, base_url="http://127.0.0.1",
+                      headers={"Authorization": f"Bearer {app.state.access.token}"})
 
 
 @contextlib.contextmanager

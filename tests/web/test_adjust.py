@@ -7,7 +7,6 @@ from fractions import Fraction
 
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 
 from psvs.io.params import load_rig
 from psvs.mount.files import mount_toml, read_mount_text
@@ -19,7 +18,7 @@ from psvs.optics.design import design_mirrors
 from psvs.rigs import shipped_rig_path
 from psvs.web.app import MAX_BODY_BYTES, create_app
 from psvs.web.sources import image_source
-from tests.web.conftest import serving
+from tests.web.conftest import local_client, serving
 from tests.web.test_browser import page, shot  # noqa: F401  (the browser fixture)
 
 #: (the calibrated build's stand-in, its design): the shipped builds and their designs.
@@ -50,7 +49,7 @@ def turns_of_instruction(text: str) -> float:
 def answered(request):
     """The answer for the shipped build, the design the app serves, and the library's guide on them."""
     build, design = request.param
-    with TestClient(app_for(design)) as client:
+    with local_client(app_for(design)) as client:
         r = client.post("/api/adjust", json={"calibrated": text_of(build)})
     assert r.status_code == 200, r.text
     built, nominal = load_rig(shipped_rig_path(build)), load_rig(shipped_rig_path(design))
@@ -109,7 +108,7 @@ def test_design_by_name_by_text_and_the_mounts_seats():
     built, clear = load_rig(shipped_rig_path("misaligned")), load_rig(shipped_rig_path("clear"))
     want = guide_to_dict(alignment_guide(built, seats_for(clear)))
     mount = mount_toml(mount_layout(design_mirrors(clear, search=False), MountParams(pitch_mm=0.35)), {})
-    with TestClient(app_for("default")) as client:
+    with local_client(app_for("default")) as client:
         for design in ("clear", text_of("clear")):
             r = client.post("/api/adjust", json={"calibrated": text_of("misaligned"), "design": design})
             assert r.status_code == 200 and r.json()["guide"] == want
@@ -142,14 +141,14 @@ def test_bad_input_is_4xx_in_one_line(body, status, says):
     """Bad files, names, designs and values: 400 or 422 with a one-line detail naming what is wrong ("@name":
     that shipped rig's text)."""
     body = {k: text_of(v[1:]) if isinstance(v, str) and v.startswith("@") else v for k, v in body.items()}
-    with TestClient(app_for("clear")) as client:
+    with local_client(app_for("clear")) as client:
         r = client.post("/api/adjust", json=body)
     detail = r.json()["detail"]
     assert r.status_code == status and says in detail and "\n" not in detail, (r.status_code, detail)
 
 
 def test_a_body_over_the_limit_is_413():
-    with TestClient(app_for("clear")) as client:
+    with local_client(app_for("clear")) as client:
         r = client.post("/api/adjust", json={"calibrated": "#" * (MAX_BODY_BYTES + 10)})
     assert r.status_code == 413
 

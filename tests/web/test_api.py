@@ -6,18 +6,17 @@ import time
 import cv2
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 
 from psvs import default_rig
 from psvs.web.app import MAX_BODY_BYTES, create_app
 from psvs.web.sources import image_source, video_source
-from tests.web.conftest import DISC, rim_point_px
+from tests.web.conftest import DISC, PNG, local_client, rim_point_px
 
 
 @pytest.fixture
 def client(disc_source):
     source, rig = disc_source
-    with TestClient(create_app(source, rig)) as c:
+    with local_client(create_app(source, rig)) as c:
         yield c
 
 
@@ -90,15 +89,27 @@ def test_upload_replaces_the_image(client):
     cv2.rectangle(img, (100, 200), (160, 260), 220, -1)
     cv2.rectangle(img, (300, 200), (360, 260), 220, -1)          # its twin, 200 px to the right
     ok, png = cv2.imencode(".png", img)
-    assert client.post("/api/upload", content=png.tobytes()).status_code == 200
+    assert client.post("/api/upload", content=png.tobytes(), headers=PNG).status_code == 200
     back = cv2.imdecode(np.frombuffer(client.get("/api/image.png").content, np.uint8), cv2.IMREAD_UNCHANGED)
     assert np.array_equal(back, img)
     assert client.get("/api/info").json()["source"]["name"] == "uploaded image"
     _, small = cv2.imencode(".png", img[:100, :100])
-    r = client.post("/api/upload", content=small.tobytes())
+    r = client.post("/api/upload", content=small.tobytes(), headers=PNG)
     assert r.status_code == 400 and r.json()["detail"] == "image is 100x100 px but the rig's camera is 640x480 px"
-    assert client.post("/api/upload", content=b"GIF89a....").json()["detail"] == "upload must be a PNG image"
-    assert client.post("/api/upload", content=b"\0" * (MAX_BODY_BYTES + 1)).status_code == 413
+    r = client.post("/api/upload", content=b"GIF89a....", headers=PNG)
+    assert r.json()["detail"] == "upload must be a PNG image"
+    assert client.post("/api/upload", content=b"\0" * (MAX_BODY_BYTES + 1), headers=PNG).status_code == 413
+
+
+def test_a_truncated_upload_is_refused_in_one_line_and_libpng_says_nothing(client, capfd):
+    """libpng writes "libpng error: ..." to file descriptor 2 on a damaged file: the server's terminal must not
+    show it; the answer names it."""
+    _, png = cv2.imencode(".png", np.random.default_rng(0).integers(0, 256, (480, 640), np.uint8))
+    capfd.readouterr()
+    r = client.post("/api/upload", content=png.tobytes()[:len(png) // 2], headers=PNG)
+    out, err = capfd.readouterr()
+    assert r.status_code == 400 and r.json()["detail"].startswith("not a readable PNG image (libpng error: ")
+    assert (out, err) == ("", "")
 
 
 @pytest.mark.parametrize("body, status, detail", [
@@ -161,7 +172,7 @@ def test_live_mode_on_a_video(disc_video):
     """Live mode plays the video, tracks the clicked edge and reports each frame's depth (0.5 %)."""
     path, truth, rig, scene, positions = disc_video
     from tests.live.test_tracker import rim_seed
-    with TestClient(create_app(video_source(str(path)), rig)) as c:
+    with local_client(create_app(video_source(str(path)), rig)) as c:
         assert c.get("/api/live/frame.png").status_code == 404
         u, v = rim_seed(rig, scene, positions[0])
         assert c.post("/api/live/start", json={"seed": [u, v]}).json() == {"running": True}
@@ -181,7 +192,7 @@ def test_live_dense_on_a_video(wall_video):
     """Live mode with dense depth and no edge: each frame's dense map, its median depth (0.5 % of the wall's)
     and its colour picture."""
     path, truth = wall_video
-    with TestClient(create_app(video_source(str(path)), default_rig())) as c:
+    with local_client(create_app(video_source(str(path)), default_rig())) as c:
         assert c.get("/api/live/dense.png").status_code == 404
         assert c.post("/api/live/start", json={"dense": True}).json() == {"running": True}
         t0 = time.monotonic()
@@ -198,7 +209,7 @@ def test_live_dense_on_a_video(wall_video):
 
 def test_still_image_has_no_live_mode(disc_source):
     source, rig = disc_source
-    with TestClient(create_app(image_source("still.png", source.still), rig)) as c:
+    with local_client(create_app(image_source("still.png", source.still), rig)) as c:
         assert not c.get("/api/info").json()["source"]["live"]
         r = c.post("/api/live/start", json={"seed": [100, 100]})
         assert r.status_code == 400 and "a still image has no live frames" in r.json()["detail"]
@@ -224,7 +235,7 @@ def test_dense_disparity_of_a_textured_scene():
     from psvs.simulate.render import render
 
     rig = default_rig()
-    with TestClient(create_app(image_source("textured", render(textured(), rig, supersample=1).image), rig)) as c:
+    with local_client(create_app(image_source("textured", render(textured(), rig, supersample=1).image), rig)) as c:
         res = c.post("/api/dense", json={"fast": True, "views": True}).json()
         img = cv2.imdecode(np.frombuffer(__import__("base64").b64decode(res["disparity_png"].split(",")[1]),
                                          np.uint8), cv2.IMREAD_COLOR)
@@ -249,7 +260,7 @@ def test_calibrated_build_double_click_automatic_and_status():
     from tests.match.test_scenes import flat_discs_scene
     build = dataclasses.replace(load_rig("misaligned"), calibration=Calibration(0.031, 0.03, 0.032, 18, "18 card"))
     img = render(flat_discs_scene(), build, seed=5).image
-    with TestClient(create_app(image_source("discs.png", img), build, "calibrated")) as c:
+    with local_client(create_app(image_source("discs.png", img), build, "calibrated")) as c:
         rig_info = c.get("/api/info").json()["rig"]
         assert rig_info["build"] and rig_info["calibrated"] and rig_info["default_model"] == "exact"
         assert rig_info["calibration"] == {"rms_px": 0.031, "rms_left_px": 0.03, "rms_right_px": 0.032,

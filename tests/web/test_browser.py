@@ -103,3 +103,36 @@ def test_live_dense_in_the_page(page, wall_video):
         assert page.is_visible("#live-dense-map") and page.inner_text("#live-dense-ms").endswith(" ms")
         page.wait_for_function("document.getElementById('live-dense-map').naturalWidth === 640", timeout=10000)
         shot(page, "web_live_dense.png")
+
+
+def test_the_page_uploads_without_a_token(page, disc_source, tmp_path):
+    """The page's own requests need nothing (psvs.web.guard): opened as the server's address, it uploads a PNG
+    (a POST with its Origin, image/png) and shows it; opened with the printed ?token=, it lands on / with the
+    token as a cookie and matches. Another page of this machine (another port) cannot upload."""
+    import cv2
+    import numpy as np
+    source, rig = disc_source
+    app = create_app(source, rig)
+    img = np.full((480, 640), 40, np.uint8)
+    cv2.rectangle(img, (100, 200), (160, 260), 220, -1)
+    cv2.imwrite(str(tmp_path / "mine.png"), img)
+    with serving(app) as url:
+        page.goto(url + f"/?token={app.state.access.token}")
+        assert page.url == url + "/"
+        assert page.context.cookies()[0]["sameSite"] == "Strict"
+        page.wait_for_selector("body[data-ready='1']", timeout=30000)
+        page.set_input_files("#upload", str(tmp_path / "mine.png"))
+        page.wait_for_function("document.getElementById('source').textContent === 'mine.png'", timeout=30000)
+        assert page.inner_text("#status") == ""
+        assert app.state.session.still().name == "uploaded image"
+        assert np.array_equal(app.state.session.still().grey, img)
+        # a page of another origin on this machine posts another PNG as text/plain (no preflight, the CSRF the
+        # issue found): refused, the image kept
+        other_png = list(cv2.imencode(".png", 255 - img)[1].tobytes())
+        with serving(create_app(source, rig)) as other:
+            page.goto(other + "/")
+            kind = page.evaluate("""async ([target, bytes]) => {
+                const r = await fetch(target + "/api/upload", {method: "POST", mode: "no-cors",
+                                      headers: {"Content-Type": "text/plain"}, body: new Uint8Array(bytes)});
+                return r.type; }""", [url, other_png])
+        assert kind == "opaque" and np.array_equal(app.state.session.still().grey, img)

@@ -3,7 +3,6 @@ enough, its refusals, and the page in headless Chromium showing progress and sav
 import time
 
 import pytest
-from fastapi.testclient import TestClient
 
 from psvs.calibrate.capture import ALL_BINS
 from psvs.calibrate.target_file import load_target
@@ -11,7 +10,7 @@ from psvs.io.params import load_rig
 from psvs.web.app import create_app
 from psvs.web.capture_runner import CaptureSetup
 from psvs.web.sources import image_source, video_source
-from tests.web.conftest import serving
+from tests.web.conftest import local_client, serving
 from tests.web.test_browser import page, shot  # noqa: F401  (the browser fixture)
 
 
@@ -25,7 +24,7 @@ def test_capture_api_until_enough(hand_video, tmp_path):
     """Start on the video (9 views), poll until the set is enough: every bin covered, the files the state names
     are the folder's, target.toml copied, the events the terminal's words."""
     folder = tmp_path / "views"
-    with TestClient(_app(hand_video, folder)) as c:
+    with local_client(_app(hand_video, folder)) as c:
         assert c.get("/api/capture/frame.png").status_code == 404
         info = c.get("/api/info").json()["capture"]
         assert info == {"target": "4x6 discs, 7 mm across, 14 mm apart", "folder": str(folder)}
@@ -47,12 +46,12 @@ def test_capture_refusals(hand_video, tmp_path):
     """No card and folder given, a bad count or range, a still image: 4xx, one line; nothing written."""
     folder = tmp_path / "views"
     grey = video_source(str(hand_video.path)).still
-    with TestClient(create_app(video_source(str(hand_video.path)), load_rig("clear"))) as c:
+    with local_client(create_app(video_source(str(hand_video.path)), load_rig("clear"))) as c:
         r = c.post("/api/capture/start", json={})
         assert r.status_code == 400 and "--target TARGET.toml and --capture-to DIR" in r.json()["detail"]
         assert c.get("/api/capture/state").json()["available"] is False
     setup = CaptureSetup(load_target(hand_video.target), b"", str(folder))
-    with TestClient(create_app(image_source("still", grey), load_rig("clear"), "clear", setup)) as c:
+    with local_client(create_app(image_source("still", grey), load_rig("clear"), "clear", setup)) as c:
         r = c.post("/api/capture/start", json={})
         assert r.status_code == 400 and "a still image has no live frames" in r.json()["detail"]
         assert c.post("/api/capture/start", json={"views": 1}).status_code == 422

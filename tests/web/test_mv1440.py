@@ -6,7 +6,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 
 from psvs.io.params import load_rig
 from psvs.live.simulated import disc_scene
@@ -14,6 +13,7 @@ from psvs.optics.project import project_points
 from psvs.simulate.render import render
 from psvs.web.app import create_app
 from psvs.web.sources import image_source
+from tests.web.conftest import local_client
 
 DISC = {"z_mm": 700.0, "radius_mm": 40.0, "x_mm": 30.0, "y_mm": -20.0}
 STATIC = Path(__file__).resolve().parents[2] / "src" / "psvs" / "web" / "static"
@@ -23,7 +23,7 @@ STATIC = Path(__file__).resolve().parents[2] / "src" / "psvs" / "web" / "static"
 def served(request):
     rig = load_rig(request.param)
     grey = render(disc_scene(**DISC), rig, supersample=1, seed=3).image
-    with TestClient(create_app(image_source("disc", grey), rig)) as client:
+    with local_client(create_app(image_source("disc", grey), rig)) as client:
         yield client, rig
 
 

@@ -3,13 +3,13 @@ session reads and writes its image, name and result together, and keeps a result
 import cv2
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 
 from psvs import default_rig
 from psvs.web.app import create_app
 from psvs.web.bodies import DenseBody, LiveBody, MatchBody
 from psvs.web.session import Session
 from psvs.web.sources import image_source
+from tests.web.conftest import PNG, local_client
 
 
 def _squares(level: int) -> np.ndarray:
@@ -28,8 +28,8 @@ def _png_of(response) -> np.ndarray:
 def test_two_apps_keep_their_own_images_and_results():
     rig = default_rig()
     a_img, b_img = _squares(30), np.full((480, 640), 90, np.uint8)
-    with TestClient(create_app(image_source("a.png", a_img), rig)) as a, \
-            TestClient(create_app(image_source("b.png", b_img), rig, "rig b")) as b:
+    with local_client(create_app(image_source("a.png", a_img), rig)) as a, \
+            local_client(create_app(image_source("b.png", b_img), rig, "rig b")) as b:
         assert np.array_equal(_png_of(a.get("/api/image.png")), a_img)
         assert np.array_equal(_png_of(b.get("/api/image.png")), b_img)
         assert a.get("/api/info").json()["source"]["name"] == "a.png"
@@ -45,7 +45,7 @@ def test_two_apps_keep_their_own_images_and_results():
         assert a_bin != b_bin
         # an upload to b replaces b's image only
         _, png = cv2.imencode(".png", _squares(60))
-        assert b.post("/api/upload", content=png.tobytes()).status_code == 200
+        assert b.post("/api/upload", content=png.tobytes(), headers=PNG).status_code == 200
         assert np.array_equal(_png_of(b.get("/api/image.png")), _squares(60))
         assert np.array_equal(_png_of(a.get("/api/image.png")), a_img)
         assert a.get("/api/info").json()["source"]["name"] == "a.png"
@@ -55,11 +55,11 @@ def test_two_apps_keep_their_own_images_and_results():
 
 def test_upload_forgets_the_last_match(disc_source):
     source, rig = disc_source
-    with TestClient(create_app(source, rig)) as c:
+    with local_client(create_app(source, rig)) as c:
         assert c.post("/api/match", json={}).status_code == 200
         assert c.get("/api/export/json").status_code == 200
         _, png = cv2.imencode(".png", _squares(30))
-        assert c.post("/api/upload", content=png.tobytes()).status_code == 200
+        assert c.post("/api/upload", content=png.tobytes(), headers=PNG).status_code == 200
         assert c.get("/api/export/json").status_code == 409
 
 

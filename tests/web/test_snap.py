@@ -3,7 +3,6 @@
 640 x 480 rig and on mv1440 (1440 x 1080, 3.45 um, 8 mm: 2.05 of its px per paper px)."""
 import numpy as np
 import pytest
-from fastapi.testclient import TestClient
 
 from psvs import default_rig
 from psvs.imaging.pipeline import PAPER
@@ -12,6 +11,7 @@ from psvs.optics.scale import pixel_scale
 from psvs.web.api_match import SNAP_PX, snap_px, snap_seed
 from psvs.web.app import create_app
 from psvs.web.sources import image_source
+from tests.web.conftest import local_client
 
 RIGS = {"default": default_rig, "mv1440": lambda: load_rig("mv1440")}
 
@@ -43,7 +43,7 @@ def test_the_api_snaps_with_the_rig_radius():
     radius in the image's own px."""
     rig = load_rig("mv1440")
     u_edge = 500
-    with TestClient(create_app(image_source("step", _step(rig, u_edge)), rig)) as client:
+    with local_client(create_app(image_source("step", _step(rig, u_edge)), rig)) as client:
         assert client.get("/api/info").json()["snap_px"] == pytest.approx(12.31, abs=0.01)
         res = client.post("/api/match", json={"seed": [u_edge + 10.0, 300.0]})
         assert res.status_code == 200, res.text

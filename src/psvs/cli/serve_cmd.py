@@ -1,5 +1,17 @@
-"""``psvs serve``: the browser UI (FastAPI + uvicorn) on a complex image, a video, a camera or a simulated scene."""
+"""``psvs serve``: the browser UI (FastAPI + uvicorn) on a complex image, a video, a camera or a simulated scene.
+
+The command binds its listening socket itself and hands it to uvicorn, so an address that cannot be listened on
+(a port in use, a host that does not resolve or is not this machine's) is refused in one line, exit 2, before
+uvicorn starts. uvicorn's own log stays off the terminal: a request the app could not answer (an exception in
+a route) is one line, ``psvs serve: internal error: ...``; ``PSVS_DEBUG=1`` shows uvicorn's log as it is.
+"""
 from __future__ import annotations
+
+import errno
+import logging
+import os
+import socket
+import sys
 
 from psvs.cli.camera_args import CAMERA_HELP, add_acquisition_arguments
 from psvs.cli.common import add_rig_argument, load_scene_spec, rig_from_args
@@ -27,6 +39,10 @@ def add_parser(sub) -> None:
                                                      "to (created; must not hold images or target.toml yet)")
     p.add_argument("--host", default="127.0.0.1", help="address to bind (default 127.0.0.1: this machine only)")
     p.add_argument("--port", type=int, default=8000, help="port (default 8000; 0 picks a free one)")
+    p.add_argument("--allow-host", metavar="NAME[:PORT]", action="append", default=[],
+                   help="also answer requests naming the server NAME (its Host header; e.g. a DNS name of this "
+                        "machine with --host 0.0.0.0), on its port or PORT (an SSH tunnel's); repeatable. "
+                        "Other names are refused (docs/web.md#security)")
     p.set_defaults(run=run)
 
 
@@ -74,33 +90,106 @@ def capture_setup(args):
 def run(args) -> int:
     if not 0 <= args.port <= 65535:
         raise ValueError(f"--port must be 0-65535, got {args.port}")
-    import uvicorn
+    from psvs.web.guard import Access
+    allow = tuple(args.allow_host)
+    Access.for_bind(args.host, allow=allow, token="check")      # --host and --allow-host well-formed
+    sock = listen_socket(args.host, args.port)                   # the address first: refused at once
+    try:
+        import uvicorn
 
-    from psvs.web.app import create_app
-    rig = rig_from_args(args)
-    capture = capture_setup(args)
-    app = create_app(make_source(args, rig), rig, args.rig or "default rig", capture)
+        from psvs.cli.main import DEBUG_ENV
+        from psvs.web.app import create_app
+        rig = rig_from_args(args)
+        capture = capture_setup(args)
+        address, port = sock.getsockname()[:2]
+        access = Access.for_bind(args.host, address, allow)
+        app = create_app(make_source(args, rig), rig, args.rig or "default rig", capture, access)
+    except BaseException:
+        sock.close()
+        raise
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"psvs serve: warning: listening on {args.host}: anyone who can reach it can use the UI")
-    config = uvicorn.Config(app, host=args.host, port=args.port, log_level="warning")
+    debug = os.environ.get(DEBUG_ENV, "").strip() not in ("", "0")
+    if debug:
+        config = uvicorn.Config(app, log_level="warning")
+    else:
+        config = uvicorn.Config(app, log_config=None, log_level="error", access_log=False)
+        _uvicorn_in_one_line()
     server = uvicorn.Server(config)
 
     def announce():
-        for s in server.servers:
-            for sock in s.sockets:
-                host, port = sock.getsockname()[:2]
-                print(f"psvs serve: open http://{'[' + host + ']' if ':' in host else host}:{port}/ "
-                      f"(Ctrl-C stops)", flush=True)
-    _run_announced(server, announce)
+        print(f"psvs serve: open http://{_url_host(address)}:{port}/?token={access.token} (Ctrl-C stops)",
+              flush=True)
+    _run_announced(server, sock, announce)
     return 0
 
 
-def _run_announced(server, announce) -> None:
-    """Run the uvicorn server, printing the bound address once it listens."""
+def listen_socket(host: str, port: int) -> socket.socket:
+    """A TCP socket bound to ``host`` (a name or an IP address; IPv6 when it holds a colon, as uvicorn reads
+    it) and ``port`` (0: a free one), for uvicorn to listen on. ValueError in one line when the host does not
+    resolve, is not an address of this machine, or the port is taken or not allowed."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    try:
+        infos = socket.getaddrinfo(host or None, port, family, socket.SOCK_STREAM, 0, socket.AI_PASSIVE)
+    except (socket.gaierror, UnicodeError) as exc:
+        raise ValueError(f"--host {host!r} does not resolve ({getattr(exc, 'strerror', None) or exc})") from None
+    sockaddr = infos[0][4]
+    where = f"{_url_host(sockaddr[0])}:{port}" + ("" if sockaddr[0] == host else f" ({host})")
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    try:
+        if os.name != "nt":      # a restart may reuse the port at once; on Windows the option would share it
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(sockaddr)
+    except OSError as exc:
+        sock.close()
+        if exc.errno == errno.EADDRINUSE:
+            raise ValueError(f"cannot listen on {where}: the port is in use (another psvs serve?); choose "
+                             f"another --port, or --port 0 for a free one") from None
+        if exc.errno == errno.EADDRNOTAVAIL:
+            raise ValueError(f"cannot listen on {where}: --host is not an address of this machine") from None
+        if exc.errno == errno.EACCES:
+            raise ValueError(f"cannot listen on {where}: permission denied (ports below 1024 need "
+                             f"privileges)") from None
+        raise ValueError(f"cannot listen on {where}: {exc.strerror or exc}") from None
+    return sock
+
+
+def _url_host(address: str) -> str:
+    """An address as a URL's host: a wildcard bind as its loopback address (the one to open on this
+    machine), an IPv6 address in brackets."""
+    address = {"0.0.0.0": "127.0.0.1", "::": "::1"}.get(address, address)
+    return f"[{address}]" if ":" in address else address
+
+
+class _OneLineLog(logging.Handler):
+    """uvicorn's errors (an exception a route did not turn into an answer) as one line each on stderr."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        exc = record.exc_info[1] if record.exc_info else None
+        if exc is not None:
+            text = str(exc).strip()
+            what = f"{type(exc).__name__}: {text.splitlines()[0]}" if text else type(exc).__name__
+            line = f"internal error: {what} (PSVS_DEBUG=1 shows the traceback)"
+        else:
+            line = (record.getMessage().strip().splitlines() or [""])[0]
+        print(f"psvs serve: {line}"[:300], file=sys.stderr, flush=True)
+
+
+def _uvicorn_in_one_line() -> None:
+    """uvicorn's loggers: its access log and its warnings (a malformed request, which gets its 400) off, its
+    errors in one line (:class:`_OneLineLog`), nothing passed on to the root logger."""
+    for name in ("uvicorn", "uvicorn.error", "uvicorn.access", "uvicorn.asgi"):
+        log = logging.getLogger(name)      # a handler, so that logging's last resort does not print either
+        log.handlers, log.propagate = [logging.NullHandler()], False
+    logging.getLogger("uvicorn.error").handlers = [_OneLineLog(logging.ERROR)]
+
+
+def _run_announced(server, sock, announce) -> None:
+    """Run the uvicorn server on ``sock``, printing the address once it listens."""
     import asyncio
 
     async def main():
-        task = asyncio.create_task(server.serve())
+        task = asyncio.create_task(server.serve(sockets=[sock]))
         while not server.started and not task.done():
             await asyncio.sleep(0.05)
         if server.started:
@@ -110,3 +199,7 @@ def _run_announced(server, announce) -> None:
         asyncio.run(main())
     except KeyboardInterrupt:
         pass
+    except SystemExit:          # uvicorn's exit when its start-up fails (the app's lifespan)
+        raise OSError("the web server did not start") from None
+    finally:
+        sock.close()

@@ -10,6 +10,7 @@ from fastapi import APIRouter, Request
 
 from psvs.imaging.pipeline import PAPER
 from psvs.imaging.steps import STEPS
+from psvs.io.cstderr import c_stderr_captured, library_reason
 from psvs.io.images import grey8
 from psvs.measure.triangulate import MODELS, default_model
 from psvs.optics.illumination import flat_field
@@ -77,16 +78,24 @@ def preview(body: PipelineBody, session: SessionDep):
 
 def decode_upload(data: bytes, size_px: tuple[int, int]) -> np.ndarray:
     """A PNG's bytes as an (H, W) uint8 grey image of ``size_px`` (W, H); the size is read from the PNG header
-    and checked before decoding, so a small file cannot decompress into a huge image."""
+    and checked before decoding, so a small file cannot decompress into a huge image. What libpng prints on a
+    damaged file ("libpng error: Read Error") is caught, not shown on the server's terminal, and named in the
+    one-line ValueError."""
     w, h = size_px
     if not data.startswith(PNG_SIGNATURE) or len(data) < 33 or data[12:16] != b"IHDR":
         raise ValueError("upload must be a PNG image")
     pw, ph = struct.unpack(">II", data[16:24])
     if (pw, ph) != (w, h):
         raise ValueError(f"image is {pw}x{ph} px but the rig's camera is {w}x{h} px")
-    img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+    failure = None
+    with c_stderr_captured() as said:
+        try:
+            img = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED)
+        except cv2.error as exc:
+            img, failure = None, str(exc)
     if img is None or img.shape[:2] != (h, w):
-        raise ValueError("not a readable PNG image")
+        reason = library_reason([*said, *([failure] if failure else [])])
+        raise ValueError("not a readable PNG image" + (f" ({reason})" if reason else ""))
     return grey8(img, "uploaded image")   # colour -> luma, 16-bit scaled by its bit depth (as read_grey)
 
 

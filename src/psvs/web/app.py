@@ -10,7 +10,9 @@ dependency injection, so each app has its own image and results. Everything the 
 routes and the files in ``static/``; no route takes a file path, so nothing else on the machine can be read
 (the capture's card and folder come from the command line; files the page sends arrive as text in the body).
 Request bodies are capped (:class:`~psvs.web.limits.BodyLimit`); bad requests get a 4xx answer with a
-one-line ``detail``.
+one-line ``detail``. Before any of that, :class:`~psvs.web.guard.Guard` lets through only requests that name
+the server in their ``Host`` and, when they change something, come from the page itself or carry the per-run
+token (:class:`~psvs.web.guard.Access`).
 """
 from __future__ import annotations
 
@@ -27,13 +29,16 @@ from psvs.optics.rig import Rig
 from psvs.web import api_adjust, api_capture, api_dense, api_image, api_live, api_match
 from psvs.web.api_image import MAX_BODY_BYTES
 from psvs.web.capture_runner import CaptureRunner, CaptureSetup
+from psvs.web.guard import Access, Guard
 from psvs.web.limits import BodyLimit
 from psvs.web.session import Session
 from psvs.web.sources import Source
 
-__all__ = ["MAX_BODY_BYTES", "STATIC", "create_app"]
+__all__ = ["MAX_BODY_BYTES", "ROUTERS", "STATIC", "create_app"]
 
 STATIC = Path(__file__).resolve().parent / "static"
+#: The routers of the API, one per concern.
+ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_adjust)
 #: Longest ``detail`` of a 4xx answer (characters).
 MAX_DETAIL = 300
 
@@ -62,7 +67,8 @@ async def bad_request(request: Request, exc: RequestValidationError) -> JSONResp
     return JSONResponse({"detail": detail[:MAX_DETAIL]}, status_code=422)
 
 
-def create_app(source: Source, rig: Rig, rig_name: str = "default rig", capture: CaptureSetup | None = None) -> FastAPI:
+def create_app(source: Source, rig: Rig, rig_name: str = "default rig", capture: CaptureSetup | None = None,
+               access: Access | None = None) -> FastAPI:
     """The web app for one source and rig.
 
     Parameters
@@ -76,12 +82,16 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig", capture:
         Shown with the rig's f, b and plate thickness (e.g. the calibrated rig file).
     capture : CaptureSetup, optional
         The card and the folder of the capture assistant (``/api/capture``); without it capture is refused.
+    access : Access, optional
+        Who may drive it (:class:`~psvs.web.guard.Guard`): the names in ``Host`` and the token. Default: a
+        loopback bind's (localhost, 127.0.0.1, ::1 on the port a request arrives on) with a new token.
 
     Returns
     -------
     FastAPI
         The app, with its own :class:`~psvs.web.session.Session` (``app.state.session``): one user, on their
-        own machine. Its live runner and capture stop when the app shuts down.
+        own machine. Its live runner and capture stop when the app shuts down. ``app.state.access`` is
+        ``access``.
     """
     session = Session(source, rig, rig_name, capture=CaptureRunner(capture))
 
@@ -93,7 +103,9 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig", capture:
 
     app = FastAPI(title="psvs", docs_url=None, redoc_url=None, openapi_url=None, lifespan=lifespan)
     app.state.session = session
+    app.state.access = access or Access.for_bind("127.0.0.1")
     app.add_middleware(BodyLimit, max_bytes=MAX_BODY_BYTES)
+    app.add_middleware(Guard, access=app.state.access)     # added last: runs first, before the body is read
     for error in (ValueError, TypeError, cv2.error):
         app.add_exception_handler(error, bad_value)
     app.add_exception_handler(RequestValidationError, bad_request)
@@ -103,6 +115,6 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig", capture:
         return FileResponse(STATIC / "index.html", media_type="text/html")
 
     app.mount("/static", StaticFiles(directory=STATIC), name="static")
-    for module in (api_image, api_match, api_dense, api_live, api_capture, api_adjust):
+    for module in ROUTERS:
         app.include_router(module.router)
     return app

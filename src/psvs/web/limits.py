@@ -49,9 +49,9 @@ class BodyLimit:
             try:
                 declared = int(length)
             except ValueError:
-                return await _reply(send, 400, "bad Content-Length")
+                return await reply_json(send, 400, "bad Content-Length")
             if declared > self.max_bytes:
-                return await _reply(send, 413, f"request body over {self.max_bytes} bytes")
+                return await reply_json(send, 413, f"request body over {self.max_bytes} bytes")
         chunks, size = [], 0
         while True:
             message = await receive()
@@ -60,7 +60,7 @@ class BodyLimit:
             chunk = message.get("body", b"")
             size += len(chunk)
             if size > self.max_bytes:
-                return await _reply(send, 413, f"request body over {self.max_bytes} bytes")
+                return await reply_json(send, 413, f"request body over {self.max_bytes} bytes")
             chunks.append(chunk)
             if not message.get("more_body", False):
                 break
@@ -75,7 +75,8 @@ class BodyLimit:
         return await self.app(scope, replay, send)
 
 
-async def _reply(send, status: int, detail: str) -> None:
+async def reply_json(send, status: int, detail: str) -> None:
+    """Answer ``{"detail": detail}`` with ``status`` and close the connection (the body may be unread)."""
     body = json.dumps({"detail": detail}).encode()
     await send({"type": "http.response.start", "status": status,
                 "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode()),
