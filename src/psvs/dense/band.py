@@ -101,10 +101,10 @@ def _band_costs(fp, grp, stats, offs, r, d_hi, costs, tops):  # noqa: PLR0913  #
 
 
 @nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH)
-def _band_pass(cost, off, down, diagonals, p1, p2, edges, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
+def _band_pass(cost, off, down, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
     """One pass of the band aggregation (module docstring) over all rows: ``down`` writes its sum of paths
     into ``sums`` (H, W, B); the up pass adds ``sums`` and writes each pixel's winner, as the disparity
-    o + lane + sub-pixel offset, into ``best`` (H, W) float64. ``edges``: :func:`_edge_penalties`."""
+    o + lane + sub-pixel offset, into ``best`` (H, W) float64."""
     h, w, nb_ = cost.shape
     pad = nb_ + 2                                    # lanes of padding each side of a band in the states
     n_k = 4 if diagonals else 2                      # 0 the row's path, 1 from above, 2 from x − s, 3 from x + s
@@ -127,7 +127,13 @@ def _band_pass(cost, off, down, diagonals, p1, p2, edges, sums, best):  # noqa: 
         for x in range(w):
             offs[x + 1] = off[y, x]
             prev_offs[x + 1] = off[yp, x] if iy > 0 else off[y, x]
-        _row_penalties(edges, y, down, diagonals, p2, pen)
+        gy, gp = guide[y], guide[yp]
+        for x in range(w):
+            pen[0, x] = _penalty(gy[x], gy[min(max(x - s, 0), w - 1)], p1, p2, tau)
+            pen[1, x] = _penalty(gy[x], gp[x], p1, p2, tau)
+            if diagonals:
+                pen[2, x] = _penalty(gy[x], gp[min(max(x - s, 0), w - 1)], p1, p2, tau)
+                pen[3, x] = _penalty(gy[x], gp[min(max(x + s, 0), w - 1)], p1, p2, tau)
         for ix in range(w):                          # the row's path, in its own direction
             x = ix if down else w - 1 - ix
             xb, xq = x + 1, x + 1 - s
@@ -178,58 +184,11 @@ def _step(c, src, m, pen, p1, at, dst, dst_min, xb):  # noqa: PLR0913  # pragma:
 
 
 @nb.njit(cache=True, parallel=True)
-def _band_winners(costs, offs, diagonals, p1, p2, edges, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
+def _band_winners(costs, offs, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
     """Both maps' aggregation, one per thread: down pass into sums[i], up pass picking into best[i]."""
     for i in nb.prange(costs.shape[0]):
-        _band_pass(costs[i], offs[i], True, diagonals, p1, p2, edges, sums[i], best[i])
-        _band_pass(costs[i], offs[i], False, diagonals, p1, p2, edges, sums[i], best[i])
-
-
-@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
-def _edge_penalties(guide, p1, p2, tau):  # pragma: no cover - compiled
-    """The jump penalty (psvs.dense.sgm._penalty) across each pixel's edges to its earlier neighbours,
-    (4, H, W) float32: [0] to (y, x − 1), [1] to (y − 1, x), [2] to (y − 1, x − 1), [3] to (y − 1, x + 1);
-    a neighbour outside the image is the nearest inside one, as the passes clamp it (the pixel itself: p2;
-    a diagonal's at the border: the straight edge it falls on). Computed once for both maps and both
-    passes: a band of 6 lags is too short to hide the divisions (they were half of the aggregation's time)."""
-    h, w = guide.shape
-    out = np.empty((4, h, w), np.float32)
-    for y in nb.prange(h):
-        g, gp = guide[y], guide[max(y - 1, 0)]
-        for x in range(w):
-            xl, xr = max(x - 1, 0), min(x + 1, w - 1)
-            out[0, y, x] = _penalty(g[x], g[xl], p1, p2, tau)
-            out[1, y, x] = _penalty(g[x], gp[x], p1, p2, tau)
-            out[2, y, x] = _penalty(g[x], gp[xl], p1, p2, tau)
-            out[3, y, x] = _penalty(g[x], gp[xr], p1, p2, tau)
-    return out
-
-
-@nb.njit(cache=True, nogil=True, inline="always")
-def _row_penalties(edges, y, down, diagonals, p2, pen):  # pragma: no cover - compiled
-    """Row y's penalties from each path's previous pixel into ``pen`` (paths, W), read from ``edges``
-    (:func:`_edge_penalties`): the down pass's are the pixel's own edges; the up pass's, its later
-    neighbours' edges back to it (a penalty is symmetric in its two guide values), or where that neighbour
-    lies outside, the edge the clamped lookup falls on."""
-    h, w = edges.shape[1:]
-    if down:
-        for k in range(4 if diagonals else 2):
-            src = edges[k, y]
-            for x in range(w):
-                pen[k, x] = src[x]
-        return
-    below = y + 1 < h
-    for x in range(w):
-        right = x + 1 < w
-        pen[0, x] = edges[0, y, x + 1] if right else p2
-        pen[1, x] = edges[1, y + 1, x] if below else p2
-        if diagonals:
-            if below:
-                pen[2, x] = edges[2, y + 1, x + 1] if right else edges[1, y + 1, x]
-                pen[3, x] = edges[3, y + 1, x - 1] if x > 0 else edges[1, y + 1, x]
-            else:
-                pen[2, x] = edges[0, y, x + 1] if right else p2
-                pen[3, x] = edges[0, y, x] if x > 0 else p2
+        _band_pass(costs[i], offs[i], True, diagonals, p1, p2, guide, tau, sums[i], best[i])
+        _band_pass(costs[i], offs[i], False, diagonals, p1, p2, guide, tau, sums[i], best[i])
 
 
 def band_winners(costs: np.ndarray, offsets: np.ndarray, p1: float, p2: float, n_paths: int, guide: np.ndarray,
@@ -255,8 +214,7 @@ def band_winners(costs: np.ndarray, offsets: np.ndarray, p1: float, p2: float, n
     if sums is None:
         sums = np.empty_like(costs)
     best = np.empty(costs.shape[:3], np.float64)
-    edges = _edge_penalties(guide, np.float32(p1), np.float32(p2), np.float32(tau))
-    _band_winners(costs, offsets, n_paths == 8, np.float32(p1), np.float32(p2), edges, sums, best)
+    _band_winners(costs, offsets, n_paths == 8, np.float32(p1), np.float32(p2), guide, np.float32(tau), sums, best)
     return best
 
 
