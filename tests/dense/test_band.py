@@ -161,3 +161,29 @@ def test_a_kept_workspace_gives_the_same_maps_through_the_pyramid(large_pair):
         res = dense_disparity(c, 0, d_max, params=FAST, workspace=ws)
         np.testing.assert_array_equal(res.disparity_left, ref.disparity_left)
         np.testing.assert_array_equal(res.confidence_right, ref.confidence_right)
+
+
+def test_local_winners_sum_each_disparity_over_the_window():
+    """band_local_winners against a direct sum: each pixel's lane k is disparity o + k; a neighbour adds its
+    cost at that disparity when its band holds it, else its worst cost; the winner is the lowest sum (with a
+    parabola's offset within half a lane)."""
+    from psvs.dense.band import band_local_winners
+    rng = np.random.default_rng(3)
+    h, w, n = 9, 11, 6
+    costs = rng.random((2, h, w, n)).astype(np.float32)
+    offs = rng.integers(20, 23, (2, h, w))
+    best = band_local_winners(costs, offs, 1)
+    for i in range(2):
+        for y in range(h):
+            for x in range(w):
+                acc = np.zeros(n)
+                for yy in range(max(0, y - 1), min(h, y + 2)):
+                    for xx in range(max(0, x - 1), min(w, x + 2)):
+                        c = costs[i, yy, xx]
+                        for k in range(n):
+                            j = k + offs[i, y, x] - offs[i, yy, xx]
+                            acc[k] += c[j] if 0 <= j < n else c.max()
+                k = int(np.argmin(acc))
+                assert abs(best[i, y, x] - (offs[i, y, x] + k)) <= 0.5
+    with pytest.raises(ValueError, match="radius must be >= 0"):
+        band_local_winners(costs, offs, -1)

@@ -280,7 +280,7 @@ def _coarse_to_fine(img: np.ndarray, d_min: float, d_max: float, p: DenseParams,
         fl = img.shape[1] / im.shape[1]
         up = coarse_maps_up((dl, dr, cl, cr), im.shape)
         dl, dr, cl, cr = refine_level(im, pyr_r[level], up, (d_min / fl, min(d_max / fl, im.shape[1] - 1.0)), p,
-                                      workspace)
+                                      workspace, local=level == base and p.finest_local_px > 0)
     if p.refine_median_px > 1:
         dl, dr = (finite_median(m, p.refine_median_px) for m in (dl, dr))
     h, w = img.shape

@@ -39,6 +39,8 @@ class DenseParams:
     band_lags: int = 6             # the lags each pixel searches at a finer level of the pyramid
     refine_window: int = 3         # the NCC window side at a finer level (plain windows, no guided filter)
     refine_median_px: int = 11     # the pyramid's final median of each map at the working scale (odd side; 1 = none)
+    finest_local_px: int = 3       # the pyramid's working level: costs summed over this window (odd px) and each
+    #                                pixel's winner taken, instead of the semi-global aggregation (0)
     top: DenseParams | None = None  # the pyramid's coarse level: these parameters (None: the mode's own, at scale 1)
 
     def __post_init__(self):
@@ -46,6 +48,8 @@ class DenseParams:
             raise ValueError(f"band_lags must be >= 4, got {self.band_lags}")
         if self.refine_window < 1 or self.refine_window % 2 == 0:
             raise ValueError(f"refine_window must be an odd number of px, got {self.refine_window}")
+        if self.finest_local_px < 0 or (self.finest_local_px and self.finest_local_px % 2 == 0):
+            raise ValueError(f"finest_local_px must be 0 or an odd number of px, got {self.finest_local_px}")
         if self.refine_median_px < 1 or self.refine_median_px % 2 == 0:
             raise ValueError(f"refine_median_px must be an odd number >= 1, got {self.refine_median_px}")
 
@@ -56,7 +60,7 @@ DEFAULT = DenseParams()
 #: With a pyramid (a large image or range) its coarse level runs the default mode (it is small), and the
 #: finer levels down to half resolution search their bands on 4 paths, with a 5 x 5 median at the end.
 FAST = DenseParams(sigma_px=0.5, window=9, shift_window=1, guided_radius=0, n_paths=4, scale=2, second_pass=False,
-                   median_px=1, prune=False, refine_median_px=5, top=DEFAULT)
+                   median_px=1, prune=False, refine_median_px=5, finest_local_px=0, top=DEFAULT)
 #: The coarse pass that prunes the default mode's search: the fast mode. (At quarter resolution it would
 #: take 12 ms instead of 55 at 160 disparities, but it misses a 64 x 64 px object whose disparity stands
 #: apart: tests/dense/test_disparity.py.)

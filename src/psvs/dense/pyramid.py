@@ -22,7 +22,7 @@ import math
 import cv2
 import numpy as np
 
-from psvs.dense.band import band_costs, band_winners
+from psvs.dense.band import band_costs, band_local_winners, band_winners
 from psvs.dense.cost import aperture_weight, band_pass, unit_scaled
 from psvs.dense.maps import consistent, upsample
 from psvs.dense.params import MIN_LAG_PX, DenseParams
@@ -91,7 +91,7 @@ def _stats(f: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple, d_range: tuple[float, float],
-                 p: DenseParams, workspace: Workspace | None = None):
+                 p: DenseParams, workspace: Workspace | None = None, local: bool = False):
     """One finer level (module docstring): ``img`` (h, w) (``right``: the right view's grid on a build),
     ``coarse`` the two maps of the coarser level and their confidences brought to (h, w) (the maps in this
     level's px), ``d_range`` the disparities asked for (px of this level). Returns (left map, right map,
@@ -115,9 +115,12 @@ def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple, d_ran
     offsets = np.stack([_bands(c, lo, hi, n) for c in coarse[:2]])
     costs, _ = band_costs(f, g, (mu_f, isd_f, mu_g, isd_g, aperture), offsets, hi, n, r,
                             out=volume(workspace, "band", (2, h, w, n)))
-    guide = cv2.GaussianBlur(unit_scaled(img), (0, 0), 1.0)
-    best = band_winners(costs, offsets, p.p1, p.p2, p.n_paths, guide, p.edge_contrast,
-                        sums=volume(workspace, "band_sums", (2, h, w, n)))
+    if local:
+        best = band_local_winners(costs, offsets, p.finest_local_px // 2)
+    else:
+        guide = cv2.GaussianBlur(unit_scaled(img), (0, 0), 1.0)
+        best = band_winners(costs, offsets, p.p1, p.p2, p.n_paths, guide, p.edge_contrast,
+                            sums=volume(workspace, "band_sums", (2, h, w, n)))
     ok = consistent(best[0], best[1])
     out = []
     for view in range(2):
