@@ -52,13 +52,14 @@ def right_pixels(rig_name: str, seed: int, params):
 @pytest.mark.parametrize("mode, limit", [("default", 0.10), ("fast", 0.15)])
 def test_dense_depth_at_1440(rig_name, seed, mode, limit):
     params = DEFAULT if mode == "default" else FAST
-    share, dense = wrong_share(rig_name, seed, params)
+    right, seen, dense = right_pixels(rig_name, seed, params)
+    share = float(1.0 - np.mean(right[seen]))
     assert share <= limit, share
     h, w = dense.result.disparity_left.shape
     lo, hi = dense.result.searched_px
     assert pyramid_levels(h, w, lo, hi) >= 1 or mode == "fast"      # the pyramid did the work
-    c = dense.result.confidence_left
-    assert np.mean(c > 0) > 0.5 and c.max() <= 1
+    c = dense.result.confidence_left        # a confidence on most twin-visible pixels (61-76 % measured)
+    assert np.mean(c[seen] > 0) > 0.5 and c.max() <= 1
 
 
 @pytest.mark.parametrize("mode", ["default", "fast"])

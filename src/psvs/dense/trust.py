@@ -93,14 +93,15 @@ def consistent_regions(disparity: np.ndarray, confidence: np.ndarray) -> tuple[n
 
 
 def grown(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarray) -> np.ndarray:
-    """``anchored`` (H, W bool) and every consistent region of the map that holds an anchored pixel."""
-    labels, n = consistent_regions(disparity, confidence)
-    inside = labels >= 0
-    hit = np.zeros(n, bool)
-    hit[labels[inside & anchored]] = True
-    out = anchored.copy()
-    out[inside] |= hit[labels[inside]]
-    return out
+    """``anchored`` (H, W bool) and every consistent region of the map that holds an anchored pixel (the
+    regions as :func:`consistent_regions` finds them, named by their root pixel: no renumbering needed)."""
+    d = np.ascontiguousarray(disparity, dtype=np.float64)
+    ok = np.ascontiguousarray((np.asarray(confidence) > 0) & np.isfinite(d))
+    root = _regions(d, ok, STEP_PX)
+    hit = np.zeros(root.size + 1, bool)          # the last entry: "no region" (root -1), never hit
+    hit[root[ok & anchored]] = True
+    hit[-1] = False
+    return anchored | hit[root]
 
 
 @dataclass(frozen=True, eq=False)
