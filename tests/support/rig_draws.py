@@ -42,11 +42,11 @@ What is drawn (units as in psvs: mm, px; degrees only in names ending ``_deg``):
 - **Build.** Every mirror tilted 0.05-0.3 deg about both axes (random signs) and shifted up to 0.5 mm, the
   box turned up to 0.2 deg, the lens a little off its datasheet (f 1 %, principal point 0.5 % of the
   image, k1 5 %, tangential terms 1e-3) with up to 5 % more fall-off.
-- **Card.** A symmetric circle grid (5 x 7, else 4 x 6, else 4 x 5) whose discs are about 28 px across at
-  the near end (never more than the 40 random_poses allows, at least 9 px at the far end of the card's range) and
-  2.2 diameters apart, held at :data:`CARD_VIEWS` poses from the near end over 80 % of the range
-  (``psvs.calibrate.synthetic.random_poses(..., apart=False)``: its copies may interleave), rendered with
-  the renderer's 2 x 2 samples where the image is not smooth (:mod:`tests.support.adaptive`).
+- **Card.** A symmetric circle grid (5 x 7, else 4 x 6, else 4 x 5) whose discs are 2 diameters apart, at
+  most :data:`MAX_SPACING_OVER_BASELINE` of the baseline, and 28 px across at the near end or less (at
+  least 8 px at the far end of the card's range), held at :data:`CARD_VIEWS` poses from the near end over
+  80 % of the range (``psvs.calibrate.synthetic.random_poses(..., apart=False)``: its copies may
+  interleave), rendered with the renderer's 2 x 2 samples where the image is not smooth (:mod:`tests.support.adaptive`).
 """
 from __future__ import annotations
 
@@ -246,25 +246,37 @@ def _working_range(rng, rig: Rig) -> tuple[float, float]:
     return near, min(round(near * rng.uniform(2.0, 2.5), -1), MAX_FAR_MM)
 
 
+#: The card's disc spacing, at most, over the baseline: the detector pairs a disc with its twin along the
+#: row, which must lie well beyond the disc's neighbours (docs/calibration.md; the shipped rigs' cards: 0.14,
+#: 0.16). At 0.29 every view of a 5 x 7 card (b 79 mm, 22.7 mm spacing) was refused: its two copies' discs
+#: fell on each other or were labelled uncertainly.
+MAX_SPACING_OVER_BASELINE = 0.16
+#: px: the smallest disc diameter at the far end of the card's range, and the largest at the near end.
+CARD_DISC_PX = (8.0, 28.0)
+
+
 def _card(rig: Rig, z_range) -> CircleGrid:
     """A circle grid sized for the rig (module docstring), or Rejected."""
     cam, zv = rig.camera, rig.virtual_z_mm
     px_per_mm = lambda z: cam.focal_length_mm / (cam.pixel_pitch_mm[0] * (z - zv))  # noqa: E731
-    d = round(28.0 / px_per_mm(z_range[0]), 1)
+    d = round(min(CARD_DISC_PX[1] / px_per_mm(z_range[0]),
+                  MAX_SPACING_OVER_BASELINE * rig.mirrors.baseline_mm / 2.0), 1)
     why = ""
     for scale in (1.0, 0.85, 0.7):
         dd = round(d * scale, 1)
-        if dd * px_per_mm(z_range[1]) < 9.0:
+        if dd * px_per_mm(z_range[1]) < CARD_DISC_PX[0]:
+            why = why or (f"discs of {dd:g} mm (spaced at most {MAX_SPACING_OVER_BASELINE:g} b) are under "
+                          f"{CARD_DISC_PX[0]:g} px at {z_range[1]:g} mm")
             break
         for rows, cols in ((5, 7), (4, 6), (4, 5)):
-            card = CircleGrid(rows, cols, round(2.2 * dd, 1), dd)
+            card = CircleGrid(rows, cols, round(2.0 * dd, 1), dd)
             try:
                 check_card_fits(rig, card, CARD_VIEWS, z_range, apart=False)
             except ValueError as exc:
                 why = str(exc)
                 continue
             return card
-    raise Rejected(f"no card fits: {why or 'discs under 9 px at the far end'}")
+    raise Rejected(f"no card fits: {why}")
 
 
 def _build(rng, nominal: Rig) -> Rig:
