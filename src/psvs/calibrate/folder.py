@@ -1,8 +1,9 @@
 """Calibrate a build from a folder of complex images: hand-held grid views, a robot sweep, or both.
 
-The folder holds PNG images and ``target.toml`` (the hand-held card, :mod:`psvs.calibrate.target_file`)
+The folder holds images (any file :func:`psvs.io.images.read_grey` reads: PNG, JPEG, BMP, TIFF, PNM; grey
+or colour) and ``target.toml`` (the hand-held card, :mod:`psvs.calibrate.target_file`)
 and/or ``sweep.csv`` (the paper's robot sweep, :mod:`psvs.calibrate.sweep`). Images listed in ``sweep.csv``
-are sweep images; every other PNG is a view of the card. Each image is detected on its own; one that
+are sweep images; every other image is a view of the card. Each image is detected on its own; one that
 cannot be used is skipped with its reason (no grid found, too few discs on an even ground, or -- after a
 first adjustment -- a target that fits no pose), and the bundle adjustment
 (:func:`psvs.calibrate.bundle.bundle_adjust`) runs on the rest. A folder that repeats a view is refused
@@ -22,7 +23,7 @@ from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
 from psvs.calibrate.detect import Target, TargetDetection, detect_target, target_points_mm
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
 from psvs.calibrate.target_file import load_target
-from psvs.io.images import read_grey
+from psvs.io.images import IMAGE_SUFFIXES, read_grey
 from psvs.optics.mirrors import virtual_centre
 from psvs.optics.rig import Rig
 
@@ -81,7 +82,7 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
     sweeps = []
     items = read_sweep(folder) if has_sweep else []
     sweep_names = {p.name for p, _ in items}
-    others = sorted(p for p in folder.iterdir() if p.suffix.lower() == ".png" and p.name not in sweep_names)
+    others = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES and p.name not in sweep_names)
     check_distinct_images([p for p, _ in items] + (others if has_target else []))
     if has_sweep:
         found, bad = detect_sweep(items, COUNT, expect_size=start.camera.image_size_px, start=start)

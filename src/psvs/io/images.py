@@ -24,6 +24,10 @@ def write_png(path, image: np.ndarray) -> None:
     write_atomic(path, buf.tobytes())
 
 
+#: File suffixes of the images :func:`read_grey` reads (what :func:`psvs.io.image_header.read_header` knows: PNG,
+#: JPEG, BMP, TIFF, PNM), for a command that takes every image of a folder.
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".pnm")
+
 #: Largest image :func:`read_grey` decodes, pixels (100 megapixels: 10000 x 10000 px, far above any sensor psvs
 #: is used with), whatever the memory available.
 MAX_IMAGE_PIXELS = 100_000_000
