@@ -8,8 +8,9 @@
 Each bench module defines ``cases()`` returning a list of ``(name, setup_result_fn, target_s)`` where
 calling ``setup_result_fn()`` returns the zero-argument function to time (a function that returns a float
 has timed itself: that many seconds, best of 7), and may define ``RATIOS``, a list of
-``(name, case_a, case_b)``: the ratio of two of its cases' times, measured in the same run. Time per call: the
-best of 7 batches of back-to-back calls (timeit's method; one call per batch for cases slower than 50 ms).
+``(name, case_a, case_b)``: the ratio of two of its cases' times, measured in the same run, and ``MEMORY``, a
+dict that its cases fill with a process's peak resident memory in MiB by case name (with ``MEMORY_LIMIT_MIB``).
+Time per call: the best of 7 batches of back-to-back calls (timeit's method; one call per batch for cases slower than 50 ms).
 BLAS/OpenMP are pinned to one thread; the render group uses its own thread pool (both cores).
 """
 from __future__ import annotations
@@ -82,7 +83,7 @@ def main(argv: list[str]) -> int:
             print(f"no benchmark group matches {' '.join(argv)} (groups: "
                   f"{', '.join(m.stem[6:] for m in sorted(HERE.glob('bench_*.py')))})", file=sys.stderr)
             return 2
-    rows, ratios = [], []
+    rows, ratios, memory = [], [], []
     for path in modules:
         spec = importlib.util.spec_from_file_location(path.stem, path)
         mod = importlib.util.module_from_spec(spec)
@@ -102,6 +103,10 @@ def main(argv: list[str]) -> int:
                 continue
             ratios.append((path.stem.removeprefix("bench_"), name, times[a] / times[b]))
             print(f"{name:<55} {ratios[-1][2]:10.2f}", flush=True)
+        limit = getattr(mod, "MEMORY_LIMIT_MIB", float("inf"))
+        for name, mib in getattr(mod, "MEMORY", {}).items():
+            memory.append((path.stem.removeprefix("bench_"), name, mib, limit))
+            print(f"{name:<55} {mib:10.0f} MiB peak", flush=True)
     if not rows:
         print(f"no case matches --case {case!r}: docs/benchmarks.md left as it was", file=sys.stderr)
         return 2
@@ -110,6 +115,7 @@ def main(argv: list[str]) -> int:
     ran = {r[0] for r in rows} if case is None else set()
     measured = {(r[0], r[1]) for r in rows}
     ran_ratios = {(r[0], r[1]) for r in ratios}
+    ran_memory = {(r[0], r[1]) for r in memory}
     if OUT.exists():
         for line in OUT.read_text().splitlines():
             cells = [c.strip() for c in line.strip().strip("|").split("|")]
@@ -121,6 +127,10 @@ def main(argv: list[str]) -> int:
             elif len(cells) == 3 and cells[0] not in ran and (cells[0], cells[1]) not in ran_ratios \
                     and cells[0] not in ("group", "---"):
                 ratios.append((cells[0], cells[1], float(cells[2])))
+            elif len(cells) == 4 and cells[0] not in ran and (cells[0], cells[1]) not in ran_memory \
+                    and cells[0] not in ("group", "---"):
+                memory.append((cells[0], cells[1], float(cells[2]), float("inf") if cells[3] == "—" else
+                               float(cells[3])))
     rows.sort(key=lambda r: r[0])
     ratios.sort(key=lambda r: r[0])
     lines = ["# Benchmarks", "",
@@ -142,6 +152,12 @@ def main(argv: list[str]) -> int:
         lines += ["", "Ratios of two cases' times measured in the same run:", "",
                   "| group | ratio | value |", "|---|---|---:|"]
         lines += [f"| {g} | {n} | {v:.2f} |" for g, n, v in ratios]
+    if memory:
+        memory.sort(key=lambda r: r[0])
+        lines += ["", "Peak resident memory of the processes measured (the largest over the calls):", "",
+                  "| group | process | peak (MiB) | limit (MiB) |", "|---|---|---:|---:|"]
+        lines += [f"| {g} | {n} | {m:.0f} | {'—' if lim == float('inf') else f'{lim:.0f}'} |"
+                  for g, n, m, lim in memory]
     OUT.write_text("\n".join(lines) + "\n")
     print(f"wrote {OUT}")
     return 0 if all(r[4] in ("yes", "—") for r in rows) else 1

@@ -24,11 +24,16 @@ def wall_video(request, tmp_path_factory):
 
 
 def test_live_dense_depth_every_frame_log_and_mcap(wall_video, tmp_path, capsys):
+    """The ideal rig in the default mode, the build with --fast."""
     rig, path, truth = wall_video
     log, rec = tmp_path / "live.csv", tmp_path / "live.mcap"
-    assert main(["live", "--video", str(path), "--rig", rig, "--dense", "-o", str(log), "--mcap", str(rec)]) == 0
+    mode = ["--fast"] if rig == "misaligned" else []
+    assert main(["live", "--video", str(path), "--rig", rig, "--dense", *mode, "-o", str(log), "--mcap",
+                 str(rec)]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("frame 0: dense median Z ") and out[-1].startswith("6 frames, ")
+    assert any(line.startswith(f"dense ({'fast' if mode else 'default'} mode): 6 frames, 6 with depth")
+               for line in out), out
     with log.open() as f:
         rows = list(csv.DictReader(f))
     z = np.array([float(r["dense_median_z_mm"]) for r in rows])
@@ -67,6 +72,8 @@ def test_dense_sensor_and_cli_errors(capsys):
     assert "give --seed U,V" in capsys.readouterr().err
     assert main(["live", "--video", "x.avi", "--rig", "default", "--dense", "--dense-stride", "0"]) == 2
     assert "--dense-stride must be >= 1" in capsys.readouterr().err
+    assert main(["live", "--video", "x.avi", "--rig", "default", "--seed", "5,5", "--fast"]) == 2
+    assert "--fast is the dense map's fast mode: give it with --dense" in capsys.readouterr().err
 
 
 def test_live_dense_without_texture_says_so(tmp_path, capsys):

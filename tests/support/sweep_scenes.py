@@ -227,14 +227,15 @@ def truth_on_left_grid(truth, rect, shape):
 @dataclass(frozen=True, eq=False)
 class Score:
     """A dense result scored: ``bad``: the share of twin-visible pixels with no answer or |Z error| > 2 % of
-    Z; ``pixels``: how many twin-visible pixels; the gate's ``count`` (trusted pixels), ``largest_excess``,
-    ``min_excess``; seconds of the maps and of the gate."""
+    Z; ``pixels``: how many twin-visible pixels; the gate's ``count`` (trusted pixels of the left map),
+    ``strongest_z`` (the strongest echo's z, in spreads of its correlations) and ``chance`` (its family's
+    1 % false-alarm level, psvs.dense.echo_test); seconds of the maps and of the gate."""
 
     bad: float
     pixels: int
     count: int
-    largest_excess: float
-    min_excess: float
+    strongest_z: float
+    chance: float
     seconds: dict
 
     @property
@@ -245,8 +246,8 @@ class Score:
 def score_text(s: Score) -> str:
     """One line: the bad share, the twin-visible pixels, the gate's figures."""
     verdict = f"answered ({s.count} px trusted)" if s.answered else "refused"
-    return (f"{s.bad:.1%} of {s.pixels} twin-visible px wrong, {verdict}: largest region's excess echo "
-            f"{s.largest_excess:.0f}, trusted beyond {s.min_excess:.0f}")
+    return (f"{s.bad:.1%} of {s.pixels} twin-visible px wrong, {verdict}: the strongest echo {s.strongest_z:.1f} "
+            f"spreads, chance up to {s.chance:.1f}")
 
 
 def score(image: np.ndarray, truth_mm, rig, near_mm: float, far_mm: float, params) -> Score:
@@ -256,7 +257,7 @@ def score(image: np.ndarray, truth_mm, rig, near_mm: float, far_mm: float, param
     t0 = time.perf_counter()
     dense = dense_on_rig(image, rig, near_mm, far_mm, params=params)
     t1 = time.perf_counter()
-    trust = rig_trust(image, dense, params, camera=rig.camera)
+    trust = rig_trust(dense)
     t2 = time.perf_counter()
     bad, n = float("nan"), 0
     if truth_mm is not None:
@@ -266,7 +267,8 @@ def score(image: np.ndarray, truth_mm, rig, near_mm: float, far_mm: float, param
         err = np.abs(cloud.depth_mm[valid] - truth[valid]) / truth[valid]
         n = int(valid.sum())
         bad = float(np.mean(~(err <= 0.02)))        # NaN (no answer) counts as wrong
-    return Score(bad, n, trust.count, float(trust.largest_excess), float(trust.min_excess),
+    return Score(bad, n, int(trust.trusted_left.sum()), float(trust.test.strongest_z),
+                 float(trust.test.strongest_threshold),
                  {"dense": t1 - t0, "trust": t2 - t1})
 
 
@@ -289,9 +291,9 @@ SCORED: dict = {}
 def sweep_table() -> str:
     """The session's draws and scores as a Markdown table: per draw and scene the rig drawn, its calibration's
     mean 3-D error, and per mode the share of wrong pixels and the gate's verdict (trusted pixels, the
-    largest region's excess echo, the threshold)."""
-    lines = ["| draw | calibration | scene | default: wrong, trusted px (largest / threshold) | fast: wrong, trusted "
-             "px (largest / threshold) |", "|---|---|---|---|---|"]
+    strongest echo's z and chance's level, in spreads)."""
+    lines = ["| draw | calibration | scene | default: wrong, trusted px (strongest echo / chance) | fast: wrong, "
+             "trusted px (strongest echo / chance) |", "|---|---|---|---|---|"]
     keys = sorted({k[:2] for k in SCORED})
     for seed, mp in keys:
         cal = calibrated_draw(seed, mp)
@@ -300,7 +302,7 @@ def sweep_table() -> str:
             for mode in ("default", "fast"):
                 r = SCORED.get((seed, mp, scene, mode))
                 cells.append("" if r is None else f"{'' if r.pixels == 0 else f'{r.bad:.1%}, '}{r.count} "
-                             f"({r.largest_excess:.0f} / {r.min_excess:.0f})")
+                             f"({r.strongest_z:.1f} / {r.chance:.1f})")
             head = (cal.draw.label, f"{cal.error_mm:.3f} mm") if k == 0 else ("", "")
             lines.append(f"| {head[0]} | {head[1]} | {scene} | {cells[0]} | {cells[1]} |")
     return "\n".join(lines)

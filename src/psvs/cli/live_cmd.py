@@ -26,6 +26,7 @@ from psvs.cli.common import (
 )
 from psvs.cli.recording import record_settings, settings_paths
 from psvs.dense.compiled import announce_dense
+from psvs.dense.params import DEFAULT, FAST
 from psvs.live.camera import CameraLost
 from psvs.live.dense import DenseSensor
 from psvs.live.log import write_log
@@ -44,8 +45,10 @@ def add_parser(sub) -> None:
     add_rig_argument(p)
     p.add_argument("--seed", metavar="U,V", help="a point on a left-view edge in the first frame (px); required "
                                                  "unless --dense")
-    p.add_argument("--dense", action="store_true", help="also a dense depth map of every frame (the fast mode of "
-                                                        "psvs disparity over the working range; docs/dense.md)")
+    p.add_argument("--dense", action="store_true", help="also a dense depth map of every frame (psvs disparity's "
+                                                        "default mode over the working range; docs/dense.md)")
+    p.add_argument("--fast", action="store_true", help="with --dense: its fast mode (psvs disparity --fast), the one "
+                                                       "for camera rate (docs/benchmarks.md)")
     p.add_argument("--dense-stride", type=int, default=4, metavar="N",
                    help="with --dense: triangulate one map pixel in N along each axis (default 4)")
     p.add_argument("-o", "--output", metavar="LOG.csv", help="per-frame log (CSV)")
@@ -67,6 +70,8 @@ def _sensors(args):
         raise ValueError(f"--max-frames must be >= 1, got {args.max_frames}")
     if args.seed is None and not args.dense:
         raise ValueError("give --seed U,V (an edge to track) or --dense (a depth map per frame), or both")
+    if args.fast and not args.dense:
+        raise ValueError("--fast is the dense map's fast mode: give it with --dense")
     if args.dense_stride < 1:
         raise ValueError(f"--dense-stride must be >= 1, got {args.dense_stride}")
     seed = parse_seed(args.seed) if args.seed is not None else None
@@ -75,7 +80,8 @@ def _sensors(args):
     near_mm, far_mm = range_from_args(args)
     tracker = None if seed is None else EdgeTracker(rig, seed, pipeline=pipeline, near_mm=near_mm, far_mm=far_mm,
                                                     match=MatchParams(model=args.model))
-    dense = DenseSensor(rig, near_mm, far_mm, stride=args.dense_stride) if args.dense else None
+    dense = DenseSensor(rig, near_mm, far_mm, params=FAST if args.fast else DEFAULT,
+                                   stride=args.dense_stride) if args.dense else None
     return tracker, dense
 
 
@@ -173,19 +179,21 @@ def run(args) -> int:
     if args.camera is not None or dropped:
         print(f"{source.name}: {dropped} frame{'s' * (dropped != 1)} dropped (frame counters {metas[0].counter}-"
               f"{metas[-1].counter}), timestamps on the {metas[-1].clock} clock")
-    status = _summary(steps, dense_frames if dense is not None else None, wall, args.realtime)
+    status = _summary(steps, dense_frames if dense is not None else None, wall, args.realtime,
+                      "fast" if args.fast else "default")
     return max(status, 1) if lost else status
 
 
-def _summary(steps: list, dense_frames: list | None, wall: float, realtime: bool) -> int:
-    """Print the run's summary; exit status 1 when nothing was measured."""
+def _summary(steps: list, dense_frames: list | None, wall: float, realtime: bool, mode: str) -> int:
+    """Print the run's summary (``mode``: the dense map's, default or fast); exit status 1 when nothing was
+    measured."""
     n = len(steps)
     pace = "paced by --realtime" if realtime else "reading + processing"
     z = np.zeros(0)
     if dense_frames is not None:
         z = np.array([d.median_z_mm for d in dense_frames])
         z = z[np.isfinite(z)]
-        print(f"dense: {n} frames, {len(z)} with depth, median Z "
+        print(f"dense ({mode} mode): {n} frames, {len(z)} with depth, median Z "
               + (f"{np.median(z):.1f} mm" if len(z) else "none")
               + f", {np.mean([d.answered_pct for d in dense_frames]):.1f} % of pixels answered, "
               f"mean {1e3 * np.mean([d.elapsed_s for d in dense_frames]):.1f} ms per frame")
