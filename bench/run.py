@@ -10,7 +10,8 @@ calling ``setup_result_fn()`` returns the zero-argument function to time (a func
 has timed itself: that many seconds, best of 7), and may define ``RATIOS``, a list of
 ``(name, case_a, case_b)``: the ratio of two of its cases' times, measured in the same run, and ``MEMORY``, a
 dict that its cases fill with a process's peak resident memory in MiB by case name (with ``MEMORY_LIMIT_MIB``).
-Time per call: the best of 7 batches of back-to-back calls (timeit's method; one call per batch for cases slower than 50 ms).
+Time per call: the best of 7 batches of back-to-back calls (timeit's method; one call per batch for cases slower
+than 50 ms).
 BLAS/OpenMP are pinned to one thread; the render group uses its own thread pool (both cores).
 """
 from __future__ import annotations
