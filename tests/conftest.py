@@ -117,8 +117,15 @@ def write_wall_video(folder, rig, frames: int = 6):
 
 @pytest.fixture(scope="session")
 def wall_video(tmp_path_factory):
-    """:func:`write_wall_video` through the default rig."""
-    return write_wall_video(tmp_path_factory.mktemp("wall"), default_rig())
+    """:func:`write_wall_video` through the default rig. Its first frame's dense map is made here once, so
+    that a test's time limit on a live loop counts no compiling of the dense kernels (minutes on a fresh
+    clone, on the first test of a worker that runs them)."""
+    from psvs.live.dense import DenseSensor
+    from psvs.live.source import VideoSource
+    path, truth = write_wall_video(tmp_path_factory.mktemp("wall"), default_rig())
+    with VideoSource(video=str(path)) as source:
+        DenseSensor(default_rig()).step(source.read())
+    return path, truth
 
 
 def kabsch(src: np.ndarray, dst: np.ndarray):
