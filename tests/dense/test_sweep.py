@@ -13,7 +13,8 @@ every textured scene answered (at least one pixel trusted by ``rig_trust``) with
 blank and noise frame refused (no pixel trusted). A failing test prints its draw, with the nominal rig and
 the build as TOML, to be replayed from its seed (``calibrated_draw(seed, megapixels)``).
 
-The quick tier is one small draw (with the command line); ``slow`` adds the sweep over larger sizes. Both
+The quick tier is one small draw (with the command line); ``slow`` adds the sweep over larger sizes
+(tests/dense/test_sweep_wide.py, a file of its own so that a worker of its own runs it). Both
 share the session's cached renders and calibrations (tests/support: every expensive step is cached per
 session). What a draw costs on the 2-core host, all five scenes in both modes, CPU seconds: 0.36 MP about 100
 (calibration 38 of it), 2.3 MP about 300, 5 MP about 560 (the rays of its 40 million samples alone 110,
@@ -30,9 +31,6 @@ from tests.support.sweep_scenes import SCENES, TEXTURED, score_text, scored, sho
 SMALL, MID, LARGE = (0.3, 0.5), (1.0, 2.5), (2.5, 5.1)
 #: The quick tier: seed 1 of the small sensors (752 x 480, 9.6 um, f 16 mm, a Bayer camera writing JPEG).
 QUICK = ((1, SMALL),)
-#: The slow sweep (with QUICK): 1440 x 1080 mono JPEG, 2448 x 2048 (5 MP) Bayer PNG. The next to add:
-#: (4, SMALL), 752 x 480 mono PNG behind a 6 mm lens (100 s).
-SWEEP = ((6, MID), (0, LARGE))
 #: The largest share of wrong pixels on a textured scene, by mode.
 MAX_BAD = {"default": 0.10, "fast": 0.15}
 MODES = tuple(MAX_BAD)
@@ -68,20 +66,6 @@ def test_draw_calibrates(draw):
 @pytest.mark.parametrize("scene", SCENES)
 @pytest.mark.parametrize("draw", QUICK, ids=_id)
 def test_scene(draw, scene, mode):
-    check_scene(*draw, scene, mode)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("draw", SWEEP, ids=_id)
-def test_sweep_draw_calibrates(draw):
-    check_calibration(*draw)
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("mode", MODES)
-@pytest.mark.parametrize("scene", SCENES)
-@pytest.mark.parametrize("draw", SWEEP, ids=_id)
-def test_sweep_scene(draw, scene, mode):
     check_scene(*draw, scene, mode)
 
 
