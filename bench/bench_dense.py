@@ -115,7 +115,8 @@ def _mv_frame():
                     supersample=1, seed=1)
         rect = rectification_for(rig, MV_NEAR_MM, MV_FAR_MM)
         lo, hi = disparity_range(rig, MV_NEAR_MM, MV_FAR_MM, rect, width_px=rect.size_px[0])
-        _mv.update(rig=rig, image=rr.image, left=rr.left, right=rr.right, count=int(math.ceil(hi - lo)))
+        _mv.update(rig=rig, image=rr.image, left=255.0 * rr.left, right=255.0 * rr.right,   # radiance -> grey
+                   count=int(math.ceil(hi - lo)))
     return _mv
 
 
