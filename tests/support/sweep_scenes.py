@@ -279,30 +279,4 @@ def scored(seed: int, scene: str, fast: bool, megapixels: tuple[float, float] = 
     from psvs.dense.params import DEFAULT, FAST
     cal = calibrated_draw(seed, megapixels)
     s = shot(seed, scene, megapixels)
-    result = score(s.image, s.truth_mm, cal.rig, cal.draw.near_mm, cal.draw.far_mm, FAST if fast else DEFAULT)
-    SCORED[(seed, tuple(megapixels), scene, "fast" if fast else "default")] = result
-    return result
-
-
-#: Every score of the session, by (seed, megapixels, scene, mode), for :func:`sweep_table`.
-SCORED: dict = {}
-
-
-def sweep_table() -> str:
-    """The session's draws and scores as a Markdown table: per draw and scene the rig drawn, its calibration's
-    mean 3-D error, and per mode the share of wrong pixels and the gate's verdict (trusted pixels, the
-    strongest echo's z and chance's level, in spreads)."""
-    lines = ["| draw | calibration | scene | default: wrong, trusted px (strongest echo / chance) | fast: wrong, "
-             "trusted px (strongest echo / chance) |", "|---|---|---|---|---|"]
-    keys = sorted({k[:2] for k in SCORED})
-    for seed, mp in keys:
-        cal = calibrated_draw(seed, mp)
-        for k, scene in enumerate(SCENES):
-            cells = []
-            for mode in ("default", "fast"):
-                r = SCORED.get((seed, mp, scene, mode))
-                cells.append("" if r is None else f"{'' if r.pixels == 0 else f'{r.bad:.1%}, '}{r.count} "
-                             f"({r.strongest_z:.1f} / {r.chance:.1f})")
-            head = (cal.draw.label, f"{cal.error_mm:.3f} mm") if k == 0 else ("", "")
-            lines.append(f"| {head[0]} | {head[1]} | {scene} | {cells[0]} | {cells[1]} |")
-    return "\n".join(lines)
+    return score(s.image, s.truth_mm, cal.rig, cal.draw.near_mm, cal.draw.far_mm, FAST if fast else DEFAULT)
