@@ -17,7 +17,6 @@ from psvs.dense.disparity import check_dense_memory, check_range
 from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.rig_cache import rectification
 from psvs.dense.trust import ALPHA, EchoTrust, trusted_maps
-from psvs.dense.workspace import Workspace
 from psvs.errors import MeasurementError
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
@@ -187,13 +186,13 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
                                                                                         EchoTrust | None, object]:
     """The command's work and its files: (output paths, the maps, their trust, the point cloud or None).
     MeasurementError when no answer stands above chance (nothing written). ``workspace``
-    (psvs.dense.workspace.Workspace): kept from one frame to the next by ``psvs batch``'s workers; a new one
-    otherwise. ``say_compiling``: the command's name, to say in a line, once its inputs are checked, that the
-    dense kernels compile on this run (psvs.dense.compiled)."""
+    (psvs.dense.workspace.Workspace): kept from one frame to the next by ``psvs batch``'s workers;
+    otherwise none (one call: each level's volumes are freed when the next level starts; a workspace keeps
+    them all, about 250 MiB more at 2.3 MP). ``say_compiling``: the command's name, to say in a line, once
+    its inputs are checked, that the dense kernels compile on this run (psvs.dense.compiled)."""
     out, (rig, image, rect, split, (lo, hi), params) = prepare(args, image)
     if say_compiling:
         announce_dense(say_compiling)
-    workspace = Workspace() if workspace is None else workspace
     # a warning (e.g. "complex image is constant") is printed as one line by psvs.cli.main
     if rig is None:
         dense = RigDense(dense_disparity(image, lo, hi, params=params, workspace=workspace), None, image)
