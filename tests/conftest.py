@@ -1,5 +1,6 @@
 import atexit
 import dataclasses
+import hashlib
 import math
 import os
 import shutil
@@ -23,6 +24,13 @@ atexit.register(shutil.rmtree, SESSION_CACHE, ignore_errors=True)
 #: A fresh clone's first dense command says that it compiles (psvs._compiled); the tests check commands'
 #: stderr line by line, and which test compiles first is chance: the notice is off (tests/test_compiled.py on).
 os.environ["PSVS_NO_COMPILE_NOTICE"] = "1"
+
+
+def pytest_sessionfinish(session):
+    """The session's shared files (tests/support/shared_files.py) removed by the pytest process."""
+    if not hasattr(session.config, "workerinput"):
+        from tests.support.shared_files import remove_session_folder
+        remove_session_folder()
 
 
 def pytest_configure(config):
@@ -172,19 +180,31 @@ class HandVideo:
 
 
 def write_hand_video(folder, rig_name: str = "misaligned", holds: int = 11, seed: int = 1, card=HAND_CARD,
-                     frames: int | None = None, **hand) -> HandVideo:
+                     frames: int | None = None, shared: bool = False, **hand) -> HandVideo:
     """A hand-held card (psvs.calibrate.handheld) through a shipped rig: ``holds`` poses, the first ``frames``
-    frames of the path (all by default), written to FOLDER/hand.avi with FOLDER/target.toml."""
+    frames of the path (all by default), written to FOLDER/hand.avi with FOLDER/target.toml. ``shared``: the
+    video rendered once for the session's processes (tests/support/shared_files.py), FOLDER/hand.avi a link
+    to it."""
     from psvs.calibrate.handheld import HandParams, hand_path, render_hand_video
     from psvs.calibrate.target_file import dumps_target
     from psvs.io.video import write_video
     from psvs.simulate.textures import CircleGrid
+    from tests.support.shared_files import shared_file
     folder = Path(folder)
     rig, grid = load_rig(rig_name), CircleGrid(*card)
     plan = hand_path(rig, grid, holds, seed=seed, hand=HandParams(**hand))[:frames]
     (folder / "target.toml").write_text(dumps_target(grid))
     path = folder / "hand.avi"
-    assert write_video(path, render_hand_video(rig, grid, plan, seed=seed), fps=30.0) == len(plan)
+
+    def render(to: Path):
+        assert write_video(to, render_hand_video(rig, grid, plan, seed=seed), fps=30.0) == len(plan)
+
+    if shared:
+        key = "_".join(str(x) for x in (rig_name, holds, seed, card, frames, sorted(hand.items())))
+        name = "hand-" + hashlib.sha256(key.encode()).hexdigest()[:16] + ".avi"
+        path.symlink_to(shared_file(name, render))
+    else:
+        render(path)
     return HandVideo(path, plan, folder / "target.toml", rig)
 
 

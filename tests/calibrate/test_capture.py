@@ -170,7 +170,7 @@ def test_capture_on_a_hand_held_video(capsys, hand_video, tmp_path):
 
 def test_a_video_that_ends_too_soon(capsys, tmp_path):
     """Four poses: the views are kept, and exit 1 says what is missing."""
-    video = write_hand_video(tmp_path, holds=4, seed=2, hold_frames=2, move_frames=0)
+    video = write_hand_video(tmp_path, holds=4, seed=2, hold_frames=2, move_frames=0, shared=True)
     out = tmp_path / "views"
     code, text, err = run(capsys, "capture", "--video", str(video.path), "--target", str(video.target),
                           "--rig", "clear", "-o", str(out))

@@ -21,7 +21,7 @@ def test_capture_then_calibrate_mv1440(capsys, tmp_path):
     20 views covering every bin; calibration from the nominal design reprojects within 0.06 px and
     reconstructs within 0.1 mm (rigid motion taken out) over 400-1200 mm, the nominal design 143 mm."""
     video = write_hand_video(tmp_path, "mv1440_misaligned", holds=25, seed=7, card=(5, 7, 16.0, 7.0),
-                             hold_frames=3, move_frames=1, blur_samples=2, out_every=12, apart=False)
+                             hold_frames=3, move_frames=1, blur_samples=2, out_every=12, apart=False, shared=True)
     views = tmp_path / "views"
     code, text, err = run(capsys, "capture", "--video", str(video.path), "--target", str(video.target),
                           "--rig", "mv1440", "-o", str(views))

@@ -214,7 +214,7 @@ def test_capture_keeps_its_views_when_the_camera_is_lost(tmp_path, capsys, monke
     beside them, names the last frame and exits 1 saying what is missing."""
     from psvs.live.pylon import PylonSource
     from tests.conftest import write_hand_video
-    video = write_hand_video(tmp_path, holds=4, seed=2, hold_frames=2, move_frames=0)
+    video = write_hand_video(tmp_path, holds=4, seed=2, hold_frames=2, move_frames=0, shared=True)
     frames = tmp_path / "frames"
     frames.mkdir()
     cap = cv2.VideoCapture(str(video.path))

@@ -27,7 +27,7 @@ def test_capture_from_the_emulated_camera_calibrates(capsys, tmp_path):
     reprojects within 0.06 px and reconstructs within issue 27's 0.1 mm over 400-1200 mm (rigid motion taken
     out), the figures of the video path (the issue's 5x7 card, its two views interleaving)."""
     video = write_hand_video(tmp_path, "mv1440_misaligned", holds=25, seed=7, card=(5, 7, 16.0, 7.0),
-                             hold_frames=3, move_frames=1, blur_samples=2, out_every=12, apart=False)
+                             hold_frames=3, move_frames=1, blur_samples=2, out_every=12, apart=False, shared=True)
     frames = tmp_path / "frames"
     frames.mkdir()
     cap = cv2.VideoCapture(str(video.path))
