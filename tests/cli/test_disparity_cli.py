@@ -73,15 +73,6 @@ def test_fast_and_rig_range(capsys, tmp_path):
     assert np.mean(err_px <= 1) > 0.6 and np.median(err_px) < 1.0
 
 
-def test_constant_image_warns_and_writes_nan(capsys, tmp_path):
-    img = tmp_path / "flat.png"
-    write_png(img, np.full((40, 60), 90, np.uint8))
-    out = tmp_path / "d.npy"
-    code, _, err = run(capsys, "disparity", str(img), "--min-disparity", "0", "--max-disparity", "20", "-o", str(out))
-    assert code == 0 and "warning" in err and "constant" in err
-    assert np.all(np.isnan(np.load(out)))
-
-
 @pytest.mark.parametrize("extra, message", [
     (["--min-disparity", "0"], "both --min-disparity and --max-disparity"),
     ([], "give --rig or"),

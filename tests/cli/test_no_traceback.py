@@ -181,13 +181,18 @@ def test_a_closed_pipe_ends_quietly(capsys, failing_design):
     assert capsys.readouterr().err == ""
 
 
-def test_psvs_warnings_are_one_line_each(capfd, tmp_path):
+@pytest.mark.parametrize("level", [0, 90])
+def test_a_constant_image_is_one_line_exit_1_and_nothing_written(capfd, tmp_path, level):
+    """Issue 41: a black image gave exit 0 and an all-NaN map. Nothing to match is a measurement that cannot
+    be made: exit 1, one line, no file (an older one kept)."""
     flat = tmp_path / "flat.png"
-    write_png(flat, np.full((40, 60), 90, np.uint8))
-    code, _, err = run(capfd, "disparity", flat, "--min-disparity", "0", "--max-disparity", "20",
-                       "-o", tmp_path / "d.npy")
-    assert code == 0
-    assert err == "psvs disparity: warning: complex image is constant: no texture to match, disparity is all NaN\n"
+    write_png(flat, np.full((40, 60), level, np.uint8))
+    out = tmp_path / "d.npy"
+    out.write_bytes(b"an older map")
+    code, _, err = run(capfd, "disparity", flat, "--min-disparity", "0", "--max-disparity", "20", "-o", out)
+    assert (code, err) == (1, f"psvs disparity: cannot measure: the complex image is constant (every pixel {level}): "
+                              "no texture to match\n")
+    assert out.read_bytes() == b"an older map"
 
 
 def _warn_from_outside_psvs():

@@ -91,3 +91,26 @@ def test_non_finite_values_are_bad_input(known, which):
     name = ("left_px", "right_px", "points_mm")[which]
     with pytest.raises(ValueError, match=f"{name} row 2 is not finite"):
         fit_refraction(*arrays, rig)
+
+
+def test_repeating_rows_does_not_change_the_verdict(known):
+    """Issue 41: three ill-conditioned rows were refused (condition 24 > limit 6) but the same three rows
+    repeated 30000 times were fitted (the limit grew with the row count). A repeat adds no evidence: the
+    verdict, the condition number and its limit are those of the distinct rows; a good fit's terms are
+    unchanged by copies of its rows."""
+    rig = known[0]
+    pts = np.array([[0.0, 0.0, 500.0], [0.0, 0.0, 800.0], [0.0, 0.0, 1100.0]])
+    left, right = planted(rig, pts)
+    with pytest.raises(MeasurementError, match="condition number") as once:
+        fit_refraction(left, right, pts, rig)
+    many = np.tile(np.arange(3), 30000)
+    with pytest.raises(MeasurementError, match="condition number") as repeated:
+        fit_refraction(left[many], right[many], pts[many], rig)
+    assert str(repeated.value) == str(once.value)
+    rig, left, right, pts = known
+    fit = fit_refraction(left, right, pts, rig)
+    rows = np.tile(np.arange(len(pts)), 1000)
+    again = fit_refraction(left[rows], right[rows], pts[rows], rig)
+    assert again.n_rows == fit.n_rows == 6
+    assert (again.l_mm, again.m_mm, again.condition, again.condition_limit) == pytest.approx(
+        (fit.l_mm, fit.m_mm, fit.condition, fit.condition_limit), abs=1e-12)

@@ -4,6 +4,7 @@ by tomllib / csv / OpenCV), a folder calibrates without any pose guess to the ce
 import csv
 import json
 import math
+import re
 import tomllib
 
 import cv2
@@ -18,6 +19,7 @@ from psvs.robot.handeye import HandEyeResult, calibrate_from_views
 from psvs.robot.handeye_io import dumps_handeye, load_handeye, read_views, save_handeye, write_views
 from psvs.robot.handeye_session import CELL_GRID, CELL_TARGET2BASE, cell_views, nominal_cam2flange, true_cam2flange
 from psvs.robot.mounting import HOME_Q
+from tests.cli.test_cli import run
 
 
 @pytest.fixture(scope="module")
@@ -119,6 +121,32 @@ def test_views_folder_round_trips_and_calibrates_without_a_guess(session, tmp_pa
     assert free.spread_mm < 0.3
 
 
+@pytest.mark.parametrize("spoil", ["shifted", "metres"])
+def test_poses_that_are_not_the_images_poses_are_refused(session, tmp_path, capsys, spoil):
+    """Issue 41: the flange poses shifted one row against the images (each image paired with the next
+    view's pose), or written in metres: the fit's residual is tens of px where the grid's own fit and a
+    0.5 mm robot explain about one: exit 1, the figure named, no file written (the good folder's
+    residual: 0.03 px, test_cli_handeye_then_track_with_the_file). A robot accuracy that is no number
+    of mm: exit 2."""
+    cfg, images, flanges = session
+    if spoil == "shifted":
+        bad = flanges[1:] + flanges[:1]
+    else:
+        bad = [np.vstack([np.hstack([F[:3, :3], F[:3, 3:] / 1000.0]), F[3:]]) for F in flanges]
+    folder = tmp_path / "views"
+    write_views(folder, images, bad, CELL_GRID)
+    out = tmp_path / "he.toml"
+    code, text, err = run(capsys, "handeye", str(folder), "--rig", "default", "-o", str(out))
+    assert code == 1 and len(err.strip().splitlines()) == 1, err
+    m = re.search(r"the hand-eye calibration does not fit its data: RMS residual ([0-9.]+) px is ([0-9.]+) times "
+                  r"the ([0-9.]+) px", err)
+    assert m and float(m[1]) > 5.0 and float(m[2]) > 3.0, err
+    assert not out.exists()
+    code, text, err = run(capsys, "handeye", str(folder), "--rig", "default", "-o", str(out), "--robot-accuracy-mm",
+                          "0")
+    assert code == 2 and "--robot-accuracy-mm must be a positive number" in err
+
+
 def test_bad_views_folders(session, tmp_path):
     _, images, flanges = session
     write_views(tmp_path, images[:3], flanges[:3], CELL_GRID)
@@ -150,13 +178,13 @@ def test_cli_handeye_then_track_with_the_file(session, tmp_path, capsys):
     assert main(["handeye", str(views), "--rig", "default", "-o", str(he)]) == 0
     assert "target fit RMS per view" in capsys.readouterr().out
     assert load_handeye(he).target_rms_mm.shape == (8,)
-    run = tmp_path / "run"
+    run_dir = tmp_path / "run"
     assert main(["track", "weld_seam", "--rig", "default", "--handeye", str(he), "--speed", "25", "--length", "5",
-                 "--no-bag", "-o", str(run)]) == 0
+                 "--no-bag", "-o", str(run_dir)]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0] == "tracking: first control cycle done"      # said when it happens, before the summary
     assert out[1].startswith("set-up before the first control cycle:")
-    rep = json.loads((run / "report.json").read_text())
+    rep = json.loads((run_dir / "report.json").read_text())
     assert rep["stop"]["reason"] == "weld length reached"
     assert rep["lateral_mm"]["rms"] <= 0.2 and rep["lateral_mm"]["max"] <= 0.5
     assert rep["start_s"] < 10.0          # no hand-eye session (the 2 s target is a benchmark)

@@ -6,7 +6,9 @@ and/or ``sweep.csv`` (the paper's robot sweep, :mod:`psvs.calibrate.sweep`). Ima
 are sweep images; every other image is a view of the card. Each image is detected on its own; one that
 cannot be used is skipped with its reason (no grid found, too few discs on an even ground, or -- after a
 first adjustment -- a target that fits no pose), and the bundle adjustment
-(:func:`psvs.calibrate.bundle.bundle_adjust`) runs on the rest. A folder that repeats a view is refused
+(:func:`psvs.calibrate.bundle.bundle_adjust`) runs on the rest. A result no build of the start design can be
+(a mirror turned degrees, a lens no lens is: :func:`psvs.evidence.check_build`) is refused
+(``MeasurementError``): the folder holds another rig's views, or several rigs'. A folder that repeats a view is refused
 before any work (``ValueError`` naming the duplicates): ``sweep.csv`` listing one image twice or one robot
 position for two images, or two byte-identical images (a copy under another name). A repeat adds no
 evidence, yet the adjustment would weigh it as new and count it as an image used.
@@ -23,6 +25,7 @@ from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
 from psvs.calibrate.detect import Target, TargetDetection, detect_target, target_points_mm
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
 from psvs.calibrate.target_file import load_target
+from psvs.evidence import check_build
 from psvs.io.images import IMAGE_SUFFIXES, read_grey
 from psvs.optics.mirrors import virtual_centre
 from psvs.optics.rig import Rig
@@ -131,6 +134,7 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
         else:
             grids, sweeps = kept_g, kept_s
     used = {**{g.name: "grid" for g in grids}, **{s.name: "sweep" for s in sweeps}}
+    check_build(res.rig, start, f"calibrating from {len(used)} image(s) of {folder}")   # docs/right-or-refuse.md
     b, sb = effective_baseline(res)
     return CalibrationResult(res, used, skipped, b, sb)
 

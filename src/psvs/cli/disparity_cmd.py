@@ -119,15 +119,12 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
             write_npy(out["right"], res.disparity_right)
         if out["confidence"]:
             write_npy(out["confidence"], res.confidence_left)
-        if out["views"]:
-            if np.isfinite(res.disparity_left).any():
-                seen = flat_field(image, rig.camera) if rig is not None else image   # as the maps saw it
-                k = camera_pixel_scale(rig.camera) if rig is not None and dense.rect is None else None
-                lv, rv = separate_views(seen, res.disparity_left, split, res.disparity_right, rect=dense.rect,
-                                        pixel_scale=k)   # the prior in scene terms (psvs.dense.separate)
-            else:  # nothing to separate by: a constant image is two identical constant views
-                lv = rv = np.asarray(dense.left_image, dtype=np.float64)
-            for path, v in zip(out["views"], (lv, rv)):
+        if out["views"]:           # the maps answer somewhere (_trusted)
+            seen = flat_field(image, rig.camera) if rig is not None else image   # as the maps saw it
+            k = camera_pixel_scale(rig.camera) if rig is not None and dense.rect is None else None
+            lv, rv = separate_views(seen, res.disparity_left, split, res.disparity_right, rect=dense.rect,
+                                    pixel_scale=k)   # the prior in scene terms (psvs.dense.separate)
+            for path, v in zip(out["views"], (lv, rv), strict=True):
                 write_png(path, to_grey8(v))
         cloud = rig_cloud(dense, rig, model) if (out["depth"] or out["cloud"]) else None
         if out["depth"]:
@@ -137,12 +134,14 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
     return cloud
 
 
-def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust | None]:
+def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
     """``dense`` with its confidence 0 where the echo does not support the answer beyond chance, and that
-    judgement (None when the maps answer nothing); MeasurementError when they answer but nothing is trusted."""
+    judgement; MeasurementError when the maps answer nothing or nothing they answer is trusted."""
     res = dense.result
     if not np.isfinite(res.disparity_left).any():
-        return dense, None
+        lo, hi = res.searched_px
+        raise MeasurementError(f"no pixel found a disparity in {lo:.0f}..{hi:.0f} px: the image holds no texture "
+                               "the search can match")
     trust = rig_trust(dense)
     if trust.count == 0:
         lo, hi = res.searched_px
@@ -163,11 +162,9 @@ def strongest_echo(trust: EchoTrust) -> str:
             "side, which no echo reaches)")
 
 
-def _summary(dense: RigDense, trust: EchoTrust | None) -> str:
+def _summary(dense: RigDense, trust: EchoTrust) -> str:
     res = dense.result
     d = res.disparity_left[np.isfinite(res.disparity_left)]
-    if not d.size:
-        return "no disparity found"
     n = res.disparity_left.size
     return (f"{d.size} of {n} px answered, {trust.count} ({trust.count / n:.0%}) trusted (on surfaces whose echo "
             f"stands above chance: the strongest {trust.test.strongest_z:.1f} spreads, chance up to "
@@ -183,14 +180,17 @@ def prepare(args, image=None) -> tuple:
 
 
 def compute(args, image=None, workspace=None, say_compiling: str | None = None) -> tuple[dict, RigDense,
-                                                                                        EchoTrust | None, object]:
+                                                                                        EchoTrust, object]:
     """The command's work and its files: (output paths, the maps, their trust, the point cloud or None).
-    MeasurementError when no answer stands above chance (nothing written). ``workspace``
+    MeasurementError when the image is constant, or no answer stands above chance (nothing written). ``workspace``
     (psvs.dense.workspace.Workspace): kept from one frame to the next by ``psvs batch``'s workers;
     otherwise none (one call: each level's volumes are freed when the next level starts; a workspace keeps
     them all, about 250 MiB more at 2.3 MP). ``say_compiling``: the command's name, to say in a line, once
     its inputs are checked, that the dense kernels compile on this run (psvs.dense.compiled)."""
     out, (rig, image, rect, split, (lo, hi), params) = prepare(args, image)
+    if image.min() == image.max():          # nothing to match: said before any work, nothing written
+        raise MeasurementError(f"the complex image is constant (every pixel {image.flat[0]:g}): no texture to "
+                               "match")
     if say_compiling:
         announce_dense(say_compiling)
     # a warning (e.g. "complex image is constant") is printed as one line by psvs.cli.main
@@ -204,11 +204,11 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
     return out, dense, trust, cloud
 
 
-def summary_row(dense: RigDense, trust: EchoTrust | None) -> dict:
+def summary_row(dense: RigDense, trust: EchoTrust) -> dict:
     """The figures of the summary line as scalars (a row of ``psvs batch``'s results)."""
     d = dense.result.disparity_left
     answered = np.isfinite(d)
-    return {"answered_px": int(answered.sum()), "trusted_px": int(trust.count) if trust is not None else 0,
+    return {"answered_px": int(answered.sum()), "trusted_px": int(trust.count),
             "median_disparity_px": float(np.median(d[answered])) if answered.any() else None}
 
 

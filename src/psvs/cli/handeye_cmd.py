@@ -28,6 +28,9 @@ def add_parser(sub) -> None:
     p.add_argument("--views-count", type=int, default=12, metavar="N",
                    help="simulated cell only: how many views (default 12)")
     p.add_argument("--save-views", metavar="DIR", help="simulated cell only: also write the views as a folder")
+    p.add_argument("--robot-accuracy-mm", type=float, default=0.5, metavar="MM",
+                   help="the robot's stated flange pose accuracy (default 0.5 mm): the fit is refused when its "
+                        "residual is beyond what this and the grid's own fit explain (docs/right-or-refuse.md)")
     p.add_argument("-o", "--output", metavar="HANDEYE.toml", required=True, help="the hand-eye file to write")
     p.set_defaults(run=run)
 
@@ -59,6 +62,8 @@ def run(args) -> int:
     save = check_output_folder(args.save_views, "--save-views folder") if args.save_views else None
     check_distinct({"-o": args.output, "--save-views": args.save_views},
                    {"VIEWS_DIR": args.views, "--rig": args.rig, "--true-rig": args.true_rig})
+    if not (math.isfinite(args.robot_accuracy_mm) and args.robot_accuracy_mm > 0):
+        raise ValueError(f"--robot-accuracy-mm must be a positive number of mm, got {args.robot_accuracy_mm:g}")
     rig = rig_from_args(args)
     truth = None
     if args.views is not None:
@@ -70,7 +75,7 @@ def run(args) -> int:
         cfg = TrackConfig()
         images, flanges = cell_views(true_rig or rig, cfg, Arm(HOME_Q), args.views_count)
         grid, source, truth = CELL_GRID, "simulated cell", true_cam2flange(cfg)
-    he = calibrate_from_views(images, flanges, rig, grid)
+    he = calibrate_from_views(images, flanges, rig, grid, robot_accuracy_mm=args.robot_accuracy_mm)
     if save is not None:
         write_views(save, images, flanges, grid)
     save_handeye(out, he, source, Path(args.rig).stem if args.rig else "default")

@@ -6,6 +6,9 @@ file is used for every later depth, so the fit answers only when the points supp
 
 * **Bad input** (``ValueError``): a non-finite value, or a known point not in front of the rig (Z not beyond
   the mirror box, :func:`psvs.optics.mirrors.front_z_mm`: no camera sees it through the mirrors).
+* **Repeated rows count once**: a row repeated (the same pixels of the same point) adds no evidence, so
+  the rows are made distinct first; the conditioning and its limit are those of the distinct rows, whatever
+  the number of copies (:func:`psvs.evidence.distinct_rows`).
 * **Too few distinct points** (:class:`~psvs.errors.MeasurementError`): two unknowns need three distinct
   points, two to pin l and m and a third to check them (two are fitted exactly, whatever they are worth).
 * **Ill-conditioned** (``MeasurementError``): each point's depth is uncertain by what a sub-pixel
@@ -29,6 +32,7 @@ import numpy as np
 
 from psvs._validate import check_points, check_same_length
 from psvs.errors import MeasurementError
+from psvs.evidence import distinct_rows
 from psvs.optics.mirrors import front_z_mm
 from psvs.optics.plate import derived_refraction_terms
 from psvs.optics.rig import Rig
@@ -92,6 +96,8 @@ def fit_refraction(left_px, right_px, points_mm, rig: Rig) -> RefractionFit:
     if distinct < 3:
         raise MeasurementError(f"{int(ok.sum())} rows hold {distinct} distinct point(s): l and m of eq. (15) need 3 "
                                "distinct points (two pin them, the third checks them)")
+    xl, disp, pts = distinct_rows(xl[ok], disp[ok], pts[ok])       # a repeated row adds no evidence
+    ok = np.ones(len(xl), dtype=bool)
     A = np.stack([xl[ok] / disp[ok], f / disp[ok]], axis=1)
     rhs = pts[ok, 2] - rig.virtual_z_mm - b * f / disp[ok]
     dz = (pts[ok, 2] - rig.virtual_z_mm) ** 2 * (DISPARITY_NOISE_PX * cam.pixel_pitch_mm[0]) / (f * b)

@@ -14,12 +14,14 @@ OpenCV 4 is installed).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from psvs.calibrate.detect import detect_target
+from psvs.evidence import check_residual
 from psvs.measure.triangulate import triangulate
 from psvs.optics.rig import Rig
 from psvs.simulate.textures import CircleGrid
@@ -119,6 +121,12 @@ def consistent_labellings(candidates: list[list[TargetFit]], flange2base: list[n
     return out
 
 
+#: mm: the flange pose accuracy assumed of the robot when none is stated (an industrial arm's absolute
+#: accuracy, ISO 9283, is 0.1-1 mm uncalibrated): what the hand-eye fit's residual may hold beyond the
+#: detector's noise (:func:`_check_fit`).
+ROBOT_ACCURACY_MM = 0.5
+
+
 @dataclass(frozen=True, eq=False)
 class HandEyeResult:
     """cam2flange (4, 4) mm; per-view target fit RMS (mm); the spread of the target's base pose over
@@ -132,6 +140,20 @@ class HandEyeResult:
     spread_rad: float
     reprojection_rms_px: float | None = None
     skipped: tuple = ()
+
+
+def _check_fit(rms_px: float, fits: list, rig: Rig, robot_accuracy_mm: float) -> None:
+    """MeasurementError when the joint fit's reprojection RMS (px) is beyond what its inputs' noise
+    explains (:func:`psvs.evidence.check_residual`): the grid's own rigid fit in each view (its RMS, mm, seen
+    at the view's depth) and the robot's stated accuracy (mm at the target's depth), added in quadrature.
+    Poses that belong to other images (shifted by one row) or in other units leave residuals of tens of px."""
+    z = np.array([f.target2cam[2, 3] for f in fits])
+    f_px = rig.camera.focal_length_mm / rig.camera.pixel_pitch_mm[0]
+    detector = float(np.sqrt(np.mean((np.array([f.rms_mm for f in fits]) * f_px / z) ** 2)))
+    robot = float(np.sqrt(np.mean((robot_accuracy_mm * f_px / z) ** 2)))
+    check_residual(rms_px, math.hypot(detector, robot), "the hand-eye calibration", "px",
+                   f"the grid's own fit in each view ({detector:.2f} px) with a {robot_accuracy_mm:g} mm robot "
+                   f"accuracy ({robot:.2f} px at the target)")
 
 
 def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarray]) -> np.ndarray:
@@ -169,7 +191,8 @@ def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarra
 
 def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray], rig: Rig, grid: CircleGrid,
                          nominal_cam2flange: np.ndarray | None = None,
-                         target2base_guess: np.ndarray | None = None) -> HandEyeResult:
+                         target2base_guess: np.ndarray | None = None,
+                         robot_accuracy_mm: float = ROBOT_ACCURACY_MM) -> HandEyeResult:
     """Hand-eye calibration from complex images of the grid taken at the given flange poses.
 
     Each view's grid is found and triangulated (:func:`target_candidates`); Park & Martin's closed form
@@ -206,6 +229,7 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
     t2c = [f.target2cam for f in fits]
     X0 = calibrate_hand_eye(flange2base, t2c)
     X, _, rms_px = refine_hand_eye(flange2base, fits, grid_points(grid), rig, X0)
+    _check_fit(rms_px, fits, rig, robot_accuracy_mm)
     targets = [concat(T, X, F) for F, T in zip(flange2base, t2c)]
     pos = np.array([T[:3, 3] for T in targets])
     ang = [_angle(targets[0][:3, :3].T @ T[:3, :3]) for T in targets]

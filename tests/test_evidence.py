@@ -1,0 +1,90 @@
+"""psvs.evidence: the one rule's checks for fits (docs/right-or-refuse.md), against planted values and
+independent derivations (OpenCV's projection for the lens)."""
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from psvs.errors import MeasurementError
+from psvs.evidence import (
+    MAX_CORNER_DISTORTION,
+    build_problems,
+    check_build,
+    check_residual,
+    distinct_rows,
+    lens_problems,
+)
+from psvs.io.params import load_rig
+from psvs.optics.rig import MirrorError
+
+
+@pytest.mark.parametrize("build, design", [("misaligned", "default"), ("mv1440_misaligned", "mv1440"),
+                                           ("default", "default"), ("mv1440", "mv1440")])
+def test_the_shipped_builds_are_builds_of_their_designs(build, design):
+    assert build_problems(load_rig(build), load_rig(design)) == []
+
+
+def _corner_shift(camera) -> float:
+    """The radial shift of the image's farthest corner as a share of its radius, through OpenCV's own
+    projection with the camera's distortion (an independent derivation)."""
+    w, h = camera.image_size_px
+    cx, cy = camera.principal_point_px
+    fx = camera.focal_length_mm / camera.pixel_pitch_mm[0]
+    fy = camera.focal_length_mm / camera.pixel_pitch_mm[1]
+    corner = np.array([[max(cx, w - 1 - cx) / fx, max(cy, h - 1 - cy) / fy, 1.0]])
+    K = np.array([[fx, 0, cx], [0, fy, cy], [0, 0, 1.0]])
+    plain, _ = cv2.projectPoints(corner, np.zeros(3), np.zeros(3), K, np.zeros(5))
+    bent, _ = cv2.projectPoints(corner, np.zeros(3), np.zeros(3), K, np.array(camera.distortion, dtype=float))
+    r0 = np.hypot(*(plain.ravel() - [cx, cy]))
+    return float(np.hypot(*(bent.ravel() - [cx, cy])) / r0 - 1.0)
+
+
+@pytest.mark.parametrize("k1, k2, k3, verdict", [(-0.05, 0.01, 0.0, None), (0.0, -2.0, -2.0, None),
+                                                 (2.0, 0.0, 0.0, "corner"), (-3.0, 0.0, 0.0, "folds"),
+                                                 (0.5, -40.0, 0.0, "folds")])
+def test_a_lens_no_lens_is_is_named(k1, k2, k3, verdict):
+    """The shipped 1440x1080 camera (8 mm, 3.45 um: the corner at 0.39 of f) with planted lens terms: a mild
+    barrel passes, and so do k2 = k3 = -2 (5 % at this corner: high orders matter little in a narrow
+    field); a corner moved more than 25 % (OpenCV's projection says by how much) or a mapping that folds
+    back inside the image is named."""
+    cam = load_rig("mv1440").replace(distortion=(k1, k2, 0.0, 0.0, k3)).camera
+    problems = lens_problems(cam)
+    if verdict is None:
+        assert problems == [] and abs(_corner_shift(cam)) < MAX_CORNER_DISTORTION
+    elif verdict == "corner":
+        shift = _corner_shift(cam)
+        assert shift > MAX_CORNER_DISTORTION
+        assert problems == [f"the lens's fitted distortion (k1 {k1:.3g}, k2 {k2:.3g}, k3 {k3:.3g}) moves the image's "
+                            f"corner by {shift:.0%} of its radius (a lens of the field: under 25%)"]
+    else:
+        assert len(problems) == 1 and "folds the image back" in problems[0]
+
+
+def test_a_mirror_turned_degrees_or_another_lens_is_refused():
+    """A calibration that puts M3 4 deg off the design (issue 41's mixed folder) or a 20 % longer lens is no
+    build of the design: refused, every problem named."""
+    design = load_rig("mv1440")
+    fitted = load_rig("mv1440_misaligned").with_errors({"m3": MirrorError(tilt_rad=(0.0, math.radians(-4.0)))})
+    assert build_problems(fitted, design) == ["M3 fitted 4.00 deg off its design (a build of it: under 2 deg)"]
+    longer = fitted.replace(focal_length_mm=1.2 * design.camera.focal_length_mm)
+    with pytest.raises(MeasurementError, match=r"^calibrating gives a rig no build of the design can be: M3 fitted "
+                                               r"4\.00 deg off its design .*; focal length fitted 9\.6 mm against the "
+                                               r"design's 8 mm .*: the images are of another rig, or of several$"):
+        check_build(longer, design, "calibrating")
+
+
+def test_a_residual_beyond_its_noise_is_refused_and_one_within_passes():
+    check_residual(0.29, 0.1, "a fit", "px", "detector noise")
+    with pytest.raises(MeasurementError, match=r"^a fit does not fit its data: RMS residual 0\.31 px is 3\.1 times "
+                                               r"the 0\.1 px that detector noise explains \(limit 3 times\)"):
+        check_residual(0.31, 0.1, "a fit", "px", "detector noise")
+    with pytest.raises(MeasurementError):
+        check_residual(float("nan"), 0.1, "a fit", "px", "detector noise")
+
+
+def test_distinct_rows_keep_the_first_of_each_in_order():
+    a = np.array([[1.0, 2.0], [3.0, 4.0], [1.0, 2.0], [1.0, 2.0], [5.0, 6.0]])
+    b = np.array([[7.0], [8.0], [7.0], [9.0], [10.0]])         # row 3 differs in b: not a repeat
+    da, db = distinct_rows(a, b)
+    assert da.tolist() == [[1, 2], [3, 4], [1, 2], [5, 6]] and db.ravel().tolist() == [7, 8, 9, 10]
