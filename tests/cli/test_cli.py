@@ -92,6 +92,28 @@ def test_triangulate_to_stdout_paper_model(capsys, matches_csv):
     assert 490 < z < 497   # eq. (12) underestimates 500 mm by ~1 %
 
 
+@pytest.mark.parametrize("model", ["paper", "refraction", "exact"])
+def test_triangulate_marks_pixels_that_are_not_twins_invalid(capsys, tmp_path, matches_csv, model):
+    """Issue 41: twins 400 rows apart were triangulated (valid = 1). A pair whose pixels stand more than
+    2 px off each other's epipolar curve sees two points: invalid under every model, said in one line; the
+    true twins stay valid. A header naming u_l twice: exit 2, nothing written."""
+    csv_in, pts = matches_csv
+    rows = csv_in.read_text().splitlines()
+    u_l, v_l, u_r, v_r = (float(x) for x in rows[1].split(","))
+    rows.append(f"{u_l},{v_l},{u_r},{v_r + (200.0 if v_r < 240 else -200.0)}")     # on the sensor, 200 rows off
+    csv_in.write_text("\n".join(rows) + "\n")
+    out = tmp_path / "points.csv"
+    code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv_in), "--model", model, "-o", str(out))
+    assert code == 0
+    assert err.splitlines()[0].startswith("1 pair(s) stand more than 2 px off their twin's epipolar curve (row 6: ")
+    valid = [int(line.split(",")[3]) for line in out.read_text().splitlines()[1:]]
+    assert valid == [1, 1, 1, 0, 0] and "3 of 5 points valid" in err
+    csv_in.write_text("u_l,v_l,u_r,v_r,u_l\n" + "\n".join(rows[1:]) + "\n")
+    out.unlink()
+    code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv_in), "-o", str(out))
+    assert code == 2 and "column(s) u_l appear more than once" in err and not out.exists()
+
+
 @pytest.mark.parametrize("make_args, message", [
     (lambda d, csv: ["--rig", str(d / "missing.toml"), str(csv)], "rig file not found"),
     (lambda d, csv: ["--rig", EXAMPLE, str(d / "missing.csv")], "points file not found"),

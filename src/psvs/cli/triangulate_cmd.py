@@ -3,15 +3,19 @@ from __future__ import annotations
 
 import sys
 
+import numpy as np
+
 from psvs.cli.common import add_model_argument, add_rig_argument, check_distinct, check_output_path, rig_from_args
 from psvs.io.points import points_csv_text, read_matches_csv, write_points_csv
-from psvs.measure.triangulate import default_model, triangulate
+from psvs.measure.triangulate import EPIPOLAR_TOL_PX, default_model, epipolar_gap_px, triangulate
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("triangulate", help="triangulate matched pixels into frame C (mm)",
                        description="Triangulate matched left/right pixels (eqs. 11-17 or exact ray tracing). "
-                                   "Input CSV columns u_l,v_l,u_r,v_r (px); output X_mm,Y_mm,Z_mm,valid.")
+                                   "Input CSV columns u_l,v_l,u_r,v_r (px); output X_mm,Y_mm,Z_mm,valid. A pair whose "
+                                   "pixels stand more than 2 px off each other's epipolar curve (the exact rays' "
+                                   "closest approach) sees two points, not one: invalid.")
     add_rig_argument(p)
     p.add_argument("points", metavar="POINTS.csv", help="CSV with header u_l,v_l,u_r,v_r")
     add_model_argument(p)
@@ -26,6 +30,14 @@ def run(args) -> int:
     left, right = read_matches_csv(args.points)
     model = args.model or default_model(rig)
     res = triangulate(left, right, rig, model=model)
+    gap = epipolar_gap_px(left, right, rig)
+    off = res.valid & ~(gap <= EPIPOLAR_TOL_PX)        # not twins: the pixels see two different points
+    if off.any():
+        k = int(np.flatnonzero(off)[0])
+        print(f"{int(off.sum())} pair(s) stand more than {EPIPOLAR_TOL_PX:g} px off their twin's epipolar curve "
+              f"(row {k + 2}: {gap[k]:.1f} px): not twins, marked invalid", file=sys.stderr)
+        res.points_mm[off] = np.nan
+        res.valid[off] = False
     if out is None:
         sys.stdout.write(points_csv_text(res.points_mm, res.valid))
     else:

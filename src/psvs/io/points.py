@@ -31,6 +31,10 @@ def read_csv_columns(path, columns: tuple[str, ...]) -> np.ndarray:
     if not table:
         raise ValueError(f"{path}: empty file, expected a header {','.join(columns)}")
     header = [h.strip() for h in table[0]]
+    twice = sorted({c for c in columns if header.count(c) > 1})
+    if twice:
+        raise ValueError(f"{path}: column(s) {', '.join(twice)} appear more than once in the header: which one "
+                         "holds the values is not certain")
     missing = [c for c in columns if c not in header]
     if missing:
         raise ValueError(f"{path}: missing column(s) {', '.join(missing)}; expected header "
