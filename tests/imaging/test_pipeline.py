@@ -126,3 +126,32 @@ def test_bad_step_values():
         steps.threshold(square_image(), method="magic")
     with pytest.raises(ValueError, match=r"image must be a grey \(H, W\) uint8 image"):
         PAPER.run(np.zeros((4, 4, 3), np.uint8))
+
+
+@pytest.mark.parametrize("text, message", [
+    ('op = "bilateral"\ndiameter = 100000', r"bilateral diameter 100000 px is wider than the image \(40x30 px\)"),
+    ('op = "median"\nksize = 99999', r"median ksize 99999 px is wider than the image"),
+    ('op = "mean"\nksize = 41', r"mean ksize 41 px is wider than the image \(40x30 px\): a window at most 40 px"),
+    ('op = "gaussian"\nsigma = 1e300', r"gaussian window \(6 sigma \+ 1\) 6e\+300 px is wider than the image"),
+    ('op = "gaussian"\nsigma = nan', r"gaussian sigma must be > 0 px"),
+])
+def test_a_window_wider_than_the_image_is_refused_before_it_runs(tmp_path, text, message):
+    """Issue 41: a bilateral diameter of 100000 in a pipeline file ran to 17 GB; sigma 1e300 and a 99999 px
+    median reached OpenCV and came back as its internal error. A window is at most the image's larger side,
+    refused (ValueError: exit 2) before OpenCV is called."""
+    p = tmp_path / "p.toml"
+    p.write_text(f'[[steps]]\n{text}\n[[steps]]\nop = "sobel"\n')
+    with pytest.raises(ValueError, match=message):
+        load_pipeline(p).run(np.zeros((30, 40), np.uint8))
+
+
+def test_a_bilateral_filter_is_timed_before_it_runs(monkeypatch):
+    """Its time (pixels x window taps x the measured cost of one) against psvs's work limit: at a limit of
+    1 s, a 31 px window on 640x480 (0.28 s estimated) runs and a 101 px one (2.95 s) is refused."""
+    import psvs._work
+    monkeypatch.setattr(psvs._work, "WORK_LIMIT_S", 1.0)
+    img = np.zeros((480, 640), np.uint8)
+    assert steps.bilateral(img, diameter=31).shape == img.shape
+    with pytest.raises(ValueError, match=r"a bilateral filter of diameter 101 px on 640x480 px takes about 2\.9\d s, "
+                                         r"more than the 1 s limit; a smaller diameter"):
+        steps.bilateral(img, diameter=101)

@@ -9,6 +9,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from psvs._work import check_time
+
 
 def _grey(img: np.ndarray, step: str) -> np.ndarray:
     if img.dtype == bool:
@@ -18,35 +20,60 @@ def _grey(img: np.ndarray, step: str) -> np.ndarray:
     return img
 
 
-def _odd(k, name: str) -> int:
+def _odd(k, name: str, img: np.ndarray | None = None) -> int:
     if not isinstance(k, int) or k < 1 or k % 2 == 0:
         raise ValueError(f"{name} must be an odd integer >= 1, got {k!r}")
+    if img is not None:
+        _within(k, name, img)
     return k
+
+
+def _within(size: float, name: str, img: np.ndarray) -> None:
+    """ValueError when a window of ``size`` px is wider than the image's larger side: every pixel's window
+    would hold the whole image (and the padded copy OpenCV makes grows with it: a diameter of 100000 asked
+    for 17 GB)."""
+    side = max(img.shape[:2])
+    if not size <= side:       # NaN too
+        raise ValueError(f"{name} {size:g} px is wider than the image ({img.shape[1]}x{img.shape[0]} px): a window "
+                         f"at most {side} px wide")
+
+
+#: s per pixel and window tap of OpenCV's bilateral filter (0.12 s for a 31 px diameter at 640x480, 2.9 s
+#: for 101 px, on the 2-core reference machine): its time is estimated before it runs.
+BILATERAL_S_PER_TAP = 1.2e-9
 
 
 # --- filters: grey -> grey ---------------------------------------------------------------------------
 
 def median(img, ksize: int = 3):
     """Median filter, ksize x ksize (the paper's filter)."""
-    return cv2.medianBlur(_grey(img, "median"), _odd(ksize, "median ksize"))
+    return cv2.medianBlur(_grey(img, "median"), _odd(ksize, "median ksize", img))
 
 
 def gaussian(img, sigma: float = 1.0):
     """Gaussian filter of standard deviation sigma (px)."""
-    if sigma <= 0:
+    if not sigma > 0:
         raise ValueError(f"gaussian sigma must be > 0 px, got {sigma!r}")
+    _within(6 * sigma + 1, "gaussian window (6 sigma + 1)", img)
     k = 2 * int(np.ceil(3 * sigma)) + 1
     return cv2.GaussianBlur(_grey(img, "gaussian"), (k, k), sigma)
 
 
 def mean(img, ksize: int = 3):
     """Box (mean) filter, ksize x ksize."""
-    k = _odd(ksize, "mean ksize")
+    k = _odd(ksize, "mean ksize", img)
     return cv2.blur(_grey(img, "mean"), (k, k))
 
 
 def bilateral(img, diameter: int = 5, sigma_color: float = 25.0, sigma_space: float = 3.0):
-    """Edge-preserving bilateral filter (OpenCV)."""
+    """Edge-preserving bilateral filter (OpenCV): a window of ``diameter`` px (at most the image's larger
+    side), its time estimated first (:data:`BILATERAL_S_PER_TAP`; psvs._work's limit)."""
+    if not isinstance(diameter, int) or diameter < 1:
+        raise ValueError(f"bilateral diameter must be an integer >= 1 px, got {diameter!r}")
+    _within(diameter, "bilateral diameter", img)
+    h, w = img.shape[:2]
+    check_time(h * w * 0.785 * diameter ** 2 * BILATERAL_S_PER_TAP,
+               f"a bilateral filter of diameter {diameter} px on {w}x{h} px", "a smaller diameter")
     return cv2.bilateralFilter(_grey(img, "bilateral"), diameter, sigma_color, sigma_space)
 
 
