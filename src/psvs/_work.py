@@ -14,7 +14,8 @@ def duration(seconds: float) -> str:
     """Seconds in the largest fitting unit, e.g. ``45 s``, ``12.5 min``, ``34.1 h``, ``2.3e+04 days``."""
     for unit, size in (("days", 86400.0), ("h", 3600.0), ("min", 60.0)):
         if seconds >= size:
-            return f"{seconds / size:.3g} {unit}"
+            value = f"{seconds / size:.3g}"
+            return f"{value} {'day' if unit == 'days' and value == '1' else unit}"
     return f"{seconds:.3g} s"
 
 

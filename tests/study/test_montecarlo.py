@@ -120,3 +120,25 @@ def test_a_folder_of_another_study_is_refused_before_any_work(study, tmp_path):
         prepare_study(nominal, tol, SMALL, 6, SEED, out)
     with pytest.raises(ValueError, match="-n must be"):
         prepare_study(nominal, tol, SMALL, 0, SEED, tmp_path / "other")
+
+
+def test_a_study_beyond_a_night_is_refused_before_any_work(capsys, tmp_path):
+    """Issue 41: `montecarlo -n 1000000` started instead of saying what it costs. One sample's renders are
+    estimated (the shipped tolerances: 16 card views of 640x480 at 2x2 samples a pixel), times n,
+    over the workers: beyond 24 h it is refused, exit 2, one line, no folder. A thousand samples fit."""
+    from psvs.simulate.render import render_seconds
+    from psvs.study.montecarlo import check_study_time
+    from psvs.study.sample import check_study
+    from psvs.study.tolerances import load_tolerances
+    rig = load_rig("default")
+    sample_s = check_study(rig, load_tolerances("default"))
+    assert sample_s == render_seconds(rig, 2, 16)
+    out = tmp_path / "study"
+    code, text, err = run(capsys, "montecarlo", "--rig", "default", "--tolerances", "default", "-n", "1000000",
+                          "--workers", "2", "-o", str(out))
+    days = 1e6 * sample_s / 2 / 86400
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert (f"-n 1000000 (1000000 samples, their renders about {sample_s:.3g} s each, on 2 worker(s)) takes about "
+            f"{days:.3g} days, more than the 1 day limit; fewer samples, or more workers") in err
+    assert not out.exists()
+    check_study_time(1000, sample_s, 2)

@@ -4,6 +4,7 @@ scored, as tasks on Dask; the report in DIR (psvs.study, docs/tolerancing.md).""
 from __future__ import annotations
 
 import math
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -60,13 +61,17 @@ def run(args) -> int:
     nominal = rig_from_args(args)
     tol = load_tolerances(args.tolerances)
     tol_data = load_toml(tolerances_path(args.tolerances), "tolerances")
-    from psvs.study.montecarlo import prepare_study, run_study
+    from psvs.study.montecarlo import check_study_time, prepare_study, run_study
+    from psvs.study.sample import check_study
     out_dir = Path(args.output)
-    params = prepare_study(nominal, tol, tol_data, args.n, args.seed, out_dir)
+    local = None if args.scheduler else (args.workers or os.cpu_count() or 1)
+    params = prepare_study(nominal, tol, tol_data, args.n, args.seed, out_dir, workers=local)
     from psvs.cluster import RunOptions, connect, task_threads
     created = not out_dir.exists()
     try:
         client = connect(args.scheduler, args.workers)
+        if args.scheduler:              # its workers known now, before any sample
+            check_study_time(args.n, check_study(nominal, tol), len(client.scheduler_info()["workers"]))
     except BaseException:
         if created:
             shutil.rmtree(out_dir, ignore_errors=True)

@@ -153,13 +153,36 @@ class ImageSequence(_Source):
         self._open = False
 
 
+#: The widest frame number a sequence pattern may ask for (``%012d``: a trillion frames).
+MAX_INDEX_DIGITS = 12
+
+
+def check_pattern(pattern: str) -> bool:
+    """Whether ``pattern`` is a printf sequence pattern: exactly one frame number ``%d`` / ``%0Nd`` (N at most
+    :data:`MAX_INDEX_DIGITS`; ``%%`` is a literal %). ValueError, in one short line, for a pattern with
+    another field, two numbers, or a wider number (``%999999999d`` would make gigabyte names)."""
+    fields = re.findall(r"%(%|[^%]*?[a-zA-Z])", pattern)
+    numbers = [f for f in fields if f != "%"]
+    if not numbers:
+        return False
+    shown = pattern if len(pattern) <= 80 else pattern[:77] + "..."
+    width = re.fullmatch(r"0?(\d*)d", numbers[0])
+    if len(numbers) > 1 or width is None:
+        raise ValueError(f"image sequence pattern {shown!r}: give one frame number, %d or %0Nd (e.g. seq_%03d.png)")
+    if width[1] and int(width[1]) > MAX_INDEX_DIGITS:
+        raise ValueError(f"image sequence pattern {shown!r}: a frame number of {width[1]} digits; at most "
+                         f"{MAX_INDEX_DIGITS}")
+    return True
+
+
 def sequence_files(pattern: str) -> list[Path]:
     """The image files of a sequence: a folder's images (:data:`SEQUENCE_SUFFIXES`) in name order, or a printf
-    pattern's files from the first index 0..999 that exists to the first missing one; [] when none."""
+    pattern's files (:func:`check_pattern`) from the first index 0..999 that exists to the first missing
+    one; [] when none."""
     path = Path(pattern)
     if path.is_dir():
         return sorted(p for p in path.iterdir() if p.suffix.lower() in SEQUENCE_SUFFIXES and p.is_file())
-    if not re.search(r"%0?\d*d", pattern):
+    if not check_pattern(pattern):
         return []
     start = next((k for k in range(1000) if Path(pattern % k).is_file()), None)
     files, k = [], start

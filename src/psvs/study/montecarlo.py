@@ -8,6 +8,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 
+from psvs._work import check_time, duration
 from psvs.cluster import RunOptions, read_results, run_tasks
 from psvs.cluster.store import check_params, check_run_folder
 from psvs.io.params import rig_to_dict
@@ -18,6 +19,8 @@ from psvs.study.tolerances import Tolerances
 
 #: The most samples one study may ask for.
 MAX_SAMPLES = 1_000_000
+#: s: the longest a study may keep its workers busy (one night): a larger study is split, or given more workers.
+STUDY_LIMIT_S = 24 * 3600.0
 
 
 @dataclass(frozen=True)
@@ -43,12 +46,24 @@ def check_samples(n: int, seed: int) -> None:
         raise ValueError(f"--seed must be an integer in [0, 2^63), got {seed}")
 
 
-def prepare_study(nominal: Rig, tol: Tolerances, tol_data: dict, n: int, seed: int, out_dir) -> dict:
+def check_study_time(n: int, sample_s: float, workers: int) -> None:
+    """ValueError when ``n`` samples whose renders take ``sample_s`` s each would keep ``workers`` workers
+    busy beyond :data:`STUDY_LIMIT_S` (renders alone: calibrating adds to it)."""
+    check_time(n * sample_s / max(1, workers), f"-n {n} ({n} samples, their renders about {duration(sample_s)} "
+               f"each, on {workers} worker(s))", "fewer samples, or more workers "
+               "(--workers, or a larger cluster through --scheduler)", limit_s=STUDY_LIMIT_S)
+
+
+def prepare_study(nominal: Rig, tol: Tolerances, tol_data: dict, n: int, seed: int, out_dir,
+                  workers: int | None = None) -> dict:
     """Every check before a cluster starts: the counts, the study the nominal design can run at all
-    (:func:`check_study`), the folder (a file, a missing parent, another study's folder: ValueError). The
-    study's parameters."""
+    (:func:`check_study`), its time on ``workers`` workers when known (:func:`check_study_time`; a remote
+    cluster's are counted once it is reached), the folder (a file, a missing parent, another study's
+    folder: ValueError). The study's parameters."""
     check_samples(n, seed)
-    check_study(nominal, tol)
+    sample_s = check_study(nominal, tol)
+    if workers is not None:
+        check_study_time(n, sample_s, workers)
     out = check_run_folder(out_dir, "psvs montecarlo")
     params = study_params(nominal, tol_data, seed)
     if out.is_dir():

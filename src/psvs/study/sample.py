@@ -137,21 +137,24 @@ def row_offset_max_px(build: Rig, test: TestSet) -> float:
     return float(np.abs(r).max()) if len(r) else math.nan
 
 
-def check_study(nominal: Rig, tol: Tolerances) -> None:
+def check_study(nominal: Rig, tol: Tolerances) -> float:
     """ValueError, before any sample, when the nominal design cannot run the study's procedure at all: a card
     no pose of the nominal rig could show (:func:`psvs.calibrate.synthetic.check_card_fits`), a sweep or Table
     I at depths where the rig does not show the Fig. 9 pattern, a test range both views hardly share, or one
     sample's renders beyond the memory or the time limit (:func:`psvs.simulate.render.check_render_work`).
-    A build that departs from the design may still fail: that is a scored failure, not this error."""
+    A build that departs from the design may still fail: that is a scored failure, not this error. Returns
+    the estimated time (s) of one sample's renders (:func:`psvs.simulate.render.render_seconds`)."""
     from psvs.calibrate.synthetic import check_card_fits
     from psvs.calibrate.table1 import PAPER_TABLE1, SUPERSAMPLE, check_pattern_depths
-    from psvs.simulate.render import check_render_work
+    from psvs.simulate.render import check_render_work, render_seconds
     p, test = tol.procedure, tol.test
     if p.method == "sweep":
         lo, hi, step = p.sweep_mm
         last = float(np.arange(lo, hi + 1e-9, step)[-1])
         check_pattern_depths(nominal, lo, last, "calibration.sweep's depths")
-        check_render_work(nominal, SUPERSAMPLE, math.ceil((hi + 1e-9 - lo) / step), "calibration.sweep")
+        count = math.ceil((hi + 1e-9 - lo) / step)
+        check_render_work(nominal, SUPERSAMPLE, count, "calibration.sweep")
+        seconds = render_seconds(nominal, SUPERSAMPLE, count)
     else:
         try:
             check_card_fits(nominal, p.card, p.views, (p.near_mm, p.far_mm), tilt_deg=p.tilt_deg,
@@ -159,13 +162,16 @@ def check_study(nominal: Rig, tol: Tolerances) -> None:
         except ValueError as exc:
             raise ValueError(f"calibration.card: {exc}") from None
         check_render_work(nominal, p.supersample, p.views, f"calibration.views = {p.views}")
+        seconds = render_seconds(nominal, p.supersample, p.views)
     if test.table1:
         z = PAPER_TABLE1[:, 0]
         check_pattern_depths(nominal, float(z.min()), float(z.max()), "test.table1: Table I's depths")
         check_render_work(nominal, SUPERSAMPLE, len(z), "test.table1")
+        seconds += render_seconds(nominal, SUPERSAMPLE, len(z))
     if len(scoring_points_mm(nominal, test)) < 3:
         raise ValueError(f"test: the nominal rig's views share fewer than 3 test points over "
                          f"{test.near_mm:g}-{test.far_mm:g} mm")
+    return seconds
 
 
 def _empty_row(seed: int, index: int, dev: dict) -> dict:

@@ -1,0 +1,30 @@
+"""Image sequence patterns (psvs.live.source.check_pattern): one frame number of at most 12 digits, or a
+one-line refusal naming the problem (issue 41: `%999999999d` produced a one-gigabyte error line)."""
+import numpy as np
+import pytest
+
+from psvs.io.images import write_png
+from psvs.live.source import check_pattern, sequence_files
+from tests.cli.test_cli import run
+
+
+def test_a_pattern_reads_its_frames_in_order_from_the_first_that_exists(tmp_path):
+    for k in (3, 4, 5, 7):
+        write_png(tmp_path / f"a%b_{k:04d}.png", np.full((4, 6), k, np.uint8))
+    files = sequence_files(str(tmp_path / "a%%b_%04d.png"))
+    assert [f.name for f in files] == ["a%b_0003.png", "a%b_0004.png", "a%b_0005.png"]     # 6 is missing
+    assert check_pattern("seq_%d.png") and check_pattern("seq_%012d.png") and not check_pattern("seq.png")
+
+
+@pytest.mark.parametrize("pattern, message", [
+    ("seq_%999999999d.png", "a frame number of 999999999 digits; at most 12"),
+    ("seq_%013d.png", "a frame number of 13 digits; at most 12"),
+    ("seq_%s_%d.png", "give one frame number, %d or %0Nd"),
+    ("seq_%d_%d.png", "give one frame number, %d or %0Nd"),
+    ("seq_%5.2f.png", "give one frame number, %d or %0Nd"),
+])
+def test_a_pattern_that_is_not_one_frame_number_is_one_short_line(capsys, tmp_path, pattern, message):
+    code, _, err = run(capsys, "batch", "disparity", str(tmp_path / pattern), "--rig", "default", "-o",
+                       str(tmp_path / "out"))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and len(err) < 300 and message in err, err
+    assert not (tmp_path / "out").exists()
