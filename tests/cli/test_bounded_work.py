@@ -175,6 +175,15 @@ def test_table1_refuses_a_narrow_rig(capsys, tmp_path):
             "every depth")
 
 
+def test_table1_refuses_a_start_of_another_camera_before_rendering(capsys, tmp_path):
+    """Issue 41: `table1 --rig mv1440 --start default` rendered before noticing the start is a 640x480
+    camera: refused first, one line, the table kept."""
+    table = earlier(tmp_path / "t1" / "table1.csv")
+    refused(capsys, ["table1", "--rig", "mv1440", "--start", "default", "-o", tmp_path / "t1"],
+            "the start rig is another camera: 640x480 px of 10 um, the build's 1440x1080 px of 3.45 um: start "
+            "from the build's own design", [table])
+
+
 # ---- handeye, track, live ----------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("count, expected", [

@@ -112,6 +112,19 @@ def rough_start(rig: Rig) -> Rig:
     return rough.with_errors({name: MirrorError() for name in MIRROR_NAMES})
 
 
+def check_start(true_rig: Rig, start: Rig | None) -> None:
+    """ValueError when the start rig is not of the build's camera: another image size, or a pixel pitch more
+    than 1 % off (a calibration starts from the design of the camera it calibrates; a start of another camera
+    would be found wrong only after every render)."""
+    if start is None:
+        return
+    a, b = true_rig.camera, start.camera
+    if a.image_size_px != b.image_size_px or not np.allclose(a.pixel_pitch_mm, b.pixel_pitch_mm, rtol=0.01):
+        raise ValueError(f"the start rig is another camera: {b.image_size_px[0]}x{b.image_size_px[1]} px of "
+                         f"{b.pixel_pitch_mm[0] * 1000:g} um, the build's {a.image_size_px[0]}x{a.image_size_px[1]} "
+                         f"px of {a.pixel_pitch_mm[0] * 1000:g} um: start from the build's own design")
+
+
 def check_table1(true_rig: Rig, method: str = "sweep") -> int:
     """The number of renders :func:`run_table1` makes through ``true_rig``, after checking, before any of
     them, that the pattern is found at every depth (:func:`check_pattern_depths`), that the card fits the
@@ -136,6 +149,7 @@ def run_table1(true_rig: Rig, progress=None, start: Rig | None = None, method: s
     (``'grid'``), and measure the 15 test distances. What cannot be done is refused first
     (:func:`check_table1`)."""
     total = check_table1(true_rig, method)
+    check_start(true_rig, start)
     step = 0
 
     def tick(what):

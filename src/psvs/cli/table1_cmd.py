@@ -5,7 +5,7 @@ import sys
 
 import numpy as np
 
-from psvs.calibrate.table1 import check_table1, run_table1, table_markdown, write_outputs
+from psvs.calibrate.table1 import check_start, check_table1, run_table1, table_markdown, write_outputs
 from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
 from psvs.io.params import load_rig
 from psvs.optics.mirrors import virtual_centre
@@ -39,6 +39,7 @@ def run(args) -> int:
     start = load_rig(args.start) if args.start else None
     rig, method = rig_from_args(args), "grid" if args.card else "sweep"
     check_table1(rig, method)             # before the progress bar starts: what cannot be done, in one line
+    check_start(rig, start)
     t = run_table1(rig, progress=_progress, start=start, method=method)
     out.mkdir(parents=True, exist_ok=True)
     cal = t.calibration
