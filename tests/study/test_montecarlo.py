@@ -142,3 +142,29 @@ def test_a_study_beyond_a_night_is_refused_before_any_work(capsys, tmp_path):
             f"{days:.3g} days, more than the 1 day limit; fewer samples, or more workers") in err
     assert not out.exists()
     check_study_time(1000, sample_s, 2)
+
+
+@pytest.mark.slow
+def test_an_interrupted_study_leaves_nothing_in_tmpdir(tmp_path):
+    """Issue 41: a Ctrl-C'd montecarlo left its workers' render folders in TMPDIR. The workers render under
+    one folder the command makes and removes at its end, whatever ends it: Ctrl-C once a sample is
+    rendering, exit 130, and TMPDIR holds nothing of psvs."""
+    import subprocess
+    import sys
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[2]
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(root / "src"))
+    proc = subprocess.Popen([sys.executable, "-m", "psvs", "montecarlo", "--rig", "default", "--tolerances",
+                             str(root / "examples" / "tolerances_small.toml"), "-n", "4", "--workers", "1",
+                             "-o", str(tmp_path / "study")], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True, env=env)
+    t0 = time.monotonic()
+    while not list(tmp.glob("psvs-montecarlo-*/psvs-study-*")):       # a sample is rendering
+        assert proc.poll() is None and time.monotonic() - t0 < 300, proc.stderr.read() if proc.poll() else "slow"
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    err = proc.communicate(timeout=120)[1]
+    assert proc.returncode == 130, err
+    assert list(tmp.glob("psvs-*")) == []

@@ -12,7 +12,9 @@ import argparse
 import contextlib
 import importlib
 import os
+import signal
 import sys
+import threading
 
 from psvs._quiet import quiet_libraries
 from psvs.errors import MeasurementError, RigGeometryError
@@ -41,6 +43,35 @@ def build_parser(only: str | None = None) -> argparse.ArgumentParser:
 DEBUG_ENV = "PSVS_DEBUG"
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP (a service manager stopping psvs, a closed terminal) raised as an interrupt, so that
+    it unwinds as Ctrl-C does: every write in progress removes its temporary file (psvs.io.atomic), and the
+    exit status is 128 + the signal's number."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _terminated(signum, frame):
+    raise Terminated(signum)
+
+
+@contextlib.contextmanager
+def _signals_unwind():
+    """SIGTERM and SIGHUP raise :class:`Terminated` while a command runs (main thread only; the handlers
+    before are restored after, so a program that calls :func:`main` keeps its own)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    old = {s: signal.signal(s, _terminated) for s in (signal.SIGTERM, signal.SIGHUP)}
+    try:
+        yield
+    finally:
+        for s, handler in old.items():
+            signal.signal(s, handler)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run ``psvs COMMAND ...``: a result and exit status 0, or one line on stderr and a non-zero status.
 
@@ -54,13 +85,13 @@ def main(argv: list[str] | None = None) -> int:
     debug = os.environ.get(DEBUG_ENV, "").strip() not in ("", "0")
     name = f"psvs {command}" if command else "psvs"
     with contextlib.ExitStack() as stack:
+        stack.enter_context(_signals_unwind())
         try:        # the command's module (and its libraries) load here: Ctrl-C then ends as it does later on
             if not debug:
                 stack.enter_context(quiet_libraries(name))
             args = build_parser(command).parse_args(argv)
-        except KeyboardInterrupt:
-            print("\npsvs: interrupted", file=sys.stderr)
-            return 130
+        except KeyboardInterrupt as exc:
+            return _interrupted("psvs", exc)
         except Exception as exc:        # a library that does not load
             if debug:
                 raise
@@ -68,16 +99,23 @@ def main(argv: list[str] | None = None) -> int:
         return _run(args, debug)
 
 
+def _interrupted(name: str, exc: KeyboardInterrupt) -> int:
+    if isinstance(exc, Terminated):
+        print(f"\n{name}: terminated ({signal.Signals(exc.signum).name})", file=sys.stderr)
+        return 128 + exc.signum
+    print(f"\n{name}: interrupted", file=sys.stderr)
+    return 130
+
+
 def _run(args, debug: bool) -> int:
     """Run the parsed command; its exceptions become the exit status and one line (:func:`main`)."""
     name = f"psvs {args.command}"
     try:
         return int(args.run(args) or 0)
-    except KeyboardInterrupt:
-        # Ctrl-C: one line and the shell's status for SIGINT; files are written atomically, so no output
-        # is left half-written (a write in progress removes its temporary file)
-        print(f"\n{name}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        # Ctrl-C, SIGTERM, SIGHUP: one line and the shell's status for the signal; files are written
+        # atomically, so no output is left half-written (a write in progress removes its temporary file)
+        return _interrupted(name, exc)
     except MeasurementError as exc:     # well-formed input that cannot give a right answer: say why, no number
         print(f"{name}: cannot measure: {_one_line(exc)}", file=sys.stderr)
         return 1

@@ -7,6 +7,7 @@ import math
 import os
 import shutil
 import sys
+import tempfile
 from pathlib import Path
 
 from psvs.cli.common import add_rig_argument, rig_from_args
@@ -62,23 +63,29 @@ def run(args) -> int:
     tol = load_tolerances(args.tolerances)
     tol_data = load_toml(tolerances_path(args.tolerances), "tolerances")
     from psvs.study.montecarlo import check_study_time, prepare_study, run_study
-    from psvs.study.sample import check_study
+    from psvs.study.sample import STUDY_TMP_ENV, check_study
     out_dir = Path(args.output)
     local = None if args.scheduler else (args.workers or os.cpu_count() or 1)
     params = prepare_study(nominal, tol, tol_data, args.n, args.seed, out_dir, workers=local)
     from psvs.cluster import RunOptions, connect, task_threads
     created = not out_dir.exists()
+    renders = tempfile.mkdtemp(prefix="psvs-montecarlo-")     # the local workers' render folders (inherited)
+    os.environ[STUDY_TMP_ENV] = renders
     try:
-        client = connect(args.scheduler, args.workers)
-        if args.scheduler:              # its workers known now, before any sample
-            check_study_time(args.n, check_study(nominal, tol), len(client.scheduler_info()["workers"]))
-    except BaseException:
-        if created:
-            shutil.rmtree(out_dir, ignore_errors=True)
-        raise
-    with client:
-        result = run_study(client, nominal, tol, args.n, out_dir, params,
-                           RunOptions(label="psvs montecarlo", threads=task_threads(client)))
+        try:
+            client = connect(args.scheduler, args.workers)
+            if args.scheduler:              # its workers known now, before any sample
+                check_study_time(args.n, check_study(nominal, tol), len(client.scheduler_info()["workers"]))
+        except BaseException:
+            if created:
+                shutil.rmtree(out_dir, ignore_errors=True)
+            raise
+        with client:
+            result = run_study(client, nominal, tol, args.n, out_dir, params,
+                               RunOptions(label="psvs montecarlo", threads=task_threads(client)))
+    finally:
+        os.environ.pop(STUDY_TMP_ENV, None)
+        shutil.rmtree(renders, ignore_errors=True)
     print("\n".join(summary_lines(result, args.n, out_dir)))
     if result.summary.failed:
         key, reason = next(iter(result.summary.failed.items()))

@@ -21,6 +21,7 @@ exactly as ``psvs calibrate`` does, and score it (docs/tolerancing.md).
 from __future__ import annotations
 
 import math
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -182,9 +183,17 @@ def _empty_row(seed: int, index: int, dev: dict) -> dict:
     return row
 
 
+#: The folder (set by ``psvs montecarlo`` before its local workers start, so they inherit it) that holds the
+#: samples' render folders; the command removes it at its end, whatever ends it (a worker killed with the
+#: cluster leaves nothing in TMPDIR).
+STUDY_TMP_ENV = "PSVS_STUDY_TMP"
+
+
 def _calibrate_and_score(row: dict, nominal: Rig, build: Rig, tol: Tolerances) -> None:
     """Render, calibrate and score into ``row``; ValueError/MeasurementError when calibration fails."""
-    with tempfile.TemporaryDirectory(prefix="psvs-study-") as tmp:
+    parent = os.environ.get(STUDY_TMP_ENV)
+    with tempfile.TemporaryDirectory(prefix="psvs-study-", dir=parent if parent and os.path.isdir(parent) else None
+                                     ) as tmp:
         render = render_sweep_folder if tol.procedure.method == "sweep" else render_card_folder
         render(build, tol.procedure, row["views_seed"], tmp)
         res = calibrate_folder(tmp, nominal)
