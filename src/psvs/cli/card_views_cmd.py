@@ -1,6 +1,12 @@
 """``psvs card-views``: simulated views of a hand-held circle-grid card, ready for ``psvs calibrate``."""
 from __future__ import annotations
 
+import os
+import re
+import shutil
+import tempfile
+from pathlib import Path
+
 from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
 
 #: Samples per pixel side of each view (render_grid_shots' default).
@@ -52,6 +58,8 @@ def run(args) -> int:
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
     folder = check_output_folder(args.folder)
+    if not args.video:
+        _check_replaceable(folder)
     if args.target is not None:
         from psvs.calibrate.target_file import load_target
         card = load_target(args.target)
@@ -76,12 +84,47 @@ def run(args) -> int:
     check_render_work(rig, RENDER_SUPERSAMPLE, args.views, f"--views {args.views}", "fewer --views")
     poses = random_poses(rig, card, args.views, seed=args.seed, apart=apart)
     shots = render_grid_shots(rig, card, poses, seed=args.seed, supersample=RENDER_SUPERSAMPLE)
-    folder.mkdir(parents=True, exist_ok=True)
-    for k, shot in enumerate(shots):
-        write_png(folder / f"card_{k:02d}.png", shot.image)
-    write_atomic(folder / "target.toml", dumps_target(card))
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    new = Path(tempfile.mkdtemp(prefix=f".{folder.name}.new-", dir=folder.parent))
+    try:
+        for k, shot in enumerate(shots):
+            write_png(new / f"card_{k:02d}.png", shot.image)
+        write_atomic(new / "target.toml", dumps_target(card))
+        _replace_folder(new, folder)
+    finally:
+        shutil.rmtree(new, ignore_errors=True)
     print(f"wrote {len(shots)} card views and target.toml to {folder}")
     return 0
+
+
+def _written_here(name: str) -> bool:
+    return name == "target.toml" or re.fullmatch(r"card_\d{2}\.png", name) is not None
+
+
+def _check_replaceable(folder: Path) -> None:
+    """ValueError when ``folder`` holds anything but an earlier set of card views (card_NN.png, target.toml):
+    the new set replaces a whole earlier set, never mixes into other files (a calibration reads every image
+    of the folder)."""
+    if not folder.is_dir():
+        return
+    other = sorted(p.name for p in folder.iterdir() if not _written_here(p.name))
+    if other:
+        shown = ", ".join(other[:3]) + (f" and {len(other) - 3} more" if len(other) > 3 else "")
+        raise ValueError(f"{folder} holds files card-views did not write ({shown}): a calibration reads every image "
+                         "of its folder, so the new views would mix with them; give a new or empty folder")
+
+
+def _replace_folder(new: Path, folder: Path) -> None:
+    """``folder`` becomes ``new`` whole: an earlier set of card views (checked by :func:`_check_replaceable`)
+    moved aside, the new set moved in, the earlier one removed; a set is never mixed with another."""
+    if not folder.exists():
+        os.replace(new, folder)
+        return
+    _check_replaceable(folder)                      # still only an earlier set
+    old = Path(tempfile.mkdtemp(prefix=f".{folder.name}.old-", dir=folder.parent))
+    os.replace(folder, old / "set")
+    os.replace(new, folder)
+    shutil.rmtree(old, ignore_errors=True)
 
 
 def _video(args, rig, card, folder) -> int:
