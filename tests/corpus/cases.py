@@ -102,6 +102,8 @@ def _triangulate() -> list[Case]:
         Case("triangulate-bad-model", (*base, "m.csv", "--model", "magic"), 2, "model", {"m.csv": MATCHES}),
         Case("triangulate-empty-file", (*base, "m.csv"), 2, "empty", {"m.csv": ""}),
         Case("triangulate-points-is-folder", (*base, "examples"), 2, ""),
+        Case("triangulate-column-twice", (*base, "m.csv", "-o", "p.csv"), 2, "more than once",
+             {"m.csv": MATCHES.replace("u_l,v_l,u_r,v_r", "u_l,v_l,u_r,v_r,u_l", 1)}, ("p.csv",)),
     ] + _rig_cases(("triangulate", *R, "examples/matches.csv"), "triangulate")[:6]
 
 
@@ -125,11 +127,25 @@ def _fit_refraction() -> list[Case]:
         Case("fit-refraction-depths-fit-no-rig", base, 1, "",
              {"k.csv": lambda f: _shifted_known(f, z_scale=0.5)}, ("fitted.toml",)),
         Case("fit-refraction-missing-columns", base, 2, "X_mm", {"k.csv": MATCHES}, ("fitted.toml",)),
+        Case("fit-refraction-ill-conditioned-rows-repeated", base, 1, "condition number",
+             {"k.csv": lambda f: _on_axis_known(30000)}, ("fitted.toml",)),
         Case("fit-refraction-output-over-rig", ("fit-refraction", *R, "examples/known_points.csv", "-o",
                                                 "rig.toml"), 2, "rig.toml", {"rig.toml": DEFAULT_RIG}),
         Case("fit-refraction-output-suffix", ("fit-refraction", "--rig", "examples/rigs/clear.toml",
                                               "examples/known_points.csv", "-o", "f.csv"), 2, ".toml"),
     ]
+
+
+def _on_axis_known(copies: int) -> str:
+    """Three points on the optical axis through examples/rigs/clear.toml (an ill-conditioned fit), each row
+    repeated ``copies`` times."""
+    from psvs.io.params import load_rig
+    from psvs.optics.project import project_points
+    rig = load_rig("examples/rigs/clear.toml")
+    pts = np.array([[0.0, 0.0, 500.0], [0.0, 0.0, 800.0], [0.0, 0.0, 1100.0]])
+    left, _ = project_points(pts, rig, "left")
+    right, _ = project_points(pts, rig, "right")
+    return _known([(*a, *b, *p) for a, b, p in zip(left, right, pts, strict=True)] * copies)
 
 
 def _shifted_known(folder, z_scale: float = 1.0, z_nan: bool = False) -> str:
@@ -203,6 +219,15 @@ def _match() -> list[Case]:
         Case("match-pipeline-no-edges", (*base, "--pipeline", "p.toml"), 2, "edge",
              {**tex, "p.toml": '[[steps]]\nop = "median"\nksize = 3\n'}, ("m.json",)),
         Case("match-figures-folder-missing", (*base, "--figures", "nowhere"), 2, "nowhere", tex, ("m.json",)),
+        Case("match-pipeline-bilateral-huge", (*base, "--pipeline", "p.toml"), 2, "wider than the image",
+             {**tex, "p.toml": '[[steps]]\nop = "bilateral"\ndiameter = 100000\n[[steps]]\nop = "sobel"\n'},
+             ("m.json",)),
+        Case("match-pipeline-gaussian-huge", (*base, "--pipeline", "p.toml"), 2, "wider than the image",
+             {**tex, "p.toml": '[[steps]]\nop = "gaussian"\nsigma = 1e300\n[[steps]]\nop = "sobel"\n'},
+             ("m.json",)),
+        Case("match-pipeline-median-huge", (*base, "--pipeline", "p.toml"), 2, "wider than the image",
+             {**tex, "p.toml": '[[steps]]\nop = "median"\nksize = 99999\n[[steps]]\nop = "sobel"\n'},
+             ("m.json",)),
         Case("match-image-16bit-wrong-size", base, 2, "640x480",
              {"img.png": png(np.full((100, 100), 4000, np.uint16))}, ("m.json",)),
     ] + _rig_cases(("match", "img.png", *R, "--auto", "-o", "m.json"), "match")[:4]
@@ -241,6 +266,9 @@ def _card_views() -> list[Case]:
         Case("card-views-one-row", (*base, "--rows", "1"), 2, "rows"),
         Case("card-views-card-larger-than-view", (*base, "--spacing-mm", "200", "--diameter-mm", "20"), 2, ""),
         Case("card-views-video-not-lossless", (*base, "--video", "hand.mp4"), 2, ".avi or .mkv"),
+        Case("card-views-into-a-folder-of-other-views", base, 2, "did not write",
+             {"cards/view_00.png": flat_png(), "cards/card_00.png": flat_png()},
+             ("cards/view_00.png", "cards/card_00.png")),
     ]
 
 
@@ -322,6 +350,8 @@ def _disparity() -> list[Case]:
         Case("disparity-image-wrong-size-for-rig", base, 2, "640x480", {"img.png": texture_png(500, 400)},
              ("d.npy",)),
         Case("disparity-same-output-twice", (*base, "--right", "d.npy"), 2, "d.npy", tex, ("d.npy",)),
+        Case("disparity-black-image", base, 1, "constant", {"img.png": png(np.zeros((480, 640), np.uint8))},
+             ("d.npy",)),
         Case("disparity-views-over-each-other", (*base, "--views", "v.png", "v.png"), 2, "v.png", tex,
              ("d.npy", "v.png")),
         Case("disparity-min-only", ("disparity", "img.png", "--min-disparity", "10", "-o", "d.npy"), 2, "both",
@@ -491,6 +521,8 @@ def _small() -> list[Case]:
              outputs=("afile",)),
         Case("table1-bad-start", ("table1", "--rig", "default", "--start", "none.toml", "-o", "t"), 2,
              "not found"),
+        Case("table1-start-of-another-camera", ("table1", "--rig", "mv1440", "--start", "default", "-o", "t"), 2,
+             "another camera"),
         Case("dense-eval-missing-truth", ("dense-eval", "--left", "a.png", "--right", "a.png", "--truth",
                                           "none.pfm", "-o", "ev"), 2, "", {"a.png": texture_png()}),
         Case("dense-eval-left-without-right", ("dense-eval", "--left", "a.png", "-o", "ev"), 2, "",
@@ -543,6 +575,8 @@ def _batch() -> list[Case]:
         Case("batch-scheduler-unreachable", (*base, "--scheduler", "tcp://127.0.0.1:9"), 2, "cannot reach", video),
         Case("batch-scheduler-not-an-address", (*base, "--scheduler", "http://x"), 2, "tcp://HOST:PORT", video),
         Case("batch-workers-zero", (*base, "--workers", "0"), 2, "--workers", video),
+        Case("batch-sequence-pattern-huge", ("batch", "disparity", "seq_%999999999d.png", "--rig", "default", "-o",
+                                              "out"), 2, "at most 12"),
         Case("batch-workers-and-scheduler", (*base, "--workers", "2", "--scheduler", "tcp://127.0.0.1:9"), 2,
              "--workers", video),
         Case("batch-missing-input", base, 2, "not found"),
@@ -600,6 +634,8 @@ def _montecarlo() -> list[Case]:
         Case("montecarlo-output-is-a-file", (*base[:7], "-o", "afile"), 2, "afile", good, ("afile",)),
         Case("montecarlo-scheduler-not-an-address", (*base, "--scheduler", "nowhere"), 2, "--scheduler", good),
         Case("montecarlo-workers-zero", (*base, "--workers", "0"), 2, "--workers", good),
+        Case("montecarlo-a-million-samples", (*base[:5], "-n", "1000000", "-o", "s", "--workers", "2"), 2,
+             "more than the 1 day limit", good),
         Case("montecarlo-card-too-wide", base, 2, "calibration.card", {**good, "tol.toml":
              "[calibration]\ncard = { rows = 9, cols = 15, spacing_mm = 30.0, diameter_mm = 12.0 }\n"}),
     ]
