@@ -17,7 +17,7 @@ SRC = ROOT / "src" / "psvs"
 #: command line and the web app sit on top, and no library module imports them.
 LAYERS = [
     {"errors", "_validate", "_memory", "_quiet", "_work", "_threads", "_compiled", "transforms", "rigs"},
-    {"optics"},
+    {"optics", "evidence"},
     {"measure", "imaging"},
     {"simulate"},
     {"io"},

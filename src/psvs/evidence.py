@@ -12,8 +12,8 @@ Each kind of answer states its evidence against a null, in one place per kind:
   measured, within the measurement's noise (psvs.calibrate.measure).
 
 A refusal is a :class:`psvs.errors.MeasurementError` (exit status 1) naming the figure, its limit and what
-would explain the gap. This module sits in the lowest layer: it reads a rig's values by name and imports
-nothing of psvs but its errors.
+would explain the gap. This module sits beside psvs.optics, under every package that fits or measures: it
+reads a rig's values by name and imports nothing of psvs but its errors.
 """
 from __future__ import annotations
 
