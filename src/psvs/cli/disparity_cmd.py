@@ -193,7 +193,7 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
                                "match")
     if say_compiling:
         announce_dense(say_compiling)
-    # a warning (e.g. "complex image is constant") is printed as one line by psvs.cli.main
+    # a library warning is printed as one line by psvs.cli.main
     if rig is None:
         dense = RigDense(dense_disparity(image, lo, hi, params=params, workspace=workspace), None, image)
     else:

@@ -149,17 +149,20 @@ def epipolar_gap_px(left_px, right_px, rig: Rig) -> np.ndarray:
     the pixel pitch). NaN where a ray is vignetted or the rays do not meet in front of the camera."""
     left = check_points(left_px, "left_px", 2)
     right = check_points(right_px, "right_px", 2)
-    rl = trace_pixels(left, rig, "left")
-    rr = trace_pixels(right, rig, "right")
-    n = np.cross(rl.dirs, rr.dirs)
+    res, gap = _closest_approach(left, right, rig)
     with np.errstate(divide="ignore", invalid="ignore"):
-        gap = np.abs(np.einsum("ij,ij->i", rl.origins_mm - rr.origins_mm, n)) / np.linalg.norm(n, axis=1)
-        z = _triangulate_exact(left, right, rig).points_mm[:, 2] - rig.virtual_z_mm
+        z = res.points_mm[:, 2] - rig.virtual_z_mm
         px = gap * rig.camera.focal_length_mm / z / min(rig.camera.pixel_pitch_mm)
-    return np.where(rl.valid & rr.valid & (z > 0), px, np.nan)
+    return np.where(res.valid & (z > 0), px, np.nan)
 
 
 def _triangulate_exact(left: np.ndarray, right: np.ndarray, rig: Rig) -> Triangulation:
+    return _closest_approach(left, right, rig)[0]
+
+
+def _closest_approach(left: np.ndarray, right: np.ndarray, rig: Rig) -> tuple[Triangulation, np.ndarray]:
+    """Both pixels' exact rays: the midpoint of their closest approach (invalid where a ray is vignetted or
+    they meet behind either origin) and the length of that approach (N,) mm."""
     rl = trace_pixels(left, rig, "left")
     rr = trace_pixels(right, rig, "right")
     w0 = rl.origins_mm - rr.origins_mm
@@ -170,9 +173,12 @@ def _triangulate_exact(left: np.ndarray, right: np.ndarray, rig: Rig) -> Triangu
     with np.errstate(divide="ignore", invalid="ignore"):
         s = (b * e - d) / denom      # along the left ray
         t = (e - b * d) / denom      # along the right ray
-    pts = 0.5 * (rl.origins_mm + s[:, None] * rl.dirs + rr.origins_mm + t[:, None] * rr.dirs)
+    on_left = rl.origins_mm + s[:, None] * rl.dirs
+    on_right = rr.origins_mm + t[:, None] * rr.dirs
+    pts = 0.5 * (on_left + on_right)
+    gap = np.linalg.norm(on_left - on_right, axis=1)
     with np.errstate(invalid="ignore"):
         valid = rl.valid & rr.valid & (denom > 1e-14) & (s > 0) & (t > 0)
     valid &= np.all(np.isfinite(pts), axis=1)
     pts[~valid] = np.nan
-    return Triangulation(pts, valid)
+    return Triangulation(pts, valid), gap
