@@ -7,8 +7,24 @@ import os
 USABLE_SHARE = 0.8
 
 
+#: Environment variable that states the memory psvs may take as available, in MiB, instead of the system's
+#: figure: for a machine shared with other work, and for the tests (whose refusals must not depend on what
+#: else the machine runs).
+AVAILABLE_ENV = "PSVS_MEMORY_AVAILABLE_MIB"
+
+
 def available_bytes() -> int:
-    """Memory available to this process now (Linux: MemAvailable; elsewhere the physical memory), bytes."""
+    """Memory available to this process now, bytes: ``$PSVS_MEMORY_AVAILABLE_MIB`` when set, else (Linux)
+    MemAvailable, else the physical memory."""
+    stated = os.environ.get(AVAILABLE_ENV)
+    if stated is not None:
+        try:
+            mib = float(stated)
+        except ValueError:
+            mib = -1.0
+        if not mib > 0 or mib == float("inf"):
+            raise ValueError(f"{AVAILABLE_ENV} must be a positive number of MiB, got {stated!r}")
+        return int(mib * 1024 * 1024)
     try:
         with open("/proc/meminfo") as f:
             for line in f:

@@ -97,6 +97,20 @@ def test_card_views_refuses_a_render_beyond_the_memory(capsys, tmp_path, monkeyp
             "more than the 3.2 GiB available")
 
 
+def test_the_memory_a_user_states_is_the_memory_the_guard_sees(capsys, tmp_path, monkeypatch):
+    """$PSVS_MEMORY_AVAILABLE_MIB (a shared machine; the tests pin it) replaces the system's figure, in MiB;
+    a value that is not a positive number is refused in one line naming the variable."""
+    monkeypatch.setenv(_memory.AVAILABLE_ENV, "4096")
+    assert _memory.available_bytes() == 4 << 30
+    rig = rig_file(tmp_path, **BIG)
+    refused(capsys, ["card-views", tmp_path / "cards", "--rig", rig],
+            "needs about 34.3 GiB of memory, more than the 3.2 GiB available")
+    for bad in ("", "lots", "0", "-5", "nan", "inf"):
+        monkeypatch.setenv(_memory.AVAILABLE_ENV, bad)
+        refused(capsys, ["card-views", tmp_path / "cards", "--rig", rig],
+                f"PSVS_MEMORY_AVAILABLE_MIB must be a positive number of MiB, got {bad!r}")
+
+
 # ---- sweep-views -------------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("args, expected", [
