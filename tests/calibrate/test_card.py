@@ -128,6 +128,10 @@ def test_cli_writes_a_rig_that_reads_back_and_a_report(capsys, card_dir, tmp_pat
                           "--report", str(report))
     assert code == 0, err
     assert "skipped blank.png: found 0 disc(s)" in err
+    # how the fit ended, in its own words (SciPy's "`ftol` termination condition is satisfied." was printed)
+    assert re.search(r"^bundle adjustment converged: the (cost|gradient|parameters) .+ \(\d+ evaluations\)$",
+                     text, re.M), text
+    assert "termination" not in text + err
     found = re.search(r"reprojection RMS ([0-9.]+) px \(left view ([0-9.]+), right view ([0-9.]+)\)", text)
     rms = float(found[1])
     assert rms <= 0.05

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.optimize import least_squares
 
 from psvs import default_rig
 from psvs.calibrate import bundle
@@ -80,3 +81,14 @@ def test_bad_vectors_name_the_problem():
     del values["m3_shift_mm"]
     with pytest.raises(ValueError, match="rig parameter m3_shift_mm is missing"):
         rig_from_values(values, default_rig())
+
+
+def test_verdicts_follow_scipys_status():
+    """Each status least_squares documents gets its sentence; a fit stopped at max_nfev says it did not converge."""
+    sol = least_squares(lambda x: x - 3.0, np.zeros(2))
+    assert sol.status in (1, 2, 3, 4) and bundle.solver_verdict(sol.status, sol.nfev).startswith("converged: ")
+    stopped = least_squares(lambda x: np.exp(x) - 3.0 + x ** 3, np.full(2, 5.0), max_nfev=1)
+    assert stopped.status == 0
+    assert (bundle.solver_verdict(stopped.status, stopped.nfev)
+            == "did not converge: stopped at the evaluation limit (1 evaluations)")
+    assert bundle.solver_verdict(7, 3) == "ended with solver status 7 (3 evaluations)"

@@ -111,6 +111,23 @@ class BundleResult:
     covariance: np.ndarray | None = None   # (len(RIG_PARAMS),) * 2, of the rig parameters
 
 
+#: What SciPy's least_squares status means, in the words of the fit (its own message names its tolerances).
+_VERDICTS = {
+    -1: "failed: the problem was ill-posed (improper input to the solver)",
+    0: "did not converge: stopped at the evaluation limit",
+    1: "converged: the gradient vanished",
+    2: "converged: the cost stopped falling",
+    3: "converged: the parameters stopped moving",
+    4: "converged: the cost and the parameters stopped changing",
+}
+
+
+def solver_verdict(status: int, evaluations: int) -> str:
+    """One line on how the bundle adjustment ended: SciPy's ``least_squares`` ``status`` and its number of
+    function ``evaluations``, e.g. ``converged: the cost stopped falling (23 evaluations)``."""
+    return f"{_VERDICTS.get(int(status), f'ended with solver status {status}')} ({int(evaluations)} evaluations)"
+
+
 #: OpenCV's distortion terms, in :attr:`psvs.optics.rig.Camera.distortion`'s order.
 _LENS_TERMS = ("k1", "k2", "p1", "p2", "k3")
 #: The box's rotation vector (rad), in :attr:`psvs.optics.rig.Mirrors.box_rotation_rad`'s order.
@@ -402,6 +419,6 @@ def _result(prob: _Problem, sol) -> BundleResult:
         rms_by_view={"left": float(np.sqrt(np.mean(left ** 2))), "right": float(np.sqrt(np.mean(right ** 2)))},
         rms_by_image=per_image, residuals=residuals, observed=observed,
         poses={g.name: transform_from_rotvec(p[:3], p[3:]) for g, p in zip(prob.grids, poses)},
-        success=bool(sol.success), message=str(sol.message),
+        success=bool(sol.success), message=solver_verdict(sol.status, sol.nfev),
         sweep=dict(zip(SWEEP_PARAMS, map(float, s))) if prob.n_sweep else {},
         covariance=full_cov)

@@ -84,8 +84,8 @@ def run(args) -> int:
         priors = ", ".join(f"{n[:-4]}_deg +-{math.degrees(PRIOR_SIGMA[n]):.2g}" if n.endswith("_rad")
                            else f"{n} +-{PRIOR_SIGMA[n]:g}" for n in b.held_by_prior)
         print(f"{len(b.held_by_prior)} parameter(s) held near nominal by their priors ({priors}): "
-              "the images do not show them; more card views, tilted and over the whole field, would")
-    print(f"solver: {b.message}")
+              "the images do not show them; more card views, tilted and over the whole field, would pin them down")
+    print(f"bundle adjustment {b.message}")
     # before any file: a guide that fails writes none
     guide = _guide(res.rig, start, args.adjust) if args.adjust else None
     with output_batch():   # the rig file and the report land together
