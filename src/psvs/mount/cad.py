@@ -25,7 +25,7 @@ class MissingExtra(RuntimeError):
 def require_cad() -> None:
     """MissingExtra (one line naming the extra) when build123d is not importable."""
     if importlib.util.find_spec("build123d") is None:
-        raise MissingExtra("psvs mount needs the optional extra 'cad' (build123d): pip install 'psvs[cad]'")
+        raise MissingExtra("the mount needs the optional extra 'cad' (build123d): pip install 'psvs[cad]'")
 
 
 def _plane(bd, centre, x_dir, z_dir):
