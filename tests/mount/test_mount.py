@@ -43,9 +43,19 @@ def made(request, tmp_path_factory):
 
 
 def _mesh(folder):
-    mesh = trimesh.load(str(folder / "mount.stl"), force="mesh")
-    mesh.update_faces(mesh.nondegenerate_faces())      # float32 slivers a slicer drops
-    return mesh
+    """The written STL as trimesh reads it, nothing repaired."""
+    return trimesh.load(str(folder / "mount.stl"), force="mesh")
+
+
+def test_stl_is_one_closed_shell_as_written(made):
+    """Read back with nothing repaired: every edge of the file used by exactly two triangles, no triangle of
+    zero area, one body (OpenCASCADE's tessellation held four zero-area slivers, each a shell of its own)."""
+    mesh = _mesh(made[2])
+    edges = np.sort(mesh.edges, axis=1)
+    _, uses = np.unique(edges, axis=0, return_counts=True)
+    assert set(uses.tolist()) == {2}
+    assert mesh.nondegenerate_faces().all()
+    assert len(mesh.split(only_watertight=False)) == 1
 
 
 def test_step_is_one_solid_of_the_parts_volume(made):

@@ -17,8 +17,9 @@ def add_parser(sub) -> None:
                        description="Design the mount that holds the rig's four mirrors: a tray with one carrier "
                                    "per mirror, each mirror on three contacts (a pivot and two M3 screws that "
                                    "trim its two tilts), and the camera's interface. Checked against the optics "
-                                   "first (no field ray may meet it, the glass lands on its designed planes, a "
-                                   "watertight mesh, no wall under the minimum); then DIR gets " + ", ".join(FILES)
+                                   "first (no field ray may meet it, the glass lands on its designed planes, "
+                                   "the STL is one closed shell, no wall under the minimum); then DIR gets "
+                                   + ", ".join(FILES)
                                    + ". Needs the extra psvs[cad]. Exit status 1 when the layout cannot be "
                                    "built (nothing written), 2 on bad input.")
     add_rig_argument(p)
@@ -82,6 +83,6 @@ def run(args) -> int:
     c = made.checks
     print(f"mount for {args.rig or 'default'}: {made.layout.volume_mm3 / 1000:.1f} cm^3, one solid; "
           f"{c.rays} field rays, {c.blocked} blocked; glass on its planes within "
-          f"{max(c.glass_error_mm.values()):.3f} mm; watertight; thinnest wall {c.min_wall_mm:.2f} mm")
+          f"{max(c.glass_error_mm.values()):.3f} mm; STL one closed shell; thinnest wall {c.min_wall_mm:.2f} mm")
     print(f"wrote {', '.join(str(folder / n) for n in FILES)}")
     return 0

@@ -75,9 +75,20 @@ def write_step(solid, path: Path) -> None:
 
 
 def write_stl(solid, path: Path) -> None:
+    """The solid's tessellation as a binary STL at ``path``, as one closed shell: OpenCASCADE's mesh, once
+    stored in float32, holds a few zero-area sliver triangles (each a shell of its own to a reader, its edges
+    used once or four times); they are dropped before the file is written, so the file a slicer reads is
+    the mesh psvs checked."""
     import build123d as bd
-    if not bd.export_stl(solid, str(path), tolerance=STL_TOLERANCE_MM, angular_tolerance=STL_ANGLE_RAD):
+    import trimesh
+    raw = path.with_name(path.stem + ".occt.stl")
+    if not bd.export_stl(solid, str(raw), tolerance=STL_TOLERANCE_MM, angular_tolerance=STL_ANGLE_RAD):
         raise OSError(f"build123d could not write {path}")
+    mesh = trimesh.load(str(raw), force="mesh")
+    raw.unlink()
+    mesh.update_faces(mesh.nondegenerate_faces())
+    mesh.remove_unreferenced_vertices()
+    path.write_bytes(mesh.export(file_type="stl"))
 
 
 def read_step(path: Path) -> tuple[int, float]:

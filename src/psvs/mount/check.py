@@ -8,8 +8,8 @@
   stand the nominal ``standoff`` proud; the glass's reflecting face through them is compared with the
   designed plane at its corners. Rays cast from a grid on each glass's front face find no mount inside
   the glass.
-- **Printable.** The mesh as a slicer reads it (degenerate float32 slivers dropped) is watertight; the
-  wall thickness, measured inward from points sampled on the surface, is nowhere under the minimum.
+- **Printable.** The STL file as written is one closed shell (every edge shared by two faces, no face of zero
+  area, one body); the wall thickness, measured inward from points sampled on the surface, is nowhere under the minimum.
 """
 from __future__ import annotations
 
@@ -52,18 +52,22 @@ class MountChecks:
                 for m, e in self.glass_error_mm.items() if e > p.clearance_mm]
         out += [f"the mount cuts into {m.upper()}'s glass" for m in self.glass_intrusion]
         if not self.watertight:
-            out.append("the mesh is not watertight")
+            out.append("the mesh is not one closed shell")
         if self.min_wall_mm < p.wall_mm - MESH_TOL_MM:
             out.append(f"a wall is {self.min_wall_mm:.2f} mm thin (the minimum is {p.wall_mm:g} mm)")
         return out
 
 
 def printable_mesh(stl_path) -> trimesh.Trimesh:
-    """The STL as a slicer reads it: vertices merged, degenerate (float32 sliver) faces dropped."""
-    mesh = trimesh.load(str(stl_path), force="mesh")
-    mesh.update_faces(mesh.nondegenerate_faces())
-    mesh.remove_unreferenced_vertices()
-    return mesh
+    """The STL file as written (psvs.mount.cad.write_stl), read by trimesh with nothing repaired."""
+    return trimesh.load(str(stl_path), force="mesh")
+
+
+def one_closed_shell(mesh: trimesh.Trimesh) -> bool:
+    """Whether ``mesh`` is a single closed, consistently wound shell: every edge shared by exactly two faces,
+    no face of zero area, one connected body."""
+    return bool(mesh.is_watertight and mesh.is_volume and mesh.nondegenerate_faces().all()
+                and len(mesh.split(only_watertight=False)) == 1)
 
 
 def check_mount(layout: MountLayout, mesh: trimesh.Trimesh, segments: list, samples: int = 20000,
@@ -74,7 +78,7 @@ def check_mount(layout: MountLayout, mesh: trimesh.Trimesh, segments: list, samp
     blocked, by = _light(layout, mesh, segments)
     hardware = _hardware_light(layout, segments)
     errors, intrusion = _glass(layout, mesh)
-    return MountChecks(int(rays), blocked, by, hardware, errors, intrusion, bool(mesh.is_watertight),
+    return MountChecks(int(rays), blocked, by, hardware, errors, intrusion, one_closed_shell(mesh),
                        _min_wall(mesh, samples, seed))
 
 
