@@ -1,4 +1,6 @@
 import math
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -44,6 +46,22 @@ def test_default_layout_is_clear():
     assert d.ok and d.problems == []
     lo, hi = d.m2_window_mm
     assert lo < 44.0 < hi
+
+
+def test_the_readmes_mirror_sizes_are_the_designs():
+    """The README's row of mirror sizes (width x height and eq. (6), mm) is what the design gives the default
+    rig, to its printed digits (it once gave another layout's sizes), and its layout is the default's."""
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    row = next(line for line in readme.splitlines() if line.startswith("| mirror sizes for the default rig"))
+    printed = {m[0]: tuple(map(float, m[1:])) for m in
+               re.findall(r"M(\d) ([\d.]+) × ([\d.]+) mm \((?:eq\. 6: )?([\d.]+)\)", row)}
+    assert sorted(printed) == ["1", "2", "3", "4"], row
+    rig = default_rig()
+    assert f"c1 = {rig.mirrors.m1_axis_distance_mm:g}, c2 = {rig.mirrors.m2_axis_distance_mm:g} mm" in row
+    for spec in design_mirrors(rig, search=False).mirrors:
+        (t0, t1) = spec.extent.height_mm
+        want = (spec.extent.width_mm, t1 - t0, spec.eq6_length_mm)
+        assert printed[spec.name[1]] == pytest.approx(want, abs=0.005), spec.name
 
 
 def test_blocked_layout_names_the_mirror():
