@@ -6,8 +6,10 @@
     python3 dev.py bench         # benchmarks -> docs/benchmarks.md
     python3 dev.py psvs ARGS...  # any psvs command inside the project's virtualenv
 
-The first call creates ``.venv`` and installs the pinned ``requirements.lock`` plus psvs itself
-(editable); later calls reuse it and reinstall only when the lock file or pyproject.toml change.
+The first call creates ``.venv`` and installs psvs itself (editable) with the pinned
+``requirements.lock``: what psvs needs, enough for ``demo`` and ``psvs``. ``test`` and ``bench`` add the
+pinned extras of ``requirements-dev.lock`` (the test tools, Basler's pypylon, the CAD kernel). Later calls
+reuse the virtualenv and reinstall only when a lock file or pyproject.toml change.
 """
 from __future__ import annotations
 
@@ -28,29 +30,42 @@ def _python() -> Path:
     return VENV / ("Scripts/python.exe" if os.name == "nt" else "bin/python")
 
 
-def _fingerprint() -> str:
-    h = hashlib.sha256()
-    for name in ("requirements.lock", "pyproject.toml"):
+#: What each level installs: ``core`` for the demo and psvs commands, ``full`` for the tests and benchmarks.
+LOCKS = {"core": ("requirements.lock",), "full": ("requirements.lock", "requirements-dev.lock")}
+
+
+def _fingerprint(level: str) -> str:
+    h = hashlib.sha256(level.encode())
+    for name in (*LOCKS[level], "pyproject.toml"):
         h.update((ROOT / name).read_bytes())
     return h.hexdigest()
 
 
-def ensure_env() -> Path:
-    """Create the virtualenv and install pinned dependencies when needed; return its python."""
+def _installed() -> set[str]:
+    """The fingerprints of what .venv holds now (one line per level installed)."""
+    return set(STAMP.read_text().split()) if STAMP.exists() else set()
+
+
+def ensure_env(level: str = "full") -> Path:
+    """Create the virtualenv and install the pinned dependencies of ``level`` when needed; return its
+    python. A full install also serves ``core``."""
     if sys.version_info < (3, 11):
         sys.exit(f"dev.py: Python >= 3.11 is needed, this is {sys.version.split()[0]}")
     py = _python()
-    want = _fingerprint()
-    if py.exists() and STAMP.exists() and STAMP.read_text() == want:
+    want = _fingerprint(level)
+    have = _installed() if py.exists() else set()
+    if want in have or (level == "core" and _fingerprint("full") in have):
         return py
     if not py.exists():
         print("dev.py: creating .venv ...", flush=True)
         venv.create(VENV, with_pip=True)
     pip = [str(py), "-m", "pip", "install", "--quiet", "--disable-pip-version-check"]
-    print("dev.py: installing pinned dependencies ...", flush=True)
-    subprocess.run(pip + ["-r", str(ROOT / "requirements.lock")], check=True)
+    what = "psvs's pinned dependencies" if level == "core" else "psvs's pinned dependencies and its extras"
+    print(f"dev.py: installing {what} ...", flush=True)
+    locks = [arg for name in LOCKS[level] for arg in ("-r", str(ROOT / name))]
+    subprocess.run(pip + locks, check=True)
     subprocess.run(pip + ["--no-deps", "--no-build-isolation", "-e", str(ROOT)], check=True)
-    STAMP.write_text(want)
+    STAMP.write_text("\n".join(sorted({want, _fingerprint("core")} if level == "full" else {want})) + "\n")
     return py
 
 
@@ -83,8 +98,8 @@ def main(argv: list[str]) -> int:
     if not argv or argv[0] not in {"demo", "test", "bench", "psvs"}:
         print(__doc__, file=sys.stderr)
         return 2
-    py = str(ensure_env())
     cmd, rest = argv[0], argv[1:]
+    py = str(ensure_env("full" if cmd in ("test", "bench") else "core"))
     env = dict(os.environ, MPLBACKEND="Agg")
     if cmd == "demo":
         args = [py, "-m", "psvs", "demo", *rest]
