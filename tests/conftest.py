@@ -15,6 +15,9 @@ from psvs.io.params import load_rig
 from psvs.optics.design import design_mirrors
 from tests.reference_optics import ReferenceRig
 
+#: fixtures every test file sees: the browser tests' Chromium page (tests/support/browser.py)
+pytest_plugins = ["tests.support.browser"]
+
 #: The session's own cache folder (psvs.dense.rig_cache): the tests never read or write the user's, and each
 #: session starts empty. Set at import, before any test or command runs (subprocesses inherit it); removed
 #: when the process ends (also when a script, not pytest, imports this module).

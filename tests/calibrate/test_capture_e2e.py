@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from psvs.io.params import load_rig
-from tests.cli.test_cli import run
 from tests.conftest import reconstruction_errors, write_hand_video
+from tests.support.cli import run
 
 pytestmark = pytest.mark.slow
 

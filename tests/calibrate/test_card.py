@@ -20,9 +20,9 @@ from psvs.calibrate.target_file import dumps_target, load_target
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.simulate.textures import CircleGrid
-from tests.cli.test_cli import run
 from tests.conftest import reconstruction_errors
 from tests.reference_build import Box, Lens, ReferenceBuild
+from tests.support.cli import run
 
 #: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
 pytestmark = pytest.mark.slow
@@ -218,7 +218,7 @@ def test_views_a_far_start_leaves_unexplained_are_kept(capsys, tmp_path):
     """The README's run: 16 card views of the misaligned build (its lens k2 = 0.45), calibrated from the clear
     design. The first adjustment from the design settled with 7 of them unexplained (1.1-2.2 px) and they
     were skipped; adjusted again from where the other 9 put the rig, all 16 fit within 0.05 px."""
-    from tests.cli.test_cli import run
+    from tests.support.cli import run
     code, _, err = run(capsys, "card-views", str(tmp_path / "cards"), "--rig", "misaligned", "--views", "16")
     assert code == 0, err
     res = calibrate_folder(tmp_path / "cards", load_rig(RIGS / "clear.toml"))

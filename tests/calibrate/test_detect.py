@@ -204,7 +204,7 @@ def test_target_file_refusals(tmp_path, capsys):
     """Another kind, a key of another kind, a missing key, a bad dictionary: one line naming it; through
     psvs calibrate exit 2 and nothing written."""
     from psvs.calibrate.target_file import load_target
-    from tests.cli.test_cli import run
+    from tests.support.cli import run
     path = tmp_path / "target.toml"
     for text, message in (('kind = "dots"\nrows = 3\n', r"target\.kind must be one of circle_grid, "
                                                          r"asymmetric_circle_grid, charuco, got 'dots'"),
@@ -230,7 +230,7 @@ def test_card_views_renders_any_target(tmp_path, capsys):
     through the rig (here an asymmetric grid on the paper's camera, its copies free to interleave)."""
     from psvs.calibrate.target_file import dumps_target, load_target
     from psvs.io.images import read_grey
-    from tests.cli.test_cli import run
+    from tests.support.cli import run
     grid = AsymmetricCircleGrid(5, 3, 10.0, 7.0)
     (tmp_path / "t.toml").write_text(dumps_target(grid))
     out = tmp_path / "views"

@@ -18,7 +18,7 @@ from psvs.io.params import load_rig
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
 from psvs.simulate.textures import Circles
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 
 def pattern_scene(z, tilt_x=0.0, tilt_y=0.0, x=0.0, y=0.0, **texture):

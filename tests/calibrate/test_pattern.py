@@ -13,7 +13,7 @@ from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
-from tests.cli.test_cli import EXAMPLE, run
+from tests.support.cli import EXAMPLE, run
 
 CASES = [(440, 0), (589, 0), (736, 10), (883, 0), (1000, -15), (1123, 0)]
 

@@ -12,7 +12,7 @@ from psvs.calibrate.targets import detect_pattern
 from psvs.io.images import write_png
 from psvs.measure.triangulate import triangulate
 from psvs.optics.project import project_points
-from tests.cli.test_cli import EXAMPLE, run
+from tests.support.cli import EXAMPLE, run
 
 SWEEP = np.arange(450.0, 1151.0, 140.0)   # 6 positions
 

@@ -1,7 +1,7 @@
 """The paper's experiment end to end (the acceptance figures, on our own renders)."""
 import pytest
 
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 #: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
 pytestmark = pytest.mark.slow

@@ -11,7 +11,7 @@ from psvs.cli.main import main
 from psvs.io.images import write_png
 from psvs.io.video import read_video_frame
 from psvs.live.source import open_video
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 
 def _video_and_frames(folder, scene: str, n: int, move: str):

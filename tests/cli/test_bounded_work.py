@@ -13,7 +13,7 @@ import pytest
 from psvs import _memory, default_rig
 from psvs.io.params import save_rig
 from psvs.optics.rig import MirrorError
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 ROOT = Path(__file__).resolve().parents[2]
 #: A hang detector, not a benchmark: every refusal comes before any work. CPU time of this process (every

@@ -2,7 +2,7 @@
 card views (card_NN.png, target.toml) is replaced whole; a folder holding anything else is refused."""
 import hashlib
 
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 
 def _digests(folder) -> dict:

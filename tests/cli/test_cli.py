@@ -13,17 +13,7 @@ from psvs import default_rig
 from psvs.cli.main import main
 from psvs.io.params import save_rig
 from psvs.optics.project import project_points
-
-EXAMPLE = str(Path(__file__).resolve().parents[2] / "examples" / "rigs" / "default.toml")
-
-
-def run(capsys, *argv):
-    try:
-        code = main(list(argv))
-    except SystemExit as exc:  # argparse usage errors
-        code = exc.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
+from tests.support.cli import EXAMPLE, run
 
 
 @pytest.mark.parametrize("cmd", ["demo", "design", "triangulate", "fit-refraction", "simulate", "match"])

@@ -6,8 +6,8 @@ import pytest
 
 from psvs.dense.evaluate import superimpose
 from psvs.io.images import read_grey, write_png
-from tests.cli.test_cli import EXAMPLE, run
 from tests.dense.planted import layered_pair
+from tests.support.cli import EXAMPLE, run
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,7 @@ from psvs import default_rig
 from psvs.io.images import write_png
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
-from tests.cli.test_cli import EXAMPLE, run
+from tests.support.cli import EXAMPLE, run
 
 
 @pytest.fixture(scope="module")

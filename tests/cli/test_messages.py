@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from psvs.io.images import write_png
-from tests.cli.test_cli import EXAMPLE, run
+from tests.support.cli import EXAMPLE, run
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,7 @@ import pytest
 from psvs._quiet import quiet_libraries
 from psvs.cli.main import main
 from psvs.io.images import write_png
-from tests.cli.test_cli import EXAMPLE
+from tests.support.cli import EXAMPLE
 
 ROOT = Path(__file__).resolve().parents[2]
 EARLIER = "earlier contents\n"

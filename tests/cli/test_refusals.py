@@ -6,7 +6,7 @@ import pytest
 
 from psvs import default_rig
 from psvs.optics.project import project_points
-from tests.cli.test_cli import EXAMPLE, run
+from tests.support.cli import EXAMPLE, run
 
 
 def write_csv(path, header, rows):

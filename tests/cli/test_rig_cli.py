@@ -7,7 +7,7 @@ import pytest
 from psvs import default_rig
 from psvs.io.params import load_rig, rig_from_dict, save_rig
 from psvs.rigs import SHIPPED, shipped_rig_path
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -3,7 +3,7 @@ import pytest
 
 from psvs.io.images import read_grey
 from psvs.io.params import save_rig
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 
 @pytest.fixture

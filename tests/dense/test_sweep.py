@@ -105,7 +105,7 @@ def user_files(tmp_path_factory):
     calibrated values in it), and the frames of the scenes."""
     from psvs.io.params import dumps_rig
     from psvs.optics.rig import MIRROR_NAMES
-    from tests.cli.test_cli import run
+    from tests.support.cli import run
     cal = calibrated_draw(*QUICK[0])
     folder = tmp_path_factory.mktemp("user")
     bare = folder / "camera.toml"

@@ -11,7 +11,7 @@ from psvs.io.text import read_csv_rows
 from psvs.io.tomlfile import load_toml, update_toml
 from psvs.robot.handeye_io import read_views, write_views
 from psvs.robot.handeye_session import CELL_GRID
-from tests.cli.test_cli import EXAMPLE
+from tests.support.cli import EXAMPLE
 
 BOM = "\ufeff"
 

@@ -5,7 +5,7 @@ import pytest
 
 from psvs.io.images import write_png
 from psvs.live.source import check_pattern, sequence_files
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 
 def test_a_pattern_reads_its_frames_in_order_from_the_first_that_exists(tmp_path):

@@ -7,7 +7,7 @@ import pytest
 from psvs import default_rig
 from psvs.measure.tolerance import TILT_STEP_RAD, field_points, tolerance_analysis
 from psvs.optics.search_range import disparity_range
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from psvs.mount.guide import alignment_guide, row_offsets_px, working_points
 from psvs.mount.seats import apply_turns, seats_for
 from psvs.rigs import shipped_rig_path
 from psvs.simulate.textures import CircleGrid
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 pytestmark = pytest.mark.slow
 

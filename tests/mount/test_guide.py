@@ -11,7 +11,7 @@ from psvs.mount.guide import TURN_STEP, alignment_guide, row_offsets_px, working
 from psvs.mount.report import guide_to_dict, turns_text
 from psvs.mount.seats import apply_turns, seats_for
 from psvs.rigs import shipped_rig_path
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 BUILDS = {"misaligned": ("clear", "misaligned"), "mv1440": ("mv1440", "mv1440_misaligned")}
 

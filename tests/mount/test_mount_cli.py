@@ -14,7 +14,7 @@ from psvs.io.params import dumps_rig, load_rig
 from psvs.mount.files import read_mount
 from psvs.mount.guide import alignment_guide
 from psvs.rigs import shipped_rig_path
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 
 @pytest.fixture(scope="module")

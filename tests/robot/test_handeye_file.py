@@ -19,7 +19,7 @@ from psvs.robot.handeye import HandEyeResult, calibrate_from_views
 from psvs.robot.handeye_io import dumps_handeye, load_handeye, read_views, save_handeye, write_views
 from psvs.robot.handeye_session import CELL_GRID, CELL_TARGET2BASE, cell_views, nominal_cam2flange, true_cam2flange
 from psvs.robot.mounting import HOME_Q
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 
 @pytest.fixture(scope="module")

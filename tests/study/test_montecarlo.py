@@ -18,7 +18,7 @@ from psvs.io.params import load_rig
 from psvs.study.montecarlo import prepare_study, run_study
 from psvs.study.sample import TIMING, run_sample
 from psvs.study.tolerances import tolerances_from_dict
-from tests.cli.test_cli import run
+from tests.support.cli import run
 
 #: A cheap study: the default rig's shipped tolerances, 4 card views at 1x1, a small test set.
 SMALL = {"tolerances": {"mirror_tilt_deg": {"uniform": 0.2}, "mirror_shift_mm": {"uniform": 0.5},

@@ -18,8 +18,8 @@ from psvs.optics.design import design_mirrors
 from psvs.rigs import shipped_rig_path
 from psvs.web.app import MAX_BODY_BYTES, create_app
 from psvs.web.sources import image_source
+from tests.support.browser import shot
 from tests.web.conftest import local_client, serving
-from tests.web.test_browser import page, shot  # noqa: F401  (the browser fixture)
 
 #: (the calibrated build's stand-in, its design): the shipped builds and their designs.
 CASES = [("misaligned", "clear"), ("mv1440_misaligned", "mv1440")]
@@ -153,7 +153,7 @@ def test_a_body_over_the_limit_is_413():
     assert r.status_code == 413
 
 
-def test_the_alignment_panel(page, tmp_path):  # noqa: F811  (page: the browser fixture)
+def test_the_alignment_panel(page, tmp_path):
     """In Chromium: upload misaligned.toml, keep the served design (clear), Run; the table's turn cells and the
     shown 'after' largest offset are the library's guide; the two heat maps share one scale whose ends are the
     largest |offset| shown, and the cell of the largest 'before' offset is drawn in a saturated colour."""

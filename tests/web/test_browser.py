@@ -1,47 +1,13 @@
 """End to end in headless Chromium: load a simulated complex image, double-click an edge on the canvas, read the
 depth the page shows. Truth: the disc's depth (every rim point is at z); the click lands on the rim's projection."""
-import os
-from pathlib import Path
 
-import pytest
 
 from psvs import default_rig
 from psvs.web.app import create_app
 from psvs.web.sources import video_source
 from tests.live.test_tracker import rim_seed
+from tests.support.browser import dblclick_px, shot
 from tests.web.conftest import DISC, rim_point_px, serving
-
-CHROMIUM = Path("/usr/bin/chromium")
-FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-         "--disable-component-update", "--disable-sync", "--no-first-run"]
-SHOTS = Path(__file__).resolve().parents[2] / "out" / "ci"
-
-
-@pytest.fixture
-def page():
-    if not CHROMIUM.exists():
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"CI: {CHROMIUM} is missing (.ci/run installs Debian's chromium)")
-        pytest.skip(f"no {CHROMIUM} (apt-get install chromium)")
-    from playwright.sync_api import sync_playwright
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=str(CHROMIUM), args=FLAGS)
-        try:
-            yield browser.new_page(viewport={"width": 1280, "height": 900})
-        finally:
-            browser.close()
-
-
-def shot(page, name: str) -> None:
-    SHOTS.mkdir(parents=True, exist_ok=True)
-    page.screenshot(path=str(SHOTS / name), full_page=True)
-    print(f"screenshot: {SHOTS / name}")
-
-
-def dblclick_px(page, u, v):
-    """Double-click image pixel (u, v) of the canvas, wherever and however large the page draws it."""
-    box = page.locator("#image").bounding_box()
-    page.mouse.dblclick(box["x"] + (u + 0.5) * box["width"] / 640, box["y"] + (v + 0.5) * box["height"] / 480)
 
 
 def test_double_click_shows_depth(page, live_server, disc_source):

@@ -11,11 +11,11 @@ from psvs.live.camera import Acquisition, parse_camera  # noqa: E402
 from psvs.web.app import create_app  # noqa: E402
 from psvs.web.sources import camera_source  # noqa: E402
 from tests.live.test_pylon import FRAMES, write_frames  # noqa: E402
+from tests.support.browser import dblclick_px, shot
 from tests.web.conftest import serving  # noqa: E402
-from tests.web.test_browser import dblclick_px, page, shot  # noqa: E402, F401  (page: the browser fixture)
 
 
-def test_live_page_from_the_emulated_basler_camera(page, tmp_path):  # noqa: F811
+def test_live_page_from_the_emulated_basler_camera(page, tmp_path):
     """serve --camera basler:0 (software trigger): the still is the camera's first frame; double-click the disc's
     rim, start live: the page shows the camera's frames and each one's depth within 1 % of its truth (the
     emulator serves the folder's five frames in a loop: frame k is file k mod 5)."""

@@ -10,8 +10,8 @@ from psvs.io.params import load_rig
 from psvs.web.app import create_app
 from psvs.web.capture_runner import CaptureSetup
 from psvs.web.sources import image_source, video_source
+from tests.support.browser import shot
 from tests.web.conftest import local_client, serving
-from tests.web.test_browser import page, shot  # noqa: F401  (the browser fixture)
 
 
 def _app(hand_video, folder):
@@ -62,7 +62,7 @@ def test_capture_refusals(hand_video, tmp_path):
     assert not folder.exists()
 
 
-def test_capture_in_the_page(page, hand_video, tmp_path):  # noqa: F811
+def test_capture_in_the_page(page, hand_video, tmp_path):
     """The page on the video: start capturing, see the count of saved views rise, the hint, the covered bins and
     the saved files in the events; stop."""
     folder = tmp_path / "views"
