@@ -1,19 +1,16 @@
 import atexit
-import dataclasses
-import hashlib
-import math
 import os
 import shutil
 import tempfile
-from pathlib import Path
 
-import numpy as np
 import pytest
 
 from psvs import default_rig
 from psvs.io.params import load_rig
 from psvs.optics.design import design_mirrors
 from tests.reference_optics import ReferenceRig
+from tests.support.geometry import EXAMPLES
+from tests.support.video import write_hand_video, write_wall_video
 
 #: fixtures every test file sees: the browser tests' Chromium page (tests/support/browser.py)
 pytest_plugins = ["tests.support.browser"]
@@ -56,9 +53,6 @@ def rig():
     return default_rig()
 
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
-
-
 @pytest.fixture(scope="session")
 def clear_rig():
     """examples/rigs/clear.toml: M1 at 22 mm, M2 at 44 mm, with its designed mirror extents."""
@@ -72,18 +66,6 @@ def clear_rig():
 @pytest.fixture(scope="session")
 def reference():
     return ReferenceRig()
-
-
-def whole_field_points(rig, n_side=9, depths=(400.0, 600.0, 800.0, 1000.0, 1200.0)):
-    """Points over the whole field seen by *both* views, at the given depths (mm), shape (N, 3)."""
-    pts = []
-    a_x, a_y = rig.camera.half_fov_rad
-    for z in depths:
-        half_w = (z - rig.virtual_z_mm) * math.tan(a_x) - rig.mirrors.baseline_mm / 2
-        half_h = (z - rig.virtual_z_mm) * math.tan(a_y)
-        gx, gy = np.meshgrid(np.linspace(-0.99, 0.99, n_side), np.linspace(-0.99, 0.99, n_side))
-        pts.append(np.column_stack([gx.ravel() * half_w, gy.ravel() * half_h, np.full(gx.size, z)]))
-    return np.concatenate(pts)
 
 
 @pytest.fixture(scope="session")
@@ -100,36 +82,6 @@ def disc_video(tmp_path_factory):
     return path, 760.0 - positions[:, 2], rig, scene, positions
 
 
-def read_mcap(path):
-    """An MCAP file through the `mcap` reader (independent of psvs): ({topic: (schema name, message
-    encoding)}, {topic: message count}, [(schema, channel, message)] in the file's order, so a test of rising
-    time stamps tests the file)."""
-    from mcap.reader import make_reader
-    with Path(path).open("rb") as f:
-        reader = make_reader(f)
-        summary = reader.get_summary()
-        topics = {c.topic: (summary.schemas[c.schema_id].name, c.message_encoding) for c in summary.channels.values()}
-        counts = {summary.channels[k].topic: n for k, n in summary.statistics.channel_message_counts.items()}
-        return topics, counts, list(reader.iter_messages(log_time_order=False))
-
-
-WALL_MM = 700.0
-
-
-def write_wall_video(folder, rig, frames: int = 6):
-    """``frames`` frames (30/s, FFV1) of a grass-photo wall filling the view at 700 mm, the rig moving 0..-40 mm
-    in depth over 3 positions, rendered through ``rig``: (path, true depth of every pixel per frame (mm))."""
-    from psvs.io.video import write_video
-    from psvs.live.simulated import SimulatedSequence, ping_pong_positions
-    from psvs.simulate.builtin import _photo, regulated_light
-    from psvs.simulate.scene import Scene
-    scene = Scene((), regulated_light(WALL_MM), WALL_MM, _photo("grass", (1400.0, 1050.0)), "wall")
-    positions = ping_pong_positions(frames, [0.0, 0.0, -40.0], 3)
-    path = Path(folder) / "wall.avi"
-    assert write_video(path, SimulatedSequence(scene, rig, positions, seed=5), fps=30.0) == frames
-    return path, WALL_MM - positions[:, 2]
-
-
 @pytest.fixture(scope="session")
 def wall_video(tmp_path_factory):
     """:func:`write_wall_video` through the default rig. Its first frame's dense map is made here once, so
@@ -141,78 +93,6 @@ def wall_video(tmp_path_factory):
     with VideoSource(video=str(path)) as source:
         DenseSensor(default_rig()).step(source.read())
     return path, truth
-
-
-def kabsch(src: np.ndarray, dst: np.ndarray):
-    """Rotation (3, 3) and translation (3,) minimising |R src + t - dst| (independent of psvs)."""
-    cs, cd = src.mean(axis=0), dst.mean(axis=0)
-    U, _, Vt = np.linalg.svd((src - cs).T @ (dst - cd))
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
-    R = Vt.T @ D @ U.T
-    return R, cd - R @ cs
-
-
-def reconstruction_errors(calibrated, true_rig, depths=(400.0, 600.0, 800.0, 1000.0, 1200.0), scale=1.0):
-    """Triangulate the true correspondences of points over the whole common field (400-1200 mm) with a
-    calibrated rig (exact model). Returns (3-D errors in frame C, mm; 3-D errors after the best rigid
-    motion, mm; the points (N, 3)). Images cannot fix frame C's placement behind the mirrors completely
-    (docs/calibration.md): the second number is the reconstruction's own accuracy. ``scale`` multiplies
-    the reconstruction first (to take out a known scale error)."""
-    from psvs.measure.triangulate import triangulate
-    from psvs.optics.project import in_image, project_points
-    pts = whole_field_points(default_rig(), n_side=9, depths=depths)
-    left, okl = project_points(pts, true_rig, "left")
-    right, okr = project_points(pts, true_rig, "right")
-    seen = okl & okr & in_image(left, true_rig) & in_image(right, true_rig)
-    got = scale * triangulate(left[seen], right[seen], calibrated, model="exact").points_mm
-    raw = np.linalg.norm(got - pts[seen], axis=1)
-    R, t = kabsch(got, pts[seen])
-    aligned = np.linalg.norm(got @ R.T + t - pts[seen], axis=1)
-    return raw, aligned, pts[seen]
-
-
-#: The hand-held card of the capture tests (psvs card-views' default card).
-HAND_CARD = (4, 6, 14.0, 7.0)
-
-
-@dataclasses.dataclass(frozen=True)
-class HandVideo:
-    """A simulated hand-held video (FFV1): its path, the frames' plan (kind and true poses, frame C), the
-    target file, the rig it was rendered through."""
-
-    path: Path
-    plan: list
-    target: Path
-    rig: object
-
-
-def write_hand_video(folder, rig_name: str = "misaligned", holds: int = 11, seed: int = 1, card=HAND_CARD,
-                     frames: int | None = None, shared: bool = False, **hand) -> HandVideo:
-    """A hand-held card (psvs.calibrate.handheld) through a shipped rig: ``holds`` poses, the first ``frames``
-    frames of the path (all by default), written to FOLDER/hand.avi with FOLDER/target.toml. ``shared``: the
-    video rendered once for the session's processes (tests/support/shared_files.py), FOLDER/hand.avi a link
-    to it."""
-    from psvs.calibrate.handheld import HandParams, hand_path, render_hand_video
-    from psvs.calibrate.target_file import dumps_target
-    from psvs.io.video import write_video
-    from psvs.simulate.textures import CircleGrid
-    from tests.support.shared_files import shared_file
-    folder = Path(folder)
-    rig, grid = load_rig(rig_name), CircleGrid(*card)
-    plan = hand_path(rig, grid, holds, seed=seed, hand=HandParams(**hand))[:frames]
-    (folder / "target.toml").write_text(dumps_target(grid))
-    path = folder / "hand.avi"
-
-    def render(to: Path):
-        assert write_video(to, render_hand_video(rig, grid, plan, seed=seed), fps=30.0) == len(plan)
-
-    if shared:
-        key = "_".join(str(x) for x in (rig_name, holds, seed, card, frames, sorted(hand.items())))
-        name = "hand-" + hashlib.sha256(key.encode()).hexdigest()[:16] + ".avi"
-        path.symlink_to(shared_file(name, render))
-    else:
-        render(path)
-    return HandVideo(path, plan, folder / "target.toml", rig)
 
 
 @pytest.fixture(scope="session")

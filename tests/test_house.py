@@ -122,3 +122,41 @@ def test_the_linter_is_clean():
     res = subprocess.run([ruff, "check", "--no-cache", "src", "tests", "bench", "examples", "dev.py"], cwd=ROOT,
                          capture_output=True, text=True)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-1000:]
+
+
+def _test_imports(tree) -> list[str]:
+    """The modules of the test tree a file imports (``tests.x.y``), at any depth of the file."""
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "tests":
+            out.append(node.module)
+        elif isinstance(node, ast.Import):
+            out += [a.name for a in node.names if a.name.split(".")[0] == "tests"]
+    return out
+
+
+def borrowed(path: Path, tree) -> list[str]:
+    """What ``path`` imports from a test file or a conftest of the test tree (test support lives in
+    tests/support/ and tests/reference_optics.py, fixtures in the conftests)."""
+    return [f"{path.relative_to(ROOT)} imports {m}" for m in _test_imports(tree)
+            if m.split(".")[-1].startswith("test_") or m.split(".")[-1] == "conftest"]
+
+
+def test_no_test_file_borrows_from_another():
+    """25 files imported ``run`` from tests/cli/test_cli.py, three the browser fixture from test_browser.py,
+    and helpers came from conftests: shared test code lives in tests/support/ (a fixture many files use is
+    a plugin of the root conftest)."""
+    wrong = [line for path in sorted((ROOT / "tests").rglob("*.py"))
+             for line in borrowed(path, ast.parse(path.read_text(encoding="utf-8")))]
+    assert not wrong, "\n".join(wrong)
+
+
+def test_the_borrowing_rule_sees_imports_at_any_depth():
+    """The rule is no stronger than its detector: a module-level and a function-level import of a test
+    file and of a conftest are each reported; support modules are not."""
+    src = ("from tests.cli.test_cli import run\n"
+           "def f():\n    from tests.web.conftest import serving\n    import tests.dense.test_sweep\n"
+           "from tests.support.cli import run\n")
+    found = borrowed(ROOT / "tests" / "x.py", ast.parse(src))
+    assert [line.split(" imports ")[1] for line in found] == ["tests.cli.test_cli", "tests.web.conftest",
+                                                              "tests.dense.test_sweep"]

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from psvs.cli.main import main
-from tests.web.conftest import free_port
+from tests.support.web import free_port
 
 ROOT = Path(__file__).resolve().parents[1]
 

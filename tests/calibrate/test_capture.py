@@ -26,8 +26,8 @@ from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.simulate.scene import Pose
 from psvs.simulate.textures import CircleGrid
-from tests.conftest import write_hand_video
 from tests.support.cli import run
+from tests.support.video import write_hand_video
 
 CARD = CircleGrid(4, 6, 14.0, 7.0)
 #: (position mm, x-y-z Euler deg, the tilt bin it is in): ry > 0 turns the card's normal toward -X (it faces

@@ -20,9 +20,9 @@ from psvs.calibrate.target_file import dumps_target, load_target
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.simulate.textures import CircleGrid
-from tests.conftest import reconstruction_errors
 from tests.reference_build import Box, Lens, ReferenceBuild
 from tests.support.cli import run
+from tests.support.geometry import reconstruction_errors
 
 #: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
 pytestmark = pytest.mark.slow

@@ -19,7 +19,7 @@ from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.rigs import shipped_rig_path
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid
-from tests.conftest import reconstruction_errors
+from tests.support.geometry import reconstruction_errors
 
 pytestmark = pytest.mark.slow
 

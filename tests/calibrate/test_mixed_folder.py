@@ -7,9 +7,9 @@ from psvs.calibrate.synthetic import random_poses, render_grid_shots
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.simulate.textures import CircleGrid
-from tests.conftest import EXAMPLES
 from tests.corpus.cases import TARGET
 from tests.support.cli import run
+from tests.support.geometry import EXAMPLES
 
 pytestmark = pytest.mark.slow
 

@@ -34,7 +34,7 @@ from psvs.optics.project import project_points
 from psvs.optics.rig import MIRROR_NAMES, MirrorError
 from psvs.optics.trace import trace_pixels
 from psvs.simulate.scene import Pose
-from tests.conftest import whole_field_points
+from tests.support.geometry import whole_field_points
 
 RIGS = Path(__file__).resolve().parents[2] / "examples" / "rigs"
 TILT = math.radians(0.3)    # the build tolerances: mirrors tilted up to 0.3 deg, shifted up to 0.8 mm

@@ -42,7 +42,7 @@ def test_fit_refraction_refuses_what_the_points_cannot_pin(capsys, tmp_path):
     """README's example fits and writes the rig; six copies of one of its points, one point 40 mm off in
     Z, and points along the optical axis are refused in one line (exit 1) and the earlier rig file is kept;
     a point behind the rig is bad input (exit 2)."""
-    from tests.conftest import EXAMPLES
+    from tests.support.geometry import EXAMPLES
     rig_file = str(EXAMPLES / "rigs" / "clear.toml")
     data = np.loadtxt(EXAMPLES / "known_points.csv", delimiter=",", skiprows=1)
     out = tmp_path / "fitted.toml"

@@ -17,7 +17,8 @@ from psvs.simulate.builtin import _at, _photo, regulated_light, textured
 from psvs.simulate.render import render
 from psvs.simulate.scene import Scene, SceneObject
 from psvs.simulate.sensor import IDEAL
-from tests.optics.test_build import random_build
+from tests.support.rig_draws import random_build
+from tests.support.sweep_scenes import truth_on_left_grid
 
 #: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
 pytestmark = pytest.mark.slow
@@ -59,19 +60,6 @@ def depth_errors(rig, scene, seed=1, params=DEFAULT):
         truth = truth_on_left_grid(truth, dense.rect, cloud.depth_mm.shape)
     err = np.abs(cloud.depth_mm - truth) / truth
     return np.where(np.isfinite(truth), np.nan_to_num(err, nan=np.inf), np.nan)
-
-
-def truth_on_left_grid(truth, rect, shape):
-    """A complex-image map ``truth`` (H, W) on the left view's rectified grid ``shape`` (H', W'): each grid
-    pixel takes the complex pixel it maps to (NaN where it maps to none)."""
-    h, w = shape
-    uu, vv = np.meshgrid(np.arange(w), np.arange(h))
-    c = rect.lookup(np.column_stack([uu.ravel(), vv.ravel()]).astype(float), "left")
-    z = np.full(h * w, np.nan)
-    ok = np.all(np.isfinite(c), axis=1)
-    ci = np.rint(c[ok]).astype(int)
-    z[ok] = truth[ci[:, 1], ci[:, 0]]
-    return z.reshape(h, w)
 
 
 def bad_share(err):

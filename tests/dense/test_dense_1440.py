@@ -14,7 +14,7 @@ from psvs.dense.pyramid import pyramid_levels
 from psvs.io.params import load_rig
 from psvs.simulate.render import render
 from tests.dense.facade import cards_before_facade
-from tests.dense.test_build_dense import truth_on_left_grid
+from tests.support.sweep_scenes import truth_on_left_grid
 
 pytestmark = pytest.mark.slow
 

@@ -22,7 +22,7 @@ from psvs.io.params import load_rig
 from psvs.measure.triangulate import triangulate
 from psvs.optics.mirrors import front_z_mm
 from psvs.optics.rectify import rectify
-from tests.optics.test_build import random_build
+from tests.support.rig_draws import random_build
 
 TOL_MM = 0.01           # the required agreement, X, Y and Z
 

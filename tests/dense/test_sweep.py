@@ -24,47 +24,21 @@ sessions) the quick tier took 125 s of wall time and the slow one's two draws 16
 import numpy as np
 import pytest
 
-from tests.support.rig_draws import CALIBRATION_MM, calibrated_draw
-from tests.support.sweep_scenes import SCENES, TEXTURED, score_text, scored, shot
+from tests.support.rig_draws import calibrated_draw
+from tests.support.sweep_scenes import MAX_BAD, MODES, SCENES, SMALL, check_calibration, check_scene, draw_id, shot
 
-#: Sensor sizes (MP) of the draws.
-SMALL, MID, LARGE = (0.3, 0.5), (1.0, 2.5), (2.5, 5.1)
 #: The quick tier: seed 1 of the small sensors (752 x 480, 9.6 um, f 16 mm, a Bayer camera writing JPEG).
 QUICK = ((1, SMALL),)
-#: The largest share of wrong pixels on a textured scene, by mode.
-MAX_BAD = {"default": 0.10, "fast": 0.15}
-MODES = tuple(MAX_BAD)
 
 
-def _id(draw) -> str:
-    seed, mp = draw
-    return f"seed{seed}-{mp[0]:g}-{mp[1]:g}MP"
-
-
-def check_calibration(seed, megapixels):
-    cal = calibrated_draw(seed, megapixels)
-    assert cal.ok, f"calibration misses {CALIBRATION_MM} mm:\n{cal.describe()}"
-
-
-def check_scene(seed, megapixels, scene, mode):
-    cal = calibrated_draw(seed, megapixels)
-    s = scored(seed, scene, mode == "fast", megapixels)
-    what = f"{scene}, {mode}: {score_text(s)}\n{cal.describe()}"
-    if scene in TEXTURED:
-        assert s.answered, f"a textured scene refused: {what}"
-        assert s.bad <= MAX_BAD[mode], f"more than {MAX_BAD[mode]:.0%} wrong: {what}"
-    else:
-        assert not s.answered, f"a scene without echo answered: {what}"
-
-
-@pytest.mark.parametrize("draw", QUICK, ids=_id)
+@pytest.mark.parametrize("draw", QUICK, ids=draw_id)
 def test_draw_calibrates(draw):
     check_calibration(*draw)
 
 
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("scene", SCENES)
-@pytest.mark.parametrize("draw", QUICK, ids=_id)
+@pytest.mark.parametrize("draw", QUICK, ids=draw_id)
 def test_scene(draw, scene, mode):
     check_scene(*draw, scene, mode)
 

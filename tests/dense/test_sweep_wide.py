@@ -2,8 +2,7 @@
 draws and criteria of tests/dense/test_sweep.py on larger sensors."""
 import pytest
 
-from tests.dense.test_sweep import LARGE, MID, MODES, _id, check_calibration, check_scene
-from tests.support.sweep_scenes import SCENES
+from tests.support.sweep_scenes import LARGE, MID, MODES, SCENES, check_calibration, check_scene, draw_id
 
 pytestmark = pytest.mark.slow
 
@@ -12,13 +11,13 @@ pytestmark = pytest.mark.slow
 SWEEP = ((6, MID), (0, LARGE))
 
 
-@pytest.mark.parametrize("draw", SWEEP, ids=_id)
+@pytest.mark.parametrize("draw", SWEEP, ids=draw_id)
 def test_sweep_draw_calibrates(draw):
     check_calibration(*draw)
 
 
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("scene", SCENES)
-@pytest.mark.parametrize("draw", SWEEP, ids=_id)
+@pytest.mark.parametrize("draw", SWEEP, ids=draw_id)
 def test_sweep_scene(draw, scene, mode):
     check_scene(*draw, scene, mode)

@@ -11,8 +11,8 @@ from psvs.cli.main import main
 from psvs.io.params import load_rig
 from psvs.live.dense import DenseSensor
 from psvs.optics.rig import default_rig
-from tests.conftest import read_mcap, write_wall_video
-from tests.live.test_foxglove import proto_class
+from tests.support.mcap import proto_class, read_mcap
+from tests.support.video import write_wall_video
 
 
 @pytest.fixture(scope="module", params=["default", "misaligned"])

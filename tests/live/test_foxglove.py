@@ -12,13 +12,13 @@ import time
 
 import numpy as np
 import pytest
-from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
 from psvs.cli.main import main
-from tests.conftest import EXAMPLES, read_mcap
-from tests.live.test_tracker import rim_seed
+from tests.support.geometry import EXAMPLES
+from tests.support.mcap import proto_class, read_mcap
+from tests.support.scenes import rim_seed
 
 RIG_FILE = str(EXAMPLES / "rigs" / "default.toml")
 #: Foxglove's WebSocket protocol: the published ws-protocol name and the name foxglove-sdk >= 0.2x answers to
@@ -26,14 +26,6 @@ RIG_FILE = str(EXAMPLES / "rigs" / "default.toml")
 SUBPROTOCOLS = ["foxglove.sdk.v1", "foxglove.websocket.v1"]
 WANT = {"/psvs/image": "foxglove.RawImage", "/psvs/edges": "foxglove.ImageAnnotations",
         "/psvs/points": "foxglove.PointCloud", "/psvs/depth": "psvs.depth"}
-
-
-def proto_class(schema_name: str, descriptor_set: bytes):
-    """The protobuf message class of ``schema_name`` from a serialised FileDescriptorSet."""
-    pool = descriptor_pool.DescriptorPool()
-    for fd in descriptor_pb2.FileDescriptorSet.FromString(descriptor_set).file:
-        pool.Add(fd)
-    return message_factory.GetMessageClass(pool.FindMessageTypeByName(schema_name))
 
 
 def cloud_z_mm(msg) -> np.ndarray:

@@ -11,7 +11,7 @@ from psvs.io.video import write_video
 from psvs.live.simulated import SimulatedSequence, disc_scene, ping_pong_positions
 from psvs.live.tracker import TrackerParams
 from psvs.optics.scale import pixel_scale
-from tests.live.test_tracker import rim_seed
+from tests.support.scenes import rim_seed
 
 
 def test_the_tracker_scales_its_pixel_limits_with_the_camera():

@@ -18,34 +18,10 @@ os.environ.setdefault("PYLON_CAMEMU", "1")       # before pypylon is first impor
 from psvs.cli.main import main  # noqa: E402
 from psvs.io.params import load_rig  # noqa: E402
 from psvs.live.camera import Acquisition  # noqa: E402
-from psvs.live.simulated import SimulatedSequence, disc_scene, ping_pong_positions  # noqa: E402
-from psvs.simulate.sensor import expose  # noqa: E402
-from tests.conftest import read_mcap  # noqa: E402
-from tests.live.test_tracker import rim_seed  # noqa: E402
+from tests.support.mcap import read_mcap  # noqa: E402
+from tests.support.video import FRAMES, write_frames
 
 ROOT = Path(__file__).resolve().parents[2]
-FRAMES = 5
-
-
-def write_frames(folder: Path, rig_name: str, bits: int):
-    """A disc moving 50 mm in depth over three positions, ``FRAMES`` frames exposed at ``bits`` bits:
-    ``video/`` holds them as psvs reads files (8-bit, or 12-bit values in 16-bit PNGs) and ``served/`` as
-    the emulator reads them. Returns (video folder, served folder, seed)."""
-    rig = load_rig(rig_name)
-    scene = disc_scene(z_mm=700.0, radius_mm=30.0, x_mm=15.0, y_mm=-20.0)
-    positions = ping_pong_positions(FRAMES, [-10.0, 6.0, -50.0], 3)
-    seq = SimulatedSequence(scene, rig, positions, seed=7)
-    video, served = folder / "video", folder / "served"
-    video.mkdir(parents=True)
-    served.mkdir()
-    for k in range(FRAMES):
-        img = expose(seq.irradiance(k), seq.sensor, 7 + k, bits=bits)
-        if bits == 12:
-            assert 2048 <= img.max() <= 4095       # a 12-bit frame (psvs finds a file's depth from its top)
-        cv2.imwrite(str(video / f"f{k:03d}.png"), img)
-        cv2.imwrite(str(served / f"f{k:03d}.png"), img if bits == 8 else (img.astype(np.uint16) << 4))
-    u, v = rim_seed(rig, scene, positions[0])
-    return video, served, f"{u:.1f},{v:.1f}"
 
 
 def serve(folder, size=None) -> list[str]:
@@ -213,7 +189,7 @@ def test_capture_keeps_its_views_when_the_camera_is_lost(tmp_path, capsys, monke
     device closed under the grabber after frame 5: it stops, keeps the views saved with the camera's settings
     beside them, names the last frame and exits 1 saying what is missing."""
     from psvs.live.pylon import PylonSource
-    from tests.conftest import write_hand_video
+    from tests.support.video import write_hand_video
     video = write_hand_video(tmp_path, holds=4, seed=2, hold_frames=2, move_frames=0, shared=True)
     frames = tmp_path / "frames"
     frames.mkdir()

@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from psvs.io.params import load_rig
-from tests.conftest import reconstruction_errors, write_hand_video
 from tests.support.cli import run
+from tests.support.geometry import reconstruction_errors
+from tests.support.video import write_hand_video
 
 pytestmark = pytest.mark.slow
 ROOT = Path(__file__).resolve().parents[2]

@@ -9,20 +9,10 @@ from psvs.io.video import write_video
 from psvs.live.simulated import ping_pong_positions
 from psvs.live.source import VideoSource, as_grey
 from psvs.live.tracker import EdgeTracker, TrackerParams, nearest_edge_pixels
-from psvs.optics.project import project_points
-from tests.conftest import EXAMPLES
+from tests.support.geometry import EXAMPLES
+from tests.support.scenes import rim_seed
 
 RIG_FILE = str(EXAMPLES / "rigs" / "default.toml")
-
-
-def rim_seed(rig, scene, position_mm, offset_px=(2.0, 1.0)):
-    """A point near the disc's rim in the left view (its leftmost rim point, projected, then moved by
-    offset_px: a user's double-click is never exactly on the edge)."""
-    disc = scene.objects[0]
-    c = disc.pose.position_mm - position_mm
-    uv, ok = project_points([[c[0] - disc.radius_mm, c[1], c[2]]], rig, "left")
-    assert ok[0]
-    return uv[0] + offset_px
 
 
 def test_live_cli_depth_every_frame(disc_video, tmp_path, capsys):

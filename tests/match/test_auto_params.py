@@ -4,7 +4,7 @@ import pytest
 
 from psvs.match.auto import AutoParams, match_auto
 from psvs.match.correspondence import MatchParams
-from tests.match.test_seeded import POLY, paper_edges
+from tests.support.scenes import POLY, paper_edges
 
 
 @pytest.mark.parametrize("field, value, message", [

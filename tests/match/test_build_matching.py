@@ -16,9 +16,8 @@ from psvs.optics.project import project_points
 from psvs.optics.search_range import disparity_range, rectification_for
 from psvs.simulate.render import render
 from psvs.simulate.sensor import Sensor
-from tests.match.test_overlap import CASES, assert_both_paired, overlap_scene
-from tests.match.test_scenes import flat_discs_scene
-from tests.optics.test_build import random_build
+from tests.support.rig_draws import random_build
+from tests.support.scenes import CASES, assert_both_paired, flat_discs_scene, overlap_scene
 
 BUILDS = {"misaligned": lambda: load_rig("misaligned"),
           **{f"random{s}": (lambda s=s: random_build(s)[0]) for s in (3, 6)}}

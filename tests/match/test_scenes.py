@@ -6,10 +6,9 @@ from psvs import default_rig
 from psvs.match.correspondence import MatchParams, match_image
 from psvs.optics.search_range import disparity_range
 from psvs.optics.trace import trace_pixels
-from psvs.simulate.builtin import builtin_scene, regulated_light
+from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
-from psvs.simulate.scene import Pose, Scene, SceneObject
-from psvs.simulate.textures import Uniform
+from tests.support.scenes import flat_discs_scene
 
 
 def pixel_errors(pair, truth):
@@ -43,14 +42,6 @@ def test_builtin_scenes_pair_correctly(rendered, name):
         assert correct.all()
     # the pairs use most of the edge map (fig6 is cluttered: many edges lose their twin to overlaps)
     assert 2 * sizes.sum() >= {"fig5a": 0.85, "fig5b": 0.6, "fig6": 0.3}[name] * m.edges.sum()
-
-
-def flat_discs_scene():
-    """Fronto-parallel white discs at 450-1100 mm whose two views stay apart."""
-    objs = (SceneObject("disc", Pose(np.eye(3), np.array([-40.0, -70.0, 450.0])), Uniform(0.95), radius_mm=18),
-            SceneObject("disc", Pose(np.eye(3), np.array([60.0, 80.0, 700.0])), Uniform(0.95), radius_mm=25),
-            SceneObject("disc", Pose(np.eye(3), np.array([10.0, 10.0, 1100.0])), Uniform(0.95), radius_mm=40))
-    return Scene(objs, regulated_light(700.0), 1500.0, Uniform(0.1))
 
 
 def rim_crossing(rig, view, v, centre, radius, u_guess):

@@ -5,8 +5,7 @@ import pytest
 
 from psvs.match.auto import match_auto
 from psvs.match.seeded import match_seeded
-
-POLY = np.array([[300, 100], [380, 130], [400, 260], [330, 330], [290, 250]], np.int32)
+from tests.support.scenes import POLY, paper_edges
 
 
 def edge_map(shapes):
@@ -15,15 +14,6 @@ def edge_map(shapes):
     for pts in shapes:
         cv2.polylines(img, [pts.astype(np.int32)], True, 255, 1)
     return img > 0
-
-
-def paper_edges(shapes):
-    """Filled shapes through the paper's pipeline (median, threshold 92, Roberts): its edges are 4-connected."""
-    from psvs.imaging.pipeline import PAPER
-    img = np.full((480, 640), 20, np.uint8)
-    for pts in shapes:
-        cv2.fillPoly(img, [np.rint(pts).astype(np.int32)], 200)
-    return PAPER.run(img)
 
 
 @pytest.mark.parametrize("make, connectivity", [(paper_edges, 4), (edge_map, 8)])

@@ -6,7 +6,7 @@ from psvs.errors import MeasurementError
 from psvs.io.params import load_rig
 from psvs.measure.refraction_fit import DISPARITY_NOISE_PX, RESIDUAL_FACTOR, fit_refraction, fit_refraction_terms
 from psvs.optics.project import project_points
-from tests.conftest import EXAMPLES
+from tests.support.geometry import EXAMPLES
 
 
 @pytest.fixture(scope="module")

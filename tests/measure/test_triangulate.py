@@ -6,7 +6,7 @@ import pytest
 from psvs.measure.triangulate import fit_refraction_terms, triangulate
 from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import MirrorExtent
-from tests.conftest import whole_field_points
+from tests.support.geometry import whole_field_points
 
 
 @pytest.fixture(scope="module")
@@ -110,7 +110,7 @@ def test_argument_errors(rig):
 def test_example_matches_recover_their_truth(clear_rig):
     """examples/matches.csv (projected through examples/rigs/clear.toml) against examples/matches_truth.csv."""
     from psvs.io.points import read_matches_csv
-    from tests.conftest import EXAMPLES
+    from tests.support.geometry import EXAMPLES
     left, right = read_matches_csv(EXAMPLES / "matches.csv")
     truth = np.loadtxt(EXAMPLES / "matches_truth.csv", delimiter=",", skiprows=1)
     res = triangulate(left, right, clear_rig, model="exact")

@@ -12,27 +12,8 @@ from psvs.optics.mirrors import virtual_centre
 from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import MirrorError
 from psvs.optics.trace import distort, undistort
-from tests.conftest import whole_field_points
-from tests.reference_build import Lens, ReferenceBuild
-
-DIST = (-0.2, 0.08, 1.5e-3, -1.0e-3, -0.02)
-
-
-def random_build(seed: int, tilt_deg=(0.1, 0.3), shift_mm=0.8, box_deg=0.3):
-    """A rig and its reference twin with every mirror tilted 0.1-0.3 deg about both axes (random signs),
-    shifted up to 0.8 mm, the box turned up to 0.3 deg, f 1 % and the principal point 5 px off."""
-    rng = np.random.default_rng(seed)
-    errors = {}
-    for name in ("m1", "m2", "m3", "m4"):
-        a, b = np.radians(rng.uniform(*tilt_deg, 2) * rng.choice([-1, 1], 2))
-        errors[name] = (float(a), float(b), float(rng.uniform(-shift_mm, shift_mm)))
-    box = np.radians(rng.uniform(-box_deg, box_deg, 3))
-    f, cx, cy = 11.3 * 1.01, 319.5 + 5.0, 239.5 - 4.0
-    rig = default_rig().replace(focal_length_mm=f, principal_point_px=(cx, cy), distortion=DIST,
-                                box_rotation_rad=tuple(box))
-    rig = rig.with_errors({k: MirrorError(v[:2], v[2]) for k, v in errors.items()})
-    ref = ReferenceBuild(Lens(f=f, centre=(cx, cy), dist=DIST), errors=errors, box_rotvec=box)
-    return rig, ref
+from tests.support.geometry import whole_field_points
+from tests.support.rig_draws import DIST, random_build
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -7,7 +7,7 @@ from psvs import default_rig
 from psvs.measure.triangulate import triangulate
 from psvs.optics.project import project_points
 from psvs.optics.trace import distort, undistort
-from tests.conftest import whole_field_points
+from tests.support.geometry import whole_field_points
 
 K = (-0.25, 0.12)
 

@@ -17,7 +17,7 @@ from psvs.simulate.render import render
 from psvs.simulate.scene import Pose, Scene, SceneObject
 from psvs.simulate.sensor import IDEAL
 from psvs.simulate.textures import Uniform
-from tests.simulate.conftest import FLAT_LIGHT
+from tests.support.scenes import FLAT_LIGHT
 
 CENTRE = [[319.5, 239.5]]
 

@@ -5,7 +5,7 @@ from psvs.measure.equations import project_eq9_10
 from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import MirrorExtent
 from psvs.optics.trace import trace_pixels
-from tests.conftest import whole_field_points
+from tests.support.geometry import whole_field_points
 
 
 def test_projection_matches_independent_model(rig, reference):

@@ -8,7 +8,7 @@ from psvs import default_rig
 from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.optics.rectify import needs_rectification, rectify
-from tests.optics.test_build import random_build
+from tests.support.rig_draws import random_build
 
 
 def twins(rig, seed, n=3000, near=400.0, far=1200.0):

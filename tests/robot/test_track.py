@@ -219,7 +219,7 @@ def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
 
     from psvs.robot.recording import TOPICS as REC_TOPICS
     from psvs.robot.recording import read_recording
-    from tests.conftest import read_mcap
+    from tests.support.mcap import read_mcap
     wp, run = gap10
     path = tmp_path / "run.mcap"
     _write_recording(run, path)

@@ -10,8 +10,7 @@ from psvs.optics.project import project_points
 from psvs.optics.window import roi_rig
 from psvs.simulate.render import render
 from psvs.simulate.sensor import IDEAL
-from tests.simulate.conftest import white_disc_scene
-from tests.simulate.test_render import centroid
+from tests.support.scenes import centroid, white_disc_scene
 
 
 def _window(rig, point_mm, rows=64):

@@ -12,14 +12,7 @@ from psvs.simulate.render import render
 from psvs.simulate.scene import Pose, Scene, SceneObject
 from psvs.simulate.sensor import IDEAL
 from psvs.simulate.textures import Checker, Noise, Uniform
-from tests.simulate.conftest import FLAT_LIGHT, white_disc_scene
-
-
-def centroid(img, around, half=60):
-    u0, v0 = np.round(around).astype(int)
-    win = img[v0 - half:v0 + half + 1, u0 - half:u0 + half + 1]
-    vv, uu = np.mgrid[v0 - half:v0 + half + 1, u0 - half:u0 + half + 1]
-    return np.array([(win * uu).sum() / win.sum(), (win * vv).sum() / win.sum()])
+from tests.support.scenes import FLAT_LIGHT, centroid, white_disc_scene
 
 
 def upright(x_mm: float, y_mm: float, z_mm: float) -> Pose:

@@ -4,7 +4,7 @@ import pytest
 from psvs.optics.project import project_points
 from psvs.simulate.sensor import IDEAL
 from psvs.simulate.sequence import render_sequence, scene_in_rig_frame, straight_path
-from tests.simulate.conftest import white_disc_scene
+from tests.support.scenes import white_disc_scene
 
 
 def test_moving_the_rig_moves_the_image(small_rig):

@@ -7,7 +7,7 @@ from psvs.simulate.render import render
 from psvs.simulate.scene import Pose, Scene, SceneObject
 from psvs.simulate.sensor import IDEAL
 from psvs.simulate.textures import Checker, Uniform
-from tests.simulate.conftest import FLAT_LIGHT
+from tests.support.scenes import FLAT_LIGHT
 
 
 def _wall(texture, z_mm=800.0):

@@ -21,8 +21,8 @@ from psvs.study.sample import (
     scoring_points_mm,
 )
 from psvs.study.tolerances import TestSet, tolerances_from_dict
-from tests.conftest import kabsch
 from tests.support.cli import run
+from tests.support.geometry import kabsch
 
 #: A small sample: 4 card views at psvs card-views' supersampling (2), the default rig's tolerances.
 SMALL = {"tolerances": {"mirror_tilt_deg": {"uniform": 0.2}, "mirror_shift_mm": {"uniform": 0.5},

@@ -61,17 +61,22 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from psvs import default_rig
 from psvs.calibrate.synthetic import check_card_fits
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import write_atomic
 from psvs.io.images import read_grey
 from psvs.io.params import dumps_rig
+from psvs.measure.triangulate import triangulate
 from psvs.optics.design import design_mirrors
 from psvs.optics.illumination import corner_rho2
+from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import Camera, MirrorError, Mirrors, Rig
 from psvs.simulate.scene import Scene
 from psvs.simulate.sensor import Sensor, blur, expose
 from psvs.simulate.textures import CircleGrid
+from tests.reference_build import Lens, ReferenceBuild
+from tests.support.geometry import whole_field_points
 
 #: Sensor formats (width, height) px of machine-vision cameras: VGA, WVGA, IMX287, SXGA-, SXGA, IMX273,
 #: 3:2 1.5 MP, full HD, WUXGA, IMX265, IMX250 (6:5), 5 MP 4:3.
@@ -453,9 +458,7 @@ def reconstruction_errors(calibrated: Rig, draw: RigDraw, n_side: int = 9, depth
     (errors (N,) mm, errors after the best rigid motion (N,) mm, the points (N, 3)). A point both views of the
     build see on the sensor but the calibrated rig cannot triangulate (its mirrors' extents or its lens put
     the correspondence outside its model) has an infinite error in both."""
-    from psvs.measure.triangulate import triangulate
-    from psvs.optics.project import in_image, project_points
-    from tests.conftest import kabsch, whole_field_points
+    from tests.support.geometry import kabsch
     pts = whole_field_points(draw.nominal, n_side=n_side, depths=tuple(np.linspace(draw.near_mm, draw.far_mm, depths)))
     left, okl = project_points(pts, draw.build, "left")
     right, okr = project_points(pts, draw.build, "right")
@@ -534,3 +537,24 @@ def calibrated_draw(seed: int, megapixels: tuple[float, float] = ALL_MP) -> Draw
         rejected.append((draw, f"calibrated to {cal.error_mm:.3f} mm ({cal.untriangulated} points not "
                                f"triangulated)"))
     raise AssertionError("unreachable")
+
+
+#: random_build's lens distortion (OpenCV's k1, k2, p1, p2, k3)
+DIST = (-0.2, 0.08, 1.5e-3, -1.0e-3, -0.02)
+
+
+def random_build(seed: int, tilt_deg=(0.1, 0.3), shift_mm=0.8, box_deg=0.3):
+    """A rig and its reference twin with every mirror tilted 0.1-0.3 deg about both axes (random signs),
+    shifted up to 0.8 mm, the box turned up to 0.3 deg, f 1 % and the principal point 5 px off."""
+    rng = np.random.default_rng(seed)
+    errors = {}
+    for name in ("m1", "m2", "m3", "m4"):
+        a, b = np.radians(rng.uniform(*tilt_deg, 2) * rng.choice([-1, 1], 2))
+        errors[name] = (float(a), float(b), float(rng.uniform(-shift_mm, shift_mm)))
+    box = np.radians(rng.uniform(-box_deg, box_deg, 3))
+    f, cx, cy = 11.3 * 1.01, 319.5 + 5.0, 239.5 - 4.0
+    rig = default_rig().replace(focal_length_mm=f, principal_point_px=(cx, cy), distortion=DIST,
+                                box_rotation_rad=tuple(box))
+    rig = rig.with_errors({k: MirrorError(v[:2], v[2]) for k, v in errors.items()})
+    ref = ReferenceBuild(Lens(f=f, centre=(cx, cy), dist=DIST), errors=errors, box_rotvec=box)
+    return rig, ref

@@ -26,12 +26,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from psvs.dense.build import dense_on_rig, rig_cloud
+from psvs.dense.params import DEFAULT, FAST
 from psvs.simulate.builtin import _at, regulated_light
 from psvs.simulate.scene import Scene, SceneObject
 from psvs.simulate.textures import ImageTexture, Uniform
 from tests.support.adaptive import render_irradiance
 from tests.support.rig_draws import (
     ALL_MP,
+    CALIBRATION_MM,
     RigDraw,
     calibrated_draw,
     camera_frame,
@@ -217,13 +220,6 @@ def shot(seed: int, scene: str, megapixels: tuple[float, float] = ALL_MP) -> Sho
     return Shot(scene, path, read_frame(path, draw), truth, share, {"render": t1 - t0, "truth": t2 - t1})
 
 
-def truth_on_left_grid(truth, rect, shape):
-    """A complex-image map ``truth`` (H, W) on the left view's rectified grid ``shape`` (H', W'): each grid
-    pixel takes the complex pixel it maps to (NaN where it maps to none), as tests/dense/test_build_dense.py."""
-    from tests.dense.test_build_dense import truth_on_left_grid as on_grid
-    return on_grid(truth, rect, shape)
-
-
 @dataclass(frozen=True, eq=False)
 class Score:
     """A dense result scored: ``bad``: the share of twin-visible pixels with no answer or |Z error| > 2 % of
@@ -253,7 +249,7 @@ def score_text(s: Score) -> str:
 def score(image: np.ndarray, truth_mm, rig, near_mm: float, far_mm: float, params) -> Score:
     """Dense depth of ``image`` through ``rig`` (``dense_on_rig``, ``rig_cloud``) and the gate
     (``rig_trust``), against ``truth_mm`` (None: only the gate)."""
-    from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
+    from psvs.dense.build import rig_trust
     t0 = time.perf_counter()
     dense = dense_on_rig(image, rig, near_mm, far_mm, params=params)
     t1 = time.perf_counter()
@@ -276,7 +272,49 @@ def score(image: np.ndarray, truth_mm, rig, near_mm: float, far_mm: float, param
 def scored(seed: int, scene: str, fast: bool, megapixels: tuple[float, float] = ALL_MP) -> Score:
     """:func:`score` of a draw's scene through its *calibrated* rig (never its truth), DEFAULT or FAST params,
     over its working range; cached per test session."""
-    from psvs.dense.params import DEFAULT, FAST
     cal = calibrated_draw(seed, megapixels)
     s = shot(seed, scene, megapixels)
     return score(s.image, s.truth_mm, cal.rig, cal.draw.near_mm, cal.draw.far_mm, FAST if fast else DEFAULT)
+
+
+#: Sensor sizes (MP) of the draws.
+SMALL, MID, LARGE = (0.3, 0.5), (1.0, 2.5), (2.5, 5.1)
+#: The largest share of wrong pixels on a textured scene, by mode.
+MAX_BAD = {"default": 0.10, "fast": 0.15}
+
+
+MODES = tuple(MAX_BAD)
+
+
+def draw_id(draw) -> str:
+    seed, mp = draw
+    return f"seed{seed}-{mp[0]:g}-{mp[1]:g}MP"
+
+
+def check_calibration(seed, megapixels):
+    cal = calibrated_draw(seed, megapixels)
+    assert cal.ok, f"calibration misses {CALIBRATION_MM} mm:\n{cal.describe()}"
+
+
+def check_scene(seed, megapixels, scene, mode):
+    cal = calibrated_draw(seed, megapixels)
+    s = scored(seed, scene, mode == "fast", megapixels)
+    what = f"{scene}, {mode}: {score_text(s)}\n{cal.describe()}"
+    if scene in TEXTURED:
+        assert s.answered, f"a textured scene refused: {what}"
+        assert s.bad <= MAX_BAD[mode], f"more than {MAX_BAD[mode]:.0%} wrong: {what}"
+    else:
+        assert not s.answered, f"a scene without echo answered: {what}"
+
+
+def truth_on_left_grid(truth, rect, shape):
+    """A complex-image map ``truth`` (H, W) on the left view's rectified grid ``shape`` (H', W'): each grid
+    pixel takes the complex pixel it maps to (NaN where it maps to none)."""
+    h, w = shape
+    uu, vv = np.meshgrid(np.arange(w), np.arange(h))
+    c = rect.lookup(np.column_stack([uu.ravel(), vv.ravel()]).astype(float), "left")
+    z = np.full(h * w, np.nan)
+    ok = np.all(np.isfinite(c), axis=1)
+    ci = np.rint(c[ok]).astype(int)
+    z[ok] = truth[ci[:, 1], ci[:, 0]]
+    return z.reshape(h, w)

@@ -19,7 +19,7 @@ from psvs.rigs import shipped_rig_path
 from psvs.web.app import MAX_BODY_BYTES, create_app
 from psvs.web.sources import image_source
 from tests.support.browser import shot
-from tests.web.conftest import local_client, serving
+from tests.support.web import local_client, serving
 
 #: (the calibrated build's stand-in, its design): the shipped builds and their designs.
 CASES = [("misaligned", "clear"), ("mv1440_misaligned", "mv1440")]

@@ -10,7 +10,7 @@ import pytest
 from psvs import default_rig
 from psvs.web.app import MAX_BODY_BYTES, create_app
 from psvs.web.sources import image_source, video_source
-from tests.web.conftest import DISC, PNG, local_client, rim_point_px
+from tests.support.web import DISC, PNG, local_client, rim_point_px
 
 
 @pytest.fixture
@@ -171,7 +171,7 @@ def test_malformed_bodies(client):
 def test_live_mode_on_a_video(disc_video):
     """Live mode plays the video, tracks the clicked edge and reports each frame's depth (0.5 %)."""
     path, truth, rig, scene, positions = disc_video
-    from tests.live.test_tracker import rim_seed
+    from tests.support.scenes import rim_seed
     with local_client(create_app(video_source(str(path)), rig)) as c:
         assert c.get("/api/live/frame.png").status_code == 404
         u, v = rim_seed(rig, scene, positions[0])
@@ -257,7 +257,7 @@ def test_calibrated_build_double_click_automatic_and_status():
     from psvs.optics.project import project_points
     from psvs.optics.rig import Calibration
     from psvs.simulate.render import render
-    from tests.match.test_scenes import flat_discs_scene
+    from tests.support.scenes import flat_discs_scene
     build = dataclasses.replace(load_rig("misaligned"), calibration=Calibration(0.031, 0.03, 0.032, 18, "18 card"))
     img = render(flat_discs_scene(), build, seed=5).image
     with local_client(create_app(image_source("discs.png", img), build, "calibrated")) as c:

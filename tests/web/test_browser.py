@@ -5,9 +5,9 @@ depth the page shows. Truth: the disc's depth (every rim point is at z); the cli
 from psvs import default_rig
 from psvs.web.app import create_app
 from psvs.web.sources import video_source
-from tests.live.test_tracker import rim_seed
 from tests.support.browser import dblclick_px, shot
-from tests.web.conftest import DISC, rim_point_px, serving
+from tests.support.scenes import rim_seed
+from tests.support.web import DISC, rim_point_px, serving
 
 
 def test_double_click_shows_depth(page, live_server, disc_source):

@@ -10,9 +10,9 @@ from psvs.io.params import load_rig  # noqa: E402
 from psvs.live.camera import Acquisition, parse_camera  # noqa: E402
 from psvs.web.app import create_app  # noqa: E402
 from psvs.web.sources import camera_source  # noqa: E402
-from tests.live.test_pylon import FRAMES, write_frames  # noqa: E402
 from tests.support.browser import dblclick_px, shot
-from tests.web.conftest import serving  # noqa: E402
+from tests.support.video import FRAMES, write_frames  # noqa: E402
+from tests.support.web import serving  # noqa: E402
 
 
 def test_live_page_from_the_emulated_basler_camera(page, tmp_path):

@@ -11,7 +11,7 @@ from psvs.web.app import create_app
 from psvs.web.capture_runner import CaptureSetup
 from psvs.web.sources import image_source, video_source
 from tests.support.browser import shot
-from tests.web.conftest import local_client, serving
+from tests.support.web import local_client, serving
 
 
 def _app(hand_video, folder):

@@ -13,7 +13,7 @@ from psvs.optics.project import project_points
 from psvs.simulate.render import render
 from psvs.web.app import create_app
 from psvs.web.sources import image_source
-from tests.web.conftest import local_client
+from tests.support.web import local_client
 
 DISC = {"z_mm": 700.0, "radius_mm": 40.0, "x_mm": 30.0, "y_mm": -20.0}
 STATIC = Path(__file__).resolve().parents[2] / "src" / "psvs" / "web" / "static"

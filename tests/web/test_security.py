@@ -10,7 +10,7 @@ from urllib.parse import urlparse
 import pytest
 
 from psvs.web.app import MAX_BODY_BYTES, create_app
-from tests.web.conftest import DISC, rim_point_px, serving
+from tests.support.web import DISC, rim_point_px, serving
 
 
 @pytest.fixture

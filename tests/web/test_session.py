@@ -9,7 +9,7 @@ from psvs.web.app import create_app
 from psvs.web.bodies import DenseBody, LiveBody, MatchBody
 from psvs.web.session import Session
 from psvs.web.sources import image_source
-from tests.web.conftest import PNG, local_client
+from tests.support.web import PNG, local_client
 
 
 def _squares(level: int) -> np.ndarray:

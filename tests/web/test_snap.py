@@ -11,7 +11,7 @@ from psvs.optics.scale import pixel_scale
 from psvs.web.api_match import SNAP_PX, snap_px, snap_seed
 from psvs.web.app import create_app
 from psvs.web.sources import image_source
-from tests.web.conftest import local_client
+from tests.support.web import local_client
 
 RIGS = {"default": default_rig, "mv1440": lambda: load_rig("mv1440")}
 
