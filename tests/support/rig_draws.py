@@ -15,7 +15,7 @@ sensible:
    user's files (PNG or JPEG, grey or a Bayer mosaic demosaiced by the camera), calibrate from the nominal
    design with ``psvs.calibrate.folder.calibrate_folder`` (the rig is never handed its truth) to within
    :data:`CALIBRATION_MM` over the working range, after the rigid motion no image can see (as
-   tests/conftest.py's ``reconstruction_errors``).
+   tests/support/geometry.py's ``reconstruction_errors``).
 
 A candidate that fails is *redrawn* (the next k) and the reason kept in :attr:`RigDraw.redraws`: the same
 seed always gives the same draw. Only :data:`CALIBRATION_TRIES` candidates are calibrated: when all of them
@@ -453,8 +453,8 @@ def scratch(name: str) -> Path:
 
 def reconstruction_errors(calibrated: Rig, draw: RigDraw, n_side: int = 9, depths: int = 5):
     """Triangulate the true correspondences of points over the draw's common field and working range
-    (``n_side`` x ``n_side`` at ``depths`` depths, tests/conftest.py's :func:`whole_field_points`) with a
-    calibrated rig (exact model), as tests/conftest.py's :func:`reconstruction_errors` does for 400-1200 mm:
+    (``n_side`` x ``n_side`` at ``depths`` depths, tests/support/geometry.py's :func:`whole_field_points`) with a
+    calibrated rig (exact model), as tests/support/geometry.py's :func:`reconstruction_errors` does for 400-1200 mm:
     (errors (N,) mm, errors after the best rigid motion (N,) mm, the points (N, 3)). A point both views of the
     build see on the sensor but the calibrated rig cannot triangulate (its mirrors' extents or its lens put
     the correspondence outside its model) has an infinite error in both."""
