@@ -53,7 +53,7 @@ def test_card_pose_reads_the_planted_pose(shots, built, depth_pct, turn_deg):
     card at 650 mm), so a tenth of a pixel of detection bias is a degree (measured: 1.05 deg flat, 0.13 deg
     tilted; 2.1 deg and 1.1 % through the build); the bins' thresholds (15 deg, flat under 8) are far wider."""
     nominal = load_rig("clear")
-    for (p, r, _), shot in zip(PLANTED, shots[built]):
+    for (p, r, _), shot in zip(PLANTED, shots[built], strict=True):
         pose = card_pose(detect_card(shot.image, CARD, nominal), nominal)
         n = -shot.target2cam[:3, 2]
         assert abs(pose.distance_mm / p[2] - 1) * 100 < depth_pct
@@ -66,7 +66,7 @@ def test_bins_of_the_planted_poses(shots):
     projections land (the exact optics of the build)."""
     nominal, build = load_rig("clear"), load_rig("misaligned")
     params = CaptureParams(views=5, near_mm=400.0, far_mm=900.0)
-    for (p, r, tilt), shot in zip(PLANTED, shots["misaligned"]):
+    for (p, r, tilt), shot in zip(PLANTED, shots["misaligned"], strict=True):
         bins = pose_bins(card_pose(detect_card(shot.image, CARD, nominal), nominal), nominal, params)
         assert f"tilt:{tilt}" in bins and sum(b.startswith("tilt:") for b in bins) == 1
         third = ("near", "mid", "far")[int((p[2] - 400) // (500 / 3))]

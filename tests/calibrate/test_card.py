@@ -105,7 +105,7 @@ def test_vertical_disagreement_map_against_the_reference(card_dir):
     ref = ReferenceBuild(Lens(f=c.focal_length_mm, centre=c.principal_point_px, dist=c.distortion),
                          Box(c1=22.0, c2=44.0), errors=errors, box_rotvec=true.mirrors.box_rotation_rad)
     u, v, dv = vertical_disagreement(true, 700.0, step_px=80)
-    for (uu, vv, d) in zip(u.ravel(), v.ravel(), dv.ravel()):
+    for (uu, vv, d) in zip(u.ravel(), v.ravel(), dv.ravel(), strict=True):
         if not np.isfinite(d):
             continue
         o, direction = ref.left_line(uu, vv)

@@ -99,7 +99,7 @@ def test_touching_discs_are_split():
     img = cv2.GaussianBlur(img, (0, 0), 0.8)
     discs = sorted(find_discs(img, (6.0, 30.0)), key=lambda d: d.centre_px[0])
     assert len(discs) == 3
-    for d, want in zip(discs, ((50, 60), (65, 60), (150, 60))):
+    for d, want in zip(discs, ((50, 60), (65, 60), (150, 60)), strict=True):
         assert np.linalg.norm(d.centre_px - want) < 0.3
     assert discs[0].crowded and discs[1].crowded and not discs[2].crowded
 

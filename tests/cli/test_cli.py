@@ -57,7 +57,8 @@ def matches_csv(tmp_path):
     left, _ = project_points(pts, rig, "left")
     right, _ = project_points(pts, rig, "right")
     p = tmp_path / "matches.csv"
-    rows = ["u_l,v_l,u_r,v_r"] + [",".join(repr(float(v)) for v in (*uv_l, *uv_r)) for uv_l, uv_r in zip(left, right)]
+    rows = ["u_l,v_l,u_r,v_r"] + [",".join(repr(float(v)) for v in (*uv_l, *uv_r))
+                                  for uv_l, uv_r in zip(left, right, strict=True)]
     rows.append("300,239.5,310,239.5")  # x_l < x_r: invalid
     p.write_text("\n".join(rows) + "\n")
     return p, pts

@@ -28,7 +28,7 @@ def depth_errors_mm(left_px, z_mm, depth_left_mm):
     """|Z - truth| per matched point: the truth is the object depth (not the backdrop's) in the 3x3 pixels
     around the left-view edge pixel that is closest to Z (an edge pixel straddles object and backdrop)."""
     out = []
-    for (u, v), z in zip(np.rint(left_px).astype(int), z_mm):
+    for (u, v), z in zip(np.rint(left_px).astype(int), z_mm, strict=True):
         w = depth_left_mm[v - 1:v + 2, u - 1:u + 2]
         w = w[np.isfinite(w) & (w < 1000.0)]   # fig5a's backdrop is at 1200 mm
         out.append(np.min(np.abs(w - z)) if w.size else np.inf)

@@ -149,7 +149,7 @@ def uvicorn_loggers():
     logs = [logging.getLogger(n) for n in ("uvicorn", "uvicorn.error", "uvicorn.access", "uvicorn.asgi")]
     saved = [(log.handlers, log.propagate) for log in logs]
     yield
-    for log, (handlers, propagate) in zip(logs, saved):
+    for log, (handlers, propagate) in zip(logs, saved, strict=True):
         log.handlers, log.propagate = handlers, propagate
 
 

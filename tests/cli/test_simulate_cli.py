@@ -34,7 +34,7 @@ def test_render_with_truth(capsys, tmp_path, small_rig_file):
 
 def test_same_seed_same_image(capsys, tmp_path, small_rig_file):
     paths = [tmp_path / f"{i}.png" for i in range(3)]
-    for p, seed in zip(paths, ("1", "1", "2")):
+    for p, seed in zip(paths, ("1", "1", "2"), strict=True):
         assert run(capsys, "simulate", "fig5a", "--rig", small_rig_file, "-o", str(p), "--seed", seed,
                    "--supersample", "1")[0] == 0
     a, b, c = (read_grey(p) for p in paths)

@@ -43,8 +43,8 @@ def test_exact_model_recovers_planted_points(rig):
     cloud = disparity_cloud(d, rig, model="exact")
     assert len(cloud.points_mm) == ok.sum()
     # depth error from rounding u_l to the pixel centre: below 0.1 % of Z
-    z_true = {(a, b): z for a, b, z in zip(u, v, pts[ok, 2])}
-    for (pu, pv), z in zip(cloud.pixels.astype(int), cloud.points_mm[:, 2]):
+    z_true = {(a, b): z for a, b, z in zip(u, v, pts[ok, 2], strict=True)}
+    for (pu, pv), z in zip(cloud.pixels.astype(int), cloud.points_mm[:, 2], strict=True):
         assert z == pytest.approx(z_true[(pu, pv)], rel=1e-3)
 
 

@@ -209,7 +209,7 @@ def test_one_sided_costs_against_their_definition(seed):
     keeps = rng.random((2, h, w)) < 0.3
     out = np.full((2, h, w, padded_lags(n)), np.nan, np.float32)
     both = one_sided_costs(echo, lags, fused, keeps[0], keeps[1], out)
-    for right_view, keep, got in zip((False, True), keeps, both):
+    for right_view, keep, got in zip((False, True), keeps, both, strict=True):
         _check_one_sided(got, echo, lags, fused, keep, right_view)
 
 

@@ -168,7 +168,7 @@ def test_a_kept_workspace_gives_the_same_maps():
         want = dense_disparity(img, 0, hi, params=params)
         got = dense_disparity(img, 0, hi, params=params, workspace=ws)
         for a, b in zip((want.disparity_left, want.disparity_right, want.confidence_left),
-                        (got.disparity_left, got.disparity_right, got.confidence_left)):
+                        (got.disparity_left, got.disparity_right, got.confidence_left), strict=True):
             np.testing.assert_array_equal(a, b)
     kept = {name: buf for name, buf in ws._buffers.items()}       # what the calls left in the workspace
     assert {"echo", "fused", "sgm", "one_sided"} <= set(kept) and ws.coarse._buffers

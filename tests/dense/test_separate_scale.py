@@ -81,7 +81,7 @@ def separated(rig_name: str, seed: int = 0, params: SeparationParams = Separatio
 
     def scores(views):
         return tuple(psnr_db(np.asarray(v, float)[m], np.asarray(tr, float)[m])
-                     for v, tr, m in zip(views, sc["truths"], sc["masks"]))
+                     for v, tr, m in zip(views, sc["truths"], sc["masks"], strict=True))
 
     k = sc["scale"] if pixel_scale_override is None else pixel_scale_override
     out = {"mixture": scores(sc["mixes"])}
@@ -117,7 +117,7 @@ def test_the_prior_is_scaled_by_the_square_of_the_pixel_scale():
     c = 0.5 * left + 0.5 * right
     scaled = separate_views(c, tl, 0.5, tr, params=SeparationParams(smoothness=0.05), pixel_scale=2.0)
     direct = separate_views(c, tl, 0.5, tr, params=SeparationParams(smoothness=0.2))
-    for a, b in zip(scaled, direct):
+    for a, b in zip(scaled, direct, strict=True):
         np.testing.assert_array_equal(a, b)
     plain = separate_views(c, tl, 0.5, tr)
     assert np.abs(scaled[0] - plain[0]).max() > 0.1               # and the scale does change the answer

@@ -41,7 +41,7 @@ def test_dense_maps_are_the_same_on_one_and_every_core(threads, params):
         numba.set_num_threads(n)
         res = dense_disparity(image, 0, 40, params=params)
         maps.append((res.disparity_left, res.disparity_right))
-    for a, b in zip(*maps):
+    for a, b in zip(*maps, strict=True):
         np.testing.assert_array_equal(a, b)
 
 
@@ -53,5 +53,5 @@ def test_view_separation_is_the_same_on_one_and_every_core(threads):
     for n in threads:
         numba.set_num_threads(n)
         views.append(separate_views(image, true_left, 0.5, true_right))
-    for a, b in zip(*views):
+    for a, b in zip(*views, strict=True):
         np.testing.assert_array_equal(a, b)

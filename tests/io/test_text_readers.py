@@ -52,8 +52,8 @@ def test_flange_poses_with_a_byte_order_mark(tmp_path):
     poses = tmp_path / "flange_poses.csv"
     poses.write_text(BOM + poses.read_text(encoding="utf-8"), encoding="utf-8")
     got_images, got_flanges, grid = read_views(tmp_path)
-    assert grid == CELL_GRID and all(np.array_equal(a, b) for a, b in zip(got_images, images))
-    assert all(np.allclose(a, b) for a, b in zip(got_flanges, flanges))
+    assert grid == CELL_GRID and all(np.array_equal(a, b) for a, b in zip(got_images, images, strict=True))
+    assert all(np.allclose(a, b) for a, b in zip(got_flanges, flanges, strict=True))
 
 
 @pytest.mark.parametrize("name, text", [

@@ -52,7 +52,7 @@ def test_live_dense_depth_every_frame_log_and_mcap(wall_video, tmp_path, capsys)
     depth_imgs = [Raw.FromString(m.data) for _, c, m in msgs if c.topic == "/psvs/dense/depth"]
     clouds = [Cloud.FromString(m.data) for _, c, m in msgs if c.topic == "/psvs/dense/points"]
     records = [json.loads(m.data) for _, c, m in msgs if c.topic == "/psvs/dense"]
-    for k, (img, cloud, record) in enumerate(zip(depth_imgs, clouds, records)):
+    for k, (img, cloud, record) in enumerate(zip(depth_imgs, clouds, records, strict=True)):
         assert img.encoding == "32FC1" and img.step == 4 * img.width
         zi = np.frombuffer(img.data, "<f4").reshape(img.height, img.width) * 1e3       # metres -> mm
         zc = np.frombuffer(cloud.data, "<f8").reshape(-1, 3)[:, 2] * 1e3

@@ -96,7 +96,7 @@ def test_video_source_and_writer_errors(tmp_path):
     frames = [np.random.default_rng(k).integers(0, 256, (48, 64), dtype=np.uint8) for k in range(3)]
     write_video(tmp_path / "r.avi", frames, fps=25)
     with VideoSource(video=str(tmp_path / "r.avi")) as src:
-        assert src.fps == 25 and all(np.array_equal(a, b) for a, b in zip(src, frames))
+        assert src.fps == 25 and all(np.array_equal(a, b) for a, b in zip(src, frames, strict=True))
 
 
 @pytest.mark.parametrize("args, message", [

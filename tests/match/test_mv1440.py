@@ -41,7 +41,7 @@ def test_auto_pairs_every_object(name, tmp_path, capsys):
     assert data["unmatched"] == []
     z = sorted(p["median_z_mm"] for p in data["pairs"])
     assert len(z) == len(DISCS), z
-    for (_, _, want, _), got in zip(DISCS, z):
+    for (_, _, want, _), got in zip(DISCS, z, strict=True):
         assert got == pytest.approx(want, rel=0.005)
     d = [p["median_disparity_px"] for p in data["pairs"]]
     assert max(d) > 255 and min(d) > 150    # beyond 8 bits: the range comes from the rig

@@ -33,8 +33,8 @@ def test_both_objects_paired_when_views_overlap(shape, z_ring, z_other, offset, 
         near = [lab[uv[:, 1] + dv, uv[:, 0] + du] for du in (-1, 0, 1) for dv in (-1, 0, 1)]
         return set(np.concatenate(near).tolist()) - {0}
 
-    twin = set().union(*(labels(p.right_px) for p, o in zip(m.pairs, owner) if o == 1))
-    ring_left = set().union(*(labels(p.left_px) for p, o in zip(m.pairs, owner) if o == 0))
+    twin = set().union(*(labels(p.right_px) for p, o in zip(m.pairs, owner, strict=True) if o == 1))
+    ring_left = set().union(*(labels(p.left_px) for p, o in zip(m.pairs, owner, strict=True) if o == 0))
     assert twin & ring_left
     # the second object's left outline is not listed as an edge without a twin
     uv, _ = project_points(other_c[None], rig, "left")

@@ -14,7 +14,7 @@ from tests.support.scenes import flat_discs_scene
 def pixel_errors(pair, truth):
     """|d - d_true| per matched left pixel, d_true the nearest ground-truth disparity within 2 px."""
     errs = []
-    for (u, v), d in zip(np.rint(pair.left_px).astype(int), pair.disparity_px):
+    for (u, v), d in zip(np.rint(pair.left_px).astype(int), pair.disparity_px, strict=True):
         win = truth[max(v - 2, 0):v + 3, max(u - 2, 0):u + 3]
         errs.append(np.nanmin(np.abs(win - d)) if np.isfinite(win).any() else np.inf)
     return np.asarray(errs)

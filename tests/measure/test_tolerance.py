@@ -50,7 +50,7 @@ def test_camera_turned_in_its_mount(rows):
 def test_effects_grow_linearly():
     small = tolerance_analysis(default_rig(), tilt_step_rad=math.radians(0.05), shift_step_mm=0.05)
     big = tolerance_analysis(default_rig())
-    for s, b in zip(small, big):
+    for s, b in zip(small, big, strict=True):
         assert b.row_px_mean == pytest.approx(2 * s.row_px_mean, rel=0.05, abs=1e-3)
         assert b.per_px == pytest.approx(s.per_px, rel=0.05) or b.row_px_max < 0.02
 

@@ -99,14 +99,14 @@ def test_views_folder_round_trips_and_calibrates_without_a_guess(session, tmp_pa
     with (tmp_path / "flange_poses.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert len(rows) == len(images)
-    for row, img, F in zip(rows, images, flanges):
+    for row, img, F in zip(rows, images, flanges, strict=True):
         assert np.array_equal(cv2.imread(str(tmp_path / row["image"]), cv2.IMREAD_GRAYSCALE), img)
         q = [float(row[k]) for k in ("qx", "qy", "qz", "qw")]
         assert np.allclose(Rotation.from_quat(q).as_matrix(), F[:3, :3], atol=1e-12)
         assert [float(row[k]) for k in ("x_mm", "y_mm", "z_mm")] == F[:3, 3].tolist()
     imgs2, fl2, grid = read_views(tmp_path)
-    assert grid == CELL_GRID and all(np.array_equal(a, b) for a, b in zip(imgs2, images))
-    assert all(np.allclose(a, b, atol=1e-12) for a, b in zip(fl2, flanges))
+    assert grid == CELL_GRID and all(np.array_equal(a, b) for a, b in zip(imgs2, images, strict=True))
+    assert all(np.allclose(a, b, atol=1e-12) for a, b in zip(fl2, flanges, strict=True))
     # no pose guess (the folder's case) gives the cell's result, labelled by the guesses
     free = calibrate_from_views(imgs2, fl2, default_rig(), grid)
     guided = calibrate_from_views(images, flanges, default_rig(), CELL_GRID, nominal_cam2flange(cfg), CELL_TARGET2BASE)

@@ -131,7 +131,7 @@ def test_seam_path_follows_a_noisy_circle_and_bridges_along_the_tangent():
     s_true = np.arange(0.0, 60.0, 0.4)
     pts = _circle(s_true) + rng.normal(0, 0.03, (len(s_true), 3))
     path = SeamPath(pts[0], [1.0, 0.0, 0.0])
-    for p, s in zip(pts[1:], s_true[1:]):
+    for p, s in zip(pts[1:], s_true[1:], strict=True):
         t = _circle(np.array([s + 0.01]))[0] - _circle(np.array([s]))[0]
         path.add(p, t / np.linalg.norm(t))
     path.fit(20.0)
@@ -156,7 +156,7 @@ def test_seam_path_bridges_a_gap_in_its_knots(seed):
     s_true = s_true[(s_true < 30.0) | (s_true > 44.0)]
     pts = _circle(s_true) + rng.normal(0, 0.03, (len(s_true), 3))
     path = SeamPath(pts[0], [1.0, 0.0, 0.0])
-    for p, s in zip(pts[1:], s_true[1:]):
+    for p, s in zip(pts[1:], s_true[1:], strict=True):
         t = _circle(np.array([s + 0.01]))[0] - _circle(np.array([s]))[0]
         path.add(p, t / np.linalg.norm(t))
     path.fit(25.0)

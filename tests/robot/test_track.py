@@ -251,8 +251,8 @@ def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
     assert rec.config == run.config and rec.seed_px is None and len(rec.frames) == n
     assert np.array_equal(rec.cam2flange, run.handeye.cam2flange)
     assert all(np.array_equal(f.image, c.image) and np.array_equal(f.flange2base, c.flange2base) and f.t_s == c.t_s
-               for f, c in zip(rec.frames, run.cycles))
-    assert all(np.array_equal(a, c.tool2base) for a, c in zip(rec.commands, run.cycles))
+               for f, c in zip(rec.frames, run.cycles, strict=True))
+    assert all(np.array_equal(a, c.tool2base) for a, c in zip(rec.commands, run.cycles, strict=True))
     assert main(["replay", str(path), "--rig", "examples/rigs/default.toml"]) == 0
     assert capsys.readouterr().out.strip() == \
         f"replayed {n} cycles: every command equals the recorded one (the run's stop: weld length reached)"

@@ -19,7 +19,7 @@ def test_same_seed_and_index_same_build_in_any_order():
     nominal = load_rig("default")
     first = [draw_build(nominal, TOL, 5, i) for i in range(4)]
     again = [draw_build(nominal, TOL, 5, i) for i in (3, 1, 0, 2)]
-    for (rig, dev), (rig2, dev2) in zip(first, [again[2], again[1], again[3], again[0]]):
+    for (rig, dev), (rig2, dev2) in zip(first, [again[2], again[1], again[3], again[0]], strict=True):
         assert rig == rig2 and dev == dev2
     devs = [tuple(d.values()) for _, d in first] + [tuple(draw_deviations(TOL, 6, 0).values())]
     assert len(set(devs)) == 5

@@ -105,7 +105,7 @@ def test_rss_sensitivity_recovers_planted_effects(tmp_path):
     a = np.array([r["dev_m1_tilt_a_deg"] for r in rows])
     b = np.array([r["dev_m2_tilt_b_deg"] for r in rows])
     score = np.sqrt(0.1 ** 2 + (3 * (a - a.mean()) / a.std() - 2 * (b - b.mean()) / b.std()) ** 2)
-    for r, v in zip(rows, score):
+    for r, v in zip(rows, score, strict=True):
         r.update(ok=True, reason="", row_offset_px=float(v))
     write_report(rows, tmp_path, {})
     got = json.loads((tmp_path / "scores.json").read_text())["rss_sensitivity"]["row_offset_px"]

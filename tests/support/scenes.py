@@ -73,10 +73,10 @@ def assert_both_paired(pairs, depths_mm) -> list[int]:
     both objects are paired (>= 15 pixel pairs each). Returns each pair's object (0: ring, 1: other)."""
     depths = np.array(depths_mm, float)
     owner = [int(np.argmin(np.abs(depths - p.median_z_mm()))) for p in pairs]
-    for p, k in zip(pairs, owner):
+    for p, k in zip(pairs, owner, strict=True):
         assert abs(p.median_z_mm() - depths[k]) <= 0.003 * depths[k], (k, len(p), p.median_z_mm())
     for k in (0, 1):
-        assert sum(len(p) for p, o in zip(pairs, owner) if o == k) >= 15, k
+        assert sum(len(p) for p, o in zip(pairs, owner, strict=True) if o == k) >= 15, k
     return owner
 
 

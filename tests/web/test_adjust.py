@@ -88,12 +88,13 @@ def test_the_maps_points_and_offsets(answered):
     assert sum(n) == len(pts) and [len(m["offset_px"]) for m in maps["after"]] == n
     z = np.concatenate([[m["z_mm"]] * len(m["u_px"]) for m in maps["before"]])
     assert z == pytest.approx(pts[:, 2], abs=1e-6)
-    uv = np.array([(u, v) for m in maps["before"] for u, v in zip(m["u_px"], m["v_px"])])
+    uv = np.array([(u, v) for m in maps["before"] for u, v in zip(m["u_px"], m["v_px"], strict=True)])
     grid_u, grid_v = np.linspace(0.05 * w, 0.95 * w, 11), np.linspace(0.05 * h, 0.95 * h, 9)
     assert np.abs(uv[:, 0, None] - grid_u).min(axis=1).max() < 1e-6      # each point on a grid column, px
     assert np.abs(uv[:, 1, None] - grid_v).min(axis=1).max() < 1e-6      # and on a grid row
     for when, (largest, rms) in (("before", g.before_px), ("after", g.after_px)):
-        r = np.array([np.nan if x is None else x for m in maps[when] for x, k in zip(m["offset_px"], m["weighed"])
+        r = np.array([np.nan if x is None else x for m in maps[when]
+                      for x, k in zip(m["offset_px"], m["weighed"], strict=True)
                       if k])
         assert len(r) == g.n_points and np.isfinite(r).sum() >= (g.n_points if when == "before" else 0.9 * g.n_points)
         r = r[np.isfinite(r)]

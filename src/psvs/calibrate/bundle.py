@@ -139,9 +139,9 @@ def rig_values(rig: Rig) -> dict[str, float]:
     lengths in mm, the principal point in px)."""
     c, m = rig.camera, rig.mirrors
     named = {"focal_length_mm": c.focal_length_mm, "cx_px": c.principal_point_px[0],
-             "cy_px": c.principal_point_px[1], **dict(zip(_LENS_TERMS, c.distortion)),
+             "cy_px": c.principal_point_px[1], **dict(zip(_LENS_TERMS, c.distortion, strict=True)),
              "plate_thickness_mm": m.plate_thickness_mm, "baseline_mm": m.baseline_mm,
-             **dict(zip(_BOX_TERMS, m.box_rotation_rad))}
+             **dict(zip(_BOX_TERMS, m.box_rotation_rad, strict=True))}
     for name in MIRROR_NAMES:
         err = m.error(name)
         named[f"{name}_tilt_a_rad"], named[f"{name}_tilt_b_rad"] = err.tilt_rad
@@ -179,7 +179,7 @@ def rig_from_vector(x: np.ndarray, start: Rig) -> Rig:
     x = np.asarray(x, dtype=float)
     if x.shape != (len(RIG_PARAMS),):
         raise ValueError(f"a rig vector holds {len(RIG_PARAMS)} parameters, got shape {x.shape}")
-    return rig_from_values(dict(zip(RIG_PARAMS, x)), start)
+    return rig_from_values(dict(zip(RIG_PARAMS, x, strict=True)), start)
 
 
 def initial_grid_pose(view: GridView, rig: Rig) -> np.ndarray:
@@ -222,7 +222,7 @@ def initial_sweep(views: list[SweepView], local_mm: np.ndarray, rig: Rig) -> np.
 def _sweep_points(s: np.ndarray, positions: np.ndarray, local_mm: np.ndarray) -> np.ndarray:
     """The sweep pattern's points in frame C (mm), shape (len(positions) * len(local_mm), 3): ``s`` holds
     the sweep's parameters (:data:`SWEEP_PARAMS` order), ``positions`` the robot's Z readings (mm)."""
-    p = dict(zip(SWEEP_PARAMS, s))
+    p = dict(zip(SWEEP_PARAMS, s, strict=True))
     R = Rotation.from_euler("zy", [p["rz_rad"], p["ry_rad"]]).as_matrix()
     pts = local_mm @ R.T
     if not len(positions):
@@ -242,7 +242,7 @@ class _Problem:
         self.n_sweep = len(SWEEP_PARAMS) if sweeps else 0
         self.full_start = rig_vector(start)
         self.x_start = self.full_start[self.free]
-        self.names = [p for p, f in zip(RIG_PARAMS, self.free) if f]
+        self.names = [p for p, f in zip(RIG_PARAMS, self.free, strict=True) if f]
         self.sigma = np.array([PRIOR_SIGMA[p] for p in self.names])
         self.obs = np.concatenate([np.concatenate([g.left for g in grids] + [s.left for s in sweeps]),
                                    np.concatenate([g.right for g in grids] + [s.right for s in sweeps])])
@@ -265,7 +265,7 @@ class _Problem:
     def points(self, x) -> np.ndarray:
         _, s, poses = self.split(x)
         parts = []
-        for g, p in zip(self.grids, poses):
+        for g, p in zip(self.grids, poses, strict=True):
             parts.append(g.object_mm @ Rotation.from_rotvec(p[:3]).as_matrix().T + p[3:])
         if self.sweeps:
             parts.append(_sweep_points(s, self.positions, self.local))
@@ -397,14 +397,14 @@ def _result(prob: _Problem, sol) -> BundleResult:
     cov = np.linalg.pinv(J.T @ J) * s2
     sig = np.sqrt(np.clip(np.diag(cov)[:k], 0, None))
     # what the data did not pin down: held on purpose, or its posterior sigma is still over half its prior's
-    sigma = dict(zip(names, map(float, sig)))
+    sigma = dict(zip(names, map(float, sig), strict=True))
     held = tuple(p for p in RIG_PARAMS if p not in sigma or sigma[p] > 0.5 * PRIOR_SIGMA[p])
     full_cov = np.zeros((len(RIG_PARAMS), len(RIG_PARAMS)))
     idx = np.flatnonzero(prob.free)
     full_cov[np.ix_(idx, idx)] = cov[:prob.n_rig, :prob.n_rig]
     rig = prob.rig(x)
     sweep_names = names[prob.n_rig:]
-    values = rig_values(rig) | dict(zip(sweep_names, map(float, x[prob.n_rig:k])))
+    values = rig_values(rig) | dict(zip(sweep_names, map(float, x[prob.n_rig:k]), strict=True))
     sigma = {p: sigma.get(p, 0.0) for p in RIG_PARAMS} | {n: sigma[n] for n in sweep_names}
     labels = [g.name for g in prob.grids] + [s.name for s in prob.sweeps]
     left, right = img[:n], img[n:]
@@ -418,7 +418,7 @@ def _result(prob: _Problem, sol) -> BundleResult:
         rms_px=float(np.sqrt(np.mean(img ** 2))),
         rms_by_view={"left": float(np.sqrt(np.mean(left ** 2))), "right": float(np.sqrt(np.mean(right ** 2)))},
         rms_by_image=per_image, residuals=residuals, observed=observed,
-        poses={g.name: transform_from_rotvec(p[:3], p[3:]) for g, p in zip(prob.grids, poses)},
+        poses={g.name: transform_from_rotvec(p[:3], p[3:]) for g, p in zip(prob.grids, poses, strict=True)},
         success=bool(sol.success), message=solver_verdict(sol.status, sol.nfev),
-        sweep=dict(zip(SWEEP_PARAMS, map(float, s))) if prob.n_sweep else {},
+        sweep=dict(zip(SWEEP_PARAMS, map(float, s), strict=True)) if prob.n_sweep else {},
         covariance=full_cov)

@@ -83,7 +83,7 @@ def _corners(grey: np.ndarray, markers: dict, cv_board) -> dict:
     if ch_ids is None or len(ch_ids) == 0:
         return {}
     pts = np.asarray(ch_corners, float).reshape(-1, 2)
-    return {int(i): p for i, p in zip(np.asarray(ch_ids).ravel(), pts)}
+    return {int(i): p for i, p in zip(np.asarray(ch_ids).ravel(), pts, strict=True)}
 
 
 def detect_charuco(grey: np.ndarray, board: CharucoBoard, rig: Rig):

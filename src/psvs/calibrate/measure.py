@@ -102,7 +102,7 @@ def epipolar_twins(left_px: np.ndarray, right: Ellipse, rig: Rig, z_mm: tuple[fl
         if len(cross) == 0:
             continue
         at = [c + f[k, c] / (f[k, c] - f[k, c + 1]) for c in cross]          # linear in the sample index
-        pos = [uv[k, c] + (a - c) * (uv[k, c + 1] - uv[k, c]) for c, a in zip(cross, at)]
+        pos = [uv[k, c] + (a - c) * (uv[k, c + 1] - uv[k, c]) for c, a in zip(cross, at, strict=True)]
         out[k] = min(pos, key=lambda q: q[0]) if first[k] else max(pos, key=lambda q: q[0])
     return out
 
@@ -293,7 +293,7 @@ def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int
 def _measurement(circles: list[Ellipse], pairs: np.ndarray, centres: np.ndarray, rig: Rig,
                  model: str) -> PatternMeasurement:
     diam = np.array([_circle_diameter(_rim_points(circles[a], circles[b], rig, model, float(c[2])))
-                     for (a, b), c in zip(pairs, centres)])
+                     for (a, b), c in zip(pairs, centres, strict=True)])
     return PatternMeasurement(float(centres[:, 2].mean()), diam, float(np.nanmean(diam)) if np.any(np.isfinite(diam))
                               else float("nan"), float(np.linalg.norm(centres[-1] - centres[0])), centres)
 
@@ -338,7 +338,8 @@ def pair_pattern(circles: list[Ellipse], rig: Rig, model: str, z_mm: tuple[float
     if not ways:
         raise MeasurementError(_no_twins(dist, tol, circles, z_mm))
     a, b = np.nonzero(dist <= tol)
-    pts = dict(zip(zip(a.tolist(), b.tolist()), triangulate(cpx[a], cpx[b], rig, model=model).points_mm))
+    found = triangulate(cpx[a], cpx[b], rig, model=model).points_mm
+    pts = dict(zip(zip(a.tolist(), b.tolist(), strict=True), found, strict=True))
     tried = []                     # (stage reached, error ratio, reason, pairs, centres)
     for way in ways:
         pairs = np.array(way)

@@ -196,7 +196,8 @@ def pair_with_start(circles: list[Ellipse], start: Rig, count: int, spacing_mm: 
     edges = np.hypot(across, beyond) <= band
     ways = perfect_matchings(edges)
     a, b = np.nonzero(edges)
-    pts = dict(zip(zip(a.tolist(), b.tolist()), triangulate(cpx[a], cpx[b], start, model="exact").points_mm))
+    found = triangulate(cpx[a], cpx[b], start, model="exact").points_mm
+    pts = dict(zip(zip(a.tolist(), b.tolist(), strict=True), found, strict=True))
     fits = []
     for way in ways:
         pairs = np.array(way)

@@ -43,7 +43,7 @@ def residuals_csv(res: BundleResult) -> str:
     writer.writerow(RESIDUAL_COLUMNS)
     for name in res.residuals:
         for k, view in enumerate(("left", "right")):
-            for (u, v), (du, dv) in zip(res.observed[name][k], res.residuals[name][k]):
+            for (u, v), (du, dv) in zip(res.observed[name][k], res.residuals[name][k], strict=True):
                 writer.writerow([name, view, *(repr(float(x)) for x in (u, v, du, dv))])
     return buf.getvalue()
 

@@ -83,7 +83,7 @@ class Table1:
     def rows(self) -> np.ndarray:
         """(15, 4): Z meas., Z calc., d calc., a calc. (mm), ours."""
         return np.array([[z, m.Z_mm, m.diameter_mm, m.first_last_distance_mm]
-                         for z, m in zip(self.z_true_mm, self.measurements)])
+                         for z, m in zip(self.z_true_mm, self.measurements, strict=True)])
 
     def summary(self) -> dict:
         r = self.rows()
@@ -191,7 +191,7 @@ def table_markdown(t: Table1) -> str:
              "| a calc. paper | a calc. psvs |",
              "|---:|---:|---:|---:|---:|---:|---:|"]
     lines += [f"| {a[0]:.1f} | {b[1]:.3f} | {a[1]:.3f} | {b[2]:.3f} | {a[2]:.3f} | {b[3]:.3f} | {a[3]:.3f} |"
-              for a, b in zip(r, p)]
+              for a, b in zip(r, p, strict=True)]
     lines += ["", "| error (d meas. = 10 mm, a meas. = 80 mm) | paper | psvs |", "|---|---:|---:|"]
     errors = (("mean_abs_z_error_mm", "mean \\|Z error\\| (mm)"), ("max_abs_z_error_mm", "max \\|Z error\\| (mm)"),
               ("mean_diameter_error_mm", "mean \\|d error\\| (mm)"),
@@ -211,7 +211,7 @@ def write_outputs(folder, t: Table1) -> list[Path]:
     r, p = t.rows(), PAPER_TABLE1
     csv = io.StringIO()
     csv.write("Z_meas_mm,Z_calc_mm,d_calc_mm,a_calc_mm,Z_calc_paper_mm,d_calc_paper_mm,a_calc_paper_mm\n")
-    for a, b in zip(r, p):
+    for a, b in zip(r, p, strict=True):
         csv.write(",".join(f"{v:.4f}" for v in (*a, *b[1:])) + "\n")
     write_atomic(folder / "table1.csv", csv.getvalue())
     write_atomic(folder / "table1.md", table_markdown(t))

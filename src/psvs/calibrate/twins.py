@@ -116,7 +116,7 @@ def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: 
         lo, hi = np.asarray(shift_px, float).T
         cands = [[j for j in c if lo[i] <= pts[i, 0] - pts[j, 0] <= hi[i]] for i, c in enumerate(cands)]
     tree = cKDTree(pts)
-    near = [tree.query_ball_point(p, r) for p, r in zip(pts, reach_px)]
+    near = [tree.query_ball_point(p, r) for p, r in zip(pts, reach_px, strict=True)]
     grown_sets: list[list[tuple[int, int]]] = []
     seen: set[tuple[int, int]] = set()
     for i, c in enumerate(cands):

@@ -97,7 +97,7 @@ def run(args) -> int:
         names = [out.with_name(f"{out.stem}_{i:03d}.png") for i in range(args.frames)]
 
     def frames():
-        for i, (res, name) in enumerate(zip(results, names)):
+        for i, (res, name) in enumerate(zip(results, names, strict=True)):
             if not video:
                 write_png(name, res.image)
             if truth_path is not None:

@@ -49,7 +49,7 @@ def run(args) -> int:
     images = [pattern_image(rig, float(z), args.seed + k) for k, z in enumerate(depths)]
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
-    for z, img in zip(depths, images):
+    for z, img in zip(depths, images, strict=True):
         name = f"sweep_{z:06.1f}.png".replace(".", "_", 1)
         write_png(folder / name, img)
         rows.append((name, float(z) - ROBOT_OFFSET_MM))

@@ -38,7 +38,7 @@ def figure_png(ev: Evaluation, d_max: float) -> bytes:
               (ev.right_view, f"separated right view ({ev.psnr_right_db:.1f} dB)", "gray", 0, 255),
               (np.where(np.isfinite(ev.truth), ~(np.abs(ev.disparity - ev.truth) <= 2), 0.5),
                "bad-2 pixels (white; grey: no truth)", "gray", 0, 1)]
-    for ax, (img, title, cmap, lo, hi) in zip(axes.ravel(), panels):
+    for ax, (img, title, cmap, lo, hi) in zip(axes.ravel(), panels, strict=False):
         # nearest: a smoothing resampler would spread the truth's NaN edges over whole areas
         ax.imshow(img, cmap=cmap, vmin=lo, vmax=hi, interpolation="nearest")
         ax.set_title(title, fontsize=10)

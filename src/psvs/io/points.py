@@ -66,7 +66,7 @@ def points_csv_text(points_mm: np.ndarray, valid: np.ndarray) -> str:
     """CSV text with columns ``X_mm,Y_mm,Z_mm,valid`` (valid as 1/0, invalid rows' coordinates nan)."""
     buf = io.StringIO()
     buf.write(",".join(POINT_COLUMNS) + "\n")
-    for (x, y, z), ok in zip(points_mm, valid):
+    for (x, y, z), ok in zip(points_mm, valid, strict=True):
         buf.write(f"{x:.15g},{y:.15g},{z:.15g},{int(bool(ok))}\n")
     return buf.getvalue()
 

@@ -183,8 +183,8 @@ class Telemetry:
         for parent, child, T in parent_child_T:
             q = _quat(T[:3, :3])
             tfs.append(FrameTransform(timestamp=_split_ns(ns), parent_frame_id=parent, child_frame_id=child,
-                                      translation=Vector3(**dict(zip("xyz", map(float, T[:3, 3] * 1e-3)))),
-                                      rotation=Quaternion(**dict(zip("xyzw", map(float, q))))))
+                                      translation=Vector3(**dict(zip("xyz", map(float, T[:3, 3] * 1e-3), strict=True))),
+                                      rotation=Quaternion(**dict(zip("xyzw", map(float, q), strict=True)))))
         self._channel("/tf", "FrameTransforms").log(FrameTransforms(transforms=tfs), log_time=ns)
 
     def lines(self, t_s: float, lines: dict[str, np.ndarray], frame_id: str = BASE_FRAME) -> None:

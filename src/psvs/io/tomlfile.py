@@ -189,7 +189,7 @@ def _same(old, new) -> bool:
             all(_same(old[k], new[k]) for k in old)
     if isinstance(old, list) or isinstance(new, list):
         return isinstance(old, list) and isinstance(new, list) and len(old) == len(new) and \
-            all(_same(a, b) for a, b in zip(old, new))
+            all(_same(a, b) for a, b in zip(old, new, strict=True))
     if isinstance(old, bool) or isinstance(new, bool):
         return type(old) is type(new) and old == new
     return old == new

@@ -294,8 +294,8 @@ def _candidates(ev: Evidence, d_min: int) -> list[Candidate]:
     kv = kv[np.concatenate(([True], kv[1:] != kv[:-1]))] // height
     rcount = np.diff(np.concatenate((np.flatnonzero(np.concatenate(([True], kv[1:] != kv[:-1]))), [len(kv)])))
     rk = kv[np.concatenate(([True], kv[1:] != kv[:-1]))]
-    rows = dict(zip(rk.tolist(), rcount.tolist()))
-    slices = dict(zip(uk.tolist(), zip(first.tolist(), last.tolist())))
+    rows = dict(zip(rk.tolist(), rcount.tolist(), strict=True))
+    slices = dict(zip(uk.tolist(), zip(first.tolist(), last.tolist(), strict=True), strict=True))
     # every local maximum over d of the (+-1 px smoothed) agreeing rows of a component pair is a candidate:
     # one pair of components can hold two twins at different disparities (merged outlines)
     smooth = {k: rows.get(k - 1, 0) + rows[k] + rows.get(k + 1, 0) for k in uk.tolist()}

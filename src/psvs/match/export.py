@@ -41,7 +41,7 @@ def write_csv(path, res: MatchResult) -> None:
     buf = io.StringIO()
     buf.write("pair,u_l,v_l,u_r,v_r,disparity_px,X_mm,Y_mm,Z_mm\n")
     for k, p in enumerate(res.pairs):
-        for (ul, vl), (ur, vr), d, (x, y, z) in zip(p.left_px, p.right_px, p.disparity_px, p.points_mm):
+        for (ul, vl), (ur, vr), d, (x, y, z) in zip(p.left_px, p.right_px, p.disparity_px, p.points_mm, strict=True):
             buf.write(f"{k},{ul:.4f},{vl:.4f},{ur:.4f},{vr:.4f},{d:.4f},{x:.4f},{y:.4f},{z:.4f}\n")
     write_atomic(path, buf.getvalue())
 

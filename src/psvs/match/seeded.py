@@ -70,7 +70,7 @@ def match_seeded(edges: np.ndarray, seed_px, disparity_range_px: tuple[float, fl
     seeds = cand_q[order][np.linspace(0, len(cand_q) - 1, min(n_seeds, len(cand_q))).astype(int)]
     # (5-7) the corresponding edge grows from the seeds through 4-neighbours, marked 2 (the selected edge,
     # already marked 1, is a barrier: a flood fill never enters marked mask pixels)
-    _flood(e8, mask, list(zip(px.u[seeds].tolist(), px.v[seeds].tolist())), connectivity, 2)
+    _flood(e8, mask, list(zip(px.u[seeds].tolist(), px.v[seeds].tolist(), strict=True)), connectivity, 2)
     right_idx = np.flatnonzero(mask[v + 1, u + 1] == 2)
     # (8) pair every selected pixel with the grown edge on its row, following the disparity along the edge
     li, ri = grow_pairs(px, np.flatnonzero(selected), right_idx, d_star)

@@ -68,7 +68,7 @@ def render_drawing(layout: MountLayout, segments: list, overall_mm: tuple) -> tu
             k = np.linspace(0, len(p0) - 1, 24).astype(int)
             far = np.minimum(1.0, 150.0 / np.maximum(np.linalg.norm(p1[k] - p0[k], axis=1), 1e-9))
             q1 = p0[k] + far[:, None] * (p1[k] - p0[k])
-            for a, b in zip(p0[k], q1):
+            for a, b in zip(p0[k], q1, strict=True):
                 top.plot([a[0], b[0]], [a[2], b[2]], color="gold", lw=0.3)
                 side.plot([a[2], b[2]], [a[1], b[1]], color="gold", lw=0.3)
         for part in layout.solids:

@@ -79,7 +79,7 @@ def bom_rows(layout: MountLayout) -> list[dict]:
         rows.append(("camera screw", 4, "M3 socket head screw", f"M3 x {_stock(p.plate_mm + 4)} mm",
                      f"{p.interface.upper()}-mount flange plate to the camera's front face "
                      f"(holes Ø{SCREW_CLEARANCE_MM:g} mm on a {p.hole_square_mm:g} mm square)"))
-    return [dict(zip(BOM_COLUMNS, r)) for r in rows]
+    return [dict(zip(BOM_COLUMNS, r, strict=True)) for r in rows]
 
 
 def bom_csv(layout: MountLayout) -> str:

@@ -469,7 +469,7 @@ def _m1_strip_start(planes: dict, glass: dict, seats: dict, params: MountParams,
     tall = 1e3
     strip = _carrier("m1", planes["m1"], ranges["m1"], seats["m1"], params, [(-tall, tall)])[0][0]
     start = light_mm
-    for box, name in zip(_glass_boxes(planes, glass, seats, params), MIRROR_NAMES):
+    for box, name in zip(_glass_boxes(planes, glass, seats, params), MIRROR_NAMES, strict=True):
         if name != "m1" and boxes_overlap(strip, Box(box.name, box.centre, box.x_dir, box.z_dir,
                                                           (box.size[0], 2 * tall, box.size[2]))):
             start = max(start, max(abs(v) for v in glass[name].height_mm) + params.clearance_mm)
@@ -501,7 +501,7 @@ def _check_m1_contacts(seat: Seat, ext: MirrorExtent, strip: float, top: float, 
     r = max(params.insert_radius_mm, params.standoff_mm)
     foot = max(abs(v) for v in ext.height_mm)                   # the light footprint's half height
     need = 2 * (strip + params.wall_mm + r - foot)              # a border whose middle is that far out
-    for what, t in zip(("P", "H", "V"), seat.contacts_st_mm[:, 1]):
+    for what, t in zip(("P", "H", "V"), seat.contacts_st_mm[:, 1], strict=True):
         if abs(t) - r < strip + params.wall_mm or abs(t) + r > top - params.wall_mm:
             raise MountError(
                 f"M1's contact {what} at {abs(t):.1f} mm from the axis plane lies in the light or off its strip "

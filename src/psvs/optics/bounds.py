@@ -109,11 +109,11 @@ def _check_camera(rig: Rig, lens_key: str, memory: bool) -> None:
     if memory:
         _memory.check_memory(FRAME_BYTES_PER_PX * w * h, f"camera.image_size_px = [{w}, {h}] ({w * h} px, "
                              f"{FRAME_BYTES_PER_PX} B a pixel for one frame)")
-    for k, (p, n) in enumerate(zip(c.principal_point_px, (w, h))):
+    for k, (p, n) in enumerate(zip(c.principal_point_px, (w, h), strict=True)):
         Bound("camera.principal_point_px", -0.5, n - 0.5, "px", "the sensor").check(
             p, f"camera.principal_point_px[{k}]")
     radial, tangential = bound("camera.distortion (k1, k2, k3)"), bound("camera.distortion (p1, p2)")
-    for k, (name, value) in enumerate(zip(("k1", "k2", "p1", "p2", "k3"), c.distortion)):
+    for k, (name, value) in enumerate(zip(("k1", "k2", "p1", "p2", "k3"), c.distortion, strict=True)):
         (radial if name.startswith("k") else tangential).check(value, f"camera.{lens_key}[{k}] ({name})")
     _check_illumination(c)
 
@@ -121,7 +121,7 @@ def _check_camera(rig: Rig, lens_key: str, memory: bool) -> None:
 def _check_illumination(c) -> None:
     """Each term within its bound, then RI over the whole sensor (axis to farthest corner) within what a lens
     passes: never more light off the axis than on it, and at least 5 % in the corners."""
-    for k, (name, value) in enumerate(zip(("a2", "a4"), c.relative_illumination)):
+    for k, (name, value) in enumerate(zip(("a2", "a4"), c.relative_illumination, strict=True)):
         bound("camera.relative_illumination (a2, a4)").check(value, f"camera.relative_illumination[{k}] ({name})")
     ri = bound("camera.relative_illumination (RI over the sensor)")
     lo, hi = ri_range(c)

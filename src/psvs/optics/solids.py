@@ -93,7 +93,7 @@ def _box(plane: Plane, thickness_mm: float) -> tuple[np.ndarray, np.ndarray]:
 def finite_solids(rig: Rig) -> tuple[str, ...]:
     """The solids of :data:`SOLIDS` that have a size in ``rig`` (the plate: M1's rectangle)."""
     m = rig.mirrors
-    return tuple(s for s, name in zip(SOLIDS, ("m1", "m2", "m3", "m4")) if m.extent(name) is not None)
+    return tuple(s for s, name in zip(SOLIDS, ("m1", "m2", "m3", "m4"), strict=True) if m.extent(name) is not None)
 
 
 def path_segments(hits: list, origins_mm: np.ndarray, dirs: np.ndarray, scene_depth_mm: float = SCENE_DEPTH_MM):

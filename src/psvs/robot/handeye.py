@@ -114,7 +114,7 @@ def consistent_labellings(candidates: list[list[TargetFit]], flange2base: list[n
     F0 = flange2base[0]
     first = candidates[0][0]
     out = [first]
-    for cands, F in zip(candidates[1:], flange2base[1:]):
+    for cands, F in zip(candidates[1:], flange2base[1:], strict=True):
         want = _angle(np.linalg.solve(F, F0)[:3, :3])
         out.append(min(cands, key=lambda c: abs(_angle(concat(invert_transform(first.target2cam),
                                                               c.target2cam)[:3, :3]) - want)))
@@ -185,7 +185,7 @@ def calibrate_hand_eye(flange2base: list[np.ndarray], target2cam: list[np.ndarra
     R, _ = Rotation.align_vectors(alpha[turns], beta[turns])
     R = R.as_matrix()
     lhs = np.concatenate([a[:3, :3] - np.eye(3) for a in A])
-    rhs = np.concatenate([R @ b[:3, 3] - a[:3, 3] for a, b in zip(A, B)])
+    rhs = np.concatenate([R @ b[:3, 3] - a[:3, 3] for a, b in zip(A, B, strict=True)])
     return transform_from(R, np.linalg.lstsq(lhs, rhs, rcond=None)[0])
 
 
@@ -223,14 +223,14 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
     flange2base = [flange2base[k] for k in used]
     if nominal_cam2flange is not None and target2base_guess is not None:
         fits = [labelled_as(c, invert_transform(F @ nominal_cam2flange) @ target2base_guess)
-                for c, F in zip(cands, flange2base)]
+                for c, F in zip(cands, flange2base, strict=True)]
     else:
         fits = consistent_labellings(cands, flange2base)
     t2c = [f.target2cam for f in fits]
     X0 = calibrate_hand_eye(flange2base, t2c)
     X, _, rms_px = refine_hand_eye(flange2base, fits, grid_points(grid), rig, X0)
     _check_fit(rms_px, fits, rig, robot_accuracy_mm)
-    targets = [concat(T, X, F) for F, T in zip(flange2base, t2c)]
+    targets = [concat(T, X, F) for F, T in zip(flange2base, t2c, strict=True)]
     pos = np.array([T[:3, 3] for T in targets])
     ang = [_angle(targets[0][:3, :3].T @ T[:3, :3]) for T in targets]
     return HandEyeResult(X, np.array([f.rms_mm for f in fits]),

@@ -104,7 +104,7 @@ def write_views(folder, images: list[np.ndarray], flange2base: list[np.ndarray],
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(POSE_COLUMNS)
-    for k, (img, F) in enumerate(zip(images, flange2base)):
+    for k, (img, F) in enumerate(zip(images, flange2base, strict=True)):
         name = f"view_{k:02d}.png"
         write_png(folder / name, img)
         q = Rotation.from_matrix(F[:3, :3]).as_quat()

@@ -56,7 +56,7 @@ def refine_hand_eye(flange2base: list[np.ndarray], fits: list, model_mm: np.ndar
     """
     F = [np.asarray(f, dtype=np.float64) for f in flange2base]
     obs = np.concatenate([np.concatenate([f.left_px for f in fits]), np.concatenate([f.right_px for f in fits])])
-    targets = [concat(f.target2cam, cam2flange, Fi) for f, Fi in zip(fits, F)]
+    targets = [concat(f.target2cam, cam2flange, Fi) for f, Fi in zip(fits, F, strict=True)]
     start = transform_from(targets[0][:3, :3], np.mean([T[:3, 3] for T in targets], axis=0))
     unread = np.isnan(obs)
 

@@ -107,7 +107,7 @@ class SceneGeometry:
         if self._threads == 1 or n < 100_000:
             return self._embree.run(o, d, **kwargs)
         cuts = np.linspace(0, n, self._threads + 1).astype(int)
-        parts = [slice(a, b) for a, b in zip(cuts[:-1], cuts[1:])]
+        parts = [slice(a, b) for a, b in zip(cuts[:-1], cuts[1:], strict=True)]
 
         def one(sl):
             kw = dict(kwargs)

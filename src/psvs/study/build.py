@@ -32,7 +32,7 @@ def draw_deviations(tol: Tolerances, seed: int, index: int) -> dict:
     keys, mm, px, or none); 0.0 for a parameter the TOL file does not tolerance."""
     children = _seeds(seed, index)
     out = {}
-    for key, child in zip(PARAMS, children):
+    for key, child in zip(PARAMS, children[:len(PARAMS)], strict=True):
         dist = tol.dists.get(key)
         v = 0.0 if dist is None else dist.draw(np.random.default_rng(child))
         out[key] = math.degrees(v) if key.endswith("_deg") else v
@@ -58,11 +58,11 @@ def apply_deviations(nominal: Rig, dev: dict) -> Rig:
     c, m = nominal.camera, nominal.mirrors
     try:
         rig = nominal.with_errors(errors).replace(
-            box_rotation_rad=tuple(a + rad.get(k, 0.0) for a, k in zip(m.box_rotation_rad, _BOX)),
+            box_rotation_rad=tuple(a + rad.get(k, 0.0) for a, k in zip(m.box_rotation_rad, _BOX, strict=True)),
             focal_length_mm=c.focal_length_mm + rad.get("focal_length_mm", 0.0),
             principal_point_px=(c.principal_point_px[0] + rad.get("cx_px", 0.0),
                                 c.principal_point_px[1] + rad.get("cy_px", 0.0)),
-            distortion=tuple(v + rad.get(k, 0.0) for v, k in zip(c.distortion, _LENS)),
+            distortion=tuple(v + rad.get(k, 0.0) for v, k in zip(c.distortion, _LENS, strict=True)),
             plate_thickness_mm=m.plate_thickness_mm + rad.get("plate_thickness_mm", 0.0),
             refractive_index=m.refractive_index + rad.get("refractive_index", 0.0),
             split_ratio=m.split_ratio + rad.get("split_ratio", 0.0))

@@ -112,7 +112,8 @@ def summarise(rows, targets: dict | None = None) -> dict:
     cols = _columns(rows)
     n = len(cols["ok"])
     ok = np.array([bool(v) for v in cols["ok"]])
-    reasons = Counter(_reason_kind(str(r)) for r, good in zip(cols.get("reason", [""] * n), ok) if not good)
+    reasons = Counter(_reason_kind(str(r)) for r, good in zip(cols.get("reason", [""] * n), ok, strict=True)
+                      if not good)
     scores = {s: _stats(_floats(cols[s])[ok]) for s in SCORES if s in cols}
     yields = {}
     for name, limit in (targets or {}).items():
@@ -154,7 +155,7 @@ def _figures(cols: dict, summary: dict) -> dict:
     out = {}
     fig, axes = _grid(max(len(shown), 1))
     fig2, axes2 = _grid(max(len(shown), 1))
-    for ax, ax2, s in zip(axes, axes2, shown):
+    for ax, ax2, s in zip(axes, axes2, shown, strict=False):
         x = _floats(cols[s])[ok]
         x = np.sort(x[np.isfinite(x)])
         ax.hist(x, bins=min(30, max(5, len(x) // 3)), color="tab:blue")
@@ -171,7 +172,7 @@ def _figures(cols: dict, summary: dict) -> dict:
     out["histograms.png"], out["yield.png"] = _png(fig), _png(fig2)
     ranked = [s for s in shown if s in summary["sensitivity"]]
     fig, axes = _grid(max(len(ranked), 1))
-    for ax, s in zip(axes, ranked):
+    for ax, s in zip(axes, ranked, strict=False):
         top = summary["sensitivity"][s][:TOP][::-1]
         ax.barh([r["parameter"] for r in top], [r["rho"] for r in top], color="tab:green")
         ax.set_xlim(-1, 1)
@@ -180,7 +181,7 @@ def _figures(cols: dict, summary: dict) -> dict:
     out["sensitivity.png"] = _png(fig)
     fitted = [s for s in shown if s in summary["rss_sensitivity"]]
     fig, axes = _grid(max(len(fitted), 1))
-    for ax, s in zip(axes, fitted):
+    for ax, s in zip(axes, fitted, strict=False):
         f = summary["rss_sensitivity"][s]
         top = f["ranking"][:TOP][::-1]
         ax.barh([r["parameter"] for r in top], [r["per_sigma"] for r in top], color="tab:orange")

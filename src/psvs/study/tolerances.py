@@ -205,7 +205,7 @@ def _procedure(table: dict) -> Procedure:
 
 def _sweep(value) -> tuple:
     t = _check_keys(value, "calibration.sweep", ("from_mm", "to_mm", "step_mm"))
-    d = dict(zip(("from_mm", "to_mm", "step_mm"), Procedure().sweep_mm))
+    d = dict(zip(("from_mm", "to_mm", "step_mm"), Procedure().sweep_mm, strict=True))
     lo, hi, step = (_number(t.get(k, d[k]), f"calibration.sweep.{k}", 0.0, False) for k in d)
     if hi < lo:
         raise ValueError(f"calibration.sweep.to_mm must be >= calibration.sweep.from_mm ({lo:g}), got {hi:g}")
