@@ -34,7 +34,7 @@ rays = trace_pixels(left, rig, "left")
 depths = np.linspace(400.0, 1200.0, 41)
 fig, axes = plt.subplots(1, 2, figsize=(11, 4.4), layout="constrained")
 worst = 0.0
-for k, (o, d) in enumerate(zip(rays.origins_mm, rays.dirs)):
+for k, (o, d) in enumerate(zip(rays.origins_mm, rays.dirs, strict=True)):
     pts = o + ((depths - o[2]) / d[2])[:, None] * d
     uv, ok = project_points(pts, rig, "right")
     ok &= (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1)

@@ -24,7 +24,7 @@ atexit.register(shutil.rmtree, SESSION_CACHE, ignore_errors=True)
 #: A fresh clone's first dense command says that it compiles (psvs._compiled); the tests check commands'
 #: stderr line by line, and which test compiles first is chance: the notice is off (tests/test_compiled.py on).
 os.environ["PSVS_NO_COMPILE_NOTICE"] = "1"
-#: The memory guard (psvs._memory) sees 8 GiB, whatever else the machine runs: a test's refusal or answer must
+#: The memory guard (psvs._budget) sees 8 GiB, whatever else the machine runs: a test's refusal or answer must
 #: not depend on the free memory of the moment (a fresh clone failed once with 196 MiB free). Tests of the
 #: guard itself set their own figure.
 os.environ["PSVS_MEMORY_AVAILABLE_MIB"] = "8192"

@@ -16,7 +16,7 @@ SRC = ROOT / "src" / "psvs"
 #: package). imaging knows nothing about rigs; dense and match are peers (neither imports the other); the
 #: command line and the web app sit on top, and no library module imports them.
 LAYERS = [
-    {"errors", "_validate", "_memory", "_quiet", "_work", "_threads", "_compiled", "transforms", "rigs"},
+    {"errors", "_validate", "_budget", "_quiet", "_threads", "_compiled", "transforms", "rigs"},
     {"optics", "evidence"},
     {"measure", "imaging"},
     {"simulate"},

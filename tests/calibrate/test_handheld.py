@@ -1,5 +1,6 @@
 """The simulated hand (psvs.calibrate.handheld) and the assistant's words, without rendering: the path's
 poses against what it promises, and the hint for a planted coverage and pose."""
+import itertools
 import math
 
 import numpy as np
@@ -42,7 +43,7 @@ def test_hand_path_keeps_its_promises(seed):
             inside.append(ok & (uv[:, 0] >= 0) & (uv[:, 0] <= w - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= h - 1))
         assert (f.kind == "still") == bool(inside[0].all() and inside[1].all())
     poses = [p for f in plan for p in f.poses]
-    steps = [np.linalg.norm(b.position_mm - a.position_mm) for a, b in zip(poses, poses[1:], strict=True)]
+    steps = [np.linalg.norm(b.position_mm - a.position_mm) for a, b in itertools.pairwise(poses)]
     assert max(steps) < 200.0                                         # no jump: one move at most in a step
     holds = [f for f in plan if f.kind != "moving"]
     assert all(len(f.poses) == 1 for f in holds) and len({id(f.poses[0]) for f in holds}) == 8

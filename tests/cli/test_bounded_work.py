@@ -1,5 +1,5 @@
 """No command starts work it cannot finish: counts and sizes are checked against the time and memory they
-imply before any work (psvs._work, psvs._memory), and a rig outside the physical bounds is refused when it
+imply before any work (psvs._budget, psvs._budget), and a rig outside the physical bounds is refused when it
 is loaded. Each refusal: exit status 2, one line on stderr naming the option (or the rig's key) with the
 estimate and the limit, within seconds, and an earlier output file left as it was. psvs design answers in
 seconds on the most extreme rigs the bounds allow."""
@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from psvs import _memory, default_rig
+from psvs import _budget, default_rig
 from psvs.io.params import save_rig
 from psvs.optics.rig import MirrorError
 from tests.support.cli import run
@@ -53,7 +53,7 @@ def rig_file(tmp_path, name="rig.toml", **changes):
 @pytest.fixture
 def plenty_of_memory(monkeypatch):
     """1 TiB available: the time limit is what refuses (the memory check is tested on its own)."""
-    monkeypatch.setattr(_memory, "available_bytes", lambda: 1 << 40)
+    monkeypatch.setattr(_budget, "available_bytes", lambda: 1 << 40)
 
 
 # ---- card-views --------------------------------------------------------------------------------------------
@@ -90,7 +90,7 @@ def test_card_views_refuses_renders_beyond_the_time_limit(capsys, tmp_path, plen
 
 
 def test_card_views_refuses_a_render_beyond_the_memory(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr(_memory, "available_bytes", lambda: 4 << 30)
+    monkeypatch.setattr(_budget, "available_bytes", lambda: 4 << 30)
     rig = rig_file(tmp_path, **BIG)
     refused(capsys, ["card-views", tmp_path / "cards", "--rig", rig],
             "--views 16: one render of 6400x4800 px x 4 sample(s) per pixel needs about 34.3 GiB of memory, "
@@ -100,13 +100,13 @@ def test_card_views_refuses_a_render_beyond_the_memory(capsys, tmp_path, monkeyp
 def test_the_memory_a_user_states_is_the_memory_the_guard_sees(capsys, tmp_path, monkeypatch):
     """$PSVS_MEMORY_AVAILABLE_MIB (a shared machine; the tests pin it) replaces the system's figure, in MiB;
     a value that is not a positive number is refused in one line naming the variable."""
-    monkeypatch.setenv(_memory.AVAILABLE_ENV, "4096")
-    assert _memory.available_bytes() == 4 << 30
+    monkeypatch.setenv(_budget.AVAILABLE_ENV, "4096")
+    assert _budget.available_bytes() == 4 << 30
     rig = rig_file(tmp_path, **BIG)
     refused(capsys, ["card-views", tmp_path / "cards", "--rig", rig],
             "needs about 34.3 GiB of memory, more than the 3.2 GiB available")
     for bad in ("", "lots", "0", "-5", "nan", "inf"):
-        monkeypatch.setenv(_memory.AVAILABLE_ENV, bad)
+        monkeypatch.setenv(_budget.AVAILABLE_ENV, bad)
         refused(capsys, ["card-views", tmp_path / "cards", "--rig", rig],
                 f"PSVS_MEMORY_AVAILABLE_MIB must be a positive number of MiB, got {bad!r}")
 
@@ -222,8 +222,7 @@ def test_handeye_refuses_a_session_beyond_the_limits(capsys, tmp_path, count, ex
 ])
 def test_track_refuses_a_run_beyond_the_limits(capsys, tmp_path, args, expected, limit_s, monkeypatch):
     """Checked before the hand-eye session (12 s) and the first cycle."""
-    from psvs import _work
-    monkeypatch.setattr(_work, "WORK_LIMIT_S", limit_s)
+    monkeypatch.setattr(_budget, "WORK_LIMIT_S", limit_s)
     report = earlier(tmp_path / "run" / "report.json")
     refused(capsys, ["track", "weld_seam", "--rig", "default", "-o", tmp_path / "run", "--no-bag", *args],
             expected, [report])
@@ -247,7 +246,7 @@ def test_live_refuses_frames_beyond_the_memory(capsys, tmp_path, monkeypatch):
     write_video(video, [np.full((48, 64), 100 + k, np.uint8) for k in range(10)], fps=25)
     rig = rig_file(tmp_path, image_size_px=(64, 48), pixel_pitch_mm=(0.1, 0.1), principal_point_px=(31.5, 23.5))
     log = earlier(tmp_path / "log.csv")
-    monkeypatch.setattr(_memory, "available_bytes", lambda: int(7 * KEPT_BYTES_PER_FRAME / 0.8))
+    monkeypatch.setattr(_budget, "available_bytes", lambda: int(7 * KEPT_BYTES_PER_FRAME / 0.8))
     live = ["live", "--video", video, "--rig", rig, "--seed", "1,2", "-o", log]
     refused(capsys, [*live, "--max-frames", "8"], "--max-frames 8 (32 KiB kept a frame for the log) needs about "
                                                   "256.0 KiB of memory, more than the 224.0 KiB available; fewer "

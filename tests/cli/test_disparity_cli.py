@@ -155,7 +155,7 @@ def test_memory_is_checked_before_the_cost_volume(capsys, tmp_path, planted, mon
     """24 B per (pixel, lag; the lags padded to a multiple of 8) + 400 B per pixel, and the coarse pass's
     cells (half the size, half the lags), against 80 % of what is available: refused in one line that names
     the options; the same range runs when the memory is there."""
-    from psvs import _memory
+    from psvs import _budget
     from psvs.dense.disparity import dense_memory_bytes
     paths, _ = planted
     h, w = read_grey(paths["complex"]).shape
@@ -163,7 +163,7 @@ def test_memory_is_checked_before_the_cost_volume(capsys, tmp_path, planted, mon
     lags = w - 1 - 3 + 1                                          # lags MIN_LAG_PX (3) .. w - 1
     padded = lambda n: -(-n // 8) * 8                              # noqa: E731
     assert need == 24 * (h * w * padded(lags) + (h // 2) * (w // 2) * padded(lags // 2)) + 400 * h * w
-    monkeypatch.setattr(_memory, "available_bytes", lambda: int(need / 0.8) - 1)
+    monkeypatch.setattr(_budget, "available_bytes", lambda: int(need / 0.8) - 1)
     out = tmp_path / "d.npy"
     code, _, err = run(capsys, "disparity", str(paths["complex"]), "-o", str(out), "--min-disparity", "0",
                        "--max-disparity", str(w - 1))

@@ -103,8 +103,8 @@ def test_sequence_as_lossless_video(capsys, tmp_path, small_rig_file):
 def test_supersample_limit_follows_the_memory_available(capsys, tmp_path, small_rig_file, monkeypatch):
     """With 1 GiB available (80 % usable) at 160x120 px x 300 B per sample: K = floor(sqrt(0.8 GiB / 5.76 MB))
     = 12 fits, 13 does not; the message names the option, the need and the largest K that fits."""
-    from psvs import _memory
-    monkeypatch.setattr(_memory, "available_bytes", lambda: 1 << 30)
+    from psvs import _budget
+    monkeypatch.setattr(_budget, "available_bytes", lambda: 1 << 30)
     out = tmp_path / "o.png"
     code, _, err = run(capsys, "simulate", "fig9", "--rig", small_rig_file, "-o", str(out), "--supersample", "13")
     assert code == 2 and len(err.strip().splitlines()) == 1

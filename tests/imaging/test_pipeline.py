@@ -148,8 +148,8 @@ def test_a_window_wider_than_the_image_is_refused_before_it_runs(tmp_path, text,
 def test_a_bilateral_filter_is_timed_before_it_runs(monkeypatch):
     """Its time (pixels x window taps x the measured cost of one) against psvs's work limit: at a limit of
     1 s, a 31 px window on 640x480 (0.28 s estimated) runs and a 101 px one (2.95 s) is refused."""
-    import psvs._work
-    monkeypatch.setattr(psvs._work, "WORK_LIMIT_S", 1.0)
+    import psvs._budget
+    monkeypatch.setattr(psvs._budget, "WORK_LIMIT_S", 1.0)
     img = np.zeros((480, 640), np.uint8)
     assert steps.bilateral(img, diameter=31).shape == img.shape
     with pytest.raises(ValueError, match=r"a bilateral filter of diameter 101 px on 640x480 px takes about 2\.9\d s, "

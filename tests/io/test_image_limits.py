@@ -8,8 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
+from psvs._quiet import c_stderr_captured, library_reason
 from psvs.io import images
-from psvs.io.cstderr import c_stderr_captured, library_reason
 from psvs.io.image_header import HeaderError, read_header
 from psvs.io.images import MAX_IMAGE_PIXELS, read_grey, read_image, write_png
 
@@ -109,10 +109,10 @@ def test_an_image_of_another_size_than_expected_is_refused_before_decoding(tmp_p
 
 
 def test_an_image_beyond_the_memory_available_is_refused_before_decoding(tmp_path, noise, no_decode, monkeypatch):
-    import psvs._memory
+    import psvs._budget
     path = tmp_path / "n.png"
     write_png(path, noise)
-    monkeypatch.setattr(psvs._memory, "available_bytes", lambda: 100_000)
+    monkeypatch.setattr(psvs._budget, "available_bytes", lambda: 100_000)
     with pytest.raises(ValueError, match=rf"^image {path} \(640x480 px\) needs about .* of memory, more than the"):
         read_grey(path)
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from psvs import _memory
+from psvs import _budget
 from psvs.io.params import dumps_rig, load_rig, rig_from_dict, rig_to_dict, save_rig
 from psvs.optics.bounds import BOUNDS, FRAME_BYTES_PER_PX, bound, check_rig_bounds
 from psvs.optics.rig import MirrorError
@@ -24,7 +24,7 @@ MIRRORS = ("m1", "m2", "m3", "m4")
 @pytest.fixture(autouse=True)
 def plenty_of_memory(monkeypatch):
     """The memory cap is its own test: here a 268-Mpx camera's frame fits whatever this machine has."""
-    monkeypatch.setattr(_memory, "available_bytes", lambda: 1 << 40)
+    monkeypatch.setattr(_budget, "available_bytes", lambda: 1 << 40)
 
 
 def _set(data: dict, key: str, value) -> None:
@@ -167,9 +167,9 @@ def test_a_frame_must_fit_in_the_memory_available(monkeypatch):
     """One frame at 64 B a pixel within 80 % of the memory available: a 4000 x 3000 camera needs 732 MiB."""
     need = FRAME_BYTES_PER_PX * 4000 * 3000
     data = _edited({"camera.image_size_px": [4000, 3000], **SIZE})
-    monkeypatch.setattr(_memory, "available_bytes", lambda: int(need / 0.8) + 16)
+    monkeypatch.setattr(_budget, "available_bytes", lambda: int(need / 0.8) + 16)
     rig_from_dict(data)
-    monkeypatch.setattr(_memory, "available_bytes", lambda: int(need / 0.8) - 16)
+    monkeypatch.setattr(_budget, "available_bytes", lambda: int(need / 0.8) - 16)
     with pytest.raises(ValueError, match=r"^camera\.image_size_px = \[4000, 3000\] \(12000000 px, 64 B a pixel for "
                                          r"one frame\) needs about 732\.4 MiB of memory, more than the 732\.4 MiB"):
         rig_from_dict(data)

@@ -36,7 +36,7 @@ def _basler_lines() -> list[str]:
 def _opencv_lines() -> list[str]:
     import cv2
 
-    from psvs.io.cstderr import c_stderr_captured
+    from psvs._quiet import c_stderr_captured
     opened = []
     for k in range(OPENCV_INDICES):
         with c_stderr_captured():              # each backend's complaint about an index that is not there

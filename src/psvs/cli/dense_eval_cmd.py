@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from psvs._memory import check_memory
+from psvs._budget import check_memory
 from psvs.cli.common import check_distinct, check_output_folder
 from psvs.dense.compiled import announce_dense
 from psvs.dense.evaluate import evaluate_pair, motorcycle

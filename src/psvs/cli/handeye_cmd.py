@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from psvs._memory import check_memory
+from psvs._budget import check_memory
 from psvs.cli.common import add_rig_argument, check_distinct, check_output_folder, check_output_path, rig_from_args
 
 

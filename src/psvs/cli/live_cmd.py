@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from psvs._memory import check_memory
+from psvs._budget import check_memory
 from psvs.cli.camera_args import add_source_arguments, check_source_arguments, open_source
 from psvs.cli.common import (
     add_model_argument,

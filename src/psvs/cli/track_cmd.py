@@ -95,7 +95,7 @@ def _job(args):
 def _check_work(args, cfg, rig, seam_mm: float) -> None:
     """The run's renders and cycles within the time and memory limits, before the hand-eye session: the
     session's views (unless --handeye), then every control cycle of welding --length (or the whole seam)."""
-    from psvs._work import check_time
+    from psvs._budget import check_time
     from psvs.robot.cells import SimulationConfig
     from psvs.robot.handeye_session import CELL_SUPERSAMPLE, CELL_VIEWS
     from psvs.robot.loop import CYCLE_SECONDS, RUN_IN_OUT_MM, cycle_seconds, track_cycles

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 import time
 
-from psvs._work import duration
+from psvs._budget import duration
 
 
 class Progress:

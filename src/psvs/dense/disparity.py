@@ -37,7 +37,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from psvs._memory import check_memory
+from psvs._budget import check_memory
 from psvs.dense.cost import echo_at_winner, fused_cost, one_sided_costs, padded_lags, unit_scaled, weighted_echo
 from psvs.dense.maps import consistent, echo_at, fill_from_background, finite_median, upsample
 from psvs.dense.params import COARSE, DEFAULT, FAST, MIN_LAG_PX, MIN_SIZE_PX, DenseParams

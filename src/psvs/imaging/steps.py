@@ -9,7 +9,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from psvs._work import check_time
+from psvs._budget import check_time
 
 
 def _grey(img: np.ndarray, step: str) -> np.ndarray:
@@ -67,7 +67,7 @@ def mean(img, ksize: int = 3):
 
 def bilateral(img, diameter: int = 5, sigma_color: float = 25.0, sigma_space: float = 3.0):
     """Edge-preserving bilateral filter (OpenCV): a window of ``diameter`` px (at most the image's larger
-    side), its time estimated first (:data:`BILATERAL_S_PER_TAP`; psvs._work's limit)."""
+    side), its time estimated first (:data:`BILATERAL_S_PER_TAP`; psvs._budget's limit)."""
     if not isinstance(diameter, int) or diameter < 1:
         raise ValueError(f"bilateral diameter must be an integer >= 1 px, got {diameter!r}")
     _within(diameter, "bilateral diameter", img)

@@ -7,11 +7,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from psvs._memory import check_memory
+from psvs._budget import check_memory
+from psvs._quiet import c_stderr_captured, library_reason
 from psvs._validate import check_grey
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import write_atomic
-from psvs.io.cstderr import c_stderr_captured, library_reason
 from psvs.io.image_header import HeaderError, ImageHeader, read_header
 
 

@@ -41,7 +41,7 @@ def write_video(path, frames, fps: float = 30.0) -> int:
 
 
 def _open(path):
-    from psvs.io.cstderr import c_stderr_captured, library_reason
+    from psvs._quiet import c_stderr_captured, library_reason
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"video not found: {path}")

@@ -12,7 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from psvs.io.cstderr import c_stderr_captured, library_reason
+from psvs._quiet import c_stderr_captured, library_reason
 from psvs.live.camera import Acquisition, CameraLost, Frame
 
 #: Image files a folder given as a sequence may hold (read in name order).

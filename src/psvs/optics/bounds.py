@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from psvs import _memory
+from psvs import _budget
 from psvs.optics.illumination import corner_rho2, ri_range
 from psvs.optics.rig import MIRROR_NAMES, Rig
 
@@ -107,7 +107,7 @@ def _check_camera(rig: Rig, lens_key: str, memory: bool) -> None:
         raise ValueError(f"camera.image_size_px = [{w}, {h}] is {w * h} px, outside {total.what} "
                          f"(at most {total.hi} px)")
     if memory:
-        _memory.check_memory(FRAME_BYTES_PER_PX * w * h, f"camera.image_size_px = [{w}, {h}] ({w * h} px, "
+        _budget.check_memory(FRAME_BYTES_PER_PX * w * h, f"camera.image_size_px = [{w}, {h}] ({w * h} px, "
                              f"{FRAME_BYTES_PER_PX} B a pixel for one frame)")
     for k, (p, n) in enumerate(zip(c.principal_point_px, (w, h), strict=True)):
         Bound("camera.principal_point_px", -0.5, n - 0.5, "px", "the sensor").check(

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psvs import _memory, _work
+from psvs import _budget
 from psvs._threads import pool_size
 from psvs.optics.illumination import illumination_map
 from psvs.optics.mirrors import mirror_planes
@@ -167,8 +167,8 @@ def check_supersample(rig: Rig, supersample, name: str = "supersample") -> int:
         raise ValueError(f"{name} must be an integer >= 1, got {supersample!r}")
     k = int(supersample)
     w, h = rig.camera.image_size_px
-    fits = max(1, int(math.sqrt(_memory.USABLE_SHARE * _memory.available_bytes() / render_memory_bytes(rig, 1))))
-    _memory.check_memory(render_memory_bytes(rig, k), f"{name} {k} ({w}x{h} px x {k * k} samples per pixel)",
+    fits = max(1, int(math.sqrt(_budget.USABLE_SHARE * _budget.available_bytes() / render_memory_bytes(rig, 1))))
+    _budget.check_memory(render_memory_bytes(rig, k), f"{name} {k} ({w}x{h} px x {k * k} samples per pixel)",
                  f"at most {name} {fits} fits")
     return k
 
@@ -187,14 +187,14 @@ def render_seconds(rig: Rig, supersample: int, frames: int = 1, truth: bool = Fa
 
 def check_render_work(rig: Rig, supersample: int, frames: int, what: str, hint: str = "", truth: bool = False) -> None:
     """ValueError before any rendering when one render of ``rig`` at K = ``supersample`` does not fit in
-    memory, or when ``frames`` of them would take longer than :data:`psvs._work.WORK_LIMIT_S`. ``what`` names
+    memory, or when ``frames`` of them would take longer than :data:`psvs._budget.WORK_LIMIT_S`. ``what`` names
     what the user asked for (e.g. ``--views 60``); the message gives the estimate and the limit, then ``hint``."""
     w, h = rig.camera.image_size_px
     k2 = supersample ** 2
-    _memory.check_memory(render_memory_bytes(rig, supersample), f"{what}: one render of {w}x{h} px x {k2} "
+    _budget.check_memory(render_memory_bytes(rig, supersample), f"{what}: one render of {w}x{h} px x {k2} "
                          f"sample(s) per pixel", hint)
     samples = float(frames) * w * h * (k2 + 2 * bool(truth))
-    _work.check_time(render_seconds(rig, supersample, frames, truth),
+    _budget.check_time(render_seconds(rig, supersample, frames, truth),
                      f"{what} ({frames} render(s) of {w}x{h} px x {k2} sample(s) per pixel"
                      f"{' with ground truth' if truth else ''}: {samples:.3g} samples at {SAMPLE_SECONDS * 1e6:g} "
                      f"us each)", hint)

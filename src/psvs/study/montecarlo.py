@@ -8,7 +8,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass
 
-from psvs._work import check_time, duration
+from psvs._budget import check_time, duration
 from psvs.cluster import RunOptions, read_results, run_tasks
 from psvs.cluster.store import check_params, check_run_folder
 from psvs.io.params import rig_to_dict

@@ -8,9 +8,9 @@ import cv2
 import numpy as np
 from fastapi import APIRouter, Request
 
+from psvs._quiet import c_stderr_captured, library_reason
 from psvs.imaging.pipeline import PAPER
 from psvs.imaging.steps import STEPS
-from psvs.io.cstderr import c_stderr_captured, library_reason
 from psvs.io.images import grey8
 from psvs.measure.triangulate import MODELS, default_model
 from psvs.optics.illumination import flat_field
