@@ -3,6 +3,7 @@
 
     python3 dev.py demo          # the main demo
     python3 dev.py test          # the whole test suite (what CI runs)
+    python3 dev.py test --quick  # the quick tier, for the edit-test loop (tests/support/durations.py)
     python3 dev.py bench         # benchmarks -> docs/benchmarks.md
     python3 dev.py psvs ARGS...  # any psvs command inside the project's virtualenv
 
@@ -105,7 +106,9 @@ def main(argv: list[str]) -> int:
         args = [py, "-m", "psvs", "demo", *rest]
     elif cmd == "test":
         workers = _workers(rest)
-        args = [py, "-m", "pytest", "-q", *workers, *rest]
+        # the whole suite keeps the record of each test's time that --quick chooses from (tests/support/durations.py)
+        record = [] if rest else ["--record-durations", str(ROOT / "tests" / "durations.json")]
+        args = [py, "-m", "pytest", "-q", *workers, *record, *rest]
         if workers:    # the cores shared out: each worker's Numba kernels (tests/conftest.py) and BLAS on its share
             share = str(max(1, (os.cpu_count() or 1) // int(workers[1])))
             for var in ("PSVS_WORKER_THREADS", "OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):

@@ -12,8 +12,9 @@ from tests.reference_optics import ReferenceRig
 from tests.support.geometry import EXAMPLES
 from tests.support.video import write_hand_video, write_wall_video
 
-#: fixtures every test file sees: the browser tests' Chromium page (tests/support/browser.py)
-pytest_plugins = ["tests.support.browser"]
+#: plugins of the whole suite: the browser tests' Chromium page (tests/support/browser.py), the quick tier and
+#: the record of durations it is chosen from (tests/support/durations.py)
+pytest_plugins = ["tests.support.browser", "tests.support.durations"]
 
 #: The session's own cache folder (psvs.dense.rig_cache): the tests never read or write the user's, and each
 #: session starts empty. Set at import, before any test or command runs (subprocesses inherit it); removed

@@ -1,0 +1,97 @@
+"""The quick tier of the suite and the record it is chosen from (a pytest plugin of the root conftest).
+
+- ``--record-durations FILE``: each test's time (setup + call + teardown, s, as the worker that ran it
+  measured) merged into FILE (JSON) when the session ends, atomically. ``python3 dev.py test`` (the whole
+  suite) keeps ``tests/durations.json`` so, and the record follows the suite.
+- ``--quick``: the edit-test loop. The tests marked ``slow`` are left out, and so is every test the record
+  says took more than :data:`QUICK_TEST_S` (the record: ``--record-durations FILE`` when given, else
+  ``tests/durations.json``); a test the record does not know (a new one) runs. The tests
+  left out are named in the summary line's count ("deselected").
+
+A test's first use of a costly shared fixture (a session's render or calibration) carries that fixture's
+time, so a file whose tests share one is left out whole or kept whole by its first test's time; the record
+of a machine under load is longer, which makes the tier smaller, never wrong.
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections import defaultdict
+from pathlib import Path
+
+#: s: the longest a test may have taken in the record to run in the quick tier.
+QUICK_TEST_S = 1.5
+#: The record ``python3 dev.py test`` keeps (``--record-durations``) and ``--quick`` reads.
+RECORD = Path(__file__).resolve().parents[1] / "durations.json"
+
+
+def pytest_addoption(parser):
+    group = parser.getgroup("psvs")
+    group.addoption("--quick", action="store_true",
+                    help=f"the quick tier: no test marked slow nor any that took over {QUICK_TEST_S:g} s in "
+                         f"{RECORD.name}")
+    group.addoption("--record-durations", metavar="FILE", default=None,
+                    help="write each test's time (setup + call + teardown, s) to FILE as JSON")
+
+
+_times: dict[str, float] = defaultdict(float)
+
+
+def pytest_runtest_logreport(report):
+    """Every phase's report reaches the controller (also from xdist's workers)."""
+    _times[report.nodeid] += float(report.duration)
+
+
+def quick_selection(nodeids: list[str], slow: set[str], record: dict[str, float],
+                    limit_s: float = QUICK_TEST_S) -> tuple[list[str], list[str]]:
+    """(kept, left out) of ``nodeids``: out when marked ``slow`` or recorded over ``limit_s``."""
+    out = [n for n in nodeids if n in slow or record.get(n, 0.0) > limit_s]
+    gone = set(out)
+    return [n for n in nodeids if n not in gone], out
+
+
+def read_record(path: Path = RECORD) -> dict[str, float]:
+    """The recorded times (node id -> s); empty when there is no record yet."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return {}
+    if not isinstance(data, dict) or not all(isinstance(v, (int, float)) for v in data.values()):
+        raise ValueError(f"{path}: not a record of test durations (node id -> seconds)")
+    return {str(k): float(v) for k, v in data.items()}
+
+
+def pytest_collection_modifyitems(config, items):
+    if not config.getoption("quick"):
+        return
+    slow = {it.nodeid for it in items if it.get_closest_marker("slow")}
+    record = config.getoption("record_durations")
+    kept, out = quick_selection([it.nodeid for it in items], slow, read_record(Path(record) if record else RECORD))
+    gone = set(out)
+    config.hook.pytest_deselected(items=[it for it in items if it.nodeid in gone])
+    items[:] = [it for it in items if it.nodeid not in gone]
+
+
+def write_record(path: Path, times: dict[str, float]) -> None:
+    """``times`` as sorted JSON at ``path``, written atomically (a temporary file renamed)."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=path.name, dir=path.parent)
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        json.dump({k: round(v, 3) for k, v in sorted(times.items())}, f, indent=0)
+        f.write("\n")
+    os.replace(tmp, path)
+
+
+def merged(old: dict[str, float], new: dict[str, float], root: Path) -> dict[str, float]:
+    """``old`` updated with ``new`` (a run of part of the suite keeps the rest of the record), less the
+    tests whose file is gone."""
+    both = {**old, **new}
+    return {k: v for k, v in both.items() if (root / k.split("::")[0]).exists()}
+
+
+def pytest_sessionfinish(session):
+    target = session.config.getoption("record_durations")
+    if target and not hasattr(session.config, "workerinput") and _times:
+        path = Path(target)
+        write_record(path, merged(read_record(path), _times, Path(session.config.rootpath)))
