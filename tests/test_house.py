@@ -2,6 +2,7 @@
 no function over 80 lines or 8 parameters outside the Numba kernels, one module for rigid transforms, and the
 linter (ruff) clean."""
 import ast
+import re
 import shutil
 import subprocess
 import sys
@@ -12,22 +13,20 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src" / "psvs"
 
-#: The packages' layers, lowest first: a module may import only from strictly lower layers (or its own
-#: package). imaging knows nothing about rigs; dense and match are peers (neither imports the other); the
-#: command line and the web app sit on top, and no library module imports them.
-LAYERS = [
-    {"errors", "_validate", "_budget", "_quiet", "_threads", "_compiled", "transforms", "rigs"},
-    {"optics", "evidence"},
-    {"measure", "imaging"},
-    {"simulate"},
-    {"io"},
-    {"match", "dense", "mount", "cluster"},
-    {"calibrate", "live"},
-    {"robot", "study"},
-    {"web"},
-    {"cli", "__init__"},
-    {"__main__"},
-]
+ARCHITECTURE = ROOT / "docs" / "architecture.md"
+
+
+def read_layers(text: str) -> list[set[str]]:
+    """The layers of docs/architecture.md's table, lowest first: each row ``| k | `a`, `b` | ... |``."""
+    rows = re.findall(r"^\|\s*(\d+)\s*\|([^|]*)\|", text, re.M)
+    layers = [set(re.findall(r"`([A-Za-z_]\w*)`", names)) for _, names in rows]
+    assert [int(k) for k, _ in rows] == list(range(len(rows))), "layers numbered 0, 1, 2, ... in order"
+    return layers
+
+
+#: The packages' layers, lowest first (docs/architecture.md): a module may import only from strictly lower
+#: layers (or its own package).
+LAYERS = read_layers(ARCHITECTURE.read_text(encoding="utf-8"))
 RANK = {name: k for k, layer in enumerate(LAYERS) for name in layer}
 MAX_LINES, MAX_PARAMS = 80, 8
 
@@ -52,6 +51,23 @@ def _imported(tree) -> set[str]:
         elif isinstance(node, ast.Import):
             out |= {a.name.split(".")[1] for a in node.names if a.name.startswith("psvs.")}
     return out
+
+
+def test_the_layer_table_reads_as_written():
+    """The parser is no looser than the table: a row out of order is an error, names are read per row."""
+    assert read_layers("| 0 | `a`, `_b` | x |\n| 1 | `c` | y |\n") == [{"a", "_b"}, {"c"}]
+    with pytest.raises(AssertionError, match="in order"):
+        read_layers("| 0 | `a` | x |\n| 2 | `c` | y |\n")
+    assert sum(map(len, LAYERS)) == len(RANK), "a package placed in two layers"
+
+
+def test_readme_layout_names_every_package():
+    """README's "Layout" lists every package of src/psvs (not the private modules), and only those."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split("## Layout", 1)[1].split("```", 2)[1]
+    listed = set(re.findall(r"^src/psvs/(\w+)/", block, re.M))
+    packages = {p.name for p in SRC.iterdir() if (p / "__init__.py").exists()}
+    assert listed == packages, f"missing: {sorted(packages - listed)}, not packages: {sorted(listed - packages)}"
 
 
 def test_every_package_has_a_layer():
