@@ -176,3 +176,71 @@ def test_the_borrowing_rule_sees_imports_at_any_depth():
     found = borrowed(ROOT / "tests" / "x.py", ast.parse(src))
     assert [line.split(" imports ")[1] for line in found] == ["tests.cli.test_cli", "tests.web.conftest",
                                                               "tests.dense.test_sweep"]
+
+
+def module_graph() -> dict[str, set[str]]:
+    """Each psvs module (dotted name) -> the psvs modules it imports, at module level or inside a function
+    (``from psvs.a import b`` is the module psvs.a.b when b is one, else psvs.a); imports for type checkers
+    only (under ``if TYPE_CHECKING:``) never run and do not count."""
+    names = {".".join(("psvs", *p.relative_to(SRC).with_suffix("").parts)).removesuffix(".__init__")
+             for p in SRC.rglob("*.py")}
+    graph = {}
+    for path, tree in _modules():
+        me = ".".join(("psvs", *path.relative_to(SRC).with_suffix("").parts)).removesuffix(".__init__")
+        out = set()
+        typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If)
+                       and ast.unparse(block.test) in ("TYPE_CHECKING", "typing.TYPE_CHECKING")
+                       for stmt in block.body for n in ast.walk(stmt)}
+        for node in ast.walk(tree):
+            if id(node) in typing_only:
+                continue
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "psvs":
+                out |= {f"{node.module}.{a.name}" if f"{node.module}.{a.name}" in names else node.module
+                        for a in node.names}
+            elif isinstance(node, ast.Import):
+                out |= {a.name for a in node.names if a.name in names}
+        graph[me] = out & names - {me}
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import cycles of ``graph``: its strongly connected components of more than one module (Tarjan)."""
+    index, low, stack, on, out = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return out
+
+
+def test_no_import_cycle_between_modules():
+    """No two modules import each other, directly or around a loop, even through a function-level import
+    (calibrate.charuco and calibrate.detect did, as did live.camera and live.source)."""
+    found = cycles(module_graph())
+    assert not found, "import cycles:\n" + "\n".join(" <-> ".join(c) for c in found)
+
+
+def test_the_cycle_finder_finds_cycles():
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+    assert cycles({"a": {"b"}, "b": set()}) == []

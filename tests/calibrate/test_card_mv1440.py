@@ -10,10 +10,10 @@ OpenCV's asymmetric circle grid and a ChArUco board calibrate too."""
 import numpy as np
 import pytest
 
-from psvs.calibrate.detect import target_points_mm
 from psvs.calibrate.folder import calibrate_folder
 from psvs.calibrate.synthetic import random_poses, render_grid_shots
 from psvs.calibrate.target_file import dumps_target
+from psvs.calibrate.target_points import target_points_mm
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.optics.project import project_points

@@ -7,10 +7,11 @@ import pytest
 
 from psvs import default_rig
 from psvs.calibrate.blobs import find_discs
-from psvs.calibrate.detect import TargetDetection, detect_target, target_points_mm
+from psvs.calibrate.detect import detect_target
 from psvs.calibrate.grid import detect_grid
 from psvs.calibrate.lattice import label_lattice, place_on_target
 from psvs.calibrate.synthetic import card_size_mm
+from psvs.calibrate.target_points import TargetDetection, target_points_mm
 from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.rigs import shipped_rig_path

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from psvs import default_rig
-from psvs.calibrate.measure import measure_pattern
 from psvs.calibrate.pairing import disc_size_range_px, lens_scale_range, perfect_matchings
+from psvs.calibrate.pattern_measure import measure_pattern
 from psvs.calibrate.targets import detect_circles, split_two_discs
 from psvs.errors import MeasurementError
 from psvs.io.images import write_png

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from psvs import default_rig
-from psvs.calibrate.measure import measure_pattern
+from psvs.calibrate.pattern_measure import measure_pattern
 from psvs.calibrate.targets import detect_pattern
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
@@ -100,7 +100,7 @@ def test_cli(capsys, tmp_path, images):
     assert code == 2 and "image is blank" in err
 
 
-# --- a measurement is checked against the pattern it claims to be (psvs.calibrate.measure) ---
+# --- a measurement is checked against the pattern it claims to be (psvs.calibrate.pattern_measure) ---
 
 from psvs.errors import MeasurementError  # noqa: E402
 
@@ -145,7 +145,7 @@ def test_diameters_and_spacings_are_checked_against_the_pattern(images):
     """Asked for 12 mm circles or a 25 mm spacing, the paper's pattern is refused with the numbers and the
     tolerance (1 px, 0.57 mm at 589 mm); the diameter check on a measurement of 25 mm circles (another
     build's optics) names it."""
-    from psvs.calibrate.measure import PatternMeasurement, check_geometry, footprint_mm
+    from psvs.calibrate.pattern_measure import PatternMeasurement, check_geometry, footprint_mm
     img, rig = images[(589, 0)], default_rig()
     px = footprint_mm(rig, 589.0)
     assert px == pytest.approx((589 + 50) * 0.01 / 11.3) and 0.56 < px < 0.57

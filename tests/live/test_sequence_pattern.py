@@ -16,6 +16,25 @@ def test_a_pattern_reads_its_frames_in_order_from_the_first_that_exists(tmp_path
     assert check_pattern("seq_%d.png") and check_pattern("seq_%012d.png") and not check_pattern("seq.png")
 
 
+def test_a_folder_sequence_holds_every_format_psvs_reads(tmp_path):
+    """A folder of frames in each format the README lists (PNM and PPM were left out), read in name order
+    with their values; a text file is not a frame."""
+    import cv2
+
+    from psvs.io.images import IMAGE_SUFFIXES, read_grey
+    for k, suffix in enumerate(IMAGE_SUFFIXES):
+        ok, buf = cv2.imencode(".pgm" if suffix == ".pnm" else suffix,
+                               cv2.cvtColor(np.full((4, 6), 40 + k, np.uint8), cv2.COLOR_GRAY2BGR)
+                               if suffix == ".ppm" else np.full((4, 6), 40 + k, np.uint8))
+        assert ok, suffix
+        (tmp_path / f"f{k:02d}{suffix}").write_bytes(buf.tobytes())
+    (tmp_path / "notes.txt").write_text("not a frame")
+    files = sequence_files(str(tmp_path))
+    assert [f.name for f in files] == [f"f{k:02d}{s}" for k, s in enumerate(IMAGE_SUFFIXES)]
+    lossless = [k for k, s in enumerate(IMAGE_SUFFIXES) if s not in (".jpg", ".jpeg")]
+    assert [int(read_grey(files[k]).mean()) for k in lossless] == [40 + k for k in lossless]
+
+
 @pytest.mark.parametrize("pattern, message", [
     ("seq_%999999999d.png", "a frame number of 999999999 digits; at most 12"),
     ("seq_%013d.png", "a frame number of 13 digits; at most 12"),

@@ -34,8 +34,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from psvs.calibrate.bundle import GridView, initial_grid_pose
-from psvs.calibrate.detect import CARD_DEPTHS_MM, MIN_DISC_PX, Target, target_points_mm
+from psvs.calibrate.detect import CARD_DEPTHS_MM, MIN_DISC_PX
 from psvs.calibrate.folder import card_view
+from psvs.calibrate.target_points import Target, target_points_mm
 from psvs.errors import MeasurementError
 from psvs.optics.project import project_points
 from psvs.optics.rig import Rig

@@ -15,6 +15,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
+from psvs.calibrate.target_points import TargetDetection
 from psvs.calibrate.twins import twin_candidates
 from psvs.optics.rig import Rig
 from psvs.simulate.textures import CharucoBoard
@@ -89,7 +90,6 @@ def _corners(grey: np.ndarray, markers: dict, cv_board) -> dict:
 def detect_charuco(grey: np.ndarray, board: CharucoBoard, rig: Rig):
     """Both views of a ChArUco board (see the module docstring): a
     :class:`psvs.calibrate.detect.TargetDetection`, or ValueError saying why not."""
-    from psvs.calibrate.detect import TargetDetection
     cv_board = opencv_board(board)
     corners, ids = _markers(grey, cv_board)
     if len(ids) == 0:

@@ -18,17 +18,17 @@ ChArUco boards: :mod:`psvs.calibrate.charuco`.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from psvs._validate import check_grey
 from psvs.calibrate.blobs import find_discs
 from psvs.calibrate.lattice import label_lattice, place_on_target
+from psvs.calibrate.target_points import Target, TargetDetection
 from psvs.calibrate.twins import REACH_OVER_STEP, pair_twins
 from psvs.optics.illumination import flat_field
 from psvs.optics.rig import Rig
-from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid
+from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard
 
 #: A disc whose surroundings vary more than this (share of its contrast) is not trusted for calibration.
 MAX_BACKGROUND_SPREAD = 0.25
@@ -40,38 +40,6 @@ RIM_RAYS = 64
 CARD_DEPTHS_MM = (300.0, 2000.0)
 #: The smallest disc (px across) located to a tenth of a pixel.
 MIN_DISC_PX = 4.0
-
-Target = CircleGrid | AsymmetricCircleGrid | CharucoBoard
-
-
-@dataclass(frozen=True, eq=False)
-class TargetDetection:
-    """One complex image's target points: ids (n,) int, indices into :func:`target_points_mm`; left, right
-    (n, 2) px, the same target point in both views; reliable (n,) bool: both images located without bias
-    (no neighbour or other view's edge disturbing them; an untrusted point may be several px off: the centre
-    of two merged discs); ``complete``: every point of the target found;
-    ``ids_certain``: the ids are the target's own (False where part of a symmetric grid fits it at several
-    places: the ids are then right up to a shift along the grid, the same in both views)."""
-
-    ids: np.ndarray
-    left: np.ndarray
-    right: np.ndarray
-    reliable: np.ndarray
-    complete: bool
-    ids_certain: bool = True
-
-    def object_mm(self, target: Target) -> np.ndarray:
-        """The points' positions on the target (n, 3) mm, z = 0."""
-        local = target_points_mm(target)[self.ids]
-        return np.column_stack([local, np.zeros(len(local))])
-
-
-def target_points_mm(target: Target) -> np.ndarray:
-    """The target's calibration points (N, 2) mm in its own frame (centred), in its id order."""
-    if isinstance(target, CharucoBoard):
-        return target.corners_mm()
-    return target.centres_mm()
-
 
 def detect_target(grey: np.ndarray, target: Target, rig: Rig, depths_mm=CARD_DEPTHS_MM) -> TargetDetection:
     """Both views of ``target`` in one complex image, through the nominal ``rig``'s geometry.

@@ -22,9 +22,10 @@ import numpy as np
 
 from psvs._threads import one_blas_thread
 from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
-from psvs.calibrate.detect import Target, TargetDetection, detect_target, target_points_mm
+from psvs.calibrate.detect import detect_target
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
 from psvs.calibrate.target_file import load_target
+from psvs.calibrate.target_points import Target, TargetDetection, target_points_mm
 from psvs.evidence import check_build
 from psvs.io.images import IMAGE_SUFFIXES, read_grey
 from psvs.optics.mirrors import virtual_centre

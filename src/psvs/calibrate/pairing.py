@@ -18,7 +18,7 @@ off-centre one, a near pattern on a short lens) it does not. So every assignment
 3. **Equal spacing along the pattern.** Each assignment's twins are triangulated (exact optics); the n
    centres, ordered along their row, must lie on a line, consecutive centres the pattern's spacing apart.
 4. **Diameters.** The circles of the assignments left must be the pattern's diameter
-   (:mod:`psvs.calibrate.measure`).
+   (:mod:`psvs.calibrate.pattern_measure`).
 
 Exactly one assignment must remain: none, or more than one, is a :class:`~psvs.errors.MeasurementError`
 saying so (with the nearest candidate's failed check when none fits).

@@ -80,7 +80,7 @@ def random_poses(rig: Rig, grid, n: int, seed: int = 0, z_range_mm=(450.0, 1000.
     other view's grid); without, they may interleave as a hand-held card's do, only no two discs of the
     two views closer than a radius (discs on top of each other are one blob). A grid no pose could show is
     refused first (:func:`check_card_fits`); ``grid`` may be any target (psvs.calibrate.detect.Target)."""
-    from psvs.calibrate.detect import target_points_mm
+    from psvs.calibrate.target_points import target_points_mm
     if isinstance(grid, CircleGrid):
         check_card_fits(rig, grid, n, z_range_mm, tilt_deg, margin_px, apart)
     max_tries = 2000
@@ -126,7 +126,7 @@ def render_grid_shots(rig: Rig, grid: CircleGrid, poses: list[Pose], seed: int =
                       supersample: int = 2, sensor=None) -> list[GridShot]:
     """Render the card (any target: its printed image) at each pose through ``rig`` (realistic sensor: blur
     and noise, seeded; ``sensor`` a :class:`psvs.simulate.sensor.Sensor`, the renderer's default when None)."""
-    from psvs.calibrate.detect import target_points_mm
+    from psvs.calibrate.target_points import target_points_mm
     from psvs.simulate.builtin import regulated_light
     from psvs.simulate.render import render
     size = card_size_mm(grid)

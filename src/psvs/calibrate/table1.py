@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from psvs.calibrate.bundle import BundleResult, bundle_adjust
-from psvs.calibrate.measure import PatternMeasurement, measure_pattern
 from psvs.calibrate.pairing import detect_with_start
+from psvs.calibrate.pattern_measure import PatternMeasurement, measure_pattern
 from psvs.calibrate.sweep import calibrate_sweep
 from psvs.calibrate.targets import MIN_AREA_PX
 from psvs.errors import MeasurementError

@@ -290,6 +290,6 @@ def detect_pattern(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_
     """Find the pattern's ``count`` circles in both views of a complex image (:func:`detect_circles`) and
     split them by u, the first ``count`` the right view: right only where the two copies sit apart, not
     interleaved. A rig pairs them by its geometry instead (:func:`psvs.calibrate.pairing.pair_with_start`,
-    :func:`psvs.calibrate.measure.measure_pattern`)."""
+    :func:`psvs.calibrate.pattern_measure.measure_pattern`)."""
     circles = detect_circles(grey, count, max_diameter_px, min_area_px)
     return PatternDetection(circles[count:], circles[:count])

@@ -91,8 +91,7 @@ def _cli_asks(args) -> bool:
 def open_source(args):
     """The frame source the arguments name, opened and configured (closed again on a fault): one-line
     ValueError/OSError (exit 2) before anything is written."""
-    from psvs.live.camera import open_camera
-    from psvs.live.source import open_video
+    from psvs.live.source import open_camera, open_video
     spec, acq = check_source_arguments(args)
     if spec is None:
         return open_video(args.video)

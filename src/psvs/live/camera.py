@@ -4,7 +4,7 @@ sequences, Basler pylon cameras), the frame it delivers, the acquisition setting
 
 A source is opened, configured, grabbed from and closed::
 
-    source = open_camera("basler:0")          # or "0" (an OpenCV index), or VideoSource(video=...)
+    source = open_camera("basler:0")          # psvs.live.source; or "0" (an OpenCV index), or VideoSource(...)
     with source:                              # open() ... close()
         source.configure(Acquisition(exposure_us=2000, pixel_format="Mono12"))
         while (frame := source.grab()) is not None:
@@ -174,12 +174,3 @@ def vendor_module(kind: str):
         if sdk not in str(exc) and getattr(exc, "name", None) != sdk:
             raise
         raise ValueError(f"--camera {kind}:... needs the {sdk} package: pip install 'psvs[{extra}]'") from None
-
-
-def open_camera(spec) -> FrameSource:
-    """The source a ``--camera`` spec names (not yet opened: use ``with`` or :meth:`FrameSource.open`)."""
-    spec = spec if isinstance(spec, CameraSpec) else parse_camera(spec)
-    if spec.kind == "opencv":
-        from psvs.live.source import VideoSource
-        return VideoSource(camera=int(spec.device), defer=True)
-    return getattr(vendor_module(spec.kind), VENDORS[spec.kind][1])(spec.device)

@@ -13,10 +13,20 @@ import cv2
 import numpy as np
 
 from psvs._quiet import c_stderr_captured, library_reason
-from psvs.live.camera import Acquisition, CameraLost, Frame
+from psvs.io.images import IMAGE_SUFFIXES
+from psvs.live.camera import (
+    VENDORS,
+    Acquisition,
+    CameraLost,
+    CameraSpec,
+    Frame,
+    FrameSource,
+    parse_camera,
+    vendor_module,
+)
 
-#: Image files a folder given as a sequence may hold (read in name order).
-SEQUENCE_SUFFIXES = (".png", ".tif", ".tiff", ".bmp", ".pgm", ".jpg", ".jpeg")
+#: Image files a folder given as a sequence may hold (read in name order): every format psvs reads.
+SEQUENCE_SUFFIXES = IMAGE_SUFFIXES
 
 
 class _Source:
@@ -213,3 +223,11 @@ def as_grey(frame: np.ndarray) -> np.ndarray:
     if frame.ndim == 3 and frame.shape[2] == 4:
         return cv2.cvtColor(frame, cv2.COLOR_BGRA2GRAY)
     raise ValueError(f"frames must be (H, W) grey or (H, W, 3) colour, got shape {frame.shape}")
+
+
+def open_camera(spec) -> FrameSource:
+    """The source a ``--camera`` spec names (not yet opened: use ``with`` or :meth:`FrameSource.open`)."""
+    spec = spec if isinstance(spec, CameraSpec) else parse_camera(spec)
+    if spec.kind == "opencv":
+        return VideoSource(camera=int(spec.device), defer=True)
+    return getattr(vendor_module(spec.kind), VENDORS[spec.kind][1])(spec.device)

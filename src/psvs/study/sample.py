@@ -11,7 +11,7 @@ exactly as ``psvs calibrate`` does, and score it (docs/tolerancing.md).
   where frame C sits behind the mirrors (docs/calibration.md, "What a card cannot see"): the 3-D error is
   taken after the best rigid motion (Kabsch); the error in frame C itself is reported beside it.
 - Table I (optional, ``[test] table1``: 15 more renders): the paper's test distances measured with the
-  calibrated rig (:func:`psvs.calibrate.measure.measure_pattern`), the depth error after the common offset
+  calibrated rig (:func:`psvs.calibrate.pattern_measure.measure_pattern`), the depth error after the common offset
   (the robot's unknown zero) and the first-to-last distance error.
 - The twins' row offset before calibration: :func:`psvs.mount.guide.row_offsets_px` over the working range,
   the largest (px).
@@ -118,7 +118,7 @@ def table1_errors(calibrated: Rig, build: Rig) -> dict:
     """The paper's Table I on ``build`` measured with ``calibrated``: RMS and max |Z error| after the common
     offset (mm) and the mean |first-to-last distance - 80 mm| (mm). ValueError/MeasurementError when the
     pattern is not found or measured at some distance."""
-    from psvs.calibrate.measure import measure_pattern
+    from psvs.calibrate.pattern_measure import measure_pattern
     from psvs.calibrate.table1 import PAPER_TABLE1, check_pattern_depths, pattern_image
     z_true = PAPER_TABLE1[:, 0]
     check_pattern_depths(build, float(z_true.min()), float(z_true.max()), "Table I's depths")

@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from psvs.live.camera import Acquisition, CameraSpec, open_camera
+from psvs.live.camera import Acquisition, CameraSpec
 from psvs.live.simulated import SimulatedSequence, ping_pong_positions
-from psvs.live.source import open_video
+from psvs.live.source import open_camera, open_video
 from psvs.optics.rig import Rig
 from psvs.simulate.render import render
 from psvs.simulate.scene import Scene
