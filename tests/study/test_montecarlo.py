@@ -57,14 +57,14 @@ def _same(a: dict, b: dict, skip=TIMING) -> bool:
 def test_each_sample_is_what_its_build_gives_alone_and_a_rerun_computes_nothing(client, study, tmp_path):
     nominal, tol = study
     out = tmp_path / "study"
-    params = prepare_study(nominal, tol, SMALL, 4, SEED, out)
+    params, _ = prepare_study(nominal, tol, SMALL, 4, SEED, out)
     res = run_study(client, nominal, tol, 4, out, params, QUIET)
     assert res.summary.computed == 4 and res.summary.failed == {}
     assert [r["index"] for r in res.rows] == list(range(4))
     for r in (res.rows[0], res.rows[-1]):         # the first and last sample, each as its build gives alone
         assert _same(r, run_sample(nominal, tol, SEED, r["index"])), r["index"]
     assert len({r["dev_m1_tilt_b_deg"] for r in res.rows}) == 4         # four different builds
-    again = run_study(client, nominal, tol, 4, out, prepare_study(nominal, tol, SMALL, 4, SEED, out), QUIET)
+    again = run_study(client, nominal, tol, 4, out, prepare_study(nominal, tol, SMALL, 4, SEED, out)[0], QUIET)
     assert again.summary.computed == 0 and again.summary.skipped == 4
     assert all(_same(a, b) for a, b in zip(again.rows, res.rows, strict=True))
     more = run_study(client, nominal, tol, 5, out, params, QUIET)
@@ -79,7 +79,7 @@ def test_each_sample_is_what_its_build_gives_alone_and_a_rerun_computes_nothing(
 def test_a_killed_worker_loses_no_finished_sample(client, study, tmp_path):
     nominal, tol = study
     out = tmp_path / "study"
-    params = prepare_study(nominal, tol, SMALL, 4, SEED + 1, out)
+    params, _ = prepare_study(nominal, tol, SMALL, 4, SEED + 1, out)
     result = {}
     runner = threading.Thread(target=lambda: result.update(r=run_study(client, nominal, tol, 4, out, params, QUIET)))
     runner.start()
@@ -142,6 +142,24 @@ def test_a_study_beyond_a_night_is_refused_before_any_work(capsys, tmp_path):
             f"{days:.3g} days, more than the 1 day limit; fewer samples, or more workers") in err
     assert not out.exists()
     check_study_time(1000, sample_s, 2)
+
+
+def test_a_remote_study_is_estimated_once_and_counted_on_the_schedulers_workers(capsys, tmp_path, monkeypatch,
+                                                                                  client):
+    """With --scheduler the estimate is made once, before connecting (it ran twice), and its time is
+    counted over the workers the scheduler has (this module's 2-worker cluster): 1e6 samples are refused
+    after connecting, exit 2, no folder."""
+    from psvs.study import montecarlo, sample
+    calls = []
+    real = montecarlo.check_study
+    monkeypatch.setattr(montecarlo, "check_study", lambda *a: calls.append(1) or real(*a))
+    monkeypatch.setattr(sample, "check_study", lambda *a: pytest.fail("estimated a second time"))
+    out = tmp_path / "study"
+    code, text, err = run(capsys, "montecarlo", "--rig", "default", "--tolerances", "default", "-n", "1000000",
+                          "-o", str(out), "--scheduler", client.scheduler.address)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "on 2 worker(s)) takes about" in err and "more than the 1 day limit" in err, err
+    assert calls == [1] and not out.exists()
 
 
 @pytest.mark.slow

@@ -63,10 +63,10 @@ def run(args) -> int:
     tol = load_tolerances(args.tolerances)
     tol_data = load_toml(tolerances_path(args.tolerances), "tolerances")
     from psvs.study.montecarlo import check_study_time, prepare_study, run_study
-    from psvs.study.sample import STUDY_TMP_ENV, check_study
+    from psvs.study.sample import STUDY_TMP_ENV
     out_dir = Path(args.output)
     local = None if args.scheduler else (args.workers or os.cpu_count() or 1)
-    params = prepare_study(nominal, tol, tol_data, args.n, args.seed, out_dir, workers=local)
+    params, sample_s = prepare_study(nominal, tol, tol_data, args.n, args.seed, out_dir, workers=local)
     from psvs.cluster import RunOptions, connect, task_threads
     created = not out_dir.exists()
     renders = tempfile.mkdtemp(prefix="psvs-montecarlo-")     # the local workers' render folders (inherited)
@@ -75,7 +75,7 @@ def run(args) -> int:
         try:
             client = connect(args.scheduler, args.workers)
             if args.scheduler:              # its workers known now, before any sample
-                check_study_time(args.n, check_study(nominal, tol), len(client.scheduler_info()["workers"]))
+                check_study_time(args.n, sample_s, len(client.scheduler_info()["workers"]))
         except BaseException:
             if created:
                 shutil.rmtree(out_dir, ignore_errors=True)

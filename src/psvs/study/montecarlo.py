@@ -55,11 +55,12 @@ def check_study_time(n: int, sample_s: float, workers: int) -> None:
 
 
 def prepare_study(nominal: Rig, tol: Tolerances, tol_data: dict, n: int, seed: int, out_dir,
-                  workers: int | None = None) -> dict:
+                  workers: int | None = None) -> tuple[dict, float]:
     """Every check before a cluster starts: the counts, the study the nominal design can run at all
     (:func:`check_study`), its time on ``workers`` workers when known (:func:`check_study_time`; a remote
-    cluster's are counted once it is reached), the folder (a file, a missing parent, another study's
-    folder: ValueError). The study's parameters."""
+    cluster's are counted once it is reached, from the same one-sample estimate), the folder (a file, a
+    missing parent, another study's folder: ValueError). (the study's parameters, one sample's estimated
+    render seconds)."""
     check_samples(n, seed)
     sample_s = check_study(nominal, tol)
     if workers is not None:
@@ -68,7 +69,7 @@ def prepare_study(nominal: Rig, tol: Tolerances, tol_data: dict, n: int, seed: i
     params = study_params(nominal, tol_data, seed)
     if out.is_dir():
         check_params(out, params)
-    return params
+    return params, sample_s
 
 
 def run_study(client, nominal: Rig, tol: Tolerances, n: int, out_dir, params: dict,
