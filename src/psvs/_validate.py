@@ -31,11 +31,14 @@ def check_grey(image, name: str = "image") -> np.ndarray:
 
 
 def check_same_length(a: np.ndarray, b: np.ndarray, name_a: str, name_b: str) -> None:
+    """ValueError naming both arrays when ``a`` and ``b`` differ in their number of rows."""
     if a.shape[0] != b.shape[0]:
         raise ValueError(f"{name_a} and {name_b} must have the same number of rows, got {a.shape[0]} and {b.shape[0]}")
 
 
 def check_positive(value, name: str, unit: str = "") -> float:
+    """``value`` as a float when it is a finite number > 0; else TypeError/ValueError naming ``name`` (and its
+    ``unit``)."""
     v = check_finite(value, name)
     if v <= 0:
         raise ValueError(f"{name} must be > 0{(' ' + unit) if unit else ''}, got {value!r}")
@@ -43,6 +46,8 @@ def check_positive(value, name: str, unit: str = "") -> float:
 
 
 def check_nonnegative(value, name: str, unit: str = "") -> float:
+    """``value`` as a float when it is a finite number >= 0; else TypeError/ValueError naming ``name`` (and its
+    ``unit``)."""
     v = check_finite(value, name)
     if v < 0:
         raise ValueError(f"{name} must be >= 0{(' ' + unit) if unit else ''}, got {value!r}")
@@ -50,6 +55,8 @@ def check_nonnegative(value, name: str, unit: str = "") -> float:
 
 
 def check_finite(value, name: str) -> float:
+    """``value`` as a float when it is a finite number (a bool is not one); else TypeError/ValueError naming
+    ``name``."""
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise TypeError(f"{name} must be a number, got {type(value).__name__} {value!r}")
     v = float(value)
@@ -66,6 +73,7 @@ def check_count(value, name: str, least: int = 1) -> int:
 
 
 def check_pair(value, name: str) -> tuple[float, float]:
+    """``value`` as two finite floats when it is a pair (tuple or list of 2); else ValueError naming ``name``."""
     if not isinstance(value, (tuple, list)) or len(value) != 2:
         raise ValueError(f"{name} must be a pair of numbers, got {value!r}")
     return (check_finite(value[0], f"{name}[0]"), check_finite(value[1], f"{name}[1]"))

@@ -67,6 +67,8 @@ class PatternMeasurement:
     centres_mm: np.ndarray
 
     def to_dict(self) -> dict:
+        """The measurement as JSON-ready values: Z, the mean diameter and the first-last distance (mm), each
+        circle's diameter and centre (mm)."""
         return {"Z_mm": self.Z_mm, "diameter_mm": self.diameter_mm,
                 "first_last_distance_mm": self.first_last_distance_mm,
                 "diameters_mm": self.diameters_mm.tolist(), "centres_mm": self.centres_mm.tolist()}

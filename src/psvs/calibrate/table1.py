@@ -76,6 +76,9 @@ def check_pattern_depths(rig: Rig, near_mm: float, far_mm: float, what: str) -> 
 
 @dataclass(frozen=True, eq=False)
 class Table1:
+    """Table I reproduced: the ``calibration`` the sweep gave, the true depths ``z_true_mm`` (15,) and the
+    pattern's measurement at each (:func:`psvs.calibrate.pattern_measure.measure_pattern`)."""
+
     calibration: BundleResult
     z_true_mm: np.ndarray
     measurements: list[PatternMeasurement]
@@ -86,6 +89,8 @@ class Table1:
                          for z, m in zip(self.z_true_mm, self.measurements, strict=True)])
 
     def summary(self) -> dict:
+        """psvs's and the paper's errors side by side (``ours``, ``paper``): mean and largest |Z error|, diameter and
+        first-last distance errors against the pattern's 10 mm and 80 mm (mm)."""
         r = self.rows()
         p = PAPER_TABLE1
         ze, de, ae = np.abs(r[:, 1] - r[:, 0]), np.abs(r[:, 2] - 10.0), np.abs(r[:, 3] - 80.0)
@@ -186,6 +191,7 @@ def run_table1(true_rig: Rig, progress=None, start: Rig | None = None, method: s
 
 
 def table_markdown(t: Table1) -> str:
+    """Table I as Markdown: each depth's Z, diameter and distance, the paper's beside psvs's, then the errors."""
     r, p, s = t.rows(), PAPER_TABLE1, t.summary()
     lines = ["| Z meas. (mm) | Z calc. paper | Z calc. psvs | d calc. paper | d calc. psvs "
              "| a calc. paper | a calc. psvs |",

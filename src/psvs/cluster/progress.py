@@ -21,6 +21,8 @@ class Progress:
         self._shown_step, self._shown_done = 0, -1
 
     def update(self, done: int, failed: int = 0) -> None:
+        """Count ``done`` more finished tasks (``failed`` of them raised) and show the progress when due: on a
+        terminal at most 5 times a second, in a log at every tenth of the run or every 30 s."""
         self.done, self.failed = self.done + done, self.failed + failed
         now = time.monotonic()
         step = (10 * self.done) // max(self.total, 1)
@@ -46,5 +48,6 @@ class Progress:
         self.stream.flush()
 
     def close(self) -> None:
+        """Show the final count (on its own line) unless it was just shown."""
         if self.tty or self._shown_done != self.done:
             self._show(time.monotonic(), end="\n")

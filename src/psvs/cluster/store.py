@@ -128,6 +128,7 @@ class ResultStore:
         return table.take(keep).sort_by(KEY)
 
     def done_keys(self) -> set:
+        """The keys of every task whose result is stored; empty before the first."""
         table = self.read()
         return set() if table is None else set(table.column(KEY).to_pylist())
 

@@ -15,6 +15,9 @@ from psvs.imaging.steps import STEPS
 
 @dataclass(frozen=True)
 class Step:
+    """One step of a pipeline: ``op``, the name of an operation of :data:`STEPS`, and its parameters as
+    (name, value) pairs; an unknown operation is refused when the step is made."""
+
     op: str
     params: tuple[tuple[str, object], ...] = ()
 
@@ -54,6 +57,7 @@ class Pipeline:
         return (img, stages) if keep else img
 
     def to_dict(self) -> dict:
+        """The pipeline as ``{"steps": [{"op": name, param: value, ...}, ...]}`` (:func:`make_pipeline` reads it)."""
         return {"steps": [{"op": s.op, **dict(s.params)} for s in self.steps]}
 
 

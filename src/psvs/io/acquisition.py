@@ -102,4 +102,5 @@ def dumps_acquisition(settings: dict) -> str:
 
 
 def write_acquisition(path, settings: dict) -> None:
+    """Write the acquisition ``settings`` to ``path`` as TOML (:func:`dumps_acquisition`), atomically."""
     write_atomic(path, dumps_acquisition(settings))

@@ -66,6 +66,8 @@ class PylonSource:
 
     # -- open, configure -------------------------------------------------------------------------------
     def open(self) -> None:
+        """Connect to the camera the device spec names (ValueError listing the cameras found when none matches);
+        opening an open source does nothing."""
         if self._cam is not None:
             return
         found = devices()
@@ -117,9 +119,11 @@ class PylonSource:
         cam.StartGrabbing(pylon.GrabStrategy_OneByOne)
 
     def settings(self) -> dict:
+        """The camera's acquisition settings as applied (feature name -> value), for the run's record."""
         return dict(self._settings)
 
     def feature_file(self) -> str | None:
+        """The camera's full feature set (pylon's .pfs text) saved when it was configured; None before."""
         return self._pfs
 
     # -- grab ------------------------------------------------------------------------------------------
@@ -176,6 +180,7 @@ class PylonSource:
         return frame
 
     def close(self) -> None:
+        """Stop grabbing and release the camera; closing a closed source does nothing."""
         cam, self._cam = self._cam, None
         if cam is None:
             return
@@ -193,6 +198,7 @@ class PylonSource:
         return self._cam
 
     def read(self):
+        """The next frame's image (None at the end): the older interface of a frame source."""
         frame = self.grab()
         return None if frame is None else frame.image
 

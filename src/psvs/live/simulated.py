@@ -60,6 +60,7 @@ class SimulatedSequence:
         return len(self.positions_mm)
 
     def irradiance(self, k: int) -> np.ndarray:
+        """Frame ``k``'s irradiance (H, W) before the sensor, rendered once per distinct rig position and kept."""
         key = tuple(np.round(self.positions_mm[k], 9))
         if key not in self._irradiance:
             scene = scene_in_rig_frame(self.scene, translation(-self.positions_mm[k]))

@@ -100,6 +100,8 @@ class VideoSource(_Source):
             self.open()
 
     def open(self) -> None:
+        """Open the video file or camera (ValueError naming it, with what the decoder said, when it cannot be
+        opened); opening an open source does nothing."""
         if self._cap is not None:
             return
         if self._video is not None:
@@ -119,6 +121,7 @@ class VideoSource(_Source):
         self.frame_count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
 
     def grab(self) -> Frame | None:
+        """The next frame, or None at the end of a file; CameraLost when a camera stops delivering."""
         if self._cap is None:
             raise ValueError(f"{self.name} is not open")
         ok, image = self._cap.read()
@@ -130,6 +133,7 @@ class VideoSource(_Source):
         return self._last
 
     def close(self) -> None:
+        """Release the file or camera; closing a closed source does nothing."""
         if self._cap is not None:
             self._cap.release()
             self._cap = None
@@ -149,9 +153,11 @@ class ImageSequence(_Source):
         self._open = False
 
     def open(self) -> None:
+        """Start reading the sequence from its first file."""
         self._open = True
 
     def grab(self) -> Frame | None:
+        """The next file's frame, or None after the last."""
         from psvs.io.images import read_grey
         if not self._open:
             raise ValueError(f"{self.name} is not open")
@@ -160,6 +166,7 @@ class ImageSequence(_Source):
         return self._frame(read_grey(self._files[self._index]), True)
 
     def close(self) -> None:
+        """Stop reading the sequence."""
         self._open = False
 
 

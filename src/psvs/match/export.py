@@ -33,6 +33,7 @@ def result_to_dict(res: MatchResult, decimals: int | None = None) -> dict:
 
 
 def write_json(path, res: MatchResult) -> None:
+    """Write a match result to ``path`` as JSON (:func:`result_to_dict`), atomically."""
     write_atomic(path, json.dumps(result_to_dict(res)) + "\n")
 
 

@@ -30,6 +30,7 @@ class EdgePair:
         return len(self.disparity_px)
 
     def with_points(self, points_mm: np.ndarray) -> "EdgePair":
+        """This pair with its pixels' triangulated ``points_mm`` (N, 3) mm."""
         return EdgePair(self.left_px, self.right_px, self.disparity_px, self.left_label, self.right_label,
                         self.shape_disparity_px, points_mm)
 

@@ -69,6 +69,7 @@ def build_solid(layout: MountLayout):
 
 
 def write_step(solid, path: Path) -> None:
+    """Write the solid to ``path`` as STEP (through build123d); OSError when it cannot be written."""
     import build123d as bd
     if not bd.export_step(solid, str(path)):
         raise OSError(f"build123d could not write {path}")

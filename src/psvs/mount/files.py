@@ -83,6 +83,7 @@ def bom_rows(layout: MountLayout) -> list[dict]:
 
 
 def bom_csv(layout: MountLayout) -> str:
+    """The bill of materials as CSV text (:data:`BOM_COLUMNS`, one row per part)."""
     buf = io.StringIO()
     w = csv.DictWriter(buf, BOM_COLUMNS, lineterminator="\n")
     w.writeheader()
@@ -116,6 +117,8 @@ def mount_dict(layout: MountLayout, checks: dict) -> dict:
 
 
 def mount_toml(layout: MountLayout, checks: dict) -> str:
+    """mount.toml's text: the layout's parameters and seats and the ``checks`` it passed (:func:`read_mount`
+    reads it back)."""
     return dumps_toml(mount_dict(layout, checks))
 
 

@@ -201,6 +201,7 @@ class SearchBudget:
         self.layouts, self.spent = int(layouts), 0
 
     def spend(self) -> None:
+        """Count one more trial layout; SearchLimit once the budget of :attr:`layouts` is spent."""
         if self.spent >= self.layouts:
             raise SearchLimit(f"the search for a clear layout stopped after {self.layouts} trial layouts (its limit)")
         self.spent += 1

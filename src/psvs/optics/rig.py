@@ -201,9 +201,11 @@ class Mirrors:
                            tuple(check_finite(c, f"box_rotation_rad[{k}]") for k, c in enumerate(rot)))
 
     def extent(self, name: str) -> MirrorExtent | None:
+        """Mirror ``name``'s (``m1`` .. ``m4``) finite rectangle, or None when it is unbounded."""
         return getattr(self, f"{name}_extent")
 
     def error(self, name: str) -> MirrorError:
+        """Mirror ``name``'s (``m1`` .. ``m4``) pose error as built (zero for the designed pose)."""
         return getattr(self, f"{name}_error")
 
     @property

@@ -84,6 +84,7 @@ class Arm:
         return np.asarray(self.limits.qdd_max, float)
 
     def within_limits(self, q) -> bool:
+        """Whether every joint angle of ``q`` (6,) rad lies within the arm's joint limits (1e-9 rad of slack)."""
         return bool(np.all(q >= self.qlim[0] - 1e-9) and np.all(q <= self.qlim[1] + 1e-9))
 
     def fkine(self, q=None) -> np.ndarray:

@@ -59,13 +59,17 @@ class Frame:
 class Cell(Protocol):
     """The interface :func:`control_loop` runs a controller on (see the module docstring)."""
 
-    def read(self) -> Frame: ...
+    def read(self) -> Frame:
+        """The frame of this control cycle."""
 
-    def send(self, tool2base: np.ndarray) -> ServoStep | None: ...
+    def send(self, tool2base: np.ndarray) -> ServoStep | None:
+        """Command the tool pose ``tool2base`` (4, 4) mm for the next cycle."""
 
-    def stop(self) -> ServoStep | None: ...
+    def stop(self) -> ServoStep | None:
+        """Bring the arm to rest (no new target)."""
 
-    def at_rest(self) -> bool: ...
+    def at_rest(self) -> bool:
+        """Whether the arm has stopped moving."""
 
 
 @dataclass(frozen=True)
@@ -121,13 +125,16 @@ class SimulatedCell:
                       sensor=Sensor(), seed=self.sim.noise_seed + k).image
 
     def send(self, tool2base: np.ndarray) -> ServoStep:
+        """Command the tool pose ``tool2base`` (4, 4) mm for the next cycle."""
         q_t = self.arm.ikine(concat(invert_transform(self._tool), tool2base), max_step_rad=MAX_IK_STEP_RAD)
         return self.arm.servo(q_t, self.dt)
 
     def stop(self) -> ServoStep:
+        """Bring the arm to rest (no new target)."""
         return self.arm.stop(self.dt)
 
     def at_rest(self) -> bool:
+        """Whether the arm has stopped moving."""
         return bool(np.max(np.abs(self.arm.qd)) < REST_SPEED_RAD_S)
 
     def tcp_mm(self) -> np.ndarray:
@@ -204,24 +211,30 @@ class RenderedCamera:
         self.cell, self.name, self.fps, self.index = cell, name, 1.0 / cell.dt, 0
 
     def open(self) -> None:
+        """Nothing to open: the frames are rendered on demand."""
         pass
 
     def configure(self, acquisition: Acquisition) -> None:
+        """The simulated camera takes no acquisition settings (ValueError when any is asked)."""
         if acquisition.asks_anything():
             raise ValueError(f"{self.name} takes no acquisition settings")
 
     def grab(self) -> CameraFrame:
+        """The next frame, rendered where the arm is now."""
         k = self.index
         self.index += 1
         return CameraFrame(self.cell.render_now(k), k, k, k * self.cell.dt, "camera")
 
     def close(self) -> None:
+        """Nothing to close."""
         pass
 
     def settings(self) -> dict:
+        """The source's settings for the run's record: its name and frame rate."""
         return {"source": self.name, "frame_rate_hz": self.fps}
 
     def feature_file(self) -> str | None:
+        """None: a simulated camera has no feature file."""
         return None
 
 
@@ -240,12 +253,15 @@ class ReplayCell:
         self.k, self.sent, self.mismatches = 0, [], []
 
     def read(self) -> Frame:
+        """The next recorded frame (ValueError after the last)."""
         if self.k >= len(self.frames):
             raise ValueError(f"the recording ends after {len(self.frames)} frames")
         self.k += 1
         return self.frames[self.k - 1]
 
     def send(self, tool2base: np.ndarray) -> None:
+        """Take the controller's command ``tool2base`` (4, 4) mm, compare it with the recorded one, and raise the
+        fault the run recorded at this cycle, if any."""
         k = self.k - 1
         self.sent.append(np.array(tool2base, float))
         if not np.array_equal(self.sent[-1], self.recorded[k]):
@@ -254,7 +270,9 @@ class ReplayCell:
             raise ValueError(self.faults[k])
 
     def stop(self) -> None:
+        """Nothing to stop: a replay moves no arm."""
         return None
 
     def at_rest(self) -> bool:
+        """Whether the recording has been played to its end."""
         return self.k >= len(self.frames)

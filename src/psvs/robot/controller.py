@@ -178,6 +178,8 @@ class SeamTracker:
         return self.stopping_at is not None and self.v == 0.0
 
     def step(self, obs: Observation) -> Command:
+        """One control cycle: from the observation (the flange pose and what the seam sensor saw) the next
+        tool pose to command (:class:`Command`)."""
         cfg = self.cfg
         dt = 1.0 / cfg.rate_hz
         cam2base = concat(self.cam2flange, obs.flange2base)

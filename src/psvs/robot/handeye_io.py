@@ -63,6 +63,8 @@ def dumps_handeye(result: HandEyeResult, source: str, rig: str) -> str:
 
 
 def save_handeye(path, result: HandEyeResult, source: str, rig: str) -> None:
+    """Write a hand-eye result to ``path`` as handeye.toml (:func:`dumps_handeye`, naming its ``source`` and
+    ``rig``), atomically; :func:`load_handeye` reads it back."""
     write_atomic(Path(path), dumps_handeye(result, source, rig))
 
 

@@ -125,9 +125,11 @@ class TrackRun:
 class TrackListener(Protocol):
     """Who watches a run (e.g. a recorder): told the start, then every cycle."""
 
-    def started(self, cam2flange: np.ndarray, teach: Teach) -> None: ...
+    def started(self, cam2flange: np.ndarray, teach: Teach) -> None:
+        """Called once before the first cycle, with the mount and the taught start."""
 
-    def cycle(self, cycle: Cycle) -> None: ...
+    def cycle(self, cycle: Cycle) -> None:
+        """Called after every control cycle with its record."""
 
 
 def teach(workpiece: Workpiece, cfg: TrackConfig, sim: SimulationConfig, arm: Arm) -> Teach:

@@ -92,10 +92,12 @@ class RunRecorder:
         self._publish: CyclePublisher | None = None
 
     def started(self, cam2flange: np.ndarray, teach: Teach) -> None:
+        """Publish the run's set-up (the mount, the taught start, the seed) before the first cycle."""
         publish_setup(self.tel, self.cfg, cam2flange, teach, self.seed_px)
         self._publish = CyclePublisher(self.tel, cam2flange, tool2flange())
 
     def cycle(self, cycle) -> None:
+        """Publish one control cycle's record on the run's channels."""
         self._publish(cycle)
 
 

@@ -30,9 +30,11 @@ class Pose:
         return transform_from(self.rotation, self.position_mm)
 
     def to_world(self, p_local: np.ndarray) -> np.ndarray:
+        """Points (N, 3) mm from the object's own frame to the world (the rig's frame)."""
         return p_local @ self.rotation.T + self.position_mm
 
     def to_local(self, p_world: np.ndarray) -> np.ndarray:
+        """Points (N, 3) mm from the world (the rig's frame) to the object's own frame."""
         return (p_world - self.position_mm) @ self.rotation
 
     @staticmethod

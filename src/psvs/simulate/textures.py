@@ -22,6 +22,8 @@ def _check_levels(**levels):
 
 @dataclass(frozen=True)
 class Uniform:
+    """A plain surface: one albedo (0-1) everywhere."""
+
     albedo: float = 0.8
 
     def __post_init__(self):

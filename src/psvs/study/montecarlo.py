@@ -40,6 +40,8 @@ def study_params(nominal: Rig, tol_data: dict, seed: int) -> dict:
 
 
 def check_samples(n: int, seed: int) -> None:
+    """ValueError naming the option when ``-n`` is outside 1..:data:`MAX_SAMPLES` or ``--seed`` outside
+    [0, 2^63)."""
     if not 1 <= n <= MAX_SAMPLES:
         raise ValueError(f"-n must be 1-{MAX_SAMPLES}, got {n}")
     if not 0 <= seed < 2 ** 63:

@@ -24,6 +24,7 @@ def capture_start(body: CaptureBody, session: SessionDep):
 
 @router.post("/stop")
 def capture_stop(session: SessionDep):
+    """POST /api/capture/stop: stop the capture assistant."""
     session.capture.stop()
     return {"running": False}
 

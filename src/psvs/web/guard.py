@@ -175,6 +175,7 @@ class Access:
         return name in self.names or (self.any_local_address and _is_local_address(name))
 
     def token_matches(self, token: str) -> bool:
+        """Whether ``token`` is this server's session token (compared in constant time)."""
         return hmac.compare_digest(token.encode(), self.token.encode())
 
 

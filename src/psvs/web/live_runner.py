@@ -71,10 +71,13 @@ class LiveRunner(BackgroundRunner):
                 self._stop.wait(max(0.0, next_t - time.perf_counter()))
 
     def dense(self) -> DenseFrame | None:
+        """The latest dense frame of the live run (None before the first)."""
         with self._lock:
             return self._dense
 
     def state(self) -> dict:
+        """The live run's state for the page: the last step's result, the depth history, the frame rate, the
+        error that stopped it."""
         with self._lock:
             step, dstep, times = self._step, self._dense, list(self._times)
             history = [[round(t, 3), None if not np.isfinite(z) else round(z, 3)] for t, z in self._history]

@@ -52,6 +52,7 @@ class BackgroundRunner:
             return self._frame
 
     def stop(self) -> None:
+        """Stop the background run (stopping a stopped run does nothing)."""
         with self._control:
             self._stop_locked()
 

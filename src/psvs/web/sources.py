@@ -44,6 +44,7 @@ class Source:
 
 
 def image_source(name: str, grey: np.ndarray) -> Source:
+    """A still image (grey, (H, W)) served as a source of one frame, under ``name``."""
     return Source("image", name, grey)
 
 
