@@ -14,7 +14,7 @@ discs, rows ``spacing_mm`` apart, discs along a row twice that apart, odd rows s
 """
 from __future__ import annotations
 
-from psvs.io.tomlfile import dumps_toml, load_table
+from psvs.io.tomlfile import check_keys, dumps_toml, load_table
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid
 
 #: The kinds of target and each one's keys (besides ``kind``).
@@ -37,12 +37,7 @@ def _target(t: dict):
     kind = t["kind"]
     if kind not in KEYS:
         raise ValueError(f"target.kind must be one of {', '.join(KINDS)}, got {kind!r}")
-    for k in KEYS[kind]:
-        if k not in t:
-            raise ValueError(f"missing key target.{k} (a {kind} needs {', '.join(KEYS[kind])})")
-    for k in t:
-        if k != "kind" and k not in KEYS[kind]:
-            raise ValueError(f"unknown key target.{k} for a {kind} (its keys: {', '.join(KEYS[kind])})")
+    check_keys(t, "target", KEYS[kind], ("kind",), what=kind)
     for k in KEYS[kind]:
         if k.endswith("_mm") and (isinstance(t[k], bool) or not isinstance(t[k], (int, float))):
             raise ValueError(f"target.{k} must be a number (mm), got {t[k]!r}")

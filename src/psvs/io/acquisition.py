@@ -19,7 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from psvs.io.atomic import write_atomic
-from psvs.io.tomlfile import load_toml
+from psvs.io.tomlfile import check_keys, load_toml
 
 NUMBERS = ("exposure_us", "gain_db", "frame_rate_hz")
 STRINGS = ("pixel_format", "trigger", "settings_file")
@@ -31,12 +31,7 @@ INFO = ("camera", "serial", "bits", "source")
 def acquisition_from_table(table, where: str, folder: Path | None = None) -> dict:
     """The keyword arguments of :class:`psvs.live.camera.Acquisition` a table gives (checked: one-line
     ValueError/TypeError naming ``where``.key); ``settings_file`` relative to ``folder``."""
-    if not isinstance(table, dict):
-        raise ValueError(f"[{where}] must be a table, got {type(table).__name__}")
-    unknown = sorted(set(table) - set(NUMBERS + STRINGS + FLAGS + INFO + ("features",)))
-    if unknown:
-        raise ValueError(f"unknown key {where}.{unknown[0]} (allowed: {', '.join(NUMBERS + STRINGS + FLAGS)}, "
-                         "features)")
+    check_keys(table, where, optional=NUMBERS + STRINGS + FLAGS + INFO + ("features",))
     out = {}
     for k in NUMBERS:
         if k in table:

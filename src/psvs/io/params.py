@@ -20,7 +20,7 @@ import numpy as np
 
 from psvs.io.atomic import write_atomic
 from psvs.io.text import read_text
-from psvs.io.tomlfile import dumps_toml, load_toml, parse_text, update_toml
+from psvs.io.tomlfile import check_keys, dumps_toml, load_toml, parse_text, update_toml
 from psvs.optics.bounds import check_rig_bounds
 from psvs.optics.rig import MIRROR_NAMES, Calibration, Camera, MirrorError, MirrorExtent, Mirrors, Rig
 from psvs.rigs import SHIPPED, shipped_rig_path
@@ -75,15 +75,6 @@ def _table(data: dict, name: str) -> dict:
     return t
 
 
-def _check_keys(table: dict, where: str, required, optional) -> None:
-    unknown = sorted(set(table) - set(required) - set(optional))
-    if unknown:
-        raise ValueError(f"unknown key {where}.{unknown[0]} (allowed: {', '.join((*required, *optional))})")
-    missing = [k for k in required if k not in table]
-    if missing:
-        raise ValueError(f"missing key {where}.{missing[0]}")
-
-
 def _pair(value, where: str):
     return _numbers(value, where, 2)
 
@@ -123,13 +114,13 @@ def rig_from_dict(data: dict) -> Rig:
     calibration = None
     if "calibration" in data:
         cal_t = _table(data, "calibration")
-        _check_keys(cal_t, "calibration", ("rms_px", "rms_left_px", "rms_right_px", "images"), ("kinds",))
+        check_keys(cal_t, "calibration", ("rms_px", "rms_left_px", "rms_right_px", "images"), ("kinds",))
         calibration = _build(Calibration, "calibration", **cal_t)
     cam_t, mir_t = _table(data, "camera"), _table(data, "mirrors")
     cam_t = {k: v for k, v in cam_t.items() if k != "acquisition"}   # the camera's settings: psvs.io.acquisition
-    _check_keys(cam_t, "camera", _CAMERA_REQUIRED, _CAMERA_OPTIONAL)
+    check_keys(cam_t, "camera", _CAMERA_REQUIRED, _CAMERA_OPTIONAL)
     scalars = {k: v for k, v in mir_t.items() if k not in MIRROR_NAMES}
-    _check_keys(scalars, "mirrors", _MIRRORS_REQUIRED, _MIRRORS_OPTIONAL)
+    check_keys(scalars, "mirrors", _MIRRORS_REQUIRED, _MIRRORS_OPTIONAL)
 
     size = _pair(cam_t["image_size_px"], "camera.image_size_px")
     if "principal_point_px" in cam_t:
@@ -168,9 +159,7 @@ def rig_from_dict(data: dict) -> Rig:
         if name in mir_t:
             tab = mir_t[name]
             where = f"mirrors.{name}"
-            if not isinstance(tab, dict):
-                raise ValueError(f"[{where}] must be a table, got {type(tab).__name__}")
-            _check_keys(tab, where, (), _EXTENT_KEYS + _ERROR_KEYS)
+            check_keys(tab, where, (), _EXTENT_KEYS + _ERROR_KEYS)
             given = [k for k in _EXTENT_KEYS if k in tab]
             if len(given) == 1:
                 missing = next(k for k in _EXTENT_KEYS if k not in tab)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from psvs.io.images import read_grey
-from psvs.io.tomlfile import load_toml
+from psvs.io.tomlfile import check_keys, load_toml
 from psvs.simulate import textures as tx
 from psvs.simulate.scene import KINDS, Lighting, Pose, Scene, SceneObject
 
@@ -52,10 +52,7 @@ def _texture(spec, where: str, base: Path, object_size) -> tx.Texture:
         raise ValueError(f"{where}: unknown texture type {kind!r} (known: {', '.join(_TEXTURES)})")
     cls, allowed = _TEXTURES[kind]
     params = {k: v for k, v in spec.items() if k != "type"}
-    unknown = sorted(set(params) - allowed)
-    if unknown:
-        raise ValueError(f"{where}: unknown key {unknown[0]!r} for a {kind} texture "
-                         f"(allowed: {', '.join(sorted(allowed))})")
+    check_keys(params, where, optional=tuple(sorted(allowed)), what=f"{kind} texture")
     if kind != "image":
         return cls(**params)
     if "file" not in params:
@@ -98,9 +95,7 @@ def _object(spec: dict, i: int, base: Path) -> SceneObject:
     if not isinstance(spec, dict):
         raise ValueError(f"objects[{i}] must be a table, got {type(spec).__name__}")
     label = f"objects[{i}]" + (f" ({spec['name']})" if "name" in spec else "")
-    unknown = sorted(set(spec) - _OBJECT_KEYS)
-    if unknown:
-        raise ValueError(f"{label}: unknown key {unknown[0]!r}")
+    check_keys(spec, f"objects[{i}]", optional=tuple(sorted(_OBJECT_KEYS)))
     kind = spec.get("type")
     if kind not in KINDS:
         raise ValueError(f"{label}: unknown primitive {kind!r} (known: {', '.join(KINDS)})")
@@ -132,17 +127,13 @@ def _object(spec: dict, i: int, base: Path) -> SceneObject:
 
 def scene_from_dict(data: dict, base: Path = Path("."), name: str = "") -> Scene:
     """Build a Scene from a scene file's dict; ``base`` resolves texture and mesh paths."""
-    unknown = sorted(set(data) - {"name", "lighting", "backdrop", "objects"})
-    if unknown:
-        raise ValueError(f"unknown key {unknown[0]!r} (allowed: name, lighting, backdrop, objects)")
+    check_keys(data, "", optional=("name", "lighting", "backdrop", "objects"))
     objects = data.get("objects", [])
     if not isinstance(objects, list):
         raise ValueError("objects must be an array of tables ([[objects]])")
     objs = tuple(_object(spec, i, base) for i, spec in enumerate(objects))
     light = data.get("lighting", {})
-    allowed = {"ambient", "lamp", "lamp_position_mm", "reference_mm", "shadows"}
-    if set(light) - allowed:
-        raise ValueError(f"lighting: unknown key {sorted(set(light) - allowed)[0]!r}")
+    check_keys(light, "lighting", optional=("ambient", "lamp", "lamp_position_mm", "reference_mm", "shadows"))
     if "lamp_position_mm" in light:
         light = dict(light, lamp_position_mm=tuple(_vec(light["lamp_position_mm"], 3, "lighting.lamp_position_mm")))
     lighting = Lighting(**light)

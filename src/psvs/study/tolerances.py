@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from psvs.io.tomlfile import load_toml
+from psvs.io.tomlfile import check_keys, load_toml
 from psvs.simulate.sensor import MAX_BLUR_PX
 from psvs.simulate.textures import CircleGrid
 
@@ -154,17 +154,8 @@ def _dists(table: dict) -> dict:
     return {k: out[k] for k in PARAMS if k in out}
 
 
-def _check_keys(table, name: str, allowed) -> dict:
-    if not isinstance(table, dict):
-        raise ValueError(f"[{name}] must be a table, got {table!r}")
-    unknown = sorted(set(table) - set(allowed))
-    if unknown:
-        raise ValueError(f"unknown key {name}.{unknown[0]} (allowed: {', '.join(allowed)})")
-    return table
-
-
 def _card(value) -> CircleGrid:
-    t = _check_keys(value, "calibration.card", ("rows", "cols", "spacing_mm", "diameter_mm"))
+    t = check_keys(value, "calibration.card", optional=("rows", "cols", "spacing_mm", "diameter_mm"))
     d = CircleGrid(4, 6, 14.0, 7.0)
     rows = _integer(t.get("rows", d.rows), "calibration.card.rows", 2, 50)
     cols = _integer(t.get("cols", d.cols), "calibration.card.cols", 2, 50)
@@ -178,7 +169,7 @@ def _card(value) -> CircleGrid:
 
 def _procedure(table: dict) -> Procedure:
     keys = tuple("sweep" if k == "sweep_mm" else k for k in Procedure.__dataclass_fields__)
-    t = _check_keys(table, "calibration", keys)
+    t = check_keys(table, "calibration", optional=keys)
     d = Procedure()
     views = _integer(t.get("views", d.views), "calibration.views", 3, 60)
     near = _number(t.get("near_mm", d.near_mm), "calibration.near_mm", 0.0, False)
@@ -204,7 +195,7 @@ def _procedure(table: dict) -> Procedure:
 
 
 def _sweep(value) -> tuple:
-    t = _check_keys(value, "calibration.sweep", ("from_mm", "to_mm", "step_mm"))
+    t = check_keys(value, "calibration.sweep", optional=("from_mm", "to_mm", "step_mm"))
     d = dict(zip(("from_mm", "to_mm", "step_mm"), Procedure().sweep_mm, strict=True))
     lo, hi, step = (_number(t.get(k, d[k]), f"calibration.sweep.{k}", 0.0, False) for k in d)
     if hi < lo:
@@ -216,7 +207,7 @@ def _sweep(value) -> tuple:
 
 
 def _test(table: dict) -> TestSet:
-    t = _check_keys(table, "test", tuple(TestSet.__dataclass_fields__))
+    t = check_keys(table, "test", optional=tuple(TestSet.__dataclass_fields__))
     d = TestSet()
     near = _number(t.get("near_mm", d.near_mm), "test.near_mm", 0.0, False)
     far = _number(t.get("far_mm", d.far_mm), "test.far_mm", 0.0, False)
@@ -235,11 +226,11 @@ def tolerances_from_dict(data: dict) -> Tolerances:
     unknown = sorted(set(data) - {"tolerances", "calibration", "test", "targets"})
     if unknown:
         raise ValueError(f"unknown table [{unknown[0]}] (allowed: [tolerances], [calibration], [test], [targets])")
-    dists = _dists(_check_keys(data.get("tolerances", {}), "tolerances", (*GROUPS, *PARAMS)))
+    dists = _dists(check_keys(data.get("tolerances", {}), "tolerances", optional=(*GROUPS, *PARAMS)))
     procedure = _procedure(data.get("calibration", {}))
     test = _test(data.get("test", {}))
     targets = {k: _number(v, f"targets.{k}", 0.0, False)
-               for k, v in _check_keys(data.get("targets", {}), "targets", TARGET_KEYS).items()}
+               for k, v in check_keys(data.get("targets", {}), "targets", optional=TARGET_KEYS).items()}
     return Tolerances(dists, procedure, test, targets)
 
 
