@@ -7,18 +7,19 @@ from pathlib import Path
 
 import pytest
 
-from tests.support.durations import QUICK_TEST_S, merged, quick_selection, read_record, write_record
+from tests.support.durations import QUICK_FILE_S, merged, quick_selection, read_record, write_record
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def test_slow_and_long_tests_are_left_out_and_new_ones_run():
-    ids = ["a::fast", "a::long", "b::slow_but_quick", "c::new", "a::at_the_limit"]
-    record = {"a::fast": 0.2, "a::long": QUICK_TEST_S + 0.01, "b::slow_but_quick": 0.1,
-              "a::at_the_limit": QUICK_TEST_S}
-    kept, out = quick_selection(ids, {"b::slow_but_quick"}, record)
-    assert kept == ["a::fast", "c::new", "a::at_the_limit"]
-    assert out == ["a::long", "b::slow_but_quick"]
+def test_slow_tests_and_long_files_are_left_out_and_new_ones_run():
+    """A file is in or out whole, by its tests' recorded total; a test marked slow is out anyway."""
+    ids = ["a.py::fast", "a.py::slow_but_quick", "b.py::one", "b.py::two", "c.py::new", "d.py::at_the_limit"]
+    record = {"a.py::fast": 0.2, "a.py::slow_but_quick": 0.1, "b.py::one": QUICK_FILE_S / 2,
+              "b.py::two": QUICK_FILE_S / 2 + 0.01, "d.py::at_the_limit": QUICK_FILE_S}
+    kept, out = quick_selection(ids, {"a.py::slow_but_quick"}, record)
+    assert kept == ["a.py::fast", "c.py::new", "d.py::at_the_limit"]
+    assert out == ["a.py::slow_but_quick", "b.py::one", "b.py::two"]
 
 
 def test_a_partial_run_keeps_the_rest_of_the_record_and_gone_files_drop(tmp_path):
@@ -35,6 +36,7 @@ def test_the_record_reads_back_by_value(tmp_path):
     assert json.loads(path.read_text()) == {"t::a": 0.1, "t::b": 2.346}
     assert read_record(path) == {"t::a": 0.1, "t::b": 2.346}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["durations.json"]    # no temporary file left
+    assert path.stat().st_mode & 0o777 == 0o644
     assert read_record(tmp_path / "none.json") == {}
     (tmp_path / "bad.json").write_text('["t::a", 1]')
     with pytest.raises(ValueError, match="not a record of test durations"):
@@ -68,8 +70,8 @@ def _pytest(folder: Path, *args) -> subprocess.CompletedProcess:
 
 
 def test_a_run_records_and_the_quick_tier_reads_it(tmp_path):
-    """A run of a small suite records its tests' times; with a record where one test took long, --quick
-    runs the fast test and the one the record does not know, and leaves out the long and the slow one."""
+    """A run of a small suite records its tests' times; with a record of a quick file, --quick runs its tests
+    but the one marked slow; once the record says the file took long, none of them."""
     (tmp_path / "test_small.py").write_text(SUITE)
     record = tmp_path / "rec.json"
     proc = _pytest(tmp_path, "--record-durations", str(record))
@@ -77,9 +79,12 @@ def test_a_run_records_and_the_quick_tier_reads_it(tmp_path):
     times = json.loads(record.read_text())
     assert set(times) == {f"test_small.py::{n}" for n in ("test_fast", "test_long", "test_marked", "test_new")}
     assert times["test_small.py::test_long"] >= 0.3 > times["test_small.py::test_fast"]
-    record.write_text(json.dumps({"test_small.py::test_fast": 0.01, "test_small.py::test_long": 60.0}))
+    record.write_text(json.dumps({"test_small.py::test_fast": 0.01}))
     proc = _pytest(tmp_path, "--quick", "--record-durations", str(record), "-vv")
     assert proc.returncode == 0, proc.stdout + proc.stderr
     ran = {line.split("::")[1].split()[0] for line in proc.stdout.splitlines() if " PASSED" in line}
-    assert ran == {"test_fast", "test_new"}
-    assert "2 passed, 2 deselected" in proc.stdout
+    assert ran == {"test_fast", "test_long", "test_new"}
+    assert "3 passed, 1 deselected" in proc.stdout
+    record.write_text(json.dumps({"test_small.py::test_fast": 0.01, "test_small.py::test_long": 60.0}))
+    proc = _pytest(tmp_path, "--quick", "--record-durations", str(record), "-vv")
+    assert "4 deselected" in proc.stdout, proc.stdout
