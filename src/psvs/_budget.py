@@ -14,8 +14,6 @@ import os
 
 #: Share of the memory available now that one allocation plan may use.
 USABLE_SHARE = 0.8
-
-
 #: Environment variable that states the memory psvs may take as available, in MiB, instead of the system's
 #: figure: for a machine shared with other work, and for the tests (whose refusals must not depend on what
 #: else the machine runs).
@@ -66,6 +64,7 @@ def check_memory(need_bytes: float, what: str, hint: str = "", limit_bytes: floa
         tail = f"; {hint}" if hint else ""
         raise ValueError(f"{what} needs about {human(need_bytes)} of memory, more than the {human(limit)} "
                          f"available{tail}")
+
 
 #: The longest a command may plan to work, s.
 WORK_LIMIT_S = 3600.0

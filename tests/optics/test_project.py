@@ -1,8 +1,10 @@
 import numpy as np
 import pytest
 
+from psvs.io.params import load_rig
 from psvs.measure.equations import project_eq9_10
-from psvs.optics.project import in_image, project_points
+from psvs.measure.triangulate import triangulate
+from psvs.optics.project import epipolar_curve_px, in_image, project_points
 from psvs.optics.rig import MirrorExtent
 from psvs.optics.trace import trace_pixels
 from tests.support.geometry import whole_field_points
@@ -71,3 +73,19 @@ def test_bad_shapes_raise(rig):
         project_points(np.zeros((2, 2)), rig, "left")
     with pytest.raises(TypeError, match="points_mm must be a numeric array"):
         project_points([["a", "b", "c"]], rig, "left")
+
+
+@pytest.mark.parametrize("rig_name", ["default", "misaligned", "mv1440_misaligned"])
+def test_an_epipolar_curve_triangulates_back_to_its_depths(rig_name):
+    """Each point of a left pixel's epipolar curve, triangulated exactly with that pixel, lies at the depth it
+    was drawn at (the ray's point at that z), on the ideal rig and on two builds."""
+    rig = load_rig(rig_name)
+    w, h = rig.camera.image_size_px
+    px = np.array([[0.6 * w, 0.3 * h], [0.8 * w, 0.7 * h]])
+    rays = trace_pixels(px, rig, "left")
+    z = np.linspace(450.0, 1150.0, 8)
+    for k in range(len(px)):
+        uv = epipolar_curve_px(rays.origins_mm[k], rays.dirs[k], z, rig)
+        assert len(uv) == len(z)
+        got = triangulate(np.repeat(px[k:k + 1], len(uv), axis=0), uv, rig, model="exact").points_mm[:, 2]
+        np.testing.assert_allclose(got, z, atol=1e-6)

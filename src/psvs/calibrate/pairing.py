@@ -35,7 +35,7 @@ import numpy as np
 
 from psvs.calibrate.targets import MIN_AREA_PX, Ellipse
 from psvs.errors import MeasurementError
-from psvs.optics.project import project_points
+from psvs.optics.project import epipolar_curve_px
 from psvs.optics.rig import Rig
 from psvs.optics.trace import distort, trace_pixels, undistort
 
@@ -95,9 +95,7 @@ def twin_distances_px(centres_px: np.ndarray, rig: Rig, near_mm: float, far_mm: 
     across, beyond = np.full((n, n), np.inf), np.full((n, n), np.inf)
     reach = 10.0 * sum(rig.camera.image_size_px)                     # the straight continuations, px
     for a in np.flatnonzero(rays.valid):
-        t = (z - rays.origins_mm[a, 2]) / rays.dirs[a, 2]
-        uv, ok = project_points(rays.origins_mm[a] + t[:, None] * rays.dirs[a], rig, "right")
-        uv = uv[ok]
+        uv = epipolar_curve_px(rays.origins_mm[a], rays.dirs[a], z, rig)
         if len(uv) < 2:
             continue
         t0, t1 = uv[0] - uv[1], uv[-1] - uv[-2]

@@ -44,7 +44,7 @@ from psvs.calibrate.targets import Ellipse, PatternDetection, detect_circles
 from psvs.errors import MeasurementError
 from psvs.measure.triangulate import triangulate
 from psvs.optics.mirrors import front_z_mm
-from psvs.optics.project import project_points
+from psvs.optics.project import epipolar_curve_px, project_points
 from psvs.optics.rig import Rig
 from psvs.optics.trace import trace_pixels
 
@@ -161,9 +161,7 @@ def epipolar_distance_px(left_px, right_px, rig: Rig, samples: int = 1024) -> np
     z = z[z > front_z_mm(rig)]
     out = np.full(len(left), np.nan)
     for k in np.flatnonzero(rays.valid):
-        t = (z - rays.origins_mm[k, 2]) / rays.dirs[k, 2]
-        uv, ok = project_points(rays.origins_mm[k] + t[:, None] * rays.dirs[k], rig, "right")
-        uv = uv[ok]
+        uv = epipolar_curve_px(rays.origins_mm[k], rays.dirs[k], z, rig)
         if len(uv) < 2:
             continue
         a, ab = uv[:-1], np.diff(uv, axis=0)

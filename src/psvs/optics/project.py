@@ -96,3 +96,13 @@ def in_image(uv_px, rig: Rig) -> np.ndarray:
     w, h = rig.camera.image_size_px
     with np.errstate(invalid="ignore"):
         return (uv[:, 0] >= -0.5) & (uv[:, 0] <= w - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] <= h - 0.5)
+
+
+def epipolar_curve_px(origin_mm, direction, z_mm, rig: Rig) -> np.ndarray:
+    """A left-view ray's epipolar curve in the right view: the right-view pixels (S', 2) of the ray's points
+    at the depths ``z_mm`` (S,) mm (``origin_mm`` (3,) mm and unit ``direction`` (3,) from
+    :func:`psvs.optics.trace.trace_pixels`), in the order of ``z_mm``; points the right view does not see
+    are left out."""
+    t = (np.asarray(z_mm, float) - origin_mm[2]) / direction[2]
+    uv, ok = project_points(origin_mm + t[:, None] * direction, rig, "right")
+    return uv[ok]
