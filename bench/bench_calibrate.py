@@ -5,10 +5,10 @@ from pathlib import Path
 
 from psvs.calibrate.folder import calibrate_folder
 from psvs.calibrate.synthetic import random_poses, render_grid_shots
-from psvs.calibrate.target_file import dumps_target
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.simulate.textures import CircleGrid
+from psvs.targets.target_file import dumps_target
 
 RIGS = Path(__file__).resolve().parents[1] / "examples" / "rigs"
 

@@ -35,7 +35,7 @@ _done: dict = {}
 def fig9_sample(key: int) -> dict:
     """The stand-in Monte-Carlo sample: the Fig. 9 pattern at 450-1050 mm (by key) rendered through the
     default rig with sensor noise seeded by the key, measured; the depth error."""
-    from psvs.calibrate.pattern_measure import measure_pattern
+    from psvs.accuracy.pattern_measure import measure_pattern
     from psvs.io.params import load_rig
     from psvs.simulate.builtin import builtin_scene
     from psvs.simulate.render import render

@@ -9,7 +9,7 @@ Each kind of answer states its evidence against a null, in one place per kind:
 * **A match or a lock** (dense depth, edge pairs, tracking): beyond what chance makes on the same image
   (psvs.dense.echo_test for dense depth).
 * **A measurement of a known target**: what it knows of the target (spacing, diameters) against what it
-  measured, within the measurement's noise (psvs.calibrate.pattern_measure).
+  measured, within the measurement's noise (psvs.accuracy.pattern_measure).
 
 A refusal is a :class:`psvs.errors.MeasurementError` (exit status 1) naming the figure, its limit and what
 would explain the gap. This module sits beside psvs.optics, under every package that fits or measures: it

@@ -21,11 +21,11 @@ from psvs.calibrate.capture import (
     pose_bins,
 )
 from psvs.calibrate.synthetic import render_grid_shots
-from psvs.calibrate.target_file import load_target
 from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.simulate.scene import Pose
 from psvs.simulate.textures import CircleGrid
+from psvs.targets.target_file import load_target
 from tests.support.cli import run
 from tests.support.video import write_hand_video
 

@@ -16,10 +16,10 @@ import pytest
 from psvs.calibrate.folder import calibrate_folder
 from psvs.calibrate.report import vertical_disagreement
 from psvs.calibrate.synthetic import random_poses, render_grid_shots
-from psvs.calibrate.target_file import dumps_target, load_target
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.simulate.textures import CircleGrid
+from psvs.targets.target_file import dumps_target, load_target
 from tests.reference_build import Box, Lens, ReferenceBuild
 from tests.support.cli import run
 from tests.support.geometry import reconstruction_errors

@@ -4,7 +4,7 @@ The images are rendered through src/psvs/rigs/mv1440_misaligned.toml (mirrors 0.
 0.5 mm off, the box turned, the lens as built); calibration starts from the nominal design (mv1440). A 5x7
 card of 16 mm (103 mm wide) is wider than its disparity at every depth held (400-900 mm): its two views
 interleave in every one of the 20 views, and discs of the two views touch or merge in several; the split
-along u (psvs.calibrate.grid.detect_grid, what calibrate used before psvs.calibrate.detect) refuses all 20
+along u (psvs.targets.grid.detect_grid, what calibrate used before psvs.targets.detect) refuses all 20
 ('the grid's two views interleave', 'found 53-66 disc(s), expected 70'; a user's 5x7 card lost 7 of 20).
 OpenCV's asymmetric circle grid and a ChArUco board calibrate too."""
 import numpy as np
@@ -12,13 +12,13 @@ import pytest
 
 from psvs.calibrate.folder import calibrate_folder
 from psvs.calibrate.synthetic import random_poses, render_grid_shots
-from psvs.calibrate.target_file import dumps_target
-from psvs.calibrate.target_points import target_points_mm
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.rigs import shipped_rig_path
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid
+from psvs.targets.target_file import dumps_target
+from psvs.targets.target_points import target_points_mm
 from tests.support.geometry import reconstruction_errors
 
 pytestmark = pytest.mark.slow
@@ -93,8 +93,8 @@ def test_every_interleaving_view_is_read(tmp_path_factory, seed):
     uncertain); at least 9 of the 10 views with the 6 trusted points calibrate uses (seed 2's view 9 has 5:
     most of its discs lie on the other copy's card edge or touch the other view's; calibrate skips it,
     saying to turn the card)."""
-    from psvs.calibrate.detect import detect_target
     from psvs.io.images import read_grey
+    from psvs.targets.detect import detect_target
     card = CircleGrid(5, 7, 16.0, 7.0)
     folder, interleaved = folder_of(tmp_path_factory, card, 10, seed=seed)
     assert interleaved == 10

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from psvs.calibrate.folder import calibrate_folder
-from psvs.calibrate.target_file import dumps_target
 from psvs.io.images import IMAGE_SUFFIXES, read_grey
 from psvs.io.params import load_rig
 from psvs.simulate.textures import CircleGrid
+from psvs.targets.target_file import dumps_target
 
 
 def test_every_image_format_of_a_folder_is_read(tmp_path):

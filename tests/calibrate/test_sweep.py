@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 
 from psvs import default_rig
+from psvs.accuracy.table1 import HOLDER, ROBOT_OFFSET_MM, pattern_image, rough_start
 from psvs.calibrate.folder import calibrate_folder
 from psvs.calibrate.sweep import calibrate_sweep, read_sweep
-from psvs.calibrate.table1 import HOLDER, ROBOT_OFFSET_MM, pattern_image, rough_start
-from psvs.calibrate.targets import detect_pattern
 from psvs.io.images import write_png
 from psvs.measure.triangulate import triangulate
 from psvs.optics.project import project_points
+from psvs.targets.pattern import detect_pattern
 from tests.support.cli import EXAMPLE, run
 
 SWEEP = np.arange(450.0, 1151.0, 140.0)   # 6 positions

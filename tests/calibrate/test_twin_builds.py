@@ -25,8 +25,8 @@ import pytest
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
+from psvs.accuracy.table1 import HOLDER, PAPER_TABLE1
 from psvs.calibrate.sweep import pattern_layout
-from psvs.calibrate.table1 import HOLDER, PAPER_TABLE1
 from psvs.io.params import load_rig
 from psvs.measure.triangulate import triangulate
 from psvs.optics.mirrors import mirror_planes

@@ -124,9 +124,9 @@ def test_calibrate_refuses_a_folder_that_repeats_an_image(capsys, tmp_path):
     """sweep.csv listing one image four times used to calibrate ('images = 1' in the rig written); a card
     folder holding one view twice (a copy under another name) too. Both: one line naming the duplicates,
     exit 2, the earlier rig file kept."""
-    from psvs.calibrate.table1 import CARD
-    from psvs.calibrate.target_file import dumps_target
+    from psvs.accuracy.table1 import CARD
     from psvs.io.images import write_png
+    from psvs.targets.target_file import dumps_target
     rng = np.random.default_rng(1)
     out = tmp_path / "rig.toml"
     out.write_text("earlier")

@@ -104,7 +104,7 @@ def test_scene_files(tmp_path):
 
 
 def test_target_files(tmp_path):
-    from psvs.calibrate.target_file import dumps_target, load_target
+    from psvs.targets.target_file import dumps_target, load_target
 
     def back(grid, folder):
         (folder / "t2.toml").write_text(dumps_target(grid))
@@ -138,12 +138,12 @@ def test_handeye_files(tmp_path):
 @given(st.binary(max_size=400))
 def test_any_bytes_as_any_text_file(tmp_path_factory, data):
     """Arbitrary bytes (binary, not UTF-8, a byte-order mark, half a table) given to every text reader."""
-    from psvs.calibrate.target_file import load_target
     from psvs.io.params import load_rig
     from psvs.io.pipeline_file import load_pipeline
     from psvs.io.points import read_csv_columns
     from psvs.io.scene_file import load_scene
     from psvs.robot.handeye_io import load_handeye
+    from psvs.targets.target_file import load_target
     folder = tmp_path_factory.mktemp("bytes")
     for name, read in (("r.toml", load_rig), ("s.toml", load_scene), ("t.toml", load_target),
                        ("p.toml", load_pipeline), ("h.toml", load_handeye), ("r.json", load_rig),

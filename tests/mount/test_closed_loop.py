@@ -8,13 +8,13 @@ import numpy as np
 import pytest
 
 from psvs.calibrate.synthetic import random_poses, render_grid_shots
-from psvs.calibrate.target_file import dumps_target
 from psvs.io.images import write_png
 from psvs.io.params import dumps_rig, load_rig
 from psvs.mount.guide import alignment_guide, row_offsets_px, working_points
 from psvs.mount.seats import apply_turns, seats_for
 from psvs.rigs import shipped_rig_path
 from psvs.simulate.textures import CircleGrid
+from psvs.targets.target_file import dumps_target
 from tests.support.cli import run
 
 pytestmark = pytest.mark.slow

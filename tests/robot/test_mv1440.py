@@ -44,19 +44,19 @@ def test_track_on_the_machine_vision_build(tmp_path, capsys):
 def test_hand_eye_with_a_target_whose_two_views_interleave():
     """A 7x4 grid of 16 mm (96 mm wide as the cell shows it, turned a quarter) 300 mm from the 1440 px build
     is wider than its disparity (about 620 px): its two views interleave, which the split along u
-    (detect_grid) refuses. Read through the rig's epipolar geometry (psvs.calibrate.detect), hand-eye
+    (detect_grid) refuses. Read through the rig's epipolar geometry (psvs.targets.detect), hand-eye
     recovers the planted mounting to 0.4 mm, 0.1 deg, reprojecting within 0.15 px (a twin taken from the
     other view's disc where the columns meet, 27 px off, trusted, made it 3.2 px); a view with a column out
     of the frame is skipped."""
     import numpy as np
 
-    from psvs.calibrate.grid import detect_grid
     from psvs.robot.arm import Arm
     from psvs.robot.controller import TrackConfig
     from psvs.robot.handeye import _angle, calibrate_from_views
     from psvs.robot.handeye_session import cell_views, true_cam2flange
     from psvs.robot.mounting import HOME_Q
     from psvs.simulate.textures import CircleGrid
+    from psvs.targets.grid import detect_grid
     rig, grid, cfg = load_rig("mv1440_misaligned"), CircleGrid(7, 4, 16.0, 7.0), TrackConfig()
     images, flanges = cell_views(rig, cfg, Arm(HOME_Q), 6, grid=grid)
     refused = 0

@@ -489,7 +489,7 @@ def render_card_views(draw: RigDraw, folder: Path, views: int = CARD_VIEWS) -> l
     adaptively (:func:`tests.support.adaptive.render_irradiance`), exposed by the draw's camera and saved as its
     files in ``folder`` with the card's target.toml; the paths."""
     from psvs.calibrate.synthetic import random_poses
-    from psvs.calibrate.target_file import dumps_target
+    from psvs.targets.target_file import dumps_target
     from tests.support.adaptive import render_irradiance
     seed = 1000 * draw.seed + draw.candidate
     poses = random_poses(draw.build, draw.card, views, seed=seed, z_range_mm=draw.card_range_mm, apart=False)

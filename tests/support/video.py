@@ -74,9 +74,9 @@ def write_hand_video(folder, rig_name: str = "misaligned", holds: int = 11, seed
     video rendered once for the session's processes (tests/support/shared_files.py), FOLDER/hand.avi a link
     to it."""
     from psvs.calibrate.handheld import HandParams, hand_path, render_hand_video
-    from psvs.calibrate.target_file import dumps_target
     from psvs.io.video import write_video
     from psvs.simulate.textures import CircleGrid
+    from psvs.targets.target_file import dumps_target
     from tests.support.shared_files import shared_file
     folder = Path(folder)
     rig, grid = load_rig(rig_name), CircleGrid(*card)

@@ -5,8 +5,8 @@ import time
 import pytest
 
 from psvs.calibrate.capture import ALL_BINS
-from psvs.calibrate.target_file import load_target
 from psvs.io.params import load_rig
+from psvs.targets.target_file import load_target
 from psvs.web.app import create_app
 from psvs.web.capture_runner import CaptureSetup
 from psvs.web.sources import image_source, video_source

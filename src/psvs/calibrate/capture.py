@@ -34,13 +34,13 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from psvs.calibrate.bundle import GridView, initial_grid_pose
-from psvs.calibrate.detect import CARD_DEPTHS_MM, MIN_DISC_PX
 from psvs.calibrate.folder import card_view
-from psvs.calibrate.target_points import Target, target_points_mm
 from psvs.errors import MeasurementError
 from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
 from psvs.simulate.textures import CharucoBoard
+from psvs.targets.detect import CARD_DEPTHS_MM, MIN_DISC_PX
+from psvs.targets.target_points import Target, target_points_mm
 from psvs.transforms import transform_from_rotvec
 
 #: OpenCV ArUco detector's default minMarkerPerimeterRate: a marker's perimeter over the image's larger side
@@ -189,10 +189,10 @@ def _speed_px_s(view: GridView, last: GridView | None, dt_s: float) -> float:
 def check_card_visible(rig: Rig, target: Target, params: CaptureParams) -> None:
     """ValueError, before any frame is read, when the target cannot be detected over the range through this
     rig: its features (a disc's diameter; a ChArUco marker's side) at ``far_mm`` smaller than the detector
-    locates (:data:`psvs.calibrate.detect.MIN_DISC_PX`; OpenCV's ArUco detector: a marker's perimeter at
+    locates (:data:`psvs.targets.detect.MIN_DISC_PX`; OpenCV's ArUco detector: a marker's perimeter at
     least :data:`MIN_MARKER_PERIMETER_RATE` of the image's larger side), both on the rig's pinhole at its
     virtual centres; or the range outside the depths the detector looks for features at
-    (:data:`psvs.calibrate.detect.CARD_DEPTHS_MM`). A card wider than its disparity is fine: its two copies
+    (:data:`psvs.targets.detect.CARD_DEPTHS_MM`). A card wider than its disparity is fine: its two copies
     are separated through the rig's epipolar geometry."""
     cam, zv = rig.camera, rig.virtual_z_mm
     lo, hi = CARD_DEPTHS_MM

@@ -1,7 +1,7 @@
 """Calibrate a build from a folder of complex images: hand-held grid views, a robot sweep, or both.
 
 The folder holds images (any file :func:`psvs.io.images.read_grey` reads: PNG, JPEG, BMP, TIFF, PNM; grey
-or colour) and ``target.toml`` (the hand-held card, :mod:`psvs.calibrate.target_file`)
+or colour) and ``target.toml`` (the hand-held card, :mod:`psvs.targets.target_file`)
 and/or ``sweep.csv`` (the paper's robot sweep, :mod:`psvs.calibrate.sweep`). Images listed in ``sweep.csv``
 are sweep images; every other image is a view of the card. Each image is detected on its own; one that
 cannot be used is skipped with its reason (no grid found, too few discs on an even ground, or -- after a
@@ -22,14 +22,14 @@ import numpy as np
 
 from psvs._threads import one_blas_thread
 from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
-from psvs.calibrate.detect import detect_target
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
-from psvs.calibrate.target_file import load_target
-from psvs.calibrate.target_points import Target, TargetDetection, target_points_mm
 from psvs.evidence import check_build
 from psvs.io.images import IMAGE_SUFFIXES, read_grey
 from psvs.optics.mirrors import virtual_centre
 from psvs.optics.rig import Rig
+from psvs.targets.detect import detect_target
+from psvs.targets.target_file import load_target
+from psvs.targets.target_points import Target, TargetDetection, target_points_mm
 
 MIN_GRID_POINTS = 6        # fewer trusted points than this (x 2 views: 24 residuals, 6 pose unknowns): skipped
 MAX_IMAGE_RMS_PX = 1.0     # an image whose points miss their fitted pose by more: skipped, refitted
@@ -53,7 +53,7 @@ class CalibrationResult:
 
 def grid_view(name: str, grey: np.ndarray, target: Target, rig: Rig) -> GridView:
     """The trusted points of one card view (both images of each point located without bias), found
-    through the nominal ``rig`` (:func:`psvs.calibrate.detect.detect_target`)."""
+    through the nominal ``rig`` (:func:`psvs.targets.detect.detect_target`)."""
     return card_view(name, grey, target, rig)[0]
 
 

@@ -16,11 +16,11 @@ from pathlib import Path
 import numpy as np
 
 from psvs.calibrate.bundle import BundleResult, SweepView, bundle_adjust
-from psvs.calibrate.targets import PatternDetection, detect_pattern
 from psvs.errors import MeasurementError
 from psvs.io.images import read_grey
 from psvs.io.text import read_csv_rows
 from psvs.optics.rig import Rig
+from psvs.targets.pattern import PatternDetection, detect_pattern
 
 SPACING_MM = 20.0   # the paper's pattern: circles 20 mm apart (Fig. 9)
 COUNT = 5
@@ -92,10 +92,10 @@ def check_sweep_rows(items: list[tuple[Path | str, float]], where: str = "the sw
 def detect_sweep(items: list[tuple[Path, float]], count: int = 5, expect_size: tuple[int, int] | None = None,
                  start: Rig | None = None):
     """Detect the pattern in every image (of ``expect_size`` (W, H) px when given: the camera's), its two
-    views paired by the ``start`` rig's geometry when given (:func:`psvs.calibrate.pairing.detect_with_start`),
-    else split by u (:func:`psvs.calibrate.targets.detect_pattern`); returns ([(name, position, detection)],
+    views paired by the ``start`` rig's geometry when given (:func:`psvs.targets.pairing.detect_with_start`),
+    else split by u (:func:`psvs.targets.pattern.detect_pattern`); returns ([(name, position, detection)],
     {name: error})."""
-    from psvs.calibrate.pairing import detect_with_start
+    from psvs.targets.pairing import detect_with_start
     ok, skipped = [], {}
     for path, pos in items:
         try:

@@ -12,11 +12,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psvs.calibrate.targets import MAX_DIAMETER_PX, MIN_AREA_PX
 from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import Rig
 from psvs.simulate.scene import Pose, Scene, SceneObject
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid, Uniform
+from psvs.targets.discs import MAX_DIAMETER_PX, MIN_AREA_PX
 
 
 @dataclass(frozen=True, eq=False)
@@ -46,7 +46,7 @@ def check_card_fits(rig: Rig, grid: CircleGrid, n: int, z_range_mm=(450.0, 1000.
     wide or too high for the views at the nearest of the ``n`` depth strata (both copies of the grid side by
     side in the image, ``margin_px`` inside it, and apart by two disc diameters; the tilt foreshortening
     it by at most cos ``tilt_deg``; with ``apart`` False the copies may interleave, so only both side by
-    side must fit), or discs outside what the detector finds (psvs.calibrate.targets:
+    side must fit), or discs outside what the detector finds (psvs.targets.pattern:
     :data:`MIN_AREA_PX` at the farthest poses, :data:`MAX_DIAMETER_PX` at the nearest). Each view is the
     rig's pinhole at its virtual centre; the test is lenient, so a grid it passes may still find no pose."""
     cam, b, zv = rig.camera, rig.mirrors.baseline_mm, rig.virtual_z_mm
@@ -79,8 +79,8 @@ def random_poses(rig: Rig, grid, n: int, seed: int = 0, z_range_mm=(450.0, 1000.
     With ``apart`` the two copies of the grid are apart (no disc of one view within two diameters of the
     other view's grid); without, they may interleave as a hand-held card's do, only no two discs of the
     two views closer than a radius (discs on top of each other are one blob). A grid no pose could show is
-    refused first (:func:`check_card_fits`); ``grid`` may be any target (psvs.calibrate.detect.Target)."""
-    from psvs.calibrate.target_points import target_points_mm
+    refused first (:func:`check_card_fits`); ``grid`` may be any target (psvs.targets.detect.Target)."""
+    from psvs.targets.target_points import target_points_mm
     if isinstance(grid, CircleGrid):
         check_card_fits(rig, grid, n, z_range_mm, tilt_deg, margin_px, apart)
     max_tries = 2000
@@ -126,9 +126,9 @@ def render_grid_shots(rig: Rig, grid: CircleGrid, poses: list[Pose], seed: int =
                       supersample: int = 2, sensor=None) -> list[GridShot]:
     """Render the card (any target: its printed image) at each pose through ``rig`` (realistic sensor: blur
     and noise, seeded; ``sensor`` a :class:`psvs.simulate.sensor.Sensor`, the renderer's default when None)."""
-    from psvs.calibrate.target_points import target_points_mm
     from psvs.simulate.builtin import regulated_light
     from psvs.simulate.render import render
+    from psvs.targets.target_points import target_points_mm
     size = card_size_mm(grid)
     local = target_points_mm(grid)
     local = np.column_stack([local, np.zeros(len(local))])

@@ -42,7 +42,7 @@ def _setup(args):
     from pathlib import Path
 
     from psvs.calibrate.capture import CaptureAssistant, CaptureFolder, CaptureParams, check_card_visible
-    from psvs.calibrate.target_file import load_target
+    from psvs.targets.target_file import load_target
     near, far = check_working_range(args.near_mm, args.far_mm)
     try:
         params = CaptureParams(views=args.views, near_mm=near, far_mm=far, max_speed_px_s=args.max_speed_px_s)

@@ -47,11 +47,11 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     from psvs.calibrate.synthetic import check_card_fits, random_poses, render_grid_shots
-    from psvs.calibrate.target_file import dumps_target
     from psvs.io.atomic import write_atomic
     from psvs.io.images import write_png
     from psvs.simulate.render import check_render_work
     from psvs.simulate.textures import CircleGrid
+    from psvs.targets.target_file import dumps_target
 
     if not 3 <= args.views <= 60:
         raise ValueError(f"--views must be 3-60, got {args.views}")
@@ -61,7 +61,7 @@ def run(args) -> int:
     if not args.video:
         _check_replaceable(folder)
     if args.target is not None:
-        from psvs.calibrate.target_file import load_target
+        from psvs.targets.target_file import load_target
         card = load_target(args.target)
     else:
         try:
@@ -130,11 +130,11 @@ def _replace_folder(new: Path, folder: Path) -> None:
 def _video(args, rig, card, folder) -> int:
     """--video: a simulated hand-held video of the card, and target.toml in the folder."""
     from psvs.calibrate.handheld import HandParams, hand_path, render_hand_video
-    from psvs.calibrate.target_file import dumps_target
     from psvs.cli.common import check_distinct, check_output_path
     from psvs.io.atomic import output_batch, write_atomic
     from psvs.io.video import VIDEO_SUFFIXES, write_video
     from psvs.simulate.render import check_render_work
+    from psvs.targets.target_file import dumps_target
     video = check_output_path(args.video, VIDEO_SUFFIXES)
     check_distinct({"--video": video, "DIR/target.toml": folder / "target.toml"}, {"--rig": args.rig})
     renders = args.views + (args.views - 1) * MOVE_FRAMES * BLUR_SAMPLES

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 
-from psvs.calibrate.pattern_measure import check_pattern_sizes, measure_pattern
+from psvs.accuracy.pattern_measure import check_pattern_sizes, measure_pattern
 from psvs.cli.common import add_model_argument, add_range_arguments, add_rig_argument, range_from_args, rig_from_args
 from psvs.io.images import check_frame_size, read_grey
 
@@ -44,7 +44,7 @@ def prepare(args, image=None) -> tuple:
 
 
 def compute(args, image=None):
-    """The measurement (:class:`~psvs.calibrate.pattern_measure.PatternMeasurement`); MeasurementError when the
+    """The measurement (:class:`~psvs.accuracy.pattern_measure.PatternMeasurement`); MeasurementError when the
     pattern is not found as asked."""
     image, rig, z_mm = prepare(args, image)
     return measure_pattern(image, rig, model=args.model, count=args.count,

@@ -24,8 +24,8 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
+    from psvs.accuracy.table1 import ROBOT_OFFSET_MM, SUPERSAMPLE, check_pattern_depths, pattern_image
     from psvs.calibrate.sweep import dumps_sweep
-    from psvs.calibrate.table1 import ROBOT_OFFSET_MM, SUPERSAMPLE, check_pattern_depths, pattern_image
     from psvs.io.atomic import write_atomic
     from psvs.io.images import write_png
     from psvs.simulate.render import check_render_work

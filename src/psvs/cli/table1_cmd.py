@@ -5,7 +5,7 @@ import sys
 
 import numpy as np
 
-from psvs.calibrate.table1 import check_start, check_table1, run_table1, table_markdown, write_outputs
+from psvs.accuracy.table1 import check_start, check_table1, run_table1, table_markdown, write_outputs
 from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
 from psvs.io.params import load_rig
 from psvs.optics.mirrors import virtual_centre

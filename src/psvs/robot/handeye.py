@@ -1,7 +1,7 @@
 """Hand-eye calibration: where the PSVS (frame C) sits on the flange, from views of a circle-grid target.
 
 The robot shows the target to the PSVS from several flange poses. In each complex image the grid is found
-in both views through the rig's epipolar geometry (:func:`psvs.calibrate.detect.detect_target`: the two
+in both views through the rig's epipolar geometry (:func:`psvs.targets.detect.detect_target`: the two
 views may interleave, discs may touch), its disc centres are triangulated (exact model),
 and the rigid transform target -> frame C is the least-squares fit of the grid's known layout to them
 (Kabsch). With the flange poses from the arm's kinematics, AX = XB is solved for X = cam2flange by
@@ -20,11 +20,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from psvs.calibrate.detect import detect_target
 from psvs.evidence import check_residual
 from psvs.measure.triangulate import triangulate
 from psvs.optics.rig import Rig
 from psvs.simulate.textures import CircleGrid
+from psvs.targets.detect import detect_target
 from psvs.transforms import concat, invert_transform, transform_from, transform_points
 
 

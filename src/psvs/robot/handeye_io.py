@@ -31,13 +31,13 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from psvs.calibrate.target_file import dumps_target, load_target
 from psvs.io.atomic import write_atomic
 from psvs.io.images import read_grey, write_png
 from psvs.io.text import read_csv_rows
 from psvs.io.tomlfile import dumps_toml, load_table
 from psvs.robot.handeye import HandEyeResult
 from psvs.simulate.textures import CircleGrid
+from psvs.targets.target_file import dumps_target, load_target
 from psvs.transforms import check_transform, transform_from
 
 METHOD = "reprojection"

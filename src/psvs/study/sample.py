@@ -11,7 +11,7 @@ exactly as ``psvs calibrate`` does, and score it (docs/tolerancing.md).
   where frame C sits behind the mirrors (docs/calibration.md, "What a card cannot see"): the 3-D error is
   taken after the best rigid motion (Kabsch); the error in frame C itself is reported beside it.
 - Table I (optional, ``[test] table1``: 15 more renders): the paper's test distances measured with the
-  calibrated rig (:func:`psvs.calibrate.pattern_measure.measure_pattern`), the depth error after the common offset
+  calibrated rig (:func:`psvs.accuracy.pattern_measure.measure_pattern`), the depth error after the common offset
   (the robot's unknown zero) and the first-to-last distance error.
 - The twins' row offset before calibration: :func:`psvs.mount.guide.row_offsets_px` over the working range,
   the largest (px).
@@ -53,10 +53,10 @@ def render_card_folder(build: Rig, procedure: Procedure, seed: int, folder) -> N
     """What ``psvs card-views FOLDER --rig BUILD --views N --seed SEED [--interleave]`` writes
     (``card_NN.png`` and ``target.toml``), with the procedure's depths, tilt, supersampling and sensor."""
     from psvs.calibrate.synthetic import check_card_fits, random_poses, render_grid_shots
-    from psvs.calibrate.target_file import dumps_target
     from psvs.io.atomic import write_atomic
     from psvs.io.images import write_png
     from psvs.simulate.sensor import Sensor
+    from psvs.targets.target_file import dumps_target
     p, folder = procedure, Path(folder)
     z_range = (p.near_mm, p.far_mm)
     check_card_fits(build, p.card, p.views, z_range, tilt_deg=p.tilt_deg, apart=not p.interleave)
@@ -72,8 +72,8 @@ def render_card_folder(build: Rig, procedure: Procedure, seed: int, folder) -> N
 def render_sweep_folder(build: Rig, procedure: Procedure, seed: int, folder) -> None:
     """What ``psvs sweep-views FOLDER --rig BUILD --from-mm A --to-mm B --step-mm S --seed SEED`` writes
     (``sweep_NNNN_N.png`` and ``sweep.csv``: the Fig. 9 pattern on the robot's holder at each depth)."""
+    from psvs.accuracy.table1 import ROBOT_OFFSET_MM, check_pattern_depths, pattern_image
     from psvs.calibrate.sweep import dumps_sweep
-    from psvs.calibrate.table1 import ROBOT_OFFSET_MM, check_pattern_depths, pattern_image
     from psvs.io.atomic import write_atomic
     from psvs.io.images import write_png
     lo, hi, step = procedure.sweep_mm
@@ -118,8 +118,8 @@ def table1_errors(calibrated: Rig, build: Rig) -> dict:
     """The paper's Table I on ``build`` measured with ``calibrated``: RMS and max |Z error| after the common
     offset (mm) and the mean |first-to-last distance - 80 mm| (mm). ValueError/MeasurementError when the
     pattern is not found or measured at some distance."""
-    from psvs.calibrate.pattern_measure import measure_pattern
-    from psvs.calibrate.table1 import PAPER_TABLE1, check_pattern_depths, pattern_image
+    from psvs.accuracy.pattern_measure import measure_pattern
+    from psvs.accuracy.table1 import PAPER_TABLE1, check_pattern_depths, pattern_image
     z_true = PAPER_TABLE1[:, 0]
     check_pattern_depths(build, float(z_true.min()), float(z_true.max()), "Table I's depths")
     meas = [measure_pattern(pattern_image(build, float(z), int(z) + 1), calibrated) for z in z_true]
@@ -145,8 +145,8 @@ def check_study(nominal: Rig, tol: Tolerances) -> float:
     sample's renders beyond the memory or the time limit (:func:`psvs.simulate.render.check_render_work`).
     A build that departs from the design may still fail: that is a scored failure, not this error. Returns
     the estimated time (s) of one sample's renders (:func:`psvs.simulate.render.render_seconds`)."""
+    from psvs.accuracy.table1 import PAPER_TABLE1, SUPERSAMPLE, check_pattern_depths
     from psvs.calibrate.synthetic import check_card_fits
-    from psvs.calibrate.table1 import PAPER_TABLE1, SUPERSAMPLE, check_pattern_depths
     from psvs.simulate.render import check_render_work, render_seconds
     p, test = tol.procedure, tol.test
     if p.method == "sweep":

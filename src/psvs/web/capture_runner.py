@@ -17,8 +17,8 @@ from psvs.calibrate.capture import (
     check_card_visible,
     event_lines,
 )
-from psvs.calibrate.detect import Target
 from psvs.optics.rig import Rig
+from psvs.targets.detect import Target
 from psvs.web.runner import BackgroundRunner
 from psvs.web.sources import Source
 

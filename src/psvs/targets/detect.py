@@ -1,19 +1,19 @@
 """Find a calibration target in both views of one complex image: :func:`detect_target`.
 
-The target is what ``target.toml`` describes (:mod:`psvs.calibrate.target_file`): a symmetric circle grid,
+The target is what ``target.toml`` describes (:mod:`psvs.targets.target_file`): a symmetric circle grid,
 OpenCV's asymmetric circle grid or a ChArUco board. The answer is each view's points with their ids on the
 target (so a capture assistant can use it frame by frame), or a ValueError saying why the image cannot be
 read and what to do about it ("hold the card closer", "farther", "turn the card", ...).
 
 Circle grids (docs/calibration.md, "Target kinds"): every dark disc is found, touching discs split apart
-(:mod:`psvs.calibrate.blobs`); the discs are paired into twins through the nominal rig's epipolar geometry,
-the pairing that explains the most discs winning (:mod:`psvs.calibrate.twins`), so the card's two views may
-interleave; the left view's discs are labelled on the target's lattice (:mod:`psvs.calibrate.lattice`) and
+(:mod:`psvs.targets.discs`); the discs are paired into twins through the nominal rig's epipolar geometry,
+the pairing that explains the most discs winning (:mod:`psvs.targets.twins`), so the card's two views may
+interleave; the left view's discs are labelled on the target's lattice (:mod:`psvs.targets.lattice`) and
 each twin takes its left disc's label. A disc that touches or nearly touches another, or that another view's
 card edge crosses, is kept for the labels but not trusted (``reliable`` False): its centre is biased. A disc
 whose rim is read on at least :data:`MIN_RIM_SHARE` of its rays (those running into a neighbour are not
 read) on an even ground is trusted, touching or not: on mv1440 renders such discs lie within 0.1 px.
-ChArUco boards: :mod:`psvs.calibrate.charuco`.
+ChArUco boards: :mod:`psvs.targets.charuco`.
 """
 from __future__ import annotations
 
@@ -22,13 +22,13 @@ import math
 import numpy as np
 
 from psvs._validate import check_grey
-from psvs.calibrate.blobs import find_discs
-from psvs.calibrate.lattice import label_lattice, place_on_target
-from psvs.calibrate.target_points import Target, TargetDetection
-from psvs.calibrate.twins import REACH_OVER_STEP, pair_twins
 from psvs.optics.illumination import flat_field
 from psvs.optics.rig import Rig
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard
+from psvs.targets.discs import find_discs
+from psvs.targets.lattice import label_lattice, place_on_target
+from psvs.targets.target_points import Target, TargetDetection
+from psvs.targets.twins import REACH_OVER_STEP, pair_twins
 
 #: A disc whose surroundings vary more than this (share of its contrast) is not trusted for calibration.
 MAX_BACKGROUND_SPREAD = 0.25
@@ -68,7 +68,7 @@ def detect_target(grey: np.ndarray, target: Target, rig: Rig, depths_mm=CARD_DEP
         grey = np.clip(np.rint(grey * 255), 0, 255).astype(np.uint8)
     grey = flat_field(grey, rig.camera)      # the lens's fall-off undone: the same contrast in the corners
     if isinstance(target, CharucoBoard):
-        from psvs.calibrate.charuco import detect_charuco
+        from psvs.targets.charuco import detect_charuco
         return detect_charuco(grey, target, rig)
     return _detect_circles(grey, target, rig, depths_mm)
 

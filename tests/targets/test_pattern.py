@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from psvs import default_rig
-from psvs.calibrate.pattern_measure import measure_pattern
-from psvs.calibrate.targets import detect_pattern
+from psvs.accuracy.pattern_measure import measure_pattern
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
+from psvs.targets.pattern import detect_pattern
 from tests.support.cli import EXAMPLE, run
 
 CASES = [(440, 0), (589, 0), (736, 10), (883, 0), (1000, -15), (1123, 0)]
@@ -100,7 +100,7 @@ def test_cli(capsys, tmp_path, images):
     assert code == 2 and "image is blank" in err
 
 
-# --- a measurement is checked against the pattern it claims to be (psvs.calibrate.pattern_measure) ---
+# --- a measurement is checked against the pattern it claims to be (psvs.accuracy.pattern_measure) ---
 
 from psvs.errors import MeasurementError  # noqa: E402
 
@@ -145,7 +145,7 @@ def test_diameters_and_spacings_are_checked_against_the_pattern(images):
     """Asked for 12 mm circles or a 25 mm spacing, the paper's pattern is refused with the numbers and the
     tolerance (1 px, 0.57 mm at 589 mm); the diameter check on a measurement of 25 mm circles (another
     build's optics) names it."""
-    from psvs.calibrate.pattern_measure import PatternMeasurement, check_geometry, footprint_mm
+    from psvs.accuracy.pattern_measure import PatternMeasurement, check_geometry, footprint_mm
     img, rig = images[(589, 0)], default_rig()
     px = footprint_mm(rig, 589.0)
     assert px == pytest.approx((589 + 50) * 0.01 / 11.3) and 0.56 < px < 0.57
@@ -188,7 +188,7 @@ def test_good_images_at_every_table1_distance_still_measure(rig_name):
     """The paper's 15 distances, on the robot's holder (psvs table1's images) and flat (`fig9:distance_mm=`),
     measured with the rig they were taken through: every check passes and the accuracy is what it was
     (|Z error| <= 0.6 mm, diameters within 0.1 mm on average, first-last distance within 0.25 mm)."""
-    from psvs.calibrate.table1 import PAPER_TABLE1, pattern_image
+    from psvs.accuracy.table1 import PAPER_TABLE1, pattern_image
     rig = load_rig(rig_name)
     for z in PAPER_TABLE1[:, 0]:
         for img in (pattern_image(rig, z, int(z) + 1), render(builtin_scene(f"fig9:distance_mm={z}"), rig,

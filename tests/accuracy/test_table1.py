@@ -10,7 +10,7 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def table1(tmp_path_factory):
     from psvs import default_rig
-    from psvs.calibrate.table1 import run_table1, write_outputs
+    from psvs.accuracy.table1 import run_table1, write_outputs
     t = run_table1(default_rig())
     out = tmp_path_factory.mktemp("t1")
     return t, write_outputs(out, t)
@@ -34,7 +34,7 @@ def test_outputs_read_back_by_value(table1):
     import cv2
     import numpy as np
 
-    from psvs.calibrate.table1 import PAPER_TABLE1
+    from psvs.accuracy.table1 import PAPER_TABLE1
     t, files = table1
     csv, md, fig = files
     rows = list(csvlib.DictReader(csv.open()))
@@ -66,7 +66,7 @@ def test_table1_on_a_misaligned_build_from_the_sweep_alone():
     distances, first-last distance within 0.1 mm, diameters within 0.03 mm."""
     from pathlib import Path
 
-    from psvs.calibrate.table1 import run_table1
+    from psvs.accuracy.table1 import run_table1
     from psvs.io.params import load_rig
     rigs = Path(__file__).resolve().parents[2] / "examples" / "rigs"
     design = load_rig(rigs / "clear.toml").with_extents({k: None for k in ("m1", "m2", "m3", "m4")})

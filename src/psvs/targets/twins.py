@@ -94,7 +94,7 @@ def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: 
         counts less than a clean disc. The pairing of the most weight wins. Default: 1 each.
     shift_px : ndarray, shape (n, 2), optional
         The least and most a point's twin may lie to its left (u_l - u_r, px), e.g. from its own size
-        (:func:`psvs.calibrate.detect.disparity_per_size`): the epipolar curve over the search depths
+        (:func:`psvs.targets.detect.disparity_per_size`): the epipolar curve over the search depths
         alone also reaches a neighbour of the same view (one step of the card) at the far depths.
     shared : ndarray, shape (n,) bool, optional
         Points that may be used twice, once as a left image and once as a right one: two discs of the two

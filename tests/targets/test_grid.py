@@ -3,12 +3,12 @@ import numpy as np
 import pytest
 
 from psvs import default_rig
-from psvs.calibrate.grid import calibrate_stereo, detect_grid
 from psvs.optics.project import project_points
 from psvs.simulate.builtin import regulated_light
 from psvs.simulate.render import render
 from psvs.simulate.scene import Pose, Scene, SceneObject
 from psvs.simulate.textures import CircleGrid, Uniform
+from psvs.targets.grid import calibrate_stereo, detect_grid
 
 TEX = CircleGrid(4, 5, 15.0, 7.0)
 POSES = ((550, 10, -15, -5, 10), (650, -15, 10, 5, -20), (750, 20, 20, 0, 0), (600, 0, -25, 10, 15),
@@ -74,8 +74,8 @@ def test_chessboard_views_in_a_complex_image():
     """Both superimposed copies of a chessboard are found (OpenCV, one after the other) and paired corner by
     corner: within 0.6 px of the exact projections (cornerSubPix on a complex image; circle grids reach
     ~0.03 px, so they are the better calibration target in complex images)."""
-    from psvs.calibrate.grid import detect_chessboard
     from psvs.simulate.textures import Chessboard
+    from psvs.targets.grid import detect_chessboard
     rig = default_rig()
     board = Chessboard(6, 5, 10.0)
     for z, rx, ry in ((600, 10, -15), (750, -15, 20)):

@@ -3,7 +3,7 @@
 Every ArUco marker of the board appears twice, once per view, with the same id: OpenCV's
 ``ArucoDetector`` finds them all, and each id's two copies are the two views' (the left view's copy is the
 one further along +u: disparity u_l - u_r > 0), provided the right copy lies on the left copy's epipolar
-curve through the nominal rig (:func:`psvs.calibrate.twins.twin_candidates`). A marker seen once (its twin
+curve through the nominal rig (:func:`psvs.targets.twins.twin_candidates`). A marker seen once (its twin
 hidden or unreadable) joins the view whose board map (a homography fitted to the paired markers) predicts
 it. Each view's markers then go to OpenCV's ``CharucoDetector``, which finds the chessboard corners between
 them (ids: OpenCV's, row by row) and refines them; a corner of one view is paired with the same id's corner of
@@ -15,10 +15,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from psvs.calibrate.target_points import TargetDetection
-from psvs.calibrate.twins import twin_candidates
 from psvs.optics.rig import Rig
 from psvs.simulate.textures import CharucoBoard
+from psvs.targets.target_points import TargetDetection
+from psvs.targets.twins import twin_candidates
 
 #: A lone marker joins a view whose board map puts it within this share of a square.
 LONE_TOL = 0.25
@@ -89,7 +89,7 @@ def _corners(grey: np.ndarray, markers: dict, cv_board) -> dict:
 
 def detect_charuco(grey: np.ndarray, board: CharucoBoard, rig: Rig):
     """Both views of a ChArUco board (see the module docstring): a
-    :class:`psvs.calibrate.detect.TargetDetection`, or ValueError saying why not."""
+    :class:`psvs.targets.detect.TargetDetection`, or ValueError saying why not."""
     cv_board = opencv_board(board)
     corners, ids = _markers(grey, cv_board)
     if len(ids) == 0:

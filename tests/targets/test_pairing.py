@@ -1,4 +1,4 @@
-"""Pairing the two views' circles by the rig's geometry (psvs.calibrate.pairing) on any camera: the paper's
+"""Pairing the two views' circles by the rig's geometry (psvs.targets.pairing) on any camera: the paper's
 640x480 rig and the 1440x1080 machine-vision rigs (mv1440, mv1440_misaligned), patterns side by side,
 interleaved and overlapping, tilted and off-centre; images that are not the pattern exit 1 with no numbers."""
 import json
@@ -9,15 +9,16 @@ import numpy as np
 import pytest
 
 from psvs import default_rig
-from psvs.calibrate.pairing import disc_size_range_px, lens_scale_range, perfect_matchings
-from psvs.calibrate.pattern_measure import measure_pattern
-from psvs.calibrate.targets import detect_circles, split_two_discs
+from psvs.accuracy.pattern_measure import measure_pattern
 from psvs.errors import MeasurementError
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
 from psvs.simulate.textures import Circles
+from psvs.targets.discs import split_two_discs
+from psvs.targets.pairing import disc_size_range_px, lens_scale_range, perfect_matchings
+from psvs.targets.pattern import detect_circles
 from tests.support.cli import run
 
 
@@ -167,7 +168,7 @@ def _table1_acceptance(rows):
     """rows (15, 4): Z meas., Z calc., d calc., a calc. (mm). Every distance measured; mean |Z error| after
     the common offset (frame C's depth origin, which no image fixes: docs/calibration.md) <= 0.1 mm;
     diameters within 0.03 mm on average; the first-last distance within 0.1 mm on average."""
-    from psvs.calibrate.table1 import PAPER_TABLE1
+    from psvs.accuracy.table1 import PAPER_TABLE1
     assert rows.shape == (15, 4) and np.all(np.isfinite(rows))
     assert rows[:, 0] == pytest.approx(PAPER_TABLE1[:, 0])
     z_err = rows[:, 1] - rows[:, 0]
@@ -193,7 +194,7 @@ def test_table1_on_mv1440_misaligned():
     the sweep alone starting from its design (mv1440, as the paper's build from clear.toml in
     test_table1.py; from the rough guess, no lens and f +10 %, the adjustment stops at 8.8 px RMS), meets
     the acceptance."""
-    from psvs.calibrate.table1 import run_table1
+    from psvs.accuracy.table1 import run_table1
     design = load_rig("mv1440").with_extents({k: None for k in ("m1", "m2", "m3", "m4")})
     t = run_table1(load_rig("mv1440_misaligned"), start=design)
     assert t.calibration.rms_px < 0.1
@@ -206,8 +207,8 @@ def test_two_consistent_pairings_are_refused_not_picked():
     (12 px apart). Before calibration (its design as the start rig: twins within 2 deg of view turn, a row
     of equal gaps) swapping those two circles' views also fits: 2 assignments, refused. The build's own
     rig (1 px, the printed spacing and diameters) leaves one, 925 mm within 0.3 mm."""
-    from psvs.calibrate.pairing import detect_with_start
-    from psvs.calibrate.table1 import pattern_image
+    from psvs.accuracy.table1 import pattern_image
+    from psvs.targets.pairing import detect_with_start
     build = load_rig("mv1440_misaligned")
     design = load_rig("mv1440").with_extents({k: None for k in ("m1", "m2", "m3", "m4")})
     img = pattern_image(build, 925.0, 925)

@@ -1,11 +1,11 @@
 """OpenCV-style circle grids and chessboards in complex images, and a generic stereo calibration (OpenCV).
 
 Without a rig: :func:`detect_grid` needs the card's two copies apart. With the rig, a card whose copies
-interleave or touch, an asymmetric grid or a ChArUco board: :func:`psvs.calibrate.detect.detect_target`
+interleave or touch, an asymmetric grid or a ChArUco board: :func:`psvs.targets.detect.detect_target`
 (what ``psvs calibrate`` uses).
 
 Each disc appears twice. All dark blobs are found and refined as for the paper's pattern
-(:mod:`psvs.calibrate.targets`), split into the two views by a two-cluster split along u (the grid must
+(:mod:`psvs.targets.pattern`), split into the two views by a two-cluster split along u (the grid must
 be narrower than its disparity, so the copies do not interleave: the left view is the right-hand copy),
 and each copy ordered on its own with ``cv2.findCirclesGrid`` run on a clean synthetic image of its
 centres; the right copy's order is then turned to agree with the left's (twins all sit one shift apart),
@@ -21,7 +21,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from psvs.calibrate.targets import MAX_DIAMETER_PX, dark_blobs, refine_circle
+from psvs.targets.discs import MAX_DIAMETER_PX, dark_blobs
+from psvs.targets.rim import refine_circle
 
 #: A disc whose surroundings vary more than this (share of its contrast) is not trusted for calibration.
 MAX_BACKGROUND_SPREAD = 0.25

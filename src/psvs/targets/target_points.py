@@ -1,6 +1,6 @@
 """What a detected calibration target is: the target kinds (:data:`Target`), their points in the target's own
 frame (:func:`target_points_mm`) and one complex image's detection (:class:`TargetDetection`). Shared by
-the circle-grid detector (:mod:`psvs.calibrate.detect`) and the ChArUco one (:mod:`psvs.calibrate.charuco`),
+the circle-grid detector (:mod:`psvs.targets.detect`) and the ChArUco one (:mod:`psvs.targets.charuco`),
 which import it and not each other."""
 from __future__ import annotations
 

@@ -6,12 +6,7 @@ import numpy as np
 import pytest
 
 from psvs import default_rig
-from psvs.calibrate.blobs import find_discs
-from psvs.calibrate.detect import detect_target
-from psvs.calibrate.grid import detect_grid
-from psvs.calibrate.lattice import label_lattice, place_on_target
 from psvs.calibrate.synthetic import card_size_mm
-from psvs.calibrate.target_points import TargetDetection, target_points_mm
 from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.rigs import shipped_rig_path
@@ -19,6 +14,11 @@ from psvs.simulate.builtin import regulated_light
 from psvs.simulate.render import render
 from psvs.simulate.scene import Pose, Scene, SceneObject
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid, Uniform
+from psvs.targets.detect import detect_target
+from psvs.targets.discs import find_discs
+from psvs.targets.grid import detect_grid
+from psvs.targets.lattice import label_lattice, place_on_target
+from psvs.targets.target_points import TargetDetection, target_points_mm
 
 
 def shot(rig, target, position_mm, angles_deg, seed=0, supersample=2):
@@ -191,7 +191,7 @@ def test_target_file_round_trip(tmp_path, target):
     sees the kind and every key with its value."""
     import tomllib
 
-    from psvs.calibrate.target_file import KEYS, dumps_target, load_target
+    from psvs.targets.target_file import KEYS, dumps_target, load_target
     path = tmp_path / "target.toml"
     path.write_text(dumps_target(target))
     assert load_target(path) == target
@@ -204,7 +204,7 @@ def test_target_file_round_trip(tmp_path, target):
 def test_target_file_refusals(tmp_path, capsys):
     """Another kind, a key of another kind, a missing key, a bad dictionary: one line naming it; through
     psvs calibrate exit 2 and nothing written."""
-    from psvs.calibrate.target_file import load_target
+    from psvs.targets.target_file import load_target
     from tests.support.cli import run
     path = tmp_path / "target.toml"
     for text, message in (('kind = "dots"\nrows = 3\n', r"target\.kind must be one of circle_grid, "
@@ -229,8 +229,8 @@ def test_target_file_refusals(tmp_path, capsys):
 def test_card_views_renders_any_target(tmp_path, capsys):
     """psvs card-views --target: the views of that target and its target.toml, which detect_target reads
     through the rig (here an asymmetric grid on the paper's camera, its copies free to interleave)."""
-    from psvs.calibrate.target_file import dumps_target, load_target
     from psvs.io.images import read_grey
+    from psvs.targets.target_file import dumps_target, load_target
     from tests.support.cli import run
     grid = AsymmetricCircleGrid(5, 3, 10.0, 7.0)
     (tmp_path / "t.toml").write_text(dumps_target(grid))

@@ -18,7 +18,7 @@ off-centre one, a near pattern on a short lens) it does not. So every assignment
 3. **Equal spacing along the pattern.** Each assignment's twins are triangulated (exact optics); the n
    centres, ordered along their row, must lie on a line, consecutive centres the pattern's spacing apart.
 4. **Diameters.** The circles of the assignments left must be the pattern's diameter
-   (:mod:`psvs.calibrate.pattern_measure`).
+   (:mod:`psvs.accuracy.pattern_measure`).
 
 Exactly one assignment must remain: none, or more than one, is a :class:`~psvs.errors.MeasurementError`
 saying so (with the nearest candidate's failed check when none fits).
@@ -33,11 +33,12 @@ import math
 
 import numpy as np
 
-from psvs.calibrate.targets import MIN_AREA_PX, Ellipse
 from psvs.errors import MeasurementError
 from psvs.optics.project import epipolar_curve_px
 from psvs.optics.rig import Rig
 from psvs.optics.trace import distort, trace_pixels, undistort
+from psvs.targets.discs import MIN_AREA_PX
+from psvs.targets.rim import Ellipse
 
 #: At most this many assignments are enumerated: more means the rig's geometry cannot tell the views apart.
 MAX_ASSIGNMENTS = 20000
@@ -65,12 +66,12 @@ def lens_scale_range(rig: Rig, samples: int = 15) -> tuple[float, float]:
 
 
 def disc_size_range_px(rig: Rig, diameter_mm: float, near_mm: float, far_mm: float) -> tuple[float, int]:
-    """(min_area_px, max_diameter_px) for :func:`psvs.calibrate.targets.dark_blobs`: a disc of
+    """(min_area_px, max_diameter_px) for :func:`psvs.targets.discs.dark_blobs`: a disc of
     ``diameter_mm`` anywhere in the field at near_mm..far_mm. Its image is d f / (pitch (Z - z_v)) px wide
     at Z, times the lens's local scale (:func:`lens_scale_range`); the widest (at near_mm, the largest
     scale) times :data:`WIDEN` is the black-hat's reach; the smallest area is that of the narrowest (at
     far_mm, the smallest scale) foreshortened to :data:`NARROWEST`, and at least the noise floor
-    :data:`~psvs.calibrate.targets.MIN_AREA_PX`."""
+    :data:`~psvs.targets.discs.MIN_AREA_PX`."""
     cam, zv = rig.camera, rig.virtual_z_mm
     f, pitch = cam.focal_length_mm, max(cam.pixel_pitch_mm)
     lo_s, hi_s = lens_scale_range(rig)
@@ -184,8 +185,8 @@ def pair_with_start(circles: list[Ellipse], start: Rig, count: int, spacing_mm: 
     equal gaps (:data:`START_GAP_TOLERANCE`, :data:`START_ROW_TOLERANCE`) whose mean is the printed spacing
     within a factor :data:`START_SPACING_FACTOR`. Returns the PatternDetection (left[k] twin of right[k],
     along the row); MeasurementError when no assignment, or more than one, is consistent."""
-    from psvs.calibrate.targets import PatternDetection
     from psvs.measure.triangulate import triangulate
+    from psvs.targets.pattern import PatternDetection
     cpx = np.array([e.centre_px for e in circles])
     zv = start.virtual_z_mm
     near, far = zv + (z_mm[0] - zv) / START_SCALE, zv + (z_mm[1] - zv) * START_SCALE
@@ -223,7 +224,7 @@ def detect_with_start(grey: np.ndarray, start: Rig, count: int = 5, spacing_mm: 
                       diameter_mm: float = 10.0, z_mm: tuple[float, float] = (400.0, 1200.0)):
     """The pattern's circles found at the sizes a start rig gives them over the working range (widened by
     :data:`START_SCALE`) and paired by :func:`pair_with_start`: a robot sweep's images before calibration."""
-    from psvs.calibrate.targets import detect_circles
+    from psvs.targets.pattern import detect_circles
     zv = start.virtual_z_mm
     near, far = zv + (z_mm[0] - zv) / START_SCALE, zv + (z_mm[1] - zv) * START_SCALE
     min_area, max_diameter = disc_size_range_px(start, diameter_mm, near, far)

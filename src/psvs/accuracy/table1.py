@@ -16,17 +16,17 @@ from pathlib import Path
 
 import numpy as np
 
+from psvs.accuracy.pattern_measure import PatternMeasurement, measure_pattern
 from psvs.calibrate.bundle import BundleResult, bundle_adjust
-from psvs.calibrate.pairing import detect_with_start
-from psvs.calibrate.pattern_measure import PatternMeasurement, measure_pattern
 from psvs.calibrate.sweep import calibrate_sweep
-from psvs.calibrate.targets import MIN_AREA_PX
 from psvs.errors import MeasurementError
 from psvs.io.atomic import write_atomic
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
 from psvs.simulate.textures import CircleGrid, Circles
+from psvs.targets.discs import MIN_AREA_PX
+from psvs.targets.pairing import detect_with_start
 
 #: Table I of the paper: Z meas., Z calc., d calc., a calc. (mm); d meas. = 10, a meas. = 80.
 PAPER_TABLE1 = np.array([
@@ -47,9 +47,9 @@ SUPERSAMPLE = 2                                                       # of every
 def pattern_depths_mm(rig: Rig, margin_px: float = 12.0) -> tuple[float, float]:
     """The depths (mm) at which :func:`pattern_image` shows the pattern so that
     it can be found through ``rig``: both copies of its row of circles ``margin_px`` inside the image, each
-    circle at least :data:`~psvs.calibrate.targets.MIN_AREA_PX` in area (each view the rig's pinhole at its
+    circle at least :data:`~psvs.targets.discs.MIN_AREA_PX` in area (each view the rig's pinhole at its
     virtual centre; lenient: the holder's small turn and offset are left out; the detector's largest disc
-    comes from the rig and the depths, :func:`psvs.calibrate.pairing.disc_size_range_px`). Empty (lo > hi)
+    comes from the rig and the depths, :func:`psvs.targets.pairing.disc_size_range_px`). Empty (lo > hi)
     when no depth is.
     ValueError when the pattern is wider than the baseline: its two copies then overlap at every depth."""
     cam, b, zv = rig.camera, rig.mirrors.baseline_mm, rig.virtual_z_mm
@@ -77,7 +77,7 @@ def check_pattern_depths(rig: Rig, near_mm: float, far_mm: float, what: str) -> 
 @dataclass(frozen=True, eq=False)
 class Table1:
     """Table I reproduced: the ``calibration`` the sweep gave, the true depths ``z_true_mm`` (15,) and the
-    pattern's measurement at each (:func:`psvs.calibrate.pattern_measure.measure_pattern`)."""
+    pattern's measurement at each (:func:`psvs.accuracy.pattern_measure.measure_pattern`)."""
 
     calibration: BundleResult
     z_true_mm: np.ndarray
