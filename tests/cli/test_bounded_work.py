@@ -173,7 +173,7 @@ def test_table1_refuses_renders_beyond_the_time_limit(capsys, tmp_path, plenty_o
 
 def test_table1_refuses_a_rig_that_cannot_see_the_pattern(capsys, tmp_path):
     """1 um pixels: the Fig. 9 pattern's discs (230 px at 440 mm) are found at the sizes the rig gives them
-    (psvs.targets.pairing.disc_size_range_px), but the hand-held card's (found at 3.9-40 px) are not."""
+    (psvs.targets.pattern.disc_size_range_px), but the hand-held card's (found at 3.9-40 px) are not."""
     rig = rig_file(tmp_path, image_size_px=(6400, 4800), pixel_pitch_mm=(0.001, 0.001),
                    principal_point_px=(3199.5, 2399.5))
     table = earlier(tmp_path / "t1" / "table1.csv")

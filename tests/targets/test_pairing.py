@@ -1,4 +1,4 @@
-"""Pairing the two views' circles by the rig's geometry (psvs.targets.pairing) on any camera: the paper's
+"""Pairing the two views' circles by the rig's geometry (psvs.targets.pattern) on any camera: the paper's
 640x480 rig and the 1440x1080 machine-vision rigs (mv1440, mv1440_misaligned), patterns side by side,
 interleaved and overlapping, tilted and off-centre; images that are not the pattern exit 1 with no numbers."""
 import json
@@ -17,8 +17,7 @@ from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
 from psvs.simulate.textures import Circles
 from psvs.targets.discs import split_two_discs
-from psvs.targets.pairing import disc_size_range_px, lens_scale_range, perfect_matchings
-from psvs.targets.pattern import detect_circles
+from psvs.targets.pattern import detect_circles, disc_size_range_px, lens_scale_range, perfect_matchings
 from tests.support.cli import run
 
 
@@ -208,7 +207,7 @@ def test_two_consistent_pairings_are_refused_not_picked():
     of equal gaps) swapping those two circles' views also fits: 2 assignments, refused. The build's own
     rig (1 px, the printed spacing and diameters) leaves one, 925 mm within 0.3 mm."""
     from psvs.accuracy.table1 import pattern_image
-    from psvs.targets.pairing import detect_with_start
+    from psvs.targets.pattern import detect_with_start
     build = load_rig("mv1440_misaligned")
     design = load_rig("mv1440").with_extents({k: None for k in ("m1", "m2", "m3", "m4")})
     img = pattern_image(build, 925.0, 925)

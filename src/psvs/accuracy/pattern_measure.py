@@ -9,7 +9,7 @@ image changes every pixel's ray). Then, in this order:
 1. **The count.** Exactly 2 ``count`` circles (:func:`psvs.targets.pattern.detect_circles`, at the sizes
    the rig gives the pattern over the working range): more is not the pattern asked for, not something to
    choose from; one fewer is a circle one view shows and the other does not.
-2. **Pairing** (:mod:`psvs.targets.pairing`, :func:`pair_pattern`). Every assignment of the circles to
+2. **Pairing** (:mod:`psvs.targets.pattern`, :func:`pair_pattern`). Every assignment of the circles to
    twins is enumerated: a circle's right-view twin lies on its epipolar curve between the working range's
    near and far depths (the rig's exact optics: mirror errors, lens; disparity x_l - x_r > 0 inside the
    rig's range), every circle used once. Another build's image, or the wrong rig, puts twins pixels off
@@ -45,9 +45,15 @@ from psvs.optics.mirrors import front_z_mm
 from psvs.optics.project import epipolar_curve_px, project_points
 from psvs.optics.rig import Rig
 from psvs.optics.trace import trace_pixels
-from psvs.targets.pairing import disc_size_range_px, order_along_row, perfect_matchings, twin_distances_px
-from psvs.targets.pattern import PatternDetection, detect_circles
+from psvs.targets.pattern import (
+    PatternDetection,
+    detect_circles,
+    disc_size_range_px,
+    order_along_row,
+    perfect_matchings,
+)
 from psvs.targets.rim import Ellipse
+from psvs.targets.twins import twin_distances_px
 
 #: px: how precisely the detector locates one rim point or one ellipse centre in one view: within 0.25 px of
 #: the exact projection even where the other view's sheet crosses the circle (tests/targets/test_pattern.py).
@@ -267,7 +273,7 @@ def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int
     far) mm, after the checks of the module docstring.
 
     The circles are found at the sizes the rig gives them over the working range
-    (:func:`psvs.targets.pairing.disc_size_range_px`) and paired by the rig's geometry
+    (:func:`psvs.targets.pattern.disc_size_range_px`) and paired by the rig's geometry
     (:func:`pair_pattern`); a given ``detection`` is taken as paired (left[k] twin of right[k]) and only
     checked. Raises ValueError for an image that is not the rig's sensor size (or not the pattern: blank,
     circles missing or not on one row) and MeasurementError when what was found disagrees with the pattern
@@ -328,7 +334,7 @@ def _no_twins(dist: np.ndarray, tol: float, circles: list[Ellipse], z_mm: tuple[
 def pair_pattern(circles: list[Ellipse], rig: Rig, model: str, z_mm: tuple[float, float], spacing_mm: float,
                  diameter_mm: float) -> PatternMeasurement:
     """The measurement of the one assignment of ``circles`` (both views, unpaired) to twins that the rig's
-    geometry and the pattern allow (:mod:`psvs.targets.pairing`): twins within MARGIN x 2 EDGE_PX px of
+    geometry and the pattern allow (:mod:`psvs.targets.pattern`): twins within MARGIN x 2 EDGE_PX px of
     their epipolar curves between z_mm = (near, far), then the row's spacing, then the diameters. None, or
     more than one, is a MeasurementError."""
     cpx = np.array([e.centre_px for e in circles])

@@ -26,7 +26,7 @@ from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
 from psvs.simulate.textures import CircleGrid, Circles
 from psvs.targets.discs import MIN_AREA_PX
-from psvs.targets.pairing import detect_with_start
+from psvs.targets.pattern import detect_with_start
 
 #: Table I of the paper: Z meas., Z calc., d calc., a calc. (mm); d meas. = 10, a meas. = 80.
 PAPER_TABLE1 = np.array([
@@ -49,7 +49,7 @@ def pattern_depths_mm(rig: Rig, margin_px: float = 12.0) -> tuple[float, float]:
     it can be found through ``rig``: both copies of its row of circles ``margin_px`` inside the image, each
     circle at least :data:`~psvs.targets.discs.MIN_AREA_PX` in area (each view the rig's pinhole at its
     virtual centre; lenient: the holder's small turn and offset are left out; the detector's largest disc
-    comes from the rig and the depths, :func:`psvs.targets.pairing.disc_size_range_px`). Empty (lo > hi)
+    comes from the rig and the depths, :func:`psvs.targets.pattern.disc_size_range_px`). Empty (lo > hi)
     when no depth is.
     ValueError when the pattern is wider than the baseline: its two copies then overlap at every depth."""
     cam, b, zv = rig.camera, rig.mirrors.baseline_mm, rig.virtual_z_mm

@@ -92,10 +92,10 @@ def check_sweep_rows(items: list[tuple[Path | str, float]], where: str = "the sw
 def detect_sweep(items: list[tuple[Path, float]], count: int = 5, expect_size: tuple[int, int] | None = None,
                  start: Rig | None = None):
     """Detect the pattern in every image (of ``expect_size`` (W, H) px when given: the camera's), its two
-    views paired by the ``start`` rig's geometry when given (:func:`psvs.targets.pairing.detect_with_start`),
+    views paired by the ``start`` rig's geometry when given (:func:`psvs.targets.pattern.detect_with_start`),
     else split by u (:func:`psvs.targets.pattern.detect_pattern`); returns ([(name, position, detection)],
     {name: error})."""
-    from psvs.targets.pairing import detect_with_start
+    from psvs.targets.pattern import detect_with_start
     ok, skipped = [], {}
     for path, pos in items:
         try:

@@ -98,11 +98,25 @@ def in_image(uv_px, rig: Rig) -> np.ndarray:
         return (uv[:, 0] >= -0.5) & (uv[:, 0] <= w - 0.5) & (uv[:, 1] >= -0.5) & (uv[:, 1] <= h - 0.5)
 
 
+def epipolar_curves_px(origins_mm, directions, z_mm, rig: Rig) -> tuple[np.ndarray, np.ndarray]:
+    """Left-view rays' epipolar curves in the right view: the right-view pixels (n, S, 2) of each ray's
+    points at the depths ``z_mm`` (S,) mm, and which of them the right view sees (n, S) bool (``origins_mm``
+    (n, 3) mm and unit ``directions`` (n, 3) from :func:`psvs.optics.trace.trace_pixels`; a point behind
+    its ray's origin is not seen)."""
+    o, d = np.atleast_2d(np.asarray(origins_mm, float)), np.atleast_2d(np.asarray(directions, float))
+    z = np.asarray(z_mm, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (z[None, :] - o[:, 2:3]) / d[:, 2:3]
+    pts = o[:, None, :] + t[..., None] * d[:, None, :]
+    uv, ok = project_points(pts.reshape(-1, 3), rig, "right")
+    n = len(o)
+    return uv.reshape(n, len(z), 2), ok.reshape(n, len(z)) & (t > 0)
+
+
 def epipolar_curve_px(origin_mm, direction, z_mm, rig: Rig) -> np.ndarray:
     """A left-view ray's epipolar curve in the right view: the right-view pixels (S', 2) of the ray's points
     at the depths ``z_mm`` (S,) mm (``origin_mm`` (3,) mm and unit ``direction`` (3,) from
     :func:`psvs.optics.trace.trace_pixels`), in the order of ``z_mm``; points the right view does not see
-    are left out."""
-    t = (np.asarray(z_mm, float) - origin_mm[2]) / direction[2]
-    uv, ok = project_points(origin_mm + t[:, None] * direction, rig, "right")
-    return uv[ok]
+    are left out (:func:`epipolar_curves_px` for one ray)."""
+    uv, ok = epipolar_curves_px(origin_mm, direction, z_mm, rig)
+    return uv[0][ok[0]]

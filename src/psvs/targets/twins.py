@@ -22,7 +22,7 @@ from collections import deque
 import numpy as np
 from scipy.spatial import cKDTree
 
-from psvs.optics.project import project_points
+from psvs.optics.project import epipolar_curves_px
 from psvs.optics.rig import Rig
 from psvs.optics.trace import trace_pixels
 
@@ -41,32 +41,50 @@ def band_px(rig: Rig) -> float:
     return math.tan(math.radians(BAND_DEG)) * c.focal_length_mm / min(c.pixel_pitch_mm)
 
 
+def twin_distances_px(centres_px: np.ndarray, rig: Rig, near_mm: float, far_mm: float,
+                      samples: int = 256) -> tuple[np.ndarray, np.ndarray]:
+    """The one twin test of psvs's targets: (across, beyond), each (N, N) px, for centre a as a left-view
+    image and centre b as its right-view twin. ``across[a, b]`` is how far b lies from a's epipolar curve
+    (the right-view image of a's ray, :func:`psvs.optics.project.epipolar_curves_px`, continued straight
+    past its ends) and ``beyond[a, b]`` how far along it b lies outside the part between depths near_mm and
+    far_mm (0 inside: the disparity is in the working range). inf where a's ray is vignetted or nothing of
+    it projects. The ray is sampled evenly in disparity (1/(Z - z_v))."""
+    c = np.asarray(centres_px, dtype=float).reshape(-1, 2)
+    n = len(c)
+    rays = trace_pixels(c, rig, "left")
+    zv = rig.virtual_z_mm
+    z = zv + 1.0 / np.linspace(1.0 / (near_mm - zv), 1.0 / (far_mm - zv), samples)
+    across, beyond = np.full((n, n), np.inf), np.full((n, n), np.inf)
+    reach = 10.0 * sum(rig.camera.image_size_px)                     # the straight continuations, px
+    live = np.flatnonzero(rays.valid)
+    curves, seen = epipolar_curves_px(rays.origins_mm[live], rays.dirs[live], z, rig)
+    for a, uv, ok in zip(live, curves, seen, strict=True):
+        uv = uv[ok]
+        if len(uv) < 2:
+            continue
+        t0, t1 = uv[0] - uv[1], uv[-1] - uv[-2]
+        uv = np.vstack([uv[0] + reach * t0 / np.linalg.norm(t0), uv, uv[-1] + reach * t1 / np.linalg.norm(t1)])
+        p, ab = uv[:-1], np.diff(uv, axis=0)                                        # (S, 2) segments
+        rel = c[:, None, :] - p[None]                                               # (N, S, 2)
+        s = np.clip(np.einsum("nsk,sk->ns", rel, ab) / np.maximum((ab * ab).sum(1), 1e-300), 0.0, 1.0)
+        d = np.linalg.norm(rel - s[..., None] * ab[None], axis=2)
+        k = d.argmin(axis=1)
+        rows = np.arange(n)
+        across[a] = d[rows, k]
+        sk = s[rows, k]
+        beyond[a] = np.where(k == 0, (1.0 - sk) * reach, np.where(k == len(ab) - 1, sk * reach, 0.0))
+    np.fill_diagonal(across, np.inf)
+    return across, beyond
+
+
 def twin_candidates(points_px: np.ndarray, rig: Rig, depths_mm=SEARCH_DEPTHS_MM) -> list[list[int]]:
     """For each point (n, 2) px taken as a left-view image, the other points that may be its right-view
-    twin: within :func:`band_px` of its epipolar curve over ``depths_mm`` (through ``rig``), left of it."""
-    n = len(points_px)
-    band = band_px(rig)
-    zs = np.geomspace(*depths_mm, 48)
-    rays = trace_pixels(points_px, rig, "left")
-    o, d = rays.origins_mm, rays.dirs
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t = (zs[None, :] - o[:, 2:3]) / d[:, 2:3]
-    pts = o[:, None, :] + t[:, :, None] * d[:, None, :]
-    uv, ok = project_points(pts.reshape(-1, 3), rig, "right")
-    uv = uv.reshape(n, len(zs), 2)
-    ok = ok.reshape(n, len(zs)) & rays.valid[:, None] & (t > 0)
-    out = []
-    for i in range(n):
-        curve = uv[i][ok[i]]
-        if len(curve) < 2:
-            out.append([])
-            continue
-        curve = curve[np.argsort(curve[:, 0])]
-        u, v = points_px[:, 0], points_px[:, 1]
-        inside = (u >= curve[0, 0] - band) & (u <= curve[-1, 0] + band) & (u < points_px[i, 0])
-        row = np.interp(u, curve[:, 0], curve[:, 1])
-        out.append([int(j) for j in np.flatnonzero(inside & (np.abs(v - row) <= band)) if j != i])
-    return out
+    twin: within :func:`band_px` of its epipolar curve over ``depths_mm`` (through ``rig``, across the
+    curve and along it: :func:`twin_distances_px`), left of it."""
+    p = np.asarray(points_px, dtype=float).reshape(-1, 2)
+    across, beyond = twin_distances_px(p, rig, *depths_mm)
+    near = (np.hypot(across, beyond) <= band_px(rig)) & (p[None, :, 0] < p[:, None, 0])
+    return [np.flatnonzero(row).tolist() for row in near]
 
 
 def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: np.ndarray | None = None,
