@@ -14,8 +14,8 @@ from psvs.calibrate.capture import (
     MAX_SPEED_PX_S,
     CaptureFolder,
     CaptureParams,
-    _speed_px_s,
     card_pose,
+    card_speed_px_s,
     check_card_visible,
     detect_card,
     pose_bins,
@@ -86,10 +86,10 @@ def test_speed_of_a_card_between_detections():
     left, right = rng.uniform(0, 600, (24, 2)), rng.uniform(0, 400, (24, 2))
     a = GridView("a", obj, left, right)
     b = GridView("b", obj[::-1], (left + [3.0, 0.0])[::-1], (right + [0.0, 3.0])[::-1])   # listed in another order
-    assert _speed_px_s(b, a, 1 / 30) == pytest.approx(90.0, abs=1e-9)
-    assert _speed_px_s(a, a, 1 / 30) == 0.0
-    assert _speed_px_s(a, None, 1 / 30) == math.inf
-    assert _speed_px_s(GridView("c", obj[:5] + 100.0, left[:5], right[:5]), a, 1 / 30) == math.inf
+    assert card_speed_px_s(b, a, 1 / 30) == pytest.approx(90.0, abs=1e-9)
+    assert card_speed_px_s(a, a, 1 / 30) == 0.0
+    assert card_speed_px_s(a, None, 1 / 30) == math.inf
+    assert card_speed_px_s(GridView("c", obj[:5] + 100.0, left[:5], right[:5]), a, 1 / 30) == math.inf
     assert MAX_SPEED_PX_S == 30.0
 
 

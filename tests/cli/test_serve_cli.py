@@ -158,8 +158,8 @@ def test_an_exception_in_a_route_is_one_line_on_the_terminal(capsys, uvicorn_log
     traceback) reaches the terminal as one line naming it; uvicorn's warnings do not reach it."""
     import logging
 
-    from psvs.cli.serve_cmd import _uvicorn_in_one_line
-    _uvicorn_in_one_line()
+    from psvs.cli.serve_cmd import uvicorn_in_one_line
+    uvicorn_in_one_line()
     try:
         raise RuntimeError("no frame\n  in the second line: where")
     except RuntimeError:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from psvs.simulate.builtin import _at, _photo, regulated_light
+from psvs.simulate.builtin import photo_texture, pose_at, regulated_light
 from psvs.simulate.scene import Scene, SceneObject
 from psvs.simulate.textures import ImageTexture
 
@@ -22,11 +22,11 @@ def facade_texture(seed: int, plain_share: float = 0.3) -> ImageTexture:
     the window grid's pitch and phase."""
     rng = np.random.default_rng(seed)
     w, h = (int(s * TEXELS_PER_MM) for s in FACADE_MM)
-    gravel = _photo("gravel", FACADE_MM).image
+    gravel = photo_texture("gravel", FACADE_MM).image
     rows = (np.arange(h) * gravel.shape[0] / h).astype(int)
     cols = (np.arange(w) * gravel.shape[1] / w).astype(int) % gravel.shape[1]
     wall = 0.55 + 0.6 * (gravel[rows][:, cols] - gravel.mean())
-    brick = _photo("brick", (1.0, 1.0)).image
+    brick = photo_texture("brick", (1.0, 1.0)).image
     pitch_x, pitch_y = rng.uniform(170, 230), rng.uniform(180, 240)
     win_w, win_h = 0.55 * pitch_x, 0.6 * pitch_y
     pane = brick[:int(win_h) - 16, :int(win_w) - 16]
@@ -55,7 +55,7 @@ def cards_before_facade(seed: int = 0, facade_mm: float = 1050.0) -> Scene:
         z = rng.uniform(600.0, 850.0)
         size = (rng.uniform(110, 170), rng.uniform(80, 120))
         x, y = rng.uniform(-160, 160), rng.uniform(-90, 90)
-        objs.append(SceneObject("rectangle", _at(x, y, z, rng.uniform(-8, 8), rng.uniform(-20, 20),
+        objs.append(SceneObject("rectangle", pose_at(x, y, z, rng.uniform(-8, 8), rng.uniform(-20, 20),
                                                  rng.uniform(-5, 5)),
-                                _photo(photos[(seed + k) % len(photos)], size), size_mm=size, name=f"card{k}"))
+                                photo_texture(photos[(seed + k) % len(photos)], size), size_mm=size, name=f"card{k}"))
     return Scene(tuple(objs), regulated_light(800.0), facade_mm, facade_texture(seed), "cards_facade")

@@ -7,7 +7,7 @@ import pytest
 from psvs.dense import DEFAULT, FAST, dense_disparity
 from psvs.dense.band import band_costs, band_winners
 from psvs.dense.evaluate import disparity_scores, superimpose
-from psvs.dense.pyramid import _stats, pyramid_levels
+from psvs.dense.pyramid import pyramid_levels, window_stats
 from psvs.dense.sgm import PATHS
 from tests.dense.planted import layered_pair
 
@@ -72,7 +72,7 @@ def test_band_costs_are_the_windows_ncc():
     f = rng.standard_normal((20, 60)).astype(np.float32)
     off = rng.integers(3, 12, (2, 20, 60))
     r, n = 2, 6
-    mu, isd = _stats(f, r)
+    mu, isd = window_stats(f, r)
     ones = np.ones_like(f)
     costs, top = band_costs(f, f, (mu, isd, mu, isd, ones), off, 40, n, r)
     pad = np.pad(f, r, mode="edge")

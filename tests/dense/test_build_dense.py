@@ -13,7 +13,7 @@ from psvs.dense.build import dense_on_rig, rectified_images, rig_cloud
 from psvs.dense.params import DEFAULT, FAST
 from psvs.io.params import load_rig
 from psvs.optics.rectify import rectify
-from psvs.simulate.builtin import _at, _photo, regulated_light, textured
+from psvs.simulate.builtin import photo_texture, pose_at, regulated_light, textured
 from psvs.simulate.render import render
 from psvs.simulate.scene import Scene, SceneObject
 from psvs.simulate.sensor import IDEAL
@@ -26,20 +26,20 @@ pytestmark = pytest.mark.slow
 
 def cards_scene() -> Scene:
     """Two photo cards at 600 and 800 mm before a textured wall at 1000 mm."""
-    objs = (SceneObject("rectangle", _at(-70, -20, 600, 0, 10, 5), _photo("astronaut", (120, 90)),
+    objs = (SceneObject("rectangle", pose_at(-70, -20, 600, 0, 10, 5), photo_texture("astronaut", (120, 90)),
                         size_mm=(120, 90), name="card1"),
-            SceneObject("rectangle", _at(60, 40, 800, 0, -15, -4), _photo("coffee", (150, 110)),
+            SceneObject("rectangle", pose_at(60, 40, 800, 0, -15, -4), photo_texture("coffee", (150, 110)),
                         size_mm=(150, 110), name="card2"))
-    return Scene(objs, regulated_light(800.0), 1000.0, _photo("gravel", (1300.0, 1000.0)), "cards")
+    return Scene(objs, regulated_light(800.0), 1000.0, photo_texture("gravel", (1300.0, 1000.0)), "cards")
 
 
 def slanted_scene() -> Scene:
     """A photo panel of grass turned 30 deg about the vertical, 625-775 mm, before a gravel wall at 1100 mm.
     (Textures matter more than the rig: a brick wall repeats and a photo's blurred background has no
     texture; no method pairs those, on the ideal rig neither.)"""
-    objs = (SceneObject("rectangle", _at(0, 0, 700, 0, 30, 0), _photo("grass", (300, 200)),
+    objs = (SceneObject("rectangle", pose_at(0, 0, 700, 0, 30, 0), photo_texture("grass", (300, 200)),
                         size_mm=(300, 200), name="panel"),)
-    return Scene(objs, regulated_light(800.0), 1100.0, _photo("gravel", (1400.0, 1100.0)), "slanted")
+    return Scene(objs, regulated_light(800.0), 1100.0, photo_texture("gravel", (1400.0, 1100.0)), "slanted")
 
 
 @functools.lru_cache(maxsize=None)

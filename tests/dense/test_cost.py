@@ -4,13 +4,13 @@ import pytest
 from psvs.dense.cost import (
     NO_TWIN,
     PAD_COST,
-    _keys,
     aperture_weight,
     band_pass,
     echo_at_winner,
     echo_correlation,
     filter_volume,
     fused_cost,
+    order_keys,
 )
 from tests.dense.planted import texture
 
@@ -48,9 +48,9 @@ def test_integer_keys_order_as_the_floats_and_turn_back():
     tiny and huge) give ascending keys, and the same map turns the keys back into the floats."""
     v = np.array([-3e38, -1.0, -0.5, -1e-30, -0.0, 0.0, 1e-30, 0.25, 1.0, 3e38], np.float32)
     keys = v.copy().view(np.int32)
-    _keys(keys)
+    order_keys(keys)
     assert np.all(np.diff(keys.astype(np.int64)) > 0)
-    _keys(keys)
+    order_keys(keys)
     assert np.array_equal(keys.view(np.float32), v) and np.signbit(keys.view(np.float32)[4])
 
 

@@ -67,22 +67,22 @@ def test_rectified_normal_equations_match_scipy_sparse():
     scipy builds it explicitly."""
     import scipy.sparse as sp
 
-    from psvs.dense.separate import _rect_apply, _sampling, _ties
+    from psvs.dense.separate import coupling_ties, rect_apply, sampling_matrix
     rng = np.random.default_rng(5)
     h, w, s, coupling, lam = 8, 11, 0.45, 0.9, 0.2
     n = h * w
     uv = np.column_stack([rng.uniform(-1, w, 70), rng.uniform(-1, h, 70)])    # some off the grid
     uv[3] = np.nan
-    data = sp.hstack([(1 - s) * _sampling(uv, h, w), s * _sampling(uv + [2.3, 0.4], h, w)]).tocsr()
+    data = sp.hstack([(1 - s) * sampling_matrix(uv, h, w), s * sampling_matrix(uv + [2.3, 0.4], h, w)]).tocsr()
     dl = rng.uniform(0, 5, (h, w))
     dl[1, 2] = np.nan
-    yy, xx, x0, f = _ties(dl, None, w)
+    yy, xx, x0, f = coupling_ties(dl, None, w)
     m, r = yy.size, np.arange(yy.size)
     ties = sp.csr_matrix((np.r_[-np.ones(m), 1 - f, f], (np.r_[r, r, r], np.r_[
         yy * w + xx, n + yy * w + x0, n + yy * w + np.minimum(x0 + 1, w - 1)])), shape=(m, 2 * n))
     grad = sp.vstack([_differences(h, w, 0, 2 * n), _differences(h, w, n, 2 * n)]).tocsr()
     normal = data.T @ data + coupling * (ties.T @ ties) + lam * (grad.T @ grad)
-    apply = _rect_apply(data, data.T.tocsr(), (yy, xx, x0, f), (h, w), coupling, lam)
+    apply = rect_apply(data, data.T.tocsr(), (yy, xx, x0, f), (h, w), coupling, lam)
     out = np.empty(2 * n)
     for _ in range(3):
         v = rng.normal(0, 1, 2 * n)
@@ -95,7 +95,7 @@ def test_matrix_free_normal_equations_match_scipy_sparse():
     import scipy.sparse as sp
     import scipy.sparse.linalg as spl
 
-    from psvs.dense.separate import _cg_matrix_free, _normal_apply, _ties
+    from psvs.dense.separate import cg_matrix_free, coupling_ties, normal_apply
     rng = np.random.default_rng(3)
     h, w, s, coupling, lam = 9, 13, 0.4, 0.7, 0.05
     n = h * w
@@ -103,7 +103,7 @@ def test_matrix_free_normal_equations_match_scipy_sparse():
     dl[2, 3] = np.nan
     dl[:, -1] = 12.99                 # twins at the grid's left end and beyond it
     dr = rng.uniform(0, 6, (h, w))
-    yy, xx, x0, f = _ties(dl, dr, w)
+    yy, xx, x0, f = coupling_ties(dl, dr, w)
     m = yy.size
     r = np.arange(m)
     x1 = np.minimum(x0 + 1, w - 1)
@@ -114,7 +114,7 @@ def test_matrix_free_normal_equations_match_scipy_sparse():
     grad = sp.vstack([_differences(h, w, 0, 2 * n), _differences(h, w, n, 2 * n)]).tocsr()
     normal = (data.T @ data + coupling * (ties.T @ ties) + lam * (grad.T @ grad)).tocsr()
     ptr = np.searchsorted(yy, np.arange(h + 1)).astype(np.int64)
-    apply = lambda v, out: _normal_apply(v, out, h, w, s, coupling, lam, ptr, xx.astype(np.int64),  # noqa: E731
+    apply = lambda v, out: normal_apply(v, out, h, w, s, coupling, lam, ptr, xx.astype(np.int64),  # noqa: E731
                                          x0.astype(np.int64), f)
     v = rng.normal(0, 1, 2 * n)
     out = np.empty(2 * n)
@@ -123,4 +123,4 @@ def test_matrix_free_normal_equations_match_scipy_sparse():
     b, start = rng.normal(0, 1, 2 * n), rng.normal(0, 1, 2 * n)
     for it in (5, 40):
         want, _ = spl.cg(normal, b, x0=start, maxiter=it, rtol=1e-7)
-        np.testing.assert_allclose(_cg_matrix_free(b, start, it, 1e-7, apply), want, atol=1e-8)
+        np.testing.assert_allclose(cg_matrix_free(b, start, it, 1e-7, apply), want, atol=1e-8)

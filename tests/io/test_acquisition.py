@@ -48,9 +48,9 @@ def test_a_recorded_table_reads_back(tmp_path):
 
 @pytest.mark.parametrize("table, error, message", [
     ({"exposure": 1}, ValueError, "unknown key camera.acquisition.exposure"),
-    ({"exposure_us": "fast"}, TypeError, "camera.acquisition.exposure_us must be a number"),
-    ({"auto_gain": 1}, TypeError, "camera.acquisition.auto_gain must be true or false"),
-    ({"pixel_format": 12}, TypeError, "camera.acquisition.pixel_format must be a string"),
+    ({"exposure_us": "fast"}, ValueError, "camera.acquisition.exposure_us must be a finite number"),
+    ({"auto_gain": 1}, ValueError, "camera.acquisition.auto_gain must be true or false"),
+    ({"pixel_format": 12}, ValueError, "camera.acquisition.pixel_format must be a string"),
     ({"features": [1]}, ValueError, r"\[camera.acquisition.features\] must be a table"),
 ])
 def test_table_errors(table, error, message):

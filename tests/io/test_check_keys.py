@@ -1,4 +1,4 @@
-"""One wording for a table's keys in every file psvs reads (psvs.io.tomlfile.check_keys): a table that is not
+"""One wording for a table's keys in every file psvs reads (psvs.io.schema.check_keys): a table that is not
 one, an unknown key (named with its path, and what is allowed), a missing key; and no other module words it."""
 import ast
 import re
@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from psvs.io.tomlfile import check_keys
+from psvs.io.schema import check_keys
 
 SRC = Path(__file__).resolve().parents[2] / "src" / "psvs"
 
@@ -42,4 +42,4 @@ def test_no_other_module_words_a_key_fault():
             if isinstance(node, ast.Constant) and isinstance(node.value, str) \
                     and re.match(r"\s*unknown key", node.value):
                 worded.append(f"{path.relative_to(SRC)}:{node.lineno}")
-    assert all(w.startswith("io/tomlfile.py") for w in worded), worded
+    assert all(w.startswith("io/schema.py") for w in worded), worded

@@ -199,7 +199,7 @@ def test_hardware_is_out_of_the_light_and_a_spring_in_it_is_named(made):
     a spring's room moved onto M3's middle (in the light) is named with the rays it stops."""
     from dataclasses import replace
 
-    from psvs.mount.check import _hardware_light
+    from psvs.mount.check import hardware_light
     from psvs.mount.layout import Box, Cylinder
     rig, m, _ = made
     ko = m.layout.keepouts
@@ -210,7 +210,7 @@ def test_hardware_is_out_of_the_light_and_a_spring_in_it_is_named(made):
     mid = p.point + 0.5 * sum(m.layout.glass["m3"].along_mm) * p.s_axis + 20.0 * p.normal
     moved = replace(m.layout, keepouts=(replace(spring, centre=tuple(mid)),))
     legs = field_segments(design_mirrors(rig, margin_mm=m.layout.params.margin_mm, search=False).rig, 1200.0)
-    by = _hardware_light(moved, legs)
+    by = hardware_light(moved, legs)
     assert list(by) == [spring.name] and by[spring.name] > 100
 
 

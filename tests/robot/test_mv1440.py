@@ -52,7 +52,7 @@ def test_hand_eye_with_a_target_whose_two_views_interleave():
 
     from psvs.robot.arm import Arm
     from psvs.robot.controller import TrackConfig
-    from psvs.robot.handeye import _angle, calibrate_from_views
+    from psvs.robot.handeye import calibrate_from_views, rotation_angle_rad
     from psvs.robot.handeye_session import cell_views, true_cam2flange
     from psvs.robot.mounting import HOME_Q
     from psvs.simulate.textures import CircleGrid
@@ -69,5 +69,5 @@ def test_hand_eye_with_a_target_whose_two_views_interleave():
     he = calibrate_from_views(images, flanges, rig, grid)
     true = true_cam2flange(cfg)
     assert np.linalg.norm(he.cam2flange[:3, 3] - true[:3, 3]) < 0.4
-    assert np.degrees(_angle(he.cam2flange[:3, :3].T @ true[:3, :3])) < 0.1
+    assert np.degrees(rotation_angle_rad(he.cam2flange[:3, :3].T @ true[:3, :3])) < 0.1
     assert he.reprojection_rms_px < 0.15 and len(he.skipped) <= 2

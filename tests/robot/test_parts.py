@@ -223,7 +223,7 @@ def test_groove_edges_drop_the_end_outline():
     """Where the groove ends in the window its outline closes the band (the V's end, oblique in the image):
     the outline's pixels go; each edge keeps its own, also on rows where the other edge has already ended
     (edge a runs on to row 29, edge b ends at row 21 and the outline runs from there toward edge a)."""
-    from psvs.robot.sensor import _groove_edges
+    from psvs.robot.sensor import groove_edges
     v = np.arange(30.0)
     ua = 300.0 + 0.1 * v + np.random.default_rng(1).choice([-0.5, 0.0, 0.5], 30)
     ub = 340.0 + 0.1 * v
@@ -231,13 +231,13 @@ def test_groove_edges_drop_the_end_outline():
     pa, pb = np.column_stack([ua, v]), np.column_stack([ub, v])
     xa = np.column_stack([v, np.zeros(30), np.zeros(30)])
     xb = np.column_stack([v, np.ones(30), np.zeros(30)])
-    a, b = _groove_edges(((pa, xa), (pb, xb)), 20.0)
+    a, b = groove_edges(((pa, xa), (pb, xb)), 20.0)
     assert a[:, 0].tolist() == list(range(30))          # edge a whole, past edge b's end
     assert b[:, 0].tolist() == list(range(22))          # edge b without the outline
     # an outline pixel on edge a's side (the corner where the outline meets it, 5 px off) goes too
     pa2 = np.vstack([pa, [ua[10] + 5.0, 10.0]])
     xa2 = np.vstack([xa, [99.0, 0.0, 0.0]])
-    a2, _ = _groove_edges(((pa2, xa2), (pb, xb)), 20.0)
+    a2, _ = groove_edges(((pa2, xa2), (pb, xb)), 20.0)
     assert 99.0 not in a2[:, 0]
 
 

@@ -28,7 +28,7 @@ import numpy as np
 
 from psvs.dense.build import dense_on_rig, rig_cloud
 from psvs.dense.params import DEFAULT, FAST
-from psvs.simulate.builtin import _at, regulated_light
+from psvs.simulate.builtin import pose_at, regulated_light
 from psvs.simulate.scene import Scene, SceneObject
 from psvs.simulate.textures import ImageTexture, Uniform
 from tests.support.adaptive import render_irradiance
@@ -123,7 +123,7 @@ def make_scene(draw: RigDraw, name: str) -> Scene | None:
             size = (rng.uniform(0.2, 0.3) * fw, rng.uniform(0.25, 0.4) * fh)
             x, y = rng.uniform(-0.3, 0.3) * fw, rng.uniform(-0.25, 0.25) * fh
             tex = collage(size, 1.5 * footprint_mm(draw, z), draw.seed * 10 + 2 + k)
-            objs.append(SceneObject("rectangle", _at(x, y, z, rng.uniform(-8, 8), rng.uniform(-20, 20),
+            objs.append(SceneObject("rectangle", pose_at(x, y, z, rng.uniform(-8, 8), rng.uniform(-20, 20),
                                                      rng.uniform(-5, 5)), tex, size_mm=size, name=f"card{k}"))
         return Scene(tuple(objs), regulated_light(near + 0.5 * span), z_wall, wall, "cards")
     if name == "slanted":
@@ -135,7 +135,7 @@ def make_scene(draw: RigDraw, name: str) -> Scene | None:
         near_edge = z - 0.5 * size[0] * math.sin(math.radians(abs(turn)))
         tex = collage(size, 1.5 * footprint_mm(draw, near_edge), draw.seed * 10 + 5)
         z_wall, wall = _wall(draw, far, draw.seed * 10 + 6)
-        panel = SceneObject("rectangle", _at(rng.uniform(-0.1, 0.1) * fw, 0.0, z, rng.uniform(-5, 5), turn, 0.0),
+        panel = SceneObject("rectangle", pose_at(rng.uniform(-0.1, 0.1) * fw, 0.0, z, rng.uniform(-5, 5), turn, 0.0),
                             tex, size_mm=size, name="panel")
         return Scene((panel,), regulated_light(z), z_wall, wall, "slanted")
     if name == "far_wall":

@@ -43,9 +43,9 @@ def write_wall_video(folder, rig, frames: int = 6):
     in depth over 3 positions, rendered through ``rig``: (path, true depth of every pixel per frame (mm))."""
     from psvs.io.video import write_video
     from psvs.live.simulated import SimulatedSequence, ping_pong_positions
-    from psvs.simulate.builtin import _photo, regulated_light
+    from psvs.simulate.builtin import photo_texture, regulated_light
     from psvs.simulate.scene import Scene
-    scene = Scene((), regulated_light(WALL_MM), WALL_MM, _photo("grass", (1400.0, 1050.0)), "wall")
+    scene = Scene((), regulated_light(WALL_MM), WALL_MM, photo_texture("grass", (1400.0, 1050.0)), "wall")
     positions = ping_pong_positions(frames, [0.0, 0.0, -40.0], 3)
     path = Path(folder) / "wall.avi"
     assert write_video(path, SimulatedSequence(scene, rig, positions, seed=5), fps=30.0) == frames

@@ -7,3 +7,21 @@ calibration data; ``capture`` is the assistant that says which card views are go
 enough; ``synthetic`` and ``handheld`` simulate card views and a hand-held video; ``report`` writes a
 calibration's residuals. Targets are found by :mod:`psvs.targets`.
 """
+import lazy_loader as _lazy
+
+# The package's public face: what other packages and users may import from it. Each name is loaded on
+# first use (scikit-image's lazy_loader), so importing the package loads none of its modules.
+__getattr__, __dir__, __all__ = _lazy.attach(
+    __name__,
+    submodules=[],
+    submod_attrs={
+        "bundle": ["BundleResult", "PRIOR_SIGMA", "bundle_adjust"],
+        "capture": ["CaptureAssistant", "CaptureFolder", "CaptureParams", "CaptureStep", "check_capture_folder",
+                    "check_card_visible", "event_lines"],
+        "folder": ["calibrate_folder", "grid_view"],
+        "handheld": ["HandParams", "hand_path", "render_hand_video"],
+        "report": ["write_report"],
+        "sweep": ["calibrate_sweep", "dumps_sweep"],
+        "synthetic": ["check_card_fits", "random_poses", "render_grid_shots"],
+    },
+)

@@ -172,7 +172,7 @@ def _differs(pose: CardPose, saved: list[CardPose], width_px: float) -> bool:
     return True
 
 
-def _speed_px_s(view: GridView, last: GridView | None, dt_s: float) -> float:
+def card_speed_px_s(view: GridView, last: GridView | None, dt_s: float) -> float:
     """Mean speed (px/s) of the discs both detections found, in both views; inf when it cannot be told."""
     if last is None or dt_s <= 0:
         return math.inf
@@ -265,7 +265,7 @@ class CaptureAssistant:
             return self._record(CaptureStep(self._frame, "no card", reason=str(exc)),
                                 "show the whole card to both views")
         last, self._last = self._last, (view, t_s)
-        speed = _speed_px_s(view, last[0] if last else None, t_s - last[1] if last else 0.0)
+        speed = card_speed_px_s(view, last[0] if last else None, t_s - last[1] if last else 0.0)
         bins = pose_bins(pose, self.rig, self.params)
         base = dict(pose=pose, bins=bins, speed_px_s=speed)
         if speed > self.params.max_speed_px_s:

@@ -21,7 +21,7 @@ from psvs.errors import MeasurementError, RigGeometryError
 
 COMMANDS = ("demo", "rig", "design", "triangulate", "fit-refraction", "simulate", "match", "measure", "calibrate",
             "card-views", "sweep-views", "capture", "table1", "disparity", "dense-eval", "serve", "live", "handeye",
-            "track", "replay", "export-calibration", "cameras", "adjust", "mount", "batch", "montecarlo")
+            "track", "replay", "export-calibration", "cameras", "adjust", "mount", "batch", "montecarlo", "examples")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -114,7 +114,7 @@ def run(args) -> int:
         config = uvicorn.Config(app, log_level="warning")
     else:
         config = uvicorn.Config(app, log_config=None, log_level="error", access_log=False)
-        _uvicorn_in_one_line()
+        uvicorn_in_one_line()
     server = uvicorn.Server(config)
 
     def announce():
@@ -175,7 +175,7 @@ class _OneLineLog(logging.Handler):
         print(f"psvs serve: {line}"[:300], file=sys.stderr, flush=True)
 
 
-def _uvicorn_in_one_line() -> None:
+def uvicorn_in_one_line() -> None:
     """uvicorn's loggers: its access log and its warnings (a malformed request, which gets its 400) off, its
     errors in one line (:class:`_OneLineLog`), nothing passed on to the root logger."""
     for name in ("uvicorn", "uvicorn.error", "uvicorn.access", "uvicorn.asgi"):

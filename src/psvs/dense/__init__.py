@@ -1,9 +1,22 @@
 """Dense disparity and view separation from a single complex image (docs/dense.md)."""
-from psvs.dense.cloud import Cloud, disparity_cloud, write_cloud_ply
-from psvs.dense.disparity import DenseResult, dense_disparity
-from psvs.dense.params import DEFAULT, FAST, DenseParams
-from psvs.dense.separate import SeparationParams, psnr_db, separate_views
-from psvs.dense.workspace import Workspace
+import lazy_loader as _lazy
 
-__all__ = ["Cloud", "DEFAULT", "FAST", "DenseParams", "DenseResult", "SeparationParams", "Workspace", "dense_disparity",
-           "disparity_cloud", "psnr_db", "separate_views", "write_cloud_ply"]
+# The package's public face: what other packages and users may import from it. Each name is loaded on
+# first use (scikit-image's lazy_loader), so importing the package loads none of its modules.
+__getattr__, __dir__, __all__ = _lazy.attach(
+    __name__,
+    submodules=[],
+    submod_attrs={
+        "build": ["RigDense", "dense_on_rig", "rig_cloud", "rig_trust"],
+        "cloud": ["Cloud", "disparity_cloud", "write_cloud_ply"],
+        "compiled": ["announce_dense"],
+        "disparity": ["DenseResult", "check_dense_memory", "check_range", "dense_disparity"],
+        "evaluate": ["evaluate_pair", "motorcycle"],
+        "params": ["DEFAULT", "DenseParams", "FAST"],
+        "report": ["scores_markdown", "write_report"],
+        "rig_cache": ["rectification"],
+        "separate": ["SeparationParams", "psnr_db", "separate_views"],
+        "trust": ["ALPHA", "EchoTrust", "trusted_maps"],
+        "workspace": ["Workspace"],
+    },
+)

@@ -41,10 +41,10 @@ def band_pass(image: np.ndarray, sigma_px: float) -> np.ndarray:
 
 # The shiftable windows' maxima are taken on integer keys of the float32 values: a float max (or select)
 # that updates a row in place, a[i] = max(a[i], b[i]), compiles to scalar code here (Numba 0.6x, LLVM),
-# the same on int32 vectorises (4x faster; the echo 93 -> 58 ms). _keys maps a float's bits to an int32
+# the same on int32 vectorises (4x faster; the echo 93 -> 58 ms). order_keys maps a float's bits to an int32
 # that orders as the float does (negative floats' magnitude bits flipped); it is its own inverse.
 @nb.njit(cache=True, fastmath=SAFE_MATH, inline="always")
-def _keys(a):  # pragma: no cover - compiled
+def order_keys(a):  # pragma: no cover - compiled
     """Turn the int32 row ``a`` (a float32 row's bits) into order-preserving keys, or back, in place."""
     for i in range(a.shape[0]):
         b = a[i]
@@ -85,7 +85,7 @@ def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # noqa: PLR0913  # pragma:
         o = out[k]
         o[:, :d] = NO_TWIN
         sums = np.empty((nr, wd), np.float32)
-        peaks = np.empty((nm, wd), np.int32)       # keys (_keys) of the row maxima
+        peaks = np.empty((nm, wd), np.int32)       # keys (order_keys) of the row maxima
         prod = np.empty(wd, np.float32)
         col = np.empty(wd, np.float32)
         ncc = np.empty(wd, np.float32)
@@ -117,7 +117,7 @@ def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # noqa: PLR0913  # pragma:
                 for i in range(wd):
                     dst[i] = (col[i] * inv - muy[i] * mgy[i]) * (isdy[i] * isgy[i])
                 if rs > 0:
-                    _keys(ncc_keys)
+                    order_keys(ncc_keys)
                     _window_max(ncc_keys, peaks[y % nm], rs)
             y = t - r - rs
             if rs > 0 and 0 <= y < h:              # row t − r − rs: the maximum over the neighbourhood's rows
@@ -129,7 +129,7 @@ def _echo(f, g, mu, isd, mg, isg, lags, r, rs, out):  # noqa: PLR0913  # pragma:
                     for i in range(wd):
                         v = src[i]
                         top[i] = v if v > top[i] else top[i]
-                _keys(top)
+                order_keys(top)
                 dst = o[y, d:]
                 for i in range(wd):
                     dst[i] = top_values[i]

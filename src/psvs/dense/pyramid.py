@@ -83,7 +83,7 @@ def _bands(d: np.ndarray, lo: int, hi: int, n_lanes: int) -> np.ndarray:
     return np.clip(first, lo, max(lo, hi - n_lanes + 1))
 
 
-def _stats(f: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
+def window_stats(f: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
     """Mean and inverse deviation of ``f``'s (2r + 1)² windows, float32 (h, w) each."""
     box = lambda a: cv2.boxFilter(a, -1, (2 * r + 1, 2 * r + 1), borderType=cv2.BORDER_REPLICATE)  # noqa: E731
     mu = box(f)
@@ -109,8 +109,8 @@ def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple, d_ran
     r = p.refine_window // 2
     f = band_pass(img, p.sigma_px)
     g = f if right is None else band_pass(right, p.sigma_px)
-    mu_f, isd_f = _stats(f, r)
-    mu_g, isd_g = (mu_f, isd_f) if right is None else _stats(g, r)
+    mu_f, isd_f = window_stats(f, r)
+    mu_g, isd_g = (mu_f, isd_f) if right is None else window_stats(g, r)
     aperture = aperture_weight(f, p.aperture_window, p.aperture_share)
     offsets = np.stack([_bands(c, lo, hi, n) for c in coarse[:2]])
     costs, _ = band_costs(f, g, (mu_f, isd_f, mu_g, isd_g, aperture), offsets, hi, n, r,

@@ -89,7 +89,7 @@ def grid_pixel_scale(rect) -> float:
 _DOT_CHUNKS = 64
 
 
-def _sampling(uv: np.ndarray, h: int, w: int):
+def sampling_matrix(uv: np.ndarray, h: int, w: int):
     """(N, h*w) bilinear interpolation weights of the grid (h, w) at points uv (N, 2); rows of points off
     the grid are empty."""
     import scipy.sparse as sp  # only view separation on a build: not loaded with psvs.dense
@@ -106,7 +106,7 @@ def _sampling(uv: np.ndarray, h: int, w: int):
 
 
 @nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
-def _normal_apply(v, out, h, w, s, coupling, lam, tie_ptr, tie_x, tie_x0, tie_f, mix=True):  # noqa: PLR0913  # pragma: no cover - compiled
+def normal_apply(v, out, h, w, s, coupling, lam, tie_ptr, tie_x, tie_x0, tie_f, mix=True):  # noqa: PLR0913  # pragma: no cover - compiled
     """out = (DᵀD + coupling·TᵀT + lam·GᵀG) v for v = [L; R] (2·h·w,): D mixes each pixel's L and R, T ties
     L(y, x) to R(y, x0 + f) (the ties of row y are tie_ptr[y]:tie_ptr[y + 1]), G the 4-neighbour differences
     of each view (GᵀG: the graph Laplacian, no term across the border). Rows are independent: parallel.
@@ -176,7 +176,7 @@ def _axpy(alpha, x, y):  # pragma: no cover - compiled
         y[i] += alpha * x[i]
 
 
-def _cg_matrix_free(rhs, start, iterations, rtol, apply):
+def cg_matrix_free(rhs, start, iterations, rtol, apply):
     """Conjugate gradients (as scipy.sparse.linalg.cg: stop when |r| <= rtol·|b| or after ``iterations``)."""
     x = start.copy()
     r = rhs.copy()
@@ -231,26 +231,26 @@ def separate_views(image, disparity_left, split: float = 0.5, disparity_right=No
     n = h * w
     k = (1.0 if rect is None else grid_pixel_scale(rect)) if pixel_scale is None else pixel_scale
     smoothness, coupling, iterations = params.smoothness_px(k), params.coupling, params.iterations
-    yy, xx, x0, f = _ties(dl, disparity_right, w)
+    yy, xx, x0, f = coupling_ties(dl, disparity_right, w)
     if rect is None:
         cf = c.ravel()
         rhs = np.r_[(1 - split) * cf, split * cf]
         ptr = np.searchsorted(yy, np.arange(h + 1)).astype(np.int64)
         args = (h, w, float(split), float(coupling), float(smoothness), ptr, xx.astype(np.int64),
                 x0.astype(np.int64), f)
-        x = _cg_matrix_free(rhs, np.r_[cf, cf], iterations, 1e-7, lambda v, out: _normal_apply(v, out, *args))
+        x = cg_matrix_free(rhs, np.r_[cf, cf], iterations, 1e-7, lambda v, out: normal_apply(v, out, *args))
         return x[:n].reshape(h, w), x[n:].reshape(h, w)
     from psvs.dense.build import rectified_images  # (build imports this module's neighbours)
     start = np.concatenate([a.ravel() for a in rectified_images(c, rect)]).astype(np.float64)
     data, data_t = _rect_data(rect, h, w, float(split))
-    apply = _rect_apply(data, data_t, (yy, xx, x0, f), (h, w), coupling, smoothness)
+    apply = rect_apply(data, data_t, (yy, xx, x0, f), (h, w), coupling, smoothness)
     rhs = np.empty(2 * n)
     _csr_matvec(data_t.indptr, data_t.indices, data_t.data, c.ravel().astype(np.float64), rhs, False)
-    x = _cg_matrix_free(rhs, start, iterations, 1e-7, apply)
+    x = cg_matrix_free(rhs, start, iterations, 1e-7, apply)
     return x[:n].reshape(h, w), x[n:].reshape(h, w)
 
 
-def _rect_apply(data, data_t, ties, shape, coupling: float, smoothness: float):
+def rect_apply(data, data_t, ties, shape, coupling: float, smoothness: float):
     """(v, out) -> out = (DᵀD + coupling·TᵀT + smoothness·GᵀG) v (2·h·w,), matrix-free and compiled: D
     (N, 2·h·w) and Dᵀ in CSR, the ties (rows, left columns, twin at x0 + f, row-major) and G the
     4-neighbour differences of each view (h, w)."""
@@ -262,7 +262,7 @@ def _rect_apply(data, data_t, ties, shape, coupling: float, smoothness: float):
     tmp = np.empty(data.shape[0])
 
     def apply(v, out):
-        _normal_apply(v, out, *args)
+        normal_apply(v, out, *args)
         _csr_matvec(data.indptr, data.indices, data.data, v, tmp, False)
         _csr_matvec(data_t.indptr, data_t.indices, data_t.data, tmp, out, True)
 
@@ -280,13 +280,13 @@ def _rect_data(rect, h: int, w: int, split: float):
     per_rect = _DATA.setdefault(rect, {})
     key = (h, w, split)
     if key not in per_rect:
-        d = sp.hstack([(1 - split) * _sampling(rect.pixel_table("left").reshape(-1, 2), h, w),
-                       split * _sampling(rect.pixel_table("right").reshape(-1, 2), h, w)]).tocsr()
+        d = sp.hstack([(1 - split) * sampling_matrix(rect.pixel_table("left").reshape(-1, 2), h, w),
+                       split * sampling_matrix(rect.pixel_table("right").reshape(-1, 2), h, w)]).tocsr()
         per_rect[key] = (d, d.T.tocsr())
     return per_rect[key]
 
 
-def _ties(dl: np.ndarray, disparity_right, w: int):
+def coupling_ties(dl: np.ndarray, disparity_right, w: int):
     """The coupling ties of the finite left disparities whose twin is inside the grid and not occluded (the
     right map showing a nearer point there): rows yy, left columns xx, and the twin at x0 + f (0 <= f < 1),
     in row-major order."""

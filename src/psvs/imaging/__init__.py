@@ -1,2 +1,15 @@
 """Image processing for the correspondence algorithm: filters, binarisation, edges, pipelines.
 Knows nothing about rigs."""
+import lazy_loader as _lazy
+
+# The package's public face: what other packages and users may import from it. Each name is loaded on
+# first use (scikit-image's lazy_loader), so importing the package loads none of its modules.
+__getattr__, __dir__, __all__ = _lazy.attach(
+    __name__,
+    submodules=[],
+    submod_attrs={
+        "grey": ["to_grey8"],
+        "pipeline": ["PAPER", "Pipeline", "make_pipeline"],
+        "steps": ["STEPS"],
+    },
+)

@@ -19,42 +19,27 @@ from __future__ import annotations
 from pathlib import Path
 
 from psvs.io.atomic import write_atomic
-from psvs.io.tomlfile import check_keys, load_toml
+from psvs.io.schema import Field, read_fields
+from psvs.io.tomlfile import load_toml
 
 NUMBERS = ("exposure_us", "gain_db", "frame_rate_hz")
 STRINGS = ("pixel_format", "trigger", "settings_file")
 FLAGS = ("auto_exposure", "auto_gain")
 #: What a recording's table also says of the camera, read back but not applied.
 INFO = ("camera", "serial", "bits", "source")
+#: The table's schema (:mod:`psvs.io.schema`); ``features``: any feature NAME = value, set in this order.
+FIELDS = ({k: Field("number") for k in NUMBERS} | {k: Field("string") for k in STRINGS}
+          | {k: Field("flag") for k in FLAGS} | {k: Field("any") for k in INFO}
+          | {"features": Field("table", note="of NAME = value", default={})})
 
 
 def acquisition_from_table(table, where: str, folder: Path | None = None) -> dict:
     """The keyword arguments of :class:`psvs.live.camera.Acquisition` a table gives (checked: one-line
     ValueError/TypeError naming ``where``.key); ``settings_file`` relative to ``folder``."""
-    check_keys(table, where, optional=NUMBERS + STRINGS + FLAGS + INFO + ("features",))
-    out = {}
-    for k in NUMBERS:
-        if k in table:
-            v = table[k]
-            if isinstance(v, bool) or not isinstance(v, (int, float)):
-                raise TypeError(f"{where}.{k} must be a number, got {type(v).__name__} {v!r}")
-            out[k] = float(v)
-    for k in STRINGS:
-        if k in table:
-            if not isinstance(table[k], str):
-                raise TypeError(f"{where}.{k} must be a string, got {type(table[k]).__name__} {table[k]!r}")
-            out[k] = table[k]
-    for k in FLAGS:
-        if k in table:
-            if not isinstance(table[k], bool):
-                raise TypeError(f"{where}.{k} must be true or false, got {table[k]!r}")
-            out[k] = table[k]
+    out = {k: v for k, v in read_fields(table, where, FIELDS).items() if k not in INFO}
     if "settings_file" in out and folder is not None:
         out["settings_file"] = str(folder / out["settings_file"])
-    features = table.get("features", {})
-    if not isinstance(features, dict):
-        raise ValueError(f"[{where}.features] must be a table of NAME = value, got {type(features).__name__}")
-    out["features"] = tuple((str(k), _text(v)) for k, v in features.items())
+    out["features"] = tuple((str(k), _text(v)) for k, v in out["features"].items())
     return out
 
 

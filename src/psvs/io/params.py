@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 
 from psvs.io.atomic import write_atomic
+from psvs.io.schema import check_keys
 from psvs.io.text import read_text
-from psvs.io.tomlfile import check_keys, dumps_toml, load_toml, parse_text, update_toml
+from psvs.io.tomlfile import dumps_toml, load_toml, parse_text, update_toml
 from psvs.optics.bounds import check_rig_bounds
 from psvs.optics.rig import MIRROR_NAMES, Calibration, Camera, MirrorError, MirrorExtent, Mirrors, Rig
 from psvs.rigs import SHIPPED, shipped_rig_path

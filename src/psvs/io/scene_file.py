@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from psvs.io.images import read_grey
-from psvs.io.tomlfile import check_keys, load_toml
+from psvs.io.schema import check_keys
+from psvs.io.tomlfile import load_toml
 from psvs.simulate import textures as tx
 from psvs.simulate.scene import KINDS, Lighting, Pose, Scene, SceneObject
 

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from psvs.io.schema import check_keys
 from psvs.io.text import read_text
 
 
@@ -40,30 +41,6 @@ def parse_text(text: str, where: str, kind: str = "TOML") -> dict:
         raise ValueError(f"{where}: malformed {kind}: {exc}") from None
     except RecursionError:
         raise ValueError(f"{where}: malformed {kind}: nested too deep") from None
-
-
-def check_keys(table, where: str, required=(), optional=(), what: str = "") -> dict:
-    """``table`` when it is a table (dict) with every key of ``required`` and no key outside ``required`` and
-    ``optional``; else ValueError in psvs's one wording for every file it reads: "[WHERE] must be a table",
-    "unknown key WHERE.KEY (allowed: ...)", "missing key WHERE.KEY" (``what``, e.g. a target's kind, is named
-    in both: "... for a charuco", "(a charuco needs ...)"). ``where`` is the table's path in its file ("" at
-    the top)."""
-    if not isinstance(table, dict):
-        raise ValueError(f"[{where}] must be a table, got {type(table).__name__}")
-    allowed = (*required, *optional)
-    unknown = sorted((k for k in table if k not in allowed), key=str)
-    if unknown:
-        raise ValueError(f"unknown key {_dotted(where, unknown[0])}{f' for a {what}' if what else ''} "
-                         f"(allowed: {', '.join(map(str, allowed))})")
-    missing = [k for k in required if k not in table]
-    if missing:
-        needs = f" (a {what} needs {', '.join(required)})" if what else ""
-        raise ValueError(f"missing key {_dotted(where, missing[0])}{needs}")
-    return table
-
-
-def _dotted(where: str, key) -> str:
-    return f"{where}.{key}" if where else str(key)
 
 
 def single_table(data: dict, table: str, keys: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:

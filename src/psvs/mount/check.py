@@ -76,7 +76,7 @@ def check_mount(layout: MountLayout, mesh: trimesh.Trimesh, segments: list, samp
     ``segments`` (:func:`psvs.mount.layout.field_segments`)."""
     rays = sum(len(legs[0][0]) for legs in by_view(segments))
     blocked, by = _light(layout, mesh, segments)
-    hardware = _hardware_light(layout, segments)
+    hardware = hardware_light(layout, segments)
     errors, intrusion = _glass(layout, mesh)
     return MountChecks(int(rays), blocked, by, hardware, errors, intrusion, one_closed_shell(mesh),
                        _min_wall(mesh, samples, seed))
@@ -97,7 +97,7 @@ def hardware_mesh(layout: MountLayout) -> trimesh.Trimesh | None:
     return trimesh.util.concatenate(parts) if parts else None
 
 
-def _hardware_light(layout: MountLayout, segments) -> dict:
+def hardware_light(layout: MountLayout, segments) -> dict:
     """Field rays that would meet a keep-out, counted by the nearest keep-out's name."""
     mesh = hardware_mesh(layout)
     if mesh is None:

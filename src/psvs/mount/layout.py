@@ -605,8 +605,8 @@ def _check_lens(rig: Rig, params: MountParams, segments: list) -> None:
 
 def _front_hits(rig: Rig, r: float, z: float) -> bool:
     """Does the barrel's front disc meet the plate (its corners behind the disc's plane, inside its radius)?"""
-    from psvs.optics.obstruction import _plate_edges
+    from psvs.optics.obstruction import plate_edges
     plane = mirror_planes(rig)["m1"]
-    pts = np.array([p for e in _plate_edges(plane, rig.mirrors.plate_thickness_mm) for p in e])
+    pts = np.array([p for e in plate_edges(plane, rig.mirrors.plate_thickness_mm) for p in e])
     near = pts[pts[:, 2] <= z]
     return bool(len(near) and (np.hypot(near[:, 0], near[:, 1]) < r).any())

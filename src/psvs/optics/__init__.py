@@ -1,1 +1,28 @@
 """Rig geometry and exact optics: mirrors, plate refraction, tracing, projection, mirror design."""
+import lazy_loader as _lazy
+
+# The package's public face: what other packages and users may import from it. Each name is loaded on
+# first use (scikit-image's lazy_loader), so importing the package loads none of its modules.
+__getattr__, __dir__, __all__ = _lazy.attach(
+    __name__,
+    submodules=["pinhole_views", "rectify"],
+    submod_attrs={
+        "bounds": ["check_rig_bounds"],
+        "design": ["MirrorDesign", "design_mirrors"],
+        "field": ["field_pixels"],
+        "illumination": ["flat_field", "illumination_map"],
+        "mirrors": ["VIEWS", "direction_map", "front_z_mm", "mirror_planes", "virtual_centre"],
+        "obstruction": ["find_obstructions", "plate_edges"],
+        "pinhole_views": ["PinholeView"],
+        "plate": ["derived_refraction_terms", "refraction_terms"],
+        "project": ["epipolar_curve_px", "epipolar_curves_px", "in_image", "project_points"],
+        "rectify": ["Rectification", "forget", "needs_rectification", "remember", "remembered"],
+        "rig": ["Calibration", "Camera", "MIRROR_NAMES", "MirrorError", "MirrorExtent", "Mirrors", "Rig",
+                "default_rig"],
+        "scale": ["PAPER_FOCAL_PX", "pixel_scale"],
+        "search_range": ["disparity_range", "rectification_for"],
+        "solids": ["segments_hit"],
+        "trace": ["distort", "ideal_sensor_from_pixels", "trace_pixels", "undistort"],
+        "window": ["roi_rig"],
+    },
+)

@@ -36,7 +36,7 @@ class Obstruction:
                 f"({100 * self.fraction:.1f} % of the sampled field rays, e.g. pixel ({u:.1f}, {v:.1f}))")
 
 
-def _plate_edges(front: Plane, thickness_mm: float) -> list[tuple[np.ndarray, np.ndarray]]:
+def plate_edges(front: Plane, thickness_mm: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """The 12 edges of the plate box (or the 4 of the front rectangle when d = 0), as (p0, p1) pairs."""
     front_c = _corners(front)
     if thickness_mm <= 0:
@@ -66,7 +66,7 @@ def find_collisions(rig: Rig) -> list[str]:
     """
     planes = mirror_planes(rig)
     d = rig.mirrors.plate_thickness_mm
-    edges = {"M1 plate": _plate_edges(planes["m1"], d)}
+    edges = {"M1 plate": plate_edges(planes["m1"], d)}
     for name in ("m2", "m3", "m4"):
         c = _corners(planes[name])
         edges[name.upper()] = [(c[i], c[(i + 1) % 4]) for i in range(4)]

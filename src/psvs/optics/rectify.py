@@ -33,12 +33,11 @@ import cv2
 import numpy as np
 
 from psvs._validate import check_points
-from psvs.optics.mirrors import direction_map, virtual_centre
+from psvs.optics.mirrors import VIEWS, direction_map, virtual_centre
 from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
 from psvs.optics.trace import trace_pixels
 
-VIEWS = ("left", "right")
 _GRID_STEP_PX = 8          # the remaps are exact on this grid, bicubic in between
 _MAX_GROWTH = 1.6          # a rectified image may be at most this much wider / taller than the camera's
 _KEPT = 8                  # rectifications kept in memory (the most recently used)

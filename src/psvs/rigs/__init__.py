@@ -16,6 +16,8 @@ from __future__ import annotations
 from importlib import resources
 from pathlib import Path
 
+__all__ = ["SHIPPED", "shipped_rig_path"]
+
 SHIPPED = ("default", "clear", "misaligned", "mv1440", "mv1440_misaligned")
 
 

@@ -1,1 +1,23 @@
 """Robot path control with the PSVS on a PUMA-family arm: arm, hand-eye, seam sensor, path model, loop."""
+import lazy_loader as _lazy
+
+# The package's public face: what other packages and users may import from it. Each name is loaded on
+# first use (scikit-image's lazy_loader), so importing the package loads none of its modules.
+__getattr__, __dir__, __all__ = _lazy.attach(
+    __name__,
+    submodules=[],
+    submod_attrs={
+        "arm": ["Arm"],
+        "bag": ["write_bag"],
+        "cells": ["SimulationConfig"],
+        "controller": ["TrackConfig"],
+        "handeye": ["calibrate_from_views"],
+        "handeye_io": ["load_handeye", "read_views", "save_handeye", "write_views"],
+        "handeye_session": ["CELL_GRID", "CELL_SUPERSAMPLE", "CELL_VIEWS", "cell_views", "true_cam2flange"],
+        "loop": ["CYCLE_SECONDS", "RUN_IN_OUT_MM", "cycle_seconds", "track", "track_cycles"],
+        "mounting": ["HOME_Q"],
+        "recording": ["RunRecorder", "publish_stop", "replay_recording"],
+        "report": ["write_report"],
+        "workpiece": ["seam_workpiece"],
+    },
+)

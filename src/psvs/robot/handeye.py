@@ -102,7 +102,8 @@ def labelled_as(candidates: list[TargetFit], expected: np.ndarray) -> TargetFit:
     return min(candidates, key=lambda c: np.linalg.norm(c.target2cam[:3, :3] - expected[:3, :3]))
 
 
-def _angle(R: np.ndarray) -> float:
+def rotation_angle_rad(R: np.ndarray) -> float:
+    """The angle (rad) of the rotation matrix R (3, 3) about its axis."""
     return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
 
 
@@ -115,8 +116,8 @@ def consistent_labellings(candidates: list[list[TargetFit]], flange2base: list[n
     first = candidates[0][0]
     out = [first]
     for cands, F in zip(candidates[1:], flange2base[1:], strict=True):
-        want = _angle(np.linalg.solve(F, F0)[:3, :3])
-        out.append(min(cands, key=lambda c: abs(_angle(concat(invert_transform(first.target2cam),
+        want = rotation_angle_rad(np.linalg.solve(F, F0)[:3, :3])
+        out.append(min(cands, key=lambda c: abs(rotation_angle_rad(concat(invert_transform(first.target2cam),
                                                               c.target2cam)[:3, :3]) - want)))
     return out
 
@@ -232,7 +233,7 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
     _check_fit(rms_px, fits, rig, robot_accuracy_mm)
     targets = [concat(T, X, F) for F, T in zip(flange2base, t2c, strict=True)]
     pos = np.array([T[:3, 3] for T in targets])
-    ang = [_angle(targets[0][:3, :3].T @ T[:3, :3]) for T in targets]
+    ang = [rotation_angle_rad(targets[0][:3, :3].T @ T[:3, :3]) for T in targets]
     return HandEyeResult(X, np.array([f.rms_mm for f in fits]),
                          float(np.max(np.linalg.norm(pos - pos.mean(axis=0), axis=1))), float(np.max(ang)), rms_px,
                          tuple(skipped))

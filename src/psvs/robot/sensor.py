@@ -109,7 +109,7 @@ def _nearest_edges(edge_row: np.ndarray, u_c: float, max_px: float):
     return int(left.max()), int(right.min())
 
 
-def _groove_edges(sides, half_width_px: float, band: tuple[float, float] = SensorParams.width_band,
+def groove_edges(sides, half_width_px: float, band: tuple[float, float] = SensorParams.width_band,
                   tol_px: float = SensorParams.line_tol_px):
     """The two bevel tops' points (each (N, 3) mm) among the contour pixels traced from the seeds.
 
@@ -210,7 +210,7 @@ class SeamSensor:
         span = self.params.twin_span_px
         sides = [self._edge_twins(grey, edges, (u, v), (max(1.0, d - span), d + span), (ua + ub) / 2, u == ua)
                  for u in (ua, ub)]
-        sides = _groove_edges(sides, (ub - ua) / 2 if self.half_width_px is None else self.half_width_px,
+        sides = groove_edges(sides, (ub - ua) / 2 if self.half_width_px is None else self.half_width_px,
                               self.params.width_band, self.params.line_tol_px)
         if min(len(s) for s in sides) < self.params.min_rows:
             return SeamObservation.invalid(self.centre_px,

@@ -18,7 +18,9 @@ from psvs.simulate.scene import Lighting, Pose, Scene, SceneObject
 from psvs.simulate.textures import Checker, Circles, ImageTexture, Noise, Uniform
 
 
-def _at(x, y, z, rx=0.0, ry=0.0, rz=0.0) -> Pose:
+def pose_at(x, y, z, rx=0.0, ry=0.0, rz=0.0) -> Pose:
+    """An object's pose at (x, y, z) mm, turned by extrinsic x-y-z Euler angles rx, ry, rz in degrees, as scene
+    files give them (:meth:`psvs.simulate.scene.Pose.from_euler_deg`)."""
     return Pose.from_euler_deg([x, y, z], [rx, ry, rz])
 
 
@@ -33,8 +35,8 @@ def fig5a(distance_mm: float = 600.0) -> Scene:
     """A box and an upright cylinder at ~distance_mm whose left and right views do not overlap."""
     z = distance_mm
     objs = (
-        SceneObject("box", _at(-60, -50, z, 0, 20, 0), Noise(6, 1, 0.8, 0.95), size_mm=(60, 60, 40), name="box"),
-        SceneObject("cylinder", _at(60, 60, z + 50, 90, 0, 0), Uniform(0.9), radius_mm=25, height_mm=60,
+        SceneObject("box", pose_at(-60, -50, z, 0, 20, 0), Noise(6, 1, 0.8, 0.95), size_mm=(60, 60, 40), name="box"),
+        SceneObject("cylinder", pose_at(60, 60, z + 50, 90, 0, 0), Uniform(0.9), radius_mm=25, height_mm=60,
                     name="cylinder"),
     )
     return Scene(objs, regulated_light(z), 2 * z, Uniform(0.1), "fig5a")
@@ -49,8 +51,8 @@ def fig5b(distance_mm: float = 700.0) -> Scene:
     z = distance_mm
     objs = []
     for name, x, dz, r, r_bowl in (("ashtray_left", -45.0, 0.0, 40.0, 27.0), ("ashtray_right", 42.0, 30.0, 32.0, 19.0)):
-        objs.append(SceneObject("cylinder", _at(x, 0, z + dz), Uniform(0.9), radius_mm=r, height_mm=20, name=name))
-        objs.append(SceneObject("disc", _at(x, 0, z + dz - 10.5), Noise(3, 7, 0.1, 0.25), radius_mm=r_bowl,
+        objs.append(SceneObject("cylinder", pose_at(x, 0, z + dz), Uniform(0.9), radius_mm=r, height_mm=20, name=name))
+        objs.append(SceneObject("disc", pose_at(x, 0, z + dz - 10.5), Noise(3, 7, 0.1, 0.25), radius_mm=r_bowl,
                                 name=f"{name}_bowl"))
     return Scene(tuple(objs), regulated_light(z), z + 500, Uniform(0.08), "fig5b")
 
@@ -71,7 +73,7 @@ def fig6(seed: int = 6, count: int = 14) -> Scene:
               "rectangle": {"size_mm": tuple(rng.uniform(40, 90, 2))},
               "cylinder": {"radius_mm": rng.uniform(12, 30), "height_mm": rng.uniform(30, 80)},
               "sphere": {"radius_mm": rng.uniform(15, 35)}, "disc": {"radius_mm": rng.uniform(15, 35)}}[kind]
-        objs.append(SceneObject(kind, _at(x, y, z, *rot), tex, name=f"{kind}_{i}", **kw))
+        objs.append(SceneObject(kind, pose_at(x, y, z, *rot), tex, name=f"{kind}_{i}", **kw))
     return Scene(tuple(objs), regulated_light(750.0), 1400.0, Noise(40, seed, 0.05, 0.2), "fig6")
 
 
@@ -79,7 +81,7 @@ def fig9(distance_mm: float = 600.0, tilt_x_deg: float = 0.0, tilt_y_deg: float 
          y_mm: float = 0.0) -> Scene:
     """The paper's accuracy pattern: five black circles (10 mm, centres 20 mm apart) on a white sheet
     (120 x 50 mm) at ``distance_mm``, turned by the tilts (deg), on a dark backdrop 400 mm behind."""
-    sheet = SceneObject("rectangle", _at(x_mm, y_mm, distance_mm, tilt_x_deg, tilt_y_deg, 0),
+    sheet = SceneObject("rectangle", pose_at(x_mm, y_mm, distance_mm, tilt_x_deg, tilt_y_deg, 0),
                         Circles(10.0, 20.0, 5, 0.05, 0.9), size_mm=(120.0, 50.0), name="pattern")
     return Scene((sheet,), regulated_light(distance_mm), distance_mm + 400, Uniform(0.08), "fig9")
 
@@ -143,14 +145,14 @@ def weld_seam(distance_mm: float = 450.0, radius_mm: float = 150.0, height_ampli
     V, plates, groove = seam_mesh(radius_mm=radius_mm, length_mm=length_mm, width_mm=width_mm,
                                   height_amplitude_mm=height_amplitude_mm, gap=gap,
                                   steps=max(2, int(2 * length_mm)))
-    pose = _at(0.0, -radius_mm / 4, distance_mm, 180.0, 0.0, 0.0)  # local z toward the camera
+    pose = pose_at(0.0, -radius_mm / 4, distance_mm, 180.0, 0.0, 0.0)  # local z toward the camera
     objs = (SceneObject("mesh", pose, Noise(4, 11, 0.45, 0.7), vertices_mm=V, faces=plates, name="plates"),
             SceneObject("mesh", pose, Noise(2, 12, 0.08, 0.18), vertices_mm=V, faces=groove, name="seam groove"))
     return Scene(objs, Lighting(ambient=0.25, lamp=0.75, reference_mm=distance_mm), distance_mm + 300,
                  Uniform(0.05), "weld_seam")
 
 
-def _photo(name: str, size_mm: tuple[float, float]) -> ImageTexture:
+def photo_texture(name: str, size_mm: tuple[float, float]) -> ImageTexture:
     """One of scikit-image's bundled photographs (CC0 or public domain), grey in [0, 1], as a texture."""
     from skimage import data
     from skimage.color import rgb2gray
@@ -164,13 +166,13 @@ def textured(distance_mm: float = 800.0) -> Scene:
     """Photo-textured panel, box, ball and backdrop at 0.7-1.4 x distance_mm, for dense disparity."""
     z = distance_mm
     objs = (
-        SceneObject("rectangle", _at(-60, -40, z, 0, 25, 0), _photo("astronaut", (260, 180)), size_mm=(260, 180),
-                    name="panel"),
-        SceneObject("sphere", _at(90, 60, 0.78 * z), _photo("grass", (90, 90)), radius_mm=45, name="ball"),
-        SceneObject("box", _at(-110, 90, 0.7 * z, 10, 30, 0), _photo("brick", (90, 70)),
+        SceneObject("rectangle", pose_at(-60, -40, z, 0, 25, 0), photo_texture("astronaut", (260, 180)),
+                    size_mm=(260, 180), name="panel"),
+        SceneObject("sphere", pose_at(90, 60, 0.78 * z), photo_texture("grass", (90, 90)), radius_mm=45, name="ball"),
+        SceneObject("box", pose_at(-110, 90, 0.7 * z, 10, 30, 0), photo_texture("brick", (90, 70)),
                     size_mm=(90, 70, 60), name="crate"),
     )
-    return Scene(objs, regulated_light(z), 1.4 * z, _photo("gravel", (1.3 * z, 1.0 * z)), "textured")
+    return Scene(objs, regulated_light(z), 1.4 * z, photo_texture("gravel", (1.3 * z, 1.0 * z)), "textured")
 
 
 BUILTINS = {"fig5a": fig5a, "fig5b": fig5b, "fig6": fig6, "fig9": fig9, "weld_seam": weld_seam,

@@ -40,7 +40,8 @@ from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 
-from psvs.io.tomlfile import check_keys, load_toml
+from psvs.io.schema import Field, check_keys, read_fields
+from psvs.io.tomlfile import load_toml
 from psvs.simulate.sensor import MAX_BLUR_PX
 from psvs.simulate.textures import CircleGrid
 
@@ -121,18 +122,19 @@ class Tolerances:
     targets: dict = field(default_factory=dict)
 
 
-def _number(value, key: str, low: float = 0.0, low_ok: bool = True) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise ValueError(f"{key} must be a finite number, got {value!r}")
-    if value < low or (value == low and not low_ok):
-        raise ValueError(f"{key} must be {'>=' if low_ok else '>'} {low:g}, got {value!r}")
-    return float(value)
-
-
-def _integer(value, key: str, low: int, high: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise ValueError(f"{key} must be a whole number {low}-{high}, got {value!r}")
-    return value
+_POSITIVE = Field("number", low=0.0, low_open=True)
+_AT_LEAST_0 = Field("number", low=0.0)
+#: The tables' schemas (:mod:`psvs.io.schema`); defaults are Procedure's and TestSet's.
+CARD = {"rows": Field("integer", 2, 50), "cols": Field("integer", 2, 50), "spacing_mm": _POSITIVE,
+        "diameter_mm": _POSITIVE}
+PROCEDURE = {"views": Field("integer", 3, 60), "near_mm": _POSITIVE, "far_mm": _POSITIVE,
+             "tilt_deg": Field("number", 0.0, 60.0, note="a card seen more obliquely is not read"),
+             "card": Field("table"), "supersample": Field("integer", 1, 4), "read_noise_e": _AT_LEAST_0,
+             "blur_px": Field("number", 0.0, MAX_BLUR_PX), "interleave": Field("flag"),
+             "method": Field("string", choices=("card", "sweep")), "sweep": Field("table")}
+SWEEP = {"from_mm": _POSITIVE, "to_mm": _POSITIVE, "step_mm": _POSITIVE}
+TEST = {"near_mm": _POSITIVE, "far_mm": _POSITIVE, "depths": Field("integer", 1, 50), "grid": Field("integer", 2, 50),
+        "table1": Field("flag")}
 
 
 def _dist(value, key: str) -> Dist:
@@ -140,7 +142,7 @@ def _dist(value, key: str) -> Dist:
     if not isinstance(value, dict) or len(value) != 1 or next(iter(value)) not in _KINDS:
         raise ValueError(f"{where} must be {{ uniform = HALF_WIDTH }} or {{ normal = SIGMA }}, got {value!r}")
     (kind, width), = value.items()
-    width = _number(width, f"{where}.{kind}")
+    width = _AT_LEAST_0.value(width, f"{where}.{kind}")
     return Dist(kind, math.radians(width) if key.endswith("_deg") else width)
 
 
@@ -155,49 +157,29 @@ def _dists(table: dict) -> dict:
 
 
 def _card(value) -> CircleGrid:
-    t = check_keys(value, "calibration.card", optional=("rows", "cols", "spacing_mm", "diameter_mm"))
     d = CircleGrid(4, 6, 14.0, 7.0)
-    rows = _integer(t.get("rows", d.rows), "calibration.card.rows", 2, 50)
-    cols = _integer(t.get("cols", d.cols), "calibration.card.cols", 2, 50)
-    spacing = _number(t.get("spacing_mm", d.spacing_mm), "calibration.card.spacing_mm", 0.0, False)
-    diameter = _number(t.get("diameter_mm", d.diameter_mm), "calibration.card.diameter_mm", 0.0, False)
+    t = {k: getattr(d, k) for k in CARD} | read_fields(value, "calibration.card", CARD)
     try:
-        return CircleGrid(rows, cols, spacing, diameter)
+        return CircleGrid(**t)
     except ValueError as exc:
         raise ValueError(f"calibration.card: {exc}") from None
 
 
 def _procedure(table: dict) -> Procedure:
-    keys = tuple("sweep" if k == "sweep_mm" else k for k in Procedure.__dataclass_fields__)
-    t = check_keys(table, "calibration", optional=keys)
     d = Procedure()
-    views = _integer(t.get("views", d.views), "calibration.views", 3, 60)
-    near = _number(t.get("near_mm", d.near_mm), "calibration.near_mm", 0.0, False)
-    far = _number(t.get("far_mm", d.far_mm), "calibration.far_mm", 0.0, False)
-    if far <= near:
-        raise ValueError(f"calibration.far_mm must be > calibration.near_mm ({near:g}), got {far:g}")
-    tilt = _number(t.get("tilt_deg", d.tilt_deg), "calibration.tilt_deg")
-    if tilt > 60:
-        raise ValueError(f"calibration.tilt_deg must be <= 60 (a card seen more obliquely is not read), got {tilt:g}")
+    t = read_fields(table, "calibration", PROCEDURE)
+    v = {k: t.get(k, getattr(d, k)) for k in ("views", "near_mm", "far_mm", "tilt_deg", "supersample",
+                                              "read_noise_e", "blur_px", "interleave", "method")}
+    if v["far_mm"] <= v["near_mm"]:
+        raise ValueError(f"calibration.far_mm must be > calibration.near_mm ({v['near_mm']:g}), got {v['far_mm']:g}")
     card = _card(t["card"]) if "card" in t else d.card
-    ss = _integer(t.get("supersample", d.supersample), "calibration.supersample", 1, 4)
-    noise = _number(t.get("read_noise_e", d.read_noise_e), "calibration.read_noise_e")
-    blur = _number(t.get("blur_px", d.blur_px), "calibration.blur_px")
-    if blur > MAX_BLUR_PX:
-        raise ValueError(f"calibration.blur_px must be <= {MAX_BLUR_PX:g}, got {blur:g}")
-    interleave = t.get("interleave", d.interleave)
-    if not isinstance(interleave, bool):
-        raise ValueError(f"calibration.interleave must be true or false, got {interleave!r}")
-    method = t.get("method", d.method)
-    if method not in ("card", "sweep"):
-        raise ValueError(f"calibration.method must be \"card\" or \"sweep\", got {method!r}")
-    return Procedure(views, near, far, tilt, card, ss, noise, blur, interleave, method, _sweep(t.get("sweep", {})))
+    return Procedure(card=card, sweep_mm=_sweep(t.get("sweep", {})), **v)
 
 
 def _sweep(value) -> tuple:
-    t = check_keys(value, "calibration.sweep", optional=("from_mm", "to_mm", "step_mm"))
-    d = dict(zip(("from_mm", "to_mm", "step_mm"), Procedure().sweep_mm, strict=True))
-    lo, hi, step = (_number(t.get(k, d[k]), f"calibration.sweep.{k}", 0.0, False) for k in d)
+    d = dict(zip(SWEEP, Procedure().sweep_mm, strict=True))
+    t = d | read_fields(value, "calibration.sweep", SWEEP)
+    lo, hi, step = (t[k] for k in SWEEP)
     if hi < lo:
         raise ValueError(f"calibration.sweep.to_mm must be >= calibration.sweep.from_mm ({lo:g}), got {hi:g}")
     n = math.ceil((hi + 1e-9 - lo) / step)
@@ -207,18 +189,11 @@ def _sweep(value) -> tuple:
 
 
 def _test(table: dict) -> TestSet:
-    t = check_keys(table, "test", optional=tuple(TestSet.__dataclass_fields__))
     d = TestSet()
-    near = _number(t.get("near_mm", d.near_mm), "test.near_mm", 0.0, False)
-    far = _number(t.get("far_mm", d.far_mm), "test.far_mm", 0.0, False)
-    if far <= near:
-        raise ValueError(f"test.far_mm must be > test.near_mm ({near:g}), got {far:g}")
-    depths = _integer(t.get("depths", d.depths), "test.depths", 1, 50)
-    grid = _integer(t.get("grid", d.grid), "test.grid", 2, 50)
-    table1 = t.get("table1", d.table1)
-    if not isinstance(table1, bool):
-        raise ValueError(f"test.table1 must be true or false, got {table1!r}")
-    return TestSet(near, far, depths, grid, table1)
+    t = {k: getattr(d, k) for k in TEST} | read_fields(table, "test", TEST)
+    if t["far_mm"] <= t["near_mm"]:
+        raise ValueError(f"test.far_mm must be > test.near_mm ({t['near_mm']:g}), got {t['far_mm']:g}")
+    return TestSet(**t)
 
 
 def tolerances_from_dict(data: dict) -> Tolerances:
@@ -229,8 +204,7 @@ def tolerances_from_dict(data: dict) -> Tolerances:
     dists = _dists(check_keys(data.get("tolerances", {}), "tolerances", optional=(*GROUPS, *PARAMS)))
     procedure = _procedure(data.get("calibration", {}))
     test = _test(data.get("test", {}))
-    targets = {k: _number(v, f"targets.{k}", 0.0, False)
-               for k, v in check_keys(data.get("targets", {}), "targets", optional=TARGET_KEYS).items()}
+    targets = read_fields(data.get("targets", {}), "targets", dict.fromkeys(TARGET_KEYS, _POSITIVE))
     return Tolerances(dists, procedure, test, targets)
 
 
@@ -254,5 +228,5 @@ def load_tolerances(path) -> Tolerances:
     data = load_toml(path, "tolerances")
     try:
         return tolerances_from_dict(data)
-    except ValueError as exc:
-        raise ValueError(f"{path}: {exc}") from None
+    except (ValueError, TypeError) as exc:
+        raise type(exc)(f"{path}: {exc}") from None

@@ -14,15 +14,20 @@ discs, rows ``spacing_mm`` apart, discs along a row twice that apart, odd rows s
 """
 from __future__ import annotations
 
-from psvs.io.tomlfile import check_keys, dumps_toml, load_table
+from psvs.io.schema import REQUIRED, Field, read_fields
+from psvs.io.tomlfile import dumps_toml, load_table
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid
 
-#: The kinds of target and each one's keys (besides ``kind``).
-KEYS = {
-    "circle_grid": ("rows", "cols", "spacing_mm", "diameter_mm"),
-    "asymmetric_circle_grid": ("rows", "cols", "spacing_mm", "diameter_mm"),
-    "charuco": ("squares_x", "squares_y", "square_mm", "marker_mm", "dictionary"),
+_COUNT, _MM = Field("integer", default=REQUIRED), Field("number", note="mm", default=REQUIRED)
+_GRID = {"rows": _COUNT, "cols": _COUNT, "spacing_mm": _MM, "diameter_mm": _MM}
+#: The kinds of target and each one's keys (besides ``kind``), with their types (:mod:`psvs.io.schema`).
+FIELDS = {
+    "circle_grid": _GRID,
+    "asymmetric_circle_grid": _GRID,
+    "charuco": {"squares_x": _COUNT, "squares_y": _COUNT, "square_mm": _MM, "marker_mm": _MM,
+                "dictionary": Field("string", note="an OpenCV ArUco dictionary's name", default=REQUIRED)},
 }
+KEYS = {kind: tuple(fields) for kind, fields in FIELDS.items()}
 KINDS = tuple(KEYS)
 _CLASSES = {"circle_grid": CircleGrid, "asymmetric_circle_grid": AsymmetricCircleGrid, "charuco": CharucoBoard}
 _ALL = tuple(sorted({k for keys in KEYS.values() for k in keys}))
@@ -34,16 +39,8 @@ def load_target(path) -> CircleGrid | AsymmetricCircleGrid | CharucoBoard:
 
 
 def _target(t: dict):
-    kind = t["kind"]
-    if kind not in KEYS:
-        raise ValueError(f"target.kind must be one of {', '.join(KINDS)}, got {kind!r}")
-    check_keys(t, "target", KEYS[kind], ("kind",), what=kind)
-    for k in KEYS[kind]:
-        if k.endswith("_mm") and (isinstance(t[k], bool) or not isinstance(t[k], (int, float))):
-            raise ValueError(f"target.{k} must be a number (mm), got {t[k]!r}")
-        if k == "dictionary" and not isinstance(t[k], str):
-            raise ValueError(f"target.dictionary must be a string (an OpenCV ArUco dictionary), got {t[k]!r}")
-    args = {k: float(t[k]) if k.endswith("_mm") else t[k] for k in KEYS[kind]}
+    kind = Field("string", choices=KINDS).value(t["kind"], "target.kind")
+    args = read_fields({k: v for k, v in t.items() if k != "kind"}, "target", FIELDS[kind], what=kind)
     try:
         return _CLASSES[kind](**args)
     except (ValueError, TypeError) as exc:
