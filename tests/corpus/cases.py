@@ -504,6 +504,23 @@ def _small() -> list[Case]:
     ]
 
 
+def _check() -> list[Case]:
+    """psvs check: frames of the rig's size, a tolerance, a map's path; a frame with nothing to judge."""
+    base = ("check", "img.png", "--rig", "default")
+    tex = {"img.png": texture_png()}
+    return [
+        Case("check-missing-frame", base, 2, "not found"),
+        Case("check-frame-wrong-size", base, 2, "640x480", {"img.png": texture_png(500, 400)}),
+        Case("check-blank-frame", (*base, "--map", "m.png"), 1, "cannot judge",
+             {"img.png": png(np.full((480, 640), 128, np.uint8))}),
+        Case("check-tolerance-zero", (*base, "--tolerance-px", "0"), 2, "tolerance", tex),
+        Case("check-tolerance-nan", (*base, "--tolerance-px", "nan"), 2, "tolerance", tex),
+        Case("check-map-suffix", (*base, "--map", "m.jpg"), 2, ".png", tex),
+        Case("check-map-over-the-frame", (*base, "--map", "img.png"), 2, "img.png", tex),
+        Case("check-near-beyond-far", (*base, "--near-mm", "900", "--far-mm", "500"), 2, "near", tex),
+    ]
+
+
 def _adjust() -> list[Case]:
     """psvs adjust: the calibrated build (a file or a shipped rig) and its design (--rig)."""
     base = ("adjust", "default", *R)
@@ -526,7 +543,7 @@ def _adjust() -> list[Case]:
 def all_cases() -> list[Case]:
     cases = (_design() + _triangulate() + _fit_refraction() + _simulate() + _match() + _measure()
              + _card_views() + _sweep_views() + _capture() + _calibrate() + _disparity() + _live() + _serve() + _track()
-             + _handeye() + _adjust() + mount_cases() + montecarlo_cases() + _small() + batch_cases())
+             + _handeye() + _adjust() + _check() + mount_cases() + montecarlo_cases() + _small() + batch_cases())
     names = [c.name for c in cases]
     assert len(names) == len(set(names)), "case names must be unique"
     return cases

@@ -1,0 +1,20 @@
+"""A sensor that knows when it has been knocked: the twins' rows checked on ordinary frames (docs/health.md).
+
+``rows`` reads each tile's twin row offset off one frame through a calibration, tested against chance;
+``check`` fits the smooth field a moved mirror makes and judges it (``psvs check``); ``explain`` says which
+mirrors' tilts best explain it; ``figure`` draws the field.
+"""
+import lazy_loader as _lazy
+
+# The package's public face: what other packages and users may import from it. Each name is loaded on
+# first use (scikit-image's lazy_loader), so importing the package loads none of its modules.
+__getattr__, __dir__, __all__ = _lazy.attach(
+    __name__,
+    submodules=[],
+    submod_attrs={
+        "check": ["HealthCheck", "TOLERANCE_PX", "check_frames", "judge"],
+        "explain": ["Explanation", "explain_offsets", "explanation_line", "tilted"],
+        "figure": ["offset_figure"],
+        "rows": ["FrameTiles", "frame_tiles"],
+    },
+)

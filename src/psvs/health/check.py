@@ -1,0 +1,187 @@
+"""``psvs check``: is this calibration still the rig's? The twins' row offsets over ordinary frames, a smooth
+field fitted to them, and a verdict that says on how much evidence it stands (docs/health.md).
+
+Each frame's tiles (:func:`psvs.health.rows.frame_tiles`) that pass their chance test are pooled. A mirror
+that moved turns a view's image a little: its rows move by a smooth field over the image (near affine; a
+quadratic in u', v' holds it), so the field is fitted to the tiles (robustly: soft-L1, then least squares
+on the tiles within :data:`OUTLIER_SIGMAS` of it), and the field is what is judged: its RMS and largest
+value over the judged tiles. A tile's own offset scatters by a few tenths of a pixel (the other view's
+texture in each tile); the field averages that down, and its uncertainty (the fit's standard error, the
+tiles' overlap counted) is stated beside it. The RMS is the field's own: the fit's noise variance is taken
+off its mean square (a rig on its rows reads near 0, not the noise's RMS).
+
+The verdict: ``healthy`` when the field's RMS plus twice its uncertainty is within the tolerance,
+``drifted`` when its RMS minus twice its uncertainty is beyond it, and ``cannot judge`` otherwise: too
+few tiles passed (:data:`MIN_TILES`: too little texture, or the twins too far off to be found even when
+searched :data:`psvs.health.rows.FAR_REACH_DEG` either side, which the check does when too few are found
+within the usual reach and it cannot judge), the tiles
+disagree with any smooth field (:data:`MAX_SCATTER_PX`: a scene that moved between the views' exposures is
+not one a frame shows; at least :data:`MIN_CONSISTENT` of the tiles must lie on the field), or the field's
+uncertainty straddles the tolerance (more frames decide it).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from psvs._validate import check_grey
+from psvs.health.rows import FAR_REACH_DEG, FrameTiles, frame_tiles
+from psvs.optics.rig import Rig
+
+#: The tolerance a calibration is held to by default: the field's RMS, px.
+TOLERANCE_PX = 0.5
+#: At least this many tiles must pass their chance test, over at least this share of the judged frames' area.
+MIN_TILES = 12
+#: Tiles farther than this many robust sigmas (and 0.5 px) from the fitted field are left out of it.
+OUTLIER_SIGMAS = 3.0
+#: Tiles that scatter about the fitted field by more than this (px, robust sigma) cannot be one field.
+MAX_SCATTER_PX = 1.0
+#: Each pixel lies in this many tiles (they overlap by half along each axis): the fit's evidence is that much less.
+OVERLAP = 4.0
+#: At least this share of the tiles above chance must lie on the one field.
+MIN_CONSISTENT = 0.6
+#: Share of the textured tiles whose peak lay on the searched rows' edge that says "farther than the reach".
+EDGE_SHARE = 0.5
+
+
+@dataclass(frozen=True)
+class HealthCheck:
+    """What ``psvs check`` found: ``verdict`` ("healthy", "drifted", "cannot judge"), ``reason`` (one line:
+    what it judged on, or what it needs), the fitted field's ``row_offset_rms_px`` and ``row_offset_max_px``
+    (largest |offset|) over the judged tiles with its ``uncertainty_px`` (NaN when it cannot judge),
+    ``scatter_px`` (tiles about the field, robust sigma), ``judged_px`` (pixels of the tiles judged),
+    ``tiles`` (judged) of ``tiles_tried``, ``frames``, ``tolerance_px``; the judged tiles' ``centre_px``
+    (n, 2) on the left grid with their measured ``offset_px`` (n,), ``fitted_px`` (n,) the field there, and
+    ``coefficients`` (6,) of the field in the grid's normalised coordinates (:func:`field_basis`)."""
+
+    verdict: str
+    reason: str
+    row_offset_rms_px: float
+    row_offset_max_px: float
+    uncertainty_px: float
+    scatter_px: float
+    judged_px: int
+    tiles: int
+    tiles_tried: int
+    frames: int
+    tolerance_px: float
+    grid_shape: tuple[int, int]
+    centre_px: np.ndarray = field(repr=False)
+    offset_px: np.ndarray = field(repr=False)
+    fitted_px: np.ndarray = field(repr=False)
+    coefficients: np.ndarray = field(repr=False)
+    disparity_px: np.ndarray = field(repr=False)
+
+    def as_dict(self) -> dict:
+        """The check as JSON-ready values (NaN as None)."""
+        num = lambda x: None if not np.isfinite(x) else round(float(x), 4)  # noqa: E731
+        return {"verdict": self.verdict, "reason": self.reason, "row_offset_rms_px": num(self.row_offset_rms_px),
+                "row_offset_max_px": num(self.row_offset_max_px), "uncertainty_px": num(self.uncertainty_px),
+                "scatter_px": num(self.scatter_px), "judged_px": int(self.judged_px), "tiles": self.tiles,
+                "tiles_tried": self.tiles_tried, "frames": self.frames, "tolerance_px": self.tolerance_px,
+                "grid_shape": list(self.grid_shape),
+                "tile_centres_px": [[num(u), num(v)] for u, v in self.centre_px],
+                "tile_offsets_px": [num(x) for x in self.offset_px],
+                "tile_fitted_px": [num(x) for x in self.fitted_px]}
+
+
+def field_basis(centre_px: np.ndarray, grid_shape: tuple[int, int]) -> np.ndarray:
+    """The field's basis (n, 6) at points (n, 2) of a grid (H', W'): 1, x, y, x^2, x y, y^2 with x, y the
+    points scaled to -1..1 over the grid."""
+    h, w = grid_shape
+    x = 2.0 * centre_px[:, 0] / max(w - 1, 1) - 1.0
+    y = 2.0 * centre_px[:, 1] / max(h - 1, 1) - 1.0
+    return np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
+
+
+def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
+                 tolerance_px: float = TOLERANCE_PX) -> HealthCheck:
+    """Judge a calibration (``rig``) on ordinary frames (a list of (H, W) grey images of any textured scene
+    over the working range near..far mm): the module docstring's field and verdict."""
+    if not np.isfinite(tolerance_px) or tolerance_px <= 0:
+        raise ValueError(f"tolerance must be a number > 0 px, got {tolerance_px!r}")
+    if len(frames) == 0:
+        raise ValueError("no frame to check")
+    w, h = rig.camera.image_size_px
+    grey = []
+    for k, f in enumerate(frames):
+        g = check_grey(f, f"frame {k + 1}")
+        if g.shape != (h, w):
+            raise ValueError(f"frame {k + 1} is {g.shape[1]}x{g.shape[0]} px, the rig's camera {w}x{h}")
+        grey.append(g)
+    check = judge([frame_tiles(g, rig, near_mm, far_mm) for g in grey], tolerance_px)
+    if check.verdict != "cannot judge":
+        return check
+    wider = judge([frame_tiles(g, rig, near_mm, far_mm, FAR_REACH_DEG) for g in grey], tolerance_px)
+    return wider if wider.verdict != "cannot judge" else check       # twins beyond the usual reach?
+
+
+def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> HealthCheck:
+    """The field and verdict (module docstring) from the frames' tiles."""
+    t0 = tiles[0]
+    ok = np.concatenate([t.accepted for t in tiles])
+    edge = int(np.concatenate([t.at_edge for t in tiles]).sum())
+    centre = np.concatenate([t.centre_px for t in tiles])[ok]
+    offset = np.concatenate([t.offset_px for t in tiles])[ok]
+    disparity = np.concatenate([t.disparity_px for t in tiles])[ok]
+    tried = sum(len(t.accepted) for t in tiles)
+    nan, n_nan = float("nan"), np.full(len(offset), np.nan)
+    found = dict(row_offset_rms_px=nan, row_offset_max_px=nan, uncertainty_px=nan, scatter_px=nan, judged_px=0,
+                 tiles=len(offset), tiles_tried=tried, frames=len(tiles), tolerance_px=float(tolerance_px),
+                 grid_shape=t0.grid_shape, centre_px=centre, offset_px=offset, fitted_px=n_nan,
+                 coefficients=np.full(6, np.nan), disparity_px=disparity)
+    if edge >= max(MIN_TILES, EDGE_SHARE * (edge + len(offset))):
+        found.update(row_offset_rms_px=float(t0.reach_px), row_offset_max_px=float(t0.reach_px))
+        return HealthCheck("drifted", f"the twins of {edge} tiles lie {t0.reach_px} rows or more off their rows, "
+                           f"as far as the check searches: the rig has moved far more than the tolerance", **found)
+    if len(offset) < MIN_TILES:
+        return HealthCheck("cannot judge", f"only {len(offset)} of {tried} tiles show a twin above chance (needs "
+                           f"{MIN_TILES}): frames of a textured scene filling more of the field, over the working "
+                           f"range, are needed", **found)
+    A = field_basis(centre, t0.grid_shape)
+    coef, inliers, scatter = _robust_fit(A, offset)
+    n = int(inliers.sum())
+    if n < MIN_TILES or scatter > MAX_SCATTER_PX or n < MIN_CONSISTENT * len(offset):
+        return HealthCheck("cannot judge", f"the {len(offset)} tiles above chance disagree with any smooth field "
+                           f"(scatter {scatter:.2f} px, {n} consistent): the frames do not show one rig's twins; "
+                           f"frames of a still, textured scene are needed", **found)
+    fitted = A @ coef
+    at = fitted[inliers]
+    # the field's variance at each tile; overlapping tiles share pixels, so their errors are not independent
+    cov = OVERLAP * scatter ** 2 * np.linalg.pinv(A[inliers].T @ A[inliers])
+    var = np.einsum("ij,jk,ik->i", A[inliers], cov, A[inliers])
+    unc = float(np.sqrt(np.mean(var)))
+    rms = float(np.sqrt(max(np.mean(at ** 2) - np.mean(var), 0.0)))   # noise adds its variance to the mean square
+    top = float(np.abs(at).max())
+    judged = n * t0.size_px ** 2
+    found.update(row_offset_rms_px=rms, row_offset_max_px=top, uncertainty_px=unc, scatter_px=scatter,
+                 judged_px=judged, tiles=n, centre_px=centre[inliers], offset_px=offset[inliers], fitted_px=at,
+                 coefficients=coef, disparity_px=disparity[inliers])
+    evidence = (f"{n} tiles ({judged} px) of {len(tiles)} frame(s), field RMS {rms:.2f} +- {unc:.2f} px, "
+                f"largest {top:.2f} px, tolerance {tolerance_px:g} px")
+    if rms + 2 * unc <= tolerance_px:
+        return HealthCheck("healthy", f"the twins stand on their rows: {evidence}", **found)
+    if rms - 2 * unc > tolerance_px:
+        return HealthCheck("drifted", f"the twins stand off their rows: {evidence}", **found)
+    return HealthCheck("cannot judge", f"the offset is within its uncertainty of the tolerance: {evidence}; more "
+                       f"frames decide it", **found)
+
+
+def _robust_fit(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """(coefficients, inliers, robust sigma px) of the field: soft-L1 least squares, then ordinary least
+    squares on the tiles within OUTLIER_SIGMAS robust sigmas (and 0.5 px) of it."""
+    from scipy.optimize import least_squares
+    c = least_squares(lambda p: A @ p - y, np.zeros(A.shape[1]), loss="soft_l1", f_scale=0.3).x
+    sigma = 0.0
+    for _ in range(3):
+        r = y - A @ c
+        sigma = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+        inliers = np.abs(r) <= max(OUTLIER_SIGMAS * sigma, 0.5)
+        if inliers.sum() < A.shape[1] + 2:
+            break
+        c = np.linalg.lstsq(A[inliers], y[inliers], rcond=None)[0]
+    r = y - A @ c
+    inliers = np.abs(r) <= max(OUTLIER_SIGMAS * sigma, 0.5)
+    dof = max(int(inliers.sum()) - A.shape[1], 1)
+    return c, inliers, float(np.sqrt(np.sum(r[inliers] ** 2) / dof))

@@ -1,0 +1,163 @@
+"""How far each twin stands off its row, read off one ordinary frame through a calibration (docs/health.md).
+
+A calibrated rig's dual rectification (docs/optics.md) puts every scene point's two images on the same row
+of the left and the right view's rectified grids. A mirror that moved since (a knock, glue creeping) moves
+one view's image across its rows: its twin now stands a few tenths of a pixel or more above or below. The
+frame is resampled on both grids (:func:`psvs.dense.build.rectified_images`; the complex image itself on
+the paper's geometry) and band-passed (a difference of Gaussians: the scene's shading and the lens's
+fall-off do not correlate), then cut into square tiles on the left grid (overlapping by half). Each tile is correlated
+(normalised cross-correlation, OpenCV's ``matchTemplate``) with the right grid over the working range's
+disparities along its row and :func:`reach_px` rows either side; the peak's row, refined by a quadratic
+through its 3 x 3 neighbourhood, is the tile's row offset (right twin's row minus the left's, px).
+
+**Tested against chance, tile by tile.** A tile's peak must stand :data:`NULL_MARGIN` above the best
+correlation the same tile finds in :data:`NULLS` bands of rows far from its own (where no twin can be, so
+whatever peak they give is what its texture gives by chance), its texture must stand above the sensor's
+noise (:data:`MIN_TEXTURE_DN`), and the peak must be a peak (a negative-definite quadratic, inside the
+searched rows). A tile whose best peak lies on the searched rows' edge is counted apart: its twin may be
+farther off than the search reaches.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from psvs.dense.build import rectified_images
+from psvs.dense.rig_cache import rectification
+from psvs.optics.illumination import flat_field
+from psvs.optics.rectify import Rectification
+from psvs.optics.rig import Rig
+from psvs.optics.search_range import disparity_range
+
+#: Rows searched either side of a twin's nominal row, as an angle through the lens: a mirror knocked by
+#: 0.25 deg moves its view's rows by about twice that. When too few tiles are found within it, the check
+#: searches again FAR_REACH_DEG (psvs.health.check).
+REACH_DEG = 0.5
+FAR_REACH_DEG = 2.0
+#: A tile's side is the rectified grid's shorter side over this, within TILE_PX (a 640 x 480 frame: 64 px).
+TILES_ACROSS = 8
+TILE_PX = (48, 128)
+#: Bands of rows far from a tile's own searched for its chance peak, and how far above it its peak must be.
+NULLS = 4
+NULL_MARGIN = 0.05
+#: A tile's band-passed grey levels must spread this much (DN, standard deviation): above the sensor's noise.
+MIN_TEXTURE_DN = 1.0
+#: The band-pass: a difference of Gaussians of these sigmas (px).
+BAND_SIGMAS_PX = (1.0, 4.0)
+
+
+@dataclass(frozen=True)
+class FrameTiles:
+    """One frame's tiles on the left grid: ``centre_px`` (n, 2) (u', v') of each tile's centre, ``offset_px``
+    (n,) its twin's row offset and ``disparity_px`` (n,) its disparity (NaN where not read), ``score`` (n,)
+    its peak's correlation and ``chance`` (n,) the best its texture gave by chance, ``accepted`` (n,) the
+    tiles that pass the chance test, ``at_edge`` (n,) those whose best peak lay on the searched rows' edge;
+    ``size_px`` a tile's side, ``reach_px`` the rows searched either side, ``grid_shape`` (H', W')."""
+
+    centre_px: np.ndarray
+    offset_px: np.ndarray
+    disparity_px: np.ndarray
+    score: np.ndarray
+    chance: np.ndarray
+    accepted: np.ndarray
+    at_edge: np.ndarray
+    size_px: int
+    reach_px: int
+    grid_shape: tuple[int, int]
+    rect: Rectification | None
+
+
+def reach_px(rig: Rig, reach_deg: float = REACH_DEG) -> int:
+    """``reach_deg`` as rows of this camera (its focal length over its pitch), at least 4."""
+    c = rig.camera
+    return max(4, math.ceil(math.tan(math.radians(reach_deg)) * c.focal_length_mm / min(c.pixel_pitch_mm)))
+
+
+def tile_px(shape: tuple[int, int]) -> int:
+    """A tile's side (px) on a grid of ``shape`` (H', W'): its shorter side over :data:`TILES_ACROSS`, a
+    multiple of 16 within :data:`TILE_PX`."""
+    return int(np.clip(16 * round(min(shape) / TILES_ACROSS / 16), *TILE_PX))
+
+
+def band_pass(image: np.ndarray) -> np.ndarray:
+    """The difference of Gaussians (:data:`BAND_SIGMAS_PX`) of an image (H, W), float32."""
+    a = np.asarray(image, dtype=np.float32)
+    return cv2.GaussianBlur(a, (0, 0), BAND_SIGMAS_PX[0]) - cv2.GaussianBlur(a, (0, 0), BAND_SIGMAS_PX[1])
+
+
+def grids(image, rig: Rig, near_mm: float, far_mm: float):
+    """(left grid, right grid, disparities (lo, hi) px, rectification or None) of a complex image (H, W)."""
+    img = flat_field(np.asarray(image), rig.camera).astype(np.float32)
+    rect = rectification(rig, near_mm, far_mm)
+    if rect is None:
+        return img, img, disparity_range(rig, near_mm, far_mm, width_px=img.shape[1]), None
+    a, b = rectified_images(img, rect)
+    return a, b, disparity_range(rig, near_mm, far_mm, rect, width_px=a.shape[1]), rect
+
+
+def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
+                reach_deg: float = REACH_DEG) -> FrameTiles:
+    """Every tile's twin row offset in one complex image (H, W) through ``rig``, searched ``reach_deg`` (as
+    rows, :func:`reach_px`) either side of its row (module docstring)."""
+    a, b, (lo, hi), rect = grids(image, rig, near_mm, far_mm)
+    a, b = band_pass(a), band_pass(b)
+    lo, hi = int(math.floor(lo)), int(math.ceil(hi))
+    h, w = a.shape
+    size, reach = tile_px((h, w)), reach_px(rig, reach_deg)
+    step = size // 2                                 # tiles overlap by half: twice the evidence per axis
+    rows = list(range(reach, h - size - reach + 1, step))
+    cols = list(range(max(lo, 0) + 2, w - size + 1, step))     # near the left edge, the nearer twins only
+    out = []
+    for y in rows:
+        for x in cols:
+            out.append(_tile(a, b, (x, y), (size, reach), (lo, hi), rows))
+    arr = np.array(out, dtype=float).reshape(-1, 8)
+    accepted = (np.isfinite(arr[:, 2]) & (arr[:, 4] >= arr[:, 5] + NULL_MARGIN) & (arr[:, 6] >= MIN_TEXTURE_DN))
+    at_edge = (arr[:, 7] > 0) & (arr[:, 4] >= arr[:, 5] + NULL_MARGIN) & (arr[:, 6] >= MIN_TEXTURE_DN)
+    return FrameTiles(arr[:, :2], arr[:, 2], arr[:, 3], arr[:, 4], arr[:, 5], accepted, at_edge, size, reach,
+                      (h, w), rect)
+
+
+def _tile(a, b, at, size_reach, span, rows) -> tuple:
+    """The tile at ``at`` = (x, y) of the left grid ``a`` (``size_reach`` = (side, rows searched either side),
+    ``span`` the disparities (lo, hi)) against the right grid ``b``: (u', v', row offset, disparity, score,
+    chance, texture DN, 1 if the peak is on the rows' edge)."""
+    (x, y), (size, reach), (lo, hi) = at, size_reach, span
+    t = a[y:y + size, x:x + size]
+    texture = float(t.std())
+    centre = (x + 0.5 * (size - 1), y + 0.5 * (size - 1))
+    x0 = max(x - hi, 0)
+    search = b[y - reach:y + size + reach, x0:x + size - lo]
+    if search.shape[1] < size + 2 or texture <= 0:
+        return (*centre, np.nan, np.nan, -1.0, 1.0, texture, 0)
+    r = cv2.matchTemplate(search, t, cv2.TM_CCOEFF_NORMED)
+    i, j = np.unravel_index(int(np.argmax(r)), r.shape)
+    chance = -1.0
+    far = [yy for yy in rows if abs(yy - y) >= 2 * size]
+    for yy in far[:: max(1, len(far) // NULLS)][:NULLS]:
+        chance = max(chance, float(cv2.matchTemplate(b[yy - reach:yy + size + reach, x0:x + size - lo], t,
+                                                     cv2.TM_CCOEFF_NORMED).max()))
+    edge = int(i == 0 or i == r.shape[0] - 1)
+    di, dj = _peak(r, i, j)
+    return (*centre, i + di - reach, x - (x0 + j + dj), float(r[i, j]), chance, texture, edge)
+
+
+def _peak(r: np.ndarray, i: int, j: int) -> tuple[float, float]:
+    """The sub-pixel offset (rows, columns) of the maximum at (i, j) of ``r``: the top of the quadratic
+    through its 3 x 3 neighbourhood; NaN when it is on the border or the quadratic has no top within 1 px."""
+    if not (0 < i < r.shape[0] - 1 and 0 < j < r.shape[1] - 1):
+        return np.nan, np.nan
+    z = r[i - 1:i + 2, j - 1:j + 2].astype(float).ravel()
+    x, y = np.meshgrid([-1.0, 0.0, 1.0], [-1.0, 0.0, 1.0])
+    x, y = x.ravel(), y.ravel()
+    c = np.linalg.lstsq(np.column_stack([np.ones(9), x, y, x * x, x * y, y * y]), z, rcond=None)[0]
+    m = np.array([[2 * c[3], c[4]], [c[4], 2 * c[5]]])
+    if not (m[0, 0] < 0 and np.linalg.det(m) > 0):
+        return np.nan, np.nan
+    sx, sy = np.linalg.solve(m, [-c[1], -c[2]])
+    if abs(sx) > 1 or abs(sy) > 1:
+        return np.nan, np.nan
+    return float(sy), float(sx)

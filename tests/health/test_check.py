@@ -1,0 +1,133 @@
+"""psvs check (issue 43, item 1): the twins' row offsets read off ordinary frames against the offsets the
+optics give (planted truth: a calibration, a mirror moved since, the frames rendered through the moved rig),
+on rigs drawn as users' cameras; frames with nothing to judge refused."""
+import math
+
+import numpy as np
+import pytest
+
+from psvs.dense.rig_cache import rectification
+from psvs.health.check import TOLERANCE_PX, check_frames
+from psvs.health.explain import explain_offsets, tilted
+from psvs.io.params import load_rig
+from psvs.optics.project import project_points
+from psvs.optics.rig import MIRROR_NAMES
+from psvs.optics.trace import trace_pixels
+from psvs.simulate.builtin import photo_texture, regulated_light
+from psvs.simulate.render import render
+from psvs.simulate.scene import Scene
+from psvs.simulate.textures import Noise
+from tests.support.rig_draws import candidates
+
+PHOTOS = ("grass", "gravel", "brick", "astronaut")
+
+
+def wall(z_mm: float, photo: str) -> Scene:
+    """A photo on a wall at z_mm filling the field (each of its pixels some mm across: a coarse texture)."""
+    return Scene((), regulated_light(z_mm), z_mm, photo_texture(photo, (2.0 * z_mm, 1.5 * z_mm)), "wall")
+
+
+def fine_wall(z_mm: float, rig, seed: int) -> Scene:
+    """Value noise on a wall at z_mm whose lattice images 2.5 px apart: texture at every place of the field."""
+    c = rig.camera
+    scale = 2.5 * z_mm * min(c.pixel_pitch_mm) / c.focal_length_mm
+    return Scene((), regulated_light(z_mm), z_mm, Noise(scale_mm=scale, seed=seed), "fine wall")
+
+
+def true_offsets(calibration, truth, centres, z_mm, near_mm, far_mm) -> np.ndarray:
+    """The row offsets (n,) the optics give at left-grid points (n, 2) of the calibration's rectification,
+    for a wall at z_mm seen through the true rig: the calibration's left grid pixel -> its complex pixel ->
+    the true rig's left ray -> the wall -> the true rig's right image -> the calibration's right grid."""
+    rect = rectification(calibration, near_mm, far_mm)
+    left = centres if rect is None else rect.to_complex(centres, "left")
+    rays = trace_pixels(left, truth, "left")
+    p = rays.origins_mm + ((z_mm - rays.origins_mm[:, 2]) / rays.dirs[:, 2])[:, None] * rays.dirs
+    right, ok = project_points(p, truth, "right")
+    right[~ok] = np.nan
+    right = right if rect is None else rect.to_rectified(right, "right")
+    return right[:, 1] - centres[:, 1]
+
+
+def knock(rig, rng):
+    """The rig with one mirror moved as a knock or a warm week does: out of vertical by 0.03-0.12 deg and about
+    the vertical by up to 0.05 deg, random signs."""
+    m = str(rng.choice(MIRROR_NAMES))
+    a, b = rng.uniform(-0.05, 0.05), rng.uniform(0.03, 0.12) * rng.choice([-1, 1])
+    return m, tilted(rig, m, math.radians(a), math.radians(b))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_row_offsets_are_the_optics_on_drawn_rigs(seed):
+    """On a rig drawn as a user's camera, a calibration that is right is never called drifted (healthy on
+    a finely textured wall); after a knock, the field it measures is the optics' within its own stated
+    uncertainty, and the verdict is the optics' wherever they are clear of the tolerance."""
+    draw = next(candidates(seed, (0.3, 1.0)))
+    rng = np.random.default_rng(100 + seed)
+    cal, near, far = draw.build, draw.near_mm, draw.far_mm        # a calibration that was right
+    z = float(rng.uniform(near, min(far, 2.0 * near)))
+    what = f"{draw.label}, walls at {z:.0f} mm"
+    fine, coarse = fine_wall(z, cal, seed), wall(z, PHOTOS[seed % len(PHOTOS)])
+    same = check_frames([render(fine, cal, seed=seed, supersample=1).image], cal, near, far)
+    assert same.verdict == "healthy" and same.row_offset_rms_px <= 0.2, f"{what}: {same.reason}"
+    same = check_frames([render(coarse, cal, seed=seed, supersample=1).image], cal, near, far)
+    assert same.verdict != "drifted", f"{what}: {same.reason}"
+    mirror, moved = knock(cal, rng)
+    for scene in (fine, coarse):
+        c = check_frames([render(scene, moved, seed=seed, supersample=1).image], cal, near, far)
+        if c.verdict == "cannot judge" and scene is coarse:
+            continue
+        truth = true_offsets(cal, moved, c.centre_px, z, near, far)
+        ok = np.isfinite(truth)
+        expected = float(np.sqrt(np.mean(truth[ok] ** 2)))
+        err = float(np.sqrt(np.mean((c.fitted_px[ok] - truth[ok]) ** 2)))
+        say = (f"{what}, {scene.name}, {mirror} moved: field {c.row_offset_rms_px:.2f} +- {c.uncertainty_px:.2f} px, "
+               f"the optics {expected:.2f} px, off them by {err:.2f} px: {c.reason}")
+        assert ok.mean() > 0.9 and err <= 2.0 * c.uncertainty_px + 0.05, say
+        if expected > TOLERANCE_PX + 3 * c.uncertainty_px:
+            assert c.verdict == "drifted", say
+        elif expected < TOLERANCE_PX - 3 * c.uncertainty_px:
+            assert c.verdict != "drifted", say
+
+
+def test_the_moved_mirror_is_named():
+    rig = load_rig("misaligned")
+    scene = wall(800.0, "grass")
+    for mirror in MIRROR_NAMES:
+        moved = tilted(rig, mirror, 0.0, math.radians(0.08))
+        c = check_frames([render(scene, moved, seed=3).image], rig)
+        found = explain_offsets(c, rig)
+        best = [e.mirror for e in found if e.residual_px <= found[0].residual_px + 0.05]
+        assert c.verdict == "drifted" and mirror in best, (mirror, found)
+        e = next(e for e in found if e.mirror == mirror)
+        assert abs(abs(e.tilt_deg[1]) - 0.08) <= 0.02 and e.residual_px <= 0.3, e
+
+
+def test_a_knock_beyond_the_search_is_drifted_not_unjudged():
+    rig = load_rig("misaligned")
+    moved = tilted(rig, "m4", 0.0, math.radians(0.8))
+    c = check_frames([render(wall(800.0, "gravel"), moved, seed=4).image], rig)
+    assert c.verdict == "drifted", c.reason
+
+
+@pytest.mark.parametrize("kind", ["noise", "blank", "stripes", "dark"])
+def test_frames_without_twins_are_not_judged(kind):
+    rig = load_rig("misaligned")
+    h, w = rig.camera.image_size_px[::-1]
+    rng = np.random.default_rng(7)
+    frame = {"noise": lambda: rng.integers(0, 256, (h, w)),
+             "blank": lambda: np.full((h, w), 128),
+             "stripes": lambda: 128 + 100 * np.sign(np.sin(np.arange(w) / 3.0))[None, :].repeat(h, 0),
+             "dark": lambda: rng.integers(0, 3, (h, w))}[kind]().astype(np.uint8)
+    c = check_frames([frame], rig)
+    assert c.verdict == "cannot judge" and "needs" in c.reason or "needed" in c.reason, c.reason
+
+
+def test_bad_arguments_are_named():
+    rig = load_rig("default")
+    img = np.zeros((480, 640), np.uint8)
+    with pytest.raises(ValueError, match="tolerance"):
+        check_frames([img], rig, tolerance_px=0.0)
+    with pytest.raises(ValueError, match="no frame"):
+        check_frames([], rig)
+    with pytest.raises(ValueError, match="frame 2 is 320x240 px, the rig's camera 640x480"):
+        check_frames([img, img[:240, :320]], rig)
