@@ -44,7 +44,9 @@ def scheduler_address(text: str) -> str:
 def connect(scheduler: str | None = None, workers: int | None = None, timeout_s: float = CONNECT_TIMEOUT_S):
     """A ``distributed.Client``: on the scheduler at ``scheduler`` (its workers are its own), or, when None, on
     a new LocalCluster of ``workers`` processes (default :func:`local_workers`) with one thread each, its logs
-    at ERROR only and no dashboard. Close it (``with connect(...) as client:``): a local cluster closes with it.
+    at CRITICAL only (a task's error reaches the caller as its exception; after Ctrl-C a worker's heartbeat to
+    the closed scheduler logs an ERROR traceback, which is no news to the user) and no dashboard. Close it
+    (``with connect(...) as client:``): a local cluster closes with it.
 
     An address that is not one, or a scheduler that does not answer within ``timeout_s``, is a one-line
     ValueError; nothing is started or written."""
@@ -60,7 +62,7 @@ def connect(scheduler: str | None = None, workers: int | None = None, timeout_s:
         with dask.config.set({"distributed.nanny.pre-spawn-environ": blas_environ(n)}):
             client = Client(n_workers=n, threads_per_worker=1, processes=True,
                             dashboard_address=":0", scheduler_kwargs={"dashboard": False},
-                            silence_logs=logging.ERROR, set_as_default=False)
+                            silence_logs=logging.CRITICAL, set_as_default=False)
         client.register_plugin(_IgnoreInterrupt())
         return client
     address = scheduler_address(scheduler)
@@ -78,6 +80,7 @@ class _IgnoreInterrupt(WorkerPlugin):
     name = "psvs-ignore-interrupt"
 
     def setup(self, worker):
+        logging.getLogger("distributed").setLevel(logging.CRITICAL)
         if threading.current_thread() is threading.main_thread():
             signal.signal(signal.SIGINT, signal.SIG_IGN)
 
