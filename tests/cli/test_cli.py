@@ -30,7 +30,7 @@ def test_main_help_lists_every_command(capsys):
         main(["--help"])
     assert info.value.code == 0
     out = capsys.readouterr().out
-    assert all(name in out for name in COMMANDS) and len(COMMANDS) == 28
+    assert all(name in out for name in COMMANDS) and len(COMMANDS) == 29
 
 
 def test_a_command_loads_only_its_own_module():

@@ -20,7 +20,7 @@ def test_shipped_rigs_load_by_name_and_agree_with_the_repository_examples():
 
 
 def test_unknown_name_lists_the_shipped_rigs():
-    message = r"rig file not found: nope \(shipped rigs: default, clear, misaligned, mv1440, mv1440_misaligned\)"
+    message = r"rig file not found: nope \(shipped rigs: default, clear, misaligned, misaligned_knocked, mv1440, mv1440_misaligned\)"
     with pytest.raises(FileNotFoundError, match=message):
         load_rig("nope")
 
@@ -42,4 +42,4 @@ def test_rig_list_and_errors(capsys):
     code, _, err = run(capsys, "rig", "show")
     assert code == 2 and "needs a shipped rig's name or a rig file" in err
     code, _, err = run(capsys, "rig", "show", "nope")
-    assert code == 2 and "shipped rigs: default, clear, misaligned, mv1440, mv1440_misaligned" in err
+    assert code == 2 and "shipped rigs: default, clear, misaligned, misaligned_knocked, mv1440, mv1440_misaligned" in err

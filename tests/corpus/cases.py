@@ -521,6 +521,23 @@ def _check() -> list[Case]:
     ]
 
 
+def _refit() -> list[Case]:
+    """psvs refit: frames of the rig's size, an output or --adjust, tares paired with distances in range."""
+    base = ("refit", "img.png", "--rig", "default", "-o", "new.toml")
+    tex = {"img.png": texture_png()}
+    return [
+        Case("refit-missing-frame", base, 2, "not found"),
+        Case("refit-no-output", ("refit", "img.png", "--rig", "default"), 2, "-o NEW.toml", tex),
+        Case("refit-frame-wrong-size", base, 2, "640x480", {"img.png": texture_png(500, 400)}),
+        Case("refit-blank-frame", base, 1, "cannot refit", {"img.png": png(np.full((480, 640), 128, np.uint8))}),
+        Case("refit-tare-without-distance", (*base, "--tare", "img.png"), 2, "--tare-mm", tex),
+        Case("refit-tare-distance-nan", (*base, "--tare", "img.png", "--tare-mm", "nan"), 2, "--tare-mm", tex),
+        Case("refit-output-suffix", ("refit", "img.png", "--rig", "default", "-o", "new.txt"), 2, ".toml", tex),
+        Case("refit-output-over-the-frame", ("refit", "img.png", "--rig", "default", "-o", "img.png"), 2, "", tex),
+        Case("refit-near-beyond-far", (*base, "--near-mm", "900", "--far-mm", "500"), 2, "near", tex),
+    ]
+
+
 def _adjust() -> list[Case]:
     """psvs adjust: the calibrated build (a file or a shipped rig) and its design (--rig)."""
     base = ("adjust", "default", *R)
@@ -543,7 +560,8 @@ def _adjust() -> list[Case]:
 def all_cases() -> list[Case]:
     cases = (_design() + _triangulate() + _fit_refraction() + _simulate() + _match() + _measure()
              + _card_views() + _sweep_views() + _capture() + _calibrate() + _disparity() + _live() + _serve() + _track()
-             + _handeye() + _adjust() + _check() + mount_cases() + montecarlo_cases() + _small() + batch_cases())
+             + _handeye() + _adjust() + _check() + _refit() + mount_cases() + montecarlo_cases() + _small()
+             + batch_cases())
     names = [c.name for c in cases]
     assert len(names) == len(set(names)), "case names must be unique"
     return cases

@@ -1,11 +1,12 @@
 """Calibrating a build: bundle adjustment of the exact optics from hand-held card views and/or the paper's
-robot sweep.
+robot sweep, and keeping it in the field.
 
 ``folder`` reads a calibration folder (card views, ``sweep.csv``, ``target.toml``) and calls ``bundle``
 (the lens, the plate, the mirrors' pose errors and every target pose); ``sweep`` is the robot sweep as
 calibration data; ``capture`` is the assistant that says which card views are good and when there are
 enough; ``synthetic`` and ``handheld`` simulate card views and a hand-held video; ``report`` writes a
-calibration's residuals. Targets are found by :mod:`psvs.targets`.
+calibration's residuals. ``refit`` re-fits a drifted calibration's mirrors from ordinary frames, ``tare``
+its depth on flat surfaces at known distances (``psvs refit``). Targets are found by :mod:`psvs.targets`.
 """
 import lazy_loader as _lazy
 
@@ -20,8 +21,10 @@ __getattr__, __dir__, __all__ = _lazy.attach(
                     "check_card_visible", "event_lines"],
         "folder": ["calibrate_folder", "grid_view"],
         "handheld": ["HandParams", "hand_path", "render_hand_video"],
+        "refit": ["REFIT_PARAMS", "Refit", "combination_text", "refit_rig"],
         "report": ["write_report"],
         "sweep": ["calibrate_sweep", "dumps_sweep"],
         "synthetic": ["check_card_fits", "random_poses", "render_grid_shots"],
+        "tare": ["Tare", "tare_plane"],
     },
 )

@@ -22,7 +22,7 @@ from psvs.errors import MeasurementError, RigGeometryError
 COMMANDS = ("demo", "rig", "design", "triangulate", "fit-refraction", "simulate", "match", "measure", "calibrate",
             "card-views", "sweep-views", "capture", "table1", "disparity", "dense-eval", "serve", "live", "handeye",
             "track", "replay", "export-calibration", "cameras", "adjust", "mount", "batch", "montecarlo", "examples",
-            "check")
+            "check", "refit")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -12,7 +12,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     __name__,
     submodules=[],
     submod_attrs={
-        "check": ["HealthCheck", "TOLERANCE_PX", "check_frames", "judge"],
+        "check": ["HealthCheck", "OVERLAP", "TOLERANCE_PX", "check_frames", "judge", "judged_pairs_px"],
         "explain": ["Explanation", "explain_offsets", "explanation_line", "tilted"],
         "figure": ["offset_figure"],
         "rows": ["FrameTiles", "frame_tiles"],

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from psvs._validate import check_grey
+from psvs.dense.rig_cache import rectification
 from psvs.health.rows import FAR_REACH_DEG, FrameTiles, frame_tiles
 from psvs.optics.rig import Rig
 
@@ -93,6 +94,20 @@ def field_basis(centre_px: np.ndarray, grid_shape: tuple[int, int]) -> np.ndarra
     x = 2.0 * centre_px[:, 0] / max(w - 1, 1) - 1.0
     y = 2.0 * centre_px[:, 1] / max(h - 1, 1) - 1.0
     return np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
+
+
+def judged_pairs_px(check: HealthCheck, rig: Rig, near_mm: float = 400.0,
+                    far_mm: float = 1200.0) -> tuple[np.ndarray, np.ndarray]:
+    """The judged tiles as twin pairs in the complex image: (left view's pixels (n, 2), right view's (n, 2)),
+    each tile's centre on the left grid and where its twin was found on the right grid (its disparity along
+    the row, its measured offset across), read back through the rectification the check read through
+    (``rig``'s over near..far mm)."""
+    left = check.centre_px
+    right = left - np.column_stack([check.disparity_px, -check.offset_px])
+    rect = rectification(rig, near_mm, far_mm)
+    if rect is not None:
+        left, right = rect.to_complex(left, "left"), rect.to_complex(right, "right")
+    return left, right
 
 
 def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,

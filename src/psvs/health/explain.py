@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.dense.rig_cache import rectification
-from psvs.health.check import HealthCheck
+from psvs.health.check import HealthCheck, judged_pairs_px
 from psvs.measure.triangulate import triangulate
 from psvs.optics.project import project_points
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
@@ -62,13 +62,10 @@ def explain_offsets(check: HealthCheck, rig: Rig, near_mm: float = 400.0, far_mm
     """The mirrors ranked by how well their tilts alone explain the check's fitted field (module docstring),
     read through the rectification the check read through (``rig``'s over near..far mm). Empty when the
     check judged nothing."""
-    rect = rectification(rig, near_mm, far_mm)
     if check.tiles == 0 or not np.all(np.isfinite(check.fitted_px)):
         return []
-    left = check.centre_px
-    right = left - np.column_stack([check.disparity_px, -check.offset_px])
-    if rect is not None:
-        left, right = rect.to_complex(left, "left"), rect.to_complex(right, "right")
+    rect = rectification(rig, near_mm, far_mm)
+    left, right = judged_pairs_px(check, rig, near_mm, far_mm)
     pts = triangulate(left, right, rig, model="exact")
     keep = pts.valid
     p, y = pts.points_mm[keep], check.fitted_px[keep]

@@ -4,6 +4,8 @@
   44 mm (a clear layout), unbounded mirrors.
 - ``clear``: the same with the finite mirror sizes ``psvs design --rig-out`` gives.
 - ``misaligned``: a build of ``clear`` with mirror tilts and shifts, a rotated box and a distorting lens.
+- ``misaligned_knocked``: ``misaligned`` after a knock (M3 0.06 deg, M4 0.05/0.03 deg): what a drifted
+  build's frames look like to ``psvs check`` and ``psvs refit``.
 - ``mv1440``: a machine-vision camera (f 8 mm, 1440x1080, 3.45 um pixels, its lens's barrel distortion),
   b = 100 mm, a 2 mm BK7 plate splitting 45/55, M1 at 16 mm, M2 at 34.75 mm, the designed mirror sizes.
 - ``mv1440_misaligned``: a build of ``mv1440`` with mirror tilts and shifts, a rotated box and the lens as
@@ -18,7 +20,7 @@ from pathlib import Path
 
 __all__ = ["SHIPPED", "shipped_rig_path"]
 
-SHIPPED = ("default", "clear", "misaligned", "mv1440", "mv1440_misaligned")
+SHIPPED = ("default", "clear", "misaligned", "misaligned_knocked", "mv1440", "mv1440_misaligned")
 
 
 def shipped_rig_path(name: str) -> Path:

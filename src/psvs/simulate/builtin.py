@@ -175,8 +175,16 @@ def textured(distance_mm: float = 800.0) -> Scene:
     return Scene(objs, regulated_light(z), 1.4 * z, photo_texture("gravel", (1.3 * z, 1.0 * z)), "textured")
 
 
+def wall(distance_mm: float = 700.0, seed: int = 0) -> Scene:
+    """A flat wall of fine seeded value noise facing the rig at distance_mm, filling the field (a tare)."""
+    if seed < 0:
+        raise ValueError(f"wall: seed must be >= 0, got {seed}")
+    z = distance_mm
+    return Scene((), regulated_light(z), z, Noise(scale_mm=0.002 * z, seed=seed), "wall")
+
+
 BUILTINS = {"fig5a": fig5a, "fig5b": fig5b, "fig6": fig6, "fig9": fig9, "weld_seam": weld_seam,
-            "textured": textured}
+            "textured": textured, "wall": wall}
 
 
 def describe() -> list[tuple[str, str, str]]:

@@ -1,0 +1,345 @@
+"""Re-fit a drifted calibration from ordinary frames, and tare its depth on flat surfaces at known distances
+(``psvs refit``; docs/health.md).
+
+**The evidence.** The self-check (:mod:`psvs.health`) finds each textured tile's twin where it is, within
+its reach, not where the calibration expects it: every judged tile is a pair of complex-image pixels, the
+left view's and the right view's image of one scene point (:func:`psvs.health.check.judged_pairs_px`).
+
+**The rows.** Which rig puts every pair on one scene point? A bundle adjustment in which each point is free:
+for a trial rig, each pair is triangulated over the exact optics (:func:`psvs.measure.triangulate.triangulate`,
+the point eliminated) and reprojected into both views; the residuals are the reprojections minus the pair
+(4 per pair, px). A pair's free point absorbs its position and depth, so each pair pins one number: how far
+its twins stand off their rows. The rows' unknowns are the mirrors' tilts out of vertical (b), which move
+a view across its rows.
+
+**The depth** (:mod:`psvs.calibrate.tare`). The mirrors' turns about the vertical (a) move a view along its
+rows: only depth sees them. Each tare adds its tiles' depths off its plane; its distance pins the depth's
+offset there, and two tares at two distances its scale as well.
+
+**What is held.** Everything else (the lens, the plate, the baseline, the mirrors' shifts: what only a
+target or a known length pins, and none of which a knock moves as it tilts glass) stays at the old
+calibration (:data:`HELD_PARAMS`). Each refitted tilt has a prior about its old value
+(:data:`DRIFT_SIGMA_RAD`: what knocks and creep do), and each stage fits only the combinations its data
+pin to under :data:`UNPINNED` of their prior's sigma (truncated Gauss-Newton, :func:`_fit`): a combination
+the data barely see would be moved by the tiles' noise alone. The rest keep their old values and the result
+names them ("what no frame could pin"), with the depth scale's 1 sigma they leave.
+
+**Weights and 1 sigma.** A view's residual is weighed by the tiles' scatter about the check's field
+(:attr:`psvs.health.check.HealthCheck.scatter_px`, split between the views, the tiles' overlap
+:data:`psvs.health.check.OVERLAP` counted); each change has its Gauss-Newton 1 sigma. Two rounds: the frames
+are read again through the first round's rig (the tiles then search about the twins' new rows) and fitted
+again, priors still about the old calibration.
+
+**Right or refused** (:class:`psvs.errors.MeasurementError`): frames the check cannot judge, twins beyond
+its reach, a tare it cannot read or that is not flat, and a refit after which the twins still stand off their
+rows (something moved that the mirrors' tilts do not explain, e.g. the lens: calibrate again).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from psvs.calibrate.bundle import PRIOR_SIGMA, rig_from_values, rig_values
+from psvs.calibrate.tare import Tare, check_flat, depth_residuals_px, tare_record
+from psvs.errors import MeasurementError
+from psvs.health.check import OVERLAP, HealthCheck, check_frames, judged_pairs_px
+from psvs.measure.triangulate import triangulate
+from psvs.optics.mirrors import virtual_centre
+from psvs.optics.project import project_points
+from psvs.optics.rig import Calibration, Rig
+
+#: What frames re-fit: the mirror tilts (rad), as psvs.calibrate.bundle names them.
+REFIT_PARAMS = tuple(f"m{k}_tilt_{a}_rad" for k in range(1, 5) for a in "ab")
+#: What a refit holds at the old calibration (all of psvs.calibrate.bundle's other parameters).
+HELD_PARAMS = tuple(p for p in PRIOR_SIGMA if p not in REFIT_PARAMS)
+#: The rows' stage fits the tilts out of vertical (b), which move a view across its rows; the depth's stage
+#: (the tares) the turns about the vertical (a), which move it along its rows.
+ROW_PARAMS = tuple(k for k, p in enumerate(REFIT_PARAMS) if "tilt_b" in p)
+DEPTH_PARAMS = tuple(k for k, p in enumerate(REFIT_PARAMS) if "tilt_a" in p)
+#: The prior on each tilt's change since the calibration (rad): what a knock or a warm week does to glued glass.
+DRIFT_SIGMA_RAD = math.radians(0.1)
+#: Rounds of reading the frames and fitting.
+ROUNDS = 2
+#: Each stage iterates at most ITERATIONS times, until no step exceeds STEP_DONE of a prior sigma.
+ITERATIONS = 6
+STEP_DONE = 1e-4
+#: A combination of the tilts whose posterior sigma is over this share of its prior's is not pinned.
+UNPINNED = 0.5
+#: Residuals beyond this many sigmas weigh less (soft-L1): a tile across a depth edge is no one point.
+LOSS_SIGMAS = 2.0
+#: The smallest scatter (px) a tile's offset is weighed with (a perfect render would weigh without bound).
+MIN_SCATTER_PX = 0.02
+#: A pair the trial rig cannot triangulate or project: this residual (in sigmas) per component.
+_MISS = 10.0
+#: The finite-difference step of the Jacobian (rad).
+_STEP = 1e-6
+
+
+@dataclass(frozen=True)
+class Refit:
+    """A refit: the new ``rig``; ``change`` (tilt as named in files -> (old, new, 1 sigma) deg);
+    ``unpinned`` the combinations no frame could pin (held near the old values by their priors;
+    :func:`unpinned_combinations`) and ``scale_sigma`` the depth scale's relative 1 sigma they leave (the
+    baseline |O1 O2|'s); ``rms_px`` the pairs' reprojection RMS; ``pairs`` used (``tare_pairs`` of them from
+    the tares) of ``frames``; the check ``before`` (old rig) and ``after`` (new rig) on the frames;
+    ``tares`` (:class:`psvs.calibrate.tare.Tare`, one per tare); ``message`` (how the fit ended)."""
+
+    rig: Rig
+    change: dict[str, tuple[float, float, float]]
+    unpinned: tuple[tuple[tuple[str, float], ...], ...]
+    scale_sigma: float
+    rms_px: float
+    pairs: int
+    tare_pairs: int
+    frames: int
+    before: HealthCheck = field(repr=False)
+    after: HealthCheck = field(repr=False)
+    tares: tuple[Tare, ...]
+    message: str
+
+    def as_dict(self) -> dict:
+        """The record of the refit as JSON-ready values (written beside the rig file by ``psvs refit``)."""
+        rows = lambda c: {"verdict": c.verdict, "row_offset_rms_px": _num(c.row_offset_rms_px),  # noqa: E731
+                          "uncertainty_px": _num(c.uncertainty_px), "tiles": c.tiles}
+        return {"frames": self.frames, "pairs": self.pairs, "tare_pairs": self.tare_pairs,
+                "reprojection_rms_px": _num(self.rms_px), "fit": self.message,
+                "rows_before": rows(self.before), "rows_after": rows(self.after),
+                "held": sorted(_file_name(p) for p in HELD_PARAMS),
+                "unpinned": [dict(c) for c in self.unpinned], "depth_scale_sigma": _num(self.scale_sigma),
+                "change": {p: {"old": _num(o), "new": _num(n), "sigma": _num(s)}
+                           for p, (o, n, s) in self.change.items()},
+                "tares": [t.as_dict() for t in self.tares]}
+
+
+def _num(x: float) -> float | None:
+    return None if not np.isfinite(x) else round(float(x), 6)
+
+
+def _file_name(p: str) -> str:
+    """A parameter's name in files: tilts in degrees (``m3_tilt_b_deg``)."""
+    return p[:-4] + "_deg" if p.endswith("_rad") else p
+
+
+@dataclass(frozen=True)
+class _Pairs:
+    left: np.ndarray       # (n, 2) complex-image px
+    right: np.ndarray
+    source: np.ndarray     # (n,) -1: a frame's; k: tare k's
+    sigma_px: float        # a view's residual's weight
+
+
+def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float = 1200.0,
+              tolerance_px: float = 0.5) -> Refit:
+    """Re-fit ``rig``'s mirror tilts from ordinary ``frames`` (list of (H, W) grey images) and ``tares``
+    ((image (H, W), distance mm along the axis) each: a flat textured surface facing the rig), module
+    docstring. MeasurementError when the frames cannot give a right answer."""
+    tares = [(img, float(z)) for img, z in tares]
+    for _, z in tares:
+        if not (math.isfinite(z) and near_mm <= z <= far_mm):
+            raise ValueError(f"a tare's distance must lie in the working range {near_mm:g}-{far_mm:g} mm, got {z:g}")
+    before = check_frames(frames, rig, near_mm, far_mm, tolerance_px)
+    new, x, pairs, steps = rig, np.zeros(len(REFIT_PARAMS)), None, []
+    cov = np.diag(np.full(len(REFIT_PARAMS), DRIFT_SIGMA_RAD ** 2))
+    distances = tuple(z for _, z in tares)
+    for _ in range(ROUNDS):
+        pairs = _read_pairs(frames, [img for img, _ in tares], new, near_mm, far_mm, tolerance_px)
+        x, c, n_rows = _fit(_Stage(rig, pairs, x, ROW_PARAMS))
+        cov[np.ix_(ROW_PARAMS, ROW_PARAMS)] = c
+        steps = [n_rows]
+        if tares:
+            _check_tares_flat(x, rig, pairs, distances)
+            x, c, n_depth = _fit(_Stage(rig, pairs, x, DEPTH_PARAMS, distances))
+            cov[np.ix_(DEPTH_PARAMS, DEPTH_PARAMS)] = c
+            steps.append(n_depth)
+        new = _rig(x, rig)
+    after = check_frames(frames, new, near_mm, far_mm, tolerance_px)
+    if after.verdict != "healthy":
+        raise MeasurementError(f"after the refit the twins still stand off their rows ({after.verdict}: "
+                               f"{after.reason}): what moved is more than the mirrors' tilts; calibrate again from "
+                               f"card views (psvs calibrate)")
+    sigma = np.sqrt(np.clip(np.diag(cov), 0, None))
+    old = rig_values(rig)
+    change = {_file_name(p): (math.degrees(old[p]), math.degrees(old[p] + d), math.degrees(s))
+              for p, d, s in zip(REFIT_PARAMS, x, sigma, strict=True)}
+    _, pts, res = _points(x, rig, pairs)
+    rms = float(np.sqrt(np.nanmean(res ** 2)))
+    message = f"{steps[0]} Gauss-Newton step(s) on the rows" + (
+        f", {steps[1]} on the tares' depth" if tares else "") + f" (the last of {ROUNDS} rounds)"
+    return Refit(dataclasses.replace(new, calibration=_record(rig, rms, len(frames), distances)), change,
+                 unpinned_combinations(cov), scale_sigma(new, cov), rms, len(pairs.left),
+                 int((pairs.source >= 0).sum()), len(frames), before, after, _tares(pairs, rig, new, distances),
+                 message)
+
+
+def _record(rig: Rig, rms_px: float, frames: int, distances: tuple[float, ...]) -> Calibration:
+    """The rig file's [calibration] record: the refit's reprojection RMS (both views alike), the images."""
+    kinds = f"refit from {frames} frame(s)"
+    if distances:
+        kinds += ", tare(s) at " + ", ".join(f"{z:g}" for z in distances) + " mm"
+    base = rig.calibration
+    if base is not None and base.kinds:
+        kinds += f" of a calibration from {base.images} {base.kinds}"
+    return Calibration(rms_px, rms_px, rms_px, frames + len(distances), kinds)
+
+
+def _read_pairs(frames, tare_images, rig: Rig, near_mm, far_mm, tolerance_px) -> _Pairs:
+    """The judged tiles of the frames (and of each tare) as twin pairs, read through ``rig``."""
+    def pairs_of(images, what):
+        c = check_frames(images, rig, near_mm, far_mm, tolerance_px)
+        if c.tiles == 0 or not np.all(np.isfinite(c.fitted_px)):
+            raise MeasurementError(f"cannot refit: {what}: {c.reason}")
+        return judged_pairs_px(c, rig, near_mm, far_mm), c.scatter_px
+    (left, right), scatter = pairs_of(frames, "the frames")
+    source = [np.full(len(left), -1)]
+    for k, img in enumerate(tare_images):
+        (tl, tr), _ = pairs_of([img], f"tare {k + 1}")
+        left, right = np.vstack([left, tl]), np.vstack([right, tr])
+        source.append(np.full(len(tl), k))
+    source = np.concatenate(source)
+    ok = triangulate(left, right, rig, model="exact").valid
+    sigma = math.sqrt(OVERLAP) * max(scatter, MIN_SCATTER_PX) / math.sqrt(2)
+    return _Pairs(left[ok], right[ok], source[ok], sigma)
+
+
+def _rig(x: np.ndarray, old: Rig) -> Rig:
+    """``old`` with the refitted tilts changed by ``x`` (len(REFIT_PARAMS),) rad."""
+    values = rig_values(old)
+    for p, dx in zip(REFIT_PARAMS, x, strict=True):
+        values[p] += float(dx)
+    return rig_from_values(values, old)
+
+
+def _points(x, old: Rig, pairs: _Pairs):
+    """(rig, points (n, 3) mm, reprojection residuals (n, 4) px, NaN where lost) for a trial change ``x``."""
+    rig = _rig(x, old)
+    tri = triangulate(pairs.left, pairs.right, rig, model="exact")
+    res = np.full((len(pairs.left), 4), np.nan)
+    ok = tri.valid
+    pl, okl = project_points(tri.points_mm[ok], rig, "left")
+    pr, okr = project_points(tri.points_mm[ok], rig, "right")
+    r = np.hstack([pl - pairs.left[ok], pr - pairs.right[ok]])
+    r[~(okl & okr)] = np.nan
+    res[ok] = r
+    return rig, tri.points_mm, res
+
+
+@dataclass(frozen=True)
+class _Stage:
+    old: Rig
+    pairs: _Pairs
+    x_base: np.ndarray                  # (len(REFIT_PARAMS),) the change from ``old`` the stage starts at
+    free: tuple[int, ...]               # indices into REFIT_PARAMS the stage fits
+    distances: tuple[float, ...] = ()   # the depth's stage: each tare's distance (mm); the rows' stage: ()
+
+
+def _residuals(xs, stage: _Stage) -> np.ndarray:
+    """The stage's residuals (in sigmas) for its free tilts ``xs``: every pair's reprojection (the rows'
+    stage) or each tare pair's depth off its tare's plane (the depth's stage)."""
+    x = stage.x_base.copy()
+    x[list(stage.free)] = xs
+    rig, pts, res = _points(x, stage.old, stage.pairs)
+    s = stage.pairs.sigma_px
+    if not stage.distances:
+        return np.nan_to_num(res / s, nan=_MISS).ravel()
+    out = []
+    for k, z in enumerate(stage.distances):
+        at = np.flatnonzero(stage.pairs.source == k)
+        seen = np.all(np.isfinite(res[at]), axis=1)
+        off = np.full(len(at), _MISS)
+        off[seen] = depth_residuals_px(pts[at[seen]], z, rig) / s
+        out.append(off)
+    return np.concatenate(out)
+
+
+def _jacobian(xs, stage: _Stage) -> np.ndarray:
+    f0 = _residuals(xs, stage)
+    J = np.empty((len(f0), len(xs)))
+    for k in range(len(xs)):
+        e = np.zeros_like(xs)
+        e[k] = _STEP
+        J[:, k] = (_residuals(xs + e, stage) - f0) / _STEP
+    return J
+
+
+def _fit(stage: _Stage):
+    """One stage by truncated Gauss-Newton in units of the priors: only the combinations of its tilts the
+    stage's residuals pin (to under :data:`UNPINNED` of their prior's sigma: singular values of the Jacobian,
+    in units of the residuals' and the priors' sigmas, over 1 / UNPINNED) are fitted, at the least change;
+    the others keep their values. The rows' residuals are weighed soft-L1 (:data:`LOSS_SIGMAS`, iteratively
+    reweighted): a tile across a depth edge is no one point. Returns (the change from ``stage.old``
+    (len(REFIT_PARAMS),) rad, the free tilts' covariance (pinned combinations: Gauss-Newton, scaled by the
+    residuals' chi^2 when over 1; the others: their priors), iterations)."""
+    free = list(stage.free)
+    d = np.full(len(free), DRIFT_SIGMA_RAD)
+    x = stage.x_base.copy()
+    V, var, it = np.eye(len(free)), np.ones(len(free)), 0
+    for it in range(1, ITERATIONS + 1):
+        here = dataclasses.replace(stage, x_base=x)
+        r = _residuals(x[free], here)
+        J = _jacobian(x[free], here) * d
+        w = np.ones(len(r)) if stage.distances else np.sqrt(1.0 / np.sqrt(1.0 + (r / LOSS_SIGMAS) ** 2))
+        U, sv, Vt = np.linalg.svd(J * w[:, None], full_matrices=False)
+        keep = sv >= 1.0 / UNPINNED
+        step = -(Vt[keep].T @ ((U[:, keep].T @ (w * r)) / sv[keep]))
+        x[free] += d * step
+        # a pair pins one number (its free point takes three of its four residuals); a tare's plane takes two
+        data = len(r) - 2 * len(stage.distances) if stage.distances else len(r) // 4
+        s2 = max(1.0, float(np.sum((w * r) ** 2)) / max(data - int(keep.sum()), 1))
+        V, var = Vt.T, np.where(keep, s2 / np.maximum(sv, 1e-12) ** 2, 1.0)
+        if np.max(np.abs(step)) < STEP_DONE:
+            break
+    return x, (V * var) @ V.T * np.outer(d, d), it
+
+
+def _check_tares_flat(x, old: Rig, pairs: _Pairs, distances) -> None:
+    """MeasurementError when a tare's points, through the rig of the change ``x``, are not on a plane."""
+    rig, pts, res = _points(x, old, pairs)
+    noise = pairs.sigma_px / math.sqrt(OVERLAP) * math.sqrt(2)
+    for k in range(len(distances)):
+        at = (pairs.source == k) & np.all(np.isfinite(res), axis=1)
+        check_flat(pts[at], rig, noise, f"tare {k + 1}" if len(distances) > 1 else "the tare surface")
+
+
+def _tares(pairs: _Pairs, old: Rig, new: Rig, distances) -> tuple[Tare, ...]:
+    out = []
+    for k, z in enumerate(distances):
+        at = pairs.source == k
+        before = triangulate(pairs.left[at], pairs.right[at], old, model="exact")
+        after = triangulate(pairs.left[at], pairs.right[at], new, model="exact")
+        ok = before.valid & after.valid
+        out.append(tare_record(before.points_mm[ok], after.points_mm[ok], z, new))
+    return tuple(out)
+
+
+def scale_sigma(rig: Rig, cov: np.ndarray) -> float:
+    """The relative 1 sigma of the baseline |O1 O2| (the reconstruction's scale) under the tilts'
+    covariance ``cov`` (len(REFIT_PARAMS),) x 2, rad^2 (finite differences of the virtual centres)."""
+    def base(r):
+        return float(np.linalg.norm(virtual_centre(r, "right") - virtual_centre(r, "left")))
+    b0 = base(rig)
+    h = 1e-6
+    g = np.array([(base(_rig(h * np.eye(len(REFIT_PARAMS))[k], rig)) - b0) / h for k in range(len(REFIT_PARAMS))])
+    return float(np.sqrt(max(g @ cov @ g, 0.0))) / b0
+
+
+def unpinned_combinations(cov: np.ndarray) -> tuple[tuple[tuple[str, float], ...], ...]:
+    """The combinations of the refitted tilts no frame could pin: in units of their priors, the directions
+    along which the posterior's sigma is still over :data:`UNPINNED` of the prior's (the data barely narrowed
+    them). Each as its largest components ((name in files, weight), ...), the weights those of a unit
+    vector, the largest positive."""
+    d = np.full(len(REFIT_PARAMS), DRIFT_SIGMA_RAD)
+    lam, vec = np.linalg.eigh(cov / np.outer(d, d))
+    out = []
+    for k in np.flatnonzero(np.sqrt(np.clip(lam, 0, None)) > UNPINNED)[::-1]:
+        v = vec[:, k] * np.sign(vec[np.argmax(np.abs(vec[:, k])), k])
+        top = np.argsort(-np.abs(v))[:3]
+        out.append(tuple((_file_name(REFIT_PARAMS[i]), round(float(v[i]), 2)) for i in top if abs(v[i]) >= 0.2))
+    return tuple(out)
+
+
+def combination_text(combo) -> str:
+    """'+0.71 m1_tilt_a_deg -0.70 m3_tilt_a_deg' for a combination of :func:`unpinned_combinations`."""
+    return " ".join(f"{w:+.2f} {name}" for name, w in combo)

@@ -1,0 +1,93 @@
+"""Tares: frames of a flat textured surface facing the rig at a known distance along its axis (a wall, a plate
+the robot touches), which pin what the twins' rows cannot: depth (``psvs refit --tare``; docs/health.md).
+
+A tare's tiles, triangulated through a trial rig, must lie on a plane through (0, 0, Z): Z its distance from
+O, the real camera's optical centre (psvs's depth), its slope free (no wall faces a rig exactly). Each tile's
+depth off that plane is a residual in px of disparity (:func:`disparity_per_mm`), the unit its noise comes
+in. One tare pins the depth's offset at its distance; the rig's scale (a view turned along its rows against
+a longer baseline) it pins only through the small curvature a turned view gives a flat wall: a second tare
+at another distance pins it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.errors import MeasurementError
+from psvs.optics.rig import Rig
+
+#: A tare surface whose points scatter about their best plane by more than this (px of disparity, RMS) and
+#: 3 times the tiles' noise is not flat.
+TARE_FLAT_PX = 0.5
+
+
+@dataclass(frozen=True)
+class Tare:
+    """What one tare surface showed: the stated ``distance_mm`` on the axis, the depth there through the old
+    calibration (``before_mm``, its best plane) and the refitted (``after_mm``), the plane's slope
+    ``slope_deg`` (about Y, about X), its points' ``flat_rms_px`` about it (px of disparity), ``tiles``."""
+
+    distance_mm: float
+    before_mm: float
+    after_mm: float
+    slope_deg: tuple[float, float]
+    flat_rms_px: float
+    tiles: int
+
+    def as_dict(self) -> dict:
+        """The tare as JSON-ready values (NaN as None), for the refit's record."""
+        num = lambda x: None if not np.isfinite(x) else round(float(x), 6)  # noqa: E731
+        return {"distance_mm": self.distance_mm, "before_mm": num(self.before_mm), "after_mm": num(self.after_mm),
+                "slope_deg": [num(a) for a in self.slope_deg], "flat_rms_px": num(self.flat_rms_px),
+                "tiles": self.tiles}
+
+
+def tare_plane(points_mm: np.ndarray, distance_mm: float | None = None) -> tuple[np.ndarray, float]:
+    """The plane Z = c + p X + q Y best through points (n, 3) mm (least squares in Z): ((c, p, q), RMS mm of
+    Z about it); with ``distance_mm`` the plane passes through (0, 0, distance_mm) (c fixed, the slope free)."""
+    X, Y, Z = np.asarray(points_mm, dtype=float).T
+    if distance_mm is None:
+        coef = np.linalg.lstsq(np.column_stack([np.ones_like(X), X, Y]), Z, rcond=None)[0]
+    else:
+        slope = np.linalg.lstsq(np.column_stack([X, Y]), Z - distance_mm, rcond=None)[0]
+        coef = np.concatenate([[distance_mm], slope])
+    r = Z - coef[0] - coef[1] * X - coef[2] * Y
+    return coef, float(np.sqrt(np.mean(r ** 2)))
+
+
+def disparity_per_mm(rig: Rig, z_mm: np.ndarray) -> np.ndarray:
+    """px of disparity per mm of depth at depths ``z_mm`` (any shape): f b / Z^2, f in px (eq. 17's
+    derivative; ideal parallel views)."""
+    c = rig.camera
+    return c.focal_length_mm / min(c.pixel_pitch_mm) * rig.mirrors.baseline_mm / np.asarray(z_mm) ** 2
+
+
+def depth_residuals_px(points_mm: np.ndarray, distance_mm: float, rig: Rig) -> np.ndarray:
+    """Each point's (n, 3) depth off the plane through (0, 0, ``distance_mm``) that fits them best, in px of
+    disparity (n,)."""
+    coef, _ = tare_plane(points_mm, distance_mm) if len(points_mm) >= 3 else (np.array([distance_mm, 0, 0]), 0)
+    p = points_mm
+    return (p[:, 2] - coef[0] - coef[1] * p[:, 0] - coef[2] * p[:, 1]) * disparity_per_mm(rig, p[:, 2])
+
+
+def check_flat(points_mm: np.ndarray, rig: Rig, noise_px: float, which: str) -> float:
+    """The points' (n, 3) RMS about their best plane in px of disparity; MeasurementError when over
+    :data:`TARE_FLAT_PX` and 3 times the tiles' ``noise_px``: the surface is not flat."""
+    _, rms_mm = tare_plane(points_mm)
+    flat_px = rms_mm * float(np.median(disparity_per_mm(rig, points_mm[:, 2])))
+    if not flat_px <= max(TARE_FLAT_PX, 3 * noise_px):
+        raise MeasurementError(f"{which} is not flat: its points scatter {rms_mm:.2f} mm ({flat_px:.2f} px of "
+                               f"disparity) about their best plane; a tare needs a flat textured surface facing "
+                               f"the rig (a wall, a plate)")
+    return flat_px
+
+
+def tare_record(before_mm: np.ndarray, after_mm: np.ndarray, distance_mm: float, rig: Rig) -> Tare:
+    """A :class:`Tare` from the tare's points (n, 3) through the old calibration and the refitted ``rig``."""
+    cb, _ = tare_plane(before_mm)
+    ca, rms_mm = tare_plane(after_mm)
+    flat_px = rms_mm * float(np.median(disparity_per_mm(rig, after_mm[:, 2])))
+    slope = (math.degrees(math.atan(ca[1])), math.degrees(math.atan(ca[2])))
+    return Tare(float(distance_mm), float(cb[0]), float(ca[0]), slope, flat_px, len(after_mm))

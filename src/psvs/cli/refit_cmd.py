@@ -1,0 +1,121 @@
+"""``psvs refit``: re-fit a drifted calibration's mirrors from ordinary frames, optionally tared on a flat
+surface at a known distance; or the screw turns that put the glass back (psvs.calibrate.refit,
+docs/health.md)."""
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from psvs.cli.common import add_range_arguments, add_rig_argument, check_distinct, check_output_path, range_from_args
+from psvs.io.atomic import output_batch, write_atomic
+from psvs.io.images import read_grey
+from psvs.io.params import load_rig, rig_template, save_rig
+
+#: The record of a refit is written beside the rig file, named after it.
+RECORD_SUFFIX = ".refit.json"
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("refit", help="re-fit a drifted calibration's mirrors from ordinary frames (+ a tare)",
+                       description="From ordinary frames of any textured scene: the mirror tilts that put the "
+                                   "twins back on their rows, the rest of the calibration (the lens, the plate, "
+                                   "the baseline, the shifts) held; with --tare, a frame of a flat textured "
+                                   "surface facing the rig at --tare-mm along its axis, also the depth the rows "
+                                   "cannot see (two tares at two distances: its scale too). Writes the rig file "
+                                   "(as psvs calibrate does) and a record of the refit beside it (NEW.refit.json: "
+                                   "each change with its 1 sigma, what no frame could pin). Exit 1 when the frames "
+                                   "cannot give a right answer. docs/health.md.")
+    p.add_argument("frames", nargs="+", metavar="FRAME", help="complex images (PNG, JPEG, BMP, TIFF, PNM)")
+    add_rig_argument(p)
+    p.add_argument("-o", "--output", metavar="NEW.toml",
+                   help="refitted rig file (TOML in the --rig file's comments and layout, or .json); its record "
+                        f"goes beside it as NEW{RECORD_SUFFIX}")
+    p.add_argument("--tare", metavar="IMAGE", action="append", default=[],
+                   help="a frame of a flat textured surface facing the rig (give two, at two distances, to pin "
+                        "the depth scale as well as its offset)")
+    p.add_argument("--tare-mm", type=float, metavar="Z", action="append", default=[],
+                   help="each --tare surface's distance along the optical axis from the camera's optical centre, "
+                        "mm (in the order of the --tare images)")
+    p.add_argument("--adjust", action="store_true",
+                   help="also print the screw turns that put the twins back on their rows (as psvs adjust)")
+    add_range_arguments(p)
+    p.add_argument("--tolerance-px", type=float, default=0.5,
+                   help="the check's tolerance the refitted rig must meet, px (default 0.5)")
+    p.set_defaults(run=run)
+
+
+def record_path(output: Path) -> Path:
+    """Where the record of a refit written to ``output`` goes: NEW.toml -> NEW.refit.json."""
+    return output.with_name(output.stem + RECORD_SUFFIX)
+
+
+def run(args) -> int:
+    if args.output is None and not args.adjust:
+        raise ValueError("give -o NEW.toml for the refitted rig, or --adjust for the screw turns")
+    if len(args.tare) != len(args.tare_mm):
+        raise ValueError(f"each tare needs both --tare IMAGE and --tare-mm Z: {len(args.tare)} image(s), "
+                         f"{len(args.tare_mm)} distance(s)")
+    for z in args.tare_mm:
+        if not math.isfinite(z):
+            raise ValueError(f"--tare-mm must be a distance in mm, got {z}")
+    if not (math.isfinite(args.tolerance_px) and args.tolerance_px > 0):
+        raise ValueError(f"--tolerance-px must be a number > 0 px, got {args.tolerance_px}")
+    out = check_output_path(args.output, (".toml", ".json"))
+    record = None if out is None else record_path(out)
+    inputs = ({f"frame {k + 1}": f for k, f in enumerate(args.frames)} | {"--rig": args.rig}
+              | {f"--tare {k + 1}": f for k, f in enumerate(args.tare)})
+    check_distinct({"-o": args.output, "the record": record}, inputs)
+    near, far = range_from_args(args)
+    rig = load_rig(args.rig)
+    size = rig.camera.image_size_px
+    frames = [read_grey(f, expect_size=size) for f in args.frames]
+    tares = [(read_grey(f, expect_size=size), z) for f, z in zip(args.tare, args.tare_mm, strict=True)]
+    from psvs.calibrate.refit import refit_rig
+    res = refit_rig(frames, rig, tares, near, far, args.tolerance_px)
+    for line in summary_lines(res):
+        print(line)
+    guide = None
+    if args.adjust:
+        from psvs.mount.guide import alignment_guide, designed_twin
+        from psvs.mount.report import format_guide
+        from psvs.mount.seats import seats_for
+        guide = format_guide(alignment_guide(res.rig, seats_for(designed_twin(rig)), near, far))
+        print(guide)
+    if out is not None:
+        template = rig_template(args.rig) if out.suffix.lower() != ".json" else None
+        with output_batch():          # the rig file and its record land together
+            save_rig(res.rig, out, template)
+            write_atomic(record, json.dumps(res.as_dict() | {"frames_read": [str(f) for f in args.frames],
+                                                             "tare_images": list(args.tare), "rig": str(args.rig)},
+                                            indent=2) + "\n")
+        print(f"wrote {out} and {record}")
+    return 0
+
+
+def summary_lines(res) -> list[str]:
+    """What a refit found, for the terminal: the rows before and after, each change with its 1 sigma, what
+    no frame could pin, the tare."""
+    b, a = res.before, res.after
+    lines = [f"rows before: {b.verdict}, field RMS {b.row_offset_rms_px:.2f} +- {b.uncertainty_px:.2f} px "
+             f"({b.tiles} tiles); after the refit: {a.verdict}, {a.row_offset_rms_px:.2f} +- "
+             f"{a.uncertainty_px:.2f} px ({a.tiles} tiles)",
+             f"refit on {res.pairs} twin pairs of {res.frames} frame(s)"
+             + (f" and {res.tare_pairs} of the tare" if res.tare_pairs else "")
+             + f": reprojection RMS {res.rms_px:.3f} px; {res.message}",
+             f"  {'parameter':<16}{'old':>10}{'new':>10}{'change':>10}  1 sigma"]
+    for name, (old, new, s) in res.change.items():
+        lines.append(f"  {name:<16}{old:10.4f}{new:10.4f}{new - old:+10.4f}  +- {s:.4f}")
+    if res.unpinned:
+        from psvs.calibrate.refit import combination_text
+        lines.append(f"{len(res.unpinned)} combination(s) of the tilts no frame could pin, held near the old "
+                     "calibration by their priors:")
+        lines += [f"  {combination_text(c)}" for c in res.unpinned]
+    for k, t in enumerate(res.tares):
+        lines.append(f"tare {k + 1}: the surface at {t.distance_mm:g} mm read {t.before_mm:.2f} mm before, "
+                     f"{t.after_mm:.2f} mm after ({t.tiles} tiles, flat to {t.flat_rms_px:.2f} px of disparity, "
+                     f"slope {t.slope_deg[0]:+.2f}/{t.slope_deg[1]:+.2f} deg)")
+    advice = {0: "; a tare (--tare IMAGE --tare-mm Z) pins its offset, two at two distances its scale",
+              1: "; a second tare at another distance pins it"}.get(len(res.tares), "")
+    lines.append(f"depth scale: +- {100 * res.scale_sigma:.3f} % (1 sigma) from what no frame pinned{advice}")
+    return lines

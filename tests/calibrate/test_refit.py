@@ -1,0 +1,214 @@
+"""psvs refit (issue 43, item 3): a calibration's mirrors re-fitted from ordinary frames and a tare, against
+planted truth (the calibration is the true build; mirrors moved since by a knock; frames rendered through the
+moved build); what frames cannot give refused."""
+import json
+import math
+import tomllib
+
+import numpy as np
+import pytest
+
+from psvs.calibrate.refit import REFIT_PARAMS, refit_rig
+from psvs.calibrate.tare import tare_plane
+from psvs.errors import MeasurementError
+from psvs.health.check import check_frames
+from psvs.health.explain import tilted
+from psvs.io.images import write_png
+from psvs.io.params import load_rig
+from psvs.optics.rig import MirrorError
+from psvs.simulate.builtin import regulated_light, textured
+from psvs.simulate.render import render
+from psvs.simulate.scene import Scene
+from psvs.simulate.textures import Noise
+from tests.support.cli import run
+from tests.support.geometry import EXAMPLES, reconstruction_errors
+
+#: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
+pytestmark = pytest.mark.slow
+
+TARE_MM = (600.0, 950.0)
+#: Knocks: (mirror, tilt a deg, tilt b deg, shift mm) each.
+DRIFTS = {"m3 and m4 (issue 43)": (("m3", 0.0, 0.06, 0.0), ("m4", 0.05, 0.03, 0.0)),
+          "m2 and m1": (("m2", 0.0, -0.08, 0.0), ("m1", 0.04, 0.0, 0.0))}
+
+
+def wall(z_mm: float, seed: int) -> Scene:
+    return Scene((), regulated_light(z_mm), z_mm, Noise(scale_mm=1.5, seed=seed), "wall")
+
+
+def knocked(rig, drift):
+    for m, a, b, s in drift:
+        rig = tilted(rig, m, math.radians(a), math.radians(b))
+        e = getattr(rig.mirrors, f"{m}_error")
+        rig = rig.with_errors({m: MirrorError(e.tilt_rad, e.shift_mm + s)})
+    return rig
+
+
+def frames_of(rig, seed=0):
+    """Three walls at 600-1000 mm, and tare walls at TARE_MM ((image, mm) each), through ``rig``."""
+    walls = [render(wall(z, seed + k), rig, seed=seed + k).image for k, z in enumerate((650.0, 800.0, 1000.0))]
+    return walls, [(render(wall(z, seed + 9 + k), rig, seed=seed + 9 + k).image, z) for k, z in enumerate(TARE_MM)]
+
+
+@pytest.fixture(scope="module")
+def build():
+    return load_rig(EXAMPLES / "rigs" / "misaligned.toml")
+
+
+@pytest.mark.parametrize("name", list(DRIFTS))
+def test_refit_recovers_a_planted_knock(build, name):
+    """Issue 43, item 3, with the calibration exact and two tares: after the refit the twins' rows are within
+    0.3 px RMS, the 3-D points within 0.4 mm (mean, after the rigid motion no image sees; 6-8 mm with the old
+    calibration; the issue asks 0.15: docs/health.md has the figures), each tare surface at its distance;
+    every tilt within 3 of its stated sigmas of the truth."""
+    moved = knocked(build, DRIFTS[name])
+    walls, tares = frames_of(moved)
+    res = refit_rig(walls, build, tares)
+    assert res.before.verdict == "drifted" and res.after.verdict == "healthy"
+    assert res.after.row_offset_rms_px <= 0.3
+    _, aligned_old, _ = reconstruction_errors(build, moved)
+    _, aligned, _ = reconstruction_errors(res.rig, moved)
+    assert np.mean(aligned) <= 0.4 < 5.0 < np.mean(aligned_old), (np.mean(aligned), np.mean(aligned_old))
+    for t, (_, z) in zip(res.tares, tares, strict=True):
+        assert abs(t.after_mm - z) <= 0.1 and t.distance_mm == z
+    truth = _values_deg(moved)
+    for p, (old, new, sigma) in res.change.items():
+        assert abs(new - truth[p]) <= 3 * sigma + 1e-3, (p, new, truth[p], sigma)
+    assert res.scale_sigma < 5e-4 and res.unpinned
+
+
+def test_dense_depth_after_the_refit_is_the_undrifted_builds(build):
+    """Issue 43's acceptance for dense depth, one tare: the textured scene through the knocked build, read
+    with the refitted calibration, within 1 point of the undrifted build's bad share (twin-visible pixels
+    off by more than 2 % of Z); with the old calibration, far worse."""
+    from psvs.dense.params import DEFAULT
+    from tests.support.sweep_scenes import left_truth, score
+    moved = knocked(build, DRIFTS["m3 and m4 (issue 43)"])
+    walls, tares = frames_of(moved, seed=60)
+    res = refit_rig(walls, build, tares[:1])
+    scene = textured(800.0)
+    before = score(render(scene, build, seed=61).image, left_truth(scene, build), build, 400.0, 1200.0, DEFAULT)
+    frame = render(scene, moved, seed=61).image
+    truth = left_truth(scene, moved)
+    drifted = score(frame, truth, build, 400.0, 1200.0, DEFAULT)
+    after = score(frame, truth, res.rig, 400.0, 1200.0, DEFAULT)
+    assert after.bad <= before.bad + 0.01 < drifted.bad - 0.1, (before.bad, after.bad, drifted.bad)
+
+
+def test_one_tare_pins_the_offset_and_says_the_scale_is_not_pinned(build):
+    """One tare: the surface lands at its distance, the 3-D points within 0.5 mm, and the stated depth-scale
+    sigma is larger than with two tares (what no frame pinned)."""
+    moved = knocked(build, DRIFTS["m2 and m1"])
+    walls, tares = frames_of(moved, seed=30)
+    one = refit_rig(walls, build, tares[:1])
+    assert abs(one.tares[0].after_mm - tares[0][1]) <= 0.1 and abs(one.tares[0].before_mm - tares[0][1]) > 1.0
+    _, aligned, _ = reconstruction_errors(one.rig, moved)
+    assert np.mean(aligned) <= 0.5
+    none = refit_rig(walls, build)
+    assert none.tares == () and none.after.verdict == "healthy"
+    assert none.scale_sigma > one.scale_sigma
+
+
+def _values_deg(rig) -> dict:
+    out = {}
+    for m in ("m1", "m2", "m3", "m4"):
+        e = getattr(rig.mirrors, f"{m}_error")
+        out[f"{m}_tilt_a_deg"], out[f"{m}_tilt_b_deg"] = map(math.degrees, e.tilt_rad)
+        out[f"{m}_shift_mm"] = e.shift_mm
+    return out
+
+
+def test_an_undrifted_build_refits_to_itself(build):
+    """No knock: the refit changes no tilt beyond 3 of its sigmas, the check stays healthy, and the 3-D
+    points move by under 0.25 mm (mean: the tares' noise in the depth scale)."""
+    walls, tares = frames_of(build, seed=20)
+    res = refit_rig(walls, build, tares)
+    assert res.before.verdict == "healthy" and res.after.verdict == "healthy"
+    for p, (old, new, sigma) in res.change.items():
+        assert abs(new - old) <= 3 * sigma + 1e-3, (p, old, new, sigma)
+    _, aligned, _ = reconstruction_errors(res.rig, build)
+    assert np.mean(aligned) <= 0.25
+
+
+def test_the_tare_plane_is_the_least_squares_plane():
+    """tare_plane against numpy's polyfit-free closed form: points on Z = 700 + 0.01 X - 0.02 Y with noise."""
+    rng = np.random.default_rng(1)
+    xy = rng.uniform(-200, 200, (400, 2))
+    z = 700 + 0.01 * xy[:, 0] - 0.02 * xy[:, 1] + rng.normal(0, 0.1, 400)
+    coef, rms = tare_plane(np.column_stack([xy, z]))
+    A = np.column_stack([np.ones(400), xy])
+    expect = np.linalg.solve(A.T @ A, A.T @ z)
+    assert np.allclose(coef, expect, atol=1e-9) and abs(rms - 0.1) < 0.01
+    fixed, _ = tare_plane(np.column_stack([xy, z]), 690.0)
+    # the intercept held 10 mm off: the slopes take up what the sample's mean X, Y carry of it
+    assert fixed[0] == 690.0 and abs(fixed[1] - 0.01) < 3e-3
+
+
+def test_frames_without_texture_are_refused(build):
+    blank = np.full((480, 640), 90, np.uint8)
+    with pytest.raises(MeasurementError, match="cannot refit: the frames"):
+        refit_rig([blank, blank], build)
+    walls, _ = frames_of(build, seed=50)
+    with pytest.raises(MeasurementError, match="cannot refit: tare 1"):
+        refit_rig(walls, build, [(blank, 700.0)])
+
+
+def test_a_tare_that_is_not_flat_is_refused(build):
+    """The textured scene (a panel, a box, a ball before a backdrop) as the tare: refused, not a depth."""
+    moved = knocked(build, DRIFTS["m2 and m1"])
+    walls, _ = frames_of(moved)
+    scene = render(textured(800.0), moved, seed=4).image
+    with pytest.raises(MeasurementError, match="not flat"):
+        refit_rig(walls, build, [(scene, 800.0)])
+
+
+def test_a_tare_needs_its_distance_in_the_working_range(build):
+    img = np.zeros((480, 640), np.uint8)
+    with pytest.raises(ValueError, match="working range 400-1200 mm, got 2000"):
+        refit_rig([img], build, [(img, 2000.0)])
+
+
+def test_the_command_writes_a_rig_and_a_record_it_reads_back(capsys, tmp_path, build):
+    """psvs refit end to end: the rig file read back (tomllib) holds the refit's tilts, the record (json)
+    each change with its sigma and the rows before and after; the refitted rig passes psvs check."""
+    moved = knocked(build, DRIFTS["m3 and m4 (issue 43)"])
+    walls, tares = frames_of(moved, seed=40)
+    paths = []
+    for k, img in enumerate(walls + [img for img, _ in tares]):
+        paths.append(tmp_path / f"f{k}.png")
+        write_png(paths[-1], img)
+    out = tmp_path / "new.toml"
+    code, text, err = run(capsys, "refit", *map(str, paths[:3]), "--rig", str(EXAMPLES / "rigs" / "misaligned.toml"),
+                          "--tare", str(paths[3]), "--tare-mm", str(TARE_MM[0]), "--tare", str(paths[4]),
+                          "--tare-mm", str(TARE_MM[1]), "-o", str(out))
+    assert code == 0, err
+    assert "rows before: drifted" in text and "after the refit: healthy" in text
+    record = json.loads((tmp_path / "new.refit.json").read_text())
+    data = tomllib.loads(out.read_text())
+    for m in ("m1", "m2", "m3", "m4"):
+        tilt = data["mirrors"][m]["tilt_deg"]
+        assert tilt[0] == pytest.approx(record["change"][f"{m}_tilt_a_deg"]["new"], abs=1e-5)
+        assert tilt[1] == pytest.approx(record["change"][f"{m}_tilt_b_deg"]["new"], abs=1e-5)
+    assert set(record["change"]) == {p[:-4] + "_deg" if p.endswith("_rad") else p for p in REFIT_PARAMS}
+    assert all(v["sigma"] > 0 for v in record["change"].values())
+    assert record["rows_before"]["verdict"] == "drifted" and record["rows_after"]["row_offset_rms_px"] <= 0.3
+    assert [t["distance_mm"] for t in record["tares"]] == list(TARE_MM)
+    assert all(abs(t["after_mm"] - t["distance_mm"]) <= 0.1 for t in record["tares"])
+    assert record["depth_scale_sigma"] == pytest.approx(float(text.split("depth scale: +- ")[1].split(" %")[0]) / 100,
+                                                        abs=1e-5)
+    assert data["calibration"]["kinds"].startswith("refit from 3 frame(s), tare(s) at 600, 950 mm")
+    again = check_frames(walls, load_rig(out))
+    assert again.verdict == "healthy", again.reason
+
+
+def test_the_command_refuses_what_it_cannot_do(capsys, tmp_path):
+    rig = str(EXAMPLES / "rigs" / "misaligned.toml")
+    blank = tmp_path / "blank.png"
+    write_png(blank, np.full((480, 640), 90, np.uint8))
+    code, _, err = run(capsys, "refit", str(blank), "--rig", rig)
+    assert code == 2 and "give -o NEW.toml" in err
+    code, _, err = run(capsys, "refit", str(blank), "--rig", rig, "-o", str(tmp_path / "n.toml"), "--tare-mm", "700")
+    assert code == 2 and "each tare needs both --tare IMAGE and --tare-mm Z: 0 image(s), 1 distance(s)" in err
+    code, _, err = run(capsys, "refit", str(blank), "--rig", rig, "-o", str(tmp_path / "n.toml"))
+    assert code == 1 and "cannot refit" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "n.toml").exists() and not (tmp_path / "n.refit.json").exists()
