@@ -80,9 +80,15 @@ def _whole_video(rig_name: str = "default", limit: float = 0.005):
     return setup
 
 
-def _per_frame(rig_name: str = "default"):
+def _per_frame(rig_name: str = "default", check: bool = False):
+    """``psvs live --seed``'s loop; with ``check``, the rolling self-check after each frame as ``psvs live``
+    runs it (psvs.health.rolling: given the tracker's time on the frame)."""
+    import time
+
+    from psvs.health.rolling import RollingCheck
     s = _setup(rig_name)
     loop = {}
+    health = RollingCheck(s["rig"]) if check else None
 
     def run():
         frame = loop["src"].read() if loop else None
@@ -90,14 +96,17 @@ def _per_frame(rig_name: str = "default"):
             loop["src"] = VideoSource(video=str(s["video"]))
             loop["tracker"] = EdgeTracker(s["rig"], s["seed"])
             frame = loop["src"].read()
+        t0 = time.perf_counter()
         loop["tracker"].step(frame)
+        if health is not None:
+            health.step(frame, 0, time.perf_counter() - t0)
     return run
 
 
 DENSE_RIG = "mv1440_misaligned"
 
 
-def _dense_per_frame(fast: bool):
+def _dense_per_frame(fast: bool, check: bool = False):
     """``psvs live --dense [--fast]``'s loop on the mv1440_misaligned build: read a 1440x1080 FFV1 frame of
     the textured scene (a photo wall and cards, moving 60 mm in depth over 8 frames: ``psvs simulate
     textured``), its dense map over the rig's 400-1200 mm and the strided cloud (psvs.live.dense)."""
@@ -109,15 +118,22 @@ def _dense_per_frame(fast: bool):
         OUT.mkdir(parents=True, exist_ok=True)
         assert main(["simulate", "textured", "--rig", DENSE_RIG, "--frames", "8", "--move-mm", "0,0,-60",
                      "--supersample", "1", "-o", str(video)]) == 0
+    import time
+
+    from psvs.health.rolling import RollingCheck
     rig = load_rig(DENSE_RIG)
     loop = {"sensor": DenseSensor(rig, params=FAST if fast else DEFAULT)}
+    health = RollingCheck(rig) if check else None
 
     def run():
         frame = loop["src"].read() if "src" in loop else None
         if frame is None:                       # (re)start the video
             loop["src"] = VideoSource(video=str(video))
             frame = loop["src"].read()
+        t0 = time.perf_counter()
         loop["sensor"].step(frame)
+        if health is not None:
+            health.step(frame, 0, time.perf_counter() - t0)
     run()                                        # the rig's tables and the workspace's volumes made
     return run
 
@@ -127,9 +143,15 @@ LIVE_DENSE_FAST = (f"psvs live --dense --fast per frame: read 1440x1080 FFV1 fra
 LIVE_DENSE = (f"psvs live --dense per frame (default mode): read 1440x1080 FFV1 frame ({DENSE_RIG}) + dense map "
               "over 400-1200 mm + cloud, 2 cores")
 
+CHECKED = "live loop per frame with the rolling self-check: read 640x480 FFV1 frame + track + depth + check"
+DENSE_CHECKED = LIVE_DENSE_FAST + " + the rolling self-check"
 RATIOS = [("mv1440 1440x1080 / 640x480, live loop per frame (same run)",
            "live loop per frame: read 1440x1080 FFV1 frame (mv1440) + track + depth",
-           "live loop per frame: read 640x480 FFV1 frame + track + depth")]
+           "live loop per frame: read 640x480 FFV1 frame + track + depth"),
+          ("the rolling self-check's cost: live tracking with / without it (issue 43: <= 1.10)", CHECKED,
+           "live loop per frame: read 640x480 FFV1 frame + track + depth"),
+          ("the rolling self-check's cost: live --dense --fast with / without it (issue 43: <= 1.10)",
+           DENSE_CHECKED, LIVE_DENSE_FAST)]
 
 
 def cases():
@@ -140,6 +162,8 @@ def cases():
          _whole_video("misaligned", 0.002), 30.0),
         ("live loop per frame: read 1440x1080 FFV1 frame (mv1440) + track + depth", lambda: _per_frame("mv1440"),
          1 / 30),
+        (CHECKED, lambda: _per_frame("default", check=True), 1.1 / 30),
         (LIVE_DENSE_FAST, lambda: _dense_per_frame(True), 1 / 5),
+        (DENSE_CHECKED, lambda: _dense_per_frame(True, check=True), 1.1 / 5),
         (LIVE_DENSE, lambda: _dense_per_frame(False), float("inf")),
     ]

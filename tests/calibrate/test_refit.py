@@ -199,6 +199,12 @@ def test_the_command_writes_a_rig_and_a_record_it_reads_back(capsys, tmp_path, b
     assert data["calibration"]["kinds"].startswith("refit from 3 frame(s), tare(s) at 600, 950 mm")
     again = check_frames(walls, load_rig(out))
     assert again.verdict == "healthy", again.reason
+    # --adjust alone: the screw turns for the refitted build (as psvs adjust on it), no file
+    code, text, err = run(capsys, "refit", *map(str, paths[:3]), "--rig", str(EXAMPLES / "rigs" / "misaligned.toml"),
+                          "--adjust")
+    assert code == 0, err
+    guide = text[text.index("alignment guide:"):]
+    assert "M3" in guide and "twins' row offset after the turns (predicted)" in guide and "wrote" not in text
 
 
 def test_the_command_refuses_what_it_cannot_do(capsys, tmp_path):

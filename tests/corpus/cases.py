@@ -360,6 +360,8 @@ def _live() -> list[Case]:
              ".csv", {"v.avi": "x"}),
         Case("live-seed-not-numbers", ("live", "--video", "v.avi", "--rig", "default", "--seed", "a,b"), 2,
              "seed", {"v.avi": "x"}),
+        Case("live-check-tolerance-zero", ("live", "--video", "v.avi", "--rig", "default", "--dense",
+                                           "--tolerance-px", "0"), 2, "tolerance", {"v.avi": "x"}),
     ]
 
 

@@ -1,6 +1,7 @@
 """``psvs live``: headless real-time sensing: track one edge through a video or a camera, print its depth."""
 from __future__ import annotations
 
+import math
 import sys
 import time
 from dataclasses import replace
@@ -58,6 +59,11 @@ def add_parser(sub) -> None:
     p.add_argument("--max-frames", type=int, help="stop after N frames")
     p.add_argument("--quiet", action="store_true", help="print only the summary")
     add_telemetry_arguments(p)
+    p.add_argument("--no-check", action="store_true",
+                   help="leave out the rolling self-check (the twins' rows, at most 10 %% of the frame time; "
+                        "docs/health.md)")
+    p.add_argument("--tolerance-px", type=float, default=0.5,
+                   help="the self-check's tolerance: the twins' field RMS, px (default 0.5)")
     p.add_argument("--realtime", action="store_true", help="play a video at its frame rate (as a camera delivers "
                                                            "it) instead of as fast as possible")
     p.set_defaults(run=run)
@@ -82,14 +88,45 @@ def _sensors(args):
                                                     match=MatchParams(model=args.model))
     dense = DenseSensor(rig, near_mm, far_mm, params=FAST if args.fast else DEFAULT,
                                    stride=args.dense_stride) if args.dense else None
-    return tracker, dense
+    return tracker, dense, rolling_check(args, rig, near_mm, far_mm)
 
 
-def _loop(args, source, tel, tracker, dense) -> tuple[list, list, list, float, bool]:
-    """Every frame of ``source`` through the sensors (until --max-frames, Ctrl-C or a camera lost), published
-    and printed as it comes: (tracker steps, dense frames, the frames' metadata without images, wall time s,
-    whether the camera was lost)."""
-    steps, dense_frames, metas, lost = [], [], [], False
+def rolling_check(args, rig, near_mm: float, far_mm: float):
+    """The rolling self-check (psvs.health.rolling) the arguments ask for (None with --no-check), its
+    tolerance checked first."""
+    if not (math.isfinite(args.tolerance_px) and args.tolerance_px > 0):
+        raise ValueError(f"--tolerance-px must be a number > 0 px, got {args.tolerance_px}")
+    if args.no_check:
+        return None
+    from psvs.health.rolling import RollingCheck
+    return RollingCheck(rig, near_mm, far_mm, args.tolerance_px)
+
+
+def check_step(health, image, frame: int, sensor_s: float, tel, t_s: float, command: str):
+    """One frame through the rolling check (when there is one): its one line when the verdict crosses the
+    tolerance (printed, and logged on the recording), its /psvs/health record when it judged. Returns its
+    latest judgement (None before the first)."""
+    if health is None:
+        return None
+    steps = health.steps
+    event = health.step(image, frame, sensor_s)
+    if event is not None:
+        print(f"psvs {command}: {event.line}", flush=True)
+        if tel is not None:
+            tel.log(t_s, event.line, "warning" if event.check.verdict == "drifted" else "info")
+    if tel is not None and health.steps > steps:
+        c = health.latest
+        tel.record("health", t_s, {"frame": frame, "verdict": c.verdict, "row_offset_rms_px": c.row_offset_rms_px,
+                                   "uncertainty_px": c.uncertainty_px, "tiles": c.tiles,
+                                   "cost_share": health.cost_share})
+    return health.latest
+
+
+def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, list, float, bool]:
+    """Every frame of ``source`` through the sensors and the rolling check (until --max-frames, Ctrl-C or a
+    camera lost), published and printed as it comes: (tracker steps, dense frames, the frames' metadata
+    without images, the check's latest judgement per frame, wall time s, whether the camera was lost)."""
+    steps, dense_frames, metas, checks, lost = [], [], [], [], False
     t0 = time.perf_counter()
     t_first = None
     try:
@@ -99,8 +136,11 @@ def _loop(args, source, tel, tracker, dense) -> tuple[list, list, list, float, b
             t_s = frame.timestamp_s - t_first       # a video's frames at its own rate; a camera's on its clock
             if args.realtime and frame.clock == "file":
                 time.sleep(max(0.0, t0 + t_s - time.perf_counter()))
+            t_sensor = time.perf_counter()
             step = tracker.step(frame.image) if tracker is not None else None
             dstep = dense.step(frame.image) if dense is not None else None
+            t_sensor = time.perf_counter() - t_sensor
+            checks.append(check_step(health, frame.image, len(steps), t_sensor, tel, t_s, "live"))
             steps.append(step)
             dense_frames.append(dstep.brief() if dstep is not None else None)   # the log keeps no maps
             metas.append(replace(frame, image=None))
@@ -120,7 +160,7 @@ def _loop(args, source, tel, tracker, dense) -> tuple[list, list, list, float, b
         lost = True
         if tel is not None:
             tel.log(time.perf_counter() - t0, f"camera lost: {exc}; {where}", "error")
-    return steps, dense_frames, metas, time.perf_counter() - t0, lost
+    return steps, dense_frames, metas, checks, time.perf_counter() - t0, lost
 
 
 def _dropped_note(frame) -> str:
@@ -162,26 +202,38 @@ def run(args) -> int:
                    {"--video": args.video, "--rig": args.rig, "--pipeline": args.pipeline,
                     "--camera-settings": args.camera_settings})
     check_source_arguments(args)
-    tracker, dense = _sensors(args)
+    tracker, dense, health = _sensors(args)
     source = open_source(args)
     with source:
         _check_frames(args, source)
         if dense is not None:
             announce_dense("psvs live")
         with open_telemetry(args) as tel:
-            steps, dense_frames, metas, wall, lost = _loop(args, source, tel, tracker, dense)
+            steps, dense_frames, metas, checks, wall, lost = _loop(args, source, tel, tracker, dense, health)
             if not steps:               # inside: a recording of nothing is discarded, not kept
                 raise ValueError(f"no frame could be read from {source.name}")
         record_settings(args, out, source)
     if out:
-        write_log(out, steps, dense_frames if dense is not None else None, metas)
+        write_log(out, steps, dense_frames if dense is not None else None, metas,
+                  checks if health is not None else None)
     dropped = sum(m.dropped for m in metas)
     if args.camera is not None or dropped:
         print(f"{source.name}: {dropped} frame{'s' * (dropped != 1)} dropped (frame counters {metas[0].counter}-"
               f"{metas[-1].counter}), timestamps on the {metas[-1].clock} clock")
+    if health is not None:
+        print(health_summary(health))
     status = _summary(steps, dense_frames if dense is not None else None, wall, args.realtime,
                       "fast" if args.fast else "default")
     return max(status, 1) if lost else status
+
+
+def health_summary(health) -> str:
+    """The rolling check's last word on a run: its verdict and figures, and what it cost."""
+    cost = f"{health.steps} steps, {100 * health.cost_share:.1f} % of the sensor's time"
+    c = health.latest
+    if c is None:
+        return f"self-check: no step yet ({cost}): the run was too short for it"
+    return f"self-check: {c.verdict}: {c.reason} ({cost})"
 
 
 def _summary(steps: list, dense_frames: list | None, wall: float, realtime: bool, mode: str) -> int:

@@ -2,7 +2,8 @@
 
 ``rows`` reads each tile's twin row offset off one frame through a calibration, tested against chance;
 ``check`` fits the smooth field a moved mirror makes and judges it (``psvs check``); ``explain`` says which
-mirrors' tilts best explain it; ``figure`` draws the field.
+mirrors' tilts best explain it; ``figure`` draws the field; ``rolling`` keeps the check going on a running
+sensor's frames at a small share of its time (``psvs live``).
 """
 import lazy_loader as _lazy
 
@@ -15,6 +16,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "check": ["HealthCheck", "OVERLAP", "TOLERANCE_PX", "check_frames", "judge", "judged_pairs_px"],
         "explain": ["Explanation", "explain_offsets", "explanation_line", "tilted"],
         "figure": ["offset_figure"],
+        "rolling": ["HealthEvent", "RollingCheck"],
         "rows": ["FrameTiles", "frame_tiles"],
     },
 )

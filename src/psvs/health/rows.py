@@ -55,7 +55,9 @@ class FrameTiles:
     (n,) its twin's row offset and ``disparity_px`` (n,) its disparity (NaN where not read), ``score`` (n,)
     its peak's correlation and ``chance`` (n,) the best its texture gave by chance, ``accepted`` (n,) the
     tiles that pass the chance test, ``at_edge`` (n,) those whose best peak lay on the searched rows' edge;
-    ``size_px`` a tile's side, ``reach_px`` the rows searched either side, ``grid_shape`` (H', W')."""
+    ``size_px`` a tile's side, ``reach_px`` the rows searched either side, ``grid_shape`` (H', W'), ``rect``
+    the rectification read through (None: the paper's geometry), ``of_tiles`` how many tiles the whole frame
+    holds (these may be a subset of them)."""
 
     centre_px: np.ndarray
     offset_px: np.ndarray
@@ -68,6 +70,7 @@ class FrameTiles:
     reach_px: int
     grid_shape: tuple[int, int]
     rect: Rectification | None
+    of_tiles: int = 0
 
 
 def reach_px(rig: Rig, reach_deg: float = REACH_DEG) -> int:
@@ -99,9 +102,11 @@ def grids(image, rig: Rig, near_mm: float, far_mm: float):
 
 
 def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
-                reach_deg: float = REACH_DEG) -> FrameTiles:
+                reach_deg: float = REACH_DEG, subset: tuple[int, int] | None = None) -> FrameTiles:
     """Every tile's twin row offset in one complex image (H, W) through ``rig``, searched ``reach_deg`` (as
-    rows, :func:`reach_px`) either side of its row (module docstring)."""
+    rows, :func:`reach_px`) either side of its row (module docstring). ``subset`` = (start, count): only
+    those of the frame's tiles (row by row, left to right, counted modulo their number ``of_tiles``), as a
+    rolling check reads a few per frame."""
     a, b, (lo, hi), rect = grids(image, rig, near_mm, far_mm)
     a, b = band_pass(a), band_pass(b)
     lo, hi = int(math.floor(lo)), int(math.ceil(hi))
@@ -110,15 +115,15 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
     step = size // 2                                 # tiles overlap by half: twice the evidence per axis
     rows = list(range(reach, h - size - reach + 1, step))
     cols = list(range(max(lo, 0) + 2, w - size + 1, step))     # near the left edge, the nearer twins only
-    out = []
-    for y in rows:
-        for x in cols:
-            out.append(_tile(a, b, (x, y), (size, reach), (lo, hi), rows))
+    at = [(x, y) for y in rows for x in cols]
+    if subset is not None and at:
+        at = [at[k % len(at)] for k in range(subset[0], subset[0] + min(subset[1], len(at)))]
+    out = [_tile(a, b, xy, (size, reach), (lo, hi), rows) for xy in at]
     arr = np.array(out, dtype=float).reshape(-1, 8)
     accepted = (np.isfinite(arr[:, 2]) & (arr[:, 4] >= arr[:, 5] + NULL_MARGIN) & (arr[:, 6] >= MIN_TEXTURE_DN))
     at_edge = (arr[:, 7] > 0) & (arr[:, 4] >= arr[:, 5] + NULL_MARGIN) & (arr[:, 6] >= MIN_TEXTURE_DN)
     return FrameTiles(arr[:, :2], arr[:, 2], arr[:, 3], arr[:, 4], arr[:, 5], accepted, at_edge, size, reach,
-                      (h, w), rect)
+                      (h, w), rect, len(rows) * len(cols))
 
 
 def _tile(a, b, at, size_reach, span, rows) -> tuple:

@@ -2,7 +2,9 @@
 latency_ms`` for the tracked edge, with ``--dense`` the columns ``dense_median_z_mm,dense_answered_pct,
 dense_ms`` (the edge's columns empty when no edge is tracked), and last the frame's source columns
 ``camera_frame,timestamp_s,clock,dropped``: the camera's own frame counter, its timestamp (s) on ``clock``
-(camera, host or file: psvs.live.camera.CLOCKS) and the frames lost just before it."""
+(camera, host or file: psvs.live.camera.CLOCKS) and the frames lost just before it; with the rolling self-check
+the columns ``health,row_offset_rms_px,row_offset_unc_px,health_tiles``: its latest verdict as of the frame
+(psvs.health.rolling; empty before its first), the field's RMS and uncertainty (px) and the tiles judged."""
 from __future__ import annotations
 
 from psvs.io.atomic import write_atomic
@@ -13,6 +15,7 @@ from psvs.live.tracker import TrackStep
 HEADER = "frame,tracked,seed_u,seed_v,n_pairs,disparity_px,depth_mm,latency_ms\n"
 DENSE_COLUMNS = "dense_median_z_mm,dense_answered_pct,dense_ms"
 SOURCE_COLUMNS = "camera_frame,timestamp_s,clock,dropped"
+HEALTH_COLUMNS = "health,row_offset_rms_px,row_offset_unc_px,health_tiles"
 
 
 def log_row(step: TrackStep) -> str:
@@ -28,12 +31,21 @@ def source_cells(f: Frame) -> str:
     return f"{f.counter},{f.timestamp_s:.9f},{f.clock},{f.dropped}"
 
 
+def health_cells(check) -> str:
+    """A frame's health columns (no newline): empty when the rolling check has not judged yet."""
+    if check is None:
+        return ",,,"
+    return f"{check.verdict},{check.row_offset_rms_px:.4f},{check.uncertainty_px:.4f},{check.tiles}"
+
+
 def write_log(path, steps: list[TrackStep | None], dense: list[DenseFrame] | None = None,
-              frames: list[Frame] | None = None) -> None:
-    """The log of ``steps`` (None: no edge tracked), with the dense columns when ``dense`` (one per step) and
-    the source columns when ``frames`` (the grabbed frames' metadata, one per step)."""
+              frames: list[Frame] | None = None, health: list | None = None) -> None:
+    """The log of ``steps`` (None: no edge tracked), with the dense columns when ``dense`` (one per step),
+    the source columns when ``frames`` (the grabbed frames' metadata, one per step) and the health columns
+    when ``health`` (the rolling check's latest HealthCheck or None, one per step)."""
     header = HEADER[:-1] + ("," + DENSE_COLUMNS if dense is not None else "") + \
-        ("," + SOURCE_COLUMNS if frames is not None else "") + "\n"
+        ("," + SOURCE_COLUMNS if frames is not None else "") + ("," + HEALTH_COLUMNS if health is not None else "") \
+        + "\n"
     rows = []
     for k, s in enumerate(steps):
         row = log_row(s)[:-1] if s is not None else f"{k},,,,,,,"
@@ -42,5 +54,7 @@ def write_log(path, steps: list[TrackStep | None], dense: list[DenseFrame] | Non
             row += f",{d.median_z_mm:.4f},{d.answered_pct:.3f},{d.elapsed_s * 1e3:.3f}"
         if frames is not None:
             row += "," + source_cells(frames[k])
+        if health is not None:
+            row += "," + health_cells(health[k])
         rows.append(row + "\n")
     write_atomic(path, header + "".join(rows))

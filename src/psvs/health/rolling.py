@@ -1,0 +1,100 @@
+"""The self-check while the sensor works: a rolling estimate of the twins' row offsets from the frames a
+running sensor processes anyway (``psvs live``; docs/health.md).
+
+A whole frame's check costs a few hundred ms (each tile a correlation); a sensor's frame a few tens. So a
+rolling check reads a few of a frame's tiles (:data:`TILES_PER_STEP`, in turn over the frame: a sweep of the
+field takes a few steps), only when it has the time: each frame adds :data:`SHARE` of the sensor's own time
+on it to a credit, and a step runs when the credit covers what a step costs (the median of the last five,
+measured as they run; the grids' maps are made once, before the first), its time then taken off the credit:
+over a run the check costs at most that share of the sensor's time, give or take one step. The tiles of the
+last sweep (one per place of the field; older ones are dropped, so a rig that moves is seen within a sweep)
+are judged together as ``psvs check`` judges a frame's (:func:`psvs.health.check.judge`): the same field,
+uncertainty and verdict, ``cannot judge`` until enough tiles are in.
+"""
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from psvs.dense.rig_cache import rectification
+from psvs.health.check import TOLERANCE_PX, HealthCheck, judge
+from psvs.health.rows import frame_tiles
+from psvs.optics.rig import Rig
+
+#: The share of the sensor's own frame time the rolling check may take, on average.
+SHARE = 0.1
+#: Tiles read per step.
+TILES_PER_STEP = 12
+#: The first steps' cost is not known: the credit must cover this much (s) before the first one runs.
+FIRST_COST_S = 0.03
+
+
+@dataclass(frozen=True)
+class HealthEvent:
+    """A change of verdict the sensor should say: ``frame`` (index), ``check`` the new verdict's figures,
+    ``line`` one line for the terminal."""
+
+    frame: int
+    check: HealthCheck
+    line: str
+
+
+class RollingCheck:
+    """A rolling self-check of ``rig`` over near..far mm (module docstring). Call :meth:`step` with each frame
+    and the time (s) the sensor spent on it; :attr:`latest` is the last judgement (None until the first),
+    :attr:`spent_s` and :attr:`sensor_s` the check's and the sensor's time so far."""
+
+    def __init__(self, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
+                 tolerance_px: float = TOLERANCE_PX, share: float = SHARE):
+        if not 0 < share <= 1:
+            raise ValueError(f"the rolling check's share of the frame time must be in (0, 1], got {share}")
+        self.rig, self.near_mm, self.far_mm, self.tolerance_px, self.share = rig, near_mm, far_mm, tolerance_px, share
+        self.latest: HealthCheck | None = None
+        self.spent_s = self.sensor_s = 0.0
+        self.steps = 0
+        self._credit, self._next = 0.0, 0
+        self._costs: deque = deque([FIRST_COST_S], maxlen=5)
+        self._window: deque = deque()
+        self._said = "healthy"
+        rectification(rig, near_mm, far_mm)      # the grids' maps are set-up, as the sensors' own: not a step's
+
+    def step(self, image, frame: int, sensor_s: float) -> HealthEvent | None:
+        """Take frame ``frame`` (its image (H, W) and the sensor's time on it, s) into the estimate when the
+        credit allows; a :class:`HealthEvent` when the verdict crosses between healthy and drifted."""
+        self.sensor_s += max(sensor_s, 0.0)
+        self._credit += self.share * max(sensor_s, 0.0)
+        if self._credit < float(np.median(self._costs)):
+            return None
+        t0 = time.perf_counter()
+        tiles = frame_tiles(image, self.rig, self.near_mm, self.far_mm, subset=(self._next, TILES_PER_STEP))
+        self._next = (self._next + TILES_PER_STEP) % max(tiles.of_tiles, 1)
+        self._window.append(tiles)
+        while sum(len(t.accepted) for t in self._window) - len(self._window[0].accepted) >= tiles.of_tiles:
+            self._window.popleft()                   # the last sweep: one tile per place of the field
+        self.latest = judge(list(self._window), self.tolerance_px)
+        spent = time.perf_counter() - t0
+        self.spent_s += spent
+        self.steps += 1
+        self._credit -= spent
+        self._costs.append(spent)
+        return self._event(frame)
+
+    def _event(self, frame: int) -> HealthEvent | None:
+        c = self.latest
+        if c.verdict == "cannot judge" or c.verdict == self._said:
+            return None
+        self._said = c.verdict
+        if c.verdict == "drifted":
+            line = (f"frame {frame}: the calibration has drifted: {c.reason} (psvs check on a few frames to "
+                    f"confirm, psvs refit to put it back)")
+        else:
+            line = f"frame {frame}: the calibration holds again: {c.reason}"
+        return HealthEvent(frame, c, line)
+
+    @property
+    def cost_share(self) -> float:
+        """The check's time over the sensor's, so far."""
+        return self.spent_s / self.sensor_s if self.sensor_s > 0 else 0.0

@@ -1,0 +1,88 @@
+"""The rolling self-check (issue 43, item 2): a few tiles per frame within a share of the sensor's time, one
+line when the verdict crosses the tolerance; in ``psvs live``, its log columns (csv) and MCAP records (the
+``mcap`` reader)."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from psvs.cli.main import main
+from psvs.health.rolling import SHARE, RollingCheck
+from psvs.io.params import load_rig
+from psvs.simulate.builtin import textured, wall
+from psvs.simulate.render import render
+from tests.support.mcap import read_mcap
+
+
+@pytest.fixture(scope="module")
+def frames():
+    """Frames of a wall and the textured scene through the misaligned build and through it knocked."""
+    out = {}
+    for name in ("misaligned", "misaligned_knocked"):
+        rig = load_rig(name)
+        out[name] = [render(wall(650.0, 1), rig, seed=1, supersample=1).image,
+                     render(textured(800.0), rig, seed=2, supersample=1).image,
+                     render(wall(950.0, 3), rig, seed=3, supersample=1).image]
+    return out
+
+
+def run_check(images, n=400, sensor_s=0.05, rig="misaligned"):
+    check = RollingCheck(load_rig(rig))
+    events = [e for k in range(n) if (e := check.step(images[k % len(images)], k, sensor_s)) is not None]
+    return check, events
+
+
+def test_a_knock_is_said_once_and_the_figure_is_the_checks(frames):
+    """Knocked frames read through the old calibration: one event, drifted, with the field near the 2.46 px
+    psvs check measures on whole frames; the check took at most its share of the sensor's time (one step's
+    overshoot allowed)."""
+    check, events = run_check(frames["misaligned_knocked"])
+    assert [e.check.verdict for e in events] == ["drifted"]
+    assert "the calibration has drifted" in events[0].line and events[0].frame < 200
+    assert check.latest.verdict == "drifted" and abs(check.latest.row_offset_rms_px - 2.46) <= 0.4
+    assert check.spent_s <= SHARE * check.sensor_s + check.spent_s / check.steps
+    assert check.steps >= 10
+
+
+def test_an_undrifted_build_raises_no_alarm(frames):
+    check, events = run_check(frames["misaligned"])
+    assert events == [] and check.latest.verdict == "healthy", check.latest.reason
+
+
+def test_no_step_without_time(frames):
+    """A sensor that spends no time on a frame gives the check none: it never runs."""
+    check, events = run_check(frames["misaligned"], n=20, sensor_s=0.0)
+    assert check.steps == 0 and check.latest is None and events == []
+    with pytest.raises(ValueError, match="share"):
+        RollingCheck(load_rig("misaligned"), share=0.0)
+
+
+def test_live_logs_the_check_and_says_the_drift(tmp_path, capsys, frames):
+    """psvs live on a knocked build's video: one line saying the drift, the log's health columns (read with
+    csv), the /psvs/health records of the recording (read with the mcap reader) agreeing with the log; with
+    --no-check neither."""
+    from psvs.io.video import write_video
+    video = tmp_path / "knocked.avi"
+    write_video(video, [frames["misaligned_knocked"][k % 3] for k in range(24)], 30.0)
+    log, rec = tmp_path / "live.csv", tmp_path / "live.mcap"
+    assert main(["live", "--video", str(video), "--rig", "misaligned", "--dense", "--fast", "--quiet", "-o", str(log),
+                 "--mcap", str(rec)]) == 0
+    out = capsys.readouterr().out
+    assert out.count("the calibration has drifted") == 1 and "self-check: drifted" in out
+    with log.open() as f:
+        rows = list(csv.DictReader(f))
+    judged = [r for r in rows if r["health"]]
+    assert judged and judged[-1]["health"] == "drifted" and abs(float(judged[-1]["row_offset_rms_px"]) - 2.46) < 0.5
+    _, _, msgs = read_mcap(rec)
+    records = [json.loads(m.data) for _, c, m in msgs if c.topic == "/psvs/health"]
+    assert records and records[-1]["verdict"] == "drifted"
+    last = rows[records[-1]["frame"]]
+    assert float(last["row_offset_rms_px"]) == pytest.approx(records[-1]["row_offset_rms_px"], abs=1e-4)
+    assert int(last["health_tiles"]) == records[-1]["tiles"] and 0 < records[-1]["cost_share"] < 0.5
+    assert main(["live", "--video", str(video), "--rig", "misaligned", "--dense", "--fast", "--quiet", "-o", str(log),
+                 "--no-check", "--max-frames", "3"]) == 0
+    assert "self-check" not in capsys.readouterr().out
+    with log.open() as f:
+        assert "health" not in f.readline()
+    assert np.isfinite(float(rows[-1]["dense_median_z_mm"]))
