@@ -61,14 +61,27 @@ def _setup(rig_name: str = "default"):
     return state
 
 
-def _whole_video(rig_name: str = "default", limit: float = 0.005):
+def _whole_video(rig_name: str = "default", limit: float = 0.005, check: bool = False):
     def setup():
+        import time
+
+        from psvs.health.rolling import RollingCheck
         s = _setup(rig_name)
 
         def run():
             tracker = EdgeTracker(s["rig"], s["seed"])
+            health = RollingCheck(s["rig"]) if check else None
+            depth = []
             with VideoSource(video=str(s["video"])) as src:
-                depth = np.array([tracker.step(frame).depth_mm for frame in src])
+                for k, frame in enumerate(src):
+                    t0 = time.perf_counter()
+                    depth.append(tracker.step(frame).depth_mm)
+                    if health is not None:
+                        health.step(frame, k, time.perf_counter() - t0)
+            depth = np.array(depth)
+            if health is not None:
+                print(f"  the rolling check: {health.steps} steps, {100 * health.cost_share:.1f} % of the tracker's "
+                      f"time")
             if "checked" not in s:
                 err = np.abs(depth / s["truth"] - 1)
                 print(f"  {len(depth)} frames, worst depth error {100 * np.nanmax(err):.3f} %, "
@@ -80,15 +93,9 @@ def _whole_video(rig_name: str = "default", limit: float = 0.005):
     return setup
 
 
-def _per_frame(rig_name: str = "default", check: bool = False):
-    """``psvs live --seed``'s loop; with ``check``, the rolling self-check after each frame as ``psvs live``
-    runs it (psvs.health.rolling: given the tracker's time on the frame)."""
-    import time
-
-    from psvs.health.rolling import RollingCheck
+def _per_frame(rig_name: str = "default"):
     s = _setup(rig_name)
     loop = {}
-    health = RollingCheck(s["rig"]) if check else None
 
     def run():
         frame = loop["src"].read() if loop else None
@@ -96,17 +103,14 @@ def _per_frame(rig_name: str = "default", check: bool = False):
             loop["src"] = VideoSource(video=str(s["video"]))
             loop["tracker"] = EdgeTracker(s["rig"], s["seed"])
             frame = loop["src"].read()
-        t0 = time.perf_counter()
         loop["tracker"].step(frame)
-        if health is not None:
-            health.step(frame, 0, time.perf_counter() - t0)
     return run
 
 
 DENSE_RIG = "mv1440_misaligned"
 
 
-def _dense_per_frame(fast: bool, check: bool = False):
+def _dense_per_frame(fast: bool, check: bool = False, frames: int = 1):
     """``psvs live --dense [--fast]``'s loop on the mv1440_misaligned build: read a 1440x1080 FFV1 frame of
     the textured scene (a photo wall and cards, moving 60 mm in depth over 8 frames: ``psvs simulate
     textured``), its dense map over the rig's 400-1200 mm and the strided cloud (psvs.live.dense)."""
@@ -125,7 +129,7 @@ def _dense_per_frame(fast: bool, check: bool = False):
     loop = {"sensor": DenseSensor(rig, params=FAST if fast else DEFAULT)}
     health = RollingCheck(rig) if check else None
 
-    def run():
+    def one():
         frame = loop["src"].read() if "src" in loop else None
         if frame is None:                       # (re)start the video
             loop["src"] = VideoSource(video=str(video))
@@ -134,6 +138,13 @@ def _dense_per_frame(fast: bool, check: bool = False):
         loop["sensor"].step(frame)
         if health is not None:
             health.step(frame, 0, time.perf_counter() - t0)
+
+    def run():
+        for _ in range(frames):
+            one()
+        if health is not None:
+            print(f"  the rolling check: {health.steps} steps, {100 * health.cost_share:.1f} % of the dense map's "
+                  f"time so far")
     run()                                        # the rig's tables and the workspace's volumes made
     return run
 
@@ -143,27 +154,30 @@ LIVE_DENSE_FAST = (f"psvs live --dense --fast per frame: read 1440x1080 FFV1 fra
 LIVE_DENSE = (f"psvs live --dense per frame (default mode): read 1440x1080 FFV1 frame ({DENSE_RIG}) + dense map "
               "over 400-1200 mm + cloud, 2 cores")
 
-CHECKED = "live loop per frame with the rolling self-check: read 640x480 FFV1 frame + track + depth + check"
-DENSE_CHECKED = LIVE_DENSE_FAST + " + the rolling self-check"
+WHOLE = "live loop, whole 30 s video (900 frames), accuracy checked"
+CHECKED = WHOLE + ", with the rolling self-check"
+DENSE_24 = f"psvs live --dense --fast, 24 frames of 1440x1080 ({DENSE_RIG}), 2 cores"
+DENSE_CHECKED = DENSE_24 + ", with the rolling self-check"
 RATIOS = [("mv1440 1440x1080 / 640x480, live loop per frame (same run)",
            "live loop per frame: read 1440x1080 FFV1 frame (mv1440) + track + depth",
            "live loop per frame: read 640x480 FFV1 frame + track + depth"),
-          ("the rolling self-check's cost: live tracking with / without it (issue 43: <= 1.10)", CHECKED,
-           "live loop per frame: read 640x480 FFV1 frame + track + depth"),
-          ("the rolling self-check's cost: live --dense --fast with / without it (issue 43: <= 1.10)",
-           DENSE_CHECKED, LIVE_DENSE_FAST)]
+          ("the rolling self-check's cost: live tracking, 900 frames, with / without it (issue 43: <= 1.10)",
+           CHECKED, WHOLE),
+          ("the rolling self-check's cost: live --dense --fast, 24 frames, with / without it (issue 43: <= 1.10)",
+           DENSE_CHECKED, DENSE_24)]
 
 
 def cases():
     return [
         ("live loop per frame: read 640x480 FFV1 frame + track + depth", _per_frame, 1 / 30),
-        ("live loop, whole 30 s video (900 frames), accuracy checked", _whole_video(), 30.0),
+        (WHOLE, _whole_video(), 30.0),
         ("live loop on the misaligned build, whole 30 s video, every frame within 0.2 %",
          _whole_video("misaligned", 0.002), 30.0),
         ("live loop per frame: read 1440x1080 FFV1 frame (mv1440) + track + depth", lambda: _per_frame("mv1440"),
          1 / 30),
-        (CHECKED, lambda: _per_frame("default", check=True), 1.1 / 30),
+        (CHECKED, _whole_video(check=True), 33.0),
         (LIVE_DENSE_FAST, lambda: _dense_per_frame(True), 1 / 5),
-        (DENSE_CHECKED, lambda: _dense_per_frame(True, check=True), 1.1 / 5),
+        (DENSE_24, lambda: _dense_per_frame(True, frames=24), 24 / 5),
+        (DENSE_CHECKED, lambda: _dense_per_frame(True, check=True, frames=24), 1.1 * 24 / 5),
         (LIVE_DENSE, lambda: _dense_per_frame(False), float("inf")),
     ]

@@ -140,7 +140,7 @@ def main(argv: list[str]) -> int:
              "one thread; rendering uses both cores (its own thread pool).", "",
              f"- Date: {datetime.date.today().isoformat()}", f"- Machine: {machine()}",
              f"- The last run measured {', '.join(sorted({g for g, _ in measured})) or 'nothing'}"
-             f"{'' if case is None else f' (cases matching {case!r})'}"
+             f"{'' if case is None else ' (cases matching ' + ' or '.join(map(repr, case.split('|'))) + ')'}"
              f"{'; the other rows are from earlier runs' if len(rows) > len(measured) else ''}",
              f"- Load average (1 min) at the start and the end of the last run: {load0:.1f} and "
              f"{os.getloadavg()[0]:.1f}"

@@ -28,6 +28,8 @@ from psvs.optics.rig import Rig
 SHARE = 0.1
 #: Tiles read per step.
 TILES_PER_STEP = 12
+#: The credit saved up is at most this many steps' cost: a slow frame (a first one's set-up) buys no burst.
+MAX_CREDIT_STEPS = 1.5
 #: The first steps' cost is not known: the credit must cover this much (s) before the first one runs.
 FIRST_COST_S = 0.03
 
@@ -65,8 +67,9 @@ class RollingCheck:
         """Take frame ``frame`` (its image (H, W) and the sensor's time on it, s) into the estimate when the
         credit allows; a :class:`HealthEvent` when the verdict crosses between healthy and drifted."""
         self.sensor_s += max(sensor_s, 0.0)
-        self._credit += self.share * max(sensor_s, 0.0)
-        if self._credit < float(np.median(self._costs)):
+        cost = float(np.median(self._costs))
+        self._credit = min(self._credit + self.share * max(sensor_s, 0.0), MAX_CREDIT_STEPS * cost)
+        if self._credit < cost:
             return None
         t0 = time.perf_counter()
         tiles = frame_tiles(image, self.rig, self.near_mm, self.far_mm, subset=(self._next, TILES_PER_STEP))
