@@ -156,15 +156,17 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
             steps.append(n_depth)
         new = _rig(x, rig)
     after = check_frames(frames, new, near_mm, far_mm, tolerance_px)
+    if after.verdict == "drifted":
+        raise MeasurementError(f"after the refit the twins still stand off their rows ({after.reason}): what moved "
+                               f"is more than the mirrors' tilts; calibrate again from card views (psvs calibrate)")
     if after.verdict != "healthy":
-        raise MeasurementError(f"after the refit the twins still stand off their rows ({after.verdict}: "
-                               f"{after.reason}): what moved is more than the mirrors' tilts; calibrate again from "
-                               f"card views (psvs calibrate)")
+        raise MeasurementError(f"the frames cannot show the refitted rig healthy ({after.reason}): more frames of a "
+                               f"textured scene are needed")
     sigma = np.sqrt(np.clip(np.diag(cov), 0, None))
     old = rig_values(rig)
     change = {_file_name(p): (math.degrees(old[p]), math.degrees(old[p] + d), math.degrees(s))
               for p, d, s in zip(REFIT_PARAMS, x, sigma, strict=True)}
-    _, pts, res = _points(x, rig, pairs)
+    res = _points(x, rig, pairs)[2]
     rms = float(np.sqrt(np.nanmean(res ** 2)))
     message = f"{steps[0]} Gauss-Newton step(s) on the rows" + (
         f", {steps[1]} on the tares' depth" if tares else "") + f" (the last of {ROUNDS} rounds)"
