@@ -46,6 +46,7 @@ from psvs.calibrate.bundle import PRIOR_SIGMA, rig_from_values, rig_values
 from psvs.calibrate.tare import Tare, check_flat, depth_residuals_px, tare_record
 from psvs.errors import MeasurementError
 from psvs.health.check import OVERLAP, HealthCheck, check_frames, judged_pairs_px
+from psvs.io.jsonsafe import json_safe
 from psvs.measure.triangulate import triangulate
 from psvs.optics.mirrors import virtual_centre
 from psvs.optics.project import project_points
@@ -101,21 +102,17 @@ class Refit:
     message: str
 
     def as_dict(self) -> dict:
-        """The record of the refit as JSON-ready values (written beside the rig file by ``psvs refit``)."""
-        rows = lambda c: {"verdict": c.verdict, "row_offset_rms_px": _num(c.row_offset_rms_px),  # noqa: E731
-                          "uncertainty_px": _num(c.uncertainty_px), "tiles": c.tiles}
-        return {"frames": self.frames, "pairs": self.pairs, "tare_pairs": self.tare_pairs,
-                "reprojection_rms_px": _num(self.rms_px), "fit": self.message,
-                "rows_before": rows(self.before), "rows_after": rows(self.after),
-                "held": sorted(_file_name(p) for p in HELD_PARAMS),
-                "unpinned": [dict(c) for c in self.unpinned], "depth_scale_sigma": _num(self.scale_sigma),
-                "change": {p: {"old": _num(o), "new": _num(n), "sigma": _num(s)}
-                           for p, (o, n, s) in self.change.items()},
-                "tares": [t.as_dict() for t in self.tares]}
-
-
-def _num(x: float) -> float | None:
-    return None if not np.isfinite(x) else round(float(x), 6)
+        """The record of the refit as JSON-ready values (NaN as None; written beside the rig file by
+        ``psvs refit``)."""
+        rows = lambda c: {"verdict": c.verdict, "row_offset_rms_px": c.row_offset_rms_px,  # noqa: E731
+                          "uncertainty_px": c.uncertainty_px, "tiles": c.tiles}
+        return json_safe({"frames": self.frames, "pairs": self.pairs, "tare_pairs": self.tare_pairs,
+                          "reprojection_rms_px": self.rms_px, "fit": self.message,
+                          "rows_before": rows(self.before), "rows_after": rows(self.after),
+                          "held": sorted(_file_name(p) for p in HELD_PARAMS),
+                          "unpinned": [dict(c) for c in self.unpinned], "depth_scale_sigma": self.scale_sigma,
+                          "change": {p: {"old": o, "new": n, "sigma": s} for p, (o, n, s) in self.change.items()},
+                          "tares": [dataclasses.asdict(t) for t in self.tares]})
 
 
 def _file_name(p: str) -> str:
@@ -144,8 +141,9 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
     new, x, pairs, steps = rig, np.zeros(len(REFIT_PARAMS)), None, []
     cov = np.diag(np.full(len(REFIT_PARAMS), DRIFT_SIGMA_RAD ** 2))
     distances = tuple(z for _, z in tares)
-    for _ in range(ROUNDS):
-        pairs = _read_pairs(frames, [img for img, _ in tares], new, near_mm, far_mm, tolerance_px)
+    for k in range(ROUNDS):
+        read = before if k == 0 else check_frames(frames, new, near_mm, far_mm, tolerance_px)
+        pairs = _read_pairs(read, [img for img, _ in tares], new, near_mm, far_mm, tolerance_px)
         x, c, n_rows = _fit(_Stage(rig, pairs, x, ROW_PARAMS))
         cov[np.ix_(ROW_PARAMS, ROW_PARAMS)] = c
         steps = [n_rows]
@@ -187,22 +185,21 @@ def _record(rig: Rig, rms_px: float, frames: int, distances: tuple[float, ...]) 
     return Calibration(rms_px, rms_px, rms_px, frames + len(distances), kinds)
 
 
-def _read_pairs(frames, tare_images, rig: Rig, near_mm, far_mm, tolerance_px) -> _Pairs:
-    """The judged tiles of the frames (and of each tare) as twin pairs, read through ``rig``."""
-    def pairs_of(images, what):
-        c = check_frames(images, rig, near_mm, far_mm, tolerance_px)
+def _read_pairs(check: HealthCheck, tare_images, rig: Rig, near_mm, far_mm, tolerance_px) -> _Pairs:
+    """The judged tiles of the frames (their ``check`` through ``rig``) and of each tare as twin pairs."""
+    def pairs_of(c, what):
         if c.tiles == 0 or not np.all(np.isfinite(c.fitted_px)):
             raise MeasurementError(f"cannot refit: {what}: {c.reason}")
-        return judged_pairs_px(c, rig, near_mm, far_mm), c.scatter_px
-    (left, right), scatter = pairs_of(frames, "the frames")
+        return judged_pairs_px(c, rig, near_mm, far_mm)
+    left, right = pairs_of(check, "the frames")
     source = [np.full(len(left), -1)]
     for k, img in enumerate(tare_images):
-        (tl, tr), _ = pairs_of([img], f"tare {k + 1}")
+        tl, tr = pairs_of(check_frames([img], rig, near_mm, far_mm, tolerance_px), f"tare {k + 1}")
         left, right = np.vstack([left, tl]), np.vstack([right, tr])
         source.append(np.full(len(tl), k))
     source = np.concatenate(source)
     ok = triangulate(left, right, rig, model="exact").valid
-    sigma = math.sqrt(OVERLAP) * max(scatter, MIN_SCATTER_PX) / math.sqrt(2)
+    sigma = math.sqrt(OVERLAP) * max(check.scatter_px, MIN_SCATTER_PX) / math.sqrt(2)
     return _Pairs(left[ok], right[ok], source[ok], sigma)
 
 

@@ -36,13 +36,6 @@ class Tare:
     flat_rms_px: float
     tiles: int
 
-    def as_dict(self) -> dict:
-        """The tare as JSON-ready values (NaN as None), for the refit's record."""
-        num = lambda x: None if not np.isfinite(x) else round(float(x), 6)  # noqa: E731
-        return {"distance_mm": self.distance_mm, "before_mm": num(self.before_mm), "after_mm": num(self.after_mm),
-                "slope_deg": [num(a) for a in self.slope_deg], "flat_rms_px": num(self.flat_rms_px),
-                "tiles": self.tiles}
-
 
 def tare_plane(points_mm: np.ndarray, distance_mm: float | None = None) -> tuple[np.ndarray, float]:
     """The plane Z = c + p X + q Y best through points (n, 3) mm (least squares in Z): ((c, p, q), RMS mm of
@@ -53,8 +46,19 @@ def tare_plane(points_mm: np.ndarray, distance_mm: float | None = None) -> tuple
     else:
         slope = np.linalg.lstsq(np.column_stack([X, Y]), Z - distance_mm, rcond=None)[0]
         coef = np.concatenate([[distance_mm], slope])
-    r = Z - coef[0] - coef[1] * X - coef[2] * Y
-    return coef, float(np.sqrt(np.mean(r ** 2)))
+    return coef, float(np.sqrt(np.mean(_off_plane_mm(points_mm, coef) ** 2)))
+
+
+def _off_plane_mm(points_mm: np.ndarray, coef: np.ndarray) -> np.ndarray:
+    """Each point's (n, 3) Z minus the plane Z = c + p X + q Y's there, mm (n,)."""
+    p = np.asarray(points_mm, dtype=float)
+    return p[:, 2] - coef[0] - coef[1] * p[:, 0] - coef[2] * p[:, 1]
+
+
+def _flat_px(points_mm: np.ndarray, rig: Rig) -> tuple[np.ndarray, float, float]:
+    """(the best plane's (c, p, q), the points' (n, 3) RMS about it in mm and in px of disparity)."""
+    coef, rms_mm = tare_plane(points_mm)
+    return coef, rms_mm, rms_mm * float(np.median(disparity_per_mm(rig, points_mm[:, 2])))
 
 
 def disparity_per_mm(rig: Rig, z_mm: np.ndarray) -> np.ndarray:
@@ -67,16 +71,14 @@ def disparity_per_mm(rig: Rig, z_mm: np.ndarray) -> np.ndarray:
 def depth_residuals_px(points_mm: np.ndarray, distance_mm: float, rig: Rig) -> np.ndarray:
     """Each point's (n, 3) depth off the plane through (0, 0, ``distance_mm``) that fits them best, in px of
     disparity (n,)."""
-    coef, _ = tare_plane(points_mm, distance_mm) if len(points_mm) >= 3 else (np.array([distance_mm, 0, 0]), 0)
-    p = points_mm
-    return (p[:, 2] - coef[0] - coef[1] * p[:, 0] - coef[2] * p[:, 1]) * disparity_per_mm(rig, p[:, 2])
+    coef = tare_plane(points_mm, distance_mm)[0] if len(points_mm) >= 3 else np.array([distance_mm, 0.0, 0.0])
+    return _off_plane_mm(points_mm, coef) * disparity_per_mm(rig, points_mm[:, 2])
 
 
 def check_flat(points_mm: np.ndarray, rig: Rig, noise_px: float, which: str) -> float:
     """The points' (n, 3) RMS about their best plane in px of disparity; MeasurementError when over
     :data:`TARE_FLAT_PX` and 3 times the tiles' ``noise_px``: the surface is not flat."""
-    _, rms_mm = tare_plane(points_mm)
-    flat_px = rms_mm * float(np.median(disparity_per_mm(rig, points_mm[:, 2])))
+    _, rms_mm, flat_px = _flat_px(points_mm, rig)
     if not flat_px <= max(TARE_FLAT_PX, 3 * noise_px):
         raise MeasurementError(f"{which} is not flat: its points scatter {rms_mm:.2f} mm ({flat_px:.2f} px of "
                                f"disparity) about their best plane; a tare needs a flat textured surface facing "
@@ -87,7 +89,6 @@ def check_flat(points_mm: np.ndarray, rig: Rig, noise_px: float, which: str) -> 
 def tare_record(before_mm: np.ndarray, after_mm: np.ndarray, distance_mm: float, rig: Rig) -> Tare:
     """A :class:`Tare` from the tare's points (n, 3) through the old calibration and the refitted ``rig``."""
     cb, _ = tare_plane(before_mm)
-    ca, rms_mm = tare_plane(after_mm)
-    flat_px = rms_mm * float(np.median(disparity_per_mm(rig, after_mm[:, 2])))
+    ca, _, flat_px = _flat_px(after_mm, rig)
     slope = (math.degrees(math.atan(ca[1])), math.degrees(math.atan(ca[2])))
     return Tare(float(distance_mm), float(cb[0]), float(ca[0]), slope, flat_px, len(after_mm))

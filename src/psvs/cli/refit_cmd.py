@@ -75,13 +75,11 @@ def run(args) -> int:
     res = refit_rig(frames, rig, tares, near, far, args.tolerance_px)
     for line in summary_lines(res):
         print(line)
-    guide = None
     if args.adjust:
         from psvs.mount.guide import alignment_guide, designed_twin
         from psvs.mount.report import format_guide
         from psvs.mount.seats import seats_for
-        guide = format_guide(alignment_guide(res.rig, seats_for(designed_twin(rig)), near, far))
-        print(guide)
+        print(format_guide(alignment_guide(res.rig, seats_for(designed_twin(rig)), near, far)))
     if out is not None:
         template = rig_template(args.rig) if out.suffix.lower() != ".json" else None
         with output_batch():          # the rig file and its record land together
