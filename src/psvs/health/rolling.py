@@ -22,6 +22,7 @@ import numpy as np
 from psvs.dense.rig_cache import rectification
 from psvs.health.check import TOLERANCE_PX, HealthCheck, judge
 from psvs.health.rows import frame_tiles
+from psvs.io.jsonsafe import json_safe
 from psvs.optics.rig import Rig
 
 #: The share of the sensor's own frame time the rolling check may take, on average.
@@ -96,6 +97,17 @@ class RollingCheck:
         else:
             line = f"frame {frame}: the calibration holds again: {c.reason}"
         return HealthEvent(frame, c, line)
+
+    def summary(self) -> dict:
+        """The latest judgement for a display (JSON-ready, NaN as None): ``verdict`` (None before the first
+        step), ``reason``, ``row_offset_rms_px``, ``uncertainty_px``, ``tiles``, ``tolerance_px``, ``steps`` and
+        ``cost_pct`` (the check's time over the sensor's, %)."""
+        c = self.latest
+        figures = {} if c is None else {"row_offset_rms_px": c.row_offset_rms_px, "uncertainty_px": c.uncertainty_px}
+        return json_safe({"verdict": None if c is None else c.verdict, "reason": "" if c is None else c.reason,
+                          "row_offset_rms_px": None, "uncertainty_px": None, **figures,
+                          "tiles": 0 if c is None else c.tiles, "tolerance_px": self.tolerance_px,
+                          "steps": self.steps, "cost_pct": 100 * self.cost_share})
 
     @property
     def cost_share(self) -> float:

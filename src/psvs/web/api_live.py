@@ -5,6 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
+from psvs.health.rolling import RollingCheck
 from psvs.live.dense import DenseSensor
 from psvs.live.tracker import EdgeTracker, TrackerParams
 from psvs.match.correspondence import MatchParams
@@ -18,7 +19,8 @@ router = APIRouter(prefix="/api/live")
 
 @router.post("/start")
 def live_start(body: LiveBody, session: SessionDep):
-    """Start (or restart) live mode: track the edge at ``seed`` and/or compute each frame's dense depth. The
+    """Start (or restart) live mode: track the edge at ``seed`` and/or compute each frame's dense depth, with
+    the rolling self-check unless ``check`` is false (psvs.health.rolling; its state under ``health``). The
     seed snaps within SNAP_PX of the paper's camera, which EdgeTracker scales to the rig's camera (as
     :func:`~psvs.web.api_match.snap_px` does for a double-click). A still image has no frames: the source
     refuses in one line."""
@@ -30,8 +32,9 @@ def live_start(body: LiveBody, session: SessionDep):
         rig, body.seed, pipeline=body.pipeline(), near_mm=body.near_mm, far_mm=body.far_mm,
         match=MatchParams(model=body.model), params=TrackerParams(snap_px=SNAP_PX))
     dense = DenseSensor(rig, body.near_mm, body.far_mm) if body.dense else None
+    health = RollingCheck(rig, body.near_mm, body.far_mm, body.tolerance_px) if body.check else None
     session.capture.stop()                 # one reader of the source at a time
-    session.live.start(session.source, tracker, dense)
+    session.live.start(session.source, tracker, dense, health)
     return {"running": True}
 
 

@@ -72,6 +72,8 @@ class LiveBody(MatchBody):
     """``POST /api/live/start``: as a match (the seed is the edge to track), optionally with dense depth."""
 
     dense: bool = Field(False, description="also a dense depth map of every frame (the fast mode)")
+    check: bool = Field(True, description="the rolling self-check of the twins' rows (psvs.health.rolling)")
+    tolerance_px: float = Field(0.5, gt=0, le=100, description="the self-check's tolerance, px RMS")
 
 
 class DenseBody(RangeBody):

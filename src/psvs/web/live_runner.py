@@ -1,6 +1,8 @@
 """The web UI's live mode: a background thread that reads frames, tracks the selected edge and/or computes
-a dense depth map of each, and keeps the latest frame, the latest results and a depth-over-time history
-(the edge's depth, else the dense map's median) for the page to poll."""
+a dense depth map of each, runs the rolling self-check beside them (psvs.health.rolling: the twins' rows at
+a share of the sensors' time), and keeps the latest frame, the latest results, a depth-over-time history
+(the edge's depth, else the dense map's median) and the check's verdict with its last lines for the page to
+poll."""
 from __future__ import annotations
 
 import collections
@@ -9,6 +11,7 @@ import time
 
 import numpy as np
 
+from psvs.health.rolling import RollingCheck
 from psvs.live.dense import DenseFrame, DenseSensor
 from psvs.live.tracker import EdgeTracker, TrackStep
 from psvs.web.runner import BackgroundRunner
@@ -20,6 +23,7 @@ DENSE_LOCK = threading.Lock()
 
 HISTORY = 600          # depth samples kept for the plot
 SHOWN_PAIRS = 400      # pixel pairs sent to the page per frame (evenly subsampled)
+HEALTH_LINES = 5       # the self-check's last lines (a verdict crossing the tolerance) kept for the page
 
 
 class LiveRunner(BackgroundRunner):
@@ -34,36 +38,45 @@ class LiveRunner(BackgroundRunner):
         self._step: TrackStep | None = None
         self._dense: DenseFrame | None = None
         self._history = collections.deque(maxlen=HISTORY)
+        self._health: RollingCheck | None = None
+        self._health_lines = collections.deque(maxlen=HEALTH_LINES)
         self._times = collections.deque(maxlen=30)
         self._error = ""
         self._t0 = time.perf_counter()
 
-    def start(self, source: Source, tracker: EdgeTracker | None, dense: DenseSensor | None = None) -> None:
+    def start(self, source: Source, tracker: EdgeTracker | None, dense: DenseSensor | None = None,
+              health: RollingCheck | None = None) -> None:
         """Stop any running loop and start a new one (one loop at a time, even with concurrent requests),
-        with an edge tracker, a dense sensor, or both."""
+        with an edge tracker, a dense sensor, or both, and the rolling self-check unless ``health`` is None."""
         if tracker is None and dense is None:
             raise ValueError("live mode needs an edge to track or dense depth")
         def prepare():
             frames = source.frames()
             with self._lock:
                 self._reset()
-            return frames, tracker, dense, source.fps
+                self._health = health
+            return frames, tracker, dense, health, source.fps
         self._start_loop(prepare, self._loop, "psvs-live")
 
-    def _loop(self, frames, tracker: EdgeTracker | None, dense: DenseSensor | None, fps: float) -> None:
+    def _loop(self, frames, tracker: EdgeTracker | None, dense: DenseSensor | None, health: RollingCheck | None,
+              fps: float) -> None:
         period = 1.0 / fps if fps > 0 else 0.0
         next_t = time.perf_counter()
-        for frame in frames:
+        for k, frame in enumerate(frames):
             if self._stop.is_set():
                 break
+            t0 = time.perf_counter()
             step = tracker.step(frame) if tracker is not None else None
             dstep = None
             if dense is not None:
                 with DENSE_LOCK:
                     dstep = dense.step(frame)
+            event = None if health is None else health.step(frame, k, time.perf_counter() - t0)   # OpenCV only
             now = time.perf_counter()
             with self._lock:
                 self._frame, self._step, self._dense = frame, step, dstep
+                if event is not None:
+                    self._health_lines.append(event.line)
                 self._times.append(now)
                 self._history.append((now - self._t0, step.depth_mm if step is not None else dstep.median_z_mm))
             if period:   # play files and simulations at their nominal rate
@@ -82,8 +95,9 @@ class LiveRunner(BackgroundRunner):
             step, dstep, times = self._step, self._dense, list(self._times)
             history = [[round(t, 3), None if not np.isfinite(z) else round(z, 3)] for t, z in self._history]
             error = self._error
+            health = None if self._health is None else {**self._health.summary(), "lines": list(self._health_lines)}
         fps = (len(times) - 1) / (times[-1] - times[0]) if len(times) > 1 and times[-1] > times[0] else 0.0
-        out = {"running": self.running, "error": error, "fps": round(fps, 2), "history": history}
+        out = {"running": self.running, "error": error, "fps": round(fps, 2), "history": history, "health": health}
         if step is not None:
             out.update(frame=step.frame, tracked=step.ok, message=step.message,
                        latency_ms=round(step.elapsed_s * 1e3, 3),

@@ -209,6 +209,7 @@ async function livePoll() {
       $("live-dense-figure").hidden = false;
       $("live-dense-map").src = "/api/live/dense.png?t=" + Date.now();
     }
+    showHealth(s.health);
     if (s.frame !== undefined) state.liveFrame = await loadImg("/api/live/frame.png?t=" + Date.now());
     draw();
     if (!s.running) { state.live = false; return; }
@@ -216,9 +217,23 @@ async function livePoll() {
   setTimeout(livePoll, 80);
 }
 
+// The rolling self-check (psvs.health.rolling): its verdict and figure, coloured, and the lines it said.
+function showHealth(h) {
+  const el = $("live-health");
+  if (!h) { el.textContent = "off"; el.className = ""; el.title = ""; $("live-health-lines").textContent = ""; return; }
+  el.dataset.verdict = h.verdict ?? "";
+  el.className = h.verdict === "drifted" ? "bad" : h.verdict === "healthy" ? "good" : "";
+  el.textContent = h.verdict === null ? "waiting for its first tiles"
+    : `${h.verdict}` + (h.row_offset_rms_px === null ? "" : `, rows ${h.row_offset_rms_px.toFixed(2)} px RMS`)
+      + ` (${h.cost_pct.toFixed(1)} % of the time)`;
+  el.title = h.reason;
+  $("live-health-lines").textContent = h.lines.join("\n");
+}
+
 $("live-start").addEventListener("click", async () => {
   try {
-    await api("/api/live/start", { ...matchBody(state.seed), dense: $("live-dense").checked });
+    await api("/api/live/start", { ...matchBody(state.seed), dense: $("live-dense").checked,
+                                   check: $("live-check").checked });
     $("live-dense-figure").hidden = true;          // no map from an earlier run
     $("live-dense-map").removeAttribute("src");
     for (const id of ["live-dense-z", "live-dense-ms"]) { $(id).textContent = "–"; delete $(id).dataset.mm; delete $(id).dataset.frame; }
