@@ -86,3 +86,21 @@ def test_live_logs_the_check_and_says_the_drift(tmp_path, capsys, frames):
     with log.open() as f:
         assert "health" not in f.readline()
     assert np.isfinite(float(rows[-1]["dense_median_z_mm"]))
+
+
+@pytest.mark.parametrize("rig_name, start", [("misaligned_knocked", 0), ("misaligned_knocked", 37), ("default", 5)])
+def test_a_steps_tiles_read_on_bands_are_the_whole_grids(frames, rig_name, start):
+    """A step's tiles, made from only the grid rows they and their chance bands read, are the tiles of the
+    whole frame's grids (the same values to float rounding), on a build and on the paper's geometry."""
+    from psvs.health.rows import frame_tiles
+    rig = load_rig(rig_name)
+    image = frames["misaligned_knocked"][1] if rig_name != "default" else \
+        render(textured(800.0), rig, seed=4, supersample=1).image
+    whole = frame_tiles(image, rig)
+    part = frame_tiles(image, rig, subset=(start, 12))
+    k = [(start + i) % whole.of_tiles for i in range(12)]
+    assert part.of_tiles == whole.of_tiles and len(part.offset_px) == 12
+    np.testing.assert_allclose(part.centre_px, whole.centre_px[k])
+    for name in ("offset_px", "disparity_px", "score", "chance"):
+        np.testing.assert_allclose(getattr(part, name), getattr(whole, name)[k], atol=1e-4, equal_nan=True)
+    assert (part.accepted == whole.accepted[k]).all() and part.accepted.sum() >= 6

@@ -60,7 +60,7 @@ def add_parser(sub) -> None:
     p.add_argument("--quiet", action="store_true", help="print only the summary")
     add_telemetry_arguments(p)
     p.add_argument("--no-check", action="store_true",
-                   help="leave out the rolling self-check (the twins' rows, at most 10 %% of the frame time; "
+                   help="leave out the rolling self-check (the twins' rows, 8 %% of the sensor's time; "
                         "docs/health.md)")
     p.add_argument("--tolerance-px", type=float, default=0.5,
                    help="the self-check's tolerance: the twins' field RMS, px (default 0.5)")

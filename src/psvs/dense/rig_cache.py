@@ -56,6 +56,7 @@ _CODE = ("optics/*.py", "measure/triangulate.py", "dense/depth_table.py", "dense
 
 _READY: weakref.WeakSet = weakref.WeakSet()                    # rectifications with their remaps in place
 _NEAREST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # rect -> {view: (H', W') int32}
+_FILLED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> {view: (map_u, map_v)}
 _TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> DepthTable
 _LOCKS: dict[str, threading.Lock] = {}
 _LOCKS_LOCK = threading.Lock()
@@ -162,6 +163,21 @@ def nearest_inside(rect: Rectification, view: str) -> np.ndarray:
             index = np.arange(h * w, dtype=np.int32).reshape(h, w)
         index.setflags(write=False)
         per_rect[view] = index
+    return per_rect[view]
+
+
+def filled_maps(rect: Rectification, view: str) -> tuple[np.ndarray, np.ndarray]:
+    """A view's cv2.remap maps (float32 (H', W'), read-only) with every pixel outside its field sampling where
+    its :func:`nearest_inside` pixel samples: ``cv2.remap`` through them is the rectified image with the
+    field's edge repeated outside it (:func:`psvs.dense.build.rectified_images`), and a band of their rows
+    resamples only that band of it."""
+    per_rect = _FILLED.setdefault(rect, {})
+    if view not in per_rect:
+        index = nearest_inside(rect, view)
+        out = tuple(np.ascontiguousarray(np.take(m, index)) for m in rect.maps(view))
+        for m in out:
+            m.setflags(write=False)
+        per_rect[view] = out
     return per_rect[view]
 
 

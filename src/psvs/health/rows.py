@@ -25,8 +25,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from psvs.dense.build import rectified_images
-from psvs.dense.rig_cache import rectification
+from psvs.dense.rig_cache import filled_maps, rectification
 from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
@@ -91,14 +90,54 @@ def band_pass(image: np.ndarray) -> np.ndarray:
     return cv2.GaussianBlur(a, (0, 0), BAND_SIGMAS_PX[0]) - cv2.GaussianBlur(a, (0, 0), BAND_SIGMAS_PX[1])
 
 
-def grids(image, rig: Rig, near_mm: float, far_mm: float):
-    """(left grid, right grid, disparities (lo, hi) px, rectification or None) of a complex image (H, W)."""
-    img = flat_field(np.asarray(image), rig.camera).astype(np.float32)
+def _geometry(shape: tuple[int, int], rig: Rig, near_mm: float, far_mm: float):
+    """(grid shape (H', W'), disparities (lo, hi) px, rectification or None) of complex images of ``shape``."""
     rect = rectification(rig, near_mm, far_mm)
     if rect is None:
-        return img, img, disparity_range(rig, near_mm, far_mm, width_px=img.shape[1]), None
-    a, b = rectified_images(img, rect)
-    return a, b, disparity_range(rig, near_mm, far_mm, rect, width_px=a.shape[1]), rect
+        return shape, disparity_range(rig, near_mm, far_mm, width_px=shape[1]), None
+    grid = (rect.size_px[1], rect.size_px[0])
+    return grid, disparity_range(rig, near_mm, far_mm, rect, width_px=grid[1]), rect
+
+
+def _null_rows(y: int, rows: list[int], size: int) -> list[int]:
+    """The first rows of the :data:`NULLS` bands a tile at row ``y`` is searched in for its chance peak: tile
+    rows at least two tiles away, spread over the grid."""
+    far = [yy for yy in rows if abs(yy - y) >= 2 * size]
+    return far[:: max(1, len(far) // NULLS)][:NULLS]
+
+
+def _band_passed(image, rig: Rig, rect, bands: list[tuple[int, int]], shape: tuple[int, int]):
+    """The left and right grids (H', W') of a complex image, band-passed (:func:`band_pass`), made only on
+    the grids' rows ``bands`` [(r0, r1), ...] (zero elsewhere; None: every row). Each band is resampled and
+    filtered with the filter's reach of rows either side, so its rows are the whole grid's."""
+    img = flat_field(np.asarray(image), rig.camera).astype(np.float32)
+    if bands is None:
+        bands = [(0, shape[0])]
+    pad = int(math.ceil(4 * BAND_SIGMAS_PX[1])) + 1       # OpenCV's kernel reaches 4 sigma (float images)
+    out = []
+    for view in ("left", "right"):
+        grid = np.zeros(shape, np.float32)
+        for r0, r1 in bands:
+            p0, p1 = max(0, r0 - pad), min(shape[0], r1 + pad)
+            if rect is None:
+                band = img[p0:p1]
+            else:
+                mu, mv = filled_maps(rect, view)
+                band = cv2.remap(img, mu[p0:p1], mv[p0:p1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+            grid[r0:r1] = band_pass(band)[r0 - p0:r1 - p0]
+        out.append(grid)
+    return out
+
+
+def _merged(spans: list[tuple[int, int]]) -> list[tuple[int, int]]:
+    """Row spans [(r0, r1), ...] merged where they overlap or touch, in order."""
+    out: list[list[int]] = []
+    for r0, r1 in sorted(spans):
+        if out and r0 <= out[-1][1]:
+            out[-1][1] = max(out[-1][1], r1)
+        else:
+            out.append([r0, r1])
+    return [(a, b) for a, b in out]
 
 
 def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
@@ -106,18 +145,21 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
     """Every tile's twin row offset in one complex image (H, W) through ``rig``, searched ``reach_deg`` (as
     rows, :func:`reach_px`) either side of its row (module docstring). ``subset`` = (start, count): only
     those of the frame's tiles (row by row, left to right, counted modulo their number ``of_tiles``), as a
-    rolling check reads a few per frame."""
-    a, b, (lo, hi), rect = grids(image, rig, near_mm, far_mm)
-    a, b = band_pass(a), band_pass(b)
+    rolling check reads a few per frame; only the rows of the grids they and their chance bands read are
+    resampled then (the same values as the whole grids')."""
+    (h, w), (lo, hi), rect = _geometry(np.shape(image)[:2], rig, near_mm, far_mm)
     lo, hi = int(math.floor(lo)), int(math.ceil(hi))
-    h, w = a.shape
     size, reach = tile_px((h, w)), reach_px(rig, reach_deg)
     step = size // 2                                 # tiles overlap by half: twice the evidence per axis
     rows = list(range(reach, h - size - reach + 1, step))
     cols = list(range(max(lo, 0) + 2, w - size + 1, step))     # near the left edge, the nearer twins only
     at = [(x, y) for y in rows for x in cols]
+    bands = None
     if subset is not None and at:
         at = [at[k % len(at)] for k in range(subset[0], subset[0] + min(subset[1], len(at)))]
+        read = {yy for _, y in at for yy in [y, *_null_rows(y, rows, size)]}
+        bands = _merged([(y - reach, y + size + reach) for y in read])
+    a, b = _band_passed(image, rig, rect, bands, (h, w))
     out = [_tile(a, b, xy, (size, reach), (lo, hi), rows) for xy in at]
     arr = np.array(out, dtype=float).reshape(-1, 8)
     accepted = (np.isfinite(arr[:, 2]) & (arr[:, 4] >= arr[:, 5] + NULL_MARGIN) & (arr[:, 6] >= MIN_TEXTURE_DN))
@@ -141,8 +183,7 @@ def _tile(a, b, at, size_reach, span, rows) -> tuple:
     r = cv2.matchTemplate(search, t, cv2.TM_CCOEFF_NORMED)
     i, j = np.unravel_index(int(np.argmax(r)), r.shape)
     chance = -1.0
-    far = [yy for yy in rows if abs(yy - y) >= 2 * size]
-    for yy in far[:: max(1, len(far) // NULLS)][:NULLS]:
+    for yy in _null_rows(y, rows, size):
         chance = max(chance, float(cv2.matchTemplate(b[yy - reach:yy + size + reach, x0:x + size - lo], t,
                                                      cv2.TM_CCOEFF_NORMED).max()))
     edge = int(i == 0 or i == r.shape[0] - 1)
