@@ -148,7 +148,7 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
         cov[np.ix_(ROW_PARAMS, ROW_PARAMS)] = c
         steps = [n_rows]
         if tares:
-            _check_tares_flat(x, rig, pairs, distances)
+            pairs = _on_tare_planes(x, rig, pairs, distances)
             x, c, n_depth = _fit(_Stage(rig, pairs, x, DEPTH_PARAMS, distances))
             cov[np.ix_(DEPTH_PARAMS, DEPTH_PARAMS)] = c
             steps.append(n_depth)
@@ -293,13 +293,16 @@ def _fit(stage: _Stage):
     return x, (V * var) @ V.T * np.outer(d, d), it
 
 
-def _check_tares_flat(x, old: Rig, pairs: _Pairs, distances) -> None:
-    """MeasurementError when a tare's points, through the rig of the change ``x``, are not on a plane."""
+def _on_tare_planes(x, old: Rig, pairs: _Pairs, distances) -> _Pairs:
+    """``pairs`` less the tares' points off their planes (through the rig of the change ``x``: tiles matched
+    wrongly, something before the wall); MeasurementError when a tare is not flat (:func:`check_flat`)."""
     rig, pts, res = _points(x, old, pairs)
     noise = pairs.sigma_px / math.sqrt(OVERLAP) * math.sqrt(2)
+    keep = np.ones(len(pairs.source), bool)
     for k in range(len(distances)):
-        at = (pairs.source == k) & np.all(np.isfinite(res), axis=1)
-        check_flat(pts[at], rig, noise, f"tare {k + 1}" if len(distances) > 1 else "the tare surface")
+        at = np.flatnonzero((pairs.source == k) & np.all(np.isfinite(res), axis=1))
+        keep[at] = check_flat(pts[at], rig, noise, f"tare {k + 1}" if len(distances) > 1 else "the tare surface")
+    return _Pairs(pairs.left[keep], pairs.right[keep], pairs.source[keep], pairs.sigma_px)
 
 
 def _tares(pairs: _Pairs, old: Rig, new: Rig, distances) -> tuple[Tare, ...]:

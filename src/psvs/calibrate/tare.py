@@ -21,6 +21,12 @@ from psvs.optics.rig import Rig
 #: A tare surface whose points scatter about their best plane by more than this (px of disparity, RMS) and
 #: 3 times the tiles' noise is not flat.
 TARE_FLAT_PX = 0.5
+#: The share of a tare's points that must lie on its plane (the rest: tiles matched wrongly, a bolt, a
+#: cable before the wall); fewer, and the surface is not one plane.
+TARE_ON_PLANE = 0.8
+#: A point lies off a tare's plane when farther from it than this many robust sigmas of them all (and than
+#: TARE_FLAT_PX).
+OFF_PLANE_SIGMAS = 3.0
 
 
 @dataclass(frozen=True)
@@ -55,10 +61,23 @@ def _off_plane_mm(points_mm: np.ndarray, coef: np.ndarray) -> np.ndarray:
     return p[:, 2] - coef[0] - coef[1] * p[:, 0] - coef[2] * p[:, 1]
 
 
-def _flat_px(points_mm: np.ndarray, rig: Rig) -> tuple[np.ndarray, float, float]:
-    """(the best plane's (c, p, q), the points' (n, 3) RMS about it in mm and in px of disparity)."""
-    coef, rms_mm = tare_plane(points_mm)
-    return coef, rms_mm, rms_mm * float(np.median(disparity_per_mm(rig, points_mm[:, 2])))
+def _flat_px(points_mm: np.ndarray, rig: Rig) -> tuple[np.ndarray, float, float, np.ndarray]:
+    """(the plane (c, p, q) best through the points (n, 3) on it, their RMS about it in mm and in px of
+    disparity, which points (n,) bool lie on it): least squares re-fitted without the points off it
+    (:data:`OFF_PLANE_SIGMAS` robust sigmas, MAD-based) until that set settles."""
+    points_mm = np.asarray(points_mm, dtype=float)
+    per_mm = disparity_per_mm(rig, points_mm[:, 2])
+    on = np.ones(len(points_mm), bool)
+    for _ in range(10):
+        coef, _ = tare_plane(points_mm[on])
+        r = _off_plane_mm(points_mm, coef) * per_mm
+        sigma = 1.4826 * float(np.median(np.abs(r[on] - np.median(r[on]))))
+        now = np.abs(r) <= max(OFF_PLANE_SIGMAS * sigma, TARE_FLAT_PX)
+        if now.sum() < 3 or (now == on).all():
+            break
+        on = now
+    coef, rms_mm = tare_plane(points_mm[on])
+    return coef, rms_mm, rms_mm * float(np.median(per_mm[on])), on
 
 
 def disparity_per_mm(rig: Rig, z_mm: np.ndarray) -> np.ndarray:
@@ -75,20 +94,22 @@ def depth_residuals_px(points_mm: np.ndarray, distance_mm: float, rig: Rig) -> n
     return _off_plane_mm(points_mm, coef) * disparity_per_mm(rig, points_mm[:, 2])
 
 
-def check_flat(points_mm: np.ndarray, rig: Rig, noise_px: float, which: str) -> float:
-    """The points' (n, 3) RMS about their best plane in px of disparity; MeasurementError when over
+def check_flat(points_mm: np.ndarray, rig: Rig, noise_px: float, which: str) -> np.ndarray:
+    """Which of the points (n, 3) lie on their best plane (:func:`_flat_px`), (n,) bool; MeasurementError
+    when fewer than :data:`TARE_ON_PLANE` of them lie on it or they scatter about it by more than
     :data:`TARE_FLAT_PX` and 3 times the tiles' ``noise_px``: the surface is not flat."""
-    _, rms_mm, flat_px = _flat_px(points_mm, rig)
-    if not flat_px <= max(TARE_FLAT_PX, 3 * noise_px):
-        raise MeasurementError(f"{which} is not flat: its points scatter {rms_mm:.2f} mm ({flat_px:.2f} px of "
-                               f"disparity) about their best plane; a tare needs a flat textured surface facing "
-                               f"the rig (a wall, a plate)")
-    return flat_px
+    _, rms_mm, flat_px, on = _flat_px(points_mm, rig)
+    if not (flat_px <= max(TARE_FLAT_PX, 3 * noise_px) and on.mean() >= TARE_ON_PLANE):
+        raise MeasurementError(f"{which} is not flat: {100 * on.mean():.0f} % of its points lie on one plane (a tare "
+                               f"needs {100 * TARE_ON_PLANE:.0f} %), scattering {rms_mm:.2f} mm ({flat_px:.2f} px "
+                               f"of disparity) about it; a tare needs a flat textured surface facing the rig (a "
+                               f"wall, a plate)")
+    return on
 
 
 def tare_record(before_mm: np.ndarray, after_mm: np.ndarray, distance_mm: float, rig: Rig) -> Tare:
     """A :class:`Tare` from the tare's points (n, 3) through the old calibration and the refitted ``rig``."""
-    cb, _ = tare_plane(before_mm)
-    ca, _, flat_px = _flat_px(after_mm, rig)
+    cb = _flat_px(before_mm, rig)[0]
+    ca, _, flat_px, _ = _flat_px(after_mm, rig)
     slope = (math.degrees(math.atan(ca[1])), math.degrees(math.atan(ca[2])))
     return Tare(float(distance_mm), float(cb[0]), float(ca[0]), slope, flat_px, len(after_mm))
