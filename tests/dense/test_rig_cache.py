@@ -204,3 +204,24 @@ def test_where_the_folder_is(monkeypatch, tmp_path):
     assert cache_dir() == tmp_path / "home" / ".cache" / "psvs"
     monkeypatch.delenv("XDG_CACHE_HOME")
     assert cache_dir() == tmp_path / "home" / ".cache" / "psvs"
+
+
+def test_the_filled_maps_resample_as_the_remap_and_its_fill_in(folder):
+    """filled_maps: one remap through them is the remap of a view followed by its nearest-inside fill-in
+    (rectified_images before them), to float32 rounding (OpenCV's vector and scalar paths), on a build whose
+    views' fields leave the grid's corners outside; and a band of their rows is that band of the whole grid."""
+    import cv2
+
+    from psvs.dense.build import rectified_images
+    from psvs.dense.rig_cache import filled_maps
+    rig = load_rig("misaligned")
+    rect = rectification(rig, NEAR_MM, FAR_MM)
+    img = np.random.default_rng(0).uniform(0, 255, rig.camera.image_size_px[::-1]).astype(np.float32)
+    grids = rectified_images(img, rect)
+    for view, grid in zip(VIEWS, grids, strict=True):
+        index = nearest_inside(rect, view)
+        assert (index != np.arange(index.size).reshape(index.shape)).any()      # some pixels are filled in
+        np.testing.assert_allclose(grid, np.take(rect.remap(img, view), index), rtol=0, atol=1e-3)
+        mu, mv = filled_maps(rect, view)
+        band = cv2.remap(img, mu[100:140], mv[100:140], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+        np.testing.assert_allclose(band, grid[100:140], rtol=0, atol=1e-3)

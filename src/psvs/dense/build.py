@@ -16,13 +16,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from psvs.dense.cloud import Cloud, disparity_cloud
 from psvs.dense.depth_table import exact_points, table_points
 from psvs.dense.disparity import DenseResult, dense_disparity
 from psvs.dense.params import DEFAULT, DenseParams
-from psvs.dense.rig_cache import depth_table, nearest_inside, rectification
+from psvs.dense.rig_cache import depth_table, filled_maps, rectification
 from psvs.dense.trust import EchoTrust, echo_trust
 from psvs.dense.workspace import Workspace
 from psvs.measure.triangulate import default_model
@@ -47,13 +48,11 @@ class RigDense:
 
 def rectified_images(image, rect: Rectification) -> tuple[np.ndarray, np.ndarray]:
     """The complex image (H, W) resampled on the left and on the right view's rectified grid, float32
-    (H', W'); outside a view's field each pixel repeats the nearest inside one (no artificial edge)."""
+    (H', W'); outside a view's field each pixel repeats the nearest inside one (no artificial edge): one
+    remap each through :func:`psvs.dense.rig_cache.filled_maps`."""
     img = np.asarray(image, dtype=np.float32)
-    out = []
-    for view in ("left", "right"):
-        a = rect.remap(img, view)
-        out.append(np.take(a, nearest_inside(rect, view)))
-    return out[0], out[1]
+    return tuple(cv2.remap(img, *filled_maps(rect, view), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+                 for view in ("left", "right"))
 
 
 def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, *,
