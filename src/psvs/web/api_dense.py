@@ -1,5 +1,6 @@
 """Route of dense disparity: every pixel of the current image's left view matched in the right view
-(docs/dense.md), shown as a colour map with its median disparity and depth, optionally with the two views
+(docs/dense.md), shown as a colour map with its median disparity and depth, the point cloud of the pixels the
+echo supports beyond chance (psvs.dense.trust: what the 3-D view draws), optionally with the two views
 separated."""
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import numpy as np
 from fastapi import APIRouter
 
 from psvs.dense import DEFAULT, FAST, separate_views
-from psvs.dense.build import dense_on_rig, rig_cloud
+from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
 from psvs.imaging.grey import to_grey8
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale as camera_pixel_scale
@@ -18,22 +19,41 @@ from psvs.web.session import SessionDep
 
 router = APIRouter(prefix="/api")
 
+#: Most points of the cloud sent to the page (evenly subsampled): what a WebGL scatter turns smoothly.
+CLOUD_POINTS = 20000
+
+
+def cloud_for_page(dense_res, rig, trusted) -> dict:
+    """The trusted pixels' points (frame C, mm, rounded to 0.01) and grey levels, at most CLOUD_POINTS."""
+    cloud = rig_cloud(dense_res, rig, mask=trusted)
+    k = np.unique(np.linspace(0, len(cloud.points_mm) - 1, min(CLOUD_POINTS, len(cloud.points_mm))).astype(int))
+    u, v = cloud.pixels[k].T.astype(int) if len(k) else (np.zeros(0, int), np.zeros(0, int))
+    grey = np.asarray(dense_res.left_image)[v, u]
+    return {"points_mm": np.round(cloud.points_mm[k], 2).tolist(), "grey": np.round(grey, 1).tolist(),
+            "of_points": len(cloud.points_mm)}
+
 
 @router.post("/dense")
 def dense(body: DenseBody, session: SessionDep):
-    """Dense disparity of the current image, its median disparity and depth, and optionally the separated
-    views, as PNG data URLs. The library's dense kernels run under DENSE_LOCK (one at a time, with live mode's)."""
+    """Dense disparity of the current image, the share of its pixels the echo supports beyond chance
+    (``trusted_pct``), their median disparity and depth (None when none is) and point cloud, and optionally
+    the separated views, as PNG data URLs. The library's dense kernels run under DENSE_LOCK (one at a time,
+    with live mode's)."""
     grey, rig = session.still().grey, session.rig
     with DENSE_LOCK:
         dense_res = dense_on_rig(grey, rig, body.near_mm, body.far_mm, params=FAST if body.fast else DEFAULT)
     res = dense_res.result
     lo, hi = res.searched_px
     d = res.disparity_left       # on a build: on the left view's rectified grid
+    with DENSE_LOCK:
+        trusted = rig_trust(dense_res).trusted_left
     z = rig_cloud(dense_res, rig).depth_mm
+    seen = trusted & np.isfinite(d)          # the medians of what the echo supports: never a noisy median
     out = {"disparity_png": data_url(colour_disparity(d, lo, hi)), "range_px": [lo, hi],
-           "answered_pct": 100.0 * float(np.mean(np.isfinite(d))),
-           "median_disparity_px": float(np.nanmedian(d)) if np.isfinite(d).any() else None,
-           "median_z_mm": float(np.nanmedian(z)) if np.isfinite(z).any() else None}
+           "answered_pct": 100.0 * float(np.mean(np.isfinite(d))), "trusted_pct": 100.0 * float(np.mean(seen)),
+           "median_disparity_px": float(np.median(d[seen])) if seen.any() else None,
+           "median_z_mm": float(np.nanmedian(z[seen])) if np.isfinite(z[seen]).any() else None,
+           "cloud": cloud_for_page(dense_res, rig, seen)}
     if body.views and np.isfinite(d).any():
         with DENSE_LOCK:
             k = camera_pixel_scale(rig.camera) if dense_res.rect is None else None   # the prior in scene terms

@@ -5,7 +5,8 @@ capture assistant for calibration views.
 :func:`create_app` builds one app from a source and a rig. Its routes are grouped by concern in routers
 (``api_image``: info, the image, previews, uploads; ``api_match``: matching and exports; ``api_dense``: dense
 disparity; ``api_live``: live mode; ``api_capture``: the capture assistant; ``api_adjust``: the alignment
-guide of a calibrated build) that read the app's :class:`~psvs.web.session.Session` through FastAPI's
+guide of a calibrated build; ``api_rig3d``: the rig's 3-D layout and the plotting library that draws it)
+that read the app's :class:`~psvs.web.session.Session` through FastAPI's
 dependency injection, so each app has its own image and results. Everything the page needs comes from these
 routes and the files in ``static/``; no route takes a file path, so nothing else on the machine can be read
 (the capture's card and folder come from the command line; files the page sends arrive as text in the body).
@@ -26,7 +27,7 @@ from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from psvs.optics.rig import Rig
-from psvs.web import api_adjust, api_capture, api_dense, api_image, api_live, api_match
+from psvs.web import api_adjust, api_capture, api_dense, api_image, api_live, api_match, api_rig3d
 from psvs.web.api_image import MAX_BODY_BYTES
 from psvs.web.capture_runner import CaptureRunner, CaptureSetup
 from psvs.web.guard import Access, Guard
@@ -38,7 +39,7 @@ __all__ = ["MAX_BODY_BYTES", "ROUTERS", "STATIC", "create_app"]
 
 STATIC = Path(__file__).resolve().parent / "static"
 #: The routers of the API, one per concern.
-ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_adjust)
+ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_adjust, api_rig3d)
 #: Longest ``detail`` of a 4xx answer (characters).
 MAX_DETAIL = 300
 

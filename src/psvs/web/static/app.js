@@ -183,7 +183,12 @@ $("dense").addEventListener("click", async () => {
     $("dense-left").src = res.left_png || ""; $("dense-right").src = res.right_png || "";
     $("dense-disparity").textContent = fmt(res.median_disparity_px, 1, "px");
     $("dense-depth").textContent = fmt(res.median_z_mm, 1, "mm");
-    setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered`, true);
+    $("dense-depth").dataset.mm = res.median_z_mm ?? "";
+    await drawCloud3d($("dense-cloud"), res.cloud);
+    if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, ` +
+      `${res.trusted_pct.toFixed(0)} % supported beyond chance (the medians and the cloud are theirs)`, true);
+    else setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, none supported ` +
+      "beyond chance: no depth (too little texture in the working range?)");
   } catch (e) { setStatus(e.message); }
 });
 
@@ -473,6 +478,7 @@ async function adjustInit() {
     else $("capture-folder").textContent = "Start psvs serve with --target TARGET.toml --capture-to DIR to capture " +
       "calibration views here.";
     await adjustInit();
+    await rig3dInit();
     await loadImage();
     await preview();
     document.body.dataset.ready = "1";

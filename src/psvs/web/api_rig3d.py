@@ -1,0 +1,41 @@
+"""Routes of the rig's 3-D view: the layout of the served rig (:func:`psvs.optics.layout3d.rig_layout`) as
+JSON, and plotly.js, the WebGL plotting library the page draws it with, served from the installed ``plotly``
+package (nothing is fetched from the internet: the page works offline)."""
+from __future__ import annotations
+
+import importlib.resources
+
+from fastapi import APIRouter, Query
+from fastapi.responses import FileResponse, JSONResponse
+
+from psvs.io.jsonsafe import json_safe
+from psvs.optics.layout3d import rig_layout
+from psvs.web.bodies import MAX_RANGE_MM
+from psvs.web.session import SessionDep
+
+router = APIRouter()
+
+#: plotly.js as the ``plotly`` wheel ships it.
+PLOTLY_JS = ("plotly", "package_data/plotly.min.js")
+
+
+@router.get("/api/rig3d")
+def rig3d(session: SessionDep, near_mm: float = Query(400.0, gt=0, le=MAX_RANGE_MM),
+          far_mm: float = Query(1200.0, gt=0, le=MAX_RANGE_MM)):
+    """The served rig's layout over the working range near_mm..far_mm (mm, frame C; NaN as null)."""
+    if not near_mm < far_mm:
+        raise ValueError(f"near_mm must be < far_mm, got {near_mm:g} and {far_mm:g}")
+    return json_safe(rig_layout(session.rig, near_mm, far_mm))
+
+
+@router.get("/vendor/plotly.min.js", include_in_schema=False)
+def plotly_js():
+    """plotly.js from the installed package (cached by the browser for a day); 404 when it is missing."""
+    try:
+        path = importlib.resources.files(PLOTLY_JS[0]).joinpath(PLOTLY_JS[1])
+    except ModuleNotFoundError:
+        path = None
+    if path is None or not path.is_file():
+        return JSONResponse({"detail": "plotly is not installed: pip install plotly (the 3-D views need it)"},
+                            status_code=404)
+    return FileResponse(str(path), media_type="text/javascript", headers={"Cache-Control": "max-age=86400"})

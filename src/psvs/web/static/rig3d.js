@@ -1,0 +1,117 @@
+"use strict";
+// The rig in 3-D (GET /api/rig3d, psvs.optics.layout3d), drawn with plotly.js (served by psvs from the
+// installed plotly package). Plot axes: X right, Z (depth) away, up = -Y (image rows grow downward).
+
+const RIG3D_COLOURS = { left: "#d32f2f", right: "#00838f", glass: "#64b5f6", camera: "#212121" };
+
+function rig3dPoint(p) { return [p[0], p[2], -p[1]]; }
+
+// Polylines (arrays of points) as one line trace, NaN-separated.
+function rig3dLines(polylines, name, colour, width, extra = {}) {
+  const x = [], y = [], z = [];
+  for (const line of polylines) {
+    for (const p of line) { const q = rig3dPoint(p); x.push(q[0]); y.push(q[1]); z.push(q[2]); }
+    x.push(null); y.push(null); z.push(null);
+  }
+  return { type: "scatter3d", mode: "lines", name, x, y, z, line: { color: colour, width }, hoverinfo: "name",
+           ...extra };
+}
+
+function rig3dGlass(g) {
+  const c = g.corners_mm.map(rig3dPoint);
+  return { type: "mesh3d", name: `${g.label} (${g.sized})`, x: c.map((p) => p[0]), y: c.map((p) => p[1]),
+           z: c.map((p) => p[2]), i: [0, 0], j: [1, 2], k: [2, 3], color: RIG3D_COLOURS.glass, opacity: 0.45,
+           hoverinfo: "name", showlegend: g.name === "M1" };
+}
+
+function rig3dMarkers(points, names, colour, symbol) {
+  const q = points.map(rig3dPoint);
+  return { type: "scatter3d", mode: "markers+text", x: q.map((p) => p[0]), y: q.map((p) => p[1]),
+           z: q.map((p) => p[2]), text: names, textposition: "top center", name: names.join(", "),
+           marker: { size: 4, color: colour, symbol }, hoverinfo: "text", showlegend: false };
+}
+
+// Draw the layout into the element `el`; returns plotly's promise.
+function drawRig3d(el, layout) {
+  const traces = layout.glasses.map(rig3dGlass);
+  traces.push(rig3dLines(layout.glasses.map((g) => [...g.corners_mm, g.corners_mm[0]]), "glass edges",
+                         "#1565c0", 2, { showlegend: false }));
+  for (const view of ["left", "right"]) {
+    traces.push(rig3dLines(layout.rays[view], `${view} view's field rays`, RIG3D_COLOURS[view], 2));
+    const fields = ["near", "far"].map((k) => layout.field[view][k]).filter((f) => f);
+    traces.push(rig3dLines(fields.map((f) => [...f, f[0]]), `${view} view's field at ` +
+                           `${layout.range_mm[0]} and ${layout.range_mm[1]} mm`, RIG3D_COLOURS[view], 4,
+                           { line: { color: RIG3D_COLOURS[view], width: 4, dash: "dash" } }));
+  }
+  traces.push(rig3dMarkers([layout.camera, layout.virtual.left, layout.virtual.right],
+                           ["camera O", "virtual left O1", "virtual right O2"], RIG3D_COLOURS.camera, "diamond"));
+  const plotLayout = {
+    margin: { l: 0, r: 0, t: 0, b: 0 }, showlegend: true,
+    legend: { orientation: "h", x: 0, y: 0, font: { size: 10 }, bgcolor: "rgba(255,255,255,0.7)" },
+    scene: { xaxis: { title: { text: "X (mm)" } }, yaxis: { title: { text: "Z (mm)" } },
+             zaxis: { title: { text: "-Y (mm)" } }, camera: { eye: { x: 0.5, y: -1.2, z: 1.5 } } },
+  };
+  return Plotly.newPlot(el, traces, plotLayout, { displaylogo: false, responsive: true })
+    .then(() => rig3dExtent(el, layout, "glasses"));
+}
+
+// Show the glasses (the box round the camera, the glasses and the virtual cameras, 20 mm spare) or the whole
+// working range (every ray to the far depth), at true scale either way.
+function rig3dExtent(el, layout, which) {
+  if (which === "range") {
+    return Plotly.relayout(el, { "scene.aspectmode": "data", "scene.xaxis.autorange": true,
+                                 "scene.yaxis.autorange": true, "scene.zaxis.autorange": true });
+  }
+  const pts = [layout.camera, layout.virtual.left, layout.virtual.right,
+               ...layout.glasses.flatMap((g) => g.corners_mm)].map(rig3dPoint);
+  const ranges = [0, 1, 2].map((k) => [Math.min(...pts.map((p) => p[k])) - 20, Math.max(...pts.map((p) => p[k])) + 20]);
+  const span = ranges.map((r) => r[1] - r[0]), top = Math.max(...span);
+  return Plotly.relayout(el, {
+    "scene.aspectmode": "manual", "scene.xaxis.range": ranges[0], "scene.yaxis.range": ranges[1],
+    "scene.zaxis.range": ranges[2],
+    "scene.aspectratio": { x: span[0] / top, y: span[1] / top, z: span[2] / top },
+  });
+}
+
+async function rig3dInit() {
+  const el = document.getElementById("rig3d");
+  if (typeof Plotly === "undefined") {
+    document.getElementById("rig3d-note").textContent = "3-D views need the plotly package (pip install plotly).";
+    return;
+  }
+  const r = await fetch("/api/rig3d");
+  const layout = await r.json();
+  if (!r.ok) throw new Error(layout.detail || `${r.status}`);
+  await drawRig3d(el, layout);
+  document.getElementById("rig3d-extent").onchange = (e) => rig3dExtent(el, layout, e.target.value);
+  const sized = layout.glasses.some((g) => g.sized !== "rig file");
+  document.getElementById("rig3d-note").textContent =
+    "Drag to turn, scroll to zoom. The glasses " + (sized ? "are drawn at the camera field's footprint (the rig " +
+    "file gives no sizes: psvs design sizes them)" : "as the rig file sizes them") + "; rays traced through the " +
+    "exact optics, M1's plate refraction included.";
+  el.dataset.ready = "1";
+}
+
+// A dense result's point cloud (the trusted pixels' points, frame C, mm), coloured by depth with a colour bar,
+// with the camera's centre O; an empty cloud clears the view and says so.
+function drawCloud3d(el, cloud) {
+  el.hidden = false;
+  if (typeof Plotly === "undefined") return Promise.resolve();
+  const q = cloud.points_mm.map(rig3dPoint);
+  const note = document.getElementById("dense-cloud-note");
+  note.textContent = q.length ? `${cloud.of_points} points supported beyond chance` +
+    (q.length < cloud.of_points ? `, ${q.length} drawn` : "") + "; drag to turn, scroll to zoom." :
+    "no point supported beyond chance: nothing to draw";
+  const traces = [
+    { type: "scatter3d", mode: "markers", name: "dense points", x: q.map((p) => p[0]), y: q.map((p) => p[1]),
+      z: q.map((p) => p[2]), marker: { size: 1.5, color: q.map((p) => p[1]), colorscale: "Viridis",
+      colorbar: { title: { text: "Z (mm)" }, thickness: 12 } }, hovertemplate: "Z %{y:.1f} mm<extra></extra>" },
+    rig3dMarkers([[0, 0, 0]], ["camera O"], RIG3D_COLOURS.camera, "diamond"),
+  ];
+  const layout = { margin: { l: 0, r: 0, t: 0, b: 0 }, showlegend: false,
+                   scene: { aspectmode: "data", xaxis: { title: { text: "X (mm)" } },
+                            yaxis: { title: { text: "Z (mm)" } }, zaxis: { title: { text: "-Y (mm)" } },
+                            camera: { eye: { x: 0.6, y: -1.6, z: 0.8 } } } };
+  return Plotly.react(el, traces, layout, { displaylogo: false, responsive: true })
+    .then(() => { el.dataset.points = String(q.length); });
+}
