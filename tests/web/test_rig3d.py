@@ -160,6 +160,12 @@ def test_the_dense_cloud_is_the_trusted_pixels_at_their_depth(textured_app):
     truth = r.truth.depth_left_mm[vi[inside], ui[inside]]
     good = np.abs(pts[ok][inside][:, 2] / truth - 1) <= 0.02
     assert np.mean(good) >= 0.9, np.mean(good)
+    g = res["pointer"]                # the pointer's grid: the trusted pixels' depth, at their truth
+    z = np.array(g["z_mm"], dtype=float)
+    assert g["shape"] == [480, 640] and z.shape == tuple(-(-n // g["step"]) for n in (480, 640))
+    truth = r.truth.depth_left_mm[::g["step"], ::g["step"]]
+    seen = np.isfinite(z) & np.isfinite(truth)
+    assert seen.mean() > 0.3 and np.mean(np.abs(z[seen] / truth[seen] - 1) <= 0.02) >= 0.9
     blank = create_app(image_source("blank", np.full((480, 640), 90, np.uint8)), default_rig())
     with local_client(blank) as c:
         res = c.post("/api/dense", json={"fast": True}).json()
@@ -181,5 +187,12 @@ def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
         assert img.std() > 5
         assert "supported beyond chance" in page.inner_text("#dense-cloud-note")
         assert 550 < float(page.eval_on_selector("#dense-depth", "e => e.dataset.mm")) < 1150
+        # under the pointer: a pixel on the photo panel (the textured scene's truth there, within 2 %)
+        u, v = 250, 250
+        truth = textured_app[1].truth.depth_left_mm[v, u]
+        box = page.locator("#dense-map").bounding_box()
+        page.mouse.move(box["x"] + (u + 0.5) * box["width"] / 640, box["y"] + (v + 0.5) * box["height"] / 480)
+        z = page.eval_on_selector("#dense-pointer", "e => e.dataset.mm")
+        assert z and abs(float(z) / truth - 1) <= 0.02, (z, truth, page.inner_text("#dense-pointer"))
         shot(page, "web_dense_cloud.png")
     assert errors == [], errors

@@ -10,6 +10,7 @@ from fastapi import APIRouter
 from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
 from psvs.imaging.grey import to_grey8
+from psvs.io.jsonsafe import json_safe
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale as camera_pixel_scale
 from psvs.web.bodies import DenseBody
@@ -21,6 +22,19 @@ router = APIRouter(prefix="/api")
 
 #: Most points of the cloud sent to the page (evenly subsampled): what a WebGL scatter turns smoothly.
 CLOUD_POINTS = 20000
+#: Most cells of the grid of disparity and depth the page reads under the pointer.
+POINTER_CELLS = 40000
+
+
+def pointer_grid(d: np.ndarray, z: np.ndarray, seen: np.ndarray) -> dict:
+    """Every ``step``-th pixel's disparity (px, 0.01) and depth (mm, 0.1) of the map (H', W'), null where the
+    echo does not support it beyond chance: what the page shows under the pointer. ``step`` keeps the grid
+    within POINTER_CELLS."""
+    step = max(1, int(np.ceil(np.sqrt(d.size / POINTER_CELLS))))
+    ok = seen[::step, ::step] & np.isfinite(z[::step, ::step])
+    return {"step": step, "shape": list(d.shape),
+            "disparity_px": np.where(ok, np.round(d[::step, ::step], 2), np.nan),
+            "z_mm": np.where(ok, np.round(z[::step, ::step], 1), np.nan)}
 
 
 def cloud_for_page(dense_res, rig, trusted) -> dict:
@@ -53,7 +67,7 @@ def dense(body: DenseBody, session: SessionDep):
            "answered_pct": 100.0 * float(np.mean(np.isfinite(d))), "trusted_pct": 100.0 * float(np.mean(seen)),
            "median_disparity_px": float(np.median(d[seen])) if seen.any() else None,
            "median_z_mm": float(np.nanmedian(z[seen])) if np.isfinite(z[seen]).any() else None,
-           "cloud": cloud_for_page(dense_res, rig, seen)}
+           "cloud": cloud_for_page(dense_res, rig, seen), "pointer": json_safe(pointer_grid(d, z, seen))}
     if body.views and np.isfinite(d).any():
         with DENSE_LOCK:
             k = camera_pixel_scale(rig.camera) if dense_res.rect is None else None   # the prior in scene terms

@@ -184,12 +184,26 @@ $("dense").addEventListener("click", async () => {
     $("dense-disparity").textContent = fmt(res.median_disparity_px, 1, "px");
     $("dense-depth").textContent = fmt(res.median_z_mm, 1, "mm");
     $("dense-depth").dataset.mm = res.median_z_mm ?? "";
+    state.densePointer = res.pointer;
     await drawCloud3d($("dense-cloud"), res.cloud);
     if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, ` +
       `${res.trusted_pct.toFixed(0)} % supported beyond chance (the medians and the cloud are theirs)`, true);
     else setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, none supported ` +
       "beyond chance: no depth (too little texture in the working range?)");
   } catch (e) { setStatus(e.message); }
+});
+
+// The disparity and depth under the pointer on the dense map (its grid's nearest sampled cell).
+$("dense-map").addEventListener("mousemove", (ev) => {
+  const g = state.densePointer, img = ev.target;
+  if (!g || !img.clientWidth) return;
+  const u = Math.floor(ev.offsetX / img.clientWidth * g.shape[1]), v = Math.floor(ev.offsetY / img.clientHeight * g.shape[0]);
+  const row = g.z_mm[Math.min(Math.round(v / g.step), g.z_mm.length - 1)];
+  const k = Math.min(Math.round(u / g.step), row.length - 1);
+  const z = row[k], d = g.disparity_px[Math.min(Math.round(v / g.step), g.z_mm.length - 1)][k];
+  const out = $("dense-pointer");
+  out.dataset.mm = z ?? "";
+  out.textContent = z === null ? `(${u}, ${v}): not supported beyond chance` : `(${u}, ${v}): ${d.toFixed(2)} px, Z ${z.toFixed(1)} mm`;
 });
 
 async function livePoll() {
