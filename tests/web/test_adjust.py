@@ -164,6 +164,8 @@ def test_the_alignment_panel(page, tmp_path):
     with serving(app_for("clear")) as url:
         page.goto(url + "/")
         page.wait_for_selector("body[data-ready='1']", timeout=30000)
+        for box in ("#adjust-rig", "#adjust-mount"):     # the file buttons whole, not cut to "Choose F"
+            assert page.eval_on_selector(box, "e => e.getBoundingClientRect().width") >= 180
         page.set_input_files("#adjust-rig", str(upload))
         page.click("#adjust-run")
         page.wait_for_selector("body[data-adjust-done='1']", timeout=60000)
