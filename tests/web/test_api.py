@@ -97,8 +97,30 @@ def test_upload_replaces_the_image(client):
     r = client.post("/api/upload", content=small.tobytes(), headers=PNG)
     assert r.status_code == 400 and r.json()["detail"] == "image is 100x100 px but the rig's camera is 640x480 px"
     r = client.post("/api/upload", content=b"GIF89a....", headers=PNG)
-    assert r.json()["detail"] == "upload must be a PNG image"
+    assert r.json()["detail"].startswith("upload must be a PNG, JPEG, BMP, TIFF or PNM (PBM, PGM, PPM, PAM, PFM) "
+                                         "image (not a ")
     assert client.post("/api/upload", content=b"\0" * (MAX_BODY_BYTES + 1), headers=PNG).status_code == 413
+
+
+@pytest.mark.parametrize("ext, ctype", [(".jpg", "image/jpeg"), (".bmp", "image/bmp"), (".tiff", "image/tiff"),
+                                         (".pgm", "image/x-portable-anymap"), (".png", "image/png")])
+def test_an_upload_in_any_format_the_cli_reads(client, tmp_path, ext, ctype):
+    """JPEG, BMP, TIFF and PNM as the CLI reads them (a colour JPEG to grey as read_grey does): the served image
+    is OpenCV's own decoding of the file (an independent reader); the wrong size is refused from the header."""
+    from psvs.io.images import read_grey
+    rng = np.random.default_rng(1)
+    img = cv2.GaussianBlur(rng.integers(0, 256, (480, 640, 3), np.uint8), (5, 5), 2)
+    ok, data = cv2.imencode(ext, img if ext == ".jpg" else img[:, :, 0])
+    assert client.post("/api/upload", content=data.tobytes(), headers={"Content-Type": ctype}).status_code == 200
+    served = cv2.imdecode(np.frombuffer(client.get("/api/image.png").content, np.uint8), cv2.IMREAD_UNCHANGED)
+    path = tmp_path / f"upload{ext}"
+    path.write_bytes(data.tobytes())
+    assert np.array_equal(served, read_grey(path))
+    if ext != ".jpg":
+        assert np.array_equal(served, cv2.imdecode(data, cv2.IMREAD_UNCHANGED))
+    ok, small = cv2.imencode(ext, img[:100, :120, 0])
+    r = client.post("/api/upload", content=small.tobytes(), headers={"Content-Type": ctype})
+    assert r.status_code == 400 and r.json()["detail"] == "image is 120x100 px but the rig's camera is 640x480 px"
 
 
 def test_a_truncated_upload_is_refused_in_one_line_and_libpng_says_nothing(client, capfd):

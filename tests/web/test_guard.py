@@ -119,15 +119,16 @@ def test_every_route_that_changes_something_is_guarded(app, client):
 @pytest.mark.parametrize("ctype", ["text/plain", "text/plain;charset=UTF-8", "application/x-www-form-urlencoded",
                                    "multipart/form-data; boundary=x", None])
 def test_a_body_of_another_type_is_415(app, client, still, path, ctype):
-    """Refused whoever sends it (the token, the page): a JSON route takes application/json, the upload image/png."""
+    """Refused whoever sends it (the token, the page): a JSON route takes application/json, the upload an image
+    type (image/png ...)."""
     body = png_bytes(still) if path == "/api/upload" else b'{"seed": null}'
     before = served(client)
     for who in (bearer(app), PAGE):
         headers = {**who, **({} if ctype is None else {"Content-Type": ctype})}
         r = client.post(path, content=body, headers=headers)
         assert r.status_code == 415, r.text
-        wanted = "image/png" if path == "/api/upload" else "application/json"
-        assert r.json()["detail"].startswith(f"POST {path} takes {wanted}, got ")
+        wanted = "an image (image/png, image/jpeg, " if path == "/api/upload" else "application/json, got "
+        assert r.json()["detail"].startswith(f"POST {path} takes {wanted}")
     assert np.array_equal(served(client), before)
     wrong = "application/json" if path == "/api/upload" else "image/png"
     assert client.post(path, content=body, headers={**PAGE, "Content-Type": wrong}).status_code == 415

@@ -2,7 +2,7 @@
 every pipeline stage of it (paper III.3 step 1), and uploading another complex image."""
 from __future__ import annotations
 
-import struct
+import io
 
 import cv2
 import numpy as np
@@ -11,6 +11,7 @@ from fastapi import APIRouter, Request
 from psvs._quiet import c_stderr_captured, library_reason
 from psvs.imaging.pipeline import PAPER
 from psvs.imaging.steps import STEPS
+from psvs.io.image_header import FORMATS, HeaderError, read_header
 from psvs.io.images import grey8
 from psvs.measure.triangulate import MODELS, default_model
 from psvs.optics.illumination import flat_field
@@ -23,7 +24,6 @@ from psvs.web.session import SessionDep
 
 #: Largest request body (an uploaded PNG of a 640x480 grey image is ~0.3 MB); the app's body limit.
 MAX_BODY_BYTES = 8 * 1024 * 1024
-PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 router = APIRouter(prefix="/api")
 
@@ -77,14 +77,17 @@ def preview(body: PipelineBody, session: SessionDep):
 
 
 def decode_upload(data: bytes, size_px: tuple[int, int]) -> np.ndarray:
-    """A PNG's bytes as an (H, W) uint8 grey image of ``size_px`` (W, H); the size is read from the PNG header
-    and checked before decoding, so a small file cannot decompress into a huge image. What libpng prints on a
-    damaged file ("libpng error: Read Error") is caught, not shown on the server's terminal, and named in the
-    one-line ValueError."""
+    """An image file's bytes (PNG, JPEG, BMP, TIFF or PNM: what the CLI reads) as an (H, W) uint8 grey image of
+    ``size_px`` (W, H). Its format and size are read from its header (:func:`psvs.io.image_header.read_header`,
+    as the CLI's readers do) and checked before decoding, so a small file cannot decompress into a huge image.
+    What a codec prints on a damaged file ("libpng error: Read Error") is caught, not shown on the server's
+    terminal, and named in the one-line ValueError."""
     w, h = size_px
-    if not data.startswith(PNG_SIGNATURE) or len(data) < 33 or data[12:16] != b"IHDR":
-        raise ValueError("upload must be a PNG image")
-    pw, ph = struct.unpack(">II", data[16:24])
+    try:
+        header = read_header(io.BytesIO(data))
+    except HeaderError as exc:
+        raise ValueError(f"upload must be a {FORMATS} image ({exc})") from None
+    fmt, pw, ph = header.format, header.width, header.height
     if (pw, ph) != (w, h):
         raise ValueError(f"image is {pw}x{ph} px but the rig's camera is {w}x{h} px")
     failure = None
@@ -95,14 +98,14 @@ def decode_upload(data: bytes, size_px: tuple[int, int]) -> np.ndarray:
             img, failure = None, str(exc)
     if img is None or img.shape[:2] != (h, w):
         reason = library_reason([*said, *([failure] if failure else [])])
-        raise ValueError("not a readable PNG image" + (f" ({reason})" if reason else ""))
+        raise ValueError(f"not a readable {fmt} image" + (f" ({reason})" if reason else ""))
     return grey8(img, "uploaded image")   # colour -> luma, 16-bit scaled by its bit depth (as read_grey)
 
 
 @router.post("/upload")
 async def upload(request: Request, session: SessionDep):
-    """Replace the complex image by a PNG of the rig's size (the raw request body); the last match is
-    forgotten with the image it was of."""
+    """Replace the complex image by an image file of the rig's size (the raw request body, its type one of
+    psvs.web.guard.UPLOAD_TYPES); the last match is forgotten with the image it was of."""
     img = decode_upload(await request.body(), session.image_size_px)
     session.replace_still(img, "uploaded image")
     return {"image_size_px": list(session.image_size_px)}

@@ -12,8 +12,9 @@ middleware, outside every route and the static files) refuses both, as Jupyter's
    allowed name, the port the request reached); ``Sec-Fetch-Site``, when sent, ``same-origin`` or ``none``.
    A request with neither (curl, a script) must carry the right token: ``Authorization: Bearer TOKEN`` or
    the cookie set when the page is opened as ``/?token=TOKEN``. Else: 403.
-3. **Body type** (the same methods, with a body): ``application/json``, or ``image/png`` for an upload
-   (:data:`UPLOAD_PATHS`). The types a browser sends across origins without asking (``text/plain``, forms)
+3. **Body type** (the same methods, with a body): ``application/json``, or for an upload
+   (:data:`UPLOAD_PATHS`) an image type of :data:`UPLOAD_TYPES` (its bytes say which format it is). The
+   types a browser sends across origins without asking (``text/plain``, forms)
    never reach a route: 415.
 
 The page served by the server needs nothing: its requests carry its own origin. Refusals are JSON
@@ -43,14 +44,18 @@ from urllib.parse import parse_qs
 
 from psvs.web.limits import reply_json
 
-__all__ = ["LOOPBACK", "UPLOAD_PATHS", "Access", "Guard", "split_host"]
+__all__ = ["LOOPBACK", "UPLOAD_PATHS", "UPLOAD_TYPES", "Access", "Guard", "split_host"]
 
 #: The names of this machine's loopback interface.
 LOOPBACK = frozenset({"localhost", "127.0.0.1", "::1"})
 #: Methods that read: no origin check, no body.
 SAFE_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
-#: Paths whose body is a PNG (``Content-Type: image/png``); every other body is JSON.
+#: Paths whose body is an image file (``Content-Type`` one of UPLOAD_TYPES); every other body is JSON.
 UPLOAD_PATHS = frozenset({"/api/upload"})
+#: The types an upload may carry: the image formats psvs reads (none of them one a browser sends to another
+#: origin without asking it first).
+UPLOAD_TYPES = ("image/png", "image/jpeg", "image/bmp", "image/tiff", "image/x-portable-anymap",
+                "image/x-portable-graymap", "image/x-portable-pixmap", "image/x-portable-bitmap")
 #: ``Sec-Fetch-Site`` values of a request the page itself made, or the user typed.
 SAME_SITE_FETCH = frozenset({"same-origin", "none"})
 #: Longest quoted header in a refusal (characters).
@@ -247,10 +252,11 @@ class Guard:
     def _type_refusal(scope, headers: dict[str, str]) -> tuple[int, str]:
         if headers.get("content-length", "0").strip() in ("", "0") and "transfer-encoding" not in headers:
             return 0, ""                      # no body, no type to check
-        wanted = "image/png" if scope["path"] in UPLOAD_PATHS else "application/json"
+        wanted = UPLOAD_TYPES if scope["path"] in UPLOAD_PATHS else ("application/json",)
         given = headers.get("content-type", "").split(";")[0].strip().lower()
-        if given != wanted:
-            return 415, (f"{scope['method']} {scope['path'][:MAX_QUOTE]} takes {wanted}, got "
+        if given not in wanted:
+            what = f"an image ({', '.join(wanted[:5])}, ...)" if len(wanted) > 1 else wanted[0]
+            return 415, (f"{scope['method']} {scope['path'][:MAX_QUOTE]} takes {what}, got "
                          f"{_quote(given) if given else 'no Content-Type'}")
         return 0, ""
 
