@@ -196,3 +196,15 @@ def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
         assert z and abs(float(z) / truth - 1) <= 0.02, (z, truth, page.inner_text("#dense-pointer"))
         shot(page, "web_dense_cloud.png")
     assert errors == [], errors
+
+
+def test_the_fast_dense_answer_on_fig5b_is_the_trusted_pixels():
+    """psvs serve's default scene (fig5b: two discs, 690-720 mm, disparities 148-155 px): the fast map answers
+    every pixel, most of them noise on the black backdrop; the medians shown are the trusted pixels', inside the
+    truth (they were 133.5 px and 766.1 mm over every answered pixel)."""
+    from psvs.simulate.builtin import fig5b
+    app = create_app(scene_source("fig5b", fig5b(), default_rig()), default_rig())
+    with local_client(app) as c:
+        res = c.post("/api/dense", json={"fast": True}).json()
+    assert res["answered_pct"] > 90 and 2 < res["trusted_pct"] < 30
+    assert 148 <= res["median_disparity_px"] <= 155 and 690 <= res["median_z_mm"] <= 720
