@@ -162,7 +162,7 @@ def test_refit_on_another_format_with_a_drawn_knock():
 def test_a_tare_plane_leaves_out_its_few_wrong_points_and_refuses_many():
     """check_flat on a wall at 700 mm (0.1 px of noise): 5 % of its points 5-80 px off (wrong matches) are left
     out, and the plane through the rest is the wall's; 30 % off, it is not one plane."""
-    from psvs.calibrate.tare import _flat_px, check_flat, disparity_per_mm
+    from psvs.calibrate.tare import check_flat, disparity_per_mm, flat_plane
     rig = load_rig("misaligned")
     rng = np.random.default_rng(3)
     xy = rng.uniform(-200, 200, (300, 2))
@@ -174,7 +174,7 @@ def test_a_tare_plane_leaves_out_its_few_wrong_points_and_refuses_many():
         if ok:
             on = check_flat(pts, rig, 0.1, "the tare")
             assert (on == ~bad).all()
-            coef = _flat_px(pts, rig)[0]
+            coef = flat_plane(pts, rig)[0]
             assert abs(coef[0] - 700) < 0.2 and abs(coef[1] - 0.05) < 1e-3
         else:
             with pytest.raises(MeasurementError, match="% of its points lie on one plane"):

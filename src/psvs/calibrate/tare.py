@@ -61,7 +61,7 @@ def _off_plane_mm(points_mm: np.ndarray, coef: np.ndarray) -> np.ndarray:
     return p[:, 2] - coef[0] - coef[1] * p[:, 0] - coef[2] * p[:, 1]
 
 
-def _flat_px(points_mm: np.ndarray, rig: Rig) -> tuple[np.ndarray, float, float, np.ndarray]:
+def flat_plane(points_mm: np.ndarray, rig: Rig) -> tuple[np.ndarray, float, float, np.ndarray]:
     """(the plane (c, p, q) best through the points (n, 3) on it, their RMS about it in mm and in px of
     disparity, which points (n,) bool lie on it): least squares re-fitted without the points off it
     (:data:`OFF_PLANE_SIGMAS` robust sigmas, MAD-based) until that set settles."""
@@ -95,10 +95,10 @@ def depth_residuals_px(points_mm: np.ndarray, distance_mm: float, rig: Rig) -> n
 
 
 def check_flat(points_mm: np.ndarray, rig: Rig, noise_px: float, which: str) -> np.ndarray:
-    """Which of the points (n, 3) lie on their best plane (:func:`_flat_px`), (n,) bool; MeasurementError
+    """Which of the points (n, 3) lie on their best plane (:func:`flat_plane`), (n,) bool; MeasurementError
     when fewer than :data:`TARE_ON_PLANE` of them lie on it or they scatter about it by more than
     :data:`TARE_FLAT_PX` and 3 times the tiles' ``noise_px``: the surface is not flat."""
-    _, rms_mm, flat_px, on = _flat_px(points_mm, rig)
+    _, rms_mm, flat_px, on = flat_plane(points_mm, rig)
     if not (flat_px <= max(TARE_FLAT_PX, 3 * noise_px) and on.mean() >= TARE_ON_PLANE):
         raise MeasurementError(f"{which} is not flat: {100 * on.mean():.0f} % of its points lie on one plane (a tare "
                                f"needs {100 * TARE_ON_PLANE:.0f} %), scattering {rms_mm:.2f} mm ({flat_px:.2f} px "
@@ -109,7 +109,7 @@ def check_flat(points_mm: np.ndarray, rig: Rig, noise_px: float, which: str) -> 
 
 def tare_record(before_mm: np.ndarray, after_mm: np.ndarray, distance_mm: float, rig: Rig) -> Tare:
     """A :class:`Tare` from the tare's points (n, 3) through the old calibration and the refitted ``rig``."""
-    cb = _flat_px(before_mm, rig)[0]
-    ca, _, flat_px, _ = _flat_px(after_mm, rig)
+    cb = flat_plane(before_mm, rig)[0]
+    ca, _, flat_px, _ = flat_plane(after_mm, rig)
     slope = (math.degrees(math.atan(ca[1])), math.degrees(math.atan(ca[2])))
     return Tare(float(distance_mm), float(cb[0]), float(ca[0]), slope, flat_px, len(after_mm))

@@ -1,4 +1,5 @@
-"""Rig geometry and exact optics: mirrors, plate refraction, tracing, projection, mirror design."""
+"""Rig geometry and exact optics: mirrors, plate refraction, tracing, projection, mirror design, the rig's
+3-D layout."""
 import lazy_loader as _lazy
 
 # The package's public face: what other packages and users may import from it. Each name is loaded on
@@ -11,6 +12,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "design": ["MirrorDesign", "design_mirrors"],
         "field": ["field_pixels"],
         "illumination": ["flat_field", "illumination_map"],
+        "layout3d": ["rig_layout"],
         "mirrors": ["VIEWS", "direction_map", "front_z_mm", "mirror_planes", "virtual_centre"],
         "obstruction": ["find_obstructions", "plate_edges"],
         "pinhole_views": ["PinholeView"],
