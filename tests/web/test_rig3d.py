@@ -208,3 +208,18 @@ def test_the_fast_dense_answer_on_fig5b_is_the_trusted_pixels():
         res = c.post("/api/dense", json={"fast": True}).json()
     assert res["answered_pct"] > 90 and 2 < res["trusted_pct"] < 30
     assert 148 <= res["median_disparity_px"] <= 155 and 690 <= res["median_z_mm"] <= 720
+
+
+def test_a_rig_the_layout_cannot_draw_is_one_line_and_the_page_goes_on(webgl_page):
+    """A 3 mm lens sees past M1 (omega_1 under the half field): /api/rig3d answers 400 in one line, and the page
+    says so under the 3-D view and still opens (its other panels work)."""
+    rig = default_rig().replace(focal_length_mm=3.0)
+    from psvs.live.simulated import disc_scene
+    app = create_app(scene_source("disc", disc_scene(**DISC), rig), rig)
+    with local_client(app) as c:
+        r = c.get("/api/rig3d")
+    assert r.status_code == 400 and r.json()["detail"].startswith("part of the camera's field never reaches M1")
+    with serving(app) as url:
+        webgl_page.goto(url + "/")
+        webgl_page.wait_for_selector("body[data-ready='1']", timeout=60000)
+        assert webgl_page.inner_text("#rig3d-note").startswith("no 3-D view of this rig: part of the camera's field")

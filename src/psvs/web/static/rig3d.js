@@ -80,8 +80,11 @@ async function rig3dInit() {
     return;
   }
   const r = await fetch("/api/rig3d");
-  const layout = await r.json();
-  if (!r.ok) throw new Error(layout.detail || `${r.status}`);
+  const layout = await r.json().catch(() => ({}));
+  if (!r.ok) {            // the rest of the page works without it
+    document.getElementById("rig3d-note").textContent = "no 3-D view of this rig: " + (layout.detail || r.status);
+    return;
+  }
   await drawRig3d(el, layout);
   document.getElementById("rig3d-extent").onchange = (e) => rig3dExtent(el, layout, e.target.value);
   const sized = layout.glasses.some((g) => g.sized !== "rig file");
