@@ -46,13 +46,16 @@ class RigDense:
     right_image: np.ndarray | None = None
 
 
-def rectified_images(image, rect: Rectification) -> tuple[np.ndarray, np.ndarray]:
+def rectified_images(image, rect: Rectification,
+                     rows: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The complex image (H, W) resampled on the left and on the right view's rectified grid, float32
-    (H', W'); outside a view's field each pixel repeats the nearest inside one (no artificial edge): one
-    remap each through :func:`psvs.dense.rig_cache.filled_maps`."""
+    (H', W'), or only on its rows r0..r1-1 (``rows`` = (r0, r1)); outside a view's field each pixel repeats
+    the nearest inside one (no artificial edge): one remap each through
+    :func:`psvs.dense.rig_cache.filled_maps`."""
     img = np.asarray(image, dtype=np.float32)
-    return tuple(cv2.remap(img, *filled_maps(rect, view), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-                 for view in ("left", "right"))
+    band = slice(None) if rows is None else slice(*rows)
+    return tuple(cv2.remap(img, *(m[band] for m in filled_maps(rect, view)), cv2.INTER_LINEAR,
+                           borderMode=cv2.BORDER_REPLICATE) for view in ("left", "right"))
 
 
 def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, *,

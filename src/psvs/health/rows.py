@@ -25,7 +25,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from psvs.dense.rig_cache import filled_maps, rectification
+from psvs.dense.build import rectified_images
+from psvs.dense.rig_cache import rectification
 from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
@@ -114,19 +115,15 @@ def _band_passed(image, rig: Rig, rect, bands: list[tuple[int, int]], shape: tup
     if bands is None:
         bands = [(0, shape[0])]
     pad = int(math.ceil(4 * BAND_SIGMAS_PX[1])) + 1       # OpenCV's kernel reaches 4 sigma (float images)
-    out = []
-    for view in ("left", "right"):
-        grid = np.zeros(shape, np.float32)
-        for r0, r1 in bands:
-            p0, p1 = max(0, r0 - pad), min(shape[0], r1 + pad)
-            if rect is None:
-                band = img[p0:p1]
-            else:
-                mu, mv = filled_maps(rect, view)
-                band = cv2.remap(img, mu[p0:p1], mv[p0:p1], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-            grid[r0:r1] = band_pass(band)[r0 - p0:r1 - p0]
-        out.append(grid)
-    return out
+    a, b = np.zeros(shape, np.float32), np.zeros(shape, np.float32)
+    for r0, r1 in bands:
+        p0, p1 = max(0, r0 - pad), min(shape[0], r1 + pad)
+        if rect is None:                             # the paper's geometry: both grids are the image
+            a[r0:r1] = b[r0:r1] = band_pass(img[p0:p1])[r0 - p0:r1 - p0]
+        else:
+            left, right = rectified_images(img, rect, (p0, p1))
+            a[r0:r1], b[r0:r1] = band_pass(left)[r0 - p0:r1 - p0], band_pass(right)[r0 - p0:r1 - p0]
+    return a, b
 
 
 def _merged(spans: list[tuple[int, int]]) -> list[tuple[int, int]]:

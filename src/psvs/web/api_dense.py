@@ -37,9 +37,8 @@ def pointer_grid(d: np.ndarray, z: np.ndarray, seen: np.ndarray) -> dict:
             "z_mm": np.where(ok, np.round(z[::step, ::step], 1), np.nan)}
 
 
-def cloud_for_page(dense_res, rig, trusted) -> dict:
-    """The trusted pixels' points (frame C, mm, rounded to 0.01) and grey levels, at most CLOUD_POINTS."""
-    cloud = rig_cloud(dense_res, rig, mask=trusted)
+def cloud_for_page(dense_res, cloud) -> dict:
+    """A cloud's points (frame C, mm, rounded to 0.01) and grey levels, at most CLOUD_POINTS."""
     k = np.unique(np.linspace(0, len(cloud.points_mm) - 1, min(CLOUD_POINTS, len(cloud.points_mm))).astype(int))
     u, v = cloud.pixels[k].T.astype(int) if len(k) else (np.zeros(0, int), np.zeros(0, int))
     grey = np.asarray(dense_res.left_image)[v, u]
@@ -61,13 +60,14 @@ def dense(body: DenseBody, session: SessionDep):
     d = res.disparity_left       # on a build: on the left view's rectified grid
     with DENSE_LOCK:
         trusted = rig_trust(dense_res).trusted_left
-    z = rig_cloud(dense_res, rig).depth_mm
     seen = trusted & np.isfinite(d)          # the medians of what the echo supports: never a noisy median
+    cloud = rig_cloud(dense_res, rig, mask=seen)       # only the trusted pixels are triangulated
+    z = cloud.depth_mm
     out = {"disparity_png": data_url(colour_disparity(d, lo, hi)), "range_px": [lo, hi],
            "answered_pct": 100.0 * float(np.mean(np.isfinite(d))), "trusted_pct": 100.0 * float(np.mean(seen)),
            "median_disparity_px": float(np.median(d[seen])) if seen.any() else None,
            "median_z_mm": float(np.nanmedian(z[seen])) if np.isfinite(z[seen]).any() else None,
-           "cloud": cloud_for_page(dense_res, rig, seen), "pointer": json_safe(pointer_grid(d, z, seen))}
+           "cloud": cloud_for_page(dense_res, cloud), "pointer": json_safe(pointer_grid(d, z, seen))}
     if body.views and np.isfinite(d).any():
         with DENSE_LOCK:
             k = camera_pixel_scale(rig.camera) if dense_res.rect is None else None   # the prior in scene terms
