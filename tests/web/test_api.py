@@ -108,6 +108,8 @@ def test_an_upload_in_any_format_the_cli_reads(client, tmp_path, ext, ctype):
     """JPEG, BMP, TIFF and PNM as the CLI reads them (a colour JPEG to grey as read_grey does): the served image
     is OpenCV's own decoding of the file (an independent reader); the wrong size is refused from the header."""
     from psvs.io.images import read_grey
+    from psvs.web.guard import UPLOAD_TYPES
+    assert client.get("/api/info").json()["upload_types"] == list(UPLOAD_TYPES) and ctype in UPLOAD_TYPES
     rng = np.random.default_rng(1)
     img = cv2.GaussianBlur(rng.integers(0, 256, (480, 640, 3), np.uint8), (5, 5), 2)
     ok, data = cv2.imencode(ext, img if ext == ".jpg" else img[:, :, 0])

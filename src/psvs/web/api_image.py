@@ -19,6 +19,7 @@ from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
 from psvs.web.api_match import snap_px
 from psvs.web.bodies import PipelineBody
+from psvs.web.guard import UPLOAD_TYPES
 from psvs.web.png import data_url, png_response
 from psvs.web.session import SessionDep
 
@@ -49,6 +50,7 @@ def info(session: SessionDep):
                     **calibration_status(rig)},
             "image_size_px": list(session.image_size_px), "pipeline": PAPER.to_dict()["steps"], "models": list(MODELS),
             "steps": sorted(STEPS), "snap_px": snap_px(rig), "max_upload_bytes": MAX_BODY_BYTES,
+            "upload_types": list(UPLOAD_TYPES),
             "capture": capture_info(session)}
 
 

@@ -334,15 +334,11 @@ $("capture-stop").addEventListener("click", async () => {
   capturing = false; capturePoll();
 });
 
-// What /api/upload takes (psvs.web.guard.UPLOAD_TYPES).
-const UPLOAD_TYPES = ["image/png", "image/jpeg", "image/bmp", "image/tiff", "image/x-portable-anymap",
-                      "image/x-portable-graymap", "image/x-portable-pixmap", "image/x-portable-bitmap"];
-
 $("upload").addEventListener("change", async (ev) => {
   const file = ev.target.files[0];
   if (!file) return;
   // the server reads the format from the file's bytes; a type the browser does not know is sent as PNM's
-  const type = UPLOAD_TYPES.includes(file.type) ? file.type : "image/x-portable-anymap";
+  const type = state.uploadTypes.includes(file.type) ? file.type : "image/x-portable-anymap";
   const r = await fetch("/api/upload", { method: "POST", headers: { "Content-Type": type }, body: file });
   const data = await r.json().catch(() => ({}));
   if (!r.ok) { setStatus("upload: " + (data.detail || r.status)); return; }
@@ -484,6 +480,7 @@ async function adjustInit() {
 (async function init() {
   try {
     const info = await api("/api/info");
+    state.uploadTypes = info.upload_types;       // what /api/upload takes (psvs.web.guard.UPLOAD_TYPES)
     $("source").textContent = `${info.source.kind}: ${info.source.name}`;
     const rig = info.rig;
     const cal = rig.calibration;
