@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from psvs.optics.kernels import boxes_meet
 from psvs.optics.mirrors import mirror_planes
 from psvs.optics.rig import Rig
 from psvs.optics.surfaces import Plane
@@ -71,7 +72,8 @@ def segments_hit(p0s: np.ndarray, p1s: np.ndarray, solid: str, rig: Rig) -> np.n
     d = rig.mirrors.plate_thickness_mm
     plane = planes["m1" if solid == "M1 plate" else solid.lower()]
     lo, hi = _box(plane, d if solid == "M1 plate" else 0.0)
-    idx = np.flatnonzero(((np.maximum(p0s, p1s) >= lo) & (np.minimum(p0s, p1s) <= hi)).all(axis=1))
+    idx = np.flatnonzero(boxes_meet(np.ascontiguousarray(p0s, dtype=np.float64),
+                                    np.ascontiguousarray(p1s, dtype=np.float64), lo, hi))
     out = np.zeros(len(p0s), dtype=bool)
     if idx.size:
         if solid == "M1 plate" and d > 0:
