@@ -191,10 +191,11 @@ def test_target_file_round_trip(tmp_path, target):
     sees the kind and every key with its value."""
     import tomllib
 
-    from psvs.targets.target_file import KEYS, dumps_target, load_target
+    from psvs.targets.target_file import KEYS, dumps_target, load_target, target_from_text
     path = tmp_path / "target.toml"
     path.write_text(dumps_target(target))
     assert load_target(path) == target
+    assert target_from_text(path.read_text()) == target          # the text the web page sends
     table = tomllib.loads(path.read_text())["target"]
     kind = table.pop("kind")
     assert set(table) == set(KEYS[kind])
@@ -202,9 +203,9 @@ def test_target_file_round_trip(tmp_path, target):
 
 
 def test_target_file_refusals(tmp_path, capsys):
-    """Another kind, a key of another kind, a missing key, a bad dictionary: one line naming it; through
-    psvs calibrate exit 2 and nothing written."""
-    from psvs.targets.target_file import load_target
+    """Another kind, a key of another kind, a missing key, a bad dictionary: one line naming it (the file, or
+    what the text came from); through psvs calibrate exit 2 and nothing written."""
+    from psvs.targets.target_file import load_target, target_from_text
     from tests.support.cli import run
     path = tmp_path / "target.toml"
     for text, message in (('kind = "dots"\nrows = 3\n', r"target\.kind must be one of circle_grid, "
@@ -218,6 +219,8 @@ def test_target_file_refusals(tmp_path, capsys):
         path.write_text("[target]\n" + text)
         with pytest.raises(ValueError, match=message):
             load_target(path)
+        with pytest.raises(ValueError, match="^card file: .*" + message):
+            target_from_text("[target]\n" + text, "card file")
     path.write_text('[target]\nkind = "dots"\nrows = 3\n')
     cv2.imwrite(str(tmp_path / "card_00.png"), np.full((480, 640), 90, np.uint8))
     out = tmp_path / "rig.toml"

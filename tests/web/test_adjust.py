@@ -162,7 +162,7 @@ def test_the_alignment_panel(page, tmp_path):
     upload = tmp_path / "misaligned.toml"
     upload.write_text(text_of("misaligned"), encoding="utf-8")
     with serving(app_for("clear")) as url:
-        page.goto(url + "/")
+        page.goto(url + "/#align")
         page.wait_for_selector("body[data-ready='1']", timeout=30000)
         for box in ("#adjust-rig", "#adjust-mount"):     # the file buttons whole, not cut to "Choose F"
             assert page.eval_on_selector(box, "e => e.getBoundingClientRect().width") >= 180

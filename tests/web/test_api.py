@@ -26,7 +26,9 @@ def test_info_image_and_page(client):
     assert [s["op"] for s in info["pipeline"]] == ["median", "threshold", "roberts"]
     assert info["rig"] == {"name": "default rig", "focal_length_mm": 11.3, "baseline_mm": 100.0,
                            "plate_thickness_mm": 3.0, "build": False, "calibrated": False, "calibration": None,
-                           "default_model": "refraction"}
+                           "default_model": "refraction",
+                           "glass": [{"mirror": m, "along_mm": None, "height_mm": None,     # the paper's ideal planes
+                                      "thickness_mm": 3.0 if m == "M1" else None} for m in ("M1", "M2", "M3", "M4")]}
     img = cv2.imdecode(np.frombuffer(client.get("/api/image.png").content, np.uint8), cv2.IMREAD_UNCHANGED)
     assert img.shape == (480, 640)
     page = client.get("/")

@@ -12,7 +12,7 @@ from tests.support.web import DISC, rim_point_px, serving
 
 def test_double_click_shows_depth(page, live_server, disc_source):
     _, rig = disc_source
-    page.goto(live_server + "/")
+    page.goto(live_server + "/#measure")
     page.wait_for_selector("body[data-ready='1']", timeout=30000)
     u, v = rim_point_px(rig, "left")                      # the rim's leftmost point in the left view
     dblclick_px(page, u, v)
@@ -37,10 +37,11 @@ def test_live_mode_in_the_page(page, disc_video):
     and each frame's depth (1 % of that frame's truth)."""
     path, truth, rig, scene, positions = disc_video
     with serving(create_app(video_source(str(path)), rig)) as url:
-        page.goto(url + "/")
+        page.goto(url + "/#measure")
         page.wait_for_selector("body[data-ready='1']", timeout=30000)
         dblclick_px(page, *rim_seed(rig, scene, positions[0]))
         page.wait_for_function("document.getElementById('depth').dataset.mm", timeout=30000)
+        page.click("#workflow a[data-step='live']")           # the Live step tracks the edge picked in Measure
         page.click("#live-start")
         page.wait_for_function("Number(document.getElementById('live-frame').textContent) >= 15", timeout=30000)
         page.click("#live-stop")
@@ -57,7 +58,7 @@ def test_live_dense_in_the_page(page, wall_video):
     that frame's truth)."""
     path, truth = wall_video
     with serving(create_app(video_source(str(path)), default_rig())) as url:
-        page.goto(url + "/")
+        page.goto(url + "/#live")
         page.wait_for_selector("body[data-ready='1']", timeout=30000)
         page.check("#live-dense")
         page.click("#live-start")
@@ -83,12 +84,12 @@ def test_the_page_uploads_without_a_token(page, disc_source, tmp_path):
     cv2.rectangle(img, (100, 200), (160, 260), 220, -1)
     cv2.imwrite(str(tmp_path / "mine.png"), img)
     with serving(app) as url:
-        page.goto(url + f"/?token={app.state.access.token}")
-        assert page.url == url + "/"
+        page.goto(url + f"/?token={app.state.access.token}#measure")
+        assert page.url == url + "/#measure"          # the token left the address, the step stayed
         assert page.context.cookies()[0]["sameSite"] == "Strict"
         page.wait_for_selector("body[data-ready='1']", timeout=30000)
         page.set_input_files("#upload", str(tmp_path / "mine.png"))
-        page.wait_for_function("document.getElementById('source').textContent === 'mine.png'", timeout=30000)
+        page.wait_for_function("document.getElementById('source').textContent === 'image: mine.png'", timeout=30000)
         assert page.inner_text("#status") == ""
         assert app.state.session.still().name == "uploaded image"
         assert np.array_equal(app.state.session.still().grey, img)

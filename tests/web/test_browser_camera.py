@@ -25,12 +25,13 @@ def test_live_page_from_the_emulated_basler_camera(page, tmp_path):
     source = camera_source(parse_camera("basler:0"), Acquisition(trigger="software", features=features))
     assert source.kind == "camera" and source.still.shape == (480, 640)
     with serving(create_app(source, load_rig("default"))) as url:
-        page.goto(url + "/")
+        page.goto(url + "/#measure")
         page.wait_for_selector("body[data-ready='1']", timeout=30000)
         dblclick_px(page, *map(float, seed.split(",")))
         page.wait_for_function("document.getElementById('depth').dataset.mm", timeout=30000)
         z0 = float(page.get_attribute("#depth", "data-mm"))
         assert abs(z0 - truth[0]) <= 0.01 * truth[0]
+        page.click("#workflow a[data-step='live']")
         page.click("#live-start")
         page.wait_for_function("Number(document.getElementById('live-frame').textContent) >= 12", timeout=60000)
         page.click("#live-stop")

@@ -29,6 +29,9 @@ def test_capture_api_until_enough(hand_video, tmp_path):
         info = c.get("/api/info").json()["capture"]
         assert info == {"target": "4x6 discs, 7 mm across, 14 mm apart", "folder": str(folder)}
         assert c.post("/api/capture/start", json={"views": 9}).json() == {"running": True}
+        # another card or folder is not taken while the set is being captured
+        r = c.post("/api/capture/setup", json={"target": hand_video.target.read_text(), "folder": str(tmp_path / "v2")})
+        assert r.status_code == 400 and r.json()["detail"] == "stop the capture before choosing another card or folder"
         t0 = time.monotonic()
         while (s := c.get("/api/capture/state").json())["running"] and time.monotonic() - t0 < 300:
             time.sleep(0.2)
@@ -48,7 +51,7 @@ def test_capture_refusals(hand_video, tmp_path):
     grey = video_source(str(hand_video.path)).still
     with local_client(create_app(video_source(str(hand_video.path)), load_rig("clear"))) as c:
         r = c.post("/api/capture/start", json={})
-        assert r.status_code == 400 and "--target TARGET.toml and --capture-to DIR" in r.json()["detail"]
+        assert r.status_code == 400 and "capture needs a card and a folder: choose them" in r.json()["detail"]
         assert c.get("/api/capture/state").json()["available"] is False
     setup = CaptureSetup(load_target(hand_video.target), b"", str(folder))
     with local_client(create_app(image_source("still", grey), load_rig("clear"), "clear", setup)) as c:
@@ -67,7 +70,7 @@ def test_capture_in_the_page(page, hand_video, tmp_path):
     the saved files in the events; stop."""
     folder = tmp_path / "views"
     with serving(_app(hand_video, folder)) as url:
-        page.goto(url + "/")
+        page.goto(url + "/#capture")
         page.wait_for_selector("body[data-ready='1']", timeout=30000)
         assert "each good pose is saved once into" in page.inner_text("#capture-folder")
         page.fill("#capture-views", "9")

@@ -73,7 +73,7 @@ def test_a_tolerance_not_above_zero_is_refused(videos):
 def test_the_page_shows_the_drift(page, videos):
     """The page's self-check readout turns drifted, red, with the line the check said."""
     with serving(create_app(video_source(str(videos["misaligned_knocked"])), load_rig("misaligned"))) as url:
-        page.goto(url + "/")
+        page.goto(url + "/#live")
         page.wait_for_selector("body[data-ready='1']", timeout=30000)
         assert page.is_checked("#live-check")
         page.check("#live-dense")

@@ -177,7 +177,7 @@ def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
     errors = []
     page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
     with serving(textured_app[0]) as url:
-        page.goto(url + "/")
+        page.goto(url + "/#dense")
         page.wait_for_selector("body[data-ready='1']", timeout=60000)
         page.click("#dense")
         page.wait_for_function("Number(document.getElementById('dense-cloud').dataset.points) > 5000",

@@ -35,7 +35,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "telemetry": ["BASE_FRAME", "CAMERA_FRAME", "FLANGE_FRAME", "TORCH_FRAME", "Telemetry", "parse_endpoint",
                       "url_host"],
         "text": ["read_csv_rows"],
-        "tomlfile": ["dumps_toml", "load_table", "load_toml", "parse_text"],
+        "tomlfile": ["dumps_toml", "load_table", "load_toml", "parse_text", "single_table"],
         "video": ["VIDEO_SUFFIXES", "read_video_frame", "video_frames", "write_video"],
     },
 )

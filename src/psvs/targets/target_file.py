@@ -15,7 +15,7 @@ discs, rows ``spacing_mm`` apart, discs along a row twice that apart, odd rows s
 from __future__ import annotations
 
 from psvs.io.schema import REQUIRED, Field, read_fields
-from psvs.io.tomlfile import dumps_toml, load_table
+from psvs.io.tomlfile import dumps_toml, load_table, parse_text, single_table
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid
 
 _COUNT, _MM = Field("integer", default=REQUIRED), Field("number", note="mm", default=REQUIRED)
@@ -36,6 +36,16 @@ _ALL = tuple(sorted({k for keys in KEYS.values() for k in keys}))
 def load_target(path) -> CircleGrid | AsymmetricCircleGrid | CharucoBoard:
     """The target described by a ``target.toml``; ValueError naming the file and the key otherwise."""
     return load_table(path, "target", "target", ("kind",), optional=_ALL, parse=_target)
+
+
+def target_from_text(text: str, where: str = "target file"):
+    """The target described by a ``target.toml``'s text (e.g. chosen in the web page); ValueError naming
+    ``where`` and the key otherwise, as :func:`load_target`'s name the file."""
+    data = parse_text(text, where)
+    try:
+        return _target(single_table(data, "target", ("kind",), _ALL))
+    except (ValueError, TypeError) as exc:
+        raise ValueError(f"{where}: {exc}") from None
 
 
 def _target(t: dict):

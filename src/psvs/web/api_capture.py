@@ -1,12 +1,18 @@
-"""Routes of the capture assistant: start and stop watching the source for calibration views of the card
-(``psvs serve --target T --capture-to DIR``), and poll the set's progress and the latest frame."""
+"""Routes of the capture assistant: choose the card and the folder (or ``psvs serve --target T --capture-to
+DIR``), start and stop watching the source for calibration views of the card, and poll the set's progress and
+the latest frame."""
 from __future__ import annotations
+
+import os
+from pathlib import Path
 
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
-from psvs.calibrate.capture import CaptureParams
-from psvs.web.bodies import CaptureBody
+from psvs.calibrate.capture import CaptureParams, check_capture_folder
+from psvs.targets.target_file import target_from_text
+from psvs.web.bodies import CaptureBody, CaptureSetupBody
+from psvs.web.capture_runner import CaptureSetup, describe_target
 from psvs.web.png import png_response
 from psvs.web.session import SessionDep
 
@@ -20,6 +26,23 @@ def capture_start(body: CaptureBody, session: SessionDep):
     session.live.stop()
     session.capture.start(session.source, session.rig, params)
     return {"running": True}
+
+
+@router.post("/setup")
+def capture_setup(body: CaptureSetupBody, session: SessionDep):
+    """Choose the card (its target.toml's text) and the folder on this machine the views are saved in: a new
+    or empty folder that psvs can write (relative to where psvs serve runs). The card is checked against the
+    rig when the capture starts. Answers the folder's full path and the card."""
+    target = target_from_text(body.target, "target file")
+    folder = Path(body.folder).expanduser().resolve()
+    check_capture_folder(folder)
+    existing = folder
+    while not existing.exists():
+        existing = existing.parent
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise ValueError(f"cannot write the capture folder {folder}: permission denied")
+    session.capture.configure(CaptureSetup(target, body.target.encode(), str(folder)))
+    return {"folder": str(folder), "target": describe_target(target)}
 
 
 @router.post("/stop")

@@ -16,9 +16,10 @@ from psvs.io.images import grey8
 from psvs.measure.triangulate import MODELS, default_model
 from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import needs_rectification
-from psvs.optics.rig import Rig
+from psvs.optics.rig import MIRROR_NAMES, Rig
 from psvs.web.api_match import snap_px
 from psvs.web.bodies import PipelineBody
+from psvs.web.capture_runner import describe_target
 from psvs.web.guard import UPLOAD_TYPES
 from psvs.web.png import data_url, png_response
 from psvs.web.session import SessionDep
@@ -47,21 +48,32 @@ def info(session: SessionDep):
     return {"source": {"kind": source.kind, "name": session.still().name, "live": source.live, "fps": source.fps},
             "rig": {"name": session.rig_name, "focal_length_mm": rig.camera.focal_length_mm,
                     "baseline_mm": rig.mirrors.baseline_mm, "plate_thickness_mm": rig.mirrors.plate_thickness_mm,
-                    **calibration_status(rig)},
+                    "glass": glass(rig), **calibration_status(rig)},
             "image_size_px": list(session.image_size_px), "pipeline": PAPER.to_dict()["steps"], "models": list(MODELS),
             "steps": sorted(STEPS), "snap_px": snap_px(rig), "max_upload_bytes": MAX_BODY_BYTES,
             "upload_types": list(UPLOAD_TYPES),
             "capture": capture_info(session)}
 
 
+def glass(rig: Rig) -> list[dict]:
+    """The four glasses to cut: each mirror's extent on its plane (along its s axis and its height, mm; None
+    where the rig leaves it unbounded) and the thickness (the M1 plate's; None for the front-surface mirrors)."""
+    out = []
+    for name in MIRROR_NAMES:
+        e = rig.mirrors.extent(name)
+        out.append({"mirror": name.upper(), "along_mm": None if e is None else float(e.along_mm[1] - e.along_mm[0]),
+                    "height_mm": None if e is None else float(e.height_mm[1] - e.height_mm[0]),
+                    "thickness_mm": rig.mirrors.plate_thickness_mm if name == "m1" else None})
+    return out
+
+
 def capture_info(session) -> dict | None:
-    """The capture panel's card and folder, or None when the app has none (psvs serve --target --capture-to)."""
+    """The capture panel's card and folder, or None before they are chosen (psvs serve --target --capture-to,
+    or in the page)."""
     setup = session.capture.setup
     if setup is None:
         return None
-    t = setup.target
-    return {"target": f"{t.rows}x{t.cols} discs, {t.diameter_mm:g} mm across, {t.spacing_mm:g} mm apart",
-            "folder": setup.folder}
+    return {"target": describe_target(setup.target), "folder": setup.folder}
 
 
 @router.get("/image.png")

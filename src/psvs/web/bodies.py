@@ -17,6 +17,8 @@ from psvs.web.limits import check_steps
 
 #: Largest near or far distance (mm) a body may ask for.
 MAX_RANGE_MM = 100000
+#: Longest rig file or mount.toml text a body may carry (characters; psvs writes a few kB).
+MAX_FILE_CHARS = 1_000_000
 
 
 class Body(BaseModel):
@@ -76,6 +78,35 @@ class LiveBody(MatchBody):
     tolerance_px: float = Field(0.5, gt=0, le=100, description="the self-check's tolerance, px RMS")
 
 
+class RigChoiceBody(Body):
+    """``POST /api/rig``: a shipped rig's ``name``, or a rig file's ``text`` (with the ``file_name`` the page
+    shows); exactly one of the two."""
+
+    name: str | None = Field(default=None, max_length=100)
+    text: str | None = Field(default=None, max_length=MAX_FILE_CHARS)
+    file_name: str | None = Field(default=None, max_length=255)
+
+    @model_validator(mode="after")
+    def _one_of(self):
+        if (self.name is None) == (self.text is None):
+            raise ValueError("give a shipped rig's name or a rig file's text, not both or neither")
+        return self
+
+
+class CheckBody(RangeBody):
+    """``POST /api/check``: the self-check of the calibration on the current image, over the working range."""
+
+    tolerance_px: float = Field(0.5, gt=0, le=100, description="healthy within this RMS row offset, px")
+
+
+class CaptureSetupBody(Body):
+    """``POST /api/capture/setup``: the card (its target file's text, as ``psvs target`` writes it) and the folder
+    on this machine its views are saved in (new or empty; relative to where psvs serve runs)."""
+
+    target: str = Field(min_length=1, max_length=100_000)
+    folder: str = Field(min_length=1, max_length=4096)
+
+
 class DenseBody(RangeBody):
     """``POST /api/dense``: the dense disparity of the current image."""
 
@@ -96,9 +127,6 @@ class CaptureBody(Body):
             raise ValueError(f"near_mm must be < far_mm, got {self.near_mm:g} and {self.far_mm:g}")
         return self
 
-
-#: Longest rig file or mount.toml text a body may carry (characters; psvs writes a few kB).
-MAX_FILE_CHARS = 1_000_000
 
 
 class AdjustBody(RangeBody):

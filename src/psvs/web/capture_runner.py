@@ -27,12 +27,21 @@ EVENTS = 200            # event lines kept for the page
 
 @dataclass(frozen=True, eq=False)
 class CaptureSetup:
-    """What ``psvs serve --target T --capture-to DIR`` gives the page: the card, its file's bytes (copied as
-    the folder's target.toml) and the folder."""
+    """The capture's card, its file's bytes (copied as the folder's target.toml) and the folder: from ``psvs
+    serve --target T --capture-to DIR``, or chosen in the page (``POST /api/capture/setup``)."""
 
     target: Target
     target_text: bytes
     folder: str
+
+
+def describe_target(t) -> str:
+    """The card in a few words, as the page shows it (a circle grid, asymmetric or not, or a ChArUco board)."""
+    if hasattr(t, "squares_x"):
+        return (f"ChArUco {t.squares_x}x{t.squares_y} squares of {t.square_mm:g} mm, markers {t.marker_mm:g} mm "
+                f"({t.dictionary})")
+    kind = "asymmetric grid of " if type(t).__name__.startswith("Asymmetric") else ""
+    return f"{kind}{t.rows}x{t.cols} discs, {t.diameter_mm:g} mm across, {t.spacing_mm:g} mm apart"
 
 
 class CaptureRunner(BackgroundRunner):
@@ -50,11 +59,21 @@ class CaptureRunner(BackgroundRunner):
     #: The capture loop's frame may take longer (detecting the card in both views of a large frame).
     STOP_TIMEOUT_S = 10.0
 
+    def configure(self, setup: CaptureSetup) -> None:
+        """Take a new card and folder (chosen in the page); a new set starts. Refused while capturing."""
+        with self._control:                  # not while a start or stop runs
+            if self.running:
+                raise ValueError("stop the capture before choosing another card or folder")
+            with self._lock:
+                self.setup, self._assistant, self._folder = setup, None, None
+                self._frame, self._step, self._error, self._progress = None, None, "", None
+                self._events.clear()
+
     def start(self, source: Source, rig: Rig, params: CaptureParams) -> None:
         """Check the card against the rig and the range, then watch the source (ValueError, one line, else)."""
         if self.setup is None:
-            raise ValueError("capture needs a card and a folder: start psvs serve with --target TARGET.toml and "
-                             "--capture-to DIR")
+            raise ValueError("capture needs a card and a folder: choose them (the card's target.toml and a new "
+                             "folder) first")
         check_card_visible(rig, self.setup.target, params)
 
         def prepare():

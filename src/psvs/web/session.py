@@ -81,6 +81,20 @@ class Session:
         w, h = self.rig.camera.image_size_px
         return int(w), int(h)
 
+    def replace_rig(self, rig: Rig, name: str) -> None:
+        """Make ``rig`` the one every computation uses (chosen in the page). Its camera must have the served
+        image's size (ValueError, one line, else); live mode and the capture stop (they ran through the old
+        rig) and the last match result is forgotten."""
+        w, h = self.image_size_px
+        rw, rh = (int(x) for x in rig.camera.image_size_px)
+        if (rw, rh) != (w, h):
+            raise ValueError(f"{name}'s camera is {rw}x{rh} px, the served images {w}x{h} px: serve a camera, video "
+                             "or image of that size with it (psvs serve --rig)")
+        self.live.stop()
+        self.capture.stop()
+        with self._lock:
+            self.rig, self.rig_name, self._result = rig, name, None
+
     def still(self) -> Still:
         """The current image, its name and generation, read together under the lock."""
         with self._lock:

@@ -341,8 +341,8 @@ $("upload").addEventListener("change", async (ev) => {
   const type = state.uploadTypes.includes(file.type) ? file.type : "image/x-portable-anymap";
   const r = await fetch("/api/upload", { method: "POST", headers: { "Content-Type": type }, body: file });
   const data = await r.json().catch(() => ({}));
-  if (!r.ok) { setStatus("upload: " + (data.detail || r.status)); return; }
-  state.result = null; $("source").textContent = file.name;
+  if (!r.ok) { setStatus("upload: " + (data.detail || r.status)); $("header-status").textContent = $("status").textContent; return; }
+  state.result = null; $("source").textContent = "image: " + file.name; $("header-status").textContent = "";
   await loadImage(); schedulePreview();
 });
 
@@ -475,29 +475,5 @@ async function adjustInit() {
   const d = await api("/api/adjust/designs");
   fillSelect($("adjust-design"), [["", `served: ${d.served}`], ...d.shipped.map((n) => [n, n])]);
   $("adjust-pitch").value = d.pitch_mm;
+  await workflowInit(d.served, d.shipped);       // workflow.js: the Design step's rig choice
 }
-
-(async function init() {
-  try {
-    const info = await api("/api/info");
-    state.uploadTypes = info.upload_types;       // what /api/upload takes (psvs.web.guard.UPLOAD_TYPES)
-    $("source").textContent = `${info.source.kind}: ${info.source.name}`;
-    const rig = info.rig;
-    const cal = rig.calibration;
-    const status = cal ? `calibrated: RMS ${cal.rms_px.toFixed(3)} px from ${cal.images} images` : "not calibrated (a design)";
-    $("rig").textContent = `rig: ${rig.name} (f ${rig.focal_length_mm.toFixed(3)} mm, b ${rig.baseline_mm.toFixed(2)} mm, ` +
-      `plate ${rig.plate_thickness_mm.toFixed(2)} mm) — ${status}; ` +
-      (rig.build ? "a build: twins matched on rectified rows" : "the paper's geometry: twins on image rows");
-    $("live-start").disabled = !info.source.live;
-    $("capture-start").disabled = !info.source.live || !info.capture;
-    if (info.capture) $("capture-folder").textContent = `Show the printed card (${info.capture.target}) to both views; ` +
-      `each good pose is saved once into ${info.capture.folder}.`;
-    else $("capture-folder").textContent = "Start psvs serve with --target TARGET.toml --capture-to DIR to capture " +
-      "calibration views here.";
-    await adjustInit();
-    await rig3dInit();
-    await loadImage();
-    await preview();
-    document.body.dataset.ready = "1";
-  } catch (e) { setStatus(e.message); }
-})();

@@ -1,0 +1,132 @@
+"use strict";
+// The builder's workflow (issue 44): one view per step, reachable by URL (#design ... #robot), the rig chosen
+// in the page (POST /api/rig), the glass to cut, the capture's card and folder (POST /api/capture/setup) and
+// the self-check of the current image (POST /api/check). Uses app.js's $, api and state.
+
+const STEPS = ["design", "mount", "capture", "align", "check", "measure", "dense", "live", "robot"];
+
+// Show the step the URL names (the first, Design, when it names none) and mark it in the header's links.
+function showStep() {
+  const asked = location.hash.replace(/^#/, "");
+  const step = STEPS.includes(asked) ? asked : "design";
+  for (const s of document.querySelectorAll("section.step")) s.hidden = s.dataset.step !== step;
+  for (const a of document.querySelectorAll("#workflow a")) {
+    if (a.dataset.step === step) a.setAttribute("aria-current", "step"); else a.removeAttribute("aria-current");
+  }
+  document.body.dataset.step = step;
+  // plotly sizes a plot to its element: one drawn while hidden is redrawn at its size once shown
+  if (typeof Plotly !== "undefined") {
+    for (const id of ["rig3d", "dense-cloud"]) {
+      const el = $(id);
+      if (el && el.dataset.ready && el.offsetParent !== null) Plotly.Plots.resize(el);
+    }
+  }
+}
+window.addEventListener("hashchange", showStep);
+showStep();
+
+// The header's "Open image…" is a label round a hidden file input: Enter or Space opens it from the keyboard.
+document.querySelector("label.upload").addEventListener("keydown", (e) => {
+  if (e.key === "Enter" || e.key === " ") { e.preventDefault(); $("upload").click(); }
+});
+
+function showGlass(rig) {
+  const body = $("glass").querySelector("tbody");
+  body.textContent = "";
+  const mm = (x) => (x === null ? "unbounded" : x.toFixed(2));
+  for (const g of rig.glass) {
+    const tr = document.createElement("tr");
+    for (const v of [g.mirror, mm(g.along_mm), mm(g.height_mm), g.thickness_mm === null ? "–" : g.thickness_mm.toFixed(2)]) {
+      const td = document.createElement("td"); td.textContent = v; tr.appendChild(td);
+    }
+    body.appendChild(tr);
+  }
+  $("glass-note").textContent = rig.glass.some((g) => g.along_mm === null) ?
+    "This rig file gives no mirror sizes (the paper's ideal planes): psvs design --rig RIG sizes them for the lens." :
+    `Rig: ${rig.name}. Sizes of the glass itself, mm; add the holder's seat to each side as docs/mount.md says.`;
+}
+
+// The header and every panel that depends on what the server holds: the rig (name, f, b, plate; calibrated
+// or a design), the image, the capture's card and folder.
+function showInfo(info) {
+  state.uploadTypes = info.upload_types;       // what /api/upload takes (psvs.web.guard.UPLOAD_TYPES)
+  $("source").textContent = `image: ${info.source.name} (${info.source.kind}, ${info.image_size_px.join("x")} px)`;
+  const rig = info.rig, cal = rig.calibration;
+  const status = cal ? `calibrated: RMS ${cal.rms_px.toFixed(3)} px from ${cal.images} images` : "not calibrated (a design)";
+  $("rig").textContent = `rig: ${rig.name} (f ${rig.focal_length_mm.toFixed(3)} mm, b ${rig.baseline_mm.toFixed(2)} mm, ` +
+    `plate ${rig.plate_thickness_mm.toFixed(2)} mm) — ${status}; ` +
+    (rig.build ? "a build: twins matched on rectified rows" : "the paper's geometry: twins on image rows");
+  showGlass(rig);
+  $("live-start").disabled = !info.source.live;
+  $("capture-start").disabled = !info.source.live || !info.capture;
+  if (!info.source.live) $("capture-folder").textContent = "Capture reads a camera or a video: serve one " +
+    "(psvs serve --camera or --video) to capture here.";
+  else if (info.capture) $("capture-folder").textContent = `Show the printed card (${info.capture.target}) to both ` +
+    `views; each good pose is saved once into ${info.capture.folder}.`;
+  else $("capture-folder").textContent = "Choose the card's target.toml and a new folder above, then start.";
+}
+
+function stepStatus(id, text, ok) { const s = $(id); s.textContent = text || ""; s.className = ok ? "ok" : "bad"; }
+
+async function chooseRig(body) {
+  stepStatus("rig-status", "loading the rig…", true);
+  try {
+    const r = await api("/api/rig", body);
+    showInfo(await api("/api/info"));
+    await rig3dInit();
+    stepStatus("rig-status", `now using ${r.name}`, true);
+    document.body.dataset.rigChosen = r.name;
+  } catch (e) { stepStatus("rig-status", "rig: " + e.message); document.body.dataset.rigChosen = "error"; }
+}
+
+async function workflowInit(served, shipped) {
+  const sel = $("rig-choice");
+  fillSelect(sel, [["", `served: ${served}`], ...shipped.map((n) => [n, n])]);
+  sel.addEventListener("change", () => { if (sel.value) chooseRig({ name: sel.value }); });
+  $("rig-file").addEventListener("change", async (e) => {
+    const f = e.target.files[0];
+    if (f) await chooseRig({ text: await f.text(), file_name: f.name });
+  });
+}
+
+$("capture-setup").addEventListener("click", async () => {
+  const f = $("capture-target").files[0];
+  if (!f) { $("capture-hint").textContent = "choose the card's target.toml (psvs target writes one)"; return; }
+  try {
+    const r = await api("/api/capture/setup", { target: await f.text(), folder: $("capture-dir").value });
+    showInfo(await api("/api/info"));
+    $("capture-hint").textContent = `card: ${r.target}; views go to ${r.folder}`;
+  } catch (e) { $("capture-hint").textContent = "capture: " + e.message; }
+});
+
+$("check-run").addEventListener("click", async () => {
+  document.body.dataset.checkDone = "";
+  stepStatus("check-status", "checking the twins' rows…", true);
+  try {
+    const r = await api("/api/check", { near_mm: Number($("check-near").value), far_mm: Number($("check-far").value),
+                                         tolerance_px: Number($("check-tolerance").value) });
+    const v = $("check-verdict");
+    v.textContent = r.verdict; v.className = r.verdict === "healthy" ? "good" : "bad";
+    $("check-rms").textContent = fmt(r.row_offset_rms_px, 2, "px") +
+      (r.uncertainty_px === null ? "" : ` ± ${r.uncertainty_px.toFixed(2)}`);
+    $("check-max").textContent = fmt(r.row_offset_max_px, 2, "px");
+    $("check-tiles").textContent = `${r.tiles} of ${r.tiles_tried} tiles (${r.judged_px} px)`;
+    $("check-reason").textContent = r.reason;
+    $("check-explained").textContent = r.explanation ? "best explained by " + r.explanation : "";
+    $("check-map").src = r.map_png ? "data:image/png;base64," + r.map_png : "";
+    stepStatus("check-status", `${r.image}: ${r.verdict}`, r.verdict === "healthy");
+    document.body.dataset.checkDone = r.verdict;
+  } catch (e) { stepStatus("check-status", "check: " + e.message); document.body.dataset.checkDone = "error"; }
+});
+
+// The page opens: the header, the panels, the rig in 3-D, the image (app.js draws it).
+(async function init() {
+  try {
+    showInfo(await api("/api/info"));
+    await adjustInit();
+    await rig3dInit();
+    await loadImage();
+    await preview();
+    document.body.dataset.ready = "1";
+  } catch (e) { setStatus(e.message); }
+})();

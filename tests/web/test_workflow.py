@@ -1,0 +1,169 @@
+"""The page as a builder's workflow (issue 44, item 1): one view per step, each reachable by its URL and from
+the keyboard, saying what it needs and what comes next; the rig, the capture's card and folder chosen in the
+page; the Check step's self-check of the current image (``psvs check`` on one frame, docs/health.md).
+
+Truth for the check: the textured scene rendered through the knocked build, read through the misaligned
+build's calibration (its mirrors moved since: drifted, 2.59 px RMS by ``psvs.health.check_frames`` on the
+same frame, tests/health measure 2.46 on whole videos) and through the knocked build's own (healthy)."""
+import re
+
+import numpy as np
+import pytest
+
+from psvs.io.params import load_rig
+from psvs.rigs import shipped_rig_path
+from psvs.simulate.builtin import textured
+from psvs.simulate.render import render
+from psvs.simulate.textures import CircleGrid
+from psvs.targets.target_file import dumps_target
+from psvs.web.app import create_app
+from psvs.web.sources import image_source
+from tests.support.browser import shot
+from tests.support.web import local_client, serving
+
+STEPS = ("design", "mount", "capture", "align", "check", "measure", "dense", "live", "robot")
+
+
+@pytest.fixture(scope="module")
+def knocked_frame():
+    """The textured scene at 800 mm through the knocked build (640 x 480 grey)."""
+    return render(textured(800.0), load_rig("misaligned_knocked"), seed=2, supersample=1).image
+
+
+def test_the_rig_is_chosen_in_the_page(knocked_frame):
+    with local_client(create_app(image_source("knocked", knocked_frame), load_rig("misaligned"), "misaligned")) as c:
+        assert c.get("/api/info").json()["rig"]["name"] == "misaligned"
+        r = c.post("/api/rig", json={"name": "misaligned_knocked"})
+        assert r.status_code == 200 and r.json() == {"name": "misaligned_knocked"}
+        info = c.get("/api/info").json()["rig"]
+        knocked = load_rig("misaligned_knocked")
+        assert info["name"] == "misaligned_knocked"
+        assert info["focal_length_mm"] == pytest.approx(knocked.camera.focal_length_mm, abs=1e-12)
+        # a rig file's text, as the page reads the user's file
+        text = shipped_rig_path("clear").read_text()
+        r = c.post("/api/rig", json={"text": text, "file_name": "mine.toml"})
+        assert r.status_code == 200 and c.get("/api/info").json()["rig"]["name"] == "mine.toml"
+        assert c.get("/api/rig3d").json()["camera"] == [0.0, 0.0, 0.0]
+        # refused, one line each, the rig kept: another camera's size, an unknown name, both or neither, bad text
+        for body, said in (({"name": "mv1440"}, "mv1440's camera is 1440x1080 px, the served images 640x480 px"),
+                           ({"name": "nope"}, "unknown rig name 'nope'"),
+                           ({"name": "clear", "text": text}, "not both or neither"), ({}, "not both or neither"),
+                           ({"text": "[camera]\nfocal_length_mm = -3\n"}, "rig file")):
+            r = c.post("/api/rig", json=body)
+            assert r.status_code == 400 and said in r.json()["detail"] and "\n" not in r.json()["detail"], r.json()
+        assert c.get("/api/info").json()["rig"]["name"] == "mine.toml"
+
+
+def test_the_check_step_judges_the_current_image(knocked_frame):
+    with local_client(create_app(image_source("knocked", knocked_frame), load_rig("misaligned"), "misaligned")) as c:
+        r = c.post("/api/check", json={})
+        assert r.status_code == 200
+        d = r.json()
+        assert d["verdict"] == "drifted" and d["row_offset_rms_px"] == pytest.approx(2.59, abs=0.3)
+        assert d["uncertainty_px"] < 0.5 and d["tiles"] >= 100 and d["image"] == "knocked"
+        assert d["explained_by"] and d["explanation"] and d["map_png"]
+        # one mirror's tilt explains the field the knock (M3 and M4 moved) made, to a small part of it
+        best = d["explained_by"][0]
+        assert best["residual_px"] <= 0.2 * d["row_offset_rms_px"]
+        assert d["explanation"].startswith(best["mirror"].upper())
+        # the same frame through the knocked build's own rig, chosen in the page: healthy
+        assert c.post("/api/rig", json={"name": "misaligned_knocked"}).status_code == 200
+        d = c.post("/api/check", json={"tolerance_px": 0.5}).json()
+        assert d["verdict"] == "healthy" and d["row_offset_rms_px"] < 0.5 and d["explained_by"] == []
+        # a blank image cannot be judged: said, with no map
+        c.post("/api/upload", content=_png(np.full((480, 640), 128, np.uint8)), headers={"Content-Type": "image/png"})
+        d = c.post("/api/check", json={}).json()
+        assert d["verdict"] == "cannot judge" and d["map_png"] is None and d["reason"]
+        for body in ({"tolerance_px": 0}, {"near_mm": 900, "far_mm": 400}, {"extra": 1}):
+            assert c.post("/api/check", json=body).status_code in (400, 422)
+
+
+def _png(grey):
+    import cv2
+    return cv2.imencode(".png", grey)[1].tobytes()
+
+
+def test_the_capture_card_and_folder_are_chosen_in_the_page(tmp_path, knocked_frame):
+    card = CircleGrid(rows=4, cols=6, spacing_mm=14.0, diameter_mm=7.0)
+    with local_client(create_app(image_source("knocked", knocked_frame), load_rig("misaligned"))) as c:
+        assert c.get("/api/info").json()["capture"] is None
+        r = c.post("/api/capture/setup", json={"target": dumps_target(card), "folder": str(tmp_path / "views")})
+        assert r.status_code == 200, r.json()
+        assert r.json() == {"folder": str(tmp_path / "views"), "target": "4x6 discs, 7 mm across, 14 mm apart"}
+        assert c.get("/api/info").json()["capture"] == r.json()
+        assert c.get("/api/capture/state").json()["available"] is True
+        assert not (tmp_path / "views").exists()             # nothing is written before a view is saved
+        (tmp_path / "used").mkdir()
+        (tmp_path / "used" / "view_00.png").write_bytes(b"")
+        for body, said in (({"target": "[target]\nkind = \"moon\"\n", "folder": str(tmp_path / "v2")}, "target"),
+                           ({"target": dumps_target(card), "folder": str(tmp_path / "used")}, "already holds"),
+                           ({"target": dumps_target(card), "folder": str(tmp_path / "used" / "view_00.png")},
+                            "is a file")):
+            r = c.post("/api/capture/setup", json=body)
+            assert r.status_code == 400 and said in r.json()["detail"], r.json()
+        assert c.get("/api/info").json()["capture"]["folder"] == str(tmp_path / "views")   # kept
+
+
+def test_each_step_has_its_url_and_says_what_it_needs(page, knocked_frame):
+    page.set_viewport_size({"width": 1280, "height": 800})
+    with serving(create_app(image_source("knocked", knocked_frame), load_rig("misaligned"), "misaligned")) as url:
+        page.goto(url + "/")
+        page.wait_for_selector("body[data-ready='1']", timeout=60000)
+        assert page.evaluate("document.body.dataset.step") == "design"        # the landing view: the rig in 3-D
+        assert page.is_visible("#rig3d") and not page.is_visible("#image")
+        assert "misaligned" in page.inner_text("#rig") and "knocked" in page.inner_text("#source")
+        glass = "rs => rs.map(r => [...r.cells].map(c => c.textContent))"
+        rows = page.eval_on_selector_all("#glass tbody tr", glass)
+        assert [r[0] for r in rows] == ["M1", "M2", "M3", "M4"] and rows[2][1] == "unbounded"   # no sizes in it
+        # a sized design chosen in the page: the glass to cut is its extents, M1 with the plate's thickness
+        page.select_option("#rig-choice", "clear")
+        page.wait_for_function("document.body.dataset.rigChosen === 'clear'", timeout=60000)
+        rig = load_rig("clear")
+        rows = page.eval_on_selector_all("#glass tbody tr", glass)
+        e = rig.mirrors.extent("m3")
+        assert float(rows[2][1]) == pytest.approx(e.along_mm[1] - e.along_mm[0], abs=0.006)
+        assert float(rows[2][2]) == pytest.approx(e.height_mm[1] - e.height_mm[0], abs=0.006)
+        assert float(rows[0][3]) == pytest.approx(rig.mirrors.plate_thickness_mm, abs=0.006)
+        page.select_option("#rig-choice", "")                 # not a rig: the served one stays until one is chosen
+        page.select_option("#rig-choice", "misaligned")
+        page.wait_for_function("document.body.dataset.rigChosen === 'misaligned'", timeout=60000)
+        for k, step in enumerate(STEPS):
+            page.goto(url + f"/#{step}")
+            page.wait_for_function(f"document.body.dataset.step === '{step}'", timeout=10000)
+            shown = page.eval_on_selector_all("section.step",
+                                              "ss => ss.filter(s => !s.hidden).map(s => s.dataset.step)")
+            assert shown == [step]
+            section = page.locator(f"#step-{step}")
+            assert section.locator(".needs").inner_text().lower().startswith("needs ")
+            if step != "robot":
+                nxt = section.locator(".next a").get_attribute("href")
+                assert nxt == f"#{STEPS[k + 1]}"
+            assert page.get_attribute(f"#workflow a[data-step='{step}']", "aria-current") == "step"
+            # readable at 1280 x 800: nothing wider than the window
+            assert page.evaluate("document.documentElement.scrollWidth") <= 1280
+            shot(page, f"web_step_{k + 1}_{step}.png")
+        # from the keyboard: Tab reaches the steps' links, Enter follows one
+        page.goto(url + "/#design")
+        page.wait_for_selector("body[data-ready='1']", timeout=60000)
+        for _ in range(12):
+            page.keyboard.press("Tab")
+            if page.evaluate("document.activeElement.dataset.step") == "check":
+                break
+        assert page.evaluate("document.activeElement.dataset.step") == "check"
+        page.keyboard.press("Enter")
+        page.wait_for_function("document.body.dataset.step === 'check'", timeout=10000)
+        page.click("#check-run")
+        page.wait_for_function("document.body.dataset.checkDone", timeout=60000)
+        assert page.inner_text("#check-verdict") == "drifted"
+        rms = float(re.match(r"([0-9.]+) px", page.inner_text("#check-rms"))[1])
+        assert abs(rms - 2.59) <= 0.3 and page.inner_text("#check-explained").startswith("best explained by M")
+        page.wait_for_function("document.getElementById('check-map').naturalWidth > 0", timeout=10000)
+        shot(page, "web_check_drifted.png")
+        # the rig chosen in the Design step; the check then passes
+        page.click("#workflow a[data-step='design']")
+        page.select_option("#rig-choice", "misaligned_knocked")
+        page.wait_for_function("document.body.dataset.rigChosen === 'misaligned_knocked'", timeout=60000)
+        assert "misaligned_knocked" in page.inner_text("#rig")
+        page.click("#workflow a[data-step='check']")
+        page.click("#check-run")
+        page.wait_for_function("document.body.dataset.checkDone === 'healthy'", timeout=60000)
