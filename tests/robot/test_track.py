@@ -17,6 +17,7 @@ from psvs.robot.handeye_session import calibrate_cell
 from psvs.robot.loop import track
 from psvs.robot.mounting import HOME_Q
 from psvs.robot.report import deviations, error_series, summary, write_report
+from psvs.robot.run_log import read_log_csv
 from psvs.robot.workpiece import seam_workpiece
 
 #: long end-to-end runs: the README's test command runs them; .ci/latest (newest releases) does not
@@ -111,6 +112,15 @@ def test_report_and_bag_read_back(gap10, tmp_path):
     assert len(rows) == len(run.cycles)
     assert [float(r["s_mm"]) for r in rows] == pytest.approx([c.s_mm for c in run.cycles], abs=5e-5)
     assert [int(r["valid"]) for r in rows] == [int(c.valid) for c in run.cycles]
+    # psvs's own reader (the web page's Robot step) gives the run's values back
+    log = read_log_csv((tmp_path / "log.csv").read_text())
+    np.testing.assert_allclose(log.tcp_mm, [c.tcp_mm for c in run.cycles], atol=5e-5)
+    np.testing.assert_allclose(log.seam_mm, [c.seam_mm for c in run.cycles], atol=5e-5)
+    np.testing.assert_allclose(log.s_mm, [c.s_mm for c in run.cycles], atol=5e-5)
+    assert log.valid.tolist() == [c.valid for c in run.cycles] and log.notes == tuple(c.reason for c in run.cycles)
+    dev = deviations(run, wp)
+    np.testing.assert_allclose(log.lateral_mm, dev["lateral_mm"], atol=5e-5)
+    assert log.welded(run.config.arc_on_mm).sum() == sum(c.s_mm >= run.config.arc_on_mm for c in run.cycles)
     # the PNGs decode (OpenCV) at the figure sizes (6x6 and 8x4 in at 100 dpi, trimmed) and show the curves
     top, err = (cv2.imread(str(tmp_path / n), cv2.IMREAD_COLOR) for n in ("top_view.png", "error.png"))
     assert 450 <= top.shape[0] <= 620 and 450 <= top.shape[1] <= 620

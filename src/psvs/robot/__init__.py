@@ -18,6 +18,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "mounting": ["HOME_Q"],
         "recording": ["RunRecorder", "publish_stop", "replay_recording"],
         "report": ["write_report"],
+        "run_log": ["LOG_COLUMNS", "RunLog", "read_log_csv"],
         "workpiece": ["seam_workpiece"],
     },
 )

@@ -10,6 +10,7 @@ import numpy as np
 
 from psvs.io.atomic import write_atomic
 from psvs.robot.loop import TrackRun
+from psvs.robot.run_log import LOG_COLUMNS
 from psvs.robot.workpiece import Workpiece
 
 
@@ -86,13 +87,12 @@ def _fields(record, skip: tuple[str, ...] = ()) -> dict:
 
 
 def log_csv(run: TrackRun, workpiece: Workpiece) -> str:
-    """One row per control cycle."""
+    """One row per control cycle (:data:`psvs.robot.run_log.LOG_COLUMNS`; read back by
+    :func:`psvs.robot.run_log.read_log_csv`)."""
     dev = deviations(run, workpiece)
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["t_s", "s_mm", "speed_mm_s", "tcp_x_mm", "tcp_y_mm", "tcp_z_mm", "target_x_mm", "target_y_mm",
-                "target_z_mm", "seam_x_mm", "seam_y_mm", "seam_z_mm", "valid", "lateral_mm", "vertical_mm",
-                *[f"q{i + 1}_rad" for i in range(6)], "render_ms", "sensor_ms", "control_ms", "note"])
+    w.writerow(LOG_COLUMNS)
     for i, c in enumerate(run.cycles):
         w.writerow([f"{c.t_s:.3f}", f"{c.s_mm:.4f}", f"{c.speed_mm_s:.3f}", *(f"{v:.4f}" for v in c.tcp_mm),
                     *(f"{v:.4f}" for v in c.target_mm), *(f"{v:.4f}" for v in c.seam_mm), int(c.valid),

@@ -27,7 +27,17 @@ from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
 from psvs.optics.rig import Rig
-from psvs.web import api_adjust, api_capture, api_check, api_dense, api_image, api_live, api_match, api_rig3d
+from psvs.web import (
+    api_adjust,
+    api_capture,
+    api_check,
+    api_dense,
+    api_image,
+    api_live,
+    api_match,
+    api_rig3d,
+    api_robot,
+)
 from psvs.web.api_image import MAX_BODY_BYTES
 from psvs.web.capture_runner import CaptureRunner, CaptureSetup
 from psvs.web.guard import Access, Guard
@@ -39,7 +49,7 @@ __all__ = ["MAX_BODY_BYTES", "ROUTERS", "STATIC", "create_app"]
 
 STATIC = Path(__file__).resolve().parent / "static"
 #: The routers of the API, one per concern.
-ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_adjust, api_rig3d, api_check)
+ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_adjust, api_rig3d, api_check, api_robot)
 #: Longest ``detail`` of a 4xx answer (characters).
 MAX_DETAIL = 300
 

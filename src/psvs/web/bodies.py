@@ -93,6 +93,13 @@ class RigChoiceBody(Body):
         return self
 
 
+class RobotRunBody(Body):
+    """``POST /api/robot/run``: a track run's log.csv and report.json, as texts (``psvs track -o RUN``)."""
+
+    log: str = Field(min_length=1, max_length=8_000_000)
+    report: str = Field(min_length=1, max_length=MAX_FILE_CHARS)
+
+
 class CheckBody(RangeBody):
     """``POST /api/check``: the self-check of the calibration on the current image, over the working range."""
 

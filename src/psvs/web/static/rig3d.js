@@ -118,3 +118,28 @@ function drawCloud3d(el, cloud) {
   return Plotly.react(el, traces, layout, { displaylogo: false, responsive: true })
     .then(() => { el.dataset.points = String(q.length); });
 }
+
+// A seam-tracking run (POST /api/robot/run) in the robot's base frame (mm, Z up): the seam points the sensor
+// measured, the torch's path (grey in the run-in, red with the arc on), and where it started and stopped.
+function drawRobot3d(el, run) {
+  el.hidden = false;
+  if (typeof Plotly === "undefined") return Promise.resolve();
+  const xyz = (pts) => ({ x: pts.map((p) => p[0]), y: pts.map((p) => p[1]), z: pts.map((p) => p[2]) });
+  const runIn = run.tcp_mm.filter((_, i) => !run.welded[i]), welded = run.tcp_mm.filter((_, i) => run.welded[i]);
+  const last = run.tcp_mm[run.tcp_mm.length - 1];
+  const traces = [
+    { type: "scatter3d", mode: "markers", name: "seam as the sensor measured it", ...xyz(run.seam_mm),
+      marker: { size: 2, color: RIG3D_COLOURS.right } },
+    { type: "scatter3d", mode: "lines", name: "torch tip, run-in", ...xyz(runIn), line: { color: "#9e9e9e", width: 4 } },
+    { type: "scatter3d", mode: "lines", name: "torch tip, arc on", ...xyz(welded),
+      line: { color: RIG3D_COLOURS.left, width: 6 } },
+    { type: "scatter3d", mode: "markers+text", name: "stop", x: [last[0]], y: [last[1]], z: [last[2]], text: ["stop"],
+      textposition: "top center", marker: { size: 4, color: RIG3D_COLOURS.camera, symbol: "square" }, showlegend: false },
+  ];
+  const layout = { margin: { l: 0, r: 0, t: 0, b: 0 }, showlegend: true,
+                   legend: { orientation: "h", x: 0, y: 0, font: { size: 10 }, bgcolor: "rgba(255,255,255,0.7)" },
+                   scene: { aspectmode: "data", xaxis: { title: { text: "X (mm)" } }, yaxis: { title: { text: "Y (mm)" } },
+                            zaxis: { title: { text: "Z (mm)" } }, camera: { eye: { x: 0.8, y: -1.4, z: 1.0 } } } };
+  return Plotly.react(el, traces, layout, { displaylogo: false, responsive: true })
+    .then(() => { el.dataset.ready = "1"; el.dataset.points = String(run.seam_mm.length); });
+}

@@ -16,7 +16,7 @@ function showStep() {
   document.body.dataset.step = step;
   // plotly sizes a plot to its element: one drawn while hidden is redrawn at its size once shown
   if (typeof Plotly !== "undefined") {
-    for (const id of ["rig3d", "dense-cloud"]) {
+    for (const id of ["rig3d", "dense-cloud", "robot3d"]) {
       const el = $(id);
       if (el && el.dataset.ready && el.offsetParent !== null) Plotly.Plots.resize(el);
     }
@@ -117,6 +117,33 @@ $("check-run").addEventListener("click", async () => {
     stepStatus("check-status", `${r.image}: ${r.verdict}`, r.verdict === "healthy");
     document.body.dataset.checkDone = r.verdict;
   } catch (e) { stepStatus("check-status", "check: " + e.message); document.body.dataset.checkDone = "error"; }
+});
+
+$("robot-run").addEventListener("change", async (e) => {
+  const files = [...e.target.files];
+  const log = files.find((f) => f.name.toLowerCase().endsWith(".csv"));
+  const report = files.find((f) => f.name.toLowerCase().endsWith(".json"));
+  document.body.dataset.robotDone = "";
+  if (!log || !report) {
+    stepStatus("robot-status", "select both files psvs track wrote into the run's folder: log.csv and report.json");
+    return;
+  }
+  stepStatus("robot-status", "reading the run…", true);
+  try {
+    const run = await api("/api/robot/run", { log: await log.text(), report: await report.text() });
+    const r = run.report, mm = (s) => (s.rms === null ? "–" : `${s.rms.toFixed(3)} / ${s.max.toFixed(3)} mm`);
+    $("robot-welded").textContent = `${r.welded_mm.toFixed(1)} mm`;
+    $("robot-lateral").textContent = mm(r.lateral_mm);
+    $("robot-vertical").textContent = mm(r.vertical_mm);
+    $("robot-seen").textContent = `${r.valid_frames} of ${r.cycles} cycles`;
+    $("robot-stop").textContent = `stopped: ${r.stop}`;
+    await drawRobot3d($("robot3d"), run);
+    $("robot3d-note").textContent = `${run.seam_mm.length} seam points measured` +
+      (run.step > 1 ? ` (every ${run.step}th cycle drawn)` : "") + "; the deviations over the welded part, as " +
+      "report.json states them; drag to turn, scroll to zoom.";
+    stepStatus("robot-status", `${log.name} and ${report.name}: ${r.cycles} cycles`, true);
+    document.body.dataset.robotDone = "1";
+  } catch (err) { stepStatus("robot-status", "run: " + err.message); document.body.dataset.robotDone = "error"; }
 });
 
 // The page opens: the header, the panels, the rig in 3-D, the image (app.js draws it).

@@ -1,0 +1,88 @@
+"""A track run's ``log.csv`` read back (``psvs track -o RUN`` writes it, :func:`psvs.robot.report.log_csv`): one
+row per control cycle, the torch's tip, its target, the seam point the sensor measured, whether it saw the
+seam, the torch's deviation from the true seam, the joints and the cycle's times; what the web page's Robot
+step draws."""
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass
+
+import numpy as np
+
+#: The columns of log.csv, in order (mm, s, rad, ms; ``valid`` 0 or 1; ``note`` the stop's or a cycle's word).
+LOG_COLUMNS = ("t_s", "s_mm", "speed_mm_s", "tcp_x_mm", "tcp_y_mm", "tcp_z_mm", "target_x_mm", "target_y_mm",
+               "target_z_mm", "seam_x_mm", "seam_y_mm", "seam_z_mm", "valid", "lateral_mm", "vertical_mm",
+               *(f"q{i + 1}_rad" for i in range(6)), "render_ms", "sensor_ms", "control_ms", "note")
+#: Rows a log may hold (a 10-minute run at 250 Hz): a larger text is not a run's log.
+MAX_ROWS = 150_000
+
+
+@dataclass(frozen=True, eq=False)
+class RunLog:
+    """A run's cycles: ``t_s`` (n,), the torch's progress along the seam ``s_mm`` (n,), ``tcp_mm``, ``target_mm``,
+    ``seam_mm`` (n, 3) in the robot's base frame, ``valid`` (n,) bool (the sensor saw the seam), ``lateral_mm``
+    and ``vertical_mm`` (n,) the torch's deviation from the true seam, ``notes`` (n,) str."""
+
+    t_s: np.ndarray
+    s_mm: np.ndarray
+    tcp_mm: np.ndarray
+    target_mm: np.ndarray
+    seam_mm: np.ndarray
+    valid: np.ndarray
+    lateral_mm: np.ndarray
+    vertical_mm: np.ndarray
+    notes: tuple
+
+    def welded(self, arc_on_mm: float) -> np.ndarray:
+        """Mask (n,) of the cycles with the arc on (the torch's progress at ``arc_on_mm`` or beyond: the run-in
+        before it fills the sensor's look-ahead)."""
+        return self.s_mm >= arc_on_mm
+
+
+def read_log_csv(text: str, where: str = "log.csv") -> RunLog:
+    """A run's log from its text; ValueError naming ``where``, the row and the column for anything else than
+    what :func:`psvs.robot.report.log_csv` writes (another header, a value that is not a finite number, valid
+    not 0 or 1, no row, too many)."""
+    rows = csv.reader(io.StringIO(text))
+    header = next(rows, None)
+    if header is None or tuple(h.strip() for h in header) != LOG_COLUMNS:
+        got = ", ".join(header[:4]) + (" ..." if header and len(header) > 4 else "") if header else "nothing"
+        raise ValueError(f"{where} is not a psvs track log: its header is {got}, expected {', '.join(LOG_COLUMNS[:4])} "
+                         f"... ({len(LOG_COLUMNS)} columns)")
+    values, notes = [], []
+    for k, row in enumerate(rows, start=2):
+        if not row:
+            continue
+        if len(values) >= MAX_ROWS:
+            raise ValueError(f"{where} holds more than {MAX_ROWS} rows: not one run's log")
+        if len(row) != len(LOG_COLUMNS):
+            raise ValueError(f"{where} row {k}: {len(row)} values, expected {len(LOG_COLUMNS)}")
+        try:
+            nums = [float(v) for v in row[:-1]]
+        except ValueError:
+            col = next(c for c, v in zip(LOG_COLUMNS, row[:-1], strict=False) if not _is_number(v))
+            raise ValueError(f"{where} row {k}: {col} is not a number") from None
+        if not np.all(np.isfinite(nums)):
+            col = next(c for c, v in zip(LOG_COLUMNS, nums, strict=False) if not np.isfinite(v))
+            raise ValueError(f"{where} row {k}: {col} is not finite")
+        if nums[LOG_COLUMNS.index("valid")] not in (0.0, 1.0):
+            raise ValueError(f"{where} row {k}: valid must be 0 or 1")
+        values.append(nums)
+        notes.append(row[-1])
+    if not values:
+        raise ValueError(f"{where} holds no cycle")
+    a = np.array(values)
+    col = lambda *names: a[:, [LOG_COLUMNS.index(n) for n in names]]  # noqa: E731
+    one = lambda name: a[:, LOG_COLUMNS.index(name)]  # noqa: E731
+    return RunLog(one("t_s"), one("s_mm"), col("tcp_x_mm", "tcp_y_mm", "tcp_z_mm"),
+                  col("target_x_mm", "target_y_mm", "target_z_mm"), col("seam_x_mm", "seam_y_mm", "seam_z_mm"),
+                  one("valid") == 1.0, one("lateral_mm"), one("vertical_mm"), tuple(notes))
+
+
+def _is_number(v: str) -> bool:
+    try:
+        float(v)
+    except ValueError:
+        return False
+    return True

@@ -1,0 +1,51 @@
+"""Route of the workflow's Robot step: a seam-tracking run as ``psvs track -o RUN`` wrote it (its log.csv and
+report.json, chosen in the page from the user's disk), read back for the 3-D view of the seam the sensor
+measured and the torch's path, with the run's own figures."""
+from __future__ import annotations
+
+import json
+
+from fastapi import APIRouter
+
+from psvs.robot.controller import TrackConfig
+from psvs.robot.run_log import read_log_csv
+from psvs.web.bodies import RobotRunBody
+
+router = APIRouter(prefix="/api")
+
+#: Points of each path the page draws at most (every k-th cycle beyond).
+MAX_DRAWN = 5000
+
+
+def _report(text: str) -> dict:
+    """report.json's figures the page shows; ValueError naming what is missing."""
+    try:
+        rep = json.loads(text)
+        out = {"cycles": int(rep["cycles"]), "welded_mm": float(rep["welded_mm"]),
+               "valid_frames": int(rep["valid_frames"]), "lateral_mm": rep["lateral_mm"],
+               "vertical_mm": rep["vertical_mm"], "stop": rep["stop"]["reason"],
+               "arc_on_mm": TrackConfig(**rep["config"]).arc_on_mm}
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"report.json is not JSON: {exc.msg} at line {exc.lineno}") from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"report.json is not a psvs track report: {exc!s} missing or not a number") from None
+    return out
+
+
+@router.post("/robot/run")
+def robot_run(body: RobotRunBody):
+    """The run's torch path (``tcp_mm``), its targets, the seam points the sensor measured (``seam_mm``, the
+    cycles it saw the seam), the lateral deviation of each drawn cycle and whether the arc was on, all in the
+    robot's base frame (mm, every k-th cycle when there are more than :data:`MAX_DRAWN`); and report.json's
+    figures (``report``). The two files must be of one run (as many cycles)."""
+    log = read_log_csv(body.log, "log.csv")
+    rep = _report(body.report)
+    if rep["cycles"] != len(log.t_s):
+        raise ValueError(f"log.csv holds {len(log.t_s)} cycles, report.json {rep['cycles']}: not one run's files")
+    step = max(1, -(-len(log.t_s) // MAX_DRAWN))
+    sel = slice(None, None, step)
+    seen = log.valid[sel]
+    welded = log.welded(rep["arc_on_mm"])[sel]
+    return {"tcp_mm": log.tcp_mm[sel].round(4).tolist(), "target_mm": log.target_mm[sel].round(4).tolist(),
+            "seam_mm": log.seam_mm[sel][seen].round(4).tolist(), "lateral_mm": log.lateral_mm[sel].round(4).tolist(),
+            "welded": welded.tolist(), "step": step, "report": rep}

@@ -1,0 +1,72 @@
+"""The workflow's Robot step (issue 44): a seam-tracking run as ``psvs track`` wrote it, opened in the page:
+the seam the sensor measured and the torch's path in 3-D, with the run's own figures (report.json's, as the
+command printed them). Truth: the run's files themselves, read independently (csv, json)."""
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from psvs.cli.main import main
+from psvs.io.params import load_rig
+from psvs.web.app import create_app
+from psvs.web.sources import image_source
+from tests.support.browser import shot
+from tests.support.web import local_client, serving
+
+pytestmark = pytest.mark.slow        # one short tracking run (about 100 rendered cycles)
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("track") / "run"
+    assert main(["track", "weld_seam", "--rig", "default", "--speed", "20", "--length", "5", "--no-bag",
+                 "-o", str(out)]) == 0
+    return out
+
+
+def _app():
+    return create_app(image_source("blank", np.full((480, 640), 90, np.uint8)), load_rig("default"))
+
+
+def test_the_run_reads_back_as_written(run_dir):
+    log, report = (run_dir / "log.csv").read_text(), (run_dir / "report.json").read_text()
+    rows, rep = list(csv.DictReader((run_dir / "log.csv").open())), json.loads(report)
+    with local_client(_app()) as c:
+        r = c.post("/api/robot/run", json={"log": log, "report": report})
+        assert r.status_code == 200, r.json()
+        d = r.json()
+        assert d["step"] == 1 and len(d["tcp_mm"]) == len(rows) == rep["cycles"]
+        np.testing.assert_allclose(d["tcp_mm"], [[float(x[f"tcp_{a}_mm"]) for a in "xyz"] for x in rows], atol=1e-4)
+        seen = [x for x in rows if x["valid"] == "1"]
+        np.testing.assert_allclose(d["seam_mm"], [[float(x[f"seam_{a}_mm"]) for a in "xyz"] for x in seen], atol=1e-4)
+        arc_on = rep["config"]["look_ahead_mm"] + 10.0                    # psvs.robot.controller.TrackConfig
+        assert d["welded"] == [float(x["s_mm"]) >= arc_on for x in rows] and any(d["welded"])
+        assert d["report"]["lateral_mm"] == rep["lateral_mm"] and d["report"]["stop"] == rep["stop"]["reason"]
+        # refused in one line: another run's report, a file that is not a log, a report that is not one
+        other = json.loads(report)
+        other["cycles"] += 1
+        for body, said in (({"log": log, "report": json.dumps(other)}, "not one run's files"),
+                           ({"log": "a,b\n1,2\n", "report": report}, "log.csv is not a psvs track log"),
+                           ({"log": log, "report": "{}"}, "report.json is not a psvs track report"),
+                           ({"log": log, "report": "{"}, "report.json is not JSON")):
+            r = c.post("/api/robot/run", json=body)
+            assert r.status_code == 400 and said in r.json()["detail"] and "\n" not in r.json()["detail"], r.json()
+
+
+def test_the_robot_step_draws_the_run(webgl_page, run_dir):
+    rep = json.loads((run_dir / "report.json").read_text())
+    with serving(_app()) as url:
+        webgl_page.goto(url + "/#robot")
+        webgl_page.wait_for_selector("body[data-ready='1']", timeout=60000)
+        webgl_page.set_input_files("#robot-run", [str(run_dir / "log.csv"), str(run_dir / "report.json")])
+        webgl_page.wait_for_function("document.body.dataset.robotDone === '1'", timeout=60000)
+        assert webgl_page.inner_text("#robot-lateral") == (f"{rep['lateral_mm']['rms']:.3f} / "
+                                                           f"{rep['lateral_mm']['max']:.3f} mm")
+        assert webgl_page.inner_text("#robot-stop") == f"stopped: {rep['stop']['reason']}"
+        assert int(webgl_page.get_attribute("#robot3d", "data-points")) == rep["valid_frames"]
+        webgl_page.wait_for_selector("#robot3d canvas", timeout=10000)
+        shot(webgl_page, "web_robot_step.png")
+        # one file alone is not a run
+        webgl_page.set_input_files("#robot-run", [str(run_dir / "log.csv")])
+        assert "select both files" in webgl_page.inner_text("#robot-status")
