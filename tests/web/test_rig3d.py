@@ -190,10 +190,18 @@ def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
         # under the pointer: a pixel on the photo panel (the textured scene's truth there, within 2 %)
         u, v = 250, 250
         truth = textured_app[1].truth.depth_left_mm[v, u]
+        page.locator("#dense-map").scroll_into_view_if_needed()      # the cloud's screenshot scrolled past it
         box = page.locator("#dense-map").bounding_box()
         page.mouse.move(box["x"] + (u + 0.5) * box["width"] / 640, box["y"] + (v + 0.5) * box["height"] / 480)
         z = page.eval_on_selector("#dense-pointer", "e => e.dataset.mm")
         assert z and abs(float(z) / truth - 1) <= 0.02, (z, truth, page.inner_text("#dense-pointer"))
+        # the depth map at full resolution (every pixel of 640 x 480), zoomable, with a colour bar in mm
+        depth = page.evaluate("(() => { const el = document.getElementById('dense-depth-map'); const t = el.data[0];"
+                              " return [t.z.length, t.z[0].length, t.z[v][u], t.colorbar.title.text,"
+                              " el.layout.dragmode]; })()".replace("[v][u]", f"[{v}][{u}]"))
+        assert depth[:2] == [480, 640] and depth[3:] == ["Z (mm)", "zoom"]
+        assert abs(depth[2] / truth - 1) <= 0.02
+        page.locator("#dense-depth-map").scroll_into_view_if_needed()
         shot(page, "web_dense_cloud.png")
     assert errors == [], errors
 

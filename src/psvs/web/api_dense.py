@@ -22,8 +22,9 @@ router = APIRouter(prefix="/api")
 
 #: Most points of the cloud sent to the page (evenly subsampled): what a WebGL scatter turns smoothly.
 CLOUD_POINTS = 20000
-#: Most cells of the grid of disparity and depth the page reads under the pointer.
-POINTER_CELLS = 40000
+#: Most cells of the grid of disparity and depth the page reads under the pointer and draws as its depth map:
+#: every pixel of a 640 x 480 map, every 3rd of a 1440 x 1080 one.
+POINTER_CELLS = 310_000
 
 
 def pointer_grid(d: np.ndarray, z: np.ndarray, seen: np.ndarray) -> dict:

@@ -178,13 +178,14 @@ $("dense").addEventListener("click", async () => {
   setStatus("dense disparity…", true);
   try {
     const res = await api("/api/dense", { fast: $("dense-fast").checked, views: $("dense-views").checked,
-                                          near_mm: Number($("near").value), far_mm: Number($("far").value) });
+                                          near_mm: Number($("dense-near").value), far_mm: Number($("dense-far").value) });
     $("dense-map").src = res.disparity_png;
     $("dense-left").src = res.left_png || ""; $("dense-right").src = res.right_png || "";
     $("dense-disparity").textContent = fmt(res.median_disparity_px, 1, "px");
     $("dense-depth").textContent = fmt(res.median_z_mm, 1, "mm");
     $("dense-depth").dataset.mm = res.median_z_mm ?? "";
     state.densePointer = res.pointer;
+    await drawDepthMap($("dense-depth-map"), res.pointer);
     await drawCloud3d($("dense-cloud"), res.cloud);
     if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, ` +
       `${res.trusted_pct.toFixed(0)} % supported beyond chance (the medians and the cloud are theirs)`, true);

@@ -143,3 +143,21 @@ function drawRobot3d(el, run) {
   return Plotly.react(el, traces, layout, { displaylogo: false, responsive: true })
     .then(() => { el.dataset.ready = "1"; el.dataset.points = String(run.seam_mm.length); });
 }
+
+// The dense result's depth map (the trusted pixels' Z, mm; every step-th pixel of the map, blank where the
+// echo does not support the answer) as a zoomable heat map with a colour bar in mm: drag a box to zoom,
+// double-click to zoom out; the pixel and its Z under the pointer.
+function drawDepthMap(el, g) {
+  el.hidden = false;
+  if (typeof Plotly === "undefined") return Promise.resolve();
+  const cols = g.z_mm[0].length, rows = g.z_mm.length;
+  const u = Array.from({ length: cols }, (_, k) => k * g.step), v = Array.from({ length: rows }, (_, k) => k * g.step);
+  const trace = { type: "heatmap", x: u, y: v, z: g.z_mm, colorscale: "Viridis",        // as the cloud's colours
+                  colorbar: { title: { text: "Z (mm)" }, thickness: 14 }, hoverongaps: false,
+                  hovertemplate: "(%{x}, %{y}): Z %{z:.1f} mm<extra></extra>" };
+  const layout = { margin: { l: 50, r: 10, t: 10, b: 40 }, dragmode: "zoom",
+                   xaxis: { title: { text: "u (px)" }, constrain: "domain" },
+                   yaxis: { title: { text: "v (px)" }, autorange: "reversed", scaleanchor: "x" } };
+  return Plotly.react(el, [trace], layout, { displaylogo: false, responsive: true })
+    .then(() => { el.dataset.ready = "1"; el.dataset.cells = String(rows * cols); });
+}
