@@ -87,6 +87,21 @@ def test_the_sized_glasses_are_the_rig_files_and_the_plate_has_two_faces():
         rig_layout(default_rig(), 800.0, 400.0)
 
 
+def test_a_builds_glasses_beside_its_designs():
+    """A build (mv1440_misaligned: every mirror tilted 0.1-0.17 deg, the box turned) is drawn with its glasses
+    where the build has them and, dotted, where its design (the shipped mv1440 file) has them: the designed ones
+    are the design file's, each built one the same rectangle moved (congruent, 0.3-0.8 mm off at a corner)."""
+    build, design = rig_layout(load_rig("mv1440_misaligned")), rig_layout(load_rig("mv1440"))
+    assert design["designed"] is None and rig_layout(default_rig())["designed"] is None
+    for built, planned, nominal in zip(build["glasses"], build["designed"], design["glasses"], strict=True):
+        assert built["name"] == planned["name"] == nominal["name"]
+        np.testing.assert_allclose(planned["corners_mm"], nominal["corners_mm"], atol=1e-9)
+        edges = lambda c: np.linalg.norm(np.roll(c, -1, axis=0) - c, axis=1)  # noqa: E731
+        np.testing.assert_allclose(edges(built["corners_mm"]), edges(nominal["corners_mm"]), atol=1e-9)
+        off = np.abs(built["corners_mm"] - nominal["corners_mm"]).max()
+        assert 0.1 < off < 2.0, (built["name"], off)
+
+
 @pytest.fixture(scope="module")
 def app():
     return create_app(scene_source("disc", __import__("psvs.live.simulated", fromlist=["disc_scene"]).disc_scene(

@@ -111,6 +111,9 @@ def test_each_step_has_its_url_and_says_what_it_needs(page, knocked_frame):
         page.wait_for_selector("body[data-ready='1']", timeout=60000)
         assert page.evaluate("document.body.dataset.step") == "design"        # the landing view: the rig in 3-D
         assert page.is_visible("#rig3d") and not page.is_visible("#image")
+        # the build's glasses, and where its design puts them
+        names = page.evaluate("document.getElementById('rig3d').data.map(t => t.name)")
+        assert "glasses as designed" in names and "where its design puts them" in page.inner_text("#rig3d-note")
         assert "misaligned" in page.inner_text("#rig") and "knocked" in page.inner_text("#source")
         glass = "rs => rs.map(r => [...r.cells].map(c => c.textContent))"
         rows = page.eval_on_selector_all("#glass tbody tr", glass)

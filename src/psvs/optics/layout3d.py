@@ -11,7 +11,7 @@ import numpy as np
 from psvs.optics.design import footprint_extents
 from psvs.optics.field import field_pixels
 from psvs.optics.mirrors import mirror_planes, virtual_centre
-from psvs.optics.rig import Rig
+from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 from psvs.optics.surfaces import Plane
 from psvs.optics.trace import trace_pixels
 
@@ -75,7 +75,9 @@ def rig_layout(rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, per_sid
     - ``virtual``: {view: the virtual camera's centre (3,)} (O1 left, O2 right; eqs. 1-8's construction);
     - ``rays``: {view: [polyline (k, 3)]} of a ``per_side`` x ``per_side`` fan of pixels, out to ``far_mm``;
     - ``field``: {view: {``near``: (4, 3) or None, ``far``: (4, 3) or None}}: the view's field there;
-    - ``range_mm``: (near, far).
+    - ``range_mm``: (near, far);
+    - ``designed``: for a build (a mirror off its designed pose, or the box turned), [{``name``, ``corners_mm``
+      (4, 3)}] of each glass where its design puts it (the same rectangles, no pose error); None for a design.
     """
     if not 0 < near_mm < far_mm:
         raise ValueError(f"the working range must be 0 < near < far mm, got {near_mm:g} and {far_mm:g}")
@@ -92,8 +94,15 @@ def rig_layout(rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, per_sid
         if len(faces) > 1:
             g["back_mm"] = plane_corners(faces[1])
         glasses.append(g)
+    designed = None
+    if not rig.mirrors.as_designed:
+        nominal = rig.with_errors({n: MirrorError() for n in MIRROR_NAMES}).replace(box_rotation_rad=(0.0, 0.0, 0.0))
+        nominal_planes = mirror_planes(nominal)
+        designed = [{"name": name.upper(), "corners_mm": plane_corners(
+            nominal_planes[name] if nominal_planes[name].extent is not None
+            else dataclasses.replace(nominal_planes[name], extent=footprint[name]))} for name, _ in GLASSES]
     uv = fan_pixels(rig, per_side)
-    return {"camera": np.zeros(3), "glasses": glasses,
+    return {"camera": np.zeros(3), "glasses": glasses, "designed": designed,
             "virtual": {v: virtual_centre(rig, v) for v in VIEWS},
             "rays": {v: ray_paths(rig, v, uv, far_mm) for v in VIEWS},
             "field": {v: {"near": field_at(rig, v, near_mm), "far": field_at(rig, v, far_mm)} for v in VIEWS},

@@ -36,6 +36,10 @@ function drawRig3d(el, layout) {
   const traces = layout.glasses.map(rig3dGlass);
   traces.push(rig3dLines(layout.glasses.map((g) => [...g.corners_mm, g.corners_mm[0]]), "glass edges",
                          "#1565c0", 2, { showlegend: false }));
+  if (layout.designed) {          // a build: where its design puts each glass, beside where it is
+    traces.push(rig3dLines(layout.designed.map((g) => [...g.corners_mm, g.corners_mm[0]]), "glasses as designed",
+                           "#ef6c00", 2, { line: { color: "#ef6c00", width: 2, dash: "dot" } }));
+  }
   for (const view of ["left", "right"]) {
     traces.push(rig3dLines(layout.rays[view], `${view} view's field rays`, RIG3D_COLOURS[view], 2));
     const fields = ["near", "far"].map((k) => layout.field[view][k]).filter((f) => f);
@@ -90,7 +94,9 @@ async function rig3dInit() {
   const sized = layout.glasses.some((g) => g.sized !== "rig file");
   document.getElementById("rig3d-note").textContent =
     "Drag to turn, scroll to zoom. The glasses " + (sized ? "are drawn at the camera field's footprint (the rig " +
-    "file gives no sizes: psvs design sizes them)" : "as the rig file sizes them") + "; rays traced through the " +
+    "file gives no sizes: psvs design sizes them)" : "as the rig file sizes them") +
+    (layout.designed ? ", where the build has them (orange dots: where its design puts them)" : "") +
+    "; rays traced through the " +
     "exact optics, M1's plate refraction included.";
   el.dataset.ready = "1";
 }
