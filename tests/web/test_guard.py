@@ -103,7 +103,7 @@ def test_every_route_that_changes_something_is_guarded(app, client):
     GET routes only read (exports, states, frames), and need neither."""
     routes = [r for module in ROUTERS for r in module.router.routes]
     posts = sorted(r.path for r in routes if "POST" in r.methods)
-    assert len(posts) == 13, posts
+    assert len(posts) == 14, posts
     for path in posts:
         assert client.post(path, json={}).status_code == 403, path
         assert client.post(path, json={}, headers={"Origin": "http://evil.example"}).status_code == 403, path

@@ -15,5 +15,6 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "layout": ["INTERFACES", "MountError", "MountParams"],
         "report": ["check_same_design", "format_guide", "guide_to_dict"],
         "seats": ["DEFAULT_PITCH_MM", "Seat", "seats_for"],
+        "stl_view": ["MAX_FACES", "mount_mesh"],
     },
 )

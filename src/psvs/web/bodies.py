@@ -93,6 +93,13 @@ class RigChoiceBody(Body):
         return self
 
 
+class MountMeshBody(Body):
+    """``POST /api/mount/mesh``: a mount's STL file (``psvs mount``'s mount.stl), base64, and its name."""
+
+    stl: str = Field(min_length=1, max_length=8_000_000)
+    name: str = Field("mount.stl", min_length=1, max_length=255)
+
+
 class RobotRunBody(Body):
     """``POST /api/robot/run``: a track run's log.csv and report.json, as texts (``psvs track -o RUN``)."""
 

@@ -6,6 +6,29 @@ const RIG3D_COLOURS = { left: "#d32f2f", right: "#00838f", glass: "#64b5f6", cam
 
 function rig3dPoint(p) { return [p[0], p[2], -p[1]]; }
 
+const rig3dState = { layout: null };     // the served rig's layout, as last drawn
+
+// The rig's layout with a mount's mesh (POST /api/mount/mesh) round it, at true scale.
+function drawMount3d(el, layout, mesh) {
+  el.hidden = false;
+  if (typeof Plotly === "undefined") return Promise.resolve();
+  const q = mesh.vertices.map(rig3dPoint);
+  const trace = { type: "mesh3d", name: `${mesh.name} (${mesh.volume_cm3} cm³)`, x: q.map((p) => p[0]),
+                  y: q.map((p) => p[1]), z: q.map((p) => p[2]), i: mesh.triangles.map((t) => t[0]),
+                  j: mesh.triangles.map((t) => t[1]), k: mesh.triangles.map((t) => t[2]), color: "#b0bec5",
+                  opacity: 0.5, flatshading: true, hoverinfo: "name", showlegend: true };
+  // the view holds the mount and the glasses, 20 mm spare, at true scale
+  const pts = [...q, ...layout.glasses.flatMap((g) => g.corners_mm).map(rig3dPoint)];
+  const ranges = [0, 1, 2].map((k) => [Math.min(...pts.map((p) => p[k])) - 20, Math.max(...pts.map((p) => p[k])) + 20]);
+  const span = ranges.map((r) => r[1] - r[0]), top = Math.max(...span);
+  return drawRig3d(el, layout)
+    .then(() => Plotly.addTraces(el, trace))
+    .then(() => Plotly.relayout(el, { "scene.aspectmode": "manual", "scene.xaxis.range": ranges[0],
+                                      "scene.yaxis.range": ranges[1], "scene.zaxis.range": ranges[2],
+                                      "scene.aspectratio": { x: span[0] / top, y: span[1] / top, z: span[2] / top } }))
+    .then(() => { el.dataset.ready = "1"; el.dataset.triangles = String(mesh.triangles.length); });
+}
+
 // Polylines (arrays of points) as one line trace, NaN-separated.
 function rig3dLines(polylines, name, colour, width, extra = {}) {
   const x = [], y = [], z = [];
@@ -89,6 +112,7 @@ async function rig3dInit() {
     document.getElementById("rig3d-note").textContent = "no 3-D view of this rig: " + (layout.detail || r.status);
     return;
   }
+  rig3dState.layout = layout;
   await drawRig3d(el, layout);
   document.getElementById("rig3d-extent").onchange = (e) => rig3dExtent(el, layout, e.target.value);
   const sized = layout.glasses.some((g) => g.sized !== "rig file");

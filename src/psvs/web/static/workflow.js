@@ -16,7 +16,7 @@ function showStep() {
   document.body.dataset.step = step;
   // plotly sizes a plot to its element: one drawn while hidden is redrawn at its size once shown
   if (typeof Plotly !== "undefined") {
-    for (const id of ["rig3d", "dense-cloud", "dense-depth-map", "robot3d"]) {
+    for (const id of ["rig3d", "mount3d", "dense-cloud", "dense-depth-map", "robot3d"]) {
       const el = $(id);
       if (el && el.dataset.ready && el.offsetParent !== null) Plotly.Plots.resize(el);
     }
@@ -117,6 +117,30 @@ $("check-run").addEventListener("click", async () => {
     stepStatus("check-status", `${r.image}: ${r.verdict}`, r.verdict === "healthy");
     document.body.dataset.checkDone = r.verdict;
   } catch (e) { stepStatus("check-status", "check: " + e.message); document.body.dataset.checkDone = "error"; }
+});
+
+// A file's bytes as base64 (in slices: String.fromCharCode takes a bounded number of arguments).
+function base64Of(buffer) {
+  const bytes = new Uint8Array(buffer);
+  let text = "";
+  for (let k = 0; k < bytes.length; k += 0x8000) text += String.fromCharCode(...bytes.subarray(k, k + 0x8000));
+  return btoa(text);
+}
+
+$("mount-stl").addEventListener("change", async (e) => {
+  const f = e.target.files[0];
+  if (!f) return;
+  document.body.dataset.mountDone = "";
+  stepStatus("mount-status", "reading the mesh…", true);
+  try {
+    const mesh = await api("/api/mount/mesh", { stl: base64Of(await f.arrayBuffer()), name: f.name });
+    if (!rig3dState.layout) throw new Error("the rig's layout is not drawn (see the Design step)");
+    await drawMount3d($("mount3d"), rig3dState.layout, mesh);
+    stepStatus("mount-status", `${f.name}: ${mesh.triangles.length} triangles, ${mesh.volume_cm3} cm³` +
+      (mesh.closed ? ", one closed shell" : ", not a closed shell (a slicer must repair it)") +
+      "; the rig's field rays pass it", true);
+    document.body.dataset.mountDone = "1";
+  } catch (err) { stepStatus("mount-status", "mount: " + err.message); document.body.dataset.mountDone = "error"; }
 });
 
 $("robot-run").addEventListener("change", async (e) => {
