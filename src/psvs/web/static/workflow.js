@@ -52,7 +52,8 @@ function showInfo(info) {
   state.uploadTypes = info.upload_types;       // what /api/upload takes (psvs.web.guard.UPLOAD_TYPES)
   $("source").textContent = `image: ${info.source.name} (${info.source.kind}, ${info.image_size_px.join("x")} px)`;
   const rig = info.rig, cal = rig.calibration;
-  const status = cal ? `calibrated: RMS ${cal.rms_px.toFixed(3)} px from ${cal.images} images` : "not calibrated (a design)";
+  const status = cal ? `calibrated: RMS ${cal.rms_px.toFixed(3)} px from ${cal.images} images` :
+    (rig.build ? "no calibration record" : "not calibrated (a design)");
   $("rig").textContent = `rig: ${rig.name} (f ${rig.focal_length_mm.toFixed(3)} mm, b ${rig.baseline_mm.toFixed(2)} mm, ` +
     `plate ${rig.plate_thickness_mm.toFixed(2)} mm) — ${status}; ` +
     (rig.build ? "a build: twins matched on rectified rows" : "the paper's geometry: twins on image rows");
