@@ -218,6 +218,15 @@ def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
         assert abs(depth[2] / truth - 1) <= 0.02
         page.locator("#dense-depth-map").scroll_into_view_if_needed()
         shot(page, "web_dense_cloud.png")
+        # the cloud in the image's grey levels: each point its pixel's grey, as /api/dense sent them
+        page.select_option("#dense-cloud-colour", "grey")
+        page.wait_for_function("document.getElementById('dense-cloud').dataset.colour === 'grey'", timeout=10000)
+        greys = page.evaluate("document.getElementById('dense-cloud').data[0].marker.color.slice(0, 5)")
+        sent = page.evaluate("fetch('/api/dense', {method: 'POST', headers: {'Content-Type': 'application/json'},"
+                             " body: JSON.stringify({fast: true})}).then(r => r.json())"
+                             ".then(d => d.cloud.grey.slice(0, 5))")
+        drawn = [[float(x) for x in c[4:-1].split(",")] for c in greys]
+        assert drawn == [[g, g, g] for g in sent] and len(sent) == 5
     assert errors == [], errors
 
 

@@ -186,12 +186,17 @@ $("dense").addEventListener("click", async () => {
     $("dense-depth").dataset.mm = res.median_z_mm ?? "";
     state.densePointer = res.pointer;
     await drawDepthMap($("dense-depth-map"), res.pointer);
-    await drawCloud3d($("dense-cloud"), res.cloud);
+    state.denseCloud = res.cloud;
+    await drawCloud3d($("dense-cloud"), res.cloud, $("dense-cloud-colour").value);
     if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, ` +
       `${res.trusted_pct.toFixed(0)} % supported beyond chance (the medians and the cloud are theirs)`, true);
     else setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, none supported ` +
       "beyond chance: no depth (too little texture in the working range?)");
   } catch (e) { setStatus(e.message); }
+});
+
+$("dense-cloud-colour").addEventListener("change", (e) => {
+  if (state.denseCloud) drawCloud3d($("dense-cloud"), state.denseCloud, e.target.value);
 });
 
 // The disparity and depth under the pointer on the dense map (its grid's nearest sampled cell).

@@ -127,7 +127,7 @@ async function rig3dInit() {
 
 // A dense result's point cloud (the trusted pixels' points, frame C, mm), coloured by depth with a colour bar,
 // with the camera's centre O; an empty cloud clears the view and says so.
-function drawCloud3d(el, cloud) {
+function drawCloud3d(el, cloud, colour = "depth") {
   el.hidden = false;
   if (typeof Plotly === "undefined") return Promise.resolve();
   const q = cloud.points_mm.map(rig3dPoint);
@@ -137,8 +137,10 @@ function drawCloud3d(el, cloud) {
     "no point supported beyond chance: nothing to draw";
   const traces = [
     { type: "scatter3d", mode: "markers", name: "dense points", x: q.map((p) => p[0]), y: q.map((p) => p[1]),
-      z: q.map((p) => p[2]), marker: { size: 1.5, color: q.map((p) => p[1]), colorscale: "Viridis",
-      colorbar: { title: { text: "Z (mm)" }, thickness: 12 } }, hovertemplate: "Z %{y:.1f} mm<extra></extra>" },
+      z: q.map((p) => p[2]), marker: colour === "grey" ?
+        { size: 1.5, color: cloud.grey.map((g) => `rgb(${g},${g},${g})`) } :
+        { size: 1.5, color: q.map((p) => p[1]), colorscale: "Viridis", colorbar: { title: { text: "Z (mm)" }, thickness: 12 } },
+      hovertemplate: "Z %{y:.1f} mm<extra></extra>" },
     rig3dMarkers([[0, 0, 0]], ["camera O"], RIG3D_COLOURS.camera, "diamond"),
   ];
   const layout = { margin: { l: 0, r: 0, t: 0, b: 0 }, showlegend: false,
@@ -146,7 +148,7 @@ function drawCloud3d(el, cloud) {
                             yaxis: { title: { text: "Z (mm)" } }, zaxis: { title: { text: "-Y (mm)" } },
                             camera: { eye: { x: 0.6, y: -1.6, z: 0.8 } } } };
   return Plotly.react(el, traces, layout, { displaylogo: false, responsive: true })
-    .then(() => { el.dataset.points = String(q.length); });
+    .then(() => { el.dataset.points = String(q.length); el.dataset.colour = colour; });
 }
 
 // A seam-tracking run (POST /api/robot/run) in the robot's base frame (mm, Z up): the seam points the sensor
