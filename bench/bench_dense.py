@@ -82,11 +82,11 @@ def _live_dense():
     (400-1200 mm) and the strided cloud, on a rendered photo wall at 700 mm."""
     from psvs import default_rig
     from psvs.live.dense import DenseSensor
-    from psvs.simulate.builtin import _photo, regulated_light
+    from psvs.simulate.builtin import photo_texture, regulated_light
     from psvs.simulate.render import render
     from psvs.simulate.scene import Scene
     rig = default_rig()
-    frame = render(Scene((), regulated_light(700.0), 700.0, _photo("grass", (1400.0, 1050.0)), "wall"), rig,
+    frame = render(Scene((), regulated_light(700.0), 700.0, photo_texture("grass", (1400.0, 1050.0)), "wall"), rig,
                    seed=1).image
     sensor = DenseSensor(rig)
     return lambda: sensor.step(frame)
@@ -103,16 +103,16 @@ def _mv_frame():
     if not _mv:
         from psvs.io.params import load_rig
         from psvs.optics.search_range import disparity_range, rectification_for
-        from psvs.simulate.builtin import _at, _photo, regulated_light
+        from psvs.simulate.builtin import photo_texture, pose_at, regulated_light
         from psvs.simulate.render import render
         from psvs.simulate.scene import Scene, SceneObject
         rig = load_rig(MV_RIG)
-        cards = (SceneObject("rectangle", _at(-70, -20, 600, 0, 10, 5), _photo("astronaut", (120, 90)),
+        cards = (SceneObject("rectangle", pose_at(-70, -20, 600, 0, 10, 5), photo_texture("astronaut", (120, 90)),
                              size_mm=(120, 90)),
-                 SceneObject("rectangle", _at(60, 40, 800, 0, -15, -4), _photo("coffee", (150, 110)),
+                 SceneObject("rectangle", pose_at(60, 40, 800, 0, -15, -4), photo_texture("coffee", (150, 110)),
                              size_mm=(150, 110)))
-        rr = render(Scene(cards, regulated_light(800.0), 1100.0, _photo("gravel", (1500.0, 1150.0)), "bench"), rig,
-                    supersample=1, seed=1)
+        back = photo_texture("gravel", (1500.0, 1150.0))
+        rr = render(Scene(cards, regulated_light(800.0), 1100.0, back, "bench"), rig, supersample=1, seed=1)
         rect = rectification_for(rig, MV_NEAR_MM, MV_FAR_MM)
         lo, hi = disparity_range(rig, MV_NEAR_MM, MV_FAR_MM, rect, width_px=rect.size_px[0])
         _mv.update(rig=rig, image=rr.image, left=255.0 * rr.left, right=255.0 * rr.right,   # radiance -> grey

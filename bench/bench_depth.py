@@ -50,7 +50,7 @@ def _frame(fmt: str) -> dict:
     from psvs.io.images import read_grey, write_png
     from psvs.io.params import load_rig
     from psvs.optics.search_range import disparity_range, rectification_for
-    from psvs.simulate.builtin import _at, _photo, regulated_light
+    from psvs.simulate.builtin import photo_texture, pose_at, regulated_light
     from psvs.simulate.render import render
     from psvs.simulate.scene import Scene, SceneObject
     name, near, far = BUILDS[fmt]
@@ -59,12 +59,13 @@ def _frame(fmt: str) -> dict:
     if not all(p.exists() for p in paths.values()):
         OUT.mkdir(parents=True, exist_ok=True)
         span = far - near
-        cards = tuple(SceneObject("rectangle", _at(x, y, near + f * span, 0, ry, rz), _photo(photo, size), size_mm=size)
+        cards = tuple(SceneObject("rectangle", pose_at(x, y, near + f * span, 0, ry, rz), photo_texture(photo, size),
+                                  size_mm=size)
                       for x, y, f, ry, rz, photo, size in ((-70, -20, 0.2, 10, 5, "astronaut", (120, 90)),
                                                            (60, 40, 0.45, -15, -4, "coffee", (150, 110)),
                                                            (-20, 60, 0.7, 5, 2, "chelsea", (160, 120))))
         scene = Scene(cards, regulated_light(0.5 * (near + far)), near + 0.9 * span,
-                      _photo("gravel", (2.2 * far, 1.7 * far)), "bench")
+                      photo_texture("gravel", (2.2 * far, 1.7 * far)), "bench")
         rr = render(scene, rig, supersample=1, seed=1)
         # the views alone are radiance (0..1): as grey levels, a camera's 8 bits at full well
         for key, img in (("complex", rr.image), ("left", 255.0 * rr.left), ("right", 255.0 * rr.right)):
