@@ -55,3 +55,51 @@ def test_same_design_names_the_design_and_instructions():
         check_same_design(load_rig("mv1440_misaligned"), load_rig("clear"), "the design (clear)")
     assert turn_instruction(0.0, "none") == "leave"
     assert turn_instruction(-1.1875, "counter-clockwise") == "1 3/16 turns counter-clockwise"
+
+
+def test_the_seats_bound_the_virtual_cameras_distance():
+    """baseline_spread_mm (a linearised worst case) against an independent derivation: builds drawn with every
+    glass anywhere in its seat (uniform within 0.2 deg and 0.5 mm, 3000 of them) never stray further, and the
+    worst corner itself (each error at its tolerance, signed as it lengthens |O1 O2|) reaches it within 2 %."""
+    import math
+
+    import numpy as np
+
+    from psvs.mount.report import SEAT_SHIFT_MM, SEAT_TILT_RAD, baseline_spread_mm, effective_baseline_mm
+    from psvs.optics.rig import MIRROR_NAMES, MirrorError
+    design = load_rig("default")
+    spread, b0 = baseline_spread_mm(design), effective_baseline_mm(design)
+    assert b0 == pytest.approx(100.0, abs=1e-9) and 3.0 < spread < 6.0
+    rng = np.random.default_rng(0)
+    worst = 0.0
+    for _ in range(3000):
+        e = rng.uniform(-1, 1, (4, 3)) * [SEAT_TILT_RAD, SEAT_TILT_RAD, SEAT_SHIFT_MM]
+        build = design.with_errors({n: MirrorError((a, b), s) for n, (a, b, s) in zip(MIRROR_NAMES, e, strict=True)})
+        worst = max(worst, abs(effective_baseline_mm(build) - b0))
+    assert 0.4 * spread < worst <= spread, (worst, spread)
+    corner = {}
+    for n in MIRROR_NAMES:
+        signs = []
+        for k, step in enumerate((MirrorError((1e-5, 0), 0), MirrorError((0, 1e-5), 0), MirrorError((0, 0), 1e-4))):
+            signs.append(math.copysign(1.0, effective_baseline_mm(design.with_errors({n: step})) - b0))
+        corner[n] = MirrorError((signs[0] * SEAT_TILT_RAD, signs[1] * SEAT_TILT_RAD), signs[2] * SEAT_SHIFT_MM)
+    assert effective_baseline_mm(design.with_errors(corner)) - b0 == pytest.approx(spread, rel=0.02)
+
+
+def test_a_build_of_another_baseline_is_not_one_of_this_design(tmp_path, capsys):
+    """The issue's case: a build with a 105 mm baseline is not a build of the 100 mm design (beyond its seats'
+    4.4 mm and the calibration's 0.1): refused, here and through psvs adjust (exit 2, one line); the shipped
+    builds of each design are accepted."""
+    from psvs.io.params import dumps_rig
+    from tests.support.cli import run
+    longer = load_rig("default").replace(baseline_mm=105.0)       # a box built 5 mm wider, its glass as seated
+    with pytest.raises(ValueError, match=r"not one design: its virtual cameras stand 105\.00 mm apart, the "
+                                         r"design's 100\.00 mm, beyond the 4\.55 mm"):
+        check_same_design(longer, load_rig("default"), "the design (default)")
+    for build, design in (("misaligned", "default"), ("misaligned_knocked", "default"), ("misaligned", "clear"),
+                          ("mv1440_misaligned", "mv1440")):
+        check_same_design(load_rig(build), load_rig(design))
+    path = tmp_path / "build.toml"
+    path.write_text(dumps_rig(longer))
+    code, text, err = run(capsys, "adjust", str(path), "--rig", "default")
+    assert code == 2 and text == "" and len(err.strip().splitlines()) == 1 and "virtual cameras stand" in err, err

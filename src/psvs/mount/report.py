@@ -11,19 +11,55 @@ import numpy as np
 
 from psvs.mount.guide import AlignmentGuide, designed_twin, twin_rows_px, working_points
 from psvs.mount.seats import Seat, apply_turns
+from psvs.optics.mirrors import virtual_centre
 from psvs.optics.project import project_points
-from psvs.optics.rig import Rig
+from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 
 TILTS = {"a": "tilt a (about the vertical)", "b": "tilt b (out of vertical)"}
 #: Design values a calibrated build must share with the rig it was calibrated from (the same mirror box):
-#: within 5 % (calibration refines the baseline, e.g. 99.1 mm for a 100 mm design) or 1 deg.
-DESIGN_FIELDS = ("baseline_mm", "m1_axis_distance_mm", "m2_axis_distance_mm", "angle_rad")
+#: within 5 % or 1 deg. The baseline is judged by what it does, the distance of the virtual cameras
+#: (:func:`baseline_spread_mm`): calibration may carry a change of it in the baseline or in the mirrors' shifts.
+DESIGN_FIELDS = ("m1_axis_distance_mm", "m2_axis_distance_mm", "angle_rad")
 DESIGN_REL_TOL, DESIGN_ANGLE_TOL_RAD = 0.05, math.radians(1.0)
+#: What a printed mount's seats hold each glass to: glued within 0.2 deg about both axes and 0.5 mm along its
+#: normal (the default tolerances of docs/tolerancing.md, psvs/rigs/tolerances_default.toml).
+SEAT_TILT_RAD, SEAT_SHIFT_MM = math.radians(0.2), 0.5
+#: mm: what a calibration's own error adds to the virtual cameras' distance (0.06 mm 3-D errors, docs/calibration.md).
+CALIBRATION_BASELINE_MM = 0.1
+
+
+def effective_baseline_mm(rig: Rig) -> float:
+    """|O1 O2|, mm: the distance of the two virtual cameras (eqs. 1-8's construction through the rig's mirrors as
+    placed, pose errors included), the baseline triangulation uses."""
+    return float(np.linalg.norm(virtual_centre(rig, "left") - virtual_centre(rig, "right")))
+
+
+def baseline_spread_mm(nominal: Rig, tilt_rad: float = SEAT_TILT_RAD, shift_mm: float = SEAT_SHIFT_MM) -> float:
+    """The most |O1 O2| of a build of ``nominal`` can differ from the design's with every glass anywhere in its
+    seat (tilted up to ``tilt_rad`` about both axes, moved up to ``shift_mm`` along its normal), mm: the worst
+    case of the linearised change, the sum over the 12 pose errors of |d|O1 O2| / d error| times its tolerance
+    (4.4 mm for the shipped 100 mm designs). The box's turn moves both virtual cameras together: it adds none."""
+    b0 = effective_baseline_mm(nominal)
+    total = 0.0
+    for name in MIRROR_NAMES:
+        for error, tol in ((MirrorError((1e-5, 0.0), 0.0), tilt_rad), (MirrorError((0.0, 1e-5), 0.0), tilt_rad),
+                           (MirrorError((0.0, 0.0), 1e-4), shift_mm)):
+            step = 1e-4 if error.shift_mm else 1e-5
+            total += abs(effective_baseline_mm(nominal.with_errors({name: error})) - b0) / step * tol
+    return total
 
 
 def check_same_design(built: Rig, nominal: Rig, design: str = "--rig") -> None:
     """ValueError unless the calibrated build and the design (called ``design`` in the message) share the
-    mirror box's layout (:data:`DESIGN_FIELDS`)."""
+    mirror box's layout (:data:`DESIGN_FIELDS`) and its virtual cameras' distance lies within what its seats
+    allow (:func:`baseline_spread_mm`, plus :data:`CALIBRATION_BASELINE_MM`)."""
+    b_built, b_design = effective_baseline_mm(built), effective_baseline_mm(nominal)
+    limit = baseline_spread_mm(nominal) + CALIBRATION_BASELINE_MM
+    if abs(b_built - b_design) > limit:
+        raise ValueError(f"the calibrated rig and {design} are not one design: its virtual cameras stand "
+                         f"{b_built:.2f} mm apart, the design's {b_design:.2f} mm, beyond the {limit:.2f} mm its "
+                         f"glass seated within {math.degrees(SEAT_TILT_RAD):g} deg and {SEAT_SHIFT_MM:g} mm can make "
+                         "(give the design the build was calibrated from)")
     for name in DESIGN_FIELDS:
         a, b = getattr(built.mirrors, name), getattr(nominal.mirrors, name)
         close = abs(a - b) <= DESIGN_ANGLE_TOL_RAD if name == "angle_rad" else abs(a - b) <= DESIGN_REL_TOL * abs(b)
