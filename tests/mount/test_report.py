@@ -91,11 +91,17 @@ def test_a_build_of_another_baseline_is_not_one_of_this_design(tmp_path, capsys)
     4.4 mm and the calibration's 0.1): refused, here and through psvs adjust (exit 2, one line); the shipped
     builds of each design are accepted."""
     from psvs.io.params import dumps_rig
+    from psvs.mount.report import baseline_spread_mm
     from tests.support.cli import run
     longer = load_rig("default").replace(baseline_mm=105.0)       # a box built 5 mm wider, its glass as seated
     with pytest.raises(ValueError, match=r"not one design: its virtual cameras stand 105\.00 mm apart, the "
                                          r"design's 100\.00 mm, beyond the 4\.55 mm"):
         check_same_design(longer, load_rig("default"), "the design (default)")
+    # a build given as the design: its seats are the design's (its own pose errors are not derivatives)
+    spread = baseline_spread_mm(load_rig("default"))
+    assert baseline_spread_mm(load_rig("misaligned")) == pytest.approx(spread, rel=1e-6)
+    with pytest.raises(ValueError, match="not one design"):
+        check_same_design(longer, load_rig("misaligned"))
     for build, design in (("misaligned", "default"), ("misaligned_knocked", "default"), ("misaligned", "clear"),
                           ("mv1440_misaligned", "mv1440")):
         check_same_design(load_rig(build), load_rig(design))

@@ -8,7 +8,7 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, error_model="numpy")   # a zero radial factor gives inf, as NumPy did
 def undistort_fixed_point(xd, k1, k2, p1, p2, k3, iterations, tol):  # pragma: no cover - compiled
     """Normalised undistorted points (N, 2) of distorted ones ``xd`` (N, 2): per point, the fixed-point
     iteration x <- (x_d - tangential(x)) / radial(x) until it moves by ``tol`` or less (at most

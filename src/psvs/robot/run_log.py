@@ -21,7 +21,8 @@ MAX_ROWS = 150_000
 @dataclass(frozen=True, eq=False)
 class RunLog:
     """A run's cycles: ``t_s`` (n,), the torch's progress along the seam ``s_mm`` (n,), ``tcp_mm``, ``target_mm``,
-    ``seam_mm`` (n, 3) in the robot's base frame, ``valid`` (n,) bool (the sensor saw the seam), ``lateral_mm``
+    ``seam_mm`` (n, 3; NaN where the sensor saw no
+    seam) in the robot's base frame, ``valid`` (n,) bool (the sensor saw the seam), ``lateral_mm``
     and ``vertical_mm`` (n,) the torch's deviation from the true seam, ``notes`` (n,) str."""
 
     t_s: np.ndarray
@@ -63,8 +64,11 @@ def read_log_csv(text: str, where: str = "log.csv") -> RunLog:
         except ValueError:
             col = next(c for c, v in zip(LOG_COLUMNS, row[:-1], strict=False) if not _is_number(v))
             raise ValueError(f"{where} row {k}: {col} is not a number") from None
-        if not np.all(np.isfinite(nums)):
-            col = next(c for c, v in zip(LOG_COLUMNS, nums, strict=False) if not np.isfinite(v))
+        seam = [LOG_COLUMNS.index(c) for c in ("seam_x_mm", "seam_y_mm", "seam_z_mm")]
+        blind = nums[LOG_COLUMNS.index("valid")] == 0.0          # no seam seen: its seam point is NaN
+        bad = [i for i, v in enumerate(nums) if not np.isfinite(v) and not (blind and i in seam and np.isnan(v))]
+        if bad:
+            col = LOG_COLUMNS[bad[0]]
             raise ValueError(f"{where} row {k}: {col} is not finite")
         if nums[LOG_COLUMNS.index("valid")] not in (0.0, 1.0):
             raise ValueError(f"{where} row {k}: valid must be 0 or 1")
