@@ -65,7 +65,8 @@ def test_the_seats_bound_the_virtual_cameras_distance():
 
     import numpy as np
 
-    from psvs.mount.report import SEAT_SHIFT_MM, SEAT_TILT_RAD, baseline_spread_mm, effective_baseline_mm
+    from psvs.mount.report import SEAT_SHIFT_MM, SEAT_TILT_RAD, baseline_spread_mm
+    from psvs.optics.mirrors import virtual_baseline_mm as effective_baseline_mm
     from psvs.optics.rig import MIRROR_NAMES, MirrorError
     design = load_rig("default")
     spread, b0 = baseline_spread_mm(design), effective_baseline_mm(design)

@@ -64,3 +64,11 @@ def test_disparity_positive_in_front(rig):
 def test_path_rejects_unknown_view(rig):
     with pytest.raises(ValueError, match="view must be 'left' or 'right'"):
         path(rig, "middle")
+
+
+def test_the_virtual_baseline_is_b_on_the_papers_geometry():
+    """|O1 O2| = b for omega_1 = 45 deg (O1 = (-b/2, 0, -b/2), O2 = (+b/2, 0, -b/2), paper III.2), any b."""
+    from psvs import default_rig
+    from psvs.optics.mirrors import virtual_baseline_mm
+    for b in (60.0, 100.0, 160.0):
+        assert virtual_baseline_mm(default_rig().replace(baseline_mm=b)) == pytest.approx(b, abs=1e-9)

@@ -25,7 +25,7 @@ from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
 from psvs.evidence import check_build
 from psvs.io.images import IMAGE_SUFFIXES, read_grey
-from psvs.optics.mirrors import virtual_centre
+from psvs.optics.mirrors import virtual_baseline_mm
 from psvs.optics.rig import Rig
 from psvs.targets.detect import detect_target
 from psvs.targets.target_file import load_target
@@ -178,14 +178,11 @@ def effective_baseline(res: BundleResult) -> tuple[float, float]:
     covariance)."""
     from psvs.calibrate.bundle import RIG_PARAMS, rig_from_vector, rig_vector
 
-    def base(r: Rig) -> float:
-        return float(np.linalg.norm(virtual_centre(r, "left") - virtual_centre(r, "right")))
-
     x = rig_vector(res.rig)
-    b0 = base(res.rig)
+    b0 = virtual_baseline_mm(res.rig)
     grad = np.zeros(len(RIG_PARAMS))
     for k in range(len(RIG_PARAMS)):
         dx = np.zeros(len(x))
         dx[k] = 1e-6
-        grad[k] = (base(rig_from_vector(x + dx, res.rig)) - b0) / 1e-6
+        grad[k] = (virtual_baseline_mm(rig_from_vector(x + dx, res.rig)) - b0) / 1e-6
     return b0, float(np.sqrt(max(grad @ res.covariance @ grad, 0.0)))

@@ -48,7 +48,7 @@ from psvs.errors import MeasurementError
 from psvs.health.check import OVERLAP, HealthCheck, check_frames, judged_pairs_px
 from psvs.io.jsonsafe import json_safe
 from psvs.measure.triangulate import triangulate
-from psvs.optics.mirrors import virtual_centre
+from psvs.optics.mirrors import virtual_baseline_mm
 from psvs.optics.project import project_points
 from psvs.optics.rig import Calibration, Rig
 
@@ -319,11 +319,10 @@ def _tares(pairs: _Pairs, old: Rig, new: Rig, distances) -> tuple[Tare, ...]:
 def scale_sigma(rig: Rig, cov: np.ndarray) -> float:
     """The relative 1 sigma of the baseline |O1 O2| (the reconstruction's scale) under the tilts'
     covariance ``cov`` (len(REFIT_PARAMS),) x 2, rad^2 (finite differences of the virtual centres)."""
-    def base(r):
-        return float(np.linalg.norm(virtual_centre(r, "right") - virtual_centre(r, "left")))
-    b0 = base(rig)
+    b0 = virtual_baseline_mm(rig)
     h = 1e-6
-    g = np.array([(base(_rig(h * np.eye(len(REFIT_PARAMS))[k], rig)) - b0) / h for k in range(len(REFIT_PARAMS))])
+    steps = h * np.eye(len(REFIT_PARAMS))
+    g = np.array([(virtual_baseline_mm(_rig(step, rig)) - b0) / h for step in steps])
     return float(np.sqrt(max(g @ cov @ g, 0.0))) / b0
 
 

@@ -3,12 +3,10 @@ from __future__ import annotations
 
 import sys
 
-import numpy as np
-
 from psvs.accuracy.table1 import check_start, check_table1, run_table1, table_markdown, write_outputs
 from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
 from psvs.io.params import load_rig
-from psvs.optics.mirrors import virtual_centre
+from psvs.optics.mirrors import virtual_baseline_mm
 
 
 def add_parser(sub) -> None:
@@ -43,7 +41,7 @@ def run(args) -> int:
     t = run_table1(rig, progress=_progress, start=start, method=method)
     out.mkdir(parents=True, exist_ok=True)
     cal = t.calibration
-    b = float(np.linalg.norm(virtual_centre(cal.rig, "left") - virtual_centre(cal.rig, "right")))
+    b = virtual_baseline_mm(cal.rig)
     what = f"{len(cal.rms_by_image)} card views" if args.card else f"a {len(cal.rms_by_image)}-position sweep"
     print(f"Calibration from {what}, RMS {cal.rms_px:.3f} px: f = {cal.values['focal_length_mm']:.4f} mm, "
           f"|O1 O2| = {b:.3f} mm, plate = {cal.values['plate_thickness_mm']:.2f} mm"

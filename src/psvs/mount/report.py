@@ -11,7 +11,7 @@ import numpy as np
 
 from psvs.mount.guide import AlignmentGuide, designed_twin, twin_rows_px, working_points
 from psvs.mount.seats import Seat, apply_turns
-from psvs.optics.mirrors import virtual_centre
+from psvs.optics.mirrors import virtual_baseline_mm
 from psvs.optics.project import project_points
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 
@@ -28,25 +28,19 @@ SEAT_TILT_RAD, SEAT_SHIFT_MM = math.radians(0.2), 0.5
 CALIBRATION_BASELINE_MM = 0.1
 
 
-def effective_baseline_mm(rig: Rig) -> float:
-    """|O1 O2|, mm: the distance of the two virtual cameras (eqs. 1-8's construction through the rig's mirrors as
-    placed, pose errors included), the baseline triangulation uses."""
-    return float(np.linalg.norm(virtual_centre(rig, "left") - virtual_centre(rig, "right")))
-
-
 def baseline_spread_mm(nominal: Rig, tilt_rad: float = SEAT_TILT_RAD, shift_mm: float = SEAT_SHIFT_MM) -> float:
     """The most |O1 O2| of a build of ``nominal`` can differ from the design's with every glass anywhere in its
     seat (tilted up to ``tilt_rad`` about both axes, moved up to ``shift_mm`` along its normal), mm: the worst
     case of the linearised change, the sum over the 12 pose errors of |d|O1 O2| / d error| times its tolerance
     (4.4 mm for the shipped 100 mm designs). The box's turn moves both virtual cameras together: it adds none."""
     nominal = nominal.with_errors({n: MirrorError() for n in MIRROR_NAMES})   # the design itself, even of a build
-    b0 = effective_baseline_mm(nominal)
+    b0 = virtual_baseline_mm(nominal)
     total = 0.0
     for name in MIRROR_NAMES:
         for error, tol in ((MirrorError((1e-5, 0.0), 0.0), tilt_rad), (MirrorError((0.0, 1e-5), 0.0), tilt_rad),
                            (MirrorError((0.0, 0.0), 1e-4), shift_mm)):
             step = 1e-4 if error.shift_mm else 1e-5
-            total += abs(effective_baseline_mm(nominal.with_errors({name: error})) - b0) / step * tol
+            total += abs(virtual_baseline_mm(nominal.with_errors({name: error})) - b0) / step * tol
     return total
 
 
@@ -54,7 +48,7 @@ def check_same_design(built: Rig, nominal: Rig, design: str = "--rig") -> None:
     """ValueError unless the calibrated build and the design (called ``design`` in the message) share the
     mirror box's layout (:data:`DESIGN_FIELDS`) and its virtual cameras' distance lies within what its seats
     allow (:func:`baseline_spread_mm`, plus :data:`CALIBRATION_BASELINE_MM`)."""
-    b_built, b_design = effective_baseline_mm(built), effective_baseline_mm(nominal)
+    b_built, b_design = virtual_baseline_mm(built), virtual_baseline_mm(nominal)
     limit = baseline_spread_mm(nominal) + CALIBRATION_BASELINE_MM
     if abs(b_built - b_design) > limit:
         raise ValueError(f"the calibrated rig and {design} are not one design: its virtual cameras stand "

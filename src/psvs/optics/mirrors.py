@@ -143,3 +143,9 @@ def virtual_centre(rig: Rig, view: str) -> np.ndarray:
         if step[0] == "reflect":
             p = step[1].reflect_points(p)
     return p[0]
+
+
+def virtual_baseline_mm(rig: Rig) -> float:
+    """|O1 O2|, mm: the distance of the two virtual cameras (:func:`virtual_centre`, the mirrors as placed,
+    pose errors included): the baseline triangulation uses, b for the paper's ideal geometry."""
+    return float(np.linalg.norm(virtual_centre(rig, "left") - virtual_centre(rig, "right")))
