@@ -44,23 +44,19 @@ def run(args) -> int:
     rig = load_rig(args.rig)
     frames = [read_grey(f, expect_size=rig.camera.image_size_px) for f in args.frames]
     check = check_frames(frames, rig, near, far, args.tolerance_px)
-    found = []
-    if check.verdict == "drifted" and check.tiles:
-        from psvs.health.explain import explain_offsets, explanation_line
-        found = explain_offsets(check, rig, near, far)
-        line = explanation_line(found)
+    from psvs.health.explain import explain_drift, explanation_line
+    found = explain_drift(check, rig, near, far)
     if out is not None and check.verdict != "cannot judge":      # a refusal writes nothing
         from psvs.health.figure import offset_figure
         with output_batch():
             write_atomic(out, offset_figure(check))
     if args.json:
-        d = check.as_dict() | {"explained_by": [{"mirror": e.mirror, "tilt_deg": list(e.tilt_deg),
-                                                 "residual_px": e.residual_px} for e in found]}
+        d = check.as_dict() | {"explained_by": [e.as_dict() for e in found]}
         print(json.dumps(d))
     else:
         print(f"{check.verdict}: {check.reason}")
         if found:
-            print(f"best explained by {line}")
+            print(f"best explained by {explanation_line(found)}")
     if check.verdict == "cannot judge":
         print(f"psvs check: cannot judge: {check.reason}", file=sys.stderr)
         return 1

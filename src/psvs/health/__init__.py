@@ -14,7 +14,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submodules=[],
     submod_attrs={
         "check": ["HealthCheck", "OVERLAP", "TOLERANCE_PX", "check_frames", "judge", "judged_pairs_px"],
-        "explain": ["Explanation", "explain_offsets", "explanation_line", "tilted"],
+        "explain": ["Explanation", "explain_drift", "explain_offsets", "explanation_line", "tilted"],
         "figure": ["offset_figure"],
         "rolling": ["HealthEvent", "RollingCheck"],
         "rows": ["FrameTiles", "frame_tiles"],

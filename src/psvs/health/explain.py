@@ -41,6 +41,10 @@ class Explanation:
     tilt_deg: tuple[float, float]
     residual_px: float
 
+    def as_dict(self) -> dict:
+        """JSON-ready (``psvs check --json``'s ``explained_by`` entries, the web page's)."""
+        return {"mirror": self.mirror, "tilt_deg": list(self.tilt_deg), "residual_px": self.residual_px}
+
 
 def _rows(rig: Rig, rect, points_mm: np.ndarray) -> np.ndarray:
     """Each point's twin row offset (n,) through ``rig``, read on the calibration's rectified grids."""
@@ -82,6 +86,12 @@ def explain_offsets(check: HealthCheck, rig: Rig, near_mm: float = 400.0, far_mm
         r = y[ok] - J[ok] @ x
         out.append(Explanation(m, (math.degrees(x[0]), math.degrees(x[1])), float(np.sqrt(np.mean(r ** 2)))))
     return sorted(out, key=lambda e: e.residual_px)
+
+
+def explain_drift(check: HealthCheck, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0) -> list[Explanation]:
+    """:func:`explain_offsets` of a check that found a drift; empty for a healthy one or one that cannot judge
+    (nothing to explain): what ``psvs check`` and the web page's Check step name."""
+    return explain_offsets(check, rig, near_mm, far_mm) if check.verdict == "drifted" else []
 
 
 def explanation_line(found: list[Explanation]) -> str:

@@ -7,7 +7,7 @@ import base64
 
 from fastapi import APIRouter
 
-from psvs.health import check_frames, explain_offsets, explanation_line, offset_figure
+from psvs.health import check_frames, explain_drift, explanation_line, offset_figure
 from psvs.web.bodies import CheckBody
 from psvs.web.session import SessionDep
 
@@ -22,13 +22,10 @@ def check(body: CheckBody, session: SessionDep):
     still = session.still()
     rig = session.rig
     result = check_frames([still.grey], rig, body.near_mm, body.far_mm, body.tolerance_px)
-    explained = []
-    if result.verdict == "drifted" and result.tiles:
-        explained = explain_offsets(result, rig, body.near_mm, body.far_mm)
+    explained = explain_drift(result, rig, body.near_mm, body.far_mm)
     picture = None if result.verdict == "cannot judge" else base64.b64encode(offset_figure(result)).decode("ascii")
     return result.as_dict() | {
         "image": still.name,
-        "explained_by": [{"mirror": e.mirror, "tilt_deg": list(e.tilt_deg), "residual_px": e.residual_px}
-                         for e in explained],
+        "explained_by": [e.as_dict() for e in explained],
         "explanation": explanation_line(explained) if explained else "",
         "map_png": picture}
