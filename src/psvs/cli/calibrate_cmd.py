@@ -7,8 +7,8 @@ import sys
 
 from psvs.calibrate.bundle import PRIOR_SIGMA
 from psvs.calibrate.folder import calibrate_folder
-from psvs.cli.common import add_rig_argument, check_distinct, check_output_folder, check_output_path, rig_from_args
-from psvs.io.atomic import output_batch
+from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, rig_from_args
+from psvs.io.atomic import check_output_folder, output_batch
 from psvs.io.params import rig_template, save_rig
 from psvs.optics.rig import Calibration
 

@@ -4,13 +4,8 @@ from __future__ import annotations
 import sys
 
 from psvs.cli.camera_args import add_source_arguments, check_source_arguments, open_source
-from psvs.cli.common import (
-    add_rig_argument,
-    check_distinct,
-    check_output_folder,
-    check_working_range,
-    rig_from_args,
-)
+from psvs.cli.common import add_rig_argument, check_distinct, check_working_range, rig_from_args
+from psvs.io.atomic import check_output_folder
 
 
 def add_parser(sub) -> None:

@@ -7,7 +7,8 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
+from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.io.atomic import check_output_folder
 
 #: Samples per pixel side of each view (render_grid_shots' default).
 RENDER_SUPERSAMPLE = 2

@@ -135,20 +135,6 @@ def check_distinct(outputs: dict, inputs: dict | None = None) -> None:
             raise ValueError(f"{seen[key]} names the input {option} ({path}): it would be overwritten")
 
 
-def check_output_folder(path: str, option: str = "output folder") -> Path:
-    """Validate an output folder before any work: not a file, and writable (the folder, or the nearest
-    existing folder above it, which psvs will create it in). Returns the path; creates nothing."""
-    p = Path(path)
-    if p.exists() and not p.is_dir():
-        raise ValueError(f"{option} {p} is a file")
-    existing = p
-    while not existing.exists():
-        existing = existing.parent
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise PermissionError(f"cannot write {option} {p}: permission denied")
-    return p
-
-
 def check_working_range(near_mm: float, far_mm: float) -> tuple[float, float]:
     """``--near-mm``/``--far-mm`` as finite depths with 0 < near < far (mm), else a one-line ValueError."""
     for name, v in (("--near-mm", near_mm), ("--far-mm", far_mm)):

@@ -6,10 +6,11 @@ from pathlib import Path
 import numpy as np
 
 from psvs._budget import check_memory
-from psvs.cli.common import check_distinct, check_output_folder
+from psvs.cli.common import check_distinct
 from psvs.dense.compiled import announce_dense
 from psvs.dense.evaluate import evaluate_pair, motorcycle
 from psvs.dense.report import scores_markdown, write_report
+from psvs.io.atomic import check_output_folder
 from psvs.io.images import read_grey, read_image
 
 

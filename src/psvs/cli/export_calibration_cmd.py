@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from psvs.cli.common import add_range_arguments, check_output_folder
+from psvs.cli.common import add_range_arguments
+from psvs.io.atomic import check_output_folder
 from psvs.io.camera_info import write_calibration_files
 from psvs.io.params import load_rig
 from psvs.optics.pinhole_views import pinhole_views

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from psvs._budget import check_memory
-from psvs.cli.common import add_rig_argument, check_distinct, check_output_folder, check_output_path, rig_from_args
+from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, rig_from_args
+from psvs.io.atomic import check_output_folder
 
 
 def add_parser(sub) -> None:

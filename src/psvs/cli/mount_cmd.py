@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import sys
 
-from psvs.cli.common import add_range_arguments, add_rig_argument, check_output_folder, range_from_args, rig_from_args
+from psvs.cli.common import add_range_arguments, add_rig_argument, range_from_args, rig_from_args
+from psvs.io.atomic import check_output_folder
 from psvs.mount.layout import INTERFACES, MountError, MountParams
 
 FILES = ("mount.step", "mount.stl", "drawing.svg", "drawing.png", "bom.csv", "mount.toml")

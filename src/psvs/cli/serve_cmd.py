@@ -78,7 +78,8 @@ def capture_setup(args):
     from pathlib import Path
 
     from psvs.calibrate.capture import check_capture_folder
-    from psvs.cli.common import check_distinct, check_output_folder
+    from psvs.cli.common import check_distinct
+    from psvs.io.atomic import check_output_folder
     from psvs.targets.target_file import load_target
     from psvs.web.capture_runner import CaptureSetup
     folder = check_output_folder(args.capture_to, "--capture-to folder")

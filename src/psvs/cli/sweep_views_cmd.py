@@ -5,7 +5,8 @@ import math
 
 import numpy as np
 
-from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
+from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.io.atomic import check_output_folder
 
 
 def add_parser(sub) -> None:

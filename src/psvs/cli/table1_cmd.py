@@ -4,7 +4,8 @@ from __future__ import annotations
 import sys
 
 from psvs.accuracy.table1 import check_start, check_table1, run_table1, table_markdown, write_outputs
-from psvs.cli.common import add_rig_argument, check_output_folder, rig_from_args
+from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.io.atomic import check_output_folder
 from psvs.io.params import load_rig
 from psvs.optics.mirrors import virtual_baseline_mm
 

@@ -8,12 +8,12 @@ from psvs.cli.common import (
     add_rig_argument,
     add_telemetry_arguments,
     check_distinct,
-    check_output_folder,
     check_telemetry_arguments,
     open_telemetry,
     parse_seed,
     rig_from_args,
 )
+from psvs.io.atomic import check_output_folder
 
 
 def add_parser(sub) -> None:

@@ -66,3 +66,18 @@ def output_batch():
         _BATCH.reset(token)
     for tmp, path in pending:
         os.replace(tmp, path)
+
+
+def check_output_folder(path, option: str = "output folder") -> Path:
+    """Validate an output folder before any work: not a file (ValueError), and writable (the folder, or the
+    nearest existing folder above it, which psvs will create it in; PermissionError). Returns the path; creates
+    nothing. The command line's ``-o`` folders and the web page's capture folder."""
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise ValueError(f"{option} {p} is a file")
+    existing = p
+    while not existing.exists():
+        existing = existing.parent
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise PermissionError(f"cannot write {option} {p}: permission denied")
+    return p

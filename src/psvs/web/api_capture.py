@@ -3,13 +3,13 @@ DIR``), start and stop watching the source for calibration views of the card, an
 the latest frame."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
 from psvs.calibrate.capture import CaptureParams, check_capture_folder
+from psvs.io.atomic import check_output_folder
 from psvs.targets.target_file import target_from_text
 from psvs.web.bodies import CaptureBody, CaptureSetupBody
 from psvs.web.capture_runner import CaptureSetup, describe_target
@@ -36,11 +36,10 @@ def capture_setup(body: CaptureSetupBody, session: SessionDep):
     target = target_from_text(body.target, "target file")
     folder = Path(body.folder).expanduser().resolve()
     check_capture_folder(folder)
-    existing = folder
-    while not existing.exists():
-        existing = existing.parent
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise ValueError(f"cannot write the capture folder {folder}: permission denied")
+    try:
+        check_output_folder(folder, "the capture folder")
+    except PermissionError as exc:
+        raise ValueError(str(exc)) from None
     session.capture.configure(CaptureSetup(target, body.target.encode(), str(folder)))
     return {"folder": str(folder), "target": describe_target(target)}
 
