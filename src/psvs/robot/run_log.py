@@ -14,6 +14,8 @@ import numpy as np
 LOG_COLUMNS = ("t_s", "s_mm", "speed_mm_s", "tcp_x_mm", "tcp_y_mm", "tcp_z_mm", "target_x_mm", "target_y_mm",
                "target_z_mm", "seam_x_mm", "seam_y_mm", "seam_z_mm", "valid", "lateral_mm", "vertical_mm",
                *(f"q{i + 1}_rad" for i in range(6)), "render_ms", "sensor_ms", "control_ms", "note")
+_SEAM = tuple(LOG_COLUMNS.index(c) for c in ("seam_x_mm", "seam_y_mm", "seam_z_mm"))
+_VALID = LOG_COLUMNS.index("valid")
 #: Rows a log may hold (a 10-minute run at 250 Hz): a larger text is not a run's log.
 MAX_ROWS = 150_000
 
@@ -64,13 +66,12 @@ def read_log_csv(text: str, where: str = "log.csv") -> RunLog:
         except ValueError:
             col = next(c for c, v in zip(LOG_COLUMNS, row[:-1], strict=False) if not _is_number(v))
             raise ValueError(f"{where} row {k}: {col} is not a number") from None
-        seam = [LOG_COLUMNS.index(c) for c in ("seam_x_mm", "seam_y_mm", "seam_z_mm")]
-        blind = nums[LOG_COLUMNS.index("valid")] == 0.0          # no seam seen: its seam point is NaN
-        bad = [i for i, v in enumerate(nums) if not np.isfinite(v) and not (blind and i in seam and np.isnan(v))]
+        blind = nums[_VALID] == 0.0          # no seam seen: its seam point is NaN
+        bad = [i for i, v in enumerate(nums) if not np.isfinite(v) and not (blind and i in _SEAM and np.isnan(v))]
         if bad:
             col = LOG_COLUMNS[bad[0]]
             raise ValueError(f"{where} row {k}: {col} is not finite")
-        if nums[LOG_COLUMNS.index("valid")] not in (0.0, 1.0):
+        if nums[_VALID] not in (0.0, 1.0):
             raise ValueError(f"{where} row {k}: valid must be 0 or 1")
         values.append(nums)
         notes.append(row[-1])
