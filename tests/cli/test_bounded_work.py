@@ -211,10 +211,14 @@ def test_handeye_refuses_a_session_beyond_the_limits(capsys, tmp_path, count, ex
 
 
 @pytest.mark.parametrize("args, expected, limit_s", [
-    (["--speed", "0.001"], "--length/--speed/--rate: 8500000 control cycles (240 mm of seam and 100 mm to start and "
-                           "stop at 0.001 mm/s, 25 Hz), each a 640x32 px window x 4 samples and 10 ms of sensing, "
-                           "takes about 9.04 days, more than the 1 h limit; a higher --speed, a lower --rate or a "
-                           "shorter --length", 3600.0),
+    (["--speed", "0.001", "--no-check"], "--length/--speed/--rate: 8500000 control cycles (240 mm of seam and 100 "
+                                         "mm to start and stop at 0.001 mm/s, 25 Hz), each a 640x32 px window x 4 "
+                                         "samples and 10 ms of sensing, takes about 9.04 days, more than the 1 h "
+                                         "limit; a higher --speed, a lower --rate or a shorter --length", 3600.0),
+    # the self-check's whole frames: 8 % of 10 ms of sensing a cycle buys a 30 ms step every 37.5 cycles, each
+    # frame 640 x 480 x 4 samples at 1 us: 226667 x 1.23 s = 3.22 days more
+    (["--speed", "0.001"], "of sensing and 226667 whole frames for the self-check (--no-check leaves them out), "
+                           "takes about 12.3 days", 3600.0),
     (["--speed", "0.1", "--rate", "250", "--length", "1e9"], "850000 control cycles (240 mm of seam", 3600.0),
     # 5000 cycles at 0.092 s: 7.7 min, within the hour; refused by a one-minute limit
     (["--speed", "1", "--length", "100"], "5000 control cycles (100 mm of seam", 60.0),

@@ -7,7 +7,7 @@ import io
 import numpy as np
 import pytest
 
-from psvs.robot.run_log import LOG_COLUMNS, read_log_csv
+from psvs.robot.run_log import HEALTH_LOG_COLUMNS, LOG_COLUMNS, read_log_csv
 
 
 def _log(rows) -> str:
@@ -52,3 +52,45 @@ def test_what_is_not_a_log_is_refused_in_one_line(text, said):
     with pytest.raises(ValueError, match=said) as exc:
         read_log_csv(text, "run/log.csv")
     assert str(exc.value).startswith("run/log.csv ") and "\n" not in str(exc.value)
+
+
+def _checked_log(rows, health) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(LOG_COLUMNS + HEALTH_LOG_COLUMNS)
+    w.writerows(r + h for r, h in zip(rows, health, strict=True))
+    return buf.getvalue()
+
+
+def test_a_log_with_the_self_check_reads_back_by_value():
+    """The self-check's columns (psvs track's default): the verdict as of each cycle, '' before its first,
+    its figure NaN where it could not judge; the run's columns as without them."""
+    rows = [_row(k) for k in range(6)]
+    health = [["", "", "", ""], ["cannot judge", "nan", "nan", "7"], ["healthy", "0.1200", "0.0500", "40"],
+              ["healthy", "0.1300", "0.0400", "52"], ["drifted", "2.6600", "0.4800", "14"],
+              ["drifted", "2.7000", "0.3000", "30"]]
+    log = read_log_csv(_checked_log(rows, health))
+    assert log.health == tuple(h[0] for h in health)
+    np.testing.assert_array_equal(log.row_offset_rms_px, [np.nan, np.nan, 0.12, 0.13, 2.66, 2.70])
+    plain = read_log_csv(_log(rows))
+    np.testing.assert_array_equal(log.tcp_mm, plain.tcp_mm)
+    assert plain.health is None and plain.row_offset_rms_px is None
+
+
+@pytest.mark.parametrize("cells, said", [
+    (["fine", "0.1", "0.1", "3"], "row 2: health must be empty or one of healthy, drifted, cannot judge"),
+    (["healthy", "x", "0.1", "3"], "row 2: row_offset_rms_px is not a number"),
+    (["healthy", "0.1", "inf", "3"], "row 2: row_offset_unc_px is not a number"),
+    (["", "0.1", "", ""], "row 2: row_offset_rms_px without a verdict"),
+    (["healthy", "0.1", "0.1", "2.5"], "row 2: health_tiles must be a count"),
+])
+def test_a_bad_self_check_cell_is_refused_in_one_line(cells, said):
+    with pytest.raises(ValueError, match=said) as exc:
+        read_log_csv(_checked_log([_row(1)], [cells]), "run/log.csv")
+    assert str(exc.value).startswith("run/log.csv ") and "\n" not in str(exc.value)
+
+
+def test_a_field_beyond_the_csv_modules_limit_is_refused_in_one_line():
+    text = _log([_row(1, note="x" * 200_000)])
+    with pytest.raises(ValueError, match="run/log.csv is not a psvs track log: field larger than field limit"):
+        read_log_csv(text, "run/log.csv")

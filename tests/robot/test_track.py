@@ -165,6 +165,9 @@ def test_report_and_bag_read_back(gap10, tmp_path):
     (["track", "weld_seam", "--rig", "default", "--true-rig", "nosuch", "-o", "r"], "nosuch"),
     (["track", "weld_seam", "--rig", "default", "--mcap", "run.txt", "-o", "r"], "must end in .mcap"),
     (["track", "weld_seam", "--rig", "default", "--foxglove", "host:port", "-o", "r"], "PORT an integer"),
+    (["track", "weld_seam", "--rig", "default", "--stop-on-drift", "--no-check", "-o", "r"], "needs the self-check"),
+    (["track", "weld_seam", "--rig", "default", "--tolerance-px", "0", "-o", "r"], "--tolerance-px must be"),
+    (["track", "weld_seam", "--rig", "default", "--check-share", "101", "-o", "r"], "--check-share must be"),
 ])
 def test_cli_errors_are_one_line_exit_2(args, msg, tmp_path, monkeypatch, capsys):
     import shutil

@@ -43,13 +43,18 @@ def test_the_run_reads_back_as_written(run_dir):
         arc_on = rep["config"]["look_ahead_mm"] + 10.0                    # psvs.robot.controller.TrackConfig
         assert d["welded"] == [float(x["s_mm"]) >= arc_on for x in rows] and any(d["welded"])
         assert d["report"]["lateral_mm"] == rep["lateral_mm"] and d["report"]["stop"] == rep["stop"]["reason"]
+        h = rep["health"]                                            # the self-check, on by default
+        assert d["report"]["health"] == {k: h[k] for k in ("verdict", "row_offset_rms_px", "uncertainty_px", "steps",
+                                                            "cost_pct", "lines")} and h["steps"] >= 1
         # refused in one line: another run's report, a file that is not a log, a report that is not one
         other = json.loads(report)
         other["cycles"] += 1
         for body, said in (({"log": log, "report": json.dumps(other)}, "not one run's files"),
                            ({"log": "a,b\n1,2\n", "report": report}, "log.csv is not a psvs track log"),
                            ({"log": log, "report": "{}"}, "report.json is not a psvs track report"),
-                           ({"log": log, "report": "{"}, "report.json is not JSON")):
+                           ({"log": log, "report": "{"}, "report.json is not JSON"),
+                           ({"log": log, "report": report.replace(f'"cycles": {rep["cycles"]}', '"cycles": 1e400')},
+                            "report.json is not a psvs track report")):
             r = c.post("/api/robot/run", json=body)
             assert r.status_code == 400 and said in r.json()["detail"] and "\n" not in r.json()["detail"], r.json()
 
@@ -64,6 +69,10 @@ def test_the_robot_step_draws_the_run(webgl_page, run_dir):
         assert webgl_page.inner_text("#robot-lateral") == (f"{rep['lateral_mm']['rms']:.3f} / "
                                                            f"{rep['lateral_mm']['max']:.3f} mm")
         assert webgl_page.inner_text("#robot-stop") == f"stopped: {rep['stop']['reason']}"
+        h = rep["health"]
+        said = webgl_page.inner_text("#robot-health")
+        assert said.startswith(h["verdict"] or "no step taken")
+        assert f"({h['steps']} steps, {h['cost_pct']:.1f} % of the sensor's time)" in said
         assert int(webgl_page.get_attribute("#robot3d", "data-points")) == rep["valid_frames"]
         webgl_page.wait_for_selector("#robot3d canvas", timeout=10000)
         shot(webgl_page, "web_robot_step.png")

@@ -76,6 +76,9 @@ def test_session_keeps_a_result_only_for_its_current_image():
     assert session.keep_result(result, now.generation) and session.result() is result
     session.replace_still(_squares(90), "uploaded image")
     assert session.result() is None
+    still = session.still()
+    session.replace_rig(default_rig(), "another rig")           # the rig changed while matching
+    assert not session.keep_result(result, still.generation) and session.result() is None
     with pytest.raises(ValueError, match="must be a 640x480 uint8 grey image"):
         session.replace_still(np.zeros((10, 10), np.uint8), "small")
 

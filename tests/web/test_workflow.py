@@ -98,7 +98,9 @@ def test_the_capture_card_and_folder_are_chosen_in_the_page(tmp_path, knocked_fr
         for body, said in (({"target": "[target]\nkind = \"moon\"\n", "folder": str(tmp_path / "v2")}, "target"),
                            ({"target": dumps_target(card), "folder": str(tmp_path / "used")}, "already holds"),
                            ({"target": dumps_target(card), "folder": str(tmp_path / "used" / "view_00.png")},
-                            "is a file")):
+                            "is a file"),
+                           ({"target": dumps_target(card), "folder": str(tmp_path / ("x" * 300))},
+                            "cannot be used: File name too long")):
             r = c.post("/api/capture/setup", json=body)
             assert r.status_code == 400 and said in r.json()["detail"], r.json()
         assert c.get("/api/info").json()["capture"]["folder"] == str(tmp_path / "views")   # kept

@@ -59,6 +59,26 @@ def add_telemetry_arguments(parser) -> None:
     parser.add_argument("--mcap", metavar="FILE.mcap", help="record the same channels to an MCAP file")
 
 
+def add_check_arguments(parser) -> None:
+    """--no-check and --tolerance-px: the rolling self-check of a running sensor (psvs.health.rolling)."""
+    parser.add_argument("--no-check", action="store_true",
+                        help="leave out the rolling self-check (the twins' rows, 8 %% of the sensor's time; "
+                             "docs/health.md)")
+    parser.add_argument("--tolerance-px", type=float, default=0.5,
+                        help="the self-check's tolerance: the twins' field RMS, px (default 0.5)")
+    parser.add_argument("--check-share", type=float, default=8.0, metavar="PCT",
+                        help="the share of the sensor's time the self-check may take, %% (default 8: a knock is "
+                             "said within a few hundred frames; more says it sooner)")
+
+
+def check_tolerance(args) -> None:
+    """--tolerance-px a number > 0 and --check-share in (0, 100], checked before any work."""
+    if not (math.isfinite(args.tolerance_px) and args.tolerance_px > 0):
+        raise ValueError(f"--tolerance-px must be a number > 0 px, got {args.tolerance_px}")
+    if not (math.isfinite(args.check_share) and 0 < args.check_share <= 100):
+        raise ValueError(f"--check-share must be a percentage in (0, 100], got {args.check_share}")
+
+
 def check_telemetry_arguments(args) -> None:
     """--mcap's path and --foxglove's address checked before any work (nothing is opened or bound)."""
     check_output_path(args.mcap, (".mcap",))

@@ -1,7 +1,6 @@
 """``psvs live``: headless real-time sensing: track one edge through a video or a camera, print its depth."""
 from __future__ import annotations
 
-import math
 import sys
 import time
 from dataclasses import replace
@@ -11,6 +10,7 @@ import numpy as np
 from psvs._budget import check_memory
 from psvs.cli.camera_args import add_source_arguments, check_source_arguments, open_source
 from psvs.cli.common import (
+    add_check_arguments,
     add_model_argument,
     add_pipeline_argument,
     add_range_arguments,
@@ -19,6 +19,7 @@ from psvs.cli.common import (
     check_distinct,
     check_output_path,
     check_telemetry_arguments,
+    check_tolerance,
     open_telemetry,
     parse_seed,
     pipeline_from_args,
@@ -59,11 +60,7 @@ def add_parser(sub) -> None:
     p.add_argument("--max-frames", type=int, help="stop after N frames")
     p.add_argument("--quiet", action="store_true", help="print only the summary")
     add_telemetry_arguments(p)
-    p.add_argument("--no-check", action="store_true",
-                   help="leave out the rolling self-check (the twins' rows, 8 %% of the sensor's time; "
-                        "docs/health.md)")
-    p.add_argument("--tolerance-px", type=float, default=0.5,
-                   help="the self-check's tolerance: the twins' field RMS, px (default 0.5)")
+    add_check_arguments(p)
     p.add_argument("--realtime", action="store_true", help="play a video at its frame rate (as a camera delivers "
                                                            "it) instead of as fast as possible")
     p.set_defaults(run=run)
@@ -94,12 +91,11 @@ def _sensors(args):
 def rolling_check(args, rig, near_mm: float, far_mm: float):
     """The rolling self-check (psvs.health.rolling) the arguments ask for (None with --no-check), its
     tolerance checked first."""
-    if not (math.isfinite(args.tolerance_px) and args.tolerance_px > 0):
-        raise ValueError(f"--tolerance-px must be a number > 0 px, got {args.tolerance_px}")
+    check_tolerance(args)
     if args.no_check:
         return None
     from psvs.health.rolling import RollingCheck
-    return RollingCheck(rig, near_mm, far_mm, args.tolerance_px)
+    return RollingCheck(rig, near_mm, far_mm, args.tolerance_px, args.check_share / 100)
 
 
 def check_step(health, image, frame: int, sensor_s: float, tel, t_s: float, command: str):
@@ -115,10 +111,8 @@ def check_step(health, image, frame: int, sensor_s: float, tel, t_s: float, comm
         if tel is not None:
             tel.log(t_s, event.line, "warning" if event.check.verdict == "drifted" else "info")
     if tel is not None and health.steps > steps:
-        c = health.latest
-        tel.record("health", t_s, {"frame": frame, "verdict": c.verdict, "row_offset_rms_px": c.row_offset_rms_px,
-                                   "uncertainty_px": c.uncertainty_px, "tiles": c.tiles,
-                                   "cost_share": health.cost_share})
+        from psvs.health.rolling import health_record
+        tel.record("health", t_s, health_record(health.latest, frame, health.cost_share))
     return health.latest
 
 

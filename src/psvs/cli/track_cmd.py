@@ -5,10 +5,12 @@ import math
 import time
 
 from psvs.cli.common import (
+    add_check_arguments,
     add_rig_argument,
     add_telemetry_arguments,
     check_distinct,
     check_telemetry_arguments,
+    check_tolerance,
     open_telemetry,
     parse_seed,
     rig_from_args,
@@ -44,6 +46,9 @@ def add_parser(sub) -> None:
     p.add_argument("--bag-storage", choices=("mcap", "sqlite3"), default="mcap",
                    help="the ROS 2 bag's storage (default mcap, rosbag2's default)")
     add_telemetry_arguments(p)
+    add_check_arguments(p)
+    p.add_argument("--stop-on-drift", action="store_true",
+                   help="stop safely (brake, arc off) when the self-check finds the calibration has drifted")
     p.add_argument("-o", "--output", metavar="RUN_DIR", required=True, help="folder for the run's outputs")
     p.set_defaults(run=run)
 
@@ -62,6 +67,8 @@ class _Progress:
     def cycle(self, c) -> None:
         if self.cycles == 0:
             print("tracking: first control cycle done", flush=True)
+        if c.health is not None and c.health.line:
+            print(f"psvs track: {c.health.line}", flush=True)
         self.cycles += 1
         if self.recorder is not None:
             self.recorder.cycle(c)
@@ -76,6 +83,9 @@ def _job(args):
     for name, v in (("--speed", args.speed), ("--rate", args.rate)):
         if not (math.isfinite(v) and v > 0):
             raise ValueError(f"{name} must be a number > 0, got {v!r}")
+    check_tolerance(args)
+    if args.stop_on_drift and args.no_check:
+        raise ValueError("--stop-on-drift needs the self-check: leave out --no-check")
     rig = rig_from_args(args)
     if args.roi_rows is None:     # the same angle (length of seam) as 32 rows of the paper's camera
         args.roi_rows = min(rig.camera.image_size_px[1], max(8, round(32 * pixel_scale(rig.camera))))
@@ -98,7 +108,7 @@ def _check_work(args, cfg, rig, seam_mm: float) -> None:
     from psvs._budget import check_time
     from psvs.robot.cells import SimulationConfig
     from psvs.robot.handeye_session import CELL_SUPERSAMPLE, CELL_VIEWS
-    from psvs.robot.loop import CYCLE_SECONDS, RUN_IN_OUT_MM, cycle_seconds, track_cycles
+    from psvs.robot.loop import CYCLE_SECONDS, RUN_IN_OUT_MM, check_frames_expected, cycle_seconds, track_cycles
     from psvs.simulate.render import check_render_work, render_seconds
     setup_s = 0.0
     if not args.handeye:
@@ -108,10 +118,15 @@ def _check_work(args, cfg, rig, seam_mm: float) -> None:
     length = seam_mm if args.length is None else min(args.length, seam_mm)
     cycles = track_cycles(length, cfg)
     w, k = rig.camera.image_size_px[0], SimulationConfig().supersample
+    checked = ""
+    if not args.no_check:        # the self-check's whole frames, rendered when it asks for one
+        frames = check_frames_expected(cycles, args.check_share / 100)
+        setup_s += frames * render_seconds(rig, k, 1)
+        checked = f" and {frames} whole frames for the self-check (--no-check leaves them out)"
     check_time(setup_s + cycles * cycle_seconds(rig, cfg),
                f"--length/--speed/--rate: {cycles} control cycles ({length:g} mm of seam and {RUN_IN_OUT_MM:g} mm "
                f"to start and stop at {args.speed:g} mm/s, {args.rate:g} Hz), each a {w}x{cfg.roi_rows} px window "
-               f"x {k * k} samples and {CYCLE_SECONDS * 1e3:g} ms of sensing,",
+               f"x {k * k} samples and {CYCLE_SECONDS * 1e3:g} ms of sensing{checked},",
                "a higher --speed, a lower --rate or a shorter --length")
 
 
@@ -121,7 +136,7 @@ REPORT_FILES = ("report.json", "log.csv", "top_view.png", "error.png")
 
 def run(args) -> int:
     from psvs.robot.bag import write_bag
-    from psvs.robot.loop import track
+    from psvs.robot.loop import drift_watch, track
     from psvs.robot.report import write_report
 
     out = check_output_folder(args.output, "output")
@@ -142,14 +157,18 @@ def run(args) -> int:
     with open_telemetry(args, t0_ns) as tel:
         from psvs.robot.recording import RunRecorder, publish_stop
         recorder = None if tel is None else RunRecorder(tel, cfg, seed)
-        result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, listener=_Progress(recorder))
+        watch = None if args.no_check else drift_watch(rig, cfg, args.tolerance_px, args.stop_on_drift,
+                                                          args.check_share / 100)
+        result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, listener=_Progress(recorder),
+                       watch=watch)
         if tel is not None:
             publish_stop(tel, result.cycles[-1].t_s, result.stop.reason)
     summary = write_report(result, wp, out)
     if not args.no_bag:
         write_bag(result, out / "bag", args.bag_storage, t0_ns)
     _print_summary(summary, bool(args.handeye))
-    return 0
+    from psvs.robot.drift import DRIFT_STOP
+    return 1 if result.stop.reason.startswith(DRIFT_STOP) else 0   # not a clean weld: the glass moved
 
 
 def _print_summary(s: dict, handeye_file: bool) -> None:
@@ -162,4 +181,10 @@ def _print_summary(s: dict, handeye_file: bool) -> None:
               f"vertical RMS {ver['rms']:.3f} mm (max {ver['max']:.3f})")
     print(f"wall time per cycle (median): sensor {wall['sensor']['median']:.1f} ms, "
           f"control {wall['control']['median']:.1f} ms, rendering {wall['render (simulation)']['median']:.0f} ms")
+    h = s["health"]
+    if h is not None:
+        figure = "" if h["row_offset_rms_px"] is None else \
+            f", twins' rows {h['row_offset_rms_px']:.2f} +- {h['uncertainty_px']:.2f} px RMS"
+        print(f"self-check: {h['verdict'] or 'no step taken'}{figure} ({h['steps']} steps, "
+              f"{h['cost_pct']:.1f} % of the sensor's time)")
     print(f"stop: {s['stop']['reason']} (torch at s = {s['stop']['torch_s_mm']:.1f} mm)")

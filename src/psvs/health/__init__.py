@@ -16,7 +16,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "check": ["HealthCheck", "OVERLAP", "TOLERANCE_PX", "check_frames", "judge", "judged_pairs_px"],
         "explain": ["Explanation", "explain_drift", "explain_offsets", "explanation_line", "tilted"],
         "figure": ["offset_figure"],
-        "rolling": ["HealthEvent", "RollingCheck"],
+        "rolling": ["FIRST_COST_S", "HealthEvent", "RollingCheck", "SHARE", "health_record"],
         "rows": ["FrameTiles", "frame_tiles"],
     },
 )

@@ -37,6 +37,13 @@ MAX_CREDIT_STEPS = 1.5
 FIRST_COST_S = 0.03
 
 
+def health_record(check: HealthCheck, frame: int, cost_share: float) -> dict:
+    """A judgement as a recording's /psvs/health record (``psvs live`` and ``psvs track``): the frame, verdict,
+    field RMS and uncertainty (px), tiles and the check's share of the sensor's time so far."""
+    return {"frame": frame, "verdict": check.verdict, "row_offset_rms_px": check.row_offset_rms_px,
+            "uncertainty_px": check.uncertainty_px, "tiles": check.tiles, "cost_share": cost_share}
+
+
 @dataclass(frozen=True)
 class HealthEvent:
     """A change of verdict the sensor should say: ``frame`` (index), ``check`` the new verdict's figures,
@@ -69,11 +76,19 @@ class RollingCheck:
     def step(self, image, frame: int, sensor_s: float) -> HealthEvent | None:
         """Take frame ``frame`` (its image (H, W) and the sensor's time on it, s) into the estimate when the
         credit allows; a :class:`HealthEvent` when the verdict crosses between healthy and drifted."""
+        return self.take(image, frame) if self.due(sensor_s) else None
+
+    def due(self, sensor_s: float) -> bool:
+        """Count the sensor's time on a frame (s) into the credit; whether a step is due on that frame (then
+        call :meth:`take` with it, e.g. once a frame only a step needs is read)."""
         self.sensor_s += max(sensor_s, 0.0)
         cost = float(np.median(self._costs))
         self._credit = min(self._credit + self.share * max(sensor_s, 0.0), MAX_CREDIT_STEPS * cost)
-        if self._credit < cost:
-            return None
+        return self._credit >= cost
+
+    def take(self, image, frame: int) -> HealthEvent | None:
+        """One step on frame ``frame`` (its image (H, W)): its next tiles into the last sweep, judged; its time
+        taken off the credit. A :class:`HealthEvent` when the verdict crosses between healthy and drifted."""
         t0 = time.perf_counter()
         tiles = frame_tiles(image, self.rig, self.near_mm, self.far_mm, subset=(self._next, TILES_PER_STEP))
         self._next = (self._next + TILES_PER_STEP) % max(tiles.of_tiles, 1)

@@ -31,6 +31,7 @@ from psvs.live.camera import Frame as CameraFrame
 from psvs.optics.rig import Rig
 from psvs.robot.arm import Arm, ArmLimits, ServoStep
 from psvs.robot.controller import Command, Observation, SeamTracker
+from psvs.robot.drift import DriftWatch, HealthNote
 from psvs.robot.mounting import tool2flange
 from psvs.robot.seam import SeamObservation
 from psvs.robot.sensor import SeamSensor, SensorSetup
@@ -45,6 +46,8 @@ REST_SPEED_RAD_S = 1e-4
 #: The largest joint change one control cycle may ask for (a path step of < 1 mm moves no joint by
 #: more than ~0.01 rad here): more means the solver switched arm configuration.
 MAX_IK_STEP_RAD = 0.1
+#: The whole frames' noise seeds start here (the sensor windows' at the noise seed): other draws.
+FULL_FRAME_SEED = 1_000_003
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,8 +102,9 @@ class SimulatedCell:
     control period; commands through the arm's IK and its 500 Hz joint servo."""
 
     def __init__(self, arm: Arm, workpiece: Workpiece, true_roi_rig: Rig, cam2flange_true: np.ndarray,
-                 rate_hz: float, sim: SimulationConfig = SimulationConfig()):
+                 rate_hz: float, sim: SimulationConfig = SimulationConfig(), true_rig: Rig | None = None):
         self.arm, self.workpiece, self.rig, self.cam2flange = arm, workpiece, true_roi_rig, cam2flange_true
+        self.full_rig = true_rig
         self.dt, self.sim = 1.0 / rate_hz, sim
         self._tool = tool2flange()
         self._flange2base = None
@@ -123,6 +127,16 @@ class SimulatedCell:
         world2cam = invert_transform(concat(self.cam2flange, self._flange2base))
         return render(scene_in_rig_frame(self.workpiece.scene, world2cam), self.rig, supersample=self.sim.supersample,
                       sensor=Sensor(), seed=self.sim.noise_seed + k).image
+
+    def full_frame(self) -> np.ndarray:
+        """The camera's whole frame (H, W) uint8 at the pose of the last :meth:`read` (the sensor window is
+        cut from it), through the whole rig as built (``true_rig``): what the rolling self-check reads."""
+        if self.full_rig is None:
+            raise ValueError("this cell renders only the sensor window: give it the whole rig as built")
+        world2cam = invert_transform(concat(self.cam2flange, self._flange2base))
+        return render(scene_in_rig_frame(self.workpiece.scene, world2cam), self.full_rig,
+                      supersample=self.sim.supersample, sensor=Sensor(),
+                      seed=FULL_FRAME_SEED + self.sim.noise_seed + self.k).image
 
     def send(self, tool2base: np.ndarray) -> ServoStep:
         """Command the tool pose ``tool2base`` (4, 4) mm for the next cycle."""
@@ -154,6 +168,7 @@ class CycleResult:
     step: ServoStep | None
     fault: str
     wall_s: tuple[float, float, float]
+    health: HealthNote | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -167,11 +182,14 @@ class LoopResult:
 
 
 def control_loop(cell: Cell, tracker: SeamTracker, setup: SensorSetup, max_cycles: int,
-                 on_cycle: Callable[[CycleResult], None] | None = None) -> LoopResult:
+                 on_cycle: Callable[[CycleResult], None] | None = None,
+                 watch: DriftWatch | None = None) -> LoopResult:
     """Run ``tracker`` on ``cell`` until it has stopped and the arm is at rest, or ``max_cycles``.
 
     The seam sensor starts on the first frame (:meth:`SensorSetup.start`) and tracks from every frame the
-    controller accepts. ``on_cycle(CycleResult)`` is called after every cycle."""
+    controller accepts. ``on_cycle(CycleResult)`` is called after every cycle. ``watch`` (a cell with whole
+    frames: :meth:`SimulatedCell.full_frame`) checks the calibration after each cycle's sensing, before the
+    controller decides (psvs.robot.drift)."""
     sensor, results = None, []
     for _ in range(max_cycles):
         t0 = time.perf_counter()
@@ -181,6 +199,8 @@ def control_loop(cell: Cell, tracker: SeamTracker, setup: SensorSetup, max_cycle
             sensor = setup.start(frame.image)
         seam = sensor.measure(frame.image)
         t2 = time.perf_counter()
+        note = None if watch is None else watch.look(cell, len(results), t2 - t1, tracker)
+        t2c = time.perf_counter()              # the check's time (and its frame's) is neither sensing nor control
         cmd = tracker.step(Observation(frame.t_s, frame.flange2base, seam))
         if cmd.accepted or (cmd.valid and sensor.half_width_px is None):
             sensor.commit(seam)
@@ -191,7 +211,7 @@ def control_loop(cell: Cell, tracker: SeamTracker, setup: SensorSetup, max_cycle
             step, fault = cell.stop(), str(exc)
             tracker.fault(fault)
         t3 = time.perf_counter()
-        res = CycleResult(frame, seam, cmd, step, fault, (t1 - t0, t2 - t1, t3 - t2))
+        res = CycleResult(frame, seam, cmd, step, fault, (t1 - t0, t2 - t1, t3 - t2c), note)
         results.append(res)
         if on_cycle is not None:
             on_cycle(res)

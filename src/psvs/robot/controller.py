@@ -219,6 +219,13 @@ class SeamTracker:
             self.stopping_at, self.stop_reason = self.s_cmd, f"arm: {reason}"
         self.v = 0.0
 
+    def halt(self, reason: str) -> None:
+        """Stop safely, told from outside the seam (e.g. the calibration has drifted): brake from here at the
+        job's deceleration, tracking on meanwhile, and weld no further than where the torch comes to rest."""
+        if self.stopping_at is None:
+            self.stopping_at = self.s_cmd + self.v ** 2 / (2 * self.cfg.accel_mm_s2)
+            self.stop_reason = reason
+
     def _extend(self, sp, a, b) -> tuple[str, bool]:
         """Try the frame's seam point on the path model: ('' when it is usable, else why not; whether it
         extended the model)."""

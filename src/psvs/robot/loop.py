@@ -16,11 +16,14 @@ from typing import Protocol
 
 import numpy as np
 
+from psvs.health.check import TOLERANCE_PX
+from psvs.health.rolling import FIRST_COST_S, SHARE, RollingCheck
 from psvs.optics.rig import Rig
 from psvs.optics.window import roi_rig
 from psvs.robot.arm import Arm
 from psvs.robot.cells import CycleResult, Frame, ReplayCell, SimulatedCell, SimulationConfig, control_loop
 from psvs.robot.controller import UP, SeamTracker, TrackConfig
+from psvs.robot.drift import DriftWatch, HealthNote
 from psvs.robot.handeye import HandEyeResult
 from psvs.robot.handeye_session import calibrate_cell
 from psvs.robot.mounting import HOME_Q, tool2flange, tool_pose
@@ -76,6 +79,7 @@ class Cycle:
     flange2base: np.ndarray     # (4, 4) the flange pose at the frame's exposure (the controller's input)
     tool2base: np.ndarray       # (4, 4) the torch pose commanded (the controller's output)
     fault: str = ""             # the arm's refusal of the command ('' none)
+    health: HealthNote | None = None   # the rolling self-check as of this cycle (None: not run)
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,7 +111,7 @@ class TrackRun:
     """A finished run: its settings, every cycle, the stop, the hand-eye calibration used and the true
     mounting (scoring), the teach, the seed pixel used (u, v) px, the path model's knots (s (K,), points
     (K, 3)) mm, the gaps bridged ((from, to) arc lengths, mm) and the set-up time before the first cycle
-    (s, the hand-eye session included when it ran)."""
+    (s, the hand-eye session included when it ran) and the rolling self-check's summary (None: not run)."""
 
     config: TrackConfig
     simulation: SimulationConfig
@@ -120,6 +124,7 @@ class TrackRun:
     path_knots: tuple[np.ndarray, np.ndarray]
     gaps_bridged: tuple[tuple[float, float], ...]
     start_s: float
+    health: dict | None = None     # the rolling self-check's summary (DriftWatch.summary; None: not run)
 
 
 class TrackListener(Protocol):
@@ -165,6 +170,20 @@ def sensor_setup(rig: Rig, cfg: TrackConfig, seed_px=None) -> tuple[SensorSetup,
     return SensorSetup(roi, near, far, None if seed_px is None else tuple(float(c) for c in seed_px)), v0
 
 
+def check_frames_expected(cycles: int, share: float = SHARE) -> int:
+    """The whole frames a run of ``cycles`` control cycles is expected to hand its rolling self-check (each
+    rendered in simulation; for the run's time budget): its credit, ``share`` of :data:`CYCLE_SECONDS` of
+    sensing a cycle, covering steps of :data:`psvs.health.rolling.FIRST_COST_S`; at most one a cycle."""
+    return min(cycles, 1 + int(cycles * share * CYCLE_SECONDS / FIRST_COST_S))
+
+
+def drift_watch(rig: Rig, cfg: TrackConfig, tolerance_px: float = TOLERANCE_PX, stop_on_drift: bool = False,
+                share: float = SHARE) -> DriftWatch:
+    """The rolling self-check of a run tracking with ``rig`` (what the sensor was calibrated to) over the seam
+    sensor's depths (:func:`sensor_range`), at ``share`` of the sensor's time (psvs.robot.drift)."""
+    return DriftWatch(RollingCheck(rig, *sensor_range(cfg), tolerance_px, share), stop_on_drift)
+
+
 def _cycle(res: CycleResult, tcp_mm: np.ndarray) -> Cycle:
     """The record of one cycle of the simulated cell (its servo step always present); an arm fault stops
     the torch (the controller's speed drops to 0 at once)."""
@@ -173,13 +192,13 @@ def _cycle(res: CycleResult, tcp_mm: np.ndarray) -> Cycle:
                  target_mm=c.target_mm, seam_mm=c.seam_mm, valid=c.valid, reason=c.reason, q=step.q, qd=step.qd,
                  qdd_peak=step.qdd_peak, image=res.frame.image, points_mm=c.points_mm, path_mm=c.path_mm,
                  wall_render_s=res.wall_s[0], wall_sensor_s=res.wall_s[1], wall_control_s=res.wall_s[2],
-                 flange2base=res.frame.flange2base, tool2base=c.tool2base, fault=res.fault)
+                 flange2base=res.frame.flange2base, tool2base=c.tool2base, fault=res.fault, health=res.health)
 
 
-def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,
+def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,  # noqa: PLR0913 (keyword-only options)
           sim: SimulationConfig = SimulationConfig(), true_rig: Rig | None = None,
           handeye: tuple[HandEyeResult, np.ndarray] | None = None, seed_px=None,
-          listener: TrackListener | None = None) -> TrackRun:
+          listener: TrackListener | None = None, watch: DriftWatch | None = None) -> TrackRun:
     """Run the closed loop on the workpiece until the torch stops; see the module docstring.
 
     Parameters
@@ -200,6 +219,9 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,
         by :func:`psvs.robot.sensor.auto_seed`.
     listener : TrackListener or None
         Told the start (the calibrated cam2flange and the teach) and every cycle (e.g. to record them).
+    watch : DriftWatch or None
+        The rolling self-check (:func:`drift_watch`): reads whole frames through the rig as built, judges
+        them through ``rig``; told to, stops the run when the calibration has drifted.
     """
     t_enter = time.perf_counter()
     arm = Arm(HOME_Q, sim.limits)
@@ -209,7 +231,7 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,
     rows = setup.rig.camera.image_size_px[1]
     roi_true = setup.rig if true_rig is None else roi_rig(true_rig, rows, v0)[0]   # the same rows, as built
     tracker = SeamTracker(cfg, he.cam2flange, taught.taught_mm, taught.travel, window_length_mm(rig, cfg))
-    cell = SimulatedCell(arm, workpiece, roi_true, cam_true, cfg.rate_hz, sim)
+    cell = SimulatedCell(arm, workpiece, roi_true, cam_true, cfg.rate_hz, sim, true_rig or rig)
     cycles: list[Cycle] = []
     if listener is not None:
         listener.started(he.cam2flange, taught)
@@ -221,7 +243,7 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,
 
     max_cycles = int((workpiece.params["length_mm"] + RUN_IN_OUT_MM) / cfg.speed_mm_s * cfg.rate_hz * 2) + 200
     start_s = time.perf_counter() - t_enter   # set-up (hand-eye calibration included) until the first cycle
-    loop = control_loop(cell, tracker, setup, max_cycles, record)
+    loop = control_loop(cell, tracker, setup, max_cycles, record, watch)
     state = tracker.summary()
     reason = state.stop_reason if tracker.stopped and cell.at_rest() else (state.stop_reason or "cycle limit reached")
     stop = Stop(reason=reason, s_mm=state.s_mm, tcp_mm=cycles[-1].tcp_mm, last_seen_s_mm=state.s_far_mm,
@@ -230,7 +252,8 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,
                 decided_at_s_mm=state.decided_at_s_mm)
     return TrackRun(config=cfg, simulation=sim, cycles=cycles, stop=stop, handeye=he, cam2flange_true=cam_true,
                     teach=taught, seed_px=loop.seed_px, path_knots=state.path_knots,
-                    gaps_bridged=state.gaps_bridged, start_s=start_s)
+                    gaps_bridged=state.gaps_bridged, start_s=start_s,
+                    health=None if watch is None else watch.summary())
 
 
 def replay(run: TrackRun, rig: Rig) -> ReplayCell:

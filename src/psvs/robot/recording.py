@@ -12,7 +12,10 @@ exactly:
   input), the torch pose tool2base commanded (its output), the arm's fault, and the controller's state
   (s_mm, valid, reason) for reading. Matrices as 16 row-major floats in mm, written exactly (JSON repr);
 - ``/psvs/stop`` (once, at the last cycle): why the run ended. A recording without it was cut short
-  (e.g. Ctrl-C): it still replays, and the replay says so.
+  (e.g. Ctrl-C): it still replays, and the replay says so;
+- ``/psvs/health`` (with the rolling self-check, psvs.robot.drift: each cycle it judged): the frame, the
+  verdict, the twins' field RMS and uncertainty (px), the tiles and the check's share of the sensor's time,
+  as ``psvs live`` records it; what it says on /psvs/log.
 
 The frames are /psvs/image's mono8 bytes, losslessly. Everything shares one log time per cycle.
 """
@@ -23,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from psvs.health.rolling import health_record
 from psvs.io.telemetry import BASE_FRAME, CAMERA_FRAME, FLANGE_FRAME, TORCH_FRAME
 from psvs.robot.cells import Frame, ReplayCell
 from psvs.robot.controller import TrackConfig
@@ -63,7 +67,7 @@ class CyclePublisher:
     def __init__(self, tel, cam2flange: np.ndarray, tool2flange: np.ndarray):
         self.tel, self.cam, self.tool = tel, cam2flange, tool2flange
         self.torch: list[np.ndarray] = []
-        self._last_reason = None
+        self._last_reason, self.cycles = None, 0
 
     def __call__(self, c) -> None:
         tel, t = self.tel, c.t_s
@@ -76,6 +80,12 @@ class CyclePublisher:
         if not self.torch or np.linalg.norm(c.tcp_mm - self.torch[-1]) >= TORCH_STEP_MM:
             self.torch = self.torch[-(TORCH_POINTS - 1):] + [np.asarray(c.tcp_mm, float)]
         tel.lines(t, {"taught_seam": c.path_mm, "torch_path": np.array(self.torch + [c.tcp_mm])})
+        h = c.health
+        if h is not None and h.judged:
+            tel.record("health", t, health_record(h.check, self.cycles, h.cost_share))
+        if h is not None and h.line:
+            tel.log(t, h.line, "warning" if h.check.verdict == "drifted" else "info")
+        self.cycles += 1
         if c.fault:
             tel.log(t, f"arm fault: {c.fault}", "error")
         elif c.reason != self._last_reason and c.reason:

@@ -10,7 +10,7 @@ import numpy as np
 
 from psvs.io.atomic import write_atomic
 from psvs.robot.loop import TrackRun
-from psvs.robot.run_log import LOG_COLUMNS
+from psvs.robot.run_log import HEALTH_LOG_COLUMNS, LOG_COLUMNS
 from psvs.robot.workpiece import Workpiece
 
 
@@ -78,6 +78,7 @@ def summary(run: TrackRun, workpiece: Workpiece) -> dict:
                  "last_seen_s_mm": st.last_seen_s_mm, "last_seen_mm": st.last_seen_mm.tolist(),
                  "lost_at_torch_s_mm": st.lost_at_s_mm, "decided_at_torch_s_mm": st.decided_at_s_mm},
         "gaps_bridged_mm": [[a, b] for a, b in run.gaps_bridged],
+        "health": run.health,
     }
 
 
@@ -87,19 +88,28 @@ def _fields(record, skip: tuple[str, ...] = ()) -> dict:
 
 
 def log_csv(run: TrackRun, workpiece: Workpiece) -> str:
-    """One row per control cycle (:data:`psvs.robot.run_log.LOG_COLUMNS`; read back by
-    :func:`psvs.robot.run_log.read_log_csv`)."""
+    """One row per control cycle (:data:`psvs.robot.run_log.LOG_COLUMNS`, and ``HEALTH_LOG_COLUMNS`` when the
+    self-check ran; read back by :func:`psvs.robot.run_log.read_log_csv`)."""
     dev = deviations(run, workpiece)
+    checked = run.health is not None
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(LOG_COLUMNS)
+    w.writerow(LOG_COLUMNS + (HEALTH_LOG_COLUMNS if checked else ()))
     for i, c in enumerate(run.cycles):
         w.writerow([f"{c.t_s:.3f}", f"{c.s_mm:.4f}", f"{c.speed_mm_s:.3f}", *(f"{v:.4f}" for v in c.tcp_mm),
                     *(f"{v:.4f}" for v in c.target_mm), *(f"{v:.4f}" for v in c.seam_mm), int(c.valid),
                     f"{dev['lateral_mm'][i]:.4f}", f"{dev['vertical_mm'][i]:.4f}", *(f"{v:.6f}" for v in c.q),
                     f"{c.wall_render_s * 1e3:.2f}", f"{c.wall_sensor_s * 1e3:.2f}", f"{c.wall_control_s * 1e3:.2f}",
-                    c.reason])
+                    c.reason, *(_health_cells(c) if checked else ())])
     return buf.getvalue()
+
+
+def _health_cells(c) -> list:
+    """A cycle's self-check columns: empty before the check's first judgement."""
+    h = None if c.health is None else c.health.check
+    if h is None:
+        return ["", "", "", ""]
+    return [h.verdict, f"{h.row_offset_rms_px:.4f}", f"{h.uncertainty_px:.4f}", h.tiles]
 
 
 def plots(run: TrackRun, workpiece: Workpiece, out_dir: Path) -> None:

@@ -34,12 +34,15 @@ def capture_setup(body: CaptureSetupBody, session: SessionDep):
     or empty folder that psvs can write (relative to where psvs serve runs). The card is checked against the
     rig when the capture starts. Answers the folder's full path and the card."""
     target = target_from_text(body.target, "target file")
-    folder = Path(body.folder).expanduser().resolve()
-    check_capture_folder(folder)
     try:
+        folder = Path(body.folder).expanduser().resolve()
+        check_capture_folder(folder)
         check_output_folder(folder, "the capture folder")
     except PermissionError as exc:
         raise ValueError(str(exc)) from None
+    except (OSError, RuntimeError) as exc:          # a name too long, ~nosuchuser
+        raise ValueError(f"the capture folder {body.folder[:80]!r} cannot be used: "
+                         f"{getattr(exc, 'strerror', None) or exc}") from None
     session.capture.configure(CaptureSetup(target, body.target.encode(), str(folder)))
     return {"folder": str(folder), "target": describe_target(target)}
 

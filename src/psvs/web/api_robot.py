@@ -24,12 +24,26 @@ def _report(text: str) -> dict:
         out = {"cycles": int(rep["cycles"]), "welded_mm": float(rep["welded_mm"]),
                "valid_frames": int(rep["valid_frames"]), "lateral_mm": rep["lateral_mm"],
                "vertical_mm": rep["vertical_mm"], "stop": rep["stop"]["reason"],
-               "arc_on_mm": TrackConfig(**rep["config"]).arc_on_mm}
+               "arc_on_mm": TrackConfig(**rep["config"]).arc_on_mm, "health": _health(rep.get("health"))}
     except json.JSONDecodeError as exc:
         raise ValueError(f"report.json is not JSON: {exc.msg} at line {exc.lineno}") from None
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"report.json is not a psvs track report: {exc!s} missing or not a number") from None
     return out
+
+
+def _health(h) -> dict | None:
+    """report.json's self-check (None: the run had none): verdict, field RMS and uncertainty px (None when it
+    could not judge), steps, cost %, the lines it said."""
+    if h is None:
+        return None
+    num = lambda v: None if v is None else float(v)  # noqa: E731
+    verdict = h["verdict"]
+    if verdict not in (None, "healthy", "drifted", "cannot judge"):
+        raise ValueError(f"health.verdict {verdict!r}")
+    return {"verdict": verdict, "row_offset_rms_px": num(h["row_offset_rms_px"]),
+            "uncertainty_px": num(h["uncertainty_px"]), "steps": int(h["steps"]), "cost_pct": float(h["cost_pct"]),
+            "lines": [str(line) for line in h["lines"]]}
 
 
 @router.post("/robot/run")

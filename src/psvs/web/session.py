@@ -94,6 +94,7 @@ class Session:
         self.capture.stop()
         with self._lock:
             self.rig, self.rig_name, self._result = rig, name, None
+            self._generation += 1         # a match still running through the old rig stores nothing
 
     def still(self) -> Still:
         """The current image, its name and generation, read together under the lock."""

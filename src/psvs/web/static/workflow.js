@@ -162,6 +162,11 @@ $("robot-run").addEventListener("change", async (e) => {
     $("robot-vertical").textContent = mm(r.vertical_mm);
     $("robot-seen").textContent = `${r.valid_frames} of ${r.cycles} cycles`;
     $("robot-stop").textContent = `stopped: ${r.stop}`;
+    const h = r.health;
+    $("robot-health").textContent = h === null ? "not run" : (h.verdict || "no step taken") +
+      (h.row_offset_rms_px === null ? "" : `, ${h.row_offset_rms_px.toFixed(2)} ± ${h.uncertainty_px.toFixed(2)} px`) +
+      ` (${h.steps} steps, ${h.cost_pct.toFixed(1)} % of the sensor's time)`;
+    $("robot-health").classList.toggle("bad", h !== null && h.verdict === "drifted");
     await drawRobot3d($("robot3d"), run);
     $("robot3d-note").textContent = `${run.seam_mm.length} seam points measured` +
       (run.step > 1 ? ` (every ${run.step}th cycle drawn)` : "") + "; the deviations over the welded part, as " +
