@@ -9,7 +9,7 @@
 
 The first call creates ``.venv`` and installs psvs itself (editable) with the pinned
 ``requirements.lock``: what psvs needs, enough for ``demo`` and ``psvs``. ``test`` and ``bench`` add the
-pinned extras of ``requirements-dev.lock`` (the test tools, Basler's pypylon, the CAD kernel). Later calls
+pinned extras of ``requirements-dev.lock`` (the test tools, Basler's pypylon, the CAD kernel, Rerun). Later calls
 reuse the virtualenv and reinstall only when a lock file or pyproject.toml change.
 """
 from __future__ import annotations

@@ -13,11 +13,12 @@ from psvs.io.params import load_rig
 from psvs.robot.cells import SimulatedCell
 from psvs.robot.controller import TrackConfig
 from psvs.robot.drift import DRIFT_STOP
-from psvs.robot.loop import drift_watch, track
+from psvs.robot.loop import Watching, drift_watch, track
 from psvs.robot.report import write_report
 from psvs.robot.run_log import read_log_csv
 from psvs.robot.workpiece import seam_workpiece
 from tests.support.mcap import proto_class, read_mcap
+from tests.support.rerun import image_of, read_rrd
 
 slow = pytest.mark.slow
 KNOCKED_RMS_PX = 2.46
@@ -36,7 +37,7 @@ def test_a_knocked_build_stops_the_run_before_the_arc_goes_far(build, tmp_path):
     cfg = TrackConfig(speed_mm_s=10.0, rate_hz=25.0, weld_length_mm=30.0)
     wp = seam_workpiece("weld_seam", cfg.camera_distance_mm)
     watch = drift_watch(build, cfg, stop_on_drift=True, share=1.0)
-    run = track(wp, build, cfg, true_rig=load_rig("misaligned_knocked"), watch=watch)
+    run = track(wp, build, cfg, true_rig=load_rig("misaligned_knocked"), listener=Watching(watch))
     said = [(k, c.health.line) for k, c in enumerate(run.cycles) if c.health.line]
     assert len(said) == 1 and "the calibration has drifted" in said[0][1], said
     k_said = said[0][0]
@@ -67,7 +68,8 @@ def test_the_undrifted_build_raises_no_alarm(build):
     whatever it judged stays within the tolerance or declines to judge (the seam plates' soft texture)."""
     cfg = TrackConfig(speed_mm_s=25.0, rate_hz=25.0, weld_length_mm=10.0)
     wp = seam_workpiece("weld_seam", cfg.camera_distance_mm)
-    run = track(wp, build, cfg, true_rig=build, watch=drift_watch(build, cfg, stop_on_drift=True, share=1.0))
+    watch = drift_watch(build, cfg, stop_on_drift=True, share=1.0)
+    run = track(wp, build, cfg, true_rig=build, listener=Watching(watch))
     judged = [c.health.check for c in run.cycles if c.health.judged]
     assert len(judged) >= 10 and run.stop.reason == "weld length reached"
     assert all(c.health.line == "" for c in run.cycles)
@@ -90,9 +92,10 @@ def test_track_says_the_drift_logs_it_and_stops_on_it(tmp_path, capsys):
     recording (mcap reader) the same as the log's rows (csv module) at those cycles. (At the default 8 % the
     drift is said after about 150 cycles, docs/health.md; a short run at 50 % does not hang on the machine's
     load.)"""
-    run, rec = tmp_path / "run", tmp_path / "run.mcap"
+    run, rec, rrd = tmp_path / "run", tmp_path / "run.mcap", tmp_path / "run.rrd"
     code = main(["track", "weld_seam", "--rig", "misaligned", "--true-rig", "misaligned_knocked", "--stop-on-drift",
-                 "--check-share", "50", "--length", "30", "--no-bag", "--mcap", str(rec), "-o", str(run)])
+                 "--check-share", "50", "--length", "30", "--no-bag", "--mcap", str(rec), "--rerun", str(rrd),
+                 "-o", str(run)])
     out = capsys.readouterr().out
     assert code == 1 and out.count("the calibration has drifted") == 1, out
     assert "psvs track: frame " in out and "\nstop: calibration drifted at frame " in out
@@ -111,3 +114,25 @@ def test_track_says_the_drift_logs_it_and_stops_on_it(tmp_path, capsys):
             assert float(row["row_offset_rms_px"]) == pytest.approx(r["row_offset_rms_px"], abs=1e-4)
     logs = [proto_class(s.name, s.data).FromString(m.data).message for s, c, m in msgs if c.topic == "/psvs/log"]
     assert sum("the calibration has drifted" in line for line in logs) == 1
+    # the same run for Rerun (its reader): the flange's pose each cycle as the recording's /psvs/cycle has it,
+    # the sensor window, the self-check's records
+    cycles = [json.loads(m.data) for _, c, m in msgs if c.topic == "/psvs/cycle"]
+    got = read_rrd(rrd)
+    flange = got["/base_link/flange"]
+    assert len(flange) == len(cycles) == len(rows)
+    for r, c in zip(flange, cycles, strict=True):
+        T = np.array(c["flange2base"]).reshape(4, 4)
+        np.testing.assert_allclose(r["Transform3D:translation"][0], T[:3, 3], atol=1e-3)    # float32 in Rerun
+        np.testing.assert_allclose(np.array(r["Transform3D:mat3x3"][0]).reshape(3, 3).T, T[:3, :3], atol=1e-6)
+    assert len(got["/base_link/flange/psvs_optical_frame/image"]) == len(cycles)
+    assert [r["Scalars:scalars"][0] for r in got["/records/health/tiles"]] == [r["tiles"] for r in records]
+    # the replay halts where the run's self-check halted it: every command reproduced, and recorded for Rerun
+    replayed = tmp_path / "replay.rrd"
+    assert main(["replay", str(rec), "--rig", "misaligned", "--rerun", str(replayed)]) == 0
+    assert "every command equals the recorded one" in capsys.readouterr().out
+    again = read_rrd(replayed)
+    assert len(again["/base_link/flange"]) == len(cycles)
+    assert [r["Scalars:scalars"][0] for r in again["/records/replay/differs"]] == [0.0] * len(cycles)
+    window = "/base_link/flange/psvs_optical_frame/image"
+    for a, b in zip(again[window], got[window], strict=True):
+        np.testing.assert_array_equal(image_of(a), image_of(b))

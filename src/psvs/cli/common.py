@@ -53,10 +53,21 @@ def pipeline_from_args(args):
 
 
 def add_telemetry_arguments(parser) -> None:
-    """--foxglove [HOST:]PORT and --mcap FILE (psvs.io.telemetry)."""
+    """--foxglove [HOST:]PORT and --mcap FILE (psvs.io.telemetry); --rerun FILE and --rerun-serve PORT
+    (psvs.io.rerun_sink, the optional rerun-sdk)."""
     parser.add_argument("--foxglove", metavar="[HOST:]PORT",
                         help="serve the run live to Foxglove (WebSocket, loopback unless HOST is given)")
     parser.add_argument("--mcap", metavar="FILE.mcap", help="record the same channels to an MCAP file")
+    add_rerun_arguments(parser)
+
+
+def add_rerun_arguments(parser, serve: bool = True) -> None:
+    """--rerun FILE.rrd and (a run that lasts) --rerun-serve PORT (psvs.io.rerun_sink)."""
+    parser.add_argument("--rerun", metavar="FILE.rrd",
+                        help="record it for Rerun (pip install 'psvs[rerun]'; docs/live.md)")
+    if serve:
+        parser.add_argument("--rerun-serve", type=int, metavar="PORT",
+                            help="show the run in Rerun's web viewer at http://127.0.0.1:PORT (data on PORT+1)")
 
 
 def add_check_arguments(parser) -> None:
@@ -82,6 +93,7 @@ def check_tolerance(args) -> None:
 def check_telemetry_arguments(args) -> None:
     """--mcap's path and --foxglove's address checked before any work (nothing is opened or bound)."""
     check_output_path(args.mcap, (".mcap",))
+    check_rerun_arguments(args)
     if args.foxglove is not None:
         from psvs.io.telemetry import parse_endpoint
         try:
@@ -90,24 +102,55 @@ def check_telemetry_arguments(args) -> None:
             raise ValueError(f"--foxglove: {exc}") from None
 
 
+def check_rerun_arguments(args) -> None:
+    """--rerun's path, --rerun-serve's port and the rerun-sdk package, before any work."""
+    check_output_path(args.rerun, (".rrd",))
+    port = getattr(args, "rerun_serve", None)
+    if port is not None and not 1024 <= port <= 65534:
+        raise ValueError(f"--rerun-serve must be a port in 1024..65534 (the data on the next one), got {port}")
+    if args.rerun is not None or port is not None:
+        from psvs.io.rerun_sink import import_rerun
+        import_rerun()
+
+
 @contextmanager
-def open_telemetry(args, t0_ns: int | None = None):
-    """The :class:`psvs.io.telemetry.Telemetry` the options ask for (None when neither), closed on exit: the
-    MCAP file is moved into place unless the command failed."""
-    mcap = check_output_path(args.mcap, (".mcap",))
-    if mcap is None and args.foxglove is None:
+def open_rerun(args, robot: bool = False):
+    """The :class:`psvs.io.rerun_sink.RerunSink` --rerun / --rerun-serve ask for (None when neither), closed
+    on exit: the file is moved into place unless the command failed."""
+    rrd, port = check_output_path(args.rerun, (".rrd",)), getattr(args, "rerun_serve", None)
+    if rrd is None and port is None:
         yield None
         return
-    from psvs.io.telemetry import Telemetry, parse_endpoint, url_host
-    try:
-        serve = parse_endpoint(args.foxglove) if args.foxglove is not None else None
-    except ValueError as exc:
-        raise ValueError(f"--foxglove: {exc}") from None
-    tel = Telemetry(mcap, serve, t0_ns)
-    if serve is not None:
-        print(f"Foxglove: ws://{url_host(serve[0])}:{tel.port} (Open connection > Foxglove WebSocket)", flush=True)
-    with tel:
-        yield tel
+    from psvs.io.rerun_sink import RerunSink
+    sink = RerunSink(rrd, port, robot)
+    if sink.url is not None:
+        print(f"Rerun: {sink.url}", flush=True)
+    with sink:
+        yield sink
+
+
+@contextmanager
+def open_telemetry(args, t0_ns: int | None = None, robot: bool = False):
+    """The sinks the options ask for, as one (None when none): :class:`psvs.io.telemetry.Telemetry` for
+    --foxglove/--mcap, :class:`psvs.io.rerun_sink.RerunSink` for --rerun/--rerun-serve (``robot``: a robot
+    run's entity tree), closed on exit: the files are moved into place unless the command failed."""
+    mcap = check_output_path(args.mcap, (".mcap",))
+    with open_rerun(args, robot) as rerun:
+        if mcap is None and args.foxglove is None:
+            yield rerun
+            return
+        from psvs.io.rerun_sink import Tee
+        from psvs.io.telemetry import Telemetry, parse_endpoint, url_host
+        try:
+            serve = parse_endpoint(args.foxglove) if args.foxglove is not None else None
+        except ValueError as exc:
+            raise ValueError(f"--foxglove: {exc}") from None
+        tel = Telemetry(mcap, serve, t0_ns)
+        if serve is not None:
+            print(f"Foxglove: ws://{url_host(serve[0])}:{tel.port} (Open connection > Foxglove WebSocket)",
+                  flush=True)
+        with tel:
+            yield tel if rerun is None else Tee([tel, rerun])
 
 
 def rig_from_args(args) -> Rig:

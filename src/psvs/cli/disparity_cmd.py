@@ -6,8 +6,10 @@ import numpy as np
 from psvs.cli.common import (
     add_model_argument,
     add_range_arguments,
+    add_rerun_arguments,
     check_distinct,
     check_output_path,
+    check_rerun_arguments,
     range_from_args,
 )
 from psvs.dense import dense_disparity, separate_views, write_cloud_ply
@@ -57,6 +59,7 @@ def add_parser(sub) -> None:
     p.add_argument("--cloud", metavar="OUT.ply", help="point cloud, binary PLY, mm (needs --rig)")
     add_model_argument(p)
     p.add_argument("--fast", action="store_true", help="half-resolution mode (docs/benchmarks.md)")
+    add_rerun_arguments(p, serve=False)
     p.set_defaults(run=run)
 
 
@@ -72,12 +75,16 @@ def _range(args, rig, rect, width: int) -> tuple[float, float]:
 
 def _outputs(args) -> dict:
     """Every output path, checked before any work (None where not asked for)."""
+    rerun = getattr(args, "rerun", None)          # psvs batch has none
+    if rerun is not None:
+        check_rerun_arguments(args)
     out = {"disparity": check_output_path(args.output, (".npy",)), "right": check_output_path(args.right, (".npy",)),
+           "rerun": rerun,
            "confidence": check_output_path(args.confidence, (".npy",)),
            "depth": check_output_path(args.depth, (".npy",)), "cloud": check_output_path(args.cloud, (".ply",)),
            "views": [check_output_path(v, (".png",)) for v in args.views] if args.views else None}
     named = {"-o": args.output, "--right": args.right, "--confidence": args.confidence, "--depth": args.depth,
-             "--cloud": args.cloud}
+             "--cloud": args.cloud, "--rerun": rerun}
     named.update({f"--views {i + 1}": v for i, v in enumerate(args.views or [])})
     check_distinct(named, {"IMAGE": args.image, "--rig": args.rig})
     if (out["depth"] or out["cloud"]) and not args.rig:
@@ -120,18 +127,42 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
         if out["confidence"]:
             write_npy(out["confidence"], res.confidence_left)
         if out["views"]:           # the maps answer somewhere (_trusted)
-            seen = flat_field(image, rig.camera) if rig is not None else image   # as the maps saw it
-            k = camera_pixel_scale(rig.camera) if rig is not None and dense.rect is None else None
-            lv, rv = separate_views(seen, res.disparity_left, split, res.disparity_right, rect=dense.rect,
-                                    pixel_scale=k)   # the prior in scene terms (psvs.dense.separate)
-            for path, v in zip(out["views"], (lv, rv), strict=True):
+            for path, v in zip(out["views"], views_of(dense, image, rig, split), strict=True):
                 write_png(path, to_grey8(v))
-        cloud = rig_cloud(dense, rig, model) if (out["depth"] or out["cloud"]) else None
+        want = out["depth"] or out["cloud"] or (out["rerun"] and rig is not None)
+        cloud = rig_cloud(dense, rig, model) if want else None
         if out["depth"]:
             write_npy(out["depth"], cloud.depth_mm.astype(np.float32))
         if out["cloud"]:
             write_cloud_ply(out["cloud"], cloud, grey=dense.left_image)
     return cloud
+
+
+def views_of(dense: RigDense, image, rig, split: float) -> tuple[np.ndarray, np.ndarray]:
+    """The separated left and right views (H, W) float of the maps' image (psvs.dense.separate)."""
+    res = dense.result
+    seen = flat_field(image, rig.camera) if rig is not None else image   # as the maps saw it
+    k = camera_pixel_scale(rig.camera) if rig is not None and dense.rect is None else None
+    return separate_views(seen, res.disparity_left, split, res.disparity_right, rect=dense.rect,
+                          pixel_scale=k)   # the prior in scene terms (psvs.dense.separate)
+
+
+def _rerun(args, out: dict, dense: RigDense, cloud, image, rig) -> None:
+    """--rerun: the complex image, the separated views, the maps, depth and the point cloud, and the rig."""
+    from psvs.cli.common import open_rerun
+    res = dense.result
+    split = args.split if args.split is not None else (rig.mirrors.split_ratio if rig else 0.5)
+    with open_rerun(args) as sink:
+        if rig is not None:
+            sink.rig(rig, args.near_mm, args.far_mm)
+        sink.image(0.0, image)
+        sink.views(0.0, *views_of(dense, image, rig, split))
+        sink.disparity(0.0, res.disparity_left, "disparity_left")
+        if res.disparity_right is not None:
+            sink.disparity(0.0, res.disparity_right, "disparity_right")
+        if cloud is not None:
+            sink.depth_image(0.0, cloud.depth_mm, "depth")
+            sink.points(0.0, cloud.points_mm, topic="dense_points")
 
 
 def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
@@ -214,6 +245,9 @@ def summary_row(dense: RigDense, trust: EchoTrust) -> dict:
 
 def run(args) -> int:
     out, dense, trust, cloud = compute(args, say_compiling="psvs disparity")
+    if out["rerun"]:
+        rig = load_rig(args.rig) if args.rig else None
+        _rerun(args, out, dense, cloud, read_grey(args.image), rig)
     print(f"{out['disparity']}: {_summary(dense, trust)}"
           + (f"; {len(cloud.points_mm)} points" if cloud is not None else ""))
     return 0

@@ -192,7 +192,7 @@ def _check_frames(args, source) -> None:
 def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
     check_telemetry_arguments(args)
-    check_distinct({"-o": args.output, "--mcap": args.mcap, **settings_paths(args, out)},
+    check_distinct({"-o": args.output, "--mcap": args.mcap, "--rerun": args.rerun, **settings_paths(args, out)},
                    {"--video": args.video, "--rig": args.rig, "--pipeline": args.pipeline,
                     "--camera-settings": args.camera_settings})
     check_source_arguments(args)
@@ -203,6 +203,8 @@ def run(args) -> int:
         if dense is not None:
             announce_dense("psvs live")
         with open_telemetry(args) as tel:
+            if hasattr(tel, "rig"):     # Rerun: the rig in 3-D, the image in its camera's field
+                tel.rig(rig_from_args(args), *range_from_args(args))
             steps, dense_frames, metas, checks, wall, lost = _loop(args, source, tel, tracker, dense, health)
             if not steps:               # inside: a recording of nothing is discarded, not kept
                 raise ValueError(f"no frame could be read from {source.name}")

@@ -136,14 +136,14 @@ REPORT_FILES = ("report.json", "log.csv", "top_view.png", "error.png")
 
 def run(args) -> int:
     from psvs.robot.bag import write_bag
-    from psvs.robot.loop import drift_watch, track
+    from psvs.robot.loop import Watching, drift_watch, track
     from psvs.robot.report import write_report
 
     out = check_output_folder(args.output, "output")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"output folder does not exist: {out.parent}")
     check_telemetry_arguments(args)
-    outputs = {"--mcap": args.mcap, **{f"-o {out}/{name}": out / name for name in REPORT_FILES}}
+    outputs = {"--mcap": args.mcap, "--rerun": args.rerun, **{f"-o {out}/{name}": out / name for name in REPORT_FILES}}
     check_distinct(outputs, {"--rig": args.rig, "--true-rig": args.true_rig, "--handeye": args.handeye})
     seed = parse_seed(args.seed)
     cfg, rig, true_rig, wp = _job(args)
@@ -154,13 +154,13 @@ def run(args) -> int:
         handeye = (load_handeye(args.handeye), true_cam2flange(cfg))   # the simulated hardware's truth: scoring
     out.mkdir(exist_ok=True)                     # before the run: a recording may go into it
     t0_ns = time.time_ns()                       # the run's start: the recording's and the bag's time base
-    with open_telemetry(args, t0_ns) as tel:
+    with open_telemetry(args, t0_ns, robot=True) as tel:
         from psvs.robot.recording import RunRecorder, publish_stop
         recorder = None if tel is None else RunRecorder(tel, cfg, seed)
         watch = None if args.no_check else drift_watch(rig, cfg, args.tolerance_px, args.stop_on_drift,
                                                           args.check_share / 100)
-        result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, listener=_Progress(recorder),
-                       watch=watch)
+        listener = _Progress(recorder) if watch is None else Watching(watch, _Progress(recorder))
+        result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, listener=listener)
         if tel is not None:
             publish_stop(tel, result.cycles[-1].t_s, result.stop.reason)
     summary = write_report(result, wp, out)

@@ -10,7 +10,8 @@
   image's size from its header, before decoding); ``video``: lossless grey video.
 - ``atomic``: writes that leave a file whole or as it was; ``jsonsafe``: values as JSON can hold them.
 - ``camera_info``: export for ROS (CameraInfo) and OpenCV (FileStorage); ``telemetry``: live views and
-  recordings in Foxglove's formats (WebSocket, MCAP).
+  recordings in Foxglove's formats (WebSocket, MCAP); ``rerun_sink``: the same channels for Rerun (.rrd, its
+  web viewer; the optional rerun-sdk).
 """
 import lazy_loader as _lazy
 
@@ -32,6 +33,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "points": ["MATCH_COLUMNS", "points_csv_text", "read_csv_columns", "read_matches_csv", "write_points_csv"],
         "scene_file": ["load_scene"],
         "schema": ["Field", "REQUIRED", "check_keys", "read_fields"],
+        "rerun_sink": ["RerunSink", "Tee", "import_rerun"],
         "telemetry": ["BASE_FRAME", "CAMERA_FRAME", "FLANGE_FRAME", "TORCH_FRAME", "Telemetry", "parse_endpoint",
                       "url_host"],
         "text": ["read_csv_rows"],

@@ -31,7 +31,7 @@ from psvs.live.camera import Frame as CameraFrame
 from psvs.optics.rig import Rig
 from psvs.robot.arm import Arm, ArmLimits, ServoStep
 from psvs.robot.controller import Command, Observation, SeamTracker
-from psvs.robot.drift import DriftWatch, HealthNote
+from psvs.robot.drift import DriftWatch, HealthNote, RecordedHalts
 from psvs.robot.mounting import tool2flange
 from psvs.robot.seam import SeamObservation
 from psvs.robot.sensor import SeamSensor, SensorSetup
@@ -183,7 +183,7 @@ class LoopResult:
 
 def control_loop(cell: Cell, tracker: SeamTracker, setup: SensorSetup, max_cycles: int,
                  on_cycle: Callable[[CycleResult], None] | None = None,
-                 watch: DriftWatch | None = None) -> LoopResult:
+                 watch: DriftWatch | RecordedHalts | None = None) -> LoopResult:
     """Run ``tracker`` on ``cell`` until it has stopped and the arm is at rest, or ``max_cycles``.
 
     The seam sensor starts on the first frame (:meth:`SensorSetup.start`) and tracks from every frame the

@@ -25,12 +25,14 @@ DRIFT_STOP = "calibration drifted"
 class HealthNote:
     """The check as of one control cycle: ``check`` its latest judgement (None before its first), ``judged``
     whether it took a step on this cycle, ``line`` what it said on this cycle ('' nothing), ``cost_share``
-    its time over the sensor's so far."""
+    its time over the sensor's so far, ``halt`` the stop reason it gave the controller on this cycle ('' none:
+    a recording keeps it, so that a replay halts there too)."""
 
     check: HealthCheck | None
     judged: bool
     line: str
     cost_share: float
+    halt: str = ""
 
 
 class DriftWatch:
@@ -46,14 +48,28 @@ class DriftWatch:
         frame when one is due; a drifted verdict halts ``tracker`` when told to."""
         judged = self.check.due(sensor_s)
         event = self.check.take(cell.full_frame(), cycle) if judged else None
-        line = ""
+        line = halt = ""
         if event is not None:
             line = event.line
             self.lines.append(line)
             if self.stop_on_drift and event.check.verdict == "drifted":
-                tracker.halt(f"{DRIFT_STOP} at frame {cycle}: {event.check.reason}")
-        return HealthNote(self.check.latest, judged, line, self.check.cost_share)
+                halt = f"{DRIFT_STOP} at frame {cycle}: {event.check.reason}"
+                tracker.halt(halt)
+        return HealthNote(self.check.latest, judged, line, self.check.cost_share, halt)
 
     def summary(self) -> dict:
         """The run's check for its report (JSON-ready): :meth:`RollingCheck.summary` and every ``lines`` said."""
         return {**self.check.summary(), "lines": list(self.lines), "stop_on_drift": self.stop_on_drift}
+
+
+class RecordedHalts:
+    """A recorded run's halts played back (a replay: no frames to check): ``halts`` the stop reason given on
+    each cycle ('' none), given to the controller on the same cycles."""
+
+    def __init__(self, halts: list[str]):
+        self.halts = list(halts)
+
+    def look(self, cell, cycle: int, sensor_s: float, tracker) -> None:
+        """Halt ``tracker`` on the cycles the recorded run halted."""
+        if cycle < len(self.halts) and self.halts[cycle]:
+            tracker.halt(self.halts[cycle])

@@ -23,7 +23,7 @@ from psvs.optics.window import roi_rig
 from psvs.robot.arm import Arm
 from psvs.robot.cells import CycleResult, Frame, ReplayCell, SimulatedCell, SimulationConfig, control_loop
 from psvs.robot.controller import UP, SeamTracker, TrackConfig
-from psvs.robot.drift import DriftWatch, HealthNote
+from psvs.robot.drift import DriftWatch, HealthNote, RecordedHalts
 from psvs.robot.handeye import HandEyeResult
 from psvs.robot.handeye_session import calibrate_cell
 from psvs.robot.mounting import HOME_Q, tool2flange, tool_pose
@@ -128,13 +128,32 @@ class TrackRun:
 
 
 class TrackListener(Protocol):
-    """Who watches a run (e.g. a recorder): told the start, then every cycle."""
+    """Who watches a run (e.g. a recorder): told the start, then every cycle; one with a ``watch``
+    (:class:`Watching`) also checks the calibration as the run goes."""
 
     def started(self, cam2flange: np.ndarray, teach: Teach) -> None:
         """Called once before the first cycle, with the mount and the taught start."""
 
     def cycle(self, cycle: Cycle) -> None:
         """Called after every control cycle with its record."""
+
+
+class Watching:
+    """A listener that rides the rolling self-check ``watch`` (a DriftWatch, :func:`drift_watch`) along a run,
+    passing the start and the cycles on to ``listener`` (None: nobody else)."""
+
+    def __init__(self, watch: DriftWatch, listener: TrackListener | None = None):
+        self.watch, self.listener = watch, listener
+
+    def started(self, cam2flange: np.ndarray, teach: Teach) -> None:
+        """Passed on."""
+        if self.listener is not None:
+            self.listener.started(cam2flange, teach)
+
+    def cycle(self, cycle: Cycle) -> None:
+        """Passed on."""
+        if self.listener is not None:
+            self.listener.cycle(cycle)
 
 
 def teach(workpiece: Workpiece, cfg: TrackConfig, sim: SimulationConfig, arm: Arm) -> Teach:
@@ -195,10 +214,10 @@ def _cycle(res: CycleResult, tcp_mm: np.ndarray) -> Cycle:
                  flange2base=res.frame.flange2base, tool2base=c.tool2base, fault=res.fault, health=res.health)
 
 
-def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,  # noqa: PLR0913 (keyword-only options)
+def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,
           sim: SimulationConfig = SimulationConfig(), true_rig: Rig | None = None,
           handeye: tuple[HandEyeResult, np.ndarray] | None = None, seed_px=None,
-          listener: TrackListener | None = None, watch: DriftWatch | None = None) -> TrackRun:
+          listener: TrackListener | None = None) -> TrackRun:
     """Run the closed loop on the workpiece until the torch stops; see the module docstring.
 
     Parameters
@@ -218,11 +237,12 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,  
         A pixel inside the left view's groove in the first window frame (teaching by showing); None: found
         by :func:`psvs.robot.sensor.auto_seed`.
     listener : TrackListener or None
-        Told the start (the calibrated cam2flange and the teach) and every cycle (e.g. to record them).
-    watch : DriftWatch or None
-        The rolling self-check (:func:`drift_watch`): reads whole frames through the rig as built, judges
-        them through ``rig``; told to, stops the run when the calibration has drifted.
+        Told the start (the calibrated cam2flange and the teach) and every cycle (e.g. to record them). Its
+        ``watch``, when it has one (:class:`Watching`), is the rolling self-check (:func:`drift_watch`): it
+        reads whole frames through the rig as built, judges them through ``rig`` and, told to, stops the run
+        when the calibration has drifted.
     """
+    watch = getattr(listener, "watch", None)
     t_enter = time.perf_counter()
     arm = Arm(HOME_Q, sim.limits)
     he, cam_true = handeye if handeye is not None else calibrate_cell(rig, cfg, arm, true_rig=true_rig)
@@ -263,15 +283,17 @@ def replay(run: TrackRun, rig: Rig) -> ReplayCell:
     differs from the recorded one (none: the controller is deterministic)."""
     frames = [Frame(c.t_s, c.flange2base, c.image) for c in run.cycles]
     cell = ReplayCell(frames, [c.tool2base for c in run.cycles], [c.fault for c in run.cycles])
-    return replay_cell(run.config, run.handeye.cam2flange, run.teach, run.seed_px, cell, rig)
+    halts = [c.health.halt if c.health is not None else "" for c in run.cycles]
+    return replay_cell(run.config, run.handeye.cam2flange, run.teach, run.seed_px, cell, rig, halts)
 
 
-def replay_cell(cfg: TrackConfig, cam2flange: np.ndarray, taught: Teach, seed_px, cell: ReplayCell,
-                rig: Rig) -> ReplayCell:
+def replay_cell(cfg: TrackConfig, cam2flange: np.ndarray, taught: Teach, seed_px, cell: ReplayCell,  # noqa: PLR0913
+                rig: Rig, halts: list[str] | None = None) -> ReplayCell:
     """:func:`replay` from its parts (e.g. read from a recording, :mod:`psvs.robot.recording`): seed_px None
-    finds the seed on the first frame as the live run did. Returns ``cell`` once played."""
+    finds the seed on the first frame as the live run did; ``halts`` the stop reasons the run's self-check gave
+    its controller, per cycle ('' none). Returns ``cell`` once played."""
     setup, _ = sensor_setup(rig, cfg, seed_px)
     tracker = SeamTracker(cfg, cam2flange, np.asarray(taught.taught_mm, float), np.asarray(taught.travel, float),
                           window_length_mm(rig, cfg))
-    control_loop(cell, tracker, setup, len(cell.frames))
+    control_loop(cell, tracker, setup, len(cell.frames), watch=RecordedHalts(halts) if halts and any(halts) else None)
     return cell

@@ -10,7 +10,8 @@ exactly:
   the taught direction of travel and the seed pixel (null: found on the first frame);
 - ``/psvs/cycle`` (every frame): t_s, the flange pose flange2base at the exposure (the controller's
   input), the torch pose tool2base commanded (its output), the arm's fault, and the controller's state
-  (s_mm, valid, reason) for reading. Matrices as 16 row-major floats in mm, written exactly (JSON repr);
+  (s_mm, valid, reason) for reading, and the stop the self-check gave the controller on it (``halt``, '' none:
+  a replay halts there too). Matrices as 16 row-major floats in mm, written exactly (JSON repr);
 - ``/psvs/stop`` (once, at the last cycle): why the run ended. A recording without it was cut short
   (e.g. Ctrl-C): it still replays, and the replay says so;
 - ``/psvs/health`` (with the rolling self-check, psvs.robot.drift: each cycle it judged): the frame, the
@@ -72,7 +73,8 @@ class CyclePublisher:
     def __call__(self, c) -> None:
         tel, t = self.tel, c.t_s
         tel.record("cycle", t, {"t_s": t, "flange2base": _mat(c.flange2base), "tool2base": _mat(c.tool2base),
-                                "fault": c.fault, "s_mm": c.s_mm, "valid": bool(c.valid), "reason": c.reason})
+                                "fault": c.fault, "s_mm": c.s_mm, "valid": bool(c.valid), "reason": c.reason,
+                                "halt": c.health.halt if c.health is not None else ""})
         tel.image(t, c.image)
         tel.points(t, c.points_mm, frame_id=BASE_FRAME)
         tel.transforms(t, [(BASE_FRAME, FLANGE_FRAME, c.flange2base), (FLANGE_FRAME, CAMERA_FRAME, self.cam),
@@ -124,6 +126,7 @@ class Recording:
     commands: list[np.ndarray]
     faults: list[str]
     stop_reason: str | None        # None: the recording was cut short
+    halts: list[str] | None = None  # the stop reason the self-check gave on each cycle ('' none)
 
 
 def read_recording(path) -> Recording:
@@ -168,7 +171,7 @@ def _read(path) -> Recording:
     missing = sorted(set(cycles) - set(images))
     if missing:
         raise ValueError(f"{len(missing)} cycles have no /psvs/image frame")
-    frames, commands, faults = [], [], []
+    frames, commands, faults, halts = [], [], [], []
     try:
         for ns in sorted(cycles):
             c, img = cycles[ns], images[ns]
@@ -178,11 +181,12 @@ def _read(path) -> Recording:
             frames.append(Frame(float(c["t_s"]), np.array(c["flange2base"], float).reshape(4, 4), image))
             commands.append(np.array(c["tool2base"], float).reshape(4, 4))
             faults.append(str(c["fault"]))
+            halts.append(str(c.get("halt", "")))          # recordings before the self-check have none
         seed = setup["seed_px"]
         config = {k: v for k, v in setup["config"].items() if k not in SIMULATION_KEYS}
         return Recording(TrackConfig(**config), np.array(setup["cam2flange"], float).reshape(4, 4),
                          Teach(np.array(setup["taught_mm"], float), np.array(setup["travel"], float)),
-                         None if seed is None else tuple(seed), frames, commands, faults, stop)
+                         None if seed is None else tuple(seed), frames, commands, faults, stop, halts)
     except (KeyError, TypeError) as exc:
         raise ValueError(f"a /psvs/setup or /psvs/cycle record lacks or mistypes {exc}") from None
 
@@ -193,4 +197,4 @@ def replay_recording(path, rig):
     empty when every command was reproduced)."""
     rec = read_recording(path)
     cell = ReplayCell(rec.frames, rec.commands, rec.faults)
-    return rec, replay_cell(rec.config, rec.cam2flange, rec.teach, rec.seed_px, cell, rig)
+    return rec, replay_cell(rec.config, rec.cam2flange, rec.teach, rec.seed_px, cell, rig, rec.halts)
