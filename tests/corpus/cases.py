@@ -326,6 +326,11 @@ def _disparity() -> list[Case]:
         Case("disparity-range-empty", ("disparity", "img.png", "--min-disparity", "50", "--max-disparity", "20",
                                        "-o", "d.npy"), 2, "empty", tex, ("d.npy",)),
         Case("disparity-split-beyond-one", (*base, "--split", "1.5"), 2, "split", tex, ("d.npy",)),
+        Case("disparity-rerun-suffix", (*base, "--rerun", "d.txt"), 2, ".rrd", tex, ("d.npy",)),
+        Case("disparity-rerun-over-output", (*base, "--rerun", "d.rrd", "--depth", "d.rrd"), 2, "", tex,
+             ("d.npy", "d.rrd")),
+        Case("disparity-black-image-rerun", (*base, "--rerun", "d.rrd"), 1, "constant",
+             {"img.png": png(np.zeros((480, 640), np.uint8))}, ("d.npy", "d.rrd")),
         Case("disparity-depth-without-rig", ("disparity", "img.png", "--min-disparity", "10", "--max-disparity",
                                              "60", "--depth", "z.npy", "-o", "d.npy"), 2, "--rig", tex,
              ("d.npy", "z.npy")),
@@ -439,6 +444,10 @@ def _track() -> list[Case]:
         Case("track-gap-negative", ("track", "weld_seam:gap_start_mm=0,gap_length_mm=-5", "--rig", "default", "-o",
                                     "run"), 2, "gap_length"),
         Case("track-mcap-suffix", (*base, "--mcap", "run.txt"), 2, ".mcap"),
+        Case("track-check-share-zero", (*base, "--check-share", "0"), 2, "--check-share"),
+        Case("track-stop-on-drift-unchecked", (*base, "--stop-on-drift", "--no-check"), 2, "needs the self-check"),
+        Case("track-rerun-suffix", (*base, "--rerun", "run.mcap"), 2, ".rrd"),
+        Case("track-rerun-serve-port-low", (*base, "--rerun-serve", "80"), 2, "--rerun-serve"),
     ]
 
 
