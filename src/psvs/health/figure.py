@@ -10,12 +10,12 @@ from psvs.health.check import HealthCheck, field_basis
 
 def offset_figure(check: HealthCheck) -> bytes:
     """A PNG (bytes) of the fitted row-offset field over the left view's rectified grid, each judged tile's
-    measured offset as a dot in the same colours, and the verdict and figures in the title."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    measured offset as a dot in the same colours, and the verdict and figures in the title. Drawn on its own
+    Figure (no pyplot state: safe from the web server's worker threads)."""
+    from matplotlib.figure import Figure
     h, w = check.grid_shape
-    fig, ax = plt.subplots(figsize=(8, 6.4))
+    fig = Figure(figsize=(8, 6.4))
+    ax = fig.subplots()
     finite = np.isfinite(check.coefficients).all()
     lim = max(float(np.nanmax(np.abs(check.offset_px))) if len(check.offset_px) else 0.0, check.tolerance_px)
     if finite:
@@ -42,5 +42,4 @@ def offset_figure(check: HealthCheck) -> bytes:
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
     return buf.getvalue()
