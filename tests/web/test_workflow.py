@@ -112,6 +112,8 @@ def test_each_step_has_its_url_and_says_what_it_needs(page, knocked_frame):
         page.goto(url + "/")
         page.wait_for_selector("body[data-ready='1']", timeout=60000)
         assert page.evaluate("document.body.dataset.step") == "design"        # the landing view: the rig in 3-D
+        # extents of arrays longer than a browser takes as arguments (a mesh's vertices): no RangeError
+        assert page.evaluate("extentOf(Array.from({length: 300000}, (_, i) => i - 7))") == [-7, 299992]
         assert page.is_visible("#rig3d") and not page.is_visible("#image")
         # the build's glasses, and where its design puts them
         names = page.evaluate("document.getElementById('rig3d').data.map(t => t.name)")

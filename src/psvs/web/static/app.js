@@ -138,8 +138,7 @@ function plotFig8(res) {
   const all = res.pairs.flatMap((p) => p.left_px.map(([, v], i) => [v, p.disparity_px[i]]));
   if (!all.length) { c.clearRect(0, 0, c.canvas.width, c.canvas.height); return; }
   const vs = all.map((a) => a[0]), ds = all.map((a) => a[1]);
-  const [sx, sy] = axes(c, Math.min(...vs), Math.max(...vs), Math.min(...ds), Math.max(...ds),
-                        "row v (px)", "disparity u_l − u_r (px)");
+  const [sx, sy] = axes(c, ...extentOf(vs), ...extentOf(ds), "row v (px)", "disparity u_l − u_r (px)");
   res.pairs.forEach((p, k) => {
     c.fillStyle = res.seed_px ? $("sel-colour").value : PALETTE[k % PALETTE.length];
     p.left_px.forEach(([, v], i) => c.fillRect(sx(v) - 1, sy(p.disparity_px[i]) - 1, 2, 2));
@@ -151,7 +150,7 @@ function plotDepth(history) {
   const pts = history.filter((h) => h[1] !== null);
   if (!pts.length) { c.clearRect(0, 0, c.canvas.width, c.canvas.height); return; }
   const ts = pts.map((p) => p[0]), zs = pts.map((p) => p[1]);
-  const [sx, sy] = axes(c, Math.min(...ts), Math.max(...ts), Math.min(...zs), Math.max(...zs), "time (s)", "depth Z (mm)");
+  const [sx, sy] = axes(c, ...extentOf(ts), ...extentOf(zs), "time (s)", "depth Z (mm)");
   c.strokeStyle = "#1e88e5"; c.beginPath();
   pts.forEach(([t, z], i) => (i ? c.lineTo(sx(t), sy(z)) : c.moveTo(sx(t), sy(z))));
   c.stroke();

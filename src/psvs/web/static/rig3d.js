@@ -4,6 +4,14 @@
 
 const RIG3D_COLOURS = { left: "#d32f2f", right: "#00838f", glass: "#64b5f6", camera: "#212121" };
 
+// [min, max] of an array of numbers, however long (Math.min(...a) passes every value as an argument: a mesh's
+// vertices or a frame's edge pixels can be more than a browser takes).
+function extentOf(values) {
+  let lo = Infinity, hi = -Infinity;
+  for (const v of values) { if (v < lo) lo = v; if (v > hi) hi = v; }
+  return [lo, hi];
+}
+
 function rig3dPoint(p) { return [p[0], p[2], -p[1]]; }
 
 const rig3dState = { layout: null };     // the served rig's layout, as last drawn
@@ -19,7 +27,7 @@ function drawMount3d(el, layout, mesh) {
                   opacity: 0.5, flatshading: true, hoverinfo: "name", showlegend: true };
   // the view holds the mount and the glasses, 20 mm spare, at true scale
   const pts = [...q, ...layout.glasses.flatMap((g) => g.corners_mm).map(rig3dPoint)];
-  const ranges = [0, 1, 2].map((k) => [Math.min(...pts.map((p) => p[k])) - 20, Math.max(...pts.map((p) => p[k])) + 20]);
+  const ranges = [0, 1, 2].map((k) => extentOf(pts.map((p) => p[k]))).map(([lo, hi]) => [lo - 20, hi + 20]);
   const span = ranges.map((r) => r[1] - r[0]), top = Math.max(...span);
   return drawRig3d(el, layout)
     .then(() => Plotly.addTraces(el, trace))
@@ -91,7 +99,7 @@ function rig3dExtent(el, layout, which) {
   }
   const pts = [layout.camera, layout.virtual.left, layout.virtual.right,
                ...layout.glasses.flatMap((g) => g.corners_mm)].map(rig3dPoint);
-  const ranges = [0, 1, 2].map((k) => [Math.min(...pts.map((p) => p[k])) - 20, Math.max(...pts.map((p) => p[k])) + 20]);
+  const ranges = [0, 1, 2].map((k) => extentOf(pts.map((p) => p[k]))).map(([lo, hi]) => [lo - 20, hi + 20]);
   const span = ranges.map((r) => r[1] - r[0]), top = Math.max(...span);
   return Plotly.relayout(el, {
     "scene.aspectmode": "manual", "scene.xaxis.range": ranges[0], "scene.yaxis.range": ranges[1],
