@@ -7,7 +7,7 @@ import textwrap
 import numpy as np
 
 from psvs._compiled import QUIET_ENV, announce, uncompiled
-from psvs.dense.compiled import MODULES, NOT_CALLED
+from psvs.dense.compiled import MODULES, NOT_CALLED, SOME_RUNS, announce_dense
 
 KERNELS = textwrap.dedent('''
     import numba as nb
@@ -45,6 +45,20 @@ def test_a_kernel_not_yet_compiled_is_named_and_then_not(tmp_path, monkeypatch, 
 
 
 def test_the_dense_list_names_real_kernels():
-    for name in NOT_CALLED:
+    for name in NOT_CALLED + SOME_RUNS:
         module, attr = name.rsplit(".", 1)
         assert module in MODULES and hasattr(importlib.import_module(module), attr)
+
+
+def test_kernels_only_some_runs_call_do_not_make_a_run_say_it_compiles(monkeypatch, capsys):
+    """A machine that has only run `--fast` keeps the default mode's local winners uncompiled: its next `--fast`
+    run compiles nothing and says nothing; a kernel every run calls still makes it say so."""
+    import psvs._compiled as compiled
+    monkeypatch.delenv(QUIET_ENV, raising=False)
+    every = [f"{m}.{a}" for m in MODULES for a in ("x",)][:1]
+    monkeypatch.setattr(compiled, "uncompiled", lambda modules, skip=(): [k for k in (*SOME_RUNS, *every)
+                                                                          if k not in skip])
+    assert announce_dense("psvs disparity") is True
+    assert capsys.readouterr().err.startswith("psvs disparity: compiling 1 kernels")
+    monkeypatch.setattr(compiled, "uncompiled", lambda modules, skip=(): [k for k in SOME_RUNS if k not in skip])
+    assert announce_dense("psvs disparity") is False and capsys.readouterr().err == ""
