@@ -143,7 +143,7 @@ def test_each_step_has_its_url_and_says_what_it_needs(page, knocked_frame):
             section = page.locator(f"#step-{step}")
             assert section.locator(".needs").inner_text().lower().startswith("needs ")
             if step != "robot":
-                nxt = section.locator(".next a").get_attribute("href")
+                nxt = section.locator(".next a").first.get_attribute("href")
                 assert nxt == f"#{STEPS[k + 1]}"
             assert page.get_attribute(f"#workflow a[data-step='{step}']", "aria-current") == "step"
             # readable at 1280 x 800: nothing wider than the window

@@ -15,6 +15,7 @@ evidence, yet the adjustment would weigh it as new and count it as an image used
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,7 +27,7 @@ from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep
 from psvs.evidence import check_build
 from psvs.io.images import IMAGE_SUFFIXES, read_grey
 from psvs.optics.mirrors import virtual_baseline_mm
-from psvs.optics.rig import Rig
+from psvs.optics.rig import Calibration, Rig
 from psvs.targets.detect import detect_target
 from psvs.targets.target_file import load_target
 from psvs.targets.target_points import Target, TargetDetection, target_points_mm
@@ -49,6 +50,20 @@ class CalibrationResult:
     @property
     def rig(self) -> Rig:
         return self.bundle.rig
+
+    @property
+    def kinds(self) -> str:
+        """The images used, counted by kind (e.g. "12 grid")."""
+        kinds = sorted(set(self.used.values()))
+        return ", ".join(f"{sum(v == k for v in self.used.values())} {k}" for k in kinds)
+
+    def recorded_rig(self) -> Rig:
+        """The calibrated rig with the record of the calibration that made it (its RMS per view, the images),
+        as its rig file keeps it."""
+        b = self.bundle
+        return dataclasses.replace(b.rig, calibration=Calibration(b.rms_px, b.rms_by_view["left"],
+                                                                   b.rms_by_view["right"], len(self.used),
+                                                                   self.kinds))
 
 
 def grid_view(name: str, grey: np.ndarray, target: Target, rig: Rig) -> GridView:

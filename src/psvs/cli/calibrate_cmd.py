@@ -1,7 +1,6 @@
 """``psvs calibrate``: calibrate a build from hand-held card views and/or the paper's robot sweep."""
 from __future__ import annotations
 
-import dataclasses
 import math
 import sys
 
@@ -10,7 +9,6 @@ from psvs.calibrate.folder import calibrate_folder
 from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, rig_from_args
 from psvs.io.atomic import check_output_folder, output_batch
 from psvs.io.params import rig_template, save_rig
-from psvs.optics.rig import Calibration
 
 
 def add_parser(sub) -> None:
@@ -66,9 +64,7 @@ def run(args) -> int:
     b = res.bundle
     for name, reason in sorted(res.skipped.items()):
         print(f"skipped {name}: {reason}", file=sys.stderr)
-    kinds = sorted(set(res.used.values()))
-    kinds_text = ", ".join(f"{sum(v == k for v in res.used.values())} {k}" for k in kinds)
-    print(f"used {len(res.used)} image(s) ({kinds_text})")
+    print(f"used {len(res.used)} image(s) ({res.kinds})")
     print(f"reprojection RMS {b.rms_px:.4f} px (left view {b.rms_by_view['left']:.4f}, right view "
           f"{b.rms_by_view['right']:.4f})")
     for name, rms in b.rms_by_image.items():
@@ -89,8 +85,7 @@ def run(args) -> int:
     # before any file: a guide that fails writes none
     guide = _guide(res.rig, start, args.adjust) if args.adjust else None
     with output_batch():   # the rig file and the report land together
-        save_rig(dataclasses.replace(res.rig, calibration=Calibration(
-            b.rms_px, b.rms_by_view["left"], b.rms_by_view["right"], len(res.used), kinds_text)), out, template)
+        save_rig(res.recorded_rig(), out, template)
         written = []
         if report is not None:
             from psvs.calibrate.report import write_report

@@ -29,6 +29,7 @@ from fastapi.staticfiles import StaticFiles
 from psvs.optics.rig import Rig
 from psvs.web import (
     api_adjust,
+    api_calibrate,
     api_capture,
     api_check,
     api_dense,
@@ -49,7 +50,8 @@ __all__ = ["MAX_BODY_BYTES", "ROUTERS", "STATIC", "create_app"]
 
 STATIC = Path(__file__).resolve().parent / "static"
 #: The routers of the API, one per concern.
-ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_adjust, api_rig3d, api_check, api_robot)
+ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_calibrate, api_adjust, api_rig3d, api_check,
+           api_robot)
 #: Longest ``detail`` of a 4xx answer (characters).
 MAX_DETAIL = 300
 

@@ -17,6 +17,7 @@ from fastapi import Depends, Request
 
 from psvs.match.correspondence import MatchResult
 from psvs.optics.rig import Rig
+from psvs.web.calibration_job import CalibrationJob
 from psvs.web.capture_runner import CaptureRunner
 from psvs.web.live_runner import LiveRunner
 from psvs.web.sources import Source
@@ -55,6 +56,8 @@ class Session:
         Shown with the rig's f, b and plate thickness (e.g. the calibrated rig file).
     capture : CaptureRunner
         The capture assistant (its card and folder, when the app has them).
+    calibration : CalibrationJob
+        The page's calibration of a folder of card views.
     """
 
     source: Source
@@ -62,6 +65,7 @@ class Session:
     rig_name: str = "default rig"
     live: LiveRunner = field(default_factory=LiveRunner)
     capture: CaptureRunner = field(default_factory=lambda: CaptureRunner(None))
+    calibration: CalibrationJob = field(default_factory=CalibrationJob)
     _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
     _still: np.ndarray = field(init=False, repr=False)
     _name: str = field(init=False)

@@ -100,6 +100,33 @@ $("capture-setup").addEventListener("click", async () => {
   } catch (e) { $("capture-hint").textContent = "capture: " + e.message; }
 });
 
+// Calibrate: POST /api/calibrate starts psvs calibrate in the server; its state is polled until it is done.
+$("calibrate-run").addEventListener("click", async () => {
+  document.body.dataset.calibrateDone = "";
+  const folder = $("calibrate-dir").value.trim();
+  try {
+    const r = await api("/api/calibrate", folder ? { folder } : {});
+    stepStatus("calibrate-status", `calibrating ${r.folder}… (a bundle adjustment of every view: a minute or two)`, true);
+    let s;
+    do {
+      await new Promise((res) => setTimeout(res, 500));
+      s = await api("/api/calibrate/state");
+    } while (s.running);
+    if (s.error) throw new Error(s.error);
+    const c = s.result;
+    $("calibrate-rms").textContent = `${c.rms_px.toFixed(4)} px (left ${c.rms_left_px.toFixed(4)}, right ${c.rms_right_px.toFixed(4)})`;
+    $("calibrate-used").textContent = `${c.used} (${c.kinds})` +
+      (Object.keys(c.skipped).length ? `; skipped ${Object.keys(c.skipped).join(", ")}` : "");
+    $("calibrate-baseline").textContent = `${c.baseline_mm.toFixed(3)} ± ${c.baseline_sigma_mm.toFixed(3)} mm`;
+    $("calibrate-file").textContent = c.file;
+    showInfo(await api("/api/info"));
+    await rig3dInit();
+    stepStatus("calibrate-status", `calibrated: now using ${c.file}` + (c.held_by_prior.length ?
+      `; the views did not pin ${c.held_by_prior.join(", ")} (held near the design)` : ""), true);
+    document.body.dataset.calibrateDone = "1";
+  } catch (e) { stepStatus("calibrate-status", "calibrate: " + e.message); document.body.dataset.calibrateDone = "error"; }
+});
+
 $("check-run").addEventListener("click", async () => {
   document.body.dataset.checkDone = "";
   stepStatus("check-status", "checking the twins' rows…", true);
