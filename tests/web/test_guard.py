@@ -110,7 +110,7 @@ def test_every_route_that_changes_something_is_guarded(app, client):
         assert client.put(path, json={}).status_code == 403, path
         assert client.delete(path).status_code == 403, path
     gets = [r.path.replace("{fmt}", "csv") for r in routes if "GET" in r.methods]
-    assert len(gets) == 12 and all(client.get(p).status_code in (200, 404, 409) for p in gets), gets
+    assert len(gets) == 13 and all(client.get(p).status_code in (200, 404, 409) for p in gets), gets
 
 
 # ---- Body type: what a browser sends across origins without a preflight never reaches a route --------------------

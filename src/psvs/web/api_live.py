@@ -1,7 +1,8 @@
 """Routes of live mode: start and stop the session's live runner (an edge tracker, dense depth, or both, on
-the source's frames), and poll its state, its latest frame and its latest dense map."""
+the source's frames), and poll its state, its latest frame and its latest dense map and cloud."""
 from __future__ import annotations
 
+import numpy as np
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
@@ -9,6 +10,7 @@ from psvs.health.rolling import RollingCheck
 from psvs.live.dense import DenseSensor
 from psvs.live.tracker import EdgeTracker, TrackerParams
 from psvs.match.correspondence import MatchParams
+from psvs.web.api_dense import CLOUD_POINTS
 from psvs.web.api_match import SNAP_PX
 from psvs.web.bodies import LiveBody
 from psvs.web.png import colour_disparity, png_response
@@ -67,3 +69,17 @@ def live_dense(session: SessionDep):
     if d is None:
         return JSONResponse({"detail": "no dense frame yet: start live with dense"}, status_code=404)
     return png_response(colour_disparity(d.disparity_px, *d.searched_px))
+
+
+@router.get("/cloud")
+def live_cloud(session: SessionDep):
+    """The latest dense frame's point cloud (frame C, mm, rounded to 0.01; at most CLOUD_POINTS of its points,
+    evenly): ``frame``, ``points_mm``, ``of_points``. Live mode's points are every answered pixel of its strided
+    grid, not tested against chance as a still's are (``tested`` false). 404 before the first dense frame."""
+    d = session.live.dense()
+    if d is None:
+        return JSONResponse({"detail": "no dense frame yet: start live with dense"}, status_code=404)
+    n = len(d.points_mm)
+    k = np.unique(np.linspace(0, n - 1, min(CLOUD_POINTS, n)).astype(int)) if n else np.zeros(0, int)
+    return {"frame": d.frame, "points_mm": np.round(d.points_mm[k], 2).tolist(), "of_points": n, "tested": False}
+

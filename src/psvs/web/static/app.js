@@ -145,6 +145,19 @@ function plotFig8(res) {
   });
 }
 
+// The live dense cloud in 3-D, at most once a second (a frame's cloud is tens of thousands of points).
+let liveCloudAt = 0, liveCloudFrame = -1;
+async function liveCloud(frame) {
+  if (frame === liveCloudFrame || Date.now() - liveCloudAt < 1000) return;
+  liveCloudAt = Date.now(); liveCloudFrame = frame;
+  try {
+    const c = await api("/api/live/cloud");
+    await drawCloud3d($("live-cloud"), c, "depth", "live-cloud-note",
+                      `of frame ${c.frame} (every answered pixel of live mode's grid, not tested against chance)`);
+    $("live-cloud").dataset.frame = String(c.frame);
+  } catch (e) { $("live-cloud-note").textContent = "live cloud: " + e.message; }
+}
+
 function plotDepth(history) {
   const c = $("depth-plot").getContext("2d");
   const pts = history.filter((h) => h[1] !== null);
@@ -232,6 +245,7 @@ async function livePoll() {
       $("live-dense-ms").textContent = fmt(s.dense.latency_ms, 0, "ms");
       $("live-dense-figure").hidden = false;
       $("live-dense-map").src = "/api/live/dense.png?t=" + Date.now();
+      liveCloud(s.dense.frame);
     }
     showHealth(s.health);
     if (s.frame !== undefined) state.liveFrame = await loadImg("/api/live/frame.png?t=" + Date.now());
@@ -260,6 +274,7 @@ $("live-start").addEventListener("click", async () => {
                                    check: $("live-check").checked });
     $("live-dense-figure").hidden = true;          // no map from an earlier run
     $("live-dense-map").removeAttribute("src");
+    $("live-cloud").hidden = true; $("live-cloud-note").textContent = ""; liveCloudFrame = -1;
     for (const id of ["live-dense-z", "live-dense-ms"]) { $(id).textContent = "–"; delete $(id).dataset.mm; delete $(id).dataset.frame; }
     state.live = true; state.liveFrame = null;
     livePoll();

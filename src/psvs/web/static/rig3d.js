@@ -133,16 +133,17 @@ async function rig3dInit() {
   el.dataset.ready = "1";
 }
 
-// A dense result's point cloud (the trusted pixels' points, frame C, mm), coloured by depth with a colour bar,
-// with the camera's centre O; an empty cloud clears the view and says so.
-function drawCloud3d(el, cloud, colour = "depth") {
+// A dense result's point cloud (frame C, mm), coloured by depth with a colour bar, with the camera's centre O;
+// an empty cloud clears the view and says so. ``what`` says what its points are (a still's: the trusted pixels',
+// supported beyond chance; live mode's: every answered pixel, untested), in the note ``noteId``.
+function drawCloud3d(el, cloud, colour = "depth", noteId = "dense-cloud-note", what = "supported beyond chance") {
   el.hidden = false;
   if (typeof Plotly === "undefined") return Promise.resolve();
   const q = cloud.points_mm.map(rig3dPoint);
-  const note = document.getElementById("dense-cloud-note");
-  note.textContent = q.length ? `${cloud.of_points} points supported beyond chance` +
+  const note = document.getElementById(noteId);
+  note.textContent = q.length ? `${cloud.of_points} points ${what}` +
     (q.length < cloud.of_points ? `, ${q.length} drawn` : "") + "; drag to turn, scroll to zoom." :
-    "no point supported beyond chance: nothing to draw";
+    `no point ${what}: nothing to draw`;
   const traces = [
     { type: "scatter3d", mode: "markers", name: "dense points", x: q.map((p) => p[0]), y: q.map((p) => p[1]),
       z: q.map((p) => p[2]), marker: colour === "grey" ?

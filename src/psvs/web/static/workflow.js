@@ -16,7 +16,7 @@ function showStep() {
   document.body.dataset.step = step;
   // plotly sizes a plot to its element: one drawn while hidden is redrawn at its size once shown
   if (typeof Plotly !== "undefined") {
-    for (const id of ["rig3d", "mount3d", "dense-cloud", "dense-depth-map", "robot3d"]) {
+    for (const id of ["rig3d", "mount3d", "dense-cloud", "dense-depth-map", "robot3d", "live-cloud"]) {
       const el = $(id);
       if (el && el.dataset.ready && el.offsetParent !== null) Plotly.Plots.resize(el);
     }
