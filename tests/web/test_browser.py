@@ -103,3 +103,32 @@ def test_the_page_uploads_without_a_token(page, disc_source, tmp_path):
                                       headers: {"Content-Type": "text/plain"}, body: new Uint8Array(bytes)});
                 return r.type; }""", [url, other_png])
         assert kind == "opaque" and np.array_equal(app.state.session.still().grey, img)
+
+
+def test_a_folders_frames_open_in_name_order_and_step(page, disc_source, tmp_path):
+    """Open image… with several files (a folder's frames, chosen in the page): the first by name is served,
+    ▶ and ◀ step through them in numeric name order (frame_2 before frame_10), each the file's pixels."""
+    import cv2
+    import numpy as np
+    source, rig = disc_source
+    app = create_app(source, rig)
+    frames = {}
+    for n in (10, 2, 1):
+        img = np.full((480, 640), 20 * n, np.uint8)
+        cv2.putText(img, str(n), (200, 300), cv2.FONT_HERSHEY_SIMPLEX, 4, 255, 8)
+        frames[f"frame_{n}.png"] = img
+        cv2.imwrite(str(tmp_path / f"frame_{n}.png"), img)
+    with serving(app) as url:
+        page.goto(url + "/#measure")
+        page.wait_for_selector("body[data-ready='1']", timeout=30000)
+        page.set_input_files("#upload", [str(tmp_path / name) for name in frames])
+        order = []
+        for k, move in enumerate((None, "#image-next", "#image-next", "#image-next", "#image-prev")):
+            if move:
+                page.click(move)
+            expected = ["frame_1.png", "frame_2.png", "frame_10.png", "frame_1.png", "frame_10.png"][k]
+            page.wait_for_function(f"document.getElementById('source').textContent === 'image: {expected}'",
+                                   timeout=30000)
+            assert np.array_equal(app.state.session.still().grey, frames[expected])
+            order.append(page.inner_text("#image-index").strip())
+        assert order == ["1 of 3", "2 of 3", "3 of 3", "1 of 3", "3 of 3"]

@@ -354,17 +354,37 @@ $("capture-stop").addEventListener("click", async () => {
   capturing = false; capturePoll();
 });
 
-$("upload").addEventListener("change", async (ev) => {
-  const file = ev.target.files[0];
-  if (!file) return;
-  // the server reads the format from the file's bytes; a type the browser does not know is sent as PNM's
+// Open image…: one file, or several (a folder's frames, in name order) to step through with ◀ ▶; each shown
+// image is sent to the server (POST /api/upload), which reads the format from its bytes. Local files only.
+const images = { files: [], k: 0 };
+
+async function showImageFile(file) {
+  // a type the browser does not know is sent as PNM's
   const type = state.uploadTypes.includes(file.type) ? file.type : "image/x-portable-anymap";
   const r = await fetch("/api/upload", { method: "POST", headers: { "Content-Type": type }, body: file });
   const data = await r.json().catch(() => ({}));
   if (!r.ok) { setStatus("upload: " + (data.detail || r.status)); $("header-status").textContent = $("status").textContent; return; }
   state.result = null; $("source").textContent = "image: " + file.name; $("header-status").textContent = "";
   await loadImage(); schedulePreview();
+}
+
+async function stepImages(by) {
+  const n = images.files.length;
+  if (!n) return;
+  images.k = (images.k + by + n) % n;
+  $("image-index").textContent = ` ${images.k + 1} of ${n} `;
+  $("image-nav").hidden = n < 2;
+  await showImageFile(images.files[images.k]);
+}
+
+$("upload").addEventListener("change", async (ev) => {
+  const files = [...ev.target.files].sort((a, b) => a.name.localeCompare(b.name, undefined, { numeric: true }));
+  if (!files.length) return;
+  images.files = files; images.k = 0;
+  await stepImages(0);
 });
+$("image-prev").addEventListener("click", () => stepImages(-1));
+$("image-next").addEventListener("click", () => stepImages(1));
 
 ["filter", "filter-size", "binarise", "level", "edges"].forEach((id) => $(id).addEventListener("change", schedulePreview));
 ["show-edges", "sel-colour", "twin-colour"].forEach((id) => $(id).addEventListener("input", draw));
