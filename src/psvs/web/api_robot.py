@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 from fastapi import APIRouter
 
 from psvs.robot.controller import TrackConfig
@@ -50,14 +51,15 @@ def _health(h) -> dict | None:
 def robot_run(body: RobotRunBody):
     """The run's torch path (``tcp_mm``), its targets, the seam points the sensor measured (``seam_mm``, the
     cycles it saw the seam), the lateral deviation of each drawn cycle and whether the arc was on, all in the
-    robot's base frame (mm, every k-th cycle when there are more than :data:`MAX_DRAWN`); and report.json's
-    figures (``report``). The two files must be of one run (as many cycles)."""
+    robot's base frame (mm, every k-th cycle when there are more than :data:`MAX_DRAWN`, and the last: where the
+    torch stopped); and report.json's figures (``report``). The two files must be of one run (as many cycles)."""
     log = read_log_csv(body.log, "log.csv")
     rep = _report(body.report)
     if rep["cycles"] != len(log.t_s):
         raise ValueError(f"log.csv holds {len(log.t_s)} cycles, report.json {rep['cycles']}: not one run's files")
-    step = max(1, -(-len(log.t_s) // MAX_DRAWN))
-    sel = slice(None, None, step)
+    n = len(log.t_s)
+    step = max(1, -(-n // MAX_DRAWN))
+    sel = np.unique(np.r_[np.arange(0, n, step), n - 1])
     seen = log.valid[sel]
     welded = log.welded(rep["arc_on_mm"])[sel]
     return {"tcp_mm": log.tcp_mm[sel].round(4).tolist(), "target_mm": log.target_mm[sel].round(4).tolist(),
