@@ -227,6 +227,12 @@ def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
                              ".then(d => d.cloud.grey.slice(0, 5))")
         drawn = [[float(x) for x in c[4:-1].split(",")] for c in greys]
         assert drawn == [[g, g, g] for g in sent] and len(sent) == 5
+        # another rig chosen: the old rig's dense figures and cloud are not left beside it
+        page.goto(url + "/#design")
+        page.select_option("#rig-choice", "clear")
+        page.wait_for_function("document.body.dataset.rigChosen === 'clear'", timeout=60000)
+        assert page.inner_text("#dense-depth") == "–" and page.get_attribute("#dense-depth", "data-mm") is None
+        assert page.evaluate("document.getElementById('dense-cloud').hidden") is True
     assert errors == [], errors
 
 

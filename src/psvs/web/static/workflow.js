@@ -69,10 +69,24 @@ function showInfo(info) {
 
 function stepStatus(id, text, ok) { const s = $(id); s.textContent = text || ""; s.className = ok ? "ok" : "bad"; }
 
+// What the page shows of results computed through a rig (a match, a dense map and its cloud, a check): forgotten
+// when the rig changes, as the server forgets them, so that no figure of the old rig stands beside the new one.
+function forgetResults() {
+  state.result = null; state.denseCloud = null;
+  for (const id of ["dense-disparity", "dense-depth", "dense-pointer", "check-verdict", "check-rms", "check-max",
+                    "check-tiles"]) { $(id).textContent = "–"; delete $(id).dataset.mm; }
+  for (const id of ["check-reason", "check-explained", "dense-cloud-note"]) $(id).textContent = "";
+  for (const id of ["dense-map", "dense-left", "dense-right", "check-map"]) $(id).removeAttribute("src");
+  for (const id of ["dense-cloud", "dense-depth-map"]) $(id).hidden = true;
+  $("check-verdict").className = "";
+  draw();
+}
+
 async function chooseRig(body) {
   stepStatus("rig-status", "loading the rig…", true);
   try {
     const r = await api("/api/rig", body);
+    forgetResults();
     showInfo(await api("/api/info"));
     await rig3dInit();
     stepStatus("rig-status", `now using ${r.name}`, true);
@@ -119,6 +133,7 @@ $("calibrate-run").addEventListener("click", async () => {
       (Object.keys(c.skipped).length ? `; skipped ${Object.keys(c.skipped).join(", ")}` : "");
     $("calibrate-baseline").textContent = `${c.baseline_mm.toFixed(3)} ± ${c.baseline_sigma_mm.toFixed(3)} mm`;
     $("calibrate-file").textContent = c.file;
+    forgetResults();
     showInfo(await api("/api/info"));
     await rig3dInit();
     stepStatus("calibrate-status", `calibrated: now using ${c.file}` + (c.held_by_prior.length ?
