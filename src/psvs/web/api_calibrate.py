@@ -16,18 +16,11 @@ from __future__ import annotations
 from pathlib import Path
 
 from fastapi import APIRouter
-from pydantic import BaseModel, ConfigDict, Field
 
+from psvs.web.bodies import CalibrateBody
 from psvs.web.session import SessionDep
 
 router = APIRouter(prefix="/api/calibrate")
-
-
-class CalibrateBody(BaseModel):
-    """The folder of card views (relative to where psvs serve runs; default the capture's)."""
-
-    model_config = ConfigDict(extra="forbid")
-    folder: str | None = Field(default=None, max_length=4096)
 
 
 @router.post("")

@@ -157,3 +157,11 @@ class AdjustBody(RangeBody):
                                           "on the design's mirrors")
     pitch_mm: float | None = Field(default=None, gt=0, le=5,
                                    description="screw pitch, mm per turn, of the default seats (M3 x 0.5)")
+
+
+class CalibrateBody(Body):
+    """``POST /api/calibrate``: the folder of card views (relative to where psvs serve runs; default the
+    capture's)."""
+
+    folder: str | None = Field(default=None, max_length=4096)
+
