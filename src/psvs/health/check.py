@@ -7,11 +7,13 @@ quadratic in u', v' holds it), so the field is fitted to the tiles (robustly: so
 on the tiles within :data:`OUTLIER_SIGMAS` of it), and the field is what is judged: its RMS and largest
 value over the judged tiles. A tile's own offset scatters by a few tenths of a pixel (the other view's
 texture in each tile); the field averages that down, and its uncertainty (the fit's standard error, the
-tiles' overlap counted) is stated beside it. The RMS is the field's own: the fit's noise variance is taken
-off its mean square (a rig on its rows reads near 0, not the noise's RMS).
+tiles' overlap and the fit's degrees of freedom counted) is stated beside it. The RMS is the field's own: the
+fit's noise variance is taken off its mean square (a rig on its rows reads near 0, not the noise's RMS).
 
 The verdict: ``healthy`` when the field's RMS plus twice its uncertainty is within the tolerance,
-``drifted`` when its RMS minus twice its uncertainty is beyond it, and ``cannot judge`` otherwise: too
+``drifted`` when its RMS minus twice its uncertainty is beyond it (twice: Student's t quantile of the same
+confidence when the uncertainty rests on few tiles, 2.5 times at the 12 of a first judgement), and
+``cannot judge`` otherwise: too
 few tiles passed (:data:`MIN_TILES`: too little texture, or the twins too far off to be found even when
 searched :data:`psvs.health.rows.FAR_REACH_DEG` either side, which the check does when too few are found
 within the usual reach and it cannot judge), the tiles
@@ -163,8 +165,11 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
                            f"frames of a still, textured scene are needed", **found)
     fitted = A @ coef
     at = fitted[inliers]
-    # the field's variance at each tile; overlapping tiles share pixels, so their errors are not independent
-    cov = OVERLAP * scatter ** 2 * np.linalg.pinv(A[inliers].T @ A[inliers])
+    # the field's variance at each tile; overlapping tiles share pixels, so their errors are not independent;
+    # the residuals about a fit of p terms to n tiles are n - p degrees of freedom: their spread understates
+    # the tiles' noise by sqrt((n - p) / n) (at the 12 tiles of a first judgement, by 30 %)
+    noise = scatter * np.sqrt(n / max(n - A.shape[1], 1))
+    cov = OVERLAP * noise ** 2 * np.linalg.pinv(A[inliers].T @ A[inliers])
     var = np.einsum("ij,jk,ik->i", A[inliers], cov, A[inliers])
     unc = float(np.sqrt(np.mean(var)))
     rms = float(np.sqrt(max(np.mean(at ** 2) - np.mean(var), 0.0)))   # noise adds its variance to the mean square
@@ -175,12 +180,20 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
                  coefficients=coef, disparity_px=disparity[inliers])
     evidence = (f"{n} tiles ({judged} px) of {len(tiles)} frame(s), field RMS {rms:.2f} +- {unc:.2f} px, "
                 f"largest {top:.2f} px, tolerance {tolerance_px:g} px")
-    if rms + 2 * unc <= tolerance_px:
+    k = _two_sigma(n - A.shape[1])
+    if rms + k * unc <= tolerance_px:
         return HealthCheck("healthy", f"the twins stand on their rows: {evidence}", **found)
-    if rms - 2 * unc > tolerance_px:
+    if rms - k * unc > tolerance_px:
         return HealthCheck("drifted", f"the twins stand off their rows: {evidence}", **found)
     return HealthCheck("cannot judge", f"the offset is within its uncertainty of the tolerance: {evidence}; more "
                        f"frames decide it", **found)
+
+
+def _two_sigma(dof: int) -> float:
+    """The multiple of a standard error estimated with ``dof`` degrees of freedom that holds what two sigmas of a
+    known one do (97.7 % one-sided): Student's t quantile (2.52 at 6, 2.0 as they grow)."""
+    from scipy.stats import norm, t
+    return float(t.ppf(norm.cdf(2.0), max(dof, 1)))
 
 
 def _robust_fit(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
