@@ -19,6 +19,7 @@ class CalibrationJob:
 
     @property
     def running(self) -> bool:
+        """Whether a calibration is under way."""
         return self._thread is not None and self._thread.is_alive()
 
     def start(self, folder: Path, start_rig, on_done) -> None:
@@ -58,5 +59,6 @@ class CalibrationJob:
                 self._state.update(running=False)
 
     def state(self) -> dict:
+        """{running, folder, error ('' none), result (None until one succeeded)}, for the page to poll."""
         with self._lock:
             return dict(self._state)
