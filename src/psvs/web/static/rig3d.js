@@ -152,7 +152,8 @@ function drawCloud3d(el, cloud, colour = "depth", noteId = "dense-cloud-note", w
       hovertemplate: "Z %{y:.1f} mm<extra></extra>" },
     rig3dMarkers([[0, 0, 0]], ["camera O"], RIG3D_COLOURS.camera, "diamond"),
   ];
-  const layout = { margin: { l: 0, r: 0, t: 0, b: 0 }, showlegend: false,
+  // a fixed height: redrawn while live mode runs, an autosized plot can collapse to its container's 0 px
+  const layout = { margin: { l: 0, r: 0, t: 0, b: 0 }, showlegend: false, height: 450,
                    scene: { aspectmode: "data", xaxis: { title: { text: "X (mm)" } },
                             yaxis: { title: { text: "Z (mm)" } }, zaxis: { title: { text: "-Y (mm)" } },
                             camera: { eye: { x: 0.6, y: -1.6, z: 0.8 } } } };
