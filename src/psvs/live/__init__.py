@@ -9,7 +9,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submod_attrs={
         "camera": ["Acquisition", "CameraLost", "CameraSpec", "Frame", "TRIGGERS", "parse_camera", "vendor_module"],
         "dense": ["DenseFrame", "DenseSensor"],
-        "log": ["write_log"],
+        "log": ["HEALTH_COLUMNS", "health_cells", "write_log"],
         "simulated": ["SimulatedSequence", "ping_pong_positions"],
         "source": ["SEQUENCE_SUFFIXES", "open_camera", "open_video", "sequence_files"],
         "tracker": ["EdgeTracker", "TrackStep", "TrackerParams", "nearest_edge_pixels"],

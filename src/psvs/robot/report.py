@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from psvs.io.atomic import write_atomic
+from psvs.live.log import health_cells
 from psvs.robot.loop import TrackRun
 from psvs.robot.run_log import HEALTH_LOG_COLUMNS, LOG_COLUMNS
 from psvs.robot.workpiece import Workpiece
@@ -100,16 +101,8 @@ def log_csv(run: TrackRun, workpiece: Workpiece) -> str:
                     *(f"{v:.4f}" for v in c.target_mm), *(f"{v:.4f}" for v in c.seam_mm), int(c.valid),
                     f"{dev['lateral_mm'][i]:.4f}", f"{dev['vertical_mm'][i]:.4f}", *(f"{v:.6f}" for v in c.q),
                     f"{c.wall_render_s * 1e3:.2f}", f"{c.wall_sensor_s * 1e3:.2f}", f"{c.wall_control_s * 1e3:.2f}",
-                    c.reason, *(_health_cells(c) if checked else ())])
+                    c.reason, *(health_cells(c.health and c.health.check).split(",") if checked else ())])
     return buf.getvalue()
-
-
-def _health_cells(c) -> list:
-    """A cycle's self-check columns: empty before the check's first judgement."""
-    h = None if c.health is None else c.health.check
-    if h is None:
-        return ["", "", "", ""]
-    return [h.verdict, f"{h.row_offset_rms_px:.4f}", f"{h.uncertainty_px:.4f}", h.tiles]
 
 
 def plots(run: TrackRun, workpiece: Workpiece, out_dir: Path) -> None:

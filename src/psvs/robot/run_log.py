@@ -10,6 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from psvs.live.log import HEALTH_COLUMNS
+
 #: The columns of log.csv, in order (mm, s, rad, ms; ``valid`` 0 or 1; ``note`` the stop's or a cycle's word).
 LOG_COLUMNS = ("t_s", "s_mm", "speed_mm_s", "tcp_x_mm", "tcp_y_mm", "tcp_z_mm", "target_x_mm", "target_y_mm",
                "target_z_mm", "seam_x_mm", "seam_y_mm", "seam_z_mm", "valid", "lateral_mm", "vertical_mm",
@@ -17,7 +19,7 @@ LOG_COLUMNS = ("t_s", "s_mm", "speed_mm_s", "tcp_x_mm", "tcp_y_mm", "tcp_z_mm", 
 #: With the rolling self-check (psvs.robot.drift) four more, as ``psvs live``'s log: its verdict as of the cycle
 #: (empty before its first), the twins' field RMS and its uncertainty (px; NaN when it could not judge) and the
 #: tiles it judged.
-HEALTH_LOG_COLUMNS = ("health", "row_offset_rms_px", "row_offset_unc_px", "health_tiles")
+HEALTH_LOG_COLUMNS = tuple(HEALTH_COLUMNS.split(","))
 VERDICTS = ("", "healthy", "drifted", "cannot judge")
 _SEAM = tuple(LOG_COLUMNS.index(c) for c in ("seam_x_mm", "seam_y_mm", "seam_z_mm"))
 _VALID = LOG_COLUMNS.index("valid")

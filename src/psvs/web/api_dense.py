@@ -38,9 +38,14 @@ def pointer_grid(d: np.ndarray, z: np.ndarray, seen: np.ndarray) -> dict:
             "z_mm": np.where(ok, np.round(z[::step, ::step], 1), np.nan)}
 
 
+def even_subset(n: int, most: int = CLOUD_POINTS) -> np.ndarray:
+    """Indices of at most ``most`` of ``n`` points, evenly spread (all of them when there are fewer)."""
+    return np.unique(np.linspace(0, n - 1, min(most, n)).astype(int)) if n else np.zeros(0, int)
+
+
 def cloud_for_page(dense_res, cloud) -> dict:
     """A cloud's points (frame C, mm, rounded to 0.01) and grey levels, at most CLOUD_POINTS."""
-    k = np.unique(np.linspace(0, len(cloud.points_mm) - 1, min(CLOUD_POINTS, len(cloud.points_mm))).astype(int))
+    k = even_subset(len(cloud.points_mm))
     u, v = cloud.pixels[k].T.astype(int) if len(k) else (np.zeros(0, int), np.zeros(0, int))
     grey = np.asarray(dense_res.left_image)[v, u]
     return {"points_mm": np.round(cloud.points_mm[k], 2).tolist(), "grey": np.round(grey, 1).tolist(),

@@ -10,7 +10,7 @@ from psvs.health.rolling import RollingCheck
 from psvs.live.dense import DenseSensor
 from psvs.live.tracker import EdgeTracker, TrackerParams
 from psvs.match.correspondence import MatchParams
-from psvs.web.api_dense import CLOUD_POINTS
+from psvs.web.api_dense import even_subset
 from psvs.web.api_match import SNAP_PX
 from psvs.web.bodies import LiveBody
 from psvs.web.png import colour_disparity, png_response
@@ -79,7 +79,7 @@ def live_cloud(session: SessionDep):
     d = session.live.dense()
     if d is None:
         return JSONResponse({"detail": "no dense frame yet: start live with dense"}, status_code=404)
-    n = len(d.points_mm)
-    k = np.unique(np.linspace(0, n - 1, min(CLOUD_POINTS, n)).astype(int)) if n else np.zeros(0, int)
-    return {"frame": d.frame, "points_mm": np.round(d.points_mm[k], 2).tolist(), "of_points": n, "tested": False}
+    k = even_subset(len(d.points_mm))
+    return {"frame": d.frame, "points_mm": np.round(d.points_mm[k], 2).tolist(), "of_points": len(d.points_mm),
+            "tested": False}
 
