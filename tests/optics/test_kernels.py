@@ -1,12 +1,21 @@
 """The ray tracer's Numba kernels (psvs.optics.kernels) against independent derivations: undoing the lens's
-distortion against OpenCV's iterative undistortPointsIter, and the bounding-box pre-test of the blocking
-solids against NumPy's whole-array form, NaN included."""
+distortion against OpenCV's iterative undistortPoints (OpenCV 4's undistortPointsIter), and the bounding-box
+pre-test of the blocking solids against NumPy's whole-array form, NaN included."""
 import cv2
 import numpy as np
 import pytest
 
 from psvs.optics.solids import segments_hit
 from psvs.optics.trace import distort, undistort
+
+
+def _opencv_undistort(xd, dist, criteria):
+    """OpenCV's iterated undistortion of normalised points: OpenCV 4 names it undistortPointsIter, OpenCV 5 folds
+    it into undistortPoints(..., criteria=) (CI runs both)."""
+    pts = xd.reshape(-1, 1, 2)
+    if hasattr(cv2, "undistortPointsIter"):
+        return cv2.undistortPointsIter(pts, np.eye(3), dist, None, None, criteria).reshape(-1, 2)
+    return cv2.undistortPoints(pts, np.eye(3), dist, criteria=criteria).reshape(-1, 2)
 
 
 @pytest.mark.parametrize("seed", range(4))
@@ -20,7 +29,7 @@ def test_undistort_agrees_with_opencv_and_inverts_distort(seed):
     got = undistort(xd, dist)
     np.testing.assert_allclose(got, xn, atol=1e-12)
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-15)
-    ref = cv2.undistortPointsIter(xd.reshape(-1, 1, 2), np.eye(3), np.array(dist), None, None, criteria).reshape(-1, 2)
+    ref = _opencv_undistort(xd, np.array(dist), criteria)
     np.testing.assert_allclose(got, ref, atol=1e-9)
 
 
