@@ -7,7 +7,7 @@ Each kind of answer states its evidence against a null, in one place per kind:
   (:func:`lens_problems`, :func:`build_problems`), and its conditioning on *distinct* evidence
   (:func:`distinct_rows`: a repeated row adds nothing, so a limit cannot grow with copies).
 * **A match or a lock** (dense depth, edge pairs, tracking): beyond what chance makes on the same image
-  (psvs.dense.echo_test for dense depth).
+  (psvs.dense.echo_test for dense depth, psvs.match.chance for edge twins and the tracker's first lock).
 * **A measurement of a known target**: what it knows of the target (spacing, diameters) against what it
   measured, within the measurement's noise (psvs.accuracy.pattern_measure).
 

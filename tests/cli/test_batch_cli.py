@@ -89,16 +89,34 @@ def test_batch_over_a_folder_records_a_damaged_image_and_a_missed_pattern(capsys
     assert "5 frames, 3 ok" in out
 
 
-def test_batch_match_writes_the_single_commands_json_and_its_other_outputs_per_frame(capsys, tmp_path, fig9):
-    video, pngs = fig9
+@pytest.fixture(scope="module")
+def fig5a(tmp_path_factory):
+    """Fig. 5a's two objects at 600, 575 and 550 mm."""
+    return _video_and_frames(tmp_path_factory.mktemp("fig5a"), "fig5a:distance_mm=600", 3, "0,0,50")
+
+
+def test_batch_match_writes_the_single_commands_json_and_its_other_outputs_per_frame(capsys, tmp_path, fig5a):
+    video, pngs = fig5a
     code, out, err = run(capsys, "batch", "match", str(video), "--rig", "default", "-o", str(tmp_path / "b"),
                          "--auto", "--csv", "pairs.csv", "--workers", "2")
     assert code == 0, err
+    assert "3 frames, 3 ok" in out
     for i, png in enumerate(pngs):
         single = tmp_path / f"s{i}.json"
         assert run(capsys, "match", str(png), "--rig", "default", "--auto", "-o", str(single))[0] == 0
         assert (tmp_path / "b" / f"frame_{i:06d}.json").read_bytes() == single.read_bytes()
         assert (tmp_path / "b" / f"frame_{i:06d}.pairs.csv").stat().st_size > 0
+
+
+def test_batch_match_of_the_accuracy_pattern_says_its_twins_stand_no_higher_than_chance(capsys, tmp_path, fig9):
+    """Fig. 9's five identical circles in a row: each circle's outline agrees with its neighbours' as well as
+    with its twin's, so automatic pairing cannot tell them apart (psvs measure circles reads the pattern):
+    every frame is 'cannot measure', with chance's figures, and nothing is written for it."""
+    video, _ = fig9
+    code, out, err = run(capsys, "batch", "match", str(video), "--rig", "default", "-o", str(tmp_path / "b"),
+                         "--auto")
+    assert code == 1 and "no frame gave a result" in err and "beyond chance" in err
+    assert not list((tmp_path / "b").glob("frame_*.json"))
 
 
 @pytest.mark.slow

@@ -194,7 +194,18 @@ def _match() -> list[Case]:
              ("m.json",)),
         Case("match-image-16bit-wrong-size", base, 2, "640x480",
              {"img.png": png(np.full((100, 100), 4000, np.uint16))}, ("m.json",)),
+        # issue 41: no twins in these, only chance and repetition: refused with chance's figures, nothing written
+        Case("match-auto-noise", base, 1, "beyond chance", {"img.png": noise_png(seed=5)}, ("m.json",)),
+        Case("match-auto-stripes", base, 1, "beyond chance", {"img.png": png(_pattern(24, False))}, ("m.json",)),
+        Case("match-auto-checkerboard", base, 1, "beyond chance", {"img.png": png(_pattern(40, True))},
+             ("m.json",)),
     ] + rig_cases(("match", "img.png", *R, "--auto", "-o", "m.json"), "match")[:4]
+
+
+def _pattern(period: int, checker: bool) -> np.ndarray:
+    """Vertical stripes (or a checkerboard) of ``period`` px, 640 x 480, dark and bright."""
+    yy, xx = np.mgrid[0:480, 0:640]
+    return (40 + 180 * ((xx // period + checker * (yy // period)) % 2)).astype(np.uint8)
 
 
 def _measure() -> list[Case]:

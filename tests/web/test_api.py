@@ -1,6 +1,7 @@
 """The web app's API (FastAPI TestClient): matching against planted truth, previews, exports, uploads, live
 mode on a simulated video, and 4xx answers for bad requests."""
 import json
+import re
 import time
 
 import cv2
@@ -84,6 +85,18 @@ def test_automatic_and_exports(client):
     assert v.count == ok.sum() and np.column_stack([v["x"], v["y"], v["z"]]) == pytest.approx(pts[ok], abs=1e-3)
     assert np.median(v["z"]) == pytest.approx(DISC["z_mm"], rel=0.005)
     assert client.get("/api/export/xyz").status_code == 404
+
+
+def test_automatic_matching_of_noise_answers_no_pair_and_says_chance(client):
+    """Sensor noise holds thousands of edges and no twin: the page gets no pair and chance's figures."""
+    img = np.random.default_rng(3).integers(0, 256, (480, 640)).astype(np.uint8)
+    assert client.post("/api/upload", content=cv2.imencode(".png", img)[1].tobytes(), headers=PNG).status_code == 200
+    res = client.post("/api/match", json={"seed": None}).json()
+    assert res["pairs"] == [] and res["chance"]["answered"] is False
+    assert "chance on this image up to" in res["chance"]["text"]
+    strongest, level = (float(x) for x in re.findall(r"agrees on (\d+) rows, chance on this image up to (\d+)",
+                                                      res["chance"]["text"])[0])
+    assert strongest <= level
 
 
 def test_upload_replaces_the_image(client):

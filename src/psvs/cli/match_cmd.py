@@ -1,8 +1,6 @@
 """``psvs match``: edges of a complex image matched (the paper's seeded algorithm or automatic), triangulated."""
 from __future__ import annotations
 
-import sys
-
 from psvs.cli.common import (
     add_model_argument,
     add_pipeline_argument,
@@ -15,6 +13,7 @@ from psvs.cli.common import (
     range_from_args,
     rig_from_args,
 )
+from psvs.errors import MeasurementError
 from psvs.io.atomic import output_batch
 from psvs.io.images import check_frame_size, read_grey
 from psvs.match.correspondence import MatchParams, match_image
@@ -76,6 +75,7 @@ def compute(args, image=None):
     """The matching and its files: the :class:`~psvs.match.correspondence.MatchResult`."""
     (out, csv_path, ply_path), work = prepare(args, image)
     res = match_image(**work)
+    refuse_unanswered(res, work["seed_px"] is not None)
     with output_batch():   # all outputs land together, or none replaces an earlier file
         write_json(out, res)
         if csv_path:
@@ -86,6 +86,19 @@ def compute(args, image=None):
             from psvs.match.figures import write_figures
             write_figures(args.figures, res, work["grey"])
     return res
+
+
+def refuse_unanswered(res, seeded: bool) -> None:
+    """MeasurementError (nothing written) when the match paired nothing: no twin stands above chance, or
+    none was found -- why, in figures."""
+    if res.pairs:
+        return
+    what = "the seed's edge has no twin" if seeded else "no edge pairs with a twin"
+    if not res.chance.answered:
+        raise MeasurementError(f"{what} beyond chance: {res.chance.describe()}")
+    lo, hi = res.disparity_range_px
+    raise MeasurementError(f"{what} at the working range's disparities {lo:.0f}..{hi:.0f} px: every candidate "
+                           f"failed the matcher's rules ({res.chance.describe()})")
 
 
 def summary_row(res) -> dict:
@@ -101,6 +114,5 @@ def run(args) -> int:
               f"median Z {p.median_z_mm():.1f} mm")
     if res.unmatched:
         print(f"{len(res.unmatched)} edge(s) without a twin: {', '.join(str(u.label) for u in res.unmatched)}")
-    if not res.pairs:
-        print("no pair found", file=sys.stderr)
+    print(f"chance: {res.chance.describe()}")
     return 0

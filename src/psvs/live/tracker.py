@@ -17,6 +17,7 @@ import numpy as np
 
 from psvs._validate import check_count, check_grey, check_positive
 from psvs.imaging.pipeline import PAPER, Pipeline
+from psvs.match.auto import image_chance
 from psvs.match.correspondence import MatchParams, finish_pairs
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
@@ -143,6 +144,13 @@ class EdgeTracker:
         self._disparity = None          # last median disparity (px); None before the first match
         self._lost = 0                  # frames since the edge was last tracked
         self._frame = 0
+        self._chance = None             # the last frame's twins against chance, asked before the edge is taken
+
+    def _holds_twins(self, edges: np.ndarray, grey: np.ndarray) -> bool:
+        """Whether the frame holds twins beyond chance (psvs.match.auto.image_chance): the paper's algorithm
+        pairs the seed's edge with whatever agrees best, on noise or stripes as readily as on a twin."""
+        self._chance = image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect)
+        return self._chance.answered
 
     def step(self, grey: np.ndarray) -> TrackStep:
         """Process the next frame (H, W) uint8 and return its :class:`TrackStep`."""
@@ -164,6 +172,9 @@ class EdgeTracker:
             pair = match_seeded(edges, cand, self.range_px, n_seeds=self.match.n_seeds, rect=self.rect)
             if len(pair) < p.min_pairs:
                 continue
+            if first and not self._holds_twins(edges, grey):
+                msg = f"no twin beyond chance in the frame: {self._chance.describe()}"
+                break
             d = float(np.median(pair.disparity_px))
             if not first and abs(d - self._disparity) > p.max_jump_px * (1 + self._lost):
                 msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"

@@ -1,5 +1,6 @@
 """Correspondence on the complex image: the paper's seeded edge algorithm (III.3), automatic pairing of
-every edge with its twin, sub-pixel refinement, and 3-D output."""
+every edge with its twin (asked first whether the image holds twins beyond chance), sub-pixel refinement,
+and 3-D output."""
 import lazy_loader as _lazy
 
 # The package's public face: what other packages and users may import from it. Each name is loaded on
@@ -8,6 +9,8 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     __name__,
     submodules=[],
     submod_attrs={
+        "auto": ["image_chance"],
+        "chance": ["Chance"],
         "correspondence": ["MatchParams", "MatchResult", "finish_pairs", "match_image"],
         "edges": ["edge_pixels"],
         "export": ["result_to_dict", "write_csv", "write_json", "write_ply"],

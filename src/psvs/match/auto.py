@@ -14,12 +14,14 @@ without a strong enough twin are reported unmatched.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
 
 from psvs._validate import check_count, check_finite
+from psvs.match.chance import Chance, chance_level, null_bands
 from psvs.match.edges import EdgePixels, edge_pixels, row_votes
 from psvs.match.grey_steps import polarity, step_image, twin_step_seen
 from psvs.match.pairs import EdgePair, grow_pairs
@@ -96,11 +98,13 @@ class Unmatched:
 @dataclass(frozen=True, eq=False)
 class AutoMatch:
     """Result of :func:`match_auto`: ``pairs`` (integer pixel pairs, strongest first), ``unmatched`` edges
-    (complex-image boxes) and the labelled edge ``pixels``."""
+    (complex-image boxes), the labelled edge ``pixels`` and how the candidates stood against ``chance``
+    (:class:`psvs.match.chance.Chance`; no pair when it is not ``answered``)."""
 
     pairs: list[EdgePair]
     unmatched: list[Unmatched]
     pixels: EdgePixels
+    chance: Chance
 
 
 @dataclass(frozen=True, eq=False)
@@ -273,55 +277,74 @@ def _by_label(labels: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray
     return order, np.searchsorted(labels[order], np.arange(n_labels + 1))
 
 
-def _candidates(ev: Evidence, d_min: int) -> list[Candidate]:
-    """Candidate twins (left component i, right component j, disparity d): every local maximum over d of
-    the agreeing rows of a component pair (smoothed over +-1 px) holding ``min_rows`` rows; ``d_min`` is
-    the smallest disparity searched, px."""
+def _peaks(ev: Evidence, d_min: int):
+    """The local maxima over d of the agreeing rows of each component pair (smoothed over +-1 px) holding
+    ``min_rows`` rows: (their keys (M,), scores (M,)) and, to gather their votes, (the sorted vote keys'
+    order, the distinct keys (U,), where each starts in the order (U + 1,)), and the key's span. A key is
+    (i * n_labels + j) * span + (d - d_min + 1): its neighbours over d are key +- 1, +- 2 (the offset runs
+    1..span - 2, so they never reach another pair's)."""
     px, p, q, d = ev.px, ev.p, ev.q, ev.d
-    n_lab = px.n_labels
     span = int(d.max()) - d_min + 3
-    key = (px.label[p] * n_lab + px.label[q]) * span + (d - d_min + 1)
+    key = (px.label[p] * px.n_labels + px.label[q]) * span + (d - d_min + 1)
     order = np.argsort(key, kind="stable")
     ks = key[order]
-    # rows per (i, j, d): distinct (key, row); the keys are sorted, so distinct values come from diff
+    first = np.flatnonzero(np.concatenate(([True], ks[1:] != ks[:-1])))
+    uk = ks[first]
+    # rows per (i, j, d): distinct (key, row) pairs counted per key (the keys are sorted)
     rows_of = px.left_uv[1]                                  # rows as the left view sees them
     height = int(rows_of.max()) + 1
-    new = np.concatenate(([True], ks[1:] != ks[:-1]))
-    first = np.flatnonzero(new)
-    uk = ks[first]
-    last = np.concatenate((first[1:], [len(ks)]))
     kv = np.sort(ks * height + rows_of[p[order]])
     kv = kv[np.concatenate(([True], kv[1:] != kv[:-1]))] // height
-    rcount = np.diff(np.concatenate((np.flatnonzero(np.concatenate(([True], kv[1:] != kv[:-1]))), [len(kv)])))
-    rk = kv[np.concatenate(([True], kv[1:] != kv[:-1]))]
-    rows = dict(zip(rk.tolist(), rcount.tolist(), strict=True))
-    slices = dict(zip(uk.tolist(), zip(first.tolist(), last.tolist(), strict=True), strict=True))
-    # every local maximum over d of the (+-1 px smoothed) agreeing rows of a component pair is a candidate:
-    # one pair of components can hold two twins at different disparities (merged outlines)
-    smooth = {k: rows.get(k - 1, 0) + rows[k] + rows.get(k + 1, 0) for k in uk.tolist()}
+    rows = np.diff(np.concatenate((np.flatnonzero(np.concatenate(([True], kv[1:] != kv[:-1]))), [len(kv)])))
+
+    def at(values, offset):                 # values[key + offset], 0 where that key holds no vote
+        i = np.minimum(np.searchsorted(uk, uk + offset), len(uk) - 1)
+        return np.where(uk[i] == uk + offset, values[i], 0)
+
+    smooth = at(rows, -1) + rows + at(rows, 1)
+    near = [at(smooth, o) for o in (-2, -1, 1, 2)]
+    keep = (smooth >= ev.params.min_rows) & (near[0] != smooth) & (near[1] != smooth)
+    for other in near:
+        keep &= other <= smooth
+    return uk[keep], smooth[keep].astype(float), (order, uk, np.append(first, len(ks))), span
+
+
+def _candidates(ev: Evidence, d_min: int) -> list[Candidate]:
+    """Candidate twins (left component i, right component j, disparity d): every local maximum over d of
+    the agreeing rows of a component pair (smoothed over +-1 px) holding ``min_rows`` rows (one pair of
+    components can hold two twins at different disparities: merged outlines); ``d_min`` is the smallest
+    disparity searched, px."""
+    px, p, n_lab = ev.px, ev.p, ev.px.n_labels
+    keys, scores, (order, uk, starts), span = _peaks(ev, d_min)
     cands = []
-    for k, score in smooth.items():
-        if score < ev.params.min_rows or any(smooth.get(k + o, 0) > score for o in (-2, -1, 1, 2)) \
-                or smooth.get(k - 1, 0) == score or smooth.get(k - 2, 0) == score:
-            continue
-        pk = k // span
-        idx = np.concatenate([order[slice(*slices[kk])] for kk in (k - 1, k, k + 1) if kk in slices])
+    for k, score in zip(keys.tolist(), scores.tolist(), strict=True):
+        j = np.searchsorted(uk, [k - 1, k, k + 1])
+        idx = np.concatenate([order[starts[i]:starts[i + 1]] for i, kk in zip(j, (k - 1, k, k + 1), strict=True)
+                              if i < len(uk) and uk[i] == kk])
         u, v = px.u[p[idx]], px.v[p[idx]]
-        cands.append(Candidate(pk // n_lab, pk % n_lab, int(k % span) + d_min - 1, idx, float(score),
+        pk = k // span
+        cands.append(Candidate(pk // n_lab, pk % n_lab, int(k % span) + d_min - 1, idx, score,
                                (int(u.min()), int(v.min()), int(u.max()), int(v.max()))))
     return cands
 
 
-def _neighbours(cands: list[Candidate], support_px: int) -> np.ndarray:
-    """(K, K) bool: candidate k supports candidate m when their disparities differ by at most 2 px and
-    their boxes come within ``support_px`` of each other (the same object's other edges); not itself."""
-    dd = np.array([c.d for c in cands])
-    box = np.array([c.box for c in cands], dtype=float)
-    near = ((np.abs(dd[:, None] - dd[None, :]) <= 2)
-            & (box[None, :, 0] <= box[:, None, 2] + support_px) & (box[None, :, 2] >= box[:, None, 0] - support_px)
-            & (box[None, :, 1] <= box[:, None, 3] + support_px) & (box[None, :, 3] >= box[:, None, 1] - support_px))
-    np.fill_diagonal(near, False)
-    return near
+class _Neighbours:
+    """Which candidates support which: candidate k supports candidate m when their disparities differ by at
+    most 2 px and their boxes come within ``support_px`` of each other (the same object's other edges); not
+    itself. Read one candidate at a time (an image of noise makes 10^5 candidates: no K x K table)."""
+
+    def __init__(self, cands: list[Candidate], support_px: int):
+        self.d = np.array([c.d for c in cands])
+        self.box = np.array([c.box for c in cands], dtype=float).reshape(-1, 4)
+        self.reach = support_px
+
+    def of(self, k: int) -> np.ndarray:
+        """(K,) bool: the candidates candidate ``k`` supports."""
+        b, box, r = self.box[k], self.box, self.reach
+        near = ((np.abs(self.d - self.d[k]) <= 2) & (box[:, 0] <= b[2] + r) & (box[:, 2] >= b[0] - r)
+                & (box[:, 1] <= b[3] + r) & (box[:, 3] >= b[1] - r))
+        near[k] = False
+        return near
 
 
 def _strong_enough(ev: Evidence, claims: Claims, c: Candidate, kept: np.ndarray, longest: int) -> bool:
@@ -343,13 +366,13 @@ def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate]) -> list[Ca
     (with a grey image, and not a merged outline: left for the second pass), in the order they came.
 
     A candidate's support is its own agreeing rows plus the rows of the accepted candidates near it
-    (:func:`_neighbours`): each acceptance raises the rank of the remaining candidates it supports, and the
+    (:class:`_Neighbours`): each acceptance raises the rank of the remaining candidates it supports, and the
     next candidate is the remaining one of highest rank (the first such on ties)."""
     later: list[Candidate] = []
     if not cands:
         return later
     rows = np.array([c.rows for c in cands])
-    near = _neighbours(cands, ev.params.support_px)
+    near = _Neighbours(cands, ev.params.support_px)
     rank = rows.copy()
     remaining = np.ones(len(cands), dtype=bool)
     while remaining.any():
@@ -363,7 +386,7 @@ def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate]) -> list[Ca
             if ev.polarity is not None and c.i != c.j:
                 later.append(c)
         elif claims.accept(c, kept, votes):
-            rank += near[:, k] * rows[k]
+            rank += near.of(k) * rows[k]
     return later
 
 
@@ -473,19 +496,61 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], *, pa
         raise ValueError(f"disparity range must satisfy 0 < d_min < d_max, got {disparity_range_px!r}")
     if not isinstance(params, AutoParams):
         raise TypeError(f"params must be an AutoParams, got {type(params).__name__}")
+    ev, pad = _evidence(edges, (d_min, d_max), params, grey, rect)
+    claims = Claims(ev, pad)
+    cands = _candidates(ev, int(d_min)) if len(ev.p) else []
+    chance = _chance(ev, np.array([c.rows for c in cands]), d_min, d_max)
+    if chance.answered:
+        later = _first_pass(ev, claims, cands)
+        _second_pass(ev, claims, later)
+    return AutoMatch(claims.pairs, _unmatched(ev.px, claims), ev.px, chance)
+
+
+def image_chance(edges: np.ndarray, disparity_range_px: tuple[float, float], *, params: AutoParams = AutoParams(),
+                 grey: np.ndarray | None = None, rect=None) -> Chance:
+    """Whether the image holds twins at all: :func:`match_auto`'s candidates against chance
+    (:mod:`psvs.match.chance`), without pairing them; arguments as :func:`match_auto`'s. The paper's seeded
+    algorithm asks it before it takes an edge (psvs.match.correspondence, psvs.live.tracker)."""
+    d_min, d_max = disparity_range_px
+    ev, _ = _evidence(edges, (d_min, d_max), params, grey, rect)
+    return _chance(ev, _peaks(ev, int(d_min))[1] if len(ev.p) else np.zeros(0), d_min, d_max)
+
+
+def _evidence(edges, d_range, params: AutoParams, grey, rect) -> tuple[Evidence, int]:
+    """The :class:`Evidence` of an edge map at disparities ``d_range`` and the claims' column padding."""
     px = edge_pixels(edges, rect)
-    p, q, d = row_votes(px, d_min, d_max)
     pol = steps = None
-    pad = int(np.ceil(d_max + params.tol_px)) + 1
-    if grey is not None and len(p):
+    pad = int(np.ceil(d_range[1] + params.tol_px)) + 1
+    if grey is not None and len(px.u):
         grey = np.asarray(grey, dtype=np.float64)
         pol = polarity(grey, px, params.polarity_level)
+        steps = step_image(grey, pad)
+    return Evidence(px, *_polar_votes(px, pol, *d_range), pol, steps, params), pad
+
+
+def _polar_votes(px: EdgePixels, pol: np.ndarray | None, d_min: float, d_max: float):
+    """The row votes (p, q, d) at disparities ``d_min..d_max`` whose two pixels do not step opposite ways
+    (``pol``: each pixel's polarity; None: every vote)."""
+    p, q, d = row_votes(px, d_min, d_max)
+    if pol is not None and len(p):
         ok = (pol[p] == pol[q]) | (pol[p] == 0) | (pol[q] == 0)
         p, q, d = p[ok], q[ok], d[ok]
-        steps = step_image(grey, pad)
-    ev = Evidence(px, p, q, d, pol, steps, params)
-    claims = Claims(ev, pad)
-    if len(p):
-        later = _first_pass(ev, claims, _candidates(ev, int(d_min)))
-        _second_pass(ev, claims, later)
-    return AutoMatch(claims.pairs, _unmatched(px, claims), px)
+    return p, q, d
+
+
+def _chance(ev: Evidence, rows: np.ndarray, d_min: float, d_max: float) -> Chance:
+    """How the working range's candidates (their agreeing ``rows`` (M,)) stand against the candidates the
+    same votes make at disparities the range cannot produce (:mod:`psvs.match.chance`)."""
+    lu, ru = ev.px.left_uv[0], ev.px.right_uv[0]
+    width = int(max(lu.max(), ru.max())) + 1 if len(lu) else 0
+    bands = null_bands(d_min, d_max, width)
+    null = []
+    for a, b in bands:
+        p, q, d = _polar_votes(ev.px, ev.polarity, a, b)
+        if len(p):
+            null += _peaks(Evidence(ev.px, p, q, d, ev.polarity, None, ev.params), int(a))[1].tolist()
+    strongest = float(rows.max(initial=0.0))
+    if not bands:                # nowhere to read chance: nothing is answered
+        return Chance(strongest, math.inf, 0.0, 0, len(rows), ())
+    level = chance_level(np.array(null), len(rows), ev.params.min_rows)
+    return Chance(strongest, level, max(null, default=0.0), len(null), len(rows), tuple(bands))

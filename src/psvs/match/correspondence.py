@@ -14,7 +14,8 @@ import numpy as np
 
 from psvs._validate import check_grey
 from psvs.imaging.pipeline import PAPER, Pipeline
-from psvs.match.auto import AutoParams, Unmatched, match_auto
+from psvs.match.auto import AutoParams, Unmatched, image_chance, match_auto
+from psvs.match.chance import Chance
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.match.subpixel import refine_pairs
@@ -61,13 +62,16 @@ class MatchParams:
 @dataclass(frozen=True, eq=False)
 class MatchResult:
     """pairs (with points_mm), unmatched edges (automatic mode), the edge map (H, W) bool, the disparity
-    range used (px) and the pipeline's stages [(op, image)]."""
+    range used (px), the pipeline's stages [(op, image)] and how the twins stood against chance
+    (:class:`psvs.match.chance.Chance`: whether the image holds twins at all, asked in either mode; no pair
+    when it is not ``answered``)."""
 
     pairs: list[EdgePair]
     unmatched: list[Unmatched]
     edges: np.ndarray
     disparity_range_px: tuple[float, float]
     stages: list
+    chance: Chance
 
 
 def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
@@ -143,12 +147,13 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     edges, stages = pipeline.run(grey, keep=True)
     if seed_px is not None:
         pair = match_seeded(edges, seed_px, rng, n_seeds=params.n_seeds, rect=rect)
-        pairs, unmatched = ([pair] if len(pair) else []), []
+        chance = image_chance(edges, rng, params=params.auto, grey=grey, rect=rect)
+        pairs, unmatched = ([pair] if len(pair) and chance.answered else []), []
     else:
         auto = match_auto(edges, rng, params=params.auto, grey=grey, rect=rect)
-        pairs, unmatched = auto.pairs, auto.unmatched
+        pairs, unmatched, chance = auto.pairs, auto.unmatched, auto.chance
     finished = finish_pairs(grey, pairs, rig, subpixel=params.subpixel, model=params.model, rect=rect)
-    return MatchResult(finished, unmatched, edges, rng, stages)
+    return MatchResult(finished, unmatched, edges, rng, stages, chance)
 
 
 def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel: bool = True,

@@ -50,8 +50,9 @@ def snap_seed(grey: np.ndarray, pipeline: Pipeline, seed: tuple[float, float], r
 @router.post("/match")
 def match(body: MatchBody, session: SessionDep):
     """The paper's algorithm from a double-clicked point (snapped to the nearest edge pixel within
-    :func:`snap_px` of the rig), or automatic pairing of every edge when no seed is given. The result is kept
-    for the exports unless the image was replaced while it was computed."""
+    :func:`snap_px` of the rig), or automatic pairing of every edge when no seed is given, with how its twins
+    stood against chance (``chance`` {answered, text}). The result is kept for the exports unless the image
+    was replaced while it was computed."""
     still, pipeline = session.still(), body.pipeline()
     rig = session.rig
     seed = None if body.seed is None else snap_seed(flat_field(still.grey, rig.camera), pipeline, body.seed,
@@ -59,7 +60,8 @@ def match(body: MatchBody, session: SessionDep):
     res = match_image(still.grey, rig, seed_px=seed, pipeline=pipeline, near_mm=body.near_mm,
                       far_mm=body.far_mm, params=body.params())
     session.keep_result(res, still.generation)
-    return {"seed_px": seed, **result_to_dict(res, decimals=4)}
+    chance = {"answered": res.chance.answered, "text": res.chance.describe()}
+    return {"seed_px": seed, **result_to_dict(res, decimals=4), "chance": chance}
 
 
 @router.get("/export/{fmt}")

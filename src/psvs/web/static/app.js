@@ -107,7 +107,8 @@ function showResult(res) {
   $("depth").dataset.mm = first && first.median_z_mm !== null ? String(first.median_z_mm) : "";
   $("npairs").textContent = res.pairs.reduce((a, p) => a + p.n, 0);
   if (!res.pairs.length) {
-    setStatus(res.seed_px ? "no twin found for this edge (double-click an edge of the left view)" : "no pair found");
+    setStatus(res.seed_px ? `no twin for this edge (double-click an edge of the left view): ${res.chance.text}`
+      : `no pair: ${res.chance.text}`);
   }
   else setStatus(res.seed_px ? "edge matched" : `${res.pairs.length} edge pairs, ${res.unmatched.length} without a twin`, true);
   plotFig8(res);

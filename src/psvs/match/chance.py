@@ -1,0 +1,116 @@
+"""Whether the automatic matcher's twins stand above chance (:func:`psvs.match.auto.match_auto`).
+
+A candidate twin is a left edge, a right edge and a disparity on whose rows the two edges agree within
++-1 px (the paper's shape match); its evidence is how many rows agree. Edges agree on some rows by chance:
+on a noisy image thousands of small edges make candidates of up to a hundred rows, on stripes or a
+checkerboard every edge agrees with every other at each multiple of the period. Chance is read on the
+image itself, at disparities the working range cannot produce: the same votes and candidates (same rows,
+same polarity rule) over *null bands* of lags as wide as the searched range, beyond its far end (a point
+nearer than the near limit; where none fit in the image, before its near end). A twin cannot be there,
+chance and repetition are there as much as in the range.
+
+**The level.** The null candidates' agreeing rows, read by peaks over threshold as the dense engine's echo
+test reads its correlations (psvs.dense.echo_test): u the (k + 1)-th largest (k = 50, or all of them;
+then u = the fewest rows a candidate can have, less one), beta the mean excess of the k largest over u,
+raised by one standard error, beta (1 + 1/sqrt(k)); under an exponential tail
+P(rows > u + x) = (k / n) e^(-x / beta), so the level that the real search's m candidates exceed with
+probability alpha in all is **t = u + beta ln(m k / (n alpha))** (alpha = 1 %), and never less than the
+strongest null candidate (a structured image's tail is heavier than the fit's). A clean scene makes few null
+candidates (a few object outlines that half agree at some lag), too few to read a tail from: under
+:data:`MIN_TAIL` of them the level is twice the strongest one's excess over the floor (a candidate must agree
+on twice the rows beyond the fewest that chance's best did). An image is *answered* when
+some candidate exceeds t, and then paired by the matcher's own rules (rows, shares of an edge, support by
+its neighbours, the grey image's steps); without one nothing is paired. The level is the image's, as the
+dense engine's is: it asks whether the image holds twins at all, not whether each pair is one.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Lags (px) between the searched range and a null band.
+GAP_PX = 3.0
+#: The chance that an image without twins is answered (the level's false-alarm rate over the image).
+ALPHA = 0.01
+#: The null candidates the tail is read from (the k largest).
+TAIL = 50
+#: Fewer null candidates than this: no tail is read (module docstring).
+MIN_TAIL = 20
+#: The narrowest null band worth searching, px of lag.
+MIN_BAND_PX = 8.0
+
+
+@dataclass(frozen=True)
+class Chance:
+    """How the automatic matcher's candidates stand against chance on one image.
+
+    ``strongest_rows``: the most agreeing rows of a candidate in the working range (0: no candidate);
+    ``level_rows``: t, the level a candidate must exceed for the image to be answered; ``null_max_rows``:
+    the strongest null candidate (0: none); ``null_candidates`` and
+    ``tests``: how many candidates the null bands and the working range made; ``bands``: the null bands'
+    lags (px) ((lo, hi), ...); ``unit``: what was counted ("candidates"; "lags" for one edge's shape match,
+    :func:`psvs.match.seeded.seeded_chance`)."""
+
+    strongest_rows: float
+    level_rows: float
+    null_max_rows: float
+    null_candidates: int
+    tests: int
+    bands: tuple[tuple[float, float], ...]
+    unit: str = "candidates"
+
+    @property
+    def answered(self) -> bool:
+        """Whether some candidate stands beyond chance's level (the image holds twins)."""
+        return self.strongest_rows > self.level_rows
+
+    def describe(self) -> str:
+        """One line: the strongest twin against chance's level, and where chance was read."""
+        bands = ", ".join(f"{a:.0f}..{b:.0f}" for a, b in self.bands)
+        if not self.bands:
+            return ("the working range's disparities fill the image's rows: no lag is left to read chance at, "
+                    "so no twin can be told from chance")
+        head = ("no edge agrees with another on enough rows at the working range's disparities" if self.tests == 0
+                else f"the strongest twin agrees on {self.strongest_rows:.0f} rows, chance on this image up to "
+                     f"{self.level_rows:.0f}")
+        where = f"at disparities {bands} px, which the working range cannot produce"
+        if self.null_candidates >= MIN_TAIL:
+            return (f"{head} (the {ALPHA:.0%} false-alarm level read from {self.null_candidates} {self.unit} "
+                    f"{where}; their strongest {self.null_max_rows:.0f} rows)")
+        return (f"{head} (twice the excess of chance's strongest of {self.null_candidates} {self.unit} "
+                f"{where}, {self.null_max_rows:.0f} rows)")
+
+
+def null_bands(d_min: float, d_max: float, width_px: int) -> list[tuple[float, float]]:
+    """The null bands of lags (px) for a search over ``d_min..d_max`` on rows ``width_px`` wide: bands as
+    wide as the range, from :data:`GAP_PX` beyond ``d_max`` while they fit in the row; where none does,
+    one before ``d_min``. Bands narrower than :data:`MIN_BAND_PX` are left out ([] when none fits)."""
+    span, out = d_max - d_min, []
+    a = d_max + GAP_PX
+    while width_px - 1 - a >= MIN_BAND_PX:
+        b = min(a + span, width_px - 1.0)
+        out.append((a, b))
+        a = b + GAP_PX
+    if not out and d_min - 2 * GAP_PX >= MIN_BAND_PX:
+        out.append((max(GAP_PX, d_min - GAP_PX - span), d_min - GAP_PX))
+    return out
+
+
+def chance_level(null_rows: np.ndarray, tests: int, floor: float, alpha: float = ALPHA,
+                 tail: int = TAIL) -> float:
+    """t (rows) that chance's largest of ``tests`` candidates exceeds with probability ``alpha``, from the
+    null candidates' agreeing rows ``null_rows`` (n,) (module docstring), and at least their largest;
+    ``floor`` is the fewest rows a candidate can have. Without null candidates, ``floor`` - 1: chance made
+    none; with fewer than :data:`MIN_TAIL`, twice the strongest one's excess over ``floor`` - 1."""
+    r = np.sort(np.asarray(null_rows, dtype=float))[::-1]
+    n = len(r)
+    if n < MIN_TAIL:
+        return floor - 1.0 + 2.0 * (float(r[0]) - (floor - 1.0)) if n else floor - 1.0
+    k = min(tail, n)
+    u = float(r[k]) if k < n else floor - 1.0
+    beta = max(float(np.mean(r[:k] - u)), 1.0) * (1.0 + 1.0 / math.sqrt(k))
+    rate = max(tests, 1) * k / n          # how many of the real candidates chance takes beyond u
+    t = u + beta * math.log(rate / alpha) if rate > alpha else u
+    return max(t, float(r[0]))            # never below what chance made (a tail heavier than the fit's)
