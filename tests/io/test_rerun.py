@@ -1,7 +1,8 @@
 """Rerun recordings (issue 44 item 4): what `psvs live`, `psvs disparity` (and `track`/`replay`,
 tests/robot/test_drift.py) write with --rerun, read back with Rerun's own reader (tests/support/rerun.py) and
 compared by value with what the same run wrote otherwise (its CSV log read with the csv module, its .npy maps,
-the video decoded by OpenCV) and with closed forms (the virtual cameras of eqs. 1-8, the pinhole f/pitch)."""
+the video decoded by OpenCV) and with closed forms (the virtual cameras of eqs. 1-8, the pinhole f/pitch); and
+the served viewer in Chromium, drawing what psvs sends."""
 import csv
 import socket
 import sys
@@ -16,6 +17,7 @@ from psvs.io.params import load_rig
 from psvs.io.video import write_video
 from psvs.simulate.builtin import textured
 from psvs.simulate.render import render
+from tests.support.browser import shot
 from tests.support.rerun import image_of, read_rrd
 from tests.support.web import free_port
 
@@ -128,3 +130,32 @@ def test_the_viewer_is_served_on_the_loopback_and_a_taken_port_is_one_line():
         with pytest.raises(OSError, match=f"cannot serve Rerun's viewer on ports {busy - 1} and {busy}") as exc:
             RerunSink(None, busy - 1)
         assert "\n" not in str(exc.value)
+
+
+def _dark_px(png: bytes) -> int:
+    """How many pixels of a screenshot are all but black (grey <= 12)."""
+    shot = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_GRAYSCALE)
+    return int(np.count_nonzero(shot <= 12))
+
+
+def test_the_served_viewer_draws_what_psvs_sends_in_a_browser(webgl_page):
+    """--rerun-serve as a user opens it: Rerun's web viewer (the wheel's, offline; WebGL on the CPU) in
+    Chromium at the URL psvs prints, fed over the loopback, draws the complex image psvs logs: a black frame
+    of 320 x 240 px appears as a black area of the page, none before (the viewer's own pixels are light)."""
+    from psvs.io.rerun_sink import RerunSink
+    port = free_port()
+    with RerunSink(None, port) as sink:
+        webgl_page.goto(sink.url)
+        webgl_page.wait_for_timeout(3000)
+        before = _dark_px(webgl_page.screenshot())
+        sink.rig(load_rig("default"))
+        for k in range(3):
+            sink.image(0.1 * k, np.zeros((240, 320), np.uint8))
+        dark = before
+        for _ in range(60):                       # the WASM viewer loads and draws in a few seconds
+            webgl_page.wait_for_timeout(1000)
+            dark = _dark_px(webgl_page.screenshot())
+            if dark > before + 20000:
+                break
+        shot(webgl_page, "rerun_viewer.png")
+    assert before < 5000 and dark > before + 20000, (before, dark)
