@@ -86,3 +86,16 @@ def test_the_shipped_misaligned_build_is_clear():
     uv = np.column_stack([u.ravel(), v.ravel()]).astype(float)
     for view in ("left", "right"):       # mirrors of the designed size: every pixel sees the scene
         assert trace_pixels(uv, d.rig, view).valid.all()
+
+
+@pytest.mark.parametrize("rig_name", ["default", "mv1440"])
+def test_no_pixels_trace_to_no_rays(rig_name):
+    """An empty set of pixels (a matched edge whose every row a build's view cannot see) traces to empty
+    rays, as one pixel's traces to one, with the glass's finite solids (mv1440) or without (a bench's false
+    alarm on mv1440 once crashed here)."""
+    rig = load_rig(rig_name)
+    for view in ("left", "right"):
+        rays = trace_pixels(np.zeros((0, 2)), rig, view)
+        assert rays.origins_mm.shape == rays.dirs.shape == (0, 3) and rays.valid.shape == (0,)
+        one = trace_pixels([[320.0, 240.0]], rig, view)
+        assert one.origins_mm.shape == (1, 3) and one.valid.all()

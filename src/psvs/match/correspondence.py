@@ -163,8 +163,8 @@ def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel:
 
     With ``rect`` (a build) the pairs come in rectified coordinates: each side is refined along its row on
     its own view's rectified image (so both stay on one epipolar row), then mapped back to the complex
-    image; rows whose point no view pixel sees are dropped. The result is in complex-image pixels, with
-    the rectified disparity."""
+    image; rows whose point no view pixel sees are dropped (a pair left with none, too). The result is in
+    complex-image pixels, with the rectified disparity."""
     model = default_model(rig) if model is None else model
     if rect is not None and subpixel and pairs:
         # only the part of the rectified grid the pairs use (+-6 px for the refinement's neighbours)
@@ -187,6 +187,8 @@ def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel:
                                 pair.right_label, pair.shape_disparity_px)
             left, right = rect.lookup(pair.left_px, "left"), rect.lookup(pair.right_px, "right")
             ok = np.all(np.isfinite(left), axis=1) & np.all(np.isfinite(right), axis=1)
+            if not ok.any():       # no view pixel sees any of its points: no pair
+                continue
             pair = EdgePair(left[ok], right[ok], pair.disparity_px[ok], pair.left_label, pair.right_label,
                             pair.shape_disparity_px)
         res = triangulate(pair.left_px, pair.right_px, rig, model=model)

@@ -193,7 +193,7 @@ def trace_pixels(uv_px, rig: Rig, view: str, hits: list | None = None) -> Rays:
         rays = trace_rays(np.zeros_like(dirs), dirs, steps, hits)
         return rays._replace(valid=rays.valid & ~occluded(rig, hits, rays.origins_mm, rays.dirs))
     parts = []
-    for a in range(0, len(dirs), OCCLUSION_CHUNK):   # the path's points of a chunk at a time
+    for a in range(0, max(len(dirs), 1), OCCLUSION_CHUNK):   # the path's points of a chunk at a time (N = 0: one)
         d = dirs[a:a + OCCLUSION_CHUNK]
         rec: list = []
         rays = trace_rays(np.zeros_like(d), d, steps, rec)
