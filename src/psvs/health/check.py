@@ -23,6 +23,7 @@ uncertainty straddles the tolerance (more frames decide it).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -192,8 +193,15 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
 def _two_sigma(dof: int) -> float:
     """The multiple of a standard error estimated with ``dof`` degrees of freedom that holds what two sigmas of a
     known one do (97.7 % one-sided): Student's t quantile (2.52 at 6, 2.0 as they grow)."""
-    from scipy.stats import norm, t
-    return float(t.ppf(norm.cdf(2.0), max(dof, 1)))
+    from scipy.special import stdtrit  # scipy.stats' t.ppf, without its second of import
+    return float(stdtrit(max(dof, 1), 0.5 * math.erfc(-2.0 / math.sqrt(2.0))))
+
+
+def load_solvers() -> None:
+    """Import the fit's and the verdict's SciPy modules now (half a second the first time in a process): the
+    rolling check's set-up, kept out of its steps' measured cost (:mod:`psvs.health.rolling`)."""
+    import scipy.optimize  # noqa: F401
+    import scipy.special  # noqa: F401
 
 
 def _robust_fit(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:

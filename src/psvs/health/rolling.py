@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.dense.rig_cache import rectification
-from psvs.health.check import TOLERANCE_PX, HealthCheck, judge
+from psvs.health.check import TOLERANCE_PX, HealthCheck, judge, load_solvers
 from psvs.health.rows import frame_tiles
 from psvs.io.jsonsafe import json_safe
 from psvs.optics.rig import Rig
@@ -72,6 +72,7 @@ class RollingCheck:
         self._window: deque = deque()
         self._said = "healthy"
         rectification(rig, near_mm, far_mm)      # the grids' maps are set-up, as the sensors' own: not a step's
+        load_solvers()                            # so are the fit's SciPy modules (their first import)
 
     def step(self, image, frame: int, sensor_s: float) -> HealthEvent | None:
         """Take frame ``frame`` (its image (H, W) and the sensor's time on it, s) into the estimate when the
