@@ -21,7 +21,8 @@ candidates (a few object outlines that half agree at some lag), too few to read 
 on twice the rows beyond the fewest that chance's best did). An image is *answered* when
 some candidate exceeds t, and then paired by the matcher's own rules (rows, shares of an edge, support by
 its neighbours, the grey image's steps); without one nothing is paired. The level is the image's, as the
-dense engine's is: it asks whether the image holds twins at all, not whether each pair is one.
+dense engine's is: it asks whether the image holds twins at all, not whether each pair is one. The paper's
+seeded algorithm asks the same before it takes an edge (:func:`psvs.match.auto.image_chance`).
 """
 from __future__ import annotations
 
@@ -32,7 +33,8 @@ import numpy as np
 
 #: Lags (px) between the searched range and a null band.
 GAP_PX = 3.0
-#: The chance that an image without twins is answered (the level's false-alarm rate over the image).
+#: The chance, aimed at, that an image without twins is answered (the level's false-alarm rate over the image;
+#: met on unstructured images, not on structured ones: measured in docs/matching.md).
 ALPHA = 0.01
 #: The null candidates the tail is read from (the k largest).
 TAIL = 50
