@@ -144,13 +144,12 @@ class EdgeTracker:
         self._disparity = None          # last median disparity (px); None before the first match
         self._lost = 0                  # frames since the edge was last tracked
         self._frame = 0
-        self._chance = None             # the last frame's twins against chance, asked before the edge is taken
 
-    def _holds_twins(self, edges: np.ndarray, grey: np.ndarray) -> bool:
-        """Whether the frame holds twins beyond chance (psvs.match.auto.image_chance): the paper's algorithm
-        pairs the seed's edge with whatever agrees best, on noise or stripes as readily as on a twin."""
-        self._chance = image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect)
-        return self._chance.answered
+    def _frame_chance(self, edges: np.ndarray, grey: np.ndarray):
+        """Whether the frame holds twins beyond chance (psvs.match.auto.image_chance), asked before the edge is
+        taken: the paper's algorithm pairs the seed's edge with whatever agrees best, on noise or stripes as
+        readily as on a twin."""
+        return image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect)
 
     def step(self, grey: np.ndarray) -> TrackStep:
         """Process the next frame (H, W) uint8 and return its :class:`TrackStep`."""
@@ -168,13 +167,16 @@ class EdgeTracker:
         radius = p.snap_px if first else p.search_px * (1 + self._lost) + float(np.hypot(*self._velocity))
         cands = nearest_edge_pixels(edges, predicted, radius, p.candidates)
         msg = "no edge pixel near the seed" if first else "edge lost"
+        chance = None
         for cand in cands:
             pair = match_seeded(edges, cand, self.range_px, n_seeds=self.match.n_seeds, rect=self.rect)
             if len(pair) < p.min_pairs:
                 continue
-            if first and not self._holds_twins(edges, grey):
-                msg = f"no twin beyond chance in the frame: {self._chance.describe()}"
-                break
+            if first:                   # asked once a frame, when a candidate first pairs
+                chance = self._frame_chance(edges, grey) if chance is None else chance
+                if not chance.answered:
+                    msg = f"no twin beyond chance in the frame: {chance.describe()}"
+                    break
             d = float(np.median(pair.disparity_px))
             if not first and abs(d - self._disparity) > p.max_jump_px * (1 + self._lost):
                 msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"

@@ -512,19 +512,20 @@ def image_chance(edges: np.ndarray, disparity_range_px: tuple[float, float], *, 
     (:mod:`psvs.match.chance`), without pairing them; arguments as :func:`match_auto`'s. The paper's seeded
     algorithm asks it before it takes an edge (psvs.match.correspondence, psvs.live.tracker)."""
     d_min, d_max = disparity_range_px
-    ev, _ = _evidence(edges, (d_min, d_max), params, grey, rect)
+    ev, _ = _evidence(edges, (d_min, d_max), params, grey, rect, with_steps=False)
     return _chance(ev, _peaks(ev, int(d_min))[1] if len(ev.p) else np.zeros(0), d_min, d_max)
 
 
-def _evidence(edges, d_range, params: AutoParams, grey, rect) -> tuple[Evidence, int]:
-    """The :class:`Evidence` of an edge map at disparities ``d_range`` and the claims' column padding."""
+def _evidence(edges, d_range, params: AutoParams, grey, rect, with_steps: bool = True) -> tuple[Evidence, int]:
+    """The :class:`Evidence` of an edge map at disparities ``d_range`` and the claims' column padding; the
+    grey image's step image only ``with_steps`` (the pairing's second pass reads it, chance does not)."""
     px = edge_pixels(edges, rect)
     pol = steps = None
     pad = int(np.ceil(d_range[1] + params.tol_px)) + 1
     if grey is not None and len(px.u):
         grey = np.asarray(grey, dtype=np.float64)
         pol = polarity(grey, px, params.polarity_level)
-        steps = step_image(grey, pad)
+        steps = step_image(grey, pad) if with_steps else None
     return Evidence(px, *_polar_votes(px, pol, *d_range), pol, steps, params), pad
 
 

@@ -52,8 +52,7 @@ class Chance:
     ``level_rows``: t, the level a candidate must exceed for the image to be answered; ``null_max_rows``:
     the strongest null candidate (0: none); ``null_candidates`` and
     ``tests``: how many candidates the null bands and the working range made; ``bands``: the null bands'
-    lags (px) ((lo, hi), ...); ``unit``: what was counted ("candidates"; "lags" for one edge's shape match,
-    :func:`psvs.match.seeded.seeded_chance`)."""
+    lags (px) ((lo, hi), ...)."""
 
     strongest_rows: float
     level_rows: float
@@ -61,7 +60,6 @@ class Chance:
     null_candidates: int
     tests: int
     bands: tuple[tuple[float, float], ...]
-    unit: str = "candidates"
 
     @property
     def answered(self) -> bool:
@@ -79,9 +77,9 @@ class Chance:
                      f"{self.level_rows:.0f}")
         where = f"at disparities {bands} px, which the working range cannot produce"
         if self.null_candidates >= MIN_TAIL:
-            return (f"{head} (the {ALPHA:.0%} false-alarm level read from {self.null_candidates} {self.unit} "
+            return (f"{head} (the {ALPHA:.0%} false-alarm level read from {self.null_candidates} candidates "
                     f"{where}; their strongest {self.null_max_rows:.0f} rows)")
-        return (f"{head} (twice the excess of chance's strongest of {self.null_candidates} {self.unit} "
+        return (f"{head} (twice the excess of chance's strongest of {self.null_candidates} candidates "
                 f"{where}, {self.null_max_rows:.0f} rows)")
 
 
