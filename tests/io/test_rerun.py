@@ -134,8 +134,8 @@ def test_the_viewer_is_served_on_the_loopback_and_a_taken_port_is_one_line():
 
 def _dark_px(png: bytes) -> int:
     """How many pixels of a screenshot are all but black (grey <= 12)."""
-    shot = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_GRAYSCALE)
-    return int(np.count_nonzero(shot <= 12))
+    grey = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_GRAYSCALE)
+    return int(np.count_nonzero(grey <= 12))
 
 
 def test_the_served_viewer_draws_what_psvs_sends_in_a_browser(webgl_page):
