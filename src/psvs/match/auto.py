@@ -293,13 +293,19 @@ def _peaks(ev: Evidence, d_min: int):
     # rows per (i, j, d): distinct (key, row) pairs counted per key (the keys are sorted)
     rows_of = px.left_uv[1]                                  # rows as the left view sees them
     height = int(rows_of.max()) + 1
-    kv = np.sort(ks * height + rows_of[p[order]])
+    kv = ks * height + rows_of[p[order]]
+    if not np.all(kv[1:] >= kv[:-1]):                  # already sorted when rows grow with the pixels' order
+        kv.sort()
     kv = kv[np.concatenate(([True], kv[1:] != kv[:-1]))] // height
     rows = np.diff(np.concatenate((np.flatnonzero(np.concatenate(([True], kv[1:] != kv[:-1]))), [len(kv)])))
 
     def at(values, offset):                 # values[key + offset], 0 where that key holds no vote
-        i = np.minimum(np.searchsorted(uk, uk + offset), len(uk) - 1)
-        return np.where(uk[i] == uk + offset, values[i], 0)
+        out = np.zeros_like(values)         # key + offset lies at most |offset| places away (distinct keys)
+        for step in range(1, abs(offset) + 1):
+            here, there = (slice(0, len(uk) - step), slice(step, None))[::1 if offset > 0 else -1]
+            hit = uk[there] == uk[here] + offset
+            out[here][hit] = values[there][hit]
+        return out
 
     smooth = at(rows, -1) + rows + at(rows, 1)
     near = [at(smooth, o) for o in (-2, -1, 1, 2)]
@@ -313,19 +319,26 @@ def _candidates(ev: Evidence, d_min: int) -> list[Candidate]:
     """Candidate twins (left component i, right component j, disparity d): every local maximum over d of
     the agreeing rows of a component pair (smoothed over +-1 px) holding ``min_rows`` rows (one pair of
     components can hold two twins at different disparities: merged outlines); ``d_min`` is the smallest
-    disparity searched, px."""
+    disparity searched, px. A candidate's votes are those of its key and of the keys +-1 beside it, which
+    are neighbours in the sorted distinct keys: one run of the sorted votes (an image of noise makes 10^5
+    candidates: their boxes come from each key's, not from a loop over the votes)."""
     px, p, n_lab = ev.px, ev.p, ev.px.n_labels
     keys, scores, (order, uk, starts), span = _peaks(ev, d_min)
-    cands = []
-    for k, score in zip(keys.tolist(), scores.tolist(), strict=True):
-        j = np.searchsorted(uk, [k - 1, k, k + 1])
-        idx = np.concatenate([order[starts[i]:starts[i + 1]] for i, kk in zip(j, (k - 1, k, k + 1), strict=True)
-                              if i < len(uk) and uk[i] == kk])
-        u, v = px.u[p[idx]], px.v[p[idx]]
-        pk = k // span
-        cands.append(Candidate(pk // n_lab, pk % n_lab, int(k % span) + d_min - 1, idx, score,
-                               (int(u.min()), int(v.min()), int(u.max()), int(v.max()))))
-    return cands
+    if not len(keys):
+        return []
+    at = np.searchsorted(uk, keys)                           # every peak's key is a distinct key
+    first = np.where((at > 0) & (uk[np.maximum(at - 1, 0)] == keys - 1), at - 1, at)
+    last = np.where((at + 1 < len(uk)) & (uk[np.minimum(at + 1, len(uk) - 1)] == keys + 1), at + 1, at)
+    u, v = px.u[p[order]], px.v[p[order]]
+    lo = [np.minimum.reduceat(a, starts[:-1]) for a in (u, v)]        # each key's box
+    hi = [np.maximum.reduceat(a, starts[:-1]) for a in (u, v)]
+    box = np.column_stack([np.minimum(np.minimum(m[first], m[at]), m[last]) for m in lo]
+                          + [np.maximum(np.maximum(m[first], m[at]), m[last]) for m in hi]).tolist()
+    pk = keys // span
+    cols = (pk // n_lab).tolist(), (pk % n_lab).tolist(), (keys % span + d_min - 1).tolist()
+    runs = zip(starts[first].tolist(), starts[last + 1].tolist(), strict=True)
+    return [Candidate(i, j, d, order[s:e], score, (b[0], b[1], b[2], b[3]))
+            for i, j, d, (s, e), score, b in zip(*cols, runs, scores.tolist(), box, strict=True)]
 
 
 class _Neighbours:
@@ -456,14 +469,18 @@ def _unmatched(px: EdgePixels, claims: Claims) -> list[Unmatched]:
     edge. Each with its free pixels' count and bounding box."""
     sizes = np.bincount(px.label, minlength=px.n_labels)
     paired = np.bincount(px.label[~claims.free | claims.explained], minlength=px.n_labels)
-    out = []
-    for lab in range(px.n_labels):
-        if paired[lab] >= 0.5 * sizes[lab]:
-            continue
-        sel = (px.label == lab) & claims.free
-        u, v = px.u[sel], px.v[sel]
-        out.append(Unmatched(int(lab), int(sel.sum()), (int(u.min()), int(v.min()), int(u.max()), int(v.max()))))
-    return out
+    todo = np.flatnonzero(paired < 0.5 * sizes)          # each holds free pixels: more than half of its own
+    if not len(todo):
+        return []
+    order, start = _by_label(px.label[claims.free], px.n_labels)
+    cuts = np.column_stack([start[todo], start[todo + 1]]).ravel()    # each component's run, and the gap after
+    ends = []
+    for a in (px.u[claims.free][order], px.v[claims.free][order]):
+        a = np.append(a, 0)                                            # a run may end at the last pixel
+        ends += [np.minimum.reduceat(a, cuts)[::2], np.maximum.reduceat(a, cuts)[::2]]
+    u0, u1, v0, v1 = (e.tolist() for e in ends)
+    counts = (start[todo + 1] - start[todo]).tolist()
+    return [Unmatched(lab, n, tuple(box)) for lab, n, *box in zip(todo.tolist(), counts, u0, v0, u1, v1, strict=True)]
 
 
 def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], *, params: AutoParams = AutoParams(),
