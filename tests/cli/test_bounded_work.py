@@ -164,7 +164,8 @@ def test_simulate_refuses_a_seam_no_cell_holds(capsys, tmp_path):
 # ---- table1 ------------------------------------------------------------------------------------------------
 
 def test_table1_refuses_renders_beyond_the_time_limit(capsys, tmp_path, plenty_of_memory):
-    rig = rig_file(tmp_path, image_size_px=(8000, 6000), principal_point_px=(3999.5, 2999.5))
+    rig = rig_file(tmp_path, image_size_px=(8000, 6000), pixel_pitch_mm=(0.0008, 0.0008),
+                   principal_point_px=(3999.5, 2999.5))
     table = earlier(tmp_path / "t1" / "table1.csv")
     refused(capsys, ["table1", "--rig", rig, "-o", tmp_path / "t1"],
             "Table I's 31 renders (31 render(s) of 8000x6000 px x 4 sample(s) per pixel: 5.95e+09 samples at 1 us "
@@ -183,7 +184,8 @@ def test_table1_refuses_a_rig_that_cannot_see_the_pattern(capsys, tmp_path):
 
 
 def test_table1_refuses_a_narrow_rig(capsys, tmp_path):
-    rig = rig_file(tmp_path, baseline_mm=60.0)
+    """A 60 mm baseline, its mirrors where `psvs design` puts them for it (a clear layout)."""
+    rig = rig_file(tmp_path, baseline_mm=60.0, m1_axis_distance_mm=12.5, m2_axis_distance_mm=26.640625)
     refused(capsys, ["table1", "--rig", rig, "-o", tmp_path / "t1"],
             "the Fig. 9 pattern (90 mm wide) is wider than this rig's baseline (60 mm): its two copies overlap at "
             "every depth")
@@ -333,3 +335,24 @@ def test_design_does_not_write_a_rig_outside_the_bounds(capsys, tmp_path):
     table, designed = earlier(tmp_path / "t.json"), earlier(tmp_path / "designed.toml")
     refused(capsys, ["design", "--rig", rig, "--no-search", "-o", table, "--rig-out", designed],
             "is outside a mirror rig's size (-10000..10000 mm)", [table, designed])
+
+
+@pytest.mark.parametrize("argv", [["triangulate", "{rig}", "MATCHES", "-o", "{out}/p.csv"],
+                                  ["export-calibration", "{rig_path}", "-o", "{out}/ros"],
+                                  ["fit-refraction", "{rig}", "KNOWN", "-o", "{out}/f.toml"]])
+def test_a_blocked_rig_is_refused_before_any_answer(capsys, tmp_path, argv):
+    """Issue 41: a rig `psvs design` calls BLOCKED (5 mm baseline behind a 30 mm plate) gave points marked
+    valid and a ROS calibration: now exit 2, one line, nothing written."""
+    from tests.support.geometry import EXAMPLES
+    rig = rig_file(tmp_path, baseline_mm=5.0, plate_thickness_mm=30.0)
+    out = tmp_path / "out"
+    out.mkdir()
+    words = []
+    for a in argv:
+        if a == "{rig}":
+            words += ["--rig", rig]
+        else:
+            words.append(a.format(rig_path=rig, out=out).replace("MATCHES", str(EXAMPLES / "matches.csv"))
+                         .replace("KNOWN", str(EXAMPLES / "known_points.csv")))
+    refused(capsys, words, "is no layout a build can have: ")
+    assert list(out.iterdir()) == []

@@ -114,3 +114,39 @@ def test_repeating_rows_does_not_change_the_verdict(known):
     assert again.n_rows == fit.n_rows == 6
     assert (again.l_mm, again.m_mm, again.condition, again.condition_limit) == pytest.approx(
         (fit.l_mm, fit.m_mm, fit.condition, fit.condition_limit), abs=1e-12)
+
+
+@pytest.mark.parametrize("change, name", [(lambda p: p - [0, 0, 20.0], "m"),        # Z from the box's front
+                                          (lambda p: p + [0, 0, 20.0], "m"),
+                                          (lambda p: p * [1, 1, 1.1], "m"),         # a scale 10 % off
+                                          (lambda p: p * 1.05, "m")])
+def test_terms_no_plate_gives_are_refused(known, change, name):
+    """Issue 41's trial: known points whose Z is offset by 20 mm or scaled by 5-10 % fit eq. (15) within the
+    residual check with l, m of -0.3..4.2 and -1.0..10.6 mm (the derived 1.81, 1.01): refused, naming the
+    term, its sigma and the range a plate of the rig's kind gives."""
+    rig, left, right, pts = known
+    with pytest.raises(MeasurementError, match=rf"^the fitted {name} = \S+ \+- \S+ mm of eq. \(15\) is no plate's: a "
+                                               r"plate of 2.4-3.75 mm, n 1.45-1.95, omega_1 within 3 deg"):
+        fit_refraction(left, right, change(pts), rig)
+
+
+def test_the_plausible_terms_are_the_plate_formulas_at_their_ends():
+    """The range against the classic plate shift written out here (delta = d sin t (1 - cos t / sqrt(n^2 -
+    sin^2 t))) and its derivative by central differences, at the corners of the plates allowed; a rig
+    without a plate allows only 0."""
+    from psvs import default_rig
+    from psvs.optics.plate import derived_refraction_terms, plausible_refraction_terms
+    rig = default_rig()
+    def shift(t, d, n):
+        return d * np.sin(t) * (1 - np.cos(t) / np.sqrt(n * n - np.sin(t) ** 2))
+    t = np.radians(45 + np.array([-3.0, 3.0]))[:, None, None]
+    n = np.array([1.45, 1.95])[None, :, None]
+    d = 3.0 * np.array([0.8, 1.25])[None, None, :]
+    ms = shift(t, d, n)
+    ls = (shift(t + 1e-6, d, n) - shift(t - 1e-6, d, n)) / 2e-6
+    (l_lo, l_hi), (m_lo, m_hi) = plausible_refraction_terms(rig)
+    assert m_lo == pytest.approx(ms.min(), abs=1e-9) and m_hi == pytest.approx(ms.max(), abs=1e-9)
+    assert l_lo == pytest.approx(ls.min(), abs=1e-6) and l_hi == pytest.approx(ls.max(), abs=1e-6)
+    l0, m0 = derived_refraction_terms(rig)
+    assert l_lo < l0 < l_hi and m_lo < m0 < m_hi
+    assert plausible_refraction_terms(rig.replace(plate_thickness_mm=0.0)) == ((0.0, 0.0), (0.0, 0.0))

@@ -7,7 +7,7 @@ import pytest
 
 from psvs import default_rig
 from psvs.errors import RigGeometryError
-from psvs.optics.design import design_mirrors, working_range
+from psvs.optics.design import check_clear, design_mirrors, working_range
 from psvs.optics.mirror_length import mirror_length_eq6
 from psvs.optics.rig import MIRROR_NAMES
 from psvs.optics.trace import trace_pixels
@@ -148,3 +148,21 @@ def test_margin_and_impossible_layouts(rig):
     wide = rig.replace(focal_length_mm=2.0)  # half field 58 deg > omega_1: the field misses the mirrors
     with pytest.raises(RigGeometryError, match="never reaches"):
         design_mirrors(wide, search=False)
+
+
+@pytest.mark.parametrize("name", ["default", "clear", "misaligned", "mv1440", "mv1440_misaligned"])
+def test_the_shipped_rigs_and_builds_are_clear(name):
+    from psvs.io.params import load_rig
+    rig = load_rig(name)
+    assert check_clear(rig, name) is rig
+
+
+def test_a_blocked_layout_is_refused_naming_its_first_problem():
+    """Issue 41: triangulate and export-calibration went through a rig `psvs design` calls BLOCKED (a 5 mm
+    baseline behind a 30 mm plate): check_clear, which every measuring command asks, names the problem."""
+    rig = default_rig().replace(baseline_mm=5.0, plate_thickness_mm=30.0)
+    d = design_mirrors(rig, search=False)
+    assert not d.ok
+    with pytest.raises(RigGeometryError, match=rf"^rig x is no layout a build can have: {re.escape(d.problems[0])} "
+                                               rf"\(and {len(d.problems) - 1} more\); `psvs design` shows its layout$"):
+        check_clear(rig, "rig x")

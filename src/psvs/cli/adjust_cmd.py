@@ -5,9 +5,15 @@ from __future__ import annotations
 import json
 import math
 
-from psvs.cli.common import add_range_arguments, add_rig_argument, check_distinct, check_output_path, range_from_args
+from psvs.cli.common import (
+    add_range_arguments,
+    add_rig_argument,
+    check_distinct,
+    check_output_path,
+    measuring_rig,
+    range_from_args,
+)
 from psvs.io.atomic import write_atomic
-from psvs.io.params import load_rig
 from psvs.mount.guide import alignment_guide
 from psvs.mount.report import check_same_design, format_guide, guide_to_dict
 from psvs.mount.seats import DEFAULT_PITCH_MM, seats_for
@@ -37,7 +43,7 @@ def run(args) -> int:
     near, far = range_from_args(args)
     if not (math.isfinite(args.pitch_mm) and 0 < args.pitch_mm <= 5):
         raise ValueError(f"--pitch-mm must be a screw pitch in (0, 5] mm, got {args.pitch_mm}")
-    built, nominal = load_rig(args.calibrated), load_rig(args.rig)
+    built, nominal = measuring_rig(args.calibrated), measuring_rig(args.rig)
     check_same_design(built, nominal)
     if args.mount is not None:
         from psvs.mount.files import read_mount

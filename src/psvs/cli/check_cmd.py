@@ -6,11 +6,17 @@ import json
 import math
 import sys
 
-from psvs.cli.common import add_range_arguments, add_rig_argument, check_distinct, check_output_path, range_from_args
+from psvs.cli.common import (
+    add_range_arguments,
+    add_rig_argument,
+    check_distinct,
+    check_output_path,
+    measuring_rig,
+    range_from_args,
+)
 from psvs.health.check import TOLERANCE_PX, check_frames
 from psvs.io.atomic import output_batch, write_atomic
 from psvs.io.images import read_grey
-from psvs.io.params import load_rig
 
 #: Exit statuses: healthy 0, cannot judge 1 (as any measurement the data cannot give), drifted 3.
 DRIFTED_STATUS = 3
@@ -41,7 +47,7 @@ def run(args) -> int:
     if not (math.isfinite(args.tolerance_px) and args.tolerance_px > 0):
         raise ValueError(f"--tolerance-px must be a number > 0 px, got {args.tolerance_px}")
     near, far = range_from_args(args)
-    rig = load_rig(args.rig)
+    rig = measuring_rig(args.rig)
     frames = [read_grey(f, expect_size=rig.camera.image_size_px) for f in args.frames]
     check = check_frames(frames, rig, near, far, args.tolerance_px)
     from psvs.health.explain import explain_drift, explanation_line

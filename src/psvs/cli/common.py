@@ -7,6 +7,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from psvs.io.params import load_rig
+from psvs.optics.design import check_clear
 from psvs.optics.rig import Rig, default_rig
 from psvs.rigs import SHIPPED
 
@@ -154,7 +155,16 @@ def open_telemetry(args, t0_ns: int | None = None, robot: bool = False):
 
 
 def rig_from_args(args) -> Rig:
+    """The ``--rig`` of ``args`` (a file or a shipped rig's name), the paper's rig without one."""
     return load_rig(args.rig) if args.rig else default_rig()
+
+
+def measuring_rig(path: str | None) -> Rig:
+    """The rig a command measures, fits or exports through (a file, a shipped rig's name, the paper's rig when
+    None), refused when its layout is blocked (:func:`psvs.optics.design.check_clear`; exit 2): no build
+    has it, and no figure through it describes one."""
+    rig = load_rig(path) if path else default_rig()
+    return check_clear(rig, f"rig {path}" if path else "the paper's rig")
 
 
 def check_output_path(path: str | None, suffixes: tuple[str, ...]) -> Path | None:

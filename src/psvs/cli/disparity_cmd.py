@@ -10,6 +10,7 @@ from psvs.cli.common import (
     check_distinct,
     check_output_path,
     check_rerun_arguments,
+    measuring_rig,
     range_from_args,
 )
 from psvs.dense import dense_disparity, separate_views, write_cloud_ply
@@ -23,7 +24,6 @@ from psvs.errors import MeasurementError
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
 from psvs.io.images import check_frame_size, read_grey, write_npy, write_png
-from psvs.io.params import load_rig
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale as camera_pixel_scale
 from psvs.optics.search_range import disparity_range
@@ -96,7 +96,7 @@ def _inputs(args, image=None):
     """(rig or None, the image (H, W) uint8, the build's rectification or None, split, (lo, hi) px, params),
     checked against each other before any work. ``image``: already read (a frame of ``psvs batch``), else
     read from args.image."""
-    rig = load_rig(args.rig) if args.rig else None
+    rig = measuring_rig(args.rig) if args.rig else None
     split = args.split if args.split is not None else (rig.mirrors.split_ratio if rig else 0.5)
     if not 0.0 < split < 1.0:
         raise ValueError(f"--split must lie strictly between 0 and 1, got {split}")
@@ -246,7 +246,7 @@ def summary_row(dense: RigDense, trust: EchoTrust) -> dict:
 def run(args) -> int:
     out, dense, trust, cloud = compute(args, say_compiling="psvs disparity")
     if out["rerun"]:
-        rig = load_rig(args.rig) if args.rig else None
+        rig = measuring_rig(args.rig) if args.rig else None
         _rerun(args, out, dense, cloud, read_grey(args.image), rig)
     print(f"{out['disparity']}: {_summary(dense, trust)}"
           + (f"; {len(cloud.points_mm)} points" if cloud is not None else ""))

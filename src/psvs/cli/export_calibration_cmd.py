@@ -4,10 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from psvs.cli.common import add_range_arguments
+from psvs.cli.common import add_range_arguments, measuring_rig
 from psvs.io.atomic import check_output_folder
 from psvs.io.camera_info import write_calibration_files
-from psvs.io.params import load_rig
 from psvs.optics.pinhole_views import pinhole_views
 
 
@@ -30,7 +29,7 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     out = check_output_folder(args.output)
-    rig = load_rig(args.rig)
+    rig = measuring_rig(args.rig)
     views = pinhole_views(rig, args.near_mm, args.far_mm)      # checks the working range
     for path in write_calibration_files(out, views, args.near_mm, args.far_mm, Path(args.rig).stem):
         print(f"wrote {path}")

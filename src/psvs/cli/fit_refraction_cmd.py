@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, rig_from_args
+from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, measuring_rig
 from psvs.io.params import save_rig
 from psvs.io.points import MATCH_COLUMNS, read_csv_columns
 from psvs.measure.refraction_fit import fit_refraction
@@ -30,7 +30,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     out = check_output_path(args.output, (".toml", ".json"))
     check_distinct({"-o": args.output}, {"MATCHES.csv": args.points, "--rig": args.rig})
-    rig = rig_from_args(args)
+    rig = measuring_rig(args.rig)
     data = read_csv_columns(args.points, MATCH_COLUMNS + TRUTH_COLUMNS)
     left, right, pts = data[:, :2], data[:, 2:4], data[:, 4:]
     fit = fit_refraction(left, right, pts, rig)

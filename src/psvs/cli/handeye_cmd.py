@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from psvs._budget import check_memory
-from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, rig_from_args
+from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, measuring_rig
 from psvs.io.atomic import check_output_folder
 
 
@@ -65,7 +65,7 @@ def run(args) -> int:
                    {"VIEWS_DIR": args.views, "--rig": args.rig, "--true-rig": args.true_rig})
     if not (math.isfinite(args.robot_accuracy_mm) and args.robot_accuracy_mm > 0):
         raise ValueError(f"--robot-accuracy-mm must be a positive number of mm, got {args.robot_accuracy_mm:g}")
-    rig = rig_from_args(args)
+    rig = measuring_rig(args.rig)
     truth = None
     if args.views is not None:
         images, flanges, grid = read_views(args.views, expect_size=rig.camera.image_size_px)

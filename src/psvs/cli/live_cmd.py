@@ -20,6 +20,7 @@ from psvs.cli.common import (
     check_output_path,
     check_telemetry_arguments,
     check_tolerance,
+    measuring_rig,
     open_telemetry,
     parse_seed,
     pipeline_from_args,
@@ -78,7 +79,7 @@ def _sensors(args):
     if args.dense_stride < 1:
         raise ValueError(f"--dense-stride must be >= 1, got {args.dense_stride}")
     seed = parse_seed(args.seed) if args.seed is not None else None
-    rig = rig_from_args(args)
+    rig = measuring_rig(args.rig)
     pipeline = pipeline_from_args(args)
     near_mm, far_mm = range_from_args(args)
     tracker = None if seed is None else EdgeTracker(rig, seed, pipeline=pipeline, near_mm=near_mm, far_mm=far_mm,

@@ -8,10 +8,10 @@ from psvs.cli.common import (
     add_rig_argument,
     check_distinct,
     check_output_path,
+    measuring_rig,
     parse_seed,
     pipeline_from_args,
     range_from_args,
-    rig_from_args,
 )
 from psvs.errors import MeasurementError
 from psvs.io.atomic import output_batch
@@ -61,7 +61,7 @@ def prepare(args, image=None) -> tuple:
         raise ValueError("--n-seeds applies to --seed (seeds on the edge the user picked), not to --auto")
     if args.n_seeds is not None and not 2 <= args.n_seeds <= 100:
         raise ValueError(f"--n-seeds must be 2-100, got {args.n_seeds}")
-    rig = rig_from_args(args)
+    rig = measuring_rig(args.rig)
     pipeline = pipeline_from_args(args)
     size = rig.camera.image_size_px
     image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)

@@ -4,7 +4,13 @@ from __future__ import annotations
 import json
 
 from psvs.accuracy.pattern_measure import check_pattern_sizes, measure_pattern
-from psvs.cli.common import add_model_argument, add_range_arguments, add_rig_argument, range_from_args, rig_from_args
+from psvs.cli.common import (
+    add_model_argument,
+    add_range_arguments,
+    add_rig_argument,
+    measuring_rig,
+    range_from_args,
+)
 from psvs.io.images import check_frame_size, read_grey
 
 
@@ -35,7 +41,7 @@ def add_parser(sub) -> None:
 def prepare(args, image=None) -> tuple:
     """Every check of the arguments and the image before any work: (image, rig, (near, far) mm).
     ``image``: already read (a frame of ``psvs batch``), else read from args.image."""
-    rig = rig_from_args(args)
+    rig = measuring_rig(args.rig)
     check_pattern_sizes(args.spacing_mm, args.diameter_mm, ("--spacing-mm", "--diameter-mm"))
     z_mm = range_from_args(args)
     size = rig.camera.image_size_px

@@ -10,7 +10,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.cli.common import add_rig_argument, measuring_rig
 
 
 def add_parser(sub) -> None:
@@ -59,7 +59,7 @@ def summary_lines(result, n: int, out_dir: Path) -> list[str]:
 def run(args) -> int:
     from psvs.io.tomlfile import load_toml
     from psvs.study.tolerances import load_tolerances, tolerances_path
-    nominal = rig_from_args(args)
+    nominal = measuring_rig(args.rig)
     tol = load_tolerances(args.tolerances)
     tol_data = load_toml(tolerances_path(args.tolerances), "tolerances")
     from psvs.study.montecarlo import check_study_time, prepare_study, run_study

@@ -7,10 +7,17 @@ import json
 import math
 from pathlib import Path
 
-from psvs.cli.common import add_range_arguments, add_rig_argument, check_distinct, check_output_path, range_from_args
+from psvs.cli.common import (
+    add_range_arguments,
+    add_rig_argument,
+    check_distinct,
+    check_output_path,
+    measuring_rig,
+    range_from_args,
+)
 from psvs.io.atomic import output_batch, write_atomic
 from psvs.io.images import read_grey
-from psvs.io.params import load_rig, rig_template, save_rig
+from psvs.io.params import rig_template, save_rig
 
 #: The record of a refit is written beside the rig file, named after it.
 RECORD_SUFFIX = ".refit.json"
@@ -67,7 +74,7 @@ def run(args) -> int:
               | {f"--tare {k + 1}": f for k, f in enumerate(args.tare)})
     check_distinct({"-o": args.output, "the record": record}, inputs)
     near, far = range_from_args(args)
-    rig = load_rig(args.rig)
+    rig = measuring_rig(args.rig)
     size = rig.camera.image_size_px
     frames = [read_grey(f, expect_size=size) for f in args.frames]
     tares = [(read_grey(f, expect_size=size), z) for f, z in zip(args.tare, args.tare_mm, strict=True)]

@@ -3,7 +3,13 @@ from __future__ import annotations
 
 import sys
 
-from psvs.cli.common import add_rerun_arguments, add_rig_argument, check_rerun_arguments, open_rerun, rig_from_args
+from psvs.cli.common import (
+    add_rerun_arguments,
+    add_rig_argument,
+    check_rerun_arguments,
+    measuring_rig,
+    open_rerun,
+)
 
 
 def add_parser(sub) -> None:
@@ -30,7 +36,7 @@ def run(args) -> int:
     check_rerun_arguments(args)
     if args.rerun is not None and Path(args.rerun).resolve() == path.resolve():
         raise ValueError("--rerun must not be the recording itself")
-    rig = rig_from_args(args)
+    rig = measuring_rig(args.rig)
     rec, cell = replay_recording(path, rig)
     with open_rerun(args, robot=True) as sink:
         if sink is not None:

@@ -4,7 +4,7 @@ from __future__ import annotations
 import sys
 
 from psvs.accuracy.table1 import check_start, check_table1, run_table1, table_markdown, write_outputs
-from psvs.cli.common import add_rig_argument, rig_from_args
+from psvs.cli.common import add_rig_argument, measuring_rig
 from psvs.io.atomic import check_output_folder
 from psvs.io.params import load_rig
 from psvs.optics.mirrors import virtual_baseline_mm
@@ -36,7 +36,7 @@ def _progress(i, n, what):
 def run(args) -> int:
     out = check_output_folder(args.out)
     start = load_rig(args.start) if args.start else None
-    rig, method = rig_from_args(args), "grid" if args.card else "sweep"
+    rig, method = measuring_rig(args.rig), "grid" if args.card else "sweep"
     check_table1(rig, method)             # before the progress bar starts: what cannot be done, in one line
     check_start(rig, start)
     t = run_table1(rig, progress=_progress, start=start, method=method)

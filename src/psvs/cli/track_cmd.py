@@ -11,9 +11,9 @@ from psvs.cli.common import (
     check_distinct,
     check_telemetry_arguments,
     check_tolerance,
+    measuring_rig,
     open_telemetry,
     parse_seed,
-    rig_from_args,
 )
 from psvs.io.atomic import check_output_folder
 
@@ -86,7 +86,7 @@ def _job(args):
     check_tolerance(args)
     if args.stop_on_drift and args.no_check:
         raise ValueError("--stop-on-drift needs the self-check: leave out --no-check")
-    rig = rig_from_args(args)
+    rig = measuring_rig(args.rig)
     if args.roi_rows is None:     # the same angle (length of seam) as 32 rows of the paper's camera
         args.roi_rows = min(rig.camera.image_size_px[1], max(8, round(32 * pixel_scale(rig.camera))))
     cfg = TrackConfig(speed_mm_s=args.speed, rate_hz=args.rate, weld_length_mm=args.length, roi_rows=args.roi_rows)

@@ -5,7 +5,13 @@ import sys
 
 import numpy as np
 
-from psvs.cli.common import add_model_argument, add_rig_argument, check_distinct, check_output_path, rig_from_args
+from psvs.cli.common import (
+    add_model_argument,
+    add_rig_argument,
+    check_distinct,
+    check_output_path,
+    measuring_rig,
+)
 from psvs.io.points import points_csv_text, read_matches_csv, write_points_csv
 from psvs.measure.triangulate import EPIPOLAR_TOL_PX, default_model, epipolar_gap_px, triangulate
 
@@ -26,7 +32,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
     check_distinct({"-o": args.output}, {"POINTS.csv": args.points, "--rig": args.rig})
-    rig = rig_from_args(args)
+    rig = measuring_rig(args.rig)
     left, right = read_matches_csv(args.points)
     model = args.model or default_model(rig)
     res = triangulate(left, right, rig, model=model)

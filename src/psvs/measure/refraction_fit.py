@@ -19,6 +19,10 @@ file is used for every later depth, so the fit answers only when the points supp
   moves l or m by their own size (the values derived from d, n, omega_1, at least :data:`TERM_FLOOR_MM`):
   kappa_max = g + sqrt(g^2 - 1), g = min_k size_k c_k; beyond it the fit cannot tell the terms from zero.
   A rank-deficient system (every point on one column, say) has kappa ~ 1e16.
+* **No plate's terms** (``MeasurementError``): l and m beyond what a plate of the rig's kind gives
+  (:func:`psvs.optics.plate.plausible_refraction_terms`: half to twice its thickness, any optical glass,
+  omega_1 within 3 deg) by more than 3 of the fit's sigma: the known points' Z measured from another
+  origin, in another unit or scale, fit eq. (15) with terms no glass has.
 * **Residual above the noise** (``MeasurementError``): the RMS of the fitted depths' residuals is compared
   with the RMS of dz over the points; more than :data:`RESIDUAL_FACTOR` times that means the matches or the
   known points disagree with eq. (15) (a wrong match, a mistyped point, another rig's pixels).
@@ -34,7 +38,7 @@ from psvs._validate import check_points, check_same_length
 from psvs.errors import MeasurementError
 from psvs.evidence import distinct_rows
 from psvs.optics.mirrors import front_z_mm
-from psvs.optics.plate import derived_refraction_terms
+from psvs.optics.plate import PLAUSIBLE_PLATE, derived_refraction_terms, plausible_refraction_terms
 from psvs.optics.rig import Rig
 from psvs.optics.trace import ideal_sensor_from_pixels
 
@@ -110,7 +114,24 @@ def fit_refraction(left_px, right_px, points_mm, rig: Rig) -> RefractionFit:
             f"the fit's RMS depth residual {rms:.3g} mm is {rms / noise:.1f} times the {noise:.3g} mm RMS that a "
             f"{DISPARITY_NOISE_PX} px disparity error explains at these depths (limit {RESIDUAL_FACTOR:g} times): "
             "the matches or the known points disagree with eq. (15) (a wrong match, a mistyped point, another rig)")
+    _check_plausible((float(l_mm), float(m_mm)), A / dz[:, None], rig)
     return RefractionFit(float(l_mm), float(m_mm), int(ok.sum()), rms, noise, kappa, limit)
+
+
+def _check_plausible(terms: tuple[float, float], weighted: np.ndarray, rig: Rig) -> None:
+    """MeasurementError when a fitted term lies more than 3 sigma (the fit's, rows ``weighted`` by 1/dz)
+    beyond what a plate of the rig's kind can give (:func:`~psvs.optics.plate.plausible_refraction_terms`)."""
+    sigma = np.sqrt(np.diag(np.linalg.pinv(weighted.T @ weighted)))
+    for name, value, (lo, hi), sd in zip("lm", terms, plausible_refraction_terms(rig), sigma, strict=True):
+        if not lo - 3 * sd <= value <= hi + 3 * sd:
+            f_lo, f_hi = PLAUSIBLE_PLATE["thickness_factor"]
+            n_lo, n_hi = PLAUSIBLE_PLATE["refractive_index"]
+            raise MeasurementError(
+                f"the fitted {name} = {value:.3g} +- {sd:.2g} mm of eq. (15) is no plate's: a plate of "
+                f"{f_lo * rig.mirrors.plate_thickness_mm:g}-{f_hi * rig.mirrors.plate_thickness_mm:g} mm, n "
+                f"{n_lo:g}-{n_hi:g}, omega_1 within {PLAUSIBLE_PLATE['angle_deg']:g} deg of the rig's gives "
+                f"{name} {lo:.3g}-{hi:.3g} mm: the known points disagree with the matches (Z from another origin, "
+                "another unit or scale?)")
 
 
 def fit_refraction_terms(left_px, right_px, points_mm, rig: Rig) -> tuple[float, float]:

@@ -9,7 +9,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submodules=["pinhole_views", "rectify"],
     submod_attrs={
         "bounds": ["check_rig_bounds"],
-        "design": ["MirrorDesign", "design_mirrors"],
+        "design": ["MirrorDesign", "check_clear", "design_mirrors"],
         "field": ["field_pixels"],
         "illumination": ["flat_field", "illumination_map"],
         "layout3d": ["rig_layout"],

@@ -77,6 +77,30 @@ def derived_refraction_terms(rig: Rig) -> tuple[float, float]:
     return l_mm, m_mm
 
 
+#: What the glass a rig file describes may really be, for the range of l and m a fit may answer
+#: (:func:`plausible_refraction_terms`): its thickness within -20 % and +25 % of the file's (a plate of
+#: 3 mm ordered is 3 +- 0.2 mm; a 2.5 or 4 mm plate needs its own file), any optical glass (n 1.45-1.95),
+#: omega_1 within 3 deg of the file's. The paper's fit on its build moved l and m by 8 and 2 % from
+#: their derived values (examples/known_points.csv: 1.96 and 1.02 mm against 1.81 and 1.01).
+PLAUSIBLE_PLATE = {"thickness_factor": (0.8, 1.25), "refractive_index": (1.45, 1.95), "angle_deg": 3.0}
+
+
+def plausible_refraction_terms(rig: Rig) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The (low, high) of l and of m of eq. (15), mm, that a plate of the rig's kind can give
+    (:data:`PLAUSIBLE_PLATE` about its file's d, n and omega_1; first order about the optical axis, as
+    :func:`derived_refraction_terms`): a fitted value beyond them is no plate's. A rig without a plate: (0, 0)."""
+    m = rig.mirrors
+    lo_f, hi_f = PLAUSIBLE_PLATE["thickness_factor"]
+    n_lo, n_hi = PLAUSIBLE_PLATE["refractive_index"]
+    spread = math.radians(PLAUSIBLE_PLATE["angle_deg"])
+    theta = (math.pi / 2 - m.angle_rad) + np.linspace(-spread, spread, 13)[:, None, None]
+    n = np.linspace(n_lo, n_hi, 13)[None, :, None]
+    d = m.plate_thickness_mm * np.array([lo_f, hi_f])[None, None, :]
+    ls = plate_shift_derivative_mm(theta, 1.0, n) * d
+    ms = plate_shift_mm(theta, 1.0, n) * d
+    return (float(ls.min()), float(ls.max())), (float(ms.min()), float(ms.max()))
+
+
 def refraction_terms(rig: Rig) -> tuple[float, float]:
     """The rig's (l, m), mm: ``refraction_l_mm`` / ``refraction_m_mm`` when set, else derived."""
     l_der, m_der = derived_refraction_terms(rig)
