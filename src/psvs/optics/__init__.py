@@ -17,7 +17,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
                     "virtual_centre"],
         "obstruction": ["find_obstructions", "plate_edges"],
         "pinhole_views": ["PinholeView"],
-        "plate": ["derived_refraction_terms", "refraction_terms"],
+        "plate": ["PLAUSIBLE_PLATE", "derived_refraction_terms", "plausible_refraction_terms", "refraction_terms"],
         "project": ["epipolar_curve_px", "epipolar_curves_px", "in_image", "project_points"],
         "rectify": ["Rectification", "forget", "needs_rectification", "remember", "remembered"],
         "rig": ["Calibration", "Camera", "MIRROR_NAMES", "MirrorError", "MirrorExtent", "Mirrors", "Rig",
