@@ -74,6 +74,19 @@ def test_a_mirror_turned_degrees_or_another_lens_is_refused():
         check_build(longer, design, "calibrating")
 
 
+@pytest.mark.parametrize("scale, refused", [(1.04, False), (0.96, False), (1.09, True), (0.92, True)])
+def test_a_baseline_off_the_design_is_refused(scale, refused):
+    """Issue 41's trial: card views of a card printed 10 % larger than its target file says calibrated at the
+    same RMS as the true card into a rig with every length 9 % off (baseline 108.8 mm for the design's 100):
+    the design's baseline is the one length that can tell; a build's seats move it by under 5 %."""
+    design = load_rig("clear")
+    fitted = load_rig("misaligned").replace(baseline_mm=scale * design.mirrors.baseline_mm)
+    problems = build_problems(fitted, design)
+    assert problems == ([f"baseline fitted {100 * scale:.2f} mm against the design's 100.00 mm (a build of it: "
+                         "within 5%; a card printed at another scale than its target file says scales the whole "
+                         "rig)"] if refused else [])
+
+
 def test_a_residual_beyond_its_noise_is_refused_and_one_within_passes():
     check_residual(0.29, 0.1, "a fit", "px", "detector noise")
     with pytest.raises(MeasurementError, match=r"^a fit does not fit its data: RMS residual 0\.31 px is 3\.1 times "

@@ -36,6 +36,11 @@ MAX_BUILD_TILT_RAD = math.radians(2.0)
 #: The largest share a calibrated focal length may differ from the design's (a stock lens's tolerance is
 #: 5 %; more is another lens).
 MAX_FOCAL_CHANGE = 0.15
+#: The largest share a calibrated baseline may differ from the design's: a build's glass seated within
+#: 0.2 deg and 0.5 mm moves its virtual cameras by up to 4.5 % of the paper's 100 mm (psvs adjust's limit,
+#: psvs.mount.report); more is another design, or a card printed at another scale (a calibration cannot
+#: tell a card 10 % larger from a world 10 % smaller: only the design's baseline can).
+MAX_BASELINE_CHANGE = 0.05
 MIRRORS = ("m1", "m2", "m3", "m4")
 
 
@@ -86,9 +91,11 @@ def lens_problems(camera) -> list[str]:
     return problems
 
 
-def build_problems(fitted, design) -> list[str]:
+def build_problems(fitted, design, baseline: bool = True) -> list[str]:
     """What a build of ``design`` cannot be in the rig ``fitted`` (both psvs.optics.rig.Rig): a mirror
-    tilted more than :data:`MAX_BUILD_TILT_RAD` off its design, a focal length more than
+    tilted more than :data:`MAX_BUILD_TILT_RAD` off its design, a baseline more than
+    :data:`MAX_BASELINE_CHANGE` off the design's (only with ``baseline``: where the fit's scale rests on a card's
+    printed size; a robot's steps measure it), a focal length more than
     :data:`MAX_FOCAL_CHANGE` off the design's, a lens no lens is (:func:`lens_problems`)."""
     problems = []
     for m in MIRRORS:
@@ -97,6 +104,11 @@ def build_problems(fitted, design) -> list[str]:
         if worst > MAX_BUILD_TILT_RAD:
             problems.append(f"{m.upper()} fitted {math.degrees(worst):.2f} deg off its design (a build of it: "
                             f"under {math.degrees(MAX_BUILD_TILT_RAD):.0f} deg)")
+    b0, b1 = design.mirrors.baseline_mm, fitted.mirrors.baseline_mm
+    if baseline and abs(b1 / b0 - 1.0) > MAX_BASELINE_CHANGE:
+        problems.append(f"baseline fitted {b1:.2f} mm against the design's {b0:.2f} mm (a build of it: within "
+                        f"{MAX_BASELINE_CHANGE:.0%}; a card printed at another scale than its target file says "
+                        "scales the whole rig)")
     f0, f1 = design.camera.focal_length_mm, fitted.camera.focal_length_mm
     if abs(f1 / f0 - 1.0) > MAX_FOCAL_CHANGE:
         problems.append(f"focal length fitted {f1:.3g} mm against the design's {f0:.3g} mm (a stock lens: within "
@@ -104,9 +116,9 @@ def build_problems(fitted, design) -> list[str]:
     return problems + lens_problems(fitted.camera)
 
 
-def check_build(fitted, design, what: str) -> None:
+def check_build(fitted, design, what: str, baseline: bool = True) -> None:
     """MeasurementError naming every implausible value of :func:`build_problems` (nothing is written)."""
-    problems = build_problems(fitted, design)
+    problems = build_problems(fitted, design, baseline)
     if problems:
         raise MeasurementError(f"{what} gives a rig no build of the design can be: " + "; ".join(problems)
                                + ": the images are of another rig, or of several")

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from psvs.io.params import load_rig
-from psvs.study.build import apply_deviations, draw_build, draw_deviations, views_seed
+from psvs.study.build import apply_deviations, check_tolerance_edges, draw_build, draw_deviations, views_seed
 from psvs.study.tolerances import PARAMS, tolerances_from_dict
 
 TOL = tolerances_from_dict({"tolerances": {"mirror_tilt_deg": {"uniform": 0.2}, "mirror_shift_mm": {"uniform": 0.5},
@@ -78,3 +78,17 @@ def test_a_drawn_build_that_is_no_rig_is_refused_in_one_line():
     for seed, index in ((-1, 0), (0, -2), (1.5, 0), (True, 0)):
         with pytest.raises(ValueError, match="must be a whole number >= 0"):
             draw_deviations(TOL, seed, index)
+
+
+@pytest.mark.parametrize("table, key", [({"mirror_tilt_deg": {"uniform": 20.0}}, "m1_tilt_a_deg"),
+                                        ({"box_rotation_deg": {"normal": 3.5}}, "box_x_deg"),
+                                        ({"split_ratio": {"uniform": 0.6}}, "split_ratio")])
+def test_a_tolerance_whose_draws_are_no_rig_is_refused_before_the_study(table, key):
+    """Issue 41's trial: mirror tilts of +-20 deg (the rig file allows 6) ran a study of 0 builds and exited
+    0; a tolerance whose edge (a uniform's half-width, a normal's 2 sigma) is no rig even alone is refused."""
+    rig = load_rig("default")
+    with pytest.raises(ValueError, match=rf"^tolerances: {key} \{{ \w+ = [\d.]+ \}}: a build at its .* is no rig "
+                                         r"\(.*\); a tolerance must draw builds of the rig$"):
+        check_tolerance_edges(rig, tolerances_from_dict({"tolerances": table}))
+    check_tolerance_edges(rig, TOL)                                  # the shipped kind of tolerances pass
+    check_tolerance_edges(rig, tolerances_from_dict({"tolerances": {"box_rotation_deg": {"normal": 2.9}}}))

@@ -87,6 +87,11 @@ def run(args) -> int:
         os.environ.pop(STUDY_TMP_ENV, None)
         shutil.rmtree(renders, ignore_errors=True)
     print("\n".join(summary_lines(result, args.n, out_dir)))
+    if result.rows and not any(r["ok"] for r in result.rows):
+        reason = next((r["reason"] for r in result.rows if r["reason"]), "")
+        print(f"psvs montecarlo: cannot measure: none of the {len(result.rows)} builds calibrated, so the study "
+              f"scores nothing ({reason})", file=sys.stderr)
+        return 1
     if result.summary.failed:
         key, reason = next(iter(result.summary.failed.items()))
         print(f"psvs montecarlo: {len(result.summary.failed)} sample(s) raised and were not written (a second run "

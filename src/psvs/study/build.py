@@ -72,6 +72,28 @@ def apply_deviations(nominal: Rig, dev: dict) -> Rig:
     return dataclasses.replace(rig, calibration=None)
 
 
+#: How far out a tolerance's draws are checked before a study (:func:`check_tolerance_edges`): a uniform's
+#: half-width, a normal's 2 sigma (one draw in 22 goes further).
+NORMAL_EDGE_SIGMA = 2.0
+
+
+def check_tolerance_edges(nominal: Rig, tol: Tolerances) -> None:
+    """ValueError, before any sample, naming a tolerance whose draws are no rig even alone (each key at +- a
+    uniform's half-width or a normal's :data:`NORMAL_EDGE_SIGMA` sigma, the others nominal): a study of such
+    builds scores nothing (a tilt of 20 deg beyond the rig file's bounds failed every sample)."""
+    for key, dist in tol.dists.items():
+        width = math.degrees(dist.width) if key.endswith("_deg") else dist.width      # file units
+        edge = width * (1.0 if dist.kind == "uniform" else NORMAL_EDGE_SIGMA)
+        what = "half-width" if dist.kind == "uniform" else f"{NORMAL_EDGE_SIGMA:g} sigma"
+        for value in (edge, -edge):
+            try:
+                apply_deviations(nominal, {key: value})
+            except ValueError as exc:
+                raise ValueError(f"tolerances: {key} {{ {dist.kind} = {width:g} }}: a build at its {what} "
+                                 f"({value:+g}) is no rig ({str(exc).removeprefix('the drawn build is no rig: ')}); "
+                                 "a tolerance must draw builds of the rig") from None
+
+
 def draw_build(nominal: Rig, tol: Tolerances, seed: int, index: int) -> tuple[Rig, dict]:
     """Build ``index`` of a study seeded ``seed``: the rig as built and its drawn deviations (file units,
     :func:`draw_deviations`).

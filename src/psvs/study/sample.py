@@ -36,7 +36,7 @@ from psvs.measure.triangulate import triangulate
 from psvs.mount.guide import designed_twin, row_offsets_px, working_points
 from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import Rig
-from psvs.study.build import apply_deviations, draw_deviations, views_seed
+from psvs.study.build import apply_deviations, check_tolerance_edges, draw_deviations, views_seed
 from psvs.study.tolerances import PARAMS, Procedure, TestSet, Tolerances
 
 #: The scores of a row, each in its unit (NaN when not measured).
@@ -143,11 +143,13 @@ def check_study(nominal: Rig, tol: Tolerances) -> float:
     no pose of the nominal rig could show (:func:`psvs.calibrate.synthetic.check_card_fits`), a sweep or Table
     I at depths where the rig does not show the Fig. 9 pattern, a test range both views hardly share, or one
     sample's renders beyond the memory or the time limit (:func:`psvs.simulate.render.check_render_work`).
+    A tolerance whose draws are no rig even alone is refused too (:func:`psvs.study.build.check_tolerance_edges`).
     A build that departs from the design may still fail: that is a scored failure, not this error. Returns
     the estimated time (s) of one sample's renders (:func:`psvs.simulate.render.render_seconds`)."""
     from psvs.accuracy.table1 import PAPER_TABLE1, SUPERSAMPLE, check_pattern_depths
     from psvs.calibrate.synthetic import check_card_fits
     from psvs.simulate.render import check_render_work, render_seconds
+    check_tolerance_edges(nominal, tol)
     p, test = tol.procedure, tol.test
     if p.method == "sweep":
         lo, hi, step = p.sweep_mm
