@@ -181,6 +181,22 @@ def test_a_tare_plane_leaves_out_its_few_wrong_points_and_refuses_many():
                 check_flat(pts, rig, 0.1, "the tare")
 
 
+def test_a_bent_tare_says_its_scatter_and_the_stated_distance():
+    """Issue 41's trial: a tare stated at 500 mm (it stood at 700) was refused as 'not flat: 100 % of its points
+    lie on one plane (a tare needs 80 %)', a reason that contradicts itself. All points on the (bent) surface,
+    scattering 1 px about a plane: the message says the scatter and its limit, and the hint it is given."""
+    from psvs.calibrate.tare import check_flat, disparity_per_mm
+    rig = load_rig("misaligned")
+    rng = np.random.default_rng(4)
+    xy = rng.uniform(-200, 200, (300, 2))
+    bend = (xy[:, 0] / 200) ** 2 - 1 / 3                          # a bowl: every point on one smooth surface
+    z = 700 + 2.0 * bend / disparity_per_mm(rig, 700.0)
+    with pytest.raises(MeasurementError, match=r"^the tare is not flat: its points scatter \S+ mm \(\S+ px of "
+                                               r"disparity\) about their plane, a flat surface within 0\.50 px; .*, "
+                                               r"or it stands elsewhere$"):
+        check_flat(np.column_stack([xy, z]), rig, 0.1, "the tare", ", or it stands elsewhere")
+
+
 def test_the_tare_plane_is_the_least_squares_plane():
     """tare_plane against numpy's polyfit-free closed form: points on Z = 700 + 0.01 X - 0.02 Y with noise."""
     rng = np.random.default_rng(1)

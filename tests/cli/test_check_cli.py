@@ -66,3 +66,12 @@ def test_nothing_to_judge_exits_1_and_writes_no_map(capsys, tmp_path):
     assert code == 1 and json.loads(out)["verdict"] == "cannot judge"
     assert err.startswith("psvs check: cannot judge: only 0 of") and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "m.png").exists()
+
+
+def test_a_refusal_is_said_once(capsys, tmp_path):
+    """Issue 41's trial: 'cannot judge' was printed on stdout and again on stderr."""
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((480, 640), 90, np.uint8))
+    code, out, err = run(capsys, "check", str(blank), "--rig", "misaligned")
+    assert code == 1 and out == "" and err.startswith("psvs check: cannot judge: only 0 of")
+    assert len(err.strip().splitlines()) == 1

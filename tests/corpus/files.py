@@ -50,6 +50,16 @@ def texture_png(w: int = 640, h: int = 480, seed: int = 1) -> bytes:
     return png(np.rint(img * 255).astype(np.uint8))
 
 
+def repeating_png(period: int = 40, w: int = 640, h: int = 480, seed: int = 5) -> bytes:
+    """A random texture tiled every ``period`` px along the rows with dark joints (bricks), one view: no twin,
+    and it matches itself at every multiple of its period."""
+    rng = np.random.default_rng(seed)
+    tile = rng.random((h, period)) * 80 + 60
+    tile[:, :3] = 30
+    img = np.tile(tile, (1, w // period + 1))[:, :w] + rng.normal(0, 2, (h, w))
+    return png(np.clip(img, 0, 255).astype(np.uint8))
+
+
 def truncated_png() -> bytes:
     return texture_png()[:2000]
 

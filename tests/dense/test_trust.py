@@ -12,7 +12,9 @@ from psvs.dense import DEFAULT, FAST, dense_disparity
 from psvs.dense.echo_test import (
     ALPHA,
     LOBE_LAGS,
+    RIVAL_RATIO,
     TAIL,
+    ambiguous_patches,
     autocorrelation_lags,
     band_features,
     cell_sums,
@@ -194,6 +196,32 @@ def test_no_pixel_is_trusted_without_an_echo(no_echo, kind, mode):
     assert trust.count == 0 and not trust.trusted_right.any() and not trust.test.echoes
     assert trust.test.strongest < 1.0
     assert not (trusted_maps(res, trust).confidence_left > 0).any()
+
+
+def test_a_patch_that_peaks_twice_is_ambiguous():
+    """Profiles written out: one peak (with a broad lobe, as a slanted surface gives) is no rival of itself; a
+    second, separate peak above the threshold and half the first is; one below either is not."""
+    lags = np.arange(60)
+    one = 6.0 * np.exp(-0.5 * ((lags - 20) / 3.0) ** 2)          # a broad lobe stays one peak
+    rival = one + 4.0 * np.exp(-0.5 * ((lags - 44) / 1.0) ** 2)  # 0.67 of it, 24 lags away
+    weak = one + 2.0 * np.exp(-0.5 * ((lags - 44) / 1.0) ** 2)   # 0.33 of it
+    low = 0.5 * rival                                             # the same shape under the threshold (4)
+    z = np.stack([one, rival, weak, low], axis=1)
+    assert ambiguous_patches(z, 4.0).tolist() == [False, True, False, False] and RIVAL_RATIO == 0.5
+
+
+@pytest.mark.parametrize("period", [14, 40, 60])
+def test_a_texture_repeating_along_the_rows_is_ambiguous_not_an_echo(period):
+    """Issue 41's trial: stripes and a random texture tiled every 40 or 60 px (no twin: one view) were trusted
+    over 27-85 % of the image at the disparity of a multiple of the period. Every patch of a repeating texture
+    correlates alike at each multiple of its period: those that see two are ambiguous, and no echo stands."""
+    rng = np.random.default_rng(period)
+    tile = cv2.GaussianBlur(rng.integers(0, 256, (480, period)).astype(np.float32), (0, 0), 1.5)
+    img = np.tile(tile, (1, 640 // period + 1))[:, :640] + rng.normal(0, 2, (480, 640))
+    test = echo_test(img, 86, 255)
+    assert test.ambiguous.mean() > 0.5
+    res = dense_disparity(img, 86, 255)
+    assert echo_trust(img, res).count < 0.05 * img.size
 
 
 @pytest.fixture(scope="module")

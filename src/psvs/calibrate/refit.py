@@ -301,7 +301,9 @@ def _on_tare_planes(x, old: Rig, pairs: _Pairs, distances) -> _Pairs:
     keep = np.ones(len(pairs.source), bool)
     for k in range(len(distances)):
         at = np.flatnonzero((pairs.source == k) & np.all(np.isfinite(res), axis=1))
-        keep[at] = check_flat(pts[at], rig, noise, f"tare {k + 1}" if len(distances) > 1 else "the tare surface")
+        keep[at] = check_flat(pts[at], rig, noise, f"tare {k + 1}" if len(distances) > 1 else "the tare surface",
+                              f", or it does not stand at the {distances[k]:g} mm stated (a rig refitted to a "
+                              "wrong distance bends the surface)")
     return _Pairs(pairs.left[keep], pairs.right[keep], pairs.source[keep], pairs.sigma_px)
 
 

@@ -94,16 +94,21 @@ def depth_residuals_px(points_mm: np.ndarray, distance_mm: float, rig: Rig) -> n
     return _off_plane_mm(points_mm, coef) * disparity_per_mm(rig, points_mm[:, 2])
 
 
-def check_flat(points_mm: np.ndarray, rig: Rig, noise_px: float, which: str) -> np.ndarray:
+def check_flat(points_mm: np.ndarray, rig: Rig, noise_px: float, which: str, hint: str = "") -> np.ndarray:
     """Which of the points (n, 3) lie on their best plane (:func:`flat_plane`), (n,) bool; MeasurementError
     when fewer than :data:`TARE_ON_PLANE` of them lie on it or they scatter about it by more than
-    :data:`TARE_FLAT_PX` and 3 times the tiles' ``noise_px``: the surface is not flat."""
+    :data:`TARE_FLAT_PX` and 3 times the tiles' ``noise_px``: the surface is not flat (each said apart;
+    ``hint`` ends the message: what else would explain it)."""
     _, rms_mm, flat_px, on = flat_plane(points_mm, rig)
-    if not (flat_px <= max(TARE_FLAT_PX, 3 * noise_px) and on.mean() >= TARE_ON_PLANE):
+    limit = max(TARE_FLAT_PX, 3 * noise_px)
+    if on.mean() < TARE_ON_PLANE:
         raise MeasurementError(f"{which} is not flat: {100 * on.mean():.0f} % of its points lie on one plane (a tare "
-                               f"needs {100 * TARE_ON_PLANE:.0f} %), scattering {rms_mm:.2f} mm ({flat_px:.2f} px "
-                               f"of disparity) about it; a tare needs a flat textured surface facing the rig (a "
-                               f"wall, a plate)")
+                               f"needs {100 * TARE_ON_PLANE:.0f} %); a tare needs a flat textured surface facing the "
+                               f"rig (a wall, a plate){hint}")
+    if flat_px > limit:
+        raise MeasurementError(f"{which} is not flat: its points scatter {rms_mm:.2f} mm ({flat_px:.2f} px of "
+                               f"disparity) about their plane, a flat surface within {limit:.2f} px; a tare needs a "
+                               f"flat textured surface facing the rig (a wall, a plate){hint}")
     return on
 
 

@@ -59,7 +59,7 @@ def run(args) -> int:
     if args.json:
         d = check.as_dict() | {"explained_by": [e.as_dict() for e in found]}
         print(json.dumps(d))
-    else:
+    elif check.verdict != "cannot judge":       # a refusal is said once, on stderr
         print(f"{check.verdict}: {check.reason}")
         if found:
             print(f"best explained by {explanation_line(found)}")

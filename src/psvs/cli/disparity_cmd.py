@@ -176,6 +176,14 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
     trust = rig_trust(dense)
     if trust.count == 0:
         lo, hi = res.searched_px
+        t = trust.test
+        if t.ambiguous.any() and not t.echoes:
+            k = 2 ** trust.level * t.cell_px
+            raise MeasurementError(
+                f"the image's texture repeats along its rows: {int(t.ambiguous.sum())} cells of {k}x{k} px echo "
+                f"beyond chance at two or more separate disparities alike (stripes, bricks, a row of identical "
+                f"windows), and nothing else echoes: which of them is the twin cannot be told in "
+                f"{lo:.0f}..{hi:.0f} px")
         raise MeasurementError(f"no part of the image echoes beyond chance: {strongest_echo(trust)}: the image "
                                f"shows no echo of the disparities {lo:.0f}..{hi:.0f} px")
     return RigDense(trusted_maps(res, trust), dense.rect, dense.left_image, dense.right_image), trust

@@ -69,6 +69,10 @@ LOBE_RATIO = 2.0
 SHORT_LAGS = 6.0
 #: The largest lag (px, judged level) at which the image's own autocorrelation is looked for.
 AUTOCORRELATION_MAX_PX = 40
+#: A patch whose correlation beyond chance peaks again, apart from its strongest peak's lobe, at this share of
+#: it or more is ambiguous: its texture repeats along the row (stripes, bricks, a row of identical windows),
+#: and which lag is its twin cannot be told from it (:func:`ambiguous_patches`).
+RIVAL_RATIO = 0.5
 
 
 def band_features(image: np.ndarray, sigma_px: float) -> np.ndarray:
@@ -294,7 +298,9 @@ class EchoTest:
     ``lags`` (D,) px; ``cell_px``; ``strongest`` the largest z of any judged test relative to its family's
     threshold (> 1: an echo), with ``strongest_z``/``strongest_threshold`` and where it is
     (``strongest_at``: (u, v) px of the patch's centre, its side px, its lag px); ``first_lag`` the
-    smallest lag judged (the autocorrelation's end); ``patches`` judged (patch, lag) tests in all."""
+    smallest lag judged (the autocorrelation's end); ``patches`` judged (patch, lag) tests in all;
+    ``ambiguous`` (ny, nx) bool: cells that only patches echoing at two separate peaks cover
+    (:func:`ambiguous_patches`: a repeating texture; not counted as echoes)."""
 
     echo: np.ndarray
     lags: np.ndarray
@@ -305,6 +311,7 @@ class EchoTest:
     strongest_at: tuple[float, float, int, int]
     first_lag: int
     tests: int
+    ambiguous: np.ndarray
 
     @property
     def echoes(self) -> bool:
@@ -341,6 +348,40 @@ def _covers(echo, lags, cell, d, u, v, tol):  # pragma: no cover - compiled
     return out
 
 
+@nb.njit(cache=True, parallel=True)
+def _ambiguous(z, threshold, ratio, out):  # pragma: no cover - compiled
+    d, n = z.shape
+    for j in nb.prange(n):
+        top, at = -np.inf, -1
+        for k in range(d):
+            if z[k, j] > top:
+                top, at = z[k, j], k
+        if not top > threshold:
+            continue
+        floor = ratio * top
+        lo, hi = at, at                         # the strongest peak's lobe: where z stays above its share
+        while lo > 0 and z[lo - 1, j] > floor:
+            lo -= 1
+        while hi < d - 1 and z[hi + 1, j] > floor:
+            hi += 1
+        rival = max(threshold, floor)
+        for k in range(d):
+            if (k < lo or k > hi) and z[k, j] > rival:
+                out[j] = True
+                break
+
+
+def ambiguous_patches(z: np.ndarray, threshold: float, ratio: float = RIVAL_RATIO) -> np.ndarray:
+    """bool (...) of the patches of ``z`` (D, ...: standardised correlations over the lags, NaN ignored) that
+    exceed ``threshold`` at two separate peaks: beyond their strongest peak's lobe (the lags about it where z
+    stays above ``ratio`` times the peak) z exceeds both the threshold and that share of the peak again. A
+    repeating texture echoes at every multiple of its period, inside the searched range and beyond it alike."""
+    flat = np.ascontiguousarray(z.reshape(z.shape[0], -1))
+    out = np.zeros(flat.shape[1], np.bool_)
+    _ambiguous(flat, float(threshold), float(ratio), out)
+    return out.reshape(z.shape[1:])
+
+
 def _spread_to_cells(sig: np.ndarray, m: int) -> np.ndarray:
     """(D, ny - m + 1, nx - m + 1) patch flags -> (D, ny, nx): a cell is flagged when a patch covering it is."""
     d, by, bx = sig.shape
@@ -348,6 +389,25 @@ def _spread_to_cells(sig: np.ndarray, m: int) -> np.ndarray:
     for i in range(m):
         for j in range(m):
             out[:, i:i + by, j:j + bx] |= sig
+    return out
+
+
+def _repeats_to_the_right(mirrored: CellSums, m: int, short: np.ndarray, threshold: float, width: int) -> np.ndarray:
+    """(ny, nx) bool: the cells covered by a patch of m x m cells whose correlation with what lies to its right
+    (``mirrored``: the cell sums of the images flipped left to right, the two views swapped) peaks twice
+    (:func:`ambiguous_patches` at ``threshold``), the ``short`` lags left out as in the left profile. In a
+    complex image a texture echoes once either way (R(x) = L(x + d)); a repeating one at each period."""
+    rho = patch_correlations(mirrored, m)
+    rho[short] = np.nan
+    z, _ = standardised(rho)
+    flipped = _spread_to_cells(ambiguous_patches(z, threshold)[None], m)[0]
+    cell = CELL_PX
+    out = np.zeros_like(flipped)
+    for cx in range(flipped.shape[1]):           # flipped cell cx spans these columns of the image
+        a, b = (width - (cx + 1) * cell) // cell, (width - cx * cell - 1) // cell
+        for c in {a, b}:
+            if 0 <= c < out.shape[1]:
+                out[:, c] |= flipped[:, cx]
     return out
 
 
@@ -363,6 +423,7 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
     families = len(BANDS_PX) * len(BLOCK_CELLS)
     ny, nx = h // CELL_PX, w // CELL_PX
     echo = np.zeros((len(lags), ny, nx), bool)
+    ambiguous = np.zeros((ny, nx), bool)
     best = (-math.inf, 0.0, 1.0, (0.0, 0.0, 0, 0))
     first, tests = int(lags[0]), 0
     judged = (lags >= math.ceil(d_min)) & (lags <= math.floor(d_max))
@@ -371,6 +432,7 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
         if inside is not None:
             f, g = np.where(inside[0], f, 0.0), np.where(inside[1], g, 0.0)
         sums = cell_sums(f, g, lags)
+        mirrored = cell_sums(g[:, ::-1], f[:, ::-1], lags)   # each patch against what lies to its right
         for m in BLOCK_CELLS:
             if ny < m or nx < m:
                 continue
@@ -387,6 +449,13 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
             level = chance_level(z, alpha / families)
             tests += level.tests
             zj = np.where(judged[:, None, None], z, np.nan)
+            above = _spread_to_cells((np.nan_to_num(zj, nan=-np.inf) > level.threshold).any(axis=0)[None], m)[0]
+            # a repeat beyond the range counts, and one to the right (a patch near the left edge sees its
+            # texture's copies there): the patch, or the cells a mirrored patch covers, say no echo
+            amb = ambiguous_patches(z, level.threshold)
+            amb_right = _repeats_to_the_right(mirrored, m, lags < start, level.threshold, w)
+            ambiguous |= above & (_spread_to_cells(amb[None], m)[0] | amb_right)
+            zj[:, amb] = np.nan
             if np.isfinite(zj).any():
                 k, by, bx = np.unravel_index(np.nanargmax(zj), zj.shape)
                 ratio = zj[k, by, bx] / level.threshold
@@ -394,5 +463,6 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
                     side = m * CELL_PX
                     best = (ratio, float(zj[k, by, bx]), level.threshold,
                             (bx * CELL_PX + side / 2 - 0.5, by * CELL_PX + side / 2 - 0.5, side, int(lags[k])))
-            echo |= _spread_to_cells(np.nan_to_num(zj, nan=-np.inf) > level.threshold, m)
-    return EchoTest(echo, lags, CELL_PX, float(best[0]), float(best[1]), float(best[2]), best[3], first, tests)
+            echo |= _spread_to_cells(np.nan_to_num(zj, nan=-np.inf) > level.threshold, m) & ~amb_right[None]
+    return EchoTest(echo, lags, CELL_PX, float(best[0]), float(best[1]), float(best[2]), best[3], first, tests,
+                    ambiguous & ~echo.any(axis=0))

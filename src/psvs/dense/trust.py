@@ -123,13 +123,21 @@ class EchoTrust:
 
 def _supported(test: EchoTest, disparity: np.ndarray, confidence: np.ndarray, scale: float, right: bool) -> np.ndarray:
     """Which pixels of one map (H, W) are trusted: anchored (they carry their own echo and lie in a patch
-    echoing at their disparity), or in a consistent region with an anchored pixel."""
+    echoing at their disparity), or in a consistent region with an anchored pixel and not where the texture
+    repeats along the rows (the echo test's ambiguous cells)."""
     v, u = np.nonzero((confidence > 0) & np.isfinite(disparity))
     d = disparity[v, u].astype(np.float64) / scale
     at = u / scale + (d if right else 0.0)
     anchored = np.zeros(disparity.shape, bool)
     anchored[v, u] = test.covers(d, at, v / scale, TOL_PX)
-    return grown(anchored, disparity, confidence) if anchored.any() else anchored
+    if not anchored.any():
+        return anchored
+    # a region does not grow over a texture that repeats along the rows: its answer there is one of several
+    cy, cx = (v / scale // test.cell_px).astype(int), (at // test.cell_px).astype(int)
+    inside = (cy >= 0) & (cy < test.ambiguous.shape[0]) & (cx >= 0) & (cx < test.ambiguous.shape[1])
+    repeating = np.zeros(disparity.shape, bool)
+    repeating[v[inside], u[inside]] = test.ambiguous[cy[inside], cx[inside]]
+    return grown(anchored, disparity, confidence) & ~repeating
 
 
 def echo_trust(image, result: DenseResult, image_right=None,

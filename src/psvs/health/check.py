@@ -23,6 +23,7 @@ uncertainty straddles the tolerance (more frames decide it).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -129,10 +130,16 @@ def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.
             raise ValueError(f"frame {k + 1} is {g.shape[1]}x{g.shape[0]} px, the rig's camera {w}x{h}")
         grey.append(g)
     check = judge([frame_tiles(g, rig, near_mm, far_mm) for g in grey], tolerance_px)
-    if check.verdict != "cannot judge":
+    beyond = check.verdict == "drifted" and not np.isfinite(check.uncertainty_px)    # peaks on the reach's edge
+    if check.verdict != "cannot judge" and not beyond:
         return check
     wider = judge([frame_tiles(g, rig, near_mm, far_mm, FAR_REACH_DEG) for g in grey], tolerance_px)
-    return wider if wider.verdict != "cannot judge" else check       # twins beyond the usual reach?
+    if wider.verdict != "cannot judge":
+        return wider                                                # twins beyond the usual reach, found
+    if beyond:      # what lay past the reach's edge is no twin the wider search finds: a texture, not a knock
+        return dataclasses.replace(wider, reason=f"{check.reason.split(':')[0]}, but searched "
+                                   f"{FAR_REACH_DEG:g} deg either side {wider.reason}")
+    return check
 
 
 def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> HealthCheck:
@@ -149,6 +156,12 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
                  tiles=len(offset), tiles_tried=tried, frames=len(tiles), tolerance_px=float(tolerance_px),
                  grid_shape=t0.grid_shape, centre_px=centre, offset_px=offset, fitted_px=n_nan,
                  coefficients=np.full(6, np.nan), disparity_px=disparity)
+    repeating = int(sum(int(t.repeating.sum()) for t in tiles if t.repeating is not None))
+    if repeating > edge + len(offset):
+        return HealthCheck("cannot judge", f"the texture repeats along the rows: {repeating} tiles match about as "
+                           f"well away from their best peak as at it, {edge + len(offset)} do not (a repeating "
+                           "texture tells no twin's row): frames of a scene whose texture does not repeat are needed",
+                           **found)
     if edge >= max(MIN_TILES, EDGE_SHARE * (edge + len(offset))):
         found.update(row_offset_rms_px=float(t0.reach_px), row_offset_max_px=float(t0.reach_px))
         return HealthCheck("drifted", f"the twins of {edge} tiles lie {t0.reach_px} rows or more off their rows, "

@@ -12,7 +12,10 @@ through its 3 x 3 neighbourhood, is the tile's row offset (right twin's row minu
 
 **Tested against chance, tile by tile.** A tile's peak must stand :data:`NULL_MARGIN` above the best
 correlation the same tile finds in :data:`NULLS` bands of rows far from its own (where no twin can be, so
-whatever peak they give is what its texture gives by chance), its texture must stand above the sensor's
+whatever peak they give is what its texture gives by chance), stand above its best match in its own search
+away from its peak (more than the band-pass's coarse sigma off it) by :data:`UNIQUE_SHARE` of that margin (a
+texture that repeats along the rows, bricks or stripes, matches almost as well a period away, and a vertical
+ridge at another row: neither tells its twin's row), its texture must stand above the sensor's
 noise (:data:`MIN_TEXTURE_DN`), and the peak must be a peak (a negative-definite quadratic, inside the
 searched rows). A tile whose best peak lies on the searched rows' edge is counted apart: its twin may be
 farther off than the search reaches.
@@ -43,6 +46,9 @@ TILE_PX = (48, 128)
 #: Bands of rows far from a tile's own searched for its chance peak, and how far above it its peak must be.
 NULLS = 4
 NULL_MARGIN = 0.05
+#: A tile's peak must stand above its best match elsewhere in its own search (off the peak's lobe) by this
+#: share of its margin over chance (a texture that repeats along the rows matches almost as well a period away).
+UNIQUE_SHARE = 0.5
 #: A tile's band-passed grey levels must spread this much (DN, standard deviation): above the sensor's noise.
 MIN_TEXTURE_DN = 1.0
 #: The band-pass: a difference of Gaussians of these sigmas (px).
@@ -54,10 +60,11 @@ class FrameTiles:
     """One frame's tiles on the left grid: ``centre_px`` (n, 2) (u', v') of each tile's centre, ``offset_px``
     (n,) its twin's row offset and ``disparity_px`` (n,) its disparity (NaN where not read), ``score`` (n,)
     its peak's correlation and ``chance`` (n,) the best its texture gave by chance, ``accepted`` (n,) the
-    tiles that pass the chance test, ``at_edge`` (n,) those whose best peak lay on the searched rows' edge;
-    ``size_px`` a tile's side, ``reach_px`` the rows searched either side, ``grid_shape`` (H', W'), ``rect``
-    the rectification read through (None: the paper's geometry), ``of_tiles`` how many tiles the whole frame
-    holds (these may be a subset of them)."""
+    tiles that pass the chance test, ``at_edge`` (n,) those whose best peak lay on the searched rows' edge,
+    ``repeating`` (n,) those above chance that match almost as well away from their peak (a repeating
+    texture: not accepted); ``size_px`` a tile's side, ``reach_px`` the rows searched either side,
+    ``grid_shape`` (H', W'), ``rect`` the rectification read through (None: the paper's geometry),
+    ``of_tiles`` how many tiles the whole frame holds (these may be a subset of them)."""
 
     centre_px: np.ndarray
     offset_px: np.ndarray
@@ -71,6 +78,7 @@ class FrameTiles:
     grid_shape: tuple[int, int]
     rect: Rectification | None
     of_tiles: int = 0
+    repeating: np.ndarray | None = None
 
 
 def reach_px(rig: Rig, reach_deg: float = REACH_DEG) -> int:
@@ -158,11 +166,14 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
         bands = _merged([(y - reach, y + size + reach) for y in read])
     a, b = _band_passed(image, rig, rect, bands, (h, w))
     out = [_tile(a, b, xy, (size, reach), (lo, hi), rows) for xy in at]
-    arr = np.array(out, dtype=float).reshape(-1, 8)
-    accepted = (np.isfinite(arr[:, 2]) & (arr[:, 4] >= arr[:, 5] + NULL_MARGIN) & (arr[:, 6] >= MIN_TEXTURE_DN))
-    at_edge = (arr[:, 7] > 0) & (arr[:, 4] >= arr[:, 5] + NULL_MARGIN) & (arr[:, 6] >= MIN_TEXTURE_DN)
+    arr = np.array(out, dtype=float).reshape(-1, 9)
+    score, chance, rival = arr[:, 4], arr[:, 5], arr[:, 8]
+    textured = (score >= chance + NULL_MARGIN) & (arr[:, 6] >= MIN_TEXTURE_DN)
+    unique = score - rival >= UNIQUE_SHARE * (score - chance)
+    accepted = np.isfinite(arr[:, 2]) & textured & unique
+    at_edge = (arr[:, 7] > 0) & textured & unique
     return FrameTiles(arr[:, :2], arr[:, 2], arr[:, 3], arr[:, 4], arr[:, 5], accepted, at_edge, size, reach,
-                      (h, w), rect, len(rows) * len(cols))
+                      (h, w), rect, len(rows) * len(cols), textured & ~unique)
 
 
 def _tile(a, b, at, size_reach, span, rows) -> tuple:
@@ -176,16 +187,22 @@ def _tile(a, b, at, size_reach, span, rows) -> tuple:
     x0 = max(x - hi, 0)
     search = b[y - reach:y + size + reach, x0:x + size - lo]
     if search.shape[1] < size + 2 or texture <= 0:
-        return (*centre, np.nan, np.nan, -1.0, 1.0, texture, 0)
+        return (*centre, np.nan, np.nan, -1.0, 1.0, texture, 0, 1.0)
     r = cv2.matchTemplate(search, t, cv2.TM_CCOEFF_NORMED)
     i, j = np.unravel_index(int(np.argmax(r)), r.shape)
+    # its own search away from its peak: a texture that repeats along the rows (or a ridge along the columns)
+    # matches about as well there, and which is the twin cannot be told
+    lobe = int(BAND_SIGMAS_PX[1])
+    away = r.copy()
+    away[max(0, i - lobe):i + lobe + 1, max(0, j - lobe):j + lobe + 1] = -1.0
+    rival = float(away.max())
     chance = -1.0
     for yy in _null_rows(y, rows, size):
         chance = max(chance, float(cv2.matchTemplate(b[yy - reach:yy + size + reach, x0:x + size - lo], t,
                                                      cv2.TM_CCOEFF_NORMED).max()))
     edge = int(i == 0 or i == r.shape[0] - 1)
     di, dj = _peak(r, i, j)
-    return (*centre, i + di - reach, x - (x0 + j + dj), float(r[i, j]), chance, texture, edge)
+    return (*centre, i + di - reach, x - (x0 + j + dj), float(r[i, j]), chance, texture, edge, rival)
 
 
 def _peak(r: np.ndarray, i: int, j: int) -> tuple[float, float]:
