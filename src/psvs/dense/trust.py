@@ -132,12 +132,17 @@ def _supported(test: EchoTest, disparity: np.ndarray, confidence: np.ndarray, sc
     anchored[v, u] = test.covers(d, at, v / scale, TOL_PX)
     if not anchored.any():
         return anchored
-    # a region does not grow over a texture that repeats along the rows: its answer there is one of several
-    cy, cx = (v / scale // test.cell_px).astype(int), (at // test.cell_px).astype(int)
-    inside = (cy >= 0) & (cy < test.ambiguous.shape[0]) & (cx >= 0) & (cx < test.ambiguous.shape[1])
-    repeating = np.zeros(disparity.shape, bool)
-    repeating[v[inside], u[inside]] = test.ambiguous[cy[inside], cx[inside]]
-    return grown(anchored, disparity, confidence) & ~repeating
+    trusted = grown(anchored, disparity, confidence)
+    if test.ambiguous.any():    # a region does not grow over a texture that repeats along the rows
+        ny, nx = test.ambiguous.shape
+        cy = (np.arange(disparity.shape[0]) / scale // test.cell_px).astype(np.int64)
+        rows = np.zeros(disparity.shape[0], bool)          # the pixel rows of cell rows holding such cells
+        rows[cy < ny] = test.ambiguous.any(axis=1)[cy[cy < ny]]
+        k = np.flatnonzero(rows[v])
+        cx = (at[k] // test.cell_px).astype(np.int64)
+        k, cx = k[(cx >= 0) & (cx < nx)], cx[(cx >= 0) & (cx < nx)]
+        trusted[v[k], u[k]] &= ~test.ambiguous[cy[v[k]], cx]
+    return trusted
 
 
 def echo_trust(image, result: DenseResult, image_right=None,
