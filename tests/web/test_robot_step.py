@@ -43,6 +43,22 @@ def test_the_run_reads_back_as_written(run_dir):
         arc_on = rep["config"]["look_ahead_mm"] + 10.0                    # psvs.robot.controller.TrackConfig
         assert d["welded"] == [float(x["s_mm"]) >= arc_on for x in rows] and any(d["welded"])
         assert d["report"]["lateral_mm"] == rep["lateral_mm"] and d["report"]["stop"] == rep["stop"]["reason"]
+        # the sensor's view at the last cycle: the arm's pose through report.json's hand-eye mounting
+        mount = np.array(rep["handeye"]["cam2flange"])
+        q = np.array([[float(x[f"q{i + 1}_rad"]) for i in range(6)] for x in rows])
+        assert mount.shape == (4, 4) and d["sensor"]["mounting"] == "hand-eye" and d["sensor"]["cycle"] == len(rows) - 1
+        from psvs.optics.project import project_points
+        from psvs.robot.mounting import tool2flange
+        from psvs.robot.sensor_view import cam2base
+        tcp = [float(rows[-1][f"tcp_{a}_mm"]) for a in "xyz"]    # the log's own torch: the arm's frames agree
+        np.testing.assert_allclose((cam2base(q[-1], np.eye(4)) @ tool2flange())[:3, 3], tcp, atol=1e-3)
+        np.testing.assert_allclose(d["sensor"]["camera"], cam2base(q[-1], mount)[:3, 3], atol=1e-9)
+        k = max(i for i, x in enumerate(rows) if x["valid"] == "1")       # the last seam point the sensor measured
+        seam = np.array([float(rows[k][f"seam_{a}_mm"]) for a in "xyz"] + [1.0])
+        in_c = (np.linalg.inv(cam2base(q[k], mount)) @ seam)[:3]
+        for view in ("left", "right"):                                      # lies in both views' fields
+            uv, ok = project_points(in_c[None], load_rig("default"), view)
+            assert ok[0] and 0 <= uv[0, 0] <= 639 and 0 <= uv[0, 1] <= 479, (view, uv)
         h = rep["health"]                                            # the self-check, on by default
         assert d["report"]["health"] == {k: h[k] for k in ("verdict", "row_offset_rms_px", "uncertainty_px", "steps",
                                                             "cost_pct", "lines")} and h["steps"] >= 1
@@ -74,6 +90,7 @@ def test_the_robot_step_draws_the_run(webgl_page, run_dir):
         assert said.startswith(h["verdict"] or "no step taken")
         assert f"({h['steps']} steps, {h['cost_pct']:.1f} % of the sensor's time)" in said
         assert int(webgl_page.get_attribute("#robot3d", "data-points")) == rep["valid_frames"]
+        assert int(webgl_page.get_attribute("#robot3d", "data-sensor")) == rep["cycles"] - 1
         webgl_page.wait_for_selector("#robot3d canvas", timeout=10000)
         shot(webgl_page, "web_robot_step.png")
         # one file alone is not a run

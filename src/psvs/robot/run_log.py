@@ -32,7 +32,8 @@ class RunLog:
     """A run's cycles: ``t_s`` (n,), the torch's progress along the seam ``s_mm`` (n,), ``tcp_mm``, ``target_mm``,
     ``seam_mm`` (n, 3; NaN where the sensor saw no
     seam) in the robot's base frame, ``valid`` (n,) bool (the sensor saw the seam), ``lateral_mm``
-    and ``vertical_mm`` (n,) the torch's deviation from the true seam, ``notes`` (n,) str; with the self-check
+    and ``vertical_mm`` (n,) the torch's deviation from the true seam, ``notes`` (n,) str, ``q_rad`` (n, 6) the
+    arm's joint angles; with the self-check
     ``health`` (n,) its verdict as of each cycle ('' before its first) and ``row_offset_rms_px`` (n,) its figure
     (NaN where it had none), else None each."""
 
@@ -47,6 +48,7 @@ class RunLog:
     notes: tuple
     health: tuple | None = None
     row_offset_rms_px: np.ndarray | None = None
+    q_rad: np.ndarray | None = None
 
     def welded(self, arc_on_mm: float) -> np.ndarray:
         """Mask (n,) of the cycles with the arc on (the torch's progress at ``arc_on_mm`` or beyond: the run-in
@@ -107,7 +109,7 @@ def _read_log(text: str, where: str) -> RunLog:
                   col("target_x_mm", "target_y_mm", "target_z_mm"), col("seam_x_mm", "seam_y_mm", "seam_z_mm"),
                   one("valid") == 1.0, one("lateral_mm"), one("vertical_mm"), tuple(notes),
                   tuple(h[0] for h in health) if checked else None,
-                  np.array([h[1] for h in health]) if checked else None)
+                  np.array([h[1] for h in health]) if checked else None, col(*(f"q{i + 1}_rad" for i in range(6))))
 
 
 def _health_cells(cells: list[str], where: str, k: int) -> tuple[str, float]:

@@ -8,9 +8,14 @@ import json
 import numpy as np
 from fastapi import APIRouter
 
+from psvs.io.jsonsafe import json_safe
 from psvs.robot.controller import TrackConfig
+from psvs.robot.handeye_session import nominal_cam2flange
+from psvs.robot.loop import sensor_range
 from psvs.robot.run_log import read_log_csv
+from psvs.robot.sensor_view import sensor_view
 from psvs.web.bodies import RobotRunBody
+from psvs.web.session import SessionDep
 
 router = APIRouter(prefix="/api")
 
@@ -22,10 +27,16 @@ def _report(text: str) -> dict:
     """report.json's figures the page shows; ValueError naming what is missing."""
     try:
         rep = json.loads(text)
+        cfg = TrackConfig(**rep["config"])
+        mount = rep["handeye"].get("cam2flange")
+        mount = None if mount is None else np.array(mount, dtype=float)
+        if mount is not None and (mount.shape != (4, 4) or not np.isfinite(mount).all()):
+            raise ValueError("handeye.cam2flange is no 4 x 4 pose")
         out = {"cycles": int(rep["cycles"]), "welded_mm": float(rep["welded_mm"]),
                "valid_frames": int(rep["valid_frames"]), "lateral_mm": rep["lateral_mm"],
                "vertical_mm": rep["vertical_mm"], "stop": rep["stop"]["reason"],
-               "arc_on_mm": TrackConfig(**rep["config"]).arc_on_mm, "health": _health(rep.get("health"))}
+               "arc_on_mm": cfg.arc_on_mm, "health": _health(rep.get("health")), "config": cfg,
+               "cam2flange": mount}
     except json.JSONDecodeError as exc:
         raise ValueError(f"report.json is not JSON: {exc.msg} at line {exc.lineno}") from None
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
@@ -48,11 +59,14 @@ def _health(h) -> dict | None:
 
 
 @router.post("/robot/run")
-def robot_run(body: RobotRunBody):
+def robot_run(body: RobotRunBody, session: SessionDep):
     """The run's torch path (``tcp_mm``), its targets, the seam points the sensor measured (``seam_mm``, the
     cycles it saw the seam), the lateral deviation of each drawn cycle and whether the arc was on, all in the
     robot's base frame (mm, every k-th cycle when there are more than :data:`MAX_DRAWN`, and the last: where the
-    torch stopped); and report.json's figures (``report``). The two files must be of one run (as many cycles)."""
+    torch stopped); report.json's figures (``report``); and the sensor's view at the last cycle (``sensor``: the
+    served rig's camera, its light paths through the glasses and both views' fields over the seam sensor's depths,
+    in the base frame, through the arm's pose and report.json's hand-eye mounting, or the bracket drawing's for
+    a report without one: :func:`psvs.robot.sensor_view.sensor_view`). The two files must be of one run."""
     log = read_log_csv(body.log, "log.csv")
     rep = _report(body.report)
     if rep["cycles"] != len(log.t_s):
@@ -62,6 +76,12 @@ def robot_run(body: RobotRunBody):
     sel = np.unique(np.r_[np.arange(0, n, step), n - 1])
     seen = log.valid[sel]
     welded = log.welded(rep["arc_on_mm"])[sel]
+    cfg, mount = rep.pop("config"), rep.pop("cam2flange")
+    mounted = "hand-eye" if mount is not None else "bracket drawing"
+    if mount is None:      # a report of before it was written: the bracket drawing's mounting
+        mount = nominal_cam2flange(cfg)
+    view = sensor_view(log.q_rad[-1], mount, session.rig, *sensor_range(cfg))
     return {"tcp_mm": log.tcp_mm[sel].round(4).tolist(), "target_mm": log.target_mm[sel].round(4).tolist(),
             "seam_mm": log.seam_mm[sel][seen].round(4).tolist(), "lateral_mm": log.lateral_mm[sel].round(4).tolist(),
-            "welded": welded.tolist(), "step": step, "report": rep}
+            "welded": welded.tolist(), "step": step, "report": rep,
+            "sensor": json_safe(view | {"mounting": mounted, "cycle": n - 1})}

@@ -162,7 +162,7 @@ function drawCloud3d(el, cloud, colour = "depth", noteId = "dense-cloud-note", w
 }
 
 // A seam-tracking run (POST /api/robot/run) in the robot's base frame (mm, Z up): the seam points the sensor
-// measured, the torch's path (grey in the run-in, red with the arc on), and where it started and stopped.
+// measured, the torch's path (grey in the run-in, red with the arc on), where it stopped, and the sensor's view.
 function drawRobot3d(el, run) {
   el.hidden = false;
   if (typeof Plotly === "undefined") return Promise.resolve();
@@ -178,12 +178,40 @@ function drawRobot3d(el, run) {
     { type: "scatter3d", mode: "markers+text", name: "stop", x: [last[0]], y: [last[1]], z: [last[2]], text: ["stop"],
       textposition: "top center", marker: { size: 4, color: RIG3D_COLOURS.camera, symbol: "square" }, showlegend: false },
   ];
+  traces.push(...robotSensorTraces(run.sensor));
   const layout = { margin: { l: 0, r: 0, t: 0, b: 0 }, showlegend: true,
                    legend: { orientation: "h", x: 0, y: 0, font: { size: 10 }, bgcolor: "rgba(255,255,255,0.7)" },
                    scene: { aspectmode: "data", xaxis: { title: { text: "X (mm)" } }, yaxis: { title: { text: "Y (mm)" } },
                             zaxis: { title: { text: "Z (mm)" } }, camera: { eye: { x: 0.8, y: -1.4, z: 1.0 } } } };
   return Plotly.react(el, traces, layout, { displaylogo: false, responsive: true })
-    .then(() => { el.dataset.ready = "1"; el.dataset.points = String(run.seam_mm.length); });
+    .then(() => { el.dataset.ready = "1"; el.dataset.points = String(run.seam_mm.length);
+                  el.dataset.sensor = run.sensor ? String(run.sensor.cycle) : ""; });
+}
+
+// The PSVS's view at the run's last cycle (POST /api/robot/run's `sensor`, base frame, mm): the camera, its
+// light through the glasses to the work, and each view's field over the seam sensor's depths.
+function robotSensorTraces(s) {
+  if (!s) return [];
+  const lines = (polys, name, colour, width, dash) => {
+    const x = [], y = [], z = [];
+    for (const line of polys) {
+      for (const p of line) { x.push(p === null ? null : p[0]); y.push(p === null ? null : p[1]); z.push(p === null ? null : p[2]); }
+      x.push(null); y.push(null); z.push(null);
+    }
+    return { type: "scatter3d", mode: "lines", name, x, y, z, hoverinfo: "name", line: { color: colour, width, dash } };
+  };
+  const out = [];
+  for (const view of ["left", "right"]) {
+    out.push(lines(s.rays[view], `${view} view's light (last cycle; mounting: ${s.mounting})`, RIG3D_COLOURS[view], 2,
+                   "solid"));
+    const fields = ["near", "far"].map((k) => s.field[view][k]).filter((f) => f);
+    out.push(lines(fields.map((f) => [...f, f[0]]), `${view} view's field over the sensor's depths`,
+                   RIG3D_COLOURS[view], 3, "dash"));
+  }
+  out.push({ type: "scatter3d", mode: "markers+text", name: "PSVS camera", x: [s.camera[0]], y: [s.camera[1]],
+             z: [s.camera[2]], text: ["PSVS"], textposition: "top center", showlegend: false,
+             marker: { size: 4, color: RIG3D_COLOURS.camera, symbol: "diamond" } });
+  return out;
 }
 
 // The dense result's depth map (the trusted pixels' Z, mm; every step-th pixel of the map, blank where the

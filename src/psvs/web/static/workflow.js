@@ -211,8 +211,9 @@ $("robot-run").addEventListener("change", async (e) => {
     $("robot-health").classList.toggle("bad", h !== null && h.verdict === "drifted");
     await drawRobot3d($("robot3d"), run);
     $("robot3d-note").textContent = `${run.seam_mm.length} seam points measured` +
-      (run.step > 1 ? ` (every ${run.step}th cycle drawn)` : "") + "; the deviations over the welded part, as " +
-      "report.json states them; drag to turn, scroll to zoom.";
+      (run.step > 1 ? ` (every ${run.step}th cycle drawn)` : "") + "; the PSVS at the last cycle: its light " +
+      `through the glasses and both views' fields (${run.sensor.mounting} mounting, this page's rig); the ` +
+      "deviations over the welded part, as report.json states them; drag to turn, scroll to zoom.";
     stepStatus("robot-status", `${log.name} and ${report.name}: ${r.cycles} cycles`, true);
     document.body.dataset.robotDone = "1";
   } catch (err) { stepStatus("robot-status", "run: " + err.message); document.body.dataset.robotDone = "error"; }
