@@ -181,6 +181,16 @@ def test_the_dense_cloud_is_the_trusted_pixels_at_their_depth(textured_app):
     truth = r.truth.depth_left_mm[::g["step"], ::g["step"]]
     seen = np.isfinite(z) & np.isfinite(truth)
     assert seen.mean() > 0.3 and np.mean(np.abs(z[seen] / truth[seen] - 1) <= 0.02) >= 0.9
+    # the untrusted answers, drawn as such: exactly the answered pixels the trust test leaves out (the library's
+    # own call on the same image, independent of the route)
+    from psvs.dense import FAST
+    from psvs.dense.build import dense_on_rig, rig_trust
+    dense = dense_on_rig(r.image, default_rig(), 400.0, 1200.0, params=FAST)
+    d, trusted = dense.result.disparity_left, rig_trust(dense).trusted_left
+    untrusted = np.array(g["untrusted_px"], dtype=float)
+    expect = np.isfinite(d) & ~trusted
+    assert (np.isfinite(untrusted) == expect[::g["step"], ::g["step"]]).all() and expect.mean() > 0.05
+    np.testing.assert_allclose(untrusted[np.isfinite(untrusted)], np.round(d[expect], 2), atol=0.006)
     blank = create_app(image_source("blank", np.full((480, 640), 90, np.uint8)), default_rig())
     with local_client(blank) as c:
         res = c.post("/api/dense", json={"fast": True}).json()
@@ -216,6 +226,14 @@ def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
                               " el.layout.dragmode]; })()".replace("[v][u]", f"[{v}][{u}]"))
         assert depth[:2] == [480, 640] and depth[3:] == ["Z (mm)", "zoom"]
         assert abs(depth[2] / truth - 1) <= 0.02
+        # the disparity map at full resolution, zoomable, a colour bar in px, the unsupported answers in grey
+        disp = page.evaluate("(() => { const el = document.getElementById('dense-disparity-map');"
+                             " return [el.data[1].z.length, el.data[1].z[0].length, el.data[1].colorbar.title.text,"
+                             " el.data[0].showscale, Number(el.dataset.untrusted), el.layout.dragmode]; })()")
+        sent = page.evaluate("fetch('/api/dense', {method: 'POST', headers: {'Content-Type': 'application/json'},"
+                             " body: JSON.stringify({fast: true})}).then(r => r.json())"
+                             ".then(d => d.pointer.untrusted_px.flat().filter(x => x !== null).length)")
+        assert disp == [480, 640, "d (px)", False, sent, "zoom"] and sent > 1000, (disp, sent)
         page.locator("#dense-depth-map").scroll_into_view_if_needed()
         shot(page, "web_dense_cloud.png")
         # the cloud in the image's grey levels: each point its pixel's grey, as /api/dense sent them

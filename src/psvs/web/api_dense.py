@@ -29,13 +29,16 @@ POINTER_CELLS = 310_000
 
 def pointer_grid(d: np.ndarray, z: np.ndarray, seen: np.ndarray) -> dict:
     """Every ``step``-th pixel's disparity (px, 0.01) and depth (mm, 0.1) of the map (H', W'), null where the
-    echo does not support it beyond chance: what the page shows under the pointer. ``step`` keeps the grid
-    within POINTER_CELLS."""
+    echo does not support it beyond chance: what the page shows under the pointer and draws as its maps; and
+    ``untrusted_px`` the disparity of the pixels answered but not supported (null elsewhere), drawn as such.
+    ``step`` keeps the grid within POINTER_CELLS."""
     step = max(1, int(np.ceil(np.sqrt(d.size / POINTER_CELLS))))
-    ok = seen[::step, ::step] & np.isfinite(z[::step, ::step])
+    ds, zs = d[::step, ::step], z[::step, ::step]
+    ok = seen[::step, ::step] & np.isfinite(zs)
     return {"step": step, "shape": list(d.shape),
-            "disparity_px": np.where(ok, np.round(d[::step, ::step], 2), np.nan),
-            "z_mm": np.where(ok, np.round(z[::step, ::step], 1), np.nan)}
+            "disparity_px": np.where(ok, np.round(ds, 2), np.nan),
+            "z_mm": np.where(ok, np.round(zs, 1), np.nan),
+            "untrusted_px": np.where(np.isfinite(ds) & ~seen[::step, ::step], np.round(ds, 2), np.nan)}
 
 
 def even_subset(n: int, most: int = CLOUD_POINTS) -> np.ndarray:

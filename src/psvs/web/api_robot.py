@@ -28,7 +28,7 @@ def _report(text: str) -> dict:
     try:
         rep = json.loads(text)
         cfg = TrackConfig(**rep["config"])
-        mount = rep["handeye"].get("cam2flange")
+        mount = (rep.get("handeye") or {}).get("cam2flange")
         mount = None if mount is None else np.array(mount, dtype=float)
         if mount is not None and (mount.shape != (4, 4) or not np.isfinite(mount).all()):
             raise ValueError("handeye.cam2flange is no 4 x 4 pose")

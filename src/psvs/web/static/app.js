@@ -198,7 +198,11 @@ $("dense").addEventListener("click", async () => {
     $("dense-depth").textContent = fmt(res.median_z_mm, 1, "mm");
     $("dense-depth").dataset.mm = res.median_z_mm ?? "";
     state.densePointer = res.pointer;
+    await drawDisparityMap($("dense-disparity-map"), res.pointer);
     await drawDepthMap($("dense-depth-map"), res.pointer);
+    for (const [id, url] of [["dense-left-zoom", res.left_png], ["dense-right-zoom", res.right_png]]) {
+      if (url) await drawZoomableImage($(id), url); else $(id).hidden = true;
+    }
     state.denseCloud = res.cloud;
     await drawCloud3d($("dense-cloud"), res.cloud, $("dense-cloud-colour").value);
     if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, ` +

@@ -214,6 +214,39 @@ function robotSensorTraces(s) {
   return out;
 }
 
+// The dense result's left-view disparity at full resolution (every step-th pixel of the map) as a zoomable heat
+// map with a colour bar in px: the pixels the echo supports beyond chance in colour, those answered without
+// that support in grey (the CLI's confidence 0), the disparity under the pointer.
+function drawDisparityMap(el, g) {
+  el.hidden = false;
+  if (typeof Plotly === "undefined") return Promise.resolve();
+  const cols = g.disparity_px[0].length, rows = g.disparity_px.length;
+  const u = Array.from({ length: cols }, (_, k) => k * g.step), v = Array.from({ length: rows }, (_, k) => k * g.step);
+  let untrusted = 0;
+  for (const row of g.untrusted_px) for (const x of row) if (x !== null) untrusted += 1;
+  const traces = [
+    { type: "heatmap", x: u, y: v, z: g.untrusted_px, colorscale: [[0, "#bdbdbd"], [1, "#bdbdbd"]], showscale: false,
+      hoverongaps: false, name: "not supported", hovertemplate: "(%{x}, %{y}): %{z:.2f} px, not supported beyond chance<extra></extra>" },
+    { type: "heatmap", x: u, y: v, z: g.disparity_px, colorscale: "Portland", hoverongaps: false, name: "supported",
+      colorbar: { title: { text: "d (px)" }, thickness: 14 }, hovertemplate: "(%{x}, %{y}): %{z:.2f} px<extra></extra>" },
+  ];
+  const layout = { margin: { l: 50, r: 10, t: 10, b: 40 }, dragmode: "zoom",
+                   xaxis: { title: { text: "u (px)" }, constrain: "domain" },
+                   yaxis: { title: { text: "v (px)" }, autorange: "reversed", scaleanchor: "x" } };
+  return Plotly.react(el, traces, layout, { displaylogo: false, responsive: true })
+    .then(() => { el.dataset.ready = "1"; el.dataset.untrusted = String(untrusted); });
+}
+
+// An image (a PNG data URL) at full resolution, zoomable: drag a box to zoom, double-click to zoom out.
+function drawZoomableImage(el, url) {
+  el.hidden = false;
+  if (typeof Plotly === "undefined") return Promise.resolve();
+  const layout = { margin: { l: 40, r: 10, t: 10, b: 30 }, dragmode: "zoom",
+                   xaxis: { constrain: "domain" }, yaxis: { autorange: "reversed", scaleanchor: "x" } };
+  return Plotly.react(el, [{ type: "image", source: url, hovertemplate: "(%{x}, %{y})<extra></extra>" }], layout,
+                      { displaylogo: false, responsive: true }).then(() => { el.dataset.ready = "1"; });
+}
+
 // The dense result's depth map (the trusted pixels' Z, mm; every step-th pixel of the map, blank where the
 // echo does not support the answer) as a zoomable heat map with a colour bar in mm: drag a box to zoom,
 // double-click to zoom out; the pixel and its Z under the pointer.

@@ -16,7 +16,8 @@ function showStep() {
   document.body.dataset.step = step;
   // plotly sizes a plot to its element: one drawn while hidden is redrawn at its size once shown
   if (typeof Plotly !== "undefined") {
-    for (const id of ["rig3d", "mount3d", "dense-cloud", "dense-depth-map", "robot3d", "live-cloud"]) {
+    for (const id of ["rig3d", "mount3d", "dense-cloud", "dense-depth-map", "dense-disparity-map", "dense-left-zoom",
+                      "dense-right-zoom", "robot3d", "live-cloud"]) {
       const el = $(id);
       if (el && el.dataset.ready && el.offsetParent !== null) Plotly.Plots.resize(el);
     }
@@ -77,7 +78,9 @@ function forgetResults() {
                     "check-tiles"]) { $(id).textContent = "–"; delete $(id).dataset.mm; }
   for (const id of ["check-reason", "check-explained", "dense-cloud-note"]) $(id).textContent = "";
   for (const id of ["dense-map", "dense-left", "dense-right", "check-map"]) $(id).removeAttribute("src");
-  for (const id of ["dense-cloud", "dense-depth-map"]) $(id).hidden = true;
+  for (const id of ["dense-cloud", "dense-depth-map", "dense-disparity-map", "dense-left-zoom", "dense-right-zoom"]) {
+    $(id).hidden = true;
+  }
   $("check-verdict").className = "";
   draw();
 }
