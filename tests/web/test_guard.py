@@ -103,7 +103,7 @@ def test_every_route_that_changes_something_is_guarded(app, client):
     GET routes only read (exports, states, frames), and need neither."""
     routes = [r for module in ROUTERS for r in module.router.routes]
     posts = sorted(r.path for r in routes if "POST" in r.methods)
-    assert len(posts) == 15, posts
+    assert len(posts) == 16 and "/api/source/video" in posts, posts
     for path in posts:
         assert client.post(path, json={}).status_code == 403, path
         assert client.post(path, json={}, headers={"Origin": "http://evil.example"}).status_code == 403, path
@@ -115,7 +115,7 @@ def test_every_route_that_changes_something_is_guarded(app, client):
 
 # ---- Body type: what a browser sends across origins without a preflight never reaches a route --------------------
 
-@pytest.mark.parametrize("path", ["/api/match", "/api/preview", "/api/live/start", "/api/upload"])
+@pytest.mark.parametrize("path", ["/api/match", "/api/preview", "/api/live/start", "/api/upload", "/api/source/video"])
 @pytest.mark.parametrize("ctype", ["text/plain", "text/plain;charset=UTF-8", "application/x-www-form-urlencoded",
                                    "multipart/form-data; boundary=x", None])
 def test_a_body_of_another_type_is_415(app, client, still, path, ctype):
@@ -127,10 +127,11 @@ def test_a_body_of_another_type_is_415(app, client, still, path, ctype):
         headers = {**who, **({} if ctype is None else {"Content-Type": ctype})}
         r = client.post(path, content=body, headers=headers)
         assert r.status_code == 415, r.text
-        wanted = "an image (image/png, image/jpeg, " if path == "/api/upload" else "application/json, got "
+        wanted = {"/api/upload": "an image (image/png, image/jpeg, ",
+                  "/api/source/video": "a video (video/x-msvideo, video/avi, "}.get(path, "application/json, got ")
         assert r.json()["detail"].startswith(f"POST {path} takes {wanted}")
     assert np.array_equal(served(client), before)
-    wrong = "application/json" if path == "/api/upload" else "image/png"
+    wrong = "application/json" if path in ("/api/upload", "/api/source/video") else "image/png"
     assert client.post(path, content=body, headers={**PAGE, "Content-Type": wrong}).status_code == 415
 
 

@@ -38,6 +38,7 @@ from psvs.web import (
     api_match,
     api_rig3d,
     api_robot,
+    api_source,
 )
 from psvs.web.api_image import MAX_BODY_BYTES
 from psvs.web.capture_runner import CaptureRunner, CaptureSetup
@@ -51,7 +52,7 @@ __all__ = ["MAX_BODY_BYTES", "ROUTERS", "STATIC", "create_app"]
 STATIC = Path(__file__).resolve().parent / "static"
 #: The routers of the API, one per concern.
 ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_calibrate, api_adjust, api_rig3d, api_check,
-           api_robot)
+           api_robot, api_source)
 #: Longest ``detail`` of a 4xx answer (characters).
 MAX_DETAIL = 300
 
@@ -113,11 +114,12 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig", capture:
         yield
         app.state.session.live.stop()
         app.state.session.capture.stop()
+        api_source.remove_videos(app)
 
     app = FastAPI(title="psvs", docs_url=None, redoc_url=None, openapi_url=None, lifespan=lifespan)
     app.state.session = session
     app.state.access = access or Access.for_bind("127.0.0.1")
-    app.add_middleware(BodyLimit, max_bytes=MAX_BODY_BYTES)
+    app.add_middleware(BodyLimit, max_bytes=MAX_BODY_BYTES, larger={"/api/source/video": api_source.MAX_VIDEO_BYTES})
     app.add_middleware(Guard, access=app.state.access)     # added last: runs first, before the body is read
     for error in (ValueError, TypeError, cv2.error):
         app.add_exception_handler(error, bad_value)

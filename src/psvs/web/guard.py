@@ -44,7 +44,7 @@ from urllib.parse import parse_qs
 
 from psvs.web.limits import reply_json
 
-__all__ = ["LOOPBACK", "UPLOAD_PATHS", "UPLOAD_TYPES", "Access", "Guard", "split_host"]
+__all__ = ["LOOPBACK", "UPLOAD_PATHS", "UPLOAD_TYPES", "VIDEO_PATHS", "VIDEO_TYPES", "Access", "Guard", "split_host"]
 
 #: The names of this machine's loopback interface.
 LOOPBACK = frozenset({"localhost", "127.0.0.1", "::1"})
@@ -56,6 +56,11 @@ UPLOAD_PATHS = frozenset({"/api/upload"})
 #: origin without asking it first).
 UPLOAD_TYPES = ("image/png", "image/jpeg", "image/bmp", "image/tiff", "image/x-portable-anymap",
                 "image/x-portable-graymap", "image/x-portable-pixmap", "image/x-portable-bitmap")
+#: Paths whose body is a video file (``Content-Type`` one of VIDEO_TYPES: the page sends a file's own type, or
+#: application/octet-stream when the browser knows none; none of them CORS-simple).
+VIDEO_PATHS = frozenset({"/api/source/video"})
+VIDEO_TYPES = ("video/x-msvideo", "video/avi", "video/msvideo", "video/x-matroska", "video/mp4", "video/quicktime",
+               "video/webm", "application/octet-stream")
 #: ``Sec-Fetch-Site`` values of a request the page itself made, or the user typed.
 SAME_SITE_FETCH = frozenset({"same-origin", "none"})
 #: Longest quoted header in a refusal (characters).
@@ -252,10 +257,13 @@ class Guard:
     def _type_refusal(scope, headers: dict[str, str]) -> tuple[int, str]:
         if headers.get("content-length", "0").strip() in ("", "0") and "transfer-encoding" not in headers:
             return 0, ""                      # no body, no type to check
-        wanted = UPLOAD_TYPES if scope["path"] in UPLOAD_PATHS else ("application/json",)
+        path = scope["path"]
+        wanted = (UPLOAD_TYPES if path in UPLOAD_PATHS else VIDEO_TYPES if path in VIDEO_PATHS
+                  else ("application/json",))
         given = headers.get("content-type", "").split(";")[0].strip().lower()
         if given not in wanted:
-            what = f"an image ({', '.join(wanted[:5])}, ...)" if len(wanted) > 1 else wanted[0]
+            kind = "an image" if path in UPLOAD_PATHS else "a video"
+            what = f"{kind} ({', '.join(wanted[:5])}, ...)" if len(wanted) > 1 else wanted[0]
             return 415, (f"{scope['method']} {scope['path'][:MAX_QUOTE]} takes {what}, got "
                          f"{_quote(given) if given else 'no Content-Type'}")
         return 0, ""

@@ -35,23 +35,25 @@ def check_steps(steps) -> list[dict]:
 
 
 class BodyLimit:
-    """ASGI middleware: a request body above ``max_bytes`` (declared or streamed) gets 413 before the app
-    sees it; smaller bodies are buffered and replayed to the app."""
+    """ASGI middleware: a request body above ``max_bytes`` (declared or streamed; ``larger``: {path: bytes} for
+    the paths that take more, a video) gets 413 before the app sees it; smaller bodies are buffered and
+    replayed to the app."""
 
-    def __init__(self, app, max_bytes: int):
-        self.app, self.max_bytes = app, max_bytes
+    def __init__(self, app, max_bytes: int, larger: dict[str, int] | None = None):
+        self.app, self.default, self.larger = app, max_bytes, dict(larger or {})
 
     async def __call__(self, scope, receive, send):
         if scope["type"] != "http":
             return await self.app(scope, receive, send)
+        limit = self.larger.get(scope.get("path", ""), self.default)
         length = dict(scope.get("headers") or []).get(b"content-length")
         if length is not None:
             try:
                 declared = int(length)
             except ValueError:
                 return await reply_json(send, 400, "bad Content-Length")
-            if declared > self.max_bytes:
-                return await reply_json(send, 413, f"request body over {self.max_bytes} bytes")
+            if declared > limit:
+                return await reply_json(send, 413, f"request body over {limit} bytes")
         chunks, size = [], 0
         while True:
             message = await receive()
@@ -59,8 +61,8 @@ class BodyLimit:
                 return
             chunk = message.get("body", b"")
             size += len(chunk)
-            if size > self.max_bytes:
-                return await reply_json(send, 413, f"request body over {self.max_bytes} bytes")
+            if size > limit:
+                return await reply_json(send, 413, f"request body over {limit} bytes")
             chunks.append(chunk)
             if not message.get("more_body", False):
                 break

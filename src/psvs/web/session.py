@@ -100,6 +100,19 @@ class Session:
             self.rig, self.rig_name, self._result = rig, name, None
             self._generation += 1         # a match still running through the old rig stores nothing
 
+    def replace_source(self, source: Source) -> None:
+        """Serve ``source`` from now on (a video chosen in the page): its frames must be the rig's camera's size
+        (ValueError, one line, else); live mode and the capture stop (they read the old source), its first
+        frame becomes the current image and the last result is forgotten."""
+        w, h = self.image_size_px
+        if source.still.shape != (h, w):
+            raise ValueError(f"{source.name}'s frames are {source.still.shape[1]}x{source.still.shape[0]} px, the "
+                             f"rig's camera {w}x{h} px: a video of that camera, or the rig of this one")
+        self.live.stop()
+        self.capture.stop()
+        self.source = source
+        self.replace_still(source.still, source.name)
+
     def still(self) -> Still:
         """The current image, its name and generation, read together under the lock."""
         with self._lock:

@@ -39,7 +39,8 @@ class Source:
     def frames(self) -> Iterator[np.ndarray]:
         """A new iterator over the live frames (a file or a simulation loops; a camera runs until closed)."""
         if self._open is None:
-            raise ValueError("a still image has no live frames: start psvs serve with --video, --camera or --scene")
+            raise ValueError("a still image has no live frames: open a video in the Live or Capture step (or serve "
+                             "a camera or a scene: psvs serve --camera, --scene)")
         return self._open()
 
 

@@ -61,8 +61,8 @@ function showInfo(info) {
   showGlass(rig);
   $("live-start").disabled = !info.source.live;
   $("capture-start").disabled = !info.source.live || !info.capture;
-  if (!info.source.live) $("capture-folder").textContent = "Capture reads a camera or a video: serve one " +
-    "(psvs serve --camera or --video) to capture here.";
+  if (!info.source.live) $("capture-folder").textContent = "Capture reads a camera or a video: open a video " +
+    "above (or serve a camera: psvs serve --camera).";
   else if (info.capture) $("capture-folder").textContent = `Show the printed card (${info.capture.target}) to both ` +
     `views; each good pose is saved once into ${info.capture.folder}.`;
   else $("capture-folder").textContent = "Choose the card's target.toml and a new folder above, then start.";
@@ -221,6 +221,28 @@ $("robot-run").addEventListener("change", async (e) => {
     document.body.dataset.robotDone = "1";
   } catch (err) { stepStatus("robot-status", "run: " + err.message); document.body.dataset.robotDone = "error"; }
 });
+
+// A local video chosen in the Capture or Live step: sent to the server, which serves it from now on (its first
+// frame the current image; live mode and the capture read its frames in a loop).
+for (const input of document.querySelectorAll(".video-file")) {
+  input.addEventListener("change", async (e) => {
+    const file = e.target.files[0];
+    if (!file) return;
+    const say = (text, ok) => { stepStatus("video-status", text, ok); stepStatus("capture-hint", text, ok); };
+    document.body.dataset.videoDone = "";
+    say(`sending ${file.name}…`, true);
+    try {
+      const r = await fetch("/api/source/video?name=" + encodeURIComponent(file.name), {
+        method: "POST", body: file, headers: { "Content-Type": file.type || "application/octet-stream" } });
+      const d = await r.json();
+      if (!r.ok) throw new Error(d.detail || r.statusText);
+      showInfo(await api("/api/info"));
+      state.result = null; await loadImage(); schedulePreview();
+      say(`${d.name}: served in a loop at ${d.fps.toFixed(1)} frames/s`, true);
+      document.body.dataset.videoDone = "1";
+    } catch (err) { say("video: " + err.message); document.body.dataset.videoDone = "error"; }
+  });
+}
 
 // The page opens: the header, the panels, the rig in 3-D, the image (app.js draws it).
 (async function init() {
