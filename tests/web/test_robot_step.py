@@ -49,7 +49,7 @@ def test_the_run_reads_back_as_written(run_dir):
         assert mount.shape == (4, 4) and d["sensor"]["mounting"] == "hand-eye" and d["sensor"]["cycle"] == len(rows) - 1
         from psvs.optics.project import project_points
         from psvs.robot.mounting import tool2flange
-        from psvs.robot.sensor_view import cam2base
+        from psvs.robot.view3d import cam2base
         tcp = [float(rows[-1][f"tcp_{a}_mm"]) for a in "xyz"]    # the log's own torch: the arm's frames agree
         np.testing.assert_allclose((cam2base(q[-1], np.eye(4)) @ tool2flange())[:3, 3], tcp, atol=1e-3)
         np.testing.assert_allclose(d["sensor"]["camera"], cam2base(q[-1], mount)[:3, 3], atol=1e-9)

@@ -22,7 +22,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "recording": ["RunRecorder", "publish_stop", "replay_recording"],
         "report": ["write_report"],
         "run_log": ["HEALTH_LOG_COLUMNS", "LOG_COLUMNS", "RunLog", "read_log_csv"],
-        "sensor_view": ["cam2base", "sensor_view"],
+        "view3d": ["cam2base", "sensor_view"],
         "workpiece": ["seam_workpiece"],
     },
 )

@@ -13,7 +13,7 @@ from psvs.robot.controller import TrackConfig
 from psvs.robot.handeye_session import nominal_cam2flange
 from psvs.robot.loop import sensor_range
 from psvs.robot.run_log import read_log_csv
-from psvs.robot.sensor_view import sensor_view
+from psvs.robot.view3d import sensor_view
 from psvs.web.bodies import RobotRunBody
 from psvs.web.session import SessionDep
 
@@ -66,7 +66,7 @@ def robot_run(body: RobotRunBody, session: SessionDep):
     torch stopped); report.json's figures (``report``); and the sensor's view at the last cycle (``sensor``: the
     served rig's camera, its light paths through the glasses and both views' fields over the seam sensor's depths,
     in the base frame, through the arm's pose and report.json's hand-eye mounting, or the bracket drawing's for
-    a report without one: :func:`psvs.robot.sensor_view.sensor_view`). The two files must be of one run."""
+    a report without one: :func:`psvs.robot.view3d.sensor_view`). The two files must be of one run."""
     log = read_log_csv(body.log, "log.csv")
     rep = _report(body.report)
     if rep["cycles"] != len(log.t_s):
