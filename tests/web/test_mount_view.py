@@ -68,6 +68,11 @@ def test_the_mount_step_draws_the_mount(webgl_page, made):
         assert f"{n} triangles" in webgl_page.inner_text("#mount-status")
         names = webgl_page.evaluate("document.getElementById('mount3d').data.map(t => t.name)")
         assert any(x.startswith("mount.stl") for x in names) and any("field rays" in x for x in names)
+        # the landing view's rig shows the mount once one was opened, its triangles the file's
+        assert webgl_page.get_attribute("#rig3d", "data-mount") == "mount.stl"
+        drawn = webgl_page.evaluate("document.getElementById('rig3d').data.filter(t => t.name.startsWith('mount.stl'))"
+                                    ".map(t => t.i.length)")
+        assert drawn == [n]
         webgl_page.wait_for_selector("#mount3d canvas", timeout=10000)
         from tests.support.browser import shot
         shot(webgl_page, "web_mount_step.png")

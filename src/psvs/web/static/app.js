@@ -43,6 +43,7 @@ function loadImg(src) {
 
 async function loadImage() {
   state.image = await loadImg("/api/image.png?t=" + Date.now());
+  $("image-zoom").hidden = true;               // a zoomable view of the image before is not of this one
   canvas.width = state.image.width; canvas.height = state.image.height;
   draw();
 }
@@ -357,6 +358,13 @@ $("capture-start").addEventListener("click", async () => {
 $("capture-stop").addEventListener("click", async () => {
   try { await api("/api/capture/stop", {}); } catch (e) { setStatus(e.message); }
   capturing = false; capturePoll();
+});
+
+// The complex image at full resolution, zoomable (its grey level and pixel under the pointer).
+$("image-zoom-open").addEventListener("click", async () => {
+  const blob = await (await fetch("/api/image.png?t=" + Date.now())).blob();
+  const url = await new Promise((ok) => { const r = new FileReader(); r.onload = () => ok(r.result); r.readAsDataURL(blob); });
+  await drawZoomableImage($("image-zoom"), url);
 });
 
 // Open image…: one file, or several (a folder's frames, in name order) to step through with ◀ ▶; each shown

@@ -17,14 +17,20 @@ function rig3dPoint(p) { return [p[0], p[2], -p[1]]; }
 const rig3dState = { layout: null };     // the served rig's layout, as last drawn
 
 // The rig's layout with a mount's mesh (POST /api/mount/mesh) round it, at true scale.
+// The mount's mesh (frame C, mm) as a plotly trace.
+function mountTrace(mesh) {
+  const q = mesh.vertices.map(rig3dPoint);
+  return { type: "mesh3d", name: `${mesh.name} (${mesh.volume_cm3} cm³)`, x: q.map((p) => p[0]),
+           y: q.map((p) => p[1]), z: q.map((p) => p[2]), i: mesh.triangles.map((t) => t[0]),
+           j: mesh.triangles.map((t) => t[1]), k: mesh.triangles.map((t) => t[2]), color: "#b0bec5",
+           opacity: 0.5, flatshading: true, hoverinfo: "name", showlegend: true };
+}
+
 function drawMount3d(el, layout, mesh) {
   el.hidden = false;
   if (typeof Plotly === "undefined") return Promise.resolve();
   const q = mesh.vertices.map(rig3dPoint);
-  const trace = { type: "mesh3d", name: `${mesh.name} (${mesh.volume_cm3} cm³)`, x: q.map((p) => p[0]),
-                  y: q.map((p) => p[1]), z: q.map((p) => p[2]), i: mesh.triangles.map((t) => t[0]),
-                  j: mesh.triangles.map((t) => t[1]), k: mesh.triangles.map((t) => t[2]), color: "#b0bec5",
-                  opacity: 0.5, flatshading: true, hoverinfo: "name", showlegend: true };
+  const trace = mountTrace(mesh);
   // the view holds the mount and the glasses, 20 mm spare, at true scale
   const pts = [...q, ...layout.glasses.flatMap((g) => g.corners_mm).map(rig3dPoint)];
   const ranges = [0, 1, 2].map((k) => extentOf(pts.map((p) => p[k]))).map(([lo, hi]) => [lo - 20, hi + 20]);

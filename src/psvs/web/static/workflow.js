@@ -17,7 +17,7 @@ function showStep() {
   // plotly sizes a plot to its element: one drawn while hidden is redrawn at its size once shown
   if (typeof Plotly !== "undefined") {
     for (const id of ["rig3d", "mount3d", "dense-cloud", "dense-depth-map", "dense-disparity-map", "dense-left-zoom",
-                      "dense-right-zoom", "robot3d", "live-cloud"]) {
+                      "dense-right-zoom", "image-zoom", "robot3d", "live-cloud"]) {
       const el = $(id);
       if (el && el.dataset.ready && el.offsetParent !== null) Plotly.Plots.resize(el);
     }
@@ -182,6 +182,10 @@ $("mount-stl").addEventListener("change", async (e) => {
     const mesh = await api("/api/mount/mesh", { stl: base64Of(await f.arrayBuffer()), name: f.name });
     if (!rig3dState.layout) throw new Error("the rig's layout is not drawn (see the Design step)");
     await drawMount3d($("mount3d"), rig3dState.layout, mesh);
+    if (typeof Plotly !== "undefined" && $("rig3d").data) {     // the landing view's rig shows its mount too
+      await Plotly.addTraces($("rig3d"), mountTrace(mesh));
+      $("rig3d").dataset.mount = f.name;
+    }
     stepStatus("mount-status", `${f.name}: ${mesh.triangles.length} triangles, ${mesh.volume_cm3} cm³` +
       (mesh.closed ? ", one closed shell" : ", not a closed shell (a slicer must repair it)") +
       "; the rig's field rays pass it", true);
