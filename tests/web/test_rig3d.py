@@ -141,6 +141,13 @@ def test_the_page_draws_the_rig_in_3d_offline(webgl_page, app):
         assert img.std() > 5 and (img < 128).mean() > 0.002, img.std()
         assert "footprint" in page.inner_text("#rig3d-note")
         shot(page, "web_rig3d.png")
+        # another working range: the fields drawn where the layout of that range puts them
+        page.fill("#rig3d-near", "500")
+        page.fill("#rig3d-far", "900")
+        page.dispatch_event("#rig3d-far", "change")
+        page.wait_for_selector("#rig3d[data-range='500-900']", timeout=30000)
+        names = page.evaluate("document.getElementById('rig3d').data.map(t => t.name)")
+        assert any(n == "left view's field at 500 and 900 mm" for n in names), names
         assert set(hosts) == {host}, hosts
         assert errors == [], errors
 

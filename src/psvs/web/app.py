@@ -8,8 +8,9 @@ disparity; ``api_live``: live mode; ``api_capture``: the capture assistant; ``ap
 guide of a calibrated build; ``api_rig3d``: the rig's 3-D layout and the plotting library that draws it)
 that read the app's :class:`~psvs.web.session.Session` through FastAPI's
 dependency injection, so each app has its own image and results. Everything the page needs comes from these
-routes and the files in ``static/``; no route takes a file path, so nothing else on the machine can be read
-(the capture's card and folder come from the command line; files the page sends arrive as text in the body).
+routes and the files in ``static/``; no route reads a file the user did not name in the page (the folders of the
+capture and the calibration, relative to where psvs serve runs; the files the page sends -- an image, a video, a
+rig file, a card, a mount, a run's log -- arrive in the request's body).
 Request bodies are capped (:class:`~psvs.web.limits.BodyLimit`); bad requests get a 4xx answer with a
 one-line ``detail``. Before any of that, :class:`~psvs.web.guard.Guard` lets through only requests that name
 the server in their ``Host`` and, when they change something, come from the page itself or carry the per-run

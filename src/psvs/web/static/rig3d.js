@@ -120,7 +120,8 @@ async function rig3dInit() {
     document.getElementById("rig3d-note").textContent = "3-D views need the plotly package (pip install plotly).";
     return;
   }
-  const r = await fetch("/api/rig3d");
+  const near = Number(document.getElementById("rig3d-near").value), far = Number(document.getElementById("rig3d-far").value);
+  const r = await fetch(`/api/rig3d?near_mm=${near}&far_mm=${far}`);
   const layout = await r.json().catch(() => ({}));
   if (!r.ok) {            // the rest of the page works without it
     document.getElementById("rig3d-note").textContent = "no 3-D view of this rig: " + (layout.detail || r.status);
@@ -128,6 +129,7 @@ async function rig3dInit() {
   }
   rig3dState.layout = layout;
   await drawRig3d(el, layout);
+  el.dataset.range = `${near}-${far}`;
   document.getElementById("rig3d-extent").onchange = (e) => rig3dExtent(el, layout, e.target.value);
   const sized = layout.glasses.some((g) => g.sized !== "rig file");
   document.getElementById("rig3d-note").textContent =

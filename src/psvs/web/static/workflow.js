@@ -248,6 +248,9 @@ for (const input of document.querySelectorAll(".video-file")) {
   });
 }
 
+// The rig's view over another working range (its fields at near and far, the rays out to far).
+for (const id of ["rig3d-near", "rig3d-far"]) $(id).addEventListener("change", () => rig3dInit());
+
 // The page opens: the header, the panels, the rig in 3-D, the image (app.js draws it).
 (async function init() {
   try {
