@@ -144,6 +144,19 @@ def test_design_blocked_rig_writes_table(capsys, tmp_path):
     assert data["checks"]["ok"] is False and data["checks"]["suggested_m1_axis_distance_mm"] < 25
 
 
+def test_design_refuses_a_range_it_cannot_see_and_says_one_without_stereo(capsys, tmp_path):
+    """Issue 41's second trial: --near-mm 1 --far-mm 2 reported disparities of 2173-2216 px on a 640 px sensor
+    (exit 0); a 1000 mm baseline whose views overlap only from 1266 mm answered over 400-1200 mm (exit 0)."""
+    table = tmp_path / "d.json"
+    code, _, err = run(capsys, "design", "--rig", "default", "--near-mm", "1", "--far-mm", "2", "-o", str(table))
+    assert code == 2 and "--near-mm 1 lies inside the mirror box (its glasses reach Z = 44.0 mm)" in err
+    assert not table.exists()
+    wide = tmp_path / "wide.toml"
+    save_rig(default_rig().replace(baseline_mm=1000.0), wide)
+    code, out, _ = run(capsys, "design", "--rig", str(wide), "--no-search")
+    assert code == 1 and "the views never overlap in the working range" in out, out
+
+
 def test_design_clear_rig_toml_and_rig_out(capsys, tmp_path):
     rig_file = tmp_path / "clear.toml"
     save_rig(default_rig().replace(m1_axis_distance_mm=22.0, m2_axis_distance_mm=44.0), rig_file)

@@ -162,6 +162,8 @@ def _match() -> list[Case]:
     tex = {"img.png": texture_png()}
     return [
         Case("match-missing-image", base, 2, "not found", outputs=("m.json",)),
+        Case("match-seed-infinite", ("match", "img.png", "--rig", "default", "--seed", "inf,3", "-o", "m.json"), 2,
+             "two finite numbers", tex, ("m.json",)),
         Case("match-image-is-text", base, 2, "img.png", {"img.png": "not an image"}, ("m.json",)),
         Case("match-truncated-png", base, 2, "img.png", {"img.png": truncated_png()}, ("m.json",)),
         Case("match-png-bomb", base, 2, "100000", {"img.png": png_claiming(100000, 100000)}, ("m.json",)),

@@ -41,6 +41,22 @@ def test_adjust_on_the_mounts_seats(capsys, mount_dir):
     assert text.strip() == format_guide(g).strip()
 
 
+def test_a_mount_of_another_design_is_refused(capsys, mount_dir):
+    """Issue 41's second trial: `adjust misaligned --rig clear --mount` with a mount psvs made for mv1440 (M1 at
+    16 mm for clear's 22) answered turns, some the wrong way round. The seats' contacts are checked on the
+    design's glasses first (this mount is clear's: on default's glasses too, the same planes)."""
+    from psvs.mount.files import check_seats_on
+    data = tomllib.loads((mount_dir / "mount.toml").read_text())
+    check_seats_on(data, load_rig(shipped_rig_path("default")), "m")          # the same glass planes
+    code, _, err = run(capsys, "adjust", "misaligned", "--rig", "mv1440_misaligned", "--mount", str(mount_dir))
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    moved = load_rig(shipped_rig_path("clear")).replace(m1_axis_distance_mm=16.0, m2_axis_distance_mm=38.0)
+    with pytest.raises(ValueError, match=r"^m: its seats are not on this design's glasses \(M1's pivot contact "
+                                         r"stands [+-]\d+\.\d\d mm off its glass's back face\): a mount made for "
+                                         r"another design$"):
+        check_seats_on(data, moved, "m")
+
+
 @pytest.mark.parametrize("argv, says", [
     (("mount", "--rig", "clear", "-o", "{d}", "--wall-mm", "-1"), "wall_mm"),
     (("mount", "--rig", "clear", "-o", "{d}", "--interface", "m42"), "invalid choice"),

@@ -50,9 +50,10 @@ def test_bad_rig_text_names_where():
 
 
 def test_same_design_names_the_design_and_instructions():
+    other = load_rig("misaligned").replace(m1_axis_distance_mm=16.0)         # the mirror box of another design
     with pytest.raises(ValueError, match=r"the calibrated rig and the design \(clear\) are not one design: "
                                          r"m1_axis_distance_mm 16 vs 22 mm"):
-        check_same_design(load_rig("mv1440_misaligned"), load_rig("clear"), "the design (clear)")
+        check_same_design(other, load_rig("clear"), "the design (clear)")
     assert turn_instruction(0.0, "none") == "leave"
     assert turn_instruction(-1.1875, "counter-clockwise") == "1 3/16 turns counter-clockwise"
 
@@ -110,3 +111,15 @@ def test_a_build_of_another_baseline_is_not_one_of_this_design(tmp_path, capsys)
     path.write_text(dumps_rig(longer))
     code, text, err = run(capsys, "adjust", str(path), "--rig", "default")
     assert code == 2 and text == "" and len(err.strip().splitlines()) == 1 and "virtual cameras stand" in err, err
+
+
+def test_a_build_of_another_lens_or_camera_is_not_one_of_this_design():
+    """Issue 41's second trial: a build whose focal length was 16 mm for the design's 11.3 (41 % longer) got
+    turns; a calibrated lens stays within 15 % of the design's (psvs.evidence.MAX_FOCAL_CHANGE)."""
+    built, design = load_rig("misaligned"), load_rig("clear")
+    with pytest.raises(ValueError, match=r"not one design: its camera is 640x480 px with f 16 mm, the design's "
+                                         r"640x480 px with f 11\.3 mm \(a stock lens: within 15%"):
+        check_same_design(built.replace(focal_length_mm=16.0), design)
+    check_same_design(built.replace(focal_length_mm=1.1 * built.camera.focal_length_mm), design)
+    with pytest.raises(ValueError, match="its camera is 1440x1080 px"):
+        check_same_design(load_rig("mv1440_misaligned"), design)

@@ -64,3 +64,14 @@ def test_the_page_calibrates_the_views_and_uses_the_build(webgl_page, tmp_path, 
     # the page's readout is the state's
     assert shown["rms"].startswith(f"{res['rms_px']:.4f} px (left {res['rms_left_px']:.4f}")
     assert shown["used"].startswith("16 (16 grid)") and shown["file"] == str(file)
+
+
+def test_a_calibration_never_replaces_a_rig_file_in_the_folder(tmp_path):
+    """Issue 41's second trial: the page's calibration replaced a build.toml already in the folder (md5 changed).
+    The next free name is taken instead (build-2.toml, build-3.toml ...)."""
+    from psvs.web.calibration_job import free_rig_name
+    assert free_rig_name(tmp_path / "build.toml") == tmp_path / "build.toml"
+    (tmp_path / "build.toml").write_text("mine")
+    assert free_rig_name(tmp_path / "build.toml") == tmp_path / "build-2.toml"
+    (tmp_path / "build-2.toml").write_text("an earlier calibration")
+    assert free_rig_name(tmp_path / "build.toml") == tmp_path / "build-3.toml"

@@ -95,8 +95,12 @@ def test_the_capture_card_and_folder_are_chosen_in_the_page(tmp_path, knocked_fr
         assert not (tmp_path / "views").exists()             # nothing is written before a view is saved
         (tmp_path / "used").mkdir()
         (tmp_path / "used" / "view_00.png").write_bytes(b"")
+        (tmp_path / "notes").mkdir()                   # any file (issue 41's second trial: /etc was taken)
+        (tmp_path / "notes" / "notes.txt").write_text("mine")
         for body, said in (({"target": "[target]\nkind = \"moon\"\n", "folder": str(tmp_path / "v2")}, "target"),
                            ({"target": dumps_target(card), "folder": str(tmp_path / "used")}, "already holds"),
+                           ({"target": dumps_target(card), "folder": str(tmp_path / "notes")},
+                            "holds files: give a new or empty folder"),
                            ({"target": dumps_target(card), "folder": str(tmp_path / "used" / "view_00.png")},
                             "is a file"),
                            ({"target": dumps_target(card), "folder": str(tmp_path / ("x" * 300))},

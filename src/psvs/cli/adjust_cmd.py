@@ -47,7 +47,7 @@ def run(args) -> int:
     check_same_design(built, nominal)
     if args.mount is not None:
         from psvs.mount.files import read_mount
-        seats = read_mount(args.mount)[1]
+        seats = read_mount(args.mount, nominal)[1]
     else:
         seats = seats_for(nominal, pitch_mm=args.pitch_mm)
     g = alignment_guide(built, seats, near, far)

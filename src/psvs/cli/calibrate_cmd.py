@@ -48,7 +48,7 @@ def _guide(rig, design, mount_dir) -> str:
     if mount_dir is True:
         return format_guide(alignment_guide(rig, seats_for(design)))
     from psvs.mount.files import read_mount
-    return format_guide(alignment_guide(rig, read_mount(mount_dir)[1]))
+    return format_guide(alignment_guide(rig, read_mount(mount_dir, design)[1]))
 
 
 def run(args) -> int:
@@ -59,7 +59,7 @@ def run(args) -> int:
     template = rig_template(args.rig)    # the nominal file's comments and layout, for the calibrated file
     if args.adjust not in (None, True):  # a mount folder: read before the work
         from psvs.mount.files import read_mount
-        read_mount(args.adjust)
+        read_mount(args.adjust, start)
     res = calibrate_folder(args.folder, start)
     b = res.bundle
     for name, reason in sorted(res.skipped.items()):

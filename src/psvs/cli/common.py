@@ -237,4 +237,6 @@ def parse_seed(text: str | None) -> tuple[float, float] | None:
         u, v = (float(c) for c in text.split(","))
     except ValueError:
         raise ValueError(f"--seed must be 'u,v' in px, got {text!r}") from None
+    if not (math.isfinite(u) and math.isfinite(v)):
+        raise ValueError(f"--seed must be two finite numbers 'u,v' in px, got {text!r}")
     return u, v

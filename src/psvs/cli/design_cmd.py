@@ -17,6 +17,7 @@ from psvs.io.params import dumps_rig, rig_to_dict
 from psvs.io.tomlfile import dumps_toml
 from psvs.measure.tolerance import Sensitivity, tolerance_analysis
 from psvs.optics.design import MirrorDesign, design_mirrors
+from psvs.optics.mirrors import front_z_mm
 
 
 def add_parser(sub) -> None:
@@ -129,7 +130,10 @@ def format_design(d: MirrorDesign) -> str:
                       f"{wr.disparity_px[1]:.1f} px; 1 px of disparity = {wr.depth_per_px_mm[0]:.2f} mm of depth "
                       f"at the near end, {wr.depth_per_px_mm[1]:.2f} mm at the far end; the views overlap "
                       f"from {wr.overlap_start_mm:.0f} mm"]
-        if wr.near_mm < wr.overlap_start_mm:
+        if wr.far_mm < wr.overlap_start_mm:
+            lines.append(f"  the views never overlap in the working range (from {wr.overlap_start_mm:.0f} mm on): no "
+                         "point of it is seen twice; Layout: NO STEREO over this range")
+        elif wr.near_mm < wr.overlap_start_mm:
             lines.append(f"  warning: the working range starts before the views overlap ({wr.overlap_start_mm:.0f} mm)")
     return "\n".join(lines)
 
@@ -142,6 +146,10 @@ def run(args) -> int:
     if not (math.isfinite(args.margin_mm) and args.margin_mm >= 0):
         raise ValueError(f"--margin-mm must be a finite border >= 0 mm, got {args.margin_mm}")
     rig = rig_from_args(args)
+    front = front_z_mm(rig)
+    if args.near_mm <= front:
+        raise ValueError(f"--near-mm {args.near_mm:g} lies inside the mirror box (its glasses reach Z = "
+                         f"{front:.1f} mm): no point there is seen through the mirrors")
     d = design_mirrors(rig, margin_mm=args.margin_mm, near_mm=args.near_mm, far_mm=args.far_mm,
                        search=not args.no_search)
     print(format_design(d))
@@ -159,4 +167,5 @@ def run(args) -> int:
             write_atomic(out, json.dumps(data, indent=2) + "\n" if out.suffix.lower() == ".json" else dumps_toml(data))
         if rig_text is not None:
             write_atomic(rig_out, rig_text)
-    return 0 if d.ok else 1
+    overlaps = d.working_range is None or d.working_range.far_mm >= d.working_range.overlap_start_mm
+    return 0 if d.ok and overlaps else 1

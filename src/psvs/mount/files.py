@@ -23,7 +23,7 @@ from psvs.mount.layout import (
 )
 from psvs.mount.seats import SCREWS, Seat, handedness, screw_rates
 from psvs.optics.mirrors import mirror_planes
-from psvs.optics.rig import MIRROR_NAMES
+from psvs.optics.rig import MIRROR_NAMES, Rig
 
 #: PLA's density, g/cm^3, for the printed part's mass in the bill of materials.
 PLA_G_PER_CM3 = 1.24
@@ -122,23 +122,47 @@ def mount_toml(layout: MountLayout, checks: dict) -> str:
     return dumps_toml(mount_dict(layout, checks))
 
 
-def read_mount(folder) -> tuple[MountParams, dict[str, Seat]]:
+#: mm: how far a seat's contacts may stand off the plane of the design's glass (its back face) and still be a
+#: seat of that design (a mount made for another one puts them millimetres off).
+SEAT_PLANE_TOL_MM = 0.5
+
+
+def read_mount(folder, design: Rig | None = None) -> tuple[MountParams, dict[str, Seat]]:
     """The parameters and seats ``psvs mount`` wrote to ``folder/mount.toml`` (ValueError naming what is
-    wrong)."""
+    wrong; with ``design``, also when the seats are not on its glasses: :func:`check_seats_on`)."""
     path = Path(folder) / "mount.toml"
     if not path.is_file():
         raise ValueError(f"{folder}: no mount.toml (a folder psvs mount wrote)")
-    return mount_from_dict(load_toml(path, "mount file"), str(path))
+    return mount_from_dict(load_toml(path, "mount file"), str(path), design)
 
 
-def read_mount_text(text: str, where: str = "mount.toml") -> tuple[MountParams, dict[str, Seat]]:
+def read_mount_text(text: str, where: str = "mount.toml", design: Rig | None = None) -> tuple[MountParams,
+                                                                                               dict[str, Seat]]:
     """:func:`read_mount` on the text of a ``mount.toml`` (e.g. uploaded to the web page); errors name
     ``where``."""
-    return mount_from_dict(parse_text(text, where), where)
+    return mount_from_dict(parse_text(text, where), where, design)
 
 
-def mount_from_dict(data: dict, where: str) -> tuple[MountParams, dict[str, Seat]]:
-    """The parameters and seats of a parsed ``mount.toml`` (ValueError naming ``where`` and what is wrong)."""
+def check_seats_on(data: dict, design: Rig, where: str) -> None:
+    """ValueError unless every contact of every seat in a parsed ``mount.toml`` (``pivot/h/v_xyz_mm``, frame C)
+    lies on ``design``'s glass: its back face, ``back_offset_mm`` behind the reflecting plane, within
+    :data:`SEAT_PLANE_TOL_MM`. A mount made for another design (M1 at 16 mm for one at 22) would give turns
+    for glasses it does not hold."""
+    planes = mirror_planes(design)
+    for name, seat in data["seats"].items():
+        plane = planes[name]
+        for key in ("pivot_xyz_mm", "h_xyz_mm", "v_xyz_mm"):
+            at = np.asarray(seat[key], float) - plane.point
+            off = float(np.dot(at, plane.normal)) + float(seat["back_offset_mm"])
+            if not abs(off) <= SEAT_PLANE_TOL_MM:
+                raise ValueError(f"{where}: its seats are not on this design's glasses ({name.upper()}'s "
+                                 f"{key.split('_')[0]} contact stands {off:+.2f} mm off its glass's back face): a "
+                                 "mount made for another design")
+
+
+def mount_from_dict(data: dict, where: str, design: Rig | None = None) -> tuple[MountParams, dict[str, Seat]]:
+    """The parameters and seats of a parsed ``mount.toml`` (ValueError naming ``where`` and what is wrong; with
+    ``design``, also :func:`check_seats_on`)."""
     try:
         names = {f.name for f in fields(MountParams)}
         params = MountParams(**{k: v for k, v in data["mount"]["params"].items() if k in names})
@@ -152,4 +176,9 @@ def mount_from_dict(data: dict, where: str) -> tuple[MountParams, dict[str, Seat
         raise ValueError(f"{where}: {str(exc).splitlines()[0]}") from None
     if sorted(seats) != sorted(MIRROR_NAMES):
         raise ValueError(f"{where}: seats for {', '.join(sorted(seats))}, expected {', '.join(MIRROR_NAMES)}")
+    if design is not None:
+        try:
+            check_seats_on(data, design, where)
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"{where}: not a mount file psvs wrote (missing {exc})") from None
     return params, seats

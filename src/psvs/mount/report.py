@@ -9,6 +9,7 @@ from fractions import Fraction
 
 import numpy as np
 
+from psvs.evidence import MAX_FOCAL_CHANGE
 from psvs.mount.guide import AlignmentGuide, designed_twin, twin_rows_px, working_points
 from psvs.mount.seats import Seat, apply_turns
 from psvs.optics.mirrors import virtual_baseline_mm
@@ -46,8 +47,17 @@ def baseline_spread_mm(nominal: Rig, tilt_rad: float = SEAT_TILT_RAD, shift_mm: 
 
 def check_same_design(built: Rig, nominal: Rig, design: str = "--rig") -> None:
     """ValueError unless the calibrated build and the design (called ``design`` in the message) share the
-    mirror box's layout (:data:`DESIGN_FIELDS`) and its virtual cameras' distance lies within what its seats
-    allow (:func:`baseline_spread_mm`, plus :data:`CALIBRATION_BASELINE_MM`)."""
+    mirror box's layout (:data:`DESIGN_FIELDS`), the camera (its size, and its focal length within
+    :data:`psvs.evidence.MAX_FOCAL_CHANGE`) and its virtual cameras' distance lies within what its seats allow
+    (:func:`baseline_spread_mm`, plus :data:`CALIBRATION_BASELINE_MM`)."""
+    f_built, f_design = built.camera.focal_length_mm, nominal.camera.focal_length_mm
+    if (tuple(built.camera.image_size_px) != tuple(nominal.camera.image_size_px)
+            or abs(f_built / f_design - 1.0) > MAX_FOCAL_CHANGE):
+        raise ValueError(f"the calibrated rig and {design} are not one design: its camera is "
+                         f"{built.camera.image_size_px[0]}x{built.camera.image_size_px[1]} px with f {f_built:g} mm, "
+                         f"the design's {nominal.camera.image_size_px[0]}x{nominal.camera.image_size_px[1]} px with "
+                         f"f {f_design:g} mm (a stock lens: within {MAX_FOCAL_CHANGE:.0%}; give the design the build "
+                         "was calibrated from)")
     b_built, b_design = virtual_baseline_mm(built), virtual_baseline_mm(nominal)
     limit = baseline_spread_mm(nominal) + CALIBRATION_BASELINE_MM
     if abs(b_built - b_design) > limit:

@@ -38,7 +38,7 @@ def adjust_seats(body: AdjustBody, nominal: Rig) -> dict[str, Seat]:
     design with the body's pitch; a pitch that contradicts the mount's seats is refused."""
     if body.mount is None:
         return seats_for(nominal, pitch_mm=DEFAULT_PITCH_MM if body.pitch_mm is None else body.pitch_mm)
-    seats = read_mount_text(body.mount, "mount.toml")[1]
+    seats = read_mount_text(body.mount, "mount.toml", nominal)[1]
     pitch = seats["m1"].pitch_mm
     if body.pitch_mm is not None and abs(body.pitch_mm - pitch) > 1e-9:
         raise ValueError(f"pitch_mm {body.pitch_mm:g} mm contradicts mount.toml's seats ({pitch:g} mm): "

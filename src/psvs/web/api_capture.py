@@ -38,6 +38,8 @@ def capture_setup(body: CaptureSetupBody, session: SessionDep):
         folder = Path(body.folder).expanduser().resolve()
         check_capture_folder(folder)
         check_output_folder(folder, "the capture folder")
+        if folder.is_dir() and any(folder.iterdir()):
+            raise ValueError(f"the capture folder {str(folder)[:80]} holds files: give a new or empty folder")
     except PermissionError as exc:
         raise ValueError(str(exc)) from None
     except (OSError, RuntimeError) as exc:          # a name too long, ~nosuchuser

@@ -9,6 +9,16 @@ from pathlib import Path
 RIG_FILE = "build.toml"
 
 
+def free_rig_name(path: Path) -> Path:
+    """``path``, or build-2.toml, build-3.toml ... beside it when it exists: a calibration never replaces a
+    rig file already in the folder (an earlier calibration's, or the user's)."""
+    k = 1
+    while path.exists():
+        k += 1
+        path = path.with_name(f"{Path(RIG_FILE).stem}-{k}{Path(RIG_FILE).suffix}")
+    return path
+
+
 class CalibrationJob:
     """One calibration at a time in a background thread; :meth:`state` for the page."""
 
@@ -41,7 +51,7 @@ class CalibrationJob:
             b = res.bundle
             if not b.success:
                 raise ValueError(f"the bundle adjustment did not converge: {b.message}")
-            rig, path = res.recorded_rig(), folder / RIG_FILE
+            rig, path = res.recorded_rig(), free_rig_name(folder / RIG_FILE)
             save_rig(rig, path)
             on_done(rig, path)
             result = {"rms_px": b.rms_px, "rms_left_px": b.rms_by_view["left"], "rms_right_px": b.rms_by_view["right"],
