@@ -88,3 +88,23 @@ def test_live_dense_without_texture_says_so(tmp_path, capsys):
     # the library's RuntimeWarning, printed by the command line as one line of psvs's own (once, not per frame)
     assert out.err.splitlines().count(
         "psvs live: warning: complex image is constant: no texture to match, disparity is all NaN") == 1, out.err
+
+
+def test_a_video_of_noise_gives_no_depth(tmp_path, capsys):
+    """Issue 41's second trial: `live --video` of noise with --dense gave 'median Z 835.9 mm' for every frame,
+    exit 0, where `psvs disparity` refuses each frame. The sensor asks disparity's echo test (first frame, then
+    once a second): no frame has depth, exit 1 in one line."""
+    import cv2
+
+    from psvs.cli.main import main
+    folder = tmp_path / "noise"
+    folder.mkdir()
+    rng = np.random.default_rng(4)
+    for k in range(3):
+        cv2.imwrite(str(folder / f"seq_{k:03d}.png"), rng.integers(0, 256, (480, 640)).astype(np.uint8))
+    code = main(["live", "--video", str(folder), "--rig", "default", "--dense", "--fast", "-o",
+                 str(tmp_path / "l.csv")])
+    out, err = capsys.readouterr()
+    assert code == 1 and "3 frames, 0 with depth" in out, out
+    assert err.strip().splitlines()[-1] == ("psvs live: cannot measure: no frame's echo stands above chance (psvs "
+                                            "disparity's test): no depth")

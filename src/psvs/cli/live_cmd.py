@@ -249,7 +249,11 @@ def _summary(steps: list, dense_frames: list | None, wall: float, realtime: bool
     if steps[0] is None:
         print(f"{n} frames, {n / wall:.1f} frames/s ({pace})")
         if not len(z):
-            print("no frame gave a dense depth (no texture in the working range?)", file=sys.stderr)
+            unsupported = (any(d.answered_pct > 0 for d in dense_frames)
+                           and not any(d.supported for d in dense_frames))
+            print("psvs live: cannot measure: no frame's echo stands above chance (psvs disparity's test): no "
+                  "depth" if unsupported else "no frame gave a dense depth (no texture in the working range?)",
+                  file=sys.stderr)
             return 1
         return 0
     tracked = sum(s.ok for s in steps)

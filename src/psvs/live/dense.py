@@ -6,6 +6,12 @@ triangulated points (frame C, mm) and their depth (:func:`psvs.dense.build.rig_c
 its depth table, :mod:`psvs.dense.depth_table`, made on the first frame or read from the cache folder,
 :mod:`psvs.dense.rig_cache`); one pixel in 16 keeps the cloud's shape and its median depth at a sixteenth
 of the points to log and send.
+
+Every answer is tested against chance (docs/right-or-refuse.md), at camera rate too: the first frame's maps
+get the echo test of ``psvs disparity`` (:func:`psvs.dense.build.rig_trust`), and then every
+:data:`TRUST_EVERY`-th frame's (a second at 30 frames/s; the test costs about ten fast maps; counted in frames,
+so a video gives the same answers however fast the machine); until a test finds the scene's echo again, a
+frame has no depth (no points, median NaN; its map is kept). A video of noise gives no depth.
 """
 from __future__ import annotations
 
@@ -14,10 +20,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from psvs.dense.build import dense_on_rig, rig_cloud
+from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
 from psvs.dense.params import FAST, DenseParams
 from psvs.dense.workspace import Workspace
 from psvs.optics.rig import Rig
+
+#: The echo test (whether the scene's echo stands above chance) is made on the first frame and then on every
+#: this many-th.
+TRUST_EVERY = 30
 
 
 @dataclass(frozen=True, eq=False)
@@ -26,8 +36,9 @@ class DenseFrame:
     view's rectified grid), NaN where no answer; ``searched_px`` the disparity range searched;
     ``points_mm`` (N, 3) and ``pixels`` (N, 2) (u, v on the map's grid) of the strided cloud, and
     ``depth_mm`` its depth on the strided grid (every ``stride``-th pixel of the map, NaN where no point);
-    ``median_z_mm`` (NaN with no point), ``answered_pct`` (% of the map's pixels with a disparity) and the
-    processing time ``elapsed_s``."""
+    ``median_z_mm`` (NaN with no point), ``answered_pct`` (% of the map's pixels with a disparity), the
+    processing time ``elapsed_s`` and ``supported``: whether the latest echo test found the scene's echo beyond
+    chance (without it, no points and no depth)."""
 
     frame: int
     disparity_px: np.ndarray
@@ -38,6 +49,7 @@ class DenseFrame:
     median_z_mm: float
     answered_pct: float
     elapsed_s: float
+    supported: bool = True
 
     def brief(self) -> "DenseFrame":
         """This frame without its map and cloud (empty arrays): what a run's log and summary keep of every
@@ -74,6 +86,7 @@ class DenseSensor:
         self.rig, self.near_mm, self.far_mm, self.params, self.stride = rig, near_mm, far_mm, params, int(stride)
         self.frames = 0
         self._workspace = Workspace()     # the cost volumes, reused frame after frame
+        self._supported = False
 
     def step(self, frame) -> DenseFrame:
         """The dense disparity and strided cloud of ``frame`` (H, W) grey."""
@@ -81,13 +94,15 @@ class DenseSensor:
         dense = dense_on_rig(frame, self.rig, self.near_mm, self.far_mm, params=self.params,
                              workspace=self._workspace)
         d = dense.result.disparity_left
+        if self.frames % TRUST_EVERY == 0:
+            self._supported = rig_trust(dense).count > 0
         grid = (slice(self.stride // 2, None, self.stride),) * 2
         mask = np.zeros(d.shape, bool)
-        mask[grid] = True
+        mask[grid] = self._supported
         cloud = rig_cloud(dense, self.rig, mask=mask)
         z = cloud.points_mm[:, 2]
         out = DenseFrame(self.frames, d, dense.result.searched_px, cloud.points_mm, cloud.pixels,
                          cloud.depth_mm[grid], float(np.median(z)) if len(z) else float("nan"),
-                         100.0 * float(np.mean(np.isfinite(d))), time.perf_counter() - t0)
+                         100.0 * float(np.mean(np.isfinite(d))), time.perf_counter() - t0, self._supported)
         self.frames += 1
         return out

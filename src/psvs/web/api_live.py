@@ -75,7 +75,8 @@ def live_dense(session: SessionDep):
 def live_cloud(session: SessionDep):
     """The latest dense frame's point cloud (frame C, mm, rounded to 0.01; at most CLOUD_POINTS of its points,
     evenly): ``frame``, ``points_mm``, ``of_points``. Live mode's points are every answered pixel of its strided
-    grid, not tested against chance as a still's are (``tested`` false). 404 before the first dense frame."""
+    grid, not tested against chance pixel by pixel as a still's are (``tested`` false): the scene's echo is, every
+    30th frame (:mod:`psvs.live.dense`: none without it). 404 before the first dense frame."""
     d = session.live.dense()
     if d is None:
         return JSONResponse({"detail": "no dense frame yet: start live with dense"}, status_code=404)

@@ -155,7 +155,8 @@ async function liveCloud(frame) {
   try {
     const c = await api("/api/live/cloud");
     await drawCloud3d($("live-cloud"), c, "depth", "live-cloud-note",
-                      `of frame ${c.frame} (every answered pixel of live mode's grid, not tested against chance)`);
+                      `of frame ${c.frame} (every answered pixel of live mode's grid, not tested against chance pixel by pixel; ` +
+                      "the scene's echo is, every 30th frame)");
     $("live-cloud").dataset.frame = String(c.frame);
   } catch (e) { $("live-cloud-note").textContent = "live cloud: " + e.message; }
 }
