@@ -137,8 +137,8 @@ def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.
     if wider.verdict != "cannot judge":
         return wider                                                # twins beyond the usual reach, found
     if beyond:      # what lay past the reach's edge is no twin the wider search finds: a texture, not a knock
-        return dataclasses.replace(wider, reason=f"{check.reason.split(':')[0]}, but searched "
-                                   f"{FAR_REACH_DEG:g} deg either side {wider.reason}")
+        return dataclasses.replace(wider, reason=f"{check.reason.split(':')[0]}, but a search {FAR_REACH_DEG:g} deg "
+                                   f"either side finds no field of twins: {wider.reason}")
     return check
 
 
