@@ -330,8 +330,6 @@ def _disparity() -> list[Case]:
         Case("disparity-same-output-twice", (*base, "--right", "d.npy"), 2, "d.npy", tex, ("d.npy",)),
         Case("disparity-black-image", base, 1, "constant", {"img.png": png(np.zeros((480, 640), np.uint8))},
              ("d.npy",)),
-        Case("disparity-repeating-texture", base, 1, "repeats along its rows", {"img.png": repeating_png()},
-             ("d.npy",)),
         Case("check-repeating-texture", ("check", "img.png", "--rig", "misaligned"), 1, "repeats along the rows",
              {"img.png": repeating_png()}),
         Case("disparity-views-over-each-other", (*base, "--views", "v.png", "v.png"), 2, "v.png", tex,
