@@ -13,9 +13,9 @@ through its 3 x 3 neighbourhood, is the tile's row offset (right twin's row minu
 **Tested against chance, tile by tile.** A tile's peak must stand :data:`NULL_MARGIN` above the best
 correlation the same tile finds in :data:`NULLS` bands of rows far from its own (where no twin can be, so
 whatever peak they give is what its texture gives by chance), stand above its best match in its own search
-away from its peak (more than the band-pass's coarse sigma off it) by :data:`UNIQUE_SHARE` of that margin (a
-texture that repeats along the rows, bricks or stripes, matches almost as well a period away, and a vertical
-ridge at another row: neither tells its twin's row), its texture must stand above the sensor's
+away from its peak (at another disparity, more than the band-pass's coarse sigma off it, on the peak's rows) by
+:data:`UNIQUE_SHARE` of that margin (a texture that repeats along the rows, bricks or stripes, matches almost
+as well a period away: it tells no twin), its texture must stand above the sensor's
 noise (:data:`MIN_TEXTURE_DN`), and the peak must be a peak (a negative-definite quadratic, inside the
 searched rows). A tile whose best peak lies on the searched rows' edge is counted apart: its twin may be
 farther off than the search reaches.
@@ -190,11 +190,11 @@ def _tile(a, b, at, size_reach, span, rows) -> tuple:
         return (*centre, np.nan, np.nan, -1.0, 1.0, texture, 0, 1.0)
     r = cv2.matchTemplate(search, t, cv2.TM_CCOEFF_NORMED)
     i, j = np.unravel_index(int(np.argmax(r)), r.shape)
-    # its own search away from its peak: a texture that repeats along the rows (or a ridge along the columns)
-    # matches about as well there, and which is the twin cannot be told
+    # its own rows' search away from its peak: a texture that repeats along the rows matches about as well at
+    # another disparity, and which is the twin cannot be told
     lobe = int(BAND_SIGMAS_PX[1])
-    away = r.copy()
-    away[max(0, i - lobe):i + lobe + 1, max(0, j - lobe):j + lobe + 1] = -1.0
+    away = r[max(0, i - lobe):i + lobe + 1].copy()
+    away[:, max(0, j - lobe):j + lobe + 1] = -1.0
     rival = float(away.max())
     chance = -1.0
     for yy in _null_rows(y, rows, size):
