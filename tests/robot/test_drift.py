@@ -90,8 +90,8 @@ def test_track_says_the_drift_logs_it_and_stops_on_it(tmp_path, capsys):
     on it (exit 1: not a clean weld), the check's cost near its share, and its /psvs/health records on the
     recording (mcap reader) the same as the log's rows (csv module) at those cycles. (At the default 8 % the
     drift is said after about 150 cycles, docs/health.md; a short run at 50 % does not hang on the machine's
-    load. 45 mm: a loaded machine's run of 30 mm ended before the check had read enough tiles of the seam
-    plates, whose repeating grooves the check now leaves out.)"""
+    load. 45 mm: a loaded machine's run of 30 mm could end before the check had read enough tiles of the seam
+    plates.)"""
     run, rec, rrd = tmp_path / "run", tmp_path / "run.mcap", tmp_path / "run.rrd"
     code = main(["track", "weld_seam", "--rig", "misaligned", "--true-rig", "misaligned_knocked", "--stop-on-drift",
                  "--check-share", "50", "--length", "45", "--no-bag", "--mcap", str(rec), "--rerun", str(rrd),
