@@ -432,7 +432,7 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
         if inside is not None:
             f, g = np.where(inside[0], f, 0.0), np.where(inside[1], g, 0.0)
         sums = cell_sums(f, g, lags)
-        mirrored = cell_sums(g[:, ::-1], f[:, ::-1], lags)   # each patch against what lies to its right
+        mirrored = None            # each patch against what lies to its right: read only where something echoes
         for m in BLOCK_CELLS:
             if ny < m or nx < m:
                 continue
@@ -453,7 +453,11 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
             # a repeat beyond the range counts, and one to the right (a patch near the left edge sees its
             # texture's copies there): the patch, or the cells a mirrored patch covers, say no echo
             amb = ambiguous_patches(z, level.threshold)
-            amb_right = _repeats_to_the_right(mirrored, m, lags < start, level.threshold, w)
+            amb_right = np.zeros_like(above)
+            if above.any():        # a family without a judged test above chance has no echo to call ambiguous
+                if mirrored is None:
+                    mirrored = cell_sums(g[:, ::-1], f[:, ::-1], lags)
+                amb_right = _repeats_to_the_right(mirrored, m, lags < start, level.threshold, w)
             ambiguous |= above & (_spread_to_cells(amb[None], m)[0] | amb_right)
             zj[:, amb] = np.nan
             if np.isfinite(zj).any():
