@@ -1,7 +1,9 @@
 """The ray tracer's per-ray loops as Numba kernels (compiled once per machine, kept in ``__pycache__``): undoing
-the lens's distortion and the bounding-box pre-test of the blocking solids. Each is one pass over the rays
-in place of NumPy's dozen temporary arrays; :mod:`psvs.optics.trace` and :mod:`psvs.optics.solids` call them
-and keep the formulas' documentation."""
+the lens's distortion, the bounding-box pre-test of the blocking solids, and a ray's whole path through one
+view (its surfaces, then the solids that block it). Each is one pass over the rays in place of NumPy's dozen
+temporary arrays; :mod:`psvs.optics.trace` and :mod:`psvs.optics.solids` call them and keep the formulas'
+documentation (their NumPy forms remain for the reports that name which surface or solid stops a ray, and
+tests/optics/test_trace_kernel.py holds the kernel to them)."""
 from __future__ import annotations
 
 import numba as nb
@@ -44,3 +46,139 @@ def boxes_meet(p0s, p1s, lo, hi):  # pragma: no cover - compiled
                 break
         out[i] = meet
     return out
+
+
+#: :func:`trace_path`'s step kinds (``psvs.optics.mirrors.path``'s words) and its path labels besides the solids
+REFLECT, REFRACT, PASS = 0, 1, 2
+CAMERA, SCENE = -1, -2
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def _segment_blocked(p0, p1, g, plate):  # pragma: no cover - compiled
+    """Whether the segment p0 -> p1 (3,) crosses one solid ``g`` (23,): its plane's point, normal, s and t
+    axes (12), its rectangle s0, s1, t0, t1 (4), the plate's thickness (1) and its bounding box lo, hi (6);
+    ``plate``: the box of the M1 plate (slab method), else the rectangle (crossed strictly inside).
+    :func:`psvs.optics.solids.segments_hit`, one segment."""
+    for k in range(3):   # the bounding-box pre-test (a NaN coordinate meets nothing)
+        a, b = p0[k], p1[k]
+        if np.isnan(a) or np.isnan(b) or max(a, b) < g[17 + k] or min(a, b) > g[20 + k]:
+            return False
+    off = g[0] * g[3] + g[1] * g[4] + g[2] * g[5]
+    d0 = p0[0] * g[3] + p0[1] * g[4] + p0[2] * g[5] - off
+    d1 = p1[0] * g[3] + p1[1] * g[4] + p1[2] * g[5] - off
+    s0, s1, t0, t1, thick = g[12], g[13], g[14], g[15], g[16]
+    if not plate:
+        if not d0 * d1 < 0:
+            return False
+        f = d0 / (d0 - d1)
+        s = t = 0.0
+        for k in range(3):
+            r = p0[k] + f * (p1[k] - p0[k]) - g[k]
+            s += r * g[6 + k]
+            t += r * g[9 + k]
+        return s0 < s < s1 and t0 < t < t1
+    za, zb = -d0, -d1    # depth into the glass
+    if (za <= 0 and zb <= 0) or (za >= thick and zb >= thick) or not (np.isfinite(za) and np.isfinite(zb)):
+        return False
+    sa = ta = sb = tb = 0.0
+    for k in range(3):
+        sa += (p0[k] - g[k]) * g[6 + k]
+        ta += (p0[k] - g[k]) * g[9 + k]
+        sb += (p1[k] - g[k]) * g[6 + k]
+        tb += (p1[k] - g[k]) * g[9 + k]
+    enter, leave = -np.inf, np.inf
+    for k in range(3):    # the slab method on the box's three axes: s, t and the depth into the glass
+        if k == 0:
+            a, b, lo, hi = sa, sb, s0, s1
+        elif k == 1:
+            a, b, lo, hi = ta, tb, t0, t1
+        else:
+            a, b, lo, hi = za, zb, 0.0, thick
+        d = b - a
+        if d != 0:
+            near, far = (lo - a) / d, (hi - a) / d
+            if near > far:
+                near, far = far, near
+            if not np.isnan(near):
+                enter = max(enter, near)
+            if not np.isnan(far):
+                leave = min(leave, far)
+        elif a <= lo or a >= hi:
+            return False
+    return enter < leave and leave > 1e-9 and enter < 1 - 1e-9
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def trace_path(dirs, steps, kind, eta, label, solids, on, scene_depth_mm, tol_mm,  # noqa: PLR0913
+               origins_out, dirs_out, valid_out, occlusion):  # pragma: no cover - compiled
+    """Rays from the camera's centre O along ``dirs`` (N, 3) through one view's surfaces, in place into
+    ``origins_out``, ``dirs_out`` (N, 3) and ``valid_out`` (N,): per ray, :func:`psvs.optics.trace.trace_rays`
+    (``steps`` (S, 16): each plane's point, normal, s and t axes and rectangle, NaN bounds for an unbounded
+    plane; ``kind`` (S,) of :data:`REFLECT`, :data:`REFRACT`, :data:`PASS`; ``eta`` (S,) n_before / n_after;
+    ``label`` (S,) the solid each surface is part of), then with ``occlusion``
+    :func:`psvs.optics.solids.occluded` (``solids`` (4, 23) as :func:`_segment_blocked` reads them, ``on`` (4,)
+    the finite ones; the path's polyline ends ``scene_depth_mm`` beyond the last mirror)."""
+    n_steps = steps.shape[0]
+    pts = np.empty((n_steps + 2, 3))
+    o = np.empty(3)
+    d = np.empty(3)
+    for i in range(dirs.shape[0]):
+        ok = True
+        for k in range(3):
+            o[k] = 0.0
+            d[k] = dirs[i, k]
+            pts[0, k] = 0.0
+            ok = ok and np.isfinite(d[k])
+        for s in range(n_steps):
+            g = steps[s]
+            denom = d[0] * g[3] + d[1] * g[4] + d[2] * g[5]
+            t = ((g[0] * g[3] + g[1] * g[4] + g[2] * g[5]) - (o[0] * g[3] + o[1] * g[4] + o[2] * g[5])) / denom
+            if abs(denom) <= 1e-15:
+                t = np.nan
+            for k in range(3):
+                o[k] += t * d[k]
+                pts[s + 1, k] = o[k]
+            if not np.isfinite(t):
+                ok = False
+            if not np.isnan(g[12]):   # a finite surface: met ahead and inside its rectangle
+                ls = lt = 0.0
+                for k in range(3):
+                    ls += (o[k] - g[k]) * g[6 + k]
+                    lt += (o[k] - g[k]) * g[9 + k]
+                inside = (g[12] - tol_mm <= ls <= g[13] + tol_mm) and (g[14] - tol_mm <= lt <= g[15] + tol_mm)
+                if not (t > 0 and inside):
+                    ok = False
+            dn = d[0] * g[3] + d[1] * g[4] + d[2] * g[5]
+            if kind[s] == 0:
+                for k in range(3):
+                    d[k] -= 2.0 * dn * g[3 + k]
+            elif kind[s] == 1:
+                side = -1.0 if dn > 0 else (1.0 if dn < 0 else 0.0)
+                cos_i = abs(dn)
+                sin2_t = eta[s] * eta[s] * (1.0 - cos_i * cos_i)
+                if sin2_t <= 1.0:
+                    cos_t = np.sqrt(max(1.0 - sin2_t, 0.0))
+                    for k in range(3):
+                        d[k] = eta[s] * d[k] + (eta[s] * cos_i - cos_t) * side * g[3 + k]
+                else:
+                    ok = False
+                    for k in range(3):
+                        d[k] = np.nan
+        for k in range(3):
+            origins_out[i, k] = o[k]
+            dirs_out[i, k] = d[k]
+            pts[n_steps + 1, k] = o[k] + scene_depth_mm * d[k]
+        if ok and occlusion:
+            for j in range(n_steps + 1):
+                start = CAMERA if j == 0 else label[j - 1]
+                end = SCENE if j == n_steps else label[j]
+                if start == end == 0:
+                    continue   # inside the glass
+                for m in range(4):
+                    if on[m] and m != start and m != end and _segment_blocked(pts[j], pts[j + 1], solids[m], m == 0
+                                                                               and solids[m, 16] > 0):
+                        ok = False
+                        break
+                if not ok:
+                    break
+        valid_out[i] = ok

@@ -14,10 +14,9 @@ from __future__ import annotations
 import numpy as np
 
 from psvs._validate import check_points
-from psvs.optics.mirrors import direction_map, path, virtual_centre
+from psvs.optics.mirrors import direction_map, virtual_centre
 from psvs.optics.rig import Rig
-from psvs.optics.solids import finite_solids, occluded
-from psvs.optics.trace import pixels_from_camera_dirs, trace_rays
+from psvs.optics.trace import pixels_from_camera_dirs, trace_camera_rays
 
 
 def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max_iter: int = 60):
@@ -55,8 +54,6 @@ def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max
     centre = virtual_centre(rig, view)
     finite = np.all(np.isfinite(pts), axis=1)
 
-    steps = path(rig, view)
-    at_camera = np.zeros_like(pts)
 
     def aim(origins):
         d = pts - origins
@@ -73,19 +70,16 @@ def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max
     uv = pixels_from_camera_dirs(dirs, cam)
     converged = np.zeros(len(pts), dtype=bool)
     for _ in range(max_iter):
-        dirs = aim(near_centre(trace_rays(at_camera, dirs, steps)))
+        dirs = aim(near_centre(trace_camera_rays(dirs, rig, view, occlusion=False)))
         new = pixels_from_camera_dirs(dirs, cam)
         step = np.max(np.abs(new - uv), axis=1)
         uv = new
         converged = step <= tol_px
         if np.all(converged | ~np.isfinite(step)):
             break
-    hits: list | None = [] if finite_solids(rig) else None
-    rays = trace_rays(at_camera, dirs, steps, hits)
+    rays = trace_camera_rays(dirs, rig, view)   # invalid also where another mirror or the plate's box is in the way
     ahead = np.einsum("ij,ij->i", pts - rays.origins_mm, rays.dirs) > 0
     valid = finite & converged & rays.valid & ahead
-    if hits is not None:   # another mirror or the plate's box in the way (psvs.optics.solids)
-        valid &= ~occluded(rig, hits, rays.origins_mm, rays.dirs)
     uv[~valid] = np.nan
     return uv, valid
 

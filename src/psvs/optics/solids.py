@@ -71,7 +71,7 @@ def segments_hit(p0s: np.ndarray, p1s: np.ndarray, solid: str, rig: Rig) -> np.n
     planes = mirror_planes(rig)
     d = rig.mirrors.plate_thickness_mm
     plane = planes["m1" if solid == "M1 plate" else solid.lower()]
-    lo, hi = _box(plane, d if solid == "M1 plate" else 0.0)
+    lo, hi = bounding_box(plane, d if solid == "M1 plate" else 0.0)
     idx = np.flatnonzero(boxes_meet(np.ascontiguousarray(p0s, dtype=np.float64),
                                     np.ascontiguousarray(p1s, dtype=np.float64), lo, hi))
     out = np.zeros(len(p0s), dtype=bool)
@@ -83,7 +83,7 @@ def segments_hit(p0s: np.ndarray, p1s: np.ndarray, solid: str, rig: Rig) -> np.n
     return out
 
 
-def _box(plane: Plane, thickness_mm: float) -> tuple[np.ndarray, np.ndarray]:
+def bounding_box(plane: Plane, thickness_mm: float) -> tuple[np.ndarray, np.ndarray]:
     """Axis-aligned bounds (lo (3,), hi (3,)) mm of a mirror's rectangle, extruded by ``thickness_mm`` behind
     its face (the plate), widened by 1e-6 mm."""
     (s0, s1), (t0, t1) = plane.extent.along_mm, plane.extent.height_mm

@@ -8,21 +8,24 @@ finite mirror, or the plate's box, blocks on its way (:mod:`psvs.optics.solids`)
 """
 from __future__ import annotations
 
+import functools
 import threading
 from collections import OrderedDict
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
 
+from psvs._threads import pool_size
 from psvs._validate import check_points
-from psvs.optics.kernels import undistort_fixed_point
-from psvs.optics.mirrors import path
+from psvs.optics.kernels import PASS, REFLECT, REFRACT, trace_path, undistort_fixed_point
+from psvs.optics.mirrors import mirror_planes, path
 from psvs.optics.rig import Camera, Rig
-from psvs.optics.solids import finite_solids, occluded
-from psvs.optics.surfaces import intersect, reflect, refract
+from psvs.optics.solids import LABEL, SCENE_DEPTH_MM, SOLIDS, bounding_box, finite_solids, occluded
+from psvs.optics.surfaces import EXTENT_TOL_MM, intersect, reflect, refract
 
-#: Rays traced at a time when other mirrors may block them (their path's points are held for the test).
-OCCLUSION_CHUNK = 1 << 18
+#: Rays a thread of :func:`trace_camera_rays` traces at a time (fewer go on one thread).
+THREAD_CHUNK = 1 << 16
 
 
 class Rays(NamedTuple):
@@ -160,6 +163,67 @@ def trace_rays(origins_mm: np.ndarray, dirs: np.ndarray, steps: list[tuple], hit
     return Rays(o, d, valid)
 
 
+@functools.lru_cache(maxsize=64)
+def _packed_path(rig: Rig, view: str):
+    """One view's path (:func:`psvs.optics.mirrors.path`) and the rig's solids as
+    :func:`psvs.optics.kernels.trace_path` reads them (read-only arrays, computed once per rig and view)."""
+    kinds = {"reflect": REFLECT, "refract": REFRACT, "pass": PASS}
+    steps = path(rig, view)
+    geo = np.full((len(steps), 16), np.nan)
+    eta = np.zeros(len(steps))
+    for k, step in enumerate(steps):
+        plane = step[1]
+        geo[k, :12] = np.concatenate([plane.point, plane.normal, plane.s_axis, plane.t_axis])
+        if plane.extent is not None:
+            geo[k, 12:] = (*plane.extent.along_mm, *plane.extent.height_mm)
+        if step[0] == "refract":
+            eta[k] = step[2]
+    kind = np.array([kinds[s[0]] for s in steps], dtype=np.int64)
+    label = np.array([SOLIDS.index(LABEL[s[1].name]) for s in steps], dtype=np.int64)
+    planes, finite = mirror_planes(rig), finite_solids(rig)
+    solids = np.zeros((len(SOLIDS), 23))
+    on = np.array([s in finite for s in SOLIDS])
+    for m, solid in enumerate(SOLIDS):
+        if on[m]:
+            plane = planes["m1" if solid == "M1 plate" else solid.lower()]
+            thick = rig.mirrors.plate_thickness_mm if solid == "M1 plate" else 0.0
+            solids[m] = np.concatenate([plane.point, plane.normal, plane.s_axis, plane.t_axis,
+                                        (*plane.extent.along_mm, *plane.extent.height_mm, thick),
+                                        *bounding_box(plane, thick)])
+    out = (geo, kind, eta, label, solids, on)
+    for a in out:
+        a.setflags(write=False)
+    return out
+
+
+def trace_camera_rays(dirs: np.ndarray, rig: Rig, view: str, occlusion: bool = True) -> Rays:
+    """Rays from the camera's centre O along camera directions ``dirs`` (N, 3) through one view: what
+    :func:`trace_rays` (from O) then, with ``occlusion``, :func:`psvs.optics.solids.occluded` give, in one
+    compiled pass a ray (:func:`psvs.optics.kernels.trace_path`; large inputs on the threads of
+    :func:`psvs._threads.pool_size`), without keeping the path's points: the tracer of every pixel and
+    projection. tests/optics/test_trace_kernel.py holds it to the NumPy form on drawn rigs and rays."""
+    d = np.ascontiguousarray(dirs, dtype=np.float64)
+    geo, kind, eta, label, solids, on = _packed_path(rig, view)
+    occlusion = bool(occlusion and on.any())
+    n = len(d)
+    out = Rays(np.empty((n, 3)), np.empty((n, 3)), np.empty(n, dtype=bool))
+
+    def part(a: int) -> None:
+        b = min(n, a + THREAD_CHUNK)
+        trace_path(d[a:b], geo, kind, eta, label, solids, on, SCENE_DEPTH_MM, EXTENT_TOL_MM,
+                   out.origins_mm[a:b], out.dirs[a:b], out.valid[a:b], occlusion)
+
+    starts = range(0, n, THREAD_CHUNK)
+    threads = pool_size(len(starts))
+    if threads > 1:
+        with ThreadPoolExecutor(threads) as ex:
+            list(ex.map(part, starts))
+    else:
+        for a in starts:
+            part(a)
+    return out
+
+
 def trace_pixels(uv_px, rig: Rig, view: str, hits: list | None = None) -> Rays:
     """Back-project pixels of one view to the rays they see in the scene.
 
@@ -186,18 +250,9 @@ def trace_pixels(uv_px, rig: Rig, view: str, hits: list | None = None) -> Rays:
     """
     uv = check_points(uv_px, "uv_px", 2)
     dirs = camera_dirs(uv, rig.camera)
-    steps = path(rig, view)
+    if hits is None:
+        return trace_camera_rays(dirs, rig, view)
+    rays = trace_rays(np.zeros_like(dirs), dirs, path(rig, view), hits)
     if not finite_solids(rig):
-        return trace_rays(np.zeros_like(dirs), dirs, steps, hits)
-    if hits is not None:
-        rays = trace_rays(np.zeros_like(dirs), dirs, steps, hits)
-        return rays._replace(valid=rays.valid & ~occluded(rig, hits, rays.origins_mm, rays.dirs))
-    parts = []
-    for a in range(0, max(len(dirs), 1), OCCLUSION_CHUNK):   # the path's points of a chunk at a time (N = 0: one)
-        d = dirs[a:a + OCCLUSION_CHUNK]
-        rec: list = []
-        rays = trace_rays(np.zeros_like(d), d, steps, rec)
-        parts.append(rays._replace(valid=rays.valid & ~occluded(rig, rec, rays.origins_mm, rays.dirs)))
-    if len(parts) == 1:
-        return parts[0]
-    return Rays(*(np.concatenate([getattr(p, f) for p in parts]) for f in Rays._fields))
+        return rays
+    return rays._replace(valid=rays.valid & ~occluded(rig, hits, rays.origins_mm, rays.dirs))
