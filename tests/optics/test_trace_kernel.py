@@ -3,6 +3,8 @@ every pixel and projection (trace_rays surface by surface, then psvs.optics.soli
 on drawn rigs: mirror extents from tight (other mirrors block part of the field) to unbounded, tilts and shifts,
 a turned box, plates 0-3 mm and indices 1.45-1.95, rays over and beyond the field (behind the camera included)
 and NaN rows."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -11,7 +13,7 @@ from psvs.io.params import load_rig
 from psvs.optics.mirrors import path
 from psvs.optics.rig import MirrorError, MirrorExtent
 from psvs.optics.solids import finite_solids, occluded
-from psvs.optics.trace import camera_dirs, trace_camera_rays, trace_pixels, trace_rays
+from psvs.optics.trace import camera_dirs, ideal_sensor_from_pixels, trace_camera_rays, trace_pixels, trace_rays
 from tests.support.geometry import EXAMPLES
 
 
@@ -107,3 +109,20 @@ def test_many_rays_on_several_threads_equal_one():
         many = trace_camera_rays(dirs, rig, "left")
     for a, b in zip(one, many, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_camera_dirs_are_the_sensor_points_undistorted_and_normalised(seed):
+    """camera_dirs (one compiled pass a pixel) against its formula in NumPy: the sensor point, the lens's
+    distortion undone (ideal_sensor_from_pixels), (x, y, f) over its length; a lens without distortion too."""
+    rng = np.random.default_rng(seed)
+    cam = load_rig(EXAMPLES / "rigs" / "mv1440_misaligned.toml").camera
+    if seed % 2:
+        cam = dataclasses.replace(cam, distortion=(0.0, 0.0, 0.0, 0.0, 0.0))
+    uv = rng.uniform(-200, 1600, (200_001, 2))
+    uv[:3] = np.nan
+    xy = ideal_sensor_from_pixels(uv, cam)
+    d = np.column_stack([xy, np.full(len(xy), cam.focal_length_mm)])
+    want = d / np.linalg.norm(d, axis=1, keepdims=True)
+    np.testing.assert_allclose(camera_dirs(uv, cam), want, rtol=0, atol=2e-16)
+    assert np.isnan(camera_dirs(uv[:3], cam)).all()

@@ -11,25 +11,49 @@ import numpy as np
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")   # a zero radial factor gives inf, as NumPy did
+def _undistort_one(xd0, yd0, dist, iterations, tol):  # pragma: no cover - compiled
+    """One point of :func:`undistort_fixed_point` (``dist`` (5,) k1, k2, p1, p2, k3): (x, y) normalised."""
+    k1, k2, p1, p2, k3 = dist[0], dist[1], dist[2], dist[3], dist[4]
+    x, y = xd0, yd0
+    for _ in range(iterations):
+        r2 = x * x + y * y
+        radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        nx = (xd0 - 2.0 * p1 * x * y - p2 * (r2 + 2.0 * x * x)) / radial
+        ny = (yd0 - p1 * (r2 + 2.0 * y * y) - 2.0 * p2 * x * y) / radial
+        moved = abs(nx - x) > tol or abs(ny - y) > tol
+        x, y = nx, ny
+        if not moved:
+            break
+    return x, y
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
 def undistort_fixed_point(xd, k1, k2, p1, p2, k3, iterations, tol):  # pragma: no cover - compiled
     """Normalised undistorted points (N, 2) of distorted ones ``xd`` (N, 2): per point, the fixed-point
     iteration x <- (x_d - tangential(x)) / radial(x) until it moves by ``tol`` or less (at most
     ``iterations``); a NaN point stays NaN."""
     out = np.empty_like(xd)
+    dist = np.array((k1, k2, p1, p2, k3))
     for i in range(xd.shape[0]):
-        xd0, yd0 = xd[i, 0], xd[i, 1]
-        x, y = xd0, yd0
-        for _ in range(iterations):
-            r2 = x * x + y * y
-            radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
-            nx = (xd0 - 2.0 * p1 * x * y - p2 * (r2 + 2.0 * x * x)) / radial
-            ny = (yd0 - p1 * (r2 + 2.0 * y * y) - 2.0 * p2 * x * y) / radial
-            moved = abs(nx - x) > tol or abs(ny - y) > tol
-            x, y = nx, ny
-            if not moved:
-                break
-        out[i, 0], out[i, 1] = x, y
+        out[i, 0], out[i, 1] = _undistort_one(xd[i, 0], xd[i, 1], dist, iterations, tol)
     return out
+
+
+@nb.njit(cache=True, nogil=True, error_model="numpy")
+def unit_camera_dirs(uv, cam, dist, iterations, tol, out):  # pragma: no cover - compiled
+    """Unit camera-ray directions into ``out`` (N, 3) of pixels ``uv`` (N, 2): ``cam`` (6,) is (cx, cy,
+    pitch_x, pitch_y, f, distorted), ``dist`` (5,) (k1, k2, p1, p2, k3); the sensor point (u - cx) pitch_x,
+    (v - cy) pitch_y, its distortion undone (:func:`undistort_fixed_point` on x / f), then (x, y, f)
+    normalised: :func:`psvs.optics.trace.camera_dirs` in one pass."""
+    f = cam[4]
+    for i in range(uv.shape[0]):
+        x = (uv[i, 0] - cam[0]) * cam[2]
+        y = (uv[i, 1] - cam[1]) * cam[3]
+        if cam[5] != 0:
+            x, y = _undistort_one(x / f, y / f, dist, iterations, tol)
+            x, y = x * f, y * f
+        norm = np.sqrt(x * x + y * y + f * f)
+        out[i, 0], out[i, 1], out[i, 2] = x / norm, y / norm, f / norm
 
 
 @nb.njit(cache=True, nogil=True)

@@ -18,7 +18,7 @@ import numpy as np
 
 from psvs._threads import pool_size
 from psvs._validate import check_points
-from psvs.optics.kernels import PASS, REFLECT, REFRACT, trace_path, undistort_fixed_point
+from psvs.optics.kernels import PASS, REFLECT, REFRACT, trace_path, undistort_fixed_point, unit_camera_dirs
 from psvs.optics.mirrors import mirror_planes, path
 from psvs.optics.rig import Camera, Rig
 from psvs.optics.solids import LABEL, SCENE_DEPTH_MM, SOLIDS, bounding_box, finite_solids, occluded
@@ -112,11 +112,11 @@ def camera_dirs(uv_px: np.ndarray, camera: Camera) -> np.ndarray:
             if d is not None:
                 _DIRS_CACHE.move_to_end(key)
                 return d
-    xy = ideal_sensor_from_pixels(uv, camera)
-    d = np.empty((len(xy), 3))
-    d[:, :2] = xy
-    d[:, 2] = camera.focal_length_mm
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    cam = np.array([*camera.principal_point_px, *camera.pixel_pitch_mm, camera.focal_length_mm,
+                    float(camera.distorted)])
+    dist = np.array(_coefficients(camera.distortion) if camera.distorted else (0.0,) * 5)
+    d = np.empty((len(uv), 3))
+    in_parts(len(uv), lambda a, b: unit_camera_dirs(uv[a:b], cam, dist, 50, 1e-15, d[a:b]))
     if key is not None:
         d.setflags(write=False)
         with _DIRS_LOCK:
@@ -207,21 +207,22 @@ def trace_camera_rays(dirs: np.ndarray, rig: Rig, view: str, occlusion: bool = T
     occlusion = bool(occlusion and on.any())
     n = len(d)
     out = Rays(np.empty((n, 3)), np.empty((n, 3)), np.empty(n, dtype=bool))
+    in_parts(n, lambda a, b: trace_path(d[a:b], geo, kind, eta, label, solids, on, SCENE_DEPTH_MM, EXTENT_TOL_MM,
+                                        out.origins_mm[a:b], out.dirs[a:b], out.valid[a:b], occlusion))
+    return out
 
-    def part(a: int) -> None:
-        b = min(n, a + THREAD_CHUNK)
-        trace_path(d[a:b], geo, kind, eta, label, solids, on, SCENE_DEPTH_MM, EXTENT_TOL_MM,
-                   out.origins_mm[a:b], out.dirs[a:b], out.valid[a:b], occlusion)
 
+def in_parts(n: int, work) -> None:
+    """``work(a, b)`` over [0, n) in parts of :data:`THREAD_CHUNK`, on the threads of
+    :func:`psvs._threads.pool_size` when there are several parts (the kernels release the GIL)."""
     starts = range(0, n, THREAD_CHUNK)
     threads = pool_size(len(starts))
     if threads > 1:
         with ThreadPoolExecutor(threads) as ex:
-            list(ex.map(part, starts))
+            list(ex.map(lambda a: work(a, min(n, a + THREAD_CHUNK)), starts))
     else:
         for a in starts:
-            part(a)
-    return out
+            work(a, min(n, a + THREAD_CHUNK))
 
 
 def trace_pixels(uv_px, rig: Rig, view: str, hits: list | None = None) -> Rays:

@@ -50,7 +50,6 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
     """Sub-pixel rim points along ``rays`` rays (per-ray half-level crossing) and a fitted ellipse.
     ``avoid`` (k, 3): other discs (u, v, radius px) nearby; rays whose profile would run into one (within
     2 px of its rim) are not read, so a neighbour neither moves the rim nor counts as an uneven ground."""
-    img = np.asarray(grey, dtype=np.float32)
     ang = 2 * np.pi * np.arange(rays) / rays
     if avoid is not None and len(avoid):
         clear = _clear_rays(np.asarray(centre, float), radius, ang, np.asarray(avoid, float))
@@ -60,38 +59,12 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
     rr = np.arange(0.4 * radius, 1.8 * radius + 2.5, dr)
     xs = centre[0] + np.cos(ang)[:, None] * rr[None, :]
     ys = centre[1] + np.sin(ang)[:, None] * rr[None, :]
-    prof = cv2.remap(img, xs.astype(np.float32), ys.astype(np.float32), cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_REPLICATE)
+    prof = _read_along(grey, xs, ys)
     dp = np.diff(prof, axis=1)                          # rising step = dark inside -> bright outside
     win = (rr[:-1] >= 0.6 * radius) & (rr[:-1] <= 1.4 * radius)
     step = int(np.ceil(max(0.15 * radius, 2.0) / dr))    # levels read +-max(0.15 r, 2 px) around the step
-    pts, widths, levels = [], [], []
-    for i in range(len(ang)):
-        d = np.where(win, dp[i], -np.inf)
-        top = d.max()
-        if not np.isfinite(top) or top <= 0:
-            continue
-        peaks = np.flatnonzero((d >= 0.4 * top) & (d >= np.roll(d, 1)) & (d >= np.roll(d, -1)))
-        if len(peaks) == 0:
-            continue
-        k = peaks[np.argmin(np.abs(rr[peaks] - radius))]   # the strong step nearest the blob's radius
-        a, b = max(k - step, 0), min(k + 1 + step, len(rr) - 1)
-        lo_level, hi_level = prof[i, a], prof[i, b]
-        if hi_level - lo_level < 10:
-            continue
-        half = 0.5 * (lo_level + hi_level)
-        levels.append((lo_level, hi_level))
-        # edge spread: a step of height D blurred by a Gaussian of sigma rises at most D / (sigma sqrt(2 pi))
-        widths.append((hi_level - lo_level) / (dp[i, k] / dr * np.sqrt(2 * np.pi)))
-        seg = prof[i, a:b + 1]
-        j = np.flatnonzero(seg >= half)
-        if len(j) == 0 or j[0] == 0:
-            continue
-        j = a + j[0]
-        p0, p1 = prof[i, j - 1], prof[i, j]
-        r = rr[j - 1] + (half - p0) / (p1 - p0) * (rr[j] - rr[j - 1])
-        pts.append((centre[0] + r * np.cos(ang[i]), centre[1] + r * np.sin(ang[i])))
-    pts = np.asarray(pts, dtype=np.float64)
+    r, ray, widths, levels = _rim_crossings(prof, dp, rr, win, radius, step, dr)
+    pts = np.column_stack([centre[0] + r * np.cos(ang[ray]), centre[1] + r * np.sin(ang[ray])])
     if len(pts) < 8:
         raise ValueError(f"circle at ({centre[0]:.1f}, {centre[1]:.1f}) px: too few rim points ({len(pts)}) to fit")
     e = _fit(pts)
@@ -105,12 +78,58 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
         e = _fit(pts)
     # blur moves the half-level contour of a curved edge toward its centre of curvature by ~ sigma^2 / (2 R)
     # (the blurred disc's indicator is below one half at the true rim); undo it with the measured spread
-    sigma2 = float(np.median(widths)) ** 2 if widths else 0.0
+    sigma2 = float(np.median(widths)) ** 2 if len(widths) else 0.0
     a, b = e.axes_px
-    lo_hi = np.array(levels)
+    lo_hi = levels
     p10, p90 = np.percentile(lo_hi[:, 1], [10, 90])
     spread = float((p90 - p10) / max(np.median(lo_hi[:, 1] - lo_hi[:, 0]), 1e-6))
     return Ellipse(e.centre_px, (a + sigma2 / (2 * a), b + sigma2 / (2 * b)), e.angle_rad, e.rim_px, spread)
+
+
+def _rim_crossings(prof, dp, rr, win, radius: float, step: int, dr: float):
+    """Each ray's rim (profiles ``prof`` (rays, L) at radii ``rr`` (L,), their steps ``dp`` (rays, L - 1)): the
+    strong rising step nearest ``radius`` within the window ``win`` (L - 1,), its levels ``step`` samples
+    either side, and the half-level crossing between them. Returns the crossing's radius (m,) px and ray
+    (m,), and for every ray with a step of 10 grey levels or more its edge spread (px) and (inside, outside)
+    levels."""
+    d = np.where(win, dp, -np.inf)
+    top = d.max(axis=1, keepdims=True)
+    peaks = (d >= 0.4 * top) & (d >= np.roll(d, 1, axis=1)) & (d >= np.roll(d, -1, axis=1))
+    peaks &= np.isfinite(top) & (top > 0)
+    rows = np.flatnonzero(peaks.any(axis=1))
+    # the strong step nearest the blob's radius (the first such on a tie)
+    k = np.argmin(np.where(peaks[rows], np.abs(rr[:-1] - radius), np.inf), axis=1)
+    a, b = np.maximum(k - step, 0), np.minimum(k + 1 + step, len(rr) - 1)
+    lo_level, hi_level = prof[rows, a], prof[rows, b]
+    strong = hi_level - lo_level >= 10
+    rows, k, a, b, lo_level, hi_level = (x[strong] for x in (rows, k, a, b, lo_level, hi_level))
+    half = 0.5 * (lo_level + hi_level)
+    # edge spread: a step of height D blurred by a Gaussian of sigma rises at most D / (sigma sqrt(2 pi))
+    widths = (hi_level - lo_level) / (dp[rows, k] / dr * np.sqrt(2 * np.pi))
+    col = np.arange(prof.shape[1])
+    above = (col >= a[:, None]) & (col <= b[:, None]) & (prof[rows] >= half[:, None])
+    j = np.argmax(above, axis=1)
+    cross = above.any(axis=1) & (j > a)
+    rows, j, half = rows[cross], j[cross], half[cross]
+    p0, p1 = prof[rows, j - 1], prof[rows, j]
+    r = rr[j - 1] + (half - p0) / (p1 - p0) * (rr[j] - rr[j - 1])
+    return r, rows, widths, np.column_stack([lo_level, hi_level])
+
+
+def _read_along(grey: np.ndarray, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """The image read bilinearly (float32) at (xs, ys), the border replicated: cv2.remap on the window the
+    points reach, 2 px wider (the whole image's border where the window meets it), so that a circle's cost
+    does not grow with the image."""
+    h, w = grey.shape[:2]
+    x0 = int(np.clip(np.floor(np.nanmin(xs)) - 2, 0, w - 1))
+    x1 = int(np.clip(np.ceil(np.nanmax(xs)) + 3, x0 + 1, w))
+    y0 = int(np.clip(np.floor(np.nanmin(ys)) - 2, 0, h - 1))
+    y1 = int(np.clip(np.ceil(np.nanmax(ys)) + 3, y0 + 1, h))
+    window = np.ascontiguousarray(grey[y0:y1, x0:x1], dtype=np.float32)
+    # float32 coordinates less a whole number of pixels are exact: the same sub-pixel fractions as on the whole
+    # image (cv2.remap reads them to 1/32 px), hence the same values
+    return cv2.remap(window, xs.astype(np.float32) - np.float32(x0), ys.astype(np.float32) - np.float32(y0),
+                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
 
 
 def _clear_rays(centre: np.ndarray, radius: float, ang: np.ndarray, avoid: np.ndarray) -> np.ndarray:
