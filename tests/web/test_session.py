@@ -93,3 +93,32 @@ def test_bodies_validate_range_and_model_once():
             body(model="magic")
         assert body(model="exact").params().model == "exact"
     assert LiveBody(dense=True, near_mm=300, far_mm=900).model is None
+
+
+def test_a_reader_started_while_the_source_is_replaced_reads_the_new_one():
+    """A video opened in the page while another request starts live mode: the start waits for the
+    replacement (the session's source lock), so live mode never runs on the source just replaced."""
+    import threading
+    import time
+
+    from psvs.web.live_runner import LiveRunner
+
+    started, stopping = [], threading.Event()
+
+    class SlowStop(LiveRunner):
+        def stop(self):
+            stopping.set()
+            time.sleep(0.3)          # the replacement is under way: a start now must wait for it
+            super().stop()
+
+        def start(self, source, tracker, dense=None, health=None):
+            started.append(source.name)
+
+    old, new = image_source("old.png", _squares(30)), image_source("new.png", _squares(90))
+    session = Session(old, default_rig(), live=SlowStop())
+    replacing = threading.Thread(target=session.replace_source, args=(new,))
+    replacing.start()
+    assert stopping.wait(5)
+    session.start_live(None, None, None)
+    replacing.join(5)
+    assert started == ["new.png"] and session.still().name == "new.png"

@@ -23,8 +23,7 @@ router = APIRouter(prefix="/api/capture")
 def capture_start(body: CaptureBody, session: SessionDep):
     """Start (or resume) the capture on the source's frames; live mode stops (one reader of the source)."""
     params = CaptureParams(views=body.views, near_mm=body.near_mm, far_mm=body.far_mm)
-    session.live.stop()
-    session.capture.start(session.source, session.rig, params)
+    session.start_capture(params)
     return {"running": True}
 
 

@@ -35,8 +35,7 @@ def live_start(body: LiveBody, session: SessionDep):
         match=MatchParams(model=body.model), params=TrackerParams(snap_px=SNAP_PX))
     dense = DenseSensor(rig, body.near_mm, body.far_mm) if body.dense else None
     health = RollingCheck(rig, body.near_mm, body.far_mm, body.tolerance_px) if body.check else None
-    session.capture.stop()                 # one reader of the source at a time
-    session.live.start(session.source, tracker, dense, health)
+    session.start_live(tracker, dense, health)
     return {"running": True}
 
 

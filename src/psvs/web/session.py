@@ -67,6 +67,9 @@ class Session:
     capture: CaptureRunner = field(default_factory=lambda: CaptureRunner(None))
     calibration: CalibrationJob = field(default_factory=CalibrationJob)
     _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
+    #: held while the source is replaced or a reader of it (live mode, the capture) starts: a reader started
+    #: meanwhile reads the new source, never the old one
+    _source_lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
     _still: np.ndarray = field(init=False, repr=False)
     _name: str = field(init=False)
     _generation: int = field(default=0, init=False)
@@ -108,10 +111,25 @@ class Session:
         if source.still.shape != (h, w):
             raise ValueError(f"{source.name}'s frames are {source.still.shape[1]}x{source.still.shape[0]} px, the "
                              f"rig's camera {w}x{h} px: a video of that camera, or the rig of this one")
-        self.live.stop()
-        self.capture.stop()
-        self.source = source
-        self.replace_still(source.still, source.name)
+        with self._source_lock:
+            self.live.stop()
+            self.capture.stop()
+            self.source = source
+            self.replace_still(source.still, source.name)
+
+    def start_live(self, tracker, dense, health) -> None:
+        """Start live mode on the current source (:meth:`LiveRunner.start`'s arguments); the capture stops
+        (one reader of the source at a time)."""
+        with self._source_lock:
+            self.capture.stop()
+            self.live.start(self.source, tracker, dense, health)
+
+    def start_capture(self, params) -> None:
+        """Start (or resume) the capture on the current source through the rig; live mode stops (one reader
+        of the source at a time)."""
+        with self._source_lock:
+            self.live.stop()
+            self.capture.start(self.source, self.rig, params)
 
     def still(self) -> Still:
         """The current image, its name and generation, read together under the lock."""
