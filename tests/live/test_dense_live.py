@@ -108,3 +108,11 @@ def test_a_video_of_noise_gives_no_depth(tmp_path, capsys):
     assert code == 1 and "3 frames, 0 with depth" in out, out
     assert err.strip().splitlines()[-1] == ("psvs live: cannot measure: no frame's echo stands above chance (psvs "
                                             "disparity's test): no depth")
+    # no frame says it answered: the maps' disparities without an echo are no measurement (the log and the
+    # frame lines agree)
+    assert all(line.startswith(f"frame {k}: dense: no depth, the echo does not stand above chance")
+               for k, line in enumerate(out.splitlines()[:3])), out
+    with (tmp_path / "l.csv").open() as f:
+        rows = list(csv.DictReader(f))
+    assert [float(r["dense_answered_pct"]) for r in rows] == [0.0] * 3
+    assert all(r["dense_median_z_mm"] == "nan" for r in rows)

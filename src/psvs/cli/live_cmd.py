@@ -249,8 +249,7 @@ def _summary(steps: list, dense_frames: list | None, wall: float, realtime: bool
     if steps[0] is None:
         print(f"{n} frames, {n / wall:.1f} frames/s ({pace})")
         if not len(z):
-            unsupported = (any(d.answered_pct > 0 for d in dense_frames)
-                           and not any(d.supported for d in dense_frames))
+            unsupported = not any(d.supported for d in dense_frames)
             print("psvs live: cannot measure: no frame's echo stands above chance (psvs disparity's test): no "
                   "depth" if unsupported else "no frame gave a dense depth (no texture in the working range?)",
                   file=sys.stderr)
@@ -272,7 +271,8 @@ def _frame_line(k: int, step, dstep) -> str:
                      f"{step.elapsed_s * 1e3:.1f} ms" if step.ok else step.message)
     if dstep is not None:
         parts.append(f"dense median Z {dstep.median_z_mm:.1f} mm, {dstep.answered_pct:.0f} % answered, "
-                     f"{dstep.elapsed_s * 1e3:.1f} ms")
+                     f"{dstep.elapsed_s * 1e3:.1f} ms" if dstep.supported else
+                     f"dense: no depth, the echo does not stand above chance, {dstep.elapsed_s * 1e3:.1f} ms")
     return f"frame {k}: " + "; ".join(parts)
 
 

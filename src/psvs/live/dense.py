@@ -36,9 +36,10 @@ class DenseFrame:
     view's rectified grid), NaN where no answer; ``searched_px`` the disparity range searched;
     ``points_mm`` (N, 3) and ``pixels`` (N, 2) (u, v on the map's grid) of the strided cloud, and
     ``depth_mm`` its depth on the strided grid (every ``stride``-th pixel of the map, NaN where no point);
-    ``median_z_mm`` (NaN with no point), ``answered_pct`` (% of the map's pixels with a disparity), the
-    processing time ``elapsed_s`` and ``supported``: whether the latest echo test found the scene's echo beyond
-    chance (without it, no points and no depth)."""
+    ``median_z_mm`` (NaN with no point), ``answered_pct`` (% of the map's pixels with a disparity, 0 when not
+    ``supported``), the processing time ``elapsed_s`` and ``supported``: whether the latest echo test found the
+    scene's echo beyond chance (without it, no points, no depth and nothing answered: the map's disparities
+    are then no measurement)."""
 
     frame: int
     disparity_px: np.ndarray
@@ -103,6 +104,7 @@ class DenseSensor:
         z = cloud.points_mm[:, 2]
         out = DenseFrame(self.frames, d, dense.result.searched_px, cloud.points_mm, cloud.pixels,
                          cloud.depth_mm[grid], float(np.median(z)) if len(z) else float("nan"),
-                         100.0 * float(np.mean(np.isfinite(d))), time.perf_counter() - t0, self._supported)
+                         100.0 * float(np.mean(np.isfinite(d))) if self._supported else 0.0,
+                         time.perf_counter() - t0, self._supported)
         self.frames += 1
         return out
