@@ -70,10 +70,15 @@ def test_triangulate_exact_to_file(capsys, tmp_path, matches_csv):
     code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv_in), "--model", "exact", "-o", str(out))
     assert code == 0 and "3 of 4 points valid" in err
     lines = out.read_text().splitlines()
-    assert lines[0] == "X_mm,Y_mm,Z_mm,valid"
+    assert lines[0] == "X_mm,Y_mm,Z_mm,Z_sigma_mm,valid"
     got = np.array([[float(v) for v in line.split(",")] for line in lines[1:]])
     np.testing.assert_allclose(got[:3, :3], pts, atol=1e-6)
-    assert got[:, 3].tolist() == [1, 1, 1, 0] and np.isnan(got[3, :3]).all()
+    assert got[:, 4].tolist() == [1, 1, 1, 0] and np.isnan(got[3, :4]).all()
+    # the depth's uncertainty for 0.1 px of match noise, to first order (+-3 %): Z_v^2 pitch 0.1 / (f b), Z_v the
+    # distance from the virtual cameras (b / 2 behind O)
+    cam = default_rig().camera
+    first_order = (pts[:, 2] + 50.0) ** 2 * cam.pixel_pitch_mm[0] * 0.1 / (cam.focal_length_mm * 100.0)
+    np.testing.assert_allclose(got[:3, 3], first_order, rtol=0.03)
 
 
 def test_triangulate_to_stdout_paper_model(capsys, matches_csv):
@@ -97,7 +102,7 @@ def test_triangulate_marks_pixels_that_are_not_twins_invalid(capsys, tmp_path, m
     code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv_in), "--model", model, "-o", str(out))
     assert code == 0
     assert err.splitlines()[0].startswith("1 pair(s) stand more than 2 px off their twin's epipolar curve (row 6: ")
-    valid = [int(line.split(",")[3]) for line in out.read_text().splitlines()[1:]]
+    valid = [int(line.split(",")[4]) for line in out.read_text().splitlines()[1:]]
     assert valid == [1, 1, 1, 0, 0] and "3 of 5 points valid" in err
     csv_in.write_text("u_l,v_l,u_r,v_r,u_l\n" + "\n".join(rows[1:]) + "\n")
     out.unlink()

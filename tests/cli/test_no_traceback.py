@@ -125,7 +125,7 @@ def test_known_failures_are_one_line_exit_2(capfd, files, earlier, argv, output,
 def test_files_with_a_byte_order_mark_are_read(capfd, files):
     code, out, err = run(capfd, "triangulate", "--rig", files / "bom.toml", files / "bom.csv")
     assert code == 0 and err == "", err
-    assert out.splitlines()[0] == "X_mm,Y_mm,Z_mm,valid" and len(out.splitlines()) == 2
+    assert out.splitlines()[0] == "X_mm,Y_mm,Z_mm,Z_sigma_mm,valid" and len(out.splitlines()) == 2
 
 
 @pytest.fixture

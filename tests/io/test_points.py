@@ -50,3 +50,20 @@ def test_atomic_write_keeps_old_file_on_error(tmp_path):
     assert [f.name for f in tmp_path.iterdir()] == ["keep.txt"]
     with pytest.raises(FileNotFoundError, match="output folder does not exist"):
         write_atomic(tmp_path / "no" / "x.txt", "data")
+
+
+def test_points_with_their_depth_sigma_read_back_by_value(tmp_path):
+    """The sigma column (before valid): each value back through Python's csv reader; inf and nan kept."""
+    import csv
+    pts = np.array([[1.5, -2.25, 812.123456789], [0.0, 1.0, 90000.0], [np.nan, np.nan, np.nan]])
+    sigma = np.array([0.4567891, np.inf, np.nan])
+    p = tmp_path / "out.csv"
+    write_points_csv(p, pts, np.array([True, True, False]), sigma)
+    with p.open() as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == ["X_mm", "Y_mm", "Z_mm", "Z_sigma_mm", "valid"]
+    np.testing.assert_allclose([[float(r[k]) for k in ("X_mm", "Y_mm", "Z_mm")] for r in rows[:2]], pts[:2],
+                               atol=1e-9)
+    got = [float(r["Z_sigma_mm"]) for r in rows]
+    assert abs(got[0] - 0.4567891) < 1e-6 and got[1] == np.inf and np.isnan(got[2])
+    assert [r["valid"] for r in rows] == ["1", "1", "0"]

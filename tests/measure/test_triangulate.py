@@ -226,3 +226,58 @@ def test_the_docs_figures_are_what_the_models_give(rig, reference_matches):
     assert f"−{-paper_bias:.2f} % depth bias on a 3 mm plate (mean error {paper_err:.2f} mm" in readme
     assert (f"mean error {got['l, m derived'][0]:.2f} mm (derived l, m), "
             f"{got['l, m fitted on other points'][0]:.2f} mm (fitted)") in readme
+
+
+@pytest.mark.parametrize("sigma_px", [0.1, 0.5])
+def test_depth_sigma_is_the_paper_depth_moved_by_the_noise(sigma_px):
+    """depth_sigma_mm against eq. (12) written out: for the paper's ideal cameras Z = f b / d - b / 2 (d the
+    disparity on the sensor, mm), so a match sigma px off moves Z to f b / (d -+ sigma pitch) - b / 2; the
+    larger move is the near side's. A disparity within sigma: the move passes through infinity (inf)."""
+    from psvs import default_rig
+    from psvs.measure.triangulate import depth_sigma_mm
+    rig = default_rig().replace(plate_thickness_mm=0.0)
+    f, b, pitch = rig.camera.focal_length_mm, rig.mirrors.baseline_mm, rig.camera.pixel_pitch_mm[0]
+    d_px = np.array([150.0, 60.0, 12.0, 2.0, 0.5 * sigma_px + 0.01, 0.02])
+    left = np.column_stack([319.5 + d_px / 2, np.full(len(d_px), 239.5)])
+    right = np.column_stack([319.5 - d_px / 2, np.full(len(d_px), 239.5)])
+    got = depth_sigma_mm(left, right, rig, "paper", sigma_px)
+    z = f * b / (d_px * pitch) - b / 2
+    want = f * b / ((d_px - sigma_px) * pitch) - b / 2 - z
+    far = d_px > sigma_px
+    np.testing.assert_allclose(got[far], want[far], rtol=1e-9)
+    assert np.isinf(got[~far]).all()
+    # pinned (sigma below Z) exactly where the disparity stands above twice the noise
+    assert ((got < z) == (d_px > 2 * sigma_px)).all()
+
+
+def test_depth_sigma_refuses_a_noise_that_is_no_number():
+    from psvs import default_rig
+    from psvs.measure.triangulate import depth_sigma_mm
+    for bad in (0.0, -0.1, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="the match noise must be a positive number of px"):
+            depth_sigma_mm([[400.0, 240.0]], [[300.0, 240.0]], default_rig(), "paper", bad)
+
+
+def test_triangulate_leaves_a_disparity_within_the_noise_unpinned(tmp_path, capsys):
+    """Issue 41's trial: a 0.01 px disparity came out as a valid point 11 km away. Its depth is not pinned by
+    matches of 0.1 px noise: invalid, said in one line; the pinned rows keep their points and read back (csv)
+    with their sigma."""
+    import csv
+
+    from psvs.cli.main import main
+    src = tmp_path / "m.csv"
+    src.write_text("u_l,v_l,u_r,v_r\n400.0,240,399.99,240\n400,240,300,240\n400,240,399.5,240\n")
+    out = tmp_path / "p.csv"
+    assert main(["triangulate", "--rig", "clear", str(src), "-o", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith("1 pair(s) have a disparity within twice the match noise (0.1 px): their depth is not "
+                          "pinned (row 2: Z 11428283 mm, +-inf mm), marked invalid"), err
+    with out.open() as f:
+        rows = list(csv.DictReader(f))
+    assert [r["valid"] for r in rows] == ["0", "1", "1"] and rows[0]["Z_mm"] == "nan"
+    z, s = float(rows[1]["Z_mm"]), float(rows[1]["Z_sigma_mm"])
+    assert 1000 < z < 1200 and 0.5 < s < 2.0
+    # with matches to the pixel (0.5 px) the 0.5 px disparity is not pinned either
+    assert main(["triangulate", "--rig", "clear", str(src), "--match-sigma-px", "0.5", "-o", str(out)]) == 0
+    with out.open() as f:
+        assert [r["valid"] for r in csv.DictReader(f)] == ["0", "1", "0"]

@@ -1,4 +1,4 @@
-"""``psvs triangulate``: matched pixels (CSV u_l,v_l,u_r,v_r) -> points (CSV X_mm,Y_mm,Z_mm,valid)."""
+"""``psvs triangulate``: matched pixels (CSV u_l,v_l,u_r,v_r) -> points (CSV X_mm,Y_mm,Z_mm,Z_sigma_mm,valid)."""
 from __future__ import annotations
 
 import sys
@@ -13,18 +13,31 @@ from psvs.cli.common import (
     measuring_rig,
 )
 from psvs.io.points import points_csv_text, read_matches_csv, write_points_csv
-from psvs.measure.triangulate import EPIPOLAR_TOL_PX, default_model, epipolar_gap_px, triangulate
+from psvs.measure.triangulate import (
+    EPIPOLAR_TOL_PX,
+    MATCH_SIGMA_PX,
+    default_model,
+    depth_sigma_mm,
+    epipolar_gap_px,
+    triangulate,
+)
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("triangulate", help="triangulate matched pixels into frame C (mm)",
                        description="Triangulate matched left/right pixels (eqs. 11-17 or exact ray tracing). "
-                                   "Input CSV columns u_l,v_l,u_r,v_r (px); output X_mm,Y_mm,Z_mm,valid. A pair whose "
-                                   "pixels stand more than 2 px off each other's epipolar curve (the exact rays' "
-                                   "closest approach) sees two points, not one: invalid.")
+                                   "Input CSV columns u_l,v_l,u_r,v_r (px); output X_mm,Y_mm,Z_mm,Z_sigma_mm,valid. "
+                                   "A pair whose pixels stand more than 2 px off each other's epipolar curve (the "
+                                   "exact rays' closest approach) sees two points, not one: invalid. Z_sigma_mm is "
+                                   "how far the depth moves for a match error of --match-sigma-px; a pair whose "
+                                   "depth that error moves by its own size or more (a disparity within twice the "
+                                   "noise) is not pinned: invalid.")
     add_rig_argument(p)
     p.add_argument("points", metavar="POINTS.csv", help="CSV with header u_l,v_l,u_r,v_r")
     add_model_argument(p)
+    p.add_argument("--match-sigma-px", type=float, default=MATCH_SIGMA_PX, metavar="PX",
+                   help=f"the matches' noise along the row, px (default {MATCH_SIGMA_PX:g}: a sub-pixel edge match; "
+                        "0.5 for matches to the pixel)")
     p.add_argument("-o", "--output", metavar="OUT.csv", help="write here (atomically) instead of stdout")
     p.set_defaults(run=run)
 
@@ -44,10 +57,20 @@ def run(args) -> int:
               f"(row {k + 2}: {gap[k]:.1f} px): not twins, marked invalid", file=sys.stderr)
         res.points_mm[off] = np.nan
         res.valid[off] = False
+    sigma = depth_sigma_mm(left, right, rig, model, args.match_sigma_px)
+    loose = res.valid & ~(sigma < res.points_mm[:, 2])
+    if loose.any():
+        k = int(np.flatnonzero(loose)[0])
+        print(f"{int(loose.sum())} pair(s) have a disparity within twice the match noise ({args.match_sigma_px:g} px): "
+              f"their depth is not pinned (row {k + 2}: Z {res.points_mm[k, 2]:.0f} mm, +-{sigma[k]:.0f} mm), marked "
+              "invalid", file=sys.stderr)
+        res.points_mm[loose] = np.nan
+        res.valid[loose] = False
+    sigma[~res.valid] = np.nan
     if out is None:
-        sys.stdout.write(points_csv_text(res.points_mm, res.valid))
+        sys.stdout.write(points_csv_text(res.points_mm, res.valid, sigma))
     else:
-        write_points_csv(out, res.points_mm, res.valid)
+        write_points_csv(out, res.points_mm, res.valid, sigma)
         print(f"{out}: {int(res.valid.sum())} of {len(res.valid)} points valid ({model} model)",
               file=sys.stderr)
     return 0

@@ -62,15 +62,20 @@ def _is_float(text: str) -> bool:
         return not text.strip()
 
 
-def points_csv_text(points_mm: np.ndarray, valid: np.ndarray) -> str:
-    """CSV text with columns ``X_mm,Y_mm,Z_mm,valid`` (valid as 1/0, invalid rows' coordinates nan)."""
+def points_csv_text(points_mm: np.ndarray, valid: np.ndarray, z_sigma_mm: np.ndarray | None = None) -> str:
+    """CSV text with columns ``X_mm,Y_mm,Z_mm,valid`` (valid as 1/0, invalid rows' coordinates nan), with
+    ``z_sigma_mm`` (N,) a column ``Z_sigma_mm`` before ``valid`` (the depth's uncertainty, mm; inf where the
+    match noise leaves it unbounded)."""
     buf = io.StringIO()
-    buf.write(",".join(POINT_COLUMNS) + "\n")
-    for (x, y, z), ok in zip(points_mm, valid, strict=True):
-        buf.write(f"{x:.15g},{y:.15g},{z:.15g},{int(bool(ok))}\n")
+    columns = POINT_COLUMNS if z_sigma_mm is None else POINT_COLUMNS[:3] + ("Z_sigma_mm",) + POINT_COLUMNS[3:]
+    buf.write(",".join(columns) + "\n")
+    sigmas = [None] * len(valid) if z_sigma_mm is None else z_sigma_mm
+    for (x, y, z), s, ok in zip(points_mm, sigmas, valid, strict=True):
+        sigma = "" if s is None else f"{s:.6g},"
+        buf.write(f"{x:.15g},{y:.15g},{z:.15g},{sigma}{int(bool(ok))}\n")
     return buf.getvalue()
 
 
-def write_points_csv(path, points_mm: np.ndarray, valid: np.ndarray) -> None:
+def write_points_csv(path, points_mm: np.ndarray, valid: np.ndarray, z_sigma_mm: np.ndarray | None = None) -> None:
     """Write triangulated points atomically (see :func:`points_csv_text`)."""
-    write_atomic(path, points_csv_text(points_mm, valid))
+    write_atomic(path, points_csv_text(points_mm, valid, z_sigma_mm))

@@ -9,7 +9,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submod_attrs={
         "refraction_fit": ["fit_refraction"],
         "tolerance": ["Sensitivity", "field_points", "tolerance_analysis"],
-        "triangulate": ["EPIPOLAR_TOL_PX", "MODELS", "Triangulation", "default_model", "epipolar_gap_px",
-                        "fit_refraction_terms", "twin_rows"],
+        "triangulate": ["EPIPOLAR_TOL_PX", "MATCH_SIGMA_PX", "MODELS", "Triangulation", "default_model",
+                        "depth_sigma_mm", "epipolar_gap_px", "fit_refraction_terms", "twin_rows"],
     },
 )

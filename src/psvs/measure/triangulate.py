@@ -182,3 +182,29 @@ def _closest_approach(left: np.ndarray, right: np.ndarray, rig: Rig) -> tuple[Tr
     valid &= np.all(np.isfinite(pts), axis=1)
     pts[~valid] = np.nan
     return Triangulation(pts, valid), gap
+
+
+#: px: the match noise :func:`depth_sigma_mm` assumes unless told (a sub-pixel edge match's; the paper's
+#: pixel-level matching is about 0.5 px).
+MATCH_SIGMA_PX = 0.1
+
+
+def depth_sigma_mm(left_px, right_px, rig: Rig, model: str = "refraction",
+                   sigma_px: float = MATCH_SIGMA_PX) -> np.ndarray:
+    """How far (mm, shape (N,)) each pair's depth moves when its right pixel (N, 2) moves by ``sigma_px`` along
+    its row either way (the larger of the two, through the same ``model``): the depth's first-order
+    uncertainty for a match noise of ``sigma_px``. inf where a move makes the pair untriangulable (the
+    disparity does not stand above the noise); NaN where the pair itself is invalid. For the paper's parallel
+    cameras it is Z sigma / d of a disparity d (px): it passes Z where d <= 2 sigma."""
+    if not (np.isfinite(sigma_px) and sigma_px > 0):
+        raise ValueError(f"the match noise must be a positive number of px, got {sigma_px!r}")
+    left = check_points(left_px, "left_px", 2)
+    right = check_points(right_px, "right_px", 2)
+    z = triangulate(left, right, rig, model).points_mm[:, 2]
+    out = np.zeros(len(left))
+    for step in (-sigma_px, sigma_px):
+        moved = triangulate(left, right + [step, 0.0], rig, model)
+        dz = np.where(moved.valid, np.abs(moved.points_mm[:, 2] - z), np.inf)
+        out = np.maximum(out, dz)
+    out[~np.isfinite(z)] = np.nan
+    return out
