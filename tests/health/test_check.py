@@ -151,3 +151,37 @@ def test_bad_arguments_are_named():
         check_frames([], rig)
     with pytest.raises(ValueError, match="frame 2 is 320x240 px, the rig's camera 640x480"):
         check_frames([img, img[:240, :320]], rig)
+
+
+def test_one_frame_repeated_is_one_frame_of_evidence():
+    """Issue 41's trial: one frame given many times (a still scene, no noise between them) was counted as that
+    many frames of independent evidence, and a healthy rig turned "drifted" at a tight tolerance. The
+    repeated frame now has the one frame's uncertainty and verdict; six frames of the still scene with their
+    own sensor noise barely more evidence than one."""
+    rig = load_rig("misaligned")
+    frames = [render(wall(800.0, "grass"), rig, seed=s).image for s in range(6)]
+    for tol in (0.5, 0.05):
+        one = check_frames(frames[:1], rig, tolerance_px=tol)
+        rep = check_frames(frames[:1] * 12, rig, tolerance_px=tol)
+        still = check_frames(frames, rig, tolerance_px=tol)
+        assert one.verdict == rep.verdict == still.verdict == ("healthy" if tol == 0.5 else "cannot judge")
+        assert rep.uncertainty_px == pytest.approx(one.uncertainty_px, rel=0.1)
+        assert still.uncertainty_px >= 0.7 * one.uncertainty_px
+    assert "frames of the scene moved, or of other scenes, decide it" in rep.reason
+
+
+def test_the_repeat_factor_against_its_analysis_of_variance():
+    """repeat_factor on planted residuals: places sharing all their error (one frame repeated) count once; errors
+    independent from frame to frame count in full; half the variance shared gives the design effect
+    1 + (m - 1) rho of m frames with rho = 0.5."""
+    from psvs.health.check import repeat_factor
+    rng = np.random.default_rng(3)
+    places = rng.uniform(0, 1000, (300, 2))
+    m = 8
+    centres = np.tile(places, (m, 1))
+    bias = rng.normal(size=300)
+    assert repeat_factor(centres, np.tile(bias, m)) == pytest.approx(m)
+    assert repeat_factor(centres, rng.normal(size=300 * m)) == pytest.approx(1.0, abs=0.1)
+    half = np.tile(bias, m) + rng.normal(size=300 * m)
+    assert repeat_factor(centres, half) == pytest.approx(1 + (m - 1) * 0.5, rel=0.1)
+    assert repeat_factor(places, bias) == 1.0        # one frame: every place once

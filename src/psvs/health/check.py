@@ -183,7 +183,9 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
     # the residuals about a fit of p terms to n tiles are n - p degrees of freedom: their spread understates
     # the tiles' noise by sqrt((n - p) / n) (at the 12 tiles of a first judgement, by 30 %)
     noise = scatter * np.sqrt(n / max(n - A.shape[1], 1))
-    cov = OVERLAP * noise ** 2 * np.linalg.pinv(A[inliers].T @ A[inliers])
+    # the same tile of several frames of one still scene sees the same texture: its errors repeat and count once
+    repeat = repeat_factor(centre[inliers], offset[inliers] - at)
+    cov = OVERLAP * repeat * noise ** 2 * np.linalg.pinv(A[inliers].T @ A[inliers])
     var = np.einsum("ij,jk,ik->i", A[inliers], cov, A[inliers])
     unc = float(np.sqrt(np.mean(var)))
     rms = float(np.sqrt(max(np.mean(at ** 2) - np.mean(var), 0.0)))   # noise adds its variance to the mean square
@@ -194,13 +196,32 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
                  coefficients=coef, disparity_px=disparity[inliers])
     evidence = (f"{n} tiles ({judged} px) of {len(tiles)} frame(s), field RMS {rms:.2f} +- {unc:.2f} px, "
                 f"largest {top:.2f} px, tolerance {tolerance_px:g} px")
-    k = _two_sigma(n - A.shape[1])
+    k = _two_sigma(int(n / repeat) - A.shape[1])
     if rms + k * unc <= tolerance_px:
         return HealthCheck("healthy", f"the twins stand on their rows: {evidence}", **found)
     if rms - k * unc > tolerance_px:
         return HealthCheck("drifted", f"the twins stand off their rows: {evidence}", **found)
-    return HealthCheck("cannot judge", f"the offset is within its uncertainty of the tolerance: {evidence}; more "
-                       f"frames decide it", **found)
+    more = "frames of the scene moved, or of other scenes," if repeat > 1.5 else "more frames"
+    return HealthCheck("cannot judge", f"the offset is within its uncertainty of the tolerance: {evidence}; {more} "
+                       f"decide it", **found)
+
+
+def repeat_factor(centres_px: np.ndarray, residuals_px: np.ndarray) -> float:
+    """How many times (>= 1) the tiles' count overstates their independent evidence: tiles at the same place
+    (``centres_px`` (n, 2), equal) in several frames share the error their texture makes when the scene stands
+    still. From the residuals (n,) px about the field, a one-way analysis of variance by place: the share
+    rho of their variance that places share (1 - within-place variance / total), and the count's design effect
+    n / sum_i n_i / (1 + (n_i - 1) rho) over the places' counts n_i. One frame, or frames of a scene that moves:
+    about 1; one frame repeated: the number of frames."""
+    _, place, counts = np.unique(centres_px, axis=0, return_inverse=True, return_counts=True)
+    place = place.ravel()
+    if counts.max() < 2:
+        return 1.0
+    means = np.bincount(place, residuals_px) / counts
+    within = float(np.sum((residuals_px - means[place]) ** 2)) / max(int(np.sum(counts - 1)), 1)
+    total = float(np.var(residuals_px, ddof=1))
+    rho = float(np.clip(1.0 - within / total, 0.0, 1.0)) if total > 0 else 1.0
+    return float(len(residuals_px) / np.sum(counts / (1.0 + (counts - 1) * rho)))
 
 
 def _two_sigma(dof: int) -> float:
