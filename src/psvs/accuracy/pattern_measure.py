@@ -52,12 +52,9 @@ from psvs.targets.pattern import (
     order_along_row,
     perfect_matchings,
 )
-from psvs.targets.rim import Ellipse
+from psvs.targets.rim import EDGE_PX, Ellipse
 from psvs.targets.twins import twin_distances_px
 
-#: px: how precisely the detector locates one rim point or one ellipse centre in one view: within 0.25 px of
-#: the exact projection even where the other view's sheet crosses the circle (tests/targets/test_pattern.py).
-EDGE_PX = 0.25
 #: The tolerances are this many times the error the edges' bounds add up to.
 MARGIN = 2.0
 

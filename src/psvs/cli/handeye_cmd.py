@@ -31,7 +31,7 @@ def add_parser(sub) -> None:
     p.add_argument("--save-views", metavar="DIR", help="simulated cell only: also write the views as a folder")
     p.add_argument("--robot-accuracy-mm", type=float, default=0.5, metavar="MM",
                    help="the robot's stated flange pose accuracy (default 0.5 mm): the fit is refused when its "
-                        "residual is beyond what this and the grid's own fit explain (docs/right-or-refuse.md)")
+                        "residual is beyond what this and the detector's precision explain (docs/right-or-refuse.md)")
     p.add_argument("-o", "--output", metavar="HANDEYE.toml", required=True, help="the hand-eye file to write")
     p.set_defaults(run=run)
 

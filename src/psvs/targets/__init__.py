@@ -21,7 +21,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "discs": ["MAX_DIAMETER_PX", "MIN_AREA_PX"],
         "pattern": ["PatternDetection", "detect_circles", "detect_pattern", "detect_with_start", "disc_size_range_px",
                     "order_along_row", "perfect_matchings"],
-        "rim": ["Ellipse"],
+        "rim": ["EDGE_PX", "Ellipse"],
         "target_file": ["dumps_target", "load_target", "target_from_text"],
         "target_points": ["Target", "TargetDetection", "target_points_mm"],
         "twins": ["twin_distances_px"],

@@ -14,6 +14,11 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+#: px: how precisely the detector locates one rim point or one ellipse centre in one view: within 0.25 px of
+#: the exact projection even where the other view's sheet crosses the circle (tests/targets/test_pattern.py):
+#: the noise the circle pattern's and the hand-eye fit's tests allow a centre.
+EDGE_PX = 0.25
+
 
 @dataclass(frozen=True, eq=False)
 class Ellipse:
