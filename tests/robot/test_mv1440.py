@@ -24,10 +24,11 @@ def test_the_sensor_scales_its_pixel_tolerances():
 
 @pytest.mark.slow
 def test_track_on_the_machine_vision_build(tmp_path, capsys):
-    """A 10 mm gap about 10 mm into a 25 mm weld: the torch on the seam (lateral RMS <= 0.1 mm, max <= 0.5,
-    vertical RMS <= 0.3), the gap bridged (measured within 1.5 mm), the window 66 rows and more."""
+    """An 8 mm gap about 10 mm into a 25 mm weld (the bridge is 10 mm; tests/robot/test_track.py's gap10 says
+    why not 10): the torch on the seam (lateral RMS <= 0.1 mm, max <= 0.5, vertical RMS <= 0.3), the gap bridged
+    (measured within 1.5 mm), the window 66 rows and more."""
     out = tmp_path / "run"
-    code = main(["track", "weld_seam:gap_start_mm=-15,gap_length_mm=10", "--rig", "mv1440_misaligned",
+    code = main(["track", "weld_seam:gap_start_mm=-15,gap_length_mm=8", "--rig", "mv1440_misaligned",
                  "--length", "25", "--no-bag", "-o", str(out)])
     assert code == 0, capsys.readouterr().err
     s = json.loads((out / "report.json").read_text())
@@ -37,7 +38,8 @@ def test_track_on_the_machine_vision_build(tmp_path, capsys):
     assert s["vertical_mm"]["rms"] <= 0.3
     assert s["in_gap_lateral_mm"]["max"] is not None and s["in_gap_lateral_mm"]["max"] <= 0.5
     (a, b), = s["gaps_bridged_mm"]
-    assert b - a == pytest.approx(10.0, abs=1.5)
+    print(f"the gap measured {b - a:.2f} mm")
+    assert b - a == pytest.approx(8.0, abs=1.5)
 
 
 @pytest.mark.slow

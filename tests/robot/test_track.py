@@ -1,4 +1,4 @@
-"""The closed loop on short seam stretches: accuracy at 10 mm/s and 25 Hz, a 10 mm gap bridged, a 40 mm
+"""The closed loop on short seam stretches: accuracy at 10 mm/s and 25 Hz, an 8 mm gap bridged, a 40 mm
 gap stopping the arm, the ROS 2 bag read back, and the CLI's errors. One hand-eye calibration is shared."""
 import csv
 import json
@@ -33,8 +33,11 @@ def handeye():
 
 @pytest.fixture(scope="module")
 def gap10(handeye):
-    """Curved seam (R = 150 mm, height +-20 mm), a 10 mm gap about 10 mm into the weld."""
-    wp = seam_workpiece("weld_seam:gap_start_mm=-15,gap_length_mm=10", CFG.camera_distance_mm)
+    """Curved seam (R = 150 mm, height +-20 mm), an 8 mm gap about 10 mm into the weld. Not 10 mm: the bridge
+    is 10 mm and the sensor measures a gap within 1.5 mm of the true one (it needs 8 rows of the seam past the
+    gap's far edge), so a 10 mm gap was a knife edge that one grey level in one frame decided (the ray
+    tracer's last bits, 1e-15, turned it from bridged to stopped)."""
+    wp = seam_workpiece("weld_seam:gap_start_mm=-15,gap_length_mm=8", CFG.camera_distance_mm)
     return wp, track(wp, default_rig(), CFG, handeye=handeye)
 
 
@@ -60,7 +63,8 @@ def test_tracking_accuracy_and_bridged_gap(gap10):
     assert s["in_gap_lateral_mm"]["max"] is not None and s["in_gap_lateral_mm"]["max"] <= 0.1
     assert not all(c.valid for c in run.cycles)           # the sensor did lose the seam in the gap
     (a, b), = run.gaps_bridged
-    assert b - a == pytest.approx(10.0, abs=1.5)          # the gap it measured
+    print(f"the gap measured {b - a:.2f} mm")
+    assert b - a == pytest.approx(8.0, abs=1.5)           # the gap it measured
     assert np.all(np.array([c.qdd_peak for c in run.cycles]) <= np.array([4, 4, 4, 8, 8, 8]) + 1e-9)
 
 
@@ -185,11 +189,11 @@ def test_cli_errors_are_one_line_exit_2(args, msg, tmp_path, monkeypatch, capsys
 def test_tracking_on_a_misaligned_build():
     """The world rendered through the misaligned build, the sensor matching on its rectified rows
     (twins rows apart: the window is taller by their offset) with the build's own model, the hand-eye
-    calibrated through it too: lateral RMS <= 0.1 mm, max <= 0.5, and a 10 mm gap bridged as on the ideal
+    calibrated through it too: lateral RMS <= 0.1 mm, max <= 0.5, and an 8 mm gap bridged as on the ideal
     rig (measured within 1.5 mm, the torch on the seam across it)."""
     from psvs.io.params import load_rig
     build = load_rig("misaligned")
-    wp = seam_workpiece("weld_seam:gap_start_mm=-15,gap_length_mm=10", CFG.camera_distance_mm)
+    wp = seam_workpiece("weld_seam:gap_start_mm=-15,gap_length_mm=8", CFG.camera_distance_mm)
     run = track(wp, build, CFG, true_rig=build)
     s = summary(run, wp)
     assert s["stop"]["reason"] == "weld length reached"
@@ -197,7 +201,8 @@ def test_tracking_on_a_misaligned_build():
     assert s["vertical_mm"]["rms"] <= 0.3
     assert s["in_gap_lateral_mm"]["max"] is not None and s["in_gap_lateral_mm"]["max"] <= 0.5
     (a, b), = run.gaps_bridged
-    assert b - a == pytest.approx(10.0, abs=1.5)
+    print(f"the gap measured {b - a:.2f} mm")
+    assert b - a == pytest.approx(8.0, abs=1.5)
     assert run.cycles[0].image.shape[0] > CFG.roi_rows       # the readout spans the twins' offset
 
 
