@@ -32,7 +32,8 @@ def test_written_examples_are_the_repository_s_and_measure_their_truth(tmp_path,
                        "-o", str(tmp_path / "points.csv"))
     assert code == 0, err
     points, truth = _table(tmp_path / "points.csv"), _table(out / "matches_truth.csv")
-    assert points.shape == (6, 4) and np.all(points[:, 3] == 1)
+    assert points.shape == (6, 5) and np.all(points[:, 4] == 1)             # X, Y, Z, Z_sigma_mm, valid
+    assert np.all((points[:, 3] > 0) & (points[:, 3] < 2.0))                # 0.1 px of match noise: a few 0.1 mm
     np.testing.assert_allclose(points[:, :3], truth, atol=1e-6)
     code, _, err = run(capsys, "simulate", str(out / "scenes/desk.toml"), "-o", str(tmp_path / "desk.png"),
                        "--rig", "default", "--seed", "1")

@@ -31,7 +31,7 @@ def test_triangulate_marks_rows_no_point_can_give(capsys, tmp_path):
         code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv), "--model", model, "-o", str(out))
         assert code == 0 and f"3 of 6 points valid ({model} model)" in err
         got = np.loadtxt(out, delimiter=",", skiprows=1)
-        assert got[:, 3].tolist() == [1, 1, 1, 0, 0, 0] and np.isnan(got[3:, :3]).all()
+        assert got[:, 4].tolist() == [1, 1, 1, 0, 0, 0] and np.isnan(got[3:, :4]).all()   # X, Y, Z, Z_sigma_mm, valid
         assert np.abs(got[:3, 2] - pts[:3, 2]).max() < (1e-6 if model == "exact" else 15.0)
 
 

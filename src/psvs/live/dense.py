@@ -39,7 +39,8 @@ class DenseFrame:
     ``median_z_mm`` (NaN with no point), ``answered_pct`` (% of the map's pixels with a disparity, 0 when not
     ``supported``), the processing time ``elapsed_s`` and ``supported``: whether the latest echo test found the
     scene's echo beyond chance (without it, no points, no depth and nothing answered: the map's disparities
-    are then no measurement)."""
+    are then no measurement); ``mapped``: whether the map holds any disparity at all (a featureless frame:
+    none)."""
 
     frame: int
     disparity_px: np.ndarray
@@ -51,6 +52,7 @@ class DenseFrame:
     answered_pct: float
     elapsed_s: float
     supported: bool = True
+    mapped: bool = True
 
     def brief(self) -> "DenseFrame":
         """This frame without its map and cloud (empty arrays): what a run's log and summary keep of every
@@ -105,6 +107,6 @@ class DenseSensor:
         out = DenseFrame(self.frames, d, dense.result.searched_px, cloud.points_mm, cloud.pixels,
                          cloud.depth_mm[grid], float(np.median(z)) if len(z) else float("nan"),
                          100.0 * float(np.mean(np.isfinite(d))) if self._supported else 0.0,
-                         time.perf_counter() - t0, self._supported)
+                         time.perf_counter() - t0, self._supported, bool(np.isfinite(d).any()))
         self.frames += 1
         return out
