@@ -85,6 +85,7 @@ def main(argv: list[str]) -> int:
                   f"{', '.join(m.stem[6:] for m in sorted(HERE.glob('bench_*.py')))})", file=sys.stderr)
             return 2
     rows, ratios, memory = [], [], []
+    stale = set()                  # ratios of which this run measured one case only
     for path in modules:
         spec = importlib.util.spec_from_file_location(path.stem, path)
         mod = importlib.util.module_from_spec(spec)
@@ -100,6 +101,9 @@ def main(argv: list[str]) -> int:
                                                            f"(target {target * 1e3:.0f} ms: {ok})"), flush=True)
         times = {r[1]: r[2] for r in rows if r[0] == path.stem.removeprefix("bench_")}
         for name, a, b in getattr(mod, "RATIOS", []):
+            if (a in times) != (b in times):      # one case measured again: the old ratio was of another run
+                stale.add((path.stem.removeprefix("bench_"), name))
+                print(f"{name}: left out (only one of its two cases ran)", flush=True)
             if a not in times or b not in times:
                 continue
             ratios.append((path.stem.removeprefix("bench_"), name, times[a] / times[b]))
@@ -125,7 +129,7 @@ def main(argv: list[str]) -> int:
                 target = float("inf") if cells[3] in ("—", "inf") else float(cells[3]) / 1e3
                 met = "—" if target == float("inf") else cells[4]
                 rows.append((cells[0], cells[1], float(cells[2]) / 1e3, target, met))
-            elif len(cells) == 3 and cells[0] not in ran and (cells[0], cells[1]) not in ran_ratios \
+            elif len(cells) == 3 and cells[0] not in ran and (cells[0], cells[1]) not in ran_ratios | stale \
                     and cells[0] not in ("group", "---"):
                 ratios.append((cells[0], cells[1], float(cells[2])))
             elif len(cells) == 4 and cells[0] not in ran and (cells[0], cells[1]) not in ran_memory \

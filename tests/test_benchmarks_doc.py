@@ -87,3 +87,23 @@ def test_help_and_unknown_groups_write_nothing(capsys):
     assert run.main(["nosuchgroup"]) == 2 and "groups: calibrate" in capsys.readouterr().err
     assert run.main(["triangulate", "--case", "no such case"]) == 2 and "no case matches" in capsys.readouterr().err
     assert DOC.read_bytes() == before
+
+
+@pytest.mark.slow     # renders the 1440 x 1080 frame the case matches on (about 10 s)
+def test_a_ratio_of_which_one_case_ran_again_is_left_out(tmp_path, monkeypatch, capsys):
+    """bench/run.py re-measuring one case of a ratio (``--case``) drops that ratio's old row: its other case
+    is of an earlier run, and the quotient of two runs is no ratio of the same run (the live loop's was kept
+    stale once). The other rows stay."""
+    spec = importlib.util.spec_from_file_location("bench_run", ROOT / "bench" / "run.py")
+    run = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(run)
+    out = tmp_path / "benchmarks.md"
+    out.write_text(DOC.read_text(encoding="utf-8"), encoding="utf-8")
+    monkeypatch.setattr(run, "OUT", out)
+    before = {(g, n) for g, n, _ in _table_rows(out.read_text(encoding="utf-8"), 3)}
+    paper = ("match", "mv1440 1440x1080 / 640x480, paper chain (same run)")
+    assert paper in before
+    run.main(["match", "--case", "mv1440 1440x1080: pipeline + seeded"])
+    assert "left out (only one of its two cases ran)" in capsys.readouterr().out
+    after = {(g, n) for g, n, _ in _table_rows(out.read_text(encoding="utf-8"), 3)}
+    assert after == before - {paper}
