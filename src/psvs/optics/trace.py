@@ -216,7 +216,7 @@ def in_parts(n: int, work) -> None:
     """``work(a, b)`` over [0, n) in parts of :data:`THREAD_CHUNK`, on the threads of
     :func:`psvs._threads.pool_size` when there are several parts (the kernels release the GIL)."""
     starts = range(0, n, THREAD_CHUNK)
-    threads = pool_size(len(starts))
+    threads = pool_size(len(starts)) if len(starts) > 1 else 1     # one part (or none): no pool
     if threads > 1:
         with ThreadPoolExecutor(threads) as ex:
             list(ex.map(lambda a: work(a, min(n, a + THREAD_CHUNK)), starts))
