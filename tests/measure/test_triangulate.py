@@ -281,3 +281,20 @@ def test_triangulate_leaves_a_disparity_within_the_noise_unpinned(tmp_path, caps
     assert main(["triangulate", "--rig", "clear", str(src), "--match-sigma-px", "0.5", "-o", str(out)]) == 0
     with out.open() as f:
         assert [r["valid"] for r in csv.DictReader(f)] == ["0", "1", "0"]
+
+
+def test_depth_sigma_near_the_sensor_edge_moves_the_other_pixel():
+    """A right pixel 0.05 px inside the sensor's edge: moving it by the noise leaves the sensor, so the same
+    change of disparity is made by moving the left pixel the other way. The depth's move is then what it is
+    a pixel further in (within 2 %), not inf (the review found every such pair marked unpinned)."""
+    from psvs import default_rig
+    from psvs.measure.triangulate import depth_sigma_mm
+    rig = default_rig()
+    ul = np.linspace(100.0, 630.0, 6)           # Z 130-1080 mm
+    left = np.column_stack([ul, np.full(6, 239.5)])
+    edge = np.column_stack([np.full(6, -0.45), np.full(6, 239.5)])
+    assert triangulate(left, edge, rig).valid.all()
+    got = depth_sigma_mm(left, edge, rig)
+    inside = depth_sigma_mm(left + [1.0, 0.0], edge + [1.0, 0.0], rig)
+    assert np.isfinite(got).all()
+    np.testing.assert_allclose(got, inside, rtol=0.02)

@@ -209,19 +209,25 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
 def repeat_factor(centres_px: np.ndarray, residuals_px: np.ndarray) -> float:
     """How many times (>= 1) the tiles' count overstates their independent evidence: tiles at the same place
     (``centres_px`` (n, 2), equal) in several frames share the error their texture makes when the scene stands
-    still. From the residuals (n,) px about the field, a one-way analysis of variance by place: the share
-    rho of their variance that places share (1 - within-place variance / total), and the count's design effect
-    n / sum_i n_i / (1 + (n_i - 1) rho) over the places' counts n_i. One frame, or frames of a scene that moves:
-    about 1; one frame repeated: the number of frames."""
+    still. From the residuals (n,) px about the field, a one-way analysis of variance by place: the intraclass
+    correlation rho = (MSB - MSW) / (MSB + (n0 - 1) MSW) (between- and within-place mean squares, n0 the
+    places' effective size; clipped to 0..1), and the count's design effect n / sum_i n_i / (1 + (n_i - 1) rho)
+    over the places' counts n_i. One frame, or frames of a scene that moves: about 1; one frame repeated: the
+    number of frames."""
     _, place, counts = np.unique(centres_px, axis=0, return_inverse=True, return_counts=True)
     place = place.ravel()
+    n, k = len(residuals_px), len(counts)
     if counts.max() < 2:
         return 1.0
+    if k < 2:
+        return float(n)                       # one place seen n times: one piece of evidence
     means = np.bincount(place, residuals_px) / counts
-    within = float(np.sum((residuals_px - means[place]) ** 2)) / max(int(np.sum(counts - 1)), 1)
-    total = float(np.var(residuals_px, ddof=1))
-    rho = float(np.clip(1.0 - within / total, 0.0, 1.0)) if total > 0 else 1.0
-    return float(len(residuals_px) / np.sum(counts / (1.0 + (counts - 1) * rho)))
+    msw = float(np.sum((residuals_px - means[place]) ** 2)) / (n - k)
+    msb = float(np.sum(counts * (means - residuals_px.mean()) ** 2)) / (k - 1)
+    n0 = (n - float(np.sum(counts ** 2)) / n) / (k - 1)
+    den = msb + (n0 - 1.0) * msw
+    rho = float(np.clip((msb - msw) / den, 0.0, 1.0)) if den > 0 else 1.0
+    return float(n / np.sum(counts / (1.0 + (counts - 1) * rho)))
 
 
 def _two_sigma(dof: int) -> float:

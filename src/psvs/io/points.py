@@ -64,8 +64,8 @@ def _is_float(text: str) -> bool:
 
 def points_csv_text(points_mm: np.ndarray, valid: np.ndarray, z_sigma_mm: np.ndarray | None = None) -> str:
     """CSV text with columns ``X_mm,Y_mm,Z_mm,valid`` (valid as 1/0, invalid rows' coordinates nan), with
-    ``z_sigma_mm`` (N,) a column ``Z_sigma_mm`` before ``valid`` (the depth's uncertainty, mm; inf where the
-    match noise leaves it unbounded)."""
+    ``z_sigma_mm`` (N,) a column ``Z_sigma_mm`` before ``valid`` (the depth's uncertainty, mm; written as given:
+    ``psvs triangulate`` leaves it nan on invalid rows)."""
     buf = io.StringIO()
     columns = POINT_COLUMNS if z_sigma_mm is None else POINT_COLUMNS[:3] + ("Z_sigma_mm",) + POINT_COLUMNS[3:]
     buf.write(",".join(columns) + "\n")

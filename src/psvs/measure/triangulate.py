@@ -191,20 +191,27 @@ MATCH_SIGMA_PX = 0.1
 
 def depth_sigma_mm(left_px, right_px, rig: Rig, model: str = "refraction",
                    sigma_px: float = MATCH_SIGMA_PX) -> np.ndarray:
-    """How far (mm, shape (N,)) each pair's depth moves when its right pixel (N, 2) moves by ``sigma_px`` along
-    its row either way (the larger of the two, through the same ``model``): the depth's first-order
-    uncertainty for a match noise of ``sigma_px``. inf where a move makes the pair untriangulable (the
-    disparity does not stand above the noise); NaN where the pair itself is invalid. For the paper's parallel
-    cameras it is Z sigma / d of a disparity d (px): it passes Z where d <= 2 sigma."""
+    """How far (mm, shape (N,)) each pair's depth moves when its disparity changes by ``sigma_px`` along the
+    row either way (the larger of the two moves, through the same ``model``): the depth's first-order
+    uncertainty for a match noise of ``sigma_px``. The right pixel (N, 2) is moved (the left one the other way
+    where the moved right pixel would leave what the rig sees: the sensor's edge, a mirror's). inf where the
+    smaller disparity cannot be triangulated either way (it does not stand above the noise); a larger
+    disparity that cannot (a point near the rig's front) leaves the smaller one's move; NaN where the pair
+    itself is invalid. For the paper's parallel cameras it is Z sigma / (d - sigma) of a disparity d (px): it
+    passes Z where d <= 2 sigma."""
     if not (np.isfinite(sigma_px) and sigma_px > 0):
         raise ValueError(f"the match noise must be a positive number of px, got {sigma_px!r}")
     left = check_points(left_px, "left_px", 2)
     right = check_points(right_px, "right_px", 2)
     z = triangulate(left, right, rig, model).points_mm[:, 2]
-    out = np.zeros(len(left))
-    for step in (-sigma_px, sigma_px):
-        moved = triangulate(left, right + [step, 0.0], rig, model)
-        dz = np.where(moved.valid, np.abs(moved.points_mm[:, 2] - z), np.inf)
-        out = np.maximum(out, dz)
+    moves = []
+    for step in (sigma_px, -sigma_px):    # the smaller disparity (the right pixel to the right), the larger
+        shift = np.array([step, 0.0])
+        moved = triangulate(left, right + shift, rig, model)
+        other = triangulate(left - shift, right, rig, model)    # the same change of disparity, from the left
+        zm = np.where(moved.valid, moved.points_mm[:, 2], np.where(other.valid, other.points_mm[:, 2], np.nan))
+        moves.append(np.abs(zm - z))
+    far, near = moves
+    out = np.where(np.isfinite(far), np.fmax(far, near), np.inf)
     out[~np.isfinite(z)] = np.nan
     return out

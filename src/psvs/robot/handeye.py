@@ -185,13 +185,13 @@ def check_views(fits: list, rig: Rig, grid: CircleGrid) -> None:
         seen = triangulate(f.left_px[ok], f.right_px[ok], rig, model="exact").points_mm
         spread = np.sqrt(np.mean(np.sum((pts - pts.mean(axis=0)) ** 2, axis=1)))
         scales.append(float(np.sqrt(np.mean(np.sum((seen - seen.mean(axis=0)) ** 2, axis=1))) / spread))
-    gap = float(np.median(gaps))
+    gap = float(np.median(gaps))                 # NaN (a twin off the rig's field) is refused too
     if not gap <= TWIN_GAP_PX:
         raise MeasurementError(f"the discs' twins stand {gap:.1f} px off their epipolar curves through this rig "
                                f"(the median over {len(fits)} views; the detector places them within {TWIN_GAP_PX:g} "
                                "px): views of another rig, or a rig that has moved since its calibration")
     scale, se = float(np.mean(scales)), float(np.std(scales, ddof=1) / np.sqrt(len(scales)))
-    if abs(scale - 1.0) > max(SCALE_TOL, 3 * se):
+    if not abs(scale - 1.0) <= max(SCALE_TOL, 3 * se):      # NaN (a disc not triangulated) is refused too
         raise MeasurementError(f"the card in the views is {scale:.4f} times the size its target file says "
                                f"(+-{se:.4f} over {len(fits)} views; a print's scale and a calibrated baseline hold "
                                f"{SCALE_TOL:.0%}): a card printed at another scale, or the rig of another build; "

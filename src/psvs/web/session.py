@@ -97,11 +97,12 @@ class Session:
         if (rw, rh) != (w, h):
             raise ValueError(f"{name}'s camera is {rw}x{rh} px, the served images {w}x{h} px: serve a camera, video "
                              "or image of that size with it (psvs serve --rig)")
-        self.live.stop()
-        self.capture.stop()
-        with self._lock:
-            self.rig, self.rig_name, self._result = rig, name, None
-            self._generation += 1         # a match still running through the old rig stores nothing
+        with self._source_lock:           # no reader starts meanwhile through the old rig
+            self.live.stop()
+            self.capture.stop()
+            with self._lock:
+                self.rig, self.rig_name, self._result = rig, name, None
+                self._generation += 1     # a match still running through the old rig stores nothing
 
     def replace_source(self, source: Source) -> None:
         """Serve ``source`` from now on (a video chosen in the page): its frames must be the rig's camera's size
