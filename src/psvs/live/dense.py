@@ -104,9 +104,10 @@ class DenseSensor:
         mask[grid] = self._supported
         cloud = rig_cloud(dense, self.rig, mask=mask)
         z = cloud.points_mm[:, 2]
+        finite = np.isfinite(d)
         out = DenseFrame(self.frames, d, dense.result.searched_px, cloud.points_mm, cloud.pixels,
                          cloud.depth_mm[grid], float(np.median(z)) if len(z) else float("nan"),
-                         100.0 * float(np.mean(np.isfinite(d))) if self._supported else 0.0,
-                         time.perf_counter() - t0, self._supported, bool(np.isfinite(d).any()))
+                         100.0 * float(np.mean(finite)) if self._supported else 0.0,
+                         time.perf_counter() - t0, self._supported, bool(finite.any()))
         self.frames += 1
         return out

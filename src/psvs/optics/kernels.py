@@ -57,18 +57,23 @@ def unit_camera_dirs(uv, cam, dist, iterations, tol, out):  # pragma: no cover -
 
 
 @nb.njit(cache=True, nogil=True)
+def _box_meets(p0, p1, lo, hi):  # pragma: no cover - compiled
+    """Whether the axis-aligned bounding box of the segment p0 -> p1 (3,) meets the box [lo, hi] (3,) (a NaN
+    coordinate meets nothing)."""
+    for k in range(3):
+        a, b = p0[k], p1[k]
+        if np.isnan(a) or np.isnan(b) or max(a, b) < lo[k] or min(a, b) > hi[k]:
+            return False
+    return True
+
+
+@nb.njit(cache=True, nogil=True)
 def boxes_meet(p0s, p1s, lo, hi):  # pragma: no cover - compiled
     """Mask (N,) of segments p0s -> p1s (N, 3) whose axis-aligned bounding box meets the box [lo, hi] (3,)
     (a NaN coordinate meets nothing)."""
     out = np.zeros(p0s.shape[0], dtype=np.bool_)
     for i in range(p0s.shape[0]):
-        meet = True
-        for k in range(3):
-            a, b = p0s[i, k], p1s[i, k]
-            if np.isnan(a) or np.isnan(b) or max(a, b) < lo[k] or min(a, b) > hi[k]:
-                meet = False
-                break
-        out[i] = meet
+        out[i] = _box_meets(p0s[i], p1s[i], lo, hi)
     return out
 
 
@@ -83,10 +88,8 @@ def _segment_blocked(p0, p1, g, plate):  # pragma: no cover - compiled
     axes (12), its rectangle s0, s1, t0, t1 (4), the plate's thickness (1) and its bounding box lo, hi (6);
     ``plate``: the box of the M1 plate (slab method), else the rectangle (crossed strictly inside).
     :func:`psvs.optics.solids.segments_hit`, one segment."""
-    for k in range(3):   # the bounding-box pre-test (a NaN coordinate meets nothing)
-        a, b = p0[k], p1[k]
-        if np.isnan(a) or np.isnan(b) or max(a, b) < g[17 + k] or min(a, b) > g[20 + k]:
-            return False
+    if not _box_meets(p0, p1, g[17:20], g[20:23]):     # the bounding-box pre-test
+        return False
     off = g[0] * g[3] + g[1] * g[4] + g[2] * g[5]
     d0 = p0[0] * g[3] + p0[1] * g[4] + p0[2] * g[5] - off
     d1 = p1[0] * g[3] + p1[1] * g[4] + p1[2] * g[5] - off

@@ -54,7 +54,6 @@ def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max
     centre = virtual_centre(rig, view)
     finite = np.all(np.isfinite(pts), axis=1)
 
-
     def aim(origins):
         d = pts - origins
         d /= np.linalg.norm(d, axis=1, keepdims=True)

@@ -45,13 +45,15 @@ def rigid_fit(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, float]:
 @dataclass(frozen=True, eq=False)
 class TargetFit:
     """The grid in one complex image under one labelling of its discs: target2cam (4, 4) mm, the rigid
-    fit's RMS residual (mm), and the detected disc centres in each view, (n, 2) px, row k the grid's
-    k-th disc (:meth:`psvs.simulate.textures.CircleGrid.centres_mm` order), NaN where it was not read."""
+    fit's RMS residual (mm), the detected disc centres in each view, (n, 2) px, and the discs triangulated
+    (exact model), (n, 3) mm, row k the grid's k-th disc (:meth:`psvs.simulate.textures.CircleGrid.centres_mm`
+    order), NaN where it was not read."""
 
     target2cam: np.ndarray
     rms_mm: float
     left_px: np.ndarray
     right_px: np.ndarray
+    points_mm: np.ndarray
 
 
 def target_candidates(grey: np.ndarray, rig: Rig, grid: CircleGrid) -> list[TargetFit]:
@@ -71,7 +73,7 @@ def target_candidates(grey: np.ndarray, rig: Rig, grid: CircleGrid) -> list[Targ
     for order in (idx, idx[::-1], idx[:, ::-1], idx[::-1, ::-1]):
         k = order.ravel()
         fit = seen[k]
-        out.append(TargetFit(*rigid_fit(model[fit], pts[k][fit]), left[k], right[k]))
+        out.append(TargetFit(*rigid_fit(model[fit], pts[k][fit]), left[k], right[k], pts[k]))
     return out
 
 
@@ -176,15 +178,15 @@ def check_views(fits: list, rig: Rig, grid: CircleGrid) -> None:
     says (the mean of the views' scales, the RMS spread of the discs about their centroid over the file's,
     beyond :data:`SCALE_TOL` and 3 standard errors over the views: a card printed at another scale). Issue 41's
     trial: both gave mounts 15-20 mm off, accepted."""
+    def spread(p: np.ndarray) -> float:     # RMS distance of points (n, 3) from their centroid
+        return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1))))
+
     gaps, scales = [], []
     model = grid_points(grid)
     for f in fits:
-        ok = np.isfinite(f.left_px[:, 0]) & np.isfinite(f.right_px[:, 0])
+        ok = np.isfinite(f.points_mm[:, 0])
         gaps.append(float(np.median(epipolar_gap_px(f.left_px[ok], f.right_px[ok], rig))))
-        pts = transform_points(f.target2cam, model[ok])
-        seen = triangulate(f.left_px[ok], f.right_px[ok], rig, model="exact").points_mm
-        spread = np.sqrt(np.mean(np.sum((pts - pts.mean(axis=0)) ** 2, axis=1)))
-        scales.append(float(np.sqrt(np.mean(np.sum((seen - seen.mean(axis=0)) ** 2, axis=1))) / spread))
+        scales.append(spread(f.points_mm[ok]) / spread(model[ok]))
     gap = float(np.median(gaps))                 # NaN (a twin off the rig's field) is refused too
     if not gap <= TWIN_GAP_PX:
         raise MeasurementError(f"the discs' twins stand {gap:.1f} px off their epipolar curves through this rig "

@@ -85,9 +85,8 @@ def refine_circle(grey: np.ndarray, centre: np.ndarray, radius: float, rays: int
     # (the blurred disc's indicator is below one half at the true rim); undo it with the measured spread
     sigma2 = float(np.median(widths)) ** 2 if len(widths) else 0.0
     a, b = e.axes_px
-    lo_hi = levels
-    p10, p90 = np.percentile(lo_hi[:, 1], [10, 90])
-    spread = float((p90 - p10) / max(np.median(lo_hi[:, 1] - lo_hi[:, 0]), 1e-6))
+    p10, p90 = np.percentile(levels[:, 1], [10, 90])
+    spread = float((p90 - p10) / max(np.median(levels[:, 1] - levels[:, 0]), 1e-6))
     return Ellipse(e.centre_px, (a + sigma2 / (2 * a), b + sigma2 / (2 * b)), e.angle_rad, e.rim_px, spread)
 
 
