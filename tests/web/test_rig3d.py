@@ -202,6 +202,7 @@ def test_the_dense_cloud_is_the_trusted_pixels_at_their_depth(textured_app):
     with local_client(blank) as c:
         res = c.post("/api/dense", json={"fast": True}).json()
     assert res["trusted_pct"] == 0 and res["median_z_mm"] is None and res["cloud"]["points_mm"] == []
+    assert res["answered_pct"] == 0         # what the map holds unsupported is no answer
 
 
 def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
@@ -269,7 +270,7 @@ def test_the_fast_dense_answer_on_fig5b_is_the_trusted_pixels():
     app = create_app(scene_source("fig5b", fig5b(), default_rig()), default_rig())
     with local_client(app) as c:
         res = c.post("/api/dense", json={"fast": True}).json()
-    assert res["answered_pct"] > 90 and 2 < res["trusted_pct"] < 30
+    assert res["mapped_pct"] > 90 and 2 < res["trusted_pct"] < 30 and res["answered_pct"] == res["trusted_pct"]
     assert 148 <= res["median_disparity_px"] <= 155 and 690 <= res["median_z_mm"] <= 720
 
 

@@ -44,8 +44,10 @@ def read_csv_columns(path, columns: tuple[str, ...]) -> np.ndarray:
     for lineno, row in enumerate(table[1:], start=2):
         if not row or all(not cell.strip() for cell in row):
             continue
-        if len(row) < len(header):
-            raise ValueError(f"{path}:{lineno}: expected {len(header)} columns, got {len(row)}")
+        if len(row) != len(header):    # a cell short, or one more than the header names: which is which?
+            raise ValueError(f"{path}:{lineno}: expected {len(header)} columns as the header names, got {len(row)}"
+                             + (" (a trailing comma?)" if len(row) == len(header) + 1 and not row[-1].strip()
+                                else ""))
         try:
             rows.append([float(row[i]) if row[i].strip() else np.nan for i in idx])
         except ValueError:

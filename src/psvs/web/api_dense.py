@@ -57,10 +57,11 @@ def cloud_for_page(dense_res, cloud) -> dict:
 
 @router.post("/dense")
 def dense(body: DenseBody, session: SessionDep):
-    """Dense disparity of the current image, the share of its pixels the echo supports beyond chance
-    (``trusted_pct``), their median disparity and depth (None when none is) and point cloud, and optionally
-    the separated views, as PNG data URLs. The library's dense kernels run under DENSE_LOCK (one at a time,
-    with live mode's)."""
+    """Dense disparity of the current image, the share of its pixels the map holds a disparity for
+    (``mapped_pct``: no measurement by itself) and the share the echo supports beyond chance (``answered_pct``,
+    the same as ``trusted_pct``: what the CLI calls answered), their median disparity and depth (None when
+    none is) and point cloud, and optionally the separated views, as PNG data URLs. The library's dense
+    kernels run under DENSE_LOCK (one at a time, with live mode's)."""
     grey, rig = session.still().grey, session.rig
     with DENSE_LOCK:
         dense_res = dense_on_rig(grey, rig, body.near_mm, body.far_mm, params=FAST if body.fast else DEFAULT)
@@ -72,8 +73,9 @@ def dense(body: DenseBody, session: SessionDep):
     seen = trusted & np.isfinite(d)          # the medians of what the echo supports: never a noisy median
     cloud = rig_cloud(dense_res, rig, mask=seen)       # only the trusted pixels are triangulated
     z = cloud.depth_mm
-    out = {"disparity_png": data_url(colour_disparity(d, lo, hi)), "range_px": [lo, hi],
-           "answered_pct": 100.0 * float(np.mean(np.isfinite(d))), "trusted_pct": 100.0 * float(np.mean(seen)),
+    out = {"disparity_png": data_url(colour_disparity(d, lo, hi, trusted=seen)), "range_px": [lo, hi],
+           "mapped_pct": 100.0 * float(np.mean(np.isfinite(d))), "answered_pct": 100.0 * float(np.mean(seen)),
+           "trusted_pct": 100.0 * float(np.mean(seen)),
            "median_disparity_px": float(np.median(d[seen])) if seen.any() else None,
            "median_z_mm": float(np.nanmedian(z[seen])) if np.isfinite(z[seen]).any() else None,
            "cloud": cloud_for_page(dense_res, cloud), "pointer": json_safe(pointer_grid(d, z, seen))}

@@ -63,11 +63,13 @@ def live_frame(session: SessionDep):
 
 @router.get("/dense.png")
 def live_dense(session: SessionDep):
-    """The latest frame's dense disparity as a colour map; 404 before the first dense frame."""
+    """The latest frame's dense disparity as a colour map, in grey when the scene's echo does not stand above
+    chance (no measurement: :class:`psvs.live.dense.DenseFrame` ``supported``); 404 before the first dense
+    frame."""
     d = session.live.dense()
     if d is None:
         return JSONResponse({"detail": "no dense frame yet: start live with dense"}, status_code=404)
-    return png_response(colour_disparity(d.disparity_px, *d.searched_px))
+    return png_response(colour_disparity(d.disparity_px, *d.searched_px, trusted=d.supported))
 
 
 @router.get("/cloud")

@@ -113,5 +113,6 @@ class LiveRunner(BackgroundRunner):
                 out.update(frame=dstep.frame, latency_ms=round(dstep.elapsed_s * 1e3, 3))
             out["dense"] = {"frame": dstep.frame, "median_z_mm": dstep.median_z_mm if np.isfinite(dstep.median_z_mm)
                             else None, "answered_pct": round(dstep.answered_pct, 2),
+                            "supported": bool(dstep.supported), "mapped": bool(dstep.mapped),
                             "latency_ms": round(dstep.elapsed_s * 1e3, 3), "range_px": list(dstep.searched_px)}
         return out

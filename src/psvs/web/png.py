@@ -26,8 +26,9 @@ def png_response(img: np.ndarray) -> Response:
     return Response(png(img), media_type="image/png", headers={"Cache-Control": "no-store"})
 
 
-def colour_disparity(d: np.ndarray, lo: float, hi: float) -> np.ndarray:
-    """A disparity map (H, W) as a BGR colour image: near (large d) bright, no answer black.
+def colour_disparity(d: np.ndarray, lo: float, hi: float, trusted: np.ndarray | bool = True) -> np.ndarray:
+    """A disparity map (H, W) as a BGR colour image: near (large d) bright, no answer black, and the pixels
+    not ``trusted`` (bool, or (H, W) bool: the echo does not support them beyond chance) in grey, not colour.
 
     Parameters
     ----------
@@ -35,8 +36,13 @@ def colour_disparity(d: np.ndarray, lo: float, hi: float) -> np.ndarray:
         Disparities (px), NaN where there is no answer.
     lo, hi : float
         The searched disparity range (px), mapped to the ends of the colour map.
+    trusted : bool or ndarray
+        Which answers stand (default all); the others are drawn as grey levels.
     """
     t = np.clip((np.nan_to_num(d, nan=lo) - lo) / max(hi - lo, 1e-9), 0, 1)
-    out = cv2.applyColorMap(np.rint(255 * t).astype(np.uint8), cv2.COLORMAP_INFERNO)
+    level = np.rint(255 * t).astype(np.uint8)
+    out = cv2.applyColorMap(level, cv2.COLORMAP_INFERNO)
+    untrusted = ~np.broadcast_to(np.asarray(trusted, dtype=bool), d.shape)
+    out[untrusted] = level[untrusted][:, None]
     out[~np.isfinite(d)] = 0
     return out

@@ -207,9 +207,9 @@ $("dense").addEventListener("click", async () => {
     }
     state.denseCloud = res.cloud;
     await drawCloud3d($("dense-cloud"), res.cloud, $("dense-cloud-colour").value);
-    if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, ` +
-      `${res.trusted_pct.toFixed(0)} % supported beyond chance (the medians and the cloud are theirs)`, true);
-    else setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, none supported ` +
+    if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.mapped_pct.toFixed(0)} % of the pixels mapped, ` +
+      `${res.answered_pct.toFixed(0)} % answered: supported beyond chance (the medians and the cloud are theirs)`, true);
+    else setStatus(`dense disparity: ${res.mapped_pct.toFixed(0)} % of the pixels mapped, none answered: none supported ` +
       "beyond chance: no depth (too little texture in the working range?)");
   } catch (e) { setStatus(e.message); }
 });
@@ -250,6 +250,8 @@ async function livePoll() {
       $("live-dense-z").dataset.mm = s.dense.median_z_mm ?? "";
       $("live-dense-z").dataset.frame = s.dense.frame;
       $("live-dense-ms").textContent = fmt(s.dense.latency_ms, 0, "ms");
+      if (!s.dense.supported) setStatus("live dense: no depth, the scene's echo does not stand above chance " +
+        "(its map in grey: no measurement)");
       $("live-dense-figure").hidden = false;
       $("live-dense-map").src = "/api/live/dense.png?t=" + Date.now();
       liveCloud(s.dense.frame);
