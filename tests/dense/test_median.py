@@ -15,6 +15,18 @@ def test_median_matches_scipy_within_half_a_level(size, shape, seed):
     np.testing.assert_allclose(got, exact(d, size=size, mode="nearest"), atol=0.5 / LEVELS_PER_PX + 1e-12)
 
 
+@pytest.mark.parametrize("size", [3, 5])
+def test_small_windows_are_the_exact_median_to_float32(size):
+    """Windows of 3 and 5 px (OpenCV's medianBlur): scipy's exact median to float32's rounding, on a map of
+    disparities up to 600 px with a plateau at the image's edge."""
+    rng = np.random.default_rng(size)
+    d = rng.uniform(0.0, 600.0, (45, 70))
+    d[:6, :6] = 123.456
+    got = median_filter(d, size)
+    assert got.dtype == np.float64 and got.shape == d.shape
+    np.testing.assert_allclose(got, exact(d, size=size, mode="nearest"), rtol=0, atol=600 * 2 ** -23)
+
+
 def test_values_on_the_grid_are_exact_and_errors_are_named():
     d = np.random.default_rng(4).integers(0, 64 * LEVELS_PER_PX, (30, 40)) / LEVELS_PER_PX - 5.0
     np.testing.assert_array_equal(median_filter(d, 7), exact(d, size=7, mode="nearest"))

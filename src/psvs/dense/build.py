@@ -101,19 +101,26 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
     the build's depth table (:mod:`psvs.dense.depth_table`; its rectification's own rig), any other by
     mapping both back to the complex image. ``mask`` (H', W' bool) keeps a subset of the map's pixels."""
     model = default_model(rig) if model is None else model
-    d = np.asarray(dense.result.disparity_left, dtype=np.float64)
     if dense.rect is None:
-        return disparity_cloud(d, rig, model, mask)
-    keep = np.isfinite(d) & (d > 0)
-    if mask is not None:
-        keep &= np.asarray(mask, dtype=bool)
-    v, u = np.nonzero(keep)
+        return disparity_cloud(np.asarray(dense.result.disparity_left, dtype=np.float64), rig, model, mask)
+    d = dense.result.disparity_left
+    if mask is None:
+        v, u = np.nonzero(np.isfinite(d) & (d > 0))
+    else:        # the mask's pixels first (a live loop's strided grid: a sixteenth of the map), then their values
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != d.shape:
+            raise ValueError(f"mask {mask.shape} must have the map's shape {d.shape}")
+        v, u = np.nonzero(mask)
+        at = d[v, u]
+        good = np.isfinite(at) & (at > 0)
+        v, u = v[good], u[good]
     left_rect = np.column_stack([u, v]).astype(np.float64)
+    disparity = d[v, u].astype(np.float64)
     rect = dense.rect
     if model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors:
-        tri = table_points(depth_table(rect), rect, left_rect, d[v, u])
+        tri = table_points(depth_table(rect), rect, left_rect, disparity)
     else:
-        tri = exact_points(rect, left_rect, d[v, u], model, rig=rig)
+        tri = exact_points(rect, left_rect, disparity, model, rig=rig)
     ok = np.flatnonzero(tri.valid)           # once, for the four arrays it selects from
     pts = tri.points_mm[ok]
     depth = np.full(d.shape, np.nan)

@@ -92,9 +92,11 @@ def finite_median(d: np.ndarray, size: int) -> np.ndarray:
     """Median of each size × size neighbourhood (odd side, px) of the finite values of ``d`` (H, W, px); the
     non-finite values count as the map's median, and a row without any finite value stays NaN."""
     finite = np.isfinite(d)
+    if finite.all():
+        return median_filter(d, size)
     if not finite.any():
         return d
-    out = median_filter(np.where(finite, d, np.nanmedian(d)), size)
+    out = median_filter(np.where(finite, d, np.median(d[finite])), size)
     return np.where(np.isnan(d) & ~finite.any(axis=1, keepdims=True), np.nan, out)
 
 
