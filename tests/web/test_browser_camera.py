@@ -40,3 +40,30 @@ def test_live_page_from_the_emulated_basler_camera(page, tmp_path):
         assert abs(z - truth[frame % FRAMES]) <= 0.01 * truth[frame % FRAMES], (frame, z)
         assert float(page.inner_text("#live-fps")) > 0
         shot(page, "web_live_basler.png")
+
+
+def test_a_camera_chosen_in_the_live_step(page, tmp_path):
+    """psvs serve on a still image; in the Live step: Find cameras lists the emulated Basler, the user types its
+    features (one a line) and a software trigger, Use this camera serves it (the step's status names it), and
+    live mode (dense depth) then reads its frames."""
+    _, served, _ = write_frames(tmp_path, "default", 8)
+    from psvs.web.sources import image_source
+    with serving(create_app(image_source("still.png", np.full((480, 640), 90, np.uint8)), load_rig("default"))) \
+            as url:
+        page.goto(url + "/#live")
+        page.wait_for_selector("body[data-ready='1']", timeout=30000)
+        box = "#step-live .camera-choice"
+        page.click(f"{box} .camera-find")
+        page.wait_for_function(f"[...document.querySelectorAll('{box} .camera-list option')]"
+                               ".some(o => o.value === 'basler:0815-0000')", timeout=30000)
+        assert page.input_value(f"{box} .camera-spec") == "basler:0815-0000"
+        page.fill(f"{box} .camera-features", f"TestImageSelector=Off\nImageFileMode=On\nImageFilename={served}")
+        page.select_option(f"{box} .camera-trigger", "software")
+        page.click(f"{box} .camera-use")
+        page.wait_for_function("document.body.dataset.cameraDone", timeout=30000)
+        assert page.evaluate("document.body.dataset.cameraDone") == "1", page.inner_text("#video-status")
+        assert "camera basler:0815-0000" in page.inner_text("#video-status")
+        page.check("#live-dense")            # no edge to track: dense depth every frame
+        page.click("#live-start")
+        page.wait_for_function("Number(document.getElementById('live-frame').textContent) >= 3", timeout=60000)
+        page.click("#live-stop")

@@ -3,7 +3,7 @@ OpenCV index or ``basler:SERIAL``) and a machine-vision camera's acquisition set
 or the rig file's ``[camera.acquisition]`` table (docs/cameras.md)."""
 from __future__ import annotations
 
-from psvs.live.camera import TRIGGERS, Acquisition, parse_camera
+from psvs.live.camera import TRIGGERS, Acquisition, parse_camera, parse_features
 
 CAMERA_HELP = ("camera: an OpenCV index (0, 1, ...) or a Basler camera, basler:SERIAL or basler:0 (the first "
                "found; needs psvs[basler]); psvs cameras lists them")
@@ -38,16 +38,6 @@ def add_acquisition_arguments(parser) -> None:
                    help="set any camera feature (repeatable, applied in order, last)")
 
 
-def _features(items: list[str]) -> tuple[tuple[str, str], ...]:
-    out = []
-    for item in items:
-        name, eq, value = item.partition("=")
-        if not eq or not name.strip():
-            raise ValueError(f"--camera-set must be NAME=VALUE, got {item!r}")
-        out.append((name.strip(), value.strip()))
-    return tuple(out)
-
-
 def acquisition_from_args(args) -> Acquisition:
     """The rig file's ``[camera.acquisition]`` table (when --rig is a file that has one) overridden by the
     command line's options."""
@@ -68,7 +58,7 @@ def acquisition_from_args(args) -> Acquisition:
                       frame_rate_hz=getattr(args, "frame_rate", None), pixel_format=getattr(args, "pixel_format", None),
                       trigger=getattr(args, "trigger", None), auto_exposure=getattr(args, "auto_exposure", False),
                       auto_gain=getattr(args, "auto_gain", False), settings_file=settings,
-                      features=_features(getattr(args, "camera_set", []) or []))
+                      features=parse_features(getattr(args, "camera_set", []) or []))
     return base.merged(cli)
 
 

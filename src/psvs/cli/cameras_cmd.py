@@ -2,8 +2,7 @@
 the OpenCV indices that open."""
 from __future__ import annotations
 
-#: OpenCV indices tried (V4L2 numbers its devices from 0; a gap is possible).
-OPENCV_INDICES = 10
+from psvs.live.discover import OPENCV_INDICES, opencv_cameras, vendor_cameras
 
 
 def add_parser(sub) -> None:
@@ -17,42 +16,26 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _basler_lines() -> list[str]:
-    from psvs.live.camera import vendor_module
-    try:
-        pylon = vendor_module("basler")
-    except ValueError as exc:
-        return [f"Basler (pylon): not available: {exc}"]
-    found = [pylon.describe(info) for info in pylon.devices()]
-    if not found:
-        return ["Basler (pylon): no camera found"]
-    lines = [f"Basler (pylon): {len(found)} camera{'s' * (len(found) > 1)}"]
-    for k, d in enumerate(found):
-        lines.append(f"  --camera basler:{d['serial']}  (basler:{k})  {d['vendor']} {d['model']}, serial "
-                     f"{d['serial']}, {d['interface']}")
+def _vendor_lines() -> list[str]:
+    found, missing = vendor_cameras()
+    lines = [f"Basler (pylon): {line.partition(': ')[2]}" for line in missing]
+    if not found and not missing:
+        lines.append("Basler (pylon): no camera found")
+    if found:
+        lines.append(f"Basler (pylon): {len(found)} camera{'s' * (len(found) > 1)}")
+        lines += [f"  --camera {c.spec}  ({c.alias})  {c.label}" for c in found]
     return lines
 
 
 def _opencv_lines() -> list[str]:
-    import cv2
-
-    from psvs._quiet import c_stderr_captured
-    opened = []
-    for k in range(OPENCV_INDICES):
-        with c_stderr_captured():              # each backend's complaint about an index that is not there
-            cap = cv2.VideoCapture(k)
-            ok = cap.isOpened()
-            if ok:
-                w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-                opened.append(f"  --camera {k}  {w}x{h} px ({cap.getBackendName()})")
-            cap.release()
+    opened = [f"  --camera {c.spec}  {c.label}" for c in opencv_cameras()]
     head = f"OpenCV: {len(opened)} of indices 0-{OPENCV_INDICES - 1} open" if opened else \
         f"OpenCV: none of indices 0-{OPENCV_INDICES - 1} opens"
     return [head, *opened]
 
 
 def run(args) -> int:
-    for line in _basler_lines():
+    for line in _vendor_lines():
         print(line)
     if not args.no_opencv:
         for line in _opencv_lines():

@@ -7,7 +7,9 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     __name__,
     submodules=[],
     submod_attrs={
-        "camera": ["Acquisition", "CameraLost", "CameraSpec", "Frame", "TRIGGERS", "parse_camera", "vendor_module"],
+        "camera": ["Acquisition", "CameraLost", "CameraSpec", "Frame", "TRIGGERS", "parse_camera", "parse_features",
+                   "vendor_module"],
+        "discover": ["FoundCamera", "OPENCV_INDICES", "opencv_cameras", "vendor_cameras"],
         "dense": ["DenseFrame", "DenseSensor"],
         "log": ["HEALTH_COLUMNS", "health_cells", "write_log"],
         "simulated": ["SimulatedSequence", "ping_pong_positions"],

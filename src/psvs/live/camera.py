@@ -165,6 +165,18 @@ def parse_camera(text) -> CameraSpec:
     return CameraSpec(kind.lower(), device)
 
 
+def parse_features(items, what: str = "--camera-set") -> tuple[tuple[str, str], ...]:
+    """``NAME=VALUE`` strings as (name, value) pairs (both stripped), in order; ValueError naming ``what`` for
+    one without a name or an ``=``."""
+    out = []
+    for item in items:
+        name, eq, value = str(item).partition("=")
+        if not eq or not name.strip():
+            raise ValueError(f"{what} must be NAME=VALUE, got {item!r}")
+        out.append((name.strip(), value.strip()))
+    return tuple(out)
+
+
 def vendor_module(kind: str):
     """The module of a vendor kind, imported; ValueError naming the extra to install when its SDK is missing."""
     module, _, extra, sdk = VENDORS[kind]

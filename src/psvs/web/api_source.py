@@ -1,7 +1,8 @@
-"""Route of the served source chosen in the page: a local video file (any format psvs reads: AVI, MKV, MP4,
-MOV; an FFV1 AVI as ``psvs simulate --frames`` writes), sent by the page and played in a loop for the Live and
-Capture & calibrate steps, as ``psvs serve --video FILE`` would. The file is kept in a folder of the app's own,
-removed when the app stops (or when another video replaces it)."""
+"""Routes of the served source chosen in the page: a camera found on this machine (``/api/cameras``, the list ``psvs
+cameras`` prints; ``/api/source/camera``, as ``psvs serve --camera`` would), or a local video file (any format psvs
+reads: AVI, MKV, MP4, MOV; an FFV1 AVI as ``psvs simulate --frames`` writes), sent by the page and played in a loop
+for the Live and Capture & calibrate steps, as ``psvs serve --video FILE`` would. The file is kept in a folder of
+the app's own, removed when the app stops (or when another video replaces it)."""
 from __future__ import annotations
 
 import dataclasses
@@ -13,8 +14,11 @@ from pathlib import Path
 
 from fastapi import APIRouter, Query, Request
 
+from psvs.live.camera import Acquisition, parse_camera, parse_features
+from psvs.live.discover import opencv_cameras, vendor_cameras
+from psvs.web.bodies import CameraBody
 from psvs.web.session import SessionDep
-from psvs.web.sources import video_source
+from psvs.web.sources import camera_source, video_source
 
 router = APIRouter(prefix="/api")
 
@@ -66,3 +70,37 @@ async def source_video(request: Request, session: SessionDep, name: str = Query(
         if old != path:
             old.unlink(missing_ok=True)
     return {"kind": source.kind, "name": shown, "fps": source.fps, "live": source.live}
+
+
+@router.get("/cameras")
+def cameras(opencv: bool = Query(True)):
+    """The cameras this machine has that psvs can open (:mod:`psvs.live.discover`): ``cameras`` [{``spec``,
+    ``alias``, ``label``}] (machine-vision cameras first, then the OpenCV indices that open unless ``opencv``
+    is false) and ``missing``: a line per vendor whose SDK is not installed."""
+    found, missing = vendor_cameras()
+    if opencv:
+        found += opencv_cameras()
+    return {"cameras": [{"spec": c.spec, "alias": c.alias, "label": c.label} for c in found], "missing": missing}
+
+
+@router.post("/source/camera")
+def source_camera(body: CameraBody, session: SessionDep):
+    """Serve the camera ``body`` names from now on, configured with its settings: its first frame becomes the
+    current image, live mode and the capture read its frames. Refused in one line (400), the source served
+    before kept: an unknown spec, settings for an OpenCV camera (it takes none), a camera that does not open
+    or gives no frame, frames not the rig's camera's size."""
+    spec = parse_camera(body.camera)
+    acquisition = Acquisition(exposure_us=body.exposure_us, gain_db=body.gain_db, trigger=body.trigger,
+                              features=parse_features(body.features, "a camera feature"))
+    if spec.kind == "opencv" and acquisition.asks_anything():
+        raise ValueError(f"camera {spec} is an OpenCV camera: it takes no acquisition settings (exposure, gain, "
+                         "trigger, features are for a machine-vision camera)")
+
+    def opened():
+        try:
+            return camera_source(spec, acquisition)
+        except OSError as exc:            # the camera's own words, one line, as a refused value
+            raise ValueError(str(exc).strip().splitlines()[0] if str(exc).strip() else f"camera {spec}: "
+                             f"{type(exc).__name__}") from None
+    source = session.open_source(opened)
+    return {"kind": source.kind, "name": source.name, "fps": source.fps, "live": source.live}

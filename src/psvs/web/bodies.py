@@ -8,6 +8,8 @@ by the routes.
 """
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from psvs.imaging.pipeline import PAPER, Pipeline, make_pipeline
@@ -165,3 +167,22 @@ class CalibrateBody(Body):
 
     folder: str | None = Field(default=None, max_length=4096)
 
+
+
+class CameraBody(Body):
+    """``POST /api/source/camera``: the camera to serve (``camera`` as ``--camera`` takes it: an OpenCV index or
+    ``basler:SERIAL``) and, for a machine-vision camera, its acquisition settings (as ``psvs serve``'s options:
+    exposure, gain, trigger, ``NAME=VALUE`` features in order)."""
+
+    camera: str = Field(min_length=1, max_length=100)
+    exposure_us: float | None = Field(default=None, gt=0, le=1e8)
+    gain_db: float | None = Field(default=None, ge=-100, le=100)
+    trigger: Literal["software", "line1"] | None = None
+    features: list[str] = Field(default_factory=list, max_length=50)
+
+    @field_validator("features")
+    @classmethod
+    def _short(cls, v: list[str]) -> list[str]:
+        if any(len(item) > 500 for item in v):
+            raise ValueError("a camera feature NAME=VALUE is at most 500 characters")
+        return v

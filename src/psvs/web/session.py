@@ -107,16 +107,30 @@ class Session:
     def replace_source(self, source: Source) -> None:
         """Serve ``source`` from now on (a video chosen in the page): its frames must be the rig's camera's size
         (ValueError, one line, else); live mode and the capture stop (they read the old source), its first
-        frame becomes the current image and the last result is forgotten."""
-        w, h = self.image_size_px
-        if source.still.shape != (h, w):
-            raise ValueError(f"{source.name}'s frames are {source.still.shape[1]}x{source.still.shape[0]} px, the "
-                             f"rig's camera {w}x{h} px: a video of that camera, or the rig of this one")
+        frame becomes the current image and the last result is forgotten. A source of the wrong size is refused
+        before anything stops."""
+        self._check_size(source)
+        self.open_source(lambda: source)
+
+    def open_source(self, make) -> Source:
+        """Serve the source ``make()`` opens (a camera chosen in the page), made while no reader holds the
+        current one (live mode and the capture stop first: a camera serves one program at a time), then as
+        :meth:`replace_source`; the source served before stays when ``make`` fails or its frames are not the
+        rig's camera's size (ValueError, one line)."""
         with self._source_lock:
             self.live.stop()
             self.capture.stop()
+            source = make()
+            self._check_size(source)
             self.source = source
             self.replace_still(source.still, source.name)
+        return source
+
+    def _check_size(self, source: Source) -> None:
+        w, h = self.image_size_px
+        if source.still.shape != (h, w):
+            raise ValueError(f"{source.name}'s frames are {source.still.shape[1]}x{source.still.shape[0]} px, "
+                             f"the rig's camera {w}x{h} px: a video of that camera, or the rig of this one")
 
     def start_live(self, tracker, dense, health) -> None:
         """Start live mode on the current source (:meth:`LiveRunner.start`'s arguments); the capture stops

@@ -248,6 +248,42 @@ for (const input of document.querySelectorAll(".video-file")) {
   });
 }
 
+// A camera of this machine chosen in the Capture or Live step: found (/api/cameras, what psvs cameras lists),
+// then served from now on with the settings given (its first frame the current image), as psvs serve --camera.
+for (const box of document.querySelectorAll(".camera-choice")) {
+  const q = (c) => box.querySelector(c);
+  const say = (text, ok) => { stepStatus("video-status", text, ok); stepStatus("capture-hint", text, ok); };
+  q(".camera-find").addEventListener("click", async () => {
+    say("looking for cameras…", true);
+    try {
+      const d = await api("/api/cameras");
+      const list = q(".camera-list");
+      list.replaceChildren(...d.cameras.map((c) => new Option(`${c.spec}: ${c.label}`, c.spec)));
+      if (d.cameras.length) q(".camera-spec").value = d.cameras[0].spec;
+      else list.replaceChildren(new Option("(none found)", ""));
+      say(`${d.cameras.length} camera(s) found` + (d.missing.length ? "; " + d.missing.join("; ") : ""),
+          d.cameras.length > 0);
+    } catch (err) { say("cameras: " + err.message); }
+  });
+  q(".camera-list").addEventListener("change", (e) => { if (e.target.value) q(".camera-spec").value = e.target.value; });
+  q(".camera-use").addEventListener("click", async () => {
+    const exposure = q(".camera-exposure").value, trigger = q(".camera-trigger").value;
+    const body = { camera: q(".camera-spec").value.trim(),
+                   features: q(".camera-features").value.split("\n").map((l) => l.trim()).filter((l) => l) };
+    if (exposure) body.exposure_us = Number(exposure);
+    if (trigger) body.trigger = trigger;
+    document.body.dataset.cameraDone = "";
+    say(`opening camera ${body.camera}…`, true);
+    try {
+      const d = await api("/api/source/camera", body);
+      showInfo(await api("/api/info"));
+      state.result = null; await loadImage(); schedulePreview();
+      say(`${d.name}: served (live mode and the capture read its frames)`, true);
+      document.body.dataset.cameraDone = "1";
+    } catch (err) { say("camera: " + err.message); document.body.dataset.cameraDone = "error"; }
+  });
+}
+
 // The rig's view over another working range (its fields at near and far, the rays out to far).
 for (const id of ["rig3d-near", "rig3d-far"]) $(id).addEventListener("change", () => rig3dInit());
 
