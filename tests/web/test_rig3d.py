@@ -182,24 +182,36 @@ def test_the_dense_cloud_is_the_trusted_pixels_at_their_depth(textured_app):
     truth = r.truth.depth_left_mm[vi[inside], ui[inside]]
     good = np.abs(pts[ok][inside][:, 2] / truth - 1) <= 0.02
     assert np.mean(good) >= 0.9, np.mean(good)
-    g = res["pointer"]                # the pointer's grid: the trusted pixels' depth, at their truth
-    z = np.array(g["z_mm"], dtype=float)
-    assert g["shape"] == [480, 640] and z.shape == tuple(-(-n // g["step"]) for n in (480, 640))
-    truth = r.truth.depth_left_mm[::g["step"], ::g["step"]]
+    maps = res["maps"]              # the full-resolution maps: the trusted pixels' depth, at their truth
+    assert maps["shape"] == [480, 640] and maps["names"] == ["disparity", "z", "untrusted"]
+    got = {}
+    with local_client(app) as c:
+        for name in maps["names"]:
+            sent = c.get("/api/dense/map", params={"name": name, "generation": maps["generation"]})
+            assert sent.status_code == 200 and sent.headers["X-Shape"] == "480,640"
+            got[name] = np.frombuffer(sent.content, "<f4").reshape(480, 640)      # read back by value
+        stale = c.get("/api/dense/map", params={"name": "z", "generation": maps["generation"] + 1})
+        assert stale.status_code == 409
+        assert c.get("/api/dense/map", params={"name": "depth", "generation": 0}).status_code == 422
+    z, truth = got["z"], r.truth.depth_left_mm
     seen = np.isfinite(z) & np.isfinite(truth)
     assert seen.mean() > 0.3 and np.mean(np.abs(z[seen] / truth[seen] - 1) <= 0.02) >= 0.9
+    assert not (np.isfinite(z) & ~np.isfinite(got["disparity"])).any()       # a depth only where a disparity
+    assert np.mean(np.isfinite(z)[np.isfinite(got["disparity"])]) > 0.99
     # the untrusted answers, drawn as such: exactly the answered pixels the trust test leaves out (the library's
     # own call on the same image, independent of the route)
     from psvs.dense import FAST
     from psvs.dense.build import dense_on_rig, rig_trust
     dense = dense_on_rig(r.image, default_rig(), 400.0, 1200.0, params=FAST)
     d, trusted = dense.result.disparity_left, rig_trust(dense).trusted_left
-    untrusted = np.array(g["untrusted_px"], dtype=float)
+    untrusted = got["untrusted"]
     expect = np.isfinite(d) & ~trusted
-    assert (np.isfinite(untrusted) == expect[::g["step"], ::g["step"]]).all() and expect.mean() > 0.05
-    np.testing.assert_allclose(untrusted[np.isfinite(untrusted)], np.round(d[expect], 2), atol=0.006)
+    assert (np.isfinite(untrusted) == expect).all() and expect.mean() > 0.05
+    np.testing.assert_array_equal(untrusted[expect], d[expect])
+    np.testing.assert_array_equal(got["disparity"][trusted & np.isfinite(d)], d[trusted & np.isfinite(d)])
     blank = create_app(image_source("blank", np.full((480, 640), 90, np.uint8)), default_rig())
     with local_client(blank) as c:
+        assert c.get("/api/dense/map", params={"name": "z", "generation": 0}).status_code == 404
         res = c.post("/api/dense", json={"fast": True}).json()
     assert res["trusted_pct"] == 0 and res["median_z_mm"] is None and res["cloud"]["points_mm"] == []
     assert res["answered_pct"] == 0         # what the map holds unsupported is no answer
@@ -239,8 +251,10 @@ def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
                              " return [el.data[1].z.length, el.data[1].z[0].length, el.data[1].colorbar.title.text,"
                              " el.data[0].showscale, Number(el.dataset.untrusted), el.layout.dragmode]; })()")
         sent = page.evaluate("fetch('/api/dense', {method: 'POST', headers: {'Content-Type': 'application/json'},"
-                             " body: JSON.stringify({fast: true})}).then(r => r.json())"
-                             ".then(d => d.pointer.untrusted_px.flat().filter(x => x !== null).length)")
+                             " body: JSON.stringify({fast: true})}).then(r => r.json()).then(d => fetch("
+                             "`/api/dense/map?name=untrusted&generation=${d.maps.generation}`))"
+                             ".then(r => r.arrayBuffer())"
+                             ".then(b => new Float32Array(b).filter(x => !Number.isNaN(x)).length)")
         assert disp == [480, 640, "d (px)", False, sent, "zoom"] and sent > 1000, (disp, sent)
         page.locator("#dense-depth-map").scroll_into_view_if_needed()
         shot(page, "web_dense_cloud.png")

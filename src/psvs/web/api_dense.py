@@ -5,12 +5,12 @@ separated."""
 from __future__ import annotations
 
 import numpy as np
-from fastapi import APIRouter
+from fastapi import APIRouter, Query
+from fastapi.responses import JSONResponse, Response
 
 from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
 from psvs.imaging.grey import to_grey8
-from psvs.io.jsonsafe import json_safe
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale as camera_pixel_scale
 from psvs.web.bodies import DenseBody
@@ -22,23 +22,19 @@ router = APIRouter(prefix="/api")
 
 #: Most points of the cloud sent to the page (evenly subsampled): what a WebGL scatter turns smoothly.
 CLOUD_POINTS = 20000
-#: Most cells of the grid of disparity and depth the page reads under the pointer and draws as its depth map:
-#: every pixel of a 640 x 480 map, every 3rd of a 1440 x 1080 one.
-POINTER_CELLS = 310_000
+#: The maps a dense run keeps for the page at full resolution (``GET /api/dense/map``): the left view's
+#: disparity where the echo supports it (px), its depth there (mm), and the disparity of the pixels answered
+#: without that support (px, drawn in grey); NaN elsewhere.
+MAPS = ("disparity", "z", "untrusted")
 
 
-def pointer_grid(d: np.ndarray, z: np.ndarray, seen: np.ndarray) -> dict:
-    """Every ``step``-th pixel's disparity (px, 0.01) and depth (mm, 0.1) of the map (H', W'), null where the
-    echo does not support it beyond chance: what the page shows under the pointer and draws as its maps; and
-    ``untrusted_px`` the disparity of the pixels answered but not supported (null elsewhere), drawn as such.
-    ``step`` keeps the grid within POINTER_CELLS."""
-    step = max(1, int(np.ceil(np.sqrt(d.size / POINTER_CELLS))))
-    ds, zs = d[::step, ::step], z[::step, ::step]
-    ok = seen[::step, ::step] & np.isfinite(zs)
-    return {"step": step, "shape": list(d.shape),
-            "disparity_px": np.where(ok, np.round(ds, 2), np.nan),
-            "z_mm": np.where(ok, np.round(zs, 1), np.nan),
-            "untrusted_px": np.where(np.isfinite(ds) & ~seen[::step, ::step], np.round(ds, 2), np.nan)}
+def full_maps(d: np.ndarray, z: np.ndarray, seen: np.ndarray) -> dict:
+    """The dense result's maps (H', W') as float32 (:data:`MAPS`): ``d`` the left map (px, NaN where no
+    answer), ``z`` its depth (mm), ``seen`` where the echo supports the answer beyond chance."""
+    nan = np.float32(np.nan)
+    return {"disparity": np.where(seen, d, nan).astype(np.float32),
+            "z": np.where(seen & np.isfinite(z), z, nan).astype(np.float32),
+            "untrusted": np.where(np.isfinite(d) & ~seen, d, nan).astype(np.float32)}
 
 
 def even_subset(n: int, most: int = CLOUD_POINTS) -> np.ndarray:
@@ -62,7 +58,8 @@ def dense(body: DenseBody, session: SessionDep):
     the same as ``trusted_pct``: what the CLI calls answered), their median disparity and depth (None when
     none is) and point cloud, and optionally the separated views, as PNG data URLs. The library's dense
     kernels run under DENSE_LOCK (one at a time, with live mode's)."""
-    grey, rig = session.still().grey, session.rig
+    still, rig = session.still(), session.rig
+    grey = still.grey
     with DENSE_LOCK:
         dense_res = dense_on_rig(grey, rig, body.near_mm, body.far_mm, params=FAST if body.fast else DEFAULT)
     res = dense_res.result
@@ -78,7 +75,9 @@ def dense(body: DenseBody, session: SessionDep):
            "trusted_pct": 100.0 * float(np.mean(seen)),
            "median_disparity_px": float(np.median(d[seen])) if seen.any() else None,
            "median_z_mm": float(np.nanmedian(z[seen])) if np.isfinite(z[seen]).any() else None,
-           "cloud": cloud_for_page(dense_res, cloud), "pointer": json_safe(pointer_grid(d, z, seen))}
+           "cloud": cloud_for_page(dense_res, cloud)}
+    kept = session.keep_dense_maps(full_maps(d, z, seen), still.generation)
+    out["maps"] = {"shape": list(d.shape), "generation": kept, "names": list(MAPS)}
     if body.views and np.isfinite(d).any():
         with DENSE_LOCK:
             k = camera_pixel_scale(rig.camera) if dense_res.rect is None else None   # the prior in scene terms
@@ -86,3 +85,21 @@ def dense(body: DenseBody, session: SessionDep):
                                     rect=dense_res.rect, pixel_scale=k)
         out.update(left_png=data_url(to_grey8(lv)), right_png=data_url(to_grey8(rv)))
     return out
+
+
+@router.get("/dense/map")
+def dense_map(session: SessionDep, name: str = Query(..., pattern="^(disparity|z|untrusted)$"),
+              generation: int = Query(...)):
+    """One map of the last dense run (:data:`MAPS`) at full resolution, float32 little-endian, row by row (its
+    shape in ``X-Shape: H,W`` and in /api/dense's ``maps``): what the page draws and reads under the pointer.
+    404 before a dense run of the current image and rig; 409 when ``generation`` is not the kept run's (an image
+    or rig replaced since)."""
+    maps = session.dense_maps()
+    if maps is None:
+        return JSONResponse({"detail": "no dense map of the current image: run dense first"}, status_code=404)
+    if generation != maps["generation"]:
+        return JSONResponse({"detail": "that dense map is gone: the image or the rig changed since"},
+                            status_code=409)
+    a = maps[name]
+    return Response(np.ascontiguousarray(a, dtype="<f4").tobytes(), media_type="application/octet-stream",
+                    headers={"X-Shape": f"{a.shape[0]},{a.shape[1]}", "Cache-Control": "no-store"})

@@ -74,6 +74,7 @@ class Session:
     _name: str = field(init=False)
     _generation: int = field(default=0, init=False)
     _result: MatchResult | None = field(default=None, init=False, repr=False)
+    _dense_maps: dict | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         w, h = self.image_size_px
@@ -101,7 +102,7 @@ class Session:
             self.live.stop()
             self.capture.stop()
             with self._lock:
-                self.rig, self.rig_name, self._result = rig, name, None
+                self.rig, self.rig_name, self._result, self._dense_maps = rig, name, None, None
                 self._generation += 1     # a match still running through the old rig stores nothing
 
     def replace_source(self, source: Source) -> None:
@@ -157,7 +158,7 @@ class Session:
         if grey.shape != (h, w) or grey.dtype != np.uint8:
             raise ValueError(f"{name} must be a {w}x{h} uint8 grey image, got {grey.dtype} {grey.shape}")
         with self._lock:
-            self._still, self._name, self._result = grey, name, None
+            self._still, self._name, self._result, self._dense_maps = grey, name, None, None
             self._generation += 1
 
     def keep_result(self, result: MatchResult, generation: int) -> bool:
@@ -168,6 +169,21 @@ class Session:
                 return False
             self._result = result
             return True
+
+    def keep_dense_maps(self, maps: dict, generation: int) -> int | None:
+        """Remember the last dense run's full-resolution maps (name -> float32 (H', W')) of the current image
+        (``generation`` from :meth:`still`; a run of an image replaced meanwhile is not kept). Returns the
+        generation they are kept under, or None."""
+        with self._lock:
+            if generation != self._generation:
+                return None
+            self._dense_maps = {"generation": generation, **maps}
+            return generation
+
+    def dense_maps(self) -> dict | None:
+        """The last dense run's maps of the current image and rig (``generation`` and each map), or None."""
+        with self._lock:
+            return self._dense_maps
 
     def result(self) -> MatchResult | None:
         """The last match result of the current image, or None."""

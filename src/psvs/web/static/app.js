@@ -199,9 +199,9 @@ $("dense").addEventListener("click", async () => {
     $("dense-disparity").textContent = fmt(res.median_disparity_px, 1, "px");
     $("dense-depth").textContent = fmt(res.median_z_mm, 1, "mm");
     $("dense-depth").dataset.mm = res.median_z_mm ?? "";
-    state.densePointer = res.pointer;
-    await drawDisparityMap($("dense-disparity-map"), res.pointer);
-    await drawDepthMap($("dense-depth-map"), res.pointer);
+    state.denseMaps = await denseMaps(res.maps);
+    await drawDisparityMap($("dense-disparity-map"), state.denseMaps);
+    await drawDepthMap($("dense-depth-map"), state.denseMaps);
     for (const [id, url] of [["dense-left-zoom", res.left_png], ["dense-right-zoom", res.right_png]]) {
       if (url) await drawZoomableImage($(id), url); else $(id).hidden = true;
     }
@@ -218,17 +218,31 @@ $("dense-cloud-colour").addEventListener("change", (e) => {
   if (state.denseCloud) drawCloud3d($("dense-cloud"), state.denseCloud, e.target.value);
 });
 
-// The disparity and depth under the pointer on the dense map (its grid's nearest sampled cell).
+// The dense run's maps at full resolution (GET /api/dense/map: float32, row by row): {shape, disparity, z,
+// untrusted}, each a Float32Array (NaN where the map has no such value).
+async function denseMaps(m) {
+  const [h, w] = m.shape, out = { shape: m.shape };
+  await Promise.all(m.names.map(async (name) => {
+    const r = await fetch(`/api/dense/map?name=${name}&generation=${m.generation}`);
+    if (!r.ok) throw new Error(`dense map ${name}: ${r.status} ${r.statusText}`);
+    out[name] = new Float32Array(await r.arrayBuffer());
+    if (out[name].length !== h * w) throw new Error(`dense map ${name}: ${out[name].length} values, not ${h} x ${w}`);
+  }));
+  return out;
+}
+
+// The disparity and depth under the pointer on the dense map (its pixel, at full resolution).
 $("dense-map").addEventListener("mousemove", (ev) => {
-  const g = state.densePointer, img = ev.target;
+  const g = state.denseMaps, img = ev.target;
   if (!g || !img.clientWidth) return;
-  const u = Math.floor(ev.offsetX / img.clientWidth * g.shape[1]), v = Math.floor(ev.offsetY / img.clientHeight * g.shape[0]);
-  const row = g.z_mm[Math.min(Math.round(v / g.step), g.z_mm.length - 1)];
-  const k = Math.min(Math.round(u / g.step), row.length - 1);
-  const z = row[k], d = g.disparity_px[Math.min(Math.round(v / g.step), g.z_mm.length - 1)][k];
+  const [h, w] = g.shape;
+  const u = Math.min(Math.floor(ev.offsetX / img.clientWidth * w), w - 1);
+  const v = Math.min(Math.floor(ev.offsetY / img.clientHeight * h), h - 1);
+  const z = g.z[v * w + u], d = g.disparity[v * w + u];
   const out = $("dense-pointer");
-  out.dataset.mm = z ?? "";
-  out.textContent = z === null ? `(${u}, ${v}): not supported beyond chance` : `(${u}, ${v}): ${d.toFixed(2)} px, Z ${z.toFixed(1)} mm`;
+  out.dataset.mm = Number.isNaN(z) ? "" : z;
+  out.textContent = Number.isNaN(z) ? `(${u}, ${v}): not supported beyond chance` :
+    `(${u}, ${v}): ${d.toFixed(2)} px, Z ${z.toFixed(1)} mm`;
 });
 
 async function livePoll() {

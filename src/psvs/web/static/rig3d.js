@@ -222,20 +222,25 @@ function robotSensorTraces(s) {
   return out;
 }
 
-// The dense result's left-view disparity at full resolution (every step-th pixel of the map) as a zoomable heat
-// map with a colour bar in px: the pixels the echo supports beyond chance in colour, those answered without
-// that support in grey (the CLI's confidence 0), the disparity under the pointer.
+// A map (Float32Array, row by row, NaN where no value) as the rows a Plotly heat map takes (views, not copies).
+function mapRows(a, shape) {
+  const [h, w] = shape;
+  return Array.from({ length: h }, (_, v) => a.subarray(v * w, (v + 1) * w));
+}
+
+// The dense result's left-view disparity at full resolution (every pixel of the map) as a zoomable heat map with
+// a colour bar in px: the pixels the echo supports beyond chance in colour, those answered without that support
+// in grey (the CLI's confidence 0), the disparity under the pointer.
 function drawDisparityMap(el, g) {
   el.hidden = false;
   if (typeof Plotly === "undefined") return Promise.resolve();
-  const cols = g.disparity_px[0].length, rows = g.disparity_px.length;
-  const u = Array.from({ length: cols }, (_, k) => k * g.step), v = Array.from({ length: rows }, (_, k) => k * g.step);
   let untrusted = 0;
-  for (const row of g.untrusted_px) for (const x of row) if (x !== null) untrusted += 1;
+  for (const x of g.untrusted) if (!Number.isNaN(x)) untrusted += 1;
   const traces = [
-    { type: "heatmap", x: u, y: v, z: g.untrusted_px, colorscale: [[0, "#bdbdbd"], [1, "#bdbdbd"]], showscale: false,
-      hoverongaps: false, name: "not supported", hovertemplate: "(%{x}, %{y}): %{z:.2f} px, not supported beyond chance<extra></extra>" },
-    { type: "heatmap", x: u, y: v, z: g.disparity_px, colorscale: "Portland", hoverongaps: false, name: "supported",
+    { type: "heatmap", z: mapRows(g.untrusted, g.shape), colorscale: [[0, "#bdbdbd"], [1, "#bdbdbd"]],
+      showscale: false, hoverongaps: false, name: "not supported",
+      hovertemplate: "(%{x}, %{y}): %{z:.2f} px, not supported beyond chance<extra></extra>" },
+    { type: "heatmap", z: mapRows(g.disparity, g.shape), colorscale: "Portland", hoverongaps: false, name: "supported",
       colorbar: { title: { text: "d (px)" }, thickness: 14 }, hovertemplate: "(%{x}, %{y}): %{z:.2f} px<extra></extra>" },
   ];
   const layout = { margin: { l: 50, r: 10, t: 10, b: 40 }, dragmode: "zoom",
@@ -255,20 +260,18 @@ function drawZoomableImage(el, url) {
                       { displaylogo: false, responsive: true }).then(() => { el.dataset.ready = "1"; });
 }
 
-// The dense result's depth map (the trusted pixels' Z, mm; every step-th pixel of the map, blank where the
-// echo does not support the answer) as a zoomable heat map with a colour bar in mm: drag a box to zoom,
-// double-click to zoom out; the pixel and its Z under the pointer.
+// The dense result's depth map (the trusted pixels' Z, mm; every pixel of the map, blank where the echo does not
+// support the answer) as a zoomable heat map with a colour bar in mm: drag a box to zoom, double-click to zoom
+// out; the pixel and its Z under the pointer.
 function drawDepthMap(el, g) {
   el.hidden = false;
   if (typeof Plotly === "undefined") return Promise.resolve();
-  const cols = g.z_mm[0].length, rows = g.z_mm.length;
-  const u = Array.from({ length: cols }, (_, k) => k * g.step), v = Array.from({ length: rows }, (_, k) => k * g.step);
-  const trace = { type: "heatmap", x: u, y: v, z: g.z_mm, colorscale: "Viridis",        // as the cloud's colours
+  const trace = { type: "heatmap", z: mapRows(g.z, g.shape), colorscale: "Viridis",        // as the cloud's colours
                   colorbar: { title: { text: "Z (mm)" }, thickness: 14 }, hoverongaps: false,
                   hovertemplate: "(%{x}, %{y}): Z %{z:.1f} mm<extra></extra>" };
   const layout = { margin: { l: 50, r: 10, t: 10, b: 40 }, dragmode: "zoom",
                    xaxis: { title: { text: "u (px)" }, constrain: "domain" },
                    yaxis: { title: { text: "v (px)" }, autorange: "reversed", scaleanchor: "x" } };
   return Plotly.react(el, [trace], layout, { displaylogo: false, responsive: true })
-    .then(() => { el.dataset.ready = "1"; el.dataset.cells = String(rows * cols); });
+    .then(() => { el.dataset.ready = "1"; el.dataset.cells = String(g.shape[0] * g.shape[1]); });
 }

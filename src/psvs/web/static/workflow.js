@@ -73,7 +73,7 @@ function stepStatus(id, text, ok) { const s = $(id); s.textContent = text || "";
 // What the page shows of results computed through a rig (a match, a dense map and its cloud, a check): forgotten
 // when the rig changes, as the server forgets them, so that no figure of the old rig stands beside the new one.
 function forgetResults() {
-  state.result = null; state.denseCloud = null;
+  state.result = null; state.denseCloud = null; state.denseMaps = null;
   for (const id of ["dense-disparity", "dense-depth", "dense-pointer", "check-verdict", "check-rms", "check-max",
                     "check-tiles"]) { $(id).textContent = "–"; delete $(id).dataset.mm; }
   for (const id of ["check-reason", "check-explained", "dense-cloud-note"]) $(id).textContent = "";
