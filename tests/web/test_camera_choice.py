@@ -29,7 +29,7 @@ def test_the_emulated_camera_is_found_chosen_and_read_live(tmp_path):
     first file, pixel for pixel) and live mode reads its frames."""
     _, served, _ = write_frames(tmp_path, "default", 8)
     with local_client(_app()) as c:
-        found = c.get("/api/cameras", params={"opencv": "false"}).json()
+        found = c.post("/api/cameras", json={"opencv": False}).json()
         basler = [cam for cam in found["cameras"] if cam["spec"].startswith("basler:")]
         assert basler and basler[0]["spec"] == "basler:0815-0000" and basler[0]["alias"] == "basler:0"
         assert "Emulation" in basler[0]["label"] and found["missing"] == []

@@ -1,8 +1,8 @@
-"""Routes of the served source chosen in the page: a camera found on this machine (``/api/cameras``, the list ``psvs
-cameras`` prints; ``/api/source/camera``, as ``psvs serve --camera`` would), or a local video file (any format psvs
-reads: AVI, MKV, MP4, MOV; an FFV1 AVI as ``psvs simulate --frames`` writes), sent by the page and played in a loop
-for the Live and Capture & calibrate steps, as ``psvs serve --video FILE`` would. The file is kept in a folder of
-the app's own, removed when the app stops (or when another video replaces it)."""
+"""Routes of the served source chosen in the page: a camera found on this machine (``POST /api/cameras``, the list
+``psvs cameras`` prints; ``/api/source/camera``, as ``psvs serve --camera`` would), or a local video file (any
+format psvs reads: AVI, MKV, MP4, MOV; an FFV1 AVI as ``psvs simulate --frames`` writes), sent by the page and
+played in a loop for the Live and Capture & calibrate steps, as ``psvs serve --video FILE`` would. The file is
+kept in a folder of the app's own, removed when the app stops (or when another video replaces it)."""
 from __future__ import annotations
 
 import dataclasses
@@ -16,7 +16,7 @@ from fastapi import APIRouter, Query, Request
 
 from psvs.live.camera import Acquisition, parse_camera, parse_features
 from psvs.live.discover import opencv_cameras, vendor_cameras
-from psvs.web.bodies import CameraBody
+from psvs.web.bodies import CameraBody, CamerasBody
 from psvs.web.session import SessionDep
 from psvs.web.sources import camera_source, video_source
 
@@ -72,13 +72,14 @@ async def source_video(request: Request, session: SessionDep, name: str = Query(
     return {"kind": source.kind, "name": shown, "fps": source.fps, "live": source.live}
 
 
-@router.get("/cameras")
-def cameras(opencv: bool = Query(True)):
+@router.post("/cameras")
+def cameras(body: CamerasBody):
     """The cameras this machine has that psvs can open (:mod:`psvs.live.discover`): ``cameras`` [{``spec``,
     ``alias``, ``label``}] (machine-vision cameras first, then the OpenCV indices that open unless ``opencv``
-    is false) and ``missing``: a line per vendor whose SDK is not installed."""
+    is false) and ``missing``: a line per vendor whose SDK is not installed. A POST, guarded as every action
+    is (psvs.web.guard): finding OpenCV cameras opens each device, which no other page may make it do."""
     found, missing = vendor_cameras()
-    if opencv:
+    if body.opencv:
         found += opencv_cameras()
     return {"cameras": [{"spec": c.spec, "alias": c.alias, "label": c.label} for c in found], "missing": missing}
 

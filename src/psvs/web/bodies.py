@@ -169,6 +169,12 @@ class CalibrateBody(Body):
 
 
 
+class CamerasBody(Body):
+    """``POST /api/cameras``: also probe OpenCV's indices (each opened for a moment)."""
+
+    opencv: bool = True
+
+
 class CameraBody(Body):
     """``POST /api/source/camera``: the camera to serve (``camera`` as ``--camera`` takes it: an OpenCV index or
     ``basler:SERIAL``) and, for a machine-vision camera, its acquisition settings (as ``psvs serve``'s options:

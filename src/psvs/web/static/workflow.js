@@ -248,7 +248,7 @@ for (const input of document.querySelectorAll(".video-file")) {
   });
 }
 
-// A camera of this machine chosen in the Capture or Live step: found (/api/cameras, what psvs cameras lists),
+// A camera of this machine chosen in the Capture or Live step: found (POST /api/cameras, what psvs cameras lists),
 // then served from now on with the settings given (its first frame the current image), as psvs serve --camera.
 for (const box of document.querySelectorAll(".camera-choice")) {
   const q = (c) => box.querySelector(c);
@@ -256,7 +256,7 @@ for (const box of document.querySelectorAll(".camera-choice")) {
   q(".camera-find").addEventListener("click", async () => {
     say("looking for cameras…", true);
     try {
-      const d = await api("/api/cameras");
+      const d = await api("/api/cameras", { opencv: true });
       const list = q(".camera-list");
       list.replaceChildren(...d.cameras.map((c) => new Option(`${c.spec}: ${c.label}`, c.spec)));
       if (d.cameras.length) q(".camera-spec").value = d.cameras[0].spec;
