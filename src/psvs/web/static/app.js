@@ -222,6 +222,7 @@ $("dense-cloud-colour").addEventListener("change", (e) => {
 // untrusted}, each a Float32Array (NaN where the map has no such value).
 async function denseMaps(m) {
   const [h, w] = m.shape, out = { shape: m.shape };
+  if (m.generation === null) throw new Error("the image or the rig changed while dense ran: run it again");
   await Promise.all(m.names.map(async (name) => {
     const r = await fetch(`/api/dense/map?name=${name}&generation=${m.generation}`);
     if (!r.ok) throw new Error(`dense map ${name}: ${r.status} ${r.statusText}`);
