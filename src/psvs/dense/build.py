@@ -104,25 +104,26 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
     if dense.rect is None:
         return disparity_cloud(np.asarray(dense.result.disparity_left, dtype=np.float64), rig, model, mask)
     d = dense.result.disparity_left
+    flat = d.ravel()
     if mask is None:
-        v, u = np.nonzero(np.isfinite(d) & (d > 0))
+        at = np.flatnonzero(np.isfinite(flat) & (flat > 0))
     else:        # the mask's pixels first (a live loop's strided grid: a sixteenth of the map), then their values
         mask = np.asarray(mask, dtype=bool)
         if mask.shape != d.shape:
             raise ValueError(f"mask {mask.shape} must have the map's shape {d.shape}")
-        v, u = np.nonzero(mask)
-        at = d[v, u]
-        good = np.isfinite(at) & (at > 0)
-        v, u = v[good], u[good]
+        at = np.flatnonzero(mask)
+        good = np.isfinite(flat[at]) & (flat[at] > 0)
+        at = at[good]
+    v, u = np.divmod(at, d.shape[1])        # flat indices: a fraction of 2-D fancy indexing's cost
     left_rect = np.column_stack([u, v]).astype(np.float64)
-    disparity = d[v, u].astype(np.float64)
+    disparity = flat[at].astype(np.float64)
     rect = dense.rect
     if model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors:
         tri = table_points(depth_table(rect), rect, left_rect, disparity)
     else:
         tri = exact_points(rect, left_rect, disparity, model, rig=rig)
-    ok = np.flatnonzero(tri.valid)           # once, for the four arrays it selects from
+    ok = tri.valid
     pts = tri.points_mm[ok]
     depth = np.full(d.shape, np.nan)
-    depth[v[ok], u[ok]] = pts[:, 2]
+    depth.ravel()[at[ok]] = pts[:, 2]
     return Cloud(pts, left_rect[ok], depth)
