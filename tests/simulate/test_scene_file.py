@@ -50,6 +50,9 @@ OBJ = '[[objects]]\ntype = "rectangle"\nsize_mm = [10, 10]\nposition_mm = [0, 0,
     ("", ValueError, "a scene needs at least one object or a backdrop"),
     (OBJ + 'texture = { type = "checker", square_mm = -4 }\n', ValueError, "square_mm must be > 0 mm"),
     (OBJ + 'texture = { type = "noise", high = 1.5 }\n', ValueError, r"high must be an albedo in \[0, 1\]"),
+    (OBJ + 'texture = { type = "circles", count = 1000000000 }\n', ValueError,
+     "count must be at most 1000 circles in a row, got 1000000000"),
+    (OBJ * 1001, ValueError, r"1001 objects, at most 1000 \(a shape of many parts is one mesh object"),
 ])
 def test_bad_scene_files(tmp_path, text, exc, message):
     path = write(tmp_path, text)
@@ -99,6 +102,21 @@ def test_fig5a_views_are_separated_and_fig5b_overlap(small_rig):
     assert left.sum() > 100 and right.sum() > 100 and not (left & right).any()
     left, right = object_masks(builtin_scene("fig5b"))
     assert (left & right).sum() > 100
+
+
+@pytest.mark.parametrize("diameter, spacing, count", [(10, 20, 5), (10, 8, 7), (3, 20, 1), (25, 10, 4),
+                                                    (0.5, 0.7, 1000)])
+def test_circles_are_the_union_of_their_discs(diameter, spacing, count):
+    """The row of circles (one test a point, against its nearest centre) against the union of every disc, on
+    points drawn over the row and beyond its ends, overlapping discs included."""
+    from psvs.simulate.textures import Circles
+    c = Circles(diameter, spacing, count)
+    xy = np.random.default_rng(count).uniform(-1, 1, (50000, 2)) * [spacing * (count + 2) / 2, diameter]
+    union = np.zeros(len(xy), bool)
+    for cx, cy in c.centres_mm():
+        union |= (xy[:, 0] - cx) ** 2 + (xy[:, 1] - cy) ** 2 <= (diameter / 2) ** 2
+    assert union.any() and not union.all()
+    np.testing.assert_array_equal(c(xy), np.where(union, c.low, c.high))
 
 
 def test_fig9_pattern_geometry():

@@ -87,6 +87,10 @@ class Noise:
         return self.low + (self.high - self.low) * (top * (1 - fy) + bot * fy)
 
 
+#: Most circles in a :class:`Circles` row (the paper's pattern has 5).
+MAX_CIRCLES = 1000
+
+
 @dataclass(frozen=True)
 class Circles:
     """A row of ``count`` discs of ``diameter_mm``, centres ``spacing_mm`` apart along local x and centred
@@ -102,6 +106,8 @@ class Circles:
         check_positive(self.diameter_mm, "diameter_mm", "mm")
         check_positive(self.spacing_mm, "spacing_mm", "mm")
         check_count(self.count, "count", 1)
+        if self.count > MAX_CIRCLES:
+            raise ValueError(f"count must be at most {MAX_CIRCLES} circles in a row, got {self.count}")
         _check_levels(low=self.low, high=self.high)
 
     def centres_mm(self) -> np.ndarray:
@@ -110,10 +116,12 @@ class Circles:
         return np.column_stack([x, np.zeros(self.count)])
 
     def __call__(self, xy_mm):
-        r2 = (self.diameter_mm / 2) ** 2
-        inside = np.zeros(len(xy_mm), dtype=bool)
-        for cx, cy in self.centres_mm():
-            inside |= (xy_mm[:, 0] - cx) ** 2 + (xy_mm[:, 1] - cy) ** 2 <= r2
+        # the centres lie on one line: a point inside any (equal) disc is inside the one whose centre is nearest
+        # along the line, so one test a point, whatever the count
+        half = (self.count - 1) / 2
+        k = np.clip(np.rint(xy_mm[:, 0] / self.spacing_mm + half), 0, self.count - 1)
+        cx = (k - half) * self.spacing_mm
+        inside = (xy_mm[:, 0] - cx) ** 2 + xy_mm[:, 1] ** 2 <= (self.diameter_mm / 2) ** 2
         return np.where(inside, self.low, self.high)
 
 
