@@ -2,6 +2,7 @@ import cv2
 import numpy as np
 import pytest
 
+from psvs import default_rig
 from psvs.imaging import steps
 from psvs.imaging.pipeline import PAPER, make_pipeline
 from psvs.io.pipeline_file import load_pipeline
@@ -155,3 +156,17 @@ def test_a_bilateral_filter_is_timed_before_it_runs(monkeypatch):
     with pytest.raises(ValueError, match=r"a bilateral filter of diameter 101 px on 640x480 px takes about 2\.9\d s, "
                                          r"more than the 1 s limit; a smaller diameter"):
         steps.bilateral(img, diameter=101)
+
+
+def test_a_median_window_opencv_cannot_take_is_refused():
+    """OpenCV's constant-time 8-bit median fails an assertion on fig5b from 363 px up: psvs refuses windows over
+    255 px in one line, and takes 255 (the result checked against a direct median of one pixel's window)."""
+    from psvs.simulate.builtin import fig5b
+    from psvs.simulate.render import render
+    img = render(fig5b(), default_rig(), supersample=1).image
+    with pytest.raises(ValueError, match=r"^median ksize must be at most 255 px, got 401$"):
+        steps.median(img, 401)
+    out = steps.median(img, 255)
+    v, u = 240, 320
+    window = np.pad(img, 127, mode="reflect")[v:v + 255, u:u + 255]     # OpenCV's border: reflect 101 for 8u
+    assert abs(int(out[v, u]) - int(np.median(window))) <= 1

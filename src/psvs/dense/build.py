@@ -67,7 +67,12 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     ``workspace`` (a live loop): as in :func:`psvs.dense.disparity.dense_disparity`. A lens whose field is
     not flat (the camera's relative illumination) is first undone (:func:`psvs.optics.illumination.flat_field`),
     so the view separation's model C = (1 - s) L + s R holds in the corners as on the axis."""
-    img = flat_field(np.asarray(image), rig.camera)
+    image = np.asarray(image)
+    w, h = (int(x) for x in rig.camera.image_size_px)
+    if image.ndim >= 2 and image.shape[:2] != (h, w):   # another camera's frame: every ray another pixel's
+        raise ValueError(f"the image is {image.shape[1]}x{image.shape[0]} px but the rig's camera is {w}x{h} px: "
+                         "an image of that camera, or the rig of this one")
+    img = flat_field(image, rig.camera)
     rect = rectification(rig, near_mm, far_mm)
     if rect is None:
         lo, hi = d_range or disparity_range(rig, near_mm, far_mm, width_px=img.shape[1])

@@ -45,9 +45,17 @@ BILATERAL_S_PER_TAP = 1.2e-9
 
 # --- filters: grey -> grey ---------------------------------------------------------------------------
 
+#: Largest median window: OpenCV's constant-time median of 8-bit images fails an internal assertion on some
+#: images from about 363 px up (fig5b: 363; a striped frame: 393).
+MEDIAN_MAX_PX = 255
+
+
 def median(img, ksize: int = 3):
-    """Median filter, ksize x ksize (the paper's filter)."""
-    return cv2.medianBlur(_grey(img, "median"), _odd(ksize, "median ksize", img))
+    """Median filter, ksize x ksize (the paper's filter), ksize at most :data:`MEDIAN_MAX_PX`."""
+    k = _odd(ksize, "median ksize", img)
+    if k > MEDIAN_MAX_PX:
+        raise ValueError(f"median ksize must be at most {MEDIAN_MAX_PX} px, got {k}")
+    return cv2.medianBlur(_grey(img, "median"), k)
 
 
 def gaussian(img, sigma: float = 1.0):

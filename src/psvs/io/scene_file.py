@@ -13,10 +13,8 @@ from psvs.io.images import read_grey
 from psvs.io.schema import check_keys
 from psvs.io.tomlfile import load_toml
 from psvs.simulate import textures as tx
-from psvs.simulate.scene import KINDS, Lighting, Pose, Scene, SceneObject
+from psvs.simulate.scene import KINDS, Lighting, Pose, Scene, SceneObject, check_object_count
 
-#: Most objects a scene file may hold.
-MAX_OBJECTS = 1000
 _OBJECT_KEYS = {"type", "name", "position_mm", "rotation_deg", "albedo", "texture", "size_mm", "radius_mm",
                 "height_mm", "file", "scale"}
 _TEXTURES = {
@@ -134,9 +132,7 @@ def scene_from_dict(data: dict, base: Path = Path("."), name: str = "") -> Scene
     objects = data.get("objects", [])
     if not isinstance(objects, list):
         raise ValueError("objects must be an array of tables ([[objects]])")
-    if len(objects) > MAX_OBJECTS:       # each is shaded and refined on its own: bounded before any work
-        raise ValueError(f"{len(objects)} objects, at most {MAX_OBJECTS} (a shape of many parts is one mesh "
-                         "object: its file holds the triangles)")
+    check_object_count(len(objects))       # before any object is made
     objs = tuple(_object(spec, i, base) for i, spec in enumerate(objects))
     light = data.get("lighting", {})
     check_keys(light, "lighting", optional=("ambient", "lamp", "lamp_position_mm", "reference_mm", "shadows"))

@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 
-from psvs.simulate.scene import Lighting, Pose, Scene, SceneObject
+from psvs._validate import check_count
+from psvs.simulate.scene import Lighting, Pose, Scene, SceneObject, check_object_count
 from psvs.simulate.textures import Checker, Circles, ImageTexture, Noise, Uniform
 
 
@@ -59,6 +60,7 @@ def fig5b(distance_mm: float = 700.0) -> Scene:
 
 def fig6(seed: int = 6, count: int = 14) -> Scene:
     """A cluttered scene: ``count`` mixed objects at 500-1000 mm with seeded poses and textures."""
+    check_object_count(check_count(count, "count"))
     rng = np.random.default_rng(seed)
     objs = []
     kinds = ("box", "cylinder", "sphere", "rectangle", "disc")

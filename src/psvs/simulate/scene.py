@@ -105,9 +105,22 @@ class Lighting:
         check_positive(self.reference_mm, "reference_mm", "mm")
 
 
+#: Most objects a scene may hold: each is shaded and refined on its own (a shape of many parts is one mesh).
+MAX_OBJECTS = 1000
+
+
+def check_object_count(n: int) -> None:
+    """ValueError when ``n`` objects are more than a scene may hold (:data:`MAX_OBJECTS`): checked before they
+    are made."""
+    if n > MAX_OBJECTS:
+        raise ValueError(f"{n} objects, at most {MAX_OBJECTS} (a shape of many parts is one mesh object: its file "
+                         "holds the triangles)")
+
+
 @dataclass(frozen=True, eq=False)
 class Scene:
-    """Objects, an optional backdrop (a plane z = backdrop_z_mm facing the camera) and lighting."""
+    """Objects (at most :data:`MAX_OBJECTS`), an optional backdrop (a plane z = backdrop_z_mm facing the camera)
+    and lighting."""
 
     objects: tuple[SceneObject, ...]
     lighting: Lighting = Lighting()
@@ -120,3 +133,4 @@ class Scene:
             check_positive(self.backdrop_z_mm, "backdrop z_mm", "mm")
         if not self.objects and self.backdrop_z_mm is None:
             raise ValueError("a scene needs at least one object or a backdrop")
+        check_object_count(len(self.objects))
