@@ -179,6 +179,8 @@ def test_target_file_errors(tmp_path):
                           (good + "colour = 1\n", r"unknown key target\.colour"),
                           (good.replace("diameter_mm = 7.0", "diameter_mm = 20.0"),
                            r"diameter_mm must be < spacing_mm"),
+                          (good.replace("rows = 4", "rows = 1000000000"),
+                           r"target\.rows must be a whole number <= 200, got 1000000000"),
                           ("[card]\nrows = 3\n", r"expected one table \[target\]")):
         with pytest.raises(ValueError, match=message):
             load_target(_write(tmp_path, text))

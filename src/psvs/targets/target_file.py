@@ -18,7 +18,11 @@ from psvs.io.schema import REQUIRED, Field, read_fields
 from psvs.io.tomlfile import dumps_toml, load_table, parse_text, single_table
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard, CircleGrid
 
-_COUNT, _MM = Field("integer", default=REQUIRED), Field("number", note="mm", default=REQUIRED)
+#: Most rows, columns or squares a side of a card (a printed card of 200 x 200 discs is no calibration target;
+#: 1e9 rows asked 45 GiB before this bound).
+MAX_COUNT = 200
+_COUNT = Field("integer", high=MAX_COUNT, default=REQUIRED)
+_MM = Field("number", note="mm", default=REQUIRED)
 _GRID = {"rows": _COUNT, "cols": _COUNT, "spacing_mm": _MM, "diameter_mm": _MM}
 #: The kinds of target and each one's keys (besides ``kind``), with their types (:mod:`psvs.io.schema`).
 FIELDS = {
