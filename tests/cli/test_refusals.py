@@ -147,3 +147,21 @@ def test_calibrate_refuses_a_folder_that_repeats_an_image(capsys, tmp_path):
     assert code == 2 and text == "" and len(err.strip().splitlines()) == 1
     assert "card_1.png and card_3.png are the same image (byte-identical files)" in err
     assert out.read_text() == "earlier"
+
+
+def test_an_output_may_not_replace_a_file_its_input_folder_feeds(capsys, tmp_path):
+    """`calibrate DIR -o DIR/target.toml` (and `handeye DIR -o DIR/target.toml`) would replace the card's
+    description by the rig computed from it: exit 2 in one line, the file as it was; a new file in the folder
+    (the usual DIR/build.toml) is no input and stays allowed (refused here for another reason: no views)."""
+    folder = tmp_path / "views"
+    folder.mkdir()
+    card = '[target]\nkind = "circle_grid"\nrows = 4\ncols = 6\nspacing_mm = 14.0\ndiameter_mm = 7.0\n'
+    (folder / "target.toml").write_text(card)
+    for command in ("calibrate", "handeye"):
+        code, _, err = run(capsys, command, str(folder), "--rig", "default", "-o", str(folder / "target.toml"))
+        assert code == 2 and err.strip() == (f"psvs {command}: error: -o names target.toml of the input folder "
+                                             f"{'DIR' if command == 'calibrate' else 'VIEWS_DIR'} ({folder}): it "
+                                             "would be overwritten by what was computed from it"), err
+    assert (folder / "target.toml").read_text() == card
+    code, _, err = run(capsys, "calibrate", str(folder), "--rig", "default", "-o", str(folder / "build.toml"))
+    assert code != 0 and "input folder" not in err and not (folder / "build.toml").exists()

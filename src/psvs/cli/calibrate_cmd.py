@@ -54,7 +54,7 @@ def _guide(rig, design, mount_dir) -> str:
 def run(args) -> int:
     out = check_output_path(args.output, (".toml", ".json"))
     report = check_output_folder(args.report, "report folder") if args.report is not None else None
-    check_distinct({"-o": args.output}, {"--rig": args.rig})
+    check_distinct({"-o": args.output}, {"--rig": args.rig, "DIR": args.folder})
     start = rig_from_args(args)
     template = rig_template(args.rig)    # the nominal file's comments and layout, for the calibrated file
     if args.adjust not in (None, True):  # a mount folder: read before the work

@@ -183,6 +183,12 @@ def check_output_path(path: str | None, suffixes: tuple[str, ...]) -> Path | Non
     return p
 
 
+#: The files of an input folder its readers take (a card's or a sweep's views, a hand-eye run's poses), and
+#: the image types of its views: an output may not replace one.
+FOLDER_INPUTS = ("target.toml", "sweep.csv", "flange_poses.csv")
+FOLDER_INPUT_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".pgm", ".ppm", ".pnm")
+
+
 def check_distinct(outputs: dict, inputs: dict | None = None) -> None:
     """ValueError when two outputs name one file (the second would silently replace the first) or an output
     names one of the inputs (it would be overwritten by what was computed from it). ``outputs`` and
@@ -206,6 +212,12 @@ def check_distinct(outputs: dict, inputs: dict | None = None) -> None:
             continue             # a missing input is reported where it is read
         if key in seen:
             raise ValueError(f"{seen[key]} names the input {option} ({path}): it would be overwritten")
+        if key.is_dir():         # a folder of inputs: what its readers take from it is input too
+            for out, opt in seen.items():
+                if out.parent == key and out.is_file() and (out.name in FOLDER_INPUTS
+                                                            or out.suffix.lower() in FOLDER_INPUT_SUFFIXES):
+                    raise ValueError(f"{opt} names {out.name} of the input folder {option} ({path}): it would be "
+                                     "overwritten by what was computed from it")
 
 
 def check_working_range(near_mm: float, far_mm: float) -> tuple[float, float]:
