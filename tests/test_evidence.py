@@ -101,3 +101,19 @@ def test_distinct_rows_keep_the_first_of_each_in_order():
     b = np.array([[7.0], [8.0], [7.0], [9.0], [10.0]])         # row 3 differs in b: not a repeat
     da, db = distinct_rows(a, b)
     assert da.tolist() == [[1, 2], [3, 4], [1, 2], [5, 6]] and db.ravel().tolist() == [7, 8, 9, 10]
+
+
+@pytest.mark.parametrize("name, shift, named", [("default", (20.0, -30.0), False), ("default", (0.0, 78.0), True),
+                                                ("mv1440", (-140.0, 0.0), False), ("mv1440", (-150.0, 0.0), True)])
+def test_a_principal_point_far_from_the_centre_is_named(name, shift, named):
+    """The helper's mixed folder calibrated cy 78 px from the centre of a 480-row image (16 %): named; within
+    10 % of the width or height (a lens on its mount) not, at 640 x 480 and 1440 x 1080."""
+    design = load_rig(name)
+    w, h = design.camera.image_size_px
+    fitted = design.replace(principal_point_px=((w - 1) / 2 + shift[0], (h - 1) / 2 + shift[1]))
+    problems = build_problems(fitted, design)
+    assert bool(problems) == named, problems
+    if named:
+        axis = "cx" if shift[0] else "cy"
+        assert problems[0].startswith(f"principal point {axis} fitted ")
+        assert problems[0].endswith(f"within 10% of the image, {0.1 * (w if axis == 'cx' else h):.0f} px)")

@@ -7,6 +7,7 @@ import sys
 from psvs.calibrate.bundle import PRIOR_SIGMA
 from psvs.calibrate.folder import calibrate_folder
 from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, rig_from_args
+from psvs.errors import MeasurementError
 from psvs.io.atomic import check_output_folder, output_batch
 from psvs.io.params import rig_template, save_rig
 
@@ -82,6 +83,9 @@ def run(args) -> int:
         print(f"{len(b.held_by_prior)} parameter(s) held near nominal by their priors ({priors}): "
               "the images do not show them; more card views, tilted and over the whole field, would pin them down")
     print(f"bundle adjustment {b.message}")
+    if not b.success:   # a fit that did not converge is no calibration: nothing written
+        raise MeasurementError(f"the bundle adjustment {b.message}: no rig written (views of more than one build, "
+                               "a card unlike its target.toml, or a start rig far from the build?)")
     # before any file: a guide that fails writes none
     guide = _guide(res.rig, start, args.adjust) if args.adjust else None
     with output_batch():   # the rig file and the report land together
@@ -95,4 +99,4 @@ def run(args) -> int:
         print(f"wrote {f}")
     if guide is not None:
         print(guide)
-    return 0 if b.success else 1
+    return 0
