@@ -285,3 +285,15 @@ def test_the_command_refuses_what_it_cannot_do(capsys, tmp_path):
     code, _, err = run(capsys, "refit", str(blank), "--rig", rig, "-o", str(tmp_path / "n.toml"))
     assert code == 1 and "cannot refit" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "n.toml").exists() and not (tmp_path / "n.refit.json").exists()
+
+
+def test_a_tare_stated_at_the_wrong_distance_is_refused(build):
+    """Issue 41's trial: the second tare stated 50 mm beyond where its wall was wanted every mirror turned about
+    4 deg about the vertical (a blocked layout every command then refused). A change beyond what a knock does
+    (1 deg) is refused, naming the tares; nothing is returned."""
+    moved = knocked(build, DRIFTS["m3 and m4 (issue 43)"])
+    walls, tares = frames_of(moved, seed=70)
+    wrong = [tares[0], (tares[1][0], tares[1][1] + 50.0)]
+    with pytest.raises(MeasurementError, match=r"^the refit would turn m\d_tilt_a_deg by [+-]\d+\.\d+ deg, more "
+                                               r"than a knock does \(at most 1 deg\) \(the tares at 600, 1000 mm"):
+        refit_rig(walls, build, wrong)

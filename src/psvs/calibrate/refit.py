@@ -44,10 +44,11 @@ import numpy as np
 
 from psvs.calibrate.bundle import PRIOR_SIGMA, rig_from_values, rig_values
 from psvs.calibrate.tare import Tare, check_flat, depth_residuals_px, tare_record
-from psvs.errors import MeasurementError
+from psvs.errors import MeasurementError, RigGeometryError
 from psvs.health.check import OVERLAP, HealthCheck, check_frames, judged_pairs_px
 from psvs.io.jsonsafe import json_safe
 from psvs.measure.triangulate import triangulate
+from psvs.optics.design import check_clear
 from psvs.optics.mirrors import virtual_baseline_mm
 from psvs.optics.project import project_points
 from psvs.optics.rig import Calibration, Rig
@@ -62,6 +63,10 @@ ROW_PARAMS = tuple(k for k, p in enumerate(REFIT_PARAMS) if "tilt_b" in p)
 DEPTH_PARAMS = tuple(k for k, p in enumerate(REFIT_PARAMS) if "tilt_a" in p)
 #: The prior on each tilt's change since the calibration (rad): what a knock or a warm week does to glued glass.
 DRIFT_SIGMA_RAD = math.radians(0.1)
+#: The largest change of a tilt a refit gives (rad): ten of the prior's sigmas. A knock that turned glass
+#: further moved more than tilts (calibrate again); a refit that wants more is driven by a tare whose stated
+#: distance is not where the surface was (a tare 50 mm off turned every mirror by 4 deg).
+MAX_CHANGE_RAD = math.radians(1.0)
 #: Rounds of reading the frames and fitting.
 ROUNDS = 2
 #: Each stage iterates at most ITERATIONS times, until no step exceeds STEP_DONE of a prior sigma.
@@ -153,6 +158,7 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
             cov[np.ix_(DEPTH_PARAMS, DEPTH_PARAMS)] = c
             steps.append(n_depth)
         new = _rig(x, rig)
+    _check_changes(x, rig, new, distances)
     after = check_frames(frames, new, near_mm, far_mm, tolerance_px)
     if after.verdict == "drifted":
         raise MeasurementError(f"after the refit the twins still stand off their rows ({after.reason}): what moved "
@@ -172,6 +178,22 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
                  unpinned_combinations(cov), scale_sigma(new, cov), rms, len(pairs.left),
                  int((pairs.source >= 0).sum()), len(frames), before, after, _tares(pairs, rig, new, distances),
                  message)
+
+
+def _check_changes(x: np.ndarray, old: Rig, new: Rig, distances) -> None:
+    """MeasurementError when a refitted tilt changed by more than :data:`MAX_CHANGE_RAD`, or the refitted
+    layout is blocked (no build has it: :func:`psvs.optics.design.check_clear`)."""
+    worst = int(np.argmax(np.abs(x)))
+    tares = f" (the tares at {', '.join(f'{z:g}' for z in distances)} mm: is each where its surface was?)" \
+        if distances else ""
+    if abs(x[worst]) > MAX_CHANGE_RAD:
+        raise MeasurementError(f"the refit would turn {_file_name(REFIT_PARAMS[worst])} by "
+                               f"{math.degrees(x[worst]):+.2f} deg, more than a knock does (at most "
+                               f"{math.degrees(MAX_CHANGE_RAD):g} deg){tares}: calibrate again from card views")
+    try:
+        check_clear(new, "the refitted rig")
+    except RigGeometryError as exc:
+        raise MeasurementError(f"{exc}{tares}") from None
 
 
 def _record(rig: Rig, rms_px: float, frames: int, distances: tuple[float, ...]) -> Calibration:
