@@ -50,15 +50,41 @@ def test_the_dense_list_names_real_kernels():
         assert module in MODULES and hasattr(importlib.import_module(module), attr)
 
 
-def test_kernels_only_some_runs_call_do_not_make_a_run_say_it_compiles(monkeypatch, capsys):
+def test_kernels_only_some_runs_call_do_not_make_a_run_say_it_compiles(monkeypatch, capsys, tmp_path):
     """A machine that has only run `--fast` keeps the default mode's local winners uncompiled: its next `--fast`
     run compiles nothing and says nothing; a kernel every run calls still makes it say so."""
-    import psvs._compiled as compiled
+    import psvs.dense.compiled as dense_compiled
     monkeypatch.delenv(QUIET_ENV, raising=False)
+    monkeypatch.setenv("PSVS_CACHE_DIR", str(tmp_path))
     every = [f"{m}.{a}" for m in MODULES for a in ("x",)][:1]
-    monkeypatch.setattr(compiled, "uncompiled", lambda modules, skip=(): [k for k in (*SOME_RUNS, *every)
-                                                                          if k not in skip])
+    monkeypatch.setattr(dense_compiled, "uncompiled", lambda modules, skip=(): [k for k in (*SOME_RUNS, *every)
+                                                                                if k not in skip])
     assert announce_dense("psvs disparity") is True
     assert capsys.readouterr().err.startswith("psvs disparity: compiling 1 kernels")
-    monkeypatch.setattr(compiled, "uncompiled", lambda modules, skip=(): [k for k in SOME_RUNS if k not in skip])
+    monkeypatch.setattr(dense_compiled, "uncompiled", lambda modules, skip=(): [k for k in SOME_RUNS
+                                                                                if k not in skip])
     assert announce_dense("psvs disparity") is False and capsys.readouterr().err == ""
+
+
+def test_the_notice_is_not_repeated_for_kernels_a_refused_run_never_reaches(monkeypatch, capsys, tmp_path):
+    """An image without echo is refused before the band, depth-table and separation kernels run: they stay
+    uncompiled, and every later refusal said "compiling 6 kernels" again (issue 41's trial: two lines for a
+    refusal). The notice names a set once per machine (psvs's cache folder keeps it); a kernel not named before
+    brings it back; a folder it cannot write only brings the notice back next time."""
+    import psvs.dense.compiled as dense_compiled
+    monkeypatch.delenv(QUIET_ENV, raising=False)
+    monkeypatch.setenv("PSVS_CACHE_DIR", str(tmp_path / "cache"))
+    later = ["psvs.dense.band._band_costs", "psvs.dense.depth_table._table_kernel"]
+    missing = list(later)
+    monkeypatch.setattr(dense_compiled, "uncompiled", lambda modules, skip=(): list(missing))
+    assert announce_dense("psvs disparity") is True
+    assert capsys.readouterr().err.startswith("psvs disparity: compiling 2 kernels")
+    import json
+    record = json.loads((tmp_path / "cache" / dense_compiled.NOTICE_FILE).read_text())
+    assert record["kernels"] == sorted(later) and record["machine"].startswith("numba ")
+    assert announce_dense("psvs disparity") is False and capsys.readouterr().err == ""     # the same set
+    missing[:] = later[:1]
+    assert announce_dense("psvs disparity") is False and capsys.readouterr().err == ""     # fewer
+    missing[:] = [*later, "psvs.dense.separate._separate"]
+    assert announce_dense("psvs disparity") is True                                       # a new one
+    assert capsys.readouterr().err.startswith("psvs disparity: compiling 3 kernels")

@@ -45,10 +45,20 @@ def uncompiled(modules, skip=()) -> list[str]:
 def announce(command: str, modules, skip=()) -> bool:
     """Print one line on stderr when some of ``modules``' kernels will compile on this run (the first on a
     machine, or after an update of psvs or Numba); True if it did."""
-    if os.environ.get(QUIET_ENV, "").strip() not in ("", "0"):
+    if quiet():
         return False
     missing = uncompiled(modules, skip)
     if missing:
-        print(f"{command}: compiling {len(missing)} kernels for this machine's CPU, once (a few minutes; they are "
-              "kept for the next runs) ...", file=sys.stderr, flush=True)
+        notice(command, len(missing))
     return bool(missing)
+
+
+def quiet() -> bool:
+    """Whether the notice is kept off stderr (:data:`QUIET_ENV`)."""
+    return os.environ.get(QUIET_ENV, "").strip() not in ("", "0")
+
+
+def notice(command: str, count: int) -> None:
+    """The one line that ``count`` kernels compile on this run."""
+    print(f"{command}: compiling {count} kernels for this machine's CPU, once (a few minutes; they are "
+          "kept for the next runs) ...", file=sys.stderr, flush=True)

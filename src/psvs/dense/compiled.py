@@ -1,7 +1,14 @@
 """The dense path's Numba kernels, for a first run to say that it compiles them (psvs._compiled)."""
 from __future__ import annotations
 
-from psvs._compiled import announce
+import json
+
+from psvs._compiled import notice, quiet, uncompiled
+from psvs.dense.rig_cache import cache_dir
+from psvs.io.atomic import write_atomic
+
+#: The file in the user's cache folder that records which kernels a notice was last given for.
+NOTICE_FILE = "compile_notice.json"
 
 #: The modules whose kernels psvs disparity, batch disparity, dense-eval, live --dense and serve's dense run (the
 #: ray tracer's too: the rectification and depth tables trace the rig).
@@ -19,5 +26,34 @@ SOME_RUNS = ("psvs.dense.band._local_winners", "psvs.dense.echo_test._lag_median
 
 def announce_dense(command: str) -> bool:
     """One line on stderr ("compiling N kernels ...") when the kernels every dense run calls will compile on this
-    run (those of :data:`SOME_RUNS` aside)."""
-    return announce(command, MODULES, NOT_CALLED + SOME_RUNS)
+    run (those of :data:`SOME_RUNS` aside), unless the last notice (:data:`NOTICE_FILE` in the user's cache
+    folder, for this Numba and CPU) already named every one of them: a run refused before the later stages
+    (an image without echo) leaves those uncompiled, and would otherwise say it compiles on every call."""
+    if quiet():
+        return False
+    missing = uncompiled(MODULES, NOT_CALLED + SOME_RUNS)
+    if not missing:
+        return False
+    key, folder = _machine(), cache_dir()
+    record = None if folder is None else folder / NOTICE_FILE
+    try:
+        said = json.loads(record.read_text()) if record is not None and record.is_file() else {}
+    except (OSError, ValueError):
+        said = {}
+    if isinstance(said, dict) and said.get("machine") == key and set(missing) <= set(said.get("kernels", ())):
+        return False
+    notice(command, len(missing))
+    if record is not None:
+        try:
+            record.parent.mkdir(parents=True, exist_ok=True)
+            write_atomic(record, json.dumps({"machine": key, "kernels": sorted(missing)}))
+        except OSError:          # no cache folder to write: the notice comes again next time
+            pass
+    return True
+
+
+def _machine() -> str:
+    """Numba's version and this machine's CPU: what compiled code is for."""
+    import llvmlite.binding as llvm
+    import numba
+    return f"numba {numba.__version__} {llvm.get_host_cpu_name()}"
