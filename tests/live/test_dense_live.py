@@ -84,10 +84,26 @@ def test_live_dense_without_texture_says_so(tmp_path, capsys):
     assert main(["live", "--video", str(path), "--rig", "default", "--dense", "--quiet"]) == 1
     out = capsys.readouterr()
     assert "3 frames, 0 with depth, median Z none" in out.out
-    assert "no frame gave a dense depth" in out.err
-    # the library's RuntimeWarning, printed by the command line as one line of psvs's own (once, not per frame)
-    assert out.err.splitlines().count(
-        "psvs live: warning: complex image is constant: no texture to match, disparity is all NaN") == 1, out.err
+    # one line: the refusal (the frames' own "no texture" warnings are what it says, not lines of their own)
+    assert out.err.strip() == ("psvs live: cannot measure: no frame gave a dense depth (no texture in the working "
+                               "range?)"), out.err
+
+
+def test_live_dense_refuses_frames_of_another_camera(tmp_path, capsys):
+    """Issue 41's trial: 1440 x 1080 frames read through the 640 x 480 rig answered "dense median Z 565 mm" (the
+    truth 1120): every pixel's ray would be another's. Exit 2 in one line, no log written."""
+    import cv2
+    folder = tmp_path / "big"
+    folder.mkdir()
+    rng = np.random.default_rng(1)
+    for k in range(2):
+        cv2.imwrite(str(folder / f"f_{k:03d}.png"), rng.integers(0, 256, (1080, 1440)).astype(np.uint8))
+    log = tmp_path / "l.csv"
+    assert main(["live", "--video", str(folder), "--rig", "default", "--dense", "-o", str(log)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == ("psvs live: error: the image is 1440x1080 px but the rig's camera is 640x480 px: an image "
+                           "of that camera, or the rig of this one"), err
+    assert not log.exists()
 
 
 def test_a_video_of_noise_gives_no_depth(tmp_path, capsys):

@@ -250,8 +250,8 @@ def _summary(steps: list, dense_frames: list | None, wall: float, realtime: bool
         print(f"{n} frames, {n / wall:.1f} frames/s ({pace})")
         if not len(z):
             unsupported = any(d.mapped for d in dense_frames) and not any(d.supported for d in dense_frames)
-            print("psvs live: cannot measure: no frame's echo stands above chance (psvs disparity's test): no "
-                  "depth" if unsupported else "no frame gave a dense depth (no texture in the working range?)",
+            print("psvs live: cannot measure: " + ("no frame's echo stands above chance (psvs disparity's test): "
+                  "no depth" if unsupported else "no frame gave a dense depth (no texture in the working range?)"),
                   file=sys.stderr)
             return 1
         return 0

@@ -16,6 +16,7 @@ frame has no depth (no points, median NaN; its map is kept). A video of noise gi
 from __future__ import annotations
 
 import time
+import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -94,8 +95,10 @@ class DenseSensor:
     def step(self, frame) -> DenseFrame:
         """The dense disparity and strided cloud of ``frame`` (H, W) grey."""
         t0 = time.perf_counter()
-        dense = dense_on_rig(frame, self.rig, self.near_mm, self.far_mm, params=self.params,
-                             workspace=self._workspace)
+        with warnings.catch_warnings():    # a featureless frame: no map (``mapped`` false), said per frame
+            warnings.simplefilter("ignore", RuntimeWarning)
+            dense = dense_on_rig(frame, self.rig, self.near_mm, self.far_mm, params=self.params,
+                                 workspace=self._workspace)
         d = dense.result.disparity_left
         if self.frames % TRUST_EVERY == 0:
             self._supported = rig_trust(dense).count > 0
