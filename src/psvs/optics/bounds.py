@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 from psvs import _budget
 from psvs.optics.illumination import corner_rho2, ri_range
+from psvs.optics.plate import plausible_refraction_terms
 from psvs.optics.rig import MIRROR_NAMES, Rig
 
 
@@ -139,6 +140,19 @@ def _deg(rad: float) -> float:
     return float(f"{math.degrees(rad):.12g}")
 
 
+def _check_refraction_terms(rig: Rig) -> None:
+    """ValueError when a file's l or m of eq. (15) lies farther from what a plate of its kind gives
+    (:func:`psvs.optics.plate.plausible_refraction_terms`, what ``fit-refraction`` accepts) than that range's own
+    width: no plate's terms (a decimal slip, l = 20 for a 3 mm plate's 1.8, put every depth 12 % off)."""
+    m = rig.mirrors
+    for key, (lo, hi) in zip(("refraction_l_mm", "refraction_m_mm"), plausible_refraction_terms(rig), strict=True):
+        value, width = getattr(m, key), hi - lo
+        if value is not None and not lo - width <= value <= hi + width:
+            raise ValueError(f"mirrors.{key} = {value:g} mm is no plate's: a plate of {m.plate_thickness_mm:g} mm "
+                             f"(n {m.refractive_index:g}) gives {lo:.3g}-{hi:.3g} mm (fit-refraction's range; a file "
+                             f"may hold {lo - width:.3g}-{hi + width:.3g} mm)")
+
+
 def _check_mirrors(rig: Rig) -> None:
     m = rig.mirrors
     for key in ("baseline_mm", "m1_axis_distance_mm", "m2_axis_distance_mm", "plate_thickness_mm",
@@ -148,6 +162,7 @@ def _check_mirrors(rig: Rig) -> None:
     for key in ("refraction_l_mm", "refraction_m_mm"):
         if getattr(m, key) is not None:
             bound(f"mirrors.{key}").check(getattr(m, key))
+    _check_refraction_terms(rig)
     for k, r in enumerate(m.box_rotation_rad):
         bound("mirrors.box_rotation_deg").check(_deg(r), f"mirrors.box_rotation_deg[{k}]")
     for name in MIRROR_NAMES:
