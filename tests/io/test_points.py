@@ -70,3 +70,20 @@ def test_points_with_their_depth_sigma_read_back_by_value(tmp_path):
     got = [float(r["Z_sigma_mm"]) for r in rows]
     assert abs(got[0] - 0.4567891) < 1e-6 and got[1] == np.inf and np.isnan(got[2])
     assert [r["valid"] for r in rows] == ["1", "1", "0"]
+
+
+def test_a_table_too_large_for_the_memory_is_refused_before_it_is_read(tmp_path, monkeypatch):
+    """Issue 41's trial: a million-row matches file under a 300 MiB limit used 795 MB. Its lines are counted
+    (not parsed) and refused at ROW_BYTES (1000) each, naming the file and the count; the same file passes with
+    more memory."""
+    import re
+
+    from psvs.io.points import check_rows_memory
+    p = tmp_path / "m.csv"
+    p.write_text("u_l,v_l,u_r,v_r\n" + "400,239.5,300,239.5\n" * 5000)
+    monkeypatch.setenv("PSVS_MEMORY_AVAILABLE_MIB", "300")
+    assert check_rows_memory(p) == 5001
+    monkeypatch.setenv("PSVS_MEMORY_AVAILABLE_MIB", "5")
+    with pytest.raises(ValueError, match=rf"^{re.escape(str(p))}: 5001 rows needs about 4\.8 MiB of memory, more "
+                                         r"than the 4\.0 MiB available$"):
+        check_rows_memory(p)

@@ -12,7 +12,7 @@ from psvs.cli.common import (
     check_output_path,
     measuring_rig,
 )
-from psvs.io.points import points_csv_text, read_matches_csv, write_points_csv
+from psvs.io.points import check_rows_memory, points_csv_text, read_matches_csv, write_points_csv
 from psvs.measure.triangulate import (
     EPIPOLAR_TOL_PX,
     MATCH_SIGMA_PX,
@@ -46,6 +46,7 @@ def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
     check_distinct({"-o": args.output}, {"POINTS.csv": args.points, "--rig": args.rig})
     rig = measuring_rig(args.rig)
+    check_rows_memory(args.points)        # before the rows are read: each costs about a kB through the models
     left, right = read_matches_csv(args.points)
     model = args.model or default_model(rig)
     res = triangulate(left, right, rig, model=model)
