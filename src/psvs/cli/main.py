@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _interrupted(name: str, exc: KeyboardInterrupt) -> int:
     if isinstance(exc, Terminated):
-        print(f"\n{name}: terminated ({signal.Signals(exc.signum).name})", file=sys.stderr)
+        print(f"{name}: terminated ({signal.Signals(exc.signum).name})", file=sys.stderr)   # no ^C echo to end
         return 128 + exc.signum
     print(f"\n{name}: interrupted", file=sys.stderr)
     return 130
@@ -133,9 +133,24 @@ def _run(args, debug: bool) -> int:
         print(f"{name}: error: {msg}", file=sys.stderr)
         return 2
     except Exception as exc:
+        signalled = _signal_inside(exc)
+        if signalled is not None:       # a signal that arrived inside compiled code (Numba wraps it)
+            return _interrupted(name, signalled)
         if debug:
             raise
         return _internal_error(name, exc)
+
+
+def _signal_inside(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C or termination an exception wraps (a SystemError "returned a result with an exception set"
+    from a Numba kernel the signal's handler raised in), or None."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def _internal_error(name: str, exc: Exception) -> int:

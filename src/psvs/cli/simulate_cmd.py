@@ -6,6 +6,7 @@ import sys
 import numpy as np
 
 from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, load_scene_spec, rig_from_args
+from psvs.io.atomic import output_batch
 from psvs.io.images import write_npz, write_png
 from psvs.io.video import VIDEO_SUFFIXES, write_video
 from psvs.simulate.builtin import describe
@@ -86,6 +87,8 @@ def run(args) -> int:
     check_render_work(rig, args.supersample, args.frames, f"--frames {args.frames} x --supersample {args.supersample}",
                       "fewer --frames or a smaller --supersample", truth=truth_path is not None)
     scene = load_scene_spec(args.scene)
+    if args.frames > 1 and not video:
+        _check_no_longer_sequence(out, args.frames)
     if args.frames == 1 and not video:
         results = [render(scene, rig, supersample=args.supersample, sensor=sensor, seed=args.seed,
                           truth=truth_path is not None)]
@@ -111,6 +114,17 @@ def run(args) -> int:
         n = write_video(out, frames(), fps=args.fps)
         print(f"{out}: {n} frames, FFV1, {args.fps:g} frames/s", file=sys.stderr)
     else:
-        for _ in frames():
-            pass
+        with output_batch():     # a sequence lands whole or not at all (an interrupted run leaves the old one)
+            for _ in frames():
+                pass
     return 0
+
+
+def _check_no_longer_sequence(out, frames: int) -> None:
+    """ValueError when frames of an older, longer sequence (OUT_NNN.png from ``frames`` up) would stay beside
+    the new ones: a folder mixing two runs' frames is no sequence."""
+    stale = sorted(q.name for q in out.parent.glob(f"{out.stem}_[0-9][0-9][0-9].png")
+                   if int(q.stem.rsplit("_", 1)[1]) >= frames)
+    if stale:
+        raise ValueError(f"{out.parent} holds {len(stale)} frame(s) of a longer sequence ({stale[0]} ...) that would "
+                         f"stay beside these {frames}: remove them or choose another -o name")
