@@ -94,6 +94,11 @@ def test_bad_sweeps(capsys, tmp_path, sweep_dir):
     (tmp_path / "sweep.csv").write_text("image,position_mm\na.png,far\n")
     with pytest.raises(ValueError, match="position_mm is not a number: 'far'"):
         read_sweep(tmp_path)
+    for bad in ("nan", "inf"):        # SciPy's "initial guess is outside of provided bounds" before
+        (tmp_path / "sweep.csv").write_text(f"image,position_mm\na.png,700\nb.png,{bad}\n")
+        with pytest.raises(ValueError, match=rf"sweep\.csv:3: position_mm must be a finite robot reading \(mm\), "
+                                             rf"got '{bad}'"):
+            read_sweep(tmp_path)
     obs = [("a", 700.0, detect_pattern(pattern_image(default_rig(), 400.0 - ROBOT_OFFSET_MM + ROBOT_OFFSET_MM, 1)))]
     with pytest.raises(ValueError, match="needs at least 3 usable sweep images, got 1"):
         calibrate_sweep(obs, default_rig())

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 from pathlib import Path
 
 import numpy as np
@@ -60,9 +61,12 @@ def read_sweep(folder) -> list[tuple[Path, float]]:
             raise ValueError(f"{table}:{n}: expected columns image,position_mm, got {len(row)} cells")
         image, position = row[col["image"]], row[col["position_mm"]]
         try:
-            out.append((folder / image, float(position)))
+            value = float(position)
         except ValueError:
             raise ValueError(f"{table}:{n}: position_mm is not a number: {position!r}") from None
+        if not math.isfinite(value):
+            raise ValueError(f"{table}:{n}: position_mm must be a finite robot reading (mm), got {position!r}")
+        out.append((folder / image, value))
     if not out:
         raise ValueError(f"{table}: no images listed")
     check_sweep_rows(out, table.name)
