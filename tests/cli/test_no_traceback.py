@@ -54,6 +54,7 @@ def files(tmp_path_factory):
     (d / "text.png").write_text("not an image\n")
     (d / "deep.toml").write_text("a = " + "[" * 5000 + "]" * 5000 + "\n")
     (d / "deep.json").write_text("[" * 100000 + "]" * 100000)
+    (d / "digits.json").write_text('{"camera": {"focal_length_mm": ' + "9" * 5000 + "}}")
     (d / "binary.toml").write_bytes(data)
     (d / "mesh_scene.toml").write_text('[[objects]]\ntype = "mesh"\nfile = "ok.png"\n')
     (d / "notvideo.avi").write_text("not a video\n")
@@ -81,6 +82,8 @@ def earlier(tmp_path):
     (["match", "{ok.png}", "--rig", "{deep.toml}", "--auto", "-o"], "m.json",
      "deep.toml: malformed TOML: nested too deep"),
     (["simulate", "fig9", "--rig", "{deep.json}", "-o"], "s.png", "deep.json: malformed JSON: nested too deep"),
+    (["simulate", "fig9", "--rig", "{digits.json}", "-o"], "s.png",
+     "digits.json: malformed JSON: Exceeds the limit (4300 digits) for integer string conversion: value has 5000"),
     (["simulate", "fig9", "--rig", "{binary.toml}", "-o"], "s.png",
      "binary.toml: not a TOML file (it is not UTF-8 text; an image?)"),
     (["simulate", "{mesh_scene.toml}", "-o"], "s.png",

@@ -41,6 +41,9 @@ def parse_text(text: str, where: str, kind: str = "TOML") -> dict:
         raise ValueError(f"{where}: malformed {kind}: {exc}") from None
     except RecursionError:
         raise ValueError(f"{where}: malformed {kind}: nested too deep") from None
+    except ValueError as exc:     # Python's own limits (an integer of thousands of digits)
+        why = (str(exc).splitlines() or [type(exc).__name__])[0].strip("'\"").split(";")[0]
+        raise ValueError(f"{where}: malformed {kind}: {why}") from None
 
 
 def single_table(data: dict, table: str, keys: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
