@@ -40,13 +40,12 @@ def test_main_restores_the_callers_handlers(capsys):
         signal.signal(signal.SIGTERM, mine)
 
 
-def test_a_signal_inside_a_compiled_kernel_is_a_termination_not_an_internal_error(capsys):
+def test_a_signal_inside_a_compiled_kernel_is_a_termination_not_an_internal_error(capsys, monkeypatch):
     """Issue 41's trial: SIGTERM 1.4 s into `psvs disparity` arrived inside a Numba kernel, which wrapped the
     handler's exception in "SystemError: CPUDispatcher(...) returned a result with an exception set": "internal
     error", exit 1. The termination inside is found: one line, exit 143."""
-    from types import SimpleNamespace
-
-    from psvs.cli.main import Terminated, _run
+    import psvs.cli.disparity_cmd as disparity_cmd
+    from psvs.cli.main import Terminated
 
     def kernel_run(args):
         try:
@@ -54,7 +53,8 @@ def test_a_signal_inside_a_compiled_kernel_is_a_termination_not_an_internal_erro
         except Terminated as exc:
             raise SystemError("CPUDispatcher(<function one_sided_costs>) returned a result with an exception set") \
                 from exc
-    assert _run(SimpleNamespace(command="disparity", run=kernel_run), debug=False) == 128 + signal.SIGTERM
+    monkeypatch.setattr(disparity_cmd, "run", kernel_run)
+    assert main(["disparity", "x.png", "-o", "d.npy"]) == 128 + signal.SIGTERM
     assert capsys.readouterr().err == "psvs disparity: terminated (SIGTERM)\n"
 
 
