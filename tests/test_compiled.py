@@ -88,3 +88,10 @@ def test_the_notice_is_not_repeated_for_kernels_a_refused_run_never_reaches(monk
     missing[:] = [*later, "psvs.dense.separate._separate"]
     assert announce_dense("psvs disparity") is True                                       # a new one
     assert capsys.readouterr().err.startswith("psvs disparity: compiling 3 kernels")
+    assert announce_dense("psvs disparity") is False and capsys.readouterr().err == ""
+    # another install (or psvs updated: its kernels' files changed) compiles again, and says so
+    key = record["machine"]
+    assert key == dense_compiled._machine() and len(key.split()[-1]) == 16
+    monkeypatch.setattr(dense_compiled, "_machine", lambda: key + "-another-install")
+    assert announce_dense("psvs disparity") is True
+    assert capsys.readouterr().err.startswith("psvs disparity: compiling 3 kernels")

@@ -41,9 +41,9 @@ MAX_FOCAL_CHANGE = 0.15
 #: psvs.mount.report); more is another design, or a card printed at another scale (a calibration cannot
 #: tell a card 10 % larger from a world 10 % smaller: only the design's baseline can).
 MAX_BASELINE_CHANGE = 0.05
-#: The farthest a calibrated principal point may lie from the image's centre, as a share of the image's width
-#: and height (a lens centred on its sensor by its mount: within a few per cent; 10 % is a lens knocked off its
-#: axis, or a fit that put the centre where the views of two builds disagree).
+#: The farthest a calibrated principal point may lie from the design's (a sensor window's own, or the image's
+#: centre), as a share of the image's width and height (a lens centred on its sensor by its mount: within a few
+#: per cent; 10 % is a lens knocked off its axis, or a fit that put the centre where two builds' views disagree).
 MAX_PRINCIPAL_OFFSET = 0.10
 MIRRORS = ("m1", "m2", "m3", "m4")
 
@@ -101,7 +101,7 @@ def build_problems(fitted, design, baseline: bool = True) -> list[str]:
     :data:`MAX_BASELINE_CHANGE` off the design's (only with ``baseline``: where the fit's scale rests on a card's
     printed size; a robot's steps measure it), a focal length more than
     :data:`MAX_FOCAL_CHANGE` off the design's, a principal point more than :data:`MAX_PRINCIPAL_OFFSET` of the
-    image from its centre, a lens no lens is (:func:`lens_problems`). (The plate's thickness is not judged: a
+    image from the design's, a lens no lens is (:func:`lens_problems`). (The plate's thickness is not judged: a
     start rig may guess it, and the views pin it.)"""
     problems = []
     for m in MIRRORS:
@@ -119,11 +119,11 @@ def build_problems(fitted, design, baseline: bool = True) -> list[str]:
     if abs(f1 / f0 - 1.0) > MAX_FOCAL_CHANGE:
         problems.append(f"focal length fitted {f1:.3g} mm against the design's {f0:.3g} mm (a stock lens: within "
                         f"{MAX_FOCAL_CHANGE:.0%})")
-    (w, h), (cx, cy) = fitted.camera.image_size_px, fitted.camera.principal_point_px
-    for axis, c, size in (("cx", cx, w), ("cy", cy, h)):
-        if abs(c - (size - 1) / 2) > MAX_PRINCIPAL_OFFSET * size:
-            problems.append(f"principal point {axis} fitted {c:.1f} px, {abs(c - (size - 1) / 2):.0f} px from the "
-                            f"image's centre (a lens on its mount: within {MAX_PRINCIPAL_OFFSET:.0%} of the image, "
+    (w, h), fit, own = fitted.camera.image_size_px, fitted.camera.principal_point_px, design.camera.principal_point_px
+    for axis, c, c0, size in (("cx", fit[0], own[0], w), ("cy", fit[1], own[1], h)):
+        if abs(c - c0) > MAX_PRINCIPAL_OFFSET * size:
+            problems.append(f"principal point {axis} fitted {c:.1f} px, {abs(c - c0):.0f} px from the design's "
+                            f"{c0:.1f} (a lens on its mount: within {MAX_PRINCIPAL_OFFSET:.0%} of the image, "
                             f"{MAX_PRINCIPAL_OFFSET * size:.0f} px)")
     return problems + lens_problems(fitted.camera)
 

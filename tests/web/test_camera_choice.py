@@ -61,7 +61,7 @@ def test_a_camera_the_page_cannot_use_is_one_line_and_the_source_stays(tmp_path)
     with local_client(_app()) as c:
         cases = [({"camera": "webcam"}, "--camera must be an OpenCV index"),
                  ({"camera": "0", "exposure_us": 500}, "takes no acquisition settings"),
-                 ({"camera": "9"}, "camera"),
+                 ({"camera": "9"}, "cannot open camera 9: no such camera"),
                  ({"camera": "basler:0"}, "the rig's camera 640x480 px"),
                  ({"camera": "basler:0", "features": ["ImageFileMode"]}, "must be NAME=VALUE")]
         for body, words in cases:

@@ -187,12 +187,12 @@ def test_the_dense_cloud_is_the_trusted_pixels_at_their_depth(textured_app):
     got = {}
     with local_client(app) as c:
         for name in maps["names"]:
-            sent = c.get("/api/dense/map", params={"name": name, "generation": maps["generation"]})
+            sent = c.get("/api/dense/map", params={"name": name, "run": maps["run"]})
             assert sent.status_code == 200 and sent.headers["X-Shape"] == "480,640"
             got[name] = np.frombuffer(sent.content, "<f4").reshape(480, 640)      # read back by value
-        stale = c.get("/api/dense/map", params={"name": "z", "generation": maps["generation"] + 1})
+        stale = c.get("/api/dense/map", params={"name": "z", "run": maps["run"] + 1})
         assert stale.status_code == 409
-        assert c.get("/api/dense/map", params={"name": "depth", "generation": 0}).status_code == 422
+        assert c.get("/api/dense/map", params={"name": "depth", "run": 0}).status_code == 422
     z, truth = got["z"], r.truth.depth_left_mm
     seen = np.isfinite(z) & np.isfinite(truth)
     assert seen.mean() > 0.3 and np.mean(np.abs(z[seen] / truth[seen] - 1) <= 0.02) >= 0.9
@@ -211,10 +211,17 @@ def test_the_dense_cloud_is_the_trusted_pixels_at_their_depth(textured_app):
     np.testing.assert_array_equal(got["disparity"][trusted & np.isfinite(d)], d[trusted & np.isfinite(d)])
     blank = create_app(image_source("blank", np.full((480, 640), 90, np.uint8)), default_rig())
     with local_client(blank) as c:
-        assert c.get("/api/dense/map", params={"name": "z", "generation": 0}).status_code == 404
+        assert c.get("/api/dense/map", params={"name": "z", "run": 0}).status_code == 404
         res = c.post("/api/dense", json={"fast": True}).json()
     assert res["trusted_pct"] == 0 and res["median_z_mm"] is None and res["cloud"]["points_mm"] == []
-    assert res["answered_pct"] == 0         # what the map holds unsupported is no answer
+    noise = create_app(image_source("noise", np.random.default_rng(3).integers(0, 256, (480, 640)).astype(np.uint8)),
+                       default_rig())
+    with local_client(noise) as c:
+        res = c.post("/api/dense", json={"fast": True}).json()
+    # sensor noise: the map holds a disparity almost everywhere, none of it supported: nothing answered (as
+    # psvs disparity refuses the image), no depth
+    assert res["mapped_pct"] > 90 and res["trusted_pct"] == 0 and res["answered_pct"] == 0
+    assert res["median_z_mm"] is None and res["cloud"]["points_mm"] == []
 
 
 def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
@@ -252,7 +259,7 @@ def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
                              " el.data[0].showscale, Number(el.dataset.untrusted), el.layout.dragmode]; })()")
         sent = page.evaluate("fetch('/api/dense', {method: 'POST', headers: {'Content-Type': 'application/json'},"
                              " body: JSON.stringify({fast: true})}).then(r => r.json()).then(d => fetch("
-                             "`/api/dense/map?name=untrusted&generation=${d.maps.generation}`))"
+                             "`/api/dense/map?name=untrusted&run=${d.maps.run}`))"
                              ".then(r => r.arrayBuffer())"
                              ".then(b => new Float32Array(b).filter(x => !Number.isNaN(x)).length)")
         assert disp == [480, 640, "d (px)", False, sent, "zoom"] and sent > 1000, (disp, sent)
@@ -284,7 +291,7 @@ def test_the_fast_dense_answer_on_fig5b_is_the_trusted_pixels():
     app = create_app(scene_source("fig5b", fig5b(), default_rig()), default_rig())
     with local_client(app) as c:
         res = c.post("/api/dense", json={"fast": True}).json()
-    assert res["mapped_pct"] > 90 and 2 < res["trusted_pct"] < 30 and res["answered_pct"] == res["trusted_pct"]
+    assert res["mapped_pct"] > 90 and 2 < res["trusted_pct"] < 30 and res["answered_pct"] == res["mapped_pct"]
     assert 148 <= res["median_disparity_px"] <= 155 and 690 <= res["median_z_mm"] <= 720
 
 

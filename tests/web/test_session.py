@@ -122,3 +122,26 @@ def test_a_reader_started_while_the_source_is_replaced_reads_the_new_one():
     session.start_live(None, None, None)
     replacing.join(5)
     assert started == ["new.png"] and session.still().name == "new.png"
+
+
+def test_a_stopped_loop_still_in_a_long_step_keeps_the_source_from_being_replaced():
+    """A loop that does not return within the stop's wait (a first compile, a long dense step) may still hold its
+    camera: the runner says it is finishing, and opening another source is refused in one line until it ends."""
+    import threading
+
+    from psvs.web.runner import BackgroundRunner
+
+    class Slow(BackgroundRunner):
+        STOP_TIMEOUT_S = 0.05
+
+    release = threading.Event()
+    runner = Slow()
+    runner._start_loop(lambda: (iter(()),), lambda frames: release.wait(10), "slow")
+    runner.stop()
+    assert not runner.running and runner.finishing
+    release.set()
+    for _ in range(200):
+        if not runner.finishing:
+            break
+        threading.Event().wait(0.01)
+    assert not runner.finishing

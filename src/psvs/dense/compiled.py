@@ -1,7 +1,13 @@
 """The dense path's Numba kernels, for a first run to say that it compiles them (psvs._compiled)."""
 from __future__ import annotations
 
+import hashlib
+import importlib
 import json
+from pathlib import Path
+
+import llvmlite.binding as llvm
+import numba
 
 from psvs._compiled import notice, quiet, uncompiled
 from psvs.dense.rig_cache import cache_dir
@@ -46,14 +52,20 @@ def announce_dense(command: str) -> bool:
     if record is not None:
         try:
             record.parent.mkdir(parents=True, exist_ok=True)
-            write_atomic(record, json.dumps({"machine": key, "kernels": sorted(missing)}))
+            write_atomic(record, json.dumps({"machine": key, "kernels": sorted(missing)}), batch=False)
         except OSError:          # no cache folder to write: the notice comes again next time
             pass
     return True
 
 
 def _machine() -> str:
-    """Numba's version and this machine's CPU: what compiled code is for."""
-    import llvmlite.binding as llvm
-    import numba
-    return f"numba {numba.__version__} {llvm.get_host_cpu_name()}"
+    """What compiled code is for and where it is kept: Numba's version, this machine's CPU, and the kernels'
+    source files (each one's path and modification time: another install, or psvs updated, compiles again and
+    is told so)."""
+
+    files = []
+    for name in MODULES:
+        path = Path(importlib.import_module(name).__file__)
+        files.append(f"{path}:{path.stat().st_mtime_ns}")
+    digest = hashlib.sha256("\n".join(files).encode()).hexdigest()[:16]
+    return f"numba {numba.__version__} {llvm.get_host_cpu_name()} {digest}"

@@ -38,7 +38,12 @@ from psvs._validate import check_points, check_same_length
 from psvs.errors import MeasurementError
 from psvs.evidence import distinct_rows
 from psvs.optics.mirrors import front_z_mm
-from psvs.optics.plate import PLAUSIBLE_PLATE, derived_refraction_terms, plausible_refraction_terms
+from psvs.optics.plate import (
+    PLAUSIBLE_PLATE,
+    derived_refraction_terms,
+    file_refraction_terms,
+    plausible_refraction_terms,
+)
 from psvs.optics.rig import Rig
 from psvs.optics.trace import ideal_sensor_from_pixels
 
@@ -120,7 +125,9 @@ def fit_refraction(left_px, right_px, points_mm, rig: Rig) -> RefractionFit:
 
 def _check_plausible(terms: tuple[float, float], weighted: np.ndarray, rig: Rig) -> None:
     """MeasurementError when a fitted term lies more than 3 sigma (the fit's, rows ``weighted`` by 1/dz)
-    beyond what a plate of the rig's kind can give (:func:`~psvs.optics.plate.plausible_refraction_terms`)."""
+    beyond what a plate of the rig's kind can give (:func:`~psvs.optics.plate.plausible_refraction_terms`), or
+    beyond what a rig file may hold (:func:`~psvs.optics.plate.file_refraction_terms`: a fit loose enough to
+    pass the first would otherwise be written into a file that no command reads back)."""
     sigma = np.sqrt(np.diag(np.linalg.pinv(weighted.T @ weighted)))
     for name, value, (lo, hi), sd in zip("lm", terms, plausible_refraction_terms(rig), sigma, strict=True):
         if not lo - 3 * sd <= value <= hi + 3 * sd:
@@ -132,6 +139,12 @@ def _check_plausible(terms: tuple[float, float], weighted: np.ndarray, rig: Rig)
                 f"{n_lo:g}-{n_hi:g}, omega_1 within {PLAUSIBLE_PLATE['angle_deg']:g} deg of the rig's gives "
                 f"{name} {lo:.3g}-{hi:.3g} mm: the known points disagree with the matches (Z from another origin, "
                 "another unit or scale?)")
+    for name, value, (f_lo, f_hi) in zip("lm", terms, file_refraction_terms(rig), strict=True):
+        if not f_lo <= value <= f_hi:      # within 3 sigma of a plate's, yet no rig file may hold it
+            raise MeasurementError(
+                f"the fitted {name} = {value:.3g} mm of eq. (15) lies beyond what a plate of the rig's kind gives, "
+                f"widened by that range's width ({f_lo:.3g}-{f_hi:.3g} mm): too few or too noisy known points to "
+                "pin it, or points from another origin, unit or scale")
 
 
 def fit_refraction_terms(left_px, right_px, points_mm, rig: Rig) -> tuple[float, float]:

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 from psvs import _budget
 from psvs.optics.illumination import corner_rho2, ri_range
-from psvs.optics.plate import plausible_refraction_terms
+from psvs.optics.plate import file_refraction_terms, plausible_refraction_terms
 from psvs.optics.rig import MIRROR_NAMES, Rig
 
 
@@ -141,16 +141,17 @@ def _deg(rad: float) -> float:
 
 
 def _check_refraction_terms(rig: Rig) -> None:
-    """ValueError when a file's l or m of eq. (15) lies farther from what a plate of its kind gives
-    (:func:`psvs.optics.plate.plausible_refraction_terms`, what ``fit-refraction`` accepts) than that range's own
-    width: no plate's terms (a decimal slip, l = 20 for a 3 mm plate's 1.8, put every depth 12 % off)."""
+    """ValueError when a file's l or m of eq. (15) lies beyond :func:`psvs.optics.plate.file_refraction_terms`
+    (what a plate of its kind gives, widened by that range's width): no plate's terms (a decimal slip, l = 20 for
+    a 3 mm plate's 1.8, put every depth 12 % off)."""
     m = rig.mirrors
-    for key, (lo, hi) in zip(("refraction_l_mm", "refraction_m_mm"), plausible_refraction_terms(rig), strict=True):
-        value, width = getattr(m, key), hi - lo
-        if value is not None and not lo - width <= value <= hi + width:
+    for key, (lo, hi), (f_lo, f_hi) in zip(("refraction_l_mm", "refraction_m_mm"), plausible_refraction_terms(rig),
+                                           file_refraction_terms(rig), strict=True):
+        value = getattr(m, key)
+        if value is not None and not f_lo <= value <= f_hi:
             raise ValueError(f"mirrors.{key} = {value:g} mm is no plate's: a plate of {m.plate_thickness_mm:g} mm "
                              f"(n {m.refractive_index:g}) gives {lo:.3g}-{hi:.3g} mm (fit-refraction's range; a file "
-                             f"may hold {lo - width:.3g}-{hi + width:.3g} mm)")
+                             f"may hold {f_lo:.3g}-{f_hi:.3g} mm)")
 
 
 def _check_mirrors(rig: Rig) -> None:

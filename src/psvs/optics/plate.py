@@ -101,6 +101,21 @@ def plausible_refraction_terms(rig: Rig) -> tuple[tuple[float, float], tuple[flo
     return (float(ls.min()), float(ls.max())), (float(ms.min()), float(ms.max()))
 
 
+#: mm: the least widening of the plausible range a rig file's terms may take (a rig without a plate: 0 +- this).
+FILE_MARGIN_MM = 0.5
+
+
+def file_refraction_terms(rig: Rig) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The (low, high) of l and of m, mm, a rig file may hold: :func:`plausible_refraction_terms` widened each
+    side by its own width (at least :data:`FILE_MARGIN_MM`). ``fit-refraction`` refuses a fit beyond it, and
+    the rig's bounds (psvs.optics.bounds) refuse a file beyond it: one rule for the terms written and read."""
+    out = []
+    for lo, hi in plausible_refraction_terms(rig):
+        pad = max(hi - lo, FILE_MARGIN_MM)
+        out.append((lo - pad, hi + pad))
+    return out[0], out[1]
+
+
 def refraction_terms(rig: Rig) -> tuple[float, float]:
     """The rig's (l, m), mm: ``refraction_l_mm`` / ``refraction_m_mm`` when set, else derived."""
     l_der, m_der = derived_refraction_terms(rig)

@@ -109,11 +109,11 @@ class Lighting:
 MAX_OBJECTS = 1000
 
 
-def check_object_count(n: int) -> None:
-    """ValueError when ``n`` objects are more than a scene may hold (:data:`MAX_OBJECTS`): checked before they
-    are made."""
-    if n > MAX_OBJECTS:
-        raise ValueError(f"{n} objects, at most {MAX_OBJECTS} (a shape of many parts is one mesh object: its file "
+def check_object_count(n: int, limit: int = MAX_OBJECTS) -> None:
+    """ValueError when ``n`` objects are more than a scene may hold (``limit``, :data:`MAX_OBJECTS`): checked
+    before they are made."""
+    if n > limit:
+        raise ValueError(f"{n} objects, at most {limit} (a shape of many parts is one mesh object: its file "
                          "holds the triangles)")
 
 
@@ -133,4 +133,6 @@ class Scene:
             check_positive(self.backdrop_z_mm, "backdrop z_mm", "mm")
         if not self.objects and self.backdrop_z_mm is None:
             raise ValueError("a scene needs at least one object or a backdrop")
-        check_object_count(len(self.objects))
+        # one more than a user's scene may hold: psvs turns a scene's backdrop into an object of its own (a
+        # moving sequence, the robot's cell) after the user's were counted
+        check_object_count(len(self.objects), MAX_OBJECTS + 1)

@@ -54,10 +54,11 @@ def cloud_for_page(dense_res, cloud) -> dict:
 @router.post("/dense")
 def dense(body: DenseBody, session: SessionDep):
     """Dense disparity of the current image, the share of its pixels the map holds a disparity for
-    (``mapped_pct``: no measurement by itself) and the share the echo supports beyond chance (``answered_pct``,
-    the same as ``trusted_pct``: what the CLI calls answered), their median disparity and depth (None when
-    none is) and point cloud, and optionally the separated views, as PNG data URLs. The library's dense
-    kernels run under DENSE_LOCK (one at a time, with live mode's)."""
+    (``mapped_pct``), the share answered (``answered_pct``, as ``psvs disparity`` counts them: the mapped share
+    when the scene's echo stands above chance anywhere, 0 when it does not and the command would refuse), the
+    share the echo supports beyond chance (``trusted_pct``), their median disparity and depth (None when none
+    is) and point cloud, and optionally the separated views, as PNG data URLs. The library's dense kernels run
+    under DENSE_LOCK (one at a time, with live mode's)."""
     still, rig = session.still(), session.rig
     grey = still.grey
     with DENSE_LOCK:
@@ -70,14 +71,15 @@ def dense(body: DenseBody, session: SessionDep):
     seen = trusted & np.isfinite(d)          # the medians of what the echo supports: never a noisy median
     cloud = rig_cloud(dense_res, rig, mask=seen)       # only the trusted pixels are triangulated
     z = cloud.depth_mm
+    mapped = 100.0 * float(np.mean(np.isfinite(d)))
     out = {"disparity_png": data_url(colour_disparity(d, lo, hi, trusted=seen)), "range_px": [lo, hi],
-           "mapped_pct": 100.0 * float(np.mean(np.isfinite(d))), "answered_pct": 100.0 * float(np.mean(seen)),
+           "mapped_pct": mapped, "answered_pct": mapped if seen.any() else 0.0,
            "trusted_pct": 100.0 * float(np.mean(seen)),
            "median_disparity_px": float(np.median(d[seen])) if seen.any() else None,
            "median_z_mm": float(np.nanmedian(z[seen])) if np.isfinite(z[seen]).any() else None,
            "cloud": cloud_for_page(dense_res, cloud)}
-    kept = session.keep_dense_maps(full_maps(d, z, seen), still.generation)
-    out["maps"] = {"shape": list(d.shape), "generation": kept, "names": list(MAPS)}
+    run = session.keep_dense_maps(full_maps(d, z, seen), still.generation)
+    out["maps"] = {"shape": list(d.shape), "run": run, "names": list(MAPS)}
     if body.views and np.isfinite(d).any():
         with DENSE_LOCK:
             k = camera_pixel_scale(rig.camera) if dense_res.rect is None else None   # the prior in scene terms
@@ -89,17 +91,17 @@ def dense(body: DenseBody, session: SessionDep):
 
 @router.get("/dense/map")
 def dense_map(session: SessionDep, name: str = Query(..., pattern="^(disparity|z|untrusted)$"),
-              generation: int = Query(...)):
+              run: int = Query(...)):
     """One map of the last dense run (:data:`MAPS`) at full resolution, float32 little-endian, row by row (its
     shape in ``X-Shape: H,W`` and in /api/dense's ``maps``): what the page draws and reads under the pointer.
-    404 before a dense run of the current image and rig; 409 when ``generation`` is not the kept run's (an image
-    or rig replaced since)."""
+    404 before a dense run of the current image and rig; 409 when ``run`` is not the kept run's (another run
+    since, or the image or rig replaced)."""
     maps = session.dense_maps()
     if maps is None:
         return JSONResponse({"detail": "no dense map of the current image: run dense first"}, status_code=404)
-    if generation != maps["generation"]:
-        return JSONResponse({"detail": "that dense map is gone: the image or the rig changed since"},
-                            status_code=409)
+    if run != maps["run"]:
+        return JSONResponse({"detail": "that dense map is gone: another dense run, or the image or the rig "
+                                       "changed since"}, status_code=409)
     a = maps[name]
     return Response(np.ascontiguousarray(a, dtype="<f4").tobytes(), media_type="application/octet-stream",
                     headers={"X-Shape": f"{a.shape[0]},{a.shape[1]}", "Cache-Control": "no-store"})

@@ -18,6 +18,7 @@ class BackgroundRunner:
         self._lock = threading.Lock()          # guards the loop's latest state
         self._control = threading.Lock()       # serialises start and stop
         self._thread: threading.Thread | None = None
+        self._lingering: threading.Thread | None = None   # a stopped loop's thread still in its last step
         self._stop = threading.Event()
 
     @property
@@ -60,7 +61,15 @@ class BackgroundRunner:
         self._stop.set()
         if self._thread is not None:
             self._thread.join(timeout=self.STOP_TIMEOUT_S)
+            if self._thread.is_alive():       # still in a long step: it ends after it, reading nothing more
+                self._lingering = self._thread
         self._thread = None
+
+    @property
+    def finishing(self) -> bool:
+        """Whether a stopped loop's thread is still finishing its last step (it may still hold its source: a
+        camera opened by it is not released yet)."""
+        return self._lingering is not None and self._lingering.is_alive()
 
 
 def close_frames(frames) -> None:

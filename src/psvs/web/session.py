@@ -75,6 +75,7 @@ class Session:
     _generation: int = field(default=0, init=False)
     _result: MatchResult | None = field(default=None, init=False, repr=False)
     _dense_maps: dict | None = field(default=None, init=False, repr=False)
+    _dense_runs: int = field(default=0, init=False)
 
     def __post_init__(self):
         w, h = self.image_size_px
@@ -115,12 +116,16 @@ class Session:
 
     def open_source(self, make) -> Source:
         """Serve the source ``make()`` opens (a camera chosen in the page), made while no reader holds the
-        current one (live mode and the capture stop first: a camera serves one program at a time), then as
-        :meth:`replace_source`; the source served before stays when ``make`` fails or its frames are not the
-        rig's camera's size (ValueError, one line)."""
+        current one (live mode and the capture stop first, and are not restarted: a camera serves one program
+        at a time), then as :meth:`replace_source`; the source served before stays (live mode stopped) when
+        ``make`` fails, its frames are not the rig's camera's size, or a stopped loop is still finishing a long
+        step with the old source (ValueError, one line)."""
         with self._source_lock:
             self.live.stop()
             self.capture.stop()
+            if self.live.finishing or self.capture.finishing:
+                raise ValueError("live mode or the capture is still finishing a frame of the source served now "
+                                 "(it holds it until then): try again in a moment")
             source = make()
             self._check_size(source)
             self.source = source
@@ -172,16 +177,17 @@ class Session:
 
     def keep_dense_maps(self, maps: dict, generation: int) -> int | None:
         """Remember the last dense run's full-resolution maps (name -> float32 (H', W')) of the current image
-        (``generation`` from :meth:`still`; a run of an image replaced meanwhile is not kept). Returns the
-        generation they are kept under, or None."""
+        (``generation`` from :meth:`still`; a run of an image replaced meanwhile is not kept). Returns the run's
+        own number (each kept run a new one: two runs on one image are told apart), or None."""
         with self._lock:
             if generation != self._generation:
                 return None
-            self._dense_maps = {"generation": generation, **maps}
-            return generation
+            self._dense_runs += 1
+            self._dense_maps = {"run": self._dense_runs, **maps}
+            return self._dense_runs
 
     def dense_maps(self) -> dict | None:
-        """The last dense run's maps of the current image and rig (``generation`` and each map), or None."""
+        """The last dense run's maps of the current image and rig (``run`` and each map), or None."""
         with self._lock:
             return self._dense_maps
 

@@ -194,6 +194,7 @@ $("dense").addEventListener("click", async () => {
   try {
     const res = await api("/api/dense", { fast: $("dense-fast").checked, views: $("dense-views").checked,
                                           near_mm: Number($("dense-near").value), far_mm: Number($("dense-far").value) });
+    state.denseMaps = null;              // the pointer reads no earlier run's values over this one's picture
     $("dense-map").src = res.disparity_png;
     $("dense-left").src = res.left_png || ""; $("dense-right").src = res.right_png || "";
     $("dense-disparity").textContent = fmt(res.median_disparity_px, 1, "px");
@@ -207,8 +208,8 @@ $("dense").addEventListener("click", async () => {
     }
     state.denseCloud = res.cloud;
     await drawCloud3d($("dense-cloud"), res.cloud, $("dense-cloud-colour").value);
-    if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.mapped_pct.toFixed(0)} % of the pixels mapped, ` +
-      `${res.answered_pct.toFixed(0)} % answered: supported beyond chance (the medians and the cloud are theirs)`, true);
+    if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, ` +
+      `${res.trusted_pct.toFixed(0)} % supported beyond chance (the medians and the cloud are theirs)`, true);
     else setStatus(`dense disparity: ${res.mapped_pct.toFixed(0)} % of the pixels mapped, none answered: none supported ` +
       "beyond chance: no depth (too little texture in the working range?)");
   } catch (e) { setStatus(e.message); }
@@ -222,9 +223,9 @@ $("dense-cloud-colour").addEventListener("change", (e) => {
 // untrusted}, each a Float32Array (NaN where the map has no such value).
 async function denseMaps(m) {
   const [h, w] = m.shape, out = { shape: m.shape };
-  if (m.generation === null) throw new Error("the image or the rig changed while dense ran: run it again");
+  if (m.run === null) throw new Error("the image or the rig changed while dense ran: run it again");
   await Promise.all(m.names.map(async (name) => {
-    const r = await fetch(`/api/dense/map?name=${name}&generation=${m.generation}`);
+    const r = await fetch(`/api/dense/map?name=${name}&run=${m.run}`);
     if (!r.ok) throw new Error(`dense map ${name}: ${r.status} ${r.statusText}`);
     out[name] = new Float32Array(await r.arrayBuffer());
     if (out[name].length !== h * w) throw new Error(`dense map ${name}: ${out[name].length} values, not ${h} x ${w}`);
