@@ -121,14 +121,17 @@ async function rig3dInit() {
     return;
   }
   const near = Number(document.getElementById("rig3d-near").value), far = Number(document.getElementById("rig3d-far").value);
-  const r = await fetch(`/api/rig3d?near_mm=${near}&far_mm=${far}`);
+  const call = (rig3dState.calls = (rig3dState.calls || 0) + 1);      // a later call's answer wins, whenever
+  const r = await fetch(`/api/rig3d?near_mm=${near}&far_mm=${far}`);  // the earlier's arrives
   const layout = await r.json().catch(() => ({}));
+  if (call !== rig3dState.calls) return;
   if (!r.ok) {            // the rest of the page works without it
     document.getElementById("rig3d-note").textContent = "no 3-D view of this rig: " + (layout.detail || r.status);
     return;
   }
   rig3dState.layout = layout;
   await drawRig3d(el, layout);
+  if (call !== rig3dState.calls) return;
   el.dataset.range = `${near}-${far}`;
   document.getElementById("rig3d-extent").onchange = (e) => rig3dExtent(el, layout, e.target.value);
   const sized = layout.glasses.some((g) => g.sized !== "rig file");
