@@ -251,6 +251,7 @@ for (const input of document.querySelectorAll(".video-file")) {
 // A camera of this machine chosen in the Capture or Live step: found (POST /api/cameras, what psvs cameras lists),
 // then served from now on with the settings given (its first frame the current image), as psvs serve --camera.
 for (const box of document.querySelectorAll(".camera-choice")) {
+  box.append(document.getElementById("camera-choice-template").content.cloneNode(true));   // one chooser's markup
   const q = (c) => box.querySelector(c);
   const say = (text, ok) => { stepStatus("video-status", text, ok); stepStatus("capture-hint", text, ok); };
   q(".camera-find").addEventListener("click", async () => {
