@@ -118,6 +118,11 @@ def test_view_separation_on_a_build():
     rr = render(cards_scene(), rig, seed=1)
     dense = dense_on_rig(rr.image, rig)
     res, rect = dense.result, dense.rect
+    for view, d, c in (("left", res.disparity_left, res.confidence_left),
+                       ("right", res.disparity_right, res.confidence_right)):   # no answer outside a field
+        outside = rect.maps(view)[0] < 0
+        assert 1000 < outside.sum() and np.isnan(d[outside]).all() and (c[outside] == 0).all()
+        assert np.isfinite(d[~outside]).mean() > 0.5 and d.dtype == c.dtype == np.float32
     lv, rv = separate_views(rr.image, res.disparity_left, 0.5, res.disparity_right, rect=rect)
     assert lv.shape == rv.shape == rect.size_px[::-1]
     clean = replace(Sensor(), shot_noise=False, read_noise_e=0.0)

@@ -23,7 +23,7 @@ from psvs.dense.cloud import Cloud, disparity_cloud
 from psvs.dense.depth_table import exact_points, table_points
 from psvs.dense.disparity import DenseResult, dense_disparity
 from psvs.dense.params import DEFAULT, DenseParams
-from psvs.dense.rig_cache import depth_table, filled_maps, rectification
+from psvs.dense.rig_cache import depth_table, filled_maps, outside_pixels, rectification
 from psvs.dense.trust import EchoTrust, echo_trust
 from psvs.dense.workspace import Workspace
 from psvs.measure.triangulate import default_model
@@ -81,11 +81,12 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     lo, hi = d_range or disparity_range(rig, near_mm, far_mm, rect, width_px=a.shape[1])
     res = dense_disparity(a, lo, min(hi, a.shape[1] - 1.0), params=params, image_right=b,
                           workspace=workspace)
-    inside_l, inside_r = (rect.maps(v)[0] >= 0 for v in ("left", "right"))
-    nan = np.float32(np.nan)
-    res = DenseResult(np.where(inside_l, res.disparity_left, nan), np.where(inside_r, res.disparity_right, nan),
-                      np.where(inside_l, res.confidence_left, 0).astype(np.float32),
-                      np.where(inside_r, res.confidence_right, 0).astype(np.float32), res.searched_px)
+    # outside a view's field no answer: set in place (the maps dense_disparity returns are its own, float32)
+    for view, disparity, confidence in (("left", res.disparity_left, res.confidence_left),
+                                        ("right", res.disparity_right, res.confidence_right)):
+        outside = outside_pixels(rect, view)
+        np.put(disparity, outside, np.nan)
+        np.put(confidence, outside, 0.0)
     return RigDense(res, rect, a, b)
 
 

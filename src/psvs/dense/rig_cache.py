@@ -57,6 +57,7 @@ _CODE = ("optics/*.py", "measure/triangulate.py", "dense/depth_table.py", "dense
 _READY: weakref.WeakSet = weakref.WeakSet()                    # rectifications with their remaps in place
 _NEAREST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # rect -> {view: (H', W') int32}
 _FILLED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> {view: (map_u, map_v)}
+_OUTSIDE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # rect -> {view: flat indices}
 _TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> DepthTable
 _LOCKS: dict[str, threading.Lock] = {}
 _LOCKS_LOCK = threading.Lock()
@@ -166,6 +167,17 @@ def nearest_inside(rect: Rectification, view: str) -> np.ndarray:
     return per_rect[view]
 
 
+def outside_pixels(rect: Rectification, view: str) -> np.ndarray:
+    """The flat indices (into an (H', W') map, int64, read-only) of a view's rectified grid's pixels outside
+    its field: where a map of that view has no answer."""
+    per_rect = _OUTSIDE.setdefault(rect, {})
+    if view not in per_rect:
+        index = np.flatnonzero(rect.maps(view)[0] < 0)
+        index.setflags(write=False)
+        per_rect[view] = index
+    return per_rect[view]
+
+
 def filled_maps(rect: Rectification, view: str) -> tuple[np.ndarray, np.ndarray]:
     """A view's cv2.remap maps (float32 (H', W'), read-only) with every pixel outside its field sampling where
     its :func:`nearest_inside` pixel samples: ``cv2.remap`` through them is the rectified image with the
@@ -207,8 +219,8 @@ def forget() -> None:
     call reads the folder or computes."""
     forget_fits()
     _READY.clear()
-    _NEAREST.clear()
-    _TABLES.clear()
+    for per_rect in (_NEAREST, _FILLED, _OUTSIDE, _TABLES):
+        per_rect.clear()
 
 
 def _lock(key: str) -> threading.Lock:
