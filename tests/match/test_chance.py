@@ -8,7 +8,7 @@ import pytest
 
 from psvs import default_rig
 from psvs.io.params import load_rig
-from psvs.match.chance import ALPHA, GAP_PX, MIN_TAIL, chance_level, null_bands
+from psvs.match.chance import ALPHA, FDR, GAP_PX, MIN_TAIL, chance_level, null_bands, pair_level
 from psvs.match.correspondence import MatchParams, match_image
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
@@ -39,6 +39,36 @@ def test_the_level_without_a_tail_to_read():
     assert chance_level(np.zeros(0), 50, 10) == 9
     few = np.array([40.0, 12.0, 11.0])
     assert len(few) < MIN_TAIL and chance_level(few, 50, 10) == 9 + 2 * (40 - 9)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_the_pair_level_keeps_its_false_discovery_rate_and_finds_the_twins(seed):
+    """Benjamini-Hochberg against an independent count: null rows floor + Exp(beta) (3000), and a search of
+    m chance candidates from the same tail plus 5-40 twins agreeing on 2-5 beta more rows than the null's
+    expected strongest (beta ln 3000 beyond the floor), drawn 300 times. The share of chance candidates
+    among those beyond the pair level averages at most FDR (+ 0.02 for the 300-trial mean); nine twins in
+    ten are found; the level never lies below the strongest null candidate."""
+    rng = np.random.default_rng(seed)
+    floor, beta, m = 10.0, rng.uniform(3, 30), int(rng.integers(100, 3000))
+    share, found = [], []
+    for _ in range(300):
+        null = np.floor(floor + rng.exponential(beta, 3000))
+        twins = np.floor(floor + beta * (math.log(3000) + rng.uniform(2, 5, rng.integers(5, 41))))
+        chance = np.floor(floor + rng.exponential(beta, m))
+        level = pair_level(null, np.concatenate([chance, twins]), floor)
+        assert level >= null.max()
+        false, true = int((chance > level).sum()), int((twins > level).sum())
+        share.append(false / max(false + true, 1))
+        found.append(true / len(twins))
+    assert np.mean(share) <= FDR + 0.02
+    assert np.mean(found) >= 0.9
+
+
+def test_the_pair_level_without_a_tail_to_read():
+    """Fewer than MIN_TAIL null candidates: their strongest (a clean scene's outlines); none: a row under the
+    floor."""
+    assert pair_level(np.array([40.0, 12.0, 11.0]), np.array([100.0, 30.0]), 10) == 40
+    assert pair_level(np.zeros(0), np.array([100.0]), 10) == 9
 
 
 def test_null_bands_lie_beyond_the_range_as_wide_as_it():

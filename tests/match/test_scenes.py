@@ -29,19 +29,20 @@ def rendered():
 @pytest.mark.parametrize("name", ["fig5a", "fig5b", "fig6"])
 def test_builtin_scenes_pair_correctly(rendered, name):
     """An edge pair is correct when its pixels carry the true disparity (median within 2.5 px; silhouettes of
-    curved or turned objects are different 3-D curves in the two views). >= 95 % of the paired edge
-    pixels belong to correct pairs; Figs. 5a and 5b: no wrong pair at all."""
+    curved or turned objects are different 3-D curves in the two views). No wrong pair at all. On Fig. 6's
+    clutter (14 outlines of a few shapes over a noise background) chance aligns outlines over 100-180 rows
+    at lags no twin can have, so a twin standing alone must agree on more (psvs.match.chance.pair_level):
+    before that rule it paired 30 % of the edge map with one wrong pair, now 25 % with none."""
     res = rendered[name]
     m = match_image(res.image, default_rig(), params=MatchParams(subpixel=False))
     truth = res.truth.disparity_left_px
     correct = np.array([np.median(pixel_errors(p, truth)) <= 2.5 for p in m.pairs])
     sizes = np.array([len(p) for p in m.pairs])
     assert len(m.pairs) >= 2
-    assert sizes[correct].sum() >= 0.95 * sizes.sum()
-    if name != "fig6":
-        assert correct.all()
-    # the pairs use most of the edge map (fig6 is cluttered: many edges lose their twin to overlaps)
-    assert 2 * sizes.sum() >= {"fig5a": 0.85, "fig5b": 0.6, "fig6": 0.3}[name] * m.edges.sum()
+    assert correct.all(), sizes[~correct]
+    # the pairs use most of the edge map (fig6 is cluttered: many edges lose their twin to overlaps, and
+    # those chance matches as well stand unpaired)
+    assert 2 * sizes.sum() >= {"fig5a": 0.85, "fig5b": 0.6, "fig6": 0.22}[name] * m.edges.sum()
 
 
 def rim_crossing(rig, view, v, centre, radius, u_guess):

@@ -98,7 +98,7 @@ def refuse_unanswered(res, seeded: bool) -> None:
         raise MeasurementError(f"{what} beyond chance: {res.chance.describe()}")
     lo, hi = res.disparity_range_px
     raise MeasurementError(f"{what} at the working range's disparities {lo:.0f}..{hi:.0f} px: every candidate "
-                           f"failed the matcher's rules ({res.chance.describe()})")
+                           f"failed the matcher's rules or stood alone within chance ({res.chance.describe()})")
 
 
 def summary_row(res) -> dict:

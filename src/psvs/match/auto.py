@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from psvs._validate import check_count, check_finite
-from psvs.match.chance import Chance, chance_level, null_bands
+from psvs.match.chance import Chance, chance_level, null_bands, pair_level
 from psvs.match.edges import EdgePixels, edge_pixels, row_votes
 from psvs.match.grey_steps import polarity, step_image, twin_step_seen
 from psvs.match.pairs import EdgePair, grow_pairs
@@ -360,21 +360,32 @@ class _Neighbours:
         return near
 
 
-def _strong_enough(ev: Evidence, claims: Claims, c: Candidate, kept: np.ndarray, longest: int) -> bool:
+def _beyond_chance(c: Candidate, level_rows: float) -> bool:
+    """Whether candidate ``c`` may stand as a twin: backed by an accepted pair of its object (its rank holds
+    their rows) or, alone, its own evidence: more agreeing rows than chance makes on the image
+    (``level_rows``: :attr:`psvs.match.chance.Chance.pair_level_rows`, read on the very statistic ``c.rows``
+    is)."""
+    return c.rank > c.rows or c.rows > level_rows
+
+
+def _strong_enough(ev: Evidence, claims: Claims, c: Candidate, kept: np.ndarray, longest: int,
+                   level_rows: float) -> bool:
     """Whether the edge map alone settles candidate ``c``: its agreeing pixels ``kept`` (in runs, the
     longest spanning ``longest`` rows) cover enough rows of the smaller of its two edges' free pixels, or
-    one long stretch; a candidate no accepted neighbour supports needs ``standalone_rows`` rows."""
+    one long stretch; a candidate no accepted neighbour supports needs ``standalone_rows`` rows and to stand
+    beyond chance by itself (:func:`_beyond_chance`)."""
     prm = ev.params
     agree = _n_rows(ev.px.v[kept])                           # distinct agreeing rows
     rows_i, rows_j = claims.free_rows(c.i), claims.free_rows(c.j)
     # a merged outline (both views in one component) pairs with itself: half is left, half right
     smaller = rows_i / 2 if c.i == c.j else min(rows_i, rows_j)
-    # an edge backed by no accepted pair at its disparity nearby needs stronger evidence of its own
+    # an edge backed by no accepted pair at its disparity nearby stands beyond chance by itself
     need = prm.min_rows if c.rank > c.rows else prm.standalone_rows
-    return not (agree < need or (agree < prm.min_fraction * smaller and longest < prm.long_run_rows))
+    settled = not (agree < need or (agree < prm.min_fraction * smaller and longest < prm.long_run_rows))
+    return settled and _beyond_chance(c, level_rows)
 
 
-def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate]) -> list[Candidate]:
+def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate], level_rows: float) -> list[Candidate]:
     """Accept candidates the edge map settles, best supported first; return those it does not settle
     (with a grey image, and not a merged outline: left for the second pass), in the order they came.
 
@@ -395,7 +406,7 @@ def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate]) -> list[Ca
         votes = c.votes[claims.free[ev.p[c.votes]] & claims.free[ev.q[c.votes]]]
         runs = _long_runs(ev.px, ev.p[votes], ev.params.min_run)
         kept, longest = _joined(runs), max((_row_span(ev.px, r) for r in runs), default=0)
-        if not _strong_enough(ev, claims, c, kept, longest):
+        if not _strong_enough(ev, claims, c, kept, longest, level_rows):
             if ev.polarity is not None and c.i != c.j:
                 later.append(c)
         elif claims.accept(c, kept, votes):
@@ -447,11 +458,12 @@ def _partly_hidden_twin(ev: Evidence, claims: Claims, c: Candidate,
     return kept, np.flatnonzero(free & holders[px.label])
 
 
-def _second_pass(ev: Evidence, claims: Claims, later: list[Candidate]) -> None:
+def _second_pass(ev: Evidence, claims: Claims, later: list[Candidate], level_rows: float) -> None:
     """Once the edge map has settled what it can (so this pass never takes a pixel a first-pass pair
     needed), accept the candidates ``later`` whose twin is partly hidden on, or merged with, another
-    object's view (:func:`_partly_hidden_twin`). A left edge and disparity found wanting is not tried
-    again until some pair is accepted."""
+    object's view (:func:`_partly_hidden_twin`), if they stand beyond chance as the first pass deferred them
+    (:func:`_beyond_chance`). A left edge and disparity found wanting is not
+    tried again until some pair is accepted."""
     px, prm = ev.px, ev.params
     index = (_by_label(px.label[ev.p], px.n_labels), _by_label(px.label, px.n_labels))
     tried: set[tuple[int, int]] = set()
@@ -459,7 +471,7 @@ def _second_pass(ev: Evidence, claims: Claims, later: list[Candidate]) -> None:
         if (c.i, c.d) in tried or claims.free_rows(c.i) < prm.standalone_rows:
             continue
         tried.add((c.i, c.d))
-        hidden = _partly_hidden_twin(ev, claims, c, index)
+        hidden = _partly_hidden_twin(ev, claims, c, index) if _beyond_chance(c, level_rows) else None
         if hidden is not None and claims.accept(c, hidden[0], c.votes, hidden[1]):
             tried.clear()
 
@@ -518,8 +530,8 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], *, pa
     cands = _candidates(ev, int(d_min)) if len(ev.p) else []
     chance = _chance(ev, np.array([c.rows for c in cands]), d_min, d_max)
     if chance.answered:
-        later = _first_pass(ev, claims, cands)
-        _second_pass(ev, claims, later)
+        later = _first_pass(ev, claims, cands, chance.pair_level_rows)
+        _second_pass(ev, claims, later, chance.pair_level_rows)
     return AutoMatch(claims.pairs, _unmatched(ev.px, claims), ev.px, chance)
 
 
@@ -571,4 +583,5 @@ def _chance(ev: Evidence, rows: np.ndarray, d_min: float, d_max: float) -> Chanc
     if not bands:                # nowhere to read chance: nothing is answered
         return Chance(strongest, math.inf, 0.0, 0, len(rows), ())
     level = chance_level(np.array(null), len(rows), ev.params.min_rows)
-    return Chance(strongest, level, max(null, default=0.0), len(null), len(rows), tuple(bands))
+    return Chance(strongest, level, max(null, default=0.0), len(null), len(rows), tuple(bands),
+                  pair_level(np.array(null), rows, ev.params.min_rows))

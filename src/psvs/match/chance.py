@@ -20,9 +20,13 @@ candidates (a few object outlines that half agree at some lag), too few to read 
 :data:`MIN_TAIL` of them the level is twice the strongest one's excess over the floor (a candidate must agree
 on twice the rows beyond the fewest that chance's best did). An image is *answered* when
 some candidate exceeds t, and then paired by the matcher's own rules (rows, shares of an edge, support by
-its neighbours, the grey image's steps); without one nothing is paired. The level is the image's, as the
-dense engine's is: it asks whether the image holds twins at all, not whether each pair is one. The paper's
-seeded algorithm asks the same before it takes an edge (:func:`psvs.match.auto.image_chance`).
+its neighbours, the grey image's steps); without one nothing is paired. The paper's seeded algorithm asks
+the same before it takes an edge (:func:`psvs.match.auto.image_chance`).
+
+**Each pair.** A twin standing alone (no accepted pair of its object backs it) must also exceed
+:func:`pair_level`: each candidate's chance p from the same tail, Benjamini and Hochberg's step-up over all
+the range's candidates at a :data:`FDR` false-discovery rate, never below the strongest null candidate (the
+strongest of them when there is no tail to read). A twin an accepted pair backs rides on that pair.
 """
 from __future__ import annotations
 
@@ -36,6 +40,8 @@ GAP_PX = 3.0
 #: The chance, aimed at, that an image without twins is answered (the level's false-alarm rate over the image;
 #: met on unstructured images, not on structured ones: measured in docs/matching.md).
 ALPHA = 0.01
+#: The expected share of chance pairs among the twins accepted standing alone (:func:`pair_level`).
+FDR = 0.05
 #: The null candidates the tail is read from (the k largest).
 TAIL = 50
 #: Fewer null candidates than this: no tail is read (module docstring).
@@ -52,7 +58,8 @@ class Chance:
     ``level_rows``: t, the level a candidate must exceed for the image to be answered; ``null_max_rows``:
     the strongest null candidate (0: none); ``null_candidates`` and
     ``tests``: how many candidates the null bands and the working range made; ``bands``: the null bands'
-    lags (px) ((lo, hi), ...)."""
+    lags (px) ((lo, hi), ...); ``pair_level_rows``: the rows a twin standing alone (no accepted pair of its
+    object backs it) must exceed to be paired (:func:`pair_level`; infinite: none may)."""
 
     strongest_rows: float
     level_rows: float
@@ -60,6 +67,7 @@ class Chance:
     null_candidates: int
     tests: int
     bands: tuple[tuple[float, float], ...]
+    pair_level_rows: float = math.inf
 
     @property
     def answered(self) -> bool:
@@ -76,11 +84,13 @@ class Chance:
                 else f"the strongest twin agrees on {self.strongest_rows:.0f} rows, chance on this image up to "
                      f"{self.level_rows:.0f}")
         where = f"at disparities {bands} px, which the working range cannot produce"
+        alone = (f"; a twin no other pair backs needs more than {self.pair_level_rows:.0f} rows"
+                 if self.answered and math.isfinite(self.pair_level_rows) else "")
         if self.null_candidates >= MIN_TAIL:
             return (f"{head} (the {ALPHA:.0%} false-alarm level read from {self.null_candidates} candidates "
-                    f"{where}; their strongest {self.null_max_rows:.0f} rows)")
+                    f"{where}; their strongest {self.null_max_rows:.0f} rows){alone}")
         return (f"{head} (twice the excess of chance's strongest of {self.null_candidates} candidates "
-                f"{where}, {self.null_max_rows:.0f} rows)")
+                f"{where}, {self.null_max_rows:.0f} rows){alone}")
 
 
 def null_bands(d_min: float, d_max: float, width_px: int) -> list[tuple[float, float]]:
@@ -98,19 +108,50 @@ def null_bands(d_min: float, d_max: float, width_px: int) -> list[tuple[float, f
     return out
 
 
+def _tail(null_rows: np.ndarray, floor: float, tail: int) -> tuple[np.ndarray, float, float, int]:
+    """The null candidates' rows sorted from the largest, and the peaks-over-threshold fit of their tail
+    (module docstring): (rows, u, beta, k)."""
+    r = np.sort(np.asarray(null_rows, dtype=float))[::-1]
+    k = min(tail, len(r))
+    u = float(r[k]) if k < len(r) else floor - 1.0
+    beta = max(float(np.mean(r[:k] - u)), 1.0) * (1.0 + 1.0 / math.sqrt(k))
+    return r, u, beta, k
+
+
+def pair_level(null_rows: np.ndarray, rows: np.ndarray, floor: float, fdr: float = FDR, tail: int = TAIL) -> float:
+    """The agreeing rows a twin standing alone must exceed (:attr:`Chance.pair_level_rows`): each candidate's
+    chance p = P(a null candidate agrees on more rows), the tail's exponential beyond u and the null's own
+    share below it, then Benjamini and Hochberg's step-up over the ``rows`` (m,) of all the range's
+    candidates at false-discovery rate ``fdr``; never below the strongest null candidate. With fewer than
+    :data:`MIN_TAIL` null candidates, the strongest of them (``floor`` - 1 with none)."""
+    null = np.asarray(null_rows, dtype=float)
+    if len(null) < MIN_TAIL:
+        return float(null.max()) if len(null) else floor - 1.0
+    r, u, beta, k = _tail(null, floor, tail)
+    rows = np.asarray(rows, dtype=float)
+    n = len(r)
+    above = (k / n) * np.exp(-(rows - u) / beta)
+    below = (n - np.searchsorted(r[::-1], rows, side="right")) / n          # share of null rows > rows
+    p = np.where(rows > u, above, np.maximum(below, k / n))
+    order = np.argsort(p, kind="stable")
+    passed = np.flatnonzero(p[order] <= fdr * np.arange(1, len(p) + 1) / max(len(p), 1))
+    if not len(passed):
+        return float(max(rows.max(initial=0.0), r[0]))
+    found = rows[order[:passed[-1] + 1]]
+    return max(float(found.min()) - 1.0, float(r[0]))
+
+
 def chance_level(null_rows: np.ndarray, tests: int, floor: float, alpha: float = ALPHA,
                  tail: int = TAIL) -> float:
     """t (rows) that chance's largest of ``tests`` candidates exceeds with probability ``alpha``, from the
     null candidates' agreeing rows ``null_rows`` (n,) (module docstring), and at least their largest;
     ``floor`` is the fewest rows a candidate can have. Without null candidates, ``floor`` - 1: chance made
     none; with fewer than :data:`MIN_TAIL`, twice the strongest one's excess over ``floor`` - 1."""
-    r = np.sort(np.asarray(null_rows, dtype=float))[::-1]
-    n = len(r)
+    n = len(null_rows)
     if n < MIN_TAIL:
-        return floor - 1.0 + 2.0 * (float(r[0]) - (floor - 1.0)) if n else floor - 1.0
-    k = min(tail, n)
-    u = float(r[k]) if k < n else floor - 1.0
-    beta = max(float(np.mean(r[:k] - u)), 1.0) * (1.0 + 1.0 / math.sqrt(k))
+        top = float(np.max(null_rows)) if n else 0.0
+        return floor - 1.0 + 2.0 * (top - (floor - 1.0)) if n else floor - 1.0
+    r, u, beta, k = _tail(null_rows, floor, tail)
     rate = max(tests, 1) * k / n          # how many of the real candidates chance takes beyond u
     t = u + beta * math.log(rate / alpha) if rate > alpha else u
     return max(t, float(r[0]))            # never below what chance made (a tail heavier than the fit's)
