@@ -8,7 +8,17 @@ import pytest
 
 from psvs import default_rig
 from psvs.io.params import load_rig
-from psvs.match.chance import ALPHA, FDR, GAP_PX, MIN_TAIL, chance_level, null_bands, pair_level
+from psvs.match.chance import (
+    ALPHA,
+    FDR,
+    GAP_PX,
+    MIN_TAIL,
+    Chance,
+    NullCandidates,
+    chance_level,
+    null_bands,
+    pair_level,
+)
 from psvs.match.correspondence import MatchParams, match_image
 from psvs.simulate.builtin import builtin_scene
 from psvs.simulate.render import render
@@ -69,6 +79,24 @@ def test_the_pair_level_without_a_tail_to_read():
     floor."""
     assert pair_level(np.array([40.0, 12.0, 11.0]), np.array([100.0, 30.0]), 10) == 40
     assert pair_level(np.zeros(0), np.array([100.0]), 10) == 9
+
+
+def test_a_backed_twin_is_asked_what_chance_makes_near_it():
+    """Null candidates on a 10 px grid of boxes (5 x 5 px each) over two bands of 100 lags in all, rows 10 or
+    40 alternately: near a box (24 px reach) the expected count is what lies there, per lag, times the 5
+    lags of a backing window, counted independently here; a twin is backed beyond chance below FDR."""
+    uu, vv = np.meshgrid(np.arange(0, 200, 10), np.arange(0, 200, 10))
+    boxes = np.column_stack([uu.ravel(), vv.ravel(), uu.ravel() + 5, vv.ravel() + 5])
+    rows = np.where(np.arange(len(boxes)) % 2 == 0, 10.0, 40.0)
+    null = NullCandidates(rows, boxes, ((300.0, 349.0), (352.0, 401.0)))
+    box = (100, 100, 104, 104)
+    near = ((boxes[:, 0] <= 128) & (boxes[:, 2] >= 76) & (boxes[:, 1] <= 128) & (boxes[:, 3] >= 76))
+    for r in (10.0, 40.0, 41.0):
+        assert null.expected_near(r, box, 24) == pytest.approx((near & (rows >= r)).sum() * 5 / 100)
+    chance = Chance(50.0, 45.0, 40.0, len(rows), 10, null.bands, 45.0, null)
+    assert not chance.backed_beyond_chance(30.0, box, 24)        # chance makes about 6 as strong near it
+    assert chance.backed_beyond_chance(41.0, box, 24)            # and none stronger than 40 rows
+    assert not Chance(50.0, 45.0, 40.0, 0, 10, ()).backed_beyond_chance(41.0, box, 24)   # no null read
 
 
 def test_null_bands_lie_beyond_the_range_as_wide_as_it():

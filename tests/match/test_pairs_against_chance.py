@@ -2,8 +2,8 @@
 textured scene (photo cards before a photo wall) drawn at random distances, seeds and rigs, every pair
 checked against the rendered depth. Before pairs standing alone had to beat the image's chance, 38 % of the
 pairs (28 % of the paired pixels) on these draws were wrong at exit 0; now each one standing alone agrees on
-more rows than chance makes at lags no twin has (a 5 % false-discovery rate), and the pairs its accepted
-pairs back ride on them."""
+more rows than chance makes at lags no twin has (a 5 % false-discovery rate), and one its object's
+accepted pairs back more than chance makes near it at one disparity."""
 import numpy as np
 import pytest
 

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from psvs._validate import check_count, check_finite
-from psvs.match.chance import Chance, chance_level, null_bands, pair_level
+from psvs.match.chance import Chance, NullCandidates, chance_level, null_bands, pair_level
 from psvs.match.edges import EdgePixels, edge_pixels, row_votes
 from psvs.match.grey_steps import polarity, step_image, twin_step_seen
 from psvs.match.pairs import EdgePair, grow_pairs
@@ -322,10 +322,25 @@ def _candidates(ev: Evidence, d_min: int) -> list[Candidate]:
     disparity searched, px. A candidate's votes are those of its key and of the keys +-1 beside it, which
     are neighbours in the sorted distinct keys: one run of the sorted votes (an image of noise makes 10^5
     candidates: their boxes come from each key's, not from a loop over the votes)."""
-    px, p, n_lab = ev.px, ev.p, ev.px.n_labels
+    table = _candidate_table(ev, d_min)
+    if table is None:
+        return []
+    keys, scores, box, (first, last), (order, starts), span = table
+    n_lab = ev.px.n_labels
+    pk = keys // span
+    cols = (pk // n_lab).tolist(), (pk % n_lab).tolist(), (keys % span + d_min - 1).tolist()
+    runs = zip(starts[first].tolist(), starts[last + 1].tolist(), strict=True)
+    return [Candidate(i, j, d, order[s:e], score, (b[0], b[1], b[2], b[3]))
+            for i, j, d, (s, e), score, b in zip(*cols, runs, scores.tolist(), box.tolist(), strict=True)]
+
+
+def _candidate_table(ev: Evidence, d_min: int):
+    """:func:`_candidates` as arrays (None without any): keys and rows (M,), boxes (M, 4) (u0, v0, u1, v1),
+    (first, last) distinct key of each one's votes, (vote order, each distinct key's start), key span."""
+    px, p = ev.px, ev.p
     keys, scores, (order, uk, starts), span = _peaks(ev, d_min)
     if not len(keys):
-        return []
+        return None
     at = np.searchsorted(uk, keys)                           # every peak's key is a distinct key
     first = np.where((at > 0) & (uk[np.maximum(at - 1, 0)] == keys - 1), at - 1, at)
     last = np.where((at + 1 < len(uk)) & (uk[np.minimum(at + 1, len(uk) - 1)] == keys + 1), at + 1, at)
@@ -333,12 +348,8 @@ def _candidates(ev: Evidence, d_min: int) -> list[Candidate]:
     lo = [np.minimum.reduceat(a, starts[:-1]) for a in (u, v)]        # each key's box
     hi = [np.maximum.reduceat(a, starts[:-1]) for a in (u, v)]
     box = np.column_stack([np.minimum(np.minimum(m[first], m[at]), m[last]) for m in lo]
-                          + [np.maximum(np.maximum(m[first], m[at]), m[last]) for m in hi]).tolist()
-    pk = keys // span
-    cols = (pk // n_lab).tolist(), (pk % n_lab).tolist(), (keys % span + d_min - 1).tolist()
-    runs = zip(starts[first].tolist(), starts[last + 1].tolist(), strict=True)
-    return [Candidate(i, j, d, order[s:e], score, (b[0], b[1], b[2], b[3]))
-            for i, j, d, (s, e), score, b in zip(*cols, runs, scores.tolist(), box, strict=True)]
+                          + [np.maximum(np.maximum(m[first], m[at]), m[last]) for m in hi])
+    return keys, scores, box, (first, last), (order, starts), span
 
 
 class _Neighbours:
@@ -360,16 +371,18 @@ class _Neighbours:
         return near
 
 
-def _beyond_chance(c: Candidate, level_rows: float) -> bool:
+def _beyond_chance(c: Candidate, chance: Chance, reach: int) -> bool:
     """Whether candidate ``c`` may stand as a twin: backed by an accepted pair of its object (its rank holds
-    their rows) or, alone, its own evidence: more agreeing rows than chance makes on the image
-    (``level_rows``: :attr:`psvs.match.chance.Chance.pair_level_rows`, read on the very statistic ``c.rows``
-    is)."""
-    return c.rank > c.rows or c.rows > level_rows
+    their rows) where chance makes none as strong within ``reach`` px at one disparity
+    (:meth:`~psvs.match.chance.Chance.backed_beyond_chance`), or alone, beyond chance's level for one pair
+    (:attr:`~psvs.match.chance.Chance.pair_level_rows`, read on the very statistic ``c.rows`` is)."""
+    if c.rank > c.rows and chance.backed_beyond_chance(c.rows, c.box, reach):
+        return True
+    return c.rows > chance.pair_level_rows
 
 
 def _strong_enough(ev: Evidence, claims: Claims, c: Candidate, kept: np.ndarray, longest: int,
-                   level_rows: float) -> bool:
+                   chance: Chance) -> bool:
     """Whether the edge map alone settles candidate ``c``: its agreeing pixels ``kept`` (in runs, the
     longest spanning ``longest`` rows) cover enough rows of the smaller of its two edges' free pixels, or
     one long stretch; a candidate no accepted neighbour supports needs ``standalone_rows`` rows and to stand
@@ -382,10 +395,10 @@ def _strong_enough(ev: Evidence, claims: Claims, c: Candidate, kept: np.ndarray,
     # an edge backed by no accepted pair at its disparity nearby stands beyond chance by itself
     need = prm.min_rows if c.rank > c.rows else prm.standalone_rows
     settled = not (agree < need or (agree < prm.min_fraction * smaller and longest < prm.long_run_rows))
-    return settled and _beyond_chance(c, level_rows)
+    return settled and _beyond_chance(c, chance, prm.support_px)
 
 
-def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate], level_rows: float) -> list[Candidate]:
+def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate], chance: Chance) -> list[Candidate]:
     """Accept candidates the edge map settles, best supported first; return those it does not settle
     (with a grey image, and not a merged outline: left for the second pass), in the order they came.
 
@@ -406,7 +419,7 @@ def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate], level_rows
         votes = c.votes[claims.free[ev.p[c.votes]] & claims.free[ev.q[c.votes]]]
         runs = _long_runs(ev.px, ev.p[votes], ev.params.min_run)
         kept, longest = _joined(runs), max((_row_span(ev.px, r) for r in runs), default=0)
-        if not _strong_enough(ev, claims, c, kept, longest, level_rows):
+        if not _strong_enough(ev, claims, c, kept, longest, chance):
             if ev.polarity is not None and c.i != c.j:
                 later.append(c)
         elif claims.accept(c, kept, votes):
@@ -458,7 +471,7 @@ def _partly_hidden_twin(ev: Evidence, claims: Claims, c: Candidate,
     return kept, np.flatnonzero(free & holders[px.label])
 
 
-def _second_pass(ev: Evidence, claims: Claims, later: list[Candidate], level_rows: float) -> None:
+def _second_pass(ev: Evidence, claims: Claims, later: list[Candidate], chance: Chance) -> None:
     """Once the edge map has settled what it can (so this pass never takes a pixel a first-pass pair
     needed), accept the candidates ``later`` whose twin is partly hidden on, or merged with, another
     object's view (:func:`_partly_hidden_twin`), if they stand beyond chance as the first pass deferred them
@@ -471,7 +484,7 @@ def _second_pass(ev: Evidence, claims: Claims, later: list[Candidate], level_row
         if (c.i, c.d) in tried or claims.free_rows(c.i) < prm.standalone_rows:
             continue
         tried.add((c.i, c.d))
-        hidden = _partly_hidden_twin(ev, claims, c, index) if _beyond_chance(c, level_rows) else None
+        hidden = _partly_hidden_twin(ev, claims, c, index) if _beyond_chance(c, chance, prm.support_px) else None
         if hidden is not None and claims.accept(c, hidden[0], c.votes, hidden[1]):
             tried.clear()
 
@@ -530,8 +543,8 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], *, pa
     cands = _candidates(ev, int(d_min)) if len(ev.p) else []
     chance = _chance(ev, np.array([c.rows for c in cands]), d_min, d_max)
     if chance.answered:
-        later = _first_pass(ev, claims, cands, chance.pair_level_rows)
-        _second_pass(ev, claims, later, chance.pair_level_rows)
+        later = _first_pass(ev, claims, cands, chance)
+        _second_pass(ev, claims, later, chance)
     return AutoMatch(claims.pairs, _unmatched(ev.px, claims), ev.px, chance)
 
 
@@ -574,14 +587,17 @@ def _chance(ev: Evidence, rows: np.ndarray, d_min: float, d_max: float) -> Chanc
     lu, ru = ev.px.left_uv[0], ev.px.right_uv[0]
     width = int(max(lu.max(), ru.max())) + 1 if len(lu) else 0
     bands = null_bands(d_min, d_max, width)
-    null = []
+    null, boxes = [np.zeros(0)], [np.zeros((0, 4))]
     for a, b in bands:
         p, q, d = _polar_votes(ev.px, ev.polarity, a, b)
-        if len(p):
-            null += _peaks(Evidence(ev.px, p, q, d, ev.polarity, None, ev.params), int(a))[1].tolist()
+        table = _candidate_table(Evidence(ev.px, p, q, d, ev.polarity, None, ev.params), int(a)) if len(p) else None
+        if table is not None:
+            null.append(table[1])
+            boxes.append(table[2])
+    null = np.concatenate(null)
     strongest = float(rows.max(initial=0.0))
     if not bands:                # nowhere to read chance: nothing is answered
         return Chance(strongest, math.inf, 0.0, 0, len(rows), ())
-    level = chance_level(np.array(null), len(rows), ev.params.min_rows)
-    return Chance(strongest, level, max(null, default=0.0), len(null), len(rows), tuple(bands),
-                  pair_level(np.array(null), rows, ev.params.min_rows))
+    level = chance_level(null, len(rows), ev.params.min_rows)
+    return Chance(strongest, level, float(null.max(initial=0.0)), len(null), len(rows), tuple(bands),
+                  pair_level(null, rows, ev.params.min_rows), NullCandidates(null, np.concatenate(boxes), bands))

@@ -26,7 +26,8 @@ the same before it takes an edge (:func:`psvs.match.auto.image_chance`).
 **Each pair.** A twin standing alone (no accepted pair of its object backs it) must also exceed
 :func:`pair_level`: each candidate's chance p from the same tail, Benjamini and Hochberg's step-up over all
 the range's candidates at a :data:`FDR` false-discovery rate, never below the strongest null candidate (the
-strongest of them when there is no tail to read). A twin an accepted pair backs rides on that pair.
+strongest of them when there is no tail to read). A twin an accepted pair backs must stand where chance makes
+no candidate as strong near it at one disparity (:meth:`Chance.backed_beyond_chance`).
 """
 from __future__ import annotations
 
@@ -50,7 +51,33 @@ MIN_TAIL = 20
 MIN_BAND_PX = 8.0
 
 
-@dataclass(frozen=True)
+#: The lags a backing pair's disparity window spans (+-2 px: psvs.match.auto's support).
+BACKED_LAGS = 5
+
+
+@dataclass(frozen=True, eq=False)
+class NullCandidates:
+    """The candidates chance made at the null bands' lags: their agreeing rows (n,), boxes (n, 4) px
+    (u0, v0, u1, v1) of their left pixels, and the ``bands`` ((lo, hi) px, ...) they were read over."""
+
+    rows: np.ndarray
+    boxes: np.ndarray
+    bands: tuple[tuple[float, float], ...]
+
+    def expected_near(self, rows: float, box, reach: float) -> float:
+        """How many candidates of at least ``rows`` rows chance makes, in expectation, within ``reach`` px of
+        ``box`` (u0, v0, u1, v1) and within one backing window of lags (:data:`BACKED_LAGS`): those the null
+        bands hold there, per lag of them, times the window."""
+        lags = sum(b - a + 1 for a, b in self.bands)
+        if lags <= 0:
+            return math.inf
+        b, x = self.boxes, box
+        near = ((self.rows >= rows) & (b[:, 0] <= x[2] + reach) & (b[:, 2] >= x[0] - reach)
+                & (b[:, 1] <= x[3] + reach) & (b[:, 3] >= x[1] - reach))
+        return float(near.sum()) * BACKED_LAGS / lags
+
+
+@dataclass(frozen=True, eq=False)
 class Chance:
     """How the automatic matcher's candidates stand against chance on one image.
 
@@ -68,6 +95,15 @@ class Chance:
     tests: int
     bands: tuple[tuple[float, float], ...]
     pair_level_rows: float = math.inf
+    null: NullCandidates | None = None
+
+    def backed_beyond_chance(self, rows: float, box, reach: float) -> bool:
+        """Whether a twin of ``rows`` agreeing rows that an accepted pair of its object backs (within
+        ``reach`` px of its ``box``, at its disparity) stands beyond chance there: chance makes fewer than
+        :data:`FDR` candidates as strong near it in one backing window of lags, in expectation
+        (:meth:`NullCandidates.expected_near`). A small edge beside a textured card is no evidence of its
+        own: chance makes such candidates near it at every lag."""
+        return self.null is not None and self.null.expected_near(rows, box, reach) < FDR
 
     @property
     def answered(self) -> bool:
