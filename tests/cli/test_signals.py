@@ -78,3 +78,23 @@ def test_a_sequence_of_frames_lands_whole_or_not_at_all(tmp_path):
         (tmp_path / f"f_{k:03d}.png").write_bytes(b"an older run")
     assert main(["simulate", "fig5b", "--frames", "2", "--supersample", "1", "-o", str(out)]) == 2
     assert sorted(p.read_bytes() for p in tmp_path.iterdir()) == [b"an older run"] * 4
+
+
+@pytest.mark.parametrize("older, args", [
+    ("t_002.npz", ["--truth", "t.npz"]),              # another run's truth beside the new frames
+    ("f_1000.png", []),                               # a sequence of more than 1000 frames
+    ("t_005.npz", ["--truth", "t.npz", "-o", "v.avi"]),   # a video's truth files
+])
+def test_a_longer_sequences_truth_or_thousandth_frame_is_refused_too(tmp_path, capsys, older, args):
+    """The third trial: the stale-sequence check read only OUT_NNN.png, so a longer run's truth files
+    (t_NNN.npz) stayed beside the new frames, and frame 1000 on (four digits) was not seen. Refused before any
+    rendering, naming the option whose name to change; nothing written."""
+    (tmp_path / older).write_bytes(b"an older run")
+    argv = ["simulate", "fig5b", "--frames", "2", "--supersample", "1"]
+    argv += ["-o", str(tmp_path / "f.png")] if "-o" not in args else []
+    argv += [str(tmp_path / a) if a.endswith((".npz", ".avi")) else a for a in args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"longer sequence ({older} ...)" in err and ("--truth" if older.endswith(".npz") else "-o") in err
+    assert len(err.strip().splitlines()) == 1
+    assert [p.name for p in tmp_path.iterdir()] == [older]

@@ -87,8 +87,9 @@ def run(args) -> int:
     check_render_work(rig, args.supersample, args.frames, f"--frames {args.frames} x --supersample {args.supersample}",
                       "fewer --frames or a smaller --supersample", truth=truth_path is not None)
     scene = load_scene_spec(args.scene)
-    if args.frames > 1 and not video:
-        _check_no_longer_sequence(out, args.frames)
+    if args.frames > 1:     # the frames (a PNG sequence) and the truth files each numbered _NNN
+        _check_no_longer_sequence([*([] if video else [out]), *([truth_path] if truth_path is not None else [])],
+                                  args.frames)
     if args.frames == 1 and not video:
         results = [render(scene, rig, supersample=args.supersample, sensor=sensor, seed=args.seed,
                           truth=truth_path is not None)]
@@ -120,11 +121,15 @@ def run(args) -> int:
     return 0
 
 
-def _check_no_longer_sequence(out, frames: int) -> None:
-    """ValueError when frames of an older, longer sequence (OUT_NNN.png from ``frames`` up) would stay beside
-    the new ones: a folder mixing two runs' frames is no sequence."""
-    stale = sorted(q.name for q in out.parent.glob(f"{out.stem}_[0-9][0-9][0-9].png")
-                   if int(q.stem.rsplit("_", 1)[1]) >= frames)
-    if stale:
-        raise ValueError(f"{out.parent} holds {len(stale)} frame(s) of a longer sequence ({stale[0]} ...) that would "
-                         f"stay beside these {frames}: remove them or choose another -o name")
+def _check_no_longer_sequence(outs: list, frames: int) -> None:
+    """ValueError when files of an older, longer sequence (OUT_NNN.png or TRUTH_NNN.npz, each of ``outs``
+    numbered from ``frames`` up, with any number of digits) would stay beside the new ones: a folder mixing two
+    runs' frames, or frames with another run's truth, is no sequence."""
+    for out in outs:
+        stale = sorted((q for q in out.parent.glob(f"{out.stem}_*{out.suffix}")
+                        if q.stem.rsplit("_", 1)[1].isdigit() and int(q.stem.rsplit("_", 1)[1]) >= frames),
+                       key=lambda q: int(q.stem.rsplit("_", 1)[1]))
+        if stale:
+            raise ValueError(f"{out.parent} holds {len(stale)} file(s) of a longer sequence ({stale[0].name} ...) "
+                             f"that would stay beside these {frames}: remove them or choose another "
+                             f"{'--truth' if out.suffix == '.npz' else '-o'} name")
