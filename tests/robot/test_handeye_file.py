@@ -34,7 +34,8 @@ def _result():
     X = np.eye(4)
     X[:3, :3] = Rotation.from_rotvec([0.3, -1.2, 0.7]).as_matrix()
     X[:3, 3] = [-31.2, 1.0 / 3.0, 12.6]
-    return HandEyeResult(X, np.array([0.05, 0.061, 1 / 7]), 0.072, 0.00195, 0.043)
+    return HandEyeResult(X, np.array([0.05, 0.061, 1 / 7]), 0.072, 0.00195, 0.043, mount_sigma_mm=1 / 3,
+                         mount_sigma_rad=0.0123)
 
 
 def test_handeye_file_round_trips_exactly(tmp_path):
@@ -47,7 +48,10 @@ def test_handeye_file_round_trips_exactly(tmp_path):
     assert raw["spread_deg"] == pytest.approx(math.degrees(0.00195), rel=1e-15)
     assert raw["method"] == "reprojection" and raw["source"] == "simulated cell" and raw["rig"] == "default"
     assert raw["reprojection_rms_px"] == he.reprojection_rms_px
+    assert raw["mount_sigma_mm"] == 1 / 3 and raw["mount_sigma_deg"] == pytest.approx(math.degrees(0.0123),
+                                                                                      rel=1e-15)
     back = load_handeye(path)
+    assert back.mount_sigma_mm == 1 / 3 and back.mount_sigma_rad == pytest.approx(0.0123, rel=1e-15)
     assert np.array_equal(back.cam2flange, he.cam2flange)
     assert np.array_equal(back.target_rms_mm, he.target_rms_mm)
     assert back.spread_mm == he.spread_mm and back.spread_rad == pytest.approx(he.spread_rad, rel=1e-15)
@@ -58,15 +62,18 @@ def test_an_older_closed_form_file_still_reads(tmp_path):
     """A file from an earlier psvs (method park_martin, no reprojection RMS) reads back."""
     he = _result()
     text = dumps_handeye(he, "x", "y").replace('method = "reprojection"', 'method = "park_martin"')
-    text = "\n".join(line for line in text.splitlines() if not line.startswith("reprojection_rms_px"))
+    text = "\n".join(line for line in text.splitlines() if not line.startswith(("reprojection_rms_px", "mount_")))
     (tmp_path / "old.toml").write_text(text + "\n")
     back = load_handeye(tmp_path / "old.toml")
     assert np.array_equal(back.cam2flange, he.cam2flange) and back.reprojection_rms_px is None
+    assert back.mount_sigma_mm is None and back.mount_sigma_rad is None
 
 
 @pytest.mark.parametrize("edit, msg", [
     (lambda t: t.replace('method = "reprojection"', 'method = "tsai"'), "handeye.method must be"),
     (lambda t: t.replace("reprojection_rms_px = 0.043", "reprojection_rms_px = -1.0"), "must be >= 0"),
+    (lambda t: t.replace("mount_sigma_mm = ", "mount_sigma_mm = -"), "must be >= 0"),
+    (lambda t: "\n".join(ln for ln in t.splitlines() if not ln.startswith("mount_sigma_deg")), "go together"),
     (lambda t: t.replace("spread_mm =", "spread_cm ="), "unknown key handeye.spread_cm"),
     (lambda t: t.replace('rig = "default"\n', ""), "missing key handeye.rig"),
     (lambda t: t.replace("views = 3", "views = 4"), "handeye.views must be"),

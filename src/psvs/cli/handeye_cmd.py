@@ -88,7 +88,9 @@ def run(args) -> int:
           f"{math.degrees(he.spread_rad):.3f} deg")
     print(f"reprojection RMS of the discs in both views: {he.reprojection_rms_px:.3f} px")
     t = he.cam2flange[:3, 3]
-    print(f"PSVS on the flange: ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm")
+    print(f"PSVS on the flange: ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm, 1-sigma {he.mount_sigma_mm:.2f} mm on "
+          f"each axis and {math.degrees(he.mount_sigma_rad):.3f} deg from the detector's precision and the robot's "
+          "stated accuracy")
     if truth is not None:
         err = np.linalg.norm(he.cam2flange[:3, 3] - truth[:3, 3])
         ang = math.degrees(np.arccos(np.clip((np.trace(truth[:3, :3].T @ he.cam2flange[:3, :3]) - 1) / 2, -1, 1)))

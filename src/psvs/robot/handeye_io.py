@@ -13,6 +13,8 @@
     spread_mm = 0.05             # the target's base pose over the views (consistency)
     spread_deg = 0.02
     reprojection_rms_px = 0.04   # the discs' reprojection RMS in both views at the solution (optional)
+    mount_sigma_mm = 1.6         # the mount's 1-sigma from its inputs' noise (optional): position, RMS over
+    mount_sigma_deg = 0.6        # the axes, and orientation (psvs.robot.handeye_noise)
 
 frame C (the PSVS) in the flange frame: a 4 x 4 homogeneous transform, rotation and millimetres (the
 matrix is kept whole so that a file round-trips exactly; degrees appear only in ``spread_deg``).
@@ -44,7 +46,7 @@ METHOD = "reprojection"
 #: Methods a file may name: this psvs's, and the closed form alone that earlier versions wrote.
 METHODS = (METHOD, "park_martin")
 _KEYS = ("method", "source", "rig", "views", "cam2flange", "target_rms_mm", "spread_mm", "spread_deg")
-_OPTIONAL = ("reprojection_rms_px",)
+_OPTIONAL = ("reprojection_rms_px", "mount_sigma_mm", "mount_sigma_deg")
 POSES_CSV = "flange_poses.csv"
 POSE_COLUMNS = ("image", "x_mm", "y_mm", "z_mm", "qx", "qy", "qz", "qw")
 
@@ -58,6 +60,9 @@ def dumps_handeye(result: HandEyeResult, source: str, rig: str) -> str:
         "spread_mm": float(result.spread_mm), "spread_deg": math.degrees(result.spread_rad)}}
     if result.reprojection_rms_px is not None:
         data["handeye"]["reprojection_rms_px"] = float(result.reprojection_rms_px)
+    if result.mount_sigma_mm is not None and result.mount_sigma_rad is not None:
+        data["handeye"]["mount_sigma_mm"] = float(result.mount_sigma_mm)
+        data["handeye"]["mount_sigma_deg"] = math.degrees(result.mount_sigma_rad)
     return ("# psvs handeye: frame C (the PSVS) in the flange frame; rotation and mm (docs/robot.md)\n"
             + dumps_toml(data))
 
@@ -83,10 +88,16 @@ def _handeye(h: dict) -> HandEyeResult:
     rms = _numbers(h["target_rms_mm"], "target_rms_mm").ravel()
     if isinstance(h["views"], bool) or not isinstance(h["views"], int) or h["views"] != len(rms) or len(rms) < 3:
         raise ValueError(f"handeye.views must be the number of target_rms_mm values (>= 3), got {h['views']!r}")
-    spreads = [_numbers(h[k], k).item() for k in ("spread_mm", "spread_deg", *(k for k in _OPTIONAL if k in h))]
-    if np.any(rms < 0) or min(spreads) < 0:
-        raise ValueError("handeye residuals must be >= 0")
-    return HandEyeResult(X, rms, spreads[0], math.radians(spreads[1]), spreads[2] if len(spreads) > 2 else None)
+    spreads = [_numbers(h[k], k).item() for k in ("spread_mm", "spread_deg")]
+    extra = {k: _numbers(h[k], k).item() for k in _OPTIONAL if k in h}
+    if np.any(rms < 0) or min(spreads + list(extra.values())) < 0:
+        raise ValueError("handeye residuals and uncertainties must be >= 0")
+    if ("mount_sigma_mm" in extra) != ("mount_sigma_deg" in extra):
+        raise ValueError("handeye.mount_sigma_mm and handeye.mount_sigma_deg go together: give both or neither")
+    sigma_deg = extra.get("mount_sigma_deg")
+    return HandEyeResult(X, rms, spreads[0], math.radians(spreads[1]), extra.get("reprojection_rms_px"),
+                         mount_sigma_mm=extra.get("mount_sigma_mm"),
+                         mount_sigma_rad=None if sigma_deg is None else math.radians(sigma_deg))
 
 
 def _numbers(value, key: str) -> np.ndarray:

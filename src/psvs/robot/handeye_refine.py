@@ -20,6 +20,7 @@ from scipy.spatial.transform import Rotation
 from psvs._threads import one_blas_thread
 from psvs.optics.project import project_points
 from psvs.optics.rig import Rig
+from psvs.robot.handeye_noise import ResidualNoise, residual_noise
 from psvs.transforms import concat, invert_transform, transform_from, transform_from_rotvec
 
 #: Soft-L1 loss scale (px): residuals beyond it count as outliers.
@@ -34,6 +35,33 @@ def _params(A2B: np.ndarray) -> np.ndarray:
 
 def _poses(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return transform_from_rotvec(x[:3], x[3:6]), transform_from_rotvec(x[6:9], x[9:12])
+
+
+def _residual_function(fits: list, model_mm: np.ndarray, rig: Rig):
+    """(residuals(x, F) -> (M,) px, unread (M / 2, 2) bool): the detected centres of ``fits`` minus the
+    projections of the discs at cam2flange and target2base ``x`` (12,) through flange poses ``F`` (one (4, 4)
+    mm per view); rows of discs not read are 0 (they say nothing) and ``unread``."""
+    obs = np.concatenate([np.concatenate([f.left_px for f in fits]), np.concatenate([f.right_px for f in fits])])
+    unread = np.isnan(obs)
+
+    def residuals(x: np.ndarray, F: list) -> np.ndarray:
+        X, T = _poses(x)
+        pts = np.concatenate([model_mm @ t2c[:3, :3].T + t2c[:3, 3]
+                              for t2c in (concat(T, invert_transform(concat(X, Fi))) for Fi in F)])
+        out = []
+        for view in ("left", "right"):
+            uv, ok = project_points(pts, rig, view)
+            uv[~ok] = np.nan
+            out.append(uv)
+        r = np.concatenate(out) - obs
+        r[~np.isfinite(r)] = MISS_PX
+        r[unread] = 0.0                             # a disc not read in a view says nothing
+        return r.ravel()
+    return residuals, unread
+
+
+def _with_poses(residuals, F: list):
+    return lambda x: residuals(x, F)
 
 
 @one_blas_thread()     # the same numbers on any core count
@@ -55,26 +83,23 @@ def refine_hand_eye(flange2base: list[np.ndarray], fits: list, model_mm: np.ndar
     (cam2flange (4, 4), target2base (4, 4), reprojection RMS px over both views)
     """
     F = [np.asarray(f, dtype=np.float64) for f in flange2base]
-    obs = np.concatenate([np.concatenate([f.left_px for f in fits]), np.concatenate([f.right_px for f in fits])])
     targets = [concat(f.target2cam, cam2flange, Fi) for f, Fi in zip(fits, F, strict=True)]
     start = transform_from(targets[0][:3, :3], np.mean([T[:3, 3] for T in targets], axis=0))
-    unread = np.isnan(obs)
-
-    def residuals(x: np.ndarray) -> np.ndarray:
-        X, T = _poses(x)
-        pts = np.concatenate([model_mm @ t2c[:3, :3].T + t2c[:3, 3]
-                              for t2c in (concat(T, invert_transform(concat(X, Fi))) for Fi in F)])
-        out = []
-        for view in ("left", "right"):
-            uv, ok = project_points(pts, rig, view)
-            uv[~ok] = np.nan
-            out.append(uv)
-        r = np.concatenate(out) - obs
-        r[~np.isfinite(r)] = MISS_PX
-        r[unread] = 0.0                             # a disc not read in a view says nothing
-        return r.ravel()
-
+    residuals, unread = _residual_function(fits, model_mm, rig)
+    residuals = _with_poses(residuals, F)
     x0 = np.concatenate([_params(cam2flange), _params(start)])
     sol = least_squares(residuals, x0, method="trf", loss="soft_l1", f_scale=LOSS_SCALE_PX, x_scale="jac")
     X, T = _poses(sol.x)
     return X, T, float(np.sqrt(np.mean(residuals(sol.x)[~unread.ravel()] ** 2)))
+
+
+@one_blas_thread()
+def fit_noise(flange2base: list[np.ndarray], fits: list, model_mm: np.ndarray, rig: Rig, cam2flange: np.ndarray,
+              target2base: np.ndarray, edge_px: float, accuracy_mm: float) -> ResidualNoise:
+    """What the detector's noise (``edge_px`` on each coordinate) and the robot's positioning accuracy
+    (``accuracy_mm``) alone give at the solution (cam2flange, target2base) of :func:`refine_hand_eye` with
+    the same inputs: the reprojection RMS expected and its 1 % level, and the mount's 1-sigma
+    (:mod:`psvs.robot.handeye_noise`)."""
+    residuals, unread = _residual_function(fits, model_mm, rig)
+    x = np.concatenate([_params(cam2flange), _params(target2base)])
+    return residual_noise(residuals, x, flange2base, ~unread.ravel(), edge_px, accuracy_mm)
