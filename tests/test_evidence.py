@@ -11,7 +11,6 @@ from psvs.evidence import (
     MAX_CORNER_DISTORTION,
     build_problems,
     check_build,
-    check_residual,
     distinct_rows,
     lens_problems,
 )
@@ -85,15 +84,6 @@ def test_a_baseline_off_the_design_is_refused(scale, refused):
     assert problems == ([f"baseline fitted {100 * scale:.2f} mm against the design's 100.00 mm (a build of it: "
                          "within 5%; a card printed at another scale than its target file says scales the whole "
                          "rig)"] if refused else [])
-
-
-def test_a_residual_beyond_its_noise_is_refused_and_one_within_passes():
-    check_residual(0.29, 0.1, "a fit", "px", "detector noise")
-    with pytest.raises(MeasurementError, match=r"^a fit does not fit its data: RMS residual 0\.31 px is 3\.1 times "
-                                               r"the 0\.1 px that detector noise explains \(limit 3 times\)"):
-        check_residual(0.31, 0.1, "a fit", "px", "detector noise")
-    with pytest.raises(MeasurementError):
-        check_residual(float("nan"), 0.1, "a fit", "px", "detector noise")
 
 
 def test_distinct_rows_keep_the_first_of_each_in_order():

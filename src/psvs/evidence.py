@@ -3,7 +3,8 @@
 Each kind of answer states its evidence against a null, in one place per kind:
 
 * **A fit** (a calibration, a hand-eye mount, the refraction terms): its residual against the residual its
-  inputs' noise explains (:func:`check_residual`), its fitted values against what the thing fitted can be
+  inputs' noise leaves at its solution (psvs.robot.handeye_noise for the hand-eye mount,
+  psvs.measure.refraction_fit for the refraction terms), its fitted values against what the thing fitted can be
   (:func:`lens_problems`, :func:`build_problems`), and its conditioning on *distinct* evidence
   (:func:`distinct_rows`: a repeated row adds nothing, so a limit cannot grow with copies).
 * **A match or a lock** (dense depth, edge pairs, tracking): beyond what chance makes on the same image
@@ -23,10 +24,6 @@ import numpy as np
 
 from psvs.errors import MeasurementError
 
-#: How many times the noise-explained RMS a fit's RMS residual may reach (a 3-sigma gate on an RMS of many
-#: residuals is generous: with 30 or more residuals chance exceeds 1.5 times the noise less than once in
-#: a thousand fits; the rest is left for model error).
-RESIDUAL_FACTOR = 3.0
 #: The largest radial distortion a lens of the field has at the image's corner, as a share of the radius
 #: (machine-vision 6-25 mm lenses stay under 5 %; 25 % is a fisheye, which psvs's model does not cover).
 MAX_CORNER_DISTORTION = 0.25
@@ -58,17 +55,6 @@ def distinct_rows(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
     _, first = np.unique(joined, axis=0, return_index=True)
     keep = np.sort(first)
     return tuple(np.asarray(a)[keep] for a in arrays)
-
-
-def check_residual(rms: float, noise: float, what: str, unit: str, explains: str,
-                   factor: float = RESIDUAL_FACTOR) -> None:
-    """MeasurementError when a fit's RMS residual ``rms`` is above ``factor`` times ``noise``, the RMS its
-    inputs' noise explains (``explains``: in words, what that noise is). ``what``: the fit, for the message."""
-    if not (math.isfinite(rms) and rms <= factor * noise):
-        raise MeasurementError(
-            f"{what} does not fit its data: RMS residual {rms:.3g} {unit} is {rms / noise:.1f} times the {noise:.3g} "
-            f"{unit} that {explains} explains (limit {factor:g} times): the inputs disagree with each other or with "
-            "the model")
 
 
 def lens_problems(camera) -> list[str]:
