@@ -62,7 +62,7 @@ function showInfo(info) {
   $("live-start").disabled = !info.source.live;
   $("capture-start").disabled = !info.source.live || !info.capture;
   if (!info.source.live) $("capture-folder").textContent = "Capture reads a camera or a video: open a video " +
-    "above (or serve a camera: psvs serve --camera).";
+    "or choose a camera above.";
   else if (info.capture) $("capture-folder").textContent = `Show the printed card (${info.capture.target}) to both ` +
     `views; each good pose is saved once into ${info.capture.folder}.`;
   else $("capture-folder").textContent = "Choose the card's target.toml and a new folder above, then start.";
