@@ -4,6 +4,8 @@ made for another rig (its glass and light elsewhere) is refused, not drawn in th
 import base64
 import re
 
+import cv2
+import numpy as np
 import pytest
 import trimesh
 
@@ -74,5 +76,7 @@ def test_the_mount_step_draws_the_mount(webgl_page, made):
                                     ".map(t => t.i.length)")
         assert drawn == [n]
         webgl_page.wait_for_selector("#mount3d canvas", timeout=10000)
+        drawn = cv2.imdecode(np.frombuffer(webgl_page.locator("#mount3d").screenshot(), np.uint8), cv2.IMREAD_GRAYSCALE)
+        assert drawn.std() > 5 and (drawn < 128).mean() > 0.002, drawn.std()     # WebGL drew: not uniform
         from tests.support.browser import shot
         shot(webgl_page, "web_mount_step.png")

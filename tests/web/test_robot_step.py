@@ -4,6 +4,7 @@ command printed them). Truth: the run's files themselves, read independently (cs
 import csv
 import json
 
+import cv2
 import numpy as np
 import pytest
 
@@ -92,6 +93,8 @@ def test_the_robot_step_draws_the_run(webgl_page, run_dir):
         assert int(webgl_page.get_attribute("#robot3d", "data-points")) == rep["valid_frames"]
         assert int(webgl_page.get_attribute("#robot3d", "data-sensor")) == rep["cycles"] - 1
         webgl_page.wait_for_selector("#robot3d canvas", timeout=10000)
+        drawn = cv2.imdecode(np.frombuffer(webgl_page.locator("#robot3d").screenshot(), np.uint8), cv2.IMREAD_GRAYSCALE)
+        assert drawn.std() > 5 and (drawn < 128).mean() > 0.002, drawn.std()     # WebGL drew: not uniform
         shot(webgl_page, "web_robot_step.png")
         # one file alone is not a run
         webgl_page.set_input_files("#robot-run", [str(run_dir / "log.csv")])

@@ -111,7 +111,14 @@ def test_the_capture_card_and_folder_are_chosen_in_the_page(tmp_path, knocked_fr
 
 
 def test_each_step_has_its_url_and_says_what_it_needs(page, knocked_frame):
+    """Every step by its URL: it alone is shown, says what it needs and what comes next, fits 1280 px; the
+    keyboard reaches the steps; over the whole walk (all nine steps and the Check step's run) no request goes
+    to any host but the server and the console logs no error."""
     page.set_viewport_size({"width": 1280, "height": 800})
+    hosts, errors = set(), []
+    page.on("console", lambda m: errors.append(m.text) if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    page.on("request", lambda r: hosts.add(r.url.split("/")[2]) if r.url.startswith("http") else None)
     with serving(create_app(image_source("knocked", knocked_frame), load_rig("misaligned"), "misaligned")) as url:
         page.goto(url + "/")
         page.wait_for_selector("body[data-ready='1']", timeout=60000)
@@ -178,3 +185,6 @@ def test_each_step_has_its_url_and_says_what_it_needs(page, knocked_frame):
         page.click("#workflow a[data-step='check']")
         page.click("#check-run")
         page.wait_for_function("document.body.dataset.checkDone === 'healthy'", timeout=60000)
+        host = url.split("/")[2]
+    assert hosts == {host}, hosts
+    assert errors == [], errors
