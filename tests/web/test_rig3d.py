@@ -238,6 +238,12 @@ def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):
         img = cv2.imdecode(np.frombuffer(page.locator("#dense-cloud").screenshot(), np.uint8), cv2.IMREAD_GRAYSCALE)
         assert img.std() > 5
         assert "supported beyond chance" in page.inner_text("#dense-cloud-note")
+        # with the frame its millimetres are in: frame C's axes from O, a fifth of the median depth long
+        axes = page.evaluate("document.getElementById('dense-cloud').data.filter(t => t.name.startsWith('frame C'))"
+                             ".map(t => [t.name, t.x[1], t.y[1], t.z[1]])")
+        assert [a[0] for a in axes] == ["frame C: X", "frame C: Y", "frame C: Z"]
+        length = axes[0][1]
+        assert 100 < length < 250 and axes[1][1:] == [0, 0, -length] and axes[2][1:] == [0, length, 0]
         assert 550 < float(page.eval_on_selector("#dense-depth", "e => e.dataset.mm")) < 1150
         # under the pointer: a pixel on the photo panel (the textured scene's truth there, within 2 %)
         u, v = 250, 250

@@ -144,7 +144,18 @@ async function rig3dInit() {
   el.dataset.ready = "1";
 }
 
-// A dense result's point cloud (frame C, mm), coloured by depth with a colour bar, with the camera's centre O;
+// Frame C's axes at O (X along the image's columns, Y its rows, Z the optical axis), a fifth of the cloud's
+// median depth long (100 mm without points), each named: the frame the cloud's millimetres are in.
+function cloudFrameAxes(q) {
+  const depths = q.map((p) => p[1]).sort((a, b) => a - b);
+  const len = depths.length ? Math.max(10, 0.2 * depths[Math.floor(depths.length / 2)]) : 100;
+  return [["X", [len, 0, 0], "#c62828"], ["Y", [0, len, 0], "#2e7d32"], ["Z", [0, 0, len], "#1565c0"]].map(
+    ([axis, end, colour]) => rig3dLines([[[0, 0, 0], end]], `frame C: ${axis}`, colour, 5,
+                                        { showlegend: false, hoverinfo: "name" }));
+}
+
+// A dense result's point cloud (frame C, mm), coloured by depth with a colour bar, with the camera's centre O
+// and frame C's axes;
 // an empty cloud clears the view and says so. ``what`` says what its points are (a still's: the trusted pixels',
 // supported beyond chance; live mode's: every answered pixel, untested), in the note ``noteId``.
 function drawCloud3d(el, cloud, colour = "depth", noteId = "dense-cloud-note", what = "supported beyond chance") {
@@ -162,6 +173,7 @@ function drawCloud3d(el, cloud, colour = "depth", noteId = "dense-cloud-note", w
         { size: 1.5, color: q.map((p) => p[1]), colorscale: "Viridis", colorbar: { title: { text: "Z (mm)" }, thickness: 12 } },
       hovertemplate: "Z %{y:.1f} mm<extra></extra>" },
     rig3dMarkers([[0, 0, 0]], ["camera O"], RIG3D_COLOURS.camera, "diamond"),
+    ...cloudFrameAxes(q),
   ];
   // a fixed height: redrawn while live mode runs, an autosized plot can collapse to its container's 0 px
   const layout = { margin: { l: 0, r: 0, t: 0, b: 0 }, showlegend: false, height: 450,
