@@ -20,11 +20,10 @@ from psvs.robot.handeye import (
     grid_points,
     target_candidates,
 )
-from psvs.robot.handeye_noise import LEVER_MM
+from psvs.robot.handeye_noise import LEVER_MM, perturbed
 from psvs.robot.handeye_refine import fit_noise, refine_hand_eye
 from psvs.robot.handeye_session import CELL_GRID, cell_views, true_cam2flange
 from psvs.robot.mounting import HOME_Q
-from psvs.transforms import transform_from_rotvec
 
 
 @pytest.fixture(scope="module")
@@ -35,10 +34,10 @@ def cell():
 
 
 def _noisy(flanges, accuracy_mm, rng):
-    """Each flange pose moved in the base frame as the module docstring's robot: accuracy / sqrt(3) mm on each
-    axis, accuracy / LEVER_MM / sqrt(3) rad about each."""
+    """Each flange pose with the module docstring's robot error: accuracy / sqrt(3) mm along each base axis,
+    accuracy / LEVER_MM / sqrt(3) rad about each, turned about the flange's own origin."""
     s = accuracy_mm / math.sqrt(3.0)
-    return [transform_from_rotvec(rng.normal(0, s / LEVER_MM, 3), rng.normal(0, s, 3)) @ F for F in flanges]
+    return [perturbed(F, np.concatenate([rng.normal(0, s / LEVER_MM, 3), rng.normal(0, s, 3)])) for F in flanges]
 
 
 def test_the_expected_residual_is_what_refits_of_drawn_noise_leave(cell):

@@ -7,7 +7,8 @@ inputs less what the 12 parameters absorb (P = I - J (J'J)^-1 J', J = dr/dx, M x
 - the detector's, sigma_d px on each coordinate, independent;
 - the robot's, on each view's flange pose: a position error of RMS ``accuracy_mm`` (ISO 9283 positioning
   accuracy; accuracy / sqrt(3) on each axis) and an orientation error of accuracy / :data:`LEVER_MM` rad (the
-  position accuracy over an arm's reach), shared by every disc of the view: e_robot = G w, G = dr/d(flange
+  position accuracy over an arm's reach) about the flange's own origin (:func:`perturbed`), shared by every
+  disc of the view: e_robot = G w, G = dr/d(flange
   pose) (M x 6 V), w of covariance C.
 
 So E|r|^2 = tr(P S) with S = sigma_d^2 I + G C G', and for Gaussian noise |r|^2 is close to g chi2(h) with
@@ -50,6 +51,16 @@ class ResidualNoise:
     mount_sigma_rad: float
 
 
+def perturbed(flange2base: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """A flange pose (4, 4) mm with a robot's error ``d`` (6,): turned by the rotation vector d[:3] (rad, base
+    axes) about the flange's own origin, and moved by d[3:] (mm, base axes)."""
+    out = np.array(flange2base, dtype=np.float64)
+    turn = transform_from_rotvec(d[:3], np.zeros(3))
+    out[:3, :3] = turn[:3, :3] @ out[:3, :3]
+    out[:3, 3] += d[3:]
+    return out
+
+
 def _jacobian(f, x: np.ndarray, steps: np.ndarray) -> np.ndarray:
     """Central differences of f (R^n -> R^M) at x: (M, n)."""
     cols = []
@@ -70,11 +81,10 @@ def residual_noise(residuals, x: np.ndarray, flange2base: list, read: np.ndarray
     steps = np.array([_STEP_RAD] * 3 + [_STEP_MM] * 3)
     J = _jacobian(lambda y: residuals(y, F), x, np.tile(steps, 2))[read]
     cols = []
-    for i in range(len(F)):        # each view's flange pose, perturbed in the base frame
+    for i in range(len(F)):        # each view's flange pose, turned about its own origin and moved, base axes
 
         def moved(d, i=i):
-            return residuals(x, [transform_from_rotvec(d[:3], d[3:]) @ Fi if k == i else Fi
-                                 for k, Fi in enumerate(F)])
+            return residuals(x, [perturbed(Fi, d) if k == i else Fi for k, Fi in enumerate(F)])
         cols.append(_jacobian(moved, np.zeros(6), steps)[read])
     G = np.hstack(cols)
     m, n = J.shape
