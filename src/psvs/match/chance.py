@@ -86,7 +86,9 @@ class Chance:
     the strongest null candidate (0: none); ``null_candidates`` and
     ``tests``: how many candidates the null bands and the working range made; ``bands``: the null bands'
     lags (px) ((lo, hi), ...); ``pair_level_rows``: the rows a twin standing alone (no accepted pair of its
-    object backs it) must exceed to be paired (:func:`pair_level`; infinite: none may)."""
+    object backs it) must exceed to be paired (:func:`pair_level`; infinite: none may); ``null``: the null
+    candidates themselves, which a backed twin is weighed against (:meth:`backed_beyond_chance`; None: no
+    null was read, and no twin is backed beyond chance)."""
 
     strongest_rows: float
     level_rows: float
