@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2
 
-from psvs.transforms import transform_from_rotvec
+from psvs.transforms import matrix_from_rotvec, transform_from
 
 #: mm: the reach over which an arm's position accuracy becomes its orientation accuracy (rad = mm / lever).
 LEVER_MM = 500.0
@@ -54,11 +54,8 @@ class ResidualNoise:
 def perturbed(flange2base: np.ndarray, d: np.ndarray) -> np.ndarray:
     """A flange pose (4, 4) mm with a robot's error ``d`` (6,): turned by the rotation vector d[:3] (rad, base
     axes) about the flange's own origin, and moved by d[3:] (mm, base axes)."""
-    out = np.array(flange2base, dtype=np.float64)
-    turn = transform_from_rotvec(d[:3], np.zeros(3))
-    out[:3, :3] = turn[:3, :3] @ out[:3, :3]
-    out[:3, 3] += d[3:]
-    return out
+    F = np.asarray(flange2base, dtype=np.float64)
+    return transform_from(matrix_from_rotvec(d[:3]) @ F[:3, :3], F[:3, 3] + d[3:])
 
 
 def _jacobian(f, x: np.ndarray, steps: np.ndarray) -> np.ndarray:
