@@ -60,10 +60,6 @@ def _residual_function(fits: list, model_mm: np.ndarray, rig: Rig):
     return residuals, unread
 
 
-def _with_poses(residuals, F: list):
-    return lambda x: residuals(x, F)
-
-
 @one_blas_thread()     # the same numbers on any core count
 def refine_hand_eye(flange2base: list[np.ndarray], fits: list, model_mm: np.ndarray, rig: Rig,
                     cam2flange: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -86,11 +82,10 @@ def refine_hand_eye(flange2base: list[np.ndarray], fits: list, model_mm: np.ndar
     targets = [concat(f.target2cam, cam2flange, Fi) for f, Fi in zip(fits, F, strict=True)]
     start = transform_from(targets[0][:3, :3], np.mean([T[:3, 3] for T in targets], axis=0))
     residuals, unread = _residual_function(fits, model_mm, rig)
-    residuals = _with_poses(residuals, F)
     x0 = np.concatenate([_params(cam2flange), _params(start)])
-    sol = least_squares(residuals, x0, method="trf", loss="soft_l1", f_scale=LOSS_SCALE_PX, x_scale="jac")
+    sol = least_squares(residuals, x0, args=(F,), method="trf", loss="soft_l1", f_scale=LOSS_SCALE_PX, x_scale="jac")
     X, T = _poses(sol.x)
-    return X, T, float(np.sqrt(np.mean(residuals(sol.x)[~unread.ravel()] ** 2)))
+    return X, T, float(np.sqrt(np.mean(residuals(sol.x, F)[~unread.ravel()] ** 2)))
 
 
 @one_blas_thread()
