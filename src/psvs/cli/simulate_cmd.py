@@ -126,10 +126,9 @@ def _check_no_longer_sequence(outs: list, frames: int) -> None:
     numbered from ``frames`` up, with any number of digits) would stay beside the new ones: a folder mixing two
     runs' frames, or frames with another run's truth, is no sequence."""
     for out in outs:
-        stale = sorted((q for q in out.parent.glob(f"{out.stem}_*{out.suffix}")
-                        if q.stem.rsplit("_", 1)[1].isdigit() and int(q.stem.rsplit("_", 1)[1]) >= frames),
-                       key=lambda q: int(q.stem.rsplit("_", 1)[1]))
+        numbered = ((q.stem.rsplit("_", 1)[1], q) for q in out.parent.glob(f"{out.stem}_*{out.suffix}"))
+        stale = sorted((int(k), q.name) for k, q in numbered if k.isdigit() and int(k) >= frames)
         if stale:
-            raise ValueError(f"{out.parent} holds {len(stale)} file(s) of a longer sequence ({stale[0].name} ...) "
+            raise ValueError(f"{out.parent} holds {len(stale)} file(s) of a longer sequence ({stale[0][1]} ...) "
                              f"that would stay beside these {frames}: remove them or choose another "
                              f"{'--truth' if out.suffix == '.npz' else '-o'} name")
