@@ -4,8 +4,10 @@ field fitted to them, and a verdict that says on how much evidence it stands (do
 Each frame's tiles (:func:`psvs.health.rows.frame_tiles`) that pass their chance test are pooled. A mirror
 that moved turns a view's image a little: its rows move by a smooth field over the image (near affine; a
 quadratic in u', v' holds it), so the field is fitted to the tiles (robustly: soft-L1, then least squares
-on the tiles within :data:`OUTLIER_SIGMAS` of it), and the field is what is judged: its RMS and largest
-value over the judged tiles. A tile's own offset scatters by a few tenths of a pixel (the other view's
+on the tiles within :data:`OUTLIER_SIGMAS` of it, each tile judged by the residual it would have were it left
+out), and the field is what is judged: its RMS and largest value over the judged tiles, which must spread
+over the frame (:data:`MIN_REGIONS`: a quadratic through tiles bunched in one part of it extrapolates
+anything). A tile's own offset scatters by a few tenths of a pixel (the other view's
 texture in each tile); the field averages that down, and its uncertainty (the fit's standard error, the
 tiles' overlap and the fit's degrees of freedom counted) is stated beside it. The RMS is the field's own: the
 fit's noise variance is taken off its mean square (a rig on its rows reads near 0, not the noise's RMS).
@@ -36,8 +38,11 @@ from psvs.optics.rig import Rig
 
 #: The tolerance a calibration is held to by default: the field's RMS, px.
 TOLERANCE_PX = 0.5
-#: At least this many tiles must pass their chance test, over at least this share of the judged frames' area.
+#: At least this many tiles must pass their chance test, and lie on the field in at least MIN_REGIONS of the
+#: frame's ninths (a 3 x 3 split of the places a tile can stand): a field over the frame is not pinned by
+#: tiles bunched in one part of it (a quadratic through them extrapolates anything).
 MIN_TILES = 12
+MIN_REGIONS = 6
 #: Tiles farther than this many robust sigmas (and 0.5 px) from the fitted field are left out of it.
 OUTLIER_SIGMAS = 3.0
 #: Tiles that scatter about the fitted field by more than this (px, robust sigma) cannot be one field.
@@ -146,6 +151,7 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
     """The field and verdict (module docstring) from the frames' tiles."""
     t0 = tiles[0]
     ok = np.concatenate([t.accepted for t in tiles])
+    frame_of = np.concatenate([np.full(len(t.accepted), k) for k, t in enumerate(tiles)])[ok]
     edge = int(np.concatenate([t.at_edge for t in tiles]).sum())
     centre = np.concatenate([t.centre_px for t in tiles])[ok]
     offset = np.concatenate([t.offset_px for t in tiles])[ok]
@@ -157,7 +163,13 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
                  grid_shape=t0.grid_shape, centre_px=centre, offset_px=offset, fitted_px=n_nan,
                  coefficients=np.full(6, np.nan), disparity_px=disparity)
     repeating = int(sum(int(t.repeating.sum()) for t in tiles if t.repeating is not None))
-    if repeating > edge + len(offset):
+    ridged = int(sum(int(t.ridged.sum()) for t in tiles if t.ridged is not None))
+    if ridged > repeating and repeating + ridged > edge + len(offset):
+        return HealthCheck("cannot judge", f"the texture runs along one direction: {ridged} tiles match about as "
+                           f"well on other rows as on their peak's, {edge + len(offset)} do not (a streak or an "
+                           "edge shifted along itself tells no row): frames of a scene textured in every direction "
+                           "are needed", **found)
+    if repeating + ridged > edge + len(offset):
         return HealthCheck("cannot judge", f"the texture repeats along the rows: {repeating} tiles match about as "
                            f"well away from their best peak as at it, {edge + len(offset)} do not (a repeating "
                            "texture tells no twin's row): frames of a scene whose texture does not repeat are needed",
@@ -177,15 +189,24 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
         return HealthCheck("cannot judge", f"the {len(offset)} tiles above chance disagree with any smooth field "
                            f"(scatter {scatter:.2f} px, {n} consistent): the frames do not show one rig's twins; "
                            f"frames of a still, textured scene are needed", **found)
+    places = t0.places_px if t0.places_px is not None and len(t0.places_px) else centre[inliers]
+    regions = covered_regions(centre[inliers], places)
+    if regions < MIN_REGIONS:
+        return HealthCheck("cannot judge", f"the {n} tiles on one field lie in {regions} of the frame's 9 regions "
+                           f"(needs {MIN_REGIONS}): frames of a textured scene filling more of the field, over the "
+                           f"working range, are needed", **found)
     fitted = A @ coef
     at = fitted[inliers]
-    # the field's variance at each tile; overlapping tiles share pixels, so their errors are not independent;
+    # overlapping tiles share pixels, so their errors are not independent: the evidence is the area they cover
+    # (each frame's tiles' union, in tiles), and the same place in several frames of one still scene sees the
+    # same texture: its errors repeat and count once
+    overlap = n / independent_tiles(centre[inliers], frame_of[inliers], t0.size_px)
+    repeat = repeat_factor(centre[inliers], offset[inliers] - at)
+    dof = int(n / (overlap * repeat)) - A.shape[1]
     # the residuals about a fit of p terms to n tiles are n - p degrees of freedom: their spread understates
     # the tiles' noise by sqrt((n - p) / n) (at the 12 tiles of a first judgement, by 30 %)
     noise = scatter * np.sqrt(n / max(n - A.shape[1], 1))
-    # the same tile of several frames of one still scene sees the same texture: its errors repeat and count once
-    repeat = repeat_factor(centre[inliers], offset[inliers] - at)
-    cov = OVERLAP * repeat * noise ** 2 * np.linalg.pinv(A[inliers].T @ A[inliers])
+    cov = overlap * repeat * noise ** 2 * np.linalg.pinv(A[inliers].T @ A[inliers])
     var = np.einsum("ij,jk,ik->i", A[inliers], cov, A[inliers])
     unc = float(np.sqrt(np.mean(var)))
     rms = float(np.sqrt(max(np.mean(at ** 2) - np.mean(var), 0.0)))   # noise adds its variance to the mean square
@@ -196,7 +217,7 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
                  coefficients=coef, disparity_px=disparity[inliers])
     evidence = (f"{n} tiles ({judged} px) of {len(tiles)} frame(s), field RMS {rms:.2f} +- {unc:.2f} px, "
                 f"largest {top:.2f} px, tolerance {tolerance_px:g} px")
-    k = _two_sigma(int(n / repeat) - A.shape[1])
+    k = _two_sigma(dof)
     if rms + k * unc <= tolerance_px:
         return HealthCheck("healthy", f"the twins stand on their rows: {evidence}", **found)
     if rms - k * unc > tolerance_px:
@@ -204,6 +225,24 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
     more = "frames of the scene moved, or of other scenes," if repeat > 1.5 else "more frames"
     return HealthCheck("cannot judge", f"the offset is within its uncertainty of the tolerance: {evidence}; {more} "
                        f"decide it", **found)
+
+
+def covered_regions(centres_px: np.ndarray, places_px: np.ndarray) -> int:
+    """In how many of the 3 x 3 regions of the places a tile can stand (``places_px`` (m, 2), split evenly over
+    their extent in u' and v') the tiles at ``centres_px`` (n, 2) lie."""
+    lo, hi = places_px.min(axis=0), places_px.max(axis=0)
+    cell = np.clip(np.floor(3.0 * (centres_px - lo) / np.maximum(hi - lo, 1e-9)), 0, 2).astype(int)
+    return len({(int(a), int(b)) for a, b in cell})
+
+
+def independent_tiles(centres_px: np.ndarray, frame: np.ndarray, size_px: int) -> float:
+    """How many tiles' worth of pixels the tiles at ``centres_px`` (n, 2) of frames ``frame`` (n,) cover, each
+    frame's overlapping tiles (side ``size_px``, on a lattice of half their side) counted once: their union's
+    area over a tile's, summed over the frames."""
+    half = max(size_px // 2, 1)
+    corner = np.floor((centres_px - 0.5 * (size_px - 1)) / half + 0.5).astype(int)     # in half-tile cells
+    cells = [(f, c[0] + i, c[1] + j) for f, c in zip(frame.tolist(), corner.tolist()) for i in (0, 1) for j in (0, 1)]
+    return len(set(cells)) / 4.0
 
 
 def repeat_factor(centres_px: np.ndarray, residuals_px: np.ndarray) -> float:
@@ -246,18 +285,26 @@ def load_solvers() -> None:
 
 def _robust_fit(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """(coefficients, inliers, robust sigma px) of the field: soft-L1 least squares, then ordinary least
-    squares on the tiles within OUTLIER_SIGMAS robust sigmas (and 0.5 px) of it."""
+    squares on the tiles within OUTLIER_SIGMAS robust sigmas (and 0.5 px) of it. A tile is judged by the
+    residual it would have were it left out of the fit (an inlier's residual over 1 - its leverage, an
+    outlier's as it stands): on few tiles a quadratic bends to pass near a wrong tile far out, which its own
+    residual does not show and the others' prediction of it does."""
     from scipy.optimize import least_squares
     c = least_squares(lambda p: A @ p - y, np.zeros(A.shape[1]), loss="soft_l1", f_scale=0.3).x
-    sigma = 0.0
-    for _ in range(3):
+    inliers = np.ones(len(y), bool)
+    for _ in range(6):
         r = y - A @ c
-        sigma = 1.4826 * float(np.median(np.abs(r - np.median(r))))
-        inliers = np.abs(r) <= max(OUTLIER_SIGMAS * sigma, 0.5)
-        if inliers.sum() < A.shape[1] + 2:
+        deleted = r.copy()
+        hat = np.einsum("ij,jk,ik->i", A[inliers], np.linalg.pinv(A[inliers].T @ A[inliers]), A[inliers])
+        deleted[inliers] = r[inliers] / np.maximum(1.0 - hat, 1e-6)
+        sigma = 1.4826 * float(np.median(np.abs(deleted - np.median(deleted))))
+        keep = np.abs(deleted) <= max(OUTLIER_SIGMAS * sigma, 0.5)
+        if keep.sum() < A.shape[1] + 2:
             break
-        c = np.linalg.lstsq(A[inliers], y[inliers], rcond=None)[0]
+        c = np.linalg.lstsq(A[keep], y[keep], rcond=None)[0]
+        if np.array_equal(keep, inliers):
+            break
+        inliers = keep
     r = y - A @ c
-    inliers = np.abs(r) <= max(OUTLIER_SIGMAS * sigma, 0.5)
     dof = max(int(inliers.sum()) - A.shape[1], 1)
     return c, inliers, float(np.sqrt(np.sum(r[inliers] ** 2) / dof))

@@ -15,7 +15,10 @@ correlation the same tile finds in :data:`NULLS` bands of rows far from its own 
 whatever peak they give is what its texture gives by chance), stand above its best match in its own search
 away from its peak (at another disparity, more than the band-pass's coarse sigma off it, on the peak's rows) by
 :data:`UNIQUE_SHARE` of that margin (a texture that repeats along the rows, bricks or stripes, matches almost
-as well a period away: it tells no twin), its texture must stand above the sensor's
+as well a period away: it tells no twin), stand above its best match on rows away from its peak's (each row's best
+over the disparities, more than that sigma off the peak's row) by the same share (a texture that runs along
+one direction, a seam's edges or a groove, matches along a ridge: shifted along itself it matches as well
+on other rows at other disparities, and tells no row: the aperture problem), its texture must stand above the sensor's
 noise (:data:`MIN_TEXTURE_DN`), and the peak must be a peak (a negative-definite quadratic, inside the
 searched rows). A tile whose best peak lies on the searched rows' edge is counted apart: its twin may be
 farther off than the search reaches.
@@ -61,8 +64,10 @@ class FrameTiles:
     (n,) its twin's row offset and ``disparity_px`` (n,) its disparity (NaN where not read), ``score`` (n,)
     its peak's correlation and ``chance`` (n,) the best its texture gave by chance, ``accepted`` (n,) the
     tiles that pass the chance test, ``at_edge`` (n,) those whose best peak lay on the searched rows' edge,
-    ``repeating`` (n,) those above chance that match almost as well away from their peak (a repeating
-    texture: not accepted); ``size_px`` a tile's side, ``reach_px`` the rows searched either side,
+    ``repeating`` (n,) those above chance that match almost as well away from their peak along the rows (a
+    repeating texture: not accepted), ``ridged`` (n,) those above chance, not repeating, that match almost as
+    well on other rows (a texture running along one direction: not accepted); ``places_px`` (m, 2) the centres
+    of all the frame's tiles (the field a judgement speaks for); ``size_px`` a tile's side, ``reach_px`` the rows searched either side,
     ``grid_shape`` (H', W'), ``rect`` the rectification read through (None: the paper's geometry),
     ``of_tiles`` how many tiles the whole frame holds (these may be a subset of them)."""
 
@@ -79,6 +84,8 @@ class FrameTiles:
     rect: Rectification | None
     of_tiles: int = 0
     repeating: np.ndarray | None = None
+    ridged: np.ndarray | None = None
+    places_px: np.ndarray | None = None
 
 
 def reach_px(rig: Rig, reach_deg: float = REACH_DEG) -> int:
@@ -159,6 +166,7 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
     rows = list(range(reach, h - size - reach + 1, step))
     cols = list(range(max(lo, 0) + 2, w - size + 1, step))     # near the left edge, the nearer twins only
     at = [(x, y) for y in rows for x in cols]
+    places = np.array([(x + 0.5 * (size - 1), y + 0.5 * (size - 1)) for x, y in at], float).reshape(-1, 2)
     bands = None
     if subset is not None and at:
         at = [at[k % len(at)] for k in range(subset[0], subset[0] + min(subset[1], len(at)))]
@@ -166,20 +174,22 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
         bands = _merged([(y - reach, y + size + reach) for y in read])
     a, b = _band_passed(image, rig, rect, bands, (h, w))
     out = [_tile(a, b, xy, (size, reach), (lo, hi), rows) for xy in at]
-    arr = np.array(out, dtype=float).reshape(-1, 9)
-    score, chance, rival = arr[:, 4], arr[:, 5], arr[:, 8]
+    arr = np.array(out, dtype=float).reshape(-1, 10)
+    score, chance, rival, row_rival = arr[:, 4], arr[:, 5], arr[:, 8], arr[:, 9]
     textured = (score >= chance + NULL_MARGIN) & (arr[:, 6] >= MIN_TEXTURE_DN)
     unique = score - rival >= UNIQUE_SHARE * (score - chance)
-    accepted = np.isfinite(arr[:, 2]) & textured & unique
-    at_edge = (arr[:, 7] > 0) & textured & unique
+    ridged = textured & unique & (score - row_rival < UNIQUE_SHARE * (score - chance))
+    accepted = np.isfinite(arr[:, 2]) & textured & unique & ~ridged
+    at_edge = (arr[:, 7] > 0) & textured & unique & ~ridged
     return FrameTiles(arr[:, :2], arr[:, 2], arr[:, 3], arr[:, 4], arr[:, 5], accepted, at_edge, size, reach,
-                      (h, w), rect, len(rows) * len(cols), textured & ~unique)
+                      (h, w), rect, len(rows) * len(cols), textured & ~unique, ridged, places)
 
 
 def _tile(a, b, at, size_reach, span, rows) -> tuple:
     """The tile at ``at`` = (x, y) of the left grid ``a`` (``size_reach`` = (side, rows searched either side),
     ``span`` the disparities (lo, hi)) against the right grid ``b``: (u', v', row offset, disparity, score,
-    chance, texture DN, 1 if the peak is on the rows' edge)."""
+    chance, texture DN, 1 if the peak is on the rows' edge, the best match off the peak's lobe on its rows, the
+    best on rows off the peak's lobe)."""
     (x, y), (size, reach), (lo, hi) = at, size_reach, span
     t = a[y:y + size, x:x + size]
     texture = float(t.std())
@@ -187,7 +197,7 @@ def _tile(a, b, at, size_reach, span, rows) -> tuple:
     x0 = max(x - hi, 0)
     search = b[y - reach:y + size + reach, x0:x + size - lo]
     if search.shape[1] < size + 2 or texture <= 0:
-        return (*centre, np.nan, np.nan, -1.0, 1.0, texture, 0, 1.0)
+        return (*centre, np.nan, np.nan, -1.0, 1.0, texture, 0, 1.0, 1.0)
     r = cv2.matchTemplate(search, t, cv2.TM_CCOEFF_NORMED)
     i, j = np.unravel_index(int(np.argmax(r)), r.shape)
     # its own rows' search away from its peak: a texture that repeats along the rows matches about as well at
@@ -196,13 +206,17 @@ def _tile(a, b, at, size_reach, span, rows) -> tuple:
     away = r[max(0, i - lobe):i + lobe + 1].copy()
     away[:, max(0, j - lobe):j + lobe + 1] = -1.0
     rival = float(away.max())
+    # the other rows' best (any disparity): a texture running along one direction matches along a ridge
+    rows_best = r.max(axis=1)
+    off_rows = np.concatenate([rows_best[:max(0, i - lobe)], rows_best[i + lobe + 1:]])
+    row_rival = float(off_rows.max()) if off_rows.size else -1.0
     chance = -1.0
     for yy in _null_rows(y, rows, size):
         chance = max(chance, float(cv2.matchTemplate(b[yy - reach:yy + size + reach, x0:x + size - lo], t,
                                                      cv2.TM_CCOEFF_NORMED).max()))
     edge = int(i == 0 or i == r.shape[0] - 1)
     di, dj = _peak(r, i, j)
-    return (*centre, i + di - reach, x - (x0 + j + dj), float(r[i, j]), chance, texture, edge, rival)
+    return (*centre, i + di - reach, x - (x0 + j + dj), float(r[i, j]), chance, texture, edge, rival, row_rival)
 
 
 def _peak(r: np.ndarray, i: int, j: int) -> tuple[float, float]:

@@ -1,0 +1,109 @@
+"""What a judgement of the twins' rows stands on (psvs.health.check, issue 43): the tiles it may count and
+how much each is worth. A CI run's track said "drifted" on the undrifted build (13 tiles of 3 frames of the
+seam plates, field 2.16 +- 0.52 px): tiles bunched at the top of the frame, overlapping ones counted as
+independent, and tiles on the plates' dark arcs, whose row a streak cannot tell. Planted truth throughout."""
+import cv2
+import numpy as np
+import pytest
+
+from psvs.health.check import covered_regions, independent_tiles, judge
+from psvs.health.rows import FrameTiles, frame_tiles
+from psvs.io.params import load_rig
+from psvs.simulate.builtin import regulated_light
+from psvs.simulate.render import render
+from psvs.simulate.scene import Scene
+from psvs.simulate.textures import ImageTexture
+
+GRID, SIZE = (506, 660), 64
+
+
+def places() -> np.ndarray:
+    """Every place a tile stands on a 660 x 506 grid (tiles of 64 px, half overlapping), as centres (m, 2)."""
+    rows, cols = range(10, GRID[0] - SIZE - 10 + 1, SIZE // 2), range(2, GRID[1] - SIZE + 1, SIZE // 2)
+    return np.array([(x + 0.5 * (SIZE - 1), y + 0.5 * (SIZE - 1)) for y in rows for x in cols])
+
+
+def tiles_at(centres: np.ndarray, offsets: np.ndarray) -> FrameTiles:
+    """A frame whose tiles at ``centres`` (n, 2) passed their chance test with row offsets ``offsets`` (n,)."""
+    n = len(centres)
+    yes, no = np.ones(n, bool), np.zeros(n, bool)
+    return FrameTiles(centres, offsets, np.full(n, 30.0), np.full(n, 0.8), np.full(n, 0.3), yes, no, SIZE, 10,
+                      GRID, None, len(places()), no, no, places())
+
+
+def test_independent_tiles_count_each_frames_union_once():
+    """Two tiles half overlapping cover 1.5 tiles; a 2 x 2 block of them 2.25; the same place in two frames 2."""
+    c = np.array([[100.5, 100.5], [132.5, 100.5], [100.5, 132.5], [132.5, 132.5]])
+    assert independent_tiles(c[:1], np.zeros(1, int), SIZE) == 1.0
+    assert independent_tiles(c[:2], np.zeros(2, int), SIZE) == 1.5
+    assert independent_tiles(c, np.zeros(4, int), SIZE) == 2.25
+    assert independent_tiles(c[[0, 0]], np.array([0, 1]), SIZE) == 2.0
+    assert independent_tiles(np.array([[100.5, 100.5], [228.5, 100.5]]), np.zeros(2, int), SIZE) == 2.0
+
+
+def test_regions_are_the_ninths_of_the_places():
+    p = places()
+    assert covered_regions(p, p) == 9
+    corner = p[(p[:, 0] > p[:, 0].max() - 20) & (p[:, 1] < p[:, 1].min() + 20)]
+    assert covered_regions(corner, p) == 1
+    assert covered_regions(p[[0, -1]], p) == 2
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_tiles_bunched_in_one_part_of_the_frame_are_not_judged(seed):
+    """14 tiles of a soft texture (0.5 px apiece; the seam plates' scatter 1-1.5) in the frame's top-right ninths: a quadratic
+    through them extrapolates anything; the same count spread over the frame on an undrifted rig is judged."""
+    rng = np.random.default_rng(seed)
+    p = places()
+    top_right = p[(p[:, 0] > GRID[1] / 2) & (p[:, 1] < GRID[0] / 3)]
+    bunched = top_right[rng.choice(len(top_right), 14, replace=False)]
+    c = judge([tiles_at(bunched, rng.normal(0.0, 0.5, 14))])
+    assert c.verdict == "cannot judge" and "of the frame's 9 regions (needs 6)" in c.reason, c.reason
+    spread = p[rng.choice(len(p), 40, replace=False)]
+    c = judge([tiles_at(spread, rng.normal(0.0, 0.05, 40))])
+    assert c.verdict == "healthy" and c.row_offset_rms_px < 0.1, c.reason
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_wrong_tile_the_field_bends_to_is_left_out(seed):
+    """Tiles of an undrifted rig (0.05 px apiece) spread thinly over the frame, one of them alone in a corner
+    3 px off (a chance peak): a quadratic through 14 tiles passes near it, so its own residual hides it, but
+    the others' prediction of it does not. It is left out and the rig judged healthy."""
+    rng = np.random.default_rng(seed)
+    p = places()
+    corner = np.argmin(p[:, 0] + p[:, 1])
+    rest = np.flatnonzero(np.hypot(*(p - p[corner]).T) > 250)
+    pick = np.concatenate([[corner], rng.choice(rest, 13, replace=False)])
+    while covered_regions(p[pick], p) < 7:                   # thinly, but over the frame
+        pick = np.concatenate([[corner], rng.choice(rest, 13, replace=False)])
+    offsets = rng.normal(0.0, 0.05, 14)
+    offsets[0] = 3.0
+    c = judge([tiles_at(p[pick], offsets)])
+    assert c.tiles == 13 and not any(np.all(c.centre_px == p[corner], axis=1)), c.reason
+    assert c.verdict in ("healthy", "cannot judge") and c.row_offset_rms_px < 0.2, c.reason
+
+
+def streaks(deg: float, seed: int, n: int = 1024) -> np.ndarray:
+    """Noise smeared along a line at ``deg`` from the rows (grey (n, n) in 0..1): texture along one direction."""
+    a = np.random.default_rng(seed).normal(0, 1, (n, n)).astype(np.float32)
+    k = np.zeros((161, 161), np.float32)
+    t = np.radians(deg)
+    for s in np.linspace(-80, 80, 321):
+        k[int(round(80 - s * np.sin(t))), int(round(80 + s * np.cos(t)))] = 1.0
+    img = cv2.GaussianBlur(cv2.filter2D(a, -1, k / k.sum()), (0, 0), 1.5)
+    return np.clip(0.5 + 0.15 * img / img.std(), 0, 1).astype(np.float64)
+
+
+@pytest.mark.parametrize("rig_name, deg, seed", [("misaligned", 80.0, 1), ("default", 100.0, 2), ("misaligned", 70.0, 3)])
+def test_a_texture_along_one_direction_tells_no_row(rig_name, deg, seed):
+    """A wall of streaks (an undrifted rig): each tile matches along a ridge, as well on other rows at other
+    disparities as on its twin's. Before, 6-21 such tiles passed with rows off by 0.5-1.3 px (median); now none
+    passes and the check says what the frames lack."""
+    rig = load_rig(rig_name)
+    z = 700.0
+    scene = Scene((), regulated_light(z), z, ImageTexture(streaks(deg, seed), (1.6 * z, 1.6 * z), "streaks"), "wall")
+    img = render(scene, rig, seed=seed, supersample=1).image
+    ft = frame_tiles(img, rig)
+    assert ft.accepted.sum() <= 2 and ft.ridged.sum() >= 15, (ft.accepted.sum(), ft.ridged.sum())
+    c = judge([ft])
+    assert c.verdict == "cannot judge" and c.reason.startswith("the texture runs along one direction: "), c.reason
