@@ -51,8 +51,8 @@ def test_regions_are_the_ninths_of_the_places():
 
 @pytest.mark.parametrize("seed", range(6))
 def test_tiles_bunched_in_one_part_of_the_frame_are_not_judged(seed):
-    """14 tiles of a soft texture (0.5 px apiece; the seam plates' scatter 1-1.5) in the frame's top-right ninths: a quadratic
-    through them extrapolates anything; the same count spread over the frame on an undrifted rig is judged."""
+    """14 tiles of a soft texture (0.5 px apiece; the seam plates' scatter 1-1.5) in the frame's top-right ninths: a
+    quadratic through them extrapolates anything; the same count spread over the frame on an undrifted rig is judged."""
     rng = np.random.default_rng(seed)
     p = places()
     top_right = p[(p[:, 0] > GRID[1] / 2) & (p[:, 1] < GRID[0] / 3)]
@@ -94,7 +94,8 @@ def streaks(deg: float, seed: int, n: int = 1024) -> np.ndarray:
     return np.clip(0.5 + 0.15 * img / img.std(), 0, 1).astype(np.float64)
 
 
-@pytest.mark.parametrize("rig_name, deg, seed", [("misaligned", 80.0, 1), ("default", 100.0, 2), ("misaligned", 70.0, 3)])
+@pytest.mark.parametrize("rig_name, deg, seed",
+                         [("misaligned", 80.0, 1), ("default", 100.0, 2), ("misaligned", 70.0, 3)])
 def test_a_texture_along_one_direction_tells_no_row(rig_name, deg, seed):
     """A wall of streaks (an undrifted rig): each tile matches along a ridge, as well on other rows at other
     disparities as on its twin's. Before, 6-21 such tiles passed with rows off by 0.5-1.3 px (median); now none

@@ -241,7 +241,8 @@ def independent_tiles(centres_px: np.ndarray, frame: np.ndarray, size_px: int) -
     area over a tile's, summed over the frames."""
     half = max(size_px // 2, 1)
     corner = np.floor((centres_px - 0.5 * (size_px - 1)) / half + 0.5).astype(int)     # in half-tile cells
-    cells = [(f, c[0] + i, c[1] + j) for f, c in zip(frame.tolist(), corner.tolist()) for i in (0, 1) for j in (0, 1)]
+    pairs = zip(frame.tolist(), corner.tolist(), strict=True)
+    cells = [(f, c[0] + i, c[1] + j) for f, c in pairs for i in (0, 1) for j in (0, 1)]
     return len(set(cells)) / 4.0
 
 

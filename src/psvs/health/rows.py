@@ -67,9 +67,9 @@ class FrameTiles:
     ``repeating`` (n,) those above chance that match almost as well away from their peak along the rows (a
     repeating texture: not accepted), ``ridged`` (n,) those above chance, not repeating, that match almost as
     well on other rows (a texture running along one direction: not accepted); ``places_px`` (m, 2) the centres
-    of all the frame's tiles (the field a judgement speaks for); ``size_px`` a tile's side, ``reach_px`` the rows searched either side,
-    ``grid_shape`` (H', W'), ``rect`` the rectification read through (None: the paper's geometry),
-    ``of_tiles`` how many tiles the whole frame holds (these may be a subset of them)."""
+    of all the frame's tiles (the field a judgement speaks for); ``size_px`` a tile's side, ``reach_px`` the
+    rows searched either side, ``grid_shape`` (H', W'), ``rect`` the rectification read through (None: the
+    paper's geometry), ``of_tiles`` how many tiles the whole frame holds (these may be a subset of them)."""
 
     centre_px: np.ndarray
     offset_px: np.ndarray
