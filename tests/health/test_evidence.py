@@ -108,3 +108,58 @@ def test_a_texture_along_one_direction_tells_no_row(rig_name, deg, seed):
     assert ft.accepted.sum() <= 2 and ft.ridged.sum() >= 15, (ft.accepted.sum(), ft.ridged.sum())
     c = judge([ft])
     assert c.verdict == "cannot judge" and c.reason.startswith("the texture runs along one direction: "), c.reason
+
+
+def test_a_tile_alone_pinning_a_term_is_left_out():
+    """All tiles of two rows of the grid and one wrong tile (4 px off) alone on a third: the quadratic's
+    curvature across the rows rests on that tile alone (leverage 1), so no other tile can check it and its error
+    would be the field (a review's probe: 'drifted 0.64 +- 0.02 px'). It is left out."""
+    rng = np.random.default_rng(0)
+    p = places()
+    ys = np.unique(p[:, 1])
+    sel = np.vstack([p[p[:, 1] == ys[1]], p[p[:, 1] == ys[6]], p[p[:, 1] == ys[11]][[9]]])
+    off = rng.normal(0, 0.05, len(sel))
+    off[-1] = 4.0
+    c = judge([tiles_at(sel, off)])
+    assert c.verdict != "drifted" and c.tiles == len(sel) - 1 and c.row_offset_max_px < 0.2, c.reason
+
+
+def test_tiles_without_their_places_are_placed_on_the_grid():
+    """A FrameTiles made without the frame's places (``places_px`` None) is split into ninths over its grid,
+    not over its own tiles' extent (which would make any bunch look spread)."""
+    import dataclasses
+    rng = np.random.default_rng(1)
+    p = places()
+    top_right = p[(p[:, 0] > GRID[1] / 2) & (p[:, 1] < GRID[0] / 3)]
+    bunched = top_right[rng.choice(len(top_right), 14, replace=False)]
+    c = judge([dataclasses.replace(tiles_at(bunched, rng.normal(0, 0.3, 14)), places_px=None)])
+    assert c.verdict == "cannot judge" and "of the frame's 9 regions" in c.reason, c.reason
+
+
+def test_neighbours_read_in_frames_of_a_still_scene_share_their_texture():
+    """A rolling check's sweep reads each place once, neighbours in different frames. Of a still scene those
+    frames are one view of it (its tiles overlap as one frame's do: 3.55 tiles per tile's worth on a whole
+    grid); of a moving one each frame is its own (1.77)."""
+    p = places()
+    n = len(p)
+    step = np.arange(n) // 12
+    still = n / independent_tiles(p, np.zeros(n, int), SIZE)
+    moving = n / independent_tiles(p, step, SIZE)
+    assert still == pytest.approx(3.55, abs=0.01) and moving == pytest.approx(1.77, abs=0.01)
+
+
+def test_the_rolling_check_tells_a_still_scene_from_a_moving_one():
+    """Frames of one scene with their own sensor noise are one view of it, and so is the scene shifted by 2 px
+    (its tiles see nearly the same texture); shifted by 12 px (a seam run's 3 mm between two steps at 300 mm)
+    it is a new one, and so is another scene (psvs.health.rolling)."""
+    from psvs.health.rolling import STILL_NCC, RollingCheck, still_thumbnail
+    rig = load_rig("default")
+    h, w = rig.camera.image_size_px[::-1]
+    rng = np.random.default_rng(4)
+    base = cv2.GaussianBlur(rng.normal(128, 40, (h + 20, w + 20)).astype(np.float32), (0, 0), 2.0)
+    frame = lambda dx: np.clip(base[:h, dx:dx + w] + rng.normal(0, 2, (h, w)), 0, 255)  # noqa: E731
+    other = np.clip(cv2.GaussianBlur(rng.normal(128, 40, (h, w)).astype(np.float32), (0, 0), 2.0), 0, 255)
+    check = RollingCheck(rig, share=1.0)
+    scenes = [check.scene_of(f) for f in (frame(0), frame(0), frame(2), frame(14), frame(14), other)]
+    assert scenes == [1, 1, 1, 2, 2, 3]
+    assert STILL_NCC == 0.5 and still_thumbnail(frame(0)).shape == (h // 4, w // 4)

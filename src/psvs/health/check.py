@@ -18,7 +18,8 @@ confidence when the uncertainty rests on few tiles, 2.5 times at the 12 of a fir
 ``cannot judge`` otherwise: too
 few tiles passed (:data:`MIN_TILES`: too little texture, or the twins too far off to be found even when
 searched :data:`psvs.health.rows.FAR_REACH_DEG` either side, which the check does when too few are found
-within the usual reach and it cannot judge), the tiles
+within the usual reach and it cannot judge), the tiles lie in fewer than :data:`MIN_REGIONS` of the frame's
+ninths, the texture repeats along the rows or runs along one direction (psvs.health.rows), the tiles
 disagree with any smooth field (:data:`MAX_SCATTER_PX`: a scene that moved between the views' exposures is
 not one a frame shows; at least :data:`MIN_CONSISTENT` of the tiles must lie on the field), or the field's
 uncertainty straddles the tolerance (more frames decide it).
@@ -45,9 +46,13 @@ MIN_TILES = 12
 MIN_REGIONS = 6
 #: Tiles farther than this many robust sigmas (and 0.5 px) from the fitted field are left out of it.
 OUTLIER_SIGMAS = 3.0
+#: A tile whose leverage on the fitted field exceeds this pins a term of it alone: the others cannot check it.
+MAX_LEVERAGE = 0.97
 #: Tiles that scatter about the fitted field by more than this (px, robust sigma) cannot be one field.
 MAX_SCATTER_PX = 1.0
-#: Each pixel lies in this many tiles (they overlap by half along each axis): the fit's evidence is that much less.
+#: Each pixel lies in this many tiles of a whole frame (they overlap by half along each axis): a refit's evidence
+#: per tile is that much less (psvs.calibrate.refit; a judgement counts its own tiles' overlap:
+#: :func:`evidence_factors`).
 OVERLAP = 4.0
 #: At least this share of the tiles above chance must lie on the one field.
 MIN_CONSISTENT = 0.6
@@ -147,11 +152,14 @@ def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.
     return check
 
 
-def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> HealthCheck:
-    """The field and verdict (module docstring) from the frames' tiles."""
+def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX, scenes: list[int] | None = None) -> HealthCheck:
+    """The field and verdict (module docstring) from the frames' tiles; ``scenes`` (one per frame): which
+    frames show the scene as it stood (their tiles' overlaps shared, :func:`evidence_factors`; None: each
+    frame its own)."""
     t0 = tiles[0]
     ok = np.concatenate([t.accepted for t in tiles])
-    frame_of = np.concatenate([np.full(len(t.accepted), k) for k, t in enumerate(tiles)])[ok]
+    scene = range(len(tiles)) if scenes is None else scenes
+    frame_of = np.concatenate([np.full(len(t.accepted), k) for k, t in zip(scene, tiles, strict=True)])[ok]
     edge = int(np.concatenate([t.at_edge for t in tiles]).sum())
     centre = np.concatenate([t.centre_px for t in tiles])[ok]
     offset = np.concatenate([t.offset_px for t in tiles])[ok]
@@ -164,12 +172,12 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
                  coefficients=np.full(6, np.nan), disparity_px=disparity)
     repeating = int(sum(int(t.repeating.sum()) for t in tiles if t.repeating is not None))
     ridged = int(sum(int(t.ridged.sum()) for t in tiles if t.ridged is not None))
-    if ridged > repeating and repeating + ridged > edge + len(offset):
+    if len(offset) < MIN_TILES and ridged > max(len(offset), repeating):
         return HealthCheck("cannot judge", f"the texture runs along one direction: {ridged} tiles match about as "
-                           f"well on other rows as on their peak's, {edge + len(offset)} do not (a streak or an "
-                           "edge shifted along itself tells no row): frames of a scene textured in every direction "
-                           "are needed", **found)
-    if repeating + ridged > edge + len(offset):
+                           f"well on other rows as on their peak's, {len(offset)} do not (needs {MIN_TILES}; a "
+                           "streak or an edge shifted along itself tells no row): frames of a scene textured in "
+                           "every direction are needed", **found)
+    if repeating > edge + len(offset):
         return HealthCheck("cannot judge", f"the texture repeats along the rows: {repeating} tiles match about as "
                            f"well away from their best peak as at it, {edge + len(offset)} do not (a repeating "
                            "texture tells no twin's row): frames of a scene whose texture does not repeat are needed",
@@ -182,6 +190,9 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
         return HealthCheck("cannot judge", f"only {len(offset)} of {tried} tiles show a twin above chance (needs "
                            f"{MIN_TILES}): frames of a textured scene filling more of the field, over the working "
                            f"range, are needed", **found)
+    places = t0.places_px if t0.places_px is not None and len(t0.places_px) else _grid_corners(t0.grid_shape)
+    if covered_regions(centre, places) < MIN_REGIONS:
+        return _bunched(len(offset), covered_regions(centre, places), found)
     A = field_basis(centre, t0.grid_shape)
     coef, inliers, scatter = _robust_fit(A, offset)
     n = int(inliers.sum())
@@ -189,19 +200,12 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
         return HealthCheck("cannot judge", f"the {len(offset)} tiles above chance disagree with any smooth field "
                            f"(scatter {scatter:.2f} px, {n} consistent): the frames do not show one rig's twins; "
                            f"frames of a still, textured scene are needed", **found)
-    places = t0.places_px if t0.places_px is not None and len(t0.places_px) else centre[inliers]
     regions = covered_regions(centre[inliers], places)
     if regions < MIN_REGIONS:
-        return HealthCheck("cannot judge", f"the {n} tiles on one field lie in {regions} of the frame's 9 regions "
-                           f"(needs {MIN_REGIONS}): frames of a textured scene filling more of the field, over the "
-                           f"working range, are needed", **found)
+        return _bunched(n, regions, found)
     fitted = A @ coef
     at = fitted[inliers]
-    # overlapping tiles share pixels, so their errors are not independent: the evidence is the area they cover
-    # (each frame's tiles' union, in tiles), and the same place in several frames of one still scene sees the
-    # same texture: its errors repeat and count once
-    overlap = n / independent_tiles(centre[inliers], frame_of[inliers], t0.size_px)
-    repeat = repeat_factor(centre[inliers], offset[inliers] - at)
+    overlap, repeat = evidence_factors(centre[inliers], frame_of[inliers], offset[inliers] - at, t0.size_px)
     dof = int(n / (overlap * repeat)) - A.shape[1]
     # the residuals about a fit of p terms to n tiles are n - p degrees of freedom: their spread understates
     # the tiles' noise by sqrt((n - p) / n) (at the 12 tiles of a first judgement, by 30 %)
@@ -225,6 +229,32 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX) -> Health
     more = "frames of the scene moved, or of other scenes," if repeat > 1.5 else "more frames"
     return HealthCheck("cannot judge", f"the offset is within its uncertainty of the tolerance: {evidence}; {more} "
                        f"decide it", **found)
+
+
+def evidence_factors(centres_px: np.ndarray, scene: np.ndarray, residuals_px: np.ndarray,
+                     size_px: int) -> tuple[float, float]:
+    """(overlap, repeat): by how much the count of tiles (centres (n, 2), ``scene`` (n,) the view of the scene
+    each was read in, residuals (n,) px about the field, side ``size_px``) overstates their independent
+    evidence. Overlapping tiles share pixels, so their errors are not independent: the evidence is the area
+    they cover, in tiles, each scene's tiles' union counted once (frames of a scene that stood still share
+    one: a neighbour read in the next frame shares its texture as one in the same frame does). The same place
+    in several frames counted apart, whether the scene stood still is measured too (:func:`repeat_factor`: the
+    same place's errors repeat in a still scene and count once)."""
+    n = len(residuals_px)
+    return n / independent_tiles(centres_px, scene, size_px), repeat_factor(centres_px, residuals_px)
+
+
+def _bunched(n: int, regions: int, found: dict) -> HealthCheck:
+    """``cannot judge``: ``n`` tiles in only ``regions`` of the frame's ninths."""
+    return HealthCheck("cannot judge", f"the {n} tiles on one field lie in {regions} of the frame's 9 regions (needs "
+                       f"{MIN_REGIONS}): frames of a textured scene filling more of the field, over the working "
+                       f"range, are needed", **found)
+
+
+def _grid_corners(grid_shape: tuple[int, int]) -> np.ndarray:
+    """The corners (2, 2) of a grid (H', W'): the extent tiles stand in when their places are not given."""
+    h, w = grid_shape
+    return np.array([[0.0, 0.0], [w - 1.0, h - 1.0]])
 
 
 def covered_regions(centres_px: np.ndarray, places_px: np.ndarray) -> int:
@@ -286,26 +316,42 @@ def load_solvers() -> None:
 
 def _robust_fit(A: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """(coefficients, inliers, robust sigma px) of the field: soft-L1 least squares, then ordinary least
-    squares on the tiles within OUTLIER_SIGMAS robust sigmas (and 0.5 px) of it. A tile is judged by the
-    residual it would have were it left out of the fit (an inlier's residual over 1 - its leverage, an
-    outlier's as it stands): on few tiles a quadratic bends to pass near a wrong tile far out, which its own
-    residual does not show and the others' prediction of it does."""
+    squares on the tiles within OUTLIER_SIGMAS robust sigmas (and 0.5 px) of it. Then each tile is judged by
+    what the others predict of it, one at a time: on few tiles a quadratic bends to pass near a wrong tile far
+    out, which its own residual does not show. A tile the others cannot predict (leverage above
+    :data:`MAX_LEVERAGE`: it alone pins a term of the field) is left out, its evidence unchecked; the tile
+    whose externally studentized residual (its residual over the fit's noise without it and sqrt(1 - its
+    leverage)) is largest is left out while it exceeds Student's t at a 5 % family-wise level (Bonferroni over
+    the tiles) and stands 0.5 px or more off the others' prediction."""
     from scipy.optimize import least_squares
-    c = least_squares(lambda p: A @ p - y, np.zeros(A.shape[1]), loss="soft_l1", f_scale=0.3).x
+    from scipy.special import stdtrit
+    p = A.shape[1]
+    c = least_squares(lambda q: A @ q - y, np.zeros(p), loss="soft_l1", f_scale=0.3).x
     inliers = np.ones(len(y), bool)
-    for _ in range(6):
+    for _ in range(3):
         r = y - A @ c
-        deleted = r.copy()
-        hat = np.einsum("ij,jk,ik->i", A[inliers], np.linalg.pinv(A[inliers].T @ A[inliers]), A[inliers])
-        deleted[inliers] = r[inliers] / np.maximum(1.0 - hat, 1e-6)
-        sigma = 1.4826 * float(np.median(np.abs(deleted - np.median(deleted))))
-        keep = np.abs(deleted) <= max(OUTLIER_SIGMAS * sigma, 0.5)
-        if keep.sum() < A.shape[1] + 2:
-            break
-        c = np.linalg.lstsq(A[keep], y[keep], rcond=None)[0]
-        if np.array_equal(keep, inliers):
+        sigma = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+        keep = np.abs(r) <= max(OUTLIER_SIGMAS * sigma, 0.5)
+        if keep.sum() < p + 2:
             break
         inliers = keep
+        c = np.linalg.lstsq(A[inliers], y[inliers], rcond=None)[0]
+    while inliers.sum() > p + 2:
+        idx = np.flatnonzero(inliers)
+        h = np.einsum("ij,jk,ik->i", A[idx], np.linalg.pinv(A[idx].T @ A[idx]), A[idx])
+        r = y[idx] - A[idx] @ c
+        if (h > MAX_LEVERAGE).any():
+            inliers[idx[h > MAX_LEVERAGE]] = False
+        else:
+            dof = len(idx) - p - 1
+            gone = r ** 2 / np.maximum(1.0 - h, 1e-12)                 # each tile's share of the squared residuals
+            s2 = np.maximum((float(np.sum(r ** 2)) - gone) / dof, 1e-12)
+            t = np.abs(r) / np.sqrt(s2 * (1.0 - h))
+            bad = (t > float(stdtrit(dof, 1.0 - 0.025 / len(idx)))) & (np.abs(r) / (1.0 - h) >= 0.5)
+            if not bad.any():
+                break
+            inliers[idx[np.argmax(np.where(bad, t, 0.0))]] = False
+        c = np.linalg.lstsq(A[inliers], y[inliers], rcond=None)[0]
     r = y - A @ c
-    dof = max(int(inliers.sum()) - A.shape[1], 1)
+    dof = max(int(inliers.sum()) - p, 1)
     return c, inliers, float(np.sqrt(np.sum(r[inliers] ** 2) / dof))

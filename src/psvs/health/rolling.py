@@ -17,11 +17,12 @@ import time
 from collections import deque
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from psvs.dense.rig_cache import rectification
 from psvs.health.check import TOLERANCE_PX, HealthCheck, judge, load_solvers
-from psvs.health.rows import frame_tiles
+from psvs.health.rows import band_pass, frame_tiles
 from psvs.io.jsonsafe import json_safe
 from psvs.optics.rig import Rig
 
@@ -33,8 +34,25 @@ SHARE = 0.08
 TILES_PER_STEP = 12
 #: The credit saved up is at most this many steps' cost: a slow frame (a first one's set-up) buys no burst.
 MAX_CREDIT_STEPS = 1.5
+#: Two steps' frames whose band-passed thumbnails correlate by this much show the scene as it stood.
+STILL_NCC = 0.5
 #: The first steps' cost is not known: the credit must cover this much (s) before the first one runs.
 FIRST_COST_S = 0.03
+
+
+def still_thumbnail(image) -> np.ndarray:
+    """A frame (H, W) shrunk 4 times (area average) and band-passed (psvs.health.rows.band_pass): what a
+    still scene's frames share and a moved one's do not."""
+    a = np.asarray(image, dtype=np.float32)
+    small = cv2.resize(a, (max(a.shape[1] // 4, 1), max(a.shape[0] // 4, 1)), interpolation=cv2.INTER_AREA)
+    return band_pass(small)
+
+
+def _ncc(a: np.ndarray, b: np.ndarray) -> float:
+    """The normalised cross-correlation of two arrays of one shape (0 when either is flat)."""
+    a, b = a - a.mean(), b - b.mean()
+    den = float(np.sqrt(np.sum(a * a) * np.sum(b * b)))
+    return float(np.sum(a * b)) / den if den > 0 else 0.0
 
 
 def health_record(check: HealthCheck, frame: int, cost_share: float) -> dict:
@@ -70,6 +88,8 @@ class RollingCheck:
         self._credit, self._next = 0.0, 0
         self._costs: deque = deque([FIRST_COST_S], maxlen=5)
         self._window: deque = deque()
+        self._scenes: deque = deque()
+        self._thumb, self._scene = None, 0
         self._said = "healthy"
         rectification(rig, near_mm, far_mm)      # the grids' maps are set-up, as the sensors' own: not a step's
         load_solvers()                            # so are the fit's SciPy modules (their first import)
@@ -94,15 +114,27 @@ class RollingCheck:
         tiles = frame_tiles(image, self.rig, self.near_mm, self.far_mm, subset=(self._next, TILES_PER_STEP))
         self._next = (self._next + TILES_PER_STEP) % max(tiles.of_tiles, 1)
         self._window.append(tiles)
+        self._scenes.append(self.scene_of(image))
         while sum(len(t.accepted) for t in self._window) - len(self._window[0].accepted) >= tiles.of_tiles:
             self._window.popleft()                   # the last sweep: one tile per place of the field
-        self.latest = judge(list(self._window), self.tolerance_px)
+            self._scenes.popleft()
+        self.latest = judge(list(self._window), self.tolerance_px, list(self._scenes))
         spent = time.perf_counter() - t0
         self.spent_s += spent
         self.steps += 1
         self._credit -= spent
         self._costs.append(spent)
         return self._event(frame)
+
+    def scene_of(self, image) -> int:
+        """Which view of the scene this step's frame (H, W) is: the last step's when their band-passed
+        thumbnails correlate by :data:`STILL_NCC` or more (the scene stood still: its tiles share texture
+        with the last frame's neighbours), else a new one."""
+        thumb = still_thumbnail(image)
+        if self._thumb is None or thumb.shape != self._thumb.shape or _ncc(thumb, self._thumb) < STILL_NCC:
+            self._scene += 1
+        self._thumb = thumb
+        return self._scene
 
     def _event(self, frame: int) -> HealthEvent | None:
         c = self.latest
