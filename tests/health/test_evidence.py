@@ -163,3 +163,32 @@ def test_the_rolling_check_tells_a_still_scene_from_a_moving_one():
     scenes = [check.scene_of(f) for f in (frame(0), frame(0), frame(2), frame(14), frame(14), other)]
     assert scenes == [1, 1, 1, 2, 2, 3]
     assert STILL_NCC == 0.5 and still_thumbnail(frame(0)).shape == (h // 4, w // 4)
+
+
+def test_frames_of_the_rig_before_and_after_a_knock_are_not_one_field():
+    """An adversarial trial's case: two frames of the undrifted build and one after the knock (alone: drifted
+    2.44 px) read 'healthy 0.02 +- 0.03 px' (the fit kept the majority and left the knocked frame's every tile
+    out); with the knocked frame beside one of another scene the 2 deg wider search, run on any refusal,
+    turned 'disagree' into 'drifted'. Both are now refused: the tiles hold two fields, or none."""
+    from psvs.health.check import check_frames
+    from psvs.simulate.builtin import wall
+    rig, knocked = load_rig("misaligned"), load_rig("misaligned_knocked")
+    before = [render(wall(650.0, 1), rig, seed=1, supersample=1).image,
+              render(wall(900.0, 5), rig, seed=2, supersample=1).image]
+    after = render(wall(650.0, 1), knocked, seed=3, supersample=1).image
+    assert check_frames([after], rig).verdict == "drifted"
+    for frames in (before + [after], [before[1], after], [after, before[0]]):
+        c = check_frames(frames, rig)
+        assert c.verdict == "cannot judge" and ("two fields" in c.reason or "disagree" in c.reason), c.reason
+    assert check_frames(before, rig).verdict == "healthy"
+
+
+def test_no_mirror_is_named_for_a_field_no_mirror_makes():
+    """A frame turned upside down reads 'drifted 4.48 px'; naming M4, whose tilts leave 4.45 px of it, was a
+    guess: when even the best mirror leaves more than the tolerance, none is named."""
+    from psvs.health.explain import Explanation, explanation_line
+    found = [Explanation("m4", (0.0, 0.019), 4.45), Explanation("m2", (0.0, 0.01), 4.46)]
+    line = explanation_line(found, 0.5)
+    assert line.startswith("no one mirror's tilts: the best, M4 ") and "leaves 4.45 px" in line
+    good = [Explanation("m3", (0.0, 0.06), 0.05)]
+    assert explanation_line(good, 0.5).startswith("M3 (a +0.000, b +0.060 deg; leaves 0.05 px)")

@@ -62,7 +62,7 @@ def run(args) -> int:
     elif check.verdict != "cannot judge":       # a refusal is said once, on stderr
         print(f"{check.verdict}: {check.reason}")
         if found:
-            print(f"best explained by {explanation_line(found)}")
+            print(f"best explained by {explanation_line(found, check.tolerance_px)}")
     if check.verdict == "cannot judge":
         print(f"psvs check: cannot judge: {check.reason}", file=sys.stderr)
         return 1

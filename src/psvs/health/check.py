@@ -141,8 +141,9 @@ def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.
         grey.append(g)
     check = judge([frame_tiles(g, rig, near_mm, far_mm) for g in grey], tolerance_px)
     beyond = check.verdict == "drifted" and not np.isfinite(check.uncertainty_px)    # peaks on the reach's edge
-    if check.verdict != "cannot judge" and not beyond:
-        return check
+    too_few = check.verdict == "cannot judge" and check.tiles < MIN_TILES     # twins perhaps beyond the reach
+    if not (beyond or too_few):
+        return check     # judged, or refused on tiles it found within the reach: a wider search adds chance
     wider = judge([frame_tiles(g, rig, near_mm, far_mm, FAR_REACH_DEG) for g in grey], tolerance_px)
     if wider.verdict != "cannot judge":
         return wider                                                # twins beyond the usual reach, found
@@ -160,6 +161,7 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX, scenes: l
     ok = np.concatenate([t.accepted for t in tiles])
     scene = range(len(tiles)) if scenes is None else scenes
     frame_of = np.concatenate([np.full(len(t.accepted), k) for k, t in zip(scene, tiles, strict=True)])[ok]
+    frame_no = np.concatenate([np.full(len(t.accepted), k) for k, t in enumerate(tiles)])[ok]
     edge = int(np.concatenate([t.at_edge for t in tiles]).sum())
     centre = np.concatenate([t.centre_px for t in tiles])[ok]
     offset = np.concatenate([t.offset_px for t in tiles])[ok]
@@ -196,13 +198,9 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX, scenes: l
     A = field_basis(centre, t0.grid_shape)
     coef, inliers, scatter = _robust_fit(A, offset)
     n = int(inliers.sum())
-    if n < MIN_TILES or scatter > MAX_SCATTER_PX or n < MIN_CONSISTENT * len(offset):
-        return HealthCheck("cannot judge", f"the {len(offset)} tiles above chance disagree with any smooth field "
-                           f"(scatter {scatter:.2f} px, {n} consistent): the frames do not show one rig's twins; "
-                           f"frames of a still, textured scene are needed", **found)
-    regions = covered_regions(centre[inliers], places)
-    if regions < MIN_REGIONS:
-        return _bunched(n, regions, found)
+    refused = _not_one_field(A, inliers, scatter, frame_no, places, found)
+    if refused is not None:
+        return refused
     fitted = A @ coef
     at = fitted[inliers]
     overlap, repeat = evidence_factors(centre[inliers], frame_of[inliers], offset[inliers] - at, t0.size_px)
@@ -242,6 +240,53 @@ def evidence_factors(centres_px: np.ndarray, scene: np.ndarray, residuals_px: np
     same place's errors repeat in a still scene and count once)."""
     n = len(residuals_px)
     return n / independent_tiles(centres_px, scene, size_px), repeat_factor(centres_px, residuals_px)
+
+
+def _not_one_field(A: np.ndarray, inliers: np.ndarray, scatter: float, frame: np.ndarray, places: np.ndarray,
+                   found: dict) -> HealthCheck | None:
+    """``cannot judge`` when the fitted field (basis rows A (n, 6) of the tiles ``found['centre_px']``, their
+    offsets ``found['offset_px']``, its ``inliers`` and ``scatter`` px, ``frame`` (n,) each tile's frame) is
+    not the tiles' one field: too few or too scattered on it, a second field among those left out
+    (:func:`_another_field`), or its tiles bunched in fewer than :data:`MIN_REGIONS` of the frame's ninths
+    (``places`` (m, 2)). None: it is."""
+    n, m = int(inliers.sum()), len(inliers)
+    if n < MIN_TILES or scatter > MAX_SCATTER_PX or n < MIN_CONSISTENT * m:
+        return HealthCheck("cannot judge", f"the {m} tiles above chance disagree with any smooth field (scatter "
+                           f"{scatter:.2f} px, {n} consistent): the frames do not show one rig's twins; frames of "
+                           "a still, textured scene are needed", **found)
+    apart = _another_field(A, inliers, frame, places, found)
+    if apart:
+        return HealthCheck("cannot judge", f"the tiles above chance hold two fields: {apart}: frames of one rig, "
+                           "as it stands now, are needed", **found)
+    regions = covered_regions(found["centre_px"][inliers], places)
+    return _bunched(n, regions, found) if regions < MIN_REGIONS else None
+
+
+def _another_field(A: np.ndarray, inliers: np.ndarray, frame: np.ndarray, places: np.ndarray, found: dict) -> str:
+    """What says the tiles (:func:`_not_one_field`'s) hold a second field the fit left out ('' none): a whole
+    frame (:data:`MIN_TILES` or more tiles over :data:`MIN_REGIONS` of its ninths) whose tiles mostly lie off
+    the field (a frame of the rig before or after a knock, or of another rig, beside the others), or left-out
+    tiles (a quarter of them all and :data:`MIN_TILES` or more) that mostly lie on one smooth field of their
+    own, apart from the fitted one by more than the tolerance. Wrong tiles scatter; a moved rig's lie on a
+    field."""
+    y, centre, tolerance_px = found["offset_px"], found["centre_px"], found["tolerance_px"]
+    for k in np.unique(frame):
+        at = frame == k
+        whole = at.sum() >= MIN_TILES and covered_regions(centre[at], places) >= MIN_REGIONS
+        if whole and inliers[at].mean() < MIN_CONSISTENT:
+            return (f"{int((~inliers[at]).sum())} of frame {int(k) + 1}'s {int(at.sum())} tiles lie off the field "
+                    f"the others hold")
+    out = ~inliers
+    if out.sum() < max(MIN_TILES, 0.25 * len(y)):
+        return ""
+    coef, on, scatter = _robust_fit(A[out], y[out])
+    if on.mean() < 0.8 or scatter > MAX_SCATTER_PX:
+        return ""
+    main = np.linalg.lstsq(A[inliers], y[inliers], rcond=None)[0]
+    gap = float(np.sqrt(np.mean((A[out][on] @ (coef - main)) ** 2)))
+    if gap <= tolerance_px:
+        return ""
+    return f"{int(on.sum())} tiles left out lie on a field of their own, {gap:.2f} px RMS apart"
 
 
 def _bunched(n: int, regions: int, found: dict) -> HealthCheck:

@@ -94,12 +94,16 @@ def explain_drift(check: HealthCheck, rig: Rig, near_mm: float = 400.0, far_mm: 
     return explain_offsets(check, rig, near_mm, far_mm) if check.verdict == "drifted" else []
 
 
-def explanation_line(found: list[Explanation]) -> str:
+def explanation_line(found: list[Explanation], tolerance_px: float | None = None) -> str:
     """One line: the best-explaining mirror(s) and their tilts, e.g. "m3 (a +0.00, b +0.06 deg; leaves
-    0.05 px), as well: m1 (...)"."""
+    0.05 px), as well: m1 (...)"; when even the best leaves more than ``tolerance_px`` of the field, that no
+    one mirror explains it (naming one would be a guess)."""
     if not found:
         return "no mirror named: nothing judged"
     text = lambda e: (f"{e.mirror.upper()} (a {e.tilt_deg[0]:+.3f}, b {e.tilt_deg[1]:+.3f} deg; leaves "  # noqa: E731
                       f"{e.residual_px:.2f} px)")
+    if tolerance_px is not None and found[0].residual_px > tolerance_px:
+        return (f"no one mirror's tilts: the best, {text(found[0])}, leaves more than the {tolerance_px:g} px "
+                "tolerance (several mirrors or the box moved, or frames of another rig)")
     same = [e for e in found[1:] if e.residual_px <= found[0].residual_px + SAME_PX]
     return text(found[0]) + ("" if not same else "; the rows cannot tell it from " + ", ".join(map(text, same)))

@@ -27,5 +27,5 @@ def check(body: CheckBody, session: SessionDep):
     return result.as_dict() | {
         "image": still.name,
         "explained_by": [e.as_dict() for e in explained],
-        "explanation": explanation_line(explained) if explained else "",
+        "explanation": explanation_line(explained, result.tolerance_px) if explained else "",
         "map_png": picture}
