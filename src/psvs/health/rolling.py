@@ -9,7 +9,9 @@ measured as they run; the grids' maps are made once, before the first), its time
 over a run the check costs at most that share of the sensor's time, give or take one step. The tiles of the
 last sweep (one per place of the field; older ones are dropped, so a rig that moves is seen within a sweep)
 are judged together as ``psvs check`` judges a frame's (:func:`psvs.health.check.judge`): the same field,
-uncertainty and verdict, ``cannot judge`` until enough tiles are in.
+uncertainty and verdict, ``cannot judge`` until enough tiles are in. The steps' frames of a scene that stood
+still between them (:meth:`RollingCheck.scene_of`: their band-passed thumbnails correlate) are one view of
+it: a tile's neighbour read in the next frame shares its texture, and their evidence is counted once.
 """
 from __future__ import annotations
 
