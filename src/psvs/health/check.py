@@ -159,9 +159,8 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX, scenes: l
     frame its own)."""
     t0 = tiles[0]
     ok = np.concatenate([t.accepted for t in tiles])
-    scene = range(len(tiles)) if scenes is None else scenes
-    frame_of = np.concatenate([np.full(len(t.accepted), k) for k, t in zip(scene, tiles, strict=True)])[ok]
     frame_no = np.concatenate([np.full(len(t.accepted), k) for k, t in enumerate(tiles)])[ok]
+    frame_of = frame_no if scenes is None else np.asarray(scenes)[frame_no]
     edge = int(np.concatenate([t.at_edge for t in tiles]).sum())
     centre = np.concatenate([t.centre_px for t in tiles])[ok]
     offset = np.concatenate([t.offset_px for t in tiles])[ok]
@@ -193,12 +192,13 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX, scenes: l
                            f"{MIN_TILES}): frames of a textured scene filling more of the field, over the working "
                            f"range, are needed", **found)
     places = t0.places_px if t0.places_px is not None and len(t0.places_px) else _grid_corners(t0.grid_shape)
-    if covered_regions(centre, places) < MIN_REGIONS:
-        return _bunched(len(offset), covered_regions(centre, places), found)
+    regions = covered_regions(centre, places)
+    if regions < MIN_REGIONS:
+        return _bunched(len(offset), regions, found)
     A = field_basis(centre, t0.grid_shape)
     coef, inliers, scatter = _robust_fit(A, offset)
     n = int(inliers.sum())
-    refused = _not_one_field(A, inliers, scatter, frame_no, places, found)
+    refused = _not_one_field(A, coef, inliers, scatter, frame_no, places, found)
     if refused is not None:
         return refused
     fitted = A @ coef
@@ -242,10 +242,11 @@ def evidence_factors(centres_px: np.ndarray, scene: np.ndarray, residuals_px: np
     return n / independent_tiles(centres_px, scene, size_px), repeat_factor(centres_px, residuals_px)
 
 
-def _not_one_field(A: np.ndarray, inliers: np.ndarray, scatter: float, frame: np.ndarray, places: np.ndarray,
-                   found: dict) -> HealthCheck | None:
+def _not_one_field(A: np.ndarray, coef: np.ndarray, inliers: np.ndarray, scatter: float, frame: np.ndarray,
+                   places: np.ndarray, found: dict) -> HealthCheck | None:
     """``cannot judge`` when the fitted field (basis rows A (n, 6) of the tiles ``found['centre_px']``, their
-    offsets ``found['offset_px']``, its ``inliers`` and ``scatter`` px, ``frame`` (n,) each tile's frame) is
+    offsets ``found['offset_px']``; its ``coef`` (6,), ``inliers`` and ``scatter`` px; ``frame`` (n,) each
+    tile's frame) is
     not the tiles' one field: too few or too scattered on it, a second field among those left out
     (:func:`_another_field`), or its tiles bunched in fewer than :data:`MIN_REGIONS` of the frame's ninths
     (``places`` (m, 2)). None: it is."""
@@ -254,7 +255,7 @@ def _not_one_field(A: np.ndarray, inliers: np.ndarray, scatter: float, frame: np
         return HealthCheck("cannot judge", f"the {m} tiles above chance disagree with any smooth field (scatter "
                            f"{scatter:.2f} px, {n} consistent): the frames do not show one rig's twins; frames of "
                            "a still, textured scene are needed", **found)
-    apart = _another_field(A, inliers, frame, places, found)
+    apart = _another_field(A, coef, inliers, frame, places, found)
     if apart:
         return HealthCheck("cannot judge", f"the tiles above chance hold two fields: {apart}: frames of one rig, "
                            "as it stands now, are needed", **found)
@@ -262,7 +263,8 @@ def _not_one_field(A: np.ndarray, inliers: np.ndarray, scatter: float, frame: np
     return _bunched(n, regions, found) if regions < MIN_REGIONS else None
 
 
-def _another_field(A: np.ndarray, inliers: np.ndarray, frame: np.ndarray, places: np.ndarray, found: dict) -> str:
+def _another_field(A: np.ndarray, main: np.ndarray, inliers: np.ndarray, frame: np.ndarray, places: np.ndarray,
+                   found: dict) -> str:
     """What says the tiles (:func:`_not_one_field`'s) hold a second field the fit left out ('' none): a whole
     frame (:data:`MIN_TILES` or more tiles over :data:`MIN_REGIONS` of its ninths) whose tiles mostly lie off
     the field (a frame of the rig before or after a knock, or of another rig, beside the others), or left-out
@@ -282,7 +284,6 @@ def _another_field(A: np.ndarray, inliers: np.ndarray, frame: np.ndarray, places
     coef, on, scatter = _robust_fit(A[out], y[out])
     if on.mean() < 0.8 or scatter > MAX_SCATTER_PX:
         return ""
-    main = np.linalg.lstsq(A[inliers], y[inliers], rcond=None)[0]
     gap = float(np.sqrt(np.mean((A[out][on] @ (coef - main)) ** 2)))
     if gap <= tolerance_px:
         return ""
