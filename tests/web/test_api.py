@@ -99,6 +99,19 @@ def test_automatic_matching_of_noise_answers_no_pair_and_says_chance(client):
     assert strongest <= level
 
 
+def test_automatic_matching_of_twins_off_their_rows_says_so(client):
+    """Two bright ellipses and their twins 150 px left, 4 rows lower (a knocked mirror's view): the page gets
+    no pair, not answered, and the row check's sentence naming the shift."""
+    img = np.full((480, 640), 30, np.uint8)
+    for (u, v), axes in (((420, 180), (40, 25)), ((460, 330), (30, 45))):
+        cv2.ellipse(img, (u, v), axes, 0, 0, 360, 200, -1)
+        cv2.ellipse(img, (u - 150, v + 4), axes, 0, 0, 360, 200, -1)
+    assert client.post("/api/upload", content=cv2.imencode(".png", img)[1].tobytes(), headers=PNG).status_code == 200
+    res = client.post("/api/match", json={"seed": None}).json()
+    assert res["pairs"] == [] and res["chance"]["answered"] is False, res["chance"]
+    assert "+4 rows off the rig's rows" in res["chance"]["text"], res["chance"]["text"]
+
+
 def test_upload_replaces_the_image(client):
     img = np.full((480, 640), 30, np.uint8)
     cv2.rectangle(img, (100, 200), (160, 260), 220, -1)

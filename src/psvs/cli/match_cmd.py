@@ -94,6 +94,8 @@ def refuse_unanswered(res, seeded: bool) -> None:
     if res.pairs:
         return
     what = "the seed's edge has no twin" if seeded else "no edge pairs with a twin"
+    if res.rows is not None and res.rows.refuses:
+        raise MeasurementError(f"{what} on the rig's rows: {res.rows.describe()}")
     if not res.chance.answered:
         raise MeasurementError(f"{what} beyond chance: {res.chance.describe()}")
     lo, hi = res.disparity_range_px

@@ -25,6 +25,7 @@ from psvs.match.chance import Chance, NullCandidates, chance_level, null_bands, 
 from psvs.match.edges import EdgePixels, edge_pixels, row_votes
 from psvs.match.grey_steps import polarity, step_image, twin_step_seen
 from psvs.match.pairs import EdgePair, grow_pairs
+from psvs.match.rows import RowCheck, row_shift, shift_counts
 
 
 @dataclass(frozen=True)
@@ -99,12 +100,14 @@ class Unmatched:
 class AutoMatch:
     """Result of :func:`match_auto`: ``pairs`` (integer pixel pairs, strongest first), ``unmatched`` edges
     (complex-image boxes), the labelled edge ``pixels`` and how the candidates stood against ``chance``
-    (:class:`psvs.match.chance.Chance`; no pair when it is not ``answered``)."""
+    (:class:`psvs.match.chance.Chance`; no pair when it is not ``answered``), and what the pairs said of the
+    rig's rows (:class:`psvs.match.rows.RowCheck`; no pair when it ``refuses``)."""
 
     pairs: list[EdgePair]
     unmatched: list[Unmatched]
     pixels: EdgePixels
     chance: Chance
+    rows: RowCheck
 
 
 @dataclass(frozen=True, eq=False)
@@ -157,6 +160,8 @@ class Claims:
         Pixels known to belong to the left (0) or the right (1) view, column u at u + ``pad``.
     pairs : list of EdgePair
         The pairs accepted, in order.
+    rows : RowCheck
+        The accepted pairs that decisively sit on the rig's rows, and the candidates refused as off them.
     """
 
     def __init__(self, ev: Evidence, pad: int):
@@ -166,6 +171,7 @@ class Claims:
         self.explained = np.zeros(n, dtype=bool)
         self.claimed = np.zeros((2, ev.px.shape[0], ev.px.shape[1] + 2 * pad), dtype=bool)
         self.pairs: list[EdgePair] = []
+        self.rows = RowCheck()
 
     def free_of(self, label: int) -> np.ndarray:
         """Mask (N,) of the free pixels of component ``label``."""
@@ -200,7 +206,7 @@ class Claims:
             if right is None:
                 right = np.flatnonzero(self.free_of(c.j))
         li, ri = grow_pairs(px, left_set, right[~in_kept[right]], c.d, prm.tol_px, polarity=ev.polarity)
-        if len(li) < prm.min_rows:
+        if len(li) < prm.min_rows or not self._on_rows(c, left_set, right):
             return False
         left_px = np.column_stack([a[li] for a in px.left_uv]).astype(float)
         right_px = np.column_stack([a[ri] for a in px.right_uv]).astype(float)
@@ -211,6 +217,21 @@ class Claims:
         self.claim(ri, 1)
         if ev.polarity is not None and c.i != c.j:
             self._explain_leftovers(c, ri)
+        return True
+
+    def _on_rows(self, c: Candidate, left: np.ndarray, right: np.ndarray) -> bool:
+        """Whether the twin of left pixels ``left`` among right pixels ``right`` at disparity ``c.d`` may lie
+        on the rig's rows (:mod:`psvs.match.rows`): False, and recorded, when it decisively lies off them. A
+        merged outline (both views in one component) is not judged."""
+        if c.i == c.j:
+            return True
+        px = self.ev.px
+        rs = row_shift(shift_counts(tuple(a[left] for a in px.left_uv), tuple(a[right] for a in px.right_uv), c.d),
+                       self.ev.params.min_rows)
+        if rs.verdict == "off":
+            self.rows.off.append((float(c.d), rs))
+            return False
+        self.rows.fits += rs.verdict == "fit"
         return True
 
     def _explain_leftovers(self, c: Candidate, ri: np.ndarray) -> None:
@@ -545,7 +566,8 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], *, pa
     if chance.answered:
         later = _first_pass(ev, claims, cands, chance)
         _second_pass(ev, claims, later, chance)
-    return AutoMatch(claims.pairs, _unmatched(ev.px, claims), ev.px, chance)
+    pairs = [] if claims.rows.refuses else claims.pairs
+    return AutoMatch(pairs, _unmatched(ev.px, claims), ev.px, chance, claims.rows)
 
 
 def image_chance(edges: np.ndarray, disparity_range_px: tuple[float, float], *, params: AutoParams = AutoParams(),

@@ -16,7 +16,9 @@ from psvs._validate import check_grey
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.auto import AutoParams, Unmatched, image_chance, match_auto
 from psvs.match.chance import Chance
+from psvs.match.edges import edge_pixels
 from psvs.match.pairs import EdgePair
+from psvs.match.rows import RowCheck, check_pair
 from psvs.match.seeded import match_seeded
 from psvs.match.subpixel import refine_pairs
 from psvs.measure.triangulate import MODELS, default_model, triangulate, twin_rows
@@ -64,7 +66,9 @@ class MatchResult:
     """pairs (with points_mm), unmatched edges (automatic mode), the edge map (H, W) bool, the disparity
     range used (px), the pipeline's stages [(op, image)] and how the twins stood against chance
     (:class:`psvs.match.chance.Chance`: whether the image holds twins at all, asked in either mode; no pair
-    when it is not ``answered``)."""
+    when it is not ``answered``), and what the pairs said of the rig's rows
+    (:class:`psvs.match.rows.RowCheck`, of the seed's pair from a seed; no pair when it ``refuses``; None
+    when there was no pair to check)."""
 
     pairs: list[EdgePair]
     unmatched: list[Unmatched]
@@ -72,6 +76,7 @@ class MatchResult:
     disparity_range_px: tuple[float, float]
     stages: list
     chance: Chance
+    rows: RowCheck | None = None
 
 
 def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
@@ -148,12 +153,16 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     if seed_px is not None:
         pair = match_seeded(edges, seed_px, rng, n_seeds=params.n_seeds, rect=rect)
         chance = image_chance(edges, rng, params=params.auto, grey=grey, rect=rect)
-        pairs, unmatched = ([pair] if len(pair) and chance.answered else []), []
+        rows = None
+        if len(pair) and chance.answered:
+            rows = check_pair(pair.left_px, edge_pixels(edges, rect), pair.shape_disparity_px,
+                              params.auto.min_rows)
+        pairs, unmatched = ([pair] if rows is not None and not rows.refuses else []), []
     else:
         auto = match_auto(edges, rng, params=params.auto, grey=grey, rect=rect)
-        pairs, unmatched, chance = auto.pairs, auto.unmatched, auto.chance
+        pairs, unmatched, chance, rows = auto.pairs, auto.unmatched, auto.chance, auto.rows
     finished = finish_pairs(grey, pairs, rig, subpixel=params.subpixel, model=params.model, rect=rect)
-    return MatchResult(finished, unmatched, edges, rng, stages, chance)
+    return MatchResult(finished, unmatched, edges, rng, stages, chance, rows)
 
 
 def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel: bool = True,

@@ -51,7 +51,8 @@ def snap_seed(grey: np.ndarray, pipeline: Pipeline, seed: tuple[float, float], r
 def match(body: MatchBody, session: SessionDep):
     """The paper's algorithm from a double-clicked point (snapped to the nearest edge pixel within
     :func:`snap_px` of the rig), or automatic pairing of every edge when no seed is given, with how its twins
-    stood against chance (``chance`` {answered, text}). The result is kept for the exports unless the image
+    stood against chance (``chance`` {answered, text}; not answered, and why, when the pairs stand off the rig's
+    rows: :mod:`psvs.match.rows`). The result is kept for the exports unless the image
     was replaced while it was computed."""
     still, pipeline = session.still(), body.pipeline()
     rig = session.rig
@@ -60,7 +61,9 @@ def match(body: MatchBody, session: SessionDep):
     res = match_image(still.grey, rig, seed_px=seed, pipeline=pipeline, near_mm=body.near_mm,
                       far_mm=body.far_mm, params=body.params())
     session.keep_result(res, still.generation)
-    chance = {"answered": res.chance.answered, "text": res.chance.describe()}
+    off_rows = res.rows is not None and res.rows.refuses       # the twins stand off the rig's rows
+    chance = {"answered": res.chance.answered and not off_rows,
+              "text": res.rows.describe() if off_rows else res.chance.describe()}
     return {"seed_px": seed, **result_to_dict(res, decimals=4), "chance": chance}
 
 
