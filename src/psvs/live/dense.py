@@ -10,8 +10,13 @@ of the points to log and send.
 Every answer is tested against chance (docs/right-or-refuse.md), at camera rate too: the first frame's maps
 get the echo test of ``psvs disparity`` (:func:`psvs.dense.build.rig_trust`), and then every
 :data:`TRUST_EVERY`-th frame's (a second at 30 frames/s; the test costs about ten fast maps; counted in frames,
-so a video gives the same answers however fast the machine); until a test finds the scene's echo again, a
-frame has no depth (no points, median NaN; its map is kept). A video of noise gives no depth.
+so a video gives the same answers however fast the machine). A frame's cloud and median hold only the pixels
+the latest test supported whose answer stays within :data:`HELD_PX` of the tested one as the scene's motion
+moves it (:meth:`DenseSensor._held`), not every answered pixel: on a textureless backdrop the map answers
+noise (Fig. 5b's median wandered 730-811 mm over 40 noisy frames, its objects at 690-720 mm; now 694-695 mm).
+A frame where fewer than :data:`HELD_SHARE` of them hold (the scene changed) is tested at once. Until a test
+finds the scene's echo again, a frame has no depth (no points, median NaN; its map is kept). A
+video of noise gives no depth.
 """
 from __future__ import annotations
 
@@ -29,6 +34,13 @@ from psvs.optics.rig import Rig
 #: The echo test (whether the scene's echo stands above chance) is made on the first frame and then on every
 #: this many-th.
 TRUST_EVERY = 30
+#: px: a pixel the latest echo test supported keeps that support while its answer stays within this of the
+#: answer tested (the echo test's own tolerance at full resolution, psvs.dense.trust.TOL_PX); moved further,
+#: the scene there changed, and the pixel waits for the next test.
+HELD_PX = 1.5
+#: When fewer than this share of the latest test's supported pixels hold (the scene moved), the frame is
+#: tested again at once.
+HELD_SHARE = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,10 +50,10 @@ class DenseFrame:
     ``points_mm`` (N, 3) and ``pixels`` (N, 2) (u, v on the map's grid) of the strided cloud, and
     ``depth_mm`` its depth on the strided grid (every ``stride``-th pixel of the map, NaN where no point);
     ``median_z_mm`` (NaN with no point), ``answered_pct`` (% of the map's pixels with a disparity, 0 when not
-    ``supported``), the processing time ``elapsed_s`` and ``supported``: whether the latest echo test found the
-    scene's echo beyond chance (without it, no points, no depth and nothing answered: the map's disparities
-    are then no measurement); ``mapped``: whether the map holds any disparity at all (a featureless frame:
-    none)."""
+    ``supported``, as ``psvs disparity`` counts them), the processing time ``elapsed_s`` and
+    ``supported``: whether the latest echo test found the scene's echo beyond chance (without it, no points,
+    no depth and nothing answered: the map's disparities are then no measurement); ``mapped``: whether the
+    map holds any disparity at all (a featureless frame: none)."""
 
     frame: int
     disparity_px: np.ndarray
@@ -91,6 +103,30 @@ class DenseSensor:
         self.frames = 0
         self._workspace = Workspace()     # the cost volumes, reused frame after frame
         self._supported = False
+        self._trusted: np.ndarray | None = None     # the last echo test's trusted pixels of the left map
+        self._tested: np.ndarray | None = None      # ... and their disparities then (NaN elsewhere)
+
+    def _held(self, d: np.ndarray) -> np.ndarray | None:
+        """(H', W') bool: the pixels the latest echo test supported whose answer in map ``d`` stays within
+        :data:`HELD_PX` of the one tested, as the scene's motion since moves it (a support holds for the answer
+        it was given); None before a test. The motion: d = a + b d_tested over those pixels, fitted by least
+        squares and refitted twice on the pixels within :data:`HELD_PX` of it (a move in depth scales every
+        disparity; a lateral one barely changes them)."""
+        if self._trusted is None or self._trusted.shape != d.shape:
+            return None
+        tested = self._tested
+        both = self._trusted & np.isfinite(d)
+        x, y = tested[both].astype(np.float64), d[both].astype(np.float64)
+        a, b = 0.0, 1.0
+        for _ in range(3):
+            if len(x) < 3 or np.ptp(x) < 1e-6:
+                a, b = (float(np.median(y - x)) if len(x) else 0.0), 1.0
+            else:
+                b, a = np.polyfit(x, y, 1)
+            keep = np.abs(y - (a + b * x)) <= HELD_PX
+            x, y = x[keep], y[keep]
+        with np.errstate(invalid="ignore"):
+            return self._trusted & (np.abs(d - (a + b * tested)) <= HELD_PX)
 
     def step(self, frame) -> DenseFrame:
         """The dense disparity and strided cloud of ``frame`` (H, W) grey."""
@@ -100,11 +136,15 @@ class DenseSensor:
             dense = dense_on_rig(frame, self.rig, self.near_mm, self.far_mm, params=self.params,
                                  workspace=self._workspace)
         d = dense.result.disparity_left
-        if self.frames % TRUST_EVERY == 0:
-            self._supported = rig_trust(dense).count > 0
+        held = self._held(d)
+        if self.frames % TRUST_EVERY == 0 or held is None or held.sum() < HELD_SHARE * self._trusted.sum():
+            self._trusted = rig_trust(dense).trusted_left       # due, or the scene changed: tested again
+            self._tested = np.where(self._trusted, d, np.nan)
+            self._supported = bool(self._trusted.any())
+            held = self._trusted
         grid = (slice(self.stride // 2, None, self.stride),) * 2
         mask = np.zeros(d.shape, bool)
-        mask[grid] = self._supported
+        mask[grid] = held[grid]
         cloud = rig_cloud(dense, self.rig, mask=mask)
         z = cloud.points_mm[:, 2]
         finite = np.isfinite(d)

@@ -75,13 +75,13 @@ def live_dense(session: SessionDep):
 @router.get("/cloud")
 def live_cloud(session: SessionDep):
     """The latest dense frame's point cloud (frame C, mm, rounded to 0.01; at most CLOUD_POINTS of its points,
-    evenly): ``frame``, ``points_mm``, ``of_points``. Live mode's points are every answered pixel of its strided
-    grid, not tested against chance pixel by pixel as a still's are (``tested`` false): the scene's echo is, every
-    30th frame (:mod:`psvs.live.dense`: none without it). 404 before the first dense frame."""
+    evenly): ``frame``, ``points_mm``, ``of_points``. Live mode's points are the pixels of its strided grid that its
+    latest echo test (every 30th frame) supported beyond chance and whose answer has held since
+    (:mod:`psvs.live.dense`: none without the scene's echo; ``tested`` true). 404 before the first dense frame."""
     d = session.live.dense()
     if d is None:
         return JSONResponse({"detail": "no dense frame yet: start live with dense"}, status_code=404)
     k = even_subset(len(d.points_mm))
     return {"frame": d.frame, "points_mm": np.round(d.points_mm[k], 2).tolist(), "of_points": len(d.points_mm),
-            "tested": False}
+            "tested": True}
 

@@ -155,8 +155,8 @@ async function liveCloud(frame) {
   try {
     const c = await api("/api/live/cloud");
     await drawCloud3d($("live-cloud"), c, "depth", "live-cloud-note",
-                      `of frame ${c.frame} (every answered pixel of live mode's grid, not tested against chance pixel by pixel; ` +
-                      "the scene's echo is, every 30th frame)");
+                      `of frame ${c.frame} (the pixels of live mode's grid the echo test supported beyond chance, ` +
+                      "tested every 30th frame, whose answer has held since)");
     $("live-cloud").dataset.frame = String(c.frame);
   } catch (e) { $("live-cloud-note").textContent = "live cloud: " + e.message; }
 }

@@ -157,7 +157,7 @@ function cloudFrameAxes(q) {
 // A dense result's point cloud (frame C, mm), coloured by depth with a colour bar, with the camera's centre O
 // and frame C's axes;
 // an empty cloud clears the view and says so. ``what`` says what its points are (a still's: the trusted pixels',
-// supported beyond chance; live mode's: every answered pixel, untested), in the note ``noteId``.
+// supported beyond chance; live mode's: those its latest echo test supported, held since), in the note ``noteId``.
 function drawCloud3d(el, cloud, colour = "depth", noteId = "dense-cloud-note", what = "supported beyond chance") {
   el.hidden = false;
   if (typeof Plotly === "undefined") return Promise.resolve();
