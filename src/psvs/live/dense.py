@@ -11,12 +11,12 @@ Every answer is tested against chance (docs/right-or-refuse.md), at camera rate 
 get the echo test of ``psvs disparity`` (:func:`psvs.dense.build.rig_trust`), and then every
 :data:`TRUST_EVERY`-th frame's (a second at 30 frames/s; the test costs about ten fast maps; counted in frames,
 so a video gives the same answers however fast the machine). A frame's cloud and median hold only the pixels
-the latest test supported whose answer stays within :data:`HELD_PX` of the tested one as the scene's motion
-moves it (:meth:`DenseSensor._held`), not every answered pixel: on a textureless backdrop the map answers
-noise (Fig. 5b's median wandered 730-811 mm over 40 noisy frames, its objects at 690-720 mm; now 694-695 mm).
-A frame where fewer than :data:`HELD_SHARE` of them hold (the scene changed) is tested at once. Until a test
-finds the scene's echo again, a frame has no depth (no points, median NaN; its map is kept). A
-video of noise gives no depth.
+the latest test supported whose answer has moved continuously since, frame to frame, with the scene's motion
+(:meth:`DenseSensor._held`), not every answered pixel: on a textureless backdrop the map answers noise (Fig.
+5b's median wandered 730-811 mm over 40 noisy frames, its objects at 690-720 mm; now 693-695 mm). A frame
+where fewer than :data:`HELD_SHARE` of them hold (the scene changed) is tested at once. Until a test finds the
+scene's echo again, a frame has no depth (no points, median NaN; its map is kept). A video of noise gives no
+depth.
 """
 from __future__ import annotations
 
@@ -34,13 +34,23 @@ from psvs.optics.rig import Rig
 #: The echo test (whether the scene's echo stands above chance) is made on the first frame and then on every
 #: this many-th.
 TRUST_EVERY = 30
-#: px: a pixel the latest echo test supported keeps that support while its answer stays within this of the
-#: answer tested (the echo test's own tolerance at full resolution, psvs.dense.trust.TOL_PX); moved further,
-#: the scene there changed, and the pixel waits for the next test.
+#: px: a pixel the latest echo test supported keeps that support while its answer stays, frame to frame,
+#: within this (or :data:`MOTION_SPREAD`'s tolerance, if larger) of the previous frame's as the scene's motion
+#: moves it (the echo test's own tolerance, psvs.dense.trust.TOL_PX); moved further, the scene there changed,
+#: and the pixel waits for the next test.
 HELD_PX = 1.5
 #: When fewer than this share of the latest test's supported pixels hold (the scene moved), the frame is
 #: tested again at once.
 HELD_SHARE = 0.5
+#: The most pixels the motion between two frames is fitted on (evenly chosen among the held ones).
+FIT_PIXELS = 20000
+#: A held answer's move may stand this many robust spreads (1.4826 MAD) of the moves of all held answers off
+#: the scene's motion (and :data:`HELD_PX` always): a fast move spreads the moves of answers that are right.
+MOTION_SPREAD = 3.0
+#: px: a tolerance beyond this means no smooth motion explains the answers' moves (a cut to another scene
+#: spread them by 19 px; the textured scene moving 7.5 mm a frame at 1100 mm on mv1440_misaligned, 1.9-3.1 px):
+#: nothing is held.
+MAX_MOVE_SPREAD_PX = 4.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,29 +114,37 @@ class DenseSensor:
         self._workspace = Workspace()     # the cost volumes, reused frame after frame
         self._supported = False
         self._trusted: np.ndarray | None = None     # the last echo test's trusted pixels of the left map
-        self._tested: np.ndarray | None = None      # ... and their disparities then (NaN elsewhere)
+        self._held_mask: np.ndarray | None = None   # ... those still held in the previous frame
+        self._previous: np.ndarray | None = None    # the previous frame's map
 
     def _held(self, d: np.ndarray) -> np.ndarray | None:
-        """(H', W') bool: the pixels the latest echo test supported whose answer in map ``d`` stays within
-        :data:`HELD_PX` of the one tested, as the scene's motion since moves it (a support holds for the answer
-        it was given); None before a test. The motion: d = a + b d_tested over those pixels, fitted by least
-        squares and refitted twice on the pixels within :data:`HELD_PX` of it (a move in depth scales every
-        disparity; a lateral one barely changes them)."""
+        """(H', W') bool: the pixels the latest echo test supported whose answer has moved continuously since,
+        frame to frame, with the scene (a support holds for the answer it was given and what that answer
+        smoothly became; where the map answers noise, answers jump); None before a test.
+
+        The scene's motion: d = c0 + c1 d' + c2 d'^2 from the previous frame's d' (a move in depth changes a
+        disparity by about its square; a lateral move barely changes it), fitted by least squares on at most
+        :data:`FIT_PIXELS` of the held pixels, and refitted twice on those within the tolerance: the larger of
+        :data:`HELD_PX` and :data:`MOTION_SPREAD` robust spreads of their moves about it; none when that
+        exceeds :data:`MAX_MOVE_SPREAD_PX`."""
         if self._trusted is None or self._trusted.shape != d.shape:
             return None
-        tested = self._tested
-        both = self._trusted & np.isfinite(d)
-        x, y = tested[both].astype(np.float64), d[both].astype(np.float64)
-        a, b = 0.0, 1.0
+        prev, held = self._previous, self._held_mask
+        pick = np.flatnonzero(held & np.isfinite(d))
+        pick = pick[:: max(1, len(pick) // FIT_PIXELS)]
+        x, y = prev.ravel()[pick].astype(np.float64), d.ravel()[pick].astype(np.float64)
+        poly = np.polynomial.polynomial
+        coef, tol = np.array([0.0, 1.0, 0.0]), HELD_PX
         for _ in range(3):
-            if len(x) < 3 or np.ptp(x) < 1e-6:
-                a, b = (float(np.median(y - x)) if len(x) else 0.0), 1.0
-            else:
-                b, a = np.polyfit(x, y, 1)
-            keep = np.abs(y - (a + b * x)) <= HELD_PX
-            x, y = x[keep], y[keep]
+            if len(x) > 10 and np.ptp(x) > 1e-6:
+                coef = poly.polyfit(x, y, 2)
+            res = np.abs(y - poly.polyval(x, coef))
+            tol = max(HELD_PX, MOTION_SPREAD * 1.4826 * float(np.median(res))) if len(res) else HELD_PX
+            x, y = x[res <= tol], y[res <= tol]
+        if tol > MAX_MOVE_SPREAD_PX:                # no smooth motion explains the moves: another scene
+            return np.zeros(d.shape, bool)
         with np.errstate(invalid="ignore"):
-            return self._trusted & (np.abs(d - (a + b * tested)) <= HELD_PX)
+            return held & (np.abs(d - poly.polyval(prev, coef)) <= tol)
 
     def step(self, frame) -> DenseFrame:
         """The dense disparity and strided cloud of ``frame`` (H, W) grey."""
@@ -139,9 +157,9 @@ class DenseSensor:
         held = self._held(d)
         if self.frames % TRUST_EVERY == 0 or held is None or held.sum() < HELD_SHARE * self._trusted.sum():
             self._trusted = rig_trust(dense).trusted_left       # due, or the scene changed: tested again
-            self._tested = np.where(self._trusted, d, np.nan)
             self._supported = bool(self._trusted.any())
             held = self._trusted
+        self._previous, self._held_mask = d, held
         grid = (slice(self.stride // 2, None, self.stride),) * 2
         mask = np.zeros(d.shape, bool)
         mask[grid] = held[grid]
