@@ -12,7 +12,8 @@ from psvs import default_rig
 from psvs.io.params import load_rig
 from psvs.io.scene_file import load_scene
 from psvs.simulate.builtin import builtin_scene
-from psvs.simulate.render import render, view_rays
+from psvs.simulate.radiance import view_rays
+from psvs.simulate.render import render
 
 SCENES = Path(__file__).resolve().parents[1] / "examples" / "scenes"
 

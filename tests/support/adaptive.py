@@ -1,132 +1,32 @@
-"""Rendering for the sweep's tests: the renderer's own images, supersampled only where the image is not smooth.
-
-``psvs.simulate.render.render`` traces and shades K x K samples in every pixel of both views. A card on a
-plain backdrop (a calibration view) is smooth over most of the frame, where one sample gives the same
-value; :func:`render_irradiance` with ``adaptive`` spends the K x K samples only on the pixels that need
-them, from the renderer's own cached rays (``psvs.simulate.render.view_rays``), shading (``radiance``) and
-complex image (C = RI ((1 - s) L + s R)): what the images show does not change.
-"""
+"""The sweep's renders: the renderer's images as irradiance (before the sensor), with the share of its samples
+traced, supersampled only where the image is not smooth when asked (:mod:`psvs.simulate.adaptive`, on its
+coarser 4 px grid: the sweep's cards and scenes hold no feature under 9 px)."""
 from __future__ import annotations
-
-import numpy as np
 
 from psvs.simulate.scene import Scene
 
 #: The renderer's supersampling (``render``'s default: 2 x 2 samples a pixel).
 SUPERSAMPLE = 2
-
-
-#: Radiance (1.0 = full well): a pixel whose second difference across it (along a row, a column or a
-#: diagonal, in the one-sample render) exceeds this is not smooth. A grey level is 1/255 = 4e-3, the sensor's
-#: noise at mid-grey 1e-2; the lamp's fall-off over a plain surface makes second differences of about 1e-8.
-SMOOTH_TOL = 1e-5
-#: px: how far beyond a pixel that is not smooth supersampling reaches (a feature between two pixel centres,
-#: e.g. the edge of the field, shows as a step between them).
-ROUGH_REACH_PX = 2
-
-
-def rough_pixels(radiance: np.ndarray, tol: float = SMOOTH_TOL, reach: int = ROUGH_REACH_PX,
-                 border: bool = True) -> np.ndarray:
-    """Mask (H, W) of the pixels of a one-sample radiance image (H, W) that are not smooth (their second
-    difference along a row, a column or a diagonal above ``tol``), grown by ``reach`` px, and with
-    ``border`` the frame's outer ``reach`` px (a feature between a border pixel's centre and its outer edge,
-    such as a build's vignetting, has no pixel beyond it to show a step)."""
-    import cv2
-    f = np.pad(radiance, 1, mode="edge")
-    c = f[1:-1, 1:-1]
-    d2 = np.zeros_like(c)
-    for a, b in (((1, 0), (1, 2)), ((0, 1), (2, 1)), ((0, 0), (2, 2)), ((0, 2), (2, 0))):
-        d2 = np.maximum(d2, np.abs(f[a[0]:a[0] + c.shape[0], a[1]:a[1] + c.shape[1]]
-                                   + f[b[0]:b[0] + c.shape[0], b[1]:b[1] + c.shape[1]] - 2 * c))
-    rough = (d2 > tol).astype(np.uint8)
-    if reach == 0:
-        return rough.astype(bool)
-    if border:                                  # the frame's border: no neighbour beyond it shows a step
-        rough[:reach] = rough[-reach:] = 1
-        rough[:, :reach] = rough[:, -reach:] = 1
-    return cv2.dilate(rough, np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)).astype(bool)
-
-
-#: px: the grid of the one-sample pass's first look (:func:`one_sample`): a feature of a card scene wider
-#: than its diagonal (a disc of 9 px or more, the card, its shadow, the field's border) covers or crosses
-#: one of its points.
-COARSE_STEP_PX = 4
-
-
-def _grid(n: int, step: int) -> np.ndarray:
-    return np.unique(np.r_[np.arange(0, n, step), n - 1])
-
-
-def one_sample(geom, scene: Scene, rays, size_px, step: int = COARSE_STEP_PX, tol: float = SMOOTH_TOL):
-    """One sample a pixel (H, W) of a view (``rays``: its one-sample rays, ``view_rays(rig, 1, view)``), and the
-    share of pixels traced: every ``step``-th pixel first; in full, every cell of that grid with a corner that
-    is not smooth (its second difference along the grid above ``tol``) and the cells beside it; the
-    others, smooth, interpolated bilinearly from their corners (a smooth image's curvature over ``step`` px:
-    about 1e-6 of full well)."""
-    from scipy.ndimage import binary_dilation
-
-    from psvs.optics.trace import Rays
-    from psvs.simulate.render import radiance
-    w, h = size_px
-    ys, xs = _grid(h, step), _grid(w, step)
-    node = (ys[:, None] * w + xs[None, :]).ravel()
-    coarse = radiance(geom, scene, Rays(rays.origins_mm[node], rays.dirs[node], rays.valid[node]))
-    coarse = coarse.reshape(len(ys), len(xs))
-    rough_node = rough_pixels(coarse, tol, reach=0, border=False)
-    rough_cell = rough_node[:-1, :-1] | rough_node[1:, :-1] | rough_node[:-1, 1:] | rough_node[1:, 1:]
-    rough_cell = binary_dilation(rough_cell, np.ones((3, 3), bool))
-    # bilinear interpolation of the nodes everywhere, then the rough cells traced pixel by pixel
-    iy = np.clip(np.searchsorted(ys, np.arange(h), side="right") - 1, 0, len(ys) - 2)
-    ix = np.clip(np.searchsorted(xs, np.arange(w), side="right") - 1, 0, len(xs) - 2)
-    fy = ((np.arange(h) - ys[iy]) / (ys[iy + 1] - ys[iy]))[:, None]
-    fx = ((np.arange(w) - xs[ix]) / (xs[ix + 1] - xs[ix]))[None, :]
-    c00, c01 = coarse[iy][:, ix], coarse[iy][:, ix + 1]
-    c10, c11 = coarse[iy + 1][:, ix], coarse[iy + 1][:, ix + 1]
-    out = np.ascontiguousarray((c00 * (1 - fx) + c01 * fx) * (1 - fy) + (c10 * (1 - fx) + c11 * fx) * fy)
-    traced = rough_cell[iy][:, ix]
-    idx = np.flatnonzero(traced)
-    out.ravel()[idx] = radiance(geom, scene, Rays(rays.origins_mm[idx], rays.dirs[idx], rays.valid[idx]))
-    out.ravel()[node] = coarse.ravel()
-    return out, (len(idx) + node.size) / out.size
+#: px: the one-sample pass's coarse grid for the sweep's scenes (a disc of 9 px or more covers one of its points).
+SWEEP_STEP_PX = 4
 
 
 def render_irradiance(scene: Scene, rig, supersample: int = SUPERSAMPLE, adaptive: bool = False):
     """The noiseless irradiance (H, W) of ``scene`` through ``rig``, as ``psvs.simulate.render.render`` gives
     it (``RenderResult.irradiance``: C = RI ((1 - s) L + s R), each view K x K samples a pixel), and the share
-    of the renderer's samples it traced.
-
-    With ``adaptive``, each view is first rendered with one sample a pixel (:func:`one_sample`: traced
-    where the image is not smooth, interpolated where it is), and only the pixels that are not smooth there
-    (:func:`rough_pixels`: an edge, a texture, a shadow, the field's border, and ``reach`` px around them)
-    are rendered again with the K x K samples, all from the renderer's cached rays
-    (``psvs.simulate.render.view_rays``) and shading (``radiance``): those pixels are the renderer's own,
-    the others differ from its average of K x K samples by the curvature of a smooth image over a few
-    pixels (1.2e-6 of full well at most, a grey level being 4e-3: tests/dense/test_sweep.py compares both).
-    A card on a plain backdrop is smooth over most of the frame."""
+    of the renderer's samples it traced; with ``adaptive``, from :func:`psvs.simulate.adaptive.adaptive_views`
+    (tests/simulate/test_adaptive.py and tests/dense/test_sweep.py compare both)."""
     from psvs.optics.illumination import illumination_map
-    from psvs.optics.trace import Rays
+    from psvs.simulate.adaptive import adaptive_views
     from psvs.simulate.geometry import SceneGeometry
-    from psvs.simulate.render import check_scene_in_front, radiance, render_views, view_rays
+    from psvs.simulate.render import check_scene_in_front, render_views
     geom = SceneGeometry(scene)
     if not adaptive:
         left, right = render_views(scene, rig, supersample, geom)
         share = 1.0
     else:
         check_scene_in_front(geom, rig)
-        w, h = rig.camera.image_size_px
-        k2 = supersample * supersample
-        out, shares = [], []
-        for view in ("left", "right"):
-            one, traced = one_sample(geom, scene, view_rays(rig, 1, view), (w, h))
-            idx = np.flatnonzero(rough_pixels(one))
-            rays = view_rays(rig, supersample, view)
-            sub = (idx[:, None] * k2 + np.arange(k2)).ravel()
-            fine = radiance(geom, scene, Rays(rays.origins_mm[sub], rays.dirs[sub], rays.valid[sub]))
-            one.ravel()[idx] = fine.reshape(-1, k2).mean(axis=1)
-            out.append(one)
-            shares.append((traced + k2 * len(idx) / one.size) / k2)
-        left, right = out
-        share = float(np.mean(shares))
+        left, right, share = adaptive_views(geom, scene, rig, supersample, SWEEP_STEP_PX)
     s = rig.mirrors.split_ratio
     irradiance = (1.0 - s) * left + s * right
     if rig.camera.vignetted:

@@ -155,7 +155,8 @@ def left_truth(scene: Scene, rig, geom=None) -> np.ndarray:
     from psvs.optics.project import in_image, project_points
     from psvs.optics.trace import trace_pixels
     from psvs.simulate.geometry import SceneGeometry
-    from psvs.simulate.render import VISIBILITY_TOL_MM, view_rays
+    from psvs.simulate.radiance import view_rays
+    from psvs.simulate.render import VISIBILITY_TOL_MM
     geom = geom or SceneGeometry(scene)
     w, h = rig.camera.image_size_px
     rays = view_rays(rig, 1, "left")

@@ -102,9 +102,11 @@ class Table1:
 
 
 def pattern_image(rig: Rig, z: float, seed: int) -> np.ndarray:
-    """The Fig. 9 pattern on the robot's holder (:data:`HOLDER`) at depth ``z`` mm, rendered through ``rig``."""
+    """The Fig. 9 pattern on the robot's holder (:data:`HOLDER`) at depth ``z`` mm, rendered through ``rig``
+    (adaptively: the sheet is smooth but for its circles, 9 px and more, and its border)."""
     spec = ",".join(f"{k}={v}" for k, v in HOLDER.items())
-    return render(builtin_scene(f"fig9:distance_mm={z},{spec}"), rig, seed=seed, supersample=SUPERSAMPLE).image
+    return render(builtin_scene(f"fig9:distance_mm={z},{spec}"), rig, seed=seed, supersample=SUPERSAMPLE,
+                  adaptive=True).image
 
 
 def rough_start(rig: Rig) -> Rig:

@@ -125,7 +125,9 @@ def random_poses(rig: Rig, grid, n: int, seed: int = 0, z_range_mm=(450.0, 1000.
 def render_grid_shots(rig: Rig, grid: CircleGrid, poses: list[Pose], seed: int = 0,
                       supersample: int = 2, sensor=None) -> list[GridShot]:
     """Render the card (any target: its printed image) at each pose through ``rig`` (realistic sensor: blur
-    and noise, seeded; ``sensor`` a :class:`psvs.simulate.sensor.Sensor`, the renderer's default when None)."""
+    and noise, seeded; ``sensor`` a :class:`psvs.simulate.sensor.Sensor`, the renderer's default when None),
+    adaptively (a card on a plain backdrop: its discs and squares are wider than 3 px on any rig that can
+    detect them, :mod:`psvs.simulate.adaptive`)."""
     from psvs.simulate.builtin import regulated_light
     from psvs.simulate.render import render
     from psvs.targets.target_points import target_points_mm
@@ -138,6 +140,6 @@ def render_grid_shots(rig: Rig, grid: CircleGrid, poses: list[Pose], seed: int =
         card = SceneObject("rectangle", pose, grid, size_mm=size)
         scene = Scene((card,), regulated_light(z), z + 400.0, Uniform(0.08))
         extra = {} if sensor is None else {"sensor": sensor}
-        img = render(scene, rig, seed=seed + k, supersample=supersample, **extra).image
+        img = render(scene, rig, seed=seed + k, supersample=supersample, adaptive=True, **extra).image
         shots.append(GridShot(img, pose.matrix, pose.to_world(local)))
     return shots
