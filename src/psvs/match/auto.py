@@ -17,7 +17,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-import cv2
 import numpy as np
 
 from psvs._validate import check_count, check_finite
@@ -25,6 +24,7 @@ from psvs.match.chance import Chance, NullCandidates, chance_level, null_bands, 
 from psvs.match.edges import EdgePixels, edge_pixels, row_votes
 from psvs.match.grey_steps import polarity, step_image, twin_step_seen
 from psvs.match.pairs import EdgePair, grow_pairs
+from psvs.match.pixel_sets import by_label, distinct, joined, long_runs, n_rows, row_span
 from psvs.match.rows import RowCheck, row_shift, shift_counts
 
 
@@ -179,7 +179,7 @@ class Claims:
 
     def free_rows(self, label: int) -> int:
         """Number of distinct rows holding a free pixel of component ``label``."""
-        return _n_rows(self.ev.px.v[self.free_of(label)])
+        return n_rows(self.ev.px.v[self.free_of(label)])
 
     def claim(self, idx: np.ndarray, view: int) -> None:
         """Mark edge pixels ``idx`` as belonging to ``view`` (0 left, 1 right)."""
@@ -200,9 +200,9 @@ class Claims:
         in_kept[kept] = True
         if c.i == c.j:  # a merged outline: the agreeing pixels are the left view, their twins the right
             left_set = kept
-            right = _distinct(ev.q[votes][in_kept[ev.p[votes]]], n)
+            right = distinct(ev.q[votes][in_kept[ev.p[votes]]], n)
         else:
-            left_set = _distinct(np.concatenate([kept, np.flatnonzero(self.free_of(c.i))]), n)
+            left_set = distinct(np.concatenate([kept, np.flatnonzero(self.free_of(c.i))]), n)
             if right is None:
                 right = np.flatnonzero(self.free_of(c.j))
         li, ri = grow_pairs(px, left_set, right[~in_kept[right]], c.d, prm.tol_px, polarity=ev.polarity)
@@ -246,56 +246,6 @@ class Claims:
                                          self.claimed[1 - view], view)
             self.explained[idx[seen | blind]] = True
             self.claim(idx[seen], view)
-
-
-def _n_rows(v: np.ndarray) -> int:
-    """Number of distinct rows among row indices v (bincount: no hashing, no sort)."""
-    return int(np.count_nonzero(np.bincount(v))) if len(v) else 0
-
-
-def _distinct(idx: np.ndarray, n: int) -> np.ndarray:
-    """Sorted distinct values of integer indices in [0, n) (a mask, not a hash)."""
-    m = np.zeros(n, dtype=bool)
-    m[idx] = True
-    return np.flatnonzero(m)
-
-
-def _runs(px: EdgePixels, idx: np.ndarray) -> list[np.ndarray]:
-    """Split edge pixels ``idx`` into 8-connected runs (lists of indices)."""
-    if len(idx) == 0:
-        return []
-    u, v = px.u[idx], px.v[idx]
-    u0, v0 = u.min(), v.min()
-    mask = np.zeros((v.max() - v0 + 1, u.max() - u0 + 1), dtype=np.uint8)
-    mask[v - v0, u - u0] = 1
-    _, lab = cv2.connectedComponents(mask, connectivity=8)
-    run_of = lab[v - v0, u - u0]
-    order = np.argsort(run_of, kind="stable")
-    cuts = np.flatnonzero(np.diff(run_of[order])) + 1
-    return np.split(idx[order], cuts)
-
-
-def _row_span(px: EdgePixels, run: np.ndarray) -> int:
-    """Rows spanned by edge pixels ``run``, first to last."""
-    return int(px.v[run].max() - px.v[run].min() + 1)
-
-
-def _long_runs(px: EdgePixels, pixels: np.ndarray, min_run: int) -> list[np.ndarray]:
-    """The 8-connected runs of the distinct edge pixels among ``pixels`` (indices into ``px``) that span at
-    least ``min_run`` rows."""
-    return [r for r in _runs(px, _distinct(pixels, len(px.u))) if _row_span(px, r) >= min_run]
-
-
-def _joined(runs: list[np.ndarray]) -> np.ndarray:
-    """The pixels of all ``runs``, one index array."""
-    return np.concatenate(runs) if runs else np.zeros(0, int)
-
-
-def _by_label(labels: np.ndarray, n_labels: int) -> tuple[np.ndarray, np.ndarray]:
-    """Indices sorted by label, and where each label's run starts (n_labels + 1 offsets): the entries
-    with label i are ``order[start[i]:start[i + 1]]``."""
-    order = np.argsort(labels, kind="stable")
-    return order, np.searchsorted(labels[order], np.arange(n_labels + 1))
 
 
 def _peaks(ev: Evidence, d_min: int):
@@ -409,7 +359,7 @@ def _strong_enough(ev: Evidence, claims: Claims, c: Candidate, kept: np.ndarray,
     one long stretch; a candidate no accepted neighbour supports needs ``standalone_rows`` rows and to stand
     beyond chance by itself (:func:`_beyond_chance`)."""
     prm = ev.params
-    agree = _n_rows(ev.px.v[kept])                           # distinct agreeing rows
+    agree = n_rows(ev.px.v[kept])                           # distinct agreeing rows
     rows_i, rows_j = claims.free_rows(c.i), claims.free_rows(c.j)
     # a merged outline (both views in one component) pairs with itself: half is left, half right
     smaller = rows_i / 2 if c.i == c.j else min(rows_i, rows_j)
@@ -438,8 +388,8 @@ def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate], chance: Ch
         remaining[k] = False
         c = replace(cands[k], rank=float(rank[k]))
         votes = c.votes[claims.free[ev.p[c.votes]] & claims.free[ev.q[c.votes]]]
-        runs = _long_runs(ev.px, ev.p[votes], ev.params.min_run)
-        kept, longest = _joined(runs), max((_row_span(ev.px, r) for r in runs), default=0)
+        runs = long_runs(ev.px, ev.p[votes], ev.params.min_run)
+        kept, longest = joined(runs), max((row_span(ev.px, r) for r in runs), default=0)
         if not _strong_enough(ev, claims, c, kept, longest, chance):
             if ev.polarity is not None and c.i != c.j:
                 later.append(c)
@@ -473,17 +423,17 @@ def _partly_hidden_twin(ev: Evidence, claims: Claims, c: Candidate,
     sel = sel[(np.abs(ev.d[sel] - ds) <= 1) & free[p[sel]] & ~explained[p[sel]] & free[q[sel]]
               & (px.label[q[sel]] != i)]
     sel = sel[~claimed[1, px.v[q[sel]], px.u[q[sel]] + claims.pad]]
-    if _n_rows(px.v[p[sel]]) < prm.min_rows:
+    if n_rows(px.v[p[sel]]) < prm.min_rows:
         return None
-    kept = _joined(_long_runs(px, p[sel], prm.min_run))
-    if _n_rows(px.v[kept]) < prm.min_rows:
+    kept = joined(long_runs(px, p[sel], prm.min_run))
+    if n_rows(px.v[kept]) < prm.min_rows:
         return None
     left = pix_order[pix_start[i]:pix_start[i + 1]]
     left = left[free[left] & ~explained[left]]                  # not already explained by an accepted pair
     seen, blind = twin_step_seen(ev.steps, px, left, ds, prm.tol_px, prm.polarity_level, claimed[1])
-    seen_rows = _n_rows(px.v[left[seen]])
-    blind_rows = _n_rows(px.v[left]) - _n_rows(px.v[left[~blind]])    # rows with all their twins blind
-    if seen_rows < prm.standalone_rows or seen_rows < prm.seen_fraction * (_n_rows(px.v[left]) - blind_rows):
+    seen_rows = n_rows(px.v[left[seen]])
+    blind_rows = n_rows(px.v[left]) - n_rows(px.v[left[~blind]])    # rows with all their twins blind
+    if seen_rows < prm.standalone_rows or seen_rows < prm.seen_fraction * (n_rows(px.v[left]) - blind_rows):
         return None
     in_kept = np.zeros(len(px.u), dtype=bool)
     in_kept[kept] = True
@@ -499,7 +449,7 @@ def _second_pass(ev: Evidence, claims: Claims, later: list[Candidate], chance: C
     (:func:`_beyond_chance`). A left edge and disparity found wanting is not
     tried again until some pair is accepted."""
     px, prm = ev.px, ev.params
-    index = (_by_label(px.label[ev.p], px.n_labels), _by_label(px.label, px.n_labels))
+    index = (by_label(px.label[ev.p], px.n_labels), by_label(px.label, px.n_labels))
     tried: set[tuple[int, int]] = set()
     for c in later:
         if (c.i, c.d) in tried or claims.free_rows(c.i) < prm.standalone_rows:
@@ -518,7 +468,7 @@ def _unmatched(px: EdgePixels, claims: Claims) -> list[Unmatched]:
     todo = np.flatnonzero(paired < 0.5 * sizes)          # each holds free pixels: more than half of its own
     if not len(todo):
         return []
-    order, start = _by_label(px.label[claims.free], px.n_labels)
+    order, start = by_label(px.label[claims.free], px.n_labels)
     cuts = np.column_stack([start[todo], start[todo + 1]]).ravel()    # each component's run, and the gap after
     ends = []
     for a in (px.u[claims.free][order], px.v[claims.free][order]):
