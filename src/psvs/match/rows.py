@@ -67,9 +67,10 @@ def shift_counts(left_uv: tuple[np.ndarray, np.ndarray], right_uv: tuple[np.ndar
         w = np.isfinite(k)
         n = w.sum(axis=1)
         if reach == reach0:
-            with np.errstate(all="ignore"):
-                mid = np.nanmedian(np.where(w, disp - k, np.nan), axis=1)
-            disp = np.where((n >= 3)[:, None], np.nan_to_num(mid, nan=d_px)[:, None], disp)
+            mid, some = np.full(len(n), float(d_px)), n >= 3       # (a shift that found nothing keeps d)
+            if some.any():
+                mid[some] = np.nanmedian(np.where(w, disp - k, np.nan)[some], axis=1)
+            disp = np.broadcast_to(mid[:, None], disp.shape)
             continue
         y = np.where(w, disp - np.nan_to_num(k), 0.0)                # the disparities found
         sx, sy = (w * x).sum(axis=1), y.sum(axis=1)
