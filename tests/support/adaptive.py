@@ -16,10 +16,9 @@ def render_irradiance(scene: Scene, rig, supersample: int = SUPERSAMPLE, adaptiv
     it (``RenderResult.irradiance``: C = RI ((1 - s) L + s R), each view K x K samples a pixel), and the share
     of the renderer's samples it traced; with ``adaptive``, from :func:`psvs.simulate.adaptive.adaptive_views`
     (tests/simulate/test_adaptive.py and tests/dense/test_sweep.py compare both)."""
-    from psvs.optics.illumination import illumination_map
     from psvs.simulate.adaptive import adaptive_views
     from psvs.simulate.geometry import SceneGeometry
-    from psvs.simulate.render import check_scene_in_front, render_views
+    from psvs.simulate.render import check_scene_in_front, complex_irradiance, render_views
     geom = SceneGeometry(scene)
     if not adaptive:
         left, right = render_views(scene, rig, supersample, geom)
@@ -27,8 +26,4 @@ def render_irradiance(scene: Scene, rig, supersample: int = SUPERSAMPLE, adaptiv
     else:
         check_scene_in_front(geom, rig)
         left, right, share = adaptive_views(geom, scene, rig, supersample, SWEEP_STEP_PX)
-    s = rig.mirrors.split_ratio
-    irradiance = (1.0 - s) * left + s * right
-    if rig.camera.vignetted:
-        irradiance *= illumination_map(rig.camera)
-    return irradiance, share
+    return complex_irradiance(left, right, rig), share

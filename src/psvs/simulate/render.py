@@ -127,17 +127,32 @@ def check_render_work(rig: Rig, supersample: int, frames: int, what: str, hint: 
                      f"us each)", hint)
 
 
-def render_views(scene: Scene, rig: Rig, supersample: int = 2, geom: SceneGeometry | None = None):
-    """Each view's radiance image (H, W), averaged over K x K samples per pixel."""
+def render_views(scene: Scene, rig: Rig, supersample: int = 2, geom: SceneGeometry | None = None,
+                 adaptive: bool = False):
+    """Each view's radiance image (H, W), averaged over K x K samples per pixel (with ``adaptive``, only where
+    the image is not smooth: :func:`psvs.simulate.adaptive.adaptive_views`)."""
     supersample = check_supersample(rig, supersample)
     geom = geom or SceneGeometry(scene)
     check_scene_in_front(geom, rig)
+    if adaptive:
+        return adaptive_views(geom, scene, rig, supersample)[:2]
     w, h = rig.camera.image_size_px
     out = []
     for view in ("left", "right"):
         rad = radiance(geom, scene, view_rays(rig, int(supersample), view))
         out.append(rad.reshape(h, w, supersample * supersample).mean(axis=2))
     return out[0], out[1]
+
+
+def complex_irradiance(left: np.ndarray, right: np.ndarray, rig: Rig) -> np.ndarray:
+    """The complex image on the sensor (H, W), 1.0 = full well, from each view's radiance (H, W): the M1 plate
+    passes 1 - s of the left view's light and reflects s of the right's (s = the rig's split), and the lens's
+    relative illumination dims both."""
+    s = rig.mirrors.split_ratio
+    irradiance = (1.0 - s) * left + s * right
+    if rig.camera.vignetted:
+        irradiance *= illumination_map(rig.camera)
+    return irradiance
 
 
 def ground_truth(scene: Scene, rig: Rig, geom: SceneGeometry | None = None) -> GroundTruth:
@@ -195,15 +210,7 @@ def render(scene: Scene, rig: Rig, *, supersample: int = 2, sensor: Sensor = Sen
     RenderResult
     """
     geom = SceneGeometry(scene)
-    if adaptive:
-        supersample = check_supersample(rig, supersample)
-        check_scene_in_front(geom, rig)
-        left, right, _ = adaptive_views(geom, scene, rig, supersample)
-    else:
-        left, right = render_views(scene, rig, supersample, geom)
-    s = rig.mirrors.split_ratio
-    irradiance = (1.0 - s) * left + s * right
-    if rig.camera.vignetted:
-        irradiance *= illumination_map(rig.camera)
+    left, right = render_views(scene, rig, supersample, geom, adaptive)
+    irradiance = complex_irradiance(left, right, rig)
     image = expose(irradiance, sensor, seed)
     return RenderResult(image, irradiance, left, right, ground_truth(scene, rig, geom) if truth else None)
