@@ -79,3 +79,28 @@ def test_hints_in_a_card_holders_words():
     assert a.describe_missing() == "4 more view(s)"
     a.saved = [at] * 4
     assert a.complete and a._advice(at) == "enough to calibrate" and a.describe_missing() == ""
+
+
+def test_a_still_frame_of_the_video_is_the_renderers_image_fall_off_included():
+    """On a lens that dims its corners (relative illumination 1 - rho^2), a frame where the card is held still
+    is exactly what the renderer gives for that pose (the two views split by the plate and dimmed by the
+    lens, then exposed with the frame's noise): the video's composition is the renderer's, not a copy without
+    the fall-off. Dark corners are planted: the frame's corner is at most 0.9 of the flat lens's there."""
+    from psvs.calibrate.handheld import card_scene, render_hand_video
+    from psvs.optics.illumination import illumination_map
+    from psvs.simulate.render import render
+    from psvs.simulate.sensor import IDEAL
+    rig = load_rig("misaligned").replace(relative_illumination=(-1.0, 0.0))
+    assert illumination_map(rig.camera)[0, 0] < 0.9
+    hand = HandParams(hold_frames=1, move_frames=1, blur_samples=2, out_every=99, settle_every=99)
+    plan = hand_path(rig, CARD, 2, seed=1, hand=hand)
+    frames = list(render_hand_video(rig, CARD, plan, seed=7, sensor=IDEAL))
+    assert len(frames) == len(plan)
+    still = [k for k, f in enumerate(plan) if f.kind == "still"]
+    assert still
+    for k in still:
+        want = render(card_scene(CARD, plan[k].poses[0]), rig, supersample=1, sensor=IDEAL, seed=7 + k)
+        np.testing.assert_array_equal(frames[k], want.image)
+    flat = render(card_scene(CARD, plan[still[0]].poses[0]), load_rig("misaligned"), supersample=1, sensor=IDEAL)
+    corner = (slice(0, 20), slice(0, 20))
+    assert frames[still[0]][corner].mean() <= 0.9 * flat.image[corner].mean()

@@ -171,24 +171,29 @@ def _move(a: Pose, b: Pose, frames: int, samples: int, ease: bool = True) -> lis
     return out
 
 
+def card_scene(grid: CircleGrid, pose: Pose) -> Scene:
+    """The card at ``pose`` in a plain dark room (a wall 400 mm behind it), lit for its depth: one pose of a
+    hand-held video."""
+    from psvs.simulate.builtin import regulated_light
+    z = float(pose.position_mm[2])
+    return Scene((SceneObject("rectangle", pose, grid, size_mm=card_size_mm(grid)),), regulated_light(z), z + 400.0,
+                 Uniform(0.08))
+
+
 def render_hand_video(rig: Rig, grid: CircleGrid, path: list[HandFrame], seed: int = 0,
                       sensor: Sensor = Sensor()) -> Iterator[np.ndarray]:
     """The path's frames (H, W) uint8 through ``rig`` (supersample 1; a pose held still is rendered once,
-    exposed with fresh noise, seed ``seed + k``, on every frame)."""
-    from psvs.simulate.builtin import regulated_light
-    from psvs.simulate.render import render_views
-    size = card_size_mm(grid)
-    s = rig.mirrors.split_ratio
+    exposed with fresh noise, seed ``seed + k``, on every frame): a still frame is what
+    ``render(card_scene(grid, pose), rig, supersample=1, sensor=sensor, seed=seed + k)`` gives, the lens's
+    fall-off included (:func:`psvs.simulate.render.complex_irradiance`)."""
+    from psvs.simulate.render import complex_irradiance, render_views
     cache: dict[int, np.ndarray] = {}
 
     def irradiance(pose: Pose) -> np.ndarray:
         if id(pose) not in cache:
-            z = float(pose.position_mm[2])
-            scene = Scene((SceneObject("rectangle", pose, grid, size_mm=size),), regulated_light(z), z + 400.0,
-                          Uniform(0.08))
-            left, right = render_views(scene, rig, supersample=1)
+            left, right = render_views(card_scene(grid, pose), rig, supersample=1)
             cache.clear()          # a path never comes back to an earlier pose object
-            cache[id(pose)] = (1.0 - s) * left + s * right
+            cache[id(pose)] = complex_irradiance(left, right, rig)
         return cache[id(pose)]
 
     for k, frame in enumerate(path):
