@@ -16,6 +16,7 @@ the two maps on two threads; the up pass adds the down pass's sums and keeps eac
 """
 from __future__ import annotations
 
+import cv2
 import numba as nb
 import numpy as np
 
@@ -229,13 +230,14 @@ def band_costs(features_left: np.ndarray, features_right: np.ndarray, stats: tup
     f = np.asarray(features_left, dtype=np.float32)
     h, w = f.shape
     pad = radius + n_lanes + 1
-    wide = lambda a: np.pad(np.asarray(a, np.float32), ((0, 0), (pad, pad)), mode="edge")  # noqa: E731
-    fp = np.pad(f, ((radius, radius), (pad, pad)), mode="edge")
-    grp = np.ascontiguousarray(np.pad(np.asarray(features_right, np.float32), ((radius, radius), (pad, pad)),
-                                      mode="edge")[:, ::-1])
+    edge = lambda a, rows: cv2.copyMakeBorder(np.asarray(a, np.float32), rows, rows, pad, pad,  # noqa: E731
+                                              cv2.BORDER_REPLICATE)
+    fp = edge(f, radius)
+    grp = cv2.flip(edge(features_right, radius), 1)        # columns reversed
     mu_f, isd_f, mu_g, isd_g, aperture = stats
-    st = np.stack([wide(mu_f), wide(isd_f), wide(aperture), wide(mu_g)[:, ::-1], wide(isd_g)[:, ::-1]])
-    st = np.ascontiguousarray(st)
+    st = np.empty((5, h, w + 2 * pad), np.float32)
+    for k, (a, reverse) in enumerate(((mu_f, False), (isd_f, False), (aperture, False), (mu_g, True), (isd_g, True))):
+        st[k] = cv2.flip(edge(a, 0), 1) if reverse else edge(a, 0)
     costs = np.empty((2, h, w, n_lanes), np.float32) if out is None else out
     top = np.empty((2, h, w), np.float32)
     offsets = np.ascontiguousarray(offsets, dtype=np.int64)

@@ -103,4 +103,7 @@ def finite_median(d: np.ndarray, size: int) -> np.ndarray:
 def upsample(a: np.ndarray, shape: tuple[int, int], factor: float = 1.0) -> np.ndarray:
     """``a`` (h, w) resized to ``shape`` (H, W) by nearest neighbour and multiplied by ``factor`` (a
     disparity's px at the working scale to full-resolution px), float32."""
-    return cv2.resize(a.astype(np.float32), (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST) * factor
+    out = cv2.resize(np.asarray(a, dtype=np.float32), (shape[1], shape[0]), interpolation=cv2.INTER_NEAREST)
+    if factor != 1.0:
+        np.multiply(out, np.float32(factor), out=out)     # in place: no second full-size map
+    return out
