@@ -26,7 +26,7 @@ from psvs.dense.echo_test import (
     standardising_lags,
 )
 from psvs.dense.evaluate import motorcycle, superimpose
-from psvs.dense.trust import consistent_regions, echo_trust, grown, trusted_maps
+from psvs.dense.trust import bracketed, consistent_regions, echo_trust, grown, trusted_maps
 from psvs.optics.search_range import disparity_range
 from psvs.simulate.builtin import textured
 from psvs.simulate.render import render
@@ -233,8 +233,8 @@ def scene():
 
 @pytest.mark.parametrize("mode, share", [("fast", 0.6), ("default", 0.75)])
 def test_most_of_a_textured_scene_is_trusted(scene, mode, share):
-    """The built-in textured scene through the default rig: most pixels the right view sees (measured 70 %
-    fast, 86 % default) are trusted, and the trusted answers are right (within 2 px) more often than all."""
+    """The built-in textured scene through the default rig: most pixels the right view sees (measured 71 %
+    fast, 87 % default) are trusted, and the trusted answers are right (within 2 px) more often than all."""
     img, truth, (lo, hi) = scene
     res = dense_disparity(img, lo, hi, params=MODES[mode])
     trust = echo_trust(img, res)
@@ -251,7 +251,7 @@ def test_most_of_a_textured_scene_is_trusted(scene, mode, share):
 @pytest.mark.parametrize("mode, share", [("fast", 0.5), ("default", 0.7)])
 def test_most_of_motorcycle_is_trusted(mode, share):
     """Middlebury Motorcycle superimposed (the pair psvs dense-eval scores): most pixels with a twin in the
-    image (measured 60 % fast, 83 % default) are trusted, and more often right than the rest."""
+    image (measured 66 % fast, 81 % default) are trusted, and more often right than the rest."""
     left, right, gt = motorcycle()
     img = superimpose(left, right)
     res = dense_disparity(img, 0, 64, params=MODES[mode])
@@ -286,3 +286,46 @@ def test_on_a_build_only_each_views_field_is_judged():
     assert trust.trusted_left[inside].mean() > 0.35 and not trust.trusted_left[~inside].any()
     noise = np.random.default_rng(4).integers(0, 256, (480, 640)).astype(np.uint8)
     assert rig_trust(dense_on_rig(noise, rig, params=FAST)).count == 0
+
+
+@pytest.mark.parametrize("mode", ["fast", "default"])
+def test_a_plain_backdrop_beside_echoing_objects_is_not_trusted(mode):
+    """Fig. 5b (two objects with textured bowls before a plain dark backdrop at the far end of the range) through
+    the default rig: the aggregation gives the backdrop beside the objects their disparity, and a consistent
+    region carried it into the trusted answers (41 % of them off by more than 2 % of Z, measured). With each
+    pixel's own texture judged against the sensor's noise (psvs.dense.noise) at most 20 % are (measured 12-15 %:
+    the objects' outline, a few px wide), and the objects' trusted pixels stay (>= 2000 right)."""
+    from psvs.simulate.builtin import fig5b
+    rig = default_rig()
+    rr = render(fig5b(), rig, supersample=2, seed=1, truth=True)
+    lo, hi = disparity_range(rig, 400, 1200)
+    res = dense_disparity(rr.image, lo, hi, params=MODES[mode])
+    trust = echo_trust(rr.image, res)
+    seen = trust.trusted_left & rr.truth.valid_left
+    right = np.abs(res.disparity_left - rr.truth.disparity_left_px) <= 0.02 * rr.truth.disparity_left_px
+    assert (seen & right).sum() >= 2000
+    assert (seen & ~right).sum() <= 0.20 * seen.sum()
+    backdrop = rr.truth.valid_left & (rr.truth.depth_left_mm > 1150)
+    assert (trust.trusted_left & backdrop).sum() <= 0.20 * seen.sum()
+
+
+def test_a_pixel_without_texture_is_trusted_only_between_textured_pixels_of_its_surface():
+    """Planted: one region across a row with texture at columns 2 and 7: columns 3-6 lie between (by hand), 0-1 and
+    8-9 beyond; a second region's texture does not bracket the first's pixels; a column bracket counts too."""
+    regions = np.zeros((5, 10), np.int64)
+    regions[:, 8:] = 3                               # another surface at the right
+    regions[4, :] = -1                               # no region
+    tex = np.zeros((5, 10), bool)
+    tex[0, [2, 7]] = True                            # row 0: region 0 textured at columns 2 and 7
+    tex[0, 9] = True                                 # ... and region 3 at column 9
+    tex[1, 0] = tex[3, 0] = True                     # column 0: region 0 textured at rows 1 and 3
+    out = bracketed(regions, tex)
+    assert out[0].tolist() == [False, False, False, True, True, True, True, False, False, False]
+    assert out[2, 0] and not out[1, 0] and not out[3, 0] and not out[2, 1]
+    assert not out[4].any() and out.sum() == 5
+    with pytest.raises(ValueError, match="one shape"):
+        bracketed(regions, tex[:, :5])
+    img = np.zeros((20, 30))
+    res = dense_disparity(np.random.default_rng(0).integers(0, 255, (20, 30)).astype(float), 3, 10)
+    with pytest.raises(ValueError, match="texture masks"):
+        echo_trust(img, res, textured=(np.ones((20, 30), bool), np.ones((3, 3), bool)))

@@ -137,9 +137,9 @@ def test_a_video_of_noise_gives_no_depth(tmp_path, capsys):
 def test_a_frames_depth_is_what_the_echo_test_supported_and_a_moved_scene_is_tested_again(monkeypatch):
     """Fig. 5b (objects at 690-720 mm before a textureless backdrop at 1200 mm) in 6 noisy frames: every frame's
     median Z lies on the objects (over every answered pixel it wandered 730-811 mm: the backdrop's noise), and
-    the echo test runs once. Its points: 61-71 % within 3 % of the true depth at their pixel (10-11 % over every
-    answered pixel); the rest are backdrop pixels beside the objects that took their disparity, the dense
-    trust's known limit (docs/right-or-refuse.md, "Not yet"). The textured scene at 800 mm then replaces it:
+    the echo test runs once. Its points: 80 % within 3 % of the true depth at their pixel (10-11 % over every
+    answered pixel; 61-71 % before a pixel's own texture was asked for, psvs.dense.noise); the rest lie on the
+    objects' outline, a few px wide (docs/right-or-refuse.md, "Not yet"). The textured scene at 800 mm then replaces it:
     the frame is tested at once (not 29 frames later) and its median is its points' true median within 1 %."""
     import psvs.live.dense as live_dense
     from psvs.simulate.builtin import builtin_scene, textured
@@ -157,7 +157,7 @@ def test_a_frames_depth_is_what_the_echo_test_supported_and_a_moved_scene_is_tes
         u, v = np.rint(f.pixels).astype(int).T
         truth = still.truth.depth_left_mm[v, u]
         seen = np.isfinite(truth)
-        assert seen.mean() > 0.95 and np.mean(np.abs(f.points_mm[seen, 2] / truth[seen] - 1) <= 0.03) > 0.55
+        assert seen.mean() > 0.95 and np.mean(np.abs(f.points_mm[seen, 2] / truth[seen] - 1) <= 0.03) > 0.72
     assert len(tests) == 1
     moved = render(textured(800.0), rig, seed=1, truth=True)
     f = sensor.step(moved.image)

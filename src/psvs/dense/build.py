@@ -22,6 +22,7 @@ import numpy as np
 from psvs.dense.cloud import Cloud, disparity_cloud
 from psvs.dense.depth_table import exact_points, table_points
 from psvs.dense.disparity import DenseResult, dense_disparity
+from psvs.dense.noise import noise_level, textured_pixels
 from psvs.dense.params import DEFAULT, DenseParams
 from psvs.dense.rig_cache import depth_table, filled_maps, outside_pixels, rectification
 from psvs.dense.trust import EchoTrust, echo_trust
@@ -38,12 +39,14 @@ class RigDense:
     """The dense result, the rectification it is expressed in (None: complex-image coordinates, the
     paper's geometry), the image the left map is aligned with (H', W') (the complex image itself, or its
     left-grid resampling), e.g. for grey levels of the cloud, and on a build the right grid's (None on the
-    paper's geometry): the images the maps were made of."""
+    paper's geometry): the images the maps were made of; on a build, ``image`` the complex image (H, W)
+    they were resampled from (as the maps saw it: flat-fielded), whose pixels carry the sensor's own noise."""
 
     result: DenseResult
     rect: Rectification | None
     left_image: np.ndarray
     right_image: np.ndarray | None = None
+    image: np.ndarray | None = None
 
 
 def rectified_images(image, rect: Rectification,
@@ -87,17 +90,25 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
         outside = outside_pixels(rect, view)
         np.put(disparity, outside, np.nan)
         np.put(confidence, outside, 0.0)
-    return RigDense(res, rect, a, b)
+    return RigDense(res, rect, a, b, img)
 
 
 def rig_trust(dense: RigDense) -> EchoTrust:
     """Which pixels of ``dense`` the echo supports beyond chance (:func:`psvs.dense.trust.echo_trust`), tested
     on the images the maps were made of; on a build, on the two rectified grids, each view's texture counted
-    inside its field only."""
+    inside its field only, and a pixel's own texture judged on the complex image's pixel it samples
+    (:func:`psvs.dense.noise.textured_pixels`)."""
     if dense.rect is None:
         return echo_trust(dense.left_image, dense.result)
     inside = tuple(dense.rect.maps(v)[0] >= 0 for v in ("left", "right"))
-    return echo_trust(dense.left_image, dense.result, image_right=dense.right_image, inside=inside)
+    textured = noise = None
+    if dense.image is not None:     # judged on the camera's pixels: a resampled grid's noise varies with its phase
+        noise = noise_level(dense.image)
+        own = textured_pixels(dense.image, noise).astype(np.uint8)
+        textured = tuple(cv2.remap(own, *filled_maps(dense.rect, view), cv2.INTER_NEAREST,
+                                   borderMode=cv2.BORDER_CONSTANT) > 0 for view in ("left", "right"))
+    return echo_trust(dense.left_image, dense.result, image_right=dense.right_image, inside=inside,
+                      textured=textured, noise=noise)
 
 
 def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) -> Cloud:
@@ -133,3 +144,4 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
     depth = np.full(d.shape, np.nan)
     depth.ravel()[at[ok]] = pts[:, 2]
     return Cloud(pts, left_rect[ok], depth)
+
