@@ -15,6 +15,7 @@ import pytest
 from psvs.cli.main import main
 from psvs.io.params import load_rig
 from psvs.io.video import write_video
+from psvs.live.dense import DenseSensor
 from psvs.simulate.builtin import textured
 from psvs.simulate.render import render
 from tests.support.browser import shot
@@ -40,8 +41,9 @@ def _decoded(path) -> list[np.ndarray]:
 
 def test_live_records_every_frames_depth(video, tmp_path, capsys):
     """Every frame: the complex image (the video's, pixel for pixel) under the camera's pinhole, its dense depth
-    map (its median the log's), its points; the rig's O, O1, O2 where eqs. 1-8 put them; the self-check's
-    record; the file replaced only whole."""
+    map (its median the log's), its points, its disparity map where the answer holds (NaN where not supported),
+    and on the frames the echo test ran on the separated views; the rig's O, O1, O2 where eqs. 1-8 put them;
+    the self-check's record; the file replaced only whole."""
     log, rrd = tmp_path / "live.csv", tmp_path / "live.rrd"
     assert main(["live", "--video", str(video), "--rig", "default", "--dense", "--fast", "--quiet", "-o", str(log),
                  "--rerun", str(rrd)]) == 0
@@ -61,6 +63,21 @@ def test_live_records_every_frames_depth(video, tmp_path, capsys):
         assert r["DepthImage:meter"] == [1000.0]       # mm (the map on the dense grid: --fast, a stride)
         assert float(np.nanmedian(z)) == pytest.approx(float(row["dense_median_z_mm"]), abs=1e-3)
     assert len(got["/psvs_optical_frame/dense_points"]) == 4
+    # the disparity map where each frame's answer holds, and the views of the frames the echo test ran on, by
+    # value against the library's dense sensor run again on the decoded frames
+    sensor = DenseSensor(load_rig("default"))
+    again = [(sensor.step(f), sensor.views()) for f in frames]
+    maps = got["/maps/dense_disparity"]
+    assert len(maps) == 4 and all(r["DepthImage:meter"] == [1.0] for r in maps)
+    for r, (d, _) in zip(maps, again, strict=True):
+        np.testing.assert_array_equal(image_of(r, "DepthImage"), np.where(d.held, d.disparity_px, np.nan))
+        assert np.isfinite(image_of(r, "DepthImage")).mean() > 0.3
+    tested = [k for k, (d, _) in enumerate(again) if d.tested]
+    assert tested[0] == 0 and [r["time"] for r in got["/views/left"]] == pytest.approx(
+        [float(rows[k]["timestamp_s"]) for k in tested], abs=1e-6)
+    for view, i in (("left", 0), ("right", 1)):
+        for r, k in zip(got[f"/views/{view}"], tested, strict=True):
+            np.testing.assert_array_equal(image_of(r), again[k][1][i].astype(np.float32))
     # the rig: the camera at O, the virtual cameras at (-+b/2, 0, -b/2) (the ideal rig, b = 100 mm)
     centres = got["/psvs_optical_frame/rig/centres"][0]
     np.testing.assert_allclose(centres["Points3D:positions"], [[0, 0, 0], [-50, 0, -50], [50, 0, -50]], atol=1e-9)

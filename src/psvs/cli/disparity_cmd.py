@@ -1,6 +1,8 @@
 """``psvs disparity``: dense disparity (and separated views, depth, point cloud) of one complex image."""
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from psvs.cli.common import (
@@ -13,19 +15,18 @@ from psvs.cli.common import (
     measuring_rig,
     range_from_args,
 )
-from psvs.dense import dense_disparity, separate_views, write_cloud_ply
+from psvs.dense import dense_disparity, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_trust
 from psvs.dense.compiled import announce_dense
 from psvs.dense.disparity import check_dense_memory, check_range
 from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.rig_cache import rectification
+from psvs.dense.separate import rig_views
 from psvs.dense.trust import ALPHA, EchoTrust, trusted_maps
 from psvs.errors import MeasurementError
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
 from psvs.io.images import check_frame_size, read_grey, write_npy, write_png
-from psvs.optics.illumination import flat_field
-from psvs.optics.scale import pixel_scale as camera_pixel_scale
 from psvs.optics.search_range import disparity_range
 
 
@@ -127,7 +128,7 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
         if out["confidence"]:
             write_npy(out["confidence"], res.confidence_left)
         if out["views"]:           # the maps answer somewhere (_trusted)
-            for path, v in zip(out["views"], views_of(dense, image, rig, split), strict=True):
+            for path, v in zip(out["views"], rig_views(dense, rig, split), strict=True):
                 write_png(path, to_grey8(v))
         want = out["depth"] or out["cloud"] or (out["rerun"] and rig is not None)
         cloud = rig_cloud(dense, rig, model) if want else None
@@ -136,15 +137,6 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
         if out["cloud"]:
             write_cloud_ply(out["cloud"], cloud, grey=dense.left_image)
     return cloud
-
-
-def views_of(dense: RigDense, image, rig, split: float) -> tuple[np.ndarray, np.ndarray]:
-    """The separated left and right views (H, W) float of the maps' image (psvs.dense.separate)."""
-    res = dense.result
-    seen = flat_field(image, rig.camera) if rig is not None else image   # as the maps saw it
-    k = camera_pixel_scale(rig.camera) if rig is not None and dense.rect is None else None
-    return separate_views(seen, res.disparity_left, split, res.disparity_right, rect=dense.rect,
-                          pixel_scale=k)   # the prior in scene terms (psvs.dense.separate)
 
 
 def _rerun(args, out: dict, dense: RigDense, cloud, image, rig) -> None:
@@ -156,7 +148,7 @@ def _rerun(args, out: dict, dense: RigDense, cloud, image, rig) -> None:
         if rig is not None:
             sink.rig(rig, args.near_mm, args.far_mm)
         sink.image(0.0, image)
-        sink.views(0.0, *views_of(dense, image, rig, split))
+        sink.views(0.0, *rig_views(dense, rig, split))
         sink.disparity(0.0, res.disparity_left, "disparity_left")
         if res.disparity_right is not None:
             sink.disparity(0.0, res.disparity_right, "disparity_right")
@@ -186,7 +178,7 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
                 f"{lo:.0f}..{hi:.0f} px")
         raise MeasurementError(f"no part of the image echoes beyond chance: {strongest_echo(trust)}: the image "
                                f"shows no echo of the disparities {lo:.0f}..{hi:.0f} px")
-    return RigDense(trusted_maps(res, trust), dense.rect, dense.left_image, dense.right_image), trust
+    return dataclasses.replace(dense, result=trusted_maps(res, trust)), trust
 
 
 def strongest_echo(trust: EchoTrust) -> str:

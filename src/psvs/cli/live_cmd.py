@@ -140,7 +140,7 @@ def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, 
             dense_frames.append(dstep.brief() if dstep is not None else None)   # the log keeps no maps
             metas.append(replace(frame, image=None))
             if tel is not None:
-                _publish_frame(tel, t_s, frame, step, dstep, args.dense_stride)
+                _publish_frame(tel, t_s, frame, step, dstep, args.dense_stride, dense)
             if not args.quiet:
                 print(_frame_line(len(steps) - 1, step, dstep) + _dropped_note(frame), flush=True)
             if args.max_frames is not None and len(steps) >= args.max_frames:
@@ -162,7 +162,7 @@ def _dropped_note(frame) -> str:
     return f" ({frame.dropped} frame{'s' * (frame.dropped > 1)} dropped before it)" if frame.dropped else ""
 
 
-def _publish_frame(tel, t_s: float, frame, step, dstep, stride: int) -> None:
+def _publish_frame(tel, t_s: float, frame, step, dstep, stride: int, sensor=None) -> None:
     """A frame's image, its /psvs/frame record {frame, camera_frame, timestamp_s, clock, dropped} and what the
     sensors found in it."""
     tel.image(t_s, frame.image)
@@ -171,7 +171,7 @@ def _publish_frame(tel, t_s: float, frame, step, dstep, stride: int) -> None:
     if step is not None:
         publish_step(tel, t_s, step)
     if dstep is not None:
-        publish_dense(tel, t_s, dstep, stride)
+        publish_dense(tel, t_s, dstep, stride, sensor)
 
 
 #: What a run keeps of each frame for its log and summary, bytes: the tracked edge's pair (up to ~500 pixel
@@ -288,10 +288,17 @@ def publish_step(tel, t_s: float, step) -> None:
                               "disparity_px": step.disparity_px, "message": step.message})
 
 
-def publish_dense(tel, t_s: float, d, stride: int) -> None:
+def publish_dense(tel, t_s: float, d, stride: int, sensor=None) -> None:
     """One frame's dense result: the strided depth image (metres, 32FC1, NaN where none) on
     /psvs/dense/depth, its cloud on /psvs/dense/points, and a /psvs/dense record {frame, median_z_mm,
-    answered_pct, elapsed_ms, stride}."""
+    answered_pct, elapsed_ms, stride}. A sink that takes maps and views (Rerun) also gets the frame's
+    disparity map where its answer holds (NaN elsewhere: not supported) and, on the frames the echo test ran
+    on, the separated views of ``sensor`` (the DenseSensor), which cost several fast maps."""
+    if hasattr(tel, "disparity"):
+        held = d.held if d.held is not None and d.supported else np.zeros(d.disparity_px.shape, bool)
+        tel.disparity(t_s, np.where(held, d.disparity_px, np.float32(np.nan)), "dense_disparity")
+        if d.tested and sensor is not None and hasattr(tel, "views"):
+            tel.views(t_s, *sensor.views())
     tel.depth_image(t_s, d.depth_mm, "/psvs/dense/depth")
     tel.points(t_s, d.points_mm, topic="/psvs/dense/points")
     tel.record("dense", t_s, {"frame": d.frame, "median_z_mm": d.median_z_mm, "answered_pct": d.answered_pct,

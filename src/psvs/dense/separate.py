@@ -45,7 +45,7 @@ import numpy as np
 
 from psvs.dense.disparity import check_image
 from psvs.dense.fastmath import SAFE_MATH
-from psvs.optics.scale import PAPER_FOCAL_PX
+from psvs.optics.scale import PAPER_FOCAL_PX, pixel_scale
 
 
 @dataclass(frozen=True)
@@ -307,3 +307,19 @@ def psnr_db(estimate, truth, peak: float = 255.0) -> float:
     e = np.asarray(estimate, dtype=np.float64) - np.asarray(truth, dtype=np.float64)
     mse = float(np.mean(e * e))
     return float("inf") if mse == 0 else 10.0 * np.log10(peak * peak / mse)
+
+
+def rig_views(dense, rig, split: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The separated left and right views (float64, grey levels) of the complex image behind ``dense`` (a
+    :class:`psvs.dense.build.RigDense`; :func:`separate_views` from its maps): on a build each on its own
+    view's rectified grid (H', W'), else (H, W). ``rig``: the rig the maps were made through (its split and the
+    prior's pixel scale; None: an image without a rig, split 0.5), ``split`` instead of the rig's."""
+    res = dense.result
+    s = split if split is not None else (rig.mirrors.split_ratio if rig is not None else 0.5)
+    seen = dense.image if dense.rect is not None and dense.image is not None else dense.left_image
+    if dense.rect is not None and dense.image is None:
+        raise ValueError("the views of a build's maps need the complex image they were made of (RigDense.image)")
+    k = pixel_scale(rig.camera) if rig is not None and dense.rect is None else None
+    return separate_views(seen, res.disparity_left, s, res.disparity_right, rect=dense.rect,
+                          pixel_scale=k)   # the prior in scene terms (psvs.dense.separate)
+

@@ -28,6 +28,7 @@ import numpy as np
 
 from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
 from psvs.dense.params import FAST, DenseParams
+from psvs.dense.separate import rig_views
 from psvs.dense.workspace import Workspace
 from psvs.optics.rig import Rig
 
@@ -63,7 +64,9 @@ class DenseFrame:
     ``supported``, as ``psvs disparity`` counts them), the processing time ``elapsed_s`` and
     ``supported``: whether the latest echo test found the scene's echo beyond chance (without it, no points,
     no depth and nothing answered: the map's disparities are then no measurement); ``mapped``: whether the
-    map holds any disparity at all (a featureless frame: none)."""
+    map holds any disparity at all (a featureless frame: none); ``held`` (H', W') bool, the pixels the points
+    and median come from (the latest echo test's supported ones that held since; None before a test) and
+    ``tested`` whether the echo test ran on this frame."""
 
     frame: int
     disparity_px: np.ndarray
@@ -76,13 +79,15 @@ class DenseFrame:
     elapsed_s: float
     supported: bool = True
     mapped: bool = True
+    held: np.ndarray | None = None
+    tested: bool = False
 
     def brief(self) -> "DenseFrame":
         """This frame without its map and cloud (empty arrays): what a run's log and summary keep of every
         frame. A camera runs for as long as it is let, and the maps would fill the memory (1.2 MB a frame at
         640x480: 4 GB an hour at 30 frames/s)."""
         return replace(self, disparity_px=np.zeros((0, 0), np.float32), points_mm=np.zeros((0, 3)),
-                       pixels=np.zeros((0, 2)), depth_mm=np.zeros((0, 0)))
+                       pixels=np.zeros((0, 2)), depth_mm=np.zeros((0, 0)), held=None)
 
 
 class DenseSensor:
@@ -116,6 +121,7 @@ class DenseSensor:
         self._trusted: np.ndarray | None = None     # the last echo test's trusted pixels of the left map
         self._held_mask: np.ndarray | None = None   # ... those still held in the previous frame
         self._previous: np.ndarray | None = None    # the previous frame's map
+        self._last = None                           # the last frame's maps (RigDense), for its views
 
     def _held(self, d: np.ndarray) -> np.ndarray | None:
         """(H', W') bool: the pixels the latest echo test supported whose answer has moved continuously since,
@@ -155,11 +161,12 @@ class DenseSensor:
                                  workspace=self._workspace)
         d = dense.result.disparity_left
         held = self._held(d)
-        if self.frames % TRUST_EVERY == 0 or held is None or held.sum() < HELD_SHARE * self._trusted.sum():
+        tested = self.frames % TRUST_EVERY == 0 or held is None or held.sum() < HELD_SHARE * self._trusted.sum()
+        if tested:
             self._trusted = rig_trust(dense).trusted_left       # due, or the scene changed: tested again
             self._supported = bool(self._trusted.any())
             held = self._trusted
-        self._previous, self._held_mask = d, held
+        self._previous, self._held_mask, self._last = d, held, dense
         grid = (slice(self.stride // 2, None, self.stride),) * 2
         mask = np.zeros(d.shape, bool)
         mask[grid] = held[grid]
@@ -169,6 +176,14 @@ class DenseSensor:
         out = DenseFrame(self.frames, d, dense.result.searched_px, cloud.points_mm, cloud.pixels,
                          cloud.depth_mm[grid], float(np.median(z)) if len(z) else float("nan"),
                          100.0 * float(np.mean(finite)) if self._supported else 0.0,
-                         time.perf_counter() - t0, self._supported, bool(finite.any()))
+                         time.perf_counter() - t0, self._supported, bool(finite.any()), held, tested)
         self.frames += 1
         return out
+
+    def views(self, split: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The separated left and right views of the last frame stepped (:func:`psvs.dense.build.rig_views`:
+        on a build on the rectified grids; ``split`` instead of the rig's), e.g. for a recording. The view
+        separation costs several fast maps: ``psvs live`` records them on the frames the echo test runs on."""
+        if self._last is None:
+            raise ValueError("no frame stepped yet: the views are the last frame's")
+        return rig_views(self._last, self.rig, split)
