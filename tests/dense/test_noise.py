@@ -6,7 +6,15 @@ import numpy as np
 import pytest
 from skimage import data
 
-from psvs.dense.noise import FALSE_ALARM, SCALES, NoiseLevel, noise_level, noise_quantile, textured_pixels
+from psvs.dense.noise import (
+    FALSE_ALARM,
+    SCALES,
+    NoiseLevel,
+    noise_level,
+    noise_quantile,
+    simulated_quantile,
+    textured_pixels,
+)
 
 
 def _noisy(clean: np.ndarray, a: float, b: float, seed: int) -> np.ndarray:
@@ -65,10 +73,10 @@ def test_a_textured_patch_is_found_and_its_plain_surround_is_not():
 
 
 def test_the_noise_quantile_is_the_statistics_own():
-    """K, the window RMS that unit white noise exceeds with the false alarm: the same from another draw of
-    noise (a Monte-Carlo of our own, a fresh seed) within 3 %, and the mean square of the band on noise is the
-    band filter's own energy (1 - 2 g(0) + sum g^2 for the image minus its blur, from OpenCV's Gaussian
-    kernel; the difference of two blurs likewise) within 1 %."""
+    """K, the window RMS that unit white noise exceeds with the false alarm: the table's the seeded draw's, and
+    the same from another draw of noise (a Monte-Carlo of our own, a fresh seed) within 3 %, and the mean
+    square of the band on noise is the band filter's own energy (1 - 2 g(0) + sum g^2 for the image minus its
+    blur, from OpenCV's Gaussian kernel; the difference of two blurs likewise) within 1 %."""
     rng = np.random.default_rng(7)
     z = rng.standard_normal((1024, 1024)).astype(np.float32)
     for sigma, window in SCALES:
@@ -85,6 +93,9 @@ def test_the_noise_quantile_is_the_statistics_own():
         assert float((band[16:-16, 16:-16] ** 2).mean()) == pytest.approx(energy, rel=0.01)
         r = np.sqrt(np.maximum(cv2.boxFilter(band * band, -1, (window, window)), 0))[16:-16, 16:-16]
         assert noise_quantile(sigma, window) == pytest.approx(float(np.quantile(r, 1 - FALSE_ALARM)), rel=0.03)
+        assert noise_quantile(sigma, window) == pytest.approx(simulated_quantile(sigma, window), rel=1e-6)
+    other = noise_quantile(1.0, 3, 0.01)            # not in the table: drawn
+    assert other == pytest.approx(simulated_quantile(1.0, 3, 0.01), rel=1e-12) and other < 1.576
 
 
 def test_bad_input_is_refused_in_words():

@@ -108,11 +108,21 @@ def _window_power(band: np.ndarray, window: int) -> np.ndarray:
                       0.0)
 
 
-@functools.lru_cache(maxsize=16)
+#: :func:`noise_quantile` of the :data:`SCALES` at :data:`FALSE_ALARM`, as :func:`simulated_quantile` gives
+#: them (a process need not spend 0.1 s on the draw: tests/dense/test_noise.py checks them against it).
+QUANTILES = {(1.0, 3, 0.001): 1.5762766599655151, (2.0, 5, 0.001): 0.34979531168937683}
+
+
 def noise_quantile(sigma: float, window: int, false_alarm: float = FALSE_ALARM) -> float:
     """K: the window RMS of the texture band (``sigma``, ``window``: one of :data:`SCALES`) that white noise of
-    unit variance exceeds with probability ``false_alarm`` (read from 1024 x 1024 px of seeded noise, the
-    border's windows left out)."""
+    unit variance exceeds with probability ``false_alarm`` (:data:`QUANTILES`, else :func:`simulated_quantile`)."""
+    known = QUANTILES.get((float(sigma), int(window), float(false_alarm)))
+    return known if known is not None else simulated_quantile(sigma, window, false_alarm)
+
+
+@functools.lru_cache(maxsize=16)
+def simulated_quantile(sigma: float, window: int, false_alarm: float = FALSE_ALARM) -> float:
+    """:func:`noise_quantile` read from 1024 x 1024 px of seeded white noise (the border's windows left out)."""
     z = np.random.default_rng(20261202).standard_normal((1024, 1024)).astype(np.float32)
     r = np.sqrt(_window_power(_band(z, sigma), window))[16:-16, 16:-16]
     return float(np.quantile(r, 1.0 - false_alarm))

@@ -187,13 +187,14 @@ class EchoTrust:
 def _anchors(test: EchoTest, disparity: np.ndarray, confidence: np.ndarray, scale: float, right: bool,
              textured: np.ndarray) -> tuple[np.ndarray, tuple]:
     """The anchored pixels of one map (H, W) bool (they carry their own echo and texture, and lie in a patch
-    echoing at their disparity), and (v, u, at): the rows, columns and tested-level columns of the pixels
-    tested."""
-    v, u = np.nonzero((confidence > 0) & np.isfinite(disparity) & textured)
+    echoing at their disparity), and (v, u, at): the rows, columns and tested-level columns of every pixel that
+    carries its own echo."""
+    v, u = np.nonzero((confidence > 0) & np.isfinite(disparity))
     d = disparity[v, u].astype(np.float64) / scale
     at = u / scale + (d if right else 0.0)
     anchored = np.zeros(disparity.shape, bool)
-    anchored[v, u] = test.covers(d, at, v / scale, TOL_PX)
+    tex = textured[v, u]
+    anchored[v[tex], u[tex]] = test.covers(d[tex], at[tex], v[tex] / scale, TOL_PX)
     return anchored, (v, u, at)
 
 
