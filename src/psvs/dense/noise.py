@@ -17,11 +17,13 @@ makes one eigenvalue zero; the next one is used, scaled by m²/(m² − 1).) The
 their patch counts (``b`` = 0 when the fit's slope is negative). Measured on psvs's renders (two exposures'
 difference as the truth): 0.74 grey levels against 0.68 on Fig. 5b, 1.38 against 1.37 on a photo wall.
 
-**The texture test.** The band of the image between the pixel scale and a Gaussian blur of
-:data:`BAND_SIGMA_PX`, its RMS over the :data:`WINDOW_PX`-square window about each pixel: on white noise of unit
-variance that RMS has one distribution, fixed by the two filters, whose 1 − :data:`FALSE_ALARM` quantile K is
-computed once from seeded noise. A pixel is textured when its window's RMS exceeds K times the noise level at
-the window's mean grey level: a flat patch passes with probability :data:`FALSE_ALARM`. Where the noise is
+**The texture test.** In each of :data:`SCALES` (the image minus its blur of 1 px over 3 x 3 windows, the
+blur of 1 px minus the blur of 2 px over 5 x 5: the smallest windows that measure each band), the band's RMS
+over the window about each pixel: on white noise of unit variance that RMS has one distribution, fixed by the
+filters, whose 1 − :data:`FALSE_ALARM` quantile K is read from seeded noise (:data:`QUANTILES`). A pixel is
+textured when, in one scale, its window's RMS exceeds K times the noise level at the window's mean grey level:
+a flat window passes one scale with probability :data:`FALSE_ALARM` (0.35-0.4 % of a flat frame's pixels pass
+either, tests/dense/test_noise.py). Where the noise is
 spatially correlated (a demosaiced colour sensor, a JPEG, a build's rectified grid, resampled), the smallest
 eigenvalues see less of it, the level is read low and more pixels pass: the test errs toward keeping texture,
 never toward refusing it.
