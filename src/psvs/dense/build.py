@@ -144,4 +144,3 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
     depth = np.full(d.shape, np.nan)
     depth.ravel()[at[ok]] = pts[:, 2]
     return Cloud(pts, left_rect[ok], depth)
-
