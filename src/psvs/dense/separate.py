@@ -316,9 +316,9 @@ def rig_views(dense, rig, split: float | None = None) -> tuple[np.ndarray, np.nd
     prior's pixel scale; None: an image without a rig, split 0.5), ``split`` instead of the rig's."""
     res = dense.result
     s = split if split is not None else (rig.mirrors.split_ratio if rig is not None else 0.5)
-    seen = dense.image if dense.rect is not None and dense.image is not None else dense.left_image
     if dense.rect is not None and dense.image is None:
         raise ValueError("the views of a build's maps need the complex image they were made of (RigDense.image)")
+    seen = dense.left_image if dense.rect is None else dense.image
     k = pixel_scale(rig.camera) if rig is not None and dense.rect is None else None
     return separate_views(seen, res.disparity_left, s, res.disparity_right, rect=dense.rect,
                           pixel_scale=k)   # the prior in scene terms (psvs.dense.separate)

@@ -131,14 +131,12 @@ def bracketed(regions: np.ndarray, textured: np.ndarray) -> np.ndarray:
 
 
 @nb.njit(cache=True, nogil=True)
-def _bracketed(root, textured, n):  # pragma: no cover - compiled
-    """:func:`bracketed` of regions numbered 0..n-1 (-1: none)."""
+def _between_along_rows(root, textured, first, last, stamp, out):  # pragma: no cover - compiled
+    """Set ``out`` where a pixel has a textured pixel of its own region on both sides of it along its row
+    (``first``/``last``/``stamp``: scratch, one entry a region)."""
     h, w = root.shape
-    out = np.zeros((h, w), np.bool_)
-    first = np.zeros(n, np.int32)
-    last = np.zeros(n, np.int32)
-    stamp = np.full(n, -1, np.int32)
-    for y in range(h):                                   # along rows: stamp y
+    stamp[:] = -1
+    for y in range(h):
         for x in range(w):
             r = root[y, x]
             if r >= 0 and textured[y, x]:
@@ -149,18 +147,16 @@ def _bracketed(root, textured, n):  # pragma: no cover - compiled
             r = root[y, x]
             if r >= 0 and stamp[r] == y and first[r] < x < last[r]:
                 out[y, x] = True
-    stamp[:] = -1
-    for x in range(w):                                   # along columns: stamp x
-        for y in range(h):
-            r = root[y, x]
-            if r >= 0 and textured[y, x]:
-                if stamp[r] != x:
-                    stamp[r], first[r] = x, y
-                last[r] = y
-        for y in range(h):
-            r = root[y, x]
-            if r >= 0 and stamp[r] == x and first[r] < y < last[r]:
-                out[y, x] = True
+
+
+@nb.njit(cache=True, nogil=True)
+def _bracketed(root, textured, n):  # pragma: no cover - compiled
+    """:func:`bracketed` of regions numbered 0..n-1 (-1: none): along the rows, then along the columns (the
+    transposed maps)."""
+    out = np.zeros(root.shape, np.bool_)
+    first, last, stamp = np.zeros(n, np.int32), np.zeros(n, np.int32), np.empty(n, np.int32)
+    _between_along_rows(root, textured, first, last, stamp, out)
+    _between_along_rows(root.T, textured.T, first, last, stamp, out.T)
     return out
 
 
