@@ -15,7 +15,15 @@ import pytest
 from scipy.ndimage import distance_transform_edt
 
 from psvs.dense.build import RigDense, rig_cloud
-from psvs.dense.depth_table import CHECK_MM, DepthTable, build_depth_table, exact_points, table_points, table_range
+from psvs.dense.depth_table import (
+    CHECK_MM,
+    DepthTable,
+    build_depth_table,
+    exact_points,
+    table_cloud,
+    table_points,
+    table_range,
+)
 from psvs.dense.disparity import DenseResult
 from psvs.dense.rig_cache import depth_table
 from psvs.io.params import load_rig
@@ -118,7 +126,7 @@ def test_rig_cloud_on_a_build_goes_through_the_table(monkeypatch):
     res = DenseResult(d, d, np.ones_like(d), np.ones_like(d), (1.0, 300.0))
     dense = RigDense(res, rect, np.zeros_like(d))
     calls = []
-    monkeypatch.setattr("psvs.dense.build.table_points", lambda *a: calls.append(1) or table_points(*a))
+    monkeypatch.setattr("psvs.dense.build.table_cloud", lambda *a: calls.append(1) or table_cloud(*a))
     cloud = rig_cloud(dense, rig)
     assert calls == [1]
     keep = np.isfinite(d) & (d > 0)
@@ -135,6 +143,37 @@ def test_rig_cloud_on_a_build_goes_through_the_table(monkeypatch):
     sub = (uu % 7 == 0) & ref.valid
     np.testing.assert_allclose(refr.points_mm, ref.points_mm[sub], rtol=0, atol=1e-9)
     assert calls == [1]
+
+
+def test_the_map_pass_gives_table_points_numbers():
+    """table_cloud (one pass over a map) against table_points on the same pixels: the same points bit for bit,
+    in row order, with NaN, 0, negative, masked-out and beyond-the-table disparities (the exact path's)."""
+    rect = rectify(load_rig("misaligned"))
+    table = depth_table(rect)
+    w, h = rect.size_px
+    lo, hi = table.disparity_px
+    rng = np.random.default_rng(7)
+    d = rng.uniform(lo, hi, (h, w)).astype(np.float32)
+    d[rng.random((h, w)) < 0.1] = np.nan
+    d[rng.random((h, w)) < 0.05] = 0.0
+    d[rng.random((h, w)) < 0.05] = -4.0
+    d[rng.random((h, w)) < 0.02] = hi + 20.0               # beyond the table: the exact path answers
+    for mask in (None, rng.random((h, w)) < 0.3):
+        keep = np.isfinite(d) & (d > 0) & (True if mask is None else mask)
+        vv, uu = np.nonzero(keep)
+        uv = np.column_stack([uu, vv]).astype(float)
+        want = table_points(table, rect, uv, d[vv, uu].astype(np.float64))
+        pts, pixels, depth = table_cloud(table, rect, d, mask)
+        np.testing.assert_array_equal(pts, want.points_mm[want.valid])
+        np.testing.assert_array_equal(pixels, uv[want.valid])
+        expect = np.full((h, w), np.nan)
+        expect[vv[want.valid], uu[want.valid]] = want.points_mm[want.valid, 2]
+        np.testing.assert_array_equal(depth, expect)
+        assert ((d[vv, uu] > hi) & want.valid).sum() > 100 and want.valid.sum() > 20000
+    with pytest.raises(ValueError, match="must be \\(H, W\\)"):
+        table_cloud(table, rect, d[0])
+    with pytest.raises(ValueError, match="mask \\(3, 3\\) must have the map's shape"):
+        table_cloud(table, rect, d, np.ones((3, 3), bool))
 
 
 def test_exact_points_is_the_old_path():

@@ -329,3 +329,26 @@ def test_a_pixel_without_texture_is_trusted_only_between_textured_pixels_of_its_
     res = dense_disparity(np.random.default_rng(0).integers(0, 255, (20, 30)).astype(float), 3, 10)
     with pytest.raises(ValueError, match="texture masks"):
         echo_trust(img, res, textured=(np.ones((20, 30), bool), np.ones((3, 3), bool)))
+
+
+def test_the_test_scale_follows_the_asked_range_not_the_pruned_one():
+    """The tested level is pyramid_levels of the range the search was asked to cover (``scale_range``), not of
+    the narrower range a coarse pass pruned it to (the fast mode on a 1440 x 1080 build: 188..440 px searched of
+    188..532 asked, which would test at half the halvings and four times the cost); dense_on_rig records it."""
+    from psvs.dense.build import dense_on_rig, rig_trust
+    from psvs.dense.pyramid import pyramid_levels
+    from psvs.io.params import load_rig
+    img = cv2.GaussianBlur(np.random.default_rng(5).normal(128, 40, (1080, 1440)), (0, 0), 1.0)
+    d = np.full(img.shape, 200.0, np.float32)
+    res = type(dense_disparity(img[:40, :80], 3, 10))(d, d, d * 0, d * 0, (188.0, 440.0))
+    assert (pyramid_levels(1080, 1440, 188, 440), pyramid_levels(1080, 1440, 188, 532)) == (1, 2)
+    assert echo_trust(img, res).level == 1
+    assert echo_trust(img, res, scale_range=(188.0, 532.0)).level == 2
+    rig = load_rig("misaligned")
+    dense = dense_on_rig(render(textured(), rig, seed=3).image, rig, 450, 1100, params=FAST)
+    lo, hi = dense.asked_px
+    assert dense.result.searched_px[0] >= lo - 1e-9 and dense.result.searched_px[1] <= hi + 1e-9
+    want = disparity_range(rig, 450, 1100, dense.rect, width_px=dense.left_image.shape[1])
+    assert (lo, hi) == pytest.approx(want)
+    h, w = dense.left_image.shape
+    assert rig_trust(dense).level == pyramid_levels(h, w, lo, hi)

@@ -226,7 +226,8 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
         announce_dense(say_compiling)
     # a library warning is printed as one line by psvs.cli.main
     if rig is None:
-        dense = RigDense(dense_disparity(image, lo, hi, params=params, workspace=workspace), None, image)
+        dense = RigDense(dense_disparity(image, lo, hi, params=params, workspace=workspace), None, image,
+                         asked_px=(lo, hi))
     else:
         dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi),
                              workspace=workspace)

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from psvs.dense.cloud import Cloud, disparity_cloud
-from psvs.dense.depth_table import exact_points, table_points
+from psvs.dense.depth_table import exact_points, table_cloud
 from psvs.dense.disparity import DenseResult, dense_disparity
 from psvs.dense.noise import noise_level, textured_pixels
 from psvs.dense.params import DEFAULT, DenseParams
@@ -40,13 +40,16 @@ class RigDense:
     paper's geometry), the image the left map is aligned with (H', W') (the complex image itself, or its
     left-grid resampling), e.g. for grey levels of the cloud, and on a build the right grid's (None on the
     paper's geometry): the images the maps were made of; on a build, ``image`` the complex image (H, W)
-    they were resampled from (as the maps saw it: flat-fielded), whose pixels carry the sensor's own noise."""
+    they were resampled from (as the maps saw it: flat-fielded), whose pixels carry the sensor's own noise;
+    ``asked_px`` the disparities (px) the search was asked to cover (the maps' ``searched_px`` may be
+    narrower: a coarse pass prunes it to what the scene shows), which set the scale of the echo test."""
 
     result: DenseResult
     rect: Rectification | None
     left_image: np.ndarray
     right_image: np.ndarray | None = None
     image: np.ndarray | None = None
+    asked_px: tuple[float, float] | None = None
 
 
 def rectified_images(image, rect: Rectification,
@@ -79,27 +82,29 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     rect = rectification(rig, near_mm, far_mm)
     if rect is None:
         lo, hi = d_range or disparity_range(rig, near_mm, far_mm, width_px=img.shape[1])
-        return RigDense(dense_disparity(img, lo, hi, params=params, workspace=workspace), None, img)
+        return RigDense(dense_disparity(img, lo, hi, params=params, workspace=workspace), None, img,
+                        asked_px=(lo, hi))
     a, b = rectified_images(img, rect)
     lo, hi = d_range or disparity_range(rig, near_mm, far_mm, rect, width_px=a.shape[1])
-    res = dense_disparity(a, lo, min(hi, a.shape[1] - 1.0), params=params, image_right=b,
-                          workspace=workspace)
+    hi = min(hi, a.shape[1] - 1.0)
+    res = dense_disparity(a, lo, hi, params=params, image_right=b, workspace=workspace)
     # outside a view's field no answer: set in place (the maps dense_disparity returns are its own, float32)
     for view, disparity, confidence in (("left", res.disparity_left, res.confidence_left),
                                         ("right", res.disparity_right, res.confidence_right)):
         outside = outside_pixels(rect, view)
         np.put(disparity, outside, np.nan)
         np.put(confidence, outside, 0.0)
-    return RigDense(res, rect, a, b, img)
+    return RigDense(res, rect, a, b, img, (lo, hi))
 
 
 def rig_trust(dense: RigDense) -> EchoTrust:
     """Which pixels of ``dense`` the echo supports beyond chance (:func:`psvs.dense.trust.echo_trust`), tested
     on the images the maps were made of; on a build, on the two rectified grids, each view's texture counted
     inside its field only, and a pixel's own texture judged on the complex image's pixel it samples
-    (:func:`psvs.dense.noise.textured_pixels`)."""
+    (:func:`psvs.dense.noise.textured_pixels`); at the scale the asked range sets (:attr:`RigDense.asked_px`),
+    whatever the mode pruned it to."""
     if dense.rect is None:
-        return echo_trust(dense.left_image, dense.result)
+        return echo_trust(dense.left_image, dense.result, scale_range=dense.asked_px)
     inside = tuple(dense.rect.maps(v)[0] >= 0 for v in ("left", "right"))
     textured = noise = None
     if dense.image is not None:     # judged on the camera's pixels: a resampled grid's noise varies with its phase
@@ -108,7 +113,7 @@ def rig_trust(dense: RigDense) -> EchoTrust:
         textured = tuple(cv2.remap(own, *filled_maps(dense.rect, view), cv2.INTER_NEAREST,
                                    borderMode=cv2.BORDER_CONSTANT) > 0 for view in ("left", "right"))
     return echo_trust(dense.left_image, dense.result, image_right=dense.right_image, inside=inside,
-                      textured=textured, noise=noise)
+                      textured=textured, noise=noise, scale_range=dense.asked_px)
 
 
 def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) -> Cloud:
@@ -121,6 +126,9 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
     if dense.rect is None:
         return disparity_cloud(np.asarray(dense.result.disparity_left, dtype=np.float64), rig, model, mask)
     d = dense.result.disparity_left
+    rect = dense.rect
+    if model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors:
+        return Cloud(*table_cloud(depth_table(rect), rect, d, mask))     # one pass over the map
     flat = d.ravel()
     if mask is None:
         at = np.flatnonzero(np.isfinite(flat) & (flat > 0))
@@ -133,12 +141,7 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
         at = at[good]
     v, u = np.divmod(at, d.shape[1])        # flat indices: a fraction of 2-D fancy indexing's cost
     left_rect = np.column_stack([u, v]).astype(np.float64)
-    disparity = flat[at].astype(np.float64)
-    rect = dense.rect
-    if model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors:
-        tri = table_points(depth_table(rect), rect, left_rect, disparity)
-    else:
-        tri = exact_points(rect, left_rect, disparity, model, rig=rig)
+    tri = exact_points(rect, left_rect, flat[at].astype(np.float64), model, rig=rig)
     ok = tri.valid
     pts = tri.points_mm[ok]
     depth = np.full(d.shape, np.nan)

@@ -326,25 +326,49 @@ class EchoTest:
                        np.asarray(u, np.float64).ravel(), np.asarray(v, np.float64).ravel(),
                        float(tol_px)).reshape(np.shape(d))
 
+    def covers_map(self, disparity: np.ndarray, keep: np.ndarray, scale: float, right: bool,
+                   tol_px: float) -> np.ndarray:
+        """:meth:`covers` of every ``keep`` pixel (u, v) of a disparity map (H, W, px) of the image ``scale``
+        times this level's size, in one pass over the map: each at (u, v) / scale with disparity d / scale, a
+        right-view map's pixel at its left-view twin (u + d) / scale. bool (H, W)."""
+        return _covers_map(np.ascontiguousarray(disparity), np.ascontiguousarray(keep, dtype=bool), self.echo,
+                           np.asarray(self.lags, np.int64), self.cell_px, float(scale), bool(right), float(tol_px))
+
+
+@nb.njit(cache=True, inline="always")
+def _echo_near(echo, l0, l1, cy, cx, d, tol):  # pragma: no cover - compiled
+    """Whether cell (cy, cx) (any integers) echoes at a lag within tol of d (finite)."""
+    _, ny, nx = echo.shape
+    if cy < 0 or cy >= ny or cx < 0 or cx >= nx:
+        return False
+    for lag in range(max(l0, int(math.ceil(d - tol))), min(l1, int(math.floor(d + tol))) + 1):
+        if echo[lag - l0, cy, cx]:
+            return True
+    return False
+
 
 @nb.njit(cache=True, parallel=True)
 def _covers(echo, lags, cell, d, u, v, tol):  # pragma: no cover - compiled
     n = d.shape[0]
-    _, ny, nx = echo.shape
     out = np.zeros(n, np.bool_)
-    l0, l1 = lags[0], lags[-1]
     for i in nb.prange(n):
-        if not np.isfinite(d[i]):
-            continue
-        cy, cx = int(v[i] // cell), int(u[i] // cell)
-        if cy < 0 or cy >= ny or cx < 0 or cx >= nx:
-            continue
-        a = max(l0, int(math.ceil(d[i] - tol)))
-        b = min(l1, int(math.floor(d[i] + tol)))
-        for lag in range(a, b + 1):
-            if echo[lag - l0, cy, cx]:
-                out[i] = True
-                break
+        if np.isfinite(d[i]):
+            out[i] = _echo_near(echo, lags[0], lags[-1], int(v[i] // cell), int(u[i] // cell), d[i], tol)
+    return out
+
+
+@nb.njit(cache=True, parallel=True)
+def _covers_map(disparity, keep, echo, lags, cell, scale, right, tol):  # noqa: PLR0913  # pragma: no cover
+    h, w = disparity.shape
+    out = np.zeros((h, w), np.bool_)
+    for y in nb.prange(h):
+        cy = int((y / scale) // cell)
+        for x in range(w):
+            if keep[y, x]:
+                d = np.float64(disparity[y, x]) / scale
+                if np.isfinite(d):
+                    at = x / scale + (d if right else 0.0)
+                    out[y, x] = _echo_near(echo, lags[0], lags[-1], cy, int(at // cell), d, tol)
     return out
 
 

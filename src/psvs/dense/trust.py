@@ -21,8 +21,9 @@ sensor's noise: :mod:`psvs.dense.noise`), and a pixel without is trusted only be
 region along its row or its column: interpolated across a smooth surface, not extrapolated beyond it (the
 aggregation gives a plain backdrop beside an object the object's disparity; on Fig. 5b 41 % of the trusted
 pixels were such backdrop, 13 % now, the objects' outline). The test is made at the
-level the method searches the whole range (psvs.dense.pyramid: the image halved as often as
-:func:`~psvs.dense.pyramid.pyramid_levels` says, whatever the mode), so its patches see the scene at the scale
+level the method searches the whole asked range (psvs.dense.pyramid: the image halved as often as
+:func:`~psvs.dense.pyramid.pyramid_levels` says, whatever the mode and whatever range a coarse pass pruned the
+search to), so its patches see the scene at the scale
 they would on a 640 x 480 camera; it costs one multiply-add per pixel, lag and band there, not a second run
 of the method.
 """
@@ -181,17 +182,10 @@ class EchoTrust:
 
 
 def _anchors(test: EchoTest, disparity: np.ndarray, confidence: np.ndarray, scale: float, right: bool,
-             textured: np.ndarray) -> tuple[np.ndarray, tuple]:
-    """The anchored pixels of one map (H, W) bool (they carry their own echo and texture, and lie in a patch
-    echoing at their disparity), and (v, u, at): the rows, columns and tested-level columns of every pixel that
-    carries its own echo."""
-    v, u = np.nonzero((confidence > 0) & np.isfinite(disparity))
-    d = disparity[v, u].astype(np.float64) / scale
-    at = u / scale + (d if right else 0.0)
-    anchored = np.zeros(disparity.shape, bool)
-    tex = textured[v, u]
-    anchored[v[tex], u[tex]] = test.covers(d[tex], at[tex], v[tex] / scale, TOL_PX)
-    return anchored, (v, u, at)
+             textured: np.ndarray) -> np.ndarray:
+    """The anchored pixels of one map (H, W) bool: they carry their own echo and texture, and lie in a patch
+    echoing at their disparity."""
+    return test.covers_map(disparity, (confidence > 0) & textured, scale, right, TOL_PX)
 
 
 def _surfaces(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarray,
@@ -206,21 +200,30 @@ def _surfaces(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarra
     return trusted & (textured | _bracketed(root, np.ascontiguousarray(textured & trusted), root.size))
 
 
-def _unambiguous(test: EchoTest, trusted: np.ndarray, pixels: tuple, scale: float) -> np.ndarray:
-    """``trusted`` without the tested pixels in the echo test's ambiguous cells (a texture that repeats along
-    the rows: a region does not grow over it)."""
-    if not (test.ambiguous.any() and trusted.any()):
-        return trusted
-    v, u, at = pixels
-    ny, nx = test.ambiguous.shape
-    cy = (np.arange(trusted.shape[0]) / scale // test.cell_px).astype(np.int64)
-    rows = np.zeros(trusted.shape[0], bool)          # the pixel rows of cell rows holding such cells
-    rows[cy < ny] = test.ambiguous.any(axis=1)[cy[cy < ny]]
-    k = np.flatnonzero(rows[v])
-    cx = (at[k] // test.cell_px).astype(np.int64)
-    k, cx = k[(cx >= 0) & (cx < nx)], cx[(cx >= 0) & (cx < nx)]
-    trusted[v[k], u[k]] &= ~test.ambiguous[cy[v[k]], cx]
+def _unambiguous(test: EchoTest, trusted: np.ndarray, disparity: np.ndarray, scale: float,
+                 right: bool) -> np.ndarray:
+    """``trusted`` (H, W) without its pixels in the echo test's ambiguous cells (a texture that repeats along the
+    rows: a region does not grow over it), each pixel placed as :meth:`~psvs.dense.echo_test.EchoTest.covers_map`
+    places it."""
+    if test.ambiguous.any() and trusted.any():
+        _clear_ambiguous(trusted, np.ascontiguousarray(disparity), test.ambiguous, test.cell_px, float(scale),
+                         bool(right))
     return trusted
+
+
+@nb.njit(cache=True, parallel=True)
+def _clear_ambiguous(trusted, disparity, ambiguous, cell, scale, right):  # pragma: no cover - compiled
+    ny, nx = ambiguous.shape
+    for y in nb.prange(trusted.shape[0]):
+        cy = int((y / scale) // cell)
+        if cy >= ny:
+            continue
+        for x in range(trusted.shape[1]):
+            if trusted[y, x]:
+                d = np.float64(disparity[y, x]) / scale
+                cx = int((x / scale + (d if right else 0.0)) // cell)
+                if 0 <= cx < nx and ambiguous[cy, cx]:
+                    trusted[y, x] = False
 
 
 def _supported(test: EchoTest, maps: tuple, scale: float, textured: tuple) -> tuple[np.ndarray, np.ndarray]:
@@ -229,24 +232,28 @@ def _supported(test: EchoTest, maps: tuple, scale: float, textured: tuple) -> tu
     sensor's noise (psvs.dense.noise)."""
     anchors = [_anchors(test, d, c, scale, k == 1, t) for k, ((d, c), t) in enumerate(zip(maps, textured, strict=True))]
     with ThreadPoolExecutor(max_workers=pool_size(2)) as pool:
-        grown_maps = list(pool.map(_surfaces, [a for a, _ in anchors], [d for d, _ in maps], [c for _, c in maps],
-                                   textured))
-    return tuple(_unambiguous(test, t, px, scale) for t, (_, px) in zip(grown_maps, anchors, strict=True))
+        grown_maps = list(pool.map(_surfaces, anchors, [d for d, _ in maps], [c for _, c in maps], textured))
+    return tuple(_unambiguous(test, t, d, scale, k == 1) for k, (t, (d, _)) in enumerate(zip(grown_maps, maps,
+                                                                                            strict=True)))
 
 
 def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.ndarray, np.ndarray] | None = None,
-               textured: tuple[np.ndarray, np.ndarray] | None = None, noise: NoiseLevel | None = None) -> EchoTrust:
+               textured: tuple[np.ndarray, np.ndarray] | None = None, noise: NoiseLevel | None = None,
+               scale_range: tuple[float, float] | None = None) -> EchoTrust:
     """Which pixels of ``result`` (the maps :func:`~psvs.dense.disparity.dense_disparity` gave for ``image``
     (H, W), and ``image_right`` on a build) the echo supports beyond chance (module docstring), whatever the
     parameters the maps were made with. ``inside``: the (left, right) masks (H, W) of the pixels inside each
     view's field (a build's rectified grids); ``textured``: the (left, right) masks (H, W) of the pixels whose
     own window carries texture beyond the sensor's noise (:func:`psvs.dense.noise.textured_pixels` of the
-    images when None) and ``noise`` the level they were judged against (reported in the result)."""
+    images when None) and ``noise`` the level they were judged against (reported in the result).
+    ``scale_range``: the disparities (px) the search was asked to cover, which choose the tested level (default
+    the maps' ``searched_px``): the fast mode's coarse pass prunes the search to what a scene shows, and a
+    narrower search would test a textured scene at twice the resolution (four times the cost) of a blank one."""
     left = np.asarray(image, dtype=np.float64)
     right = None if image_right is None else np.asarray(image_right, dtype=np.float64)
     lo, hi = result.searched_px
     h, w = left.shape
-    level = pyramid_levels(h, w, lo, hi)
+    level = pyramid_levels(h, w, *(scale_range or (lo, hi)))
     pyr, pyr_r = coarse_level(left, right, level)
     top, top_r = pyr[-1], pyr_r[-1]
     shrink = None
