@@ -352,3 +352,28 @@ def test_the_test_scale_follows_the_asked_range_not_the_pruned_one():
     assert (lo, hi) == pytest.approx(want)
     h, w = dense.left_image.shape
     assert rig_trust(dense).level == pyramid_levels(h, w, lo, hi)
+
+
+def test_a_pixel_is_covered_by_an_echo_near_its_disparity_in_its_cell():
+    """EchoTest.covers_map on a planted echo (cell 16 px, lags 10..20; cell (1, 2) echoes at lag 14): a
+    left-map pixel of a map twice the level's size is placed at (u, v) / 2 with disparity d / 2, a right-map
+    pixel at its twin (u + d) / 2; within 1.5 px of the lag only, and only where kept and finite."""
+    from psvs.dense.echo_test import EchoTest
+    echo = np.zeros((11, 3, 4), bool)
+    echo[14 - 10, 1, 2] = True
+    test = EchoTest(echo, np.arange(10, 21), 16, 2.0, 6.0, 3.0, (40.0, 24.0, 32, 14), 10, 100, np.zeros((3, 4), bool))
+    d = np.full((100, 140), 28.0, np.float32)         # 14 px at the level
+    d[40, 80], d[40, 82], d[40, 84] = 25.0, 31.0, 32.0  # 12.5 (within 1.5), 15.5 (within), 16 (beyond)
+    d[42, 70] = np.nan
+    keep = np.ones(d.shape, bool)
+    keep[36, 70] = False
+    got = test.covers_map(d, keep, 2.0, False, 1.5)
+    want = np.zeros(d.shape, bool)
+    want[32:64, 64:96] = True                           # cell (1, 2) at the level: rows 16-31, columns 32-47
+    want[36, 70] = want[42, 70] = want[40, 84] = False
+    np.testing.assert_array_equal(got, want)
+    d[40, 80:85] = 28.0
+    right = test.covers_map(d, keep, 2.0, True, 1.5)    # the twin at (u + 28) / 2: columns 36..67 of the map
+    want_r = np.zeros(d.shape, bool)
+    want_r[32:64, 36:68] = True
+    assert np.array_equal(right, want_r)

@@ -318,19 +318,12 @@ class EchoTest:
         """Whether any patch echoes beyond chance."""
         return bool(self.echo.any())
 
-    def covers(self, d: np.ndarray, u: np.ndarray, v: np.ndarray, tol_px: float) -> np.ndarray:
-        """Whether pixels (u, v) (px, this level; any shape) have an echoing lag within ``tol_px`` of their
-        disparity ``d`` (px, this level) in a patch that covers them: bool of their shape (False where d is
-        not finite or (u, v) outside the cells)."""
-        return _covers(self.echo, np.asarray(self.lags, np.int64), self.cell_px, np.asarray(d, np.float64).ravel(),
-                       np.asarray(u, np.float64).ravel(), np.asarray(v, np.float64).ravel(),
-                       float(tol_px)).reshape(np.shape(d))
-
     def covers_map(self, disparity: np.ndarray, keep: np.ndarray, scale: float, right: bool,
                    tol_px: float) -> np.ndarray:
-        """:meth:`covers` of every ``keep`` pixel (u, v) of a disparity map (H, W, px) of the image ``scale``
-        times this level's size, in one pass over the map: each at (u, v) / scale with disparity d / scale, a
-        right-view map's pixel at its left-view twin (u + d) / scale. bool (H, W)."""
+        """Whether each ``keep`` pixel (u, v) of a disparity map (H, W, px) of the image ``scale`` times this
+        level's size has an echoing lag within ``tol_px`` (px, this level) of its disparity d / scale in a patch
+        that covers it at (u, v) / scale (a right-view map's pixel: at its left-view twin, (u + d) / scale):
+        bool (H, W), False where d is not finite or the pixel lies outside the cells."""
         return _covers_map(np.ascontiguousarray(disparity), np.ascontiguousarray(keep, dtype=bool), self.echo,
                            np.asarray(self.lags, np.int64), self.cell_px, float(scale), bool(right), float(tol_px))
 
@@ -345,16 +338,6 @@ def _echo_near(echo, l0, l1, cy, cx, d, tol):  # pragma: no cover - compiled
         if echo[lag - l0, cy, cx]:
             return True
     return False
-
-
-@nb.njit(cache=True, parallel=True)
-def _covers(echo, lags, cell, d, u, v, tol):  # pragma: no cover - compiled
-    n = d.shape[0]
-    out = np.zeros(n, np.bool_)
-    for i in nb.prange(n):
-        if np.isfinite(d[i]):
-            out[i] = _echo_near(echo, lags[0], lags[-1], int(v[i] // cell), int(u[i] // cell), d[i], tol)
-    return out
 
 
 @nb.njit(cache=True, parallel=True)
