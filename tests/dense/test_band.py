@@ -166,13 +166,15 @@ def test_a_kept_workspace_gives_the_same_maps_through_the_pyramid(large_pair):
         np.testing.assert_array_equal(res.confidence_right, ref.confidence_right)
 
 
-def test_local_winners_sum_each_disparity_over_the_window():
+@pytest.mark.parametrize("n", [6, 5, 9])
+def test_local_winners_sum_each_disparity_over_the_window(n):
     """band_local_winners against a direct sum: each pixel's lane k is disparity o + k; a neighbour adds its
     cost at that disparity when its band holds it, else its worst cost; the winner is the lowest sum (with a
-    parabola's offset within half a lane)."""
+    parabola's offset within half a lane). Bands of psvs.dense.band.LANES lanes (its own compiled copy) and
+    of others."""
     from psvs.dense.band import band_local_winners
     rng = np.random.default_rng(3)
-    h, w, n = 9, 11, 6
+    h, w = 9, 11
     costs = rng.random((2, h, w, n)).astype(np.float32)
     offs = rng.integers(20, 23, (2, h, w))
     best = band_local_winners(costs, offs, 1)
@@ -190,3 +192,24 @@ def test_local_winners_sum_each_disparity_over_the_window():
                 assert abs(best[i, y, x] - (offs[i, y, x] + k)) <= 0.5
     with pytest.raises(ValueError, match="radius must be >= 0"):
         band_local_winners(costs, offs, -1)
+
+
+def test_the_copies_for_the_default_lanes_give_the_general_numbers():
+    """The kernels compiled for psvs.dense.band.LANES lanes (a constant count) and their general copies give the
+    same numbers bit for bit on bands of that many lanes: the aggregation (4 and 8 paths) and the local winners."""
+    from psvs.dense import band
+    rng = np.random.default_rng(8)
+    h, w, n = 40, 70, band.LANES
+    costs = rng.random((2, h, w, n)).astype(np.float32)
+    offs = (rng.integers(30, 33, (2, h, w)) + (rng.random((2, h, w)) < 0.2)).astype(np.int64)
+    guide = (rng.random((h, w)) * 60).astype(np.float32)
+    for diagonals in (False, True):
+        got, want = np.empty((2, h, w)), np.empty((2, h, w))
+        args = (costs, offs, diagonals, np.float32(0.1), np.float32(0.6), guide, np.float32(12.0))
+        band._band_winners_lanes(*args, np.empty_like(costs), got)
+        band._band_winners(*args, np.empty_like(costs), want)
+        np.testing.assert_array_equal(got, want)
+    got, want = np.empty((2, h, w)), np.empty((2, h, w))
+    band._local_winners_lanes(costs, offs, 2, got)
+    band._local_winners(costs, offs, 2, want)
+    np.testing.assert_array_equal(got, want)

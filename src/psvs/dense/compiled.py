@@ -25,9 +25,11 @@ MODULES = ("psvs.dense.cost", "psvs.dense.sgm", "psvs.dense.band", "psvs.dense.m
 NOT_CALLED = ("psvs.dense.sgm._both_passes", "psvs.dense.sgm._add_into")
 #: Kernels only some runs call, each compiled in seconds when one does: the pyramid's local winners (the
 #: default mode's finest level, not --fast's), the autocorrelation's lag medians (a range starting at small
-#: lags), a build's view separation (--views on a build). A machine that has only run others keeps them
+#: lags), a build's view separation (--views on a build), the band kernels' general copies (bands of other
+#: than psvs.dense.band.LANES lanes: parameters of the user's own). A machine that has only run others keeps them
 #: uncompiled; they are not what makes a first run take minutes, and they do not make a run say it compiles.
-SOME_RUNS = ("psvs.dense.band._local_winners", "psvs.dense.echo_test._lag_medians", "psvs.dense.separate._csr_matvec")
+SOME_RUNS = ("psvs.dense.band._local_winners_lanes", "psvs.dense.echo_test._lag_medians",
+             "psvs.dense.separate._csr_matvec", "psvs.dense.band._local_winners", "psvs.dense.band._band_winners")
 
 
 def announce_dense(command: str) -> bool:
