@@ -4,20 +4,16 @@ with, served from the installed ``plotly`` package (nothing is fetched from the 
 offline)."""
 from __future__ import annotations
 
-import base64
-import binascii
 import importlib.resources
 
-import numpy as np
 from fastapi import APIRouter, Query
 from fastapi.responses import FileResponse, JSONResponse
 
 from psvs.io.jsonsafe import json_safe
 from psvs.io.params import load_rig, rig_from_text
-from psvs.mount.stl_view import mount_mesh
 from psvs.optics.layout3d import rig_layout
 from psvs.rigs import SHIPPED, shipped_rig_path
-from psvs.web.bodies import MAX_RANGE_MM, MountMeshBody, RigChoiceBody
+from psvs.web.bodies import MAX_RANGE_MM, RigChoiceBody
 from psvs.web.session import SessionDep
 
 router = APIRouter()
@@ -47,20 +43,6 @@ def choose_rig(body: RigChoiceBody, session: SessionDep):
         rig, name = rig_from_text(body.text, body.file_name or "rig file"), body.file_name or "rig file"
     session.replace_rig(rig, name)
     return {"name": name}
-
-
-@router.post("/api/mount/mesh")
-def mount_mesh_view(body: MountMeshBody, session: SessionDep):
-    """The mount's STL (base64 in the body, as ``psvs mount`` wrote it) as vertices (mm, frame C, 0.01) and
-    triangles for the 3-D view, refused when it stands in the served rig's light (a mount for another rig:
-    :func:`psvs.mount.stl_view.mount_mesh`); with its volume and whether it is one closed shell."""
-    try:
-        data = base64.b64decode(body.stl, validate=True)
-    except binascii.Error:
-        raise ValueError(f"{body.name}: not base64") from None
-    mesh = mount_mesh(data, session.rig, body.name)
-    return {"name": body.name, "vertices": np.round(mesh.vertices, 2).tolist(), "triangles": mesh.faces.tolist(),
-            "volume_cm3": round(float(mesh.volume) / 1000.0, 2), "closed": bool(mesh.is_watertight)}
 
 
 @router.get("/vendor/plotly.min.js", include_in_schema=False)

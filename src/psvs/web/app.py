@@ -5,7 +5,8 @@ capture assistant for calibration views.
 :func:`create_app` builds one app from a source and a rig. Its routes are grouped by concern in routers
 (``api_image``: info, the image, previews, uploads; ``api_match``: matching and exports; ``api_dense``: dense
 disparity; ``api_live``: live mode; ``api_capture``: the capture assistant; ``api_adjust``: the alignment
-guide of a calibrated build; ``api_rig3d``: the rig's 3-D layout and the plotting library that draws it)
+guide of a calibrated build; ``api_rig3d``: the rig's 3-D layout and the plotting library that draws it;
+``api_mount``: the mount made in the page, its files and its 3-D mesh)
 that read the app's :class:`~psvs.web.session.Session` through FastAPI's
 dependency injection, so each app has its own image and results. Everything the page needs comes from these
 routes and the files in ``static/``; no route reads a file the user did not name in the page (the folders of the
@@ -37,6 +38,7 @@ from psvs.web import (
     api_image,
     api_live,
     api_match,
+    api_mount,
     api_rig3d,
     api_robot,
     api_source,
@@ -52,8 +54,8 @@ __all__ = ["MAX_BODY_BYTES", "ROUTERS", "STATIC", "create_app"]
 
 STATIC = Path(__file__).resolve().parent / "static"
 #: The routers of the API, one per concern.
-ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_calibrate, api_adjust, api_rig3d, api_check,
-           api_robot, api_source)
+ROUTERS = (api_image, api_match, api_dense, api_live, api_capture, api_calibrate, api_adjust, api_rig3d, api_mount,
+           api_check, api_robot, api_source)
 #: Longest ``detail`` of a 4xx answer (characters).
 MAX_DETAIL = 300
 

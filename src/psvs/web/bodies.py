@@ -102,6 +102,22 @@ class MountMeshBody(Body):
     name: str = Field("mount.stl", min_length=1, max_length=255)
 
 
+class MountMakeBody(RangeBody):
+    """``POST /api/mount/make``: what ``psvs mount`` asks of the builder (:class:`psvs.mount.layout.MountParams`:
+    the camera's interface and the printer's walls and clearance, the seats' screw pitch, mm); the rig is the
+    served one."""
+
+    interface: Literal["clamp", "c", "cs"] = "clamp"
+    lens_diameter_mm: float = Field(30.0, gt=0, le=500)
+    lens_front_mm: float = Field(0.0, ge=-500, le=500)
+    flange_mm: float = Field(25.0, gt=0, le=500)
+    hole_square_mm: float = Field(36.0, gt=0, le=500)
+    wall_mm: float = Field(2.0, gt=0, le=50)
+    clearance_mm: float = Field(0.3, ge=0, le=5)
+    pitch_mm: float = Field(0.5, gt=0, le=5)
+    margin_mm: float = Field(0.0, ge=0, le=50)
+
+
 class RobotRunBody(Body):
     """``POST /api/robot/run``: a track run's log.csv and report.json, as texts (``psvs track -o RUN``)."""
 

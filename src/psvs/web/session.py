@@ -76,6 +76,7 @@ class Session:
     _result: MatchResult | None = field(default=None, init=False, repr=False)
     _dense_maps: dict | None = field(default=None, init=False, repr=False)
     _dense_runs: int = field(default=0, init=False)
+    _mount: dict | None = field(default=None, init=False, repr=False)
 
     def __post_init__(self):
         w, h = self.image_size_px
@@ -104,6 +105,7 @@ class Session:
             self.capture.stop()
             with self._lock:
                 self.rig, self.rig_name, self._result, self._dense_maps = rig, name, None, None
+                self._mount = None        # made for the old rig
                 self._generation += 1     # a match still running through the old rig stores nothing
 
     def replace_source(self, source: Source) -> None:
@@ -190,6 +192,20 @@ class Session:
         """The last dense run's maps of the current image and rig (``run`` and each map), or None."""
         with self._lock:
             return self._dense_maps
+
+    def keep_mount(self, files: dict, rig: Rig) -> bool:
+        """Remember the files of a mount made in the page ({name: bytes}) for their downloads, if ``rig`` (the
+        rig it was made for) is still the served one. Returns whether they were kept."""
+        with self._lock:
+            if rig is not self.rig:
+                return False
+            self._mount = dict(files)
+            return True
+
+    def mount_file(self, name: str) -> bytes | None:
+        """One file of the mount made in the page for the served rig, or None (none made, or not that name)."""
+        with self._lock:
+            return None if self._mount is None else self._mount.get(name)
 
     def result(self) -> MatchResult | None:
         """The last match result of the current image, or None."""

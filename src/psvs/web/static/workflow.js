@@ -77,6 +77,7 @@ function forgetResults() {
   for (const id of ["dense-disparity", "dense-depth", "dense-pointer", "check-verdict", "check-rms", "check-max",
                     "check-tiles"]) { $(id).textContent = "–"; delete $(id).dataset.mm; }
   for (const id of ["check-reason", "check-explained", "dense-cloud-note"]) $(id).textContent = "";
+  $("mount-files").hidden = true;                 // a mount made for the old rig: the server forgot it too
   for (const id of ["dense-map", "dense-left", "dense-right", "check-map"]) $(id).removeAttribute("src");
   for (const id of ["dense-cloud", "dense-depth-map", "dense-disparity-map", "dense-left-zoom", "dense-right-zoom"]) {
     $(id).hidden = true;
@@ -173,6 +174,23 @@ function base64Of(buffer) {
   return btoa(text);
 }
 
+// A mount's mesh in the Mount step's 3-D view and on the landing view's rig (replacing a mount shown before).
+async function showMount(mesh, name) {
+  if (!rig3dState.layout) throw new Error("the rig's layout is not drawn (see the Design step)");
+  await drawMount3d($("mount3d"), rig3dState.layout, mesh);
+  if (typeof Plotly !== "undefined" && $("rig3d").data) {
+    const before = $("rig3d").data.map((t, k) => (t.name || "").startsWith("mount") ? k : -1).filter((k) => k >= 0);
+    if (before.length) await Plotly.deleteTraces($("rig3d"), before);
+    await Plotly.addTraces($("rig3d"), mountTrace(mesh));
+    $("rig3d").dataset.mount = name;
+  }
+}
+
+function meshText(mesh) {
+  return `${mesh.triangles.length} triangles, ${mesh.volume_cm3} cm³` +
+    (mesh.closed ? ", one closed shell" : ", not a closed shell (a slicer must repair it)");
+}
+
 $("mount-stl").addEventListener("change", async (e) => {
   const f = e.target.files[0];
   if (!f) return;
@@ -180,17 +198,34 @@ $("mount-stl").addEventListener("change", async (e) => {
   stepStatus("mount-status", "reading the mesh…", true);
   try {
     const mesh = await api("/api/mount/mesh", { stl: base64Of(await f.arrayBuffer()), name: f.name });
-    if (!rig3dState.layout) throw new Error("the rig's layout is not drawn (see the Design step)");
-    await drawMount3d($("mount3d"), rig3dState.layout, mesh);
-    if (typeof Plotly !== "undefined" && $("rig3d").data) {     // the landing view's rig shows its mount too
-      await Plotly.addTraces($("rig3d"), mountTrace(mesh));
-      $("rig3d").dataset.mount = f.name;
-    }
-    stepStatus("mount-status", `${f.name}: ${mesh.triangles.length} triangles, ${mesh.volume_cm3} cm³` +
-      (mesh.closed ? ", one closed shell" : ", not a closed shell (a slicer must repair it)") +
-      "; the rig's field rays pass it", true);
+    await showMount(mesh, f.name);
+    stepStatus("mount-status", `${f.name}: ${meshText(mesh)}; the rig's field rays pass it`, true);
     document.body.dataset.mountDone = "1";
   } catch (err) { stepStatus("mount-status", "mount: " + err.message); document.body.dataset.mountDone = "error"; }
+});
+
+$("mount-make").addEventListener("click", async () => {
+  document.body.dataset.mountDone = "";
+  $("mount-files").hidden = true;
+  stepStatus("mount-status", "building the mount and checking it against the light (a few seconds)…", true);
+  $("mount-make").disabled = true;
+  try {
+    const mesh = await api("/api/mount/make", { interface: $("mount-interface").value,
+      lens_diameter_mm: Number($("mount-lens").value), wall_mm: Number($("mount-wall").value),
+      pitch_mm: Number($("mount-pitch").value) });
+    await showMount(mesh, "mount.stl");
+    const links = $("mount-files");
+    links.replaceChildren(document.createTextNode("download: "));
+    for (const name of mesh.files) {
+      const a = document.createElement("a");
+      a.href = "/api/mount/file/" + encodeURIComponent(name); a.download = name; a.textContent = name;
+      links.append(a, " ");
+    }
+    links.hidden = false;
+    stepStatus("mount-status", `the mount of this page's rig: ${mesh.checks}; ${meshText(mesh)}`, true);
+    document.body.dataset.mountDone = "1";
+  } catch (err) { stepStatus("mount-status", "mount: " + err.message); document.body.dataset.mountDone = "error"; }
+  finally { $("mount-make").disabled = false; }
 });
 
 $("robot-run").addEventListener("change", async (e) => {
