@@ -103,14 +103,14 @@ def test_every_route_that_changes_something_is_guarded(app, client):
     GET routes only read (exports, states, frames), and need neither."""
     routes = [r for module in ROUTERS for r in module.router.routes]
     posts = sorted(r.path for r in routes if "POST" in r.methods)
-    assert len(posts) == 19 and {"/api/source/video", "/api/source/camera", "/api/cameras"} <= set(posts), posts
+    assert len(posts) == 20 and {"/api/source/video", "/api/source/camera", "/api/cameras"} <= set(posts), posts
     for path in posts:
         assert client.post(path, json={}).status_code == 403, path
         assert client.post(path, json={}, headers={"Origin": "http://evil.example"}).status_code == 403, path
         assert client.put(path, json={}).status_code == 403, path
         assert client.delete(path).status_code == 403, path
     gets = [r.path.replace("{fmt}", "csv").replace("{name}", "mount.stl") for r in routes if "GET" in r.methods]
-    assert len(gets) == 15 and all(client.get(p).status_code in (200, 404, 409, 422) for p in gets), gets
+    assert len(gets) == 16 and all(client.get(p).status_code in (200, 404, 409, 422) for p in gets), gets
 
 
 # ---- Body type: what a browser sends across origins without a preflight never reaches a route --------------------

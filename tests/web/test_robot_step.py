@@ -99,3 +99,57 @@ def test_the_robot_step_draws_the_run(webgl_page, run_dir):
         # one file alone is not a run
         webgl_page.set_input_files("#robot-run", [str(run_dir / "log.csv")])
         assert "select both files" in webgl_page.inner_text("#robot-status")
+
+
+def test_the_page_runs_what_psvs_track_runs(run_dir, monkeypatch):
+    """POST /api/robot/track runs psvs track's closed loop in the background through the served rig (its hand-eye
+    session first, the self-check along): polled until done, its run is the command's with the same speed and
+    length, cycle for cycle (report.json's figures, the torch's path). Refused before any work: an unknown
+    workpiece, a run beyond the time limit, a second run while one is under way; a run of a rig replaced since
+    is not shown."""
+    import time
+
+    from psvs import _budget
+    rep, rows = json.loads((run_dir / "report.json").read_text()), list(csv.DictReader((run_dir / "log.csv").open()))
+    with local_client(_app()) as c:
+        assert c.get("/api/robot/track").json() == {"running": False, "cycles": 0, "expected": 0, "error": "",
+                                                    "run": None}
+        r = c.post("/api/robot/track", json={"scene": "no_such_scene"})
+        assert r.status_code == 400 and "no_such_scene" in r.json()["detail"], r.json()
+        with monkeypatch.context() as m:
+            m.setattr(_budget, "WORK_LIMIT_S", 5.0)          # the session's 3.7 s pass, its 165 cycles not
+            r = c.post("/api/robot/track", json={"speed_mm_s": 20, "length_mm": 5})
+            assert r.status_code == 400 and r.json()["detail"].startswith("the run: "), r.json()
+        r = c.post("/api/robot/track", json={"speed_mm_s": 20, "length_mm": 5})
+        assert r.status_code == 200 and r.json()["running"] is True, r.json()
+        again = c.post("/api/robot/track", json={"speed_mm_s": 20, "length_mm": 5})
+        assert again.status_code == 400 and "under way" in again.json()["detail"]
+        t0 = time.monotonic()
+        while (st := c.get("/api/robot/track").json())["running"]:
+            assert time.monotonic() - t0 < 600
+            time.sleep(0.5)
+        assert st["error"] == "" and st["cycles"] == rep["cycles"], st
+        d = st["run"]
+        assert d["report"]["cycles"] == rep["cycles"] and d["report"]["welded_mm"] == rep["welded_mm"]
+        assert d["report"]["lateral_mm"] == rep["lateral_mm"] and d["report"]["stop"] == rep["stop"]["reason"]
+        np.testing.assert_allclose(d["tcp_mm"], [[float(x[f"tcp_{a}_mm"]) for a in "xyz"] for x in rows], atol=1e-4)
+        assert c.post("/api/rig", json={"name": "clear"}).status_code == 200
+        assert c.get("/api/robot/track").json()["run"] is None
+
+
+def test_the_robot_step_runs_a_simulated_weld(webgl_page, run_dir):
+    """A click on Run (speed 20 mm/s, 5 mm: the command's run above): the page polls the run and draws it, its
+    figures the command's."""
+    rep = json.loads((run_dir / "report.json").read_text())
+    with serving(_app()) as url:
+        webgl_page.goto(url + "/#robot")
+        webgl_page.wait_for_selector("body[data-ready='1']", timeout=60000)
+        webgl_page.fill("#robot-speed", "20")
+        webgl_page.fill("#robot-length", "5")
+        webgl_page.click("#robot-track")
+        webgl_page.wait_for_function("document.body.dataset.robotDone === '1'", timeout=600000)
+        assert webgl_page.inner_text("#robot-lateral") == (f"{rep['lateral_mm']['rms']:.3f} / "
+                                                           f"{rep['lateral_mm']['max']:.3f} mm")
+        assert webgl_page.inner_text("#robot-status") == (f"the simulated run through this page's rig: "
+                                                          f"{rep['cycles']} cycles")
+        assert int(webgl_page.get_attribute("#robot3d", "data-points")) == rep["valid_frames"]

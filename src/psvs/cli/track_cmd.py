@@ -77,7 +77,6 @@ class _Progress:
 def _job(args):
     """The tracking job, the rigs and the workpiece the arguments ask for, checked before any work."""
     from psvs.io.params import load_rig
-    from psvs.optics.scale import pixel_scale
     from psvs.robot.controller import TrackConfig
     from psvs.robot.workpiece import seam_workpiece
     for name, v in (("--speed", args.speed), ("--rate", args.rate)):
@@ -88,7 +87,8 @@ def _job(args):
         raise ValueError("--stop-on-drift needs the self-check: leave out --no-check")
     rig = measuring_rig(args.rig)
     if args.roi_rows is None:     # the same angle (length of seam) as 32 rows of the paper's camera
-        args.roi_rows = min(rig.camera.image_size_px[1], max(8, round(32 * pixel_scale(rig.camera))))
+        from psvs.robot.budget import default_roi_rows
+        args.roi_rows = default_roi_rows(rig)
     cfg = TrackConfig(speed_mm_s=args.speed, rate_hz=args.rate, weld_length_mm=args.length, roi_rows=args.roi_rows)
     true_rig = load_rig(args.true_rig) if args.true_rig else None
     if true_rig is not None and true_rig.camera.image_size_px != rig.camera.image_size_px:
@@ -104,29 +104,15 @@ def _job(args):
 
 def _check_work(args, cfg, rig, seam_mm: float) -> None:
     """The run's renders and cycles within the time and memory limits, before the hand-eye session: the
-    session's views (unless --handeye), then every control cycle of welding --length (or the whole seam)."""
+    session's views (unless --handeye), then every control cycle of welding --length (or the whole seam)
+    (psvs.robot.budget)."""
     from psvs._budget import check_time
-    from psvs.robot.cells import SimulationConfig
-    from psvs.robot.handeye_session import CELL_SUPERSAMPLE, CELL_VIEWS
-    from psvs.robot.loop import CYCLE_SECONDS, RUN_IN_OUT_MM, check_frames_expected, cycle_seconds, track_cycles
-    from psvs.simulate.render import check_render_work, render_seconds
-    setup_s = 0.0
-    if not args.handeye:
-        check_render_work(rig, CELL_SUPERSAMPLE, CELL_VIEWS, f"the hand-eye session's {CELL_VIEWS} views",
-                          "--handeye FILE (psvs handeye) skips them")
-        setup_s = render_seconds(rig, CELL_SUPERSAMPLE, CELL_VIEWS)
-    length = seam_mm if args.length is None else min(args.length, seam_mm)
-    cycles = track_cycles(length, cfg)
-    w, k = rig.camera.image_size_px[0], SimulationConfig().supersample
-    checked = ""
-    if not args.no_check:        # the self-check's whole frames, rendered when it asks for one
-        frames = check_frames_expected(cycles, args.check_share / 100)
-        setup_s += frames * render_seconds(rig, k, 1)
-        checked = f" and {frames} whole frames for the self-check (--no-check leaves them out)"
-    check_time(setup_s + cycles * cycle_seconds(rig, cfg),
-               f"--length/--speed/--rate: {cycles} control cycles ({length:g} mm of seam and {RUN_IN_OUT_MM:g} mm "
-               f"to start and stop at {args.speed:g} mm/s, {args.rate:g} Hz), each a {w}x{cfg.roi_rows} px window "
-               f"x {k * k} samples and {CYCLE_SECONDS * 1e3:g} ms of sensing{checked},",
+    from psvs.robot.budget import check_session_work, track_work
+    setup_s = 0.0 if args.handeye else check_session_work(rig, "--handeye FILE (psvs handeye) skips them")
+    share = None if args.no_check else args.check_share / 100
+    seconds, cycles, frames = track_work(rig, cfg, seam_mm, args.length, share)
+    checked = f" and {frames} (--no-check leaves them out)" if frames else ""
+    check_time(setup_s + seconds, f"--length/--speed/--rate: {cycles}{checked},",
                "a higher --speed, a lower --rate or a shorter --length")
 
 

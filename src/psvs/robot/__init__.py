@@ -9,6 +9,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submod_attrs={
         "arm": ["Arm"],
         "bag": ["write_bag"],
+        "budget": ["check_session_work", "default_roi_rows", "track_work"],
         "cells": ["SimulationConfig"],
         "controller": ["TrackConfig"],
         "drift": ["DRIFT_STOP", "DriftWatch", "HealthNote"],
@@ -16,8 +17,8 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "handeye_io": ["load_handeye", "read_views", "save_handeye", "write_views"],
         "handeye_session": ["CELL_GRID", "CELL_SUPERSAMPLE", "CELL_VIEWS", "cell_views", "nominal_cam2flange",
                             "true_cam2flange"],
-        "loop": ["CYCLE_SECONDS", "RUN_IN_OUT_MM", "Watching", "check_frames_expected", "cycle_seconds", "drift_watch",
-                 "sensor_range", "track", "track_cycles"],
+        "loop": ["CYCLE_SECONDS", "RUN_IN_OUT_MM", "SHARE", "Watching", "check_frames_expected", "cycle_seconds",
+                 "drift_watch", "sensor_range", "track", "track_cycles"],
         "mounting": ["HOME_Q", "tool2flange"],
         "recording": ["RunRecorder", "publish_stop", "replay_recording"],
         "report": ["write_report"],

@@ -1,6 +1,7 @@
-"""Route of the workflow's Robot step: a seam-tracking run as ``psvs track -o RUN`` wrote it (its log.csv and
-report.json, chosen in the page from the user's disk), read back for the 3-D view of the seam the sensor
-measured and the torch's path, with the run's own figures."""
+"""Routes of the workflow's Robot step: a seam-tracking run as ``psvs track -o RUN`` wrote it (its log.csv and
+report.json, chosen in the page from the user's disk), or one the page runs on a simulated cell through the
+served rig (``POST /api/robot/track``, then ``GET /api/robot/track`` until it is done), read back for the 3-D view
+of the seam the sensor measured and the torch's path, with the run's own figures."""
 from __future__ import annotations
 
 import json
@@ -11,10 +12,10 @@ from fastapi import APIRouter
 from psvs.io.jsonsafe import json_safe
 from psvs.robot.controller import TrackConfig
 from psvs.robot.handeye_session import nominal_cam2flange
-from psvs.robot.loop import sensor_range
+from psvs.robot.loop import sensor_range, track_cycles
 from psvs.robot.run_log import read_log_csv
 from psvs.robot.view3d import sensor_view
-from psvs.web.bodies import RobotRunBody
+from psvs.web.bodies import RobotRunBody, RobotTrackBody
 from psvs.web.session import SessionDep
 
 router = APIRouter(prefix="/api")
@@ -60,6 +61,44 @@ def _health(h) -> dict | None:
 
 @router.post("/robot/run")
 def robot_run(body: RobotRunBody, session: SessionDep):
+    """The run's 3-D view and figures (:func:`run_view`) of its log.csv and report.json."""
+    return run_view(body.log, body.report, session.rig)
+
+
+@router.post("/robot/track")
+def robot_track(body: RobotTrackBody, session: SessionDep):
+    """Start a simulated run (``psvs track SCENE --speed --length`` through the served rig, its hand-eye session
+    first, the rolling self-check along): refused before any work when it would take too long (psvs._budget) or
+    while one runs; answers {running, expected (control cycles)}."""
+    from psvs._budget import check_time
+    from psvs.robot.budget import check_session_work, default_roi_rows, track_work
+    from psvs.robot.loop import SHARE
+    from psvs.robot.workpiece import seam_workpiece
+    rig = session.rig
+    cfg = TrackConfig(speed_mm_s=body.speed_mm_s, weld_length_mm=body.length_mm, roi_rows=default_roi_rows(rig))
+    wp = seam_workpiece(body.scene, cfg.camera_distance_mm)
+    setup_s = check_session_work(rig, "the page calibrates the hand-eye mounting first; psvs track --handeye FILE "
+                                      "skips it")
+    seconds, cycles, frames = track_work(rig, cfg, wp.params["length_mm"], body.length_mm, SHARE)
+    check_time(setup_s + seconds, f"the run: {cycles} and {frames},", "a higher speed or a shorter length")
+    expected = track_cycles(min(body.length_mm, wp.params["length_mm"]), cfg)
+    session.tracking.start(rig, cfg, wp, expected)
+    return {"running": True, "expected": expected}
+
+
+@router.get("/robot/track")
+def robot_track_state(session: SessionDep):
+    """The page's run: {running, cycles, expected, error ('' none), run (its view as ``POST /api/robot/run`` gives
+    it, once done; None before, or when the rig changed since it ran)}."""
+    st = session.tracking.state()
+    files, rig = st.pop("files"), st.pop("rig")
+    st["run"] = None
+    if files is not None and rig is session.rig:
+        st["run"] = run_view(files["log.csv"], files["report.json"], rig)
+    return st
+
+
+def run_view(log_text: str, report_text: str, rig) -> dict:
     """The run's torch path (``tcp_mm``), its targets, the seam points the sensor measured (``seam_mm``, the
     cycles it saw the seam), the lateral deviation of each drawn cycle and whether the arc was on, all in the
     robot's base frame (mm, every k-th cycle when there are more than :data:`MAX_DRAWN`, and the last: where the
@@ -67,8 +106,8 @@ def robot_run(body: RobotRunBody, session: SessionDep):
     served rig's camera, its light paths through the glasses and both views' fields over the seam sensor's depths,
     in the base frame, through the arm's pose and report.json's hand-eye mounting, or the bracket drawing's for
     a report without one: :func:`psvs.robot.view3d.sensor_view`). The two files must be of one run."""
-    log = read_log_csv(body.log, "log.csv")
-    rep = _report(body.report)
+    log = read_log_csv(log_text, "log.csv")
+    rep = _report(report_text)
     if rep["cycles"] != len(log.t_s):
         raise ValueError(f"log.csv holds {len(log.t_s)} cycles, report.json {rep['cycles']}: not one run's files")
     n = len(log.t_s)
@@ -80,7 +119,7 @@ def robot_run(body: RobotRunBody, session: SessionDep):
     mounted = "hand-eye" if mount is not None else "bracket drawing"
     if mount is None:      # a report of before it was written: the bracket drawing's mounting
         mount = nominal_cam2flange(cfg)
-    view = sensor_view(log.q_rad[-1], mount, session.rig, *sensor_range(cfg))
+    view = sensor_view(log.q_rad[-1], mount, rig, *sensor_range(cfg))
     return {"tcp_mm": log.tcp_mm[sel].round(4).tolist(), "target_mm": log.target_mm[sel].round(4).tolist(),
             "seam_mm": log.seam_mm[sel][seen].round(4).tolist(), "lateral_mm": log.lateral_mm[sel].round(4).tolist(),
             "welded": welded.tolist(), "step": step, "report": rep,

@@ -118,6 +118,15 @@ class MountMakeBody(RangeBody):
     margin_mm: float = Field(0.0, ge=0, le=50)
 
 
+class RobotTrackBody(Body):
+    """``POST /api/robot/track``: a simulated seam-tracking run (``psvs track SCENE --speed --length``) through
+    the served rig."""
+
+    scene: str = Field("weld_seam", min_length=1, max_length=300)
+    speed_mm_s: float = Field(10.0, gt=0, le=200)
+    length_mm: float = Field(10.0, gt=0, le=1000)
+
+
 class RobotRunBody(Body):
     """``POST /api/robot/run``: a track run's log.csv and report.json, as texts (``psvs track -o RUN``)."""
 

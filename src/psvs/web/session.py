@@ -21,6 +21,7 @@ from psvs.web.calibration_job import CalibrationJob
 from psvs.web.capture_runner import CaptureRunner
 from psvs.web.live_runner import LiveRunner
 from psvs.web.sources import Source
+from psvs.web.track_job import TrackJob
 
 
 class Still(NamedTuple):
@@ -58,6 +59,8 @@ class Session:
         The capture assistant (its card and folder, when the app has them).
     calibration : CalibrationJob
         The page's calibration of a folder of card views.
+    tracking : TrackJob
+        The page's simulated seam-tracking run.
     """
 
     source: Source
@@ -66,6 +69,7 @@ class Session:
     live: LiveRunner = field(default_factory=LiveRunner)
     capture: CaptureRunner = field(default_factory=lambda: CaptureRunner(None))
     calibration: CalibrationJob = field(default_factory=CalibrationJob)
+    tracking: TrackJob = field(default_factory=TrackJob)
     _lock: threading.Lock = field(default_factory=threading.Lock, init=False, repr=False)
     #: held while the source is replaced or a reader of it (live mode, the capture) starts: a reader started
     #: meanwhile reads the new source, never the old one

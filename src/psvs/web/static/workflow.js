@@ -228,6 +228,26 @@ $("mount-make").addEventListener("click", async () => {
   finally { $("mount-make").disabled = false; }
 });
 
+// A run's figures and its 3-D view (a run the page ran, or one psvs track wrote).
+async function showRun(run) {
+  const r = run.report, mm = (s) => (s.rms === null ? "–" : `${s.rms.toFixed(3)} / ${s.max.toFixed(3)} mm`);
+  $("robot-welded").textContent = `${r.welded_mm.toFixed(1)} mm`;
+  $("robot-lateral").textContent = mm(r.lateral_mm);
+  $("robot-vertical").textContent = mm(r.vertical_mm);
+  $("robot-seen").textContent = `${r.valid_frames} of ${r.cycles} cycles`;
+  $("robot-stop").textContent = `stopped: ${r.stop}`;
+  const h = r.health;
+  $("robot-health").textContent = h === null ? "not run" : (h.verdict || "no step taken") +
+    (h.row_offset_rms_px === null ? "" : `, ${h.row_offset_rms_px.toFixed(2)} ± ${h.uncertainty_px.toFixed(2)} px`) +
+    ` (${h.steps} steps, ${h.cost_pct.toFixed(1)} % of the sensor's time)`;
+  $("robot-health").classList.toggle("bad", h !== null && h.verdict === "drifted");
+  await drawRobot3d($("robot3d"), run);
+  $("robot3d-note").textContent = `${run.seam_mm.length} seam points measured` +
+    (run.step > 1 ? ` (every ${run.step}th cycle drawn)` : "") + "; the PSVS at the last cycle: its light " +
+    `through the glasses and both views' fields (${run.sensor.mounting} mounting, this page's rig); the ` +
+    "deviations over the welded part, as report.json states them; drag to turn, scroll to zoom.";
+}
+
 $("robot-run").addEventListener("change", async (e) => {
   const files = [...e.target.files];
   const log = files.find((f) => f.name.toLowerCase().endsWith(".csv"));
@@ -240,25 +260,32 @@ $("robot-run").addEventListener("change", async (e) => {
   stepStatus("robot-status", "reading the run…", true);
   try {
     const run = await api("/api/robot/run", { log: await log.text(), report: await report.text() });
-    const r = run.report, mm = (s) => (s.rms === null ? "–" : `${s.rms.toFixed(3)} / ${s.max.toFixed(3)} mm`);
-    $("robot-welded").textContent = `${r.welded_mm.toFixed(1)} mm`;
-    $("robot-lateral").textContent = mm(r.lateral_mm);
-    $("robot-vertical").textContent = mm(r.vertical_mm);
-    $("robot-seen").textContent = `${r.valid_frames} of ${r.cycles} cycles`;
-    $("robot-stop").textContent = `stopped: ${r.stop}`;
-    const h = r.health;
-    $("robot-health").textContent = h === null ? "not run" : (h.verdict || "no step taken") +
-      (h.row_offset_rms_px === null ? "" : `, ${h.row_offset_rms_px.toFixed(2)} ± ${h.uncertainty_px.toFixed(2)} px`) +
-      ` (${h.steps} steps, ${h.cost_pct.toFixed(1)} % of the sensor's time)`;
-    $("robot-health").classList.toggle("bad", h !== null && h.verdict === "drifted");
-    await drawRobot3d($("robot3d"), run);
-    $("robot3d-note").textContent = `${run.seam_mm.length} seam points measured` +
-      (run.step > 1 ? ` (every ${run.step}th cycle drawn)` : "") + "; the PSVS at the last cycle: its light " +
-      `through the glasses and both views' fields (${run.sensor.mounting} mounting, this page's rig); the ` +
-      "deviations over the welded part, as report.json states them; drag to turn, scroll to zoom.";
-    stepStatus("robot-status", `${log.name} and ${report.name}: ${r.cycles} cycles`, true);
+    await showRun(run);
+    stepStatus("robot-status", `${log.name} and ${report.name}: ${run.report.cycles} cycles`, true);
     document.body.dataset.robotDone = "1";
   } catch (err) { stepStatus("robot-status", "run: " + err.message); document.body.dataset.robotDone = "error"; }
+});
+
+$("robot-track").addEventListener("click", async () => {
+  document.body.dataset.robotDone = "";
+  $("robot-track").disabled = true;
+  try {
+    const start = await api("/api/robot/track", { scene: $("robot-scene").value,
+      speed_mm_s: Number($("robot-speed").value), length_mm: Number($("robot-length").value) });
+    stepStatus("robot-status", `tracking: the hand-eye session, then ${start.expected} control cycles…`, true);
+    let st;
+    do {
+      await new Promise((ok) => setTimeout(ok, 500));
+      st = await api("/api/robot/track");
+      if (st.cycles) stepStatus("robot-status", `tracking: cycle ${st.cycles} of about ${st.expected}…`, true);
+    } while (st.running);
+    if (st.error) throw new Error(st.error);
+    if (!st.run) throw new Error("the rig changed while it ran: run it again");
+    await showRun(st.run);
+    stepStatus("robot-status", `the simulated run through this page's rig: ${st.run.report.cycles} cycles`, true);
+    document.body.dataset.robotDone = "1";
+  } catch (err) { stepStatus("robot-status", "run: " + err.message); document.body.dataset.robotDone = "error"; }
+  finally { $("robot-track").disabled = false; }
 });
 
 // A local video chosen in the Capture or Live step: sent to the server, which serves it from now on (its first
