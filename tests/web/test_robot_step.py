@@ -137,19 +137,23 @@ def test_the_page_runs_what_psvs_track_runs(run_dir, monkeypatch):
         assert c.get("/api/robot/track").json()["run"] is None
 
 
-def test_the_robot_step_runs_a_simulated_weld(webgl_page, run_dir):
-    """A click on Run (speed 20 mm/s, 5 mm: the command's run above): the page polls the run and draws it, its
-    figures the command's."""
-    rep = json.loads((run_dir / "report.json").read_text())
+def test_the_robot_step_runs_a_simulated_weld(webgl_page):
+    """A click on Run (25 mm/s, 2 mm: a short run): the page polls the run and draws it, its figures the server's
+    run's."""
+    import urllib.request
     with serving(_app()) as url:
         webgl_page.goto(url + "/#robot")
         webgl_page.wait_for_selector("body[data-ready='1']", timeout=60000)
-        webgl_page.fill("#robot-speed", "20")
-        webgl_page.fill("#robot-length", "5")
+        webgl_page.fill("#robot-speed", "25")
+        webgl_page.fill("#robot-length", "2")
         webgl_page.click("#robot-track")
         webgl_page.wait_for_function("document.body.dataset.robotDone === '1'", timeout=600000)
+        with urllib.request.urlopen(url + "/api/robot/track", timeout=30) as r:
+            run = json.load(r)["run"]
+        rep = run["report"]
         assert webgl_page.inner_text("#robot-lateral") == (f"{rep['lateral_mm']['rms']:.3f} / "
                                                            f"{rep['lateral_mm']['max']:.3f} mm")
         assert webgl_page.inner_text("#robot-status") == (f"the simulated run through this page's rig: "
                                                           f"{rep['cycles']} cycles")
-        assert int(webgl_page.get_attribute("#robot3d", "data-points")) == rep["valid_frames"]
+        assert int(webgl_page.get_attribute("#robot3d", "data-points")) == rep["valid_frames"] > 0
+        assert rep["welded_mm"] == pytest.approx(2.0, abs=0.5) and rep["stop"] == "weld length reached"
