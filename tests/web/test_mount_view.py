@@ -143,6 +143,9 @@ def test_the_mount_step_makes_the_mount_in_the_page(webgl_page, made):
         hrefs = webgl_page.eval_on_selector_all("#mount-files a", "as => as.map(a => a.getAttribute('href'))")
         assert hrefs == [f"/api/mount/file/{n}" for n in ("mount.step", "mount.stl", "drawing.svg", "drawing.png",
                                                           "bom.csv", "mount.toml")]
+        webgl_page.wait_for_selector("#mount3d canvas", timeout=10000)
+        from tests.support.browser import shot
+        shot(webgl_page, "web_mount_made.png")
         n = len(trimesh.load(folder / "mount.stl", force="mesh").faces)
         webgl_page.set_input_files("#mount-stl", str(folder / "mount.stl"))
         webgl_page.wait_for_function("document.body.dataset.mountDone === '1'", timeout=60000)

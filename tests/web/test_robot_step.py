@@ -157,3 +157,5 @@ def test_the_robot_step_runs_a_simulated_weld(webgl_page):
                                                           f"{rep['cycles']} cycles")
         assert int(webgl_page.get_attribute("#robot3d", "data-points")) == rep["valid_frames"] > 0
         assert rep["welded_mm"] == pytest.approx(2.0, abs=0.5) and rep["stop"] == "weld length reached"
+        webgl_page.wait_for_selector("#robot3d canvas", timeout=10000)
+        shot(webgl_page, "web_robot_run.png")
