@@ -4,34 +4,21 @@ folder and kept as text, as the page would read a run ``psvs track -o RUN`` wrot
 from __future__ import annotations
 
 import tempfile
-import threading
 from pathlib import Path
 
+from psvs.web.job import OneJob
 
-class TrackJob:
+
+class TrackJob(OneJob):
     """One run at a time; :meth:`state` for the page to poll."""
 
     def __init__(self):
-        self._lock = threading.Lock()
-        self._thread: threading.Thread | None = None
-        self._state = {"running": False, "cycles": 0, "expected": 0, "error": "", "files": None, "rig": None}
-
-    @property
-    def running(self) -> bool:
-        """Whether a run is under way."""
-        return self._thread is not None and self._thread.is_alive()
+        super().__init__("a tracking run is under way: wait for it", cycles=0, expected=0, files=None, rig=None)
 
     def start(self, rig, cfg, workpiece, expected: int) -> None:
         """Track ``workpiece`` (psvs.robot.workpiece) with ``rig`` and ``cfg`` (psvs.robot.controller.TrackConfig),
         ``expected`` control cycles; ValueError while one runs."""
-        with self._lock:
-            if self.running:
-                raise ValueError("a tracking run is under way: wait for it")
-            self._state = {"running": True, "cycles": 0, "expected": int(expected), "error": "", "files": None,
-                           "rig": rig}
-            self._thread = threading.Thread(target=self._run, args=(rig, cfg, workpiece), daemon=True,
-                                            name="psvs-track")
-            self._thread.start()
+        self._start("psvs-track", lambda: self._run(rig, cfg, workpiece), expected=int(expected), rig=rig)
 
     def started(self, cam2flange, teach) -> None:
         """The loop's listener: the run started (after its hand-eye session)."""
@@ -44,23 +31,13 @@ class TrackJob:
     def _run(self, rig, cfg, workpiece) -> None:
         from psvs.robot.loop import Watching, drift_watch, track
         from psvs.robot.report import write_report
-        try:
-            result = track(workpiece, rig, cfg, listener=Watching(drift_watch(rig, cfg), self))
-            with tempfile.TemporaryDirectory(prefix="psvs-track-") as tmp:
-                write_report(result, workpiece, tmp)
-                files = {name: (Path(tmp) / name).read_text() for name in ("log.csv", "report.json")}
-            with self._lock:
-                self._state.update(files=files)
-        except Exception as exc:              # noqa: BLE001  - said on the page, in one line
-            text = str(exc).strip()
-            with self._lock:
-                self._state.update(error=(text.splitlines()[-1] if text else type(exc).__name__)[:300])
-        finally:
-            with self._lock:
-                self._state.update(running=False)
+        result = track(workpiece, rig, cfg, listener=Watching(drift_watch(rig, cfg), self))
+        with tempfile.TemporaryDirectory(prefix="psvs-track-") as tmp:
+            write_report(result, workpiece, tmp)
+            files = {name: (Path(tmp) / name).read_text() for name in ("log.csv", "report.json")}
+        self._update(files=files)
 
     def state(self) -> dict:
         """{running, cycles (done), expected, error ('' none), files ({log.csv, report.json} texts once done, else
         None), rig (the rig it tracked with)}."""
-        with self._lock:
-            return dict(self._state)
+        return super().state()
