@@ -190,20 +190,34 @@ def _step(c, src, m, pen, p1, at, dst, dst_min, xb, nb_):  # noqa: PLR0913  # pr
     dst_min[xb] = lo
 
 
+@nb.njit(cache=True, nogil=True)
+def _band_map(cost, off, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
+    """One map's aggregation: the down pass into ``sums``, the up pass picking into ``best``. The passes are
+    inlined here, not in the parallel kernels: Numba's parallel passes over their bodies took most of the
+    compile time (20 s for the copy of :data:`LANES` lanes)."""
+    _band_pass(cost, off, True, diagonals, p1, p2, guide, tau, sums, best, cost.shape[2])
+    _band_pass(cost, off, False, diagonals, p1, p2, guide, tau, sums, best, cost.shape[2])
+
+
+@nb.njit(cache=True, nogil=True)
+def _band_map_lanes(cost, off, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
+    """:func:`_band_map` of :data:`LANES` lanes."""
+    _band_pass(cost, off, True, diagonals, p1, p2, guide, tau, sums, best, LANES)
+    _band_pass(cost, off, False, diagonals, p1, p2, guide, tau, sums, best, LANES)
+
+
 @nb.njit(cache=True, parallel=True)
 def _band_winners(costs, offs, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
-    """Both maps' aggregation, one per thread: down pass into sums[i], up pass picking into best[i]."""
+    """Both maps' aggregation, one per thread (:func:`_band_map`)."""
     for i in nb.prange(costs.shape[0]):
-        _band_pass(costs[i], offs[i], True, diagonals, p1, p2, guide, tau, sums[i], best[i], costs.shape[3])
-        _band_pass(costs[i], offs[i], False, diagonals, p1, p2, guide, tau, sums[i], best[i], costs.shape[3])
+        _band_map(costs[i], offs[i], diagonals, p1, p2, guide, tau, sums[i], best[i])
 
 
 @nb.njit(cache=True, parallel=True)
 def _band_winners_lanes(costs, offs, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
     """:func:`_band_winners` of :data:`LANES` lanes."""
     for i in nb.prange(costs.shape[0]):
-        _band_pass(costs[i], offs[i], True, diagonals, p1, p2, guide, tau, sums[i], best[i], LANES)
-        _band_pass(costs[i], offs[i], False, diagonals, p1, p2, guide, tau, sums[i], best[i], LANES)
+        _band_map_lanes(costs[i], offs[i], diagonals, p1, p2, guide, tau, sums[i], best[i])
 
 
 def band_winners(costs: np.ndarray, offsets: np.ndarray, p1: float, p2: float, n_paths: int, guide: np.ndarray,
@@ -293,6 +307,18 @@ def _local_row(costs, offs, r, best, task, nb_):  # noqa: PLR0913  # pragma: no 
         best[i, y, x] = o + k + frac
 
 
+@nb.njit(cache=True, fastmath=SAFE_MATH)
+def _local_row_any(costs, offs, r, best, task):  # pragma: no cover - compiled
+    """:func:`_local_row` of any lane count (inlined here, not in the parallel kernel: compile time)."""
+    _local_row(costs, offs, r, best, task, costs.shape[3])
+
+
+@nb.njit(cache=True, fastmath=SAFE_MATH)
+def _local_row_lanes(costs, offs, r, best, task):  # pragma: no cover - compiled
+    """:func:`_local_row` of :data:`LANES` lanes."""
+    _local_row(costs, offs, r, best, task, LANES)
+
+
 @nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _local_winners(costs, offs, r, best):  # pragma: no cover - compiled
     """Each pixel's winner over its band of the costs summed, disparity by disparity, over its
@@ -301,14 +327,14 @@ def _local_winners(costs, offs, r, best):  # pragma: no cover - compiled
     maps in parallel. Neighbours on the pixel's own band (most of them: the bands follow a smooth coarser
     map) add lane to lane, in vectors."""
     for task in nb.prange(costs.shape[0] * costs.shape[1]):
-        _local_row(costs, offs, r, best, task, costs.shape[3])
+        _local_row_any(costs, offs, r, best, task)
 
 
 @nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _local_winners_lanes(costs, offs, r, best):  # pragma: no cover - compiled
     """:func:`_local_winners` of :data:`LANES` lanes."""
     for task in nb.prange(costs.shape[0] * costs.shape[1]):
-        _local_row(costs, offs, r, best, task, LANES)
+        _local_row_lanes(costs, offs, r, best, task)
 
 
 def band_local_winners(costs: np.ndarray, offsets: np.ndarray, radius: int) -> np.ndarray:

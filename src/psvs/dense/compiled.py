@@ -28,8 +28,9 @@ NOT_CALLED = ("psvs.dense.sgm._both_passes", "psvs.dense.sgm._add_into")
 #: lags), a build's view separation (--views on a build), the band kernels' general copies (bands of other
 #: than psvs.dense.band.LANES lanes: parameters of the user's own). A machine that has only run others keeps them
 #: uncompiled; they are not what makes a first run take minutes, and they do not make a run say it compiles.
-SOME_RUNS = ("psvs.dense.band._local_winners_lanes", "psvs.dense.echo_test._lag_medians",
-             "psvs.dense.separate._csr_matvec", "psvs.dense.band._local_winners", "psvs.dense.band._band_winners")
+SOME_RUNS = ("psvs.dense.band._local_winners_lanes", "psvs.dense.band._local_row_lanes",
+             "psvs.dense.echo_test._lag_medians", "psvs.dense.separate._csr_matvec", "psvs.dense.band._local_winners",
+             "psvs.dense.band._local_row_any", "psvs.dense.band._band_winners", "psvs.dense.band._band_map")
 
 
 def announce_dense(command: str) -> bool:

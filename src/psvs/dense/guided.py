@@ -44,9 +44,11 @@ def n_levels(r):  # pragma: no cover - compiled
 
 
 # psvs.dense.cost's echo kernel compiles this in. Numba's cache only sees a kernel's own file: after an
-# edit here, touch cost.py (or clear __pycache__) so that its cached kernel is rebuilt. Inlined, it is
-# compiled with its caller's flags (SAFE_MATH in the echo, no fast math in this module's kernels: IEEE values in both).
-@nb.njit(cache=True, fastmath=SAFE_MATH, inline="always")
+# edit here, touch cost.py (or clear __pycache__) so that its cached kernel is rebuilt. Its flags (SAFE_MATH)
+# change no value: IEEE arithmetic in the echo and in this module's kernels alike. It is a call, not inlined
+# by Numba (inline="always"): LLVM inlines it all the same, and Numba's inlining of it (four times into
+# :func:`_filter_slices`, a parallel kernel) took 20 s of a first run's compile, for the same speed.
+@nb.njit(cache=True, fastmath=SAFE_MATH)
 def row_sums(row, out, r, levels, clamp):  # pragma: no cover - compiled
     """out[x] = Σ row[x + j], j = −r..r (row, out: (W,)), beyond the ends the row reflected (OpenCV's
     BORDER_REFLECT) or with ``clamp`` its end values repeated, by doubling: the extended row into
@@ -107,7 +109,7 @@ def _box_mean(src, dst, tmp, r):  # pragma: no cover - compiled
             out[x] = col[x] * scale
 
 
-@nb.njit(cache=True, inline="always")
+@nb.njit(cache=True)
 def _slide(col, ring, y, h, r, first):  # pragma: no cover - compiled
     """The column sums ``col`` (W,) of the row sums in ``ring`` (2r + 2 rows, row i in slot i mod 2r + 2)
     moved to the window of row y, rows reflect(y − r .. y + r): summed afresh for the first row, else
