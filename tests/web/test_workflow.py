@@ -22,6 +22,25 @@ from tests.support.browser import shot
 from tests.support.web import local_client, serving
 
 STEPS = ("design", "mount", "capture", "align", "check", "measure", "dense", "live", "robot")
+#: What each step's view must show before anything runs: the controls its text asks the user to use, and where
+#: its results go (the 3-D views draw only with WebGL: tests/web/test_rig3d.py, test_mount_view.py, ...).
+MUST_SHOW = {
+    "design": ("#rig-choice", "#rig-file", "#rig3d"),
+    "mount": ("#glass", "#mount-interface", "#mount-lens", "#mount-make", "#mount-stl"),
+    "capture": ("#capture-video", "#capture-target", "#capture-dir", "#capture-setup", "#calibrate-dir",
+                "#calibrate-run"),
+    "align": ("#adjust-rig", "#adjust-mount", "#adjust-design", "#adjust-run"),
+    "check": ("#check-near", "#check-far", "#check-tolerance", "#check-run"),
+    "measure": ("#image", "#auto", "#export-csv", "#fig8"),
+    "dense": ("#dense-near", "#dense-far", "#dense", "#dense-fast"),
+    "live": ("#live-video", "#live-start", "#live-dense", "#live-check"),
+    "robot": ("#robot-scene", "#robot-speed", "#robot-length", "#robot-track", "#robot-run"),
+}
+#: The step's controls whose text or box is cut off (a file button that reads "Choose F"): JavaScript over the
+#: step's section, [id or tag, content width, shown width] of each.
+CLIPPED = """s => [...s.querySelectorAll('button, select, input[type=file]')]
+    .filter(e => e.offsetParent !== null && e.scrollWidth > e.clientWidth + 1)
+    .map(e => [e.id || e.tagName, e.scrollWidth, e.clientWidth])"""
 
 
 @pytest.fixture(scope="module")
@@ -111,7 +130,8 @@ def test_the_capture_card_and_folder_are_chosen_in_the_page(tmp_path, knocked_fr
 
 
 def test_each_step_has_its_url_and_says_what_it_needs(page, knocked_frame):
-    """Every step by its URL: it alone is shown, says what it needs and what comes next, fits 1280 px; the
+    """Every step by its URL: it alone is shown, says what it needs and what comes next, fits 1280 px with the
+    controls it names (:data:`MUST_SHOW`) shown and none cut off (:data:`CLIPPED`); the
     keyboard reaches the steps; over the whole walk (all nine steps and the Check step's run) no request goes
     to any host but the server and the console logs no error."""
     page.set_viewport_size({"width": 1280, "height": 800})
@@ -157,8 +177,12 @@ def test_each_step_has_its_url_and_says_what_it_needs(page, knocked_frame):
                 nxt = section.locator(".next a").first.get_attribute("href")
                 assert nxt == f"#{STEPS[k + 1]}"
             assert page.get_attribute(f"#workflow a[data-step='{step}']", "aria-current") == "step"
-            # readable at 1280 x 800: nothing wider than the window
+            # readable at 1280 x 800: nothing wider than the window, every control it names shown whole
             assert page.evaluate("document.documentElement.scrollWidth") <= 1280
+            for sel in MUST_SHOW[step]:
+                box = page.locator(sel).bounding_box()
+                assert page.is_visible(sel) and box["width"] > 0 and box["x"] + box["width"] <= 1280, (step, sel)
+            assert section.evaluate(CLIPPED) == [], step
             shot(page, f"web_step_{k + 1}_{step}.png")
         # from the keyboard: Tab reaches the steps' links, Enter follows one
         page.goto(url + "/#design")
