@@ -521,19 +521,22 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], *, pa
 
 
 def image_chance(edges: np.ndarray, disparity_range_px: tuple[float, float], *, params: AutoParams = AutoParams(),
-                 grey: np.ndarray | None = None, rect=None) -> Chance:
+                 grey: np.ndarray | None = None, rect=None, px: EdgePixels | None = None) -> Chance:
     """Whether the image holds twins at all: :func:`match_auto`'s candidates against chance
-    (:mod:`psvs.match.chance`), without pairing them; arguments as :func:`match_auto`'s. The paper's seeded
+    (:mod:`psvs.match.chance`), without pairing them; arguments as :func:`match_auto`'s, and ``px`` the edge
+    map's :func:`~psvs.match.edges.edge_pixels` (under ``rect``) when the caller has them. The paper's seeded
     algorithm asks it before it takes an edge (psvs.match.correspondence, psvs.live.tracker)."""
     d_min, d_max = disparity_range_px
-    ev, _ = _evidence(edges, (d_min, d_max), params, grey, rect, with_steps=False)
+    ev, _ = _evidence(edges, (d_min, d_max), params, grey, rect, with_steps=False, px=px)
     return _chance(ev, _peaks(ev, int(d_min))[1] if len(ev.p) else np.zeros(0), d_min, d_max)
 
 
-def _evidence(edges, d_range, params: AutoParams, grey, rect, with_steps: bool = True) -> tuple[Evidence, int]:
+def _evidence(edges, d_range, params: AutoParams, grey, rect, with_steps: bool = True,  # noqa: PLR0913
+              px: EdgePixels | None = None) -> tuple[Evidence, int]:
     """The :class:`Evidence` of an edge map at disparities ``d_range`` and the claims' column padding; the
-    grey image's step image only ``with_steps`` (the pairing's second pass reads it, chance does not)."""
-    px = edge_pixels(edges, rect)
+    grey image's step image only ``with_steps`` (the pairing's second pass reads it, chance does not); ``px``
+    the map's edge pixels if already labelled."""
+    px = edge_pixels(edges, rect) if px is None else px
     pol = steps = None
     pad = int(np.ceil(d_range[1] + params.tol_px)) + 1
     if grey is not None and len(px.u):

@@ -152,11 +152,11 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     edges, stages = pipeline.run(grey, keep=True)
     if seed_px is not None:
         pair = match_seeded(edges, seed_px, rng, n_seeds=params.n_seeds, rect=rect)
-        chance = image_chance(edges, rng, params=params.auto, grey=grey, rect=rect)
+        px = edge_pixels(edges, rect)            # labelled once: the chance test and the rows' check read them
+        chance = image_chance(edges, rng, params=params.auto, grey=grey, rect=rect, px=px)
         rows = None
         if len(pair) and chance.answered:
-            rows = check_pair(pair.left_px, edge_pixels(edges, rect), pair.shape_disparity_px,
-                              params.auto.min_rows)
+            rows = check_pair(pair.left_px, px, pair.shape_disparity_px, params.auto.min_rows)
         pairs, unmatched = ([pair] if rows is not None and not rows.refuses else []), []
     else:
         auto = match_auto(edges, rng, params=params.auto, grey=grey, rect=rect)
