@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from psvs.dense.cloud import Cloud, disparity_cloud
+from psvs.dense.cloud import Cloud, disparity_cloud, pixel_cloud
 from psvs.dense.depth_table import exact_points, table_cloud
 from psvs.dense.disparity import DenseResult, dense_disparity
 from psvs.dense.noise import noise_level, textured_pixels
@@ -129,21 +129,4 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
     rect = dense.rect
     if model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors:
         return Cloud(*table_cloud(depth_table(rect), rect, d, mask))     # one pass over the map
-    flat = d.ravel()
-    if mask is None:
-        at = np.flatnonzero(np.isfinite(flat) & (flat > 0))
-    else:        # the mask's pixels first (a live loop's strided grid: a sixteenth of the map), then their values
-        mask = np.asarray(mask, dtype=bool)
-        if mask.shape != d.shape:
-            raise ValueError(f"mask {mask.shape} must have the map's shape {d.shape}")
-        at = np.flatnonzero(mask)
-        good = np.isfinite(flat[at]) & (flat[at] > 0)
-        at = at[good]
-    v, u = np.divmod(at, d.shape[1])        # flat indices: a fraction of 2-D fancy indexing's cost
-    left_rect = np.column_stack([u, v]).astype(np.float64)
-    tri = exact_points(rect, left_rect, flat[at].astype(np.float64), model, rig=rig)
-    ok = tri.valid
-    pts = tri.points_mm[ok]
-    depth = np.full(d.shape, np.nan)
-    depth.ravel()[at[ok]] = pts[:, 2]
-    return Cloud(pts, left_rect[ok], depth)
+    return pixel_cloud(d, mask, lambda uv, dd: exact_points(rect, uv, dd, model, rig=rig))

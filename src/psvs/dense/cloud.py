@@ -22,25 +22,42 @@ class Cloud(NamedTuple):
     depth_mm: np.ndarray
 
 
+def pixel_cloud(disparity, mask, triangulate_pixels) -> Cloud:
+    """The cloud of a map's pixels (``disparity`` (H, W), px) with a finite disparity > 0, and in ``mask`` ((H, W)
+    bool) when given, row by row: ``triangulate_pixels(uv, d)`` (uv (N, 2) float64 (u, v) on the map's grid, d
+    (N,) float64 px) gives their Triangulation; the depth map holds each point's Z, NaN elsewhere. A sparse
+    mask (a live loop's strided grid) costs its own pixels, not the map's."""
+    d = np.asarray(disparity)
+    if d.ndim != 2:
+        raise ValueError(f"disparity map must be (H, W), got shape {d.shape}")
+    flat = d.ravel()
+    if mask is None:
+        at = np.flatnonzero(np.isfinite(flat) & (flat > 0))
+    else:
+        mask = np.asarray(mask, dtype=bool)
+        if mask.shape != d.shape:
+            raise ValueError(f"mask {mask.shape} must have the map's shape {d.shape}")
+        at = np.flatnonzero(mask)
+        at = at[np.isfinite(flat[at]) & (flat[at] > 0)]
+    v, u = np.divmod(at, d.shape[1])        # flat indices: a fraction of 2-D fancy indexing's cost
+    uv = np.column_stack([u, v]).astype(np.float64)
+    tri = triangulate_pixels(uv, flat[at].astype(np.float64))
+    depth = np.full(d.shape, np.nan)
+    depth.ravel()[at[tri.valid]] = tri.points_mm[tri.valid, 2]
+    return Cloud(tri.points_mm[tri.valid], uv[tri.valid], depth)
+
+
 def disparity_cloud(disparity_left, rig: Rig, model: str = "refraction", mask=None) -> Cloud:
     """Triangulate every finite pixel of ``disparity_left`` (H, W, px): the left-view pixel (u, v) and its
     right-view twin (u − d, v). ``mask`` (H, W bool) keeps a subset, e.g. ``confidence > 0``. With the exact
     model the twin's row is first moved to where the plate really puts it (:func:`twin_rows`)."""
-    d = np.asarray(disparity_left, dtype=np.float64)
-    if d.ndim != 2:
-        raise ValueError(f"disparity map must be (H, W), got shape {d.shape}")
-    keep = np.isfinite(d) & (d > 0)
-    if mask is not None:
-        keep &= np.asarray(mask, dtype=bool)
-    v, u = np.nonzero(keep)
-    left = np.stack([u, v], axis=1).astype(np.float64)
-    right = np.stack([u - d[v, u], v], axis=1).astype(np.float64)
-    if model == "exact" and len(left):
-        right[:, 1], _ = twin_rows(left, right, rig, model="exact")
-    tri = triangulate(left, right, rig, model=model)
-    depth = np.full(d.shape, np.nan)
-    depth[v[tri.valid], u[tri.valid]] = tri.points_mm[tri.valid, 2]
-    return Cloud(tri.points_mm[tri.valid], left[tri.valid], depth)
+
+    def pairs(left, d):
+        right = np.column_stack([left[:, 0] - d, left[:, 1]])
+        if model == "exact" and len(left):
+            right[:, 1], _ = twin_rows(left, right, rig, model="exact")
+        return triangulate(left, right, rig, model=model)
+    return pixel_cloud(np.asarray(disparity_left, dtype=np.float64), mask, pairs)
 
 
 def write_cloud_ply(path, cloud: Cloud, grey=None) -> None:

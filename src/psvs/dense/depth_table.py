@@ -51,6 +51,7 @@ import numba as nb
 import numpy as np
 
 from psvs._validate import check_points
+from psvs.dense.cloud import pixel_cloud
 from psvs.dense.fastmath import SAFE_MATH
 from psvs.measure.triangulate import Triangulation, triangulate
 from psvs.optics.mirrors import front_z_mm
@@ -323,7 +324,7 @@ def table_cloud(table: DepthTable, rect: Rectification, disparity, mask=None) ->
             raise ValueError(f"mask {mask.shape} must have the map's shape {d.shape}")
     _check_table(table, rect)
     if mask is not None and SPARSE_SHARE * mask.size > np.count_nonzero(mask):
-        return _listed_cloud(table, rect, d, mask)
+        return pixel_cloud(d, mask, lambda uv, dd: table_points(table, rect, uv, dd))
     h, w = d.shape
     out, status = np.empty((h * w, 3)), np.empty(h * w, np.int8)
     _map_kernel(np.ascontiguousarray(d), np.zeros((0, 0), bool) if mask is None else mask, *_kernel_args(table, rect),
@@ -344,20 +345,6 @@ def table_cloud(table: DepthTable, rect: Rectification, disparity, mask=None) ->
 #: triangulated as a list of its pixels: the one-pass kernel's work space is the whole map's (40 MB of fresh
 #: memory a frame at 1440x1080), and its time went from 40 to 20 ms a frame, the same points.
 SPARSE_SHARE = 0.25
-
-
-def _listed_cloud(table: DepthTable, rect: Rectification, d: np.ndarray, mask: np.ndarray) -> tuple:
-    """:func:`table_cloud` of the pixels of ``mask`` (H, W) bool, through :func:`table_points`."""
-    flat = d.ravel()
-    at = np.flatnonzero(mask)
-    with np.errstate(invalid="ignore"):
-        at = at[np.isfinite(flat[at]) & (flat[at] > 0)]
-    v, u = np.divmod(at, d.shape[1])
-    uv = np.column_stack([u, v]).astype(np.float64)
-    tri = table_points(table, rect, uv, flat[at].astype(np.float64))
-    depth = np.full(d.shape, np.nan)
-    depth.ravel()[at[tri.valid]] = tri.points_mm[tri.valid, 2]
-    return tri.points_mm[tri.valid], uv[tri.valid], depth
 
 
 def _check_table(table: DepthTable, rect: Rectification) -> None:
