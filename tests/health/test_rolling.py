@@ -3,12 +3,14 @@ line when the verdict crosses the tolerance; in ``psvs live``, its log columns (
 ``mcap`` reader)."""
 import csv
 import json
+import math
 
 import numpy as np
 import pytest
 
 from psvs.cli.main import main
-from psvs.health.rolling import SHARE, RollingCheck
+from psvs.health.rolling import SHARE, TILES_PER_STEP, RollingCheck
+from psvs.health.rows import frame_tiles
 from psvs.io.params import load_rig
 from psvs.simulate.builtin import textured, wall
 from psvs.simulate.render import render
@@ -49,6 +51,25 @@ def test_a_knock_is_said_once_and_the_figure_is_the_checks(frames):
 def test_an_undrifted_build_raises_no_alarm(frames):
     check, events = run_check(frames["misaligned"])
     assert events == [] and check.latest.verdict == "healthy", check.latest.reason
+
+
+def test_idle_time_buys_steps_the_sensor_does_not_pay_for(frames):
+    """Time a cycle leaves idle (a tracking run's run-in, psvs.robot.drift) buys steps like the sensor's share
+    does, and steps on it are counted apart: the check's share of the sensor's time leaves them out. A sweep
+    is done once every place of the field has been read."""
+    check = RollingCheck(load_rig("misaligned"))
+    assert not check.due(0.005) and check.due(0.005, idle_s=0.035)       # 8 % of 5 ms: 0.4 ms, not a step
+    places = len(frame_tiles(frames["misaligned"][0], check.rig).places_px)
+    k = 0
+    while not check.swept:
+        assert check.due(0.005, idle_s=1.0)
+        check.take(frames["misaligned"][k % 3], k, idle=True)
+        k += 1
+    assert check.idle_steps == check.steps == k == math.ceil(places / TILES_PER_STEP) and check.cost_share == 0.0
+    check.take(frames["misaligned"][0], k)                                 # one on the sensor's share
+    assert check.cost_share == pytest.approx((check.spent_s - check.idle_spent_s) / check.sensor_s)
+    assert 0 < check.cost_share and check.idle_spent_s < check.spent_s
+    assert check.summary()["idle_steps"] == k and check.summary()["steps"] == k + 1
 
 
 def test_no_step_without_time(frames):

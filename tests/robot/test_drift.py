@@ -30,17 +30,19 @@ def build():
 
 
 @slow
-def test_a_knocked_build_stops_the_run_before_the_arc_goes_far(build, tmp_path):
+def test_a_knocked_build_is_stopped_before_the_arc(build, tmp_path):
     """Through the knocked glass with the old calibration (the hand-eye calibrated before the knock: the
-    session's views through the knocked glass are refused, their twins 2.3 px off their curves): the check turns
+    session's views through the knocked glass are refused, their twins 2.3 px off their curves), at the default
+    share: told to stop on drift, the check sweeps the field on the run-in's idle time (psvs.robot.drift), turns
     drifted with the field within 40 % of the truth, says one line, halts the run (the torch brakes at the
-    job's deceleration, no faster), and the report and the log carry the verdicts by value."""
+    job's deceleration, no faster) and the torch rests before the arc's start: nothing welded. The report and
+    the log carry the verdicts by value."""
     from psvs.robot.arm import Arm
     from psvs.robot.handeye_session import calibrate_cell
     from psvs.robot.mounting import HOME_Q
     cfg = TrackConfig(speed_mm_s=10.0, rate_hz=25.0, weld_length_mm=30.0)
     wp = seam_workpiece("weld_seam", cfg.camera_distance_mm)
-    watch = drift_watch(build, cfg, stop_on_drift=True, share=1.0)
+    watch = drift_watch(build, cfg, stop_on_drift=True)
     before = calibrate_cell(build, cfg, Arm(HOME_Q))
     run = track(wp, build, cfg, true_rig=load_rig("misaligned_knocked"), handeye=before, listener=Watching(watch))
     said = [(k, c.health.line) for k, c in enumerate(run.cycles) if c.health.line]
@@ -54,6 +56,9 @@ def test_a_knocked_build_stops_the_run_before_the_arc_goes_far(build, tmp_path):
     assert np.all(np.diff(v) <= 1e-9) and v[-1] == 0.0
     v0, dt = run.cycles[k_said - 1].speed_mm_s, 1.0 / cfg.rate_hz
     assert run.stop.s_mm - run.cycles[k_said - 1].s_mm <= v0 ** 2 / (2 * cfg.accel_mm_s2) + 2 * v0 * dt + 1e-6
+    assert run.stop.s_mm < cfg.arc_on_mm and max(c.s_mm for c in run.cycles) < cfg.arc_on_mm
+    assert run.health["before_arc"]["verdict"] == "drifted"
+    assert run.health["idle_steps"] == run.health["steps"] == sum(c.health.judged for c in run.cycles) <= k_said + 1
     # the report and the log, read back by value (psvs's reader and the csv module)
     write_report(run, wp, tmp_path)
     rep = json.loads((tmp_path / "report.json").read_text())
@@ -73,7 +78,7 @@ def test_the_undrifted_build_raises_no_alarm(build):
     whatever it judged stays within the tolerance or declines to judge (the seam plates' soft texture)."""
     cfg = TrackConfig(speed_mm_s=25.0, rate_hz=25.0, weld_length_mm=10.0)
     wp = seam_workpiece("weld_seam", cfg.camera_distance_mm)
-    watch = drift_watch(build, cfg, stop_on_drift=True, share=1.0)
+    watch = drift_watch(build, cfg, stop_on_drift=True)        # the run-in's sweep: a judgement a step
     run = track(wp, build, cfg, true_rig=build, listener=Watching(watch))
     judged = [c.health.check for c in run.cycles if c.health.judged]
     assert len(judged) >= 10 and run.stop.reason == "weld length reached"
@@ -91,25 +96,25 @@ def test_a_cell_without_the_whole_rig_has_no_whole_frame(build):
 
 @slow
 def test_track_says_the_drift_logs_it_and_stops_on_it(tmp_path, capsys):
-    """`psvs track --stop-on-drift --check-share 50` through the knocked build: the one line said, the run stopped
-    on it (exit 1: not a clean weld), the check's cost near its share, and its /psvs/health records on the
-    recording (mcap reader) the same as the log's rows (csv module) at those cycles. (At the default 8 % the
-    drift is said after about 150 cycles, docs/health.md; a short run at 50 % does not hang on the machine's
-    load. 45 mm: a loaded machine's run of 30 mm could end before the check had read enough tiles of the seam
-    plates.)"""
+    """`psvs track --stop-on-drift` through the knocked build: the one line said before the arc (the run-in's
+    sweep), the run stopped on it with nothing welded (exit 1: not a clean weld), its steps all on idle time,
+    none charged to the sensor, and its /psvs/health records on the recording (mcap reader) the same as the
+    log's rows (csv module) at those cycles."""
     run, rec, rrd = tmp_path / "run", tmp_path / "run.mcap", tmp_path / "run.rrd"
     he = tmp_path / "handeye.toml"       # calibrated before the knock (through it, the session is refused)
     assert main(["handeye", "--rig", "misaligned", "-o", str(he)]) == 0
     capsys.readouterr()
     code = main(["track", "weld_seam", "--rig", "misaligned", "--true-rig", "misaligned_knocked", "--stop-on-drift",
-                 "--handeye", str(he), "--check-share", "50", "--length", "45", "--no-bag", "--mcap", str(rec),
+                 "--handeye", str(he), "--length", "30", "--no-bag", "--mcap", str(rec),
                  "--rerun", str(rrd), "-o", str(run)])
     out = capsys.readouterr().out
     assert code == 1 and out.count("the calibration has drifted") == 1, out
     assert "psvs track: frame " in out and "\nstop: calibration drifted at frame " in out
     rep = json.loads((run / "report.json").read_text())
-    assert len(rep["health"]["lines"]) == 1 and 30.0 < rep["health"]["cost_pct"] < 70.0
-    assert f"self-check: {rep['health']['verdict']}" in out
+    h = rep["health"]
+    assert len(h["lines"]) == 1 and h["idle_steps"] == h["steps"] and h["cost_pct"] == 0.0 and rep["welded_mm"] == 0
+    assert (f"self-check: {h['verdict']}" in out and f"({h['steps']} steps ({h['steps']} on the run-in's idle time), "
+            f"0.0 % of the sensor's time; before the arc: drifted)" in out), out
     with (run / "log.csv").open() as f:
         rows = list(csv.DictReader(f))
     _, _, msgs = read_mcap(rec)

@@ -85,9 +85,10 @@ class RollingCheck:
             raise ValueError(f"the rolling check's share of the frame time must be in (0, 1], got {share}")
         self.rig, self.near_mm, self.far_mm, self.tolerance_px, self.share = rig, near_mm, far_mm, tolerance_px, share
         self.latest: HealthCheck | None = None
-        self.spent_s = self.sensor_s = 0.0
-        self.steps = 0
+        self.spent_s = self.sensor_s = self.idle_spent_s = 0.0
+        self.steps = self.idle_steps = 0
         self._credit, self._next = 0.0, 0
+        self._read, self._of_tiles = 0, 0
         self._costs: deque = deque([FIRST_COST_S], maxlen=5)
         self._window: deque = deque()
         self._scenes: deque = deque()
@@ -101,20 +102,25 @@ class RollingCheck:
         credit allows; a :class:`HealthEvent` when the verdict crosses between healthy and drifted."""
         return self.take(image, frame) if self.due(sensor_s) else None
 
-    def due(self, sensor_s: float) -> bool:
-        """Count the sensor's time on a frame (s) into the credit; whether a step is due on that frame (then
-        call :meth:`take` with it, e.g. once a frame only a step needs is read)."""
+    def due(self, sensor_s: float, idle_s: float = 0.0) -> bool:
+        """Count the sensor's time on a frame (s) into the credit, and ``idle_s``, time the frame's cycle leaves
+        idle that the check may have whole (a tracking run's cycle before the arc is struck:
+        psvs.robot.drift); whether a step is due on that frame (then call :meth:`take` with it, e.g. once a
+        frame only a step needs is read)."""
         self.sensor_s += max(sensor_s, 0.0)
         cost = float(np.median(self._costs))
-        self._credit = min(self._credit + self.share * max(sensor_s, 0.0), MAX_CREDIT_STEPS * cost)
+        self._credit = min(self._credit + self.share * max(sensor_s, 0.0) + max(idle_s, 0.0), MAX_CREDIT_STEPS * cost)
         return self._credit >= cost
 
-    def take(self, image, frame: int) -> HealthEvent | None:
+    def take(self, image, frame: int, idle: bool = False) -> HealthEvent | None:
         """One step on frame ``frame`` (its image (H, W)): its next tiles into the last sweep, judged; its time
-        taken off the credit. A :class:`HealthEvent` when the verdict crosses between healthy and drifted."""
+        taken off the credit. With ``idle`` the step ran on idle time (:meth:`due`'s ``idle_s``): its time is
+        counted apart (:attr:`idle_spent_s`), not in :attr:`cost_share`. A :class:`HealthEvent` when the verdict
+        crosses between healthy and drifted."""
         t0 = time.perf_counter()
         tiles = frame_tiles(image, self.rig, self.near_mm, self.far_mm, subset=(self._next, TILES_PER_STEP))
         self._next = (self._next + TILES_PER_STEP) % max(tiles.of_tiles, 1)
+        self._read, self._of_tiles = self._read + TILES_PER_STEP, tiles.of_tiles
         self._window.append(tiles)
         self._scenes.append(self.scene_of(image))
         while sum(len(t.accepted) for t in self._window) - len(self._window[0].accepted) >= tiles.of_tiles:
@@ -124,6 +130,9 @@ class RollingCheck:
         spent = time.perf_counter() - t0
         self.spent_s += spent
         self.steps += 1
+        if idle:
+            self.idle_spent_s += spent
+            self.idle_steps += 1
         self._credit -= spent
         self._costs.append(spent)
         return self._event(frame)
@@ -152,16 +161,23 @@ class RollingCheck:
 
     def summary(self) -> dict:
         """The latest judgement for a display (JSON-ready, NaN as None): ``verdict`` (None before the first
-        step), ``reason``, ``row_offset_rms_px``, ``uncertainty_px``, ``tiles``, ``tolerance_px``, ``steps`` and
-        ``cost_pct`` (the check's time over the sensor's, %)."""
+        step), ``reason``, ``row_offset_rms_px``, ``uncertainty_px``, ``tiles``, ``tolerance_px``, ``steps``,
+        ``idle_steps`` (of them, on idle time) and ``cost_pct`` (the check's time over the sensor's, %, the idle
+        steps' left out)."""
         c = self.latest
         figures = {} if c is None else {"row_offset_rms_px": c.row_offset_rms_px, "uncertainty_px": c.uncertainty_px}
         return json_safe({"verdict": None if c is None else c.verdict, "reason": "" if c is None else c.reason,
                           "row_offset_rms_px": None, "uncertainty_px": None, **figures,
                           "tiles": 0 if c is None else c.tiles, "tolerance_px": self.tolerance_px,
-                          "steps": self.steps, "cost_pct": 100 * self.cost_share})
+                          "steps": self.steps, "idle_steps": self.idle_steps,
+                          "cost_pct": 100 * self.cost_share})
+
+    @property
+    def swept(self) -> bool:
+        """Whether the steps so far have read every place of the field once (a whole sweep)."""
+        return self._of_tiles > 0 and self._read >= self._of_tiles
 
     @property
     def cost_share(self) -> float:
-        """The check's time over the sensor's, so far."""
-        return self.spent_s / self.sensor_s if self.sensor_s > 0 else 0.0
+        """The check's time over the sensor's, so far (steps on idle time left out)."""
+        return (self.spent_s - self.idle_spent_s) / self.sensor_s if self.sensor_s > 0 else 0.0

@@ -190,7 +190,7 @@ def control_loop(cell: Cell, tracker: SeamTracker, setup: SensorSetup, max_cycle
     controller accepts. ``on_cycle(CycleResult)`` is called after every cycle. ``watch`` (a cell with whole
     frames: :meth:`SimulatedCell.full_frame`) checks the calibration after each cycle's sensing, before the
     controller decides (psvs.robot.drift)."""
-    sensor, results = None, []
+    sensor, results, control_s = None, [], 0.0
     for _ in range(max_cycles):
         t0 = time.perf_counter()
         frame = cell.read()
@@ -199,7 +199,7 @@ def control_loop(cell: Cell, tracker: SeamTracker, setup: SensorSetup, max_cycle
             sensor = setup.start(frame.image)
         seam = sensor.measure(frame.image)
         t2 = time.perf_counter()
-        note = None if watch is None else watch.look(cell, len(results), t2 - t1, tracker)
+        note = None if watch is None else watch.look(cell, len(results), t2 - t1, tracker, control_s)
         t2c = time.perf_counter()              # the check's time (and its frame's) is neither sensing nor control
         cmd = tracker.step(Observation(frame.t_s, frame.flange2base, seam))
         if cmd.accepted or (cmd.valid and sensor.half_width_px is None):
@@ -211,7 +211,8 @@ def control_loop(cell: Cell, tracker: SeamTracker, setup: SensorSetup, max_cycle
             step, fault = cell.stop(), str(exc)
             tracker.fault(fault)
         t3 = time.perf_counter()
-        res = CycleResult(frame, seam, cmd, step, fault, (t1 - t0, t2 - t1, t3 - t2c), note)
+        control_s = t3 - t2c
+        res = CycleResult(frame, seam, cmd, step, fault, (t1 - t0, t2 - t1, control_s), note)
         results.append(res)
         if on_cycle is not None:
             on_cycle(res)

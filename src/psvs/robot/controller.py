@@ -173,6 +173,11 @@ class SeamTracker:
         self.decided_at, self.stopping_at, self.lost_at, self.stop_reason = None, None, None, ""
 
     @property
+    def arc_struck(self) -> bool:
+        """The torch has come to where the arc is struck (:attr:`TrackConfig.arc_on_mm`): the run-in is over."""
+        return self.s_cmd >= self.cfg.arc_on_mm
+
+    @property
     def stopped(self) -> bool:
         """A stop is decided and the commanded speed is zero."""
         return self.stopping_at is not None and self.v == 0.0

@@ -9,6 +9,15 @@ is rendered then, which is the simulation's cost, not the sensor's). The step re
 of the workpiece's texture and judges the last sweep as ``psvs check`` judges a frame. When the verdict
 crosses the tolerance the run says one line, and, told to, stops safely: the torch brakes at the
 controller's deceleration (:meth:`psvs.robot.controller.SeamTracker.halt`) and the arc goes off there.
+
+A run told to stop on drift also sweeps the field before the arc is struck (the run-in,
+:attr:`psvs.robot.controller.TrackConfig.arc_on_mm`): until it has read every place of the field once, the
+check has each cycle's idle time too, the control period less the sensor's and the controller's time. A step
+of a few tens of ms fits in it every cycle or few, so a knocked build is found and stopped before it welds,
+not a minute into the seam at the sensor's share. The idle steps are not counted in the check's share of the
+sensor's time. (A real cell's idle time is free; a simulated cell renders a whole frame for each step, which
+is why a run that is not told to stop leaves the sweep out.) Once the check has halted the run its verdict
+stands: it takes no more steps while the torch brakes.
 """
 from __future__ import annotations
 
@@ -16,6 +25,7 @@ from dataclasses import dataclass
 
 from psvs.health.check import HealthCheck
 from psvs.health.rolling import RollingCheck
+from psvs.io.jsonsafe import json_safe
 
 #: How the stop reason of a run its self-check stopped begins.
 DRIFT_STOP = "calibration drifted"
@@ -37,17 +47,29 @@ class HealthNote:
 
 class DriftWatch:
     """The rolling check of a track run (module docstring): ``check`` a RollingCheck over the sensor's rig
-    (what it was calibrated to) and depth range; ``stop_on_drift`` halts the run when it turns drifted."""
+    (what it was calibrated to) and depth range; ``stop_on_drift`` halts the run when it turns drifted;
+    ``before_arc`` sweeps the field on the run-in's idle time (None: when ``stop_on_drift``)."""
 
-    def __init__(self, check: RollingCheck, stop_on_drift: bool = False):
+    def __init__(self, check: RollingCheck, stop_on_drift: bool = False, before_arc: bool | None = None):
         self.check, self.stop_on_drift = check, bool(stop_on_drift)
+        self.sweep_before_arc = self.stop_on_drift if before_arc is None else bool(before_arc)
         self.lines: list[str] = []
+        self.before_arc = None
+        self.halted = False
 
-    def look(self, cell, cycle: int, sensor_s: float, tracker) -> HealthNote:
-        """After cycle ``cycle``'s sensing (``sensor_s`` s of the sensor's time): a step on the cell's whole
-        frame when one is due; a drifted verdict halts ``tracker`` when told to."""
-        judged = self.check.due(sensor_s)
-        event = self.check.take(cell.full_frame(), cycle) if judged else None
+    def look(self, cell, cycle: int, sensor_s: float, tracker, control_s: float = 0.0) -> HealthNote:
+        """After cycle ``cycle``'s sensing (``sensor_s`` s of the sensor's time; ``control_s`` s the
+        controller's, as of the last cycle): a step on the cell's whole frame when one is due, on the cycle's
+        idle time too before the arc is struck (module docstring); a drifted verdict halts ``tracker`` when
+        told to."""
+        if self.halted:
+            return HealthNote(self.check.latest, False, "", self.check.cost_share)
+        run_in = self.sweep_before_arc and not tracker.arc_struck and not self.check.swept
+        idle_s = max(1.0 / tracker.cfg.rate_hz - sensor_s - control_s, 0.0) if run_in else 0.0
+        judged = self.check.due(sensor_s, idle_s)
+        event = self.check.take(cell.full_frame(), cycle, idle=run_in) if judged else None
+        if judged and not tracker.arc_struck:
+            self.before_arc = self.check.latest
         line = halt = ""
         if event is not None:
             line = event.line
@@ -55,11 +77,18 @@ class DriftWatch:
             if self.stop_on_drift and event.check.verdict == "drifted":
                 halt = f"{DRIFT_STOP} at frame {cycle}: {event.check.reason}"
                 tracker.halt(halt)
+                self.halted = True
         return HealthNote(self.check.latest, judged, line, self.check.cost_share, halt)
 
     def summary(self) -> dict:
-        """The run's check for its report (JSON-ready): :meth:`RollingCheck.summary` and every ``lines`` said."""
-        return {**self.check.summary(), "lines": list(self.lines), "stop_on_drift": self.stop_on_drift}
+        """The run's check for its report (JSON-ready): :meth:`RollingCheck.summary`, every ``lines`` said, and
+        ``before_arc``: the verdict, figure and tiles of its last judgement before the arc was struck (None when
+        it judged nothing then)."""
+        b = self.before_arc
+        before = None if b is None else json_safe({"verdict": b.verdict, "row_offset_rms_px": b.row_offset_rms_px,
+                                                   "uncertainty_px": b.uncertainty_px, "tiles": b.tiles})
+        return {**self.check.summary(), "lines": list(self.lines), "stop_on_drift": self.stop_on_drift,
+                "before_arc": before}
 
 
 class RecordedHalts:
@@ -69,7 +98,7 @@ class RecordedHalts:
     def __init__(self, halts: list[str]):
         self.halts = list(halts)
 
-    def look(self, cell, cycle: int, sensor_s: float, tracker) -> None:
+    def look(self, cell, cycle: int, sensor_s: float, tracker, control_s: float = 0.0) -> None:
         """Halt ``tracker`` on the cycles the recorded run halted."""
         if cycle < len(self.halts) and self.halts[cycle]:
             tracker.halt(self.halts[cycle])
