@@ -333,7 +333,8 @@ def test_design_does_not_write_a_rig_outside_the_bounds(capsys, tmp_path):
     rig = rig_file(tmp_path, distortion=(-3.0, -3.0, -0.3, -0.3, -3.0), baseline_mm=1000.0, m1_axis_distance_mm=999.0,
                    m2_axis_distance_mm=1000.0)
     table, designed = earlier(tmp_path / "t.json"), earlier(tmp_path / "designed.toml")
-    refused(capsys, ["design", "--rig", rig, "--no-search", "-o", table, "--rig-out", designed],
+    refused(capsys, ["design", "--rig", rig, "--no-search", "--near-mm", "1500", "--far-mm", "3000", "-o", table,
+                     "--rig-out", designed],
             "is outside a mirror rig's size (-10000..10000 mm)", [table, designed])
 
 

@@ -153,9 +153,9 @@ def test_design_refuses_a_range_it_cannot_see_and_says_one_without_stereo(capsys
     """Issue 41's second trial: --near-mm 1 --far-mm 2 reported disparities of 2173-2216 px on a 640 px sensor
     (exit 0); a 1000 mm baseline whose views overlap only from 1266 mm answered over 400-1200 mm (exit 0)."""
     table = tmp_path / "d.json"
-    code, _, err = run(capsys, "design", "--rig", "default", "--near-mm", "1", "--far-mm", "2", "-o", str(table))
+    code, out, err = run(capsys, "design", "--rig", "default", "--near-mm", "1", "--far-mm", "2", "-o", str(table))
     assert code == 2 and "--near-mm 1 lies inside the mirror box (its glasses reach Z = 44.0 mm)" in err
-    assert not table.exists()
+    assert not table.exists() and out == "" and err.count("\n") == 1      # refused before any report is printed
     wide = tmp_path / "wide.toml"
     save_rig(default_rig().replace(baseline_mm=1000.0), wide)
     code, out, _ = run(capsys, "design", "--rig", str(wide), "--no-search")

@@ -254,3 +254,16 @@ def test_an_existing_scheduler_with_a_worker_of_its_own(tmp_path):
         for p in reversed(procs):
             p.terminate()
             p.wait(timeout=30)
+
+
+def test_a_local_cluster_leaves_nothing_in_the_temporary_folder(tmp_path, monkeypatch):
+    """A local cluster's workers keep their scratch space in a folder of the run's own, which goes when the
+    client closes: nothing is left in TMPDIR (Dask's default left dask-scratch-space and its lock files)."""
+    import tempfile
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    with connect(workers=1) as one:
+        assert [p.name[:10] for p in tmp.iterdir()] == ["psvs-dask-"]
+        run_tasks(one, sample, range(2), tmp_path / "run", {}, QUIET)
+    assert list(tmp.iterdir()) == []

@@ -138,3 +138,18 @@ def test_a_knocked_build_is_refused_through_its_old_calibration(knocked_fig5a, s
     assert max(old.rows.off, key=lambda o: o[1].at_shift)[1].shift == 2, old.rows.off
     now = match_image(knocked_fig5a, load_rig("misaligned_knocked"), seed_px=seed_px)
     assert now.pairs and now.rows.fits >= 1 and not now.rows.off, now.rows
+
+
+def test_a_frame_of_another_build_is_refused_by_its_own_twins(capsys, tmp_path):
+    """An adversarial trial's case: the textured scene through the misaligned build, matched through the ideal
+    rig. Where the 7 px field of row offsets crosses zero, some pairs fit their rows, so the pairs' own check
+    let three through, two of them 170 and 320 mm off. The image's self-check reads it drifted: exit 1, one
+    line naming the field, nothing written. Through its own rig the same frame is answered."""
+    path, out = tmp_path / "tex.png", tmp_path / "m.json"
+    assert run(capsys, "simulate", "textured", "--rig", "misaligned", "--supersample", "1", "-o", str(path))[0] == 0
+    code, stdout, err = run(capsys, "match", str(path), "--rig", "default", "--auto", "-o", str(out))
+    assert code == 1 and stdout == "" and err.count("\n") == 1, (code, stdout, err)
+    assert err.startswith("psvs match: cannot measure: the rig does not fit this image: the twins stand off their "
+                          "rows: ") and "psvs check" in err and not out.exists(), err
+    code, stdout, err = run(capsys, "match", str(path), "--rig", "misaligned", "--auto", "-o", str(out))
+    assert code == 0 and out.exists() and "edge 0:" in stdout, (code, stdout, err)

@@ -5,7 +5,7 @@ its groove root at z = 0, edges 6 mm either side 3 mm above it; the sensor sees 
 import numpy as np
 import pytest
 
-from psvs.robot.controller import Observation, SeamTracker, TrackConfig
+from psvs.robot.controller import ARC_HOLD_MM, Observation, SeamTracker, TrackConfig
 from psvs.robot.seam import SeamObservation
 
 CFG = TrackConfig(speed_mm_s=10.0, rate_hz=25.0)
@@ -117,3 +117,38 @@ def test_the_hand_eye_transform_places_the_points():
         local = tuple((e - cam2base[:3, 3]) @ cam2base[:3, :3] for e in obs.edges_mm)   # into frame C
         b = moved.step(Observation(k / 25, F, SeamObservation(True, local, (0.0, 0.0), "")))
         assert np.allclose(a.tool2base, b.tool2base, atol=1e-9)
+
+
+def test_a_held_arc_waits_short_of_its_start_then_goes_on():
+    """hold_arc: the torch brakes at the job's deceleration to rest ARC_HOLD_MM short of the arc's start (never
+    faster, never past it) while held, not stopped, and goes on at speed when released; no effect once struck."""
+    tracker = SeamTracker(CFG, np.eye(4), [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], window_mm=10.0)
+    cmds = []
+    for k in range(400):
+        tracker.hold_arc(k < 300)
+        x_c = tracker.s_cmd + CFG.look_ahead_mm
+        cmds.append(tracker.step(Observation(k / CFG.rate_hz, np.eye(4), seen(x_c - 5.0, x_c + 5.0))))
+    s, v = np.array([c.s_mm for c in cmds]), np.array([c.speed_mm_s for c in cmds])
+    held_at = CFG.arc_on_mm - ARC_HOLD_MM
+    assert s[:300].max() == pytest.approx(held_at) and v[299] == 0.0 and not tracker.stopped
+    assert np.all(v[:300] <= np.sqrt(2 * CFG.accel_mm_s2 * np.maximum(held_at - s[:300] + v[:300] / CFG.rate_hz,
+                                                                          0)) + 1e-9)
+    assert s[-1] > CFG.arc_on_mm + 10 and v[-1] == pytest.approx(CFG.speed_mm_s) and tracker.arc_struck
+    tracker.hold_arc(True)
+    assert not tracker.arc_held                      # the arc is struck: nothing to hold
+
+
+def test_a_halt_before_the_arc_blocks_it():
+    """Halted in the run-in (the self-check's drift), the torch brakes as it may, past the arc's start if it
+    must, but the arc is never struck (arc_blocked); halted after it, the arc stays on until the torch rests."""
+    for halt_at, blocked in ((49.0, True), (60.0, False)):
+        tracker = SeamTracker(CFG, np.eye(4), [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], window_mm=10.0)
+        for k in range(200):
+            if tracker.s_cmd >= halt_at:
+                tracker.halt("calibration drifted")
+            x_c = tracker.s_cmd + CFG.look_ahead_mm
+            tracker.step(Observation(k / CFG.rate_hz, np.eye(4), seen(x_c - 5.0, x_c + 5.0)))
+            if tracker.stopped:
+                break
+        assert tracker.stopped and tracker.summary().arc_blocked is blocked
+        assert tracker.s_cmd > CFG.arc_on_mm                    # braking from 10 mm/s takes 2 mm

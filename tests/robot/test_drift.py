@@ -11,7 +11,7 @@ import pytest
 from psvs.cli.main import main
 from psvs.io.params import load_rig
 from psvs.robot.cells import SimulatedCell
-from psvs.robot.controller import TrackConfig
+from psvs.robot.controller import ARC_HOLD_MM, TrackConfig
 from psvs.robot.drift import DRIFT_STOP
 from psvs.robot.loop import Watching, drift_watch, track
 from psvs.robot.report import write_report
@@ -149,3 +149,41 @@ def test_track_says_the_drift_logs_it_and_stops_on_it(tmp_path, capsys):
     window = "/base_link/flange/psvs_optical_frame/image"
     for a, b in zip(again[window], got[window], strict=True):
         np.testing.assert_array_equal(image_of(a), image_of(b))
+
+
+@slow
+def test_the_arc_waits_for_the_sweep_and_a_replay_waits_too(tmp_path, capsys):
+    """At 5 Hz and 25 mm/s the run-in (50 mm) lasts about 12 cycles, fewer than the sweep's 14 steps (a step a
+    cycle: the 200 ms period leaves idle time for one): `psvs track --stop-on-drift` holds the torch short of
+    the arc's start until the field is swept (never past it while held), judges before the arc, then welds its
+    length. The recording carries each cycle's hold (the mcap reader, by value), and `psvs replay` holds where
+    the run held: every command reproduced."""
+    run, rec = tmp_path / "run", tmp_path / "run.mcap"
+    assert main(["track", "weld_seam", "--rig", "misaligned", "--stop-on-drift", "--speed", "25", "--rate", "5",
+                 "--length", "10", "--no-bag", "--mcap", str(rec), "-o", str(run)]) == 0
+    rep = json.loads((run / "report.json").read_text())
+    _, _, msgs = read_mcap(rec)
+    cycles = [json.loads(m.data) for _, c, m in msgs if c.topic == "/psvs/cycle"]
+    held = [c["arc_held"] for c in cycles]
+    cfg = TrackConfig()
+    first_free = held.index(False)
+    assert 0 < first_free and not any(held[first_free:]), held
+    assert all(c["s_mm"] <= cfg.arc_on_mm - ARC_HOLD_MM + 1e-9 for c in cycles[:first_free])
+    assert rep["health"]["idle_steps"] >= first_free and rep["health"]["before_arc"] is not None
+    assert rep["stop"]["reason"] == "weld length reached" and rep["welded_mm"] == pytest.approx(10.0, abs=0.01)
+    capsys.readouterr()
+    assert main(["replay", str(rec), "--rig", "misaligned"]) == 0
+    assert "every command equals the recorded one" in capsys.readouterr().out
+
+
+@slow
+def test_a_refused_run_leaves_no_folder(tmp_path, capsys):
+    """The cell's hand-eye session through the knocked glass is refused (exit 1, one line): the run folder the
+    command made for its outputs is not left behind, empty; a folder that was there stays."""
+    out = tmp_path / "run"
+    args = ["track", "weld_seam", "--rig", "misaligned", "--true-rig", "misaligned_knocked", "--no-bag", "-o", str(out)]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("psvs track: cannot measure: ") and err.count("\n") == 1 and not out.exists()
+    out.mkdir()
+    assert main(args) == 1 and out.is_dir() and not any(out.iterdir())

@@ -16,7 +16,13 @@ image changes every pixel's ray). Then, in this order:
    their curves: no assignment.
 3. **Spacings.** An assignment's triangulated centres, along their row: consecutive ones the pattern's
    spacing apart and the first and last (n - 1) spacings (3-D distances).
-4. **Diameters.** Each circle's diameter matches the pattern's.
+4. **Diameters.** Each circle's diameter matches the pattern's, and the circles are round: on average over
+   the pattern, their 3-D rims (in their plane) are no wider than tall, and no taller than wide
+   (:func:`roundness_problem`). A pixel pitch or an image stretched along the rows makes every circle an
+   ellipse whose mean diameter can still pass: a 10 % stretch read Z 10 % short, every other check passing.
+   Over the Table I distances (440-1123 mm), flat and tilted up to 25 deg, through the ideal rig, the
+   misaligned build and both 1440 x 1080 rigs, the mean stretch is at most 0.71 of its tolerance; a 3 %
+   stretch at 640 mm is 1.2 times it, 5 % at 1000 mm 1.1 times (a stretch along the columns leaves Z as it is).
 
 Exactly one assignment must pass 3 and 4; none (the nearest one's failed check is named) or more than one
 is a MeasurementError.
@@ -57,18 +63,23 @@ from psvs.targets.twins import twin_distances_px
 
 #: The tolerances are this many times the error the edges' bounds add up to.
 MARGIN = 2.0
+#: ... and the circles' mean stretch's (:func:`roundness_problem`) this many: rendered patterns tilted 15 deg
+#: at 1000 mm read up to 0.89 of twice the bound (the rims' noise grows with the tilt), a 3 % stretch 1.5.
+ROUND_MARGIN = 2.5
 
 
 @dataclass(frozen=True, eq=False)
 class PatternMeasurement:
     """Z_mm: mean depth of the circle centres; diameters_mm (n,); diameter_mm: their mean;
-    first_last_distance_mm: |c_first - c_last|; centres_mm (n, 3), frame C."""
+    first_last_distance_mm: |c_first - c_last|; centres_mm (n, 3), frame C; stretch_mm (n,) how much wider
+    than tall each circle's rim is in its plane (None: not measured)."""
 
     Z_mm: float
     diameters_mm: np.ndarray
     diameter_mm: float
     first_last_distance_mm: float
     centres_mm: np.ndarray
+    stretch_mm: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         """The measurement as JSON-ready values: Z, the mean diameter and the first-last distance (mm), each
@@ -132,18 +143,35 @@ def _rim_points(left: Ellipse, right: Ellipse, rig: Rig, model: str, z_mm: float
     return triangulate(lp[keep], rp[keep], rig, model=model).points_mm
 
 
-def _circle_diameter(points: np.ndarray) -> float:
-    """Diameter (mm) of the least-squares circle through 3-D points (M, 3): PCA plane, Kasa circle fit."""
+def _circle_diameter(points: np.ndarray) -> tuple[float, float]:
+    """(diameter, stretch) mm of 3-D rim points (M, 3) in their PCA plane: the least-squares (Kasa) circle's
+    diameter, and how much wider than tall they are (:func:`_stretch`); NaN for fewer than 5 points."""
     p = points[np.all(np.isfinite(points), axis=1)]
     if len(p) < 5:
-        return float("nan")
+        return float("nan"), float("nan")
     c = p.mean(axis=0)
     _, _, vt = np.linalg.svd(p - c)
     xy = (p - c) @ vt[:2].T
     A = np.column_stack([2 * xy, np.ones(len(xy))])
     rhs = (xy ** 2).sum(axis=1)
     (x0, y0, k), *_ = np.linalg.lstsq(A, rhs, rcond=None)
-    return float(2 * np.sqrt(k + x0 * x0 + y0 * y0))
+    return float(2 * np.sqrt(k + x0 * x0 + y0 * y0)), _stretch(p - c, vt[2])
+
+
+def _stretch(p: np.ndarray, normal: np.ndarray) -> float:
+    """mm: how much wider than tall rim points (M, 3) about their centre are, in their plane (unit ``normal``):
+    the axes of the ellipse fitted with its axes along the camera's X and Y projected into the plane,
+    2 (r_x - r_y). A circle gives 0 within its rim points' noise; a pixel pitch or an image stretched along
+    the rows makes every circle of the pattern wider alike."""
+    ex = np.array([1.0, 0.0, 0.0]) - normal[0] * normal
+    ex /= np.linalg.norm(ex)
+    ey = np.cross(normal, ex)
+    x, y = p @ ex, p @ ey
+    (a, b, cx, cy), *_ = np.linalg.lstsq(np.column_stack([x * x, y * y, x, y]), np.ones(len(x)), rcond=None)
+    den = 1.0 + cx * cx / (4 * a) + cy * cy / (4 * b)        # (x - x0)^2 a + (y - y0)^2 b = den
+    if not (a > 0 and b > 0 and den > 0):
+        return float("nan")
+    return float(2 * (np.sqrt(den / a) - np.sqrt(den / b)))
 
 
 def footprint_mm(rig: Rig, z_mm: float) -> float:
@@ -212,6 +240,31 @@ def diameter_problem(diameters_mm: np.ndarray, z_mm: float, rig: Rig, diameter_m
                    f"two rims within {EDGE_PX} px, margin {MARGIN:g})")
 
 
+def roundness_problem(stretch_mm: np.ndarray | None, z_mm: float, rig: Rig) -> tuple[float, str]:
+    """(|mean stretch| / its tolerance, the reason when it is over 1, else '') of circles each wider than tall
+    by ``stretch_mm`` (n,) mm in their plane (:func:`_stretch`; None or NaN: not judged), at depth ``z_mm``. A
+    stretch along the rows (a pixel pitch or an image wrong along one axis) widens every circle alike; the
+    rims' noise does not: the tolerance is a diameter's (:func:`diameter_problem`, with :data:`ROUND_MARGIN`) over
+    sqrt(n)."""
+    s = np.asarray([] if stretch_mm is None else stretch_mm, float)
+    s = s[np.isfinite(s)]
+    if len(s) < 2:
+        return 0.0, ""
+    tol = ROUND_MARGIN * 2 * EDGE_PX * footprint_mm(rig, z_mm) / np.sqrt(len(s))
+    ratio = float(abs(s.mean()) / tol)
+    return ratio, ("" if ratio <= 1 else
+                   f"the circles are not round: {len(s)} of them are {'wider' if s.mean() > 0 else 'taller'} than "
+                   f"{'tall' if s.mean() > 0 else 'wide'} by {abs(s.mean()):.3f} mm on average, tolerance {tol:.3f} mm "
+                   f"at Z = {z_mm:.0f} mm (the image or the rig's pixel pitch stretched along one axis)")
+
+
+def rim_problem(m: PatternMeasurement, rig: Rig, diameter_mm: float) -> tuple[float, str]:
+    """(ratio, reason) of the circles' rims: their diameters' (:func:`diameter_problem`), or, when those pass,
+    their roundness's (:func:`roundness_problem`)."""
+    ratio, why = diameter_problem(m.diameters_mm, m.Z_mm, rig, diameter_mm)
+    return (ratio, why) if why else max((ratio, why), roundness_problem(m.stretch_mm, m.Z_mm, rig))
+
+
 def spacing_problem(centres_mm: np.ndarray, rig: Rig, spacing_mm: float) -> tuple[float, str]:
     """(worst error / tolerance, the reason when it is over 1, else '') of centres (n, 3) mm in row order:
     consecutive centres ``spacing_mm`` apart and the first and the last (n - 1) ``spacing_mm`` (a straight
@@ -242,11 +295,10 @@ def spacing_problem(centres_mm: np.ndarray, rig: Rig, spacing_mm: float) -> tupl
 
 
 def check_geometry(m: PatternMeasurement, rig: Rig, spacing_mm: float, diameter_mm: float) -> None:
-    """MeasurementError unless every diameter matches ``diameter_mm`` and the centres lie on a row, each
-    pair of consecutive ones ``spacing_mm`` apart, within the tolerances of the module docstring at the
-    pattern's depth."""
-    for ratio, why in (diameter_problem(m.diameters_mm, m.Z_mm, rig, diameter_mm),
-                       spacing_problem(m.centres_mm, rig, spacing_mm)):
+    """MeasurementError unless every diameter matches ``diameter_mm``, every circle is round and the centres
+    lie on a row, each pair of consecutive ones ``spacing_mm`` apart, within the tolerances of the module
+    docstring at the pattern's depth."""
+    for ratio, why in (rim_problem(m, rig, diameter_mm), spacing_problem(m.centres_mm, rig, spacing_mm)):
         if why:
             raise MeasurementError(why)
 
@@ -296,10 +348,11 @@ def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int
 
 def _measurement(circles: list[Ellipse], pairs: np.ndarray, centres: np.ndarray, rig: Rig,
                  model: str) -> PatternMeasurement:
-    diam = np.array([_circle_diameter(_rim_points(circles[a], circles[b], rig, model, float(c[2])))
-                     for (a, b), c in zip(pairs, centres, strict=True)])
+    fits = np.array([_circle_diameter(_rim_points(circles[a], circles[b], rig, model, float(c[2])))
+                     for (a, b), c in zip(pairs, centres, strict=True)]).reshape(-1, 2)
+    diam = fits[:, 0]
     return PatternMeasurement(float(centres[:, 2].mean()), diam, float(np.nanmean(diam)) if np.any(np.isfinite(diam))
-                              else float("nan"), float(np.linalg.norm(centres[-1] - centres[0])), centres)
+                              else float("nan"), float(np.linalg.norm(centres[-1] - centres[0])), centres, fits[:, 1])
 
 
 def _measure_given(circles, pairs, rig, model, spacing_mm, diameter_mm) -> PatternMeasurement:
@@ -359,7 +412,7 @@ def pair_pattern(circles: list[Ellipse], rig: Rig, model: str, z_mm: tuple[float
     for k, (stage, ratio, why, pairs, c) in enumerate(tried):
         if stage == 1 and not why:
             m = _measurement(circles, pairs, c, rig, model)
-            ratio, why = diameter_problem(m.diameters_mm, m.Z_mm, rig, diameter_mm)
+            ratio, why = rim_problem(m, rig, diameter_mm)
             tried[k] = (2, ratio, why, pairs, c)
             if not why:
                 fits.append(m)

@@ -146,19 +146,19 @@ def run(args) -> int:
     if not (math.isfinite(args.margin_mm) and args.margin_mm >= 0):
         raise ValueError(f"--margin-mm must be a finite border >= 0 mm, got {args.margin_mm}")
     rig = rig_from_args(args)
-    d = design_mirrors(rig, margin_mm=args.margin_mm, near_mm=args.near_mm, far_mm=args.far_mm,
-                       search=not args.no_search)
-    print(format_design(d))
-    tol = tolerance_analysis(d.rig, args.near_mm, args.far_mm) if args.tolerance else None
-    if tol is not None:
-        print(format_tolerance(tol, args.near_mm, args.far_mm))
-    # the designed rig's file first: a design outside the rig bounds (e.g. a mirror metres long) is refused
-    # before either file is written
-    rig_text = None if rig_out is None else dumps_rig(d.rig, "json" if rig_out.suffix.lower() == ".json" else "toml")
     front = front_z_mm(rig)
     if args.near_mm <= front:         # no figure of the range is written: its near end is inside the mirror box
         raise ValueError(f"--near-mm {args.near_mm:g} lies inside the mirror box (its glasses reach Z = "
                          f"{front:.1f} mm): no point there is seen through the mirrors")
+    d = design_mirrors(rig, margin_mm=args.margin_mm, near_mm=args.near_mm, far_mm=args.far_mm,
+                       search=not args.no_search)
+    tol = tolerance_analysis(d.rig, args.near_mm, args.far_mm) if args.tolerance else None
+    # the designed rig's file first: a design outside the rig bounds (e.g. a mirror metres long) is refused
+    # before anything is printed or written
+    rig_text = None if rig_out is None else dumps_rig(d.rig, "json" if rig_out.suffix.lower() == ".json" else "toml")
+    print(format_design(d))
+    if tol is not None:
+        print(format_tolerance(tol, args.near_mm, args.far_mm))
     with output_batch():
         if out is not None:
             data = design_to_dict(d)

@@ -138,20 +138,26 @@ def run(args) -> int:
         from psvs.robot.handeye_io import load_handeye
         from psvs.robot.handeye_session import true_cam2flange
         handeye = (load_handeye(args.handeye), true_cam2flange(cfg))   # the simulated hardware's truth: scoring
+    made = not out.exists()
     out.mkdir(exist_ok=True)                     # before the run: a recording may go into it
     t0_ns = time.time_ns()                       # the run's start: the recording's and the bag's time base
-    with open_telemetry(args, t0_ns, robot=True) as tel:
-        from psvs.robot.recording import RunRecorder, publish_stop
-        recorder = None if tel is None else RunRecorder(tel, cfg, seed)
-        watch = None if args.no_check else drift_watch(rig, cfg, args.tolerance_px, args.stop_on_drift,
-                                                          args.check_share / 100)
-        listener = _Progress(recorder) if watch is None else Watching(watch, _Progress(recorder))
-        result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, listener=listener)
-        if tel is not None:
-            publish_stop(tel, result.cycles[-1].t_s, result.stop.reason)
-    summary = write_report(result, wp, out)
-    if not args.no_bag:
-        write_bag(result, out / "bag", args.bag_storage, t0_ns)
+    try:
+        with open_telemetry(args, t0_ns, robot=True) as tel:
+            from psvs.robot.recording import RunRecorder, publish_stop
+            recorder = None if tel is None else RunRecorder(tel, cfg, seed)
+            watch = None if args.no_check else drift_watch(rig, cfg, args.tolerance_px, args.stop_on_drift,
+                                                              args.check_share / 100)
+            listener = _Progress(recorder) if watch is None else Watching(watch, _Progress(recorder))
+            result = track(wp, rig, cfg, seed_px=seed, true_rig=true_rig, handeye=handeye, listener=listener)
+            if tel is not None:
+                publish_stop(tel, result.cycles[-1].t_s, result.stop.reason)
+        summary = write_report(result, wp, out)
+        if not args.no_bag:
+            write_bag(result, out / "bag", args.bag_storage, t0_ns)
+    except BaseException:
+        if made and not any(out.iterdir()):      # refused or stopped before writing: no empty folder left
+            out.rmdir()
+        raise
     _print_summary(summary, bool(args.handeye))
     from psvs.robot.drift import DRIFT_STOP
     return 1 if result.stop.reason.startswith(DRIFT_STOP) else 0   # not a clean weld: the glass moved

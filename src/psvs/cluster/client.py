@@ -5,9 +5,13 @@ from __future__ import annotations
 import logging
 import os
 import re
+import shutil
 import signal
+import tempfile
 import threading
+import weakref
 
+from distributed import Client
 from distributed.diagnostics.plugin import WorkerPlugin
 
 #: How long to wait for an existing scheduler to answer before saying it cannot be reached, s.
@@ -56,13 +60,22 @@ def connect(scheduler: str | None = None, workers: int | None = None, timeout_s:
     if workers is not None and not 1 <= workers <= MAX_LOCAL_WORKERS:
         raise ValueError(f"--workers must be 1-{MAX_LOCAL_WORKERS}, got {workers}")
     import dask
-    from distributed import Client
     if scheduler is None:
         n = workers or local_workers()
-        with dask.config.set({"distributed.nanny.pre-spawn-environ": blas_environ(n)}):
-            client = Client(n_workers=n, threads_per_worker=1, processes=True,
-                            dashboard_address=":0", scheduler_kwargs={"dashboard": False},
-                            silence_logs=logging.CRITICAL, set_as_default=False)
+        # the workers' scratch space in a folder of this run's own, removed with the client (Dask's default,
+        # TMPDIR/dask-scratch-space, outlives the run with its lock files)
+        scratch = tempfile.mkdtemp(prefix="psvs-dask-")
+        try:
+            with dask.config.set({"distributed.nanny.pre-spawn-environ": blas_environ(n),
+                                  "temporary-directory": scratch}):
+                client = _LocalClient(n_workers=n, threads_per_worker=1, processes=True,
+                                      dashboard_address=":0", scheduler_kwargs={"dashboard": False},
+                                      silence_logs=logging.CRITICAL, set_as_default=False)
+        except BaseException:
+            shutil.rmtree(scratch, ignore_errors=True)
+            raise
+        client.scratch = scratch
+        weakref.finalize(client, shutil.rmtree, scratch, True)     # a client never closed: at exit
         client.register_plugin(_IgnoreInterrupt())
         return client
     address = scheduler_address(scheduler)
@@ -71,6 +84,20 @@ def connect(scheduler: str | None = None, workers: int | None = None, timeout_s:
     except Exception as exc:   # OSError (refused, timed out), or whatever a non-Dask server's reply raises
         text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise ValueError(f"cannot reach the Dask scheduler at {address}: {text[:200]}") from None
+
+
+class _LocalClient(Client):
+    """A client of a local cluster whose workers' scratch folder (``scratch``) goes when it closes."""
+
+    scratch: str | None = None
+
+    def close(self, *args, **kwargs):
+        """Close the client and its local cluster, then remove the workers' scratch folder."""
+        try:
+            return super().close(*args, **kwargs)
+        finally:
+            if self.scratch is not None:
+                shutil.rmtree(self.scratch, ignore_errors=True)
 
 
 class _IgnoreInterrupt(WorkerPlugin):

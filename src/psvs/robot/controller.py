@@ -36,6 +36,8 @@ MAX_YAW_RATE_RAD_S = 0.3
 MAX_YAW_ACCEL_RAD_S2 = 0.5
 #: Slack on a measured gap before it counts as longer than the bridge (edge rows lost at the groove's ends).
 GAP_TOL_MM = 1.5
+#: mm: how far short of the arc's start a held torch waits (SeamTracker.hold_arc).
+ARC_HOLD_MM = 0.5
 
 
 @dataclass(frozen=True)
@@ -96,6 +98,7 @@ class TrackerSummary:
     stopping_at_s_mm : where the torch is to stop (None: no stop decided); stop_reason : why ('' none).
     gaps_bridged : (from, to) seam arc lengths of the gaps bridged, mm.
     path_knots : (s (K,), points (K, 3)) of the path model, mm.
+    arc_blocked : a halt came before the arc was struck: it never is, however far the torch brakes.
     """
 
     s_mm: float
@@ -108,6 +111,7 @@ class TrackerSummary:
     stop_reason: str
     gaps_bridged: tuple[tuple[float, float], ...]
     path_knots: tuple[np.ndarray, np.ndarray]
+    arc_blocked: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -171,11 +175,19 @@ class SeamTracker:
         self.s_far, self.gaps = 0.0, []     # furthest seam arc length seen; gaps bridged (from, to) mm
         self.end_seen = taught              # the seam's point there (base frame, mm)
         self.decided_at, self.stopping_at, self.lost_at, self.stop_reason = None, None, None, ""
+        self.arc_held = False               # the torch waits short of the arc's start (hold_arc)
+        self.arc_blocked = False            # halted before the arc was struck: it never is
 
     @property
     def arc_struck(self) -> bool:
         """The torch has come to where the arc is struck (:attr:`TrackConfig.arc_on_mm`): the run-in is over."""
         return self.s_cmd >= self.cfg.arc_on_mm
+
+    def hold_arc(self, hold: bool) -> None:
+        """Whether the torch must wait :data:`ARC_HOLD_MM` short of the arc's start (braking at the job's
+        deceleration to rest there, tracking on), e.g. until a check of the calibration has judged; released, it
+        goes on. No effect once the arc is struck."""
+        self.arc_held = bool(hold) and not self.arc_struck
 
     @property
     def stopped(self) -> bool:
@@ -215,7 +227,8 @@ class SeamTracker:
             s_mm=self.s_cmd, speed_mm_s=self.v, s_far_mm=self.s_far,
             last_seen_mm=self.path.position(self.s_far), lost_at_s_mm=self.lost_at,
             decided_at_s_mm=self.decided_at, stopping_at_s_mm=self.stopping_at, stop_reason=self.stop_reason,
-            gaps_bridged=tuple(self.gaps), path_knots=(np.array(self.path.s), np.array(self.path.p)))
+            gaps_bridged=tuple(self.gaps), path_knots=(np.array(self.path.s), np.array(self.path.p)),
+            arc_blocked=self.arc_blocked)
 
     def fault(self, reason: str) -> None:
         """The arm could not carry out the last command (unreachable, a joint limit): stop where the torch
@@ -226,7 +239,10 @@ class SeamTracker:
 
     def halt(self, reason: str) -> None:
         """Stop safely, told from outside the seam (e.g. the calibration has drifted): brake from here at the
-        job's deceleration, tracking on meanwhile, and weld no further than where the torch comes to rest."""
+        job's deceleration, tracking on meanwhile, and weld no further than where the torch comes to rest; before
+        the arc is struck, it never is."""
+        if self.stopping_at is None and not self.arc_struck:
+            self.arc_blocked = True
         if self.stopping_at is None:
             self.stopping_at = self.s_cmd + self.v ** 2 / (2 * self.cfg.accel_mm_s2)
             self.stop_reason = reason
@@ -282,6 +298,8 @@ class SeamTracker:
     def _advance(self, dt: float) -> None:
         cfg = self.cfg
         s_limit = self.path.s_end + cfg.bridge_mm if self.stopping_at is None else self.stopping_at
+        if self.arc_held:
+            s_limit = min(s_limit, max(cfg.arc_on_mm - ARC_HOLD_MM, self.s_cmd))
         if cfg.weld_length_mm is not None:
             end = cfg.arc_on_mm + cfg.weld_length_mm
             s_limit = min(s_limit, end)

@@ -17,7 +17,9 @@ of a few tens of ms fits in it every cycle or few, so a knocked build is found a
 not a minute into the seam at the sensor's share. The idle steps are not counted in the check's share of the
 sensor's time. (A real cell's idle time is free; a simulated cell renders a whole frame for each step, which
 is why a run that is not told to stop leaves the sweep out.) Once the check has halted the run its verdict
-stands: it takes no more steps while the torch brakes.
+stands: it takes no more steps while the torch brakes. The arc waits for the sweep: until it is done the
+torch is held short of the arc's start (:meth:`psvs.robot.controller.SeamTracker.hold_arc`; on the shipped
+builds at 10 mm/s the sweep ends long before the torch gets there, at 25 mm/s on 1440 x 1080 it may not).
 """
 from __future__ import annotations
 
@@ -35,14 +37,16 @@ DRIFT_STOP = "calibration drifted"
 class HealthNote:
     """The check as of one control cycle: ``check`` its latest judgement (None before its first), ``judged``
     whether it took a step on this cycle, ``line`` what it said on this cycle ('' nothing), ``cost_share``
-    its time over the sensor's so far, ``halt`` the stop reason it gave the controller on this cycle ('' none:
-    a recording keeps it, so that a replay halts there too)."""
+    its time over the sensor's so far, ``halt`` the stop reason it gave the controller on this cycle ('' none)
+    and ``arc_held`` whether it held the torch short of the arc's start (a recording keeps both, so that a replay
+    halts and holds there too)."""
 
     check: HealthCheck | None
     judged: bool
     line: str
     cost_share: float
     halt: str = ""
+    arc_held: bool = False
 
 
 class DriftWatch:
@@ -63,7 +67,7 @@ class DriftWatch:
         idle time too before the arc is struck (module docstring); a drifted verdict halts ``tracker`` when
         told to."""
         if self.halted:
-            return HealthNote(self.check.latest, False, "", self.check.cost_share)
+            return HealthNote(self.check.latest, False, "", self.check.cost_share, arc_held=tracker.arc_held)
         run_in = self.sweep_before_arc and not tracker.arc_struck and not self.check.swept
         idle_s = max(1.0 / tracker.cfg.rate_hz - sensor_s - control_s, 0.0) if run_in else 0.0
         judged = self.check.due(sensor_s, idle_s)
@@ -78,7 +82,9 @@ class DriftWatch:
                 halt = f"{DRIFT_STOP} at frame {cycle}: {event.check.reason}"
                 tracker.halt(halt)
                 self.halted = True
-        return HealthNote(self.check.latest, judged, line, self.check.cost_share, halt)
+        if self.sweep_before_arc:
+            tracker.hold_arc(not self.check.swept and not self.halted)
+        return HealthNote(self.check.latest, judged, line, self.check.cost_share, halt, tracker.arc_held)
 
     def summary(self) -> dict:
         """The run's check for its report (JSON-ready): :meth:`RollingCheck.summary`, every ``lines`` said, and
@@ -92,13 +98,15 @@ class DriftWatch:
 
 
 class RecordedHalts:
-    """A recorded run's halts played back (a replay: no frames to check): ``halts`` the stop reason given on
-    each cycle ('' none), given to the controller on the same cycles."""
+    """A recorded run's halts and holds played back (a replay: no frames to check): ``halts`` the stop reason
+    given on each cycle ('' none), ``holds`` whether the torch was held short of the arc's start on each (None:
+    never), given to the controller on the same cycles."""
 
-    def __init__(self, halts: list[str]):
-        self.halts = list(halts)
+    def __init__(self, halts: list[str], holds: list[bool] | None = None):
+        self.halts, self.holds = list(halts), list(holds or ())
 
     def look(self, cell, cycle: int, sensor_s: float, tracker, control_s: float = 0.0) -> None:
-        """Halt ``tracker`` on the cycles the recorded run halted."""
+        """Halt and hold ``tracker`` on the cycles the recorded run did."""
         if cycle < len(self.halts) and self.halts[cycle]:
             tracker.halt(self.halts[cycle])
+        tracker.hold_arc(cycle < len(self.holds) and self.holds[cycle])

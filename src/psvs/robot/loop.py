@@ -95,6 +95,7 @@ class Stop:
     last_seen_mm: np.ndarray
     lost_at_s_mm: float | None = None   # torch progress at the first frame without the seam
     decided_at_s_mm: float | None = None  # torch progress when the stop was decided
+    arc_blocked: bool = False             # halted before the arc was struck: it never was
 
 
 @dataclass(frozen=True, eq=False)
@@ -269,7 +270,7 @@ def track(workpiece: Workpiece, rig: Rig, cfg: TrackConfig = TrackConfig(), *,
     stop = Stop(reason=reason, s_mm=state.s_mm, tcp_mm=cycles[-1].tcp_mm, last_seen_s_mm=state.s_far_mm,
                 last_seen_mm=state.last_seen_mm,
                 lost_at_s_mm=state.lost_at_s_mm if state.stopping_at_s_mm is not None else None,
-                decided_at_s_mm=state.decided_at_s_mm)
+                decided_at_s_mm=state.decided_at_s_mm, arc_blocked=state.arc_blocked)
     return TrackRun(config=cfg, simulation=sim, cycles=cycles, stop=stop, handeye=he, cam2flange_true=cam_true,
                     teach=taught, seed_px=loop.seed_px, path_knots=state.path_knots,
                     gaps_bridged=state.gaps_bridged, start_s=start_s,
@@ -284,16 +285,19 @@ def replay(run: TrackRun, rig: Rig) -> ReplayCell:
     frames = [Frame(c.t_s, c.flange2base, c.image) for c in run.cycles]
     cell = ReplayCell(frames, [c.tool2base for c in run.cycles], [c.fault for c in run.cycles])
     halts = [c.health.halt if c.health is not None else "" for c in run.cycles]
-    return replay_cell(run.config, run.handeye.cam2flange, run.teach, run.seed_px, cell, rig, halts)
+    holds = [bool(c.health is not None and c.health.arc_held) for c in run.cycles]
+    return replay_cell(run.config, run.handeye.cam2flange, run.teach, run.seed_px, cell, rig, halts, holds)
 
 
 def replay_cell(cfg: TrackConfig, cam2flange: np.ndarray, taught: Teach, seed_px, cell: ReplayCell,  # noqa: PLR0913
-                rig: Rig, halts: list[str] | None = None) -> ReplayCell:
+                rig: Rig, halts: list[str] | None = None, holds: list[bool] | None = None) -> ReplayCell:
     """:func:`replay` from its parts (e.g. read from a recording, :mod:`psvs.robot.recording`): seed_px None
     finds the seed on the first frame as the live run did; ``halts`` the stop reasons the run's self-check gave
-    its controller, per cycle ('' none). Returns ``cell`` once played."""
+    its controller, per cycle ('' none), and ``holds`` whether it held the torch short of the arc's start (None:
+    never). Returns ``cell`` once played."""
     setup, _ = sensor_setup(rig, cfg, seed_px)
     tracker = SeamTracker(cfg, cam2flange, np.asarray(taught.taught_mm, float), np.asarray(taught.travel, float),
                           window_length_mm(rig, cfg))
-    control_loop(cell, tracker, setup, len(cell.frames), watch=RecordedHalts(halts) if halts and any(halts) else None)
+    recorded = (halts and any(halts)) or (holds and any(holds))
+    control_loop(cell, tracker, setup, len(cell.frames), watch=RecordedHalts(halts or [], holds) if recorded else None)
     return cell

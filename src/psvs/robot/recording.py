@@ -74,7 +74,8 @@ class CyclePublisher:
         tel, t = self.tel, c.t_s
         tel.record("cycle", t, {"t_s": t, "flange2base": _mat(c.flange2base), "tool2base": _mat(c.tool2base),
                                 "fault": c.fault, "s_mm": c.s_mm, "valid": bool(c.valid), "reason": c.reason,
-                                "halt": c.health.halt if c.health is not None else ""})
+                                "halt": c.health.halt if c.health is not None else "",
+                                "arc_held": bool(c.health is not None and c.health.arc_held)})
         tel.image(t, c.image)
         tel.points(t, c.points_mm, frame_id=BASE_FRAME)
         tel.transforms(t, [(BASE_FRAME, FLANGE_FRAME, c.flange2base), (FLANGE_FRAME, CAMERA_FRAME, self.cam),
@@ -127,6 +128,7 @@ class Recording:
     faults: list[str]
     stop_reason: str | None        # None: the recording was cut short
     halts: list[str] | None = None  # the stop reason the self-check gave on each cycle ('' none)
+    holds: list[bool] | None = None  # whether the self-check held the torch short of the arc's start on each
 
 
 def read_recording(path) -> Recording:
@@ -171,7 +173,7 @@ def _read(path) -> Recording:
     missing = sorted(set(cycles) - set(images))
     if missing:
         raise ValueError(f"{len(missing)} cycles have no /psvs/image frame")
-    frames, commands, faults, halts = [], [], [], []
+    frames, commands, faults, halts, holds = [], [], [], [], []
     try:
         for ns in sorted(cycles):
             c, img = cycles[ns], images[ns]
@@ -182,11 +184,12 @@ def _read(path) -> Recording:
             commands.append(np.array(c["tool2base"], float).reshape(4, 4))
             faults.append(str(c["fault"]))
             halts.append(str(c.get("halt", "")))          # recordings before the self-check have none
+            holds.append(_flag(c.get("arc_held", False)))   # nor before the arc's hold
         seed = setup["seed_px"]
         config = {k: v for k, v in setup["config"].items() if k not in SIMULATION_KEYS}
         return Recording(TrackConfig(**config), np.array(setup["cam2flange"], float).reshape(4, 4),
                          Teach(np.array(setup["taught_mm"], float), np.array(setup["travel"], float)),
-                         None if seed is None else tuple(seed), frames, commands, faults, stop, halts)
+                         None if seed is None else tuple(seed), frames, commands, faults, stop, halts, holds)
     except (KeyError, TypeError) as exc:
         raise ValueError(f"a /psvs/setup or /psvs/cycle record lacks or mistypes {exc}") from None
 
@@ -197,4 +200,11 @@ def replay_recording(path, rig):
     empty when every command was reproduced)."""
     rec = read_recording(path)
     cell = ReplayCell(rec.frames, rec.commands, rec.faults)
-    return rec, replay_cell(rec.config, rec.cam2flange, rec.teach, rec.seed_px, cell, rig, rec.halts)
+    return rec, replay_cell(rec.config, rec.cam2flange, rec.teach, rec.seed_px, cell, rig, rec.halts, rec.holds)
+
+
+def _flag(v) -> bool:
+    """A recorded flag: a JSON boolean (TypeError otherwise, which the reader names)."""
+    if not isinstance(v, bool):
+        raise TypeError("arc_held")
+    return v

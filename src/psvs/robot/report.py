@@ -40,11 +40,21 @@ def deviations(run: TrackRun, workpiece: Workpiece, step_mm: float = 0.02) -> di
             "in_gap": workpiece.in_gap(x[[int(np.argmin(np.abs(arc - s))) for s in s_true]])}
 
 
+def arc_on(run: TrackRun) -> np.ndarray:
+    """Mask (n,) of the cycles with the arc on: the torch at the arc's start (``arc_on_mm``) or beyond, unless
+    the run was halted before it got there (``stop.arc_blocked``: the self-check found a drift in the run-in):
+    then the arc is never struck, however far the torch brakes past that point."""
+    s = np.array([c.s_mm for c in run.cycles])
+    if run.stop.arc_blocked:
+        return np.zeros(len(s), bool)
+    return s >= run.config.arc_on_mm
+
+
 def summary(run: TrackRun, workpiece: Workpiece) -> dict:
     """Numbers of the run: deviations over the welded part (arc on, outside seam gaps), cycle times, stop."""
     dev = deviations(run, workpiece)
     s = np.array([c.s_mm for c in run.cycles])
-    weld = s >= run.config.arc_on_mm
+    weld = arc_on(run)
     scored = weld & ~dev["in_gap"]
     lat, ver = dev["lateral_mm"][scored], dev["vertical_mm"][scored]
     gap = weld & dev["in_gap"]
@@ -64,7 +74,7 @@ def summary(run: TrackRun, workpiece: Workpiece) -> dict:
         "config": _fields(run.config), "simulation": _fields(run.simulation, skip=("limits",)),
         "cycles": len(run.cycles), "simulated_s": run.cycles[-1].t_s + 1 / run.config.rate_hz,
         "start_s": run.start_s,
-        "welded_mm": float(max(0.0, s[-1] - run.config.arc_on_mm)),
+        "welded_mm": float(max(0.0, s[-1] - run.config.arc_on_mm)) if weld.any() else 0.0,
         "valid_frames": int(sum(c.valid for c in run.cycles)),
         "lateral_mm": stats(lat), "vertical_mm": stats(ver),
         "in_gap_lateral_mm": stats(dev["lateral_mm"][gap]), "in_gap_vertical_mm": stats(dev["vertical_mm"][gap]),
@@ -78,7 +88,8 @@ def summary(run: TrackRun, workpiece: Workpiece) -> dict:
         "seed_px": list(run.seed_px or ()),
         "stop": {"reason": st.reason, "torch_s_mm": st.s_mm, "torch_mm": st.tcp_mm.tolist(),
                  "last_seen_s_mm": st.last_seen_s_mm, "last_seen_mm": st.last_seen_mm.tolist(),
-                 "lost_at_torch_s_mm": st.lost_at_s_mm, "decided_at_torch_s_mm": st.decided_at_s_mm},
+                 "lost_at_torch_s_mm": st.lost_at_s_mm, "decided_at_torch_s_mm": st.decided_at_s_mm,
+                 "arc_struck": bool(weld.any())},
         "gaps_bridged_mm": [[a, b] for a, b in run.gaps_bridged],
         "health": run.health,
     }
@@ -139,7 +150,7 @@ def error_series(run: TrackRun, dev: dict) -> tuple[np.ndarray, np.ndarray, np.n
     """What error.png plots, arc on: the torch's path position s (mm, the origin of the CLI's "torch at
     s = ... mm" and of the report's ``stop.torch_s_mm``) and the lateral and vertical deviations (mm)."""
     s_mm = np.array([c.s_mm for c in run.cycles])
-    weld = s_mm >= run.config.arc_on_mm
+    weld = arc_on(run)
     return s_mm[weld], dev["lateral_mm"][weld], dev["vertical_mm"][weld]
 
 
