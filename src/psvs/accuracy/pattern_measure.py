@@ -143,7 +143,7 @@ def _rim_points(left: Ellipse, right: Ellipse, rig: Rig, model: str, z_mm: float
     return triangulate(lp[keep], rp[keep], rig, model=model).points_mm
 
 
-def _circle_diameter(points: np.ndarray) -> tuple[float, float]:
+def _circle_fit(points: np.ndarray) -> tuple[float, float]:
     """(diameter, stretch) mm of 3-D rim points (M, 3) in their PCA plane: the least-squares (Kasa) circle's
     diameter, and how much wider than tall they are (:func:`_stretch`); NaN for fewer than 5 points."""
     p = points[np.all(np.isfinite(points), axis=1)]
@@ -348,7 +348,7 @@ def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int
 
 def _measurement(circles: list[Ellipse], pairs: np.ndarray, centres: np.ndarray, rig: Rig,
                  model: str) -> PatternMeasurement:
-    fits = np.array([_circle_diameter(_rim_points(circles[a], circles[b], rig, model, float(c[2])))
+    fits = np.array([_circle_fit(_rim_points(circles[a], circles[b], rig, model, float(c[2])))
                      for (a, b), c in zip(pairs, centres, strict=True)]).reshape(-1, 2)
     diam = fits[:, 0]
     return PatternMeasurement(float(centres[:, 2].mean()), diam, float(np.nanmean(diam)) if np.any(np.isfinite(diam))

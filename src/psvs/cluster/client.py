@@ -74,8 +74,8 @@ def connect(scheduler: str | None = None, workers: int | None = None, timeout_s:
         except BaseException:
             shutil.rmtree(scratch, ignore_errors=True)
             raise
-        client.scratch = scratch
-        weakref.finalize(client, shutil.rmtree, scratch, True)     # a client never closed: at exit
+        # removed when the client closes, or at exit for a client never closed
+        client.remove_scratch = weakref.finalize(client, shutil.rmtree, scratch, True)
         client.register_plugin(_IgnoreInterrupt())
         return client
     address = scheduler_address(scheduler)
@@ -87,17 +87,18 @@ def connect(scheduler: str | None = None, workers: int | None = None, timeout_s:
 
 
 class _LocalClient(Client):
-    """A client of a local cluster whose workers' scratch folder (``scratch``) goes when it closes."""
+    """A client of a local cluster whose workers' scratch folder goes when it closes (``remove_scratch``: a
+    finalizer, which runs once)."""
 
-    scratch: str | None = None
+    remove_scratch = None
 
     def close(self, *args, **kwargs):
         """Close the client and its local cluster, then remove the workers' scratch folder."""
         try:
             return super().close(*args, **kwargs)
         finally:
-            if self.scratch is not None:
-                shutil.rmtree(self.scratch, ignore_errors=True)
+            if self.remove_scratch is not None:
+                self.remove_scratch()
 
 
 class _IgnoreInterrupt(WorkerPlugin):

@@ -88,7 +88,7 @@ class RollingCheck:
         self.spent_s = self.sensor_s = self.idle_spent_s = 0.0
         self.steps = self.idle_steps = 0
         self._credit, self._next = 0.0, 0
-        self._read, self._of_tiles = 0, 0
+        self._of_tiles = 0
         self._costs: deque = deque([FIRST_COST_S], maxlen=5)
         self._window: deque = deque()
         self._scenes: deque = deque()
@@ -120,7 +120,7 @@ class RollingCheck:
         t0 = time.perf_counter()
         tiles = frame_tiles(image, self.rig, self.near_mm, self.far_mm, subset=(self._next, TILES_PER_STEP))
         self._next = (self._next + TILES_PER_STEP) % max(tiles.of_tiles, 1)
-        self._read, self._of_tiles = self._read + TILES_PER_STEP, tiles.of_tiles
+        self._of_tiles = tiles.of_tiles
         self._window.append(tiles)
         self._scenes.append(self.scene_of(image))
         while sum(len(t.accepted) for t in self._window) - len(self._window[0].accepted) >= tiles.of_tiles:
@@ -175,7 +175,7 @@ class RollingCheck:
     @property
     def swept(self) -> bool:
         """Whether the steps so far have read every place of the field once (a whole sweep)."""
-        return self._of_tiles > 0 and self._read >= self._of_tiles
+        return self._of_tiles > 0 and self.steps * TILES_PER_STEP >= self._of_tiles
 
     @property
     def cost_share(self) -> float:

@@ -51,12 +51,11 @@ class HealthNote:
 
 class DriftWatch:
     """The rolling check of a track run (module docstring): ``check`` a RollingCheck over the sensor's rig
-    (what it was calibrated to) and depth range; ``stop_on_drift`` halts the run when it turns drifted;
-    ``before_arc`` sweeps the field on the run-in's idle time (None: when ``stop_on_drift``)."""
+    (what it was calibrated to) and depth range; ``stop_on_drift`` halts the run when it turns drifted, and
+    sweeps the field on the run-in's idle time, the arc waiting for it."""
 
-    def __init__(self, check: RollingCheck, stop_on_drift: bool = False, before_arc: bool | None = None):
+    def __init__(self, check: RollingCheck, stop_on_drift: bool = False):
         self.check, self.stop_on_drift = check, bool(stop_on_drift)
-        self.sweep_before_arc = self.stop_on_drift if before_arc is None else bool(before_arc)
         self.lines: list[str] = []
         self.before_arc = None
         self.halted = False
@@ -68,7 +67,7 @@ class DriftWatch:
         told to."""
         if self.halted:
             return HealthNote(self.check.latest, False, "", self.check.cost_share, arc_held=tracker.arc_held)
-        run_in = self.sweep_before_arc and not tracker.arc_struck and not self.check.swept
+        run_in = self.stop_on_drift and not tracker.arc_struck and not self.check.swept
         idle_s = max(1.0 / tracker.cfg.rate_hz - sensor_s - control_s, 0.0) if run_in else 0.0
         judged = self.check.due(sensor_s, idle_s)
         event = self.check.take(cell.full_frame(), cycle, idle=run_in) if judged else None
@@ -82,7 +81,7 @@ class DriftWatch:
                 halt = f"{DRIFT_STOP} at frame {cycle}: {event.check.reason}"
                 tracker.halt(halt)
                 self.halted = True
-        if self.sweep_before_arc:
+        if self.stop_on_drift:
             tracker.hold_arc(not self.check.swept and not self.halted)
         return HealthNote(self.check.latest, judged, line, self.check.cost_share, halt, tracker.arc_held)
 
