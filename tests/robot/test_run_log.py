@@ -37,6 +37,7 @@ def test_a_log_reads_back_by_value():
     assert log.valid.tolist() == [r["valid"] == "1.0000" for r in table]
     assert log.notes[-1] == "weld length reached" and log.notes[0] == ""
     assert log.welded(10.0).tolist() == [0.5 * k >= 10.0 for k in range(41)]
+    assert not log.welded(10.0, arc_struck=False).any()        # halted before the arc: never struck
 
 
 @pytest.mark.parametrize("text, said", [

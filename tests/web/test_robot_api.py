@@ -38,3 +38,13 @@ def test_a_long_run_is_drawn_every_kth_cycle_and_its_stop():
     assert d["step"] == 3 and len(d["tcp_mm"]) == len(drawn) <= MAX_DRAWN + 1
     np.testing.assert_allclose(d["tcp_mm"], tcp[drawn], atol=1e-4)
     assert d["report"]["health"] is None
+    arc_on = TrackConfig().arc_on_mm
+    assert d["welded"] == [0.4 * k >= arc_on for k in drawn] and any(d["welded"])
+    # a run halted before the arc (report.json's stop.arc_struck false): nothing drawn as welded, though the
+    # torch braked past the arc's start; a flag that is no boolean is refused
+    for struck, status in ((False, 200), ("no", 400)):
+        report["stop"]["arc_struck"] = struck
+        with local_client(app) as c:
+            r = c.post("/api/robot/run", json={"log": buf.getvalue(), "report": json.dumps(report)})
+        assert r.status_code == status, r.json()
+        assert not any(r.json()["welded"]) if status == 200 else "stop.arc_struck" in r.json()["detail"]

@@ -50,10 +50,11 @@ class RunLog:
     row_offset_rms_px: np.ndarray | None = None
     q_rad: np.ndarray | None = None
 
-    def welded(self, arc_on_mm: float) -> np.ndarray:
+    def welded(self, arc_on_mm: float, arc_struck: bool = True) -> np.ndarray:
         """Mask (n,) of the cycles with the arc on (the torch's progress at ``arc_on_mm`` or beyond: the run-in
-        before it fills the sensor's look-ahead)."""
-        return self.s_mm >= arc_on_mm
+        before it fills the sensor's look-ahead); none when the arc was never struck (report.json's
+        ``stop.arc_struck``: a halt before it, as :func:`psvs.robot.report.arc_on` has it)."""
+        return (self.s_mm >= arc_on_mm) & bool(arc_struck)
 
 
 def read_log_csv(text: str, where: str = "log.csv") -> RunLog:

@@ -36,6 +36,7 @@ def _report(text: str) -> dict:
         out = {"cycles": int(rep["cycles"]), "welded_mm": float(rep["welded_mm"]),
                "valid_frames": int(rep["valid_frames"]), "lateral_mm": rep["lateral_mm"],
                "vertical_mm": rep["vertical_mm"], "stop": rep["stop"]["reason"],
+               "arc_struck": _flag(rep["stop"].get("arc_struck", True), "stop.arc_struck"),
                "arc_on_mm": cfg.arc_on_mm, "health": _health(rep.get("health")), "config": cfg,
                "cam2flange": mount}
     except json.JSONDecodeError as exc:
@@ -43,6 +44,13 @@ def _report(text: str) -> dict:
     except (KeyError, TypeError, ValueError, OverflowError) as exc:
         raise ValueError(f"report.json is not a psvs track report: {exc!s} missing or not a number") from None
     return out
+
+
+def _flag(v, name: str) -> bool:
+    """A report's JSON boolean (ValueError naming ``name`` otherwise); reports before it was written hold none."""
+    if not isinstance(v, bool):
+        raise ValueError(f"{name} {v!r}")
+    return v
 
 
 def _health(h) -> dict | None:
@@ -114,7 +122,7 @@ def run_view(log_text: str, report_text: str, rig) -> dict:
     step = max(1, -(-n // MAX_DRAWN))
     sel = np.unique(np.r_[np.arange(0, n, step), n - 1])
     seen = log.valid[sel]
-    welded = log.welded(rep["arc_on_mm"])[sel]
+    welded = log.welded(rep["arc_on_mm"], rep["arc_struck"])[sel]
     cfg, mount = rep.pop("config"), rep.pop("cam2flange")
     mounted = "hand-eye" if mount is not None else "bracket drawing"
     if mount is None:      # a report of before it was written: the bracket drawing's mounting
