@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from psvs import default_rig
+from psvs._cache import cache_dir
 from psvs.dense import rig_cache
-from psvs.dense.rig_cache import cache_dir, depth_table, forget, nearest_inside, rectification, rig_key
+from psvs.dense.rig_cache import depth_table, forget, nearest_inside, rectification, rig_key
 from psvs.io.params import load_rig, save_rig
 from psvs.optics.rectify import VIEWS, rectify
 from psvs.optics.rig import Calibration, MirrorError, MirrorExtent

@@ -7,7 +7,8 @@ import pytest
 
 from psvs import default_rig
 from psvs.errors import RigGeometryError
-from psvs.optics.design import check_clear, design_mirrors, working_range
+from psvs.optics.design import design_mirrors, working_range
+from psvs.optics.layout_check import check_clear
 from psvs.optics.mirror_length import mirror_length_eq6
 from psvs.optics.rig import MIRROR_NAMES
 from psvs.optics.trace import trace_pixels

@@ -48,7 +48,7 @@ from psvs.errors import MeasurementError, RigGeometryError
 from psvs.health.check import OVERLAP, HealthCheck, check_frames, judged_pairs_px
 from psvs.io.jsonsafe import json_safe
 from psvs.measure.triangulate import triangulate
-from psvs.optics.design import check_clear
+from psvs.optics.layout_check import check_clear
 from psvs.optics.mirrors import virtual_baseline_mm
 from psvs.optics.project import project_points
 from psvs.optics.rig import Calibration, Rig
@@ -182,7 +182,7 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
 
 def _check_changes(x: np.ndarray, old: Rig, new: Rig, distances) -> None:
     """MeasurementError when a refitted tilt changed by more than :data:`MAX_CHANGE_RAD`, or the refitted
-    layout is blocked (no build has it: :func:`psvs.optics.design.check_clear`)."""
+    layout is blocked (no build has it: :func:`psvs.optics.layout_check.check_clear`)."""
     worst = int(np.argmax(np.abs(x)))
     tares = f" (the tares at {', '.join(f'{z:g}' for z in distances)} mm: is each where its surface was?)" \
         if distances else ""

@@ -12,6 +12,7 @@ from psvs.cli.common import (
     parse_seed,
     pipeline_from_args,
     range_from_args,
+    refuse_if_drifted,
 )
 from psvs.errors import MeasurementError
 from psvs.io.atomic import output_batch
@@ -76,7 +77,10 @@ def compute(args, image=None):
     (out, csv_path, ply_path), work = prepare(args, image)
     res = match_image(**work)
     refuse_unanswered(res, work["seed_px"] is not None)
-    refuse_off_rows(work)
+    # the pairs' own rows check sees only the pairs, and where a knock's field crosses zero some pairs fit: on
+    # a frame of the misaligned build read through the ideal rig (7 px off), two of three pairs were 170 and
+    # 320 mm off; the image's self-check sees the whole field
+    refuse_if_drifted(work["grey"], work["rig"], work["near_mm"], work["far_mm"])
     with output_batch():   # all outputs land together, or none replaces an earlier file
         write_json(out, res)
         if csv_path:
@@ -102,20 +106,6 @@ def refuse_unanswered(res, seeded: bool) -> None:
     lo, hi = res.disparity_range_px
     raise MeasurementError(f"{what} at the working range's disparities {lo:.0f}..{hi:.0f} px: every candidate "
                            f"failed the matcher's rules or stood alone within chance ({res.chance.describe()})")
-
-
-def refuse_off_rows(work: dict) -> None:
-    """MeasurementError (nothing written) when the image's own twins say the rig does not fit it: the
-    self-check on the image (:func:`psvs.health.check.check_frames`, the match's working range) reads it
-    ``drifted`` (a mirror knocked, another build's frame). The pairs' own rows check sees only the pairs, and
-    where a knock's field crosses zero some pairs fit: on a frame of the misaligned build read through the
-    ideal rig (7 px off), two of three pairs were 170 and 320 mm off. A check that cannot judge (too little
-    texture) lets the pairs stand."""
-    from psvs.health.check import check_frames
-    check = check_frames([work["grey"]], work["rig"], work["near_mm"], work["far_mm"])
-    if check.verdict == "drifted":
-        raise MeasurementError(f"the rig does not fit this image: {check.reason} (psvs check; psvs refit or "
-                               f"calibrate again)")
 
 
 def summary_row(res) -> dict:

@@ -9,8 +9,8 @@ from pathlib import Path
 import llvmlite.binding as llvm
 import numba
 
+from psvs._cache import cache_dir
 from psvs._compiled import notice, quiet, uncompiled
-from psvs.dense.rig_cache import cache_dir
 from psvs.io.atomic import write_atomic
 
 #: The file in the user's cache folder that records which kernels a notice was last given for.

@@ -24,18 +24,16 @@ error. The folder keeps the :data:`KEEP_FILES` files used last.
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import hashlib
 import io
-import json
 import os
 import threading
 import weakref
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
+from psvs._cache import cache_dir, content_key
 from psvs.dense.depth_table import DepthTable, build_depth_table, node_counts
 from psvs.io.atomic import write_atomic
 from psvs.optics.rectify import VIEWS, Rectification, needs_rectification, rectify, remember, remembered
@@ -46,8 +44,6 @@ from psvs.optics.rig import Rig
 FORMAT_VERSION = 1
 #: Files kept in the cache folder (the least recently used beyond it are removed).
 KEEP_FILES = 24
-#: Where the cache folder is, when set (else XDG_CACHE_HOME/psvs, else ~/.cache/psvs).
-ENV_VAR = "PSVS_CACHE_DIR"
 
 #: The fitted values of a rectification, as stored.
 _FIT = ("rotation", "camera_matrix", "centres_mm", "z_ref_mm", "size_px", "residual_px")
@@ -63,55 +59,12 @@ _LOCKS: dict[str, threading.Lock] = {}
 _LOCKS_LOCK = threading.Lock()
 
 
-def cache_dir() -> Path | None:
-    """The user's psvs cache folder: ``$PSVS_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/psvs`` (an absolute
-    path), else ``~/.cache/psvs``; None when no home folder is known. It may not exist yet."""
-    own = os.environ.get(ENV_VAR, "")
-    if own:
-        return Path(own).expanduser()
-    xdg = os.environ.get("XDG_CACHE_HOME", "")
-    if xdg and Path(xdg).is_absolute():
-        return Path(xdg) / "psvs"
-    try:
-        return Path.home() / ".cache" / "psvs"
-    except RuntimeError:      # no home folder
-        return None
-
-
 def rig_key(rig: Rig, near_mm: float, far_mm: float) -> str:
     """The cache key (64 hex digits) of a rig's optics over a working range: a SHA-256 of every value of
     its camera and mirrors (floats exactly, by their hex form), near_mm and far_mm, :data:`FORMAT_VERSION`
-    and the source of the code that computes the cached values."""
-    text = json.dumps({"format": FORMAT_VERSION, "code": _code_digest(), "camera": _canon(rig.camera),
-                       "mirrors": _canon(rig.mirrors), "near_mm": _canon(float(near_mm)),
-                       "far_mm": _canon(float(far_mm))}, sort_keys=True)
-    return hashlib.sha256(text.encode()).hexdigest()
-
-
-def _canon(x):
-    """A JSON-able form of a value that two different values never share (numbers as exact float hex)."""
-    if dataclasses.is_dataclass(x):
-        return [type(x).__name__, {f.name: _canon(getattr(x, f.name)) for f in dataclasses.fields(x)}]
-    if isinstance(x, (bool, str)) or x is None:
-        return x
-    if isinstance(x, (int, float, np.integer, np.floating)):
-        return float(x).hex()
-    if isinstance(x, (tuple, list)):
-        return [_canon(v) for v in x]
-    raise TypeError(f"cannot key a rig value of type {type(x).__name__}")
-
-
-@lru_cache(maxsize=1)
-def _code_digest() -> str:
-    root = Path(__file__).resolve().parents[1]
-    h = hashlib.sha256()
-    for pattern in _CODE:
-        for path in sorted(root.glob(pattern)):
-            try:
-                h.update(path.read_bytes())
-            except OSError:      # no source to read (a frozen install): the format version must do
-                h.update(path.name.encode())
-    return h.hexdigest()
+    and the source of the code that computes the cached values (:func:`psvs._cache.content_key`)."""
+    return content_key({"format": FORMAT_VERSION, "camera": rig.camera, "mirrors": rig.mirrors,
+                        "near_mm": float(near_mm), "far_mm": float(far_mm)}, _CODE)
 
 
 def rectification(rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0) -> Rectification | None:

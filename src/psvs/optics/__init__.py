@@ -9,10 +9,11 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submodules=["pinhole_views", "rectify"],
     submod_attrs={
         "bounds": ["check_rig_bounds"],
-        "design": ["MirrorDesign", "check_clear", "design_mirrors"],
+        "design": ["MirrorDesign", "design_mirrors"],
         "field": ["field_pixels"],
         "illumination": ["flat_field", "illumination_map"],
         "layout3d": ["rig_layout"],
+        "layout_check": ["check_clear"],
         "mirrors": ["VIEWS", "direction_map", "front_z_mm", "mirror_planes", "virtual_baseline_mm",
                     "virtual_centre"],
         "obstruction": ["find_obstructions", "plate_edges"],

@@ -167,19 +167,6 @@ def design_mirrors(rig: Rig, *, margin_mm: float = 0.0, near_mm: float | None = 
     return MirrorDesign(designed, tuple(specs), obstructions, collisions, wr, window, suggestion, note)
 
 
-def check_clear(rig: Rig, name: str = "the rig") -> Rig:
-    """``rig`` itself when its layout is clear (:attr:`MirrorDesign.ok`: no light path blocked, no two parts
-    through each other), else :class:`~psvs.errors.RigGeometryError` naming the first problem: a blocked
-    layout is no build, and nothing measured or exported through it describes one. ``name`` says which rig
-    (a file's name) in the message."""
-    d = design_mirrors(rig, search=False)
-    if not d.ok:
-        more = f" (and {len(d.problems) - 1} more)" if len(d.problems) > 1 else ""
-        raise RigGeometryError(f"{name} is no layout a build can have: {d.problems[0]}{more}; `psvs design` "
-                               "shows its layout")
-    return rig
-
-
 def _search(rig: Rig, margin_mm: float, blocked: bool):
     """(the clear M2 range for the rig's c1, a clear (c1, c2) when the rig is blocked, why the search
     stopped short or ''), within one :class:`SearchBudget`."""

@@ -1,0 +1,69 @@
+"""Is a rig's layout one a build can have? Asked by every command that measures through a rig, answered
+once per rig content.
+
+:func:`check_clear` designs the rig's mirrors (:func:`psvs.optics.design.design_mirrors`: the camera's whole
+field traced through both paths, every mirror and the plate checked for obstructions and collisions), which
+takes about half a second on a 1440 x 1080 camera and loads the mesh library; a ``psvs disparity`` call that
+asked it every time spent a third of its time there. A clear verdict depends only on the rig's camera and
+mirror values and on the optics code, so it is kept:
+
+- in memory, for the process (``psvs batch``, ``live``, ``serve``);
+- on disk, as an empty file named by its key in ``layout/`` of the user's cache folder
+  (:func:`psvs._cache.cache_dir`): the key (:func:`layout_key`) hashes every value of the camera and mirrors
+  and the source of ``psvs/optics``, so a changed rig, or a new psvs, is checked again.
+
+Only a clear verdict is kept: a blocked layout is designed again, to name its problems.
+"""
+from __future__ import annotations
+
+import contextlib
+
+from psvs._cache import cache_dir, content_key
+from psvs.errors import RigGeometryError
+from psvs.optics.rig import Rig
+
+#: The code whose source is part of the key: the ray tracing and the design that decide the verdict.
+_CODE = ("optics/*.py",)
+#: The keys of the rigs found clear in this process.
+_CLEAR: set[str] = set()
+
+
+def layout_key(rig: Rig) -> str:
+    """The key (64 hex digits) of a rig's layout verdict: its camera's and mirrors' values exactly (not its
+    file's path, nor its calibration record) and the optics code's source."""
+    return content_key({"verdict": "layout clear", "camera": rig.camera, "mirrors": rig.mirrors}, _CODE)
+
+
+def check_clear(rig: Rig, name: str = "the rig") -> Rig:
+    """``rig`` itself when its layout is clear (:attr:`~psvs.optics.design.MirrorDesign.ok`: no light path
+    blocked, no two parts through each other), else :class:`~psvs.errors.RigGeometryError` naming the first
+    problem: a blocked layout is no build, and nothing measured or exported through it describes one.
+    ``name`` says which rig (a file's name) in the message. A rig of the same values found clear before (in
+    this process or the cache folder) is not designed again."""
+    key = layout_key(rig)
+    marker = _marker(key)
+    if key in _CLEAR or (marker is not None and marker.is_file()):
+        _CLEAR.add(key)
+        return rig
+    from psvs.optics.design import design_mirrors  # the mesh library: loaded only for a rig not yet known
+    d = design_mirrors(rig, search=False)
+    if not d.ok:
+        more = f" (and {len(d.problems) - 1} more)" if len(d.problems) > 1 else ""
+        raise RigGeometryError(f"{name} is no layout a build can have: {d.problems[0]}{more}; `psvs design` "
+                               "shows its layout")
+    _CLEAR.add(key)
+    if marker is not None:
+        with contextlib.suppress(OSError):      # a folder that cannot be written: no disk cache, no error
+            marker.parent.mkdir(parents=True, exist_ok=True)
+            marker.touch()
+    return rig
+
+
+def forget() -> None:
+    """Forget the verdicts of this process (the cache folder's stay)."""
+    _CLEAR.clear()
+
+
+def _marker(key: str):
+    folder = cache_dir()
+    return None if folder is None else folder / "layout" / f"{key}.clear"
