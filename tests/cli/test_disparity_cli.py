@@ -250,7 +250,8 @@ def test_a_knocked_build_is_refused_in_the_words_of_its_twins(capsys, tmp_path):
     path, out, depth = tmp_path / "tex.png", tmp_path / "d.npy", tmp_path / "z.npy"
     assert run(capsys, "simulate", "textured", "--rig", "misaligned_knocked", "--supersample", "1",
                "-o", str(path))[0] == 0
-    code, stdout, err = run(capsys, "disparity", str(path), "--rig", "misaligned", "-o", str(out), "--depth", str(depth))
+    code, stdout, err = run(capsys, "disparity", str(path), "--rig", "misaligned", "-o", str(out),
+                            "--depth", str(depth))
     assert code == 1 and stdout == "" and err.count("\n") == 1, (code, stdout, err)
     assert err.startswith("psvs disparity: cannot measure: the rig does not fit this image: the twins stand off "
                           "their rows: ") and "psvs check" in err, err
