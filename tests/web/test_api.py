@@ -365,3 +365,29 @@ def test_serve_renders_a_scene_through_the_true_rig(tmp_path):
     with pytest.raises(ValueError, match="--true-rig renders a simulated scene"):
         make_source(argparse.Namespace(image=str(png), video=None, camera=None, scene=None, true_rig="misaligned"),
                     load_rig("clear"))
+
+
+def test_matching_through_a_rig_the_image_has_left_is_refused_in_its_twins_words(tmp_path):
+    """As psvs match: the textured scene through the misaligned build, matched on a page serving the ideal
+    rig. Where the build's 7 px field of row offsets crosses zero, some pairs fit their rows; the image's
+    self-check reads the rig drifted, and the page gets no pair, not answered, in the check's words (nothing
+    to export). Served with its own rig, the same image is answered."""
+    from psvs.io.params import load_rig
+    from psvs.simulate.builtin import builtin_scene
+    from psvs.simulate.render import render
+    from psvs.web.sources import scene_source
+    img = render(builtin_scene("textured"), load_rig("misaligned"), supersample=1, seed=1).image
+    png = cv2.imencode(".png", np.clip(np.rint(img), 0, 255).astype(np.uint8))[1].tobytes()
+    for rig, fits in ((default_rig(), False), (load_rig("misaligned"), True)):
+        with local_client(create_app(scene_source("textured", builtin_scene("textured"), rig), rig)) as c:
+            assert c.post("/api/upload", content=png, headers=PNG).status_code == 200
+            res = c.post("/api/match", json={"seed": None}).json()
+            if fits:
+                assert res["pairs"] and res["chance"]["answered"] is True, res["chance"]
+                continue
+            assert res["pairs"] == [] and res["chance"]["answered"] is False, res["chance"]
+            assert res["chance"]["text"].startswith("the rig does not fit this image: the twins stand off their "
+                                                    "rows: ") and "psvs check" in res["chance"]["text"]
+            assert c.post("/api/match", json={"seed": None}).json()["chance"] == res["chance"]   # checked once
+            exported = c.get("/api/export/json").json()
+            assert exported["pairs"] == []

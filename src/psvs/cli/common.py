@@ -6,7 +6,6 @@ import os
 from contextlib import contextmanager
 from pathlib import Path
 
-from psvs.errors import MeasurementError
 from psvs.io.params import load_rig
 from psvs.optics.layout_check import check_clear
 from psvs.optics.rig import Rig, default_rig
@@ -166,18 +165,6 @@ def measuring_rig(path: str | None) -> Rig:
     has it, and no figure through it describes one."""
     rig = load_rig(path) if path else default_rig()
     return check_clear(rig, f"rig {path}" if path else "the paper's rig")
-
-
-def refuse_if_drifted(grey, rig: Rig, near_mm: float, far_mm: float, cause: BaseException | None = None) -> None:
-    """MeasurementError when the image's own twins say the rig does not fit it: the self-check on the image
-    (:func:`psvs.health.check.check_frames` over near..far mm) reads it ``drifted`` (a mirror knocked, another
-    build's frame). ``cause``: the refusal it replaces (its reason then names the knock, not its symptom). A
-    check that cannot judge (too little texture) or finds the twins on their rows lets the answer stand."""
-    from psvs.health.check import check_frames  # only when asked: its kernels load with it
-    check = check_frames([grey], rig, near_mm, far_mm)
-    if check.verdict == "drifted":
-        raise MeasurementError(f"the rig does not fit this image: {check.reason} (psvs check; psvs refit or "
-                               f"calibrate again)") from cause
 
 
 def check_output_path(path: str | None, suffixes: tuple[str, ...]) -> Path | None:

@@ -14,7 +14,6 @@ from psvs.cli.common import (
     check_rerun_arguments,
     measuring_rig,
     range_from_args,
-    refuse_if_drifted,
 )
 from psvs.dense import dense_disparity, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_trust
@@ -183,7 +182,7 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
 
 
 #: Below this share of the map's pixels trusted (or with nothing trusted), ``psvs disparity`` through a rig asks
-#: the image's self-check (:func:`psvs.cli.common.refuse_if_drifted`) whether the rig still fits it: on a knocked
+#: the image's self-check (:func:`psvs.health.check.refuse_if_drifted`) whether the rig still fits it: on a knocked
 #: build the echo weakens to a few percent of the map, and an answer there, or a refusal that blames the scene,
 #: would hide the knock. Above it the check is left to ``psvs check`` and the running commands' rolling check:
 #: it costs about a dense call (1.4 s on 1440 x 1080).
@@ -197,11 +196,16 @@ def _checked_trust(dense: RigDense, image, rig, args) -> tuple[RigDense, EchoTru
         dense, trust = _trusted(dense)
     except MeasurementError as exc:
         if rig is not None:
-            refuse_if_drifted(image, rig, args.near_mm, args.far_mm, cause=exc)
+            _self_check(image, rig, args, cause=exc)
         raise
     if rig is not None and trust.count < WEAK_SHARE * dense.result.disparity_left.size:
-        refuse_if_drifted(image, rig, args.near_mm, args.far_mm)
+        _self_check(image, rig, args)
     return dense, trust
+
+
+def _self_check(image, rig, args, cause=None) -> None:
+    from psvs.health.check import refuse_if_drifted  # loaded only when asked: a start-up kept short
+    refuse_if_drifted(image, rig, args.near_mm, args.far_mm, cause=cause)
 
 
 def strongest_echo(trust: EchoTrust) -> str:

@@ -12,9 +12,9 @@ from psvs.cli.common import (
     parse_seed,
     pipeline_from_args,
     range_from_args,
-    refuse_if_drifted,
 )
 from psvs.errors import MeasurementError
+from psvs.health.check import refuse_if_drifted
 from psvs.io.atomic import output_batch
 from psvs.io.images import check_frame_size, read_grey
 from psvs.match.correspondence import MatchParams, match_image

@@ -34,6 +34,7 @@ import numpy as np
 
 from psvs._validate import check_grey
 from psvs.dense.rig_cache import rectification
+from psvs.errors import MeasurementError
 from psvs.health.rows import FAR_REACH_DEG, FrameTiles, frame_tiles
 from psvs.optics.rig import Rig
 
@@ -150,6 +151,20 @@ def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.
     if beyond:      # what lay past the reach's edge is no twin the wider search finds: a texture, not a knock
         return dataclasses.replace(wider, reason=f"{check.reason.split(':')[0]}, but a search {FAR_REACH_DEG:g} deg "
                                    f"either side finds no field of twins: {wider.reason}")
+    return check
+
+
+def refuse_if_drifted(grey, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
+                      cause: BaseException | None = None) -> HealthCheck:
+    """The check of one image (:func:`check_frames` over near..far mm) for an answer measured on it through
+    ``rig``: :class:`~psvs.errors.MeasurementError` when it reads ``drifted`` (a mirror knocked since the
+    calibration, another build's frame: "the rig does not fit this image", its field in figures), else the
+    check (``healthy``, or ``cannot judge``: too little texture to tell, and the answer stands on its own
+    evidence). ``cause``: the refusal this one replaces (it then names the knock, not its symptom)."""
+    check = check_frames([grey], rig, near_mm, far_mm)
+    if check.verdict == "drifted":
+        raise MeasurementError(f"the rig does not fit this image: {check.reason} (psvs check; psvs refit or "
+                               f"calibrate again)") from cause
     return check
 
 

@@ -2,6 +2,7 @@
 of every edge, and the last match as CSV, JSON or PLY (the writers of ``psvs match``)."""
 from __future__ import annotations
 
+import dataclasses
 import tempfile
 from pathlib import Path
 
@@ -9,6 +10,8 @@ import numpy as np
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse, Response
 
+from psvs.errors import MeasurementError
+from psvs.health.check import refuse_if_drifted
 from psvs.imaging.pipeline import Pipeline
 from psvs.live.tracker import nearest_edge_pixels
 from psvs.match.correspondence import match_image
@@ -60,11 +63,37 @@ def match(body: MatchBody, session: SessionDep):
                                                     snap_px(rig))
     res = match_image(still.grey, rig, seed_px=seed, pipeline=pipeline, near_mm=body.near_mm,
                       far_mm=body.far_mm, params=body.params())
-    session.keep_result(res, still.generation)
     off_rows = res.rows is not None and res.rows.refuses       # the twins stand off the rig's rows
     chance = {"answered": res.chance.answered and not off_rows,
               "text": res.rows.describe() if off_rows else res.chance.describe()}
+    if res.pairs:
+        drift = drift_refusal(still, rig, body.near_mm, body.far_mm)
+        if drift:           # as psvs match: no pair through a rig the image's own twins say it has left
+            res = dataclasses.replace(res, pairs=[])
+            chance = {"answered": False, "text": drift}
+    session.keep_result(res, still.generation)
     return {"seed_px": seed, **result_to_dict(res, decimals=4), "chance": chance}
+
+
+#: The self-check's verdict on the image matched last (the image, the rig, the range -> the refusal's words or
+#: ""), so that matching edge after edge of one image checks it once.
+_CHECKED: dict = {}
+
+
+def drift_refusal(still, rig: Rig, near_mm: float, far_mm: float) -> str:
+    """Why the image's own twins say ``rig`` does not fit it (:func:`psvs.health.check.refuse_if_drifted`:
+    "the rig does not fit this image: ..."), or "" when they do or cannot tell; asked once per image, rig
+    and range."""
+    key = (id(still.grey), id(rig), float(near_mm), float(far_mm))
+    if key not in _CHECKED:
+        try:
+            refuse_if_drifted(still.grey, rig, near_mm, far_mm)
+            said = ""
+        except MeasurementError as exc:
+            said = str(exc)
+        _CHECKED.clear()                                     # one image at a time: the last one's verdict
+        _CHECKED[key] = (still.grey, rig, said)              # both held, so their ids are not reused
+    return _CHECKED[key][2]
 
 
 @router.get("/export/{fmt}")
