@@ -33,6 +33,15 @@ def pattern_png(rig_name: str = "default", distance_mm: float = 640.0, crop: boo
     return png(img[20:460, 20:620] if crop else img)
 
 
+@lru_cache(maxsize=None)
+def scene_png(scene: str, rig_name: str) -> bytes:
+    """A built-in scene rendered through a shipped rig (one sample a pixel)."""
+    from psvs.io.params import load_rig
+    from psvs.simulate.builtin import builtin_scene
+    from psvs.simulate.render import render
+    return png(render(builtin_scene(scene), load_rig(rig_name), supersample=1, seed=3).image)
+
+
 def _design() -> list[Case]:
     base = ("design", *R)
     good = {"rig.toml": DEFAULT_RIG}
@@ -330,6 +339,10 @@ def _disparity() -> list[Case]:
         Case("disparity-same-output-twice", (*base, "--right", "d.npy"), 2, "d.npy", tex, ("d.npy",)),
         Case("disparity-black-image", base, 1, "constant", {"img.png": png(np.zeros((480, 640), np.uint8))},
              ("d.npy",)),
+        # issue 43's knock read through the build's calibration from before it: the twins 2.5 px off their rows
+        Case("disparity-knocked-build", ("disparity", "img.png", "--rig", "misaligned", "-o", "d.npy", "--depth",
+                                         "z.npy"), 1, "the rig does not fit this image",
+             {"img.png": scene_png("textured", "misaligned_knocked")}, ("d.npy", "z.npy")),
         Case("check-repeating-texture", ("check", "img.png", "--rig", "misaligned"), 1, "repeats along the rows",
              {"img.png": repeating_png()}),
         Case("disparity-views-over-each-other", (*base, "--views", "v.png", "v.png"), 2, "v.png", tex,
