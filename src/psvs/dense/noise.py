@@ -79,8 +79,10 @@ def noise_level(image: np.ndarray) -> NoiseLevel:
     order = np.argsort(mean, kind="stable")
     grey, var, weight = [], [], []
     for part in np.array_split(order, bins):
-        p = patches[part]
-        ev = np.linalg.eigvalsh(p.T @ p / len(p))
+        # the covariance by OpenCV, not BLAS: OpenBLAS's threads on a 7500 x 25 product wait for each other, and on
+        # a loaded machine the call took 1.4 s instead of 20 ms (bench/bench_depth.py's library call)
+        p = np.ascontiguousarray(patches[part])
+        ev = np.linalg.eigvalsh(cv2.mulTransposed(p, True) / len(p))
         grey.append(float(mean[part].mean()))
         var.append(float(ev[1]) * m * m / (m * m - 1))
         weight.append(len(part))
