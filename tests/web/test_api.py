@@ -391,3 +391,26 @@ def test_matching_through_a_rig_the_image_has_left_is_refused_in_its_twins_words
             assert c.post("/api/match", json={"seed": None}).json()["chance"] == res["chance"]   # checked once
             exported = c.get("/api/export/json").json()
             assert exported["pairs"] == []
+
+
+def test_dense_depth_through_a_rig_the_image_has_left_is_refused_in_its_twins_words():
+    """As psvs disparity: issue 43's knock (the textured scene through misaligned_knocked) on a page serving the
+    build's calibration from before it: the echo weak, the self-check asked, the rig refused in its words, no
+    depth, no cloud. Served with the rig as it now is: answered, and the check not asked (refused "")."""
+    from psvs.io.params import load_rig
+    from psvs.simulate.builtin import builtin_scene
+    from psvs.simulate.render import render
+    from psvs.web.sources import scene_source
+    img = render(builtin_scene("textured"), load_rig("misaligned_knocked"), supersample=1, seed=1).image
+    png = cv2.imencode(".png", np.clip(np.rint(img), 0, 255).astype(np.uint8))[1].tobytes()
+    for name, fits in (("misaligned", False), ("misaligned_knocked", True)):
+        rig = load_rig(name)
+        with local_client(create_app(scene_source("textured", builtin_scene("textured"), rig), rig)) as c:
+            assert c.post("/api/upload", content=png, headers=PNG).status_code == 200
+            res = c.post("/api/dense", json={"fast": True}).json()
+        if fits:
+            assert res["refused"] == "" and res["trusted_pct"] > 10 and res["median_z_mm"] is not None, res
+            continue
+        assert res["refused"].startswith("the rig does not fit this image: the twins stand off their rows: ")
+        assert res["trusted_pct"] == 0 and res["answered_pct"] == 0 and res["median_z_mm"] is None
+        assert res["cloud"]["points_mm"] == []

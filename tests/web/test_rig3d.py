@@ -214,6 +214,7 @@ def test_the_dense_cloud_is_the_trusted_pixels_at_their_depth(textured_app):
         assert c.get("/api/dense/map", params={"name": "z", "run": 0}).status_code == 404
         res = c.post("/api/dense", json={"fast": True}).json()
     assert res["trusted_pct"] == 0 and res["median_z_mm"] is None and res["cloud"]["points_mm"] == []
+    assert res["refused"] == ""         # the self-check asked (nothing trusted): a blank wall, it cannot judge
     noise = create_app(image_source("noise", np.random.default_rng(3).integers(0, 256, (480, 640)).astype(np.uint8)),
                        default_rig())
     with local_client(noise) as c:
@@ -221,7 +222,7 @@ def test_the_dense_cloud_is_the_trusted_pixels_at_their_depth(textured_app):
     # sensor noise: the map holds a disparity almost everywhere, none of it supported: nothing answered (as
     # psvs disparity refuses the image), no depth
     assert res["mapped_pct"] > 90 and res["trusted_pct"] == 0 and res["answered_pct"] == 0
-    assert res["median_z_mm"] is None and res["cloud"]["points_mm"] == []
+    assert res["median_z_mm"] is None and res["cloud"]["points_mm"] == [] and res["refused"] == ""
 
 
 def test_the_page_draws_the_dense_cloud(webgl_page, textured_app):

@@ -22,7 +22,7 @@ from psvs.dense.disparity import check_dense_memory, check_range
 from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.rig_cache import rectification
 from psvs.dense.separate import rig_views
-from psvs.dense.trust import ALPHA, EchoTrust, trusted_maps
+from psvs.dense.trust import ALPHA, WEAK_SHARE, EchoTrust, trusted_maps
 from psvs.errors import MeasurementError
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
@@ -181,17 +181,11 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
     return dataclasses.replace(dense, result=trusted_maps(res, trust)), trust
 
 
-#: Below this share of the map's pixels trusted (or with nothing trusted), ``psvs disparity`` through a rig asks
-#: the image's self-check (:func:`psvs.health.check.refuse_if_drifted`) whether the rig still fits it: on a knocked
-#: build the echo weakens to a few percent of the map, and an answer there, or a refusal that blames the scene,
-#: would hide the knock. Above it the check is left to ``psvs check`` and the running commands' rolling check:
-#: it costs about a dense call (1.4 s on 1440 x 1080).
-WEAK_SHARE = 0.10
 
 
 def _checked_trust(dense: RigDense, image, rig, args) -> tuple[RigDense, EchoTrust]:
-    """:func:`_trusted`, and through a rig, when its answer is weak (:data:`WEAK_SHARE`) or refused, the
-    image's self-check: a rig the image's twins say no longer fits it is refused in those words."""
+    """:func:`_trusted`, and through a rig, when its answer is weak (:data:`psvs.dense.trust.WEAK_SHARE`) or
+    refused, the image's self-check: a rig the image's twins say no longer fits it is refused in those words."""
     try:
         dense, trust = _trusted(dense)
     except MeasurementError as exc:

@@ -10,12 +10,14 @@ from fastapi.responses import JSONResponse, Response
 
 from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
+from psvs.dense.trust import WEAK_SHARE
 from psvs.imaging.grey import to_grey8
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale as camera_pixel_scale
 from psvs.web.bodies import DenseBody
 from psvs.web.live_runner import DENSE_LOCK
 from psvs.web.png import colour_disparity, data_url
+from psvs.web.self_check import drift_refusal
 from psvs.web.session import SessionDep
 
 router = APIRouter(prefix="/api")
@@ -57,8 +59,10 @@ def dense(body: DenseBody, session: SessionDep):
     (``mapped_pct``), the share answered (``answered_pct``, as ``psvs disparity`` counts them: the mapped share
     when the scene's echo stands above chance anywhere, 0 when it does not and the command would refuse), the
     share the echo supports beyond chance (``trusted_pct``), their median disparity and depth (None when none
-    is) and point cloud, and optionally the separated views, as PNG data URLs. The library's dense kernels run
-    under DENSE_LOCK (one at a time, with live mode's)."""
+    is) and point cloud, and optionally the separated views, as PNG data URLs. ``refused``: why the image's
+    self-check says the rig does not fit the image (then nothing is trusted), asked when the trusted share is
+    weak (:data:`psvs.dense.trust.WEAK_SHARE`), else "". The library's dense kernels run under DENSE_LOCK (one
+    at a time, with live mode's)."""
     still, rig = session.still(), session.rig
     grey = still.grey
     with DENSE_LOCK:
@@ -69,6 +73,9 @@ def dense(body: DenseBody, session: SessionDep):
     with DENSE_LOCK:
         trusted = rig_trust(dense_res).trusted_left
     seen = trusted & np.isfinite(d)          # the medians of what the echo supports: never a noisy median
+    refused = drift_refusal(still, rig, body.near_mm, body.far_mm) if np.mean(seen) < WEAK_SHARE else ""
+    if refused:                              # as psvs disparity: no depth through a rig the image has left
+        seen = np.zeros_like(seen)
     cloud = rig_cloud(dense_res, rig, mask=seen)       # only the trusted pixels are triangulated
     z = cloud.depth_mm
     mapped = 100.0 * float(np.mean(np.isfinite(d)))
@@ -77,7 +84,7 @@ def dense(body: DenseBody, session: SessionDep):
            "trusted_pct": 100.0 * float(np.mean(seen)),
            "median_disparity_px": float(np.median(d[seen])) if seen.any() else None,
            "median_z_mm": float(np.nanmedian(z[seen])) if np.isfinite(z[seen]).any() else None,
-           "cloud": cloud_for_page(dense_res, cloud)}
+           "cloud": cloud_for_page(dense_res, cloud), "refused": refused}
     run = session.keep_dense_maps(full_maps(d, z, seen), still.generation)
     out["maps"] = {"shape": list(d.shape), "run": run, "names": list(MAPS)}
     if body.views and np.isfinite(d).any():

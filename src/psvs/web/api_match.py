@@ -10,8 +10,6 @@ import numpy as np
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse, Response
 
-from psvs.errors import MeasurementError
-from psvs.health.check import refuse_if_drifted
 from psvs.imaging.pipeline import Pipeline
 from psvs.live.tracker import nearest_edge_pixels
 from psvs.match.correspondence import match_image
@@ -20,6 +18,7 @@ from psvs.optics.illumination import flat_field
 from psvs.optics.rig import Rig
 from psvs.optics.scale import pixel_scale
 from psvs.web.bodies import MatchBody
+from psvs.web.self_check import drift_refusal
 from psvs.web.session import SessionDep
 
 #: A double-click this close to an edge selects it, in px of the paper's camera (1130 px per unit
@@ -75,25 +74,6 @@ def match(body: MatchBody, session: SessionDep):
     return {"seed_px": seed, **result_to_dict(res, decimals=4), "chance": chance}
 
 
-#: The self-check's verdict on the image matched last (the image, the rig, the range -> the refusal's words or
-#: ""), so that matching edge after edge of one image checks it once.
-_CHECKED: dict = {}
-
-
-def drift_refusal(still, rig: Rig, near_mm: float, far_mm: float) -> str:
-    """Why the image's own twins say ``rig`` does not fit it (:func:`psvs.health.check.refuse_if_drifted`:
-    "the rig does not fit this image: ..."), or "" when they do or cannot tell; asked once per image, rig
-    and range."""
-    key = (id(still.grey), id(rig), float(near_mm), float(far_mm))
-    if key not in _CHECKED:
-        try:
-            refuse_if_drifted(still.grey, rig, near_mm, far_mm)
-            said = ""
-        except MeasurementError as exc:
-            said = str(exc)
-        _CHECKED.clear()                                     # one image at a time: the last one's verdict
-        _CHECKED[key] = (still.grey, rig, said)              # both held, so their ids are not reused
-    return _CHECKED[key][2]
 
 
 @router.get("/export/{fmt}")

@@ -208,7 +208,8 @@ $("dense").addEventListener("click", async () => {
     }
     state.denseCloud = res.cloud;
     await drawCloud3d($("dense-cloud"), res.cloud, $("dense-cloud-colour").value);
-    if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, ` +
+    if (res.refused) setStatus(`dense disparity: no depth: ${res.refused}`);
+    else if (res.trusted_pct > 0) setStatus(`dense disparity: ${res.answered_pct.toFixed(0)} % of the pixels answered, ` +
       `${res.trusted_pct.toFixed(0)} % supported beyond chance (the medians and the cloud are theirs)`, true);
     else setStatus(`dense disparity: ${res.mapped_pct.toFixed(0)} % of the pixels mapped, none answered: none supported ` +
       "beyond chance: no depth (too little texture in the working range?)");
