@@ -181,8 +181,6 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
     return dataclasses.replace(dense, result=trusted_maps(res, trust)), trust
 
 
-
-
 def _checked_trust(dense: RigDense, image, rig, args) -> tuple[RigDense, EchoTrust]:
     """:func:`_trusted`, and through a rig, when its answer is weak (:data:`psvs.dense.trust.WEAK_SHARE`) or
     refused, the image's self-check: a rig the image's twins say no longer fits it is refused in those words."""
