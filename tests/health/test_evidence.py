@@ -192,3 +192,39 @@ def test_no_mirror_is_named_for_a_field_no_mirror_makes():
     assert line.startswith("no one mirror's tilts: the best, M4 ") and "leaves 4.45 px" in line
     good = [Explanation("m3", (0.0, 0.06), 0.05)]
     assert explanation_line(good, 0.5).startswith("M3 (a +0.000, b +0.060 deg; leaves 0.05 px)")
+
+
+def test_a_quick_look_spreads_its_tiles_over_the_field():
+    """psvs.health.rows.spread_tiles: about n tiles of a grid, every k-th row and column, each row's columns
+    shifted by half a step from the last's; all of them when n covers the grid; n < 1 refused."""
+    from psvs.health.rows import spread_tiles
+    assert spread_tiles(4, 5, 20) == list(range(20)) and spread_tiles(4, 5, 100) == list(range(20))
+    for rows, cols, n in ((14, 22, 36), (12, 17, 36), (3, 40, 36), (9, 9, 5)):
+        got = spread_tiles(rows, cols, n)
+        r, c = np.divmod(np.array(got), cols)
+        assert 0 < len(got) <= n and len(set(got)) == len(got), (rows, cols, got)
+        k = next(k for k in range(1, 100) if -(-rows // k) * -(-cols // k) <= n)     # the smallest step that fits
+        assert sorted(set(r)) == list(range(0, rows, k))                          # every k-th row
+        assert list(c[r == 0]) == list(range(0, cols, k))                         # every k-th column
+        if rows > k:
+            assert list(c[r == k]) == list(range(k // 2, cols, k))                # the next row's in between
+    with pytest.raises(ValueError, match="count must be >= 1"):
+        spread_tiles(3, 3, 0)
+
+
+def test_a_quick_look_refuses_only_what_the_whole_check_confirms():
+    """psvs.health.check.refuse_if_drifted(quick=True): on the undrifted build's frame the look (36 tiles)
+    says healthy and nothing more is read; on the knocked build's, the refusal names the whole check's tiles
+    (all the frame's: more than the look read)."""
+    from psvs.errors import MeasurementError
+    from psvs.health.check import QUICK_TILES, refuse_if_drifted
+    from psvs.simulate.builtin import wall
+    rig, knocked = load_rig("misaligned"), load_rig("misaligned_knocked")
+    good = render(wall(700.0, 2), rig, seed=1, supersample=1).image
+    look = refuse_if_drifted(good, rig, quick=True)
+    assert look.verdict == "healthy" and QUICK_TILES // 2 <= look.tiles <= QUICK_TILES, look.reason
+    bad = render(wall(700.0, 2), knocked, seed=1, supersample=1).image
+    with pytest.raises(MeasurementError, match="the rig does not fit this image") as err:
+        refuse_if_drifted(bad, rig, quick=True)
+    tiles = int(str(err.value).split("off their rows: ")[1].split(" tiles")[0])
+    assert tiles > QUICK_TILES

@@ -24,6 +24,7 @@ from psvs.dense.rig_cache import rectification
 from psvs.dense.separate import rig_views
 from psvs.dense.trust import ALPHA, WEAK_SHARE, EchoTrust, trusted_maps
 from psvs.errors import MeasurementError
+from psvs.health.check import refuse_if_drifted
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
 from psvs.io.images import check_frame_size, read_grey, write_npy, write_png
@@ -181,23 +182,29 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
     return dataclasses.replace(dense, result=trusted_maps(res, trust)), trust
 
 
-def _checked_trust(dense: RigDense, image, rig, args) -> tuple[RigDense, EchoTrust]:
+def _checked_trust(dense: RigDense, image, rig, args, look) -> tuple[RigDense, EchoTrust]:
     """:func:`_trusted`, and through a rig, when its answer is weak (:data:`psvs.dense.trust.WEAK_SHARE`) or
-    refused, the image's self-check: a rig the image's twins say no longer fits it is refused in those words."""
+    refused and the quick look before (``look``, :func:`_quick_look`) did not find the rig healthy, the image's
+    whole self-check: a rig the image's twins say no longer fits it is refused in those words."""
+    whole = rig is not None and look.verdict != "healthy"
     try:
         dense, trust = _trusted(dense)
     except MeasurementError as exc:
-        if rig is not None:
-            _self_check(image, rig, args, cause=exc)
+        if whole:
+            refuse_if_drifted(image, rig, args.near_mm, args.far_mm, cause=exc)
         raise
-    if rig is not None and trust.count < WEAK_SHARE * dense.result.disparity_left.size:
-        _self_check(image, rig, args)
+    if whole and trust.count < WEAK_SHARE * dense.result.disparity_left.size:
+        refuse_if_drifted(image, rig, args.near_mm, args.far_mm)
     return dense, trust
 
 
-def _self_check(image, rig, args, cause=None) -> None:
-    from psvs.health.check import refuse_if_drifted  # loaded only when asked: a start-up kept short
-    refuse_if_drifted(image, rig, args.near_mm, args.far_mm, cause=cause)
+def _quick_look(image, rig, args):
+    """Before any dense work through a rig: the image's twins on the rig's rows, read on a few tiles spread
+    over the field (:func:`psvs.health.check.refuse_if_drifted`, quick): a rig they say the image has left
+    (a knocked mirror, another build's or format's frame) is refused, confirmed by the whole check. A knock
+    leaves the echo 20-50 % of a 1440 x 1080 map to trust, at depths a few percent off (an adversarial
+    trial), so the answer's own strength cannot tell. The look, or None without a rig."""
+    return None if rig is None else refuse_if_drifted(image, rig, args.near_mm, args.far_mm, quick=True)
 
 
 def strongest_echo(trust: EchoTrust) -> str:
@@ -241,6 +248,7 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
     if image.min() == image.max():          # nothing to match: said before any work, nothing written
         raise MeasurementError(f"the complex image is constant (every pixel {image.flat[0]:g}): no texture to "
                                "match")
+    look = _quick_look(image, rig, args)
     if say_compiling:
         announce_dense(say_compiling)
     # a library warning is printed as one line by psvs.cli.main
@@ -250,7 +258,7 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
     else:
         dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi),
                              workspace=workspace)
-    dense, trust = _checked_trust(dense, image, rig, args)
+    dense, trust = _checked_trust(dense, image, rig, args, look)
     cloud = _write(out, dense, image, rig, split, args.model)
     return out, dense, trust, cloud
 

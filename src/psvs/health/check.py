@@ -154,13 +154,26 @@ def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.
     return check
 
 
+#: Tiles a quick look at one frame reads (:func:`refuse_if_drifted`, ``quick``), spread over the field: a tenth
+#: of a 1440 x 1080 frame's 304, a sixth of a 640 x 480 frame's 224 (0.1-0.3 s against 0.2-1.6 s for all).
+QUICK_TILES = 36
+
+
 def refuse_if_drifted(grey, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
-                      cause: BaseException | None = None) -> HealthCheck:
+                      cause: BaseException | None = None, quick: bool = False) -> HealthCheck:
     """The check of one image (:func:`check_frames` over near..far mm) for an answer measured on it through
     ``rig``: :class:`~psvs.errors.MeasurementError` when it reads ``drifted`` (a mirror knocked since the
     calibration, another build's frame: "the rig does not fit this image", its field in figures), else the
     check (``healthy``, or ``cannot judge``: too little texture to tell, and the answer stands on its own
-    evidence). ``cause``: the refusal this one replaces (it then names the knock, not its symptom)."""
+    evidence). ``cause``: the refusal this one replaces (it then names the knock, not its symptom).
+
+    ``quick``: first a look at :data:`QUICK_TILES` tiles spread over the field, judged as a frame's are; its
+    ``healthy`` or ``cannot judge`` is returned as it is, and a ``drifted`` is confirmed by the whole check
+    before anything is refused (a refusal then stands on the whole check's evidence and false-alarm rate)."""
+    if quick:
+        look = judge([frame_tiles(check_grey(grey, "image"), rig, near_mm, far_mm, spread=QUICK_TILES)])
+        if look.verdict != "drifted":
+            return look
     check = check_frames([grey], rig, near_mm, far_mm)
     if check.verdict == "drifted":
         raise MeasurementError(f"the rig does not fit this image: {check.reason} (psvs check; psvs refit or "

@@ -153,12 +153,14 @@ def _merged(spans: list[tuple[int, int]]) -> list[tuple[int, int]]:
 
 
 def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
-                reach_deg: float = REACH_DEG, subset: tuple[int, int] | None = None) -> FrameTiles:
+                reach_deg: float = REACH_DEG, subset: tuple[int, int] | None = None,
+                spread: int | None = None) -> FrameTiles:
     """Every tile's twin row offset in one complex image (H, W) through ``rig``, searched ``reach_deg`` (as
     rows, :func:`reach_px`) either side of its row (module docstring). ``subset`` = (start, count): only
     those of the frame's tiles (row by row, left to right, counted modulo their number ``of_tiles``), as a
-    rolling check reads a few per frame; only the rows of the grids they and their chance bands read are
-    resampled then (the same values as the whole grids')."""
+    rolling check reads a few per frame; ``spread`` = n: about n of them spread evenly over the field
+    (:func:`spread_tiles`), as a quick look at a whole frame; only the rows of the grids the tiles read and
+    their chance bands read are resampled then (the same values as the whole grids')."""
     (h, w), (lo, hi), rect = _geometry(np.shape(image)[:2], rig, near_mm, far_mm)
     lo, hi = int(math.floor(lo)), int(math.ceil(hi))
     size, reach = tile_px((h, w)), reach_px(rig, reach_deg)
@@ -168,8 +170,11 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
     at = [(x, y) for y in rows for x in cols]
     places = np.array([(x + 0.5 * (size - 1), y + 0.5 * (size - 1)) for x, y in at], float).reshape(-1, 2)
     bands = None
-    if subset is not None and at:
-        at = [at[k % len(at)] for k in range(subset[0], subset[0] + min(subset[1], len(at)))]
+    if spread is not None and at:
+        at = [at[k] for k in spread_tiles(len(rows), len(cols), spread)]
+    if (subset is not None or spread is not None) and at:
+        if subset is not None:
+            at = [at[k % len(at)] for k in range(subset[0], subset[0] + min(subset[1], len(at)))]
         read = {yy for _, y in at for yy in [y, *_null_rows(y, rows, size)]}
         bands = _merged([(y - reach, y + size + reach) for y in read])
     a, b = _band_passed(image, rig, rect, bands, (h, w))
@@ -183,6 +188,23 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
     at_edge = (arr[:, 7] > 0) & textured & unique & ~ridged
     return FrameTiles(arr[:, :2], arr[:, 2], arr[:, 3], arr[:, 4], arr[:, 5], accepted, at_edge, size, reach,
                       (h, w), rect, len(rows) * len(cols), textured & ~unique, ridged, places)
+
+
+def spread_tiles(n_rows: int, n_cols: int, count: int) -> list[int]:
+    """Indices (row by row) of about ``count`` tiles of an ``n_rows`` x ``n_cols`` grid spread evenly over it:
+    every k-th row and every k-th column (k the same both ways, the smallest that keeps no more than
+    ``count``; at least 1), each chosen row's columns shifted by half a step from the last's so that the
+    field's columns are read in turn. All of them when ``count`` covers the grid."""
+    if count < 1:
+        raise ValueError(f"count must be >= 1, got {count}")
+    k = 1
+    while math.ceil(n_rows / k) * math.ceil(n_cols / k) > count:
+        k += 1
+    out = []
+    for j, r in enumerate(range(0, n_rows, k)):
+        start = (j % 2) * (k // 2)
+        out += [r * n_cols + c for c in range(start, n_cols, k)]
+    return out
 
 
 def _tile(a, b, at, size_reach, span, rows) -> tuple:
