@@ -60,9 +60,9 @@ def dense(body: DenseBody, session: SessionDep):
     when the scene's echo stands above chance anywhere, 0 when it does not and the command would refuse), the
     share the echo supports beyond chance (``trusted_pct``), their median disparity and depth (None when none
     is) and point cloud, and optionally the separated views, as PNG data URLs. ``refused``: why the image's
-    self-check says the rig does not fit the image (then nothing is trusted), asked when the trusted share is
-    weak (:data:`psvs.dense.trust.WEAK_SHARE`), else "". The library's dense kernels run under DENSE_LOCK (one
-    at a time, with live mode's)."""
+    self-check says the rig does not fit the image (then nothing is trusted): its quick look, and its whole
+    check when the look cannot judge and the trusted share is weak (:data:`psvs.dense.trust.WEAK_SHARE`);
+    else "". The library's dense kernels run under DENSE_LOCK (one at a time, with live mode's)."""
     still, rig = session.still(), session.rig
     grey = still.grey
     with DENSE_LOCK:
@@ -73,7 +73,9 @@ def dense(body: DenseBody, session: SessionDep):
     with DENSE_LOCK:
         trusted = rig_trust(dense_res).trusted_left
     seen = trusted & np.isfinite(d)          # the medians of what the echo supports: never a noisy median
-    refused = drift_refusal(still, rig, body.near_mm, body.far_mm) if np.mean(seen) < WEAK_SHARE else ""
+    refused, look = drift_refusal(still, rig, body.near_mm, body.far_mm, quick=True)
+    if not refused and look != "healthy" and np.mean(seen) < WEAK_SHARE:
+        refused, _ = drift_refusal(still, rig, body.near_mm, body.far_mm)
     if refused:                              # as psvs disparity: no depth through a rig the image has left
         seen = np.zeros_like(seen)
     cloud = rig_cloud(dense_res, rig, mask=seen)       # only the trusted pixels are triangulated

@@ -66,7 +66,7 @@ def match(body: MatchBody, session: SessionDep):
     chance = {"answered": res.chance.answered and not off_rows,
               "text": res.rows.describe() if off_rows else res.chance.describe()}
     if res.pairs:
-        drift = drift_refusal(still, rig, body.near_mm, body.far_mm)
+        drift, _ = drift_refusal(still, rig, body.near_mm, body.far_mm)
         if drift:           # as psvs match: no pair through a rig the image's own twins say it has left
             res = dataclasses.replace(res, pairs=[])
             chance = {"answered": False, "text": drift}
