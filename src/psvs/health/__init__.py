@@ -14,8 +14,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submodules=[],
     submod_attrs={
         "check": ["HealthCheck", "OVERLAP", "QUICK_TILES", "TOLERANCE_PX", "check_frames", "covered_regions",
-                  "evidence_factors",
-                  "independent_tiles", "judge", "judged_pairs_px", "refuse_if_drifted"],
+                  "evidence_factors", "independent_tiles", "judge", "judged_pairs_px", "refuse_if_drifted"],
         "explain": ["Explanation", "explain_drift", "explain_offsets", "explanation_line", "tilted"],
         "figure": ["offset_figure"],
         "rolling": ["FIRST_COST_S", "HealthEvent", "RollingCheck", "SHARE", "health_record"],

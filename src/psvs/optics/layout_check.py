@@ -3,8 +3,8 @@ once per rig content.
 
 :func:`check_clear` designs the rig's mirrors (:func:`psvs.optics.design.design_mirrors`: the camera's whole
 field traced through both paths, every mirror and the plate checked for obstructions and collisions), which
-takes about half a second on a 1440 x 1080 camera and loads the mesh library; a ``psvs disparity`` call that
-asked it every time spent a third of its time there. A clear verdict depends only on the rig's camera and
+takes about half a second on a 1440 x 1080 camera (much of it Numba's start-up, which a later kernel would
+pay anyway) and loads the mesh library, on every call. A clear verdict depends only on the rig's camera and
 mirror values and on the optics code, so it is kept:
 
 - in memory, for the process (``psvs batch``, ``live``, ``serve``);
