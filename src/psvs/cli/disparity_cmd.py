@@ -22,9 +22,9 @@ from psvs.dense.disparity import check_dense_memory, check_range
 from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.rig_cache import rectification
 from psvs.dense.separate import rig_views
-from psvs.dense.trust import ALPHA, WEAK_SHARE, EchoTrust, trusted_maps
+from psvs.dense.trust import ALPHA, EchoTrust, trusted_maps
 from psvs.errors import MeasurementError
-from psvs.health.check import refuse_if_drifted
+from psvs.health.check import refuse_if_drifted, whole_check_due
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
 from psvs.io.images import check_frame_size, read_grey, write_npy, write_png
@@ -183,17 +183,16 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
 
 
 def _checked_trust(dense: RigDense, image, rig, args, look) -> tuple[RigDense, EchoTrust]:
-    """:func:`_trusted`, and through a rig, when its answer is weak (:data:`psvs.dense.trust.WEAK_SHARE`) or
-    refused and the quick look before (``look``, :func:`_quick_look`) did not find the rig healthy, the image's
-    whole self-check: a rig the image's twins say no longer fits it is refused in those words."""
-    whole = rig is not None and look.verdict != "healthy"
+    """:func:`_trusted`, and through a rig the image's whole self-check when the quick look before (``look``,
+    :func:`_quick_look`) and the answer's strength call for it (:func:`psvs.health.check.whole_check_due`): a rig
+    the image's twins say no longer fits it is refused in those words."""
     try:
         dense, trust = _trusted(dense)
     except MeasurementError as exc:
-        if whole:
+        if rig is not None and whole_check_due(look, 0.0):
             refuse_if_drifted(image, rig, args.near_mm, args.far_mm, cause=exc)
         raise
-    if whole and trust.count < WEAK_SHARE * dense.result.disparity_left.size:
+    if rig is not None and whole_check_due(look, trust.count / dense.result.disparity_left.size):
         refuse_if_drifted(image, rig, args.near_mm, args.far_mm)
     return dense, trust
 

@@ -42,20 +42,13 @@ from psvs.dense.echo_test import ALPHA, EchoTest, echo_test
 from psvs.dense.noise import NoiseLevel, noise_level, textured_pixels
 from psvs.dense.pyramid import coarse_level, pyramid_levels
 
-__all__ = ["ALPHA", "STEP_PX", "TOL_PX", "WEAK_SHARE", "EchoTrust", "bracketed", "consistent_regions", "echo_trust",
-           "grown", "trusted_maps"]
+__all__ = ["ALPHA", "STEP_PX", "TOL_PX", "EchoTrust", "bracketed", "consistent_regions", "echo_trust", "grown",
+           "trusted_maps"]
 
 #: px at the tested level: an answer within this of an echoing lag is supported by it.
 TOL_PX = 1.5
 #: px: neighbours whose disparities differ by more are not one surface.
 STEP_PX = 1.0
-#: A map trusted on less than this share of its pixels is a weak answer: through a rig, ``psvs disparity`` (when
-#: its quick look at the twins could not judge) and the page's dense run then ask the image's whole self-check
-#: (:func:`psvs.health.check.refuse_if_drifted`) whether the rig still fits it. On issue 43's knock the echo
-#: weakened to a few percent of the map, and an answer there, or a refusal that blames the scene, would hide the
-#: knock. Above it the whole check, which costs about a dense call (1.6 s on 1440 x 1080), is left to ``psvs
-#: check`` and the running commands' rolling check.
-WEAK_SHARE = 0.10
 
 
 @nb.njit(cache=True)

@@ -181,6 +181,23 @@ def refuse_if_drifted(grey, rig: Rig, near_mm: float = 400.0, far_mm: float = 12
     return check
 
 
+#: A map trusted on less than this share of its pixels is a weak answer: through a rig, ``psvs disparity`` (when
+#: its quick look at the twins could not judge) and the page's dense run then ask the image's whole self-check
+#: (:func:`refuse_if_drifted`) whether the rig still fits it. On issue 43's knock the echo weakened to a few
+#: percent of the map, and an answer there, or a refusal that blames the scene, would hide the knock. Above it
+#: the whole check, which costs about a dense call (1.6 s on 1440 x 1080), is left to ``psvs check`` and the
+#: running commands' rolling check.
+WEAK_SHARE = 0.10
+
+
+def whole_check_due(look: HealthCheck, trusted_share: float) -> bool:
+    """Whether a dense answer through a rig, after a quick look (:func:`refuse_if_drifted`, ``quick``) that did
+    not refuse it, must ask the image's whole check: when the look did not find the rig healthy and the
+    answer is weak, trusted on less than :data:`WEAK_SHARE` of the map (0 for an answer refused), where issue
+    43's knock left it."""
+    return look.verdict != "healthy" and trusted_share < WEAK_SHARE
+
+
 def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX, scenes: list[int] | None = None) -> HealthCheck:
     """The field and verdict (module docstring) from the frames' tiles; ``scenes`` (one per frame): which
     frames show the scene as it stood (their tiles' overlaps shared, :func:`evidence_factors`; None: each

@@ -10,7 +10,7 @@ from fastapi.responses import JSONResponse, Response
 
 from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
-from psvs.dense.trust import WEAK_SHARE
+from psvs.health.check import whole_check_due
 from psvs.imaging.grey import to_grey8
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale as camera_pixel_scale
@@ -61,8 +61,8 @@ def dense(body: DenseBody, session: SessionDep):
     share the echo supports beyond chance (``trusted_pct``), their median disparity and depth (None when none
     is) and point cloud, and optionally the separated views, as PNG data URLs. ``refused``: why the image's
     self-check says the rig does not fit the image (then nothing is trusted): its quick look, and its whole
-    check when the look cannot judge and the trusted share is weak (:data:`psvs.dense.trust.WEAK_SHARE`);
-    else "". The library's dense kernels run under DENSE_LOCK (one at a time, with live mode's)."""
+    check when that is due (:func:`psvs.health.check.whole_check_due`); else "". The library's dense kernels
+    run under DENSE_LOCK (one at a time, with live mode's)."""
     still, rig = session.still(), session.rig
     grey = still.grey
     with DENSE_LOCK:
@@ -74,7 +74,7 @@ def dense(body: DenseBody, session: SessionDep):
         trusted = rig_trust(dense_res).trusted_left
     seen = trusted & np.isfinite(d)          # the medians of what the echo supports: never a noisy median
     refused, look = drift_refusal(still, rig, body.near_mm, body.far_mm, quick=True)
-    if not refused and look != "healthy" and np.mean(seen) < WEAK_SHARE:
+    if not refused and whole_check_due(look, float(np.mean(seen))):
         refused, _ = drift_refusal(still, rig, body.near_mm, body.far_mm)
     if refused:                              # as psvs disparity: no depth through a rig the image has left
         seen = np.zeros_like(seen)
