@@ -147,18 +147,21 @@ function plotFig8(res) {
   });
 }
 
-// The live dense cloud in 3-D, at most once a second (a frame's cloud is tens of thousands of points).
-let liveCloudAt = 0, liveCloudFrame = -1;
+// The live dense cloud in 3-D, at most once a second (a frame's cloud is tens of thousands of points), one
+// drawing at a time: two in flight could finish in either order and leave the note of one frame over the
+// cloud (and data-frame) of another.
+let liveCloudAt = 0, liveCloudFrame = -1, liveCloudBusy = false;
 async function liveCloud(frame) {
-  if (frame === liveCloudFrame || Date.now() - liveCloudAt < 1000) return;
-  liveCloudAt = Date.now(); liveCloudFrame = frame;
+  if (liveCloudBusy || frame === liveCloudFrame || Date.now() - liveCloudAt < 1000) return;
+  liveCloudAt = Date.now(); liveCloudFrame = frame; liveCloudBusy = true;
   try {
     const c = await api("/api/live/cloud");
+    $("live-cloud").dataset.frame = String(c.frame);         // with the note, which drawCloud3d sets at once
     await drawCloud3d($("live-cloud"), c, "depth", "live-cloud-note",
                       `of frame ${c.frame} (the pixels of live mode's grid the echo test supported beyond chance, ` +
                       "tested every 30th frame, whose answer has held since)");
-    $("live-cloud").dataset.frame = String(c.frame);
   } catch (e) { $("live-cloud-note").textContent = "live cloud: " + e.message; }
+  finally { liveCloudBusy = false; }
 }
 
 function plotDepth(history) {
