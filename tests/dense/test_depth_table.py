@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.ndimage import distance_transform_edt
 
-from psvs.dense.build import RigDense, rig_cloud
+from psvs.dense.build import RigDense, rig_cloud, rig_depth
 from psvs.dense.depth_table import (
     CHECK_MM,
     SPARSE_SHARE,
@@ -22,6 +22,7 @@ from psvs.dense.depth_table import (
     build_depth_table,
     exact_points,
     table_cloud,
+    table_depth,
     table_points,
     table_range,
 )
@@ -138,11 +139,14 @@ def test_rig_cloud_on_a_build_goes_through_the_table(monkeypatch):
     assert np.abs(cloud.points_mm - before.points_mm[before.valid]).max() <= TOL_MM
     np.testing.assert_array_equal(cloud.depth_mm[vv[before.valid], uu[before.valid]], cloud.points_mm[:, 2])
     assert len(cloud.points_mm) > 0.5 * keep.sum()
+    np.testing.assert_array_equal(rig_depth(dense, rig), cloud.depth_mm)       # the depth map alone: the same
     # another model, or another rig than the rectification's: the exact path, as before
     refr = rig_cloud(dense, rig, model="refraction", mask=keep & (u % 7 == 0))
     ref = exact_points(rect, np.column_stack([uu, vv]).astype(float), d[vv, uu].astype(float), "refraction")
     sub = (uu % 7 == 0) & ref.valid
     np.testing.assert_allclose(refr.points_mm, ref.points_mm[sub], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(rig_depth(dense, rig, model="refraction", mask=keep & (u % 7 == 0)),
+                                  refr.depth_mm)
     assert calls == [1]
 
 
@@ -173,11 +177,16 @@ def test_the_map_pass_gives_table_points_numbers():
         expect = np.full((h, w), np.nan)
         expect[vv[want.valid], uu[want.valid]] = want.points_mm[want.valid, 2]
         np.testing.assert_array_equal(depth, expect)
+        np.testing.assert_array_equal(table_depth(table, rect, d, mask), expect)      # Z alone: the same numbers
         assert ((d[vv, uu] > hi) & want.valid).sum() > 0.01 * keep.sum() and want.valid.sum() > 0.6 * keep.sum()
     with pytest.raises(ValueError, match="must be \\(H, W\\)"):
         table_cloud(table, rect, d[0])
     with pytest.raises(ValueError, match="mask \\(3, 3\\) must have the map's shape"):
         table_cloud(table, rect, d, np.ones((3, 3), bool))
+    with pytest.raises(ValueError, match="must be \\(H, W\\)"):
+        table_depth(table, rect, d[0])
+    with pytest.raises(ValueError, match="mask \\(3, 3\\) must have the map's shape"):
+        table_depth(table, rect, d, np.ones((3, 3), bool))
 
 
 def test_exact_points_is_the_old_path():

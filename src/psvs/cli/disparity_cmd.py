@@ -16,7 +16,7 @@ from psvs.cli.common import (
     range_from_args,
 )
 from psvs.dense import dense_disparity, write_cloud_ply
-from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_trust
+from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_depth, rig_trust
 from psvs.dense.compiled import announce_dense
 from psvs.dense.disparity import check_dense_memory, check_range
 from psvs.dense.params import DEFAULT, FAST
@@ -120,7 +120,8 @@ def _inputs(args, image=None):
 
 def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | None):
     """All the outputs asked for, together or none (an earlier file is replaced only when all are written);
-    returns the point cloud when depth or a cloud was asked for."""
+    returns (the point cloud when a cloud or a Rerun recording was asked for, else None; the number of points
+    when depth or a cloud was asked for, else None)."""
     res = dense.result
     with output_batch():
         write_npy(out["disparity"], res.disparity_left)
@@ -131,13 +132,16 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
         if out["views"]:           # the maps answer somewhere (_trusted)
             for path, v in zip(out["views"], rig_views(dense, rig, split), strict=True):
                 write_png(path, to_grey8(v))
-        want = out["depth"] or out["cloud"] or (out["rerun"] and rig is not None)
+        want = out["cloud"] or (out["rerun"] and rig is not None)
         cloud = rig_cloud(dense, rig, model) if want else None
-        if out["depth"]:
-            write_npy(out["depth"], cloud.depth_mm.astype(np.float32))
+        points = None if cloud is None else len(cloud.points_mm)
+        if out["depth"]:           # depth alone needs no point list (psvs.dense.build.rig_depth)
+            depth = cloud.depth_mm if cloud is not None else rig_depth(dense, rig, model)
+            write_npy(out["depth"], depth.astype(np.float32))
+            points = int(np.count_nonzero(np.isfinite(depth)))
         if out["cloud"]:
             write_cloud_ply(out["cloud"], cloud, grey=dense.left_image)
-    return cloud
+    return cloud, points
 
 
 def _rerun(args, out: dict, dense: RigDense, cloud, image, rig) -> None:
@@ -237,7 +241,8 @@ def prepare(args, image=None) -> tuple:
 
 def compute(args, image=None, workspace=None, say_compiling: str | None = None) -> tuple[dict, RigDense,
                                                                                         EchoTrust, object]:
-    """The command's work and its files: (output paths, the maps, their trust, the point cloud or None).
+    """The command's work and its files: (output paths, the maps, their trust, (the point cloud or None, the
+    number of points or None): see :func:`_write`).
     MeasurementError when the image is constant, or no answer stands above chance (nothing written). ``workspace``
     (psvs.dense.workspace.Workspace): kept from one frame to the next by ``psvs batch``'s workers;
     otherwise none (one call: each level's volumes are freed when the next level starts; a workspace keeps
@@ -258,8 +263,8 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
         dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi),
                              workspace=workspace)
     dense, trust = _checked_trust(dense, image, rig, args, look)
-    cloud = _write(out, dense, image, rig, split, args.model)
-    return out, dense, trust, cloud
+    written = _write(out, dense, image, rig, split, args.model)
+    return out, dense, trust, written
 
 
 def summary_row(dense: RigDense, trust: EchoTrust) -> dict:
@@ -271,10 +276,10 @@ def summary_row(dense: RigDense, trust: EchoTrust) -> dict:
 
 
 def run(args) -> int:
-    out, dense, trust, cloud = compute(args, say_compiling="psvs disparity")
+    out, dense, trust, (cloud, points) = compute(args, say_compiling="psvs disparity")
     if out["rerun"]:
         rig = measuring_rig(args.rig) if args.rig else None
         _rerun(args, out, dense, cloud, read_grey(args.image), rig)
     print(f"{out['disparity']}: {_summary(dense, trust)}"
-          + (f"; {len(cloud.points_mm)} points" if cloud is not None else ""))
+          + (f"; {points} points" if points is not None else ""))
     return 0

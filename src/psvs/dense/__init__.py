@@ -7,7 +7,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     __name__,
     submodules=[],
     submod_attrs={
-        "build": ["RigDense", "dense_on_rig", "rectified_images", "rig_cloud", "rig_trust"],
+        "build": ["RigDense", "dense_on_rig", "rectified_images", "rig_cloud", "rig_depth", "rig_trust"],
         "cloud": ["Cloud", "disparity_cloud", "write_cloud_ply"],
         "compiled": ["announce_dense"],
         "disparity": ["DenseResult", "check_dense_memory", "check_range", "dense_disparity"],

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 from psvs.dense.cloud import Cloud, disparity_cloud, pixel_cloud
-from psvs.dense.depth_table import exact_points, table_cloud
+from psvs.dense.depth_table import exact_points, table_cloud, table_depth
 from psvs.dense.disparity import DenseResult, dense_disparity
 from psvs.dense.noise import noise_level, textured_pixels
 from psvs.dense.params import DEFAULT, DenseParams
@@ -130,3 +130,19 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
     if model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors:
         return Cloud(*table_cloud(depth_table(rect), rect, d, mask))     # one pass over the map
     return pixel_cloud(d, mask, lambda uv, dd: exact_points(rect, uv, dd, model, rig=rig))
+
+
+def rig_depth(dense: RigDense, rig: Rig, model: str | None = None, mask=None) -> np.ndarray:
+    """The depth map of :func:`rig_cloud` (Z, mm, frame C, on the left map's grid, NaN where no point), without
+    its point list: on a build with the exact model one pass through the depth table that writes Z alone
+    (:func:`psvs.dense.depth_table.table_depth`); otherwise :func:`rig_cloud`'s ``depth_mm``.
+
+    Returns
+    -------
+    ndarray, shape (H', W'), float64
+    """
+    model = default_model(rig) if model is None else model
+    rect = dense.rect
+    if rect is not None and model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors:
+        return table_depth(depth_table(rect), rect, dense.result.disparity_left, mask)
+    return rig_cloud(dense, rig, model, mask).depth_mm
