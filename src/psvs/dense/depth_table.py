@@ -435,7 +435,8 @@ def _pair(x, y, dd, maps, tables, rot, centres, consts):  # noqa: PLR0913  # pra
     (frame C, mm); 1: no point, a lookup fails, parallel rays or a point not beyond the mirror box; 2: the exact
     path must answer (X, Y, Z NaN where the rays were not met). maps: the two views' remap u arrays; tables:
     (slopes, cells_left, cells_right); rot: the rectified axes (rows) in frame C; centres: (C_l − C_r in the
-    rectified frame, C_r in frame C); consts: f'_x, f'_y, c'_x, c'_y, step, d_min, d_max, z_ref − C_l,z, the mirror box's far reach z."""
+    rectified frame, C_r in frame C); consts: f'_x, f'_y, c'_x, c'_y, step, d_min, d_max, z_ref − C_l,z, the
+    mirror box's far reach z."""
     fx, fy, cx, cy, step, d_lo, d_hi, dz_ref, front = (consts[0], consts[1], consts[2], consts[3], consts[4],
                                                       consts[5], consts[6], consts[7], consts[8])
     slopes, cells_l, cells_r = tables
