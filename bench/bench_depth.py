@@ -5,7 +5,8 @@ build (5.86 um, 16 mm lens, b 120 mm, 55/45 split, 3 mm plate, 600-1100 mm; benc
 calibrated by psvs from 20 simulated hand-held card views).
 
 - The library call: what the command computes, in one warm process (the rig's tables in memory):
-  ``dense_on_rig`` + ``rig_trust`` + ``rig_cloud``; against ``sgbm_reference`` on the two views rendered
+  ``dense_on_rig`` + ``rig_trust`` + ``rig_depth`` (a depth map, no point list: what
+  ``--depth`` writes); against ``sgbm_reference`` on the two views rendered
   alone. Targets as ratios: default <= 2x, --fast <= 0.7x.
 - The whole call: a fresh process each time, warm (its Numba kernels compiled and the rig's tables in the
   cache folder, as on every call after a user's first): ``psvs disparity FRAME --rig BUILD -o D.npy --depth
@@ -82,14 +83,14 @@ def _frame(fmt: str) -> dict:
 
 def _library(fmt: str, params: DenseParams):
     def setup():
-        from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
+        from psvs.dense.build import dense_on_rig, rig_depth, rig_trust
         s = _frame(fmt)
         ws = Workspace()
 
         def run():
             dense = dense_on_rig(s["image"], s["rig"], s["near"], s["far"], params=params, workspace=ws)
             rig_trust(dense)
-            rig_cloud(dense, s["rig"])
+            rig_depth(dense, s["rig"])
         run()                               # the rig's tables into memory, the kernels compiled
         return run
     return setup
