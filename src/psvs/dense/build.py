@@ -127,7 +127,7 @@ def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
         return disparity_cloud(np.asarray(dense.result.disparity_left, dtype=np.float64), rig, model, mask)
     d = dense.result.disparity_left
     rect = dense.rect
-    if model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors:
+    if _through_table(rect, rig, model):
         return Cloud(*table_cloud(depth_table(rect), rect, d, mask))     # one pass over the map
     return pixel_cloud(d, mask, lambda uv, dd: exact_points(rect, uv, dd, model, rig=rig))
 
@@ -143,6 +143,12 @@ def rig_depth(dense: RigDense, rig: Rig, model: str | None = None, mask=None) ->
     """
     model = default_model(rig) if model is None else model
     rect = dense.rect
-    if rect is not None and model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors:
+    if rect is not None and _through_table(rect, rig, model):
         return table_depth(depth_table(rect), rect, dense.result.disparity_left, mask)
     return rig_cloud(dense, rig, model, mask).depth_mm
+
+
+def _through_table(rect, rig: Rig, model: str) -> bool:
+    """Whether ``rect``'s depth table answers for ``rig`` and ``model``: the exact model, through the
+    rectification's own camera and mirrors."""
+    return model == "exact" and rig.camera == rect.rig.camera and rig.mirrors == rect.rig.mirrors

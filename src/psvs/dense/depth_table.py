@@ -322,12 +322,9 @@ def table_cloud(table: DepthTable, rect: Rectification, disparity, mask=None) ->
     out, status = np.empty((h * w, 3)), np.empty(h * w, np.int8)
     _map_kernel(np.ascontiguousarray(d), np.zeros((0, 0), bool) if mask is None else mask, *_kernel_args(table, rect),
                 out, status)
-    redo = np.flatnonzero(status == _EXACT)
-    if len(redo):
-        v, u = np.divmod(redo, w)
-        ex = exact_points(rect, np.column_stack([u, v]).astype(np.float64), d.ravel()[redo].astype(np.float64))
-        out[redo] = ex.points_mm
-        status[redo] = np.where(ex.valid, _TABLE, _NONE)
+    redo, ex = _exact_rest(rect, d, status)
+    out[redo] = ex.points_mm
+    status[redo] = np.where(ex.valid, _TABLE, _NONE)
     n = int(np.count_nonzero(status == _TABLE))
     pts, uv, depth = np.empty((n, 3)), np.empty((n, 2)), np.empty((h, w))
     _compact(status, out, w, pts, uv, depth)
@@ -358,12 +355,16 @@ def table_depth(table: DepthTable, rect: Rectification, disparity, mask=None) ->
     depth, status = np.empty((h, w)), np.empty(h * w, np.int8)
     _depth_kernel(np.ascontiguousarray(d), np.zeros((0, 0), bool) if mask is None else mask,
                   *_kernel_args(table, rect), depth, status)
-    redo = np.flatnonzero(status == _EXACT)
-    if len(redo):
-        v, u = np.divmod(redo, w)
-        ex = exact_points(rect, np.column_stack([u, v]).astype(np.float64), d.ravel()[redo].astype(np.float64))
-        depth.ravel()[redo] = np.where(ex.valid, ex.points_mm[:, 2], np.nan)
+    redo, ex = _exact_rest(rect, d, status)
+    depth.ravel()[redo] = np.where(ex.valid, ex.points_mm[:, 2], np.nan)
     return depth
+
+
+def _exact_rest(rect: Rectification, d: np.ndarray, status: np.ndarray) -> tuple[np.ndarray, Triangulation]:
+    """The flat indices of the map's pixels a kernel left to the exact path (status 2) and their exact points."""
+    redo = np.flatnonzero(status == _EXACT)
+    v, u = np.divmod(redo, d.shape[1])
+    return redo, exact_points(rect, np.column_stack([u, v]).astype(np.float64), d.ravel()[redo].astype(np.float64))
 
 
 def _map_args(table: DepthTable, rect: Rectification, disparity, mask) -> tuple:
