@@ -26,7 +26,7 @@ from psvs.dense.echo_test import (
     standardising_lags,
 )
 from psvs.dense.evaluate import motorcycle, superimpose
-from psvs.dense.trust import bracketed, consistent_regions, echo_trust, grown, trusted_maps
+from psvs.dense.trust import STEP_PX, bracketed, consistent_regions, echo_trust, grown, trusted_maps
 from psvs.optics.search_range import disparity_range
 from psvs.simulate.builtin import textured
 from psvs.simulate.render import render
@@ -46,6 +46,46 @@ def test_regions_follow_a_surface_and_stop_at_jumps():
     labels, n = consistent_regions(d, conf)
     assert n == 2 and labels[0, 0] == -1 and labels[3, 7] == -1
     assert (labels[:, :4] == labels[1, 1]).sum() == 15 and (labels[:, 4:] == labels[0, 5]).sum() == 15
+
+
+def _flood_regions(d, conf, step):
+    """Independent labelling: a breadth-first flood fill from each unlabelled pixel in scan order."""
+    h, w = d.shape
+    ok = (conf > 0) & np.isfinite(d)
+    labels = np.full((h, w), -1, np.int64)
+    n = 0
+    for y0 in range(h):
+        for x0 in range(w):
+            if not ok[y0, x0] or labels[y0, x0] >= 0:
+                continue
+            labels[y0, x0], todo = n, [(y0, x0)]
+            while todo:
+                y, x = todo.pop()
+                for yy, xx in ((y - 1, x), (y + 1, x), (y, x - 1), (y, x + 1)):
+                    if (0 <= yy < h and 0 <= xx < w and ok[yy, xx] and labels[yy, xx] < 0
+                            and abs(d[yy, xx] - d[y, x]) <= step):
+                        labels[yy, xx] = n
+                        todo.append((yy, xx))
+            n += 1
+    return labels, n
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_regions_are_a_flood_fills_in_scan_order(seed):
+    """Random maps of steps, holes and spirals (regions that meet from above only after running round):
+    the same regions as a flood fill, numbered by their first pixel in scan order."""
+    rng = np.random.default_rng(seed)
+    h, w = rng.integers(5, 40, size=2)
+    d = np.cumsum(rng.choice([0.0, 0.5, 0.9, 2.0], size=(h, w), p=[0.4, 0.3, 0.2, 0.1]), axis=1)
+    d += rng.choice([0.0, 3.0], size=(h, 1))
+    conf = np.where(rng.random((h, w)) < 0.15, 0.0, 0.7)
+    d[rng.random((h, w)) < 0.05] = np.nan
+    labels, n = consistent_regions(d, conf)
+    want, n_want = _flood_regions(d, conf, STEP_PX)
+    assert n == n_want and np.array_equal(labels, want)
+    anchored = rng.random((h, w)) < 0.03
+    hit = np.unique(want[anchored & (want >= 0)])
+    assert np.array_equal(grown(anchored, d, conf), anchored | np.isin(want, hit) & (want >= 0))
 
 
 def test_a_surface_with_an_anchored_pixel_is_trusted_whole():

@@ -72,50 +72,62 @@ def _union(parent, a, b):  # pragma: no cover - compiled
 
 @nb.njit(cache=True, nogil=True)
 def _regions(d, ok, step):  # pragma: no cover - compiled
+    """Each ``ok`` pixel's region numbered 0..R-1 in the scan order of the regions' first pixels (-1 elsewhere),
+    int32 (H, W), and R. One raster pass joining each pixel to its left and upper neighbours (a region's
+    root is its first pixel: unions keep the smaller index), then one pass numbering the roots."""
     h, w = d.shape
-    parent = np.arange(h * w)
+    parent = np.empty(h * w, np.int32)
     for y in range(h):
         for x in range(w):
             if not ok[y, x]:
                 continue
-            if x + 1 < w and ok[y, x + 1] and abs(d[y, x + 1] - d[y, x]) <= step:
-                _union(parent, y * w + x, y * w + x + 1)
-            if y + 1 < h and ok[y + 1, x] and abs(d[y + 1, x] - d[y, x]) <= step:
-                _union(parent, y * w + x, (y + 1) * w + x)
-    root = np.full((h, w), -1, np.int64)
-    for y in range(h):
-        for x in range(w):
-            if ok[y, x]:
-                root[y, x] = _find(parent, y * w + x)
-    return root
+            i = y * w + x
+            parent[i] = i
+            if x > 0 and ok[y, x - 1] and abs(d[y, x - 1] - d[y, x]) <= step:
+                parent[i] = _find(parent, i - 1)
+            if y > 0 and ok[y - 1, x] and abs(d[y - 1, x] - d[y, x]) <= step:
+                _union(parent, i, i - w)
+    labels = np.full((h, w), -1, np.int32)
+    flat = labels.ravel()
+    n = 0
+    for i in range(h * w):
+        if ok.flat[i]:
+            r = _find(parent, i)
+            if r == i:
+                flat[i] = n
+                n += 1
+            else:
+                flat[i] = flat[r]
+    return labels, n
 
 
 def consistent_regions(disparity: np.ndarray, confidence: np.ndarray) -> tuple[np.ndarray, int]:
     """The consistent regions of a map (module docstring): each pixel's region, int64 (H, W) numbered
-    0..R-1 (-1 where the pixel carries no echo of its own), and R."""
+    0..R-1 in the scan order of their first pixels (-1 where the pixel carries no echo of its own), and R."""
+    labels, n = _labelled(disparity, confidence)
+    return labels.astype(np.int64), n
+
+
+def _labelled(disparity: np.ndarray, confidence: np.ndarray) -> tuple[np.ndarray, int]:
+    """(:func:`consistent_regions` as int32, R)."""
     d = np.ascontiguousarray(disparity, dtype=np.float64)
     ok = np.ascontiguousarray((np.asarray(confidence) > 0) & np.isfinite(d))
-    root = _regions(d, ok, STEP_PX)
-    labels = np.full(root.shape, -1, np.int64)
-    found, labels[ok] = np.unique(root[ok], return_inverse=True)
-    return labels, len(found)
+    return _regions(d, ok, STEP_PX)
 
 
 def grown(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarray) -> np.ndarray:
     """``anchored`` (H, W bool) and every consistent region of the map that holds an anchored pixel (the
-    regions as :func:`consistent_regions` finds them, named by their root pixel: no renumbering needed)."""
+    regions as :func:`consistent_regions` finds them)."""
     return _grown(anchored, disparity, confidence)[0]
 
 
-def _grown(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(:func:`grown`, each pixel's region as its root's flat index, int64 (H, W), -1 outside any)."""
-    d = np.ascontiguousarray(disparity, dtype=np.float64)
-    ok = np.ascontiguousarray((np.asarray(confidence) > 0) & np.isfinite(d))
-    root = _regions(d, ok, STEP_PX)
-    hit = np.zeros(root.size + 1, bool)          # the last entry: "no region" (root -1), never hit
-    hit[root[ok & anchored]] = True
-    hit[-1] = False
-    return anchored | hit[root], root
+def _grown(anchored: np.ndarray, disparity: np.ndarray,
+           confidence: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """(:func:`grown`, each pixel's region int32 (H, W) numbered 0..R-1, -1 outside any, R)."""
+    labels, n = _labelled(disparity, confidence)
+    hit = np.zeros(n + 1, bool)                  # the last entry: "no region" (label -1), never hit
+    hit[labels[(labels >= 0) & anchored]] = True
+    return anchored | hit[labels], labels, n
 
 
 def bracketed(regions: np.ndarray, textured: np.ndarray) -> np.ndarray:
@@ -126,7 +138,7 @@ def bracketed(regions: np.ndarray, textured: np.ndarray) -> np.ndarray:
     if regions.ndim != 2 or textured.shape != regions.shape:
         raise ValueError(f"regions {regions.shape} and textured {textured.shape} must be two maps of one shape")
     ids, flat = np.unique(regions, return_inverse=True)
-    flat = flat.reshape(regions.shape).astype(np.int64)
+    flat = flat.reshape(regions.shape).astype(np.int32)
     flat[regions < 0] = -1              # numbered 0..R-1 (the kernel's scratch is R long), -1 kept
     return _bracketed(flat, np.ascontiguousarray(textured), len(ids))
 
@@ -196,8 +208,8 @@ def _surfaces(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarra
     two maps' run on two threads."""
     if not anchored.any():
         return anchored
-    trusted, root = _grown(anchored, disparity, confidence)
-    return trusted & (textured | _bracketed(root, np.ascontiguousarray(textured & trusted), root.size))
+    trusted, labels, n = _grown(anchored, disparity, confidence)
+    return trusted & (textured | _bracketed(labels, np.ascontiguousarray(textured & trusted), n))
 
 
 def _unambiguous(test: EchoTest, trusted: np.ndarray, disparity: np.ndarray, scale: float,
