@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from psvs.dense.rig_cache import rectification
-from psvs.health.check import TOLERANCE_PX, check_frames
+from psvs.health.check import TOLERANCE_PX, check_frames, checked_tolerance
+from psvs.health.rolling import RollingCheck
 from psvs.health.explain import explain_offsets, tilted
 from psvs.io.params import load_rig
 from psvs.optics.project import project_points
@@ -147,6 +148,16 @@ def test_bad_arguments_are_named():
     img = np.zeros((480, 640), np.uint8)
     with pytest.raises(ValueError, match="tolerance"):
         check_frames([img], rig, tolerance_px=0.0)
+    # a tolerance beyond the farthest offset the check sees calls any field healthy (an adversarial trial's
+    # 1e9 px passed a knocked build): refused, against the reach worked out here from the camera
+    c = rig.camera
+    reach = max(4, math.ceil(math.tan(math.radians(2.0)) * c.focal_length_mm / min(c.pixel_pitch_mm)))
+    for bad in (1e9, float(reach), math.inf, math.nan):
+        with pytest.raises(ValueError, match=f"below the {reach} px the check can see"):
+            check_frames([img], rig, tolerance_px=bad)
+        with pytest.raises(ValueError, match="tolerance"):
+            RollingCheck(rig, tolerance_px=bad)
+    assert checked_tolerance(reach - 0.5, rig) == reach - 0.5
     with pytest.raises(ValueError, match="no frame"):
         check_frames([], rig)
     with pytest.raises(ValueError, match="frame 2 is 320x240 px, the rig's camera 640x480"):

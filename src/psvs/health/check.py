@@ -35,7 +35,7 @@ import numpy as np
 from psvs._validate import check_grey
 from psvs.dense.rig_cache import rectification
 from psvs.errors import MeasurementError
-from psvs.health.rows import FAR_REACH_DEG, FrameTiles, frame_tiles
+from psvs.health.rows import FAR_REACH_DEG, FrameTiles, frame_tiles, reach_px
 from psvs.optics.rig import Rig
 
 #: The tolerance a calibration is held to by default: the field's RMS, px.
@@ -125,12 +125,22 @@ def judged_pairs_px(check: HealthCheck, rig: Rig, near_mm: float = 400.0,
     return left, right
 
 
+def checked_tolerance(tolerance_px: float, rig: Rig) -> float:
+    """``tolerance_px`` (the twins' field RMS a verdict is judged against, px) when it is a number > 0 and
+    below the farthest offset the check can see on ``rig``'s camera (:data:`~psvs.health.rows.FAR_REACH_DEG`
+    as rows): a tolerance beyond it would call any field healthy. ValueError otherwise."""
+    reach = reach_px(rig, FAR_REACH_DEG)
+    if not (math.isfinite(tolerance_px) and 0 < tolerance_px < reach):
+        raise ValueError(f"the tolerance must be a number of px > 0 and below the {reach} px the check can see "
+                         f"on this camera (a larger one calls any field healthy), got {tolerance_px!r}")
+    return float(tolerance_px)
+
+
 def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
                  tolerance_px: float = TOLERANCE_PX) -> HealthCheck:
     """Judge a calibration (``rig``) on ordinary frames (a list of (H, W) grey images of any textured scene
     over the working range near..far mm): the module docstring's field and verdict."""
-    if not np.isfinite(tolerance_px) or tolerance_px <= 0:
-        raise ValueError(f"tolerance must be a number > 0 px, got {tolerance_px!r}")
+    checked_tolerance(tolerance_px, rig)
     if len(frames) == 0:
         raise ValueError("no frame to check")
     w, h = rig.camera.image_size_px

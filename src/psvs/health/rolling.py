@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 
 from psvs.dense.rig_cache import rectification
-from psvs.health.check import TOLERANCE_PX, HealthCheck, judge, load_solvers
+from psvs.health.check import TOLERANCE_PX, HealthCheck, checked_tolerance, judge, load_solvers
 from psvs.health.rows import band_pass, frame_tiles
 from psvs.io.jsonsafe import json_safe
 from psvs.optics.rig import Rig
@@ -83,6 +83,7 @@ class RollingCheck:
                  tolerance_px: float = TOLERANCE_PX, share: float = SHARE):
         if not 0 < share <= 1:
             raise ValueError(f"the rolling check's share of the frame time must be in (0, 1], got {share}")
+        checked_tolerance(tolerance_px, rig)
         self.rig, self.near_mm, self.far_mm, self.tolerance_px, self.share = rig, near_mm, far_mm, tolerance_px, share
         self.latest: HealthCheck | None = None
         self.spent_s = self.sensor_s = self.idle_spent_s = 0.0
