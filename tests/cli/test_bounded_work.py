@@ -212,6 +212,17 @@ def test_handeye_refuses_a_session_beyond_the_limits(capsys, tmp_path, count, ex
     refused(capsys, ["handeye", "--rig", "default", "--views-count", count, "-o", out], expected, [out])
 
 
+def _seam_after_arc_mm() -> float:
+    from scipy.integrate import quad
+    r, length, rise = 150.0, 240.0, 20.0
+    speed = lambda x: math.sqrt(1 + (x / math.sqrt(r * r - x * x)) ** 2  # noqa: E731
+                                + (rise * math.pi / length * math.cos(math.pi * x / length)) ** 2)
+    return round(quad(speed, -length / 2, length / 2)[0] - 50.0, 3)
+
+
+SEAM_AFTER_ARC_MM = _seam_after_arc_mm()
+
+
 @pytest.mark.parametrize("args, expected, limit_s", [
     (["--speed", "0.001", "--no-check"], "--length/--speed/--rate: 8500000 control cycles (240 mm of seam and 100 "
                                          "mm to start and stop at 0.001 mm/s, 25 Hz), each a 640x32 px window x 4 "
@@ -221,7 +232,12 @@ def test_handeye_refuses_a_session_beyond_the_limits(capsys, tmp_path, count, ex
     # frame 640 x 480 x 4 samples at 1 us: 226667 x 1.23 s = 3.22 days more
     (["--speed", "0.001"], "of sensing and 226667 whole frames for the self-check (--no-check leaves them out), "
                            "takes about 12.3 days", 3600.0),
-    (["--speed", "0.1", "--rate", "250", "--length", "1e9"], "850000 control cycles (240 mm of seam", 3600.0),
+    (["--speed", "0.1", "--rate", "250"], "850000 control cycles (240 mm of seam", 3600.0),
+    # a length beyond the seam (its curve: 232.07 mm past the arc's start at 50 mm, an arc of radius 150 mm over
+    # 240 mm with a 20 mm rise, integrated here independently) or not a number (report.json held Infinity)
+    (["--length", "1e9"], f"--length 1e+09 mm is longer than the seam's {SEAM_AFTER_ARC_MM:g} mm from where the "
+                          "arc is struck (50 mm in) to its end", 3600.0),
+    (["--length", "inf"], "weld_length_mm must be a number > 0, got inf", 3600.0),
     # 5000 cycles at 0.092 s: 7.7 min, within the hour; refused by a one-minute limit
     (["--speed", "1", "--length", "100"], "5000 control cycles (100 mm of seam", 60.0),
     (["--roi-rows", "100000"], "--roi-rows must be at most the camera's 480 rows, got 100000", 3600.0),

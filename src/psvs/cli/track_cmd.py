@@ -4,6 +4,8 @@ from __future__ import annotations
 import math
 import time
 
+import numpy as np
+
 from psvs.cli.common import (
     add_check_arguments,
     add_rig_argument,
@@ -98,6 +100,11 @@ def _job(args):
         raise ValueError(f"--roi-rows must be at most the camera's {rig.camera.image_size_px[1]} rows, "
                          f"got {args.roi_rows}")
     wp = seam_workpiece(args.scene, cfg.camera_distance_mm)
+    q = wp.seam_local(np.linspace(*wp.x_range_mm, 2001))     # the seam's own length, along its curve
+    weldable = float(np.sum(np.linalg.norm(np.diff(q, axis=0), axis=1))) - cfg.arc_on_mm
+    if args.length is not None and args.length > weldable:
+        raise ValueError(f"--length {args.length:g} mm is longer than the seam's {weldable:g} mm from where the arc "
+                         f"is struck ({cfg.arc_on_mm:g} mm in) to its end: leave it out to weld to the end")
     _check_work(args, cfg, true_rig or rig, wp.params["length_mm"])
     return cfg, rig, true_rig, wp
 

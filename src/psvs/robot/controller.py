@@ -76,8 +76,8 @@ class TrackConfig:
             raise ValueError(f"rate_hz must be in 1..250 Hz, got {self.rate_hz!r}")
         if not isinstance(self.roi_rows, int) or self.roi_rows < 8:
             raise ValueError(f"roi_rows must be an integer >= 8, got {self.roi_rows!r}")
-        if self.weld_length_mm is not None and not self.weld_length_mm > 0:
-            raise ValueError(f"weld_length_mm must be > 0, got {self.weld_length_mm!r}")
+        if self.weld_length_mm is not None and not (math.isfinite(self.weld_length_mm) and self.weld_length_mm > 0):
+            raise ValueError(f"weld_length_mm must be a number > 0, got {self.weld_length_mm!r}")
         if self.bridge_mm < 0 or self.bridge_mm >= self.look_ahead_mm:
             raise ValueError(f"bridge_mm must be in [0, look_ahead_mm), got {self.bridge_mm!r}")
 

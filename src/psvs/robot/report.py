@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from psvs.io.atomic import write_atomic
+from psvs.io.jsonsafe import json_safe
 from psvs.live.log import health_cells
 from psvs.robot.loop import TrackRun
 from psvs.robot.run_log import HEALTH_LOG_COLUMNS, LOG_COLUMNS
@@ -169,5 +170,5 @@ def write_report(run: TrackRun, workpiece: Workpiece, out_dir) -> dict:
     summ = summary(run, workpiece)
     write_atomic(out_dir / "log.csv", log_csv(run, workpiece))
     plots(run, workpiece, out_dir)
-    write_atomic(out_dir / "report.json", json.dumps(summ, indent=2))
+    write_atomic(out_dir / "report.json", json.dumps(json_safe(summ), indent=2, allow_nan=False))
     return summ
