@@ -70,24 +70,25 @@ def raised_by_psvs(frame) -> bool:
 @contextlib.contextmanager
 def _opencv_silent():
     """OpenCV's log level SILENT: set on a loaded cv2, or by OPENCV_LOG_LEVEL for one loaded in the block
-    (OpenCV reads it once); FFmpeg's under OpenCV quiet too (OPENCV_FFMPEG_LOGLEVEL, read when OpenCV first
-    opens a video). A level the user chose with either variable stands."""
-    with _environ("OPENCV_FFMPEG_LOGLEVEL", "-8"):          # AV_LOG_QUIET
-        if "OPENCV_LOG_LEVEL" in os.environ:
+    (OpenCV reads it once). FFmpeg's log is left as OpenCV sets it (errors, on standard error): they are how a
+    decoder says a frame is damaged, and psvs catches them around each open and read of a video
+    (:func:`psvs.io.video.decoded`); OPENCV_FFMPEG_LOGLEVEL would send them to standard output instead. A
+    level the user chose with OPENCV_LOG_LEVEL stands."""
+    if "OPENCV_LOG_LEVEL" in os.environ:
+        yield
+        return
+    cv2 = sys.modules.get("cv2")
+    log = getattr(getattr(cv2, "utils", None), "logging", None)
+    if log is None:
+        with _environ("OPENCV_LOG_LEVEL", "SILENT"):
             yield
-            return
-        cv2 = sys.modules.get("cv2")
-        log = getattr(getattr(cv2, "utils", None), "logging", None)
-        if log is None:
-            with _environ("OPENCV_LOG_LEVEL", "SILENT"):
-                yield
-            return
-        level = log.getLogLevel()
-        log.setLogLevel(log.LOG_LEVEL_SILENT)
-        try:
-            yield
-        finally:
-            log.setLogLevel(level)
+        return
+    level = log.getLogLevel()
+    log.setLogLevel(log.LOG_LEVEL_SILENT)
+    try:
+        yield
+    finally:
+        log.setLogLevel(level)
 
 
 @contextlib.contextmanager

@@ -8,8 +8,8 @@ import pytest
 
 from psvs.dense.rig_cache import rectification
 from psvs.health.check import TOLERANCE_PX, check_frames, checked_tolerance
-from psvs.health.rolling import RollingCheck
 from psvs.health.explain import explain_offsets, tilted
+from psvs.health.rolling import RollingCheck
 from psvs.io.params import load_rig
 from psvs.optics.project import project_points
 from psvs.optics.rig import MIRROR_NAMES

@@ -39,6 +39,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
                       "url_host"],
         "text": ["read_csv_rows"],
         "tomlfile": ["dumps_toml", "load_table", "load_toml", "parse_text", "single_table"],
-        "video": ["VIDEO_SUFFIXES", "read_video_frame", "video_frames", "write_video"],
+        "video": ["DAMAGE", "VIDEO_SUFFIXES", "decoded", "open_capture", "read_video_frame", "video_frames",
+                  "write_video"],
     },
 )

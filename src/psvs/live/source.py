@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from psvs._quiet import c_stderr_captured, library_reason
+from psvs.io import decoded, open_capture
 from psvs.io.images import IMAGE_SUFFIXES
 from psvs.live.camera import (
     VENDORS,
@@ -93,6 +94,7 @@ class VideoSource(_Source):
         if camera is not None and (not isinstance(camera, int) or camera < 0):
             raise ValueError(f"camera must be an index >= 0, got {camera!r}")
         self._video, self._camera, self._cap, self._last = video, camera, None, None
+        self.damaged = 0
         self.name = str(video) if video is not None else f"camera {camera}"
         if video is not None and "%" not in str(video) and not Path(video).is_file():
             raise FileNotFoundError(f"video not found: {video}")
@@ -106,7 +108,7 @@ class VideoSource(_Source):
             return
         if self._video is not None:
             with c_stderr_captured() as said:       # FFmpeg's complaints ("moov atom not found")
-                cap = cv2.VideoCapture(str(self._video))
+                cap = open_capture(self._video)
             if not cap.isOpened():
                 reason = library_reason(said)
                 raise ValueError(f"cannot open {self._video}: not a video or image sequence OpenCV can decode"
@@ -124,13 +126,25 @@ class VideoSource(_Source):
         """The next frame, or None at the end of a file; CameraLost when a camera stops delivering."""
         if self._cap is None:
             raise ValueError(f"{self.name} is not open")
-        ok, image = self._cap.read()
+        ok, image = self._read()
         if not ok:
             if self._video is None:             # a camera has no end: it stopped delivering
                 raise CameraLost(f"{self.name} gives no more frames", self._last)
             return None
         self._last = self._frame(as_grey(image), self._video is not None)
         return self._last
+
+    def _read(self):
+        """The next (ok, image): a file's damaged frame (:func:`psvs.io.video.decoded`) is a ValueError naming
+        it, a camera's is skipped (counted in :attr:`damaged`) for the next one (at most 30 in a row)."""
+        for _ in range(30):
+            try:
+                return decoded(self._cap, f"frame {self._index} of {self.name}")
+            except ValueError:
+                if self._video is not None:
+                    raise
+                self.damaged += 1
+        raise CameraLost(f"{self.name} gives only damaged frames", self._last)
 
     def close(self) -> None:
         """Release the file or camera; closing a closed source does nothing."""
