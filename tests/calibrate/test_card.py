@@ -214,6 +214,19 @@ def test_cli_bad_folders(capsys, card_dir, tmp_path):
     code, _, err = run(capsys, "calibrate", str(card_dir[0]), "--rig", "clear", "-o", str(out), "--report", str(out))
     assert code == 2 and f"report folder {out} is a file" in err and len(err.strip().splitlines()) == 1
     assert out.read_text() == "keep"
+    # one pose photographed again (one pixel differs: not byte-identical) adds no view: an adversarial trial's
+    # 12 such copies calibrated to a focal length 9 sigma off and a rig whose glass blocks a view
+    same = tmp_path / "same"
+    same.mkdir()
+    (same / "target.toml").write_text(dumps_target(CARD))
+    for k in range(4):
+        (same / f"card_{k:02d}.png").write_bytes((card_dir[0] / f"card_{k:02d}.png").read_bytes())
+    again = cv2.imread(str(card_dir[0] / "card_02.png"), cv2.IMREAD_UNCHANGED)
+    again[5, 5] ^= 1
+    cv2.imwrite(str(same / "card_09.png"), again)
+    code, _, err = run(capsys, "calibrate", str(same), "--rig", str(RIGS / "clear.toml"), "-o", str(out))
+    assert code == 2 and "card_02.png and card_09.png show the card in one pose (its points 0.00 px apart" in err
+    assert len(err.strip().splitlines()) == 1 and out.read_text() == "keep"
 
 
 def test_views_a_far_start_leaves_unexplained_are_kept(capsys, tmp_path):

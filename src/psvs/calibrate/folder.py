@@ -24,8 +24,10 @@ import numpy as np
 from psvs._threads import one_blas_thread
 from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
+from psvs.errors import MeasurementError, RigGeometryError
 from psvs.evidence import check_build
 from psvs.io.images import IMAGE_SUFFIXES, read_grey
+from psvs.optics.layout_check import check_clear
 from psvs.optics.mirrors import virtual_baseline_mm
 from psvs.optics.rig import Calibration, Rig
 from psvs.targets.detect import detect_target
@@ -122,6 +124,7 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
         _whole_target_seen(grids, most, grid)
     else:
         skipped.update({p.name: "not in sweep.csv, and no target.toml describes a card" for p in others})
+    check_distinct_poses(grids)
     _enough(grids, sweeps, skipped)
     local = pattern_layout(COUNT) if sweeps else None
     res = bundle_adjust(grids, sweeps, start, sweep_local_mm=local)
@@ -151,9 +154,40 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
             grids, sweeps = kept_g, kept_s
     used = {**{g.name: "grid" for g in grids}, **{s.name: "sweep" for s in sweeps}}
     # docs/right-or-refuse.md; the design's baseline checks a scale that rests on the card's print alone
-    check_build(res.rig, start, f"calibrating from {len(used)} image(s) of {folder}", baseline=not sweeps)
+    what = f"calibrating from {len(used)} image(s) of {folder}"
+    check_build(res.rig, start, what, baseline=not sweeps)
+    try:                  # a rig whose glass blocks a view is no build either: every command would refuse it
+        check_clear(res.rig, "the calibrated rig")
+    except RigGeometryError as exc:
+        raise MeasurementError(f"{what} gives a rig no build can have ({exc}): the images are of another rig, or "
+                               "of several, or too few poses") from None
     b, sb = effective_baseline(res)
     return CalibrationResult(res, used, skipped, b, sb)
+
+
+#: px RMS: two card views whose common points lie closer than this in both views show one pose (a dot's centre
+#: moves by a few hundredths of a pixel between two photographs of it; a hand-held card by many pixels).
+SAME_POSE_PX = 0.5
+
+
+def check_distinct_poses(grids: list[GridView]) -> None:
+    """ValueError naming two card views that show the card in one pose (their common points within
+    :data:`SAME_POSE_PX` RMS in both views): a second photograph of a pose adds no view, yet the bundle
+    adjustment would weigh it as one (an adversarial trial's 12 re-saved copies of one view gave a focal
+    length 9 sigma off)."""
+    keyed = [{tuple(np.round(o, 6)): k for k, o in enumerate(g.object_mm)} for g in grids]
+    for i, a in enumerate(grids):
+        for j in range(i):
+            common = [(k, keyed[j][key]) for key, k in keyed[i].items() if key in keyed[j]]
+            if len(common) < MIN_GRID_POINTS:
+                continue
+            ka, kb = (np.array(c) for c in zip(*common, strict=True))
+            b = grids[j]
+            d = np.hstack([a.left[ka] - b.left[kb], a.right[ka] - b.right[kb]])
+            rms = float(np.sqrt(np.mean(np.sum(d.reshape(len(ka), -1, 2) ** 2, axis=2))))
+            if rms < SAME_POSE_PX:
+                raise ValueError(f"{b.name} and {a.name} show the card in one pose (its points {rms:.2f} px apart "
+                                 "RMS): each view must be its own pose, the card moved between them")
 
 
 def check_distinct_images(paths: list[Path]) -> None:
