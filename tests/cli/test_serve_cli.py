@@ -142,6 +142,22 @@ def test_a_running_server_refuses_other_hosts_and_origins_and_says_nothing_else(
     assert code == 0
 
 
+def test_sigterm_stops_the_server_with_a_request_held_open(image):
+    """A client that sent half a request does not hold the server: SIGTERM (a service manager's stop) ends it
+    within the grace of a few seconds, with 143 and one line (adversarial trial: still running 40 s later,
+    then exit 0)."""
+    server = Server("--image", image)
+    with socket.create_connection(("127.0.0.1", server.port), timeout=30) as held:
+        held.sendall(f"POST /api/match HTTP/1.1\r\nHost: 127.0.0.1:{server.port}\r\nContent-Type: application/json"
+                     f"\r\nAuthorization: Bearer {server.token}\r\nContent-Length: 100\r\n\r\n{{".encode())
+        time.sleep(1.0)
+        t0 = time.monotonic()
+        server.proc.send_signal(signal.SIGTERM)
+        out, err = server.proc.communicate(timeout=60)
+    assert time.monotonic() - t0 < 20
+    assert server.proc.returncode == 143 and err == "psvs serve: terminated (SIGTERM)\n" and out == "", (out, err)
+
+
 @pytest.fixture
 def uvicorn_loggers():
     """uvicorn's loggers restored after the test (psvs serve sets them for the process it runs in)."""

@@ -7,6 +7,7 @@ a route) is one line, ``psvs serve: internal error: ...``; ``PSVS_DEBUG=1`` show
 """
 from __future__ import annotations
 
+import asyncio
 import errno
 import logging
 import os
@@ -112,9 +113,10 @@ def run(args) -> int:
         print(f"psvs serve: warning: listening on {args.host}: anyone who can reach it can use the UI")
     debug = os.environ.get(DEBUG_ENV, "").strip() not in ("", "0")
     if debug:
-        config = uvicorn.Config(app, log_level="warning")
+        config = uvicorn.Config(app, log_level="warning", timeout_graceful_shutdown=GRACE_S)
     else:
-        config = uvicorn.Config(app, log_config=None, log_level="error", access_log=False)
+        config = uvicorn.Config(app, log_config=None, log_level="error", access_log=False,
+                                timeout_graceful_shutdown=GRACE_S)
         uvicorn_in_one_line()
     server = uvicorn.Server(config)
 
@@ -167,6 +169,8 @@ class _OneLineLog(logging.Handler):
 
     def emit(self, record: logging.LogRecord) -> None:
         exc = record.exc_info[1] if record.exc_info else None
+        if isinstance(exc, asyncio.CancelledError) or "graceful shutdown exceeded" in record.getMessage():
+            return      # a request still open when the stop's grace ran out: cut, as the stop asked
         if exc is not None:
             text = str(exc).strip()
             what = f"{type(exc).__name__}: {text.splitlines()[0]}" if text else type(exc).__name__
@@ -185,9 +189,15 @@ def uvicorn_in_one_line() -> None:
     logging.getLogger("uvicorn.error").handlers = [_OneLineLog(logging.ERROR)]
 
 
+#: s a stop waits for the requests in progress (a client that holds a request open does not hold the server).
+GRACE_S = 3.0
+
+
 def _run_announced(server, sock, announce) -> None:
-    """Run the uvicorn server on ``sock``, printing the address once it listens."""
-    import asyncio
+    """Run the uvicorn server on ``sock``, printing the address once it listens. Ctrl-C, its documented stop,
+    ends it as a success; SIGTERM and SIGHUP (uvicorn stops gracefully, then raises them again) as any command
+    they end, with 128 + their number."""
+    from psvs.cli.main import Terminated
 
     async def main():
         task = asyncio.create_task(server.serve(sockets=[sock]))
@@ -198,6 +208,8 @@ def _run_announced(server, sock, announce) -> None:
         await task
     try:
         asyncio.run(main())
+    except Terminated:
+        raise
     except KeyboardInterrupt:
         pass
     except SystemExit:          # uvicorn's exit when its start-up fails (the app's lifespan)
