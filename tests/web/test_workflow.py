@@ -10,7 +10,8 @@ import re
 import numpy as np
 import pytest
 
-from psvs.io.params import load_rig
+from psvs import default_rig
+from psvs.io.params import load_rig, save_rig
 from psvs.rigs import shipped_rig_path
 from psvs.simulate.builtin import textured
 from psvs.simulate.render import render
@@ -49,7 +50,7 @@ def knocked_frame():
     return render(textured(800.0), load_rig("misaligned_knocked"), seed=2, supersample=1).image
 
 
-def test_the_rig_is_chosen_in_the_page(knocked_frame):
+def test_the_rig_is_chosen_in_the_page(knocked_frame, tmp_path):
     with local_client(create_app(image_source("knocked", knocked_frame), load_rig("misaligned"), "misaligned")) as c:
         assert c.get("/api/info").json()["rig"]["name"] == "misaligned"
         r = c.post("/api/rig", json={"name": "misaligned_knocked"})
@@ -63,8 +64,12 @@ def test_the_rig_is_chosen_in_the_page(knocked_frame):
         r = c.post("/api/rig", json={"text": text, "file_name": "mine.toml"})
         assert r.status_code == 200 and c.get("/api/info").json()["rig"]["name"] == "mine.toml"
         assert c.get("/api/rig3d").json()["camera"] == [0.0, 0.0, 0.0]
-        # refused, one line each, the rig kept: another camera's size, an unknown name, both or neither, bad text
-        for body, said in (({"name": "mv1440"}, "mv1440's camera is 1440x1080 px, the served images 640x480 px"),
+        # refused, one line each, the rig kept: another camera's size, an unknown name, both or neither, bad text,
+        # a layout whose glass blocks a view (every command refuses it; the page took it: adversarial trial)
+        save_rig(default_rig().replace(baseline_mm=5.0, plate_thickness_mm=30.0), tmp_path / "blocked.toml")
+        blocked = {"text": (tmp_path / "blocked.toml").read_text(), "file_name": "blocked.toml"}
+        for body, said in ((blocked, "blocked.toml is no layout a build can have: "),
+                           ({"name": "mv1440"}, "mv1440's camera is 1440x1080 px, the served images 640x480 px"),
                            ({"name": "nope"}, "unknown rig name 'nope'"),
                            ({"name": "clear", "text": text}, "not both or neither"), ({}, "not both or neither"),
                            ({"text": "[camera]\nfocal_length_mm = -3\n"}, "rig file")):

@@ -12,6 +12,7 @@ from fastapi.responses import FileResponse, JSONResponse
 from psvs.io.jsonsafe import json_safe
 from psvs.io.params import load_rig, rig_from_text
 from psvs.optics.layout3d import rig_layout
+from psvs.optics.layout_check import check_clear
 from psvs.rigs import SHIPPED, shipped_rig_path
 from psvs.web.bodies import MAX_RANGE_MM, RigChoiceBody
 from psvs.web.session import SessionDep
@@ -34,13 +35,15 @@ def rig3d(session: SessionDep, near_mm: float = Query(400.0, gt=0, le=MAX_RANGE_
 @router.post("/api/rig")
 def choose_rig(body: RigChoiceBody, session: SessionDep):
     """Use another rig from now on: a shipped one by ``name`` or a rig file's ``text`` (a design, or a build
-    ``psvs calibrate`` wrote); the served images' size must be its camera's (:meth:`Session.replace_rig`)."""
+    ``psvs calibrate`` wrote); the served images' size must be its camera's (:meth:`Session.replace_rig`), and
+    its layout clear (:func:`psvs.optics.layout_check.check_clear`: 400 naming the blocked path)."""
     if body.name is not None:
         if body.name not in SHIPPED:
             raise ValueError(f"unknown rig name {body.name!r} (shipped: {', '.join(SHIPPED)})")
         rig, name = load_rig(shipped_rig_path(body.name)), body.name
     else:
         rig, name = rig_from_text(body.text, body.file_name or "rig file"), body.file_name or "rig file"
+    check_clear(rig, name)          # a blocked layout is no build: refused, as every command refuses it
     session.replace_rig(rig, name)
     return {"name": name}
 
