@@ -101,11 +101,22 @@ def test_triangulate_marks_pixels_that_are_not_twins_invalid(capsys, tmp_path, m
     out = tmp_path / "points.csv"
     code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv_in), "--model", model, "-o", str(out))
     assert code == 0
-    assert err.splitlines()[0].startswith("1 pair(s) stand more than 2 px off their twin's epipolar curve (row 6: ")
+    lines = err.splitlines()
+    # row 5 of the example is no pair of twins (its disparity is negative); row 6 the planted one
+    assert lines[0].startswith("1 pair(s) do not triangulate in front of the rig (row 5: disparity u_l - u_r -")
+    assert lines[1].startswith("1 pair(s) stand more than 2 px off their twin's epipolar curve (row 6: ")
     valid = [int(line.split(",")[4]) for line in out.read_text().splitlines()[1:]]
     assert valid == [1, 1, 1, 0, 0] and "3 of 5 points valid" in err
-    csv_in.write_text("u_l,v_l,u_r,v_r,u_l\n" + "\n".join(rows[1:]) + "\n")
+    # every pair swapped (u_l for u_r): no point; refused in one line, nothing written (it wrote all-invalid rows)
+    header, *body = rows
+    csv_in.write_text(header + "\n" + "\n".join(",".join(r.split(",")[i] for i in (2, 1, 0, 3)) for r in body[:3])
+                      + "\n")
     out.unlink()
+    code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv_in), "--model", model, "-o", str(out))
+    assert code == 1 and not out.exists() and len(err.strip().splitlines()) == 1
+    assert "none of the 3 pair(s) gives a point: 3 pair(s) do not triangulate in front of the rig (row 2" in err
+    assert "(u_l and u_r swapped?)" in err
+    csv_in.write_text("u_l,v_l,u_r,v_r,u_l\n" + "\n".join(rows[1:]) + "\n")
     code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv_in), "-o", str(out))
     assert code == 2 and "column(s) u_l appear more than once" in err and not out.exists()
 

@@ -12,6 +12,7 @@ from psvs.cli.common import (
     check_output_path,
     measuring_rig,
 )
+from psvs.errors import MeasurementError
 from psvs.io.points import check_rows_memory, points_csv_text, read_matches_csv, write_points_csv
 from psvs.measure.triangulate import (
     EPIPOLAR_TOL_PX,
@@ -50,24 +51,35 @@ def run(args) -> int:
     left, right = read_matches_csv(args.points)
     model = args.model or default_model(rig)
     res = triangulate(left, right, rig, model=model)
+    notes = []                # why rows are invalid: printed, or the refusal's reason when no row is left
+    lost = ~res.valid
+    if lost.any():            # rays that meet behind the rig or not at all: not a pair of this rig's twins
+        k = int(np.flatnonzero(lost)[0])
+        swapped = " (u_l and u_r swapped?)" if left[k, 0] - right[k, 0] <= 0 else ""
+        notes.append(f"{int(lost.sum())} pair(s) do not triangulate in front of the rig (row {k + 2}: disparity "
+                     f"u_l - u_r {left[k, 0] - right[k, 0]:.1f} px{swapped})")
     gap = epipolar_gap_px(left, right, rig)
     off = res.valid & ~(gap <= EPIPOLAR_TOL_PX)        # not twins: the pixels see two different points
     if off.any():
         k = int(np.flatnonzero(off)[0])
-        print(f"{int(off.sum())} pair(s) stand more than {EPIPOLAR_TOL_PX:g} px off their twin's epipolar curve "
-              f"(row {k + 2}: {gap[k]:.1f} px): not twins, marked invalid", file=sys.stderr)
+        notes.append(f"{int(off.sum())} pair(s) stand more than {EPIPOLAR_TOL_PX:g} px off their twin's epipolar "
+                     f"curve (row {k + 2}: {gap[k]:.1f} px): not twins")
         res.points_mm[off] = np.nan
         res.valid[off] = False
     sigma = depth_sigma_mm(left, right, rig, model, args.match_sigma_px)
     loose = res.valid & ~(sigma < res.points_mm[:, 2])
     if loose.any():
         k = int(np.flatnonzero(loose)[0])
-        print(f"{int(loose.sum())} pair(s) have a disparity within twice the match noise ({args.match_sigma_px:g} px): "
-              f"their depth is not pinned (row {k + 2}: Z {res.points_mm[k, 2]:.0f} mm, +-{sigma[k]:.0f} mm), marked "
-              "invalid", file=sys.stderr)
+        notes.append(f"{int(loose.sum())} pair(s) have a disparity within twice the match noise "
+                     f"({args.match_sigma_px:g} px): their depth is not pinned (row {k + 2}: Z "
+                     f"{res.points_mm[k, 2]:.0f} mm, +-{sigma[k]:.0f} mm)")
         res.points_mm[loose] = np.nan
         res.valid[loose] = False
     sigma[~res.valid] = np.nan
+    if not res.valid.any():
+        raise MeasurementError(f"none of the {len(res.valid)} pair(s) gives a point: {'; '.join(notes)}")
+    for note in notes:
+        print(f"{note}, marked invalid", file=sys.stderr)
     if out is None:
         sys.stdout.write(points_csv_text(res.points_mm, res.valid, sigma))
     else:
