@@ -62,7 +62,7 @@ def files(tmp_path_factory):
     (d / "bom.toml").write_text("\ufeff" + text, encoding="utf-8")
     big = "\n".join("focal_length_mm = 1e308" if ln.startswith("focal_length_mm") else ln for ln in text.splitlines())
     (d / "huge_focal.toml").write_text(big + "\n")
-    (d / "bom.csv").write_bytes(b"\xef\xbb\xbfu_l,v_l,u_r,v_r\r\n100,240,500,240\r\n")
+    (d / "bom.csv").write_bytes(b"\xef\xbb\xbfu_l,v_l,u_r,v_r\r\n435.2326270743,239.5,206.5,239.5\r\n")
     np.save(d / "full.npy", np.zeros((480, 640)))
     (d / "lying.npy").write_bytes((d / "full.npy").read_bytes()[:4000])
     return d
@@ -129,6 +129,7 @@ def test_files_with_a_byte_order_mark_are_read(capfd, files):
     code, out, err = run(capfd, "triangulate", "--rig", files / "bom.toml", files / "bom.csv")
     assert code == 0 and err == "", err
     assert out.splitlines()[0] == "X_mm,Y_mm,Z_mm,Z_sigma_mm,valid" and len(out.splitlines()) == 2
+    assert out.splitlines()[1].endswith(",1")          # the examples' first pair (450 mm) read whole
 
 
 @pytest.fixture
@@ -248,4 +249,5 @@ def test_a_fresh_process_prints_no_library_lines(tmp_path):
     r = _psvs("live", "--video", "cut.avi", "--rig", "default", "--seed", "320,240", "--quiet", cwd=tmp_path)
     # noise holds no twin: psvs's one line says so (exit 1), and nothing else reaches the terminal
     assert r.returncode == 1 and len(r.stderr.splitlines()) == 1, r.stderr
-    assert r.stderr.startswith("the edge was never found: no twin beyond chance in the frame"), r.stderr
+    assert r.stderr.startswith("psvs live: cannot measure: the edge was never found: "
+                               "no twin beyond chance in the frame"), r.stderr

@@ -103,7 +103,7 @@ def test_argument_errors(rig):
         triangulate([[1, 2], [3, 4]], [[0, 2]], rig)
     with pytest.raises(ValueError, match=r"right_px must have shape \(N, 2\)"):
         triangulate([[1, 2]], [[0, 2, 3]], rig)
-    with pytest.raises(ValueError, match="needs >= 2 valid correspondences"):
+    with pytest.raises(ValueError, match="needs at least 2 pairs with a positive disparity"):
         fit_refraction_terms([[1, 2]], [[0, 2]], [[0, 0, 500]], rig)
 
 

@@ -259,7 +259,7 @@ def _summary(steps: list, dense_frames: list | None, wall: float, realtime: bool
     print(f"{n} frames, {tracked} tracked, {n / wall:.1f} frames/s "
           f"({pace}), mean latency {1e3 * sum(s.elapsed_s for s in steps) / n:.1f} ms")
     if tracked == 0:
-        print(f"the edge was never found: {steps[0].message}", file=sys.stderr)
+        print(f"psvs live: cannot measure: the edge was never found: {steps[0].message}", file=sys.stderr)
         return 1
     return 0
 

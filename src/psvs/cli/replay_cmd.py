@@ -43,9 +43,10 @@ def run(args) -> int:
             _rerun(sink, rec, cell)
     n = len(cell.sent)
     if rec.stop_reason is None:
-        print("note: the recording ends without its /psvs/stop record (the run was cut short)", file=sys.stderr)
+        print("psvs replay: note: the recording ends without its /psvs/stop record (the run was cut short)",
+              file=sys.stderr)
     if cell.mismatches:
-        print(f"{len(cell.mismatches)} of {n} commands differ from the recording (first at cycle "
+        print(f"psvs replay: {len(cell.mismatches)} of {n} commands differ from the recording (first at cycle "
               f"{cell.mismatches[0]})", file=sys.stderr)
         return 1
     print(f"replayed {n} cycles: every command equals the recorded one"

@@ -100,7 +100,8 @@ def fit_refraction(left_px, right_px, points_mm, rig: Rig) -> RefractionFit:
     disp = xl - ideal_sensor_from_pixels(right, cam)[:, 0]
     ok = disp > 0
     if ok.sum() < 2:
-        raise ValueError(f"fit_refraction_terms needs >= 2 valid correspondences with x_l > x_r, got {int(ok.sum())}")
+        raise ValueError(f"the refraction fit needs at least 2 pairs with a positive disparity (u_l right of u_r), "
+                         f"got {int(ok.sum())} of {len(ok)}: are the u_l and u_r columns swapped?")
     distinct = len(np.unique(pts[ok], axis=0))
     if distinct < 3:
         raise MeasurementError(f"{int(ok.sum())} rows hold {distinct} distinct point(s): l and m of eq. (15) need 3 "
