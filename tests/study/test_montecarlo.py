@@ -163,10 +163,12 @@ def test_a_remote_study_is_estimated_once_and_counted_on_the_schedulers_workers(
 
 
 @pytest.mark.slow
-def test_an_interrupted_study_leaves_nothing_in_tmpdir(tmp_path):
+@pytest.mark.parametrize("presses", [1, 2])
+def test_an_interrupted_study_leaves_nothing_in_tmpdir(tmp_path, presses):
     """Issue 41: a Ctrl-C'd montecarlo left its workers' render folders in TMPDIR. The workers render under
     one folder the command makes and removes at its end, whatever ends it: Ctrl-C once a sample is
-    rendering, exit 130, and TMPDIR holds nothing of psvs."""
+    rendering, exit 130, and TMPDIR holds nothing of psvs. Ctrl-C pressed twice (0.3 s apart) is the same,
+    in one line and a few seconds (it took 71 s and printed Dask's traceback: adversarial trial)."""
     import subprocess
     import sys
     from pathlib import Path
@@ -183,6 +185,12 @@ def test_an_interrupted_study_leaves_nothing_in_tmpdir(tmp_path):
         assert proc.poll() is None and time.monotonic() - t0 < 300, proc.stderr.read() if proc.poll() else "slow"
         time.sleep(0.1)
     proc.send_signal(signal.SIGINT)
+    t_int = time.monotonic()
+    if presses == 2:
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGINT)
     err = proc.communicate(timeout=120)[1]
     assert proc.returncode == 130, err
     assert list(tmp.glob("psvs-*")) == []
+    assert err.strip().splitlines()[-1] == "psvs montecarlo: interrupted" and "Traceback" not in err, err
+    assert time.monotonic() - t_int < 30

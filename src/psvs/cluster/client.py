@@ -77,6 +77,7 @@ def connect(scheduler: str | None = None, workers: int | None = None, timeout_s:
         # removed when the client closes, or at exit for a client never closed
         client.remove_scratch = weakref.finalize(client, shutil.rmtree, scratch, True)
         client.register_plugin(_IgnoreInterrupt())
+        client.interrupt_once()
         return client
     address = scheduler_address(scheduler)
     try:
@@ -91,14 +92,37 @@ class _LocalClient(Client):
     finalizer, which runs once)."""
 
     remove_scratch = None
+    sigint_before = None
+    _closing = False
 
     def close(self, *args, **kwargs):
-        """Close the client and its local cluster, then remove the workers' scratch folder."""
+        """Close the client and its local cluster, then remove the workers' scratch folder; once (a second
+        call, as the garbage collector's, does nothing), and not cut short by a second Ctrl-C (ignored for
+        the close: cut, it left the cluster half closed, and the collector's close then waited 60 s and
+        printed Dask's traceback)."""
+        if self._closing:
+            return None
+        self._closing = True
+        main = threading.current_thread() is threading.main_thread()
+        now = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
         try:
             return super().close(*args, **kwargs)
         finally:
+            if main:
+                signal.signal(signal.SIGINT, self.sigint_before if self.sigint_before is not None else now)
             if self.remove_scratch is not None:
                 self.remove_scratch()
+
+    def interrupt_once(self) -> None:
+        """While the cluster runs (main thread only): the first Ctrl-C interrupts as usual, and the ones after
+        it are ignored until the cluster is closed, so that the unwinding and the close are not cut short
+        (a second Ctrl-C 0.3 s after the first raised inside Dask's garbage-collector callback)."""
+        if threading.current_thread() is not threading.main_thread():
+            return
+        def once(signum, frame):
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            raise KeyboardInterrupt
+        self.sigint_before = signal.signal(signal.SIGINT, once)
 
 
 class _IgnoreInterrupt(WorkerPlugin):
