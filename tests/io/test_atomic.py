@@ -1,5 +1,6 @@
 import os
 import stat
+from pathlib import Path
 
 import pytest
 
@@ -92,3 +93,21 @@ def test_a_write_outside_the_batch_lands_at_once(tmp_path):
         raise RuntimeError("a later output fails")
     assert cache.read_bytes() == b"cached" and not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cache.bin"]
+
+
+def test_an_output_folder_is_tried_not_judged_by_its_permission_bits(tmp_path, capsys):
+    """Root's permission bits say it may write anywhere, yet not in /proc: an output there was refused only
+    after the work (adversarial trial). A folder is tried with an empty file of a hidden name, removed at once;
+    the command refuses before any work, in one line."""
+    from psvs.cli.main import main
+    from psvs.io import check_output_folder, check_writable
+    check_writable(tmp_path, "here")
+    assert list(tmp_path.iterdir()) == []                      # the probe removed
+    assert check_output_folder(tmp_path / "new" / "deeper") == tmp_path / "new" / "deeper"
+    assert not (tmp_path / "new").exists()                     # nothing created
+    if Path("/proc/self").is_dir():
+        with pytest.raises(PermissionError, match=r"^cannot write report folder /proc/rep: "):
+            check_output_folder("/proc/rep", "report folder")
+        assert main(["disparity", str(tmp_path / "none.png"), "-o", "/proc/x.npy"]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("psvs disparity: error: cannot write /proc/x.npy: ") and err.count("\n") == 1, err

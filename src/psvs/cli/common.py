@@ -6,6 +6,7 @@ import os
 from contextlib import contextmanager
 from pathlib import Path
 
+from psvs.io import check_writable
 from psvs.io.params import load_rig
 from psvs.optics.layout_check import check_clear
 from psvs.optics.rig import Rig, default_rig
@@ -178,8 +179,9 @@ def check_output_path(path: str | None, suffixes: tuple[str, ...]) -> Path | Non
         raise FileNotFoundError(f"output folder does not exist: {p.parent}")
     if p.is_dir():
         raise ValueError(f"output {p} is a folder, not a file")
-    if not os.access(p.parent, os.W_OK | os.X_OK) or (p.exists() and not os.access(p, os.W_OK)):
+    if p.exists() and not os.access(p, os.W_OK):
         raise PermissionError(f"cannot write {p}: permission denied")
+    check_writable(p.parent, str(p))
     return p
 
 

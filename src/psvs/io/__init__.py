@@ -22,7 +22,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submodules=[],
     submod_attrs={
         "acquisition": ["load_acquisition", "write_acquisition"],
-        "atomic": ["check_output_folder", "output_batch", "write_atomic"],
+        "atomic": ["check_output_folder", "check_writable", "output_batch", "write_atomic"],
         "camera_info": ["write_calibration_files"],
         "image_header": ["FORMATS", "HeaderError", "read_header"],
         "images": ["IMAGE_SUFFIXES", "check_frame_size", "grey8", "grey8_from_bits", "read_grey", "read_image",

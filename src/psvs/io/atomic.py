@@ -78,6 +78,20 @@ def check_output_folder(path, option: str = "output folder") -> Path:
     existing = p
     while not existing.exists():
         existing = existing.parent
-    if not os.access(existing, os.W_OK | os.X_OK):
-        raise PermissionError(f"cannot write {option} {p}: permission denied")
+    check_writable(existing, f"{option} {p}")
     return p
+
+
+def check_writable(folder, what: str) -> None:
+    """PermissionError naming ``what`` unless a file can be made in the existing ``folder``: tried, with an
+    empty file of a hidden name removed at once (the permission bits do not tell: root may write anywhere
+    they say, yet not in /proc or on a read-only mount)."""
+    folder = Path(folder)
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise PermissionError(f"cannot write {what}: permission denied")
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".psvs-probe-", dir=folder)
+    except OSError as exc:
+        raise PermissionError(f"cannot write {what}: {exc.strerror or exc}") from None
+    os.close(fd)
+    os.unlink(probe)
