@@ -94,7 +94,6 @@ class VideoSource(_Source):
         if camera is not None and (not isinstance(camera, int) or camera < 0):
             raise ValueError(f"camera must be an index >= 0, got {camera!r}")
         self._video, self._camera, self._cap, self._last = video, camera, None, None
-        self.damaged = 0
         self.name = str(video) if video is not None else f"camera {camera}"
         if video is not None and "%" not in str(video) and not Path(video).is_file():
             raise FileNotFoundError(f"video not found: {video}")
@@ -136,15 +135,11 @@ class VideoSource(_Source):
 
     def _read(self):
         """The next (ok, image): a file's damaged frame (:func:`psvs.io.video.decoded`) is a ValueError naming
-        it, a camera's is skipped (counted in :attr:`damaged`) for the next one (at most 30 in a row)."""
-        for _ in range(30):
-            try:
-                return decoded(self._cap, f"frame {self._index} of {self.name}")
-            except ValueError:
-                if self._video is not None:
-                    raise
-                self.damaged += 1
-        raise CameraLost(f"{self.name} gives only damaged frames", self._last)
+        it. A camera's frames are read as they come: many MJPEG webcams' decoder says "Corrupt JPEG data" of
+        every frame while delivering whole images, so its words do not tell a damaged frame there."""
+        if self._video is None:
+            return self._cap.read()
+        return decoded(self._cap, f"frame {self._index} of {self.name}")
 
     def close(self) -> None:
         """Release the file or camera; closing a closed source does nothing."""
