@@ -318,3 +318,41 @@ def test_another_formats_frame_is_refused(capsys, mv1440_wall, tmp_path):
                             "--near-mm", "200", "--far-mm", "600", "-o", str(out), "--depth", str(tmp_path / "z.npy"))
     assert code == 1 and err.startswith("psvs disparity: cannot measure: the rig does not fit this image: "), err
     assert not out.exists()
+
+
+@pytest.fixture(scope="module")
+def card_before_wall(tmp_path_factory):
+    """A 50/50 complex image (384 x 512) of a textured wall at 45 px behind a textured card at 96 px."""
+    left, right, _, _ = layered_pair(384, 512, 45, 96, (96, 320, 160, 448), 1)
+    path = tmp_path_factory.mktemp("elsewhere") / "card.png"
+    write_png(path, np.clip(np.rint(superimpose(left, right)), 0, 255).astype(np.uint8))
+    return path
+
+
+def test_a_search_that_misses_the_card_says_so(capsys, tmp_path, card_before_wall):
+    """Searched at the wall only (34..60 px): the answer stands, and the line says that part of the image echoes
+    outside the range, 96 px to its left (the card), untrusted; the confidence map is 0 on the card."""
+    import re
+    out, conf = tmp_path / "d.npy", tmp_path / "c.npy"
+    code, text, err = run(capsys, "disparity", str(card_before_wall), "--min-disparity", "34", "--max-disparity",
+                          "60", "-o", str(out), "--confidence", str(conf))
+    assert code == 0, err
+    m = re.search(r"; part of the image echoes outside the range searched: the strongest, ([\d.]+) spreads where "
+                  r"chance reaches ([\d.]+), repeats (\d+) px to its left; nothing in (\d+) cells of (\d+) px a side "
+                  r"showing it is trusted: widen the range searched \(--near-mm/--far-mm, or "
+                  r"--min-disparity/--max-disparity\) to measure it$", text.strip())
+    assert m, text
+    assert float(m.group(1)) > float(m.group(2)) and abs(int(m.group(3)) - 96) <= 4
+    assert (np.load(conf)[160:256, 224:384] == 0).all()
+
+
+def test_a_search_between_the_surfaces_is_refused(capsys, tmp_path, card_before_wall):
+    """Searched between the wall and the card (60..80 px): every echo lies outside; exit 1, one line that says
+    so, nothing written."""
+    out = tmp_path / "d.npy"
+    code, text, err = run(capsys, "disparity", str(card_before_wall), "--min-disparity", "60", "--max-disparity",
+                          "80", "-o", str(out))
+    assert code == 1 and text == "" and len(err.strip().splitlines()) == 1, err
+    assert err.startswith("psvs disparity: cannot measure: the image echoes beyond chance only outside the "
+                          "searched disparities 60..80 px: the strongest"), err
+    assert not out.exists()

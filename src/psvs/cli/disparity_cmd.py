@@ -181,6 +181,9 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
                 f"beyond chance at two or more separate disparities alike (stripes, bricks, a row of identical "
                 f"windows), and nothing else echoes: which of them is the twin cannot be told in "
                 f"{lo:.0f}..{hi:.0f} px")
+        if trust.elsewhere is not None and trust.elsewhere.any:
+            raise MeasurementError(f"the image echoes beyond chance only outside the searched disparities "
+                                   f"{lo:.0f}..{hi:.0f} px: {elsewhere_words(trust)}")
         raise MeasurementError(f"no part of the image echoes beyond chance: {strongest_echo(trust)}: the image "
                                f"shows no echo of the disparities {lo:.0f}..{hi:.0f} px")
     return dataclasses.replace(dense, result=trusted_maps(res, trust)), trust
@@ -222,6 +225,16 @@ def strongest_echo(trust: EchoTrust) -> str:
             "side, which no echo reaches)")
 
 
+def elsewhere_words(trust: EchoTrust) -> str:
+    """What the image shows outside the searched range, in words a user can act on."""
+    e = trust.elsewhere
+    k = 2 ** trust.level
+    return (f"the strongest, {e.strongest_z:.1f} spreads where chance reaches {e.threshold:.1f}, repeats "
+            f"{e.strongest_lag_px * k:.0f} px to its left; nothing in {int(e.cells.sum())} cells of "
+            f"{e.cell_px * e.scale * k:.0f} px a side showing it is trusted: widen the range searched "
+            "(--near-mm/--far-mm, or --min-disparity/--max-disparity) to measure it")
+
+
 def _summary(dense: RigDense, trust: EchoTrust) -> str:
     res = dense.result
     d = res.disparity_left[np.isfinite(res.disparity_left)]
@@ -229,7 +242,9 @@ def _summary(dense: RigDense, trust: EchoTrust) -> str:
     return (f"{d.size} of {n} px answered, {trust.count} ({trust.count / n:.0%}) trusted (on surfaces whose echo "
             f"stands above chance: the strongest {trust.test.strongest_z:.1f} spreads, chance up to "
             f"{trust.test.strongest_threshold:.1f}), disparity {np.median(d):.1f} px median "
-            f"({res.searched_px[0]:.0f}..{res.searched_px[1]:.0f} searched)")
+            f"({res.searched_px[0]:.0f}..{res.searched_px[1]:.0f} searched)"
+            + (f"; part of the image echoes outside the range searched: {elsewhere_words(trust)}"
+               if trust.elsewhere is not None and trust.elsewhere.any else ""))
 
 
 def prepare(args, image=None) -> tuple:

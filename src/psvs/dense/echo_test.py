@@ -389,7 +389,7 @@ def ambiguous_patches(z: np.ndarray, threshold: float, ratio: float = RIVAL_RATI
     return out.reshape(z.shape[1:])
 
 
-def _spread_to_cells(sig: np.ndarray, m: int) -> np.ndarray:
+def spread_to_cells(sig: np.ndarray, m: int) -> np.ndarray:
     """(D, ny - m + 1, nx - m + 1) patch flags -> (D, ny, nx): a cell is flagged when a patch covering it is."""
     d, by, bx = sig.shape
     out = np.zeros((d, by + m - 1, bx + m - 1), bool)
@@ -407,7 +407,7 @@ def _repeats_to_the_right(mirrored: CellSums, m: int, short: np.ndarray, thresho
     rho = patch_correlations(mirrored, m)
     rho[short] = np.nan
     z, _ = standardised(rho)
-    flipped = _spread_to_cells(ambiguous_patches(z, threshold)[None], m)[0]
+    flipped = spread_to_cells(ambiguous_patches(z, threshold)[None], m)[0]
     cell = CELL_PX
     out = np.zeros_like(flipped)
     for cx in range(flipped.shape[1]):           # flipped cell cx spans these columns of the image
@@ -456,7 +456,7 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
             level = chance_level(z, alpha / families)
             tests += level.tests
             zj = np.where(judged[:, None, None], z, np.nan)
-            above = _spread_to_cells((np.nan_to_num(zj, nan=-np.inf) > level.threshold).any(axis=0)[None], m)[0]
+            above = spread_to_cells((np.nan_to_num(zj, nan=-np.inf) > level.threshold).any(axis=0)[None], m)[0]
             # a repeat beyond the range counts, and one to the right (a patch near the left edge sees its
             # texture's copies there): the patch, or the cells a mirrored patch covers, say no echo
             amb = ambiguous_patches(z, level.threshold)
@@ -465,7 +465,7 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
                 if mirrored is None:
                     mirrored = cell_sums(g[:, ::-1], f[:, ::-1], lags)
                 amb_right = _repeats_to_the_right(mirrored, m, lags < start, level.threshold, w)
-            ambiguous |= above & (_spread_to_cells(amb[None], m)[0] | amb_right)
+            ambiguous |= above & (spread_to_cells(amb[None], m)[0] | amb_right)
             zj[:, amb] = np.nan
             if np.isfinite(zj).any():
                 k, by, bx = np.unravel_index(np.nanargmax(zj), zj.shape)
@@ -474,6 +474,6 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
                     side = m * CELL_PX
                     best = (ratio, float(zj[k, by, bx]), level.threshold,
                             (bx * CELL_PX + side / 2 - 0.5, by * CELL_PX + side / 2 - 0.5, side, int(lags[k])))
-            echo |= _spread_to_cells(np.nan_to_num(zj, nan=-np.inf) > level.threshold, m) & ~amb_right[None]
+            echo |= spread_to_cells(np.nan_to_num(zj, nan=-np.inf) > level.threshold, m) & ~amb_right[None]
     return EchoTest(echo, lags, CELL_PX, float(best[0]), float(best[1]), float(best[2]), best[3], first, tests,
                     ambiguous & ~echo.any(axis=0))

@@ -39,6 +39,7 @@ import numpy as np
 from psvs._threads import pool_size
 from psvs.dense.disparity import DenseResult
 from psvs.dense.echo_test import ALPHA, EchoTest, echo_test
+from psvs.dense.elsewhere import Elsewhere, echo_elsewhere
 from psvs.dense.noise import NoiseLevel, noise_level, textured_pixels
 from psvs.dense.pyramid import coarse_level, pyramid_levels
 
@@ -177,15 +178,17 @@ def _bracketed(root, textured, n):  # pragma: no cover - compiled
 class EchoTrust:
     """``trusted_left``/``trusted_right`` (H, W) bool: the pixels whose answer the echo supports beyond chance
     (module docstring); ``test`` the echo test behind it (:class:`~psvs.dense.echo_test.EchoTest`, at the
-    tested level), ``level`` how many times the image was halved for it, and ``noise`` the sensor noise level
+    tested level), ``level`` how many times the image was halved for it, ``noise`` the sensor noise level
     (:func:`psvs.dense.noise.noise_level`; of the complex image on a build) a pixel's own texture was judged
-    against."""
+    against, and ``elsewhere`` the cells that echo only outside the searched range, where nothing is trusted
+    (:class:`~psvs.dense.elsewhere.Elsewhere`, None when not tested)."""
 
     trusted_left: np.ndarray
     trusted_right: np.ndarray
     test: EchoTest
     level: int
     noise: NoiseLevel | None = None
+    elsewhere: Elsewhere | None = None
 
     @property
     def count(self) -> int:
@@ -212,14 +215,17 @@ def _surfaces(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarra
     return trusted & (textured | _bracketed(labels, np.ascontiguousarray(textured & trusted), n))
 
 
-def _unambiguous(test: EchoTest, trusted: np.ndarray, disparity: np.ndarray, scale: float,
+def _unambiguous(test: EchoTest, elsewhere: Elsewhere, trusted: np.ndarray, disparity: np.ndarray, scale: float,
                  right: bool) -> np.ndarray:
     """``trusted`` (H, W) without its pixels in the echo test's ambiguous cells (a texture that repeats along the
-    rows: a region does not grow over it), each pixel placed as :meth:`~psvs.dense.echo_test.EchoTest.covers_map`
+    rows: a region does not grow over it) and in the cells that echo only outside the searched range
+    (:mod:`psvs.dense.elsewhere`), each pixel placed as :meth:`~psvs.dense.echo_test.EchoTest.covers_map`
     places it."""
+    d = np.ascontiguousarray(disparity)
     if test.ambiguous.any() and trusted.any():
-        _clear_ambiguous(trusted, np.ascontiguousarray(disparity), test.ambiguous, test.cell_px, float(scale),
-                         bool(right))
+        _clear_ambiguous(trusted, d, test.ambiguous, test.cell_px, float(scale), bool(right))
+    if elsewhere.any and trusted.any():
+        _clear_ambiguous(trusted, d, elsewhere.cells, elsewhere.cell_px, float(scale * elsewhere.scale), bool(right))
     return trusted
 
 
@@ -238,15 +244,16 @@ def _clear_ambiguous(trusted, disparity, ambiguous, cell, scale, right):  # prag
                     trusted[y, x] = False
 
 
-def _supported(test: EchoTest, maps: tuple, scale: float, textured: tuple) -> tuple[np.ndarray, np.ndarray]:
+def _supported(test: EchoTest, elsewhere: Elsewhere, maps: tuple, scale: float,
+               textured: tuple) -> tuple[np.ndarray, np.ndarray]:
     """Which pixels of the (left, right) maps are trusted (module docstring): ``maps`` ((disparity, confidence)
     of each, (H, W)), ``textured`` the two maps' (H, W) bool pixels whose own window carries texture beyond the
     sensor's noise (psvs.dense.noise)."""
     anchors = [_anchors(test, d, c, scale, k == 1, t) for k, ((d, c), t) in enumerate(zip(maps, textured, strict=True))]
     with ThreadPoolExecutor(max_workers=pool_size(2)) as pool:
         grown_maps = list(pool.map(_surfaces, anchors, [d for d, _ in maps], [c for _, c in maps], textured))
-    return tuple(_unambiguous(test, t, d, scale, k == 1) for k, (t, (d, _)) in enumerate(zip(grown_maps, maps,
-                                                                                            strict=True)))
+    pairs = zip(grown_maps, maps, strict=True)
+    return tuple(_unambiguous(test, elsewhere, t, d, scale, k == 1) for k, (t, (d, _)) in enumerate(pairs))
 
 
 def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.ndarray, np.ndarray] | None = None,
@@ -274,6 +281,7 @@ def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.nd
                        for m in inside)
     scale = w / top.shape[1]
     test = echo_test(top, lo / scale, min(hi / scale, top.shape[1] - 1.0), top_r, shrink)
+    away = echo_elsewhere(top, lo / scale, hi / scale, top_r, shrink)
     if textured is None:
         noise = noise_level(left)
         tex_left = textured_pixels(left, noise)
@@ -282,9 +290,9 @@ def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.nd
     if tex_left.shape != left.shape or tex_right.shape != left.shape:
         raise ValueError(f"the texture masks {tex_left.shape}, {tex_right.shape} must have the image's shape "
                          f"{left.shape}")
-    trusted = _supported(test, ((result.disparity_left, result.confidence_left),
+    trusted = _supported(test, away, ((result.disparity_left, result.confidence_left),
                                 (result.disparity_right, result.confidence_right)), scale, (tex_left, tex_right))
-    return EchoTrust(*trusted, test, level, noise)
+    return EchoTrust(*trusted, test, level, noise, away)
 
 
 def trusted_maps(result: DenseResult, trust: EchoTrust) -> DenseResult:

@@ -1,0 +1,102 @@
+"""Echo outside the searched disparities (psvs.dense.elsewhere): a surface whose twin the search cannot reach
+is found and nothing on it trusted; an image without echo, a search that covers every surface and a texture
+that repeats along its rows flag nothing."""
+import cv2
+import numpy as np
+import pytest
+
+from psvs.dense import DEFAULT, dense_disparity
+from psvs.dense.elsewhere import echo_elsewhere
+from psvs.dense.trust import echo_trust
+from tests.dense.planted import layered_pair, texture
+
+H, W = 384, 512
+#: the foreground rectangle (top, bottom, left, right) of the planted pairs
+RECT = (96, 320, 160, 448)
+
+
+def _complex(d_bg: float, d_fg: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """A 50/50 complex image of a textured wall at ``d_bg`` px behind a textured card at ``d_fg`` px, and its
+    left view's truth (H, W)."""
+    left, right, truth, _ = layered_pair(H, W, d_bg, d_fg, RECT, seed)
+    return 0.5 * (left + right), truth
+
+
+def _interior(truth: np.ndarray, d: float, margin: int) -> np.ndarray:
+    """Pixels of the surface at ``d`` px at least ``margin`` px from any other."""
+    on = np.isfinite(truth) & (truth == d)
+    return cv2.erode(on.astype(np.uint8), np.ones((2 * margin + 1, 2 * margin + 1), np.uint8)) > 0
+
+
+def _flagged(e, mask: np.ndarray) -> np.ndarray:
+    """Whether each pixel of ``mask`` lies in a flagged cell of :class:`psvs.dense.elsewhere.Elsewhere` ``e``."""
+    k = e.cell_px * e.scale
+    ys, xs = np.nonzero(mask)
+    return e.cells[(ys // k).astype(int), (xs // k).astype(int)]
+
+
+#: (wall, card, searched) px: a card nearer than the search's near end (its twin 96 px away, the search
+#: 34..60 px); a wall farther than its far end (30 px, above half the search's lower end) behind a card in it.
+#: px: the image's left strip where a patch's twin leaves the image at most lags (a profile needs 48 lags inside
+#: it, psvs.dense.echo_test.MIN_LAGS, at the test's level, half this size here): not tested
+LEFT_PX = 128
+CASES = {"card nearer": (45, 96, (34, 60)), "wall farther": (30, 64, (52, 80))}
+
+
+@pytest.mark.parametrize("case", CASES)
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_surface_whose_twin_lies_outside_the_search_is_not_trusted(case, seed):
+    """The surface outside the search, further than 48 px from the other (and beyond the image's left
+    :data:`LEFT_PX`): at least 90 % of it lies in flagged cells and at most 2 % keeps its (wrong) answer
+    trusted (a patch that also shows the surface in the search, up to 3 cells away, keeps its cells). The
+    surface in it, away from the other and from the other's twin (64 px; the flagged cells are widened by one):
+    not flagged, mostly trusted, within 0.5 px.
+    Searched over both, nothing is flagged and both surfaces are trusted."""
+    d_bg, d_fg, (lo, hi) = CASES[case]
+    image, truth = _complex(d_bg, d_fg, seed)
+    res = dense_disparity(image, lo, hi, params=DEFAULT)
+    trust = echo_trust(image, res)
+    e = trust.elsewhere
+    out_d, in_d = (d_fg, d_bg) if d_fg > hi else (d_bg, d_fg)
+    assert e.any and abs(e.strongest_lag_px - out_d) <= 2.0 * e.scale
+    away = _interior(truth, out_d, 48)
+    away[:, :LEFT_PX] = False
+    here = _interior(truth, in_d, 64)
+    if in_d == d_bg:             # the wall beside the card holds the card's twin (the right view's card)
+        top, bottom, first, last = RECT
+        rows, cols = np.nonzero(here)
+        beside = (rows >= top - 64) & (rows < bottom + 64) & (cols >= first - d_fg - 64) & (cols < last + 64)
+        here[rows[beside], cols[beside]] = False
+    assert here.sum() > 10000 and away.sum() > 10000
+    assert _flagged(e, away).mean() >= 0.9
+    assert not _flagged(e, here).any()
+    assert trust.trusted_left[away].mean() <= 0.02
+    assert trust.trusted_left[here].mean() > 0.5
+    assert np.median(np.abs(res.disparity_left - truth)[here & trust.trusted_left]) < 0.5
+    whole = dense_disparity(image, min(lo, out_d - 8), max(hi, out_d + 8), params=DEFAULT)
+    both = echo_trust(image, whole)
+    assert not both.elsewhere.any
+    assert both.trusted_left[away].mean() > 0.5
+    assert np.median(np.abs(whole.disparity_left - truth)[away & both.trusted_left]) < 0.5
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_no_echo_flags_nothing(seed):
+    """Sensor noise and a blurred noise wall (no twin anywhere): no cell echoes elsewhere, whatever the range."""
+    rng = np.random.default_rng(seed)
+    noise = 128 + 20 * rng.standard_normal((H, W))
+    wall = texture(H, W, seed + 100, blur_px=2.0)
+    for image in (noise, wall):
+        lo = float(rng.uniform(20, 120))
+        e = echo_elsewhere(image, lo, lo + float(rng.uniform(10, 80)))
+        assert not e.any, (seed, e.strongest_z, e.threshold, e.strongest_lag_px)
+
+
+def test_a_texture_repeating_along_its_rows_is_not_a_twin_elsewhere():
+    """Stripes of period 9 px on the wall, searched where the wall is (40..70 px): the stripes correlate with
+    themselves at 9, 18, 27 px (below half the search's lower end), which is not an echo elsewhere."""
+    cols = np.arange(W + 80)
+    stripes = 127 + 60 * np.sin(2 * np.pi * cols / 9.0)[None, :] + 25 * texture(H, W + 80, 5) / 95.0
+    left, right = stripes[:, :W], stripes[:, 55:W + 55]
+    e = echo_elsewhere(0.5 * (left + right), 40, 70)
+    assert not e.any
