@@ -89,10 +89,11 @@ def run_child(args: list[str], **kwargs) -> int:
 
 def _workers(rest: list[str]) -> list[str]:
     """pytest-xdist options: one worker per core (at most 4), a test file's tests on one worker (they share
-    its costly fixtures); none when the caller chose (-n, -p no:xdist) or there is one core."""
+    its costly fixtures), the files handed out in the order collected (longest first by the record:
+    tests/support/durations.py); none when the caller chose (-n, -p no:xdist) or there is one core."""
     n = min(4, os.cpu_count() or 1)
     chosen = any(a.startswith("-n") or a == "--numprocesses" or "xdist" in a for a in rest)
-    return [] if chosen or n < 2 else ["-n", str(n), "--dist", "loadfile"]
+    return [] if chosen or n < 2 else ["-n", str(n), "--dist", "loadfile", "--no-loadscope-reorder"]
 
 
 def main(argv: list[str]) -> int:

@@ -7,7 +7,14 @@ from pathlib import Path
 
 import pytest
 
-from tests.support.durations import QUICK_FILE_S, merged, quick_selection, read_record, write_record
+from tests.support.durations import (
+    QUICK_FILE_S,
+    longest_files_first,
+    merged,
+    quick_selection,
+    read_record,
+    write_record,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -20,6 +27,16 @@ def test_slow_tests_and_long_files_are_left_out_and_new_ones_run():
     kept, out = quick_selection(ids, {"a.py::slow_but_quick"}, record)
     assert kept == ["a.py::fast", "c.py::new", "d.py::at_the_limit"]
     assert out == ["a.py::slow_but_quick", "b.py::one", "b.py::two"]
+
+
+def test_files_run_longest_first_each_kept_together():
+    """Files by their tests' recorded total, longest first; a file the record does not know last; each file's
+    tests together, in their order; ties in collection order."""
+    ids = ["a.py::1", "a.py::2", "b.py::1", "c.py::1", "c.py::2", "d.py::1", "e.py::1"]
+    record = {"a.py::1": 1.0, "a.py::2": 1.0, "b.py::1": 5.0, "c.py::1": 0.5, "c.py::2": 3.0, "e.py::1": 2.0}
+    assert longest_files_first(ids, record) == ["b.py::1", "c.py::1", "c.py::2", "a.py::1", "a.py::2", "e.py::1",
+                                                "d.py::1"]
+    assert longest_files_first(ids, {}) == ids
 
 
 def test_a_partial_run_keeps_the_rest_of_the_record_and_gone_files_drop(tmp_path):
