@@ -71,7 +71,10 @@ def decoded(cap, what: str, seek: int = 0):
     return ok, image
 
 
-def _open(path):
+def open_video_file(path, what: str = "a video"):
+    """The open ``cv2.VideoCapture`` of the video file ``path`` (:func:`open_capture`: one decoding thread).
+    FileNotFoundError when there is no such file; ValueError naming it, with what the decoder said, when it
+    cannot be opened ("not ``what`` OpenCV can decode")."""
     from psvs._quiet import c_stderr_captured, library_reason
     path = Path(path)
     if not path.is_file():
@@ -80,14 +83,14 @@ def _open(path):
         cap = open_capture(path)
     if not cap.isOpened():
         reason = library_reason(said)
-        raise ValueError(f"cannot open {path}: not a video OpenCV can decode" + (f" ({reason})" if reason else ""))
+        raise ValueError(f"cannot open {path}: not {what} OpenCV can decode" + (f" ({reason})" if reason else ""))
     return cap
 
 
 def video_frames(path) -> tuple[int, tuple[int, int]]:
     """(frame count, (W, H) px) of a video file, from its header; the frames counted by reading when the
     header does not say. ValueError when it does not open or holds no frame."""
-    cap = _open(path)
+    cap = open_video_file(path)
     try:
         n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
         size = (int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT)))
@@ -108,7 +111,7 @@ def read_video_frame(path, index: int):
     ``psvs live`` reads it); the frame is sought, not read through (exact for FFV1, whose every frame is a
     key frame). ValueError when the video has no such frame."""
     from psvs.io.images import grey8
-    cap = _open(path)
+    cap = open_video_file(path)
     try:
         ok, frame = decoded(cap, f"frame {index} of {path}", seek=index)
     finally:

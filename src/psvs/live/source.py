@@ -12,8 +12,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from psvs._quiet import c_stderr_captured, library_reason
-from psvs.io import decoded, open_capture
+from psvs._quiet import c_stderr_captured
+from psvs.io import decoded, open_video_file
 from psvs.io.images import IMAGE_SUFFIXES
 from psvs.live.camera import (
     VENDORS,
@@ -106,12 +106,7 @@ class VideoSource(_Source):
         if self._cap is not None:
             return
         if self._video is not None:
-            with c_stderr_captured() as said:       # FFmpeg's complaints ("moov atom not found")
-                cap = open_capture(self._video)
-            if not cap.isOpened():
-                reason = library_reason(said)
-                raise ValueError(f"cannot open {self._video}: not a video or image sequence OpenCV can decode"
-                                 + (f" ({reason})" if reason else ""))
+            cap = open_video_file(self._video, "a video or image sequence")
         else:
             with c_stderr_captured():               # OpenCV's and V4L2's log of each backend it tried
                 cap = cv2.VideoCapture(self._camera)
