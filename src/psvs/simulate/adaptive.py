@@ -5,7 +5,8 @@ the accuracy pattern on a plain backdrop is smooth over most of the frame, where
 value. :func:`adaptive_views` first renders each view with one sample a pixel (:func:`one_sample`: traced on
 a coarse grid, in full where the grid is not smooth, interpolated where it is), then renders again with the
 K x K samples only the pixels that are not smooth there (:func:`rough_pixels`: an edge, a texture, a
-shadow, the field's border, and a reach around them), all from the renderer's own cached rays and shading
+shadow, the field's border, and a reach around them), with the renderer's own rays (one sample a pixel: the
+cached rays; K x K: those pixels' samples, traced for the frame, not all of the view's) and shading
 (:mod:`psvs.simulate.radiance`). Those pixels are the renderer's own; the others differ from its average of
 K x K samples by the curvature of a smooth image over a few pixels (1.2e-6 of full well measured, a grey
 level being 4e-3). A feature narrower than the coarse grid's diagonal can fall between its points and be
@@ -21,7 +22,7 @@ from scipy.ndimage import binary_dilation
 from psvs.optics.rig import Rig
 from psvs.optics.trace import Rays
 from psvs.simulate.geometry import SceneGeometry
-from psvs.simulate.radiance import radiance, view_rays
+from psvs.simulate.radiance import radiance, sample_rays, view_rays
 from psvs.simulate.scene import Scene
 
 #: Radiance (1.0 = full well): a pixel whose second difference across it (along a row, a column or a
@@ -102,10 +103,8 @@ def adaptive_views(geom: SceneGeometry, scene: Scene, rig: Rig, supersample: int
     for view in ("left", "right"):
         one, traced = one_sample(geom, scene, view_rays(rig, 1, view), (w, h), step)
         idx = np.flatnonzero(rough_pixels(one))
-        if len(idx):
-            rays = view_rays(rig, supersample, view)
-            sub = (idx[:, None] * k2 + np.arange(k2)).ravel()
-            fine = radiance(geom, scene, Rays(rays.origins_mm[sub], rays.dirs[sub], rays.valid[sub]))
+        if len(idx):                # only these pixels' samples traced (not the view's every sample, cached)
+            fine = radiance(geom, scene, sample_rays(rig, supersample, view, idx))
             one.ravel()[idx] = fine.reshape(-1, k2).mean(axis=1)
         out.append(one)
         shares.append((traced + k2 * len(idx) / one.size) / k2)

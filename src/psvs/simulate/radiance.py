@@ -23,13 +23,22 @@ SHADOW_OFFSET_MM = 0.1
 def view_rays(rig: Rig, supersample: int, view: str):
     """Scene rays of every sub-pixel sample of one view: (origins (H*W*K*K, 3), dirs, valid), cached per rig."""
     w, h = rig.camera.image_size_px
-    offs = (np.arange(supersample) + 0.5) / supersample - 0.5
-    v, u, dv, du = np.meshgrid(np.arange(h, dtype=float), np.arange(w, dtype=float), offs, offs, indexing="ij")
-    uv = np.column_stack([(u + du).ravel(), (v + dv).ravel()])
-    rays = trace_pixels(uv, rig, view)
+    rays = sample_rays(rig, supersample, view, np.arange(h * w))
     for a in rays:
         a.setflags(write=False)
     return rays
+
+
+def sample_rays(rig: Rig, supersample: int, view: str, pixels: np.ndarray):
+    """Scene rays of the K x K sub-pixel samples (K = ``supersample``) of the pixels ``pixels`` (flat indices
+    v * W + u, (N,)) of one view: (origins (N*K*K, 3), dirs, valid), each pixel's samples together, row by
+    row of its K x K grid (as :func:`view_rays` orders them), traced now (no cache)."""
+    w = rig.camera.image_size_px[0]
+    offs = (np.arange(supersample) + 0.5) / supersample - 0.5
+    v, u = np.divmod(np.asarray(pixels, dtype=np.int64), w)
+    dv, du = (a.ravel() for a in np.meshgrid(offs, offs, indexing="ij"))
+    uv = np.column_stack([(u[:, None] + du[None, :]).ravel(), (v[:, None] + dv[None, :]).ravel()])
+    return trace_pixels(uv, rig, view)
 
 
 def shade(geom: SceneGeometry, scene: Scene, hits: Hits) -> np.ndarray:
