@@ -125,3 +125,10 @@ def test_the_textured_scene_searched_past_its_cards():
     wrong = ~(np.abs(cloud.depth_mm[on] - truth[on]) <= 0.10 * truth[on])
     assert trust.elsewhere.any and trust.count / trust.trusted_left.size >= 0.3
     assert wrong.mean() <= 0.13, f"{wrong.mean():.1%} of the trusted pixels more than 10 % off"
+
+
+@pytest.mark.parametrize("shape", [(8, 8), (40, 40), (20, 300), (300, 20)])
+def test_an_image_smaller_than_its_patches_flags_nothing(shape):
+    """Fewer cells than a patch (or none at all): nothing flagged, no error."""
+    e = echo_elsewhere(np.random.default_rng(1).random(shape) * 255, 2, 5)
+    assert not e.any and e.cells.shape == (shape[0] // 16, shape[1] // 16)

@@ -12,8 +12,11 @@ standardisation and chance level of :func:`psvs.dense.echo_test.echo_test` over 
 (one level coarser than the echo test's, which costs about what that test costs). A patch whose strongest
 correlation stands beyond chance at a lag outside the searched range (by more than :data:`EDGE_LAGS`) echoes
 *elsewhere*; one whose strongest stands beyond chance inside it echoes *here*. A cell covered by a patch that
-echoes elsewhere and by none that echoes here shows a surface the search could not reach: no answer in it is
-trusted, whatever region it belongs to. A repeating texture (peaks at several lags) is left to the echo
+echoes elsewhere and by none that echoes here shows a surface the search could not reach: no answer in it, or
+in the cells beside it (a patch that also shows the surface in the range keeps its cells, so the surface's
+border would stay), is trusted, whatever region it belongs to. Below the range only lags down to
+:data:`BELOW` times its lower end are looked at: at smaller lags a texture repeating along the row correlates
+with itself. A repeating texture (peaks at several lags) is left to the echo
 test's own ambiguity rule. On an image without echo a cell is flagged with probability :data:`ALPHA` at most,
 and flagging only takes trust away.
 """
@@ -146,5 +149,6 @@ def echo_elsewhere(image: np.ndarray, d_min: float, d_max: float, image_right: n
             if math.isfinite(out[2][0]) and out[2][0] / out[3] > best:
                 best, strongest, threshold = out[2][0] / out[3], out[2], out[3]
     away = away & ~here
-    away = cv2.dilate(away.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
+    if away.any():      # and the cells beside them: the border a patch that also shows the range keeps
+        away = cv2.dilate(away.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
     return Elsewhere(away, CELL_PX, scale, strongest[1] * scale, strongest[0], threshold)
