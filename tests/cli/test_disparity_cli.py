@@ -356,3 +356,17 @@ def test_a_search_between_the_surfaces_is_refused(capsys, tmp_path, card_before_
     assert err.startswith("psvs disparity: cannot measure: the image echoes beyond chance only outside the "
                           "searched disparities 60..80 px: the strongest"), err
     assert not out.exists()
+
+
+def test_an_image_too_small_for_the_echo_test_says_so(capsys, tmp_path):
+    """40 x 16 px of texture: no patch of the echo test fits with its twin (patches of 32 px and more, 48 lags):
+    exit 1, one line that says so in those figures (it used to describe 'a 0x0 px patch centred at (0, 0)')."""
+    path = tmp_path / "tiny.png"
+    write_png(path, (np.random.default_rng(2).random((16, 40)) * 255).astype(np.uint8))
+    code, text, err = run(capsys, "disparity", str(path), "--min-disparity", "2", "--max-disparity", "5", "-o",
+                          str(tmp_path / "d.npy"))
+    assert code == 1 and text == "" and len(err.strip().splitlines()) == 1, err
+    assert err.strip() == ("psvs disparity: cannot measure: the echo test has no patch to judge on 40x16 px (the "
+                           "image at the level it is tested): its patches are 32 px and more a side, each needing "
+                           "its twin inside the image at 48 lags or more")
+    assert not (tmp_path / "d.npy").exists()

@@ -19,6 +19,7 @@ from psvs.dense import dense_disparity, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_depth, rig_trust
 from psvs.dense.compiled import announce_dense
 from psvs.dense.disparity import check_dense_memory, check_range
+from psvs.dense.echo_test import BLOCK_CELLS, CELL_PX, MIN_LAGS
 from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.rig_cache import rectification
 from psvs.dense.separate import rig_views
@@ -181,6 +182,12 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
                 f"beyond chance at two or more separate disparities alike (stripes, bricks, a row of identical "
                 f"windows), and nothing else echoes: which of them is the twin cannot be told in "
                 f"{lo:.0f}..{hi:.0f} px")
+        if t.tests == 0:
+            h, w = dense.left_image.shape
+            k = 2 ** trust.level
+            raise MeasurementError(f"the echo test has no patch to judge on {w // k}x{h // k} px (the image at the "
+                                   f"level it is tested): its patches are {min(BLOCK_CELLS) * CELL_PX} px and "
+                                   f"more a side, each needing its twin inside the image at {MIN_LAGS} lags or more")
         if trust.elsewhere is not None and trust.elsewhere.any:
             raise MeasurementError(f"the image echoes beyond chance only outside the searched disparities "
                                    f"{lo:.0f}..{hi:.0f} px: {elsewhere_words(trust)}")
