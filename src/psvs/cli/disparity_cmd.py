@@ -15,11 +15,10 @@ from psvs.cli.common import (
     measuring_rig,
     range_from_args,
 )
-from psvs.dense import dense_disparity, write_cloud_ply
+from psvs.dense import BLOCK_CELLS, CELL_PX, MIN_LAGS, dense_disparity, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_depth, rig_trust
 from psvs.dense.compiled import announce_dense
 from psvs.dense.disparity import check_dense_memory, check_range
-from psvs.dense.echo_test import BLOCK_CELLS, CELL_PX, MIN_LAGS
 from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.rig_cache import rectification
 from psvs.dense.separate import rig_views

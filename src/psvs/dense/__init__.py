@@ -11,6 +11,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "cloud": ["Cloud", "disparity_cloud", "write_cloud_ply"],
         "compiled": ["announce_dense"],
         "disparity": ["DenseResult", "check_dense_memory", "check_range", "dense_disparity"],
+        "echo_test": ["BLOCK_CELLS", "CELL_PX", "MIN_LAGS"],
         "evaluate": ["evaluate_pair", "motorcycle"],
         "params": ["DEFAULT", "DenseParams", "FAST"],
         "report": ["scores_markdown", "write_report"],
