@@ -53,20 +53,24 @@ def quick_selection(nodeids: list[str], slow: set[str], record: dict[str, float]
                     limit_s: float = QUICK_FILE_S) -> tuple[list[str], list[str]]:
     """(kept, left out) of ``nodeids``: out when marked ``slow`` or when its file's recorded tests took more
     than ``limit_s`` together."""
-    per_file: dict[str, float] = defaultdict(float)
-    for node, seconds in record.items():
-        per_file[node.split("::")[0]] += seconds
+    per_file = file_totals(record)
     out = [n for n in nodeids if n in slow or per_file.get(n.split("::")[0], 0.0) > limit_s]
     gone = set(out)
     return [n for n in nodeids if n not in gone], out
 
 
-def longest_files_first(nodeids: list[str], record: dict[str, float]) -> list[str]:
-    """``nodeids`` with their files ordered by their tests' recorded total, longest first (files the record does
-    not know last), each file's tests kept together in their order."""
+def file_totals(record: dict[str, float]) -> dict[str, float]:
+    """Each test file's recorded total (s), by path, from a record of node ids."""
     per_file: dict[str, float] = defaultdict(float)
     for node, seconds in record.items():
         per_file[node.split("::")[0]] += seconds
+    return per_file
+
+
+def longest_files_first(nodeids: list[str], record: dict[str, float]) -> list[str]:
+    """``nodeids`` with their files ordered by their tests' recorded total, longest first (files the record does
+    not know last), each file's tests kept together in their order."""
+    per_file = file_totals(record)
     first: dict[str, int] = {}
     for k, n in enumerate(nodeids):
         first.setdefault(n.split("::")[0], k)

@@ -291,6 +291,22 @@ def standardising_lags(lo: int, hi: int, width: int) -> np.ndarray:
     return np.arange(lo, min(width - 1, max(hi, lo + least - 1)) + 1)
 
 
+def standardised_patches(sums: CellSums, m: int, sigma: float, lags: np.ndarray):
+    """(rho, z, first lag judged) of the patches of m x m cells of one band (scale ``sigma`` px): their
+    correlations (:func:`patch_correlations`), standardised (:func:`standardised`) and, when the band's short
+    lags or the image's own autocorrelation (:func:`autocorrelation_lags`) reach past the first of ``lags``,
+    standardised again without those lags (NaN in rho and z); None when no patch profile can be standardised."""
+    rho = patch_correlations(sums, m)
+    z, spread = standardised(rho)
+    if not np.isfinite(spread).any():
+        return None
+    start = max(MIN_LAG_PX, math.ceil(SHORT_LAGS * sigma), autocorrelation_lags(rho, float(np.nanmedian(spread)), lags))
+    if start > lags[0]:
+        rho[lags < start] = np.nan
+        z, _ = standardised(rho)
+    return rho, z, start
+
+
 @dataclass(frozen=True, eq=False)
 class EchoTest:
     """The test's outcome on one image (pair) at its judged level. ``echo`` (D, ny, nx) bool: lag k of
@@ -443,16 +459,11 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
         for m in BLOCK_CELLS:
             if ny < m or nx < m:
                 continue
-            rho = patch_correlations(sums, m)
-            z, spread = standardised(rho)
-            if not np.isfinite(spread).any():
+            patches = standardised_patches(sums, m, sigma, lags)
+            if patches is None:
                 continue
-            start = max(MIN_LAG_PX, math.ceil(SHORT_LAGS * sigma),
-                        autocorrelation_lags(rho, float(np.nanmedian(spread)), lags))
+            z, start = patches[1:]
             first = max(first, start)
-            if start > lags[0]:        # standardised again without them
-                rho[lags < start] = np.nan
-                z, spread = standardised(rho)
             level = chance_level(z, alpha / families)
             tests += level.tests
             zj = np.where(judged[:, None, None], z, np.nan)

@@ -33,17 +33,13 @@ from psvs.dense.echo_test import (
     BANDS_PX,
     BLOCK_CELLS,
     CELL_PX,
-    SHORT_LAGS,
     ambiguous_patches,
-    autocorrelation_lags,
     band_features,
     cell_sums,
     chance_level,
-    patch_correlations,
     spread_to_cells,
-    standardised,
+    standardised_patches,
 )
-from psvs.dense.params import MIN_LAG_PX
 from psvs.dense.pyramid import halved
 
 __all__ = ["EDGE_LAGS", "Elsewhere", "echo_elsewhere"]
@@ -93,14 +89,10 @@ def _family(sums, m: int, sigma: float, lags: np.ndarray, judged: np.ndarray, ou
     """One band's patches of m x m cells: (cells echoing here (strongest at a ``judged`` lag), cells echoing
     elsewhere (strongest at an ``outside`` lag), (z, lag) of the strongest elsewhere, threshold), or None when
     no patch profile can be standardised."""
-    rho = patch_correlations(sums, m)
-    z, spread = standardised(rho)
-    if not np.isfinite(spread).any():
+    patches = standardised_patches(sums, m, sigma, lags)
+    if patches is None:
         return None
-    start = max(MIN_LAG_PX, math.ceil(SHORT_LAGS * sigma), autocorrelation_lags(rho, float(np.nanmedian(spread)), lags))
-    if start > lags[0]:
-        rho[lags < start] = np.nan
-        z, spread = standardised(rho)
+    z = patches[1]
     level = chance_level(z, alpha)
     filled = np.nan_to_num(z, nan=-np.inf)
     at = filled.argmax(axis=0)
