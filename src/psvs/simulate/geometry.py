@@ -15,6 +15,7 @@ import trimesh
 from embreex import mesh_construction, rtcore_scene
 
 from psvs._threads import pool_size
+from psvs.simulate.kernels import face_hits, finish_hits
 from psvs.simulate.scene import Pose, Scene, SceneObject
 
 SECTIONS = 128                 # polygon sides for discs and cylinders
@@ -143,29 +144,16 @@ class SceneGeometry:
         """
         res = self._run(origins_mm, dirs, output=1)
         prim = np.asarray(res["primID"])
-        hit = prim >= 0
-        safe = np.where(hit, prim, 0)
-        nrm = self.face_normals[safe]
-        if refine:
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = (self.face_offsets[safe] - np.einsum("ij,ij->i", origins_mm, nrm)) / \
-                    np.einsum("ij,ij->i", dirs, nrm)
-        else:
-            t = np.asarray(res["tfar"], dtype=np.float64)
-        t[~hit] = np.inf
-        obj = np.where(hit, self.face_owner[safe], -1)
-        curved = self._curved[np.where(hit, obj, len(self.objects))]
+        tfar = np.asarray(res["tfar"])
+        o, d = (np.ascontiguousarray(a, dtype=np.float64) for a in (origins_mm, dirs))
+        t, obj, nrm = face_hits(prim, tfar, self.face_normals, self.face_offsets, self.face_owner, o, d, refine)
+        curved = self._curved[np.where(obj >= 0, obj, len(self.objects))]
         if curved.any():
             idx = np.flatnonzero(curved)
             t_c, obj_c, nrm_c = self._intersect_curved(origins_mm[idx], dirs[idx], obj[idx], prim[idx],
-                                                       np.asarray(res["tfar"])[idx], max_passes)
+                                                       tfar[idx], max_passes)
             t[idx], obj[idx], nrm[idx] = t_c, obj_c, nrm_c
-        bad = ~np.isfinite(t) | (t <= 0)
-        if bad.any():
-            t[bad], obj[bad] = np.inf, -1
-        points = origins_mm + np.where(np.isfinite(t), t, 0.0)[:, None] * dirs
-        flip = np.einsum("ij,ij->i", nrm, dirs) > 0
-        nrm[flip] *= -1
+        points = finish_hits(t, obj, nrm, o, d)
         return Hits(t, obj, points, nrm)
 
     def _intersect_curved(self, o, d, obj, prim, t_embree, max_passes):

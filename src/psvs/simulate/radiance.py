@@ -13,6 +13,7 @@ from psvs._threads import pool_size
 from psvs.optics.rig import Rig
 from psvs.optics.trace import trace_pixels
 from psvs.simulate.geometry import Hits, SceneGeometry, group_by
+from psvs.simulate.kernels import lamp_rays, lit_radiance
 from psvs.simulate.scene import Scene
 
 #: mm: a shadow ray starts this far off its surface, beyond the tessellated shell of curved surfaces.
@@ -42,36 +43,24 @@ def sample_rays(rig: Rig, supersample: int, view: str, pixels: np.ndarray):
 
 
 def shade(geom: SceneGeometry, scene: Scene, hits: Hits) -> np.ndarray:
-    """Radiance (N,) of each hit: albedo * (ambient + lamp * max(0, n.l) (ref / r)^2 * unshadowed); 0 on a miss."""
+    """Radiance (N,) of each hit: albedo * (ambient + lamp * max(0, n.l) (ref / r)^2 * unshadowed); 0 on a miss.
+    The lamp's terms and the shadow rays are one pass each (:mod:`psvs.simulate.kernels`)."""
     light = scene.lighting
     hit = hits.obj >= 0
-    all_hit = bool(hit.all())
     albedo = np.zeros(len(hits.t_mm))
     for k, sel in group_by(hits.obj):
         if k >= 0:
             albedo[sel] = geom.objects[k].texture(geom.local_xy(k, hits.points_mm[sel]))
-    irr = np.full(len(albedo), light.ambient)
     if light.lamp > 0 and hit.any():
-        idx = slice(None) if all_hit else np.flatnonzero(hit)
-        p, n = hits.points_mm[idx], hits.normals[idx]
-        to_lamp = np.asarray(light.lamp_position_mm) - p
-        r2 = np.einsum("ij,ij->i", to_lamp, to_lamp)
-        r = np.sqrt(r2)
-        cos = np.einsum("ij,ij->i", n, to_lamp)
-        cos /= r
-        lit = cos > 0
-        if light.shadows and lit.any():
-            li = np.flatnonzero(lit)
-            ldir = to_lamp[li] / r[li, None]
-            # start beyond the tessellated shell that circumscribes curved surfaces (< 0.01 mm thick)
-            start = p[li] + SHADOW_OFFSET_MM * n[li]
-            lit[li[geom.occluded(start, ldir, r[li] - 2 * SHADOW_OFFSET_MM)]] = False
-        cos *= light.lamp * light.reference_mm ** 2
-        cos /= r2
-        cos[~lit] = 0.0
-        irr[idx] += cos
-    albedo *= irr
-    if not all_hit:
+        r2, cos, lit, start, ldir, length = lamp_rays(hits.points_mm, hits.normals, hit,
+                                                      np.asarray(light.lamp_position_mm, dtype=np.float64),
+                                                      SHADOW_OFFSET_MM)
+        # a shadow ray starts beyond the tessellated shell that circumscribes curved surfaces (< 0.01 mm thick)
+        shadowed = geom.occluded(start, ldir, length) if light.shadows and len(lit) else np.zeros(len(lit), bool)
+        lit_radiance(albedo, hit, r2, cos, lit, shadowed, float(light.ambient),
+                     float(light.lamp * light.reference_mm ** 2))
+    else:
+        albedo *= light.ambient
         albedo[~hit] = 0.0
     return albedo
 

@@ -1,0 +1,126 @@
+"""The renderer's per-ray glue as Numba kernels (compiled once per machine, kept in ``__pycache__``): what
+:meth:`psvs.simulate.geometry.SceneGeometry.intersect` makes of Embree's answer (the hit face's normal, the
+distance, the object, the point, the normal turned to face the ray) and what :func:`psvs.simulate.radiance.shade`
+computes of the lamp (distance, cosine, the shadow rays, the irradiance). Each is one pass over the rays in
+place of NumPy's dozen temporary arrays, with the same formulas in the same order of operations (a dot product
+of three terms summed as NumPy's ``einsum`` sums it: the first and third, then the second), so the images are
+the same to the last bit (tests/simulate/test_render_kernels.py holds them to the NumPy forms)."""
+from __future__ import annotations
+
+import numba as nb
+import numpy as np
+
+
+@nb.njit(cache=True, nogil=True)
+def face_hits(prim, tfar, face_normals, face_offsets, face_owner, origins, dirs, refine):  # pragma: no cover
+    """Embree's hits as distances, objects and face normals: ``prim`` (N,) the hit triangle (< 0 none),
+    ``tfar`` (N,) float32 Embree's distance, the faces' unit normals (F, 3), plane offsets (F,) and owners (F,),
+    the rays (N, 3) mm. Returns (t (N,) mm, inf on a miss; obj (N,) -1 on a miss; normals (N, 3), the hit face's,
+    face 0's on a miss). With ``refine`` t is the float64 ray-plane distance to the hit face, else Embree's."""
+    n = prim.shape[0]
+    t = np.empty(n)
+    obj = np.empty(n, dtype=np.int64)
+    nrm = np.empty((n, 3))
+    for i in range(n):
+        p = prim[i]
+        hit = p >= 0
+        f = p if hit else 0
+        nx, ny, nz = face_normals[f, 0], face_normals[f, 1], face_normals[f, 2]
+        nrm[i, 0], nrm[i, 1], nrm[i, 2] = nx, ny, nz
+        if not hit:
+            t[i] = np.inf
+            obj[i] = -1
+            continue
+        if refine:
+            on = origins[i, 0] * nx + origins[i, 2] * nz
+            on += origins[i, 1] * ny
+            dn = dirs[i, 0] * nx + dirs[i, 2] * nz
+            dn += dirs[i, 1] * ny
+            t[i] = (face_offsets[f] - on) / dn
+        else:
+            t[i] = np.float64(tfar[i])
+        obj[i] = face_owner[f]
+    return t, obj, nrm
+
+
+@nb.njit(cache=True, nogil=True)
+def finish_hits(t, obj, nrm, origins, dirs):  # pragma: no cover - compiled
+    """In place: a distance that is not finite and positive becomes a miss (t inf, obj -1), the normals
+    (N, 3) turn to face their ray; returns the hit points (N, 3) mm (the ray's origin on a miss)."""
+    n = t.shape[0]
+    points = np.empty((n, 3))
+    for i in range(n):
+        ti = t[i]
+        if not np.isfinite(ti) or ti <= 0:
+            t[i] = np.inf
+            obj[i] = -1
+            ti = 0.0
+        for j in range(3):
+            points[i, j] = origins[i, j] + ti * dirs[i, j]
+        dn = nrm[i, 0] * dirs[i, 0] + nrm[i, 2] * dirs[i, 2]
+        dn += nrm[i, 1] * dirs[i, 1]
+        if dn > 0:
+            for j in range(3):
+                nrm[i, j] *= -1
+    return points
+
+
+@nb.njit(cache=True, nogil=True)
+def lamp_rays(points, normals, hit, lamp, offset):  # pragma: no cover - compiled
+    """The lamp as each hit sees it: ``points``, ``normals`` (N, 3) mm, ``hit`` (N,) bool, ``lamp`` (3,) its
+    position mm, ``offset`` mm how far off its surface a shadow ray starts. Returns (r2 (N,) squared distance
+    mm², cos (N,) the cosine between the normal and the lamp (0 on a miss), the indices (M,) of the hits the
+    lamp lights (cos > 0), their shadow rays' starts (M, 3) mm, unit directions (M, 3) and lengths (M,) mm,
+    ``offset`` short of the lamp at both ends)."""
+    n = points.shape[0]
+    r2 = np.zeros(n)
+    cos = np.zeros(n)
+    lit = np.empty(n, dtype=np.int64)
+    m = 0
+    for i in range(n):
+        if not hit[i]:
+            continue
+        tx = lamp[0] - points[i, 0]
+        ty = lamp[1] - points[i, 1]
+        tz = lamp[2] - points[i, 2]
+        s = tx * tx + tz * tz
+        s += ty * ty
+        r2[i] = s
+        c = normals[i, 0] * tx + normals[i, 2] * tz
+        c += normals[i, 1] * ty
+        c /= np.sqrt(s)
+        cos[i] = c
+        if c > 0:
+            lit[m] = i
+            m += 1
+    lit = lit[:m]
+    start = np.empty((m, 3))
+    ldir = np.empty((m, 3))
+    length = np.empty(m)
+    for k in range(m):
+        i = lit[k]
+        r = np.sqrt(r2[i])
+        for j in range(3):
+            ldir[k, j] = (lamp[j] - points[i, j]) / r
+            start[k, j] = points[i, j] + offset * normals[i, j]
+        length[k] = r - 2 * offset
+    return r2, cos, lit, start, ldir, length
+
+
+@nb.njit(cache=True, nogil=True)
+def lit_radiance(albedo, hit, r2, cos, lit, shadowed, ambient, lamp_gain):  # pragma: no cover - compiled
+    """In place: ``albedo`` (N,) times the irradiance, ambient + ``lamp_gain`` cos / r2 where the lamp lights
+    the hit (``lit`` its indices, ``shadowed`` (M,) whether a solid blocks it), 0 on a miss."""
+    lamp = np.zeros(albedo.shape[0], dtype=np.bool_)
+    for k in range(lit.shape[0]):
+        if not shadowed[k]:
+            lamp[lit[k]] = True
+    for i in range(albedo.shape[0]):
+        if not hit[i]:
+            albedo[i] = 0.0
+        elif lamp[i]:
+            c = cos[i] * lamp_gain
+            c /= r2[i]
+            albedo[i] *= ambient + c
+        else:
+            albedo[i] *= ambient + 0.0
