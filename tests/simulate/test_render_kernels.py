@@ -11,6 +11,7 @@ from psvs.simulate.builtin import builtin_scene, textured, weld_seam
 from psvs.simulate.geometry import SceneGeometry
 from psvs.simulate.radiance import SHADOW_OFFSET_MM, shade, view_rays
 from psvs.simulate.scene import Lighting, Scene
+from psvs.simulate.textures import ImageTexture, Noise
 
 
 def numpy_hits(geom, o, d, refine):
@@ -112,3 +113,51 @@ def test_shading_is_numpys(name):
         bright = numpy_shade(geom, Scene(scene.objects, unshadowed, scene.backdrop_z_mm, scene.backdrop_texture,
                                          scene.name), hits)
         assert np.mean(got < bright * (1 - 1e-9)) > 0.01     # shadows are cast on some of the rays drawn
+
+
+def numpy_bilinear(image, size_mm, xy):
+    """ImageTexture's bilinear read in NumPy, clamped to the edge pixels."""
+    h, w = image.shape
+    u = np.clip((xy[:, 0] / size_mm[0] + 0.5) * w - 0.5, 0, w - 1)
+    v = np.clip((xy[:, 1] / size_mm[1] + 0.5) * h - 0.5, 0, h - 1)
+    u0 = np.minimum(np.floor(u).astype(int), w - 2) if w > 1 else np.zeros(len(u), int)
+    v0 = np.minimum(np.floor(v).astype(int), h - 2) if h > 1 else np.zeros(len(v), int)
+    fu, fv = u - u0, v - v0
+    u1, v1 = np.minimum(u0 + 1, w - 1), np.minimum(v0 + 1, h - 1)
+    top = image[v0, u0] * (1 - fu) + image[v0, u1] * fu
+    bot = image[v1, u0] * (1 - fu) + image[v1, u1] * fu
+    return top * (1 - fv) + bot * fv
+
+
+@pytest.mark.parametrize("shape", [(7, 5), (1, 9), (6, 1), (1, 1), (300, 410)])
+def test_image_texture_reads_as_numpy_bilinear(shape):
+    """ImageTexture at points inside, on and beyond its edges (clamped), on images of one row or column too; a
+    pixel centre reads its pixel exactly."""
+    rng = np.random.default_rng(sum(shape))
+    image, size = rng.random(shape), (40.0, 30.0)
+    tex = ImageTexture(image, size)
+    xy = rng.uniform(-30, 30, (5000, 2))
+    np.testing.assert_allclose(tex(xy), numpy_bilinear(image, size, xy), rtol=1e-14, atol=0)
+    h, w = shape
+    r, c = h // 2, w // 2                            # a pixel's centre in local mm
+    centre = np.array([[((c + 0.5) / w - 0.5) * size[0], ((r + 0.5) / h - 0.5) * size[1]]])
+    assert tex(centre)[0] == pytest.approx(image[r, c], abs=1e-12)
+
+
+def test_noise_is_the_smoothstep_interpolation_of_its_lattice():
+    """Noise against the formula in NumPy (negative coordinates wrap with the lattice's 1024 period); on a
+    lattice node it is the node's value between low and high."""
+    tex = Noise(scale_mm=3.0, seed=11, low=0.2, high=0.7)
+    xy = np.random.default_rng(2).uniform(-5000, 5000, (5000, 2))
+    g = xy / 3.0
+    i = np.floor(g)
+    f = g - i
+    f = f * f * (3 - 2 * f)
+    i = i.astype(np.int64) & 1023
+    lat = np.random.default_rng(11).random((1024, 1024))
+    ix, iy, ix1, iy1 = i[:, 0], i[:, 1], (i[:, 0] + 1) & 1023, (i[:, 1] + 1) & 1023
+    top = lat[iy, ix] * (1 - f[:, 0]) + lat[iy, ix1] * f[:, 0]
+    bot = lat[iy1, ix] * (1 - f[:, 0]) + lat[iy1, ix1] * f[:, 0]
+    np.testing.assert_allclose(tex(xy), 0.2 + 0.5 * (top * (1 - f[:, 1]) + bot * f[:, 1]), rtol=1e-14, atol=0)
+    node = np.array([[3.0 * 5, 3.0 * -2]])
+    assert tex(node)[0] == pytest.approx(0.2 + 0.5 * lat[-2 & 1023, 5], abs=1e-14)

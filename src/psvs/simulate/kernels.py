@@ -1,7 +1,8 @@
 """The renderer's per-ray glue as Numba kernels (compiled once per machine, kept in ``__pycache__``): what
 :meth:`psvs.simulate.geometry.SceneGeometry.intersect` makes of Embree's answer (the hit face's normal, the
-distance, the object, the point, the normal turned to face the ray) and what :func:`psvs.simulate.radiance.shade`
-computes of the lamp (distance, cosine, the shadow rays, the irradiance). Each is one pass over the rays in
+distance, the object, the point, the normal turned to face the ray), what :func:`psvs.simulate.radiance.shade`
+computes of the lamp (distance, cosine, the shadow rays, the irradiance), and the two textures read per hit
+(a photograph's bilinear read, value noise). Each is one pass over the rays in
 place of NumPy's dozen temporary arrays, with the same formulas in the same order of operations (a dot product
 of three terms summed as NumPy's ``einsum`` sums it: the first and third, then the second), so the images are
 the same to the last bit (tests/simulate/test_render_kernels.py holds them to the NumPy forms)."""
@@ -124,3 +125,44 @@ def lit_radiance(albedo, hit, r2, cos, lit, shadowed, ambient, lamp_gain):  # pr
             albedo[i] *= ambient + c
         else:
             albedo[i] *= ambient + 0.0
+
+
+@nb.njit(cache=True, nogil=True)
+def bilinear_texture(image, xy, width_mm, height_mm):  # pragma: no cover - compiled
+    """``image`` (H, W) stretched over width x height mm centred on the origin, read bilinearly at the local
+    points ``xy`` (N, 2) mm (clamped to its edge pixels): (N,) values (:class:`psvs.simulate.textures.ImageTexture`)."""
+    h, w = image.shape
+    out = np.empty(xy.shape[0])
+    for i in range(xy.shape[0]):
+        u = (xy[i, 0] / width_mm + 0.5) * w - 0.5
+        v = (xy[i, 1] / height_mm + 0.5) * h - 0.5
+        u = min(max(u, 0.0), w - 1.0)
+        v = min(max(v, 0.0), h - 1.0)
+        u0 = min(int(np.floor(u)), w - 2) if w > 1 else 0
+        v0 = min(int(np.floor(v)), h - 2) if h > 1 else 0
+        fu, fv = u - u0, v - v0
+        u1, v1 = min(u0 + 1, w - 1), min(v0 + 1, h - 1)
+        top = image[v0, u0] * (1 - fu) + image[v0, u1] * fu
+        bot = image[v1, u0] * (1 - fu) + image[v1, u1] * fu
+        out[i] = top * (1 - fv) + bot * fv
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def value_noise(lattice, xy, scale_mm, low, high):  # pragma: no cover - compiled
+    """Smooth value noise at the local points ``xy`` (N, 2) mm: the smoothstep-bilinear interpolation of
+    ``lattice`` (1024, 1024) at pitch ``scale_mm``, between ``low`` and ``high``
+    (:class:`psvs.simulate.textures.Noise`)."""
+    out = np.empty(xy.shape[0])
+    for i in range(xy.shape[0]):
+        gx, gy = xy[i, 0] / scale_mm, xy[i, 1] / scale_mm
+        ix_f, iy_f = np.floor(gx), np.floor(gy)
+        fx, fy = gx - ix_f, gy - iy_f
+        fx = fx * fx * (3 - 2 * fx)
+        fy = fy * fy * (3 - 2 * fy)
+        ix, iy = np.int64(ix_f) & 1023, np.int64(iy_f) & 1023
+        ix1, iy1 = (ix + 1) & 1023, (iy + 1) & 1023
+        top = lattice[iy, ix] * (1 - fx) + lattice[iy, ix1] * fx
+        bot = lattice[iy1, ix] * (1 - fx) + lattice[iy1, ix1] * fx
+        out[i] = low + (high - low) * (top * (1 - fy) + bot * fy)
+    return out

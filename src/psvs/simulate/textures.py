@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs._validate import check_count, check_finite, check_positive
+from psvs.simulate.kernels import bilinear_texture, value_noise
 
 
 def _check_levels(**levels):
@@ -50,6 +51,11 @@ class Checker:
         return np.where(k % 2 == 0, self.high, self.low)
 
 
+def _points(xy_mm) -> np.ndarray:
+    """Local points (N, 2) mm as the texture kernels take them (float64, rows contiguous)."""
+    return np.ascontiguousarray(xy_mm, dtype=np.float64)
+
+
 @functools.lru_cache(maxsize=16)
 def _lattice(seed: int) -> np.ndarray:
     """A seeded random lattice, 1024 x 1024 values in [0, 1), repeated periodically."""
@@ -73,18 +79,8 @@ class Noise:
         _check_levels(low=self.low, high=self.high)
 
     def __call__(self, xy_mm):
-        g = xy_mm / self.scale_mm
-        i = np.floor(g)
-        f = g - i
-        f = f * f * (3 - 2 * f)  # smoothstep: continuous slope across lattice cells
-        i = i.astype(np.int64) & 1023
-        ix, iy = i[:, 0], i[:, 1]
-        ix1, iy1 = (ix + 1) & 1023, (iy + 1) & 1023
-        lat = _lattice(self.seed)
-        fx, fy = f[:, 0], f[:, 1]
-        top = lat[iy, ix] * (1 - fx) + lat[iy, ix1] * fx
-        bot = lat[iy1, ix] * (1 - fx) + lat[iy1, ix1] * fx
-        return self.low + (self.high - self.low) * (top * (1 - fy) + bot * fy)
+        return value_noise(_lattice(self.seed), _points(xy_mm), float(self.scale_mm), float(self.low),
+                           float(self.high))
 
 
 #: Most circles in a :class:`Circles` row (the paper's pattern has 5).
@@ -322,19 +318,7 @@ class ImageTexture:
     path: str = ""
 
     def __call__(self, xy_mm):
-        h, w = self.image.shape
-        u = (xy_mm[:, 0] / self.size_mm[0] + 0.5) * w - 0.5
-        v = (xy_mm[:, 1] / self.size_mm[1] + 0.5) * h - 0.5
-        u = np.clip(u, 0, w - 1)
-        v = np.clip(v, 0, h - 1)
-        u0 = np.minimum(np.floor(u).astype(int), w - 2) if w > 1 else np.zeros(len(u), int)
-        v0 = np.minimum(np.floor(v).astype(int), h - 2) if h > 1 else np.zeros(len(v), int)
-        fu, fv = u - u0, v - v0
-        im = self.image
-        u1, v1 = np.minimum(u0 + 1, w - 1), np.minimum(v0 + 1, h - 1)
-        top = im[v0, u0] * (1 - fu) + im[v0, u1] * fu
-        bot = im[v1, u0] * (1 - fu) + im[v1, u1] * fu
-        return top * (1 - fv) + bot * fv
+        return bilinear_texture(self.image, _points(xy_mm), float(self.size_mm[0]), float(self.size_mm[1]))
 
 
 Texture = (Uniform | Checker | Chessboard | Noise | Circles | CircleGrid | AsymmetricCircleGrid | CharucoBoard
