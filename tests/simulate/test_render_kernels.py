@@ -142,6 +142,7 @@ def test_image_texture_reads_as_numpy_bilinear(shape):
     r, c = h // 2, w // 2                            # a pixel's centre in local mm
     centre = np.array([[((c + 0.5) / w - 0.5) * size[0], ((r + 0.5) / h - 0.5) * size[1]]])
     assert tex(centre)[0] == pytest.approx(image[r, c], abs=1e-12)
+    assert np.isnan(tex(np.array([[np.nan, 0.0], [0.0, np.inf]]))).all()       # nothing read out of the image
 
 
 def test_noise_is_the_smoothstep_interpolation_of_its_lattice():
@@ -161,3 +162,4 @@ def test_noise_is_the_smoothstep_interpolation_of_its_lattice():
     np.testing.assert_allclose(tex(xy), 0.2 + 0.5 * (top * (1 - f[:, 1]) + bot * f[:, 1]), rtol=1e-14, atol=0)
     node = np.array([[3.0 * 5, 3.0 * -2]])
     assert tex(node)[0] == pytest.approx(0.2 + 0.5 * lat[-2 & 1023, 5], abs=1e-14)
+    assert np.isnan(tex(np.array([[np.nan, 0.0], [0.0, -np.inf]]))).all()

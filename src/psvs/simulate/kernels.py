@@ -130,12 +130,16 @@ def lit_radiance(albedo, hit, r2, cos, lit, shadowed, ambient, lamp_gain):  # pr
 @nb.njit(cache=True, nogil=True)
 def bilinear_texture(image, xy, width_mm, height_mm):  # pragma: no cover - compiled
     """``image`` (H, W) stretched over width x height mm centred on the origin, read bilinearly at the local
-    points ``xy`` (N, 2) mm (clamped to its edge pixels): (N,) values (:class:`psvs.simulate.textures.ImageTexture`)."""
+    points ``xy`` (N, 2) mm (clamped to its edge pixels): (N,) values, NaN at a point that is not finite
+    (:class:`psvs.simulate.textures.ImageTexture`)."""
     h, w = image.shape
     out = np.empty(xy.shape[0])
     for i in range(xy.shape[0]):
         u = (xy[i, 0] / width_mm + 0.5) * w - 0.5
         v = (xy[i, 1] / height_mm + 0.5) * h - 0.5
+        if not (np.isfinite(u) and np.isfinite(v)):      # no pixel to read
+            out[i] = np.nan
+            continue
         u = min(max(u, 0.0), w - 1.0)
         v = min(max(v, 0.0), h - 1.0)
         u0 = min(int(np.floor(u)), w - 2) if w > 1 else 0
@@ -151,11 +155,14 @@ def bilinear_texture(image, xy, width_mm, height_mm):  # pragma: no cover - comp
 @nb.njit(cache=True, nogil=True)
 def value_noise(lattice, xy, scale_mm, low, high):  # pragma: no cover - compiled
     """Smooth value noise at the local points ``xy`` (N, 2) mm: the smoothstep-bilinear interpolation of
-    ``lattice`` (1024, 1024) at pitch ``scale_mm``, between ``low`` and ``high``
-    (:class:`psvs.simulate.textures.Noise`)."""
+    ``lattice`` (1024, 1024) at pitch ``scale_mm``, between ``low`` and ``high``; NaN at a point that is not
+    finite (:class:`psvs.simulate.textures.Noise`)."""
     out = np.empty(xy.shape[0])
     for i in range(xy.shape[0]):
         gx, gy = xy[i, 0] / scale_mm, xy[i, 1] / scale_mm
+        if not (np.isfinite(gx) and np.isfinite(gy)):    # no lattice cell to read
+            out[i] = np.nan
+            continue
         ix_f, iy_f = np.floor(gx), np.floor(gy)
         fx, fy = gx - ix_f, gy - iy_f
         fx = fx * fx * (3 - 2 * fx)
