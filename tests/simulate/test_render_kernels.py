@@ -163,3 +163,18 @@ def test_noise_is_the_smoothstep_interpolation_of_its_lattice():
     node = np.array([[3.0 * 5, 3.0 * -2]])
     assert tex(node)[0] == pytest.approx(0.2 + 0.5 * lat[-2 & 1023, 5], abs=1e-14)
     assert np.isnan(tex(np.array([[np.nan, 0.0], [0.0, -np.inf]]))).all()
+
+
+def test_a_ray_along_its_face_is_a_miss_not_an_error():
+    """A ray in the plane of the face Embree names (0 / 0 in the ray-plane distance) and a lamp on the hit point
+    (0 / 0 in the cosine) give NaN as NumPy did, not ZeroDivisionError; the hit then counts as a miss."""
+    from psvs.simulate.kernels import face_hits, finish_hits, lamp_rays
+    normals, offsets, owner = np.array([[0.0, 0.0, 1.0]]), np.array([500.0]), np.array([0])
+    o, d = np.array([[0.0, 0.0, 500.0]]), np.array([[1.0, 0.0, 0.0]])
+    t, obj, nrm = face_hits(np.array([0], np.int32), np.array([3.0], np.float32), normals, offsets, owner, o, d,
+                            True)
+    assert np.isnan(t[0]) and obj[0] == 0
+    finish_hits(t, obj, nrm, o, d)
+    assert np.isinf(t[0]) and obj[0] == -1
+    r2, cos, lit, *_ = lamp_rays(np.zeros((1, 3)), np.array([[0.0, 0.0, -1.0]]), np.array([True]), np.zeros(3), 0.1)
+    assert r2[0] == 0 and np.isnan(cos[0]) and len(lit) == 0
