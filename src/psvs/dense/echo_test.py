@@ -292,10 +292,10 @@ def standardising_lags(lo: int, hi: int, width: int) -> np.ndarray:
 
 
 def standardised_patches(sums: CellSums, m: int, sigma: float, lags: np.ndarray):
-    """(rho, z, first lag judged) of the patches of m x m cells of one band (scale ``sigma`` px): their
-    correlations (:func:`patch_correlations`), standardised (:func:`standardised`) and, when the band's short
-    lags or the image's own autocorrelation (:func:`autocorrelation_lags`) reach past the first of ``lags``,
-    standardised again without those lags (NaN in rho and z); None when no patch profile can be standardised."""
+    """(z, first lag judged) of the patches of m x m cells of one band (scale ``sigma`` px): their correlations
+    (:func:`patch_correlations`) standardised (:func:`standardised`) and, when the band's short lags or the
+    image's own autocorrelation (:func:`autocorrelation_lags`) reach past the first of ``lags``, standardised
+    again without those lags (NaN in z); None when no patch profile can be standardised."""
     rho = patch_correlations(sums, m)
     z, spread = standardised(rho)
     if not np.isfinite(spread).any():
@@ -304,7 +304,7 @@ def standardised_patches(sums: CellSums, m: int, sigma: float, lags: np.ndarray)
     if start > lags[0]:
         rho[lags < start] = np.nan
         z, _ = standardised(rho)
-    return rho, z, start
+    return z, start
 
 
 @dataclass(frozen=True, eq=False)
@@ -462,7 +462,7 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
             patches = standardised_patches(sums, m, sigma, lags)
             if patches is None:
                 continue
-            z, start = patches[1:]
+            z, start = patches
             first = max(first, start)
             level = chance_level(z, alpha / families)
             tests += level.tests

@@ -92,7 +92,7 @@ def _family(sums, m: int, sigma: float, lags: np.ndarray, judged: np.ndarray, ou
     patches = standardised_patches(sums, m, sigma, lags)
     if patches is None:
         return None
-    z = patches[1]
+    z = patches[0]
     level = chance_level(z, alpha)
     filled = np.nan_to_num(z, nan=-np.inf)
     at = filled.argmax(axis=0)

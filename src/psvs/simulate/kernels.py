@@ -11,8 +11,12 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+#: How each kernel is compiled: cached, without the GIL (the renderer's threads run them side by side), and
+#: NumPy's error model (x / 0 gives inf or NaN, as the NumPy forms did, where Numba's default raises).
+_kernel = nb.njit(cache=True, nogil=True, error_model="numpy")
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")   # x / 0 gives inf or NaN, as NumPy did
+
+@_kernel
 def face_hits(prim, tfar, face_normals, face_offsets, face_owner, origins, dirs, refine):  # pragma: no cover
     """Embree's hits as distances, objects and face normals: ``prim`` (N,) the hit triangle (< 0 none),
     ``tfar`` (N,) float32 Embree's distance, the faces' unit normals (F, 3), plane offsets (F,) and owners (F,),
@@ -44,7 +48,7 @@ def face_hits(prim, tfar, face_normals, face_offsets, face_owner, origins, dirs,
     return t, obj, nrm
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")   # x / 0 gives inf or NaN, as NumPy did
+@_kernel
 def finish_hits(t, obj, nrm, origins, dirs):  # pragma: no cover - compiled
     """In place: a distance that is not finite and positive becomes a miss (t inf, obj -1), the normals
     (N, 3) turn to face their ray; returns the hit points (N, 3) mm (the ray's origin on a miss)."""
@@ -66,7 +70,7 @@ def finish_hits(t, obj, nrm, origins, dirs):  # pragma: no cover - compiled
     return points
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")   # x / 0 gives inf or NaN, as NumPy did
+@_kernel
 def lamp_rays(points, normals, hit, lamp, offset):  # pragma: no cover - compiled
     """The lamp as each hit sees it: ``points``, ``normals`` (N, 3) mm, ``hit`` (N,) bool, ``lamp`` (3,) its
     position mm, ``offset`` mm how far off its surface a shadow ray starts. Returns (r2 (N,) squared distance
@@ -108,7 +112,7 @@ def lamp_rays(points, normals, hit, lamp, offset):  # pragma: no cover - compile
     return r2, cos, lit, start, ldir, length
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")   # x / 0 gives inf or NaN, as NumPy did
+@_kernel
 def lit_radiance(albedo, hit, r2, cos, lit, shadowed, ambient, lamp_gain):  # pragma: no cover - compiled
     """In place: ``albedo`` (N,) times the irradiance, ambient + ``lamp_gain`` cos / r2 where the lamp lights
     the hit (``lit`` its indices, ``shadowed`` (M,) whether a solid blocks it), 0 on a miss."""
@@ -127,7 +131,7 @@ def lit_radiance(albedo, hit, r2, cos, lit, shadowed, ambient, lamp_gain):  # pr
             albedo[i] *= ambient + 0.0
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")   # x / 0 gives inf or NaN, as NumPy did
+@_kernel
 def bilinear_texture(image, xy, width_mm, height_mm):  # pragma: no cover - compiled
     """``image`` (H, W) stretched over width x height mm centred on the origin, read bilinearly at the local
     points ``xy`` (N, 2) mm (clamped to its edge pixels): (N,) values, NaN at a point that is not finite
@@ -152,7 +156,7 @@ def bilinear_texture(image, xy, width_mm, height_mm):  # pragma: no cover - comp
     return out
 
 
-@nb.njit(cache=True, nogil=True, error_model="numpy")   # x / 0 gives inf or NaN, as NumPy did
+@_kernel
 def value_noise(lattice, xy, scale_mm, low, high):  # pragma: no cover - compiled
     """Smooth value noise at the local points ``xy`` (N, 2) mm: the smoothstep-bilinear interpolation of
     ``lattice`` (1024, 1024) at pitch ``scale_mm``, between ``low`` and ``high``; NaN at a point that is not
