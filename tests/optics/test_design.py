@@ -164,6 +164,7 @@ def test_a_blocked_layout_is_refused_naming_its_first_problem():
     rig = default_rig().replace(baseline_mm=5.0, plate_thickness_mm=30.0)
     d = design_mirrors(rig, search=False)
     assert not d.ok
-    with pytest.raises(RigGeometryError, match=rf"^rig x is no layout a build can have: {re.escape(d.problems[0])} "
+    with pytest.raises(RigGeometryError, match=rf"^rig x is no layout a build can have: {re.escape(d.share_words())} "
+                                               rf"\(more than 50 % is no build\): {re.escape(d.problems[0])} "
                                                rf"\(and {len(d.problems) - 1} more\); `psvs design` shows its layout$"):
         check_clear(rig, "rig x")

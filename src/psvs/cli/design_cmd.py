@@ -40,7 +40,8 @@ def add_parser(sub) -> None:
 
 def design_to_dict(d: MirrorDesign) -> dict:
     """The mirror table and checks as plain data (no None: TOML has no null)."""
-    out = {"mirrors": [], "checks": {"ok": d.ok, "problems": d.problems}}
+    out = {"mirrors": [], "checks": {"ok": d.ok, "verdict": d.verdict, "problems": d.problems,
+                                     "blocked_share": dict(d.blocked_share or {})}}
     for s in d.mirrors:
         w, h = s.extent.size_mm
         out["mirrors"].append({
@@ -114,7 +115,9 @@ def format_design(d: MirrorDesign) -> str:
         lines.append(f"{s.name.upper():<7}{w:9.2f}{h:9.2f}{s.eq6_length_mm:9.2f}   ({c}){'':<{max(0, 24 - len(c))}}"
                      f"{s.axis_distance_mm:8.2f}")
     lines.append("")
-    lines.append("Layout: clear" if d.ok else "Layout: BLOCKED")
+    lines.append({"clear": "Layout: clear",
+                  "vignetted": f"Layout: vignetted ({d.share_words()}: a build of it measures in the rest)",
+                  "BLOCKED": f"Layout: BLOCKED ({d.share_words()}: no build)"}[d.verdict])
     lines += [f"  - {p}" for p in d.problems]
     if d.m2_window_mm is not None:
         lines.append(f"  M2 clears both paths for m2_axis_distance_mm in [{d.m2_window_mm[0]:.2f}, "

@@ -18,10 +18,13 @@ from psvs.errors import RigGeometryError
 from psvs.optics.field import field_pixels
 from psvs.optics.mirror_length import mirror_length_eq6
 from psvs.optics.mirrors import VIEWS, mirror_planes
-from psvs.optics.obstruction import Obstruction, find_collisions, find_obstructions
+from psvs.optics.obstruction import Obstruction, blocked_shares, find_collisions, find_obstructions
 from psvs.optics.rig import MIRROR_NAMES, MirrorExtent, Rig
 from psvs.optics.trace import trace_pixels
 
+#: The most of a view's image (0..1) a buildable layout may lose to the glass: beyond half, more of a view is
+#: blocked than seen, a rig file that is wrong rather than a build that vignettes.
+MAX_BLOCKED_SHARE = 0.5
 
 @dataclass(frozen=True)
 class MirrorSpec:
@@ -59,11 +62,32 @@ class MirrorDesign:
     m2_window_mm: tuple[float, float] | None = None    # clear c2 range for this c1 (see clear_m2_window)
     suggestion_mm: tuple[float, float] | None = None   # a clear (c1, c2) when this layout is not
     search_note: str = ""                              # why the search stopped short ('' it did not)
+    #: share (0..1) of each view's image whose light the layout blocks (:func:`blocked_shares`; 0 when ok)
+    blocked_share: dict[str, float] | None = None
 
     @property
     def ok(self) -> bool:
         """True when no light path is blocked and no two parts cut through each other."""
         return not self.obstructions and not self.collisions
+
+    @property
+    def buildable(self) -> bool:
+        """True when a build can have this layout: each view loses at most :data:`MAX_BLOCKED_SHARE` of its
+        image to the glass (:attr:`blocked_share`). A layout that is not :attr:`ok` but buildable *vignettes*:
+        a build of it measures in the rest of its field (each traced pixel's path checked), as real builds
+        whose glass meets another beam at a corner do."""
+        return self.ok or max((self.blocked_share or {"": 1.0}).values()) <= MAX_BLOCKED_SHARE
+
+    @property
+    def verdict(self) -> str:
+        """``'clear'``, ``'vignetted'`` (not :attr:`ok`, :attr:`buildable`) or ``'BLOCKED'``."""
+        return "clear" if self.ok else "vignetted" if self.buildable else "BLOCKED"
+
+    def share_words(self) -> str:
+        """The image each view loses, in words (e.g. 'the left view loses 15 % of its image, the right 0 %')."""
+        s = self.blocked_share or {}
+        return (f"the left view loses {100 * s.get('left', 0.0):.0f} % of its image, the right "
+                f"{100 * s.get('right', 0.0):.0f} %")
 
     @property
     def problems(self) -> list[str]:
@@ -162,9 +186,10 @@ def design_mirrors(rig: Rig, *, margin_mm: float = 0.0, near_mm: float | None = 
                                 tuple(map(float, p.normal)), float(ob[name]), eq6))
     obstructions = tuple(find_obstructions(designed, pixels))
     collisions = tuple(find_collisions(designed))
+    shares = blocked_shares(designed) if obstructions or collisions else {view: 0.0 for view in VIEWS}
     wr = working_range(rig, near_mm, far_mm) if near_mm is not None and far_mm is not None else None
     window, suggestion, note = _search(rig, margin_mm, bool(obstructions or collisions)) if search else (None, None, "")
-    return MirrorDesign(designed, tuple(specs), obstructions, collisions, wr, window, suggestion, note)
+    return MirrorDesign(designed, tuple(specs), obstructions, collisions, wr, window, suggestion, note, shares)
 
 
 def _search(rig: Rig, margin_mm: float, blocked: bool):

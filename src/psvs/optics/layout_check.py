@@ -12,7 +12,8 @@ mirror values and on the optics code, so it is kept:
   (:func:`psvs._cache.cache_dir`): the key (:func:`layout_key`) hashes every value of the camera and mirrors
   and the source of ``psvs/optics``, so a changed rig, or a new psvs, is checked again.
 
-Only a clear verdict is kept: a blocked layout is designed again, to name its problems.
+Only a clear verdict (a build can have the layout; one that vignettes less than half of each view included) is
+kept: a blocked layout is designed again, to name its problems.
 """
 from __future__ import annotations
 
@@ -35,9 +36,11 @@ def layout_key(rig: Rig) -> str:
 
 
 def check_clear(rig: Rig, name: str = "the rig") -> Rig:
-    """``rig`` itself when its layout is clear (:attr:`~psvs.optics.design.MirrorDesign.ok`: no light path
-    blocked, no two parts through each other), else :class:`~psvs.errors.RigGeometryError` naming the first
-    problem: a blocked layout is no build, and nothing measured or exported through it describes one.
+    """``rig`` itself when a build can have its layout (:attr:`~psvs.optics.design.MirrorDesign.buildable`:
+    clear, or vignetting at most half of each view's image, as a build whose glass meets another beam at a
+    corner does; it measures in the rest), else :class:`~psvs.errors.RigGeometryError` saying how much of each
+    view is lost and naming the first problem: nothing measured or exported through such a layout describes a
+    build.
     ``name`` says which rig (a file's name) in the message. A rig of the same values found clear before (in
     this process or the cache folder) is not designed again."""
     key = layout_key(rig)
@@ -45,12 +48,13 @@ def check_clear(rig: Rig, name: str = "the rig") -> Rig:
     if key in _CLEAR or (marker is not None and marker.is_file()):
         _CLEAR.add(key)
         return rig
-    from psvs.optics.design import design_mirrors  # the mesh library: loaded only for a rig not yet known
+    from psvs.optics.design import MAX_BLOCKED_SHARE, design_mirrors  # loaded only for a rig not yet known
     d = design_mirrors(rig, search=False)
-    if not d.ok:
+    if not d.buildable:
         more = f" (and {len(d.problems) - 1} more)" if len(d.problems) > 1 else ""
-        raise RigGeometryError(f"{name} is no layout a build can have: {d.problems[0]}{more}; `psvs design` "
-                               "shows its layout")
+        raise RigGeometryError(f"{name} is no layout a build can have: {d.share_words()} "
+                               f"(more than {100 * MAX_BLOCKED_SHARE:.0f} % is no build): {d.problems[0]}{more}; "
+                               "`psvs design` shows its layout")
     _CLEAR.add(key)
     if marker is not None:
         with contextlib.suppress(OSError):      # a folder that cannot be written: no disk cache, no error

@@ -84,6 +84,28 @@ def find_collisions(rig: Rig) -> list[str]:
     return out
 
 
+def _blocked_segments(rig: Rig, pixels_px: np.ndarray, scene_depth_mm: float):
+    """Every (blocker, view, segment, mask (N,)) of the pixels' chief rays, traced through the ideal
+    (unbounded) planes, that a solid of ``rig`` blocks on a segment of their path, or that meet their next
+    surface behind a segment's start."""
+    planes = mirror_planes(rig)
+    missing = [n for n in ("m1", "m2", "m3", "m4") if planes[n].extent is None]
+    if missing:
+        raise ValueError(f"obstruction check needs finite extents on every mirror; unbounded: {', '.join(missing)}")
+    ideal = rig.with_extents({n: None for n in ("m1", "m2", "m3", "m4")})
+    for view in VIEWS:
+        hits: list = []
+        rays = trace_pixels(pixels_px, ideal, view, hits)
+        blocked_by = blockers(rig, hits, rays.origins_mm, rays.dirs, scene_depth_mm)
+        for i, (start, end, _, _) in enumerate(path_segments(hits, rays.origins_mm, rays.dirs, scene_depth_mm)):
+            seg = f"{start} -> {end}"
+            if i < len(hits):   # the next surface lies behind the segment's start: it cuts into the beam
+                yield end, view, seg, rays.valid & ~hits[i][2]
+            for solid, where, blocked in blocked_by:
+                if where == seg:
+                    yield solid, view, seg, rays.valid & blocked
+
+
 def find_obstructions(rig: Rig, pixels_px: np.ndarray, scene_depth_mm: float = 2000.0) -> list[Obstruction]:
     """Every (blocker, view, segment) for which some of the given field pixels' rays are blocked.
 
@@ -100,28 +122,32 @@ def find_obstructions(rig: Rig, pixels_px: np.ndarray, scene_depth_mm: float = 2
     scene_depth_mm : float
         How far past the last mirror the outgoing rays are followed, mm.
     """
-    planes = mirror_planes(rig)
-    missing = [n for n in ("m1", "m2", "m3", "m4") if planes[n].extent is None]
-    if missing:
-        raise ValueError(f"obstruction check needs finite extents on every mirror; unbounded: {', '.join(missing)}")
-    ideal = rig.with_extents({n: None for n in ("m1", "m2", "m3", "m4")})
     found = []
-
-    def report(blocker, view, seg, blocked):
+    for blocker, view, seg, blocked in _blocked_segments(rig, pixels_px, scene_depth_mm):
         if blocked.any():
             k = int(np.flatnonzero(blocked)[0])
             found.append(Obstruction(blocker, view, seg, float(blocked.mean()),
                                      (float(pixels_px[k, 0]), float(pixels_px[k, 1]))))
-
-    for view in VIEWS:
-        hits: list = []
-        rays = trace_pixels(pixels_px, ideal, view, hits)
-        blocked_by = blockers(rig, hits, rays.origins_mm, rays.dirs, scene_depth_mm)
-        for i, (start, end, _, _) in enumerate(path_segments(hits, rays.origins_mm, rays.dirs, scene_depth_mm)):
-            seg = f"{start} -> {end}"
-            if i < len(hits):   # the next surface lies behind the segment's start: it cuts into the beam
-                report(end, view, seg, rays.valid & ~hits[i][2])
-            for solid, where, blocked in blocked_by:
-                if where == seg:
-                    report(solid, view, seg, rays.valid & blocked)
     return found
+
+
+#: Samples of the image, columns x rows, over which :func:`blocked_shares` counts (pixel centres of equal cells).
+SHARE_GRID = (48, 36)
+
+
+def blocked_shares(rig: Rig, grid: tuple[int, int] = SHARE_GRID, scene_depth_mm: float = 2000.0) -> dict[str, float]:
+    """The share (0..1) of each view's image (``{'left': ..., 'right': ...}``) whose light some part of the
+    layout blocks: the chief rays of the centres of ``grid`` (columns, rows) equal cells of the image, each
+    blocked when any segment of its path is (:func:`find_obstructions`' test). :func:`find_obstructions` samples
+    the field's border densely, where vignetting starts; this is the image's area that a build loses.
+
+    ``rig`` needs finite extents on all four mirrors (e.g. :func:`psvs.optics.design.design_mirrors`' rig)."""
+    w, h = rig.camera.image_size_px
+    nu, nv = grid
+    u = (np.arange(nu) + 0.5) * w / nu - 0.5
+    v = (np.arange(nv) + 0.5) * h / nv - 0.5
+    pixels = np.stack(np.meshgrid(u, v), axis=-1).reshape(-1, 2)
+    lost = {view: np.zeros(len(pixels), dtype=bool) for view in VIEWS}
+    for _, view, _, blocked in _blocked_segments(rig, pixels, scene_depth_mm):
+        lost[view] |= blocked
+    return {view: float(m.mean()) for view, m in lost.items()}
