@@ -285,6 +285,11 @@ def test_the_command_refuses_what_it_cannot_do(capsys, tmp_path):
     code, _, err = run(capsys, "refit", str(blank), "--rig", rig, "-o", str(tmp_path / "n.toml"))
     assert code == 1 and "cannot refit" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "n.toml").exists() and not (tmp_path / "n.refit.json").exists()
+    # the record's place a folder: refused before the work (the blank frame would be refused after it, exit 1)
+    (tmp_path / "n.refit.json").mkdir()
+    code, _, err = run(capsys, "refit", str(blank), "--rig", rig, "-o", str(tmp_path / "n.toml"))
+    assert code == 2 and f"output {tmp_path / 'n.refit.json'} is a folder, not a file" in err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["blank.png", "n.refit.json"]
 
 
 def test_a_tare_stated_at_the_wrong_distance_is_refused(build):

@@ -56,6 +56,21 @@ def test_output_batch_lands_all_or_nothing(tmp_path):
     assert (a.read_text(), b.read_text()) == ("new a", "new b")
 
 
+def test_a_batch_onto_a_folder_lands_nothing_and_leaves_no_temporary_file(tmp_path):
+    """Adversarial trial (issue 41): `refit -o b.toml` with a folder named b.refit.json wrote b.toml, then failed
+    on the record with Python's own words and left the record's temporary file."""
+    from psvs.io.atomic import output_batch
+    a, folder = tmp_path / "a.toml", tmp_path / "a.refit.json"
+    a.write_text("old a")
+    folder.mkdir()
+    with pytest.raises(IsADirectoryError, match=f"^cannot write {folder}: it is a folder$"):
+        with output_batch():
+            write_atomic(a, "new a")
+            write_atomic(folder, "{}")
+    assert a.read_text() == "old a" and folder.is_dir() and not any(folder.iterdir())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.refit.json", "a.toml"]
+
+
 def test_match_keeps_the_earlier_json_when_a_later_output_fails(tmp_path, monkeypatch, capsys):
     """`match -o a.json --csv ...` failing on the CSV leaves the earlier a.json as it was (it used to replace
     a.json and then exit 2 on the CSV)."""

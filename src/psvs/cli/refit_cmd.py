@@ -69,7 +69,7 @@ def run(args) -> int:
     if not (math.isfinite(args.tolerance_px) and args.tolerance_px > 0):
         raise ValueError(f"--tolerance-px must be a number > 0 px, got {args.tolerance_px}")
     out = check_output_path(args.output, (".toml", ".json"))
-    record = None if out is None else record_path(out)
+    record = None if out is None else check_output_path(str(record_path(out)), (".json",))
     inputs = ({f"frame {k + 1}": f for k, f in enumerate(args.frames)} | {"--rig": args.rig}
               | {f"--tare {k + 1}": f for k, f in enumerate(args.tare)})
     check_distinct({"-o": args.output, "the record": record}, inputs)

@@ -64,8 +64,28 @@ def output_batch():
         raise
     finally:
         _BATCH.reset(token)
-    for tmp, path in pending:
-        os.replace(tmp, path)
+    _land(pending)
+
+
+def _land(pending: list) -> None:
+    """Rename a batch's temporary files into place: none when a destination is a folder (IsADirectoryError
+    naming it, every temporary file removed), and when a rename fails part-way the rest are removed (the files
+    renamed before it stay: a folder cannot be replaced atomically as a whole)."""
+    folders = [path for _, path in pending if Path(path).is_dir()]
+    try:
+        if folders:
+            raise IsADirectoryError(f"cannot write {folders[0]}: it is a folder")
+        for k, (tmp, path) in enumerate(pending):
+            try:
+                os.replace(tmp, path)
+            except OSError as exc:
+                raise type(exc)(f"cannot write {path}: {exc.strerror or exc}") from None
+            pending[k] = (None, path)
+    except BaseException:
+        for tmp, _ in pending:
+            if tmp is not None:
+                Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def check_output_folder(path, option: str = "output folder") -> Path:
