@@ -129,3 +129,44 @@ def test_a_vignetting_build_is_measured_and_a_blocked_one_refused(capsys, tmp_pa
     with pytest.raises(RigGeometryError, match=r"^rig x is no layout a build can have: the left view loses 100 % "
                                                r"of its image, the right 100 % \(more than 50 % is no build\): "):
         check_clear(blocked, "rig x")
+
+
+def _cut_m3(along_mm):
+    """The shipped `clear` rig (sized mirrors) with M3 cut to ``along_mm`` (its height kept)."""
+    from psvs.io.params import load_rig
+    from psvs.optics.rig import MirrorExtent
+    rig = load_rig("clear")
+    return rig.with_extents({"m3": MirrorExtent(along_mm, rig.mirrors.extent("m3").height_mm)})
+
+
+def test_mirrors_sized_too_small_lose_what_the_renderer_leaves_dark(capsys, tmp_path):
+    """Adversarial trial (issue 41): a rig file whose M3 is cut to a third of its length was measured through
+    ('Layout: clear': the design sizes the mirrors anew and the layout check ignored the file's sizes), though a
+    render through it leaves two thirds of the left view dark. The file's own sizes now count: the share they
+    lose (psvs.optics.obstruction.sized_shares) is the renderer's dark share, and beyond half it is refused."""
+    from psvs.optics.obstruction import sized_shares
+    from psvs.simulate.builtin import regulated_light
+    from psvs.simulate.render import render
+    from psvs.simulate.scene import Scene
+    from psvs.simulate.textures import Noise
+    wall = Scene((), regulated_light(700.0), 700.0, Noise(scale_mm=2.0, seed=2), "wall")
+    for along, refused in (((-27.5, -10.0), True), ((-27.5, 20.0), False)):
+        rig = _cut_m3(along)
+        shares = sized_shares(rig)
+        rr = render(wall, rig, supersample=1, seed=2)
+        assert shares["left"] == pytest.approx(float(np.mean(rr.left <= 0.0)), abs=0.03)
+        assert shares["right"] == 0.0 and (shares["left"] > MAX_BLOCKED_SHARE) == refused, shares
+        path = tmp_path / "cut.toml"
+        save_rig(rig, path)
+        code, out, _ = run(capsys, "design", "--rig", str(path), "--no-search")
+        lost = f"the left view loses {100 * shares['left']:.0f} % of its image, the right 0 %"
+        if refused:
+            blocked = f"The rig file's mirror sizes: BLOCKED: too small for the camera's field ({lost})"
+            assert code == 1 and blocked in out
+            with pytest.raises(RigGeometryError, match=rf"^rig x's mirrors, as sized in it, are too small for the "
+                                                       rf"camera's field: {lost} \(more than 50 % is no build\); "):
+                check_clear(rig, "rig x")
+        else:
+            assert code == 0 and f"The rig file's mirror sizes: vignetted ({lost})" in out
+            assert check_clear(rig) is rig
+    assert sized_shares(default_rig()) == {"left": 0.0, "right": 0.0}      # no sizes: the paper's ideal planes

@@ -16,8 +16,9 @@ from psvs.io.atomic import output_batch, write_atomic
 from psvs.io.params import dumps_rig, rig_to_dict
 from psvs.io.tomlfile import dumps_toml
 from psvs.measure.tolerance import Sensitivity, tolerance_analysis
-from psvs.optics.design import MirrorDesign, design_mirrors
+from psvs.optics.design import MAX_BLOCKED_SHARE, MirrorDesign, design_mirrors, share_words
 from psvs.optics.mirrors import front_z_mm
+from psvs.optics.obstruction import sized_shares
 
 
 def add_parser(sub) -> None:
@@ -98,8 +99,9 @@ def format_tolerance(rows: list[Sensitivity], near_mm: float, far_mm: float) -> 
     return "\n".join(lines)
 
 
-def format_design(d: MirrorDesign) -> str:
-    """A readable mirror table with the checks."""
+def format_design(d: MirrorDesign, sized: str = "") -> str:
+    """A readable mirror table with the checks; ``sized`` a line on the rig file's own mirror sizes, after the
+    layout's."""
     rig = d.rig
     a_deg = [math.degrees(x) for x in rig.camera.half_fov_rad]
     lines = [f"Camera: f = {rig.camera.focal_length_mm:g} mm, {rig.camera.image_size_px[0]}x"
@@ -119,6 +121,8 @@ def format_design(d: MirrorDesign) -> str:
                   "vignetted": f"Layout: vignetted ({d.share_words()}: a build of it measures in the rest)",
                   "BLOCKED": f"Layout: BLOCKED ({d.share_words()}: no build)"}[d.verdict])
     lines += [f"  - {p}" for p in d.problems]
+    if sized:
+        lines.append(sized)
     if d.m2_window_mm is not None:
         lines.append(f"  M2 clears both paths for m2_axis_distance_mm in [{d.m2_window_mm[0]:.2f}, "
                      f"{d.m2_window_mm[1]:.2f}] mm")
@@ -159,7 +163,8 @@ def run(args) -> int:
     # the designed rig's file first: a design outside the rig bounds (e.g. a mirror metres long) is refused
     # before anything is printed or written
     rig_text = None if rig_out is None else dumps_rig(d.rig, "json" if rig_out.suffix.lower() == ".json" else "toml")
-    print(format_design(d))
+    sized = _sized_words(rig)
+    print(format_design(d, sized))
     if tol is not None:
         print(format_tolerance(tol, args.near_mm, args.far_mm))
     with output_batch():
@@ -171,4 +176,16 @@ def run(args) -> int:
         if rig_text is not None:
             write_atomic(rig_out, rig_text)
     overlaps = d.working_range is None or d.working_range.far_mm >= d.working_range.overlap_start_mm
-    return 0 if d.ok and overlaps else 1
+    return 0 if d.ok and overlaps and "BLOCKED" not in sized else 1
+
+
+def _sized_words(rig) -> str:
+    """A line on the rig file's own mirror sizes when it gives any (the design replaces them): what they lose of
+    each view's image (:func:`psvs.optics.obstruction.sized_shares`), BLOCKED beyond half; '' without sizes."""
+    if all(rig.mirrors.extent(n) is None for n in ("m1", "m2", "m3", "m4")):
+        return ""
+    shares = sized_shares(rig)
+    if max(shares.values()) == 0.0:
+        return "The rig file's mirror sizes: clear"
+    verdict = "BLOCKED: too small for the camera's field" if max(shares.values()) > MAX_BLOCKED_SHARE else "vignetted"
+    return f"The rig file's mirror sizes: {verdict} ({share_words(shares)})"

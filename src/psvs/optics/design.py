@@ -84,15 +84,20 @@ class MirrorDesign:
         return "clear" if self.ok else "vignetted" if self.buildable else "BLOCKED"
 
     def share_words(self) -> str:
-        """The image each view loses, in words (e.g. 'the left view loses 15 % of its image, the right 0 %')."""
-        s = self.blocked_share or {}
-        return (f"the left view loses {100 * s.get('left', 0.0):.0f} % of its image, the right "
-                f"{100 * s.get('right', 0.0):.0f} %")
+        """The image each view loses, in words (:func:`share_words`)."""
+        return share_words(self.blocked_share or {})
 
     @property
     def problems(self) -> list[str]:
         """One line per obstruction or collision (empty when :attr:`ok`)."""
         return [str(o) for o in self.obstructions] + list(self.collisions)
+
+
+def share_words(shares: dict[str, float]) -> str:
+    """The image each view loses (``{'left': 0..1, 'right': 0..1}``), in words (e.g. 'the left view loses 15 % of
+    its image, the right 0 %')."""
+    return (f"the left view loses {100 * shares.get('left', 0.0):.0f} % of its image, the right "
+            f"{100 * shares.get('right', 0.0):.0f} %")
 
 
 def footprint_extents(rig: Rig, pixels_px: np.ndarray, margin_mm: float = 0.0) -> dict[str, MirrorExtent]:

@@ -38,7 +38,8 @@ def layout_key(rig: Rig) -> str:
 def check_clear(rig: Rig, name: str = "the rig") -> Rig:
     """``rig`` itself when a build can have its layout (:attr:`~psvs.optics.design.MirrorDesign.buildable`:
     clear, or vignetting at most half of each view's image, as a build whose glass meets another beam at a
-    corner does; it measures in the rest), else :class:`~psvs.errors.RigGeometryError` saying how much of each
+    corner does; it measures in the rest) and its mirrors as sized in it lose at most as much
+    (:func:`psvs.optics.obstruction.sized_shares`), else :class:`~psvs.errors.RigGeometryError` saying how much of each
     view is lost and naming the first problem: nothing measured or exported through such a layout describes a
     build.
     ``name`` says which rig (a file's name) in the message. A rig of the same values found clear before (in
@@ -48,13 +49,18 @@ def check_clear(rig: Rig, name: str = "the rig") -> Rig:
     if key in _CLEAR or (marker is not None and marker.is_file()):
         _CLEAR.add(key)
         return rig
-    from psvs.optics.design import MAX_BLOCKED_SHARE, design_mirrors  # loaded only for a rig not yet known
+    from psvs.optics.design import MAX_BLOCKED_SHARE, design_mirrors, share_words  # only for a rig not yet known
+    from psvs.optics.obstruction import sized_shares
     d = design_mirrors(rig, search=False)
+    limit = f"(more than {100 * MAX_BLOCKED_SHARE:.0f} % is no build)"
     if not d.buildable:
         more = f" (and {len(d.problems) - 1} more)" if len(d.problems) > 1 else ""
-        raise RigGeometryError(f"{name} is no layout a build can have: {d.share_words()} "
-                               f"(more than {100 * MAX_BLOCKED_SHARE:.0f} % is no build): {d.problems[0]}{more}; "
-                               "`psvs design` shows its layout")
+        raise RigGeometryError(f"{name} is no layout a build can have: {d.share_words()} {limit}: "
+                               f"{d.problems[0]}{more}; `psvs design` shows its layout")
+    own = sized_shares(rig)
+    if max(own.values()) > MAX_BLOCKED_SHARE:
+        raise RigGeometryError(f"{name}'s mirrors, as sized in it, are too small for the camera's field: "
+                               f"{share_words(own)} {limit}; `psvs design` sizes them")
     _CLEAR.add(key)
     if marker is not None:
         with contextlib.suppress(OSError):      # a folder that cannot be written: no disk cache, no error

@@ -135,6 +135,15 @@ def find_obstructions(rig: Rig, pixels_px: np.ndarray, scene_depth_mm: float = 2
 SHARE_GRID = (48, 36)
 
 
+def share_grid(rig: Rig, grid: tuple[int, int] = SHARE_GRID) -> np.ndarray:
+    """The centres (N, 2) px of ``grid`` (columns, rows) equal cells of the rig's image."""
+    w, h = rig.camera.image_size_px
+    nu, nv = grid
+    u = (np.arange(nu) + 0.5) * w / nu - 0.5
+    v = (np.arange(nv) + 0.5) * h / nv - 0.5
+    return np.stack(np.meshgrid(u, v), axis=-1).reshape(-1, 2)
+
+
 def blocked_shares(rig: Rig, grid: tuple[int, int] = SHARE_GRID, scene_depth_mm: float = 2000.0) -> dict[str, float]:
     """The share (0..1) of each view's image (``{'left': ..., 'right': ...}``) whose light some part of the
     layout blocks: the chief rays of the centres of ``grid`` (columns, rows) equal cells of the image, each
@@ -142,12 +151,17 @@ def blocked_shares(rig: Rig, grid: tuple[int, int] = SHARE_GRID, scene_depth_mm:
     the field's border densely, where vignetting starts; this is the image's area that a build loses.
 
     ``rig`` needs finite extents on all four mirrors (e.g. :func:`psvs.optics.design.design_mirrors`' rig)."""
-    w, h = rig.camera.image_size_px
-    nu, nv = grid
-    u = (np.arange(nu) + 0.5) * w / nu - 0.5
-    v = (np.arange(nv) + 0.5) * h / nv - 0.5
-    pixels = np.stack(np.meshgrid(u, v), axis=-1).reshape(-1, 2)
+    pixels = share_grid(rig, grid)
     lost = {view: np.zeros(len(pixels), dtype=bool) for view in VIEWS}
     for _, view, _, blocked in _blocked_segments(rig, pixels, scene_depth_mm):
         lost[view] |= blocked
     return {view: float(m.mean()) for view, m in lost.items()}
+
+
+def sized_shares(rig: Rig, grid: tuple[int, int] = SHARE_GRID) -> dict[str, float]:
+    """The share (0..1) of each view's image that the rig's glass *as sized in it* loses: the centres of ``grid``
+    equal cells whose ray misses one of its own finite mirrors or meets another part
+    (:func:`psvs.optics.trace.trace_pixels`, what the renderer and the exact model trace). A rig of unbounded
+    mirrors (no sizes: the paper's ideal planes) loses nothing."""
+    pixels = share_grid(rig, grid)
+    return {view: float(np.mean(~trace_pixels(pixels, rig, view).valid)) for view in VIEWS}
