@@ -19,6 +19,7 @@ from psvs.io.atomic import output_batch
 from psvs.io.images import check_frame_size, read_grey
 from psvs.match.correspondence import MatchParams, match_image
 from psvs.match.export import write_csv, write_json, write_ply
+from psvs.optics.trace import trace_pixels
 
 
 def add_parser(sub) -> None:
@@ -66,6 +67,10 @@ def prepare(args, image=None) -> tuple:
     pipeline = pipeline_from_args(args)
     size = rig.camera.image_size_px
     image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)
+    if seed is not None and not trace_pixels([seed], rig, "left").valid[0]:
+        raise ValueError(f"the seed ({seed[0]:g}, {seed[1]:g}) lies where the rig's glass blocks the left view "
+                         "(vignetted: what the image shows there is not that view); pick a pixel on an edge of "
+                         "its lit part")
     seeds = {} if args.n_seeds is None else {"n_seeds": args.n_seeds}   # else MatchParams' default
     params = MatchParams(subpixel=not args.no_subpixel, model=args.model, **seeds)
     return (out, csv_path, ply_path), dict(grey=image, rig=rig, seed_px=seed, pipeline=pipeline, near_mm=near_mm,
