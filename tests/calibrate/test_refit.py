@@ -302,3 +302,17 @@ def test_a_tare_stated_at_the_wrong_distance_is_refused(build):
     with pytest.raises(MeasurementError, match=r"^the refit would turn m\d_tilt_a_deg by [+-]\d+\.\d+ deg, more "
                                                r"than a knock does \(at most 1 deg\) \(the tares at 600, 1000 mm"):
         refit_rig(walls, build, wrong)
+
+
+@pytest.mark.parametrize("error_mm", [-100.0, 100.0])
+def test_a_tare_whose_distance_the_rows_contradict_is_refused(build, error_mm):
+    """Adversarial trial (issue 41): a wall at 700 mm stated as 800 was taken, the refit `healthy` at 0.26 px
+    (0.02 with the truth), and the new rig read a 650 mm wall at 736 mm. The turns a wrongly stated distance asks
+    move the twins off their rows by more than their noise: refused, naming the tare."""
+    moved = knocked(build, DRIFTS["m3 and m4 (issue 43)"])
+    walls, tares = frames_of(moved, seed=80)
+    image, z = tares[0]
+    with pytest.raises(MeasurementError, match=rf"^the tares disagree with the frames: the turns their depth asks "
+                                               rf"put the twins \d\.\d\d \+- \d\.\d\d px off their rows, \d\.\d\d \+- "
+                                               rf"\d\.\d\d px without them \(the tares at {z + error_mm:g} mm: "):
+        refit_rig(walls, build, [(image, z + error_mm)])

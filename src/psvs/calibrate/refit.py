@@ -67,6 +67,10 @@ DRIFT_SIGMA_RAD = math.radians(0.1)
 #: further moved more than tilts (calibrate again); a refit that wants more is driven by a tare whose stated
 #: distance is not where the surface was (a tare 50 mm off turned every mirror by 4 deg).
 MAX_CHANGE_RAD = math.radians(1.0)
+#: A refit whose tares move the frames' twins off their rows by more than this many sigmas of the fields, and by
+#: more than TARE_ROWS_PX px, is refused: the tares' stated distances disagree with the frames.
+TARE_ROWS_SIGMAS = 3.0
+TARE_ROWS_PX = 0.1
 #: Rounds of reading the frames and fitting.
 ROUNDS = 2
 #: Each stage iterates at most ITERATIONS times, until no step exceeds STEP_DONE of a prior sigma.
@@ -146,12 +150,14 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
     new, x, pairs, steps = rig, np.zeros(len(REFIT_PARAMS)), None, []
     cov = np.diag(np.full(len(REFIT_PARAMS), DRIFT_SIGMA_RAD ** 2))
     distances = tuple(z for _, z in tares)
+    rows_only = None
     for k in range(ROUNDS):
         read = before if k == 0 else check_frames(frames, new, near_mm, far_mm, tolerance_px)
         pairs = _read_pairs(read, [img for img, _ in tares], new, near_mm, far_mm, tolerance_px)
         x, c, n_rows = _fit(_Stage(rig, pairs, x, ROW_PARAMS))
         cov[np.ix_(ROW_PARAMS, ROW_PARAMS)] = c
         steps = [n_rows]
+        rows_only = x.copy() if rows_only is None else rows_only       # the rows' answer before any tare's
         if tares:
             pairs = _on_tare_planes(x, rig, pairs, distances)
             x, c, n_depth = _fit(_Stage(rig, pairs, x, DEPTH_PARAMS, distances))
@@ -160,6 +166,9 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
         new = _rig(x, rig)
     _check_changes(x, rig, new, distances)
     after = check_frames(frames, new, near_mm, far_mm, tolerance_px)
+    if tares and np.isfinite(after.row_offset_rms_px):      # before the verdict: a wrong distance explains it
+        rows = check_frames(frames, _rig(rows_only, rig), near_mm, far_mm, tolerance_px)
+        _check_tares_agree(after, rows, distances)
     if after.verdict == "drifted":
         raise MeasurementError(f"after the refit the twins still stand off their rows ({after.reason}): what moved "
                                f"is more than the mirrors' tilts; calibrate again from card views (psvs calibrate)")
@@ -194,6 +203,23 @@ def _check_changes(x: np.ndarray, old: Rig, new: Rig, distances) -> None:
         check_clear(new, "the refitted rig")
     except RigGeometryError as exc:
         raise MeasurementError(f"{exc}{tares}") from None
+
+
+def _check_tares_agree(after: HealthCheck, rows_only: HealthCheck, distances) -> None:
+    """MeasurementError when the tares' depth moved the twins off their rows: the frames' field under the refitted
+    rig (``after``) stands more than :data:`TARE_ROWS_SIGMAS` of the two fields' uncertainties, and
+    :data:`TARE_ROWS_PX`, beyond the field under the rows' own answer (``rows_only``: the first round's, before any
+    tare was fitted). A tare at its true distance asks the turns the frames were taken with, which put the twins
+    on their rows as well as the rows' answer does; a distance stated wrongly asks turns that no frame shows, and
+    the rows say so (a tare at 700 mm stated as 800: 0.26 +- 0.05 px against 0.02 +- 0.04)."""
+    worse = after.row_offset_rms_px - rows_only.row_offset_rms_px
+    sigma = math.hypot(after.uncertainty_px, rows_only.uncertainty_px)
+    if worse > max(TARE_ROWS_SIGMAS * sigma, TARE_ROWS_PX):
+        raise MeasurementError(
+            "the tares disagree with the frames: the turns their depth asks put the twins "
+            f"{after.row_offset_rms_px:.2f} +- {after.uncertainty_px:.2f} px off their rows, "
+            f"{rows_only.row_offset_rms_px:.2f} +- {rows_only.uncertainty_px:.2f} px without them (the tares at "
+            f"{', '.join(f'{z:g}' for z in distances)} mm: is each where its surface was?)")
 
 
 def _record(rig: Rig, rms_px: float, frames: int, distances: tuple[float, ...]) -> Calibration:
