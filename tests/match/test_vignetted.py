@@ -7,9 +7,9 @@ import pytest
 from psvs import default_rig
 from psvs.io.images import write_png
 from psvs.io.params import save_rig
-from psvs.match.correspondence import lit_rows, match_image
+from psvs.match.correspondence import match_image
 from psvs.optics.design import design_mirrors
-from psvs.optics.trace import trace_pixels
+from psvs.optics.trace import lit_pairs, trace_pixels
 from psvs.simulate.builtin import textured
 from psvs.simulate.render import render
 from tests.support.cli import run
@@ -24,7 +24,7 @@ def vignetting():
     return rig, np.clip(rr.image, 0, 255).astype(np.uint8), rr
 
 
-def test_lit_rows_are_the_pixels_a_view_sees(vignetting):
+def test_lit_pairs_are_the_pixels_a_view_sees(vignetting):
     from psvs.simulate.builtin import regulated_light
     from psvs.simulate.scene import Scene
     from psvs.simulate.textures import Noise
@@ -34,10 +34,10 @@ def test_lit_rows_are_the_pixels_a_view_sees(vignetting):
     u = np.arange(0.0, 640.0, 4.0)
     left = np.stack([u, np.full_like(u, 240.0)], 1)
     right = np.stack([np.full_like(u, 320.0), np.full_like(u, 240.0)], 1)
-    lit = lit_rows(left, right, rig)
+    lit = lit_pairs(left, right, rig)
     dark = lit_wall.left[240, u.astype(int)] <= 0.0            # the renderer's unlit part of the left view
     assert dark.any() and (~dark).any() and np.array_equal(lit, ~dark)
-    assert lit_rows(left, right, default_rig()).all()       # no sizes (the paper's planes): nothing blocked
+    assert lit_pairs(left, right, default_rig()).all()       # no sizes (the paper's planes): nothing blocked
 
 
 def test_no_pair_is_made_of_a_views_unlit_part(vignetting):

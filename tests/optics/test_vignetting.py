@@ -121,10 +121,13 @@ def test_a_vignetting_build_is_measured_and_a_blocked_one_refused(capsys, tmp_pa
     code, out, _ = run(capsys, "design", "--rig", str(path))
     assert code == 1 and "Layout: vignetted (the left view loses 15 % of its image, the right 0 %: a build of it " \
                          "measures in the rest)" in out
-    pairs = tmp_path / "pairs.csv"
-    pairs.write_text("u_l,v_l,u_r,v_r\n300,240,210,240\n")
+    pairs = tmp_path / "pairs.csv"       # the second pair's left pixel where M2 blocks the left view
+    pairs.write_text("u_l,v_l,u_r,v_r\n300,240,210,240\n600,240,448,240\n")
     code, _, err = run(capsys, "triangulate", "--rig", str(path), str(pairs), "-o", str(tmp_path / "p.csv"))
-    assert code == 0, err
+    assert code == 0 and "1 pair(s) lie where the rig's glass blocks a view (vignetted; row 3: (600, 240) left, " \
+                         "(448, 240) right), marked invalid" in err, err
+    rows = np.genfromtxt(tmp_path / "p.csv", delimiter=",", names=True)
+    assert list(rows["valid"]) == [1, 0] and np.isfinite(rows["Z_mm"][0]) and np.isnan(rows["Z_mm"][1])
     blocked = default_rig().replace(baseline_mm=5.0, plate_thickness_mm=30.0)
     with pytest.raises(RigGeometryError, match=r"^rig x is no layout a build can have: the left view loses 100 % "
                                                r"of its image, the right 100 % \(more than 50 % is no build\): "):

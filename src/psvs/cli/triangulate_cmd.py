@@ -22,6 +22,7 @@ from psvs.measure.triangulate import (
     epipolar_gap_px,
     triangulate,
 )
+from psvs.optics.trace import lit_pairs
 
 
 def add_parser(sub) -> None:
@@ -52,7 +53,14 @@ def run(args) -> int:
     model = args.model or default_model(rig)
     res = triangulate(left, right, rig, model=model)
     notes = []                # why rows are invalid: printed, or the refusal's reason when no row is left
-    lost = ~res.valid
+    dark = ~lit_pairs(left, right, rig)
+    if dark.any():            # the glass blocks a view's light there: the image shows no twin of it
+        k = int(np.flatnonzero(dark)[0])
+        notes.append(f"{int(dark.sum())} pair(s) lie where the rig's glass blocks a view (vignetted; row {k + 2}: "
+                     f"({left[k, 0]:g}, {left[k, 1]:g}) left, ({right[k, 0]:g}, {right[k, 1]:g}) right)")
+        res.points_mm[dark] = np.nan
+        res.valid[dark] = False
+    lost = ~res.valid & ~dark
     if lost.any():            # rays that meet behind the rig or not at all: not a pair of this rig's twins
         k = int(np.flatnonzero(lost)[0])
         swapped = " (u_l and u_r swapped?)" if left[k, 0] - right[k, 0] <= 0 else ""

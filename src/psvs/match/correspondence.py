@@ -26,7 +26,7 @@ from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
 from psvs.optics.search_range import disparity_range, rectification_for
-from psvs.optics.trace import trace_pixels
+from psvs.optics.trace import lit_pairs
 
 
 @dataclass(frozen=True)
@@ -201,7 +201,7 @@ def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel:
                 continue
             pair = EdgePair(left[ok], right[ok], pair.disparity_px[ok], pair.left_label, pair.right_label,
                             pair.shape_disparity_px)
-        seen = lit_rows(pair.left_px, pair.right_px, rig)
+        seen = lit_pairs(pair.left_px, pair.right_px, rig)
         if not seen.any():         # every row in a part of a view the glass blocks: an edge of the glass, no pair
             continue
         if not seen.all():
@@ -210,14 +210,3 @@ def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel:
         res = triangulate(pair.left_px, pair.right_px, rig, model=model)
         out.append(pair.with_points(res.points_mm))
     return out
-
-
-def lit_rows(left_px: np.ndarray, right_px: np.ndarray, rig: Rig) -> np.ndarray:
-    """bool (N,): the pairs (complex-image px, (N, 2) each) whose left pixel the left view's light reaches and
-    whose right pixel the right view's does, through the rig's glass as sized in it
-    (:func:`psvs.optics.trace.trace_pixels`): where the glass vignettes a view, what the image shows there is
-    not that view (its edges are the glass's or the other view's). A rig without mirror sizes (the paper's ideal
-    planes) blocks nothing."""
-    if all(rig.mirrors.extent(n) is None for n in ("m1", "m2", "m3", "m4")) or not len(left_px):
-        return np.ones(len(left_px), dtype=bool)
-    return trace_pixels(left_px, rig, "left").valid & trace_pixels(right_px, rig, "right").valid

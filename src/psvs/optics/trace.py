@@ -263,3 +263,14 @@ def trace_pixels(uv_px, rig: Rig, view: str, hits: list | None = None) -> Rays:
     if not finite_solids(rig):
         return rays
     return rays._replace(valid=rays.valid & ~occluded(rig, hits, rays.origins_mm, rays.dirs))
+
+
+def lit_pairs(left_px: np.ndarray, right_px: np.ndarray, rig: Rig) -> np.ndarray:
+    """bool (N,): the pairs (complex-image px, (N, 2) each) whose left pixel the left view's light reaches and
+    whose right pixel the right view's does, through the rig's glass as sized in it
+    (:func:`trace_pixels`): where the glass vignettes a view, what the image shows there is
+    not that view (its edges are the glass's or the other view's). A rig without mirror sizes (the paper's ideal
+    planes) blocks nothing."""
+    if all(rig.mirrors.extent(n) is None for n in ("m1", "m2", "m3", "m4")) or not len(left_px):
+        return np.ones(len(left_px), dtype=bool)
+    return trace_pixels(left_px, rig, "left").valid & trace_pixels(right_px, rig, "right").valid
