@@ -26,6 +26,7 @@ from psvs.optics.trace import trace_pixels
 #: blocked than seen, a rig file that is wrong rather than a build that vignettes.
 MAX_BLOCKED_SHARE = 0.5
 
+
 @dataclass(frozen=True)
 class MirrorSpec:
     """One mirror of a design: where it is and how big it must be (mm)."""
