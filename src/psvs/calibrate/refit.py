@@ -157,7 +157,8 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
         x, c, n_rows = _fit(_Stage(rig, pairs, x, ROW_PARAMS))
         cov[np.ix_(ROW_PARAMS, ROW_PARAMS)] = c
         steps = [n_rows]
-        rows_only = x.copy() if rows_only is None else rows_only       # the rows' answer before any tare's
+        if k == 0:
+            rows_only = x.copy()        # the rows' answer before any tare's
         if tares:
             pairs = _on_tare_planes(x, rig, pairs, distances)
             x, c, n_depth = _fit(_Stage(rig, pairs, x, DEPTH_PARAMS, distances))

@@ -19,6 +19,7 @@ from psvs.measure.tolerance import Sensitivity, tolerance_analysis
 from psvs.optics.design import MAX_BLOCKED_SHARE, MirrorDesign, design_mirrors, share_words
 from psvs.optics.mirrors import front_z_mm
 from psvs.optics.obstruction import sized_shares
+from psvs.optics.solids import finite_solids
 
 
 def add_parser(sub) -> None:
@@ -163,7 +164,7 @@ def run(args) -> int:
     # the designed rig's file first: a design outside the rig bounds (e.g. a mirror metres long) is refused
     # before anything is printed or written
     rig_text = None if rig_out is None else dumps_rig(d.rig, "json" if rig_out.suffix.lower() == ".json" else "toml")
-    sized = _sized_words(rig)
+    sized, too_small = _sized_words(rig)
     print(format_design(d, sized))
     if tol is not None:
         print(format_tolerance(tol, args.near_mm, args.far_mm))
@@ -176,16 +177,19 @@ def run(args) -> int:
         if rig_text is not None:
             write_atomic(rig_out, rig_text)
     overlaps = d.working_range is None or d.working_range.far_mm >= d.working_range.overlap_start_mm
-    return 0 if d.ok and overlaps and "BLOCKED" not in sized else 1
+    return 0 if d.ok and overlaps and not too_small else 1
 
 
-def _sized_words(rig) -> str:
-    """A line on the rig file's own mirror sizes when it gives any (the design replaces them): what they lose of
-    each view's image (:func:`psvs.optics.obstruction.sized_shares`), BLOCKED beyond half; '' without sizes."""
-    if all(rig.mirrors.extent(n) is None for n in ("m1", "m2", "m3", "m4")):
-        return ""
+def _sized_words(rig) -> tuple[str, bool]:
+    """(a line on the rig file's own mirror sizes when it gives any, the design replacing them: what they lose of
+    each view's image (:func:`psvs.optics.obstruction.sized_shares`), BLOCKED beyond half, '' without sizes;
+    whether they are BLOCKED)."""
+    if not finite_solids(rig):
+        return "", False
     shares = sized_shares(rig)
-    if max(shares.values()) == 0.0:
-        return "The rig file's mirror sizes: clear"
-    verdict = "BLOCKED: too small for the camera's field" if max(shares.values()) > MAX_BLOCKED_SHARE else "vignetted"
-    return f"The rig file's mirror sizes: {verdict} ({share_words(shares)})"
+    worst = max(shares.values())
+    if worst == 0.0:
+        return "The rig file's mirror sizes: clear", False
+    too_small = worst > MAX_BLOCKED_SHARE
+    verdict = "BLOCKED: too small for the camera's field" if too_small else "vignetted"
+    return f"The rig file's mirror sizes: {verdict} ({share_words(shares)})", too_small

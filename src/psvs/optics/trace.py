@@ -271,6 +271,6 @@ def lit_pairs(left_px: np.ndarray, right_px: np.ndarray, rig: Rig) -> np.ndarray
     (:func:`trace_pixels`): where the glass vignettes a view, what the image shows there is
     not that view (its edges are the glass's or the other view's). A rig without mirror sizes (the paper's ideal
     planes) blocks nothing."""
-    if all(rig.mirrors.extent(n) is None for n in ("m1", "m2", "m3", "m4")) or not len(left_px):
+    if not finite_solids(rig) or not len(left_px):
         return np.ones(len(left_px), dtype=bool)
     return trace_pixels(left_px, rig, "left").valid & trace_pixels(right_px, rig, "right").valid
