@@ -26,6 +26,83 @@ from psvs.dense.sgm import _penalty, winner
 _BIG = np.float32(1e30)    # a lane outside a band: never a path's minimum (finite: fastmath)
 
 
+#: The lanes of a band the default parameters give (``DenseParams.band_lags``): the kernels have a copy compiled
+#: for that count, whose lane loops the compiler unrolls (the band aggregation 1.3 times faster, the local
+#: winners 1.5 times, the same numbers); other counts run the general copy.
+LANES = 6
+
+
+@nb.njit(cache=True, fastmath=SAFE_MATH, inline="always")
+def _costs_row(fp, grp, stats, offs, r, d_hi, costs, tops, task, nb_):  # noqa: PLR0913  # pragma: no cover - compiled
+    """Row ``task`` of :func:`_band_costs` (the left view's row ``task``, or the right view's row ``task`` − H);
+    ``nb_`` the lanes (a constant in the copy for :data:`LANES`). Arrays are read element by element, never
+    through a row view: a view costs an atomic reference count, shared by the threads (13 % of the time)."""
+    h, w = costs.shape[1], costs.shape[2]
+    wp = fp.shape[1]
+    pad = (wp - w) // 2
+    inv = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
+    right_view = task >= h
+    v = 1 if right_view else 0
+    y = task - h if right_view else task
+    acc = np.empty(nb_, np.float32)
+    e = np.empty(nb_, np.float32)
+    for x in range(w):
+        o = offs[v, y, x]
+        n_ok = min(nb_, d_hi - o + 1, (w - x - o) if right_view else (x - o + 1))
+        if n_ok <= 0:
+            for k in range(nb_):
+                costs[v, y, x, k] = 0.0
+            tops[v, y, x] = 0.0
+            continue
+        for k in range(nb_):
+            acc[k] = 0.0
+        for j in range(2 * r + 1):
+            for i in range(-r, r + 1):
+                if right_view:        # Σ f(x + d + i) g(x + i): f runs forward with the lag
+                    gv = grp[y + j, wp - 1 - (x + i + pad)]
+                    c0 = x + i + o + pad
+                    for k in range(nb_):
+                        acc[k] += fp[y + j, c0 + k] * gv
+                else:                 # Σ f(x + i) g(x − d + i): g reversed runs forward with the lag
+                    fv = fp[y + j, x + i + pad]
+                    c0 = wp - 1 - (x + i - o + pad)
+                    for k in range(nb_):
+                        acc[k] += fv * grp[y + j, c0 + k]
+        if right_view:
+            c0, cg = x + o + pad, wp - 1 - (x + pad)
+            mg, sg = stats[3, y, cg], stats[4, y, cg]
+            for k in range(nb_):
+                e[k] = (acc[k] * inv - stats[0, y, c0 + k] * mg) * (stats[1, y, c0 + k] * sg) * stats[2, y, c0 + k]
+        else:
+            mf, sf, a = stats[0, y, x + pad], stats[1, y, x + pad], stats[2, y, x + pad]
+            c0 = wp - 1 - (x - o + pad)
+            for k in range(nb_):
+                e[k] = (acc[k] * inv - mf * stats[3, y, c0 + k]) * (sf * stats[4, y, c0 + k]) * a
+        best = e[0]
+        for k in range(1, n_ok):
+            best = max(best, e[k])
+        worst = np.float32(0.0)
+        for k in range(n_ok):
+            c = best - e[k]
+            costs[v, y, x, k] = c
+            worst = max(worst, c)
+        for k in range(n_ok, nb_):
+            costs[v, y, x, k] = worst
+        tops[v, y, x] = best
+
+
+@nb.njit(cache=True, fastmath=SAFE_MATH)
+def _costs_row_any(fp, grp, stats, offs, r, d_hi, costs, tops, task):  # noqa: PLR0913  # pragma: no cover - compiled
+    """:func:`_costs_row` of any lane count."""
+    _costs_row(fp, grp, stats, offs, r, d_hi, costs, tops, task, costs.shape[3])
+
+
+@nb.njit(cache=True, fastmath=SAFE_MATH)
+def _costs_row_lanes(fp, grp, stats, offs, r, d_hi, costs, tops, task):  # noqa: PLR0913  # pragma: no cover - compiled
+    """:func:`_costs_row` of :data:`LANES` lanes."""
+    _costs_row(fp, grp, stats, offs, r, d_hi, costs, tops, task, LANES)
+
+
 @nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
 def _band_costs(fp, grp, stats, offs, r, d_hi, costs, tops):  # noqa: PLR0913  # pragma: no cover - compiled
     """The band costs (H, W, B) of both views' maps into ``costs`` (2, H, W, B) (>= 0, a pixel's best lane
@@ -39,72 +116,15 @@ def _band_costs(fp, grp, stats, offs, r, d_hi, costs, tops):  # noqa: PLR0913  #
     (padded and reversed as ``grp``); ``offs`` (2, H, W) int64 the bands' first lags; lanes above ``d_hi`` or
     without a twin in the image take the pixel's worst cost (never favoured), a pixel without any
     an all-zero (neutral) cost."""
-    h, w, nb_ = costs.shape[1:]
-    wp = fp.shape[1]
-    pad = (wp - w) // 2
-    inv = np.float32(1.0 / ((2 * r + 1) * (2 * r + 1)))
-    for task in nb.prange(2 * h):
-        t = np.int64(task)
-        right_view = t >= h
-        y = t - h if right_view else t
-        off, cost, top = offs[1 if right_view else 0], costs[1 if right_view else 0], tops[1 if right_view else 0]
-        acc = np.empty(nb_, np.float32)
-        e = np.empty(nb_, np.float32)
-        mu_f, isd_f, ap = stats[0, y], stats[1, y], stats[2, y]
-        mu_g, isd_g = stats[3, y], stats[4, y]
-        for x in range(w):
-            o = off[y, x]
-            n_ok = min(nb_, d_hi - o + 1, (w - x - o) if right_view else (x - o + 1))
-            out = cost[y, x]
-            if n_ok <= 0:
-                for k in range(nb_):
-                    out[k] = 0.0
-                top[y, x] = 0.0
-                continue
-            for k in range(nb_):
-                acc[k] = 0.0
-            for j in range(2 * r + 1):
-                fy, gy = fp[y + j], grp[y + j]
-                for i in range(-r, r + 1):
-                    if right_view:        # Σ f(x + d + i) g(x + i): f runs forward with the lag
-                        gv = gy[wp - 1 - (x + i + pad)]
-                        fs = fy[x + i + o + pad:x + i + o + pad + nb_]
-                        for k in range(nb_):
-                            acc[k] += fs[k] * gv
-                    else:                 # Σ f(x + i) g(x − d + i): g reversed runs forward with the lag
-                        fv = fy[x + i + pad]
-                        c0 = wp - 1 - (x + i - o + pad)
-                        gs = gy[c0:c0 + nb_]
-                        for k in range(nb_):
-                            acc[k] += fv * gs[k]
-            if right_view:
-                c0 = x + o + pad
-                mf, sf, a = mu_f[c0:c0 + nb_], isd_f[c0:c0 + nb_], ap[c0:c0 + nb_]
-                mg, sg = mu_g[wp - 1 - (x + pad)], isd_g[wp - 1 - (x + pad)]
-                for k in range(nb_):
-                    e[k] = (acc[k] * inv - mf[k] * mg) * (sf[k] * sg) * a[k]
-            else:
-                mf, sf, a = mu_f[x + pad], isd_f[x + pad], ap[x + pad]
-                c0 = wp - 1 - (x - o + pad)
-                mg, sg = mu_g[c0:c0 + nb_], isd_g[c0:c0 + nb_]
-                for k in range(nb_):
-                    e[k] = (acc[k] * inv - mf * mg[k]) * (sf * sg[k]) * a
-            best = e[0]
-            for k in range(1, n_ok):
-                best = max(best, e[k])
-            worst = np.float32(0.0)
-            for k in range(n_ok):
-                out[k] = best - e[k]
-                worst = max(worst, out[k])
-            for k in range(n_ok, nb_):
-                out[k] = worst
-            top[y, x] = best
+    for task in nb.prange(2 * costs.shape[1]):
+        _costs_row_any(fp, grp, stats, offs, r, d_hi, costs, tops, np.int64(task))
 
 
-#: The lanes of a band the default parameters give (``DenseParams.band_lags``): the kernels have a copy compiled
-#: for that count, whose lane loops the compiler unrolls (the band aggregation 1.3 times faster, the local
-#: winners 1.5 times, the same numbers); other counts run the general copy.
-LANES = 6
+@nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
+def _band_costs_lanes(fp, grp, stats, offs, r, d_hi, costs, tops):  # noqa: PLR0913  # pragma: no cover - compiled
+    """:func:`_band_costs` of :data:`LANES` lanes."""
+    for task in nb.prange(2 * costs.shape[1]):
+        _costs_row_lanes(fp, grp, stats, offs, r, d_hi, costs, tops, np.int64(task))
 
 
 @nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH, inline="always")
@@ -112,7 +132,7 @@ def _band_pass(cost, off, down, diagonals, p1, p2, guide, tau, sums, best, nb_):
     """One pass of the band aggregation (module docstring) over all rows: ``down`` writes its sum of paths
     into ``sums`` (H, W, B); the up pass adds ``sums`` and writes each pixel's winner, as the disparity
     o + lane + sub-pixel offset, into ``best`` (H, W) float64. ``nb_``: B (a constant in a copy for
-    :data:`LANES`)."""
+    :data:`LANES`). Arrays are read element by element, not through row views (:func:`_costs_row`)."""
     h, w = cost.shape[0], cost.shape[1]
     pad = nb_ + 2                                    # lanes of padding each side of a band in the states
     n_k = 4 if diagonals else 2                      # 0 the row's path, 1 from above, 2 from x − s, 3 from x + s
@@ -121,85 +141,90 @@ def _band_pass(cost, off, down, diagonals, p1, p2, guide, tau, sums, best, nb_):
     mins = np.zeros((2, n_k, w + 2), np.float32)
     state[:, :, 0, :] = 0.0                          # outside the image: a zero source, minimum zero (L = c)
     state[:, :, w + 1, :] = 0.0
-    zero = np.zeros(nb_ + 2 * pad, np.float32)       # the row before the first: L = c
     offs = np.zeros(w + 2, np.int64)                 # the bands' first lags, columns shifted by one
     prev_offs = np.zeros(w + 2, np.int64)
     pen = np.empty((n_k, w), np.float32)
     row_sum = np.empty(nb_, np.float32)
     lim = nb_ + 1
     for iy in range(h):
-        prev, cur = state[iy % 2], state[(iy + 1) % 2]
-        pmin, cmin = mins[iy % 2], mins[(iy + 1) % 2]
+        pi, ci = iy % 2, (iy + 1) % 2                # the previous row's state, this row's
         y = iy if down else h - 1 - iy
         yp = min(max(y - s, 0), h - 1)
         for x in range(w):
             offs[x + 1] = off[y, x]
             prev_offs[x + 1] = off[yp, x] if iy > 0 else off[y, x]
-        gy, gp = guide[y], guide[yp]
         for x in range(w):
-            pen[0, x] = _penalty(gy[x], gy[min(max(x - s, 0), w - 1)], p1, p2, tau)
-            pen[1, x] = _penalty(gy[x], gp[x], p1, p2, tau)
+            g = guide[y, x]
+            pen[0, x] = _penalty(g, guide[y, min(max(x - s, 0), w - 1)], p1, p2, tau)
+            pen[1, x] = _penalty(g, guide[yp, x], p1, p2, tau)
             if diagonals:
-                pen[2, x] = _penalty(gy[x], gp[min(max(x - s, 0), w - 1)], p1, p2, tau)
-                pen[3, x] = _penalty(gy[x], gp[min(max(x + s, 0), w - 1)], p1, p2, tau)
+                pen[2, x] = _penalty(g, guide[yp, min(max(x - s, 0), w - 1)], p1, p2, tau)
+                pen[3, x] = _penalty(g, guide[yp, min(max(x + s, 0), w - 1)], p1, p2, tau)
         for ix in range(w):                          # the row's path, in its own direction
             x = ix if down else w - 1 - ix
             xb, xq = x + 1, x + 1 - s
             dl = 0 if (xq == 0 or xq == w + 1) else min(max(offs[xb] - offs[xq], -lim), lim)
-            _step(cost[y, x], cur[0, xq], cmin[0, xq], pen[0, x], p1, pad + dl, cur[0, xb], cmin[0], xb, nb_)
+            _step(cost, y, x, state, ci, 0, xq, mins[ci, 0, xq], pen[0, x], p1, pad + dl, state, ci, xb, mins, nb_)
         for x in range(w):                           # the paths from the previous row
             xb = x + 1
             for kk in range(1, n_k):
                 xq = xb if kk == 1 else (xb - s if kk == 2 else xb + s)
-                if iy == 0:
-                    _step(cost[y, x], zero, np.float32(0.0), pen[kk, x], p1, pad, cur[kk, xb], cmin[kk], xb, nb_)
+                if iy == 0:                          # the row before the first: a zero source, L = c
+                    lo = np.float32(3e38)
+                    for k in range(nb_):
+                        state[ci, kk, xb, pad + k] = cost[y, x, k]
+                        lo = min(lo, cost[y, x, k])
+                    mins[ci, kk, xb] = lo
                     continue
                 dl = 0 if (xq == 0 or xq == w + 1) else min(max(offs[xb] - prev_offs[xq], -lim), lim)
-                _step(cost[y, x], prev[kk, xq], pmin[kk, xq], pen[kk, x], p1, pad + dl, cur[kk, xb], cmin[kk], xb, nb_)
+                _step(cost, y, x, state, pi, kk, xq, mins[pi, kk, xq], pen[kk, x], p1, pad + dl, state, ci, xb, mins,
+                      nb_)
             for k in range(nb_):
-                row_sum[k] = cur[0, xb, pad + k]
+                row_sum[k] = state[ci, 0, xb, pad + k]
             for kk in range(1, n_k):
-                src = cur[kk, xb]
                 for k in range(nb_):
-                    row_sum[k] += src[pad + k]
+                    row_sum[k] += state[ci, kk, xb, pad + k]
             if down:
-                sums[y, x, :] = row_sum
+                for k in range(nb_):
+                    sums[y, x, k] = row_sum[k]
             else:
-                tot = sums[y, x]
                 lowest = np.float32(3e38)
                 for k in range(nb_):
-                    row_sum[k] += tot[k]
+                    row_sum[k] += sums[y, x, k]
                     lowest = min(lowest, row_sum[k])
                 k, frac = winner(row_sum, nb_, lowest)
                 best[y, x] = offs[xb] + k + frac
 
 
 @nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH, inline="always")
-def _step(c, src, m, pen, p1, at, dst, dst_min, xb, nb_):  # noqa: PLR0913  # pragma: no cover - compiled
-    """One path's step into pixel ``xb``: L(k) = c(k) + min(L_q(k'), L_q(k' ± 1) + p1, m + pen) − m with
-    k' = k + shift (``at`` = the padding plus the shift, into ``src``, q's padded state row); ``m``: q's
-    minimum; ``nb_`` the lanes of c. Writes dst[pad + k] and dst_min[xb]."""
-    a = src[at - 1:at + nb_ + 1]
+def _step(cost, y, x, src, si, kk, xq, m, pen, p1, at, dst, ci, xb, mins, nb_):  # noqa: PLR0913  # pragma: no cover - compiled
+    """One path's step into pixel (y, x) (column ``xb`` of the states): L(k) = c(k) + min(L_q(k'),
+    L_q(k' ± 1) + p1, m + pen) − m with k' = k + shift, L_q path ``kk``'s state at column ``xq`` of ``src``'s
+    row ``si`` (``at`` = the padding plus the shift), ``m`` q's minimum; ``nb_`` the lanes of c. Writes path
+    ``kk``'s state at column ``xb`` of ``dst``'s row ``ci``, its minimum into ``mins``. (``src`` and ``dst``
+    are the same states, passed twice: read and written through two names, the pass ran 15 % faster.)"""
     j = m + pen
     lo = np.float32(3e38)
-    base = (dst.shape[0] - nb_) // 2
+    base = (dst.shape[3] - nb_) // 2
     for k in range(nb_):
-        v = c[k] + min(min(a[k], a[k + 2]) + p1, min(a[k + 1], j)) - m
-        dst[base + k] = v
+        v = cost[y, x, k] + min(min(src[si, kk, xq, at - 1 + k], src[si, kk, xq, at + 1 + k]) + p1,
+                                min(src[si, kk, xq, at + k], j)) - m
+        dst[ci, kk, xb, base + k] = v
         lo = min(lo, v)
-    dst_min[xb] = lo
+    mins[ci, kk, xb] = lo
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH)
 def _band_map(cost, off, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
     """One map's aggregation: the down pass into ``sums``, the up pass picking into ``best``. The passes are
     inlined here, not in the parallel kernels: Numba's parallel passes over their bodies took most of the
-    compile time (20 s for the copy of :data:`LANES` lanes)."""
+    compile time (20 s for the copy of :data:`LANES` lanes). (An inlined function compiles with its caller's
+    fast-math flags: without them here, the passes' minima did not vectorise.)"""
     _band_pass(cost, off, True, diagonals, p1, p2, guide, tau, sums, best, cost.shape[2])
     _band_pass(cost, off, False, diagonals, p1, p2, guide, tau, sums, best, cost.shape[2])
 
 
-@nb.njit(cache=True, nogil=True)
+@nb.njit(cache=True, nogil=True, fastmath=SAFE_MATH)
 def _band_map_lanes(cost, off, diagonals, p1, p2, guide, tau, sums, best):  # noqa: PLR0913  # pragma: no cover - compiled
     """:func:`_band_map` of :data:`LANES` lanes."""
     _band_pass(cost, off, True, diagonals, p1, p2, guide, tau, sums, best, LANES)
@@ -270,7 +295,8 @@ def band_costs(features_left: np.ndarray, features_right: np.ndarray, stats: tup
     costs = np.empty((2, h, w, n_lanes), np.float32) if out is None else out
     top = np.empty((2, h, w), np.float32)
     offsets = np.ascontiguousarray(offsets, dtype=np.int64)
-    _band_costs(fp, grp, st, offsets, radius, int(d_hi), costs, top)
+    kernel = _band_costs_lanes if n_lanes == LANES else _band_costs
+    kernel(fp, grp, st, offsets, radius, int(d_hi), costs, top)
     return costs, top
 
 
