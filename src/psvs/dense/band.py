@@ -291,7 +291,10 @@ def band_costs(features_left: np.ndarray, features_right: np.ndarray, stats: tup
     mu_f, isd_f, mu_g, isd_g, aperture = stats
     st = np.empty((5, h, w + 2 * pad), np.float32)
     for k, (a, reverse) in enumerate(((mu_f, False), (isd_f, False), (aperture, False), (mu_g, True), (isd_g, True))):
-        st[k] = cv2.flip(edge(a, 0), 1) if reverse else edge(a, 0)
+        if reverse:       # written into their rows of st: one copy less of each (1.5 MP: 5 x 7 MB)
+            cv2.flip(edge(a, 0), 1, dst=st[k])
+        else:
+            cv2.copyMakeBorder(np.asarray(a, np.float32), 0, 0, pad, pad, cv2.BORDER_REPLICATE, dst=st[k])
     costs = np.empty((2, h, w, n_lanes), np.float32) if out is None else out
     top = np.empty((2, h, w), np.float32)
     offsets = np.ascontiguousarray(offsets, dtype=np.int64)
