@@ -36,7 +36,7 @@ LANES = 6
 def _costs_row(fp, grp, stats, offs, r, d_hi, costs, tops, task, nb_):  # noqa: PLR0913  # pragma: no cover - compiled
     """Row ``task`` of :func:`_band_costs` (the left view's row ``task``, or the right view's row ``task`` − H);
     ``nb_`` the lanes (a constant in the copy for :data:`LANES`). Arrays are read element by element, never
-    through a row view: a view costs an atomic reference count, shared by the threads (13 % of the time)."""
+    through a row view: a view costs an atomic reference count, shared by the threads (docs/dense-speed.md)."""
     h, w = costs.shape[1], costs.shape[2]
     wp = fp.shape[1]
     pad = (wp - w) // 2
