@@ -284,8 +284,8 @@ def band_costs(features_left: np.ndarray, features_right: np.ndarray, stats: tup
     f = np.asarray(features_left, dtype=np.float32)
     h, w = f.shape
     pad = radius + n_lanes + 1
-    edge = lambda a, rows: cv2.copyMakeBorder(np.asarray(a, np.float32), rows, rows, pad, pad,  # noqa: E731
-                                              cv2.BORDER_REPLICATE)
+    edge = lambda a, rows, dst=None: cv2.copyMakeBorder(np.asarray(a, np.float32), rows, rows, pad, pad,  # noqa: E731
+                                                        cv2.BORDER_REPLICATE, dst=dst)
     fp = edge(f, radius)
     grp = cv2.flip(edge(features_right, radius), 1)        # columns reversed
     mu_f, isd_f, mu_g, isd_g, aperture = stats
@@ -294,7 +294,7 @@ def band_costs(features_left: np.ndarray, features_right: np.ndarray, stats: tup
         if reverse:       # written into their rows of st: one copy less of each (1.5 MP: 5 x 7 MB)
             cv2.flip(edge(a, 0), 1, dst=st[k])
         else:
-            cv2.copyMakeBorder(np.asarray(a, np.float32), 0, 0, pad, pad, cv2.BORDER_REPLICATE, dst=st[k])
+            edge(a, 0, st[k])
     costs = np.empty((2, h, w, n_lanes), np.float32) if out is None else out
     top = np.empty((2, h, w), np.float32)
     offsets = np.ascontiguousarray(offsets, dtype=np.int64)
