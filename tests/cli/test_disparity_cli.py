@@ -370,3 +370,42 @@ def test_an_image_too_small_for_the_echo_test_says_so(capsys, tmp_path):
                            "image at the level it is tested): its patches are 32 px and more a side, each needing "
                            "its twin inside the image at 48 lags or more")
     assert not (tmp_path / "d.npy").exists()
+
+
+def test_a_wall_far_beyond_the_range_is_refused_as_a_short_repeat(capsys, tmp_path):
+    """A textured wall at 20 px, searched at 60..80 px (below half the search's lower end: a surface far beyond
+    the range, or a texture repeating every 20 px): exit 1, one line naming the repeat and its lag, nothing
+    written."""
+    import re
+    left, right, _, _ = layered_pair(384, 512, 20, 20, (96, 320, 160, 448), 3)
+    img, out = tmp_path / "far.png", tmp_path / "d.npy"
+    write_png(img, np.clip(np.rint(superimpose(left, right)), 0, 255).astype(np.uint8))
+    code, text, err = run(capsys, "disparity", str(img), "--min-disparity", "60", "--max-disparity", "80", "-o",
+                          str(out))
+    assert code == 1 and text == "" and len(err.strip().splitlines()) == 1, err
+    m = re.match(r"psvs disparity: cannot measure: the image echoes beyond chance only as a short repeat along its "
+                 r"rows, not in the searched disparities 60\.\.80 px: (\d+) cells of \d+ px a side correlate with "
+                 r"themselves (\d+) px to their left \(([\d.]+) spreads where chance reaches ([\d.]+)\)", err)
+    assert m, err
+    assert int(m.group(1)) > 50 and abs(int(m.group(2)) - 20) <= 2 and float(m.group(3)) > float(m.group(4))
+    assert not out.exists()
+
+
+def test_a_brick_card_nearer_than_the_range_says_it_repeats(capsys, tmp_path):
+    """The built-in textured scene searched at 700-1200 mm: its brick card (about 530 mm) correlates with itself
+    every 10 px, and the method answered it at the wall's lag (a multiple of that); the line says where the
+    image repeats, and the confidence map is 0 over nine tenths of the card."""
+    import re
+    img, truth, out, conf = (tmp_path / n for n in ("tex.png", "tex.npz", "d.npy", "c.npy"))
+    assert run(capsys, "simulate", "textured", "--rig", "default", "-o", str(img), "--truth", str(truth))[0] == 0
+    code, text, err = run(capsys, "disparity", str(img), "--rig", "default", "--near-mm", "700", "--far-mm", "1200",
+                          "-o", str(out), "--confidence", str(conf))
+    assert code == 0, err
+    m = re.search(r"; part of the image repeats along its rows: (\d+) cells of \d+ px a side correlate with "
+                  r"themselves (\d+) px to their left", text)
+    assert m, text
+    assert abs(int(m.group(2)) - 10) <= 2
+    z = np.load(truth)["depth_left_mm"]
+    rows, cols = np.mgrid[0:z.shape[0], 0:z.shape[1]]
+    card = np.isfinite(z) & (z < 650) & (cols < 330) & (rows > 320)
+    assert card.sum() > 10000 and (np.load(conf)[card] == 0).mean() >= 0.9

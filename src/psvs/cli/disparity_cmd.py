@@ -190,6 +190,9 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
         if trust.elsewhere is not None and trust.elsewhere.any:
             raise MeasurementError(f"the image echoes beyond chance only outside the searched disparities "
                                    f"{lo:.0f}..{hi:.0f} px: {elsewhere_words(trust)}")
+        if trust.elsewhere is not None and trust.elsewhere.repeats:
+            raise MeasurementError(f"the image echoes beyond chance only as a short repeat along its rows, not in "
+                                   f"the searched disparities {lo:.0f}..{hi:.0f} px: {repeat_words(trust)}")
         raise MeasurementError(f"no part of the image echoes beyond chance: {strongest_echo(trust)}: the image "
                                f"shows no echo of the disparities {lo:.0f}..{hi:.0f} px")
     return dataclasses.replace(dense, result=trusted_maps(res, trust)), trust
@@ -241,6 +244,16 @@ def elsewhere_words(trust: EchoTrust) -> str:
             "(--near-mm/--far-mm, or --min-disparity/--max-disparity) to measure it")
 
 
+def repeat_words(trust: EchoTrust) -> str:
+    """Where the image's texture repeats along its rows (psvs.dense.elsewhere), in words a user can check."""
+    e = trust.elsewhere
+    k = 2 ** trust.level
+    return (f"{int(e.repeating.sum())} cells of {e.cell_px * e.scale * k:.0f} px a side correlate with themselves "
+            f"{e.period_px * k:.0f} px to their left ({e.period_z:.1f} spreads where chance reaches "
+            f"{e.period_threshold:.1f}): a texture that repeats along the rows (bricks, stripes), or a surface far "
+            "beyond the range; there only a surface whose own echo supports its answer is trusted")
+
+
 def _summary(dense: RigDense, trust: EchoTrust) -> str:
     res = dense.result
     d = res.disparity_left[np.isfinite(res.disparity_left)]
@@ -250,7 +263,9 @@ def _summary(dense: RigDense, trust: EchoTrust) -> str:
             f"{trust.test.strongest_threshold:.1f}), disparity {np.median(d):.1f} px median "
             f"({res.searched_px[0]:.0f}..{res.searched_px[1]:.0f} searched)"
             + (f"; part of the image echoes outside the range searched: {elsewhere_words(trust)}"
-               if trust.elsewhere is not None and trust.elsewhere.any else ""))
+               if trust.elsewhere is not None and trust.elsewhere.any else "")
+            + (f"; part of the image repeats along its rows: {repeat_words(trust)}"
+               if trust.elsewhere is not None and trust.elsewhere.repeats else ""))
 
 
 def prepare(args, image=None) -> tuple:

@@ -1,4 +1,5 @@
-"""Echo outside the searched disparities: a surface whose twin lies beyond the asked range.
+"""Echo outside the searched disparities: a surface whose twin lies beyond the asked range, and a texture that
+repeats along its rows.
 
 The dense method answers every pixel with a lag of the range it searched. A surface whose twin lies outside
 that range (nearer than ``--near-mm``, beyond ``--far-mm``: a narrowed search, or a hand in front of the rig)
@@ -9,16 +10,22 @@ stand at 580 mm trusted 51 % of the pixels, a fifth of them more than 10 % off i
 
 The test here asks, for each patch, where along the *whole* row its echo is strongest: the statistic,
 standardisation and chance level of :func:`psvs.dense.echo_test.echo_test` over every lag the image allows
-(one level coarser than the echo test's, which costs about what that test costs). A patch whose strongest
-correlation stands beyond chance at a lag outside the searched range (by more than :data:`EDGE_LAGS`) echoes
-*elsewhere*; one whose strongest stands beyond chance inside it echoes *here*. A cell covered by a patch that
-echoes elsewhere and by none that echoes here shows a surface the search could not reach: no answer in it, or
-in the cells beside it (a patch that also shows the surface in the range keeps its cells, so the surface's
-border would stay), is trusted, whatever region it belongs to. Below the range only lags down to
-:data:`BELOW` times its lower end are looked at: at smaller lags a texture repeating along the row correlates
-with itself. A repeating texture (peaks at several lags) is left to the echo
-test's own ambiguity rule. On an image without echo a cell is flagged with probability :data:`ALPHA` at most,
-and flagging only takes trust away.
+(one level coarser than the echo test's, which costs about what that test costs). A patch that echoes beyond
+chance at a lag of the searched range (within :data:`EDGE_LAGS` of it) echoes *here*. One that does not, and
+whose strongest correlation stands beyond chance outside the range, echoes *elsewhere*: above the range, or
+below it down to :data:`BELOW` times its lower end (a surface up to about 1 / BELOW times as far as the far
+end), it shows a surface the search could not reach; further below, at a lag short beside the range, it
+*repeats*: a texture that repeats along the row (bricks of period p correlate with themselves at p, 2p ...,
+and at some multiple inside the range: the method then answers the repeat, not the twin), or a surface far
+beyond the range. Each patch size judges its own cells (a small patch on an object sees it alone; a large
+one across the object's border sees the surface behind it too): a cell is flagged when patches of one size
+echo elsewhere there and none of that size echoes here, and the cells beside flagged cells are flagged too
+(the border that a patch also showing the range keeps). In a cell beyond the range nothing is trusted; in a
+repeating cell only a surface whose own echo anchors it there (:mod:`psvs.dense.trust`: a region with an
+anchored pixel in the repeating cells; a consistent region grown in from outside them is not). A repeating
+texture whose repeats exceed chance at several lags is left to the echo test's own ambiguity rule. On an
+image without echo a cell is flagged with probability :data:`ALPHA` at most, and flagging only takes trust
+away.
 """
 from __future__ import annotations
 
@@ -42,13 +49,12 @@ from psvs.dense.echo_test import (
 )
 from psvs.dense.pyramid import halved
 
-__all__ = ["EDGE_LAGS", "Elsewhere", "echo_elsewhere"]
+__all__ = ["BELOW", "EDGE_LAGS", "Elsewhere", "echo_elsewhere"]
 
 #: lags (at the test's level) within this of the searched range's ends count as inside it.
 EDGE_LAGS = 2
-#: Below the searched range only lags down to this share of its lower end count (surfaces up to about 1 / BELOW
-#: times as far as its far end): at smaller lags a texture that repeats along the row correlates with itself
-#: (each rectified grid samples the complex image, both views in it: bricks of period p show at lags p, 2p ...).
+#: Below the searched range, lags down to this share of its lower end show a surface beyond the far end (up to
+#: about 1 / BELOW times as far); shorter lags a texture that repeats along the row (or a surface far beyond).
 BELOW = 0.5
 #: The least number of cells across (at the coarser level) for the test to run there; else at the given level.
 MIN_CELLS = 8
@@ -56,10 +62,12 @@ MIN_CELLS = 8
 
 @dataclass(frozen=True, eq=False)
 class Elsewhere:
-    """The outcome: ``cells`` (ny, nx) bool, the cells of ``cell_px`` px (at the test's level, ``scale`` times
-    coarser than the image it was given) that only patches echoing outside the searched range cover;
-    ``strongest_lag_px`` (px of the given image; NaN when no patch echoes elsewhere) and ``strongest_z`` the
-    strongest such echo, ``threshold`` its family's chance level."""
+    """The outcome, on cells of ``cell_px`` px at the test's level (``scale`` times coarser than the image it
+    was given), each (ny, nx) bool: ``cells`` that echo only outside the searched range (nothing in them is
+    trusted) and ``repeating`` cells whose strongest echo is a short repeat along the row. ``strongest_lag_px``
+    (px of the given image; NaN when no patch echoes outside the range) and ``strongest_z`` the strongest echo
+    outside the range, ``threshold`` its family's chance level; ``period_px``, ``period_z`` and
+    ``period_threshold`` the same of the strongest repeat."""
 
     cells: np.ndarray
     cell_px: int
@@ -67,11 +75,20 @@ class Elsewhere:
     strongest_lag_px: float
     strongest_z: float
     threshold: float
+    repeating: np.ndarray | None = None
+    period_px: float = math.nan
+    period_z: float = math.nan
+    period_threshold: float = math.nan
 
     @property
     def any(self) -> bool:
         """Whether some cell echoes only outside the searched range."""
         return bool(self.cells.any())
+
+    @property
+    def repeats(self) -> bool:
+        """Whether some cell's strongest echo is a short repeat along its row."""
+        return self.repeating is not None and bool(self.repeating.any())
 
 
 def _level(image, right, inside):
@@ -84,46 +101,67 @@ def _level(image, right, inside):
     return halved(image), None if right is None else halved(right), shrink, 2.0
 
 
-def _family(sums, m: int, sigma: float, lags: np.ndarray, judged: np.ndarray, outside: np.ndarray,
-            alpha: float):
-    """One band's patches of m x m cells: (cells echoing here (strongest at a ``judged`` lag), cells echoing
-    elsewhere (strongest at an ``outside`` lag), (z, lag) of the strongest elsewhere, threshold), or None when
-    no patch profile can be standardised."""
+@dataclass
+class _Strongest:
+    """The strongest echo of a class seen so far: z relative to its family's threshold, (z, lag), threshold."""
+    ratio: float = -math.inf
+    z: float = math.nan
+    lag: float = math.nan
+    threshold: float = math.nan
+
+    def update(self, top: np.ndarray, lags: np.ndarray, at: np.ndarray, which: np.ndarray, threshold: float):
+        """Take the strongest of the ``which`` patches (bool (ny', nx')) of one family (``top`` their strongest z,
+        at index ``at`` of ``lags``; chance's ``threshold``) when it is stronger, relative to its threshold."""
+        if which.any():
+            k = np.flatnonzero(which.ravel())[np.argmax(top.ravel()[which.ravel()])]
+            if top.ravel()[k] / threshold > self.ratio:
+                self.ratio, self.z = top.ravel()[k] / threshold, float(top.ravel()[k])
+                self.lag, self.threshold = float(lags[at.ravel()[k]]), threshold
+
+
+def _family(sums, m: int, sigma: float, lags: np.ndarray, classes: tuple, alpha: float, strongest: tuple):
+    """One band's patches of m x m cells: the cells they show echoing (here, above or just below the range,
+    repeating), each (ny, nx) bool, or None when no patch profile can be standardised. ``classes``: the lags
+    (bool (D,)) judged, outside the range, short; ``strongest``: the two classes' :class:`_Strongest`."""
     patches = standardised_patches(sums, m, sigma, lags)
     if patches is None:
         return None
+    judged, outside, short = classes
     z = patches[0]
     level = chance_level(z, alpha)
     filled = np.nan_to_num(z, nan=-np.inf)
     at = filled.argmax(axis=0)
     top = np.take_along_axis(filled, at[None], 0)[0]
-    echoes = (top > level.threshold) & ~ambiguous_patches(z, level.threshold)
-    inside = judged[at]
-    here = spread_to_cells((echoes & inside)[None], m)[0]
-    away = echoes & outside[at]
-    strongest = (math.nan, math.nan)
-    if away.any():
-        k = np.flatnonzero(away.ravel())[np.argmax(top.ravel()[away.ravel()])]
-        strongest = (float(top.ravel()[k]), float(lags[at.ravel()[k]]))
-    return here, spread_to_cells(away[None], m)[0], strongest, level.threshold
+    here = (filled[judged] > level.threshold).any(axis=0)
+    away = (top > level.threshold) & ~here & ~ambiguous_patches(z, level.threshold)
+    out = []
+    for which, best in zip((away & outside[at], away & short[at]), strongest, strict=True):
+        best.update(top, lags, at, which, level.threshold)
+        out.append(spread_to_cells(which[None], m)[0])
+    return spread_to_cells(here[None], m)[0], *out
+
+
+def _widened(cells: np.ndarray) -> np.ndarray:
+    """``cells`` and the cells beside them (the border a patch that also shows the range keeps)."""
+    return cv2.dilate(cells.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0 if cells.any() else cells
 
 
 def echo_elsewhere(image: np.ndarray, d_min: float, d_max: float, image_right: np.ndarray | None = None,
                    inside: tuple[np.ndarray, np.ndarray] | None = None, alpha: float = ALPHA) -> Elsewhere:
     """Which cells of ``image`` (H, W; on a build its left view's rectified grid, ``image_right`` the right
-    view's, ``inside`` their field masks) echo only outside d_min..d_max px (module docstring); false alarm
-    ``alpha`` for the whole image."""
+    view's, ``inside`` their field masks) echo only outside d_min..d_max px, and which repeat along their rows
+    (module docstring); false alarm ``alpha`` for the whole image."""
     left = np.asarray(image, dtype=np.float64)
     right = left if image_right is None else np.asarray(image_right, dtype=np.float64)
     left, right, inside, scale = _level(left, right, inside)
     h, w = left.shape
     lags = np.arange(1, w - 1)
     lo, hi = d_min / scale - EDGE_LAGS, d_max / scale + EDGE_LAGS
-    judged = (lags >= lo) & (lags <= hi)
-    outside = (lags > hi) | ((lags < lo) & (lags >= BELOW * d_min / scale))
+    classes = ((lags >= lo) & (lags <= hi), (lags > hi) | ((lags < lo) & (lags >= BELOW * d_min / scale)),
+               lags < min(lo, BELOW * d_min / scale))
     ny, nx = h // CELL_PX, w // CELL_PX
-    here, away = np.zeros((ny, nx), bool), np.zeros((ny, nx), bool)
-    best, strongest, threshold = -math.inf, (math.nan, math.nan), math.nan
+    seen = {m: np.zeros((3, ny, nx), bool) for m in BLOCK_CELLS}
+    strongest = (_Strongest(), _Strongest())
     families = len(BANDS_PX) * len(BLOCK_CELLS)
     for sigma in BANDS_PX:
         f, g = band_features(left, sigma), band_features(right, sigma)
@@ -133,14 +171,13 @@ def echo_elsewhere(image: np.ndarray, d_min: float, d_max: float, image_right: n
         for m in BLOCK_CELLS:
             if ny < m or nx < m:
                 continue
-            out = _family(sums, m, sigma, lags, judged, outside, alpha / families)
-            if out is None:
-                continue
-            here |= out[0]
-            away |= out[1]
-            if math.isfinite(out[2][0]) and out[2][0] / out[3] > best:
-                best, strongest, threshold = out[2][0] / out[3], out[2], out[3]
-    away = away & ~here
-    if away.any():      # and the cells beside them: the border a patch that also shows the range keeps
-        away = cv2.dilate(away.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0
-    return Elsewhere(away, CELL_PX, scale, strongest[1] * scale, strongest[0], threshold)
+            out = _family(sums, m, sigma, lags, classes, alpha / families, strongest)
+            if out is not None:
+                seen[m] |= np.stack(out)
+    away, repeating = np.zeros((ny, nx), bool), np.zeros((ny, nx), bool)
+    for here, beyond, short in seen.values():       # each patch size judges its own cells
+        away |= beyond & ~here
+        repeating |= short & ~here
+    a, r = strongest
+    return Elsewhere(_widened(away), CELL_PX, scale, a.lag * scale, a.z, a.threshold, _widened(repeating),
+                     r.lag * scale, r.z, r.threshold)

@@ -20,7 +20,9 @@ but with probability :data:`ALPHA`. An anchor must also carry texture of its own
 sensor's noise: :mod:`psvs.dense.noise`), and a pixel without is trusted only between textured pixels of its
 region along its row or its column: interpolated across a smooth surface, not extrapolated beyond it (the
 aggregation gives a plain backdrop beside an object the object's disparity; on Fig. 5b 41 % of the trusted
-pixels were such backdrop, 13 % now, the objects' outline). The test is made at the
+pixels were such backdrop, 13 % now, the objects' outline). Where patches echo only outside the searched
+range nothing is trusted, and where a texture repeats along the rows only a region anchored there
+(:mod:`psvs.dense.elsewhere`). The test is made at the
 level the method searches the whole asked range (psvs.dense.pyramid: the image halved as often as
 :func:`~psvs.dense.pyramid.pyramid_levels` says, whatever the mode and whatever range a coarse pass pruned the
 search to), so its patches see the scene at the scale
@@ -204,15 +206,16 @@ def _anchors(test: EchoTest, disparity: np.ndarray, confidence: np.ndarray, scal
 
 
 def _surfaces(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarray,
-              textured: np.ndarray) -> np.ndarray:
-    """The anchored pixels and their consistent regions, a pixel without texture of its own only between its
-    region's textured pixels (interpolated across a smooth surface, not extrapolated beyond it: a plain backdrop
-    beside an object, given the object's disparity by the aggregation). Serial kernels without the GIL: the
-    two maps' run on two threads."""
+              textured: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, int]:
+    """(trusted, each pixel's region, R): the anchored pixels and their consistent regions, a pixel without
+    texture of its own only between its region's textured pixels (interpolated across a smooth surface, not
+    extrapolated beyond it: a plain backdrop beside an object, given the object's disparity by the aggregation);
+    the regions int32 (H, W) numbered 0..R-1 (-1 none; None without an anchor). Serial kernels without the GIL:
+    the two maps' run on two threads."""
     if not anchored.any():
-        return anchored
+        return anchored, None, 0
     trusted, labels, n = _grown(anchored, disparity, confidence)
-    return trusted & (textured | _bracketed(labels, np.ascontiguousarray(textured & trusted), n))
+    return trusted & (textured | _bracketed(labels, np.ascontiguousarray(textured & trusted), n)), labels, n
 
 
 def _unambiguous(test: EchoTest, elsewhere: Elsewhere, trusted: np.ndarray, disparity: np.ndarray, scale: float,
@@ -244,6 +247,23 @@ def _clear_ambiguous(trusted, disparity, ambiguous, cell, scale, right):  # prag
                     trusted[y, x] = False
 
 
+def _own_repeats(trusted: np.ndarray, anchored: np.ndarray, labels: np.ndarray | None, n: int,
+                 elsewhere: Elsewhere, disparity: np.ndarray, scale: float, right: bool) -> np.ndarray:
+    """``trusted`` (H, W) without its pixels in the cells of a texture that repeats along the rows
+    (:attr:`~psvs.dense.elsewhere.Elsewhere.repeating`) whose region has no ``anchored`` pixel in those cells:
+    a surface whose own echo anchors it there keeps its answer; a region grown into it from outside (the
+    method answering the texture's repeat, at the lag of the surface beside it) does not. ``labels``: each
+    pixel's region numbered 0..n-1 (-1 none)."""
+    if labels is None or not elsewhere.repeats or not trusted.any():
+        return trusted
+    outside = np.ones(trusted.shape, np.bool_)
+    _clear_ambiguous(outside, np.ascontiguousarray(disparity), elsewhere.repeating, elsewhere.cell_px,
+                     float(scale * elsewhere.scale), bool(right))
+    own = np.zeros(n + 1, bool)             # the last entry: "no region" (label -1), never anchored
+    own[labels[anchored & ~outside & (labels >= 0)]] = True
+    return trusted & (outside | own[labels])
+
+
 def _supported(test: EchoTest, elsewhere: Elsewhere, maps: tuple, scale: float,
                textured: tuple) -> tuple[np.ndarray, np.ndarray]:
     """Which pixels of the (left, right) maps are trusted (module docstring): ``maps`` ((disparity, confidence)
@@ -252,8 +272,9 @@ def _supported(test: EchoTest, elsewhere: Elsewhere, maps: tuple, scale: float,
     anchors = [_anchors(test, d, c, scale, k == 1, t) for k, ((d, c), t) in enumerate(zip(maps, textured, strict=True))]
     with ThreadPoolExecutor(max_workers=pool_size(2)) as pool:
         grown_maps = list(pool.map(_surfaces, anchors, [d for d, _ in maps], [c for _, c in maps], textured))
-    pairs = zip(grown_maps, maps, strict=True)
-    return tuple(_unambiguous(test, elsewhere, t, d, scale, k == 1) for k, (t, (d, _)) in enumerate(pairs))
+    return tuple(_own_repeats(_unambiguous(test, elsewhere, t, d, scale, k == 1), a, labels, n, elsewhere, d, scale,
+                              k == 1)
+                 for k, ((t, labels, n), (d, _), a) in enumerate(zip(grown_maps, maps, anchors, strict=True)))
 
 
 def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.ndarray, np.ndarray] | None = None,
