@@ -256,12 +256,13 @@ def _own_repeats(trusted: np.ndarray, anchored: np.ndarray, labels: np.ndarray |
     pixel's region numbered 0..n-1 (-1 none)."""
     if labels is None or not elsewhere.repeats or not trusted.any():
         return trusted
-    outside = np.ones(trusted.shape, np.bool_)
-    _clear_ambiguous(outside, np.ascontiguousarray(disparity), elsewhere.repeating, elsewhere.cell_px,
+    kept = trusted.copy()                   # the trusted pixels outside the repeating cells
+    _clear_ambiguous(kept, np.ascontiguousarray(disparity), elsewhere.repeating, elsewhere.cell_px,
                      float(scale * elsewhere.scale), bool(right))
+    inside = trusted & ~kept
     own = np.zeros(n + 1, bool)             # the last entry: "no region" (label -1), never anchored
-    own[labels[anchored & ~outside & (labels >= 0)]] = True
-    return trusted & (outside | own[labels])
+    own[labels[anchored & inside & (labels >= 0)]] = True
+    return kept | (inside & own[labels])
 
 
 def _supported(test: EchoTest, elsewhere: Elsewhere, maps: tuple, scale: float,
