@@ -409,3 +409,21 @@ def test_a_brick_card_nearer_than_the_range_says_it_repeats(capsys, tmp_path):
     rows, cols = np.mgrid[0:z.shape[0], 0:z.shape[1]]
     card = np.isfinite(z) & (z < 650) & (cols < 330) & (rows > 320)
     assert card.sum() > 10000 and (np.load(conf)[card] == 0).mean() >= 0.9
+
+
+def test_a_wall_just_beyond_the_range_is_refused_naming_its_lag(capsys, tmp_path):
+    """Issue 41's trial: a wall 3 px short of the searched disparities was refused with "no part of the image
+    echoes beyond chance" and a chance patch's lag. A textured wall at 40 px searched at 43..70 px: exit 1, one
+    line that says the image echoes at the edge of the range, at the wall's lag, nothing written."""
+    import re
+    left, right, _, _ = layered_pair(384, 512, 40, 40, (96, 320, 160, 448), 4)
+    img, out = tmp_path / "edge.png", tmp_path / "d.npy"
+    write_png(img, np.clip(np.rint(superimpose(left, right)), 0, 255).astype(np.uint8))
+    code, text, err = run(capsys, "disparity", str(img), "--min-disparity", "43", "--max-disparity", "70", "-o",
+                          str(out))
+    assert code == 1 and text == "" and len(err.strip().splitlines()) == 1, err
+    m = re.match(r"psvs disparity: cannot measure: the image echoes beyond chance only at the edge of the searched "
+                 r"disparities 43\.\.70 px, where the search cannot pin it: the strongest, ([\d.]+) spreads where "
+                 r"chance reaches ([\d.]+), repeats (\d+) px to its left: widen the range searched", err)
+    assert m, err
+    assert float(m.group(1)) > float(m.group(2)) and abs(int(m.group(3)) - 40) <= 2 and not out.exists()

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 
@@ -193,6 +194,14 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
         if trust.elsewhere is not None and trust.elsewhere.repeats:
             raise MeasurementError(f"the image echoes beyond chance only as a short repeat along its rows, not in "
                                    f"the searched disparities {lo:.0f}..{hi:.0f} px: {repeat_words(trust)}")
+        e = trust.elsewhere
+        if e is not None and math.isfinite(e.edge_lag_px):
+            k = 2 ** trust.level
+            raise MeasurementError(f"the image echoes beyond chance only at the edge of the searched disparities "
+                                   f"{lo:.0f}..{hi:.0f} px, where the search cannot pin it: the strongest, "
+                                   f"{e.edge_z:.1f} spreads where chance reaches {e.edge_threshold:.1f}, repeats "
+                                   f"{e.edge_lag_px * k:.0f} px to its left: widen the range searched (--near-mm/"
+                                   "--far-mm, or --min-disparity/--max-disparity) to measure it")
         raise MeasurementError(f"no part of the image echoes beyond chance: {strongest_echo(trust)}: the image "
                                f"shows no echo of the disparities {lo:.0f}..{hi:.0f} px")
     return dataclasses.replace(dense, result=trusted_maps(res, trust)), trust

@@ -67,7 +67,9 @@ class Elsewhere:
     trusted) and ``repeating`` cells whose strongest echo is a short repeat along the row. ``strongest_lag_px``
     (px of the given image; NaN when no patch echoes outside the range) and ``strongest_z`` the strongest echo
     outside the range, ``threshold`` its family's chance level; ``period_px``, ``period_z`` and
-    ``period_threshold`` the same of the strongest repeat."""
+    ``period_threshold`` the same of the strongest repeat, ``edge_lag_px``, ``edge_z`` and ``edge_threshold``
+    of the strongest echo just outside the range that counts as inside it (within :data:`EDGE_LAGS`: a surface
+    the search may not quite reach)."""
 
     cells: np.ndarray
     cell_px: int
@@ -79,6 +81,9 @@ class Elsewhere:
     period_px: float = math.nan
     period_z: float = math.nan
     period_threshold: float = math.nan
+    edge_lag_px: float = math.nan
+    edge_z: float = math.nan
+    edge_threshold: float = math.nan
 
     @property
     def any(self) -> bool:
@@ -122,11 +127,12 @@ class _Strongest:
 def _family(sums, m: int, sigma: float, lags: np.ndarray, classes: tuple, alpha: float, strongest: tuple):
     """One band's patches of m x m cells: the cells they show echoing (here, above or just below the range,
     repeating), each (ny, nx) bool, or None when no patch profile can be standardised. ``classes``: the lags
-    (bool (D,)) judged, outside the range, short; ``strongest``: the two classes' :class:`_Strongest`."""
+    (bool (D,)) judged, outside the range, short, inside the range itself; ``strongest``: the
+    :class:`_Strongest` of the outside, short and edge classes."""
     patches = standardised_patches(sums, m, sigma, lags)
     if patches is None:
         return None
-    judged, outside, short = classes
+    judged, outside, short, exact = classes
     z = patches[0]
     level = chance_level(z, alpha)
     filled = np.nan_to_num(z, nan=-np.inf)
@@ -135,9 +141,10 @@ def _family(sums, m: int, sigma: float, lags: np.ndarray, classes: tuple, alpha:
     here = (filled[judged] > level.threshold).any(axis=0)
     away = (top > level.threshold) & ~here & ~ambiguous_patches(z, level.threshold)
     out = []
-    for which, best in zip((away & outside[at], away & short[at]), strongest, strict=True):
+    for which, best in zip((away & outside[at], away & short[at]), strongest[:2], strict=True):
         best.update(top, lags, at, which, level.threshold)
         out.append(spread_to_cells(which[None], m)[0])
+    strongest[2].update(top, lags, at, (top > level.threshold) & judged[at] & ~exact[at], level.threshold)
     return spread_to_cells(here[None], m)[0], *out
 
 
@@ -158,10 +165,10 @@ def echo_elsewhere(image: np.ndarray, d_min: float, d_max: float, image_right: n
     lags = np.arange(1, w - 1)
     lo, hi = d_min / scale - EDGE_LAGS, d_max / scale + EDGE_LAGS
     classes = ((lags >= lo) & (lags <= hi), (lags > hi) | ((lags < lo) & (lags >= BELOW * d_min / scale)),
-               lags < min(lo, BELOW * d_min / scale))
+               lags < min(lo, BELOW * d_min / scale), (lags >= d_min / scale) & (lags <= d_max / scale))
     ny, nx = h // CELL_PX, w // CELL_PX
     seen = {m: np.zeros((3, ny, nx), bool) for m in BLOCK_CELLS}
-    strongest = (_Strongest(), _Strongest())
+    strongest = (_Strongest(), _Strongest(), _Strongest())
     families = len(BANDS_PX) * len(BLOCK_CELLS)
     for sigma in BANDS_PX:
         f, g = band_features(left, sigma), band_features(right, sigma)
@@ -178,6 +185,6 @@ def echo_elsewhere(image: np.ndarray, d_min: float, d_max: float, image_right: n
     for here, beyond, short in seen.values():       # each patch size judges its own cells
         away |= beyond & ~here
         repeating |= short & ~here
-    a, r = strongest
+    a, r, e = strongest
     return Elsewhere(_widened(away), CELL_PX, scale, a.lag * scale, a.z, a.threshold, _widened(repeating),
-                     r.lag * scale, r.z, r.threshold)
+                     r.lag * scale, r.z, r.threshold, e.lag * scale, e.z, e.threshold)
