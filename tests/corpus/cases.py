@@ -345,6 +345,9 @@ def _disparity() -> list[Case]:
              {"img.png": scene_png("textured", "misaligned_knocked")}, ("d.npy", "z.npy")),
         Case("check-repeating-texture", ("check", "img.png", "--rig", "misaligned"), 1, "repeats along the rows",
              {"img.png": repeating_png()}),
+        # issue 41's dense trial: a wall 3 px short of the range was refused as "no part of the image echoes"
+        Case("disparity-wall-just-beyond-the-range", base, 1, "only at the edge of the searched disparities",
+             {"img.png": scene_png("wall:distance_mm=1300", "default")}, ("d.npy",)),
         Case("disparity-views-over-each-other", (*base, "--views", "v.png", "v.png"), 2, "v.png", tex,
              ("d.npy", "v.png")),
         Case("disparity-min-only", ("disparity", "img.png", "--min-disparity", "10", "-o", "d.npy"), 2, "both",
