@@ -1,13 +1,15 @@
 """The alignment guide (psvs.mount.guide, psvs adjust) with planted truth: on an exactly known build (no
 calibration) its turns bring the twins onto the same rows; planted turns on the design are undone."""
+import dataclasses
 import json
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from psvs.errors import MeasurementError
 from psvs.io.params import load_rig
-from psvs.mount.guide import TURN_STEP, alignment_guide, row_offsets_px, working_points
+from psvs.mount.guide import TURN_STEP, alignment_guide, check_aligned, row_offsets_px, working_points
 from psvs.mount.report import guide_to_dict, turns_text
 from psvs.mount.seats import apply_turns, seats_for
 from psvs.rigs import shipped_rig_path
@@ -85,6 +87,7 @@ def test_adjust_cli_and_its_json(capsys, tmp_path):
 @pytest.mark.parametrize("argv, says", [
     (("adjust", "mv1440_misaligned", "--rig", "clear"), "not one design"),
     (("adjust", "misaligned", "--rig", "clear", "--pitch-mm", "-0.5"), "--pitch-mm"),
+    (("adjust", "misaligned", "--rig", "clear", "--pitch-mm", "1e-6"), "--pitch-mm must be a screw pitch of 0.01-5"),
     (("adjust", "misaligned", "--rig", "clear", "--json", "t.txt"), ".json"),
     (("adjust", "none.toml", "--rig", "clear"), "not found"),
     (("adjust", "misaligned", "--rig", "clear", "--near-mm", "900", "--far-mm", "500"), "near"),
@@ -113,3 +116,38 @@ def test_points_lost_after_the_turns_are_counted_and_said():
     assert g.lost_after == int(np.sum(~np.isfinite(after))) > 0
     assert g.after_px[0] == pytest.approx(float(np.nanmax(np.abs(after))), abs=1e-9)
     assert f"{g.lost_after} of the {g.n_points} leave a view after the turns" in format_guide(g)
+
+
+def test_the_guide_weighs_the_same_glass_motion_whatever_the_pitch():
+    """The seats' screws of 0.01-1 mm pitch (an adversarial trial: at 1e-6 and 0.01 mm every screw said
+    'leave', or two screws turned, and exit 0 with the rows 9 and 1.8 px RMS off): the same unrounded
+    answer (turns x pitch, so the same row offset), the same turns unseen, singular values in proportion
+    to the pitch; every quantised answer aligns (within 1 px largest, 0.5 px RMS)."""
+    nominal, build = (load_rig(shipped_rig_path(n)) for n in BUILDS["misaligned"])
+    ref = alignment_guide(build, seats_for(nominal))
+    for pitch in (0.01, 0.05, 0.2, 1.0):
+        g = alignment_guide(build, seats_for(nominal, pitch_mm=pitch))
+        assert g.after_unquantised_px == pytest.approx(ref.after_unquantised_px, abs=1e-6)
+        assert len(g.null_space) == len(ref.null_space)
+        assert np.array(g.singular_px) == pytest.approx(np.array(ref.singular_px) * pitch / 0.5, rel=1e-6)
+        assert g.aligned and g.after_px[0] <= 1.0, (pitch, g.after_px)
+        assert check_aligned(g) is g
+
+
+def test_turns_that_do_not_align_are_refused_saying_why(capsys, tmp_path):
+    """A 2 mm screw's 1/16 turn (0.125 mm of travel) is too coarse for the misaligned build's tilts: the rows
+    stay 0.58 px RMS off after the rounded turns (0.003 px unrounded): psvs adjust exits 1 in one line naming
+    the step, and writes nothing. Turns that would leave the rows off even unrounded name what the screws do
+    not trim."""
+    nominal, build = (load_rig(shipped_rig_path(n)) for n in BUILDS["misaligned"])
+    g = alignment_guide(build, seats_for(nominal, pitch_mm=2.0))
+    assert not g.aligned and g.after_px[1] > 0.5 >= g.after_unquantised_px[1]
+    with pytest.raises(MeasurementError, match="too coarse a step"):
+        check_aligned(g)
+    off = dataclasses.replace(g, after_px=(3.0, 2.0), after_unquantised_px=(2.5, 1.5))
+    assert "what moved is not what the seats' screws trim" in off.refusal() and g.refusal() != off.refusal()
+    out = tmp_path / "turns.json"
+    code, text, err = run(capsys, "adjust", "misaligned", "--rig", "clear", "--pitch-mm", "2", "--json", str(out))
+    assert code == 1 and text == "" and len(err.strip().splitlines()) == 1, err
+    assert "cannot measure: the screws cannot bring the twins onto their rows" in err and "2 mm pitch" in err
+    assert not out.exists()

@@ -134,6 +134,8 @@ def test_design_by_name_by_text_and_the_mounts_seats():
     ({"calibrated": "@misaligned", "mount": "[seats"}, 400, "mount.toml: malformed TOML"),
     ({"calibrated": "@misaligned", "near_mm": 900, "far_mm": 500}, 400, "near_mm must be < far_mm"),
     ({"calibrated": "@misaligned", "pitch_mm": -1}, 422, "pitch_mm"),
+    ({"calibrated": "@misaligned", "pitch_mm": 0.001}, 422, "pitch_mm"),
+    ({"calibrated": "@misaligned", "pitch_mm": 2.0}, 422, "cannot measure: the screws cannot bring the twins"),
     ({"calibrated": "@misaligned", "rig": "clear"}, 422, "rig"),
     ({"calibrated": ""}, 422, "calibrated"),
     ({}, 422, "calibrated"),

@@ -3,7 +3,6 @@ a calibrated build's twins land on the same rows (psvs.mount, docs/mount.md)."""
 from __future__ import annotations
 
 import json
-import math
 
 from psvs.cli.common import (
     add_range_arguments,
@@ -14,9 +13,9 @@ from psvs.cli.common import (
     range_from_args,
 )
 from psvs.io.atomic import write_atomic
-from psvs.mount.guide import alignment_guide
+from psvs.mount.guide import alignment_guide, check_aligned
 from psvs.mount.report import check_same_design, format_guide, guide_to_dict
-from psvs.mount.seats import DEFAULT_PITCH_MM, seats_for
+from psvs.mount.seats import DEFAULT_PITCH_MM, check_pitch, seats_for
 
 
 def add_parser(sub) -> None:
@@ -41,8 +40,7 @@ def run(args) -> int:
     out = check_output_path(args.json, (".json",))
     check_distinct({"--json": args.json}, {"calibrated": args.calibrated, "--rig": args.rig})
     near, far = range_from_args(args)
-    if not (math.isfinite(args.pitch_mm) and 0 < args.pitch_mm <= 5):
-        raise ValueError(f"--pitch-mm must be a screw pitch in (0, 5] mm, got {args.pitch_mm}")
+    check_pitch(args.pitch_mm, "--pitch-mm")
     built, nominal = measuring_rig(args.calibrated), measuring_rig(args.rig)
     check_same_design(built, nominal)
     if args.mount is not None:
@@ -50,7 +48,7 @@ def run(args) -> int:
         seats = read_mount(args.mount, nominal)[1]
     else:
         seats = seats_for(nominal, pitch_mm=args.pitch_mm)
-    g = alignment_guide(built, seats, near, far)
+    g = check_aligned(alignment_guide(built, seats, near, far))     # turns that do not align: exit 1
     print(format_guide(g))
     if out is not None:
         write_atomic(out, json.dumps(guide_to_dict(g), indent=2) + "\n")

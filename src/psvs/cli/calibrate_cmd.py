@@ -44,12 +44,12 @@ def _guide(rig, design, mount_dir) -> str:
     """The alignment guide of the calibrated ``rig`` on the seats of ``design``'s mirrors, or on those of the
     mount in ``mount_dir`` (docs/mount.md)."""
     from psvs.mount.guide import alignment_guide
-    from psvs.mount.report import format_guide
+    from psvs.mount.report import guide_or_refusal
     from psvs.mount.seats import seats_for
     if mount_dir is True:
-        return format_guide(alignment_guide(rig, seats_for(design)))
+        return guide_or_refusal(alignment_guide(rig, seats_for(design)))
     from psvs.mount.files import read_mount
-    return format_guide(alignment_guide(rig, read_mount(mount_dir, design)[1]))
+    return guide_or_refusal(alignment_guide(rig, read_mount(mount_dir, design)[1]))
 
 
 def run(args) -> int:

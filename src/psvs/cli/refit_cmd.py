@@ -84,9 +84,9 @@ def run(args) -> int:
         print(line)
     if args.adjust:
         from psvs.mount.guide import alignment_guide, designed_twin
-        from psvs.mount.report import format_guide
+        from psvs.mount.report import guide_or_refusal
         from psvs.mount.seats import seats_for
-        print(format_guide(alignment_guide(res.rig, seats_for(designed_twin(rig)), near, far)))
+        print(guide_or_refusal(alignment_guide(res.rig, seats_for(designed_twin(rig)), near, far)))
     if out is not None:
         template = rig_template(args.rig) if out.suffix.lower() != ".json" else None
         with output_batch():          # the rig file and its record land together

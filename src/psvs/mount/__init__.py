@@ -11,7 +11,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "build": ["make_mount"],
         "cad": ["MissingExtra", "require_cad"],
         "files": ["read_mount", "read_mount_text"],
-        "guide": ["alignment_guide", "designed_twin", "row_offsets_px", "working_points"],
+        "guide": ["alignment_guide", "check_aligned", "designed_twin", "row_offsets_px", "working_points"],
         "layout": ["INTERFACES", "MountError", "MountParams"],
         "report": ["check_same_design", "format_guide", "guide_to_dict"],
         "seats": ["DEFAULT_PITCH_MM", "Seat", "seats_for"],

@@ -14,9 +14,9 @@ two screws, H (trims tilt a) and V (trims tilt b). The guide finds the turns x (
 - **Turns**: Gauss-Newton on the exact optics (:func:`psvs.optics.project.project_points`) and the exact
   seat (:func:`psvs.mount.seats.apply_turns`), least squares on the row offsets with a small Tikhonov
   weight toward zero turns. Turn combinations that move no twin off its partner's row (singular values of
-  the row-offset Jacobian under :data:`NULL_PX_PER_TURN`, RMS px per turn: they move both twins alike, or
-  along their rows) cannot be told apart by the rows: the guide says so and takes none of them (the
-  minimum-norm turns).
+  the row-offset Jacobian under :data:`NULL_PX_PER_TURN`, RMS px per turn of a screw of the reference
+  pitch: they move both twins alike, or along their rows) cannot be told apart by the rows: the guide says
+  so and takes none of them (the minimum-norm turns).
 - **What calibration cannot see** (docs/calibration.md): a build that differs from the calibrated rig by a
   change no image sees (a periscope moved along its normal, the box's turn traded for mirror tilts, a rigid
   motion of frame C) gives the same images, so the same twins' rows: the turns found on the calibrated rig
@@ -24,6 +24,9 @@ two screws, H (trims tilt a) and V (trims tilt b). The guide finds the turns x (
 - **Quantised** to 1/16 turn: every screw within two steps of its nearest rounding is tried (5^8
   combinations), then a descent (:func:`_quantise`); the choice has the smallest predicted largest row
   offset plus :data:`TURN_COST_PX` per turn. The offset after those turns is then computed exactly.
+- **Right or refuse**: turns after which the twins would still stand more than :data:`ALIGNED_RMS_PX` RMS off
+  their rows do not align the build; :func:`check_aligned` refuses them (``psvs adjust`` exits 1) rather
+  than hand a builder screw turns that leave the rows where they were.
 """
 from __future__ import annotations
 
@@ -32,19 +35,27 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from psvs.errors import MeasurementError
 from psvs.measure.tolerance import field_points
-from psvs.mount.seats import SCREWS, Seat, apply_turns, handedness, screw_rates
+from psvs.mount.seats import DEFAULT_PITCH_MM, SCREWS, Seat, apply_turns, handedness, screw_rates
 from psvs.optics.project import project_points
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 
 #: Turns are given in steps of this (a builder can set a screw to 1/16 of a turn by its hex key).
 TURN_STEP = 1.0 / 16.0
+#: The guide's thresholds and weights below are per turn of a screw of this pitch (mm): for another pitch
+#: they scale with it (a turn of a 0.05 mm screw moves a contact a tenth as far), so the guide weighs the
+#: same motions of the glass whatever screws the seats hold (:func:`per_turn`).
+REFERENCE_PITCH_MM = DEFAULT_PITCH_MM
 #: A turn combination that moves the twins' rows by less than this (RMS px per turn) is not seen.
 NULL_PX_PER_TURN = 0.02
 #: Tikhonov weight toward zero turns, px (RMS) per turn: small against any screw that matters.
 REGULARISE_PX_PER_TURN = 0.01
 #: In the rounding to 1/16 turn, a turn in all (any screw) costs as much as this many px of row offset.
 TURN_COST_PX = 0.3
+#: px RMS: turns after which the twins stand further off their rows than this (predicted) do not align the
+#: build (the self-check's tolerance, psvs.health.check.TOLERANCE_PX): the guide says so instead of them.
+ALIGNED_RMS_PX = 0.5
 #: The rounding tries every screw this many 1/16-turn steps either side of its nearest rounding.
 SEARCH_STEPS = 2
 #: Along the turns the rows cannot see, lattice points up to this far (turns) are tried, the best few descended.
@@ -98,12 +109,39 @@ class AlignmentGuide:
     lost_after: int = 0
 
     @property
+    def aligned(self) -> bool:
+        """Whether the turns bring the twins within :data:`ALIGNED_RMS_PX` RMS of their rows (predicted)."""
+        return bool(self.after_px[1] <= ALIGNED_RMS_PX)
+
+    def refusal(self) -> str:
+        """Why these turns do not align the build ("" when they do): the offsets before and after."""
+        if self.aligned:
+            return ""
+        said = (f"the screws cannot bring the twins onto their rows: after the turns (predicted) they stand "
+                f"{self.after_px[1]:.2f} px RMS off them (largest {self.after_px[0]:.2f} px; before "
+                f"{self.before_px[1]:.2f} px RMS), beyond {ALIGNED_RMS_PX:g} px: ")
+        if self.after_unquantised_px[1] <= ALIGNED_RMS_PX:
+            return said + (f"1/16 of a turn of these screws ({self.pitch_mm:g} mm pitch) is too coarse a step for "
+                           f"the tilts (unrounded turns would leave {self.after_unquantised_px[1]:.2f} px): finer "
+                           "screws")
+        return said + ("what moved is not what the seats' screws trim (a mirror's shift, the box), or the seats are "
+                       "not these; calibrate again, or check the mount")
+
+    @property
     def turns_by_mirror(self) -> dict[str, tuple[float, float]]:
         """``{mirror: (turns of H, turns of V)}``, as :func:`psvs.mount.seats.apply_turns` takes them."""
         out = {m: [0.0, 0.0] for m in MIRROR_NAMES}
         for t in self.turns:
             out[t.mirror][SCREWS.index(t.screw)] = t.turns
         return {m: (h, v) for m, (h, v) in out.items()}
+
+
+def check_aligned(g: AlignmentGuide) -> AlignmentGuide:
+    """``g`` itself when its turns align the build (:attr:`AlignmentGuide.aligned`), else MeasurementError
+    saying by how much they do not (:meth:`AlignmentGuide.refusal`)."""
+    if not g.aligned:
+        raise MeasurementError(g.refusal())
+    return g
 
 
 def designed_twin(rig: Rig) -> Rig:
@@ -158,56 +196,64 @@ def alignment_guide(built: Rig, seats: dict[str, Seat], near_mm: float = 400.0, 
     def residual(x):
         return twin_rows_px(apply_turns(built, seats, _as_dict(x)), pts) - base
 
-    J = _jacobian(residual, len(SCREW_ORDER))
+    k = np.array([seats[mirror].pitch_mm for mirror, _ in SCREW_ORDER]) / REFERENCE_PITCH_MM
+    J = _jacobian(residual, len(SCREW_ORDER), TURN_STEP / k)     # steps of the same travel on every screw
     steady = np.all(np.isfinite(J), axis=1)     # a point a mirror's edge cuts off as the screws turn: not weighed
     if steady.sum() < 10:
         raise ValueError(f"too few field points ({int(steady.sum())}) stay in both views as the screws turn")
     pts, base, r0, J, idx = pts[steady], base[steady], r0[steady], J[steady], idx[steady]
     m = len(pts)
-    _, sv, vt = np.linalg.svd(J / np.sqrt(m), full_matrices=False)
+    J_ref = J / k                                # px per turn of a screw of the reference pitch
+    _, sv, vt = np.linalg.svd(J_ref / np.sqrt(m), full_matrices=False)
     seen = sv >= NULL_PX_PER_TURN
-    A = J @ vt[seen].T                                   # the turns the rows see, in their own basis
+    A = J_ref @ vt[seen].T                               # the turns the rows see, in their own basis
     y = np.zeros(int(seen.sum()))
     lam = m * REGULARISE_PX_PER_TURN ** 2
     r = r0
     for _ in range(iterations):
         ok = np.isfinite(r)
         y = np.linalg.solve(A[ok].T @ A[ok] + lam * np.eye(len(y)), A[ok].T @ (A[ok] @ y - r[ok]))
-        r = residual(vt[seen].T @ y)
-    x_cont = vt[seen].T @ y
-    x = _quantise(x_cont, r, J, vt[~seen])
+        r = residual(vt[seen].T @ y / k)
+    x_cont = vt[seen].T @ y / k
+    x = _quantise(x_cont, r, J, vt[~seen] / k, turn_cost_px=TURN_COST_PX * k)
     after = residual(x) if np.any(x) else r0
+    null = vt[~seen] / k
+    null /= np.linalg.norm(null, axis=1, keepdims=True)
     return AlignmentGuide(_screw_turns(built, seats, x), _stats(r0), _stats(after), _stats(r),
-                          tuple(tuple(float(c) for c in v) for v in vt[~seen]), tuple(float(s) for s in sv),
+                          tuple(tuple(float(c) for c in v) for v in null), tuple(float(s) for s in sv * k.mean()),
                           float(near_mm), float(far_mm), m, float(seats["m1"].pitch_mm), tuple(int(i) for i in idx),
                           int(np.sum(~np.isfinite(after))))
 
 
-def _jacobian(residual, n: int, h: float = TURN_STEP) -> np.ndarray:
-    """(M, n) px per turn: central differences of ``residual`` at zero turns, steps of ``h`` turn."""
+def _jacobian(residual, n: int, h) -> np.ndarray:
+    """(M, n) px per turn: central differences of ``residual`` at zero turns, steps of ``h`` turn (a number,
+    or (n,): one per screw)."""
+    h = np.broadcast_to(np.asarray(h, dtype=float), (n,))
     cols = []
     for j in range(n):
         e = np.zeros(n)
-        e[j] = h
-        cols.append((residual(e) - residual(-e)) / (2 * h))
+        e[j] = h[j]
+        cols.append((residual(e) - residual(-e)) / (2 * h[j]))
     return np.column_stack(cols)
 
 
 def _quantise(x: np.ndarray, r: np.ndarray, J: np.ndarray, null: np.ndarray | None = None,
-              step: float = TURN_STEP) -> np.ndarray:
+              step: float = TURN_STEP, turn_cost_px=TURN_COST_PX) -> np.ndarray:
     """Turns on the 1/16 lattice near ``x`` (n,) whose predicted row offsets r + J (x_q - x) have the
-    smallest cost: the largest |offset| (px) plus :data:`TURN_COST_PX` per turn in all. Every screw within
+    smallest cost: the largest |offset| (px) plus ``turn_cost_px`` per turn (a number, or (n,): one per screw;
+    :data:`TURN_COST_PX` scaled with each screw's pitch by the caller). Every screw within
     :data:`SEARCH_STEPS` steps of its nearest rounding is tried (5^8 combinations); so are the roundings of
-    points moved from ``x`` along the turns the rows cannot see (``null`` (k, n), unit rows; up to
-    :data:`NULL_REACH_TURNS` each way), since a lattice point that fits may lie along them far from ``x``;
-    then a descent moves one to three screws by one step while the cost falls, from the best few. The best
-    may leave a screw off its rounding where others make up for its step better."""
+    points moved from ``x`` along the turns the rows cannot see (``null`` (k, n), rows of unit length in turns
+    of the reference pitch; up to :data:`NULL_REACH_TURNS` of them each way), since a lattice point that fits
+    may lie along them far from ``x``; then a descent moves one to three screws by one step while the cost
+    falls, from the best few. The best may leave a screw off its rounding where others make up for its step
+    better."""
     ok = np.isfinite(r)
     r, J = r[ok], J[ok]
     near = np.round(x / step)
 
     def cost(xq):
-        return np.abs(r + (xq - x) @ J.T).max(axis=-1) + TURN_COST_PX * np.abs(xq).sum(axis=-1)
+        return np.abs(r + (xq - x) @ J.T).max(axis=-1) + (np.abs(xq) * turn_cost_px).sum(axis=-1)
 
     offsets = np.arange(-SEARCH_STEPS, SEARCH_STEPS + 1, dtype=float)
     grid = np.stack(np.meshgrid(*[offsets] * len(x), indexing="ij"), axis=-1).reshape(-1, len(x))

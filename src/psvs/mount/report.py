@@ -10,7 +10,14 @@ from fractions import Fraction
 import numpy as np
 
 from psvs.evidence import MAX_FOCAL_CHANGE
-from psvs.mount.guide import AlignmentGuide, designed_twin, twin_rows_px, working_points
+from psvs.mount.guide import (
+    NULL_PX_PER_TURN,
+    REFERENCE_PITCH_MM,
+    AlignmentGuide,
+    designed_twin,
+    twin_rows_px,
+    working_points,
+)
 from psvs.mount.seats import Seat, apply_turns
 from psvs.optics.mirrors import virtual_baseline_mm
 from psvs.optics.project import project_points
@@ -109,11 +116,18 @@ def format_guide(g: AlignmentGuide) -> str:
     return "\n".join(lines)
 
 
+def guide_or_refusal(g: AlignmentGuide) -> str:
+    """:func:`format_guide` when the turns align the build, else one line saying why they do not (what
+    ``calibrate --adjust`` and ``refit --adjust`` print beside the rig they wrote, which stands either way)."""
+    return format_guide(g) if g.aligned else f"alignment guide: {g.refusal()}"
+
+
 def null_space_lines(g: AlignmentGuide) -> list[str]:
     """The guide's note on the turn combinations the rows cannot tell apart (none: an empty list)."""
     if not g.null_space:
         return []
-    lines = [f"{len(g.null_space)} combination(s) of turns move no twin off its partner's row (< 0.02 px "
+    unseen = NULL_PX_PER_TURN * g.pitch_mm / REFERENCE_PITCH_MM
+    lines = [f"{len(g.null_space)} combination(s) of turns move no twin off its partner's row (< {unseen:.2g} px "
              "per turn: they move both twins alike, or along their rows), so the rows cannot tell them "
              "apart; the turns start from the smallest that fit, and rounding them to 1/16 may move along:"]
     names = [f"{t.mirror.upper()} {t.screw}" for t in g.turns]

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psvs._validate import check_finite, check_positive
+from psvs._validate import check_finite
 from psvs.optics.mirrors import mirror_planes
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, MirrorExtent, Rig
 
@@ -44,6 +44,9 @@ from psvs.optics.rig import MIRROR_NAMES, MirrorError, MirrorExtent, Rig
 SCREWS = ("H", "V")
 #: M3 x 0.5: the fine-pitch screw the issue names (mm of travel per turn).
 DEFAULT_PITCH_MM = 0.5
+#: The screw pitches a seat takes, mm per turn: from a differential adjuster's 0.01 (finer is not a screw a
+#: hand turns) to a coarse M30's 5.
+PITCH_RANGE_MM = (0.01, 5.0)
 #: Glass of a front-surface mirror (mm): where its back, and so the contacts, sit behind the coating.
 DEFAULT_GLASS_MM = 3.0
 #: Contacts moved in from the mirror's corners by this share of its width and height.
@@ -53,13 +56,21 @@ DEFAULT_INSET = 0.1
 DEFAULT_M1_BORDER_MM = 28.0
 
 
+def check_pitch(pitch_mm: float, name: str = "pitch_mm") -> None:
+    """ValueError naming ``name`` unless ``pitch_mm`` lies in :data:`PITCH_RANGE_MM`."""
+    lo, hi = PITCH_RANGE_MM
+    number = isinstance(pitch_mm, (int, float)) and not isinstance(pitch_mm, bool)
+    if not (number and math.isfinite(pitch_mm) and lo <= pitch_mm <= hi):
+        raise ValueError(f"{name} must be a screw pitch of {lo:g}-{hi:g} mm per turn, got {pitch_mm!r}")
+
+
 @dataclass(frozen=True)
 class Seat:
     """One mirror's three contacts, in the designed mirror's (s, t) coordinates about its anchor, mm.
 
     ``pivot_st_mm``, ``h_st_mm``, ``v_st_mm``: (s, t) of the pivot and of screws H and V, mm;
     ``back_offset_mm``: the glass's back face (the contacts' plane) behind the reflecting face, mm;
-    ``pitch_mm``: a screw's travel per turn, mm (> 0)."""
+    ``pitch_mm``: a screw's travel per turn, mm (:data:`PITCH_RANGE_MM`)."""
 
     mirror: str
     pivot_st_mm: tuple[float, float]
@@ -71,7 +82,7 @@ class Seat:
     def __post_init__(self):
         if self.mirror not in MIRROR_NAMES:
             raise ValueError(f"mirror must be one of {', '.join(MIRROR_NAMES)}, got {self.mirror!r}")
-        check_positive(self.pitch_mm, "pitch_mm", "mm")
+        check_pitch(self.pitch_mm)
         check_finite(self.back_offset_mm, "back_offset_mm")
         pts = self.contacts_st_mm
         area = _cross2(pts[1] - pts[0], pts[2] - pts[0])
@@ -107,7 +118,7 @@ def seats_for(rig: Rig, *, pitch_mm: float = DEFAULT_PITCH_MM, inset: float = DE
     much taller than its rectangle above and below, and its contacts sit in the middle of those borders
     (the left view passes through the plate; contacts inside its rectangle would shade it); 0: inset like
     the others."""
-    check_positive(pitch_mm, "pitch_mm", "mm")
+    check_pitch(pitch_mm)
     if not (math.isfinite(inset) and 0 <= inset < 0.5):
         raise ValueError(f"inset must be in [0, 0.5), got {inset!r}")
     if not (math.isfinite(glass_mm) and glass_mm >= 0):

@@ -10,7 +10,7 @@ from fastapi import APIRouter
 from psvs.io.params import load_rig, rig_from_text
 from psvs.mount import report
 from psvs.mount.files import read_mount_text
-from psvs.mount.guide import alignment_guide
+from psvs.mount.guide import alignment_guide, check_aligned
 from psvs.mount.seats import DEFAULT_PITCH_MM, Seat, seats_for
 from psvs.optics.rig import Rig
 from psvs.rigs import SHIPPED, shipped_rig_path
@@ -57,7 +57,7 @@ def adjust(body: AdjustBody, session: SessionDep):
     nominal, design_name = design_rig(body.design, session)
     report.check_same_design(built, nominal, f"the design ({design_name})")
     seats = adjust_seats(body, nominal)
-    g = alignment_guide(built, seats, body.near_mm, body.far_mm)
+    g = check_aligned(alignment_guide(built, seats, body.near_mm, body.far_mm))
     table = [{"mirror": t.mirror.upper(), "screw": t.screw, "trims": report.TILTS[t.tilt],
               "deg_per_turn": math.degrees(t.rad_per_turn), "turn": report.turn_instruction(t.turns, t.direction)}
              for t in g.turns]

@@ -28,6 +28,7 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
+from psvs.errors import MeasurementError
 from psvs.optics.rig import Rig
 from psvs.web import (
     api_adjust,
@@ -69,6 +70,12 @@ def _one_line(exc: BaseException) -> str:
 async def bad_value(request: Request, exc: Exception) -> JSONResponse:
     """A well-formed request with a value the library refuses (ValueError, TypeError, cv2.error): 400."""
     return JSONResponse({"detail": _one_line(exc)}, status_code=400)
+
+
+async def cannot_measure(request: Request, exc: MeasurementError) -> JSONResponse:
+    """A well-formed request whose data cannot give a right answer (MeasurementError, the CLI's exit 1): 422
+    "cannot measure: ..." with the reason."""
+    return JSONResponse({"detail": f"cannot measure: {_one_line(exc)}"[:MAX_DETAIL]}, status_code=422)
 
 
 async def bad_request(request: Request, exc: RequestValidationError) -> JSONResponse:
@@ -127,6 +134,7 @@ def create_app(source: Source, rig: Rig, rig_name: str = "default rig", capture:
     for error in (ValueError, TypeError, cv2.error):
         app.add_exception_handler(error, bad_value)
     app.add_exception_handler(RequestValidationError, bad_request)
+    app.add_exception_handler(MeasurementError, cannot_measure)
 
     @app.get("/", include_in_schema=False)
     def index():

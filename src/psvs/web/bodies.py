@@ -15,6 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 from psvs.imaging.pipeline import PAPER, Pipeline, make_pipeline
 from psvs.match.correspondence import MatchParams
 from psvs.measure.triangulate import MODELS
+from psvs.mount.seats import DEFAULT_PITCH_MM, PITCH_RANGE_MM
 from psvs.web.limits import check_steps
 
 #: Largest near or far distance (mm) a body may ask for.
@@ -114,7 +115,7 @@ class MountMakeBody(RangeBody):
     hole_square_mm: float = Field(36.0, gt=0, le=500)
     wall_mm: float = Field(2.0, gt=0, le=50)
     clearance_mm: float = Field(0.3, ge=0, le=5)
-    pitch_mm: float = Field(0.5, gt=0, le=5)
+    pitch_mm: float = Field(DEFAULT_PITCH_MM, ge=PITCH_RANGE_MM[0], le=PITCH_RANGE_MM[1])
     margin_mm: float = Field(0.0, ge=0, le=50)
 
 
@@ -182,7 +183,7 @@ class AdjustBody(RangeBody):
     mount: str | None = Field(default=None, min_length=1, max_length=MAX_FILE_CHARS,
                               description="mount.toml's text (the seats psvs mount wrote); default: the seats "
                                           "on the design's mirrors")
-    pitch_mm: float | None = Field(default=None, gt=0, le=5,
+    pitch_mm: float | None = Field(default=None, ge=PITCH_RANGE_MM[0], le=PITCH_RANGE_MM[1],
                                    description="screw pitch, mm per turn, of the default seats (M3 x 0.5)")
 
 
