@@ -149,9 +149,19 @@ def test_poses_that_are_not_the_images_poses_are_refused(session, tmp_path, caps
                   r"the ([0-9.]+) px", err)
     assert m and float(m[1]) > 5.0 and float(m[2]) > 3.0, err
     assert not out.exists()
-    code, text, err = run(capsys, "handeye", str(folder), "--rig", "default", "-o", str(out), "--robot-accuracy-mm",
-                          "0")
-    assert code == 2 and "--robot-accuracy-mm must be a positive number" in err
+    for bad_accuracy in ("0", "11"):
+        code, text, err = run(capsys, "handeye", str(folder), "--rig", "default", "-o", str(out),
+                              "--robot-accuracy-mm", bad_accuracy)
+        assert code == 2 and "--robot-accuracy-mm must be a robot's flange pose accuracy in (0, 10] mm" in err
+    if spoil == "shifted":
+        # a robot said to be 10 mm accurate lets the shifted poses pass the residual test (an adversarial
+        # trial: a mount 174 mm off at 1-sigma 94 mm, exit 0): refused, the views cannot pin the mount
+        code, text, err = run(capsys, "handeye", str(folder), "--rig", "default", "-o", str(out),
+                              "--robot-accuracy-mm", "10")
+        assert code == 1 and len(err.strip().splitlines()) == 1 and not out.exists(), err
+        m = re.search(r"the views cannot pin the mount: its 1-sigma .* is ([0-9.]+) mm on each axis and ([0-9.]+) deg",
+                      err)
+        assert m and float(m[1]) > 5.0, err
 
 
 @pytest.mark.parametrize("spoil", ["card 10 % larger", "another rig"])

@@ -52,7 +52,7 @@ def run(args) -> int:
     from psvs.io.params import load_rig
     from psvs.robot.arm import Arm
     from psvs.robot.controller import TrackConfig
-    from psvs.robot.handeye import calibrate_from_views
+    from psvs.robot.handeye import calibrate_from_views, check_robot_accuracy
     from psvs.robot.handeye_io import read_views, save_handeye, write_views
     from psvs.robot.handeye_session import CELL_GRID, CELL_SUPERSAMPLE, cell_views, true_cam2flange
     from psvs.robot.mounting import HOME_Q
@@ -63,8 +63,7 @@ def run(args) -> int:
     save = check_output_folder(args.save_views, "--save-views folder") if args.save_views else None
     check_distinct({"-o": args.output, "--save-views": args.save_views},
                    {"VIEWS_DIR": args.views, "--rig": args.rig, "--true-rig": args.true_rig})
-    if not (math.isfinite(args.robot_accuracy_mm) and args.robot_accuracy_mm > 0):
-        raise ValueError(f"--robot-accuracy-mm must be a positive number of mm, got {args.robot_accuracy_mm:g}")
+    check_robot_accuracy(args.robot_accuracy_mm, "--robot-accuracy-mm")
     rig = measuring_rig(args.rig)
     truth = None
     if args.views is not None:

@@ -129,6 +129,23 @@ def consistent_labellings(candidates: list[list[TargetFit]], flange2base: list[n
 #: accuracy, ISO 9283, is 0.1-1 mm uncalibrated): what the hand-eye fit's residual may hold beyond the
 #: detector's noise (:func:`_check_fit`).
 ROBOT_ACCURACY_MM = 0.5
+#: mm: the worst flange pose accuracy a robot may be stated to have (a large arm uncalibrated holds a few mm):
+#: beyond it any poses pass the residual test, and no mount comes of them (:func:`check_robot_accuracy`).
+MAX_ROBOT_ACCURACY_MM = 10.0
+#: The least a hand-eye calibration must pin the mount to (1-sigma, on each axis and in orientation): what a
+#: mounting drawing and a ruler already give. A mount known no better than this is no calibration: the fit is
+#: refused (:func:`_check_pinned`), not written (six views with a 10 mm robot accuracy and poses shifted one
+#: row against their images wrote a mount 174 mm off at 1-sigma 94 mm, exit 0).
+MAX_MOUNT_SIGMA_MM = 5.0
+MAX_MOUNT_SIGMA_DEG = 2.0
+
+
+def check_robot_accuracy(accuracy_mm: float, name: str = "robot_accuracy_mm") -> None:
+    """ValueError naming ``name`` unless ``accuracy_mm`` is a flange pose accuracy in (0,
+    :data:`MAX_ROBOT_ACCURACY_MM`] mm."""
+    if not (math.isfinite(accuracy_mm) and 0 < accuracy_mm <= MAX_ROBOT_ACCURACY_MM):
+        raise ValueError(f"{name} must be a robot's flange pose accuracy in (0, {MAX_ROBOT_ACCURACY_MM:g}] mm, got "
+                         f"{accuracy_mm:g}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -166,6 +183,19 @@ def _check_fit(rms_px: float, noise, robot_accuracy_mm: float) -> None:
             f"({EDGE_PX:g} px) with a {robot_accuracy_mm:g} mm robot accuracy explains (limit {noise.limit_px:.3g} "
             "px, exceeded by that noise 1 % of the time): the poses are not the images' poses, are noisier than "
             "--robot-accuracy-mm says, or the views disagree with the rig")
+
+
+def _check_pinned(noise, robot_accuracy_mm: float, n_views: int) -> None:
+    """MeasurementError when the mount's 1-sigma from its inputs' noise (``noise``: position mm on each axis,
+    orientation rad) exceeds :data:`MAX_MOUNT_SIGMA_MM` or :data:`MAX_MOUNT_SIGMA_DEG`: the views cannot pin
+    it better than its drawing does."""
+    mm, deg = noise.mount_sigma_mm, math.degrees(noise.mount_sigma_rad)
+    if not (math.isfinite(mm) and math.isfinite(deg) and mm <= MAX_MOUNT_SIGMA_MM and deg <= MAX_MOUNT_SIGMA_DEG):
+        raise MeasurementError(
+            f"the views cannot pin the mount: its 1-sigma from the detector's precision and a {robot_accuracy_mm:g} "
+            f"mm robot accuracy is {mm:.3g} mm on each axis and {deg:.3g} deg over {n_views} views, beyond the "
+            f"{MAX_MOUNT_SIGMA_MM:g} mm and {MAX_MOUNT_SIGMA_DEG:g} deg a mounting drawing gives: more views over "
+            "wider turns of the flange, or a more accurate robot")
 
 
 #: px: a disc's twin lies on its epipolar curve through the rig the views were taken through within two centres'
@@ -257,6 +287,7 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
     whose grid cannot be read (:func:`grid_views`) is left out and listed in ``skipped``; ValueError when
     fewer than 3 views are read."""
     from psvs.robot.handeye_refine import fit_noise, refine_hand_eye
+    check_robot_accuracy(robot_accuracy_mm)
     if len(images) != len(flange2base):
         raise ValueError(f"{len(images)} images but {len(flange2base)} flange poses")
     cands, used, skipped = [], [], []
@@ -281,6 +312,7 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
     X, T, rms_px = refine_hand_eye(flange2base, fits, grid_points(grid), rig, X0)
     noise = fit_noise(flange2base, fits, grid_points(grid), rig, X, T, EDGE_PX, robot_accuracy_mm)
     _check_fit(rms_px, noise, robot_accuracy_mm)
+    _check_pinned(noise, robot_accuracy_mm, len(used))
     targets = [concat(T, X, F) for F, T in zip(flange2base, t2c, strict=True)]
     pos = np.array([T[:3, 3] for T in targets])
     ang = [rotation_angle_rad(targets[0][:3, :3].T @ T[:3, :3]) for T in targets]
