@@ -141,6 +141,15 @@ def test_dense_eval_bad_truth_and_sizes(capsys, tmp_path, planted):
     assert code == 2 and "differ in size" in err
     code, _, err = run(capsys, "dense-eval", *own, "--truth", str(tmp_path / "none.npy"))
     assert code == 2 and "not found" in err
+    # a truth that cannot be the left view's map searched here (an adversarial trial: scored 100 % bad, or an
+    # MAE of 1e9 px, exit 0): exit 2 before any work, naming it
+    for name, values, says in (("neg", -tl, "are negative (a left view's disparity is >= 0"),
+                               ("big", np.full_like(tl, 1e9), "beyond the image's width"),
+                               ("far", tl + 100.0, "of the ground truth lies in the searched disparities 0..40 px")):
+        bad = tmp_path / f"{name}.npy"
+        np.save(bad, values)
+        code, text, err = run(capsys, "dense-eval", *own, "--truth", str(bad), "--max-disparity", "40")
+        assert code == 2 and says in err and len(err.strip().splitlines()) == 1 and text == "", err
 
 
 def test_disparity_on_a_file_that_is_not_an_image(capsys, tmp_path):

@@ -42,6 +42,34 @@ def disparity_scores(estimate, truth) -> dict[str, float]:
             "coverage_pct": 100.0 * float(np.mean(answered))}
 
 
+#: The least share of the truth's valid pixels that must lie in the searched disparities (1 px either side):
+#: a truth mostly outside them scores the search's range, not the method.
+MIN_TRUTH_INSIDE = 0.5
+
+
+def check_truth_range(truth, d_min: float, d_max: float) -> None:
+    """ValueError naming the problem unless ``truth`` (H, W, px; NaN where none) can be a left view's disparity
+    map searched over d_min..d_max px: every value in 0..W - 1 (a negative one is the right view's map, or
+    the images swapped), and at least :data:`MIN_TRUTH_INSIDE` of them within d_min - 1..d_max + 1."""
+    gt = np.asarray(truth, dtype=np.float64)
+    vals = gt[np.isfinite(gt)]
+    if vals.size == 0:
+        raise ValueError("ground truth has no valid pixel")
+    w = gt.shape[-1]
+    for bad, what in ((vals < 0, "negative (a left view's disparity is >= 0: the right view's map, or the "
+                                 "images swapped?)"),
+                      (vals > w - 1, f"beyond the image's width ({w} px)")):
+        if bad.any():
+            raise ValueError(f"ground truth: {int(bad.sum())} of its {vals.size} valid pixels are {what}, e.g. "
+                             f"{vals[bad][0]:g} px")
+    inside = float(np.mean((vals >= d_min - 1.0) & (vals <= d_max + 1.0)))
+    if inside < MIN_TRUTH_INSIDE:
+        raise ValueError(f"only {100 * inside:.0f} % of the ground truth lies in the searched disparities "
+                         f"{d_min:g}..{d_max:g} px (its median {np.median(vals):.1f} px, 1-99 % "
+                         f"{np.percentile(vals, 1):.1f}..{np.percentile(vals, 99):.1f}): search the truth's range "
+                         "(--min-disparity, --max-disparity)")
+
+
 def sgbm_reference(left, right, d_max: int, block: int = 5) -> np.ndarray:
     """OpenCV StereoSGBM (3-way, ``block`` px) on the separate pair, disparities 0..d_max (rounded up to a
     multiple of 16; SGBM searches 0..n−1), NaN where it gives no answer: the usual settings P1 = 8·b², P2 = 32·b²,
@@ -112,7 +140,9 @@ def _warm(fn):
 
 def evaluate_pair(left, right, truth, d_min: float = 0.0, d_max: float = 64.0, split: float = 0.5) -> Evaluation:
     """Run the default and fast modes on the superimposed pair and StereoSGBM on the separate pair; each
-    method's time is that of a second call (the first compiles or loads the kernels)."""
+    method's time is that of a second call (the first compiles or loads the kernels). ValueError before any
+    work when the truth cannot be the left view's map over d_min..d_max (:func:`check_truth_range`)."""
+    check_truth_range(truth, d_min, d_max)
     c = superimpose(left, right, split)
     scores, seconds, results = {}, {}, {}
     for name, params in (("psvs dense", DEFAULT), ("psvs dense --fast", FAST)):
