@@ -250,3 +250,40 @@ def test_cli_bad_handeye_input(tmp_path, capsys):
         err = capsys.readouterr().err
         assert msg in err and len(err.strip().splitlines()) == 1, err
     assert afile.read_text() == "keep" and not (tmp_path / "he.toml").exists() and not (tmp_path / "r").exists()
+
+
+def _loose_mount(sigma_mm: float | None) -> HandEyeResult:
+    """The mount an adversarial trial's hand-eye fit wrote (poses shifted one row, a 10 mm robot): 174 mm from
+    the cell's true one, at its 1-sigma (187 mm, 46 deg), or without one (an older file)."""
+    X = np.array([[0.2988951165242625, -0.9327838677777424, 0.2014347669384379, 120.97657018635304],
+                  [0.9331590501375028, 0.24152171131261235, -0.2662357040501908, 31.212653116577403],
+                  [0.1996895001356386, 0.26754722756594285, 0.9426253680849865, -65.51225230792402],
+                  [0.0, 0.0, 0.0, 1.0]])
+    return HandEyeResult(X, np.array([0.06, 0.057, 0.07]), 13.1, 0.49, 19.7, mount_sigma_mm=sigma_mm,
+                         mount_sigma_rad=None if sigma_mm is None else math.radians(46.1))
+
+
+def test_track_refuses_a_mount_its_file_says_is_not_pinned(tmp_path, capsys):
+    """A handeye.toml whose own 1-sigma exceeds what a drawing gives (5 mm, 2 deg): exit 1 before any work,
+    naming the figures; no run folder."""
+    he = tmp_path / "he.toml"
+    save_handeye(he, _loose_mount(187.4), "trial", "default")
+    code, text, err = run(capsys, "track", "weld_seam", "--rig", "default", "--handeye", str(he), "--no-bag",
+                          "-o", str(tmp_path / "r"))
+    assert code == 1 and len(err.strip().splitlines()) == 1, err
+    assert f"the views cannot pin the mount: its 1-sigma in {he} is 187 mm on each axis and 46.1 deg" in err
+    assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.slow
+def test_a_run_an_arm_fault_stops_is_not_a_clean_weld(tmp_path, capsys):
+    """The same mount from a file without its 1-sigma: the arm's inverse kinematics jumps before the arc and
+    the run stops there, welded 0.0 mm. That is no clean weld: exit 1 with one line saying the stop (the
+    trial's run exited 0), the run's report written as ever."""
+    he = tmp_path / "he.toml"
+    save_handeye(he, _loose_mount(None), "trial", "default")
+    code, text, err = run(capsys, "track", "weld_seam", "--rig", "default", "--handeye", str(he), "--length", "30",
+                          "--no-bag", "--no-check", "-o", str(tmp_path / "r"))
+    rep = json.loads((tmp_path / "r" / "report.json").read_text())
+    assert rep["stop"]["reason"].startswith("arm: ") and rep["welded_mm"] == 0.0, rep["stop"]
+    assert code == 1 and err.strip() == f"psvs track: not a clean weld: the run stopped on {rep['stop']['reason']}"

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+import sys
 import time
 
 import numpy as np
@@ -142,9 +143,13 @@ def run(args) -> int:
     cfg, rig, true_rig, wp = _job(args)
     handeye = None
     if args.handeye:
+        from psvs.robot.handeye import check_mount_pinned
         from psvs.robot.handeye_io import load_handeye
         from psvs.robot.handeye_session import true_cam2flange
-        handeye = (load_handeye(args.handeye), true_cam2flange(cfg))   # the simulated hardware's truth: scoring
+        he = load_handeye(args.handeye)
+        if he.mount_sigma_mm is not None:   # a file written before the hand-eye fit refused a mount this loose
+            check_mount_pinned(he.mount_sigma_mm, he.mount_sigma_rad, f"in {args.handeye}")
+        handeye = (he, true_cam2flange(cfg))   # the simulated hardware's truth: scoring
     made = not out.exists()
     out.mkdir(exist_ok=True)                     # before the run: a recording may go into it
     t0_ns = time.time_ns()                       # the run's start: the recording's and the bag's time base
@@ -166,8 +171,26 @@ def run(args) -> int:
             out.rmdir()
         raise
     _print_summary(summary, bool(args.handeye))
+    return _exit_status(result.stop.reason)
+
+
+#: Stops that are no clean weld besides the drift stop: a fault of the arm (a joint at its limit, an inverse
+#: kinematics jump) and a run that never ended by itself. The seam's end, a gap and the weld's length are.
+FAULT_STOPS = ("arm: ", "cycle limit reached")
+
+
+def _exit_status(reason: str) -> int:
+    """0 for a run that ended as a weld ends (its length, the seam's end or a gap it cannot bridge, said in
+    the summary); 1, with one line, for a stop that is no clean weld: the calibration drifted (said where it
+    was found), an arm fault or a run that never ended (an adversarial trial: an inverse kinematics jump
+    that welded 0.0 mm exited 0)."""
     from psvs.robot.drift import DRIFT_STOP
-    return 1 if result.stop.reason.startswith(DRIFT_STOP) else 0   # not a clean weld: the glass moved
+    if reason.startswith(DRIFT_STOP):
+        return 1                                     # not a clean weld: the glass moved
+    if reason.startswith(FAULT_STOPS):
+        print(f"psvs track: not a clean weld: the run stopped on {reason}", file=sys.stderr)
+        return 1
+    return 0
 
 
 def _print_summary(s: dict, handeye_file: bool) -> None:

@@ -134,7 +134,7 @@ ROBOT_ACCURACY_MM = 0.5
 MAX_ROBOT_ACCURACY_MM = 10.0
 #: The least a hand-eye calibration must pin the mount to (1-sigma, on each axis and in orientation): what a
 #: mounting drawing and a ruler already give. A mount known no better than this is no calibration: the fit is
-#: refused (:func:`_check_pinned`), not written (six views with a 10 mm robot accuracy and poses shifted one
+#: refused (:func:`check_mount_pinned`), not written (six views with a 10 mm robot accuracy and poses shifted one
 #: row against their images wrote a mount 174 mm off at 1-sigma 94 mm, exit 0).
 MAX_MOUNT_SIGMA_MM = 5.0
 MAX_MOUNT_SIGMA_DEG = 2.0
@@ -185,17 +185,16 @@ def _check_fit(rms_px: float, noise, robot_accuracy_mm: float) -> None:
             "--robot-accuracy-mm says, or the views disagree with the rig")
 
 
-def _check_pinned(noise, robot_accuracy_mm: float, n_views: int) -> None:
-    """MeasurementError when the mount's 1-sigma from its inputs' noise (``noise``: position mm on each axis,
-    orientation rad) exceeds :data:`MAX_MOUNT_SIGMA_MM` or :data:`MAX_MOUNT_SIGMA_DEG`: the views cannot pin
-    it better than its drawing does."""
-    mm, deg = noise.mount_sigma_mm, math.degrees(noise.mount_sigma_rad)
+def check_mount_pinned(sigma_mm: float, sigma_rad: float, source: str) -> None:
+    """MeasurementError when a mount's 1-sigma (position mm on each axis, orientation rad) exceeds
+    :data:`MAX_MOUNT_SIGMA_MM` or :data:`MAX_MOUNT_SIGMA_DEG`: its views did not pin it better than its drawing
+    does. ``source`` says where the figure comes from, e.g. "from ... over 6 views"."""
+    mm, deg = sigma_mm, math.degrees(sigma_rad)
     if not (math.isfinite(mm) and math.isfinite(deg) and mm <= MAX_MOUNT_SIGMA_MM and deg <= MAX_MOUNT_SIGMA_DEG):
         raise MeasurementError(
-            f"the views cannot pin the mount: its 1-sigma from the detector's precision and a {robot_accuracy_mm:g} "
-            f"mm robot accuracy is {mm:.3g} mm on each axis and {deg:.3g} deg over {n_views} views, beyond the "
-            f"{MAX_MOUNT_SIGMA_MM:g} mm and {MAX_MOUNT_SIGMA_DEG:g} deg a mounting drawing gives: more views over "
-            "wider turns of the flange, or a more accurate robot")
+            f"the views cannot pin the mount: its 1-sigma {source} is {mm:.3g} mm on each axis and {deg:.3g} deg, "
+            f"beyond the {MAX_MOUNT_SIGMA_MM:g} mm and {MAX_MOUNT_SIGMA_DEG:g} deg a mounting drawing gives: more "
+            "views over wider turns of the flange, or a more accurate robot")
 
 
 #: px: a disc's twin lies on its epipolar curve through the rig the views were taken through within two centres'
@@ -312,7 +311,8 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
     X, T, rms_px = refine_hand_eye(flange2base, fits, grid_points(grid), rig, X0)
     noise = fit_noise(flange2base, fits, grid_points(grid), rig, X, T, EDGE_PX, robot_accuracy_mm)
     _check_fit(rms_px, noise, robot_accuracy_mm)
-    _check_pinned(noise, robot_accuracy_mm, len(used))
+    check_mount_pinned(noise.mount_sigma_mm, noise.mount_sigma_rad, f"from the detector's precision and a "
+                       f"{robot_accuracy_mm:g} mm robot accuracy over {len(used)} views")
     targets = [concat(T, X, F) for F, T in zip(flange2base, t2c, strict=True)]
     pos = np.array([T[:3, 3] for T in targets])
     ang = [rotation_angle_rad(targets[0][:3, :3].T @ T[:3, :3]) for T in targets]
