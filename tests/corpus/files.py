@@ -60,6 +60,14 @@ def repeating_png(period: int = 40, w: int = 640, h: int = 480, seed: int = 5) -
     return png(np.clip(img, 0, 255).astype(np.uint8))
 
 
+def npy(array) -> bytes:
+    """``array`` as the bytes of a .npy file (NumPy's own format)."""
+    import io
+    buf = io.BytesIO()
+    np.save(buf, np.asarray(array))
+    return buf.getvalue()
+
+
 def truncated_png() -> bytes:
     return texture_png()[:2000]
 

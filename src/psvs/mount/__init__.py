@@ -14,7 +14,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "guide": ["alignment_guide", "check_aligned", "designed_twin", "row_offsets_px", "working_points"],
         "layout": ["INTERFACES", "MountError", "MountParams"],
         "report": ["check_same_design", "format_guide", "guide_to_dict"],
-        "seats": ["DEFAULT_PITCH_MM", "Seat", "seats_for"],
+        "seats": ["DEFAULT_PITCH_MM", "PITCH_RANGE_MM", "Seat", "check_pitch", "seats_for"],
         "stl_view": ["MAX_FACES", "mount_mesh"],
     },
 )
