@@ -544,6 +544,13 @@ def _small() -> list[Case]:
         Case("dense-eval-truth-malformed", ("dense-eval", "--left", "a.png", "--right", "a.png", "--truth",
                                             "t.npy", "-o", "ev"), 2, "t.npy",
              {"a.png": texture_png(), "t.npy": b"junk"}),
+        Case("design-far-beyond-any-depth", ("design", "--rig", "default", "--far-mm", "1e155"), 2, "--far-mm"),
+        Case("simulate-box-beyond-the-tracer", ("simulate", "box.toml", "-o", "box.png"), 2, "beyond",
+             {"box.toml": 'name = "t"\n[backdrop]\nz_mm = 1300\n[[objects]]\ntype = "box"\n'
+                          'size_mm = [1e20, 1e20, 10]\nposition_mm = [0, 0, 600]\n'}, ("box.png",)),
+        Case("batch-frame-named-as-the-runs-file", ("batch", "match", "st", "--rig", "default", "--auto", "-o", "out",
+                                                    "--workers", "1"), 2, "study.json",
+             {"st/study.png": texture_png(), "st/b.png": texture_png(seed=2)}),
         Case("dense-eval-truth-negative", ("dense-eval", "--left", "a.png", "--right", "a.png", "--truth",
                                            "t.npy", "-o", "ev"), 2, "negative",
              {"a.png": texture_png(), "t.npy": npy(np.full((480, 640), -10.0, np.float32))}),

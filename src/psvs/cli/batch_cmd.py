@@ -117,6 +117,10 @@ def _job(args, frames: Frames, out_dir: Path) -> dict:
             "source": frames.source, "video": frames.video, "folder": frames.folder, "out_dir": str(out_dir)}
 
 
+#: The run folder's own files (psvs.cluster.store): no frame's result may take one of these names.
+RUN_FILES = frozenset({"study.json", "results.parquet", "parts"})
+
+
 def frame_args(job: dict, key: str) -> argparse.Namespace:
     """The single command's arguments for one frame: its image (the video for a video's frame) and its
     outputs in DIR named after the frame."""
@@ -209,6 +213,14 @@ def _preflight(job: dict, frames: Frames) -> None:
     if frames.video and tuple(frames.size_px) != (w, h):
         fw, fh = frames.size_px
         raise ValueError(f"{frames.source}: frames are {fw}x{fh} px but the rig's camera is {w}x{h} px")
+    for key in frames.keys:                  # a frame's output named as the run's own files would replace them
+        a = frame_args(job, key)
+        outs = [a.output] + [x for k in job["per_frame"] for x in (getattr(a, k) if isinstance(getattr(a, k), list)
+                                                                  else [getattr(a, k)])]
+        clash = sorted({Path(x).name for x in outs} & RUN_FILES)
+        if clash:
+            raise ValueError(f"frame {key}: its result would be named {clash[0]}, as the run's own file in "
+                             f"{job['out_dir']}: rename that frame")
     args = frame_args(job, frames.keys[0])
     module = importlib.import_module(f"psvs.cli.{COMMANDS[job['command']][0]}")
     module.prepare(args, np.zeros((h, w), np.uint8))

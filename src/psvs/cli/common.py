@@ -222,11 +222,17 @@ def check_distinct(outputs: dict, inputs: dict | None = None) -> None:
                                      "overwritten by what was computed from it")
 
 
+#: mm: the farthest depth a working range may reach (10 km: far beyond any PSVS's use; beyond, the optics'
+#: squares overflow: --far-mm 1e155 was an internal error, 1e154 printed a 300-digit depth).
+MAX_DEPTH_MM = 1e7
+
+
 def check_working_range(near_mm: float, far_mm: float) -> tuple[float, float]:
-    """``--near-mm``/``--far-mm`` as finite depths with 0 < near < far (mm), else a one-line ValueError."""
+    """``--near-mm``/``--far-mm`` as finite depths with 0 < near < far <= :data:`MAX_DEPTH_MM` (mm), else a
+    one-line ValueError."""
     for name, v in (("--near-mm", near_mm), ("--far-mm", far_mm)):
-        if not math.isfinite(v) or v <= 0:
-            raise ValueError(f"{name} must be a finite depth > 0 mm, got {v}")
+        if not math.isfinite(v) or v <= 0 or v > MAX_DEPTH_MM:
+            raise ValueError(f"{name} must be a finite depth in (0, {MAX_DEPTH_MM:g}] mm, got {v}")
     if near_mm >= far_mm:
         raise ValueError(f"--near-mm ({near_mm} mm) must be less than --far-mm ({far_mm} mm)")
     return near_mm, far_mm

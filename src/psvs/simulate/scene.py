@@ -15,6 +15,9 @@ from psvs.simulate.textures import Texture, Uniform
 from psvs.transforms import transform_from
 
 KINDS = ("rectangle", "disc", "box", "cylinder", "sphere", "mesh")
+#: mm: the largest size or distance of a primitive (10 km): a box of 1e20 mm vanished from the render and its
+#: truth without a word.
+MAX_SCENE_MM = 1e7
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,6 +86,11 @@ class SceneObject:
                 raise ValueError(f"{label}: a mesh needs vertices and at least one face")
         if not np.all(np.isfinite(self.pose.position_mm)) or not np.all(np.isfinite(self.pose.rotation)):
             raise ValueError(f"{label}: pose must be finite")
+        for what, values in (("size_mm", self.size_mm), ("radius_mm", (self.radius_mm,)),
+                             ("height_mm", (self.height_mm,)), ("position", self.pose.position_mm)):
+            if np.any(np.abs(np.asarray(values, dtype=float)) > MAX_SCENE_MM):
+                raise ValueError(f"{label}: {what} beyond {MAX_SCENE_MM:g} mm, got {values!r} (the ray tracer's "
+                                 "single precision loses such an object)")
 
 
 @dataclass(frozen=True)
