@@ -203,3 +203,28 @@ def test_batch_whose_every_frame_is_refused_exits_1(capsys, tmp_path):
     assert last.startswith("psvs batch: no frame gave a result; the first said: no part of the image echoes beyond "
                            "chance: "), err
     assert not list((tmp_path / "d").glob("*.npy"))
+
+
+def test_a_run_folder_of_an_input_since_changed_is_refused(capsys, tmp_path, fig9):
+    """A frame of the folder replaced after a run (an adversarial trial: the old frame's map was kept and
+    counted, "0 computed now", exit 0): the next run into that folder is refused in one line, exit 2, and the
+    folder is left as it was; the unchanged input resumes with nothing to compute."""
+    import os
+    _, pngs = fig9
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for p in pngs[:2]:
+        (folder / p.name).write_bytes(p.read_bytes())
+    argv = ("batch", "measure", "circles", str(folder), "--rig", "default", "-o", str(tmp_path / "m"), "--workers", "1")
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and "2 frames, 2 ok (2 computed now" in out, err
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and "(0 computed now, 2 before" in out, err
+    before = {p.name: p.read_bytes() for p in (tmp_path / "m").iterdir() if p.is_file()}
+    frame = folder / pngs[0].name
+    frame.write_bytes(pngs[2].read_bytes())                       # another frame under the same name
+    st = frame.stat()
+    os.utime(frame, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+    code, out, err = run(capsys, *argv)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "input_files_sha256" in err, err
+    assert {p.name: p.read_bytes() for p in (tmp_path / "m").iterdir() if p.is_file()} == before

@@ -193,15 +193,29 @@ def _line(exc: BaseException) -> str:
     return text.splitlines()[0] if text else type(exc).__name__
 
 
-def _params(job: dict) -> dict:
-    """What makes a frame's result what it is (DIR/study.json): the command, its options, the input, and the
-    rig file's and pipeline file's contents."""
+def _input_digest(frames: Frames) -> str:
+    """A digest of what the input holds now: each frame file's name, size and modification time (the video
+    file's, for a video). A video recorded again under the same name, or an image replaced in the folder, is
+    another input: a run folder made from the old one kept its maps and counted them as this input's (an
+    adversarial trial), so it is refused instead."""
+    paths = [Path(frames.source)] if frames.video else [Path(frames.folder) / k for k in frames.keys]
+    h = hashlib.sha256()
+    for p in paths:
+        st = p.stat()
+        h.update(f"{p.name}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
+    return h.hexdigest()
+
+
+def _params(job: dict, frames: Frames) -> dict:
+    """What makes a frame's result what it is (DIR/study.json): the command, its options, the input (its
+    path and :func:`_input_digest`), and the rig file's and pipeline file's contents."""
     from psvs.io.params import rig_path
     files = {"rig": rig_path(job["args"]["rig"])}
     if job["args"].get("pipeline"):
         files["pipeline"] = Path(job["args"]["pipeline"])
     digests = {f"{k}_sha256": hashlib.sha256(p.read_bytes()).hexdigest() for k, p in files.items() if p.is_file()}
-    return {"command": job["command"], "input": job["source"], "options": job["args"], **digests}
+    return {"command": job["command"], "input": job["source"], "input_files_sha256": _input_digest(frames),
+            "options": job["args"], **digests}
 
 
 def _preflight(job: dict, frames: Frames) -> None:
@@ -246,7 +260,7 @@ def run(args) -> int:
     out_dir.mkdir(exist_ok=True)         # the command's own checks want its outputs' folder
     try:
         _preflight(job, frames)
-        check_params(out_dir, _params(job))
+        check_params(out_dir, _params(job, frames))
         if job["command"] == "disparity":       # the workers compile them, once each (psvs.dense.compiled)
             from psvs.dense.compiled import announce_dense
             announce_dense("psvs batch disparity")
@@ -256,7 +270,7 @@ def run(args) -> int:
             shutil.rmtree(out_dir, ignore_errors=True)
         raise
     with client:
-        summary = run_tasks(client, functools.partial(frame_task, job), frames.keys, out_dir, _params(job),
+        summary = run_tasks(client, functools.partial(frame_task, job), frames.keys, out_dir, _params(job, frames),
                             RunOptions(label=f"psvs batch {job['command']}", threads=task_threads(client)))
     status = read_results(out_dir).column("status").to_pylist()
     counts = {s: status.count(s) for s in ("ok", "cannot measure", "bad input") if status.count(s)}
