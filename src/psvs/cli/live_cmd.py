@@ -117,11 +117,14 @@ def check_step(health, image, frame: int, sensor_s: float, tel, t_s: float, comm
     return health.latest
 
 
-def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, list, float, bool]:
-    """Every frame of ``source`` through the sensors and the rolling check (until --max-frames, Ctrl-C or a
-    camera lost), published and printed as it comes: (tracker steps, dense frames, the frames' metadata
-    without images, the check's latest judgement per frame, wall time s, whether the camera was lost)."""
-    steps, dense_frames, metas, checks, lost = [], [], [], [], False
+def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, list, float, bool, object]:
+    """Every frame of ``source`` through the sensors and the rolling check (until --max-frames, Ctrl-C, SIGTERM
+    or a camera lost), published and printed as it comes: (tracker steps, dense frames, the frames' metadata
+    without images, the check's latest judgement per frame, wall time s, whether the camera was lost, the
+    signal that stopped it or None). A signal that lands inside a compiled kernel (the dense map's) comes
+    wrapped in a SystemError: it stops the loop the same way (it lost the log and the recording)."""
+    from psvs.cli.main import _signal_inside
+    steps, dense_frames, metas, checks, lost, stopped_by = [], [], [], [], False, None
     t0 = time.perf_counter()
     t_first = None
     try:
@@ -145,8 +148,8 @@ def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, 
                 print(_frame_line(len(steps) - 1, step, dstep) + _dropped_note(frame), flush=True)
             if args.max_frames is not None and len(steps) >= args.max_frames:
                 break
-    except KeyboardInterrupt:
-        pass
+    except KeyboardInterrupt as exc:
+        stopped_by = exc
     except CameraLost as exc:                # stop cleanly: what was grabbed is kept, logged and summarised
         last = metas[-1] if metas else None
         where = (f"the last frame was {last.index} (camera frame {last.counter})" if last is not None
@@ -155,7 +158,11 @@ def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, 
         lost = True
         if tel is not None:
             tel.log(time.perf_counter() - t0, f"camera lost: {exc}; {where}", "error")
-    return steps, dense_frames, metas, checks, time.perf_counter() - t0, lost
+    except Exception as exc:
+        stopped_by = _signal_inside(exc)
+        if stopped_by is None:
+            raise
+    return steps, dense_frames, metas, checks, time.perf_counter() - t0, lost, stopped_by
 
 
 def _dropped_note(frame) -> str:
@@ -206,7 +213,8 @@ def run(args) -> int:
         with open_telemetry(args) as tel:
             if hasattr(tel, "rig"):     # Rerun: the rig in 3-D, the image in its camera's field
                 tel.rig(rig_from_args(args), *range_from_args(args))
-            steps, dense_frames, metas, checks, wall, lost = _loop(args, source, tel, tracker, dense, health)
+            steps, dense_frames, metas, checks, wall, lost, stopped_by = _loop(args, source, tel, tracker, dense,
+                                                                               health)
             if not steps:               # inside: a recording of nothing is discarded, not kept
                 raise ValueError(f"no frame could be read from {source.name}")
         record_settings(args, out, source)
@@ -221,6 +229,9 @@ def run(args) -> int:
         print(health_summary(health))
     status = _summary(steps, dense_frames if dense is not None else None, wall, args.realtime,
                       "fast" if args.fast else "default")
+    from psvs.cli.main import Terminated
+    if isinstance(stopped_by, Terminated):   # the outputs written: then the shell's status for the signal
+        raise stopped_by
     return max(status, 1) if lost else status
 
 
