@@ -204,6 +204,7 @@ def test_a_signal_during_live_dense_keeps_the_log_and_the_recording(tmp_path, si
     import signal
     import subprocess
     import sys
+
     from psvs.io.video import write_video
     from psvs.simulate.builtin import builtin_scene
     from psvs.simulate.render import render
