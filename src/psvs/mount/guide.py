@@ -45,7 +45,7 @@ from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 TURN_STEP = 1.0 / 16.0
 #: The guide's thresholds and weights below are per turn of a screw of this pitch (mm): for another pitch
 #: they scale with it (a turn of a 0.05 mm screw moves a contact a tenth as far), so the guide weighs the
-#: same motions of the glass whatever screws the seats hold (:func:`per_turn`).
+#: same motions of the glass whatever screws the seats hold (:func:`alignment_guide` scales them).
 REFERENCE_PITCH_MM = DEFAULT_PITCH_MM
 #: A turn combination that moves the twins' rows by less than this (RMS px per turn) is not seen.
 NULL_PX_PER_TURN = 0.02
