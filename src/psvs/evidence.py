@@ -24,6 +24,9 @@ import numpy as np
 
 from psvs.errors import MeasurementError
 
+#: px RMS: how far off their rows a calibration may leave the twins of ordinary frames and still be the rig's
+#: (the self-check's default tolerance, psvs.health.check; the alignment guide's, psvs.mount.guide).
+ROW_TOLERANCE_PX = 0.5
 #: The largest radial distortion a lens of the field has at the image's corner, as a share of the radius
 #: (machine-vision 6-25 mm lenses stay under 5 %; 25 % is a fisheye, which psvs's model does not cover).
 MAX_CORNER_DISTORTION = 0.25

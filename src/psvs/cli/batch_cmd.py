@@ -229,8 +229,8 @@ def _preflight(job: dict, frames: Frames) -> None:
         raise ValueError(f"{frames.source}: frames are {fw}x{fh} px but the rig's camera is {w}x{h} px")
     for key in frames.keys:                  # a frame's output named as the run's own files would replace them
         a = frame_args(job, key)
-        outs = [a.output] + [x for k in job["per_frame"] for x in (getattr(a, k) if isinstance(getattr(a, k), list)
-                                                                  else [getattr(a, k)])]
+        named = [a.output, *(getattr(a, k) for k in job["per_frame"])]
+        outs = [x for v in named for x in (v if isinstance(v, list) else [v])]
         clash = sorted({Path(x).name for x in outs} & RUN_FILES)
         if clash:
             raise ValueError(f"frame {key}: its result would be named {clash[0]}, as the run's own file in "
@@ -260,7 +260,8 @@ def run(args) -> int:
     out_dir.mkdir(exist_ok=True)         # the command's own checks want its outputs' folder
     try:
         _preflight(job, frames)
-        check_params(out_dir, _params(job, frames))
+        params = _params(job, frames)     # stats every frame once: the input as it is now
+        check_params(out_dir, params)
         if job["command"] == "disparity":       # the workers compile them, once each (psvs.dense.compiled)
             from psvs.dense.compiled import announce_dense
             announce_dense("psvs batch disparity")
@@ -270,7 +271,7 @@ def run(args) -> int:
             shutil.rmtree(out_dir, ignore_errors=True)
         raise
     with client:
-        summary = run_tasks(client, functools.partial(frame_task, job), frames.keys, out_dir, _params(job, frames),
+        summary = run_tasks(client, functools.partial(frame_task, job), frames.keys, out_dir, params,
                             RunOptions(label=f"psvs batch {job['command']}", threads=task_threads(client)))
     status = read_results(out_dir).column("status").to_pylist()
     counts = {s: status.count(s) for s in ("ok", "cannot measure", "bad input") if status.count(s)}

@@ -35,11 +35,12 @@ import numpy as np
 from psvs._validate import check_grey
 from psvs.dense.rig_cache import rectification
 from psvs.errors import MeasurementError
+from psvs.evidence import ROW_TOLERANCE_PX
 from psvs.health.rows import FAR_REACH_DEG, FrameTiles, frame_tiles, reach_px
 from psvs.optics.rig import Rig
 
 #: The tolerance a calibration is held to by default: the field's RMS, px.
-TOLERANCE_PX = 0.5
+TOLERANCE_PX = ROW_TOLERANCE_PX
 #: At least this many tiles must pass their chance test, and lie on the field in at least MIN_REGIONS of the
 #: frame's ninths (a 3 x 3 split of the places a tile can stand): a field over the frame is not pinned by
 #: tiles bunched in one part of it (a quadratic through them extrapolates anything).

@@ -36,6 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.errors import MeasurementError
+from psvs.evidence import ROW_TOLERANCE_PX
 from psvs.measure.tolerance import field_points
 from psvs.mount.seats import DEFAULT_PITCH_MM, SCREWS, Seat, apply_turns, handedness, screw_rates
 from psvs.optics.project import project_points
@@ -54,8 +55,8 @@ REGULARISE_PX_PER_TURN = 0.01
 #: In the rounding to 1/16 turn, a turn in all (any screw) costs as much as this many px of row offset.
 TURN_COST_PX = 0.3
 #: px RMS: turns after which the twins stand further off their rows than this (predicted) do not align the
-#: build (the self-check's tolerance, psvs.health.check.TOLERANCE_PX): the guide says so instead of them.
-ALIGNED_RMS_PX = 0.5
+#: build (the self-check's tolerance): the guide says so instead of them.
+ALIGNED_RMS_PX = ROW_TOLERANCE_PX
 #: The rounding tries every screw this many 1/16-turn steps either side of its nearest rounding.
 SEARCH_STEPS = 2
 #: Along the turns the rows cannot see, lattice points up to this far (turns) are tried, the best few descended.
