@@ -171,7 +171,7 @@ def test_memory_is_checked_before_the_cost_volume(capsys, tmp_path, planted, mon
     need = dense_memory_bytes(h, w, 0, w - 1)
     lags = w - 1 - 3 + 1                                          # lags MIN_LAG_PX (3) .. w - 1
     padded = lambda n: -(-n // 8) * 8                              # noqa: E731
-    assert need == 24 * (h * w * padded(lags) + (h // 2) * (w // 2) * padded(lags // 2)) + 400 * h * w
+    assert need == 20 * (h * w * padded(lags) + (h // 2) * (w // 2) * padded(lags // 2)) + 400 * h * w
     monkeypatch.setattr(_budget, "available_bytes", lambda: int(need / 0.8) - 1)
     out = tmp_path / "d.npy"
     code, _, err = run(capsys, "disparity", str(paths["complex"]), "-o", str(out), "--min-disparity", "0",

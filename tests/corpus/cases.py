@@ -101,6 +101,9 @@ def _fit_refraction() -> list[Case]:
              {"k.csv": lambda f: _shifted_known(f, z_nan=True)}, ("fitted.toml",)),
         Case("fit-refraction-depths-fit-no-rig", base, 1, "",
              {"k.csv": lambda f: _shifted_known(f, z_scale=0.5)}, ("fitted.toml",)),
+        # issue 41's trial: the fit uses depth only, so rows flipped in Y fitted l, m and were written
+        Case("fit-refraction-y-flipped", base, 1, "X, Y are", {"k.csv": lambda f: _shifted_known(f, y_scale=-1.0)},
+             ("fitted.toml",)),
         Case("fit-refraction-missing-columns", base, 2, "X_mm", {"k.csv": MATCHES}, ("fitted.toml",)),
         Case("fit-refraction-ill-conditioned-rows-repeated", base, 1, "condition number",
              {"k.csv": lambda f: _on_axis_known(30000)}, ("fitted.toml",)),
@@ -123,14 +126,15 @@ def _on_axis_known(copies: int) -> str:
     return _known([(*a, *b, *p) for a, b, p in zip(left, right, pts, strict=True)] * copies)
 
 
-def _shifted_known(folder, z_scale: float = 1.0, z_nan: bool = False) -> str:
+def _shifted_known(folder, z_scale: float = 1.0, z_nan: bool = False, y_scale: float = 1.0) -> str:
     """examples/known_points.csv with every depth scaled (points behind the rig, or depths no rig gives) or
-    NaN."""
+    NaN, and Y scaled (-1: flipped)."""
     lines = (folder / "examples" / "known_points.csv").read_text().splitlines()
     out = [lines[0]]
     for line in lines[1:]:
         cells = line.split(",")
         cells[6] = "nan" if z_nan else repr(float(cells[6]) * z_scale)
+        cells[5] = repr(float(cells[5]) * y_scale)
         out.append(",".join(cells))
     return "\n".join(out) + "\n"
 

@@ -211,6 +211,9 @@ def test_one_sided_costs_against_their_definition(seed):
     both = one_sided_costs(echo, lags, fused, keeps[0], keeps[1], out)
     for right_view, keep, got in zip((False, True), keeps, both, strict=True):
         _check_one_sided(got, echo, lags, fused, keep, right_view)
+    over = np.full_like(out, np.nan)                # the left view's written over the fused cost itself
+    over[0] = fused
+    np.testing.assert_array_equal(one_sided_costs(echo, lags, over[0], keeps[0], keeps[1], over), both)
 
 
 def _check_one_sided(got, echo, lags, fused, keep, right_view):

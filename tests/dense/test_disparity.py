@@ -171,11 +171,11 @@ def test_a_kept_workspace_gives_the_same_maps():
                         (got.disparity_left, got.disparity_right, got.confidence_left), strict=True):
             np.testing.assert_array_equal(a, b)
     kept = {name: buf for name, buf in ws._buffers.items()}       # what the calls left in the workspace
-    assert {"echo", "fused", "sgm", "one_sided"} <= set(kept) and ws.coarse._buffers
+    assert set(kept) == {"echo", "costs", "sgm"} and ws.coarse._buffers
     dense_disparity(c, 0, 30, workspace=ws)                         # a smaller search: the same memory
     assert all(ws._buffers[name] is buf for name, buf in kept.items())
-    small = ws.array("fused", (5, 20, 8))
-    assert small.dtype == np.float32 and small.flags.c_contiguous and np.shares_memory(small, kept["fused"])
+    small = ws.array("costs", (5, 20, 8))
+    assert small.dtype == np.float32 and small.flags.c_contiguous and np.shares_memory(small, kept["costs"])
 
 
 def test_pruned_range_keeps_the_supported_disparities_with_a_margin():

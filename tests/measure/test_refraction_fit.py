@@ -71,6 +71,41 @@ def test_a_residual_above_the_noise_is_refused(known):
     assert fit.rms_residual_mm < RESIDUAL_FACTOR * fit.noise_rms_mm and DISPARITY_NOISE_PX == 0.3
 
 
+@pytest.mark.parametrize("change", ["Y flipped", "X and Y swapped", "X, Y in cm"])
+def test_known_points_off_their_pixels_in_x_y_are_refused(known, change):
+    """The fit uses depth only: the example's points with X, Y flipped, swapped or in cm fit the same l, m
+    exactly, and would be written into the rig. Each is 100-160 mm RMS off where eqs. (16)-(17) put its
+    pixels, against ~0.5 mm that a 0.3 px error explains: refused."""
+    rig, left, right, pts = known
+    wrong = pts.copy()
+    if change == "Y flipped":
+        wrong[:, 1] *= -1
+    elif change == "X and Y swapped":
+        wrong[:, :2] = wrong[:, ::-1][:, 1:]
+    else:
+        wrong[:, :2] /= 10
+    with pytest.raises(MeasurementError, match=r"X, Y are \d+ mm RMS off where their pixels put them .* "
+                                               r"\d+ times the 0\.\d+ mm a 0\.3 px error explains"):
+        fit_refraction(left, right, wrong, rig)
+
+
+@pytest.mark.parametrize("seed", [3, 4, 5])
+def test_x_y_within_the_pixels_noise_fit_and_an_origin_5_mm_off_does_not(known, seed):
+    """Planted: 12 points drawn over the field at 450-1100 mm, projected by ray tracing through the rig's
+    glass, their pixels jittered by 0.1 px: the fit answers; the same points given from an origin 5 mm
+    aside (over ten times what the noise explains at these depths) are refused."""
+    rig, *_ = known
+    rng = np.random.default_rng(seed)
+    z = rng.uniform(450, 1100, 12)
+    pts = np.stack([rng.uniform(-0.15, 0.15, 12) * z, rng.uniform(-0.1, 0.1, 12) * z, z], axis=1)
+    left, right = planted(rig, pts)
+    left, right = left + rng.normal(0, 0.1, left.shape), right + rng.normal(0, 0.1, right.shape)
+    fit = fit_refraction(left, right, pts, rig)
+    assert fit.n_rows == 12
+    with pytest.raises(MeasurementError, match=r"X, Y are [45]\.\d+ mm RMS off"):
+        fit_refraction(left, right, pts + [5.0, 0.0, 0.0], rig)
+
+
 @pytest.mark.parametrize("z, message", [(-5.0, "Z = -5 mm is not in front of the rig"),
                                         (0.0, "Z = 0 mm is not in front of the rig"),
                                         (60.0, r"Z = 60 mm is not in front of the rig \(beyond its mirrors, "

@@ -19,8 +19,9 @@ def add_parser(sub) -> None:
                                    "CSV columns u_l,v_l,u_r,v_r (px) and X_mm,Y_mm,Z_mm (the known points). "
                                    "Refused (exit 1, nothing written) when the points cannot pin l and m (fewer "
                                    "than 3 distinct points, an ill-conditioned fit) or disagree with eq. (15) "
-                                   "beyond a 0.3 px disparity error; a point not in front of the rig or a "
-                                   "non-finite value is bad input (exit 2).")
+                                   "beyond a 0.3 px disparity error, or their X, Y lie off their pixels "
+                                   "(eqs. 16-17) beyond it; a point not in front of the rig or a non-finite "
+                                   "value is bad input (exit 2).")
     add_rig_argument(p)
     p.add_argument("points", metavar="MATCHES.csv", help="CSV with u_l,v_l,u_r,v_r,X_mm,Y_mm,Z_mm")
     p.add_argument("-o", "--output", metavar="RIG.toml", help="write the rig with refraction_l_mm/_m_mm set")

@@ -293,8 +293,10 @@ def one_sided_costs(echo, lags, fused, keep_left, keep_right, cost):  # pragma: 
     evidence alone — the echo at x (left view) or seen from x + d (right view) — shifted to a minimum of
     0. Pixels in the band whose twin may lie outside the image (x < d_max for the left view, x ≥ W − d_max
     for the right) get a neutral, all-zero cost there. Written into ``cost`` (2, H, W, D') float32
-    (:func:`padded_lags`, the padding :data:`PAD_COST`), which is returned. Per row, the echo is read once
-    in lag-major order (as stored) into a buffer, then moved to (x, lag) order for both views."""
+    (:func:`padded_lags`, the padding :data:`PAD_COST`), which is returned; ``cost[0]`` may be ``fused``
+    itself (one volume less: the fused cost is then overwritten). Per row, the echo is read once in
+    lag-major order (as stored) into a buffer, then moved to (x, lag) order for both views, the right view
+    first (it reads the fused cost that the left view's may write over)."""
     n, h, w = echo.shape
     n_pad = cost.shape[3]
     d_max = lags[n - 1]
@@ -304,7 +306,7 @@ def one_sided_costs(echo, lags, fused, keep_left, keep_right, cost):  # pragma: 
             row, e = buf[k], echo[k, y]
             for x in range(w):
                 row[x] = -e[x]
-        for view in range(2):
+        for view in (1, 0):
             right = view == 1
             keep = keep_right if right else keep_left
             for x in range(w):

@@ -114,10 +114,11 @@ def _check_params(params) -> DenseParams:
 
 
 #: Peak bytes per cell (pixel x searched disparity, the lags padded to whole vectors) of the cost volumes
-#: at the working scale: six float32 volumes (echo, fused cost, SGM's two sums, the second pass's two
-#: one-sided costs); and per pixel of the full image. (Measured on 640x480, 62 lags: 485 MiB at the peak,
-#: the estimate 553 MiB.)
-CELL_BYTES = 24
+#: at the working scale: five float32 volumes (echo, SGM's two sums, the second pass's two one-sided costs,
+#: the left view's written over the fused cost); and per pixel of the full image. (Measured on 640x480, 62
+#: lags, neither pruned nor a pyramid: the peak resident memory grew 485 MiB, 560 with the fused cost apart;
+#: the estimate 492 MiB.)
+CELL_BYTES = 20
 PIXEL_BYTES = 400
 #: Bytes per pixel and band lag of a pyramid's finer level: both maps' band costs and sums, float32.
 BAND_BYTES = 16
@@ -177,7 +178,8 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     cost_shape = (h, w, padded_lags(len(lags)))  # the cost volumes' lag axis, padded to whole vectors
     guide = unit_scaled(img)
     echo = weighted_echo(img, lags, p, guide, img_right, out=volume(workspace, "echo", (len(lags), h, w)))
-    fused = fused_cost(echo, lags, volume(workspace, "fused", cost_shape))
+    costs = volume(workspace, "costs", (1 + p.second_pass, *cost_shape))  # the second pass's [0] is fused's own
+    fused = fused_cost(echo, lags, costs[0])
     sgm = volume(workspace, "sgm", (2, *cost_shape))          # SGM's sums (work space): one volume, then two
     penalties = Penalties(p.p1, p.p2, p.n_paths, cv2.GaussianBlur(guide, (0, 0), 1.0), p.edge_contrast)
     best, index = sgm_winners(fused, len(lags), penalties, sums=sgm[0], min_cost=0.0)   # costs >= 0
@@ -188,7 +190,7 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     dl, dr = fill_from_background(d, keep_l), fill_from_background(d, keep_r)
     ok_l, ok_r = consistent(dl, dr)
     if p.second_pass:  # each view's own evidence where the other view's texture dominated
-        one = one_sided_costs(echo, lags, fused, keep_l, keep_r, volume(workspace, "one_sided", (2, *cost_shape)))
+        one = one_sided_costs(echo, lags, fused, keep_l, keep_r, costs)   # (over fused: no longer needed)
         best = sgm_winners(one, len(lags), penalties, sums=sgm, min_cost=0.0)[0]   # one view per thread
         dl2, dr2 = lags[0] + best[0], lags[0] + best[1]
         ok2_l, ok2_r = consistent(dl2, dr2)

@@ -9,7 +9,7 @@ import numpy as np
 class Workspace:
     """The cost volumes of :func:`~psvs.dense.disparity.dense_disparity`, kept from one call to the next (a
     live loop): fresh memory costs page faults on every frame. One per thread (not thread-safe); it holds
-    six volumes of (H, W, searched disparities) float32 at the working scale, each as large as the largest
+    five volumes of (H, W, searched disparities) float32 at the working scale, each as large as the largest
     asked for (a pruned search asks for fewer lags from frame to frame), and those of the coarse pass; with
     a pyramid (psvs.dense.pyramid) its coarse level's and the finer levels' band volumes (costs and sums
     of both maps, (2, H, W, band lags) each, as large as the finest level's)."""

@@ -26,6 +26,12 @@ file is used for every later depth, so the fit answers only when the points supp
 * **Residual above the noise** (``MeasurementError``): the RMS of the fitted depths' residuals is compared
   with the RMS of dz over the points; more than :data:`RESIDUAL_FACTOR` times that means the matches or the
   known points disagree with eq. (15) (a wrong match, a mistyped point, another rig's pixels).
+* **X, Y off the pixels** (``MeasurementError``): the fit uses depth only, but the rig written is used for
+  whole points. Each known point's X, Y is compared with eqs. (16)-(17) at the fitted depth; the RMS of those
+  lateral errors may reach :data:`RESIDUAL_FACTOR` times the RMS that the same sub-pixel error explains
+  (dd px on the sensor at the point's depth, with the depth's own dz carried through x_r / f), no more: rows
+  flipped, columns swapped or X, Y in cm fit l and m exactly and are refused (on the example's six points,
+  156 mm and 105 mm RMS against 0.51 mm).
 """
 from __future__ import annotations
 
@@ -37,6 +43,7 @@ import numpy as np
 from psvs._validate import check_points, check_same_length
 from psvs.errors import MeasurementError
 from psvs.evidence import distinct_rows
+from psvs.measure.equations import x_eq13, y_eq14
 from psvs.optics.mirrors import front_z_mm
 from psvs.optics.plate import (
     PLAUSIBLE_PLATE,
@@ -97,7 +104,8 @@ def fit_refraction(left_px, right_px, points_mm, rig: Rig) -> RefractionFit:
     cam = rig.camera
     f, b = cam.focal_length_mm, rig.mirrors.baseline_mm
     xl = ideal_sensor_from_pixels(left, cam)[:, 0]
-    disp = xl - ideal_sensor_from_pixels(right, cam)[:, 0]
+    sensor_r = ideal_sensor_from_pixels(right, cam)
+    disp = xl - sensor_r[:, 0]
     ok = disp > 0
     if ok.sum() < 2:
         raise ValueError(f"the refraction fit needs at least 2 pairs with a positive disparity (u_l right of u_r), "
@@ -106,7 +114,7 @@ def fit_refraction(left_px, right_px, points_mm, rig: Rig) -> RefractionFit:
     if distinct < 3:
         raise MeasurementError(f"{int(ok.sum())} rows hold {distinct} distinct point(s): l and m of eq. (15) need 3 "
                                "distinct points (two pin them, the third checks them)")
-    xl, disp, pts = distinct_rows(xl[ok], disp[ok], pts[ok])       # a repeated row adds no evidence
+    xl, disp, sensor_r, pts = distinct_rows(xl[ok], disp[ok], sensor_r[ok], pts[ok])  # a repeat adds nothing
     ok = np.ones(len(xl), dtype=bool)
     A = np.stack([xl[ok] / disp[ok], f / disp[ok]], axis=1)
     rhs = pts[ok, 2] - rig.virtual_z_mm - b * f / disp[ok]
@@ -121,6 +129,7 @@ def fit_refraction(left_px, right_px, points_mm, rig: Rig) -> RefractionFit:
             f"{DISPARITY_NOISE_PX} px disparity error explains at these depths (limit {RESIDUAL_FACTOR:g} times): "
             "the matches or the known points disagree with eq. (15) (a wrong match, a mistyped point, another rig)")
     _check_plausible((float(l_mm), float(m_mm)), A / dz[:, None], rig)
+    _check_lateral(sensor_r, pts[:, 2] - (rhs - A @ np.array([l_mm, m_mm])), pts, dz, rig)   # at eq. (15)'s z
     return RefractionFit(float(l_mm), float(m_mm), int(ok.sum()), rms, noise, kappa, limit)
 
 
@@ -153,6 +162,27 @@ def fit_refraction_terms(left_px, right_px, points_mm, rig: Rig) -> tuple[float,
     (same checks, same errors)."""
     fit = fit_refraction(left_px, right_px, points_mm, rig)
     return fit.l_mm, fit.m_mm
+
+
+def _check_lateral(sensor_r: np.ndarray, z: np.ndarray, pts: np.ndarray, dz: np.ndarray, rig: Rig) -> None:
+    """MeasurementError when the known points' X, Y (``pts`` (N, 3) mm) disagree with eqs. (16)-(17) from the
+    right views' sensor points ``sensor_r`` (N, 2) mm at the fitted depths ``z`` (N,) mm beyond
+    :data:`RESIDUAL_FACTOR` times what the noise explains (module docstring); ``dz`` (N,) mm is each depth's
+    own noise."""
+    cam = rig.camera
+    f, b = cam.focal_length_mm, rig.mirrors.baseline_mm
+    x, y = x_eq13(sensor_r[:, 0], z, f, b, rig.virtual_z_mm), y_eq14(sensor_r[:, 1], z, f, b, rig.virtual_z_mm)
+    off = np.hypot(x - pts[:, 0], y - pts[:, 1])
+    on_sensor = (z - rig.virtual_z_mm)[:, None] * DISPARITY_NOISE_PX * np.asarray(cam.pixel_pitch_mm) / f  # (N, 2)
+    noise = np.hypot(on_sensor, np.abs(sensor_r) / f * dz[:, None])
+    rms, allowed = float(np.sqrt(np.mean(off ** 2))), float(np.sqrt(np.mean(np.sum(noise ** 2, axis=1))))
+    if rms > RESIDUAL_FACTOR * allowed:
+        k = int(np.argmax(off))
+        raise MeasurementError(
+            f"the known points' X, Y are {rms:.3g} mm RMS off where their pixels put them (eqs. 16-17 at the "
+            f"fitted depths), {rms / allowed:.0f} times the {allowed:.3g} mm a {DISPARITY_NOISE_PX} px error "
+            f"explains (limit {RESIDUAL_FACTOR:g} times; the worst, row {k + 1}: {off[k]:.3g} mm): X or Y "
+            "flipped, swapped, in another unit, or from another origin than the camera's")
 
 
 def _check_input(left: np.ndarray, right: np.ndarray, pts: np.ndarray, rig: Rig) -> None:
