@@ -523,6 +523,8 @@ def _small() -> list[Case]:
         Case("export-calibration-near-beyond-far", ("export-calibration", "default", "--near-mm", "900",
                                                     "--far-mm", "500"), 2, "range"),
         Case("rig-show-missing", ("rig", "show", "none.toml"), 2, "not found"),
+        Case("rig-show-device", ("rig", "show", "/dev/null"), 2, "not a regular file"),     # said "not found"
+        Case("rig-show-folder", ("rig", "show", "examples"), 2, "is a folder"),
         Case("rig-show-malformed", ("rig", "show", "rig.toml"), 2, "malformed", {"rig.toml": "[camera\n"}),
         Case("rig-show-bom-and-nested", ("rig", "show", "rig.toml"), 2, "", {"rig.toml": BOM + nested()}),
         Case("rig-list-with-argument", ("rig", "list", "x"), 2, "list"),

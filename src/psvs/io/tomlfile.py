@@ -20,11 +20,16 @@ from psvs.io.text import read_text
 
 def load_toml(path, what: str) -> dict:
     """Parse a TOML file (or JSON, by its suffix; UTF-8, a byte-order mark allowed); raise
-    FileNotFoundError("<what> file not found: ...") or ValueError("<path>: malformed TOML: ...").
+    FileNotFoundError("<what> file not found: ..."), IsADirectoryError (a folder), ValueError (a device, a
+    pipe: psvs reads files it can read to their end) or ValueError("<path>: malformed TOML: ...").
 
     Arrays or tables nested thousands deep exhaust the parsers' recursion (RecursionError): that is
     "<path>: malformed TOML: nested too deep", as no psvs file nests more than a few levels."""
     path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"{what} file {path} is a folder, not a file")
+    if path.exists() and not path.is_file():
+        raise ValueError(f"{what} file {path} is not a regular file (a device, a pipe or a socket)")
     if not path.is_file():
         raise FileNotFoundError(f"{what} file not found: {path}")
     kind = "JSON" if path.suffix.lower() == ".json" else "TOML"
