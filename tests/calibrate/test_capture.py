@@ -184,8 +184,8 @@ def test_a_video_that_ends_too_soon(capsys, tmp_path):
 
 
 def test_refusals(capsys, hand_video, tmp_path):
-    """One line, exit 2, nothing written: a camera that does not open, a target of an unknown kind, a card too
-    small for the range, an output folder holding views, frames of another size than the rig's camera."""
+    """One line, exit 2, nothing written or printed: a camera that does not open, a target of an unknown kind, a card
+    too small for the range, an output folder holding views, frames of another size than the rig's camera."""
     out = tmp_path / "views"
     target = str(hand_video.target)
     base = ["--target", target, "--rig", "clear", "-o", str(out)]
@@ -212,7 +212,8 @@ def test_refusals(capsys, hand_video, tmp_path):
              (["--video", str(hand_video.path), "--target", str(keep / "target.toml"), "--rig", "clear", "-o",
                str(keep)], "names the input --target")]
     for argv, message in cases:
-        code, _, err = run(capsys, "capture", *argv)
+        code, text, err = run(capsys, "capture", *argv)
         assert code == 2 and message in err and len(err.strip().splitlines()) == 1, (argv, err)
+        assert text == "", text                       # no "watching ..." before the refusal
         assert not out.exists()
     assert [p.name for p in old.iterdir()] == ["view_00.png"] and [p.name for p in keep.iterdir()] == ["target.toml"]

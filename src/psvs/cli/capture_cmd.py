@@ -64,14 +64,15 @@ def run(args) -> int:
     w, h = rig.camera.image_size_px
     source = open_source(args)
     with source:
-        print(f"psvs capture: watching {source.name}; show the card ({assistant.params.views} views, "
-              f"{assistant.params.near_mm:g}-{assistant.params.far_mm:g} mm)", flush=True)
         last = None
         try:
             while (frame := source.grab()) is not None:
                 if frame.image.shape != (h, w):
                     raise ValueError(f"{source.name}'s frames are {frame.image.shape[1]}x{frame.image.shape[0]} px "
                                      f"but the rig's camera is {w}x{h} px")
+                if last is None:     # (after the first frame's size: a wrong source says only that)
+                    print(f"psvs capture: watching {source.name}; show the card ({assistant.params.views} views, "
+                          f"{assistant.params.near_mm:g}-{assistant.params.far_mm:g} mm)", flush=True)
                 last = frame
                 # a file without a rate: 30 frames/s, as a camera
                 t_s = frame.index / 30 if frame.clock == "host" and args.video else frame.timestamp_s
