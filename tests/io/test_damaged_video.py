@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from psvs.cli.main import main
-from psvs.io.video import read_video_frame, video_frames, write_video
+from psvs.io.video import DamagedVideo, read_video_frame, video_frames, write_video
 from psvs.live.source import open_video
 
 FRAMES = 6
@@ -25,11 +25,13 @@ def videos(tmp_path_factory):
         data[i:i + 40] = bytes(40)
     bad = root / "bad.avi"
     bad.write_bytes(bytes(data))
-    return frames, good, bad
+    cut = root / "cut.avi"                                  # truncated: the header still declares 6 frames
+    cut.write_bytes(good.read_bytes()[:int(0.55 * len(data))])
+    return frames, good, bad, cut
 
 
 def test_an_intact_video_reads_every_frame_exactly(videos, capfd):
-    frames, good, _ = videos
+    frames, good, *_ = videos
     assert video_frames(good) == (FRAMES, (640, 480))
     for k in (0, 3, FRAMES - 1):
         assert np.array_equal(read_video_frame(good, k), frames[k])
@@ -40,7 +42,7 @@ def test_an_intact_video_reads_every_frame_exactly(videos, capfd):
 
 
 def test_a_damaged_frame_is_named_and_the_frames_before_it_read(videos, capfd):
-    frames, _, bad = videos
+    frames, _, bad, _ = videos
     with open_video(str(bad)) as src, pytest.raises(ValueError, match=r"frame (\d) of .*bad\.avi is damaged: the "
                                                                       r"decoder said \"slice CRC mismatch") as exc:
         got = []
@@ -57,7 +59,7 @@ def test_a_damaged_frame_is_named_and_the_frames_before_it_read(videos, capfd):
 
 def test_batch_refuses_the_damaged_frames_and_keeps_the_good_ones(videos, tmp_path, capfd):
     import pyarrow.parquet as pq
-    _, _, bad = videos
+    _, _, bad, _ = videos
     out = tmp_path / "out"
     rc = main(["batch", "disparity", str(bad), "--rig", "default", "-o", str(out), "--workers", "1"])
     status = pq.read_table(out / "results.parquet").to_pydict()["status"]
@@ -66,3 +68,36 @@ def test_batch_refuses_the_damaged_frames_and_keeps_the_good_ones(videos, tmp_pa
     assert len(status) == FRAMES and 1 <= status.count("bad input") < FRAMES, status
     assert "cannot measure" in status and "ok" not in status
     assert "[ffv1" not in err                # the decoder's own lines caught
+
+
+def test_a_truncated_video_is_not_read_as_a_shorter_one(videos, capfd):
+    """Its header declares 6 frames; the file ends after some: the frames before are read exactly, then
+    DamagedVideo says how many of the declared ones came (it ended the stream in silence)."""
+    frames, _, _, cut = videos
+    with open_video(str(cut)) as src, pytest.raises(DamagedVideo, match=r"cut\.avi ends after (\d) of the 6 "
+                                                                        "frames its header declares") as exc:
+        got = []
+        for img in src:
+            got.append(img)
+    n = int(exc.value.args[0].split(" ends after ")[1].split()[0])
+    assert 0 < n < FRAMES and len(got) == n
+    assert all(np.array_equal(a, b) for a, b in zip(got, frames, strict=False))
+    assert capfd.readouterr().err == ""
+
+
+@pytest.mark.parametrize("which", ["bad", "cut"])
+def test_live_stops_at_the_damage_keeps_the_frames_before_and_exits_1(videos, tmp_path, capfd, which):
+    """psvs live on a damaged or truncated video: exit 1, one line naming the file and the frames kept (the
+    self-check's verdict on the noise besides), the log holding one row per frame read (it exited 0 on a
+    truncated file, and lost the log on a damaged one)."""
+    import csv
+    _, _, bad, cut = videos
+    log = tmp_path / "live.csv"
+    rc = main(["live", "--video", str(bad if which == "bad" else cut), "--rig", "default", "--seed", "320,240",
+               "-o", str(log), "--quiet"])
+    err = [line for line in capfd.readouterr().err.splitlines() if "frames 0-" in line]   # (and the self-check's)
+    assert rc == 1 and len(err) == 1, err
+    n = int(err[0].split("frames 0-")[1].split()[0]) + 1
+    assert 0 < n < FRAMES and ("is damaged" in err[0] or "ends after" in err[0]), err
+    with open(log, newline="") as f:
+        assert [int(r["frame"]) for r in csv.DictReader(f)] == list(range(n))

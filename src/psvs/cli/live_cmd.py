@@ -30,6 +30,7 @@ from psvs.cli.common import (
 from psvs.cli.recording import record_settings, settings_paths
 from psvs.dense.compiled import announce_dense
 from psvs.dense.params import DEFAULT, FAST
+from psvs.io import DamagedVideo
 from psvs.live.camera import CameraLost
 from psvs.live.dense import DenseSensor
 from psvs.live.log import write_log
@@ -118,11 +119,12 @@ def check_step(health, image, frame: int, sensor_s: float, tel, t_s: float, comm
 
 
 def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, list, float, bool, object]:
-    """Every frame of ``source`` through the sensors and the rolling check (until --max-frames, Ctrl-C, SIGTERM
-    or a camera lost), published and printed as it comes: (tracker steps, dense frames, the frames' metadata
-    without images, the check's latest judgement per frame, wall time s, whether the camera was lost, the
-    signal that stopped it or None). A signal that lands inside a compiled kernel (the dense map's) comes
-    wrapped in a SystemError: it stops the loop the same way (it lost the log and the recording)."""
+    """Every frame of ``source`` through the sensors and the rolling check (until --max-frames, Ctrl-C,
+    SIGTERM, a camera lost or a video's damaged or missing frame), published and printed as it comes:
+    (tracker steps, dense frames, the frames' metadata without images, the check's latest judgement per
+    frame, wall time s, whether the source failed (lost, damaged), the signal that stopped it or None). A
+    signal that lands inside a compiled kernel (the dense map's) comes wrapped in a SystemError: it stops the
+    loop the same way (it lost the log and the recording)."""
     from psvs.cli.main import _signal_inside
     steps, dense_frames, metas, checks, lost, stopped_by = [], [], [], [], False, None
     t0 = time.perf_counter()
@@ -150,14 +152,19 @@ def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, 
                 break
     except KeyboardInterrupt as exc:
         stopped_by = exc
-    except CameraLost as exc:                # stop cleanly: what was grabbed is kept, logged and summarised
+    except (CameraLost, DamagedVideo) as exc:   # stop cleanly: what was grabbed is kept, logged and summarised
+        if not metas and isinstance(exc, DamagedVideo):
+            raise                                 # (bad input: nothing to keep)
         last = metas[-1] if metas else None
         where = (f"the last frame was {last.index} (camera frame {last.counter})" if last is not None
                  else "no frame was delivered")
-        print(f"psvs live: camera lost: {exc}; {where}", file=sys.stderr, flush=True)
+        what = "camera lost: " if isinstance(exc, CameraLost) else ""
+        if isinstance(exc, DamagedVideo):
+            where = f"frames 0-{last.index} are kept"
+        print(f"psvs live: {what}{exc}; {where}", file=sys.stderr, flush=True)
         lost = True
         if tel is not None:
-            tel.log(time.perf_counter() - t0, f"camera lost: {exc}; {where}", "error")
+            tel.log(time.perf_counter() - t0, f"{what}{exc}; {where}", "error")
     except Exception as exc:
         stopped_by = _signal_inside(exc)
         if stopped_by is None:

@@ -39,7 +39,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
                       "url_host"],
         "text": ["read_csv_rows"],
         "tomlfile": ["dumps_toml", "load_table", "load_toml", "parse_text", "single_table"],
-        "video": ["DAMAGE", "VIDEO_SUFFIXES", "decoded", "open_capture", "open_video_file", "read_video_frame",
-                  "video_frames", "write_video"],
+        "video": ["DAMAGE", "DamagedVideo", "VIDEO_SUFFIXES", "decoded", "open_capture", "open_video_file",
+                  "read_video_frame", "video_frames", "write_video"],
     },
 )

@@ -47,6 +47,11 @@ def write_video(path, frames, fps: float = 30.0) -> int:
 DAMAGE = re.compile(r"crc|corrupt|conceal|error|invalid|damaged|missing|overread|truncat", re.IGNORECASE)
 
 
+class DamagedVideo(ValueError):
+    """A video file's frame that does not decode, or a file that ends before the frames its header declares:
+    bad input, raised mid-stream (a live run stops there and keeps the frames before it)."""
+
+
 def open_capture(path):
     """``cv2.VideoCapture`` of a video file decoding on one thread: a decoder's complaint about a frame then
     comes while that frame is read (with frame threads it comes with a neighbour's), so :func:`decoded`
@@ -57,7 +62,7 @@ def open_capture(path):
 
 def decoded(cap, what: str, seek: int = 0):
     """``cap.read()`` (an open ``cv2.VideoCapture``) with the decoder's messages caught: (ok, image).
-    ValueError naming ``what`` (e.g. "frame 3 of run.avi") when the decoder said the frame is damaged
+    :class:`DamagedVideo` naming ``what`` (e.g. "frame 3 of run.avi") when the decoder said the frame is damaged
     (:data:`DAMAGE`); its other messages are dropped. ``seek``: the frame index to go to first."""
     from psvs._quiet import c_stderr_captured, library_reason
     with c_stderr_captured() as said:
@@ -67,7 +72,7 @@ def decoded(cap, what: str, seek: int = 0):
     damage = [line for line in said if DAMAGE.search(line)]
     if damage:            # a seek decodes the frames before its target too: the complaint may be one of theirs
         which = f"{what}, or a frame before it that the seek decoded," if seek > 0 else what
-        raise ValueError(f"{which} is damaged: the decoder said \"{library_reason(damage)}\"")
+        raise DamagedVideo(f"{which} is damaged: the decoder said \"{library_reason(damage)}\"")
     return ok, image
 
 

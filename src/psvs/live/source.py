@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 
 from psvs._quiet import c_stderr_captured
-from psvs.io import decoded, open_video_file
+from psvs.io import DamagedVideo, decoded, open_video_file
 from psvs.io.images import IMAGE_SUFFIXES
 from psvs.live.camera import (
     VENDORS,
@@ -117,13 +117,19 @@ class VideoSource(_Source):
         self.frame_count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
 
     def grab(self) -> Frame | None:
-        """The next frame, or None at the end of a file; CameraLost when a camera stops delivering."""
+        """The next frame, or None at the end of a file; CameraLost when a camera stops delivering;
+        :class:`~psvs.io.video.DamagedVideo` on a damaged frame or when a file ends before the frame count its
+        header declares (a truncated file: its last frames are
+        lost, and a run over it must not pass for a run over the whole video)."""
         if self._cap is None:
             raise ValueError(f"{self.name} is not open")
         ok, image = self._read()
         if not ok:
             if self._video is None:             # a camera has no end: it stopped delivering
                 raise CameraLost(f"{self.name} gives no more frames", self._last)
+            if 0 < self._index < self.frame_count:
+                raise DamagedVideo(f"{self.name} ends after {self._index} of the {self.frame_count} frames its header "
+                                 "declares: the file is truncated or damaged")
             return None
         self._last = self._frame(as_grey(image), self._video is not None)
         return self._last
