@@ -141,7 +141,8 @@ def read_recording(path) -> Recording:
     except ValueError as exc:
         raise ValueError(f"{path}: {exc}") from None
     except Exception as exc:       # the mcap reader's, zstd's and protobuf's errors: a damaged file
-        raise ValueError(f"cannot read the recording {path}: {str(exc) or type(exc).__name__}") from None
+        raise ValueError(f"cannot read the recording {path}: the file is damaged or cut short (the MCAP reader "
+                         f"said: {str(exc) or type(exc).__name__})") from None
     return rec
 
 
@@ -180,18 +181,47 @@ def _read(path) -> Recording:
             if img.encoding != "mono8" or len(img.data) != img.width * img.height:
                 raise ValueError(f"a /psvs/image frame is not {img.width}x{img.height} mono8")
             image = np.frombuffer(img.data, np.uint8).reshape(img.height, img.width)
-            frames.append(Frame(float(c["t_s"]), np.array(c["flange2base"], float).reshape(4, 4), image))
-            commands.append(np.array(c["tool2base"], float).reshape(4, 4))
+            frames.append(Frame(_number(c["t_s"], "t_s"), _pose(c["flange2base"], "flange2base"), image))
+            commands.append(_pose(c["tool2base"], "tool2base"))
             faults.append(str(c["fault"]))
             halts.append(str(c.get("halt", "")))          # recordings before the self-check have none
             holds.append(_flag(c.get("arc_held", False)))   # nor before the arc's hold
         seed = setup["seed_px"]
         config = {k: v for k, v in setup["config"].items() if k not in SIMULATION_KEYS}
-        return Recording(TrackConfig(**config), np.array(setup["cam2flange"], float).reshape(4, 4),
-                         Teach(np.array(setup["taught_mm"], float), np.array(setup["travel"], float)),
-                         None if seed is None else tuple(seed), frames, commands, faults, stop, halts, holds)
+        return Recording(TrackConfig(**config), _pose(setup["cam2flange"], "cam2flange"),
+                         Teach(_vector(setup["taught_mm"], "taught_mm"), _direction(setup["travel"])),
+                         None if seed is None else tuple(_vector(seed, "seed_px", 2)), frames, commands, faults,
+                         stop, halts, holds)
     except (KeyError, TypeError) as exc:
         raise ValueError(f"a /psvs/setup or /psvs/cycle record lacks or mistypes {exc}") from None
+
+
+def _number(v, what: str) -> float:
+    """A recorded finite number (ValueError naming ``what`` otherwise)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+        raise ValueError(f"a recorded {what} is not a finite number: {v!r}")
+    return float(v)
+
+
+def _vector(v, what: str, n: int = 3) -> np.ndarray:
+    """A recorded list of ``n`` finite numbers as float64 (n,) (ValueError naming ``what`` otherwise)."""
+    if not isinstance(v, list) or len(v) != n:
+        raise ValueError(f"a recorded {what} is not a list of {n} numbers")
+    return np.array([_number(x, what) for x in v])
+
+
+def _pose(v, what: str) -> np.ndarray:
+    """A recorded pose: 16 finite numbers, row-major, a rigid transform (ValueError naming ``what``)."""
+    from psvs.transforms import check_transform
+    return check_transform(_vector(v, what, 16).reshape(4, 4), f"the recorded {what}")
+
+
+def _direction(v) -> np.ndarray:
+    """The recorded direction of travel: 3 finite numbers of unit length (as the teach writes it)."""
+    d = _vector(v, "travel")
+    if abs(np.linalg.norm(d) - 1.0) > 1e-6:
+        raise ValueError(f"the recorded direction of travel is not a unit vector (length {np.linalg.norm(d):.6g})")
+    return d
 
 
 def replay_recording(path, rig):
