@@ -125,7 +125,7 @@ def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, 
     frame, wall time s, whether the source failed (lost, damaged), the signal that stopped it or None). A
     signal that lands inside a compiled kernel (the dense map's) comes wrapped in a SystemError: it stops the
     loop the same way (it lost the log and the recording)."""
-    from psvs.cli.main import _signal_inside
+    from psvs.cli.main import signal_inside
     steps, dense_frames, metas, checks, lost, stopped_by = [], [], [], [], False, None
     t0 = time.perf_counter()
     t_first = None
@@ -166,7 +166,7 @@ def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, 
         if tel is not None:
             tel.log(time.perf_counter() - t0, f"{what}{exc}; {where}", "error")
     except Exception as exc:
-        stopped_by = _signal_inside(exc)
+        stopped_by = signal_inside(exc)
         if stopped_by is None:
             raise
     return steps, dense_frames, metas, checks, time.perf_counter() - t0, lost, stopped_by

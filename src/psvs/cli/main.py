@@ -133,7 +133,7 @@ def _run(args, debug: bool) -> int:
         print(f"{name}: error: {msg}", file=sys.stderr)
         return 2
     except Exception as exc:
-        signalled = _signal_inside(exc)
+        signalled = signal_inside(exc)
         if signalled is not None:       # a signal that arrived inside compiled code (Numba wraps it)
             return _interrupted(name, signalled)
         if debug:
@@ -141,7 +141,7 @@ def _run(args, debug: bool) -> int:
         return _internal_error(name, exc)
 
 
-def _signal_inside(exc: BaseException) -> KeyboardInterrupt | None:
+def signal_inside(exc: BaseException) -> KeyboardInterrupt | None:
     """The Ctrl-C or termination an exception wraps (a SystemError "returned a result with an exception set"
     from a Numba kernel the signal's handler raised in), or None."""
     seen = set()
