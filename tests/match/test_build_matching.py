@@ -39,7 +39,7 @@ def test_separated_discs_pair_on_a_build(name):
         k = int(np.argmin(np.abs(DISCS[:, 2] - p.median_z_mm())))
         err = np.abs(p.points_mm[:, 2] - DISCS[k, 2])
         assert np.nanpercentile(err, 90) < 0.01 * DISCS[k, 2]       # each point, not only the median
-        assert len(p) > 150
+        assert len(p) > 120        # (a disc's top and bottom: rows along the edge no steeper pixel pins, dropped)
         # pixels are complex-image pixels: each left point projects back onto its left pixel
         uv, ok = project_points(p.points_mm, rig, "left")
         assert np.nanmedian(np.abs(uv[ok, 0] - p.left_px[ok, 0])) < 0.5

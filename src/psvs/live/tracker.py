@@ -181,8 +181,12 @@ class EdgeTracker:
             if not first and abs(d - self._disparity) > p.max_jump_px * (1 + self._lost):
                 msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"
                 continue
-            pair, = finish_pairs(grey, [pair], self.rig, subpixel=self.match.subpixel, model=self.match.model,
-                                 rect=self.rect)
+            finished = finish_pairs(grey, [pair], self.rig, subpixel=self.match.subpixel, model=self.match.model,
+                                    rect=self.rect)
+            if not finished:            # no row pins a disparity (the edge runs along the rows), or none is lit
+                msg = "the edge runs along the rows: no row pins its disparity"
+                continue
+            pair, = finished
             z = pair.points_mm[:, 2]
             if not np.any(np.isfinite(z)):
                 continue

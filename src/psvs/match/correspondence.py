@@ -187,7 +187,10 @@ def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel:
     for pair in pairs:
         if rect is None:
             if subpixel:
-                pair = correct_rows(grey, refine_pairs(grey, pair), rig)
+                pair = refine_pairs(grey, pair)
+                if not len(pair):      # no row of it pins a disparity: no pair
+                    continue
+                pair = correct_rows(grey, pair, rig)
         else:
             if subpixel:
                 band = EdgePair(pair.left_px - shift, pair.right_px - shift, pair.disparity_px, pair.left_label,

@@ -239,7 +239,10 @@ class SeamSensor:
         pair = match_seeded(edges, seed, d_range, rect=self.rect)
         if len(pair) == 0:
             return np.empty((0, 2)), np.empty((0, 3))
-        pair, = finish_pairs(grey, [pair], self.rig, model="exact", rect=self.rect)
+        finished = finish_pairs(grey, [pair], self.rig, model="exact", rect=self.rect)
+        if not finished:                # no row of it pins a disparity, or none is lit
+            return np.empty((0, 2)), np.empty((0, 3))
+        pair, = finished
         # where the groove ends in the window, its end joins both edges into one contour: keep this
         # edge's side of the groove centre
         side = pair.left_px[:, 0] < centre_u if left_side else pair.left_px[:, 0] > centre_u
