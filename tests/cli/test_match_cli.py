@@ -52,7 +52,12 @@ def test_auto_writes_json_csv_ply_figures(capsys, tmp_path, fig5a_render):
     assert "median Z" in text
     for p in data["pairs"]:   # against the renderer's depth map: box ~600 mm, cylinder silhouette ~650 mm
         err = depth_errors_mm(p["left_px"], np.array(p["points_mm"], float)[:, 2], depth_truth)
-        assert np.median(err) < 4.0   # measured 0.9 (box) and 2.8 mm (cylinder); 1 px of disparity ~ 2.3 mm
+        # measured 0.75 (box) and 4.2 mm (cylinder: its outline is a silhouette on the curved wall, and each
+        # view sees its own, so the twins are no single point); 1 px of disparity ~ 2.3 mm
+        assert np.median(err) < 5.0
+        # each point, not only the median: 1.2 % and 3.9 % more than 10 mm off (18 % and 12 % when rows along
+        # the rows kept the pairing's one integer disparity, psvs.match.subpixel.refine_pairs)
+        assert np.mean(err > 10) < 0.05
     assert csv.read_text().startswith("pair,u_l,v_l,u_r,v_r,disparity_px,X_mm,Y_mm,Z_mm\n")
     assert "element vertex" in ply.read_text()
     assert sorted(p.name for p in figs.iterdir()) == ["fig7_views.png", "fig8_disparity.png"]

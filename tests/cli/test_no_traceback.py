@@ -247,7 +247,10 @@ def test_a_fresh_process_prints_no_library_lines(tmp_path):
     data = (tmp_path / "v.avi").read_bytes()
     (tmp_path / "cut.avi").write_bytes(data[: len(data) // 2])
     r = _psvs("live", "--video", "cut.avi", "--rig", "default", "--seed", "320,240", "--quiet", cwd=tmp_path)
-    # noise holds no twin: psvs's one line says so (exit 1), and nothing else reaches the terminal
-    assert r.returncode == 1 and len(r.stderr.splitlines()) == 1, r.stderr
-    assert r.stderr.startswith("psvs live: cannot measure: the edge was never found: "
+    # psvs's lines, exit 1: the file is cut short (frames kept), and noise holds no twin; nothing else reaches
+    # the terminal
+    lines = r.stderr.splitlines()
+    assert r.returncode == 1 and len(lines) == 2, r.stderr
+    assert lines[0].startswith("psvs live: cut.avi ends after ") and "frames its header declares" in lines[0]
+    assert lines[1].startswith("psvs live: cannot measure: the edge was never found: "
                                "no twin beyond chance in the frame"), r.stderr
