@@ -156,11 +156,12 @@ def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, 
         if not metas and isinstance(exc, DamagedVideo):
             raise                                 # (bad input: nothing to keep)
         last = metas[-1] if metas else None
-        where = (f"the last frame was {last.index} (camera frame {last.counter})" if last is not None
-                 else "no frame was delivered")
-        what = "camera lost: " if isinstance(exc, CameraLost) else ""
         if isinstance(exc, DamagedVideo):
-            where = f"frames 0-{last.index} are kept"
+            what, where = "", f"frames 0-{last.index} are kept"
+        else:
+            what = "camera lost: "
+            where = (f"the last frame was {last.index} (camera frame {last.counter})" if last is not None
+                     else "no frame was delivered")
         print(f"psvs live: {what}{exc}; {where}", file=sys.stderr, flush=True)
         lost = True
         if tel is not None:
