@@ -13,6 +13,7 @@ from psvs._validate import check_grey
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import write_atomic
 from psvs.io.image_header import HeaderError, ImageHeader, read_header
+from psvs.io.text import input_file
 
 
 def write_png(path, image: np.ndarray) -> None:
@@ -55,9 +56,7 @@ def read_image(path, expect_size: tuple[int, int] | None = None) -> np.ndarray:
     never reaches the decoder. What the decoder's libraries print (libpng's "libpng error: ...") is caught,
     never shown, and named in the one-line ValueError of a file that does not decode.
     FileNotFoundError("image not found: ...") when there is no such file."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"image not found: {path}")
+    path = input_file(path, "image")
     with path.open("rb") as f:
         try:
             header = read_header(f)

@@ -2,13 +2,12 @@
 from __future__ import annotations
 
 import io
-from pathlib import Path
 
 import numpy as np
 
 from psvs._budget import check_memory
 from psvs.io.atomic import write_atomic
-from psvs.io.text import read_csv_rows
+from psvs.io.text import input_file, read_csv_rows
 
 MATCH_COLUMNS = ("u_l", "v_l", "u_r", "v_r")
 POINT_COLUMNS = ("X_mm", "Y_mm", "Z_mm", "valid")
@@ -22,9 +21,7 @@ ROW_BYTES = 1000
 def check_rows_memory(path, row_bytes: float = ROW_BYTES, what: str | None = None) -> int:
     """The rows (lines) of the file at ``path``, counted without parsing it; ValueError naming the file when
     reading and working on that many rows at ``row_bytes`` each would not fit in memory (psvs._budget)."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"points file not found: {path}")
+    path = input_file(path, "points file")
     rows = 0
     with path.open("rb") as f:
         while chunk := f.read(1 << 22):
@@ -44,9 +41,7 @@ def read_matches_csv(path) -> tuple[np.ndarray, np.ndarray]:
 
 def read_csv_columns(path, columns: tuple[str, ...]) -> np.ndarray:
     """The named numeric columns of a CSV with a header, shape (N, len(columns)); other columns ignored."""
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"points file not found: {path}")
+    path = input_file(path, "points file")
     table = read_csv_rows(path)
     if not table:
         raise ValueError(f"{path}: empty file, expected a header {','.join(columns)}")

@@ -11,6 +11,7 @@ import numpy as np
 
 from psvs.io.images import read_grey
 from psvs.io.schema import check_keys
+from psvs.io.text import input_file
 from psvs.io.tomlfile import load_toml
 from psvs.simulate import textures as tx
 from psvs.simulate.scene import KINDS, Lighting, Pose, Scene, SceneObject, check_object_count
@@ -58,9 +59,7 @@ def _texture(spec, where: str, base: Path, object_size) -> tx.Texture:
         return cls(**params)
     if "file" not in params:
         raise ValueError(f"{where}: an image texture needs 'file'")
-    file = base / params["file"]
-    if not file.is_file():
-        raise FileNotFoundError(f"{where}: texture file not found: {file}")
+    file = input_file(base / params["file"], f"{where}: texture file")
     try:
         img = read_grey(file)
     except ValueError as exc:
@@ -112,9 +111,7 @@ def _object(spec: dict, i: int, base: Path) -> SceneObject:
     if kind == "mesh":
         if "file" not in spec:
             raise ValueError(f"{label}: a mesh needs 'file' (STL, OBJ, PLY, ...)")
-        file = base / spec["file"]
-        if not file.is_file():
-            raise FileNotFoundError(f"{label}: mesh file not found: {file}")
+        file = input_file(base / spec["file"], f"{label}: mesh file")
         vertices, kw["faces"] = _mesh(file, f"{label}.file")
         kw["vertices_mm"] = vertices * float(spec.get("scale", 1.0))
     albedo = spec.get("albedo", 0.8)

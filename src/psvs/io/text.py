@@ -1,4 +1,5 @@
-"""Reading a text file the user named, with a clear error when it is binary (e.g. a PNG given as CSV).
+"""Reading a text file the user named, with a clear error when it is binary (e.g. a PNG given as CSV), and
+checking that a path to read names a file (:func:`input_file`).
 
 Text is UTF-8, with or without the byte-order mark that spreadsheet programs and some editors write first
 ("utf-8-sig"): the mark is dropped, so a CSV header's first column or a TOML file's first key reads as typed.
@@ -8,6 +9,20 @@ from __future__ import annotations
 import csv
 import io
 from pathlib import Path
+
+
+def input_file(path, what: str) -> Path:
+    """``path`` as a Path when it names a regular file to read; otherwise FileNotFoundError("<what> not found:
+    ..."), IsADirectoryError (a folder) or ValueError (a device, a pipe or a socket: psvs reads files it can
+    read to their end), each naming ``what`` (e.g. "rig file", "image")."""
+    path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(f"{what} {path} is a folder, not a file")
+    if path.exists() and not path.is_file():
+        raise ValueError(f"{what} {path} is not a regular file (a device, a pipe or a socket)")
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} not found: {path}")
+    return path
 
 
 def read_text(path, kind: str) -> str:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from psvs.io.schema import check_keys
-from psvs.io.text import read_text
+from psvs.io.text import input_file, read_text
 
 
 def load_toml(path, what: str) -> dict:
@@ -25,13 +25,7 @@ def load_toml(path, what: str) -> dict:
 
     Arrays or tables nested thousands deep exhaust the parsers' recursion (RecursionError): that is
     "<path>: malformed TOML: nested too deep", as no psvs file nests more than a few levels."""
-    path = Path(path)
-    if path.is_dir():
-        raise IsADirectoryError(f"{what} file {path} is a folder, not a file")
-    if path.exists() and not path.is_file():
-        raise ValueError(f"{what} file {path} is not a regular file (a device, a pipe or a socket)")
-    if not path.is_file():
-        raise FileNotFoundError(f"{what} file not found: {path}")
+    path = input_file(path, f"{what} file")
     kind = "JSON" if path.suffix.lower() == ".json" else "TOML"
     return parse_text(read_text(path, kind), str(path), kind)
 

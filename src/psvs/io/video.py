@@ -6,6 +6,8 @@ from pathlib import Path
 
 import cv2
 
+from psvs.io.text import input_file
+
 VIDEO_SUFFIXES = (".avi", ".mkv")
 
 
@@ -81,9 +83,7 @@ def open_video_file(path, what: str = "a video"):
     FileNotFoundError when there is no such file; ValueError naming it, with what the decoder said, when it
     cannot be opened ("not ``what`` OpenCV can decode")."""
     from psvs._quiet import c_stderr_captured, library_reason
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"video not found: {path}")
+    path = input_file(path, "video")
     with c_stderr_captured() as said:           # FFmpeg's complaints ("moov atom not found")
         cap = open_capture(path)
     if not cap.isOpened():
