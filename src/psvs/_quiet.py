@@ -17,6 +17,7 @@ own one-line error when the decode failed (:func:`library_reason`).
 from __future__ import annotations
 
 import contextlib
+import io
 import logging
 import os
 import re
@@ -118,9 +119,11 @@ def c_stderr_captured():
     """Redirect file descriptor 2 to a temporary file for the block; yields a list that holds, after the
     block, the non-empty lines written there (stripped).
 
-    Anything written to the process's standard error during the block is caught, whoever writes it, so the
-    block should hold only the library call. When descriptor 2 cannot be duplicated (closed), the block runs
-    without capture and the list stays empty."""
+    What C code writes on the descriptor during the block is caught, whoever writes it, so the block should
+    hold only the library call. Python's ``sys.stderr``, when it writes to descriptor 2, is pointed at the
+    terminal's descriptor for the block: a line another thread prints meanwhile (a live run's status while its
+    next frame decodes on a thread, :class:`psvs.live.source.VideoSource`) still reaches the user. When
+    descriptor 2 cannot be duplicated (closed), the block runs without capture and the list stays empty."""
     lines: list[str] = []
     with _LOCK:
         _flush_python_stderr()
@@ -129,12 +132,17 @@ def c_stderr_captured():
         except OSError:
             yield lines
             return
+        python_stderr = sys.stderr
         try:
-            with tempfile.TemporaryFile() as tmp:
+            with tempfile.TemporaryFile() as tmp, _text_on(saved, python_stderr) as aside:
                 os.dup2(tmp.fileno(), 2)
+                if aside is not None:
+                    sys.stderr = aside
                 try:
                     yield lines
                 finally:
+                    if sys.stderr is aside:
+                        sys.stderr = python_stderr
                     _flush_python_stderr()
                     os.dup2(saved, 2)
                     tmp.seek(0)
@@ -142,6 +150,26 @@ def c_stderr_captured():
                     lines.extend(s.strip() for s in text.splitlines() if s.strip())
         finally:
             os.close(saved)
+
+
+@contextlib.contextmanager
+def _text_on(fd: int, stream):
+    """A line-buffered text stream on descriptor ``fd`` (not closing it) like ``stream``, when ``stream`` writes
+    to descriptor 2; else None (a stream of pytest's, or a file of the caller's: the redirection misses it)."""
+    try:
+        on_two = stream is not None and stream.fileno() == 2
+    except (AttributeError, OSError, ValueError):
+        on_two = False
+    if not on_two:
+        yield None
+        return
+    aside = io.TextIOWrapper(io.FileIO(fd, "w", closefd=False), encoding=getattr(stream, "encoding", None),
+                             errors=getattr(stream, "errors", None), line_buffering=True, write_through=True)
+    try:
+        yield aside
+    finally:
+        with contextlib.suppress(OSError, ValueError):
+            aside.flush()
 
 
 def _flush_python_stderr() -> None:
