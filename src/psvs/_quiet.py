@@ -119,11 +119,10 @@ def c_stderr_captured():
     """Redirect file descriptor 2 to a temporary file for the block; yields a list that holds, after the
     block, the non-empty lines written there (stripped).
 
-    What C code writes on the descriptor during the block is caught, whoever writes it, so the block should
-    hold only the library call. Python's ``sys.stderr``, when it writes to descriptor 2, is pointed at the
-    terminal's descriptor for the block: a line another thread prints meanwhile (a live run's status while its
-    next frame decodes on a thread, :class:`psvs.live.source.VideoSource`) still reaches the user. When
-    descriptor 2 cannot be duplicated (closed), the block runs without capture and the list stays empty."""
+    Anything written to the process's standard error during the block is caught, whoever writes it, so the
+    block should hold only the library call; a program that captures on a thread while another prints holds
+    :func:`python_stderr_aside` meanwhile. When descriptor 2 cannot be duplicated (closed), the block runs
+    without capture and the list stays empty."""
     lines: list[str] = []
     with _LOCK:
         _flush_python_stderr()
@@ -132,17 +131,12 @@ def c_stderr_captured():
         except OSError:
             yield lines
             return
-        python_stderr = sys.stderr
         try:
-            with tempfile.TemporaryFile() as tmp, _text_on(saved, python_stderr) as aside:
+            with tempfile.TemporaryFile() as tmp:
                 os.dup2(tmp.fileno(), 2)
-                if aside is not None:
-                    sys.stderr = aside
                 try:
                     yield lines
                 finally:
-                    if sys.stderr is aside:
-                        sys.stderr = python_stderr
                     _flush_python_stderr()
                     os.dup2(saved, 2)
                     tmp.seek(0)
@@ -152,24 +146,55 @@ def c_stderr_captured():
             os.close(saved)
 
 
+#: Text streams on copies of descriptor 2, by its file's (device, inode), kept open (:func:`python_stderr_aside`).
+_ASIDE: dict = {}
+#: [holders of python_stderr_aside, the sys.stderr it replaced, the stream it put there]
+_HELD: list = [0, None, None]
+
+
 @contextlib.contextmanager
-def _text_on(fd: int, stream):
-    """A line-buffered text stream on descriptor ``fd`` (not closing it) like ``stream``, when ``stream`` writes
-    to descriptor 2; else None (a stream of pytest's, or a file of the caller's: the redirection misses it)."""
+def python_stderr_aside():
+    """For the block (nested and from several threads alike): Python's ``sys.stderr``, when it writes to
+    descriptor 2, points at a copy of that descriptor, so that what Python prints reaches the terminal while
+    another thread's :func:`c_stderr_captured` has descriptor 2 redirected (a live run's lines while its next
+    frame decodes on a thread, :class:`psvs.live.source.VideoSource`). Swapped while no capture is running,
+    so no line is printed half on either side."""
+    with _LOCK:
+        if _HELD[0] == 0:
+            aside = _aside(sys.stderr)
+            if aside is not None:
+                _flush_python_stderr()
+                _HELD[1:] = [sys.stderr, aside]
+                sys.stderr = aside
+        _HELD[0] += 1
     try:
-        on_two = stream is not None and stream.fileno() == 2
-    except (AttributeError, OSError, ValueError):
-        on_two = False
-    if not on_two:
-        yield None
-        return
-    aside = io.TextIOWrapper(io.FileIO(fd, "w", closefd=False), encoding=getattr(stream, "encoding", None),
-                             errors=getattr(stream, "errors", None), line_buffering=True, write_through=True)
-    try:
-        yield aside
+        yield
     finally:
-        with contextlib.suppress(OSError, ValueError):
-            aside.flush()
+        with _LOCK:
+            _HELD[0] -= 1
+            if _HELD[0] == 0 and _HELD[2] is not None:
+                if sys.stderr is _HELD[2]:
+                    _HELD[2].flush()
+                    sys.stderr = _HELD[1]
+                _HELD[1:] = [None, None]
+
+
+def _aside(stream):
+    """A line-buffered text stream on a copy of descriptor 2 as it is now (kept in :data:`_ASIDE`), when
+    ``stream`` writes to descriptor 2; else None (a stream of pytest's, or a file of the caller's: the
+    redirection misses it)."""
+    try:
+        if stream is None or stream.fileno() != 2:
+            return None
+        st = os.fstat(2)
+    except (AttributeError, OSError, ValueError):
+        return None
+    key = (st.st_dev, st.st_ino)
+    if key not in _ASIDE:
+        _ASIDE[key] = io.TextIOWrapper(io.FileIO(os.dup(2), "w"), encoding=getattr(stream, "encoding", None),
+                                       errors=getattr(stream, "errors", None), line_buffering=True,
+                                       write_through=True)
+    return _ASIDE[key]
 
 
 def _flush_python_stderr() -> None:

@@ -189,6 +189,10 @@ def _match() -> list[Case]:
              2, "seed", tex, ("m.json",)),
         Case("match-seed-not-numbers", ("match", "img.png", "--rig", "default", "--seed", "x", "-o", "m.json"),
              2, "seed", tex, ("m.json",)),
+        # the paper's algorithm paired this edge of a photograph with a wrong twin at 467 mm (truth 700), exit 0
+        Case("match-seed-twin-within-chance", ("match", "img.png", "--rig", "default", "--seed", "301,173", "-o",
+                                               "m.json"), 1, "beyond chance",
+             {"img.png": scene_png("textured:distance_mm=700", "default")}, ("m.json",)),
         Case("match-n-seeds-one", (*base[:4], "--seed", "100,100", "--n-seeds", "1", "-o", "m.json"), 2,
              "n-seeds", tex, ("m.json",)),
         Case("match-near-beyond-far", (*base, "--near-mm", "900", "--far-mm", "500"), 2, "near", tex,

@@ -109,6 +109,10 @@ def refuse_unanswered(res, seeded: bool) -> None:
     if not res.chance.answered:
         raise MeasurementError(f"{what} beyond chance: {res.chance.describe()}")
     lo, hi = res.disparity_range_px
+    if seeded:
+        raise MeasurementError(f"{what} beyond chance at the working range's disparities {lo:.0f}..{hi:.0f} px: "
+                               "the twin it pairs with agrees on too few rows to stand alone, and the automatic "
+                               f"matcher pairs no edge there that backs it ({res.chance.describe()})")
     raise MeasurementError(f"{what} at the working range's disparities {lo:.0f}..{hi:.0f} px: every candidate "
                            f"failed the matcher's rules or stood alone within chance ({res.chance.describe()})")
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from psvs._quiet import c_stderr_captured
+from psvs._quiet import c_stderr_captured, python_stderr_aside
 from psvs.io import DamagedVideo, decoded, open_video_file
 from psvs.io.images import IMAGE_SUFFIXES
 from psvs.live.camera import (
@@ -133,7 +133,9 @@ class VideoSource(_Source):
             raise ValueError(f"{self.name} is not open")
         ok, image = self._read()
         if ok and self._video is not None and self._index >= 1:       # the next one decodes meanwhile
-            if self._decoder is None:
+            if self._decoder is None:       # Python's prints kept off the decoder's caught descriptor meanwhile
+                self._aside = python_stderr_aside()
+                self._aside.__enter__()
                 self._decoder = ThreadPoolExecutor(1, thread_name_prefix="psvs-decode")
             self._ahead = self._decoder.submit(self._decode, self._index + 1)
         if not ok:
@@ -168,6 +170,7 @@ class VideoSource(_Source):
         if self._decoder is not None:
             self._decoder.shutdown(wait=True)
             self._decoder, self._ahead = None, None
+            self._aside.__exit__(None, None, None)
         if self._cap is not None:
             self._cap.release()
             self._cap = None

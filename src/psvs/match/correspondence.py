@@ -15,7 +15,7 @@ import numpy as np
 from psvs._validate import check_grey
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.auto import AutoParams, Unmatched, image_chance, match_auto
-from psvs.match.chance import Chance
+from psvs.match.chance import Chance, agreeing_rows, seed_pair_stands
 from psvs.match.edges import edge_pixels
 from psvs.match.pairs import EdgePair
 from psvs.match.rows import RowCheck, check_pair
@@ -158,12 +158,22 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         rows = None
         if len(pair) and chance.answered:
             rows = check_pair(pair.left_px, px, pair.shape_disparity_px, params.auto.min_rows)
-        pairs, unmatched = ([pair] if rows is not None and not rows.refuses else []), []
+        stands = rows is not None and not rows.refuses and seed_pair_stands(
+            pair, chance, _backing(pair, chance, edges, rng, params, grey, rect), params.auto.tol_px)
+        pairs, unmatched = ([pair] if stands else []), []
     else:
         auto = match_auto(edges, rng, params=params.auto, grey=grey, rect=rect)
         pairs, unmatched, chance, rows = auto.pairs, auto.unmatched, auto.chance, auto.rows
     finished = finish_pairs(grey, pairs, rig, subpixel=params.subpixel, model=params.model, rect=rect)
     return MatchResult(finished, unmatched, edges, rng, stages, chance, rows)
+
+
+def _backing(pair: EdgePair, chance, edges, rng, params: MatchParams, grey, rect) -> list[EdgePair]:
+    """The automatic matcher's pairs, which may back a seeded ``pair`` (psvs.match.chance.seed_pair_stands):
+    asked only when the pair does not stand alone beyond chance."""
+    if agreeing_rows(pair, params.auto.tol_px) > chance.pair_level_rows:
+        return []
+    return match_auto(edges, rng, params=params.auto, grey=grey, rect=rect).pairs
 
 
 def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel: bool = True,
