@@ -256,6 +256,11 @@ def test_depth_sigma_refuses_a_noise_that_is_no_number():
     for bad in (0.0, -0.1, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="the match noise must be a positive number of px"):
             depth_sigma_mm([[400.0, 240.0]], [[300.0, 240.0]], default_rig(), "paper", bad)
+    # a noise no match on a camera's pixels has: 1e-9 px called a 0.01 px disparity a point 11 km away, pinned
+    for tiny in (1e-9, 0.009):
+        with pytest.raises(ValueError, match="below what any match on a camera's pixels reaches"):
+            depth_sigma_mm([[320.01, 239.5]], [[320.0, 239.5]], default_rig(), "paper", tiny)
+    assert np.isfinite(depth_sigma_mm([[400.0, 240.0]], [[300.0, 240.0]], default_rig(), "paper", 0.01)).all()
 
 
 def test_triangulate_leaves_a_disparity_within_the_noise_unpinned(tmp_path, capsys):

@@ -208,6 +208,28 @@ def test_bad_views_folders(session, tmp_path):
         read_views(tmp_path)
 
 
+def test_a_copied_view_or_pose_is_not_a_new_view(session, tmp_path):
+    """An adversarial trial: 3 views refused as not pinning the mount were accepted once copied 4 times (the
+    1-sigma halved by copies); every copy is refused, naming its line and the line it repeats."""
+    _, images, flanges = session
+    write_views(tmp_path, images[:4], flanges[:4], CELL_GRID)
+    poses = tmp_path / "flange_poses.csv"
+    lines = poses.read_text().splitlines()
+    name = lines[1].split(",")[0]
+    (tmp_path / "copy.png").write_bytes((tmp_path / name).read_bytes())
+    # the same photograph under another name, on another pose's line
+    poses.write_text("\n".join([*lines, "copy.png," + ",".join(lines[2].split(",")[1:])]) + "\n")
+    with pytest.raises(ValueError, match=r"line 6: copy.png is the same photograph as line 2's"):
+        read_views(tmp_path)
+    # another photograph at a pose already listed
+    cv2.imwrite(str(tmp_path / "copy.png"), images[5])
+    poses.write_text("\n".join([*lines, "copy.png," + ",".join(lines[3].split(",")[1:])]) + "\n")
+    with pytest.raises(ValueError, match=r"line 6: the flange pose of line 4's again"):
+        read_views(tmp_path)
+    poses.write_text("\n".join(lines) + "\n")
+    assert len(read_views(tmp_path)[0]) == 4
+
+
 @pytest.mark.slow
 def test_cli_handeye_then_track_with_the_file(session, tmp_path, capsys):
     """psvs handeye on a views folder, then psvs track --handeye: no hand-eye session, set-up well under

@@ -187,6 +187,10 @@ def _closest_approach(left: np.ndarray, right: np.ndarray, rig: Rig) -> tuple[Tr
 #: px: the match noise :func:`depth_sigma_mm` assumes unless told (a sub-pixel edge match's; the paper's
 #: pixel-level matching is about 0.5 px).
 MATCH_SIGMA_PX = 0.1
+#: px: the least match noise :func:`depth_sigma_mm` takes: the sharpest sub-pixel edge fits on a camera's pixels
+#: reach a few hundredths of a pixel; a noise below this one would call a 0.01 px disparity a point 11 km away,
+#: pinned to a millimetre (an adversarial trial's 1e-9 px).
+MIN_MATCH_SIGMA_PX = 0.01
 
 
 def depth_sigma_mm(left_px, right_px, rig: Rig, model: str = "refraction",
@@ -201,6 +205,9 @@ def depth_sigma_mm(left_px, right_px, rig: Rig, model: str = "refraction",
     passes Z where d <= 2 sigma."""
     if not (np.isfinite(sigma_px) and sigma_px > 0):
         raise ValueError(f"the match noise must be a positive number of px, got {sigma_px!r}")
+    if sigma_px < MIN_MATCH_SIGMA_PX:
+        raise ValueError(f"the match noise of {sigma_px:g} px is below what any match on a camera's pixels reaches "
+                         f"(at least {MIN_MATCH_SIGMA_PX:g} px; a sharp sub-pixel edge match is about 0.05-0.1)")
     left = check_points(left_px, "left_px", 2)
     right = check_points(right_px, "right_px", 2)
     z = triangulate(left, right, rig, model).points_mm[:, 2]

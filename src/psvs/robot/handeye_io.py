@@ -26,6 +26,7 @@ pose in the robot's base frame (position mm, unit quaternion, scalar last as in 
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import math
 from pathlib import Path
@@ -141,6 +142,7 @@ def read_views(folder, expect_size: tuple[int, int] | None = None
     if not rows or tuple(c.strip() for c in rows[0]) != POSE_COLUMNS:
         raise ValueError(f"{poses}: the header must be {','.join(POSE_COLUMNS)}")
     images, flanges = [], []
+    seen: dict = {}             # each image's bytes and each pose: the line that gave it first
     for n, row in enumerate(rows[1:], start=2):
         if not row:
             continue
@@ -155,8 +157,26 @@ def read_views(folder, expect_size: tuple[int, int] | None = None
             raise ValueError(f"{poses}: line {n}: the position must be finite and the quaternion of unit "
                              f"length (|q| = {np.linalg.norm(q):.4g})")
         F = transform_from(Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), vals[:3])
+        _check_new_view(seen, folder / row[0].strip(), F, f"{poses}: line {n}")
         images.append(read_grey(folder / row[0].strip(), expect_size=expect_size))
         flanges.append(F)
     if len(images) < 3:
         raise ValueError(f"{poses}: the hand-eye calibration needs >= 3 views, found {len(images)}")
     return images, flanges, grid
+
+
+def _check_new_view(seen: dict, image: Path, flange2base: np.ndarray, where: str) -> None:
+    """ValueError when a views folder's line repeats an earlier one's photograph (byte-identical file) or robot
+    pose (within 1 um and 1 urad): a copy adds no view, yet the fit would count it as one, and its stated 1-sigma
+    would shrink with every copy (an adversarial trial: 3 views refused as not pinning the mount, the same 3
+    copied 4 times accepted at half the 1-sigma)."""
+    if image.is_file():
+        digest = hashlib.sha256(image.read_bytes()).digest()
+        if digest in seen:
+            raise ValueError(f"{where}: {image.name} is the same photograph as {seen[digest]} (byte-identical "
+                             "files): each view must be its own photograph of its own robot pose")
+        seen[digest] = f"{where.rsplit(': ', 1)[-1]}'s"
+    key = tuple(np.round(np.concatenate([flange2base[:3, 3] * 1e3, flange2base[:3, :3].ravel() * 1e6])))
+    if key in seen:
+        raise ValueError(f"{where}: the flange pose of {seen[key]} again: each view must be its own robot pose")
+    seen[key] = f"{where.rsplit(': ', 1)[-1]}'s"
