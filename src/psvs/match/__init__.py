@@ -11,7 +11,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submod_attrs={
         "auto": ["image_chance"],
         "chance": ["Chance"],
-        "correspondence": ["MatchParams", "MatchResult", "finish_pairs", "match_image"],
+        "correspondence": ["MatchParams", "MatchResult", "finish_pairs", "match_image", "seed_twin_stands"],
         "edges": ["edge_pixels"],
         "export": ["result_to_dict", "write_csv", "write_json", "write_ply"],
         "figures": ["write_figures"],

@@ -158,8 +158,8 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         rows = None
         if len(pair) and chance.answered:
             rows = check_pair(pair.left_px, px, pair.shape_disparity_px, params.auto.min_rows)
-        stands = rows is not None and not rows.refuses and seed_pair_stands(
-            pair, chance, _backing(pair, chance, edges, rng, params, grey, rect), params.auto.tol_px)
+        stands = rows is not None and not rows.refuses and seed_twin_stands(pair, chance, edges, rng, params=params,
+                                                                            grey=grey, rect=rect)
         pairs, unmatched = ([pair] if stands else []), []
     else:
         auto = match_auto(edges, rng, params=params.auto, grey=grey, rect=rect)
@@ -168,12 +168,19 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     return MatchResult(finished, unmatched, edges, rng, stages, chance, rows)
 
 
-def _backing(pair: EdgePair, chance, edges, rng, params: MatchParams, grey, rect) -> list[EdgePair]:
-    """The automatic matcher's pairs, which may back a seeded ``pair`` (psvs.match.chance.seed_pair_stands):
-    asked only when the pair does not stand alone beyond chance."""
-    if agreeing_rows(pair, params.auto.tol_px) > chance.pair_level_rows:
-        return []
-    return match_auto(edges, rng, params=params.auto, grey=grey, rect=rect).pairs
+def seed_twin_stands(pair: EdgePair, chance: Chance, edges: np.ndarray, disparity_range_px: tuple[float, float], *,
+                     params: MatchParams = MatchParams(), grey: np.ndarray | None = None,
+                     rect: Rectification | None = None) -> bool:
+    """Whether the twin the paper's algorithm found from a seed (``pair``, integer pixels of ``edges``, under
+    ``rect`` on a build) stands beyond the image's ``chance`` (:func:`psvs.match.chance.seed_pair_stands`): alone,
+    or backed by a pair the automatic matcher (:func:`psvs.match.auto.match_auto`, run only when the pair does
+    not stand alone) accepts at its disparity. ``match --seed`` and ``live --seed`` take an edge by it."""
+    if not len(pair) or not chance.answered:
+        return False
+    tol = params.auto.tol_px
+    backing = [] if agreeing_rows(pair, tol) > chance.pair_level_rows else match_auto(
+        edges, disparity_range_px, params=params.auto, grey=grey, rect=rect).pairs
+    return seed_pair_stands(pair, chance, backing, tol)
 
 
 def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel: bool = True,
