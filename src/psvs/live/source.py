@@ -4,6 +4,7 @@ index) and image sequences (a printf pattern such as ``seq_%03d.png``, or a fold
 depth, :func:`psvs.io.images.read_grey`)."""
 from __future__ import annotations
 
+import contextlib
 import re
 import time
 from collections.abc import Iterator
@@ -102,6 +103,7 @@ class VideoSource(_Source):
         self._video, self._camera, self._cap, self._last = video, camera, None, None
         self._decoder: ThreadPoolExecutor | None = None     # a file's read-ahead (one thread), from frame 1
         self._ahead: Future | None = None                   # ... and the frame it decodes
+        self._held = contextlib.ExitStack()                 # ... and python_stderr_aside while it runs
         self.name = str(video) if video is not None else f"camera {camera}"
         if video is not None and "%" not in str(video) and not Path(video).is_file():
             raise FileNotFoundError(f"video not found: {video}")
@@ -134,8 +136,7 @@ class VideoSource(_Source):
         ok, image = self._read()
         if ok and self._video is not None and self._index >= 1:       # the next one decodes meanwhile
             if self._decoder is None:       # Python's prints kept off the decoder's caught descriptor meanwhile
-                self._aside = python_stderr_aside()
-                self._aside.__enter__()
+                self._held.enter_context(python_stderr_aside())
                 self._decoder = ThreadPoolExecutor(1, thread_name_prefix="psvs-decode")
             self._ahead = self._decoder.submit(self._decode, self._index + 1)
         if not ok:
@@ -145,15 +146,16 @@ class VideoSource(_Source):
                 raise DamagedVideo(f"{self.name} ends after {self._index} of the {self.frame_count} frames its header "
                                  "declares: the file is truncated or damaged")
             return None
-        self._last = self._frame(as_grey(image), self._video is not None)
+        self._last = self._frame(image, self._video is not None)
         return self._last
 
     def _read(self):
-        """The next (ok, image): a file's damaged frame (:func:`psvs.io.video.decoded`) is a ValueError naming
+        """The next (ok, image grey): a file's damaged frame (:func:`psvs.io.video.decoded`) is a ValueError naming
         it. A camera's frames are read as they come: many MJPEG webcams' decoder says "Corrupt JPEG data" of
         every frame while delivering whole images, so its words do not tell a damaged frame there."""
         if self._video is None:
-            return self._cap.read()
+            ok, image = self._cap.read()
+            return ok, (as_grey(image) if ok else image)
         if self._ahead is not None:
             ahead, self._ahead = self._ahead, None
             return ahead.result()
@@ -170,7 +172,7 @@ class VideoSource(_Source):
         if self._decoder is not None:
             self._decoder.shutdown(wait=True)
             self._decoder, self._ahead = None, None
-            self._aside.__exit__(None, None, None)
+            self._held.close()
         if self._cap is not None:
             self._cap.release()
             self._cap = None
