@@ -18,7 +18,8 @@ import numpy as np
 from psvs._validate import check_count, check_grey, check_positive
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.auto import image_chance
-from psvs.match.correspondence import MatchParams, finish_pairs, seed_twin_stands
+from psvs.match.chance import seed_pair_stands
+from psvs.match.correspondence import MatchParams, automatic_pairs, finish_pairs
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.optics.illumination import flat_field
@@ -167,7 +168,7 @@ class EdgeTracker:
         radius = p.snap_px if first else p.search_px * (1 + self._lost) + float(np.hypot(*self._velocity))
         cands = nearest_edge_pixels(edges, predicted, radius, p.candidates)
         msg = "no edge pixel near the seed" if first else "edge lost"
-        chance = None
+        chance = automatic = None
         for cand in cands:
             pair = match_seeded(edges, cand, self.range_px, n_seeds=self.match.n_seeds, rect=self.rect)
             if len(pair) < p.min_pairs:
@@ -178,11 +179,13 @@ class EdgeTracker:
             if not chance.answered:
                 msg = f"no twin beyond chance in the frame: {chance.describe()}"
                 break
-            if first and not seed_twin_stands(pair, chance, edges, self.range_px, params=self.match, grey=grey,
-                                              rect=self.rect):        # the edge taken as match --seed takes it
-                msg = ("the seed's edge has no twin beyond chance: the twin it pairs with agrees on too few "
-                       f"rows to stand alone, and no pair of the automatic matcher backs it ({chance.describe()})")
-                continue
+            if first:                   # the edge taken as match --seed takes it (the automatic matcher run once)
+                automatic = automatic or automatic_pairs(edges, self.range_px, params=self.match, grey=grey,
+                                                         rect=self.rect)
+                if not seed_pair_stands(pair, chance, automatic, self.match.auto.tol_px):
+                    msg = ("the seed's edge has no twin beyond chance: the twin it pairs with agrees on too few "
+                           f"rows to stand alone, and no pair of the automatic matcher backs it ({chance.describe()})")
+                    continue
             d = float(np.median(pair.disparity_px))
             if not first and abs(d - self._disparity) > p.max_jump_px * (1 + self._lost):
                 msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"

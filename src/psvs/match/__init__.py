@@ -10,8 +10,8 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submodules=[],
     submod_attrs={
         "auto": ["image_chance"],
-        "chance": ["Chance"],
-        "correspondence": ["MatchParams", "MatchResult", "finish_pairs", "match_image", "seed_twin_stands"],
+        "chance": ["Chance", "seed_pair_stands"],
+        "correspondence": ["MatchParams", "MatchResult", "automatic_pairs", "finish_pairs", "match_image"],
         "edges": ["edge_pixels"],
         "export": ["result_to_dict", "write_csv", "write_json", "write_ply"],
         "figures": ["write_figures"],

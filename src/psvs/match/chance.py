@@ -211,18 +211,18 @@ def agreeing_rows(pair, tol_px: float) -> int:
 def seed_pair_stands(pair, chance: Chance, backing, tol_px: float) -> bool:
     """Whether the twin the paper's algorithm found from a seed stands beyond chance by the automatic
     matcher's own rule: alone, on more agreeing rows (:func:`agreeing_rows`) than
-    :attr:`Chance.pair_level_rows`; or backed, the automatic matcher (``backing``: its accepted pairs, integer
-    pixels in the same coordinates) having paired at least :data:`BACKED_SHARE` of its pixels at its disparity
-    (within :data:`BACKED_LAGS` // 2 px). The paper's algorithm pairs the seed's edge with whatever agrees
-    best, on a photograph's texture as readily as on a twin (an adversarial trial: 12 of 22 seeds on the
-    textured scene paired 3-22 rows at a wrong disparity)."""
+    :attr:`Chance.pair_level_rows`; or backed, the automatic matcher (``backing()``: its accepted pairs, integer
+    pixels in the same coordinates, asked only for a pair that does not stand alone) having paired at least
+    :data:`BACKED_SHARE` of its pixels at its disparity (within :data:`BACKED_LAGS` // 2 px). The paper's
+    algorithm pairs the seed's edge with whatever agrees best, on a photograph's texture as readily as on a
+    twin (an adversarial trial: 12 of 22 seeds on the textured scene paired 3-22 rows at a wrong disparity)."""
     if not len(pair) or not chance.answered:
         return False
     if agreeing_rows(pair, tol_px) > chance.pair_level_rows:
         return True
     mine = _pixel_keys(pair.left_px)
     reach = BACKED_LAGS // 2
-    held = [_pixel_keys(p.left_px) for p in backing
+    held = [_pixel_keys(p.left_px) for p in backing()
             if len(p) and abs(p.shape_disparity_px - pair.shape_disparity_px) <= reach]
     if not held:
         return False

@@ -7,6 +7,8 @@ rows of the dual rectification (psvs.optics.rectify), refines them on the two re
 back to the complex image and triangulates them with the exact model of the build."""
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -15,7 +17,7 @@ import numpy as np
 from psvs._validate import check_grey
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.auto import AutoParams, Unmatched, image_chance, match_auto
-from psvs.match.chance import Chance, agreeing_rows, seed_pair_stands
+from psvs.match.chance import Chance, seed_pair_stands
 from psvs.match.edges import edge_pixels
 from psvs.match.pairs import EdgePair
 from psvs.match.rows import RowCheck, check_pair
@@ -158,8 +160,8 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         rows = None
         if len(pair) and chance.answered:
             rows = check_pair(pair.left_px, px, pair.shape_disparity_px, params.auto.min_rows)
-        stands = rows is not None and not rows.refuses and seed_twin_stands(pair, chance, edges, rng, params=params,
-                                                                            grey=grey, rect=rect)
+        stands = rows is not None and not rows.refuses and seed_pair_stands(
+            pair, chance, automatic_pairs(edges, rng, params=params, grey=grey, rect=rect), params.auto.tol_px)
         pairs, unmatched = ([pair] if stands else []), []
     else:
         auto = match_auto(edges, rng, params=params.auto, grey=grey, rect=rect)
@@ -168,19 +170,13 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     return MatchResult(finished, unmatched, edges, rng, stages, chance, rows)
 
 
-def seed_twin_stands(pair: EdgePair, chance: Chance, edges: np.ndarray, disparity_range_px: tuple[float, float], *,
-                     params: MatchParams = MatchParams(), grey: np.ndarray | None = None,
-                     rect: Rectification | None = None) -> bool:
-    """Whether the twin the paper's algorithm found from a seed (``pair``, integer pixels of ``edges``, under
-    ``rect`` on a build) stands beyond the image's ``chance`` (:func:`psvs.match.chance.seed_pair_stands`): alone,
-    or backed by a pair the automatic matcher (:func:`psvs.match.auto.match_auto`, run only when the pair does
-    not stand alone) accepts at its disparity. ``match --seed`` and ``live --seed`` take an edge by it."""
-    if not len(pair) or not chance.answered:
-        return False
-    tol = params.auto.tol_px
-    backing = [] if agreeing_rows(pair, tol) > chance.pair_level_rows else match_auto(
-        edges, disparity_range_px, params=params.auto, grey=grey, rect=rect).pairs
-    return seed_pair_stands(pair, chance, backing, tol)
+def automatic_pairs(edges: np.ndarray, disparity_range_px: tuple[float, float], *, params: MatchParams = MatchParams(),
+                    grey: np.ndarray | None = None, rect: Rectification | None = None) -> Callable[[], list[EdgePair]]:
+    """The automatic matcher's accepted pairs of ``edges`` (:func:`psvs.match.auto.match_auto`), as a function
+    that runs it on its first call and keeps the answer: the backing a seeded pair may need
+    (:func:`psvs.match.chance.seed_pair_stands`), asked at most once per image however many seeds are tried."""
+    return functools.cache(lambda: match_auto(edges, disparity_range_px, params=params.auto, grey=grey,
+                                              rect=rect).pairs)
 
 
 def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel: bool = True,
