@@ -72,3 +72,24 @@ def test_the_virtual_baseline_is_b_on_the_papers_geometry():
     from psvs.optics.mirrors import virtual_baseline_mm
     for b in (60.0, 100.0, 160.0):
         assert virtual_baseline_mm(default_rig().replace(baseline_mm=b)) == pytest.approx(b, abs=1e-9)
+
+
+@pytest.mark.parametrize("name", ["default", "mv1440", "mv1440_misaligned"])
+def test_a_working_range_cannot_start_inside_the_mirrors(name):
+    """Issue 41 (trial s23): --near-mm 30 on the default rig was searched as if a scene could stand there. The
+    front of the rig, by hand: on the paper's unbounded geometry the far mirror M3 is anchored at z = c2; a
+    designed build's mirrors reach beyond their anchors by half their tilted length."""
+    from psvs.io.params import load_rig
+    from psvs.optics.mirrors import front_z_mm
+    from psvs.optics.search_range import disparity_range
+    rig = load_rig(name)
+    front = front_z_mm(rig)
+    m3 = mirror_planes(rig)["m3"]
+    if m3.extent is None:
+        assert front == pytest.approx(rig.mirrors.m2_axis_distance_mm, abs=1e-9)
+    else:
+        assert front > rig.mirrors.m2_axis_distance_mm + 1.0           # the rectangle reaches past its anchor
+    lo, hi = disparity_range(rig, front + 1.0, 1200.0)
+    assert 0 < lo < hi
+    with pytest.raises(ValueError, match=f"near end {front - 1.0:g} mm lies inside the rig: its mirrors reach"):
+        disparity_range(rig, front - 1.0, 1200.0)

@@ -39,10 +39,10 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     out = check_output_path(args.json, (".json",))
     check_distinct({"--json": args.json}, {"calibrated": args.calibrated, "--rig": args.rig})
-    near, far = range_from_args(args)
     check_pitch(args.pitch_mm, "--pitch-mm")
     built, nominal = measuring_rig(args.calibrated), measuring_rig(args.rig)
     check_same_design(built, nominal)
+    near, far = range_from_args(args, built)
     if args.mount is not None:
         from psvs.mount.files import read_mount
         seats = read_mount(args.mount, nominal)[1]

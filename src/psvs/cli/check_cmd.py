@@ -46,8 +46,8 @@ def run(args) -> int:
     check_distinct({"--map": args.map}, {"--rig": args.rig, **frames_in})
     if not (math.isfinite(args.tolerance_px) and args.tolerance_px > 0):
         raise ValueError(f"--tolerance-px must be a number > 0 px, got {args.tolerance_px}")
-    near, far = range_from_args(args)
     rig = measuring_rig(args.rig)
+    near, far = range_from_args(args, rig)
     frames = [read_grey(f, expect_size=rig.camera.image_size_px) for f in args.frames]
     check = check_frames(frames, rig, near, far, args.tolerance_px)
     from psvs.health.explain import explain_drift, explanation_line

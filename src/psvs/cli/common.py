@@ -26,9 +26,10 @@ def add_range_arguments(parser, what: str = "working range") -> None:
     parser.add_argument("--far-mm", type=float, default=1200.0, help=f"far end of the {what}, mm (default 1200)")
 
 
-def range_from_args(args) -> tuple[float, float]:
-    """(near, far) mm of --near-mm/--far-mm, checked (:func:`check_working_range`)."""
-    return check_working_range(args.near_mm, args.far_mm)
+def range_from_args(args, rig=None) -> tuple[float, float]:
+    """(near, far) mm of --near-mm/--far-mm, checked (:func:`check_working_range`); with ``rig``, also
+    that the range starts in front of the rig's mirrors."""
+    return check_working_range(args.near_mm, args.far_mm, rig)
 
 
 def add_model_argument(parser, default: str | None = None) -> None:
@@ -227,14 +228,22 @@ def check_distinct(outputs: dict, inputs: dict | None = None) -> None:
 MAX_DEPTH_MM = 1e7
 
 
-def check_working_range(near_mm: float, far_mm: float) -> tuple[float, float]:
+def check_working_range(near_mm: float, far_mm: float, rig=None) -> tuple[float, float]:
     """``--near-mm``/``--far-mm`` as finite depths with 0 < near < far <= :data:`MAX_DEPTH_MM` (mm), else a
-    one-line ValueError."""
+    one-line ValueError. With ``rig``, near must also lie beyond the front of its mirrors
+    (:func:`psvs.optics.mirrors.front_z_mm`): no scene point is seen from inside the mirror box, so a range
+    that starts there would search disparities no scene can give."""
     for name, v in (("--near-mm", near_mm), ("--far-mm", far_mm)):
         if not math.isfinite(v) or v <= 0 or v > MAX_DEPTH_MM:
             raise ValueError(f"{name} must be a finite depth in (0, {MAX_DEPTH_MM:g}] mm, got {v}")
     if near_mm >= far_mm:
         raise ValueError(f"--near-mm ({near_mm} mm) must be less than --far-mm ({far_mm} mm)")
+    if rig is not None:
+        from psvs.optics.mirrors import front_z_mm
+        front = front_z_mm(rig)
+        if near_mm <= front:
+            raise ValueError(f"--near-mm {near_mm:g} mm lies inside the rig: its mirrors reach Z = {front:.1f} mm, "
+                             "and no scene point is seen nearer; give a --near-mm beyond it")
     return near_mm, far_mm
 
 

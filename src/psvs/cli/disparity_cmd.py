@@ -108,7 +108,7 @@ def _inputs(args, image=None):
     image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)
     rect = None
     if rig is not None:
-        near_mm, far_mm = range_from_args(args)
+        near_mm, far_mm = range_from_args(args, rig)
         rect = rectification(rig, near_mm, far_mm)     # with its remaps, from the cache when it holds them
     shape = image.shape if rect is None else rect.size_px[::-1]
     lo, hi = _range(args, rig, rect, shape[1])

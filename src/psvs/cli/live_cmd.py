@@ -82,7 +82,7 @@ def _sensors(args):
     seed = parse_seed(args.seed) if args.seed is not None else None
     rig = measuring_rig(args.rig)
     pipeline = pipeline_from_args(args)
-    near_mm, far_mm = range_from_args(args)
+    near_mm, far_mm = range_from_args(args, rig)
     tracker = None if seed is None else EdgeTracker(rig, seed, pipeline=pipeline, near_mm=near_mm, far_mm=far_mm,
                                                     match=MatchParams(model=args.model))
     dense = DenseSensor(rig, near_mm, far_mm, params=FAST if args.fast else DEFAULT,

@@ -58,12 +58,12 @@ def prepare(args, image=None) -> tuple:
         if not Path(args.figures).is_dir():
             raise FileNotFoundError(f"figures folder does not exist: {args.figures}")
     seed = parse_seed(args.seed)
-    near_mm, far_mm = range_from_args(args)
     if args.auto and args.n_seeds is not None:
         raise ValueError("--n-seeds applies to --seed (seeds on the edge the user picked), not to --auto")
     if args.n_seeds is not None and not 2 <= args.n_seeds <= 100:
         raise ValueError(f"--n-seeds must be 2-100, got {args.n_seeds}")
     rig = measuring_rig(args.rig)
+    near_mm, far_mm = range_from_args(args, rig)
     pipeline = pipeline_from_args(args)
     size = rig.camera.image_size_px
     image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)

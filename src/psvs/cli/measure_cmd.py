@@ -43,7 +43,7 @@ def prepare(args, image=None) -> tuple:
     ``image``: already read (a frame of ``psvs batch``), else read from args.image."""
     rig = measuring_rig(args.rig)
     check_pattern_sizes(args.spacing_mm, args.diameter_mm, ("--spacing-mm", "--diameter-mm"))
-    z_mm = range_from_args(args)
+    z_mm = range_from_args(args, rig)
     size = rig.camera.image_size_px
     image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)
     return image, rig, z_mm

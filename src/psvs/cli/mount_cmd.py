@@ -62,9 +62,9 @@ def params_from_args(args) -> MountParams:
 def run(args) -> int:
     from psvs.mount.cad import MissingExtra, require_cad
     params = params_from_args(args)
-    near, far = range_from_args(args)
-    folder = check_output_folder(args.output)
     rig = rig_from_args(args)
+    near, far = range_from_args(args, rig)
+    folder = check_output_folder(args.output)
     try:
         require_cad()
     except MissingExtra as exc:

@@ -73,8 +73,8 @@ def run(args) -> int:
     inputs = ({f"frame {k + 1}": f for k, f in enumerate(args.frames)} | {"--rig": args.rig}
               | {f"--tare {k + 1}": f for k, f in enumerate(args.tare)})
     check_distinct({"-o": args.output, "the record": record}, inputs)
-    near, far = range_from_args(args)
     rig = measuring_rig(args.rig)
+    near, far = range_from_args(args, rig)
     size = rig.camera.image_size_px
     frames = [read_grey(f, expect_size=size) for f in args.frames]
     tares = [(read_grey(f, expect_size=size), z) for f, z in zip(args.tare, args.tare_mm, strict=True)]
