@@ -20,7 +20,16 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from psvs._validate import check_count, check_finite
-from psvs.match.chance import Chance, NullCandidates, chance_level, null_bands, pair_level
+from psvs.match.chance import (
+    GAP_PX,
+    MIN_BAND_PX,
+    Chance,
+    Elsewhere,
+    NullCandidates,
+    chance_level,
+    null_bands,
+    pair_level,
+)
 from psvs.match.edges import EdgePixels, edge_pixels, row_votes
 from psvs.match.grey_steps import polarity, step_image, twin_step_seen
 from psvs.match.pairs import EdgePair, grow_pairs
@@ -342,11 +351,15 @@ class _Neighbours:
         return near
 
 
-def _beyond_chance(c: Candidate, chance: Chance, reach: int) -> bool:
+def _beyond_chance(ev: Evidence, c: Candidate, chance: Chance, reach: int) -> bool:
     """Whether candidate ``c`` may stand as a twin: backed by an accepted pair of its object (its rank holds
     their rows) where chance makes none as strong within ``reach`` px at one disparity
     (:meth:`~psvs.match.chance.Chance.backed_beyond_chance`), or alone, beyond chance's level for one pair
-    (:attr:`~psvs.match.chance.Chance.pair_level_rows`, read on the very statistic ``c.rows`` is)."""
+    (:attr:`~psvs.match.chance.Chance.pair_level_rows`, read on the very statistic ``c.rows`` is); never when
+    either of its edges twins more strongly, beyond chance, at a lag below the range
+    (:meth:`~psvs.match.chance.Chance.twin_elsewhere`)."""
+    if chance.twin_elsewhere(ev.p[c.votes], ev.q[c.votes], c.rows):
+        return False                      # its edge twins more strongly outside the range: another edge's view
     if c.rank > c.rows and chance.backed_beyond_chance(c.rows, c.box, reach):
         return True
     return c.rows > chance.pair_level_rows
@@ -366,7 +379,7 @@ def _strong_enough(ev: Evidence, claims: Claims, c: Candidate, kept: np.ndarray,
     # an edge backed by no accepted pair at its disparity nearby stands beyond chance by itself
     need = prm.min_rows if c.rank > c.rows else prm.standalone_rows
     settled = not (agree < need or (agree < prm.min_fraction * smaller and longest < prm.long_run_rows))
-    return settled and _beyond_chance(c, chance, prm.support_px)
+    return settled and _beyond_chance(ev, c, chance, prm.support_px)
 
 
 def _first_pass(ev: Evidence, claims: Claims, cands: list[Candidate], chance: Chance) -> list[Candidate]:
@@ -455,7 +468,8 @@ def _second_pass(ev: Evidence, claims: Claims, later: list[Candidate], chance: C
         if (c.i, c.d) in tried or claims.free_rows(c.i) < prm.standalone_rows:
             continue
         tried.add((c.i, c.d))
-        hidden = _partly_hidden_twin(ev, claims, c, index) if _beyond_chance(c, chance, prm.support_px) else None
+        stands = _beyond_chance(ev, c, chance, prm.support_px)
+        hidden = _partly_hidden_twin(ev, claims, c, index) if stands else None
         if hidden is not None and claims.accept(c, hidden[0], c.votes, hidden[1]):
             tried.clear()
 
@@ -574,5 +588,36 @@ def _chance(ev: Evidence, rows: np.ndarray, d_min: float, d_max: float) -> Chanc
     if not bands:                # nowhere to read chance: nothing is answered
         return Chance(strongest, math.inf, 0.0, 0, len(rows), ())
     level = chance_level(null, len(rows), ev.params.min_rows)
+    elsewhere = _elsewhere(ev, d_min) if bands[0][0] > d_max else None
     return Chance(strongest, level, float(null.max(initial=0.0)), len(null), len(rows), tuple(bands),
-                  pair_level(null, rows, ev.params.min_rows), NullCandidates(null, np.concatenate(boxes), bands))
+                  pair_level(null, rows, ev.params.min_rows), NullCandidates(null, np.concatenate(boxes), bands),
+                  elsewhere)
+
+
+def _elsewhere(ev: Evidence, d_min: float) -> Elsewhere | None:
+    """The candidates the same votes make at lags below the range, from half ``d_min`` up to ``d_min`` less
+    :data:`~psvs.match.chance.GAP_PX` (depths up to about twice the far limit): each edge pixel's strongest as
+    left and as right pixel of a vote (:class:`~psvs.match.chance.Elsewhere`); None when that band is narrower
+    than :data:`~psvs.match.chance.MIN_BAND_PX`. Shorter lags are left out: there an edge agrees with its own
+    view's next edge (both sides of a thin line, a texture's short repeat) as well as with a far twin, as
+    the dense engine's short repeats (psvs.dense.elsewhere)."""
+    a, b = max(GAP_PX, 0.5 * d_min), d_min - GAP_PX
+    if b - a < MIN_BAND_PX:
+        return None
+    n = len(ev.px.u)
+    rows, lags = np.zeros((2, n)), np.zeros((2, n))
+    p, q, d = _polar_votes(ev.px, ev.polarity, a, b)
+    table = _candidate_table(Evidence(ev.px, p, q, d, ev.polarity, None, ev.params), int(a)) if len(p) else None
+    if table is not None:
+        keys, scores, _, (first, last), (order, starts), span = table
+        lo, hi = starts[first], starts[last + 1]                  # each candidate's run of the sorted votes
+        length = hi - lo
+        run = np.repeat(lo - np.cumsum(length) + length, length) + np.arange(int(length.sum()))
+        votes, score = order[run], np.repeat(scores, length)
+        lag = np.repeat((keys % span + int(a) - 1).astype(float), length)
+        for side, pix in enumerate((p[votes], q[votes])):
+            by = np.lexsort((score, pix))                          # by pixel, the strongest last
+            last_of = np.append(pix[by][1:] != pix[by][:-1], True)
+            rows[side, pix[by][last_of]] = score[by][last_of]
+            lags[side, pix[by][last_of]] = lag[by][last_of]
+    return Elsewhere(rows[0], rows[1], lags[0], lags[1], (a, b))

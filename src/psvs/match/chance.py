@@ -51,6 +51,9 @@ MIN_TAIL = 20
 MIN_BAND_PX = 8.0
 
 
+#: The share of a candidate's votes whose pixels must twin more strongly below the range to set it aside.
+ELSEWHERE_SHARE = 0.5
+
 #: The lags a backing pair's disparity window spans (+-2 px: psvs.match.auto's support).
 BACKED_LAGS = 5
 
@@ -78,6 +81,44 @@ class NullCandidates:
 
 
 @dataclass(frozen=True, eq=False)
+class Elsewhere:
+    """The twins the edges find at lags *below* the searched range (a scene beyond the far limit, or a search
+    narrowed past it): per edge pixel (N,), the most agreeing rows of a candidate in whose votes it is the
+    left pixel (``left_rows``) or the right pixel (``right_rows``) at one of those lags, and that candidate's
+    lag (``left_lag``, ``right_lag``, px; 0 where none); ``band`` the lags (lo, hi) px searched. A candidate
+    in the range most of whose pixels twin more strongly there, beyond chance, is the view of something the
+    range does not hold: pairing it in the range would pair it with the wrong edge (an adversarial trial:
+    Fig. 5b at 1100 mm searched at 400-700 mm paired each ashtray's view with the other's, at 541-609 mm,
+    exit 0). Read per pixel, not per edge component: a component merged of a clutter's many outlines twins
+    somewhere with each of them."""
+
+    left_rows: np.ndarray
+    right_rows: np.ndarray
+    left_lag: np.ndarray
+    right_lag: np.ndarray
+    band: tuple[float, float]
+
+    def strongest(self) -> tuple[float, float]:
+        """(agreeing rows, lag px) of the strongest candidate at these lags ((0, 0) when none)."""
+        if not len(self.left_rows):
+            return 0.0, 0.0
+        k = int(np.argmax(self.left_rows))
+        return float(self.left_rows[k]), float(self.left_lag[k])
+
+    def beats(self, left: np.ndarray, right: np.ndarray, rows: float, level: float) -> float:
+        """The lag (px) of the candidates outside the range that are stronger than a candidate (its votes' left
+        pixels ``left`` and right pixels ``right``, indices (K,), ``rows`` agreeing rows) and beyond chance's
+        ``level``, on at least :data:`ELSEWHERE_SHARE` of its votes through either side; 0.0 when none are."""
+        best = max(rows, level)
+        for mine, lags in ((self.left_rows[left], self.left_lag[left]),
+                           (self.right_rows[right], self.right_lag[right])):
+            stronger = mine > best
+            if len(mine) and stronger.mean() >= ELSEWHERE_SHARE:
+                return float(np.median(lags[stronger]))
+        return 0.0
+
+
+@dataclass(frozen=True, eq=False)
 class Chance:
     """How the automatic matcher's candidates stand against chance on one image.
 
@@ -88,7 +129,9 @@ class Chance:
     lags (px) ((lo, hi), ...); ``pair_level_rows``: the rows a twin standing alone (no accepted pair of its
     object backs it) must exceed to be paired (:func:`pair_level`; infinite: none may); ``null``: the null
     candidates themselves, which a backed twin is weighed against (:meth:`backed_beyond_chance`; None: no
-    null was read, and no twin is backed beyond chance)."""
+    null was read, and no twin is backed beyond chance); ``elsewhere``: the edges' twins at lags below the
+    range (:class:`Elsewhere`; None: none fit), which a candidate must not be weaker than
+    (:meth:`twin_elsewhere`)."""
 
     strongest_rows: float
     level_rows: float
@@ -98,6 +141,13 @@ class Chance:
     bands: tuple[tuple[float, float], ...]
     pair_level_rows: float = math.inf
     null: NullCandidates | None = None
+    elsewhere: Elsewhere | None = None
+
+    def twin_elsewhere(self, left: np.ndarray, right: np.ndarray, rows: float) -> float:
+        """The lag (px) outside the range at which most of a candidate's votes (their left and right pixels'
+        indices, (K,) each; ``rows`` agreeing rows) twin more strongly, beyond chance (:class:`Elsewhere`); 0.0
+        when they do not (or it was not read)."""
+        return 0.0 if self.elsewhere is None else self.elsewhere.beats(left, right, rows, self.level_rows)
 
     def backed_beyond_chance(self, rows: float, box, reach: float) -> bool:
         """Whether a twin of ``rows`` agreeing rows that an accepted pair of its object backs (within
@@ -123,12 +173,20 @@ class Chance:
                      f"{self.level_rows:.0f}")
         where = f"at disparities {bands} px, which the working range cannot produce"
         alone = (f"; a twin no other pair backs needs more than {self.pair_level_rows:.0f} rows"
-                 if self.answered and math.isfinite(self.pair_level_rows) else "")
+                 if self.answered and math.isfinite(self.pair_level_rows) else "") + self._elsewhere_words()
         if self.null_candidates >= MIN_TAIL:
             return (f"{head} (the {ALPHA:.0%} false-alarm level read from {self.null_candidates} candidates "
                     f"{where}; their strongest {self.null_max_rows:.0f} rows){alone}")
         return (f"{head} (twice the excess of chance's strongest of {self.null_candidates} candidates "
                 f"{where}, {self.null_max_rows:.0f} rows){alone}")
+
+
+    def _elsewhere_words(self) -> str:
+        rows, lag = self.elsewhere.strongest() if self.elsewhere is not None else (0.0, 0.0)
+        if rows <= self.level_rows:
+            return ""
+        return (f"; edges twin beyond chance below the range too, the strongest on {rows:.0f} rows at {lag:.0f} px "
+                "(a scene beyond the far limit: those edges are not paired in the range; widen it to measure them)")
 
 
 def null_bands(d_min: float, d_max: float, width_px: int) -> list[tuple[float, float]]:

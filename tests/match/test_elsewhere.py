@@ -1,0 +1,67 @@
+"""An edge whose twin lies below the searched disparities (a scene beyond the far limit) is not paired inside
+them (psvs.match.chance.Elsewhere). An adversarial trial: Fig. 5b at 1100 mm, searched at 400-700 mm, paired
+each ashtray's view with the other's view at 541-609 mm and exited 0; searched over its own depths, the same
+image pairs every twin within 2 % of Z. Planted truth: the renderer's depth of each left-view pixel."""
+import numpy as np
+import pytest
+from scipy.ndimage import minimum_filter
+
+from psvs.cli.main import main
+from psvs.io.images import read_grey
+from psvs.io.params import load_rig
+from psvs.match.chance import ELSEWHERE_SHARE, Elsewhere
+from psvs.match.correspondence import match_image
+
+
+@pytest.fixture(scope="module")
+def far_ashtrays(tmp_path_factory):
+    d = tmp_path_factory.mktemp("elsewhere")
+    assert main(["simulate", "fig5b:distance_mm=1100", "--rig", "default", "-o", str(d / "f.png"),
+                 "--truth", str(d / "f.npz")]) == 0
+    return d, read_grey(d / "f.png").astype(np.uint8), np.load(d / "f.npz")["depth_left_mm"], load_rig("default")
+
+
+def _z_error(pair, z_true):
+    """The pair's median |Z error| over Z; an outline's pixel may fall on the backdrop beside its object, so
+    the truth is the nearest surface within 2 px (the occluding object's)."""
+    near = minimum_filter(np.where(np.isfinite(z_true), z_true, np.inf), size=5)
+    uv = np.rint(pair.left_px).astype(int)
+    zt, z = near[uv[:, 1], uv[:, 0]], pair.points_mm[:, 2]
+    ok = np.isfinite(zt) & np.isfinite(z)
+    return float(np.median(np.abs(z[ok] - zt[ok]) / zt[ok])) if ok.any() else np.inf
+
+
+def test_a_scene_beyond_the_far_limit_is_not_paired_inside_the_range(far_ashtrays):
+    _, grey, z_true, rig = far_ashtrays
+    own = match_image(grey, rig, near_mm=400.0, far_mm=1400.0)
+    assert len(own.pairs) >= 4 and all(_z_error(p, z_true) < 0.02 for p in own.pairs)
+    narrowed = match_image(grey, rig, near_mm=400.0, far_mm=700.0)
+    assert narrowed.pairs == []
+    rows, lag = narrowed.chance.elsewhere.strongest()
+    truth = np.median([p.shape_disparity_px for p in own.pairs])
+    assert rows > narrowed.chance.level_rows and abs(lag - truth) <= 3.0   # where the twins are, said
+
+
+def test_the_cli_refuses_in_words_that_say_where_the_twins_are(far_ashtrays, capsys):
+    d, *_ = far_ashtrays
+    out = d / "m.json"
+    code = main(["match", str(d / "f.png"), "--rig", "default", "--auto", "--near-mm", "400", "--far-mm", "700",
+                 "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 1 and not out.exists()
+    assert "edges twin beyond chance below the range too" in err and "a scene beyond the far limit" in err, err
+
+
+def test_elsewhere_sets_a_candidate_aside_only_where_most_of_its_votes_twin_more_strongly():
+    """By hand: pixels 0-3 twin at 40 px on 50 rows, pixels 4-7 nowhere below the range."""
+    rows = np.array([50.0] * 4 + [0.0] * 4)
+    lag = np.array([40.0] * 4 + [0.0] * 4)
+    e = Elsewhere(rows, np.zeros(8), lag, np.zeros(8), (30.0, 60.0))
+    assert e.strongest() == (50.0, 40.0)
+    left, right = np.arange(4), np.arange(4, 8)
+    assert e.beats(left, right, rows=30.0, level=20.0) == 40.0          # all its left pixels: stronger there
+    assert e.beats(left, right, rows=50.0, level=20.0) == 0.0           # as strong in the range: it stands
+    assert e.beats(left, right, rows=30.0, level=60.0) == 0.0           # there within chance: no evidence
+    half = np.array([0, 1, 4, 5, 6])                                    # 2 of 5 votes: under the share
+    assert 2 / 5 < ELSEWHERE_SHARE and e.beats(half, half, rows=30.0, level=20.0) == 0.0
+    assert e.beats(np.array([0, 1, 4, 5]), right, rows=30.0, level=20.0) == 40.0   # half: set aside
