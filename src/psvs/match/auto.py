@@ -526,7 +526,7 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], *, pa
     ev, pad = _evidence(edges, (d_min, d_max), params, grey, rect)
     claims = Claims(ev, pad)
     cands = _candidates(ev, int(d_min)) if len(ev.p) else []
-    chance = _chance(ev, np.array([c.rows for c in cands]), d_min, d_max)
+    chance = _chance(ev, np.array([c.rows for c in cands]), d_min, d_max, elsewhere=True)
     if chance.answered:
         later = _first_pass(ev, claims, cands, chance)
         _second_pass(ev, claims, later, chance)
@@ -570,9 +570,10 @@ def _polar_votes(px: EdgePixels, pol: np.ndarray | None, d_min: float, d_max: fl
     return p, q, d
 
 
-def _chance(ev: Evidence, rows: np.ndarray, d_min: float, d_max: float) -> Chance:
+def _chance(ev: Evidence, rows: np.ndarray, d_min: float, d_max: float, elsewhere: bool = False) -> Chance:
     """How the working range's candidates (their agreeing ``rows`` (M,)) stand against the candidates the
-    same votes make at disparities the range cannot produce (:mod:`psvs.match.chance`)."""
+    same votes make at disparities the range cannot produce (:mod:`psvs.match.chance`); with ``elsewhere``,
+    also the twins below the range a pairing must not contradict (:func:`_elsewhere`)."""
     lu, ru = ev.px.left_uv[0], ev.px.right_uv[0]
     width = int(max(lu.max(), ru.max())) + 1 if len(lu) else 0
     bands = null_bands(d_min, d_max, width)
@@ -588,10 +589,10 @@ def _chance(ev: Evidence, rows: np.ndarray, d_min: float, d_max: float) -> Chanc
     if not bands:                # nowhere to read chance: nothing is answered
         return Chance(strongest, math.inf, 0.0, 0, len(rows), ())
     level = chance_level(null, len(rows), ev.params.min_rows)
-    elsewhere = _elsewhere(ev, d_min) if bands[0][0] > d_max else None
+    below = _elsewhere(ev, d_min) if elsewhere and bands[0][0] > d_max else None
     return Chance(strongest, level, float(null.max(initial=0.0)), len(null), len(rows), tuple(bands),
                   pair_level(null, rows, ev.params.min_rows), NullCandidates(null, np.concatenate(boxes), bands),
-                  elsewhere)
+                  below)
 
 
 def _elsewhere(ev: Evidence, d_min: float) -> Elsewhere | None:
