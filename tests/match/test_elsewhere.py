@@ -65,3 +65,20 @@ def test_elsewhere_sets_a_candidate_aside_only_where_most_of_its_votes_twin_more
     half = np.array([0, 1, 4, 5, 6])                                    # 2 of 5 votes: under the share
     assert 2 / 5 < ELSEWHERE_SHARE and e.beats(half, half, rows=30.0, level=20.0) == 0.0
     assert e.beats(np.array([0, 1, 4, 5]), right, rows=30.0, level=20.0) == 40.0   # half: set aside
+
+
+def test_a_scene_nearer_than_the_near_limit_is_refused_with_where_its_twins_are(tmp_path, capsys):
+    """Its twins fall in the null bands (beyond the range's largest disparity): the image is refused as chance,
+    and the message now says where the strongest agreement of all lies and which limit to widen."""
+    image = tmp_path / "n.png"
+    assert main(["simulate", "fig5b:distance_mm=700", "--rig", "default", "-o", str(image)]) == 0
+    grey, rig = read_grey(image).astype(np.uint8), load_rig("default")
+    own = match_image(grey, rig, near_mm=400.0, far_mm=1200.0)
+    truth = float(np.median([p.shape_disparity_px for p in own.pairs]))
+    capsys.readouterr()
+    code = main(["match", str(image), "--rig", "default", "--auto", "--near-mm", "800", "--far-mm", "1200",
+                 "-o", str(tmp_path / "m.json")])
+    err = capsys.readouterr().err
+    assert code == 1 and "widen the range (--near-mm)" in err, err
+    lag = float(err.split("rows, lies at ")[1].split(" px")[0])
+    assert abs(lag - truth) <= 15.0, (lag, truth)          # a twin's candidates peak within its outline's width

@@ -577,22 +577,23 @@ def _chance(ev: Evidence, rows: np.ndarray, d_min: float, d_max: float, elsewher
     lu, ru = ev.px.left_uv[0], ev.px.right_uv[0]
     width = int(max(lu.max(), ru.max())) + 1 if len(lu) else 0
     bands = null_bands(d_min, d_max, width)
-    null, boxes = [np.zeros(0)], [np.zeros((0, 4))]
+    null, boxes, lags = [np.zeros(0)], [np.zeros((0, 4))], [np.zeros(0)]
     for a, b in bands:
         p, q, d = _polar_votes(ev.px, ev.polarity, a, b)
         table = _candidate_table(Evidence(ev.px, p, q, d, ev.polarity, None, ev.params), int(a)) if len(p) else None
         if table is not None:
             null.append(table[1])
             boxes.append(table[2])
+            lags.append((table[0] % table[5] + int(a) - 1).astype(float))
     null = np.concatenate(null)
     strongest = float(rows.max(initial=0.0))
     if not bands:                # nowhere to read chance: nothing is answered
         return Chance(strongest, math.inf, 0.0, 0, len(rows), ())
     level = chance_level(null, len(rows), ev.params.min_rows)
     below = _elsewhere(ev, d_min) if elsewhere and bands[0][0] > d_max else None
+    candidates = NullCandidates(null, np.concatenate(boxes), bands, np.concatenate(lags))
     return Chance(strongest, level, float(null.max(initial=0.0)), len(null), len(rows), tuple(bands),
-                  pair_level(null, rows, ev.params.min_rows), NullCandidates(null, np.concatenate(boxes), bands),
-                  below)
+                  pair_level(null, rows, ev.params.min_rows), candidates, below)
 
 
 def _elsewhere(ev: Evidence, d_min: float) -> Elsewhere | None:

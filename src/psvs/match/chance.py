@@ -61,11 +61,13 @@ BACKED_LAGS = 5
 @dataclass(frozen=True, eq=False)
 class NullCandidates:
     """The candidates chance made at the null bands' lags: their agreeing rows (n,), boxes (n, 4) px
-    (u0, v0, u1, v1) of their left pixels, and the ``bands`` ((lo, hi) px, ...) they were read over."""
+    (u0, v0, u1, v1) of their left pixels, the ``bands`` ((lo, hi) px, ...) they were read over and their
+    ``lags`` (n,) px (None: not kept)."""
 
     rows: np.ndarray
     boxes: np.ndarray
     bands: tuple[tuple[float, float], ...]
+    lags: np.ndarray | None = None
 
     def expected_near(self, rows: float, box, reach: float) -> float:
         """How many candidates of at least ``rows`` rows chance makes, in expectation, within ``reach`` px of
@@ -174,12 +176,22 @@ class Chance:
         where = f"at disparities {bands} px, which the working range cannot produce"
         alone = (f"; a twin no other pair backs needs more than {self.pair_level_rows:.0f} rows"
                  if self.answered and math.isfinite(self.pair_level_rows) else "") + self._elsewhere_words()
+        alone += self._nearer_words()
         if self.null_candidates >= MIN_TAIL:
             return (f"{head} (the {ALPHA:.0%} false-alarm level read from {self.null_candidates} candidates "
                     f"{where}; their strongest {self.null_max_rows:.0f} rows){alone}")
         return (f"{head} (twice the excess of chance's strongest of {self.null_candidates} candidates "
                 f"{where}, {self.null_max_rows:.0f} rows){alone}")
 
+
+    def _nearer_words(self) -> str:
+        """A hint when chance's strongest candidate outnumbers every twin in the range: the twins of a scene
+        nearer than the near limit lie at the null bands' lags, and the image is refused as chance."""
+        if self.answered or self.null_max_rows <= self.strongest_rows or self.null is None or self.null.lags is None:
+            return ""
+        lag = float(self.null.lags[int(np.argmax(self.null.rows))])
+        return (f"; the strongest agreement of all, {self.null_max_rows:.0f} rows, lies at {lag:.0f} px, beyond the "
+                "range: if the scene stands nearer than the near limit, widen the range (--near-mm) to measure it")
 
     def _elsewhere_words(self) -> str:
         rows, lag = self.elsewhere.strongest() if self.elsewhere is not None else (0.0, 0.0)
