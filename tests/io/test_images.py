@@ -49,3 +49,24 @@ def test_float_tiff_is_refused_by_name(tmp_path):
     cv2.imwrite(str(tmp_path / "f.tiff"), np.ones((8, 8), np.float32))
     with pytest.raises(ValueError, match=r"f\.tiff: float32 pixels; expected 8- or 16-bit integers"):
         read_grey(tmp_path / "f.tiff")
+
+
+def test_first_repeat_finds_the_first_copy_as_filecmp_does(tmp_path):
+    """psvs.io.images.first_repeat against the standard library's byte comparison over random folders."""
+    import filecmp
+
+    from psvs.io.images import first_repeat
+    rng = np.random.default_rng(3)
+    for trial in range(20):
+        folder = tmp_path / str(trial)
+        folder.mkdir()
+        contents = [rng.integers(0, 256, 64, dtype=np.uint8).tobytes() for _ in range(4)]
+        paths = []
+        for k in range(6):
+            p = folder / f"{k}.png"
+            p.write_bytes(contents[int(rng.integers(0, 4))] if rng.random() < 0.5 else rng.bytes(64))
+            paths.append(p)
+        paths.append(folder / "missing.png")              # skipped: its reader says it is missing
+        expected = next(((i, j) for j in range(6) for i in range(j)
+                         if filecmp.cmp(paths[i], paths[j], shallow=False)), None)
+        assert first_repeat(paths) == expected

@@ -25,7 +25,7 @@ from psvs._threads import one_blas_thread
 from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
 from psvs.evidence import check_build
-from psvs.io.images import IMAGE_SUFFIXES, read_grey
+from psvs.io.images import IMAGE_SUFFIXES, first_repeat, read_grey
 from psvs.optics.mirrors import virtual_baseline_mm
 from psvs.optics.rig import Calibration, Rig
 from psvs.targets.detect import detect_target
@@ -184,18 +184,12 @@ def check_distinct_poses(grids: list[GridView]) -> None:
 
 def check_distinct_images(paths: list[Path]) -> None:
     """ValueError naming two images of the folder that are one photograph: byte-identical files (a copy
-    under another name). A copy adds no view, yet the bundle adjustment would weigh it as new evidence
-    (and report one image more than the folder holds views)."""
-    import hashlib
-    first: dict[bytes, Path] = {}
-    for path in paths:
-        if not path.is_file():
-            continue          # a listed image that is missing is skipped later, with its reason
-        digest = hashlib.sha256(path.read_bytes()).digest()
-        if digest in first:
-            raise ValueError(f"{first[digest].name} and {path.name} are the same image (byte-identical files): "
-                             "each view must be its own photograph")
-        first[digest] = path
+    under another name, :func:`psvs.io.images.first_repeat`). A copy adds no view, yet the bundle adjustment
+    would weigh it as new evidence (and report one image more than the folder holds views)."""
+    repeat = first_repeat(paths)
+    if repeat is not None:
+        a, b = (Path(paths[k]).name for k in repeat)
+        raise ValueError(f"{a} and {b} are the same image (byte-identical files): each view must be its own photograph")
 
 
 def _whole_target_seen(grids: list, most: int, target: Target) -> None:

@@ -146,6 +146,24 @@ def grey8_from_bits(image: np.ndarray, bits: int) -> np.ndarray:
     return to_grey8(image.astype(np.float64) * (255.0 / (2 ** bits - 1)))
 
 
+def first_repeat(paths) -> tuple[int, int] | None:
+    """The first (i, j), i < j, of ``paths`` whose files are one photograph: byte-identical (a copy under
+    another name, SHA-256 of the bytes); missing files are skipped (their readers say so). None when every
+    file is its own. A copy adds no view, yet a fit would weigh it as new evidence (calibration folders,
+    hand-eye views)."""
+    import hashlib
+    first: dict[bytes, int] = {}
+    for j, path in enumerate(paths):
+        path = Path(path)
+        if not path.is_file():
+            continue
+        digest = hashlib.sha256(path.read_bytes()).digest()
+        if digest in first:
+            return first[digest], j
+        first[digest] = j
+    return None
+
+
 def write_npy(path, array: np.ndarray) -> None:
     """Write one array as a NumPy .npy file, atomically."""
     buf = io.BytesIO()

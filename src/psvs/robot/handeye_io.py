@@ -26,7 +26,6 @@ pose in the robot's base frame (position mm, unit quaternion, scalar last as in 
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import math
 from pathlib import Path
@@ -35,7 +34,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from psvs.io.atomic import write_atomic
-from psvs.io.images import read_grey, write_png
+from psvs.io.images import first_repeat, read_grey, write_png
 from psvs.io.text import read_csv_rows
 from psvs.io.tomlfile import dumps_toml, load_table
 from psvs.robot.handeye import HandEyeResult
@@ -141,8 +140,8 @@ def read_views(folder, expect_size: tuple[int, int] | None = None
     rows = read_csv_rows(poses)
     if not rows or tuple(c.strip() for c in rows[0]) != POSE_COLUMNS:
         raise ValueError(f"{poses}: the header must be {','.join(POSE_COLUMNS)}")
-    images, flanges = [], []
-    seen: dict = {}             # each image's bytes and each pose: the line that gave it first
+    paths, lines, flanges = [], [], []
+    seen: dict = {}             # each pose: the line that gave it first
     for n, row in enumerate(rows[1:], start=2):
         if not row:
             continue
@@ -157,25 +156,26 @@ def read_views(folder, expect_size: tuple[int, int] | None = None
             raise ValueError(f"{poses}: line {n}: the position must be finite and the quaternion of unit "
                              f"length (|q| = {np.linalg.norm(q):.4g})")
         F = transform_from(Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), vals[:3])
-        _check_new_view(seen, folder / row[0].strip(), F, f"{poses}: line {n}")
-        images.append(read_grey(folder / row[0].strip(), expect_size=expect_size))
+        paths.append(folder / row[0].strip())
+        lines.append(n)
         flanges.append(F)
-    if len(images) < 3:
-        raise ValueError(f"{poses}: the hand-eye calibration needs >= 3 views, found {len(images)}")
-    return images, flanges, grid
+    repeat = first_repeat(paths)
+    if repeat is not None:
+        a, b = repeat
+        raise ValueError(f"{poses}: line {lines[b]}: {paths[b].name} is the same photograph as line {lines[a]}'s "
+                         "(byte-identical files): each view must be its own photograph of its own robot pose")
+    for n, F in zip(lines, flanges, strict=True):
+        _check_new_pose(seen, F, f"{poses}: line {n}")
+    if len(paths) < 3:
+        raise ValueError(f"{poses}: the hand-eye calibration needs >= 3 views, found {len(paths)}")
+    return [read_grey(p, expect_size=expect_size) for p in paths], flanges, grid
 
 
-def _check_new_view(seen: dict, image: Path, flange2base: np.ndarray, where: str) -> None:
-    """ValueError when a views folder's line repeats an earlier one's photograph (byte-identical file) or robot
-    pose (within 1 um and 1 urad): a copy adds no view, yet the fit would count it as one, and its stated 1-sigma
-    would shrink with every copy (an adversarial trial: 3 views refused as not pinning the mount, the same 3
-    copied 4 times accepted at half the 1-sigma)."""
-    if image.is_file():
-        digest = hashlib.sha256(image.read_bytes()).digest()
-        if digest in seen:
-            raise ValueError(f"{where}: {image.name} is the same photograph as {seen[digest]} (byte-identical "
-                             "files): each view must be its own photograph of its own robot pose")
-        seen[digest] = f"{where.rsplit(': ', 1)[-1]}'s"
+def _check_new_pose(seen: dict, flange2base: np.ndarray, where: str) -> None:
+    """ValueError when a views folder's line repeats an earlier one's robot pose (within 1 um and 1 urad); its
+    photographs are checked likewise (:func:`psvs.io.images.first_repeat`): a copy adds no view, yet the fit
+    would count it as one, and its stated 1-sigma would shrink with every copy (an adversarial trial: 3 views
+    refused as not pinning the mount, the same 3 copied 4 times accepted at half the 1-sigma)."""
     key = tuple(np.round(np.concatenate([flange2base[:3, 3] * 1e3, flange2base[:3, :3].ravel() * 1e6])))
     if key in seen:
         raise ValueError(f"{where}: the flange pose of {seen[key]} again: each view must be its own robot pose")
