@@ -82,3 +82,25 @@ def test_a_scene_nearer_than_the_near_limit_is_refused_with_where_its_twins_are(
     assert code == 1 and "widen the range (--near-mm)" in err, err
     lag = float(err.split("rows, lies at ")[1].split(" px")[0])
     assert abs(lag - truth) <= 15.0, (lag, truth)          # a twin's candidates peak within its outline's width
+
+
+def test_a_seed_on_a_scene_beyond_the_far_limit_is_refused_and_the_tracker_takes_no_edge(far_ashtrays):
+    """The paper's algorithm pairs a seed's edge with whatever agrees best in the range: 4 of the 5 ashtray
+    edges' seeds answered 544-698 mm (truth 1090-1120 mm) when searched to 700 mm. Seeded on the middle of each
+    edge the automatic matcher pairs over the scene's own depths: each answered right there, refused when the
+    range ends before the scene; the tracker takes none of them as its edge."""
+    from psvs.live.tracker import EdgeTracker
+    _, grey, z_true, rig = far_ashtrays
+    own = match_image(grey, rig, near_mm=400.0, far_mm=1400.0)
+    seeds = []
+    for p in own.pairs:
+        uv = np.rint(p.left_px).astype(int)
+        on = [(a, b) for a, b in uv if own.edges[b, a]]
+        seeds.append(on[len(on) // 2])
+    assert len(seeds) >= 4
+    for seed in seeds:
+        right = match_image(grey, rig, seed_px=seed, near_mm=400.0, far_mm=1400.0)
+        assert len(right.pairs) == 1 and _z_error(right.pairs[0], z_true) < 0.02, seed
+        assert match_image(grey, rig, seed_px=seed, near_mm=400.0, far_mm=700.0).pairs == [], seed
+        step = EdgeTracker(rig, seed, near_mm=400.0, far_mm=700.0).step(grey)
+        assert not step.ok and np.isnan(step.depth_mm), (seed, step.message)

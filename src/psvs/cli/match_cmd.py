@@ -110,6 +110,11 @@ def refuse_unanswered(res, seeded: bool) -> None:
         raise MeasurementError(f"{what} beyond chance: {res.chance.describe()}")
     lo, hi = res.disparity_range_px
     if seeded:
+        e = res.chance.elsewhere
+        if e is not None and e.strongest()[0] > res.chance.level_rows:
+            raise MeasurementError(f"{what} beyond chance at the working range's disparities {lo:.0f}..{hi:.0f} "
+                                   "px, or its pixels twin more strongly below them (a scene beyond the far limit: "
+                                   f"widen the range) ({res.chance.describe()})")
         raise MeasurementError(f"{what} beyond chance at the working range's disparities {lo:.0f}..{hi:.0f} px: "
                                "the twin it pairs with agrees on too few rows to stand alone, and the automatic "
                                f"matcher pairs no edge there that backs it ({res.chance.describe()})")

@@ -146,11 +146,12 @@ class EdgeTracker:
         self._lost = 0                  # frames since the edge was last tracked
         self._frame = 0
 
-    def _frame_chance(self, edges: np.ndarray, grey: np.ndarray):
+    def _frame_chance(self, edges: np.ndarray, grey: np.ndarray, first: bool):
         """Whether the frame holds twins beyond chance (psvs.match.auto.image_chance), asked on every frame
         (1.6 ms at 640 x 480, 4.9 ms at 1440 x 1080): the paper's algorithm pairs the seed's edge with whatever
-        agrees best, on noise or stripes as readily as on a twin."""
-        return image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect)
+        agrees best, on noise or stripes as readily as on a twin. Before the edge is taken (``first``) also the
+        twins below the range its pair must not contradict."""
+        return image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect, elsewhere=first)
 
     def step(self, grey: np.ndarray) -> TrackStep:
         """Process the next frame (H, W) uint8 and return its :class:`TrackStep`."""
@@ -175,7 +176,7 @@ class EdgeTracker:
                 continue
             # asked once a frame, when a candidate first pairs: a frame turned to noise (a covered lens, a
             # lamp's flash) loses the edge there, not several frames later at whatever depth noise pairs at
-            chance = self._frame_chance(edges, grey) if chance is None else chance
+            chance = self._frame_chance(edges, grey, first) if chance is None else chance
             if not chance.answered:
                 msg = f"no twin beyond chance in the frame: {chance.describe()}"
                 break

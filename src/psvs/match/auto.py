@@ -535,14 +535,17 @@ def match_auto(edges: np.ndarray, disparity_range_px: tuple[float, float], *, pa
 
 
 def image_chance(edges: np.ndarray, disparity_range_px: tuple[float, float], *, params: AutoParams = AutoParams(),
-                 grey: np.ndarray | None = None, rect=None, px: EdgePixels | None = None) -> Chance:
+                 grey: np.ndarray | None = None, rect=None, px: EdgePixels | None = None,
+                 elsewhere: bool = False) -> Chance:
     """Whether the image holds twins at all: :func:`match_auto`'s candidates against chance
     (:mod:`psvs.match.chance`), without pairing them; arguments as :func:`match_auto`'s, and ``px`` the edge
     map's :func:`~psvs.match.edges.edge_pixels` (under ``rect``) when the caller has them. The paper's seeded
-    algorithm asks it before it takes an edge (psvs.match.correspondence, psvs.live.tracker)."""
+    algorithm asks it before it takes an edge (psvs.match.correspondence, psvs.live.tracker); with
+    ``elsewhere`` it also reads the twins below the range a seed's pair must not contradict
+    (:func:`psvs.match.chance.seed_pair_stands`)."""
     d_min, d_max = disparity_range_px
     ev, _ = _evidence(edges, (d_min, d_max), params, grey, rect, with_steps=False, px=px)
-    return _chance(ev, _peaks(ev, int(d_min))[1] if len(ev.p) else np.zeros(0), d_min, d_max)
+    return _chance(ev, _peaks(ev, int(d_min))[1] if len(ev.p) else np.zeros(0), d_min, d_max, elsewhere)
 
 
 def _evidence(edges, d_range, params: AutoParams, grey, rect, with_steps: bool = True,  # noqa: PLR0913
@@ -622,4 +625,6 @@ def _elsewhere(ev: Evidence, d_min: float) -> Elsewhere | None:
             last_of = np.append(pix[by][1:] != pix[by][:-1], True)
             rows[side, pix[by][last_of]] = score[by][last_of]
             lags[side, pix[by][last_of]] = lag[by][last_of]
-    return Elsewhere(rows[0], rows[1], lags[0], lags[1], (a, b))
+    keys = [uv[1].astype(np.int64) * (1 << 32) + uv[0].astype(np.int64)
+            for uv in (np.rint(ev.px.left_uv), np.rint(ev.px.right_uv))]
+    return Elsewhere(rows[0], rows[1], lags[0], lags[1], (a, b), keys[0], keys[1])

@@ -87,7 +87,9 @@ class Elsewhere:
     """The twins the edges find at lags *below* the searched range (a scene beyond the far limit, or a search
     narrowed past it): per edge pixel (N,), the most agreeing rows of a candidate in whose votes it is the
     left pixel (``left_rows``) or the right pixel (``right_rows``) at one of those lags, and that candidate's
-    lag (``left_lag``, ``right_lag``, px; 0 where none); ``band`` the lags (lo, hi) px searched. A candidate
+    lag (``left_lag``, ``right_lag``, px; 0 where none); ``band`` the lags (lo, hi) px searched; ``left_keys``
+    and ``right_keys`` (N,) each pixel's place in the left and the right view (:func:`_pixel_keys` of its
+    integer (u, v)), to find a seeded pair's pixels (:meth:`beats_pixels`). A candidate
     in the range most of whose pixels twin more strongly there, beyond chance, is the view of something the
     range does not hold: pairing it in the range would pair it with the wrong edge (an adversarial trial:
     Fig. 5b at 1100 mm searched at 400-700 mm paired each ashtray's view with the other's, at 541-609 mm,
@@ -99,6 +101,8 @@ class Elsewhere:
     left_lag: np.ndarray
     right_lag: np.ndarray
     band: tuple[float, float]
+    left_keys: np.ndarray | None = None
+    right_keys: np.ndarray | None = None
 
     def strongest(self) -> tuple[float, float]:
         """(agreeing rows, lag px) of the strongest candidate at these lags ((0, 0) when none)."""
@@ -106,6 +110,18 @@ class Elsewhere:
             return 0.0, 0.0
         k = int(np.argmax(self.left_rows))
         return float(self.left_rows[k]), float(self.left_lag[k])
+
+    def beats_pixels(self, left_px, right_px, rows: float, level: float) -> float:
+        """:meth:`beats` for a pair of integer pixels (left (K, 2) and right (K, 2) (u, v), each in its own
+        view's coordinates, as :class:`~psvs.match.pairs.EdgePair` holds them); pixels that are no edge pixel
+        are left out."""
+        found = []
+        for keys, px in ((self.left_keys, left_px), (self.right_keys, right_px)):
+            order = np.argsort(keys, kind="stable")
+            want = _pixel_keys(px)
+            at = np.minimum(np.searchsorted(keys[order], want), len(keys) - 1) if len(keys) else want[:0]
+            found.append(order[at][keys[order][at] == want] if len(keys) else at)
+        return self.beats(found[0], found[1], rows, level)
 
     def beats(self, left: np.ndarray, right: np.ndarray, rows: float, level: float) -> float:
         """The lag (px) of the candidates outside the range that are stronger than a candidate (its votes' left
@@ -285,10 +301,18 @@ def seed_pair_stands(pair, chance: Chance, backing, tol_px: float) -> bool:
     pixels in the same coordinates, asked only for a pair that does not stand alone) having paired at least
     :data:`BACKED_SHARE` of its pixels at its disparity (within :data:`BACKED_LAGS` // 2 px). The paper's
     algorithm pairs the seed's edge with whatever agrees best, on a photograph's texture as readily as on a
-    twin (an adversarial trial: 12 of 22 seeds on the textured scene paired 3-22 rows at a wrong disparity)."""
+    twin (an adversarial trial: 12 of 22 seeds on the textured scene paired 3-22 rows at a wrong disparity).
+    Never when its pixels twin more strongly below the range (``chance.elsewhere``, when read with the pixels'
+    places: :meth:`Elsewhere.beats_pixels`): Fig. 5b at 1100 mm searched to 700 mm paired 4 of 5 seeds with the
+    other ashtray's view at 544-698 mm."""
     if not len(pair) or not chance.answered:
         return False
-    if agreeing_rows(pair, tol_px) > chance.pair_level_rows:
+    rows = agreeing_rows(pair, tol_px)
+    e = chance.elsewhere
+    if e is not None and e.left_keys is not None and e.beats_pixels(pair.left_px, pair.right_px, rows,
+                                                                    chance.level_rows):
+        return False                     # its pixels twin more strongly below the range (:class:`Elsewhere`)
+    if rows > chance.pair_level_rows:
         return True
     mine = _pixel_keys(pair.left_px)
     reach = BACKED_LAGS // 2

@@ -156,7 +156,7 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     if seed_px is not None:
         pair = match_seeded(edges, seed_px, rng, n_seeds=params.n_seeds, rect=rect)
         px = edge_pixels(edges, rect)            # labelled once: the chance test and the rows' check read them
-        chance = image_chance(edges, rng, params=params.auto, grey=grey, rect=rect, px=px)
+        chance = image_chance(edges, rng, params=params.auto, grey=grey, rect=rect, px=px, elsewhere=True)
         rows = None
         if len(pair) and chance.answered:
             rows = check_pair(pair.left_px, px, pair.shape_disparity_px, params.auto.min_rows)
