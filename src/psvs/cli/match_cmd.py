@@ -1,6 +1,8 @@
 """``psvs match``: edges of a complex image matched (the paper's seeded algorithm or automatic), triangulated."""
 from __future__ import annotations
 
+import sys
+
 from psvs.cli.common import (
     add_model_argument,
     add_pipeline_argument,
@@ -17,6 +19,7 @@ from psvs.errors import MeasurementError
 from psvs.health.check import refuse_if_drifted
 from psvs.io.atomic import output_batch
 from psvs.io.images import check_frame_size, read_grey
+from psvs.match.auto import MIN_TWIN_LAG_PX
 from psvs.match.correspondence import MatchParams, match_image
 from psvs.match.export import write_csv, write_json, write_ply
 from psvs.optics.trace import trace_pixels
@@ -130,6 +133,9 @@ def summary_row(res) -> dict:
 
 def run(args) -> int:
     res = compute(args)
+    if res.disparity_range_px[0] <= MIN_TWIN_LAG_PX:
+        print(f"psvs match: warning: disparities under {MIN_TWIN_LAG_PX:g} px were not searched (an edge's twin "
+              "there cannot be told from the edge itself): the far end of the range was not measured", file=sys.stderr)
     for k, p in enumerate(res.pairs):
         print(f"edge {k}: {len(p)} pixel pairs, disparity {p.shape_disparity_px:.0f} px, "
               f"median Z {p.median_z_mm():.1f} mm")

@@ -17,8 +17,8 @@ import numpy as np
 
 from psvs._validate import check_count, check_grey, check_positive
 from psvs.imaging.pipeline import PAPER, Pipeline
-from psvs.match.auto import image_chance
-from psvs.match.chance import seed_pair_stands
+from psvs.match.auto import image_chance, twin_lags
+from psvs.match.chance import agreeing_rows, seed_pair_stands
 from psvs.match.correspondence import MatchParams, automatic_pairs, finish_pairs
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
@@ -139,19 +139,21 @@ class EdgeTracker:
         self.rig, self.pipeline, self.match = rig, pipeline, match
         self.params = params.scaled(pixel_scale(rig.camera))   # the paper camera's px to this camera's
         self.rect = rectification_for(rig, near_mm, far_mm)       # a build: twins on rectified rows
-        self.range_px = disparity_range(rig, near_mm, far_mm, self.rect)
+        self.range_px = twin_lags(disparity_range(rig, near_mm, far_mm, self.rect))
         self._seed = seed
         self._velocity = np.zeros(2)
         self._disparity = None          # last median disparity (px); None before the first match
         self._lost = 0                  # frames since the edge was last tracked
         self._frame = 0
 
-    def _frame_chance(self, edges: np.ndarray, grey: np.ndarray, first: bool):
+    def _frame_chance(self, edges: np.ndarray, grey: np.ndarray):
         """Whether the frame holds twins beyond chance (psvs.match.auto.image_chance), asked on every frame
-        (1.6 ms at 640 x 480, 4.9 ms at 1440 x 1080): the paper's algorithm pairs the seed's edge with whatever
-        agrees best, on noise or stripes as readily as on a twin. Before the edge is taken (``first``) also the
-        twins below the range its pair must not contradict."""
-        return image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect, elsewhere=first)
+        (2.5 ms at 640 x 480, 7.4 ms at 1440 x 1080): the paper's algorithm pairs the seed's edge with whatever
+        agrees best, on noise or stripes as readily as on a twin. With the twins below the range a pair must not
+        contradict (psvs.match.chance.Elsewhere): an edge that leaves the range beyond its far limit pairs, a
+        few frames on, with another edge inside it (an adversarial trial: Fig. 5b moving 1100 -> 1500 mm was
+        tracked at 750 mm for 1520)."""
+        return image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect, elsewhere=True)
 
     def step(self, grey: np.ndarray) -> TrackStep:
         """Process the next frame (H, W) uint8 and return its :class:`TrackStep`."""
@@ -176,10 +178,14 @@ class EdgeTracker:
                 continue
             # asked once a frame, when a candidate first pairs: a frame turned to noise (a covered lens, a
             # lamp's flash) loses the edge there, not several frames later at whatever depth noise pairs at
-            chance = self._frame_chance(edges, grey, first) if chance is None else chance
+            chance = self._frame_chance(edges, grey) if chance is None else chance
             if not chance.answered:
                 msg = f"no twin beyond chance in the frame: {chance.describe()}"
                 break
+            if not first and chance.elsewhere is not None and chance.elsewhere.beats_pixels(
+                    pair.left_px, pair.right_px, agreeing_rows(pair, self.match.auto.tol_px), chance.level_rows):
+                msg = "edge lost (its pixels twin more strongly below the range: beyond the far limit?)"
+                continue
             if first:                   # the edge taken as match --seed takes it (the automatic matcher run once)
                 automatic = automatic or automatic_pairs(edges, self.range_px, params=self.match, grey=grey,
                                                          rect=self.rect)

@@ -9,8 +9,8 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     __name__,
     submodules=[],
     submod_attrs={
-        "auto": ["image_chance"],
-        "chance": ["Chance", "seed_pair_stands"],
+        "auto": ["MIN_TWIN_LAG_PX", "image_chance", "twin_lags"],
+        "chance": ["Chance", "Elsewhere", "agreeing_rows", "seed_pair_stands"],
         "correspondence": ["MatchParams", "MatchResult", "automatic_pairs", "finish_pairs", "match_image"],
         "edges": ["edge_pixels"],
         "export": ["result_to_dict", "write_csv", "write_json", "write_ply"],

@@ -36,6 +36,24 @@ from psvs.match.pairs import EdgePair, grow_pairs
 from psvs.match.pixel_sets import by_label, distinct, joined, long_runs, n_rows, row_span
 from psvs.match.rows import RowCheck, row_shift, shift_counts
 
+#: px: the smallest lag at which an edge's twin can be told from the edge itself. Below it the two views'
+#: images of one edge overlap within the edge map's width and the shape match's tolerance, and an edge pairs
+#: with its own pixels (an adversarial trial: ``--far-mm 50000`` paired 36 of 40 edges with themselves at
+#: 2 px, Z 150-1900 m, exit 0). 8 px is a depth of 13 m on the shipped 640 x 480 rig, 29 m on the 1440 x 1080.
+MIN_TWIN_LAG_PX = 8.0
+
+
+def twin_lags(disparity_range_px: tuple[float, float]) -> tuple[float, float]:
+    """The disparities (px) an edge matcher searches of a working range's ``disparity_range_px`` (d_min, d_max):
+    from :data:`MIN_TWIN_LAG_PX` at least; ValueError when the whole range lies below it (a working range
+    so far away that no edge's twin can be told from the edge)."""
+    lo, hi = disparity_range_px
+    if hi <= MIN_TWIN_LAG_PX:
+        raise ValueError(f"the working range's disparities {lo:.1f}..{hi:.1f} px lie below {MIN_TWIN_LAG_PX:g} px, "
+                         "where an edge's twin cannot be told from the edge itself: bring --far-mm and --near-mm "
+                         "nearer")
+    return max(lo, MIN_TWIN_LAG_PX), hi
+
 
 @dataclass(frozen=True)
 class AutoParams:

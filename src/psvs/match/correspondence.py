@@ -16,7 +16,7 @@ import numpy as np
 
 from psvs._validate import check_grey
 from psvs.imaging.pipeline import PAPER, Pipeline
-from psvs.match.auto import AutoParams, Unmatched, image_chance, match_auto
+from psvs.match.auto import AutoParams, Unmatched, image_chance, match_auto, twin_lags
 from psvs.match.chance import Chance, seed_pair_stands
 from psvs.match.edges import edge_pixels
 from psvs.match.pairs import EdgePair
@@ -151,7 +151,7 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     grey = flat_field(grey, rig.camera)     # the lens's fall-off undone: the pipeline's levels hold everywhere
     if rect is None:
         rect = rectification_for(rig, near_mm, far_mm)
-    rng = disparity_range(rig, near_mm, far_mm, rect)
+    rng = twin_lags(disparity_range(rig, near_mm, far_mm, rect))
     edges, stages = pipeline.run(grey, keep=True)
     if seed_px is not None:
         pair = match_seeded(edges, seed_px, rng, n_seeds=params.n_seeds, rect=rect)
