@@ -231,3 +231,14 @@ def test_every_table1_distance_is_round(images):
         m = measure_pattern(img, rig)
         ratio, why = roundness_problem(m.stretch_mm, m.Z_mm, rig)
         assert ratio <= 0.75 and why == "", (c, ratio)
+
+
+def test_a_pattern_outside_the_range_is_named_as_such():
+    """An adversarial trial: Fig. 9 at 300 mm measured over 1000-2000 mm said only that circles were missing or
+    out of view; the circles' sizes looked for come from the range, and the refusal now says so."""
+    rig = default_rig()
+    img = render(builtin_scene("fig9:distance_mm=300"), rig, seed=3).image
+    with pytest.raises(ValueError, match=r"or the pattern stands outside the working range 1000-2000 mm \(its "
+                                         r"circles looked for \d+-\d+ px across\)"):
+        measure_pattern(img, rig, z_mm=(1000.0, 2000.0))
+    assert abs(measure_pattern(img, rig, z_mm=(250.0, 1200.0)).Z_mm - 300.0) <= 0.6    # a range that holds it
