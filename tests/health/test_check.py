@@ -196,3 +196,17 @@ def test_the_repeat_factor_against_its_analysis_of_variance():
     half = np.tile(bias, m) + rng.normal(size=300 * m)
     assert repeat_factor(centres, half) == pytest.approx(1 + (m - 1) * 0.5, rel=0.1)
     assert repeat_factor(places, bias) == 1.0        # one frame: every place once
+
+
+@pytest.mark.parametrize("rig_name", ["default", "misaligned"])
+def test_a_range_reaching_far_beyond_the_scene_still_judges_it(rig_name):
+    """An adversarial trial: a wall of noise at 700 mm, checked with --far-mm 20000 (its smallest disparity a few
+    px), read "cannot judge: the texture repeats along the rows": a tile's own correlation peak stood beside
+    its twin's. Lags under MIN_LAG_PX are not searched, and the wall is judged as over the default range."""
+    rig = load_rig(rig_name)
+    frame = np.clip(render(fine_wall(700.0, rig, 4), rig, supersample=1, seed=4).image, 0, 255).astype(np.uint8)
+    own = check_frames([frame], rig)
+    for far in (20000.0, 100000.0):
+        wide = check_frames([frame], rig, far_mm=far)
+        assert wide.verdict == own.verdict == "healthy", (far, wide.reason)
+        assert abs(wide.row_offset_rms_px - own.row_offset_rms_px) <= 0.05, (far, wide.reason)

@@ -56,6 +56,11 @@ UNIQUE_SHARE = 0.5
 MIN_TEXTURE_DN = 1.0
 #: The band-pass: a difference of Gaussians of these sigmas (px).
 BAND_SIGMAS_PX = (1.0, 4.0)
+#: px: the smallest lag a tile's twin is searched at, twice the band-pass's coarse sigma. Nearer, a tile's own
+#: correlation peak (on the paper's geometry both grids are the complex image) stands beside its twin's and
+#: reads as a texture that repeats (an adversarial trial: a wall of noise at 700 mm checked with --far-mm
+#: 20000, 5 px its smallest disparity, was "cannot judge: the texture repeats along the rows").
+MIN_LAG_PX = 2.0 * BAND_SIGMAS_PX[1]
 
 
 @dataclass(frozen=True)
@@ -107,12 +112,15 @@ def band_pass(image: np.ndarray) -> np.ndarray:
 
 
 def _geometry(shape: tuple[int, int], rig: Rig, near_mm: float, far_mm: float):
-    """(grid shape (H', W'), disparities (lo, hi) px, rectification or None) of complex images of ``shape``."""
+    """(grid shape (H', W'), disparities (lo, hi) px, rectification or None) of complex images of ``shape``;
+    the disparities from :data:`MIN_LAG_PX` at least."""
     rect = rectification(rig, near_mm, far_mm)
     if rect is None:
-        return shape, disparity_range(rig, near_mm, far_mm, width_px=shape[1]), None
-    grid = (rect.size_px[1], rect.size_px[0])
-    return grid, disparity_range(rig, near_mm, far_mm, rect, width_px=grid[1]), rect
+        grid, (lo, hi) = shape, disparity_range(rig, near_mm, far_mm, width_px=shape[1])
+    else:
+        grid = (rect.size_px[1], rect.size_px[0])
+        lo, hi = disparity_range(rig, near_mm, far_mm, rect, width_px=grid[1])
+    return grid, (max(lo, MIN_LAG_PX), max(hi, MIN_LAG_PX + 1.0)), rect
 
 
 def _null_rows(y: int, rows: list[int], size: int) -> list[int]:
