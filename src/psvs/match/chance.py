@@ -105,11 +105,13 @@ class Elsewhere:
     right_keys: np.ndarray | None = None
 
     def strongest(self) -> tuple[float, float]:
-        """(agreeing rows, lag px) of the strongest candidate at these lags ((0, 0) when none)."""
+        """(agreeing rows, lag px) of the strongest candidate at these lags, through either of its pixels
+        ((0, 0) when none)."""
         if not len(self.left_rows):
             return 0.0, 0.0
-        k = int(np.argmax(self.left_rows))
-        return float(self.left_rows[k]), float(self.left_lag[k])
+        rows, lags = np.concatenate([self.left_rows, self.right_rows]), np.concatenate([self.left_lag, self.right_lag])
+        k = int(np.argmax(rows))
+        return float(rows[k]), float(lags[k])
 
     def beats_pixels(self, left_px, right_px, rows: float, level: float) -> float:
         """:meth:`beats` for a pair of integer pixels (left (K, 2) and right (K, 2) (u, v), each in its own
@@ -199,7 +201,6 @@ class Chance:
         return (f"{head} (twice the excess of chance's strongest of {self.null_candidates} candidates "
                 f"{where}, {self.null_max_rows:.0f} rows){alone}")
 
-
     def _nearer_words(self) -> str:
         """A hint when chance's strongest candidate outnumbers every twin in the range: the twins of a scene
         nearer than the near limit lie at the null bands' lags, and the image is refused as chance."""
@@ -210,6 +211,7 @@ class Chance:
                 "range: if the scene stands nearer than the near limit, widen the range (--near-mm) to measure it")
 
     def _elsewhere_words(self) -> str:
+        """Where the edges twin below the range, when some candidate there stands beyond chance's level."""
         rows, lag = self.elsewhere.strongest() if self.elsewhere is not None else (0.0, 0.0)
         if rows <= self.level_rows:
             return ""
