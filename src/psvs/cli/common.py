@@ -231,19 +231,15 @@ MAX_DEPTH_MM = 1e7
 def check_working_range(near_mm: float, far_mm: float, rig=None) -> tuple[float, float]:
     """``--near-mm``/``--far-mm`` as finite depths with 0 < near < far <= :data:`MAX_DEPTH_MM` (mm), else a
     one-line ValueError. With ``rig``, near must also lie beyond the front of its mirrors
-    (:func:`psvs.optics.mirrors.front_z_mm`): no scene point is seen from inside the mirror box, so a range
-    that starts there would search disparities no scene can give."""
+    (:func:`psvs.optics.mirrors.check_in_front`)."""
     for name, v in (("--near-mm", near_mm), ("--far-mm", far_mm)):
         if not math.isfinite(v) or v <= 0 or v > MAX_DEPTH_MM:
             raise ValueError(f"{name} must be a finite depth in (0, {MAX_DEPTH_MM:g}] mm, got {v}")
     if near_mm >= far_mm:
         raise ValueError(f"--near-mm ({near_mm} mm) must be less than --far-mm ({far_mm} mm)")
     if rig is not None:
-        from psvs.optics.mirrors import front_z_mm
-        front = front_z_mm(rig)
-        if near_mm <= front:
-            raise ValueError(f"--near-mm {near_mm:g} mm lies inside the rig: its mirrors reach Z = {front:.1f} mm, "
-                             "and no scene point is seen nearer; give a --near-mm beyond it")
+        from psvs.optics.mirrors import check_in_front
+        check_in_front(rig, near_mm, "--near-mm")
     return near_mm, far_mm
 
 

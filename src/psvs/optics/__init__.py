@@ -14,7 +14,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "illumination": ["flat_field", "illumination_map"],
         "layout3d": ["rig_layout"],
         "layout_check": ["check_clear"],
-        "mirrors": ["VIEWS", "direction_map", "front_z_mm", "mirror_planes", "virtual_baseline_mm",
+        "mirrors": ["VIEWS", "check_in_front", "direction_map", "front_z_mm", "mirror_planes", "virtual_baseline_mm",
                     "virtual_centre"],
         "obstruction": ["blocked_shares", "find_obstructions", "plate_edges", "sized_shares"],
         "pinhole_views": ["PinholeView"],

@@ -94,6 +94,17 @@ def front_z_mm(rig: Rig) -> float:
     return max(z)
 
 
+def check_in_front(rig: Rig, near_mm: float, name: str = "the working range's near end") -> float:
+    """ValueError when a working range's near end ``near_mm`` (mm, called ``name`` in the message) lies at or
+    inside the front of the rig (:func:`front_z_mm`): no scene point is seen from inside the mirror box, so a
+    range that starts there searches disparities no scene can give. Returns the front (mm)."""
+    front = front_z_mm(rig)
+    if near_mm <= front:
+        raise ValueError(f"{name} {near_mm:g} mm lies inside the rig: its mirrors reach Z = {front:.1f} mm, and no "
+                         "scene point is seen nearer")
+    return front
+
+
 def _tilt_matrix(tilt_rad: tuple[float, float], s_axis: np.ndarray) -> np.ndarray:
     """Rotation (3, 3) of a mirror's tilt (a, b): by a about +Y, then by b about the turned s axis."""
     yaw = matrix_from_rotvec([0.0, tilt_rad[0], 0.0])

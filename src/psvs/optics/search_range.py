@@ -8,7 +8,7 @@ edge; on a build the rectified views' own f' b' / z'.
 from __future__ import annotations
 
 from psvs.optics.design import working_range
-from psvs.optics.mirrors import front_z_mm
+from psvs.optics.mirrors import check_in_front
 from psvs.optics.rectify import Rectification, needs_rectification, rectify
 from psvs.optics.rig import Rig
 
@@ -19,7 +19,7 @@ RANGE_MARGIN_PX = 4.0
 def disparity_range(rig: Rig, near_mm: float, far_mm: float, rect: Rectification | None = None,
                     width_px: int | None = None) -> tuple[float, float]:
     """Disparities (px) of the working range near..far mm, widened by :data:`RANGE_MARGIN_PX` (near must lie beyond the
-    front of the mirrors, :func:`psvs.optics.mirrors.front_z_mm`, else a ValueError); with ``rect``,
+    front of the mirrors, :func:`psvs.optics.mirrors.check_in_front`); with ``rect``,
     rectified disparities f' b' / z' (z' from the views' centres along the rectified axis). With
     ``width_px`` (the searched image's width), the largest is cut at its last column.
 
@@ -31,10 +31,7 @@ def disparity_range(rig: Rig, near_mm: float, far_mm: float, rect: Rectification
     (86.4, 255.1)
     """
     wr = working_range(rig, near_mm, far_mm)          # checks the range
-    front = front_z_mm(rig)
-    if near_mm <= front:
-        raise ValueError(f"the working range's near end {near_mm:g} mm lies inside the rig: its mirrors reach "
-                         f"Z = {front:.1f} mm, and no scene point is seen nearer")
+    check_in_front(rig, near_mm)
     if rect is None:
         lo, hi = wr.disparity_px
     else:
