@@ -113,8 +113,7 @@ def refuse_unanswered(res, seeded: bool) -> None:
         raise MeasurementError(f"{what} beyond chance: {res.chance.describe()}")
     lo, hi = res.disparity_range_px
     if seeded:
-        e = res.chance.elsewhere
-        if e is not None and e.strongest()[0] > res.chance.level_rows:
+        if res.chance.twins_below:
             raise MeasurementError(f"{what} beyond chance at the working range's disparities {lo:.0f}..{hi:.0f} "
                                    "px, or its pixels twin more strongly below them (a scene beyond the far limit: "
                                    f"widen the range) ({res.chance.describe()})")

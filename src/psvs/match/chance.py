@@ -210,11 +210,16 @@ class Chance:
         return (f"; the strongest agreement of all, {self.null_max_rows:.0f} rows, lies at {lag:.0f} px, beyond the "
                 "range: if the scene stands nearer than the near limit, widen the range (--near-mm) to measure it")
 
+    @property
+    def twins_below(self) -> bool:
+        """Whether some candidate below the range (:class:`Elsewhere`) stands beyond chance's level."""
+        return self.elsewhere is not None and self.elsewhere.strongest()[0] > self.level_rows
+
     def _elsewhere_words(self) -> str:
         """Where the edges twin below the range, when some candidate there stands beyond chance's level."""
-        rows, lag = self.elsewhere.strongest() if self.elsewhere is not None else (0.0, 0.0)
-        if rows <= self.level_rows:
+        if not self.twins_below:
             return ""
+        rows, lag = self.elsewhere.strongest()
         return (f"; edges twin beyond chance below the range too, the strongest on {rows:.0f} rows at {lag:.0f} px "
                 "(a scene beyond the far limit: those edges are not paired in the range; widen it to measure them)")
 
