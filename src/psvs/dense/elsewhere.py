@@ -17,10 +17,13 @@ below it down to :data:`BELOW` times its lower end (a surface up to about 1 / BE
 end), it shows a surface the search could not reach; further below, at a lag short beside the range, it
 *repeats*: a texture that repeats along the row (bricks of period p correlate with themselves at p, 2p ...,
 and at some multiple inside the range: the method then answers the repeat, not the twin), or a surface far
-beyond the range. Each patch size judges its own cells (a small patch on an object sees it alone; a large
+beyond the range. A patch whose strongest echo lies just past an end (within :data:`EDGE_LAGS`, so it echoes
+*here* too, but a whole lag or more past it) shows a surface the search stops short of: the method answers it
+at the end's lag, or at a neighbouring surface's. Each patch size judges its own cells (a small patch on an object sees it alone; a large
 one across the object's border sees the surface behind it too): a cell is flagged when patches of one size
 echo elsewhere there and none of that size echoes here, and the cells beside flagged cells are flagged too
-(the border that a patch also showing the range keeps). In a cell beyond the range nothing is trusted; in a
+(the border that a patch also showing the range keeps; not the cells past an end, where no patch of the size
+echoes most strongly inside the range). In a cell beyond the range or just past an end nothing is trusted; in a
 repeating cell only a surface whose own echo anchors it there (:mod:`psvs.dense.trust`: a region with an
 anchored pixel in the repeating cells; a consistent region grown in from outside them is not). A repeating
 texture whose repeats exceed chance at several lags is left to the echo test's own ambiguity rule. On an
@@ -69,7 +72,10 @@ class Elsewhere:
     outside the range, ``threshold`` its family's chance level; ``period_px``, ``period_z`` and
     ``period_threshold`` the same of the strongest repeat, ``edge_lag_px``, ``edge_z`` and ``edge_threshold``
     of the strongest echo just outside the range that counts as inside it (within :data:`EDGE_LAGS`: a surface
-    the search may not quite reach)."""
+    the search may not quite reach). ``past_ends`` (2, ny, nx): the cells whose patches echo most strongly a
+    whole lag or more past the range's far end ([0], below its smallest disparity) or near end ([1]), within
+    :data:`EDGE_LAGS`, and none of that size most strongly inside it: a surface just beyond the range, which the
+    search answers at the end's lag (:mod:`psvs.dense.trust` trusts no answer there)."""
 
     cells: np.ndarray
     cell_px: int
@@ -84,6 +90,12 @@ class Elsewhere:
     edge_lag_px: float = math.nan
     edge_z: float = math.nan
     edge_threshold: float = math.nan
+    past_ends: np.ndarray | None = None
+
+    @property
+    def past_any(self) -> bool:
+        """Whether some cell's strongest echo lies just past an end of the searched range (:attr:`past_ends`)."""
+        return self.past_ends is not None and bool(self.past_ends.any())
 
     @property
     def any(self) -> bool:
@@ -132,19 +144,23 @@ def _family(sums, m: int, sigma: float, lags: np.ndarray, classes: tuple, alpha:
     patches = standardised_patches(sums, m, sigma, lags)
     if patches is None:
         return None
-    judged, outside, short, exact = classes
+    judged, outside, short, exact, past_far, past_near = classes
     z = patches[0]
     level = chance_level(z, alpha)
     filled = np.nan_to_num(z, nan=-np.inf)
     at = filled.argmax(axis=0)
     top = np.take_along_axis(filled, at[None], 0)[0]
     here = (filled[judged] > level.threshold).any(axis=0)
-    away = (top > level.threshold) & ~here & ~ambiguous_patches(z, level.threshold)
+    clear = ~ambiguous_patches(z, level.threshold)
+    away = (top > level.threshold) & ~here & clear
     out = []
     for which, best in zip((away & outside[at], away & short[at]), strongest[:2], strict=True):
         best.update(top, lags, at, which, level.threshold)
         out.append(spread_to_cells(which[None], m)[0])
     strongest[2].update(top, lags, at, (top > level.threshold) & judged[at] & ~exact[at], level.threshold)
+    echoing = (top > level.threshold) & clear
+    for which in (exact, past_far, past_near):      # where the strongest echo lies: in the range, just past it
+        out.append(spread_to_cells((echoing & which[at])[None], m)[0])
     return spread_to_cells(here[None], m)[0], *out
 
 
@@ -165,9 +181,11 @@ def echo_elsewhere(image: np.ndarray, d_min: float, d_max: float, image_right: n
     lags = np.arange(1, w - 1)
     lo, hi = d_min / scale - EDGE_LAGS, d_max / scale + EDGE_LAGS
     classes = ((lags >= lo) & (lags <= hi), (lags > hi) | ((lags < lo) & (lags >= BELOW * d_min / scale)),
-               lags < min(lo, BELOW * d_min / scale), (lags >= d_min / scale) & (lags <= d_max / scale))
+               lags < min(lo, BELOW * d_min / scale), (lags >= d_min / scale) & (lags <= d_max / scale),
+               (lags >= lo) & (lags <= math.floor(d_min / scale) - 1),     # a whole lag or more past an end
+               (lags <= hi) & (lags >= math.ceil(d_max / scale) + 1))
     ny, nx = h // CELL_PX, w // CELL_PX
-    seen = {m: np.zeros((3, ny, nx), bool) for m in BLOCK_CELLS}
+    seen = {m: np.zeros((6, ny, nx), bool) for m in BLOCK_CELLS}
     strongest = (_Strongest(), _Strongest(), _Strongest())
     families = len(BANDS_PX) * len(BLOCK_CELLS)
     for sigma in BANDS_PX:
@@ -182,9 +200,11 @@ def echo_elsewhere(image: np.ndarray, d_min: float, d_max: float, image_right: n
             if out is not None:
                 seen[m] |= np.stack(out)
     away, repeating = np.zeros((ny, nx), bool), np.zeros((ny, nx), bool)
-    for here, beyond, short in seen.values():       # each patch size judges its own cells
+    past = np.zeros((2, ny, nx), bool)
+    for here, beyond, short, inside_range, past_far, past_near in seen.values():   # each patch size its own cells
         away |= beyond & ~here
         repeating |= short & ~here
+        past |= np.stack((past_far, past_near)) & ~inside_range
     a, r, e = strongest
     return Elsewhere(_widened(away), CELL_PX, scale, a.lag * scale, a.z, a.threshold, _widened(repeating),
-                     r.lag * scale, r.z, r.threshold, e.lag * scale, e.z, e.threshold)
+                     r.lag * scale, r.z, r.threshold, e.lag * scale, e.z, e.threshold, past)
