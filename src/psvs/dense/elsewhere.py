@@ -19,13 +19,14 @@ end), it shows a surface the search could not reach; further below, at a lag sho
 and at some multiple inside the range: the method then answers the repeat, not the twin), or a surface far
 beyond the range. A patch whose strongest echo lies just past an end (within :data:`EDGE_LAGS`, so it echoes
 *here* too, but a whole lag or more past it) shows a surface the search stops short of: the method answers it
-at the end's lag, or at a neighbouring surface's. Each patch size judges its own cells (a small patch on an object sees it alone; a large
-one across the object's border sees the surface behind it too): a cell is flagged when patches of one size
-echo elsewhere there and none of that size echoes here, and the cells beside flagged cells are flagged too
-(the border that a patch also showing the range keeps; not the cells past an end, where no patch of the size
-echoes most strongly inside the range). In a cell beyond the range or just past an end nothing is trusted; in a
-repeating cell only a surface whose own echo anchors it there (:mod:`psvs.dense.trust`: a region with an
-anchored pixel in the repeating cells; a consistent region grown in from outside them is not). A repeating
+at the end's lag, or at a neighbouring surface's. Each patch size judges its own cells (a small patch on an
+object sees it alone; a large one across the object's border sees the surface behind it too): a cell is
+flagged when patches of one size echo elsewhere there and none of that size echoes here, and the cells beside
+flagged cells are flagged too (the border that a patch also showing the range keeps; not the cells past an
+end, where no patch of the size echoes most strongly inside the range). In a cell beyond the range or just
+past an end nothing is trusted; in a repeating cell only a surface whose own echo anchors it there
+(:mod:`psvs.dense.trust`: a region with an anchored pixel in the repeating cells; a consistent region grown in
+from outside them is not). A repeating
 texture whose repeats exceed chance at several lags is left to the echo test's own ambiguity rule. On an
 image without echo a cell is flagged with probability :data:`ALPHA` at most, and flagging only takes trust
 away.
