@@ -142,11 +142,12 @@ def test_fast_mode_on_a_narrow_range_falls_back_to_full_resolution(pair):
     res = dense_disparity(superimpose(left, right)[:, :60], 0, 5, params=FAST)   # 5 px range: 2.5 at half size
     assert res.disparity_left.shape == (200, 60)
     res = dense_disparity(superimpose(left, right), 20.2, 21.8, params=FAST)      # 10.1..10.9: no whole px
-    assert res.disparity_left.shape == left.shape and np.nanmax(res.disparity_left) <= 21.8
+    assert res.disparity_left.shape == left.shape and np.nanmax(res.disparity_left) <= 23.0
+    assert res.searched_px == (19.0, 23.0) and res.asked_px == (20.2, 21.8)       # a lag beyond each end
     # the same ranges on scenes whose truth lies inside them
     left, right, tl, tr = layered_pair(d_bg=3, d_fg=5, rect=(60, 140, 15, 45))
     res = dense_disparity(superimpose(left, right)[:, :60], 0, 5, params=FAST)
-    assert res.searched_px == (3.0, 5.0)
+    assert res.searched_px == (3.0, 6.0)
     for d, truth in ((res.disparity_left, tl[:, :60]), (res.disparity_right, tr[:, :60])):
         assert np.mean(np.abs(d[truth == 3] - 3) <= 1) > 0.85     # the background (answers >= 3: not 5)
         assert np.mean(np.abs(d[truth == 5] - 5) <= 1) > 0.9      # the rectangle (not 3)
@@ -207,7 +208,7 @@ def test_a_wide_range_is_pruned_to_the_scene_and_gives_the_same_maps(pair):
     for d, truth in ((wide.disparity_left, tl), (wide.disparity_right, tr)):
         assert _share_correct(d, truth, 31) > 0.8 and _share_correct(d, truth, 18) > 0.95
     whole = dense_disparity(c, 0, 120, params=replace(DEFAULT, prune=False))
-    assert whole.searched_px == (3.0, 120.0)
+    assert whole.searched_px == (3.0, 121.0)                 # a lag beyond the asked end
     bad2 = lambda d: disparity_scores(d, tl)["bad2_pct"]  # noqa: E731
     assert bad2(wide.disparity_left) <= bad2(whole.disparity_left) + 0.5
 
@@ -231,11 +232,12 @@ def test_pruning_keeps_a_small_object_whose_disparity_stands_apart(side):
 
 def test_one_depth_at_the_end_of_the_range_is_widened_not_searched_whole():
     """A single plane at 30 px searched over 0..32: the pruned range, clipped at 32, is widened inside the
-    range to at least MIN_PRUNED_LAGS px instead of falling back to the whole range."""
+    range to at least MIN_PRUNED_LAGS px instead of falling back to the whole range (and searched a lag beyond
+    each of its ends: psvs.dense.params.searched_lags)."""
     from psvs.dense.prune import MIN_PRUNED_LAGS
     left, right, tl, _ = layered_pair(d_bg=30, d_fg=30)
     res = dense_disparity(superimpose(left, right), 0, 32)
     lo, hi = res.searched_px
-    assert hi == 32 and MIN_PRUNED_LAGS - 1 <= hi - lo <= 12
+    assert hi == 33 and MIN_PRUNED_LAGS + 1 <= hi - lo <= 14
     seen = np.isfinite(tl)
     assert np.mean(np.abs(res.disparity_left[seen] - 30) <= 2) > 0.9

@@ -165,15 +165,15 @@ def _rerun(args, out: dict, dense: RigDense, cloud, image, rig) -> None:
 
 def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
     """``dense`` with its confidence 0 where the echo does not support the answer beyond chance, and that
-    judgement; MeasurementError when the maps answer nothing or nothing they answer is trusted."""
+    judgement; MeasurementError when the maps answer nothing or nothing they answer is trusted (naming the
+    disparities asked for: the search also reads a lag beyond each end, psvs.dense.params.searched_lags)."""
     res = dense.result
+    lo, hi = dense.asked_px or res.asked_px or res.searched_px
     if not np.isfinite(res.disparity_left).any():
-        lo, hi = res.searched_px
         raise MeasurementError(f"no pixel found a disparity in {lo:.0f}..{hi:.0f} px: the image holds no texture "
                                "the search can match")
     trust = rig_trust(dense)
     if trust.count == 0:
-        lo, hi = res.searched_px
         t = trust.test
         if t.ambiguous.any() and not t.echoes:
             k = 2 ** trust.level * t.cell_px

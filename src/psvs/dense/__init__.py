@@ -13,7 +13,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "disparity": ["DenseResult", "check_dense_memory", "check_range", "dense_disparity"],
         "echo_test": ["BLOCK_CELLS", "CELL_PX", "MIN_LAGS"],
         "evaluate": ["evaluate_pair", "motorcycle"],
-        "params": ["DEFAULT", "DenseParams", "FAST"],
+        "params": ["DEFAULT", "DenseParams", "FAST", "searched_lags"],
         "report": ["scores_markdown", "write_report"],
         "rig_cache": ["filled_maps", "fixed_maps", "rectification"],
         "separate": ["SeparationParams", "psnr_db", "rig_views", "separate_views"],

@@ -40,7 +40,7 @@ import numpy as np
 from psvs._budget import check_memory
 from psvs.dense.cost import echo_at_winner, fused_cost, one_sided_costs, padded_lags, unit_scaled, weighted_echo
 from psvs.dense.maps import consistent, echo_at, fill_from_background, finite_median, upsample
-from psvs.dense.params import COARSE, DEFAULT, FAST, MIN_LAG_PX, MIN_SIZE_PX, DenseParams
+from psvs.dense.params import COARSE, DEFAULT, FAST, MIN_LAG_PX, MIN_SIZE_PX, DenseParams, searched_lags
 from psvs.dense.prune import pruned_range, widened, worth_pruning
 from psvs.dense.pyramid import (
     REFERENCE_CELLS,
@@ -64,13 +64,16 @@ class DenseResult:
     point seen at (u, v); ``disparity_right[v, u]`` the same for the right-view point at (u, v) (so that
     point's left-view twin is at u + d). NaN where no answer. ``confidence_*`` in [0, 1]: the echo
     correlation (filtered and aperture-weighted) of the pixel's own view at its disparity, 0 where the
-    value was filled from neighbours. ``searched_px``: the first and last lag searched (px of the input)."""
+    value was filled from neighbours. ``searched_px``: the first and last lag searched (px of the input; a lag
+    beyond the range asked for at each end, :func:`~psvs.dense.params.searched_lags`), ``asked_px`` the
+    disparities the search was asked for (None: not known)."""
 
     disparity_left: np.ndarray
     disparity_right: np.ndarray
     confidence_left: np.ndarray
     confidence_right: np.ndarray
     searched_px: tuple[float, float]
+    asked_px: tuple[float, float] | None = None
 
 
 def check_image(image) -> np.ndarray:
@@ -170,9 +173,9 @@ class ScaleMaps:
 def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_right: np.ndarray | None = None,
               workspace: Workspace | None = None) -> ScaleMaps:
     """Steps 1-4 of the module docstring on ``img`` (h, w) (and ``img_right``, a build), searching the whole
-    px of d_min..d_max (px of ``img``) from :data:`MIN_LAG_PX` up, in ``workspace``'s volumes if given."""
-    lo = max(MIN_LAG_PX, math.ceil(d_min))
-    hi = min(math.floor(d_max), img.shape[1] - 1)
+    px about d_min..d_max (px of ``img``; :func:`~psvs.dense.params.searched_lags`), in ``workspace``'s
+    volumes if given."""
+    lo, hi = searched_lags(d_min, d_max, img.shape[1])
     lags = np.arange(lo, hi + 1)
     h, w = img.shape
     cost_shape = (h, w, padded_lags(len(lags)))  # the cost volumes' lag axis, padded to whole vectors
@@ -335,8 +338,8 @@ def dense_disparity(image, d_min: float, d_max: float, *, params: DenseParams = 
     image : array_like (H, W)
         The complex image, grey, at least :data:`~psvs.dense.params.MIN_SIZE_PX` px a side.
     d_min, d_max : float
-        The disparities to search, px, 0 ≤ d_min < d_max < W; only whole px from
-        :data:`~psvs.dense.params.MIN_LAG_PX` up are searched.
+        The disparities to search, px, 0 ≤ d_min < d_max < W; whole px from
+        :data:`~psvs.dense.params.MIN_LAG_PX` up, a lag beyond each end (:func:`~psvs.dense.params.searched_lags`).
     params : DenseParams
         The tuning: :data:`~psvs.dense.params.DEFAULT` (full resolution, the range pruned to the scene),
         :data:`~psvs.dense.params.FAST` (half resolution, 4 SGM paths), or your own. A large image or range is
@@ -369,14 +372,22 @@ def dense_disparity(image, d_min: float, d_max: float, *, params: DenseParams = 
                       stacklevel=2)
         nan = np.full((h, w), np.nan, np.float32)
         return DenseResult(nan, nan.copy(), np.zeros((h, w), np.float32), np.zeros((h, w), np.float32),
-                           (float(d_min), float(d_max)))
-    levels = pyramid_levels(h, w, float(d_min), float(d_max)) if p.pyramid else 0
+                           (float(d_min), float(d_max)), (float(d_min), float(d_max)))
+    return replace(_searched(img, float(d_min), float(d_max), p, right, workspace),
+                   asked_px=(float(d_min), float(d_max)))
+
+
+def _searched(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, right: np.ndarray | None,
+              workspace: Workspace | None) -> DenseResult:
+    """:func:`dense_disparity`'s maps of a checked, non-constant image: one level, reduced or a pyramid."""
+    h, w = img.shape
+    levels = pyramid_levels(h, w, d_min, d_max) if p.pyramid else 0
     if levels and may_prune_to_one_level(h, w, p):
-        lo, hi = _pruned_search(img, float(d_min), float(d_max), right, workspace)
+        lo, hi = _pruned_search(img, d_min, d_max, right, workspace)
         if pyramid_levels(h, w, lo, hi) == 0:      # the scene's lags fit one level: no pyramid
             return _full_resolution(img, lo, hi, replace(p, prune=False), right, workspace)
     if levels:
-        return _coarse_to_fine(img, float(d_min), float(d_max), p, right, workspace, levels)
+        return _coarse_to_fine(img, d_min, d_max, p, right, workspace, levels)
     if p.scale == 1:
         return _full_resolution(img, d_min, d_max, p, right, workspace)
     return _reduced(img, d_min, d_max, p, right, workspace)

@@ -171,20 +171,24 @@ def _widened(cells: np.ndarray) -> np.ndarray:
 
 
 def echo_elsewhere(image: np.ndarray, d_min: float, d_max: float, image_right: np.ndarray | None = None,
-                   inside: tuple[np.ndarray, np.ndarray] | None = None, alpha: float = ALPHA) -> Elsewhere:
+                   inside: tuple[np.ndarray, np.ndarray] | None = None, alpha: float = ALPHA,
+                   asked: tuple[float, float] | None = None) -> Elsewhere:
     """Which cells of ``image`` (H, W; on a build its left view's rectified grid, ``image_right`` the right
-    view's, ``inside`` their field masks) echo only outside d_min..d_max px, and which repeat along their rows
-    (module docstring); false alarm ``alpha`` for the whole image."""
+    view's, ``inside`` their field masks) echo only outside the searched d_min..d_max px, which repeat along
+    their rows, and which echo just past an end of the ``asked`` disparities (px of ``image``; default the
+    searched ones) (module docstring); false alarm ``alpha`` for the whole image."""
     left = np.asarray(image, dtype=np.float64)
     right = left if image_right is None else np.asarray(image_right, dtype=np.float64)
     left, right, inside, scale = _level(left, right, inside)
     h, w = left.shape
     lags = np.arange(1, w - 1)
     lo, hi = d_min / scale - EDGE_LAGS, d_max / scale + EDGE_LAGS
+    a_min, a_max = (d_min, d_max) if asked is None else asked
+    a_lo, a_hi = a_min / scale - EDGE_LAGS, a_max / scale + EDGE_LAGS
     classes = ((lags >= lo) & (lags <= hi), (lags > hi) | ((lags < lo) & (lags >= BELOW * d_min / scale)),
-               lags < min(lo, BELOW * d_min / scale), (lags >= d_min / scale) & (lags <= d_max / scale),
-               (lags >= lo) & (lags <= math.floor(d_min / scale) - 1),     # a whole lag or more past an end
-               (lags <= hi) & (lags >= math.ceil(d_max / scale) + 1))
+               lags < min(lo, BELOW * d_min / scale), (lags >= a_min / scale) & (lags <= a_max / scale),
+               (lags >= a_lo) & (lags <= math.floor(a_min / scale) - 1),     # a whole lag or more past an end
+               (lags <= a_hi) & (lags >= math.ceil(a_max / scale) + 1))
     ny, nx = h // CELL_PX, w // CELL_PX
     seen = {m: np.zeros((6, ny, nx), bool) for m in BLOCK_CELLS}
     strongest = (_Strongest(), _Strongest(), _Strongest())

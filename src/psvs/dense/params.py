@@ -6,12 +6,28 @@ that prunes the default mode's search (psvs.dense.prune).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 #: px: disparities below this cannot be told from the image's own smoothness and are not searched.
 MIN_LAG_PX = 3
 #: px: the smallest image side accepted (and the smallest side of the half-resolution image).
 MIN_SIZE_PX = 16
+
+
+def searched_lags(d_min: float, d_max: float, width: int) -> tuple[int, int]:
+    """The first and last whole-px lag searched for the disparities d_min..d_max (px) on an image ``width`` px
+    wide: one lag beyond the whole px that bracket them (from :data:`MIN_LAG_PX` up, below the width), so that
+    every disparity of the range has a searched lag on each side of its nearest one and a minimum there is
+    placed between them. With the lags inside the range (ceil and floor), a surface at the far end (86.0-87.4
+    px with 86.4 asked, 87 searched; 88 in the fast mode's half-resolution lags) was answered at the end's lag
+    or 2-3 px inside it (trial, issue 41). An answer on the outer lags lies outside the range asked for and is
+    not trusted (:func:`psvs.dense.trust.echo_trust`).
+
+    >>> searched_lags(86.4, 255.1, 640), searched_lags(1.0, 639.5, 640)
+    ((85, 257), (3, 639))
+    """
+    return max(MIN_LAG_PX, math.floor(d_min) - 1), min(math.ceil(d_max) + 1, width - 1)
 
 
 @dataclass(frozen=True)

@@ -17,15 +17,13 @@ halved together, so a point and its twin stay on the same row, at half the dispa
 """
 from __future__ import annotations
 
-import math
-
 import cv2
 import numpy as np
 
 from psvs.dense.band import band_costs, band_local_winners, band_winners
 from psvs.dense.cost import aperture_weight, band_pass, unit_scaled
 from psvs.dense.maps import consistent, upsample
-from psvs.dense.params import MIN_LAG_PX, DenseParams
+from psvs.dense.params import MIN_LAG_PX, DenseParams, searched_lags
 from psvs.dense.workspace import Workspace, volume
 
 #: The cost volume (px x px x lags) the method was tuned on: 640 x 480 over 192 disparities.
@@ -103,8 +101,7 @@ def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple, d_ran
     alone is no test (on an image without echo they agree over whole regions), and a finer level's 3 x 3
     windows correlate about 0.5 by chance."""
     h, w = img.shape
-    lo = max(MIN_LAG_PX, math.ceil(d_range[0]))
-    hi = min(math.floor(d_range[1]), w - 1)
+    lo, hi = searched_lags(*d_range, w)
     n = p.band_lags
     r = p.refine_window // 2
     f = band_pass(img, p.sigma_px)

@@ -45,13 +45,15 @@ from psvs.dense.elsewhere import Elsewhere, echo_elsewhere
 from psvs.dense.noise import NoiseLevel, noise_level, textured_pixels
 from psvs.dense.pyramid import coarse_level, pyramid_levels
 
-__all__ = ["ALPHA", "STEP_PX", "TOL_PX", "EchoTrust", "bracketed", "consistent_regions", "echo_trust", "grown",
-           "trusted_maps"]
+__all__ = ["ALPHA", "ASKED_TOL_PX", "STEP_PX", "TOL_PX", "EchoTrust", "bracketed", "consistent_regions",
+           "echo_trust", "grown", "trusted_maps"]
 
 #: px at the tested level: an answer within this of an echoing lag is supported by it.
 TOL_PX = 1.5
 #: px: neighbours whose disparities differ by more are not one surface.
 STEP_PX = 1.0
+#: px: an answer further than this outside the disparities asked for is not trusted (:func:`_within`).
+ASKED_TOL_PX = 0.5
 
 
 @nb.njit(cache=True)
@@ -289,7 +291,8 @@ def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.nd
     view's field (a build's rectified grids); ``textured``: the (left, right) masks (H, W) of the pixels whose
     own window carries texture beyond the sensor's noise (:func:`psvs.dense.noise.textured_pixels` of the
     images when None) and ``noise`` the level they were judged against (reported in the result).
-    ``scale_range``: the disparities (px) the search was asked to cover, which choose the tested level (default
+    ``scale_range``: the disparities (px) the search was asked to cover (default the maps' ``asked_px``; no
+    answer further than :data:`ASKED_TOL_PX` outside them is trusted), which choose the tested level (default
     the maps' ``searched_px``): the fast mode's coarse pass prunes the search to what a scene shows, and a
     narrower search would test a textured scene at twice the resolution (four times the cost) of a blank one."""
     left = np.asarray(image, dtype=np.float64)
@@ -304,8 +307,12 @@ def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.nd
         shrink = tuple(cv2.resize(m.astype(np.uint8), top.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
                        for m in inside)
     scale = w / top.shape[1]
+    asked = scale_range or result.asked_px
+    if asked is not None:      # the search's outer lags (a lag past each asked end) support no answer
+        lo, hi = max(lo, asked[0]), min(hi, asked[1])
     test = echo_test(top, lo / scale, min(hi / scale, top.shape[1] - 1.0), top_r, shrink)
-    away = echo_elsewhere(top, lo / scale, hi / scale, top_r, shrink)
+    away = echo_elsewhere(top, lo / scale, hi / scale, top_r, shrink,
+                          asked=None if asked is None else (asked[0] / scale, asked[1] / scale))
     if textured is None:
         noise = noise_level(left)
         tex_left = textured_pixels(left, noise)
@@ -314,9 +321,20 @@ def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.nd
     if tex_left.shape != left.shape or tex_right.shape != left.shape:
         raise ValueError(f"the texture masks {tex_left.shape}, {tex_right.shape} must have the image's shape "
                          f"{left.shape}")
-    trusted = _supported(test, away, ((result.disparity_left, result.confidence_left),
-                                (result.disparity_right, result.confidence_right)), scale, (tex_left, tex_right))
+    maps = ((result.disparity_left, result.confidence_left), (result.disparity_right, result.confidence_right))
+    trusted = _supported(test, away, maps, scale, (tex_left, tex_right))
+    if asked is not None:
+        trusted = tuple(_within(t, d, asked) for t, (d, _) in zip(trusted, maps, strict=True))
     return EchoTrust(*trusted, test, level, noise, away)
+
+
+def _within(trusted: np.ndarray, disparity: np.ndarray, asked: tuple[float, float]) -> np.ndarray:
+    """``trusted`` (H, W) without the answers more than :data:`ASKED_TOL_PX` outside the ``asked`` disparities
+    (px): on the lag the search adds beyond each end (psvs.dense.params.searched_lags) a minimum is not
+    bracketed, and what lies there is beyond the working range (a planted wall 2.6 px past the far end is
+    answered on that outer lag)."""
+    with np.errstate(invalid="ignore"):
+        return trusted & (disparity >= asked[0] - ASKED_TOL_PX) & (disparity <= asked[1] + ASKED_TOL_PX)
 
 
 def trusted_maps(result: DenseResult, trust: EchoTrust) -> DenseResult:
@@ -325,4 +343,4 @@ def trusted_maps(result: DenseResult, trust: EchoTrust) -> DenseResult:
     return DenseResult(result.disparity_left, result.disparity_right,
                        np.where(trust.trusted_left, result.confidence_left, zero).astype(np.float32),
                        np.where(trust.trusted_right, result.confidence_right, zero).astype(np.float32),
-                       result.searched_px)
+                       result.searched_px, result.asked_px)
