@@ -226,27 +226,3 @@ def test_the_filled_maps_resample_as_the_remap_and_its_fill_in(folder):
         mu, mv = filled_maps(rect, view)
         band = cv2.remap(img, mu[100:140], mv[100:140], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         np.testing.assert_allclose(band, grid[100:140], rtol=0, atol=1e-3)
-
-
-def test_the_fixed_point_maps_resample_exactly_as_the_float_ones(folder):
-    """fixed_maps (what rectified_images remaps through: OpenCV's fixed-point form, converted once) give
-    bit for bit what the float maps give (cv2.remap converts float maps to that form on every call), on the
-    whole grid and on a band of its rows, on both views of a 640 x 480 and a 1440 x 1080 build; the maps are
-    kept, read-only."""
-    import cv2
-
-    from psvs.dense.rig_cache import filled_maps, fixed_maps
-    for name in ("misaligned", "mv1440_misaligned"):
-        rig = load_rig(name)
-        rect = rectification(rig, NEAR_MM, FAR_MM)
-        img = cv2.GaussianBlur(np.random.default_rng(1).uniform(0, 255, rig.camera.image_size_px[::-1])
-                               .astype(np.float32), (0, 0), 1.2)
-        for view in VIEWS:
-            fixed = fixed_maps(rect, view)
-            assert fixed is fixed_maps(rect, view) and not any(m.flags.writeable for m in fixed)
-            assert fixed[0].dtype == np.int16 and fixed[0].shape == (*filled_maps(rect, view)[0].shape, 2)
-            for rows in (slice(None), slice(100, 140)):
-                ref = cv2.remap(img, *(m[rows] for m in filled_maps(rect, view)), cv2.INTER_LINEAR,
-                                borderMode=cv2.BORDER_REPLICATE)
-                got = cv2.remap(img, *(m[rows] for m in fixed), cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-                np.testing.assert_array_equal(got, ref)

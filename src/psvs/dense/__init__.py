@@ -15,7 +15,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "evaluate": ["evaluate_pair", "motorcycle"],
         "params": ["DEFAULT", "DenseParams", "FAST", "searched_lags"],
         "report": ["scores_markdown", "write_report"],
-        "rig_cache": ["filled_maps", "fixed_maps", "rectification"],
+        "rig_cache": ["filled_maps", "rectification"],
         "separate": ["SeparationParams", "psnr_db", "rig_views", "separate_views"],
         "trust": ["ALPHA", "EchoTrust", "trusted_maps"],
         "workspace": ["Workspace"],

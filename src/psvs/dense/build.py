@@ -24,7 +24,7 @@ from psvs.dense.depth_table import exact_points, table_cloud, table_depth
 from psvs.dense.disparity import DenseResult, dense_disparity
 from psvs.dense.noise import noise_level, textured_pixels
 from psvs.dense.params import DEFAULT, DenseParams
-from psvs.dense.rig_cache import depth_table, filled_maps, fixed_maps, outside_pixels, rectification
+from psvs.dense.rig_cache import depth_table, filled_maps, outside_pixels, rectification
 from psvs.dense.trust import EchoTrust, echo_trust
 from psvs.dense.workspace import Workspace
 from psvs.measure.triangulate import default_model
@@ -57,10 +57,10 @@ def rectified_images(image, rect: Rectification,
     """The complex image (H, W) resampled on the left and on the right view's rectified grid, float32
     (H', W'), or only on its rows r0..r1-1 (``rows`` = (r0, r1)); outside a view's field each pixel repeats
     the nearest inside one (no artificial edge): one remap each through
-    :func:`psvs.dense.rig_cache.fixed_maps`."""
+    :func:`psvs.dense.rig_cache.filled_maps`."""
     img = np.asarray(image, dtype=np.float32)
     band = slice(None) if rows is None else slice(*rows)
-    return tuple(cv2.remap(img, *(m[band] for m in fixed_maps(rect, view)), cv2.INTER_LINEAR,
+    return tuple(cv2.remap(img, *(m[band] for m in filled_maps(rect, view)), cv2.INTER_LINEAR,
                            borderMode=cv2.BORDER_REPLICATE) for view in ("left", "right"))
 
 

@@ -31,7 +31,6 @@ import threading
 import weakref
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from psvs._cache import cache_dir, content_key
@@ -54,7 +53,6 @@ _CODE = ("optics/*.py", "measure/triangulate.py", "dense/depth_table.py", "dense
 _READY: weakref.WeakSet = weakref.WeakSet()                    # rectifications with their remaps in place
 _NEAREST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # rect -> {view: (H', W') int32}
 _FILLED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> {view: (map_u, map_v)}
-_FIXED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()     # rect -> {view: fixed-point maps}
 _OUTSIDE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # rect -> {view: flat indices}
 _TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> DepthTable
 _LOCKS: dict[str, threading.Lock] = {}
@@ -148,20 +146,6 @@ def filled_maps(rect: Rectification, view: str) -> tuple[np.ndarray, np.ndarray]
     return per_rect[view]
 
 
-def fixed_maps(rect: Rectification, view: str) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`filled_maps` in OpenCV's fixed-point form (``cv2.convertMaps`` to CV_16SC2 and its 1/32 px
-    interpolation table, read-only): ``cv2.remap`` with INTER_LINEAR gives through them exactly what it gives
-    through the float maps (it converts those to this form on every call), 20 % sooner; a band of their rows
-    resamples that band."""
-    per_rect = _FIXED.setdefault(rect, {})
-    if view not in per_rect:
-        out = cv2.convertMaps(*filled_maps(rect, view), cv2.CV_16SC2)
-        for m in out:
-            m.setflags(write=False)
-        per_rect[view] = out
-    return per_rect[view]
-
-
 def depth_table(rect: Rectification) -> DepthTable:
     """The depth table of a build's rectification (:func:`psvs.dense.depth_table.build_depth_table`): kept
     in memory as long as ``rect`` lives, read from the cache folder, else built now (and stored)."""
@@ -188,7 +172,7 @@ def forget() -> None:
     call reads the folder or computes."""
     forget_fits()
     _READY.clear()
-    for per_rect in (_NEAREST, _FILLED, _FIXED, _OUTSIDE, _TABLES):
+    for per_rect in (_NEAREST, _FILLED, _OUTSIDE, _TABLES):
         per_rect.clear()
 
 
