@@ -142,7 +142,8 @@ def dense_memory_bytes(h: int, w: int, d_min: float, d_max: float, params: Dense
             need = max(need, dense_memory_bytes(h, w, lo, min(d_max, widest), replace(p, pyramid=False)))
         return need
     s = p.scale
-    n_lags = max(1, math.floor(d_max / s) - max(MIN_LAG_PX, math.ceil(d_min / s)) + 1)
+    first, last = searched_lags(d_min / s, d_max / s, max(1, w // s))
+    n_lags = max(1, last - first + 1)
     cells = (h // s) * (w // s) * padded_lags(n_lags)
     if s == 1 and p.prune:   # the coarse pass's volumes, kept beside the full-resolution ones
         cells += (h // COARSE.scale) * (w // COARSE.scale) * padded_lags(max(1, n_lags // COARSE.scale))

@@ -74,7 +74,7 @@ class Elsewhere:
     ``period_threshold`` the same of the strongest repeat, ``edge_lag_px``, ``edge_z`` and ``edge_threshold``
     of the strongest echo just outside the range that counts as inside it (within :data:`EDGE_LAGS`: a surface
     the search may not quite reach). ``past_ends`` (2, ny, nx): the cells whose patches echo most strongly a
-    whole lag or more past the range's far end ([0], below its smallest disparity) or near end ([1]), within
+    whole lag or more past the asked range's far end ([0], below its smallest disparity) or near end ([1]), within
     :data:`EDGE_LAGS`, and none of that size most strongly inside it: a surface just beyond the range, which the
     search answers at the end's lag (:mod:`psvs.dense.trust` trusts no answer there)."""
 
@@ -95,7 +95,7 @@ class Elsewhere:
 
     @property
     def past_any(self) -> bool:
-        """Whether some cell's strongest echo lies just past an end of the searched range (:attr:`past_ends`)."""
+        """Whether some cell's strongest echo lies just past an end of the asked range (:attr:`past_ends`)."""
         return self.past_ends is not None and bool(self.past_ends.any())
 
     @property
