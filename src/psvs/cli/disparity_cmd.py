@@ -168,7 +168,7 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
     judgement; MeasurementError when the maps answer nothing or nothing they answer is trusted (naming the
     disparities asked for: the search also reads a lag beyond each end, psvs.dense.params.searched_lags)."""
     res = dense.result
-    lo, hi = dense.asked_px or res.asked_px or res.searched_px
+    lo, hi = dense.asked_px or res.searched_px
     if not np.isfinite(res.disparity_left).any():
         raise MeasurementError(f"no pixel found a disparity in {lo:.0f}..{hi:.0f} px: the image holds no texture "
                                "the search can match")
@@ -302,8 +302,7 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
         announce_dense(say_compiling)
     # a library warning is printed as one line by psvs.cli.main
     if rig is None:
-        dense = RigDense(dense_disparity(image, lo, hi, params=params, workspace=workspace), None, image,
-                         asked_px=(lo, hi))
+        dense = RigDense(dense_disparity(image, lo, hi, params=params, workspace=workspace), None, image)
     else:
         dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi),
                              workspace=workspace)

@@ -40,16 +40,20 @@ class RigDense:
     paper's geometry), the image the left map is aligned with (H', W') (the complex image itself, or its
     left-grid resampling), e.g. for grey levels of the cloud, and on a build the right grid's (None on the
     paper's geometry): the images the maps were made of; on a build, ``image`` the complex image (H, W)
-    they were resampled from (as the maps saw it: flat-fielded), whose pixels carry the sensor's own noise;
-    ``asked_px`` the disparities (px) the search was asked to cover (the maps' ``searched_px`` may be
-    narrower: a coarse pass prunes it to what the scene shows), which set the scale of the echo test."""
+    they were resampled from (as the maps saw it: flat-fielded), whose pixels carry the sensor's own noise."""
 
     result: DenseResult
     rect: Rectification | None
     left_image: np.ndarray
     right_image: np.ndarray | None = None
     image: np.ndarray | None = None
-    asked_px: tuple[float, float] | None = None
+
+    @property
+    def asked_px(self) -> tuple[float, float] | None:
+        """The disparities (px) the search was asked to cover (the maps' own ``asked_px``; their
+        ``searched_px`` may be narrower, a coarse pass pruning it to what the scene shows, and reaches a lag
+        beyond each end), which set the scale of the echo test."""
+        return self.result.asked_px
 
 
 def rectified_images(image, rect: Rectification,
@@ -82,8 +86,7 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     rect = rectification(rig, near_mm, far_mm)
     if rect is None:
         lo, hi = d_range or disparity_range(rig, near_mm, far_mm, width_px=img.shape[1])
-        return RigDense(dense_disparity(img, lo, hi, params=params, workspace=workspace), None, img,
-                        asked_px=(lo, hi))
+        return RigDense(dense_disparity(img, lo, hi, params=params, workspace=workspace), None, img)
     a, b = rectified_images(img, rect)
     lo, hi = d_range or disparity_range(rig, near_mm, far_mm, rect, width_px=a.shape[1])
     hi = min(hi, a.shape[1] - 1.0)
@@ -94,7 +97,7 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
         outside = outside_pixels(rect, view)
         np.put(disparity, outside, np.nan)
         np.put(confidence, outside, 0.0)
-    return RigDense(res, rect, a, b, img, (lo, hi))
+    return RigDense(res, rect, a, b, img)
 
 
 def rig_trust(dense: RigDense) -> EchoTrust:
