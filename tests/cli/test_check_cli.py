@@ -75,3 +75,20 @@ def test_a_refusal_is_said_once(capsys, tmp_path):
     code, out, err = run(capsys, "check", str(blank), "--rig", "misaligned")
     assert code == 1 and out == "" and err.startswith("psvs check: cannot judge: only 0 of")
     assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("command", ["check", "disparity"])
+def test_a_range_whose_twins_are_beyond_the_image_is_refused_naming_it(capsys, tmp_path, command):
+    """An adversarial trial: `check --near-mm 45 --far-mm 60` (twins 1023-1193 px apart in a 640 px image) said
+    'only 0 of 0 tiles show a twin'; `disparity` said 'disparity range is empty: min 1023.27 >= max 639.0'. Both
+    now refuse the range itself (exit 2, one line, nothing written)."""
+    frame = tmp_path / "f.png"
+    cv2.imwrite(str(frame), render(Scene((), regulated_light(700.0), 700.0, Noise(scale_mm=1.5, seed=1), "wall"),
+                                   load_rig("default"), seed=1, supersample=1).image)
+    out_file = tmp_path / "d.npy"
+    extra = ["-o", str(out_file)] if command == "disparity" else []
+    code, out, err = run(capsys, command, str(frame), "--rig", "default", "--near-mm", "45", "--far-mm", "60", *extra)
+    assert code == 2 and out == "" and len(err.strip().splitlines()) == 1
+    assert err.startswith(f"psvs {command}: error: at 45-60 mm the twins stand 1023-1193 px apart, beyond the 640 px "
+                          "wide image: no point of that range is seen by both views")
+    assert not out_file.exists()

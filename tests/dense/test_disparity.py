@@ -105,7 +105,6 @@ def test_nearly_constant_image_gives_finite_maps_without_a_crash(d, y, x):
     (np.random.default_rng(0).random((40, 60)), 20, 10, "empty"),
     (np.random.default_rng(0).random((40, 60)), -5, 10, ">= 0"),
     (np.random.default_rng(0).random((40, 60)), 0, 2, "below 3 px"),
-    (np.random.default_rng(0).random((40, 60)), 10.5, 10.9, "no whole-pixel"),
 ])
 def test_bad_input_is_named(image, lo, hi, message):
     with pytest.raises(ValueError, match=message):
@@ -241,3 +240,14 @@ def test_one_depth_at_the_end_of_the_range_is_widened_not_searched_whole():
     assert hi == 33 and MIN_PRUNED_LAGS + 1 <= hi - lo <= 14
     seen = np.isfinite(tl)
     assert np.mean(np.abs(res.disparity_left[seen] - 30) <= 2) > 0.9
+
+
+def test_a_range_between_two_whole_px_is_searched_on_the_lags_either_side():
+    """A range that holds no whole px (20.55..20.95) was refused ('holds no whole-pixel disparity'), though the
+    search reads a lag beyond each end (19..22): a plane at 21 px, 0.05 px past the range's end (within the
+    trusted tolerance), is now measured; any range from 3 px up leaves at least 2 lags."""
+    left, right, tl, tr = layered_pair(d_bg=21, d_fg=21)
+    res = dense_disparity(superimpose(left, right), 20.55, 20.95)
+    assert res.searched_px == (19.0, 22.0) and res.asked_px == (20.55, 20.95)
+    seen = np.isfinite(tl)
+    assert np.mean(np.abs(res.disparity_left[seen] - tl[seen]) <= 1) > 0.99

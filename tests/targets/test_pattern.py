@@ -242,3 +242,15 @@ def test_a_pattern_outside_the_range_is_named_as_such():
                                          r"circles looked for \d+-\d+ px across\)"):
         measure_pattern(img, rig, z_mm=(1000.0, 2000.0))
     assert abs(measure_pattern(img, rig, z_mm=(250.0, 1200.0)).Z_mm - 300.0) <= 0.6    # a range that holds it
+
+
+def test_a_pattern_nearer_than_the_range_whose_circles_pair_wrongly_names_the_range():
+    """An adversarial trial: Fig. 9 at 350 mm over the default 400-1200 mm is found whole (its circles fall within
+    the sizes looked for) but its twins pair only wrongly (the nearest way at Z = 789 mm): refused on the spacing,
+    the refusal now also names the working range; over 300-1200 mm it measures."""
+    rig = default_rig()
+    img = render(builtin_scene("fig9:distance_mm=350"), rig, seed=4).image
+    with pytest.raises(MeasurementError, match=r"fits the pattern; .*; or the pattern lies outside the working "
+                                               r"range 400-1200 mm: give --near-mm/--far-mm that hold it$"):
+        measure_pattern(img, rig)
+    assert abs(measure_pattern(img, rig, z_mm=(300.0, 1200.0)).Z_mm - 350.0) <= 0.6

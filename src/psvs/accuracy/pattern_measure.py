@@ -439,7 +439,10 @@ def pair_pattern(circles: list[Ellipse], rig: Rig, model: str, z_mm: tuple[float
         return stage, -float(np.abs(gaps - spacing_mm).max() / spacing_mm)
 
     stage, ratio, why, _, c = max(tried, key=nearness)
+    # twins of a pattern outside the range can stand on other twins' curves: no pairing then fits
+    hint = (f"; or the pattern lies outside the working range {z_mm[0]:g}-{z_mm[1]:g} mm: give --near-mm/--far-mm "
+            f"that hold it")
     if len(ways) == 1:
-        raise MeasurementError(why)
+        raise MeasurementError(why + hint)
     raise MeasurementError(f"none of the {len(ways)} ways to pair the circles on their epipolar curves fits the "
-                           f"pattern; the nearest (Z = {np.nanmean(c[:, 2]):.0f} mm): {why}")
+                           f"pattern; the nearest (Z = {np.nanmean(c[:, 2]):.0f} mm): {why}{hint}")

@@ -95,7 +95,8 @@ def check_image(image) -> np.ndarray:
 
 
 def check_range(d_min: float, d_max: float, width: int) -> None:
-    """ValueError unless 0 ≤ d_min < d_max < width (px)."""
+    """ValueError unless 0 ≤ d_min < d_max < width (px) and d_max is at least :data:`MIN_LAG_PX`. A range between
+    two whole px is searched on the lags either side (:func:`~psvs.dense.params.searched_lags`)."""
     if not (math.isfinite(d_min) and math.isfinite(d_max)) or d_min < 0:
         raise ValueError(f"disparity range must be finite and >= 0, got {d_min}..{d_max}")
     if d_max <= d_min:
@@ -105,8 +106,6 @@ def check_range(d_min: float, d_max: float, width: int) -> None:
     if d_max < MIN_LAG_PX:
         raise ValueError(f"disparities below {MIN_LAG_PX} px cannot be measured in a complex image "
                          f"(range {d_min}..{d_max})")
-    if math.floor(d_max) < max(MIN_LAG_PX, math.ceil(d_min)):
-        raise ValueError(f"disparity range {d_min}..{d_max} px holds no whole-pixel disparity to search")
 
 
 def _check_params(params) -> DenseParams:

@@ -292,14 +292,16 @@ def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.nd
     own window carries texture beyond the sensor's noise (:func:`psvs.dense.noise.textured_pixels` of the
     images when None) and ``noise`` the level they were judged against (reported in the result).
     ``scale_range``: the disparities (px) the search was asked to cover (default the maps' ``asked_px``; no
-    answer further than :data:`ASKED_TOL_PX` outside them is trusted), which choose the tested level (default
-    the maps' ``searched_px``): the fast mode's coarse pass prunes the search to what a scene shows, and a
-    narrower search would test a textured scene at twice the resolution (four times the cost) of a blank one."""
+    answer further than :data:`ASKED_TOL_PX` outside them is trusted), which also choose the tested level (the
+    maps' ``searched_px`` only when neither is known): the fast mode's coarse pass prunes the search to what a
+    scene shows, and a narrower search would test a textured scene at twice the resolution (four times the
+    cost) of a blank one."""
     left = np.asarray(image, dtype=np.float64)
     right = None if image_right is None else np.asarray(image_right, dtype=np.float64)
     lo, hi = result.searched_px
     h, w = left.shape
-    level = pyramid_levels(h, w, *(scale_range or (lo, hi)))
+    asked = scale_range or result.asked_px
+    level = pyramid_levels(h, w, *(asked or (lo, hi)))
     pyr, pyr_r = coarse_level(left, right, level)
     top, top_r = pyr[-1], pyr_r[-1]
     shrink = None
@@ -307,7 +309,6 @@ def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.nd
         shrink = tuple(cv2.resize(m.astype(np.uint8), top.shape[::-1], interpolation=cv2.INTER_NEAREST) > 0
                        for m in inside)
     scale = w / top.shape[1]
-    asked = scale_range or result.asked_px
     if asked is not None:      # the search's outer lags (a lag past each asked end) support no answer
         lo, hi = max(lo, asked[0]), min(hi, asked[1])
     test = echo_test(top, lo / scale, min(hi / scale, top.shape[1] - 1.0), top_r, shrink)

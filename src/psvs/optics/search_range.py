@@ -21,7 +21,8 @@ def disparity_range(rig: Rig, near_mm: float, far_mm: float, rect: Rectification
     """Disparities (px) of the working range near..far mm, widened by :data:`RANGE_MARGIN_PX` (near must lie beyond the
     front of the mirrors, :func:`psvs.optics.mirrors.check_in_front`); with ``rect``,
     rectified disparities f' b' / z' (z' from the views' centres along the rectified axis). With
-    ``width_px`` (the searched image's width), the largest is cut at its last column.
+    ``width_px`` (the searched image's width), the largest is cut at its last column; ValueError when even the
+    smallest lies beyond it (no point of the range is seen by both views).
 
     Examples
     --------
@@ -38,7 +39,13 @@ def disparity_range(rig: Rig, near_mm: float, far_mm: float, rect: Rectification
         zc = 0.5 * (rect.centres_mm["left"] + rect.centres_mm["right"]) @ rect.rotation[2]
         lo, hi = (rect.camera_matrix[0, 0] * rect.baseline_mm / (z - zc) for z in (far_mm, near_mm))
     lo, hi = max(1.0, lo - RANGE_MARGIN_PX), hi + RANGE_MARGIN_PX
-    return (lo, hi) if width_px is None else (lo, min(hi, width_px - 1.0))
+    if width_px is None:
+        return lo, hi
+    if lo >= width_px - 1.0:
+        raise ValueError(f"at {near_mm:g}-{far_mm:g} mm the twins stand {lo:.0f}-{hi:.0f} px apart, beyond the "
+                         f"{width_px} px wide image: no point of that range is seen by both views (a farther "
+                         f"range, --near-mm/--far-mm)")
+    return lo, min(hi, width_px - 1.0)
 
 
 def rectification_for(rig: Rig, near_mm: float, far_mm: float) -> Rectification | None:
