@@ -121,12 +121,20 @@ def test_triangulate_marks_pixels_that_are_not_twins_invalid(capsys, tmp_path, m
     assert code == 2 and "column(s) u_l appear more than once" in err and not out.exists()
 
 
+def _header_only(folder):
+    path = folder / "header.csv"
+    path.write_text("u_l,v_l,u_r,v_r\n")
+    return path
+
+
 @pytest.mark.parametrize("make_args, message", [
     (lambda d, csv: ["--rig", str(d / "missing.toml"), str(csv)], "rig file not found"),
     (lambda d, csv: ["--rig", EXAMPLE, str(d / "missing.csv")], "points file not found"),
     (lambda d, csv: ["--rig", EXAMPLE, str(csv), "-o", str(d / "out.txt")], "must end in .csv"),
     (lambda d, csv: ["--rig", EXAMPLE, str(csv), "-o", str(d / "no" / "out.csv")], "output folder does not exist"),
     (lambda d, csv: ["--rig", EXAMPLE, str(csv), "--model", "magic"], "invalid choice: 'magic'"),
+    # an adversarial trial: a header and no rows ended 'cannot measure: none of the 0 pair(s) gives a point:'
+    (lambda d, csv: ["--rig", EXAMPLE, str(_header_only(d))], "no pairs to triangulate (a header and no rows)"),
 ])
 def test_triangulate_bad_input_exits_2(capsys, tmp_path, matches_csv, make_args, message):
     code, _, err = run(capsys, "triangulate", *make_args(tmp_path, matches_csv[0]))

@@ -78,6 +78,7 @@ def test_seeded(capsys, tmp_path, fig5a_png):
     (["--seed", "5,5"], r"seed (5, 5) is not on an edge pixel"),
     (["--seed", "900,5"], "is outside the 640x480 image"),
     (["--seed", "x"], "--seed must be 'u,v'"),
+    (["--seed", "200.5,100"], "--seed must name a pixel, 'u,v' in whole px"),    # was read as (200, 100)
     (["--auto", "--pipeline", "nope.toml"], "pipeline file not found"),
 ])
 def test_bad_seeds_and_files(capsys, tmp_path, fig5a_png, args, message):

@@ -7,6 +7,7 @@ import pytest
 
 from psvs import default_rig
 from psvs.accuracy.pattern_measure import measure_pattern
+from psvs.errors import MeasurementError
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.optics.project import project_points
@@ -75,14 +76,14 @@ def test_bad_images():
     with pytest.raises(ValueError, match="image is blank"):
         measure_pattern(np.full((480, 640), 40, np.uint8), rig)
     off = render(builtin_scene("fig9:distance_mm=700,x_mm=250"), rig, seed=1).image   # partly out of view
-    with pytest.raises(ValueError, match=r"found 3 circle\(s\), expected 10 \(5 per view\)"):
+    with pytest.raises(MeasurementError, match=r"found 3 circle\(s\), expected 10 \(5 per view\)"):
         measure_pattern(off, rig)
     # one circle missing: a sheet with four circles
     from dataclasses import replace
     scene = builtin_scene("fig9:distance_mm=700")
     sheet = scene.objects[0]
     four = replace(scene, objects=(replace(sheet, texture=replace(sheet.texture, count=4)),))
-    with pytest.raises(ValueError, match=r"found 8 circle\(s\), expected 10"):
+    with pytest.raises(MeasurementError, match=r"found 8 circle\(s\), expected 10"):
         measure_pattern(render(four, rig, seed=1).image, rig)
 
 
@@ -102,7 +103,6 @@ def test_cli(capsys, tmp_path, images):
 
 # --- a measurement is checked against the pattern it claims to be (psvs.accuracy.pattern_measure) ---
 
-from psvs.errors import MeasurementError  # noqa: E402
 
 
 def test_an_image_of_another_size_is_refused(images):
@@ -118,12 +118,13 @@ def test_an_image_of_another_size_is_refused(images):
 
 def test_a_count_other_than_the_images_is_refused(images):
     """--count 3 on the 5-circle pattern measured Z = 1870 mm at 1123 mm: 3 of 10 circles picked. More
-    circles than the count is not that pattern; fewer is a circle missing."""
+    circles than the count is not that pattern; fewer is a circle missing. Both are measurements the image does
+    not support (exit 1), as an adversarial trial asked: --count 6 exited 2, --count 3 exited 1."""
     img, rig = images[(1123, 0)], default_rig()
     with pytest.raises(MeasurementError, match=r"found 10 circles, expected 6 \(3 per view\): the image shows "
                                                r"more circles than the pattern's 3"):
         measure_pattern(img, rig, count=3)
-    with pytest.raises(ValueError, match=r"found 10 circle\(s\), expected 12 \(6 per view\)"):
+    with pytest.raises(MeasurementError, match=r"found 10 circle\(s\), expected 12 \(6 per view\)"):
         measure_pattern(img, rig, count=6)
 
 
@@ -238,7 +239,7 @@ def test_a_pattern_outside_the_range_is_named_as_such():
     out of view; the circles' sizes looked for come from the range, and the refusal now says so."""
     rig = default_rig()
     img = render(builtin_scene("fig9:distance_mm=300"), rig, seed=3).image
-    with pytest.raises(ValueError, match=r"or the pattern stands outside the working range 1000-2000 mm \(its "
+    with pytest.raises(MeasurementError, match=r"or the pattern stands outside the working range 1000-2000 mm \(its "
                                          r"circles looked for \d+-\d+ px across\)"):
         measure_pattern(img, rig, z_mm=(1000.0, 2000.0))
     assert abs(measure_pattern(img, rig, z_mm=(250.0, 1200.0)).Z_mm - 300.0) <= 0.6    # a range that holds it

@@ -345,11 +345,11 @@ def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int
     min_area, max_diameter = disc_size_range_px(rig, diameter_mm, near_mm, far_mm)
     try:
         circles = detect_circles(grey, count, max_diameter_px=max_diameter, min_area_px=min_area)
-    except ValueError as exc:
+    except MeasurementError as exc:
         if "circle(s)" not in str(exc):
             raise
         # the sizes looked for come from the working range: a pattern outside it is the same few circles
-        raise ValueError(f"{exc}, or the pattern stands outside the working range {near_mm:g}-{far_mm:g} mm "
+        raise MeasurementError(f"{exc}, or the pattern stands outside the working range {near_mm:g}-{far_mm:g} mm "
                          f"(its circles looked for {2 * math.sqrt(min_area / math.pi):.0f}-{max_diameter:.0f} px "
                          "across): give --near-mm/--far-mm that hold it") from None
     return pair_pattern(circles, rig, model, (near_mm, far_mm), spacing_mm, diameter_mm)

@@ -255,7 +255,8 @@ def load_scene_spec(spec: str):
 
 
 def parse_seed(text: str | None) -> tuple[float, float] | None:
-    """``--seed U,V`` as (u, v) px; None stays None; anything else is a one-line ValueError."""
+    """``--seed U,V`` as (u, v) px, a pixel (whole numbers: the edge map's pixel it names; 200.5 was read as 200
+    without a word); None stays None; anything else is a one-line ValueError."""
     if text is None:
         return None
     try:
@@ -264,4 +265,6 @@ def parse_seed(text: str | None) -> tuple[float, float] | None:
         raise ValueError(f"--seed must be 'u,v' in px, got {text!r}") from None
     if not (math.isfinite(u) and math.isfinite(v)):
         raise ValueError(f"--seed must be two finite numbers 'u,v' in px, got {text!r}")
+    if not (u.is_integer() and v.is_integer()):
+        raise ValueError(f"--seed must name a pixel, 'u,v' in whole px (the edge map's pixel), got {text!r}")
     return u, v

@@ -50,6 +50,8 @@ def run(args) -> int:
     rig = measuring_rig(args.rig)
     check_rows_memory(args.points)        # before the rows are read: each costs about a kB through the models
     left, right = read_matches_csv(args.points)
+    if len(left) == 0:
+        raise ValueError(f"{args.points}: no pairs to triangulate (a header and no rows)")
     model = args.model or default_model(rig)
     res = triangulate(left, right, rig, model=model)
     notes = []                # why rows are invalid: printed, or the refusal's reason when no row is left

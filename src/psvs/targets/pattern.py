@@ -70,10 +70,10 @@ def detect_circles(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_
     pattern wider than the baseline), their union is split in two (:func:`split_two_discs`) when the round
     blobs are too few.
 
-    Raises ValueError naming the problem: blank image, fewer than 2 ``count`` - 1 circles (circles missing or
-    the pattern out of view), circles not on one row; MeasurementError for more circles than 2 ``count``
-    (the image shows another pattern than the one asked for: the count is checked, never chosen from) or
-    exactly one fewer (one view shows a circle the other does not: the views disagree).
+    Raises ValueError for a blank image (nothing to measure in it); MeasurementError, naming the problem, when
+    the image does not show the pattern asked for: fewer than 2 ``count`` - 1 circles (circles missing or the
+    pattern out of view), more than 2 ``count`` (another pattern: the count is checked, never chosen from),
+    exactly one fewer (one view shows a circle the other does not: the views disagree), circles not on one row.
     """
     if not isinstance(count, int) or isinstance(count, bool) or count < 2:
         raise ValueError(f"count must be an integer >= 2 (circles in the pattern), got {count!r}")
@@ -92,14 +92,14 @@ def detect_circles(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_
         raise MeasurementError(f"found {len(blobs)} circles, expected {2 * count} ({count} per view): one view "
                                f"shows a circle the other does not (covered, out of its field, or a blot)")
     if len(blobs) < 2 * count:
-        raise ValueError(f"found {len(blobs)} circle(s), expected {2 * count} ({count} per view): a circle is "
+        raise MeasurementError(f"found {len(blobs)} circle(s), expected {2 * count} ({count} per view): a circle is "
                          f"missing or the pattern is partly out of view")
     blobs.sort(key=lambda b: b[0][0])
     circles = [refine_circle(grey, c, r) for c, r in blobs]
     rows = np.array([e.centre_px[1] for e in circles])
     mean_axis = np.mean([np.mean(e.axes_px) for e in circles])
     if np.ptp(rows) > 0.5 * mean_axis + 0.1 * np.ptp([e.centre_px[0] for e in circles]):
-        raise ValueError("the circles do not lie along one row: not the accuracy pattern")
+        raise MeasurementError("the circles do not lie along one row: not the accuracy pattern")
     return circles
 
 
