@@ -121,6 +121,7 @@ def summary_lines(res) -> list[str]:
                      f"{t.after_mm:.2f} mm after ({t.tiles} tiles, flat to {t.flat_rms_px:.2f} px of disparity, "
                      f"slope {t.slope_deg[0]:+.2f}/{t.slope_deg[1]:+.2f} deg)")
     advice = {0: "; a tare (--tare IMAGE --tare-mm Z) pins its offset, two at two distances its scale",
-              1: "; a second tare at another distance pins it"}.get(len(res.tares), "")
-    lines.append(f"depth scale: +- {100 * res.scale_sigma:.3f} % (1 sigma) from what no frame pinned{advice}")
+              1: "; a second tare at another distance pins its scale"}.get(len(res.tares), "")
+    depth = ", ".join(f"+- {100 * sz:.2f} % at {z:g} mm" for z, sz in res.depth_sigma)
+    lines.append(f"depth on the axis: {depth} (1 sigma) from what no frame pinned{advice}")
     return lines
