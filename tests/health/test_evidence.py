@@ -228,3 +228,26 @@ def test_a_quick_look_refuses_only_what_the_whole_check_confirms():
         refuse_if_drifted(bad, rig, quick=True)
     tiles = int(str(err.value).split("off their rows: ")[1].split(" tiles")[0])
     assert tiles > QUICK_TILES
+
+
+def test_another_cameras_frame_resized_to_this_one_is_refused_where_its_twins_stand_off(tmp_path, capsys):
+    """An adversarial trial: the textured scene through the 1440 x 1080 mv1440 design, resized to 640 x 480 and
+    read through the default rig: its quick look judged too few tiles (no field), so the map stood on its own
+    echo, 41 % trusted at depths 12 % long; the whole check reads 0.56 +- 0.12 px, 'cannot judge' against the
+    0.5 px tolerance. A look that reads no field now asks the whole check, and an offset above the tolerance and
+    3 of its sigmas is refused (exit 1, nothing written); the frame through its own rig is answered."""
+    from psvs.simulate.builtin import textured
+    from tests.support.cli import run
+    image = render(textured(800.0), load_rig("mv1440"), seed=1, supersample=1).image
+    frame = tmp_path / "foreign.png"
+    cv2.imwrite(str(frame), cv2.resize(image, (640, 480), interpolation=cv2.INTER_AREA))
+    out = tmp_path / "d.npy"
+    code, text, err = run(capsys, "disparity", str(frame), "--rig", "default", "-o", str(out), "--depth",
+                          str(tmp_path / "z.npy"))
+    assert code == 1 and text == "" and len(err.strip().splitlines()) == 1
+    assert err.startswith("psvs disparity: cannot measure: whether the rig fits this image cannot be told: ")
+    assert "by more than 3 times their uncertainty" in err and not out.exists()
+    own = tmp_path / "own.png"
+    cv2.imwrite(str(own), render(textured(800.0), load_rig("default"), seed=1, supersample=1).image)
+    code, _, err = run(capsys, "disparity", str(own), "--rig", "default", "-o", str(out))
+    assert code == 0 and out.exists(), err

@@ -254,9 +254,9 @@ def load_scene_spec(spec: str):
     raise ValueError(f"scene {spec!r} is neither a scene file nor a built-in ({', '.join(BUILTINS)})")
 
 
-def parse_seed(text: str | None) -> tuple[float, float] | None:
-    """``--seed U,V`` as (u, v) px, a pixel (whole numbers: the edge map's pixel it names; 200.5 was read as 200
-    without a word); None stays None; anything else is a one-line ValueError."""
+def parse_seed(text: str | None, whole: bool = False) -> tuple[float, float] | None:
+    """``--seed U,V`` as (u, v) px (with ``whole``, a pixel: whole numbers, the edge map's pixel it names; 200.5
+    was read as 200 without a word); None stays None; anything else is a one-line ValueError."""
     if text is None:
         return None
     try:
@@ -265,6 +265,6 @@ def parse_seed(text: str | None) -> tuple[float, float] | None:
         raise ValueError(f"--seed must be 'u,v' in px, got {text!r}") from None
     if not (math.isfinite(u) and math.isfinite(v)):
         raise ValueError(f"--seed must be two finite numbers 'u,v' in px, got {text!r}")
-    if not (u.is_integer() and v.is_integer()):
+    if whole and not (u.is_integer() and v.is_integer()):
         raise ValueError(f"--seed must name a pixel, 'u,v' in whole px (the edge map's pixel), got {text!r}")
     return u, v

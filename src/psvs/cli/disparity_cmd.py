@@ -26,6 +26,7 @@ from psvs.dense.separate import rig_views
 from psvs.dense.trust import ALPHA, EchoTrust, trusted_maps
 from psvs.errors import MeasurementError
 from psvs.health.check import refuse_if_drifted, whole_check_due
+from psvs.imaging.block_grid import check_block_grid
 from psvs.imaging.grey import to_grey8
 from psvs.io.atomic import output_batch
 from psvs.io.images import check_frame_size, read_grey, write_npy, write_png
@@ -297,6 +298,7 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
     if image.min() == image.max():          # nothing to match: said before any work, nothing written
         raise MeasurementError(f"the complex image is constant (every pixel {image.flat[0]:g}): no texture to "
                                "match")
+    check_block_grid(image)                 # JPEG's grid echoes at every 8 px lag: said before any work
     look = _quick_look(image, rig, args)
     if say_compiling:
         announce_dense(say_compiling)

@@ -60,7 +60,7 @@ def prepare(args, image=None) -> tuple:
         from pathlib import Path
         if not Path(args.figures).is_dir():
             raise FileNotFoundError(f"figures folder does not exist: {args.figures}")
-    seed = parse_seed(args.seed)
+    seed = parse_seed(args.seed, whole=True)
     if args.auto and args.n_seeds is not None:
         raise ValueError("--n-seeds applies to --seed (seeds on the edge the user picked), not to --auto")
     if args.n_seeds is not None and not 2 <= args.n_seeds <= 100:

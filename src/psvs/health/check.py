@@ -168,6 +168,9 @@ def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.
 #: Tiles a quick look at one frame reads (:func:`refuse_if_drifted`, ``quick``), spread over the field: a tenth
 #: of a 1440 x 1080 frame's 304, a sixth of a 640 x 480 frame's 224 (0.1-0.3 s against 0.2-1.6 s for all).
 QUICK_TILES = 36
+#: Tiles a second look reads when the first cannot judge (a textured scene judged 8-14 of the 36: 0.06 s on
+#: 640 x 480, 0.3 s on 1440 x 1080).
+SECOND_LOOK_TILES = 108
 
 
 def refuse_if_drifted(grey, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
@@ -178,18 +181,42 @@ def refuse_if_drifted(grey, rig: Rig, near_mm: float = 400.0, far_mm: float = 12
     check (``healthy``, or ``cannot judge``: too little texture to tell, and the answer stands on its own
     evidence). ``cause``: the refusal this one replaces (it then names the knock, not its symptom).
 
-    ``quick``: first a look at :data:`QUICK_TILES` tiles spread over the field, judged as a frame's are; its
-    ``healthy`` or ``cannot judge`` is returned as it is, and a ``drifted`` is confirmed by the whole check
-    before anything is refused (a refusal then stands on the whole check's evidence and false-alarm rate)."""
+    ``quick``: first a look at :data:`QUICK_TILES` tiles spread over the field, judged as a frame's are, and at
+    :data:`SECOND_LOOK_TILES` when it cannot judge; its ``healthy`` or ``cannot judge`` is returned as it is,
+    and a ``drifted`` is confirmed by the whole check before anything is refused (a refusal then stands on the
+    whole check's evidence and false-alarm rate). The whole check refuses too when it cannot judge though it
+    reads an offset beyond the tolerance (:func:`suspected_offset`)."""
     if quick:
-        look = judge([frame_tiles(check_grey(grey, "image"), rig, near_mm, far_mm, spread=QUICK_TILES)])
+        for tiles in (QUICK_TILES, SECOND_LOOK_TILES):
+            look = judge([frame_tiles(check_grey(grey, "image"), rig, near_mm, far_mm, spread=tiles)])
+            if look.verdict != "cannot judge":
+                break
         if look.verdict != "drifted":
             return look
     check = check_frames([grey], rig, near_mm, far_mm)
     if check.verdict == "drifted":
         raise MeasurementError(f"the rig does not fit this image: {check.reason} (psvs check; psvs refit or "
                                f"calibrate again)") from cause
+    if suspected_offset(check):
+        raise MeasurementError(f"whether the rig fits this image cannot be told: {check.reason}; the twins stand off "
+                               f"their rows by more than the tolerance, and by more than {SUSPECT_SIGMAS:g} times "
+                               f"their uncertainty (psvs check; psvs refit or calibrate again)") from cause
     return check
+
+
+#: A field RMS above the tolerance and more than this many times its uncertainty: an offset the check sees
+#: though it cannot confirm the tolerance is passed (:func:`suspected_offset`).
+SUSPECT_SIGMAS = 3.0
+
+
+def suspected_offset(check: HealthCheck) -> bool:
+    """Whether a check that ``cannot judge`` read the twins off their rows beyond the tolerance and beyond
+    :data:`SUSPECT_SIGMAS` of its uncertainty: an offset is there, only its size against the tolerance is not
+    pinned. An answer measured through the rig then cannot be shown right (another camera's frame resized to
+    the default rig's size: 0.56 +- 0.12 px, and a depth map 41 % trusted at depths 12 % long, an adversarial
+    trial). A check short of tiles reads no field (NaN) and suspects nothing."""
+    rms, sigma = check.row_offset_rms_px, check.uncertainty_px
+    return bool(check.verdict == "cannot judge" and rms > check.tolerance_px and rms > SUSPECT_SIGMAS * sigma)
 
 
 #: A map trusted on less than this share of its pixels is a weak answer: through a rig, ``psvs disparity`` (when
@@ -208,10 +235,14 @@ def whole_check_due(look: HealthCheck, trusted_share: float) -> bool:
     43's knock left it; and whatever the answer's strength when the look could not judge only because its
     few tiles left the offset within their uncertainty of the tolerance while reading it above (another
     camera's frame resized to this one's size: the look read 0.96 +- 0.28 px, the map was 44 % trusted at
-    depths 11 % long, and the whole check reads 0.78 +- 0.11 px, drifted)."""
+    depths 11 % long, and the whole check reads 0.78 +- 0.11 px, drifted), or read too few tiles to judge at all
+    (another such frame, 41 % trusted at depths 12 % long: its first look judged 11-12 tiles, reading no field
+    or 0.44 px, its second 0.58 +- 0.15 px, and its whole check 0.56 +- 0.12 px, :func:`suspected_offset`). A
+    look that cannot judge
+    vouches for nothing unless it reads the field within the tolerance."""
     if look.verdict == "healthy":
         return False
-    suspected = look.verdict == "cannot judge" and look.row_offset_rms_px > look.tolerance_px   # NaN: no
+    suspected = look.verdict == "cannot judge" and not look.row_offset_rms_px <= look.tolerance_px   # NaN: yes
     return trusted_share < WEAK_SHARE or suspected
 
 

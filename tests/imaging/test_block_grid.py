@@ -1,0 +1,52 @@
+"""JPEG's block grid (psvs.imaging.block_grid): its strength against independent constructions, and the dense
+answer refused on a frame compressed hard enough for the grid to pull it (an adversarial trial: quality 10,
+33 % of the trusted pixels more than 2 % off, at the grid's lag 96 px)."""
+import cv2
+import numpy as np
+import pytest
+
+from psvs import default_rig
+from psvs.errors import MeasurementError
+from psvs.imaging.block_grid import BLOCK_GRID_LIMIT, block_grid_strength, check_block_grid
+from psvs.simulate.builtin import textured
+from psvs.simulate.render import render
+from tests.support.cli import run
+
+
+@pytest.fixture(scope="module")
+def frame():
+    return render(textured(800.0), default_rig(), seed=2, supersample=1).image
+
+
+def jpeg(image: np.ndarray, quality: int) -> np.ndarray:
+    ok, buf = cv2.imencode(".jpg", image, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    assert ok
+    return cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE)
+
+
+def test_strength_is_one_without_a_grid_and_grows_as_jpeg_compresses(frame):
+    rng = np.random.default_rng(4)
+    assert abs(block_grid_strength(rng.integers(0, 256, (480, 640)).astype(np.uint8)) - 1.0) < 0.02
+    assert abs(block_grid_strength(frame) - 1.0) < 0.05                       # a rendered frame: no grid
+    strengths = [block_grid_strength(jpeg(frame, q)) for q in (95, 75, 50, 30, 10)]
+    assert strengths == sorted(strengths) and strengths[0] < 1.2 and strengths[-1] > 2.0
+    # a planted grid: steps of 10 grey levels at every 8th column of a smooth ramp (other steps 1 level)
+    ramp = np.tile(np.arange(64, dtype=float), (32, 1))
+    ramp += 9.0 * (np.arange(64) // 8)                  # the step between columns 8k+7 and 8k+8 is 1 + 9
+    assert block_grid_strength(ramp) == pytest.approx(10.0)
+    assert block_grid_strength(np.zeros((8, 8))) == 1.0 and block_grid_strength(np.full((40, 40), 7.0)) == 1.0
+
+
+def test_a_hard_compressed_frame_is_refused_and_a_fair_one_answered(frame, capsys, tmp_path):
+    hard, fair = jpeg(frame, 20), jpeg(frame, 90)
+    with pytest.raises(MeasurementError, match=r"JPEG's 8 px block grid: its grey-level steps across the block "
+                                               r"borders are \d\.\d\d times those between"):
+        check_block_grid(hard)
+    check_block_grid(fair)
+    assert block_grid_strength(hard) > BLOCK_GRID_LIMIT > block_grid_strength(fair)
+    for name, img, code in (("hard.jpg", hard, 1), ("fair.jpg", fair, 0)):
+        cv2.imwrite(str(tmp_path / name), img, [cv2.IMWRITE_JPEG_QUALITY, 100])
+        out = tmp_path / f"{name}.npy"
+        got, _, err = run(capsys, "disparity", str(tmp_path / name), "--rig", "default", "-o", str(out))
+        assert got == code and out.exists() == (code == 0), err
+        assert code == 0 or err.startswith("psvs disparity: cannot measure: the image carries JPEG's 8 px block grid")
