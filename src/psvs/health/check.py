@@ -235,14 +235,14 @@ def whole_check_due(look: HealthCheck, trusted_share: float) -> bool:
     43's knock left it; and whatever the answer's strength when the look could not judge only because its
     few tiles left the offset within their uncertainty of the tolerance while reading it above (another
     camera's frame resized to this one's size: the look read 0.96 +- 0.28 px, the map was 44 % trusted at
-    depths 11 % long, and the whole check reads 0.78 +- 0.11 px, drifted), or read too few tiles to judge at all
-    (another such frame, 41 % trusted at depths 12 % long: its first look judged 11-12 tiles, reading no field
-    or 0.44 px, its second 0.58 +- 0.15 px, and its whole check 0.56 +- 0.12 px, :func:`suspected_offset`). A
-    look that cannot judge
-    vouches for nothing unless it reads the field within the tolerance."""
+    depths 11 % long, and the whole check reads 0.78 +- 0.11 px, drifted; another such frame, 41 % trusted at
+    depths 12 % long: its first look judged 11-12 tiles, reading no field or 0.44 px, its second look 0.58 +-
+    0.15 px, and its whole check 0.56 +- 0.12 px, :func:`suspected_offset`). A look that reads no field asks
+    nothing more of a strong answer: on a good build's textured 1920 x 1200 frame the whole check would add
+    1.6 s to a 2.4 s call."""
     if look.verdict == "healthy":
         return False
-    suspected = look.verdict == "cannot judge" and not look.row_offset_rms_px <= look.tolerance_px   # NaN: yes
+    suspected = look.verdict == "cannot judge" and look.row_offset_rms_px > look.tolerance_px   # NaN: no
     return trusted_share < WEAK_SHARE or suspected
 
 
