@@ -37,6 +37,7 @@ from psvs.dense.rig_cache import rectification
 from psvs.errors import MeasurementError
 from psvs.evidence import ROW_TOLERANCE_PX
 from psvs.health.rows import FAR_REACH_DEG, FrameTiles, frame_tiles, reach_px
+from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
 
 #: The tolerance a calibration is held to by default: the field's RMS, px.
@@ -168,8 +169,9 @@ def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.
 #: Tiles a quick look at one frame reads (:func:`refuse_if_drifted`, ``quick``), spread over the field: a tenth
 #: of a 1440 x 1080 frame's 304, a sixth of a 640 x 480 frame's 224 (0.1-0.3 s against 0.2-1.6 s for all).
 QUICK_TILES = 36
-#: Tiles a second look reads when the first cannot judge (a textured scene judged 8-14 of the 36: 0.06 s on
-#: 640 x 480, 0.3 s on 1440 x 1080).
+#: Tiles a second look reads when the first cannot judge, on an ideal rig (a textured scene judged 11-15 of the
+#: 36; 0.06 s on 640 x 480). Not on a build: there a frame of another camera stands far off the rows its
+#: rectification makes, the first look tells, and the second cost 0.3 s of a 1.4-2 s call on 1440 x 1080.
 SECOND_LOOK_TILES = 108
 
 
@@ -182,12 +184,14 @@ def refuse_if_drifted(grey, rig: Rig, near_mm: float = 400.0, far_mm: float = 12
     evidence). ``cause``: the refusal this one replaces (it then names the knock, not its symptom).
 
     ``quick``: first a look at :data:`QUICK_TILES` tiles spread over the field, judged as a frame's are, and at
-    :data:`SECOND_LOOK_TILES` when it cannot judge; its ``healthy`` or ``cannot judge`` is returned as it is,
-    and a ``drifted`` is confirmed by the whole check before anything is refused (a refusal then stands on the
-    whole check's evidence and false-alarm rate). The whole check refuses too when it cannot judge though it
-    reads an offset beyond the tolerance (:func:`suspected_offset`)."""
+    :data:`SECOND_LOOK_TILES` when it cannot judge on an ideal rig (no rectification); its ``healthy`` or
+    ``cannot judge`` is returned as it is, and a ``drifted`` is confirmed by the whole check before anything is
+    refused (a refusal then stands on the whole check's evidence and false-alarm rate). The whole check refuses
+    too when it cannot judge though it reads an offset beyond the tolerance (:func:`suspected_offset`)."""
     if quick:
-        for tiles in (QUICK_TILES, SECOND_LOOK_TILES):
+        # a build's rows are its own rectification's: another camera's frame stands far off them, and the first
+        # look tells; on an ideal rig's rows any camera's twins line up but for a few tenths of a px
+        for tiles in (QUICK_TILES,) if needs_rectification(rig) else (QUICK_TILES, SECOND_LOOK_TILES):
             look = judge([frame_tiles(check_grey(grey, "image"), rig, near_mm, far_mm, spread=tiles)])
             if look.verdict != "cannot judge":
                 break
