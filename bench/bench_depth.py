@@ -155,6 +155,18 @@ def _sgbm_whole(fmt: str, name: str):
     return setup
 
 
+def _numba_floor():
+    def setup():
+        args = [sys.executable, str(HERE / "numba_floor.py")]
+        _child(args, NUMBA_FLOOR)           # warm: its kernel compiled into Numba's cache
+        return lambda: _child(args, NUMBA_FLOOR)
+    return setup
+
+
+NUMBA_FLOOR = ("Numba's own start-up: a fresh process importing NumPy and Numba and running one cached one-line "
+               "kernel (bench/numba_floor.py)")
+
+
 def _names(fmt: str) -> dict:
     return {"lib_default": f"{fmt} build: dense (default) + trust + depth, library call, 2 cores",
             "lib_fast": f"{fmt} build: dense --fast + trust + depth, library call, 2 cores",
@@ -173,11 +185,13 @@ for _fmt in BUILDS:
                (f"{_fmt} whole call, default / StereoSGBM 3-way script (target 3)", _n["whole_default"],
                 _n["whole_sgbm"]),
                (f"{_fmt} whole call, --fast / StereoSGBM 3-way script (target 1)", _n["whole_fast"],
-                _n["whole_sgbm"])]
+                _n["whole_sgbm"]),
+               (f"Numba's own start-up / the {_fmt} StereoSGBM 3-way script (a floor under psvs's whole call)",
+                NUMBA_FLOOR, _n["whole_sgbm"])]
 
 
 def cases():
-    out = []
+    out = [(NUMBA_FLOOR, _numba_floor(), float("inf"))]
     for fmt in BUILDS:
         n = _names(fmt)
         out += [(n["lib_sgbm"], _sgbm_library(fmt), float("inf")),
