@@ -350,8 +350,8 @@ def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int
             raise
         # the sizes looked for come from the working range: a pattern outside it is the same few circles
         raise MeasurementError(f"{exc}, or the pattern stands outside the working range {near_mm:g}-{far_mm:g} mm "
-                         f"(its circles looked for {2 * math.sqrt(min_area / math.pi):.0f}-{max_diameter:.0f} px "
-                         "across): give --near-mm/--far-mm that hold it") from None
+                               f"(its circles looked for {2 * math.sqrt(min_area / math.pi):.0f}-{max_diameter:.0f} "
+                               "px across): give --near-mm/--far-mm that hold it") from None
     return pair_pattern(circles, rig, model, (near_mm, far_mm), spacing_mm, diameter_mm)
 
 
