@@ -1,6 +1,6 @@
 """The image's self-check for the page's answers on a still (psvs.health.check.refuse_if_drifted), as ``psvs
 match`` and ``psvs disparity`` ask it: the matching the whole check always; the dense run a quick look, and
-the whole check when the look cannot judge and the answer is weak or the look reads no field or one beyond the
+the whole check when the look cannot judge and the answer is weak or the look reads the field beyond the
 tolerance (psvs.health.check.whole_check_due)."""
 from __future__ import annotations
 
