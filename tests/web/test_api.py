@@ -414,3 +414,22 @@ def test_dense_depth_through_a_rig_the_image_has_left_is_refused_in_its_twins_wo
         assert res["refused"].startswith("the rig does not fit this image: the twins stand off their rows: ")
         assert res["trusted_pct"] == 0 and res["answered_pct"] == 0 and res["median_z_mm"] is None
         assert res["cloud"]["points_mm"] == []
+
+
+def test_dense_depth_of_a_hard_compressed_jpeg_is_refused_in_the_commands_words():
+    """As psvs disparity: a frame saved at JPEG quality 20 (its 8 px block grid pulls the dense answers to the
+    grid's lags) is refused, no depth, no cloud; the same frame at quality 90 is answered."""
+    from psvs import default_rig
+    from psvs.simulate.builtin import textured
+    from psvs.simulate.render import render
+    rig = default_rig()
+    img = render(textured(), rig, supersample=1, seed=3).image
+    for quality, refused in ((20, True), (90, False)):
+        jpg = cv2.imdecode(cv2.imencode(".jpg", img, [cv2.IMWRITE_JPEG_QUALITY, quality])[1], cv2.IMREAD_GRAYSCALE)
+        with local_client(create_app(image_source("jpeg", jpg), rig)) as c:
+            res = c.post("/api/dense", json={"fast": True}).json()
+        if refused:
+            assert res["refused"].startswith("the image carries JPEG's 8 px block grid"), res["refused"]
+            assert res["trusted_pct"] == 0 and res["median_z_mm"] is None and res["cloud"]["points_mm"] == []
+        else:
+            assert res["refused"] == "" and res["trusted_pct"] > 30, res["refused"]

@@ -10,7 +10,9 @@ from fastapi.responses import JSONResponse, Response
 
 from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
+from psvs.errors import MeasurementError
 from psvs.health.check import whole_check_due
+from psvs.imaging.block_grid import check_block_grid
 from psvs.imaging.grey import to_grey8
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale as camera_pixel_scale
@@ -53,15 +55,27 @@ def cloud_for_page(dense_res, cloud) -> dict:
             "of_points": len(cloud.points_mm)}
 
 
+def block_grid_refusal(grey) -> str:
+    """Why a frame's JPEG block grid refuses its dense answer (:func:`psvs.imaging.block_grid.check_block_grid`:
+    the words ``psvs disparity`` says), else ""."""
+    try:
+        check_block_grid(grey)
+    except MeasurementError as exc:
+        return str(exc)
+    return ""
+
+
 @router.post("/dense")
 def dense(body: DenseBody, session: SessionDep):
     """Dense disparity of the current image, the share of its pixels the map holds a disparity for
     (``mapped_pct``), the share answered (``answered_pct``, as ``psvs disparity`` counts them: the mapped share
     when the scene's echo stands above chance anywhere, 0 when it does not and the command would refuse), the
     share the echo supports beyond chance (``trusted_pct``), their median disparity and depth (None when none
-    is) and point cloud, and optionally the separated views, as PNG data URLs. ``refused``: why the image's
-    self-check says the rig does not fit the image (then nothing is trusted): its quick look, and its whole
-    check when that is due (:func:`psvs.health.check.whole_check_due`); else "". The library's dense kernels
+    is) and point cloud, and optionally the separated views, as PNG data URLs. ``refused``: why no depth is
+    given (then nothing is trusted): a JPEG block grid that would pull the answers
+    (:func:`psvs.imaging.block_grid.check_block_grid`), or the image's self-check saying the rig does not fit
+    the image: its quick look, and its whole check when that is due
+    (:func:`psvs.health.check.whole_check_due`); else "". The library's dense kernels
     run under DENSE_LOCK (one at a time, with live mode's)."""
     still, rig = session.still(), session.rig
     grey = still.grey
@@ -73,9 +87,11 @@ def dense(body: DenseBody, session: SessionDep):
     with DENSE_LOCK:
         trusted = rig_trust(dense_res).trusted_left
     seen = trusted & np.isfinite(d)          # the medians of what the echo supports: never a noisy median
-    refused, look = drift_refusal(still, rig, body.near_mm, body.far_mm, quick=True)
-    if not refused and whole_check_due(look, float(np.mean(seen))):
-        refused, _ = drift_refusal(still, rig, body.near_mm, body.far_mm)
+    refused = block_grid_refusal(grey)      # as psvs disparity: a hard-compressed JPEG's grid pulls the answers
+    if not refused:
+        refused, look = drift_refusal(still, rig, body.near_mm, body.far_mm, quick=True)
+        if not refused and whole_check_due(look, float(np.mean(seen))):
+            refused, _ = drift_refusal(still, rig, body.near_mm, body.far_mm)
     if refused:                              # as psvs disparity: no depth through a rig the image has left
         seen = np.zeros_like(seen)
     cloud = rig_cloud(dense_res, rig, mask=seen)       # only the trusted pixels are triangulated
