@@ -38,13 +38,16 @@ def run_check(images, n=400, sensor_s=0.05, rig="misaligned"):
 def test_a_knock_is_said_once_and_the_figure_is_the_checks(frames):
     """Knocked frames read through the old calibration: one event, drifted, with the field near the 2.46 px
     psvs check measures on whole frames; the check took at most its share of the sensor's time (one step's
-    overshoot allowed: a step starts while credit is left and costs what it costs; on a loaded machine a step
-    can take twice the mean: a fresh clone's run overshot the mean by 0.1 %)."""
+    overshoot allowed: a step starts while credit is left and costs what it costs. On a loaded machine a step
+    can take many times the mean: a fresh clone's run overshot a bound of two mean steps by 0.54 s, its last
+    step having waited for the other test worker. The bound is the accounting's own: credit in, the share of
+    the sensor's time; out, each step's time; a step only on credit, so at most the last step's time is
+    owed)."""
     check, events = run_check(frames["misaligned_knocked"])
     assert [e.check.verdict for e in events] == ["drifted"]
     assert "the calibration has drifted" in events[0].line and events[0].frame < 200
     assert check.latest.verdict == "drifted" and abs(check.latest.row_offset_rms_px - 2.46) <= 0.4
-    assert check.spent_s <= SHARE * check.sensor_s + 2 * check.spent_s / check.steps
+    assert 0 < check.last_step_s and check.spent_s <= SHARE * check.sensor_s + check.last_step_s + 1e-9
     assert check.steps >= 10
 
 

@@ -77,7 +77,9 @@ class HealthEvent:
 class RollingCheck:
     """A rolling self-check of ``rig`` over near..far mm (module docstring). Call :meth:`step` with each frame
     and the time (s) the sensor spent on it; :attr:`latest` is the last judgement (None until the first),
-    :attr:`spent_s` and :attr:`sensor_s` the check's and the sensor's time so far."""
+    :attr:`spent_s` and :attr:`sensor_s` the check's and the sensor's time so far, :attr:`last_step_s` the
+    last step's: the check's time is at most its share of the sensor's plus that one step's (a step runs only
+    on credit, and what it costs beyond is owed by the next)."""
 
     def __init__(self, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
                  tolerance_px: float = TOLERANCE_PX, share: float = SHARE):
@@ -86,7 +88,7 @@ class RollingCheck:
         checked_tolerance(tolerance_px, rig)
         self.rig, self.near_mm, self.far_mm, self.tolerance_px, self.share = rig, near_mm, far_mm, tolerance_px, share
         self.latest: HealthCheck | None = None
-        self.spent_s = self.sensor_s = self.idle_spent_s = 0.0
+        self.spent_s = self.sensor_s = self.idle_spent_s = self.last_step_s = 0.0
         self.steps = self.idle_steps = 0
         self._credit, self._next = 0.0, 0
         self._of_tiles = 0
@@ -130,6 +132,7 @@ class RollingCheck:
         self.latest = judge(list(self._window), self.tolerance_px, list(self._scenes))
         spent = time.perf_counter() - t0
         self.spent_s += spent
+        self.last_step_s = spent
         self.steps += 1
         if idle:
             self.idle_spent_s += spent
