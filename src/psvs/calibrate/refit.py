@@ -372,14 +372,19 @@ def _tares(pairs: _Pairs, old: Rig, new: Rig, distances) -> tuple[Tare, ...]:
     return tuple(out)
 
 
+def _propagated_sigma(quantity, rig: Rig, cov: np.ndarray) -> np.ndarray:
+    """The 1 sigma (n,) of ``quantity(rig)`` (an array (n,)) under the tilts' covariance ``cov``
+    (len(REFIT_PARAMS),) x 2, rad^2: forward differences of :data:`_STEP` rad through :func:`_rig`."""
+    q0 = np.asarray(quantity(rig), dtype=float)
+    g = np.array([(np.asarray(quantity(_rig(step, rig))) - q0) / _STEP
+                  for step in _STEP * np.eye(len(REFIT_PARAMS))]).T          # (n, params) per rad
+    return np.sqrt(np.clip(np.einsum("ij,jk,ik->i", g, cov, g), 0.0, None))
+
+
 def scale_sigma(rig: Rig, cov: np.ndarray) -> float:
     """The relative 1 sigma of the baseline |O1 O2| (the reconstruction's scale) under the tilts'
     covariance ``cov`` (len(REFIT_PARAMS),) x 2, rad^2 (finite differences of the virtual centres)."""
-    b0 = virtual_baseline_mm(rig)
-    h = 1e-6
-    steps = h * np.eye(len(REFIT_PARAMS))
-    g = np.array([(virtual_baseline_mm(_rig(step, rig)) - b0) / h for step in steps])
-    return float(np.sqrt(max(g @ cov @ g, 0.0))) / b0
+    return float(_propagated_sigma(lambda r: [virtual_baseline_mm(r)], rig, cov)[0]) / virtual_baseline_mm(rig)
 
 
 def depth_sigma(rig: Rig, cov: np.ndarray, depths_mm) -> tuple[tuple[float, float], ...]:
@@ -392,12 +397,8 @@ def depth_sigma(rig: Rig, cov: np.ndarray, depths_mm) -> tuple[tuple[float, floa
     points = np.column_stack([np.zeros_like(z), np.zeros_like(z), z])
     left, _ = project_points(points, rig, "left")
     right, _ = project_points(points, rig, "right")
-    z0 = triangulate(left, right, rig, model="exact").points_mm[:, 2]
-    h = 1e-6
-    g = np.array([(triangulate(left, right, _rig(step, rig), model="exact").points_mm[:, 2] - z0) / h
-                  for step in h * np.eye(len(REFIT_PARAMS))]).T          # (depths, params) mm/rad
-    var = np.einsum("ij,jk,ik->i", g, cov, g)
-    return tuple((float(zz), float(np.sqrt(max(v, 0.0)) / zz)) for zz, v in zip(z, var, strict=True))
+    sigma = _propagated_sigma(lambda r: triangulate(left, right, r, model="exact").points_mm[:, 2], rig, cov)
+    return tuple((float(zz), float(sz / zz)) for zz, sz in zip(z, sigma, strict=True))
 
 
 def unpinned_combinations(cov: np.ndarray) -> tuple[tuple[tuple[str, float], ...], ...]:

@@ -8,7 +8,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     __name__,
     submodules=[],
     submod_attrs={
-        "block_grid": ["BLOCK_GRID_LIMIT", "block_grid_strength", "check_block_grid"],
+        "block_grid": ["BLOCK_GRID_LIMIT", "block_grid_refusal", "block_grid_strength", "check_block_grid"],
         "grey": ["to_grey8"],
         "pipeline": ["PAPER", "Pipeline", "make_pipeline"],
         "steps": ["STEPS"],

@@ -17,7 +17,7 @@ import numpy as np
 
 from psvs.errors import MeasurementError
 
-__all__ = ["BLOCK_GRID_LIMIT", "block_grid_strength", "check_block_grid"]
+__all__ = ["BLOCK_GRID_LIMIT", "block_grid_refusal", "block_grid_strength", "check_block_grid"]
 
 #: A grid stronger than this is refused: the answers lean to its lags (quality 30, 1.70: 12 % of the trusted
 #: pixels more than 2 % off; quality 50, 1.46: 5.6 %, within what a PNG of the scene gives twice over).
@@ -45,11 +45,20 @@ def block_grid_strength(image) -> float:
     return max(_ratio(np.abs(np.diff(a, axis=1))), _ratio(np.abs(np.diff(a, axis=0)).T))
 
 
-def check_block_grid(image) -> None:
-    """MeasurementError when the image carries a block grid stronger than :data:`BLOCK_GRID_LIMIT`."""
+def block_grid_refusal(image) -> str:
+    """Why the image's block grid refuses a dense answer on it (stronger than :data:`BLOCK_GRID_LIMIT`), in
+    the words ``psvs disparity`` and the page say; "" when it does not."""
     strength = block_grid_strength(image)
-    if strength > BLOCK_GRID_LIMIT:
-        raise MeasurementError(f"the image carries JPEG's 8 px block grid: its grey-level steps across the block "
-                               f"borders are {strength:.2f} times those between (a frame without it 1.0; a dense "
-                               f"answer is pulled to the grid's lags beyond {BLOCK_GRID_LIMIT:g}): save the frames at "
-                               f"JPEG quality 75 or more, or as PNG")
+    if strength <= BLOCK_GRID_LIMIT:
+        return ""
+    return (f"the image carries JPEG's 8 px block grid: its grey-level steps across the block borders are "
+            f"{strength:.2f} times those between (a frame without it 1.0; a dense answer is pulled to the grid's "
+            f"lags beyond {BLOCK_GRID_LIMIT:g}): save the frames at JPEG quality 75 or more, or as PNG")
+
+
+def check_block_grid(image) -> None:
+    """MeasurementError (:func:`block_grid_refusal`'s words) when the image carries a block grid stronger than
+    :data:`BLOCK_GRID_LIMIT`."""
+    reason = block_grid_refusal(image)
+    if reason:
+        raise MeasurementError(reason)

@@ -10,9 +10,8 @@ from fastapi.responses import JSONResponse, Response
 
 from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
-from psvs.errors import MeasurementError
 from psvs.health.check import whole_check_due
-from psvs.imaging.block_grid import check_block_grid
+from psvs.imaging.block_grid import block_grid_refusal
 from psvs.imaging.grey import to_grey8
 from psvs.optics.illumination import flat_field
 from psvs.optics.scale import pixel_scale as camera_pixel_scale
@@ -55,16 +54,6 @@ def cloud_for_page(dense_res, cloud) -> dict:
             "of_points": len(cloud.points_mm)}
 
 
-def block_grid_refusal(grey) -> str:
-    """Why a frame's JPEG block grid refuses its dense answer (:func:`psvs.imaging.block_grid.check_block_grid`:
-    the words ``psvs disparity`` says), else ""."""
-    try:
-        check_block_grid(grey)
-    except MeasurementError as exc:
-        return str(exc)
-    return ""
-
-
 @router.post("/dense")
 def dense(body: DenseBody, session: SessionDep):
     """Dense disparity of the current image, the share of its pixels the map holds a disparity for
@@ -73,7 +62,7 @@ def dense(body: DenseBody, session: SessionDep):
     share the echo supports beyond chance (``trusted_pct``), their median disparity and depth (None when none
     is) and point cloud, and optionally the separated views, as PNG data URLs. ``refused``: why no depth is
     given (then nothing is trusted): a JPEG block grid that would pull the answers
-    (:func:`psvs.imaging.block_grid.check_block_grid`), or the image's self-check saying the rig does not fit
+    (:func:`psvs.imaging.block_grid.block_grid_refusal`), or the image's self-check saying the rig does not fit
     the image: its quick look, and its whole check when that is due
     (:func:`psvs.health.check.whole_check_due`); else "". The library's dense kernels
     run under DENSE_LOCK (one at a time, with live mode's)."""
