@@ -229,3 +229,33 @@ def test_a_signal_during_live_dense_keeps_the_log_and_the_recording(tmp_path, si
     assert 3 <= len(rows) < 200
     topics, counts, _ = read_mcap(rec)
     assert counts["/psvs/frame"] == len(rows)
+
+
+@pytest.mark.parametrize("quality, refused", [(10, True), (90, False)])
+def test_frames_of_a_hard_compressed_jpeg_stream_give_no_depth(wall_video, quality, refused, tmp_path, capsys):
+    """An MJPEG camera set to a low quality: every frame carries JPEG's 8 px block grid, which pulls a dense
+    map to the grid's lags (psvs disparity refuses such a still, psvs.imaging.block_grid). Live mode refused
+    nothing and answered every frame; now the echo test refuses the frame in disparity's words, and a run of
+    only such frames is exit 1. At quality 90 (a grid of about 1.09) the frames are answered."""
+    import cv2
+
+    from psvs.live.source import VideoSource
+    rig, path, truth = wall_video
+    folder = tmp_path / "jpeg"
+    folder.mkdir()
+    with VideoSource(video=str(path)) as source:
+        for k in range(3):
+            ok, buf = cv2.imencode(".jpg", source.read(), [cv2.IMWRITE_JPEG_QUALITY, quality])
+            cv2.imwrite(str(folder / f"f_{k:03d}.png"), cv2.imdecode(buf, cv2.IMREAD_GRAYSCALE))
+    code = main(["live", "--video", str(folder), "--rig", rig, "--dense", "--fast", "-o", str(tmp_path / "l.csv")])
+    out, err = capsys.readouterr()
+    if refused:
+        assert code == 1, (out, err)
+        assert err.strip().startswith("psvs live: cannot measure: the image carries JPEG's 8 px block grid"), err
+        assert len(err.strip().splitlines()) == 1, err
+        assert all(line.startswith(f"frame {k}: dense: no depth, the image carries JPEG's 8 px block grid")
+                   for k, line in enumerate(out.splitlines()[:3])), out
+    else:
+        assert code == 0, (out, err)
+        z = [float(r["dense_median_z_mm"]) for r in csv.DictReader((tmp_path / "l.csv").open())]
+        assert np.allclose(z, truth[:3], rtol=0.01), (z, truth[:3])

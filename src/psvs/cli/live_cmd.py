@@ -268,10 +268,11 @@ def _summary(steps: list, dense_frames: list | None, wall: float, realtime: bool
     if steps[0] is None:
         print(f"{n} frames, {n / wall:.1f} frames/s ({pace})")
         if not len(z):
+            refusals = [d.refusal for d in dense_frames if d.tested and d.refusal]
             unsupported = any(d.mapped for d in dense_frames) and not any(d.supported for d in dense_frames)
-            print("psvs live: cannot measure: " + ("no frame's echo stands above chance (psvs disparity's test): "
-                  "no depth" if unsupported else "no frame gave a dense depth (no texture in the working range?)"),
-                  file=sys.stderr)
+            why = ("no frame's echo stands above chance (psvs disparity's test): no depth" if unsupported else
+                   "no frame gave a dense depth (no texture in the working range?)")
+            print("psvs live: cannot measure: " + (refusals[-1] if refusals else why), file=sys.stderr)
             return 1
         return 0
     tracked = sum(s.ok for s in steps)
@@ -291,7 +292,8 @@ def _frame_line(k: int, step, dstep) -> str:
     if dstep is not None:
         parts.append(f"dense median Z {dstep.median_z_mm:.1f} mm, {dstep.answered_pct:.0f} % answered, "
                      f"{dstep.elapsed_s * 1e3:.1f} ms" if dstep.supported else
-                     f"dense: no depth, the echo does not stand above chance, {dstep.elapsed_s * 1e3:.1f} ms")
+                     f"dense: no depth, {dstep.refusal or 'the echo does not stand above chance'}, "
+                     f"{dstep.elapsed_s * 1e3:.1f} ms")
     return f"frame {k}: " + "; ".join(parts)
 
 

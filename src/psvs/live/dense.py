@@ -16,7 +16,8 @@ the latest test supported whose answer has moved continuously since, frame to fr
 5b's median wandered 730-811 mm over 40 noisy frames, its objects at 690-720 mm; now 693-695 mm). A frame
 where fewer than :data:`HELD_SHARE` of them hold (the scene changed) is tested at once. Until a test finds the
 scene's echo again, a frame has no depth (no points, median NaN; its map is kept). A video of noise gives no
-depth.
+depth, and neither does one whose frames carry a hard JPEG compression's block grid (an MJPEG camera at a low
+quality: the test refuses it before asking the echo, in ``psvs disparity``'s words).
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
 from psvs.dense.params import FAST, DenseParams
 from psvs.dense.separate import rig_views
 from psvs.dense.workspace import Workspace
+from psvs.imaging.block_grid import block_grid_refusal
 from psvs.optics.rig import Rig
 
 #: The echo test (whether the scene's echo stands above chance) is made on the first frame and then on every
@@ -66,8 +68,10 @@ class DenseFrame:
     ``supported``: whether the latest echo test found the scene's echo beyond chance (without it, no points,
     no depth and nothing answered: the map's disparities are then no measurement); ``mapped``: whether the
     map holds any disparity at all (a featureless frame: none); ``held`` (H', W') bool, the pixels the points
-    and median come from (the latest echo test's supported ones that held since; None before a test) and
-    ``tested`` whether the echo test ran on this frame."""
+    and median come from (the latest echo test's supported ones that held since; None before a test),
+    ``tested`` whether the echo test ran on this frame and ``refusal`` why the latest test supported nothing
+    before asking the echo ("" when it asked: a frame whose JPEG block grid pulls the map to the grid's lags,
+    :func:`psvs.imaging.block_grid.block_grid_refusal`, is refused as ``psvs disparity`` refuses it)."""
 
     frame: int
     disparity_px: np.ndarray
@@ -82,6 +86,7 @@ class DenseFrame:
     mapped: bool = True
     held: np.ndarray | None = None
     tested: bool = False
+    refusal: str = ""
 
     def brief(self) -> "DenseFrame":
         """This frame without its map and cloud (empty arrays): what a run's log and summary keep of every
@@ -134,6 +139,7 @@ class DenseSensor:
         self.frames = 0
         self._workspace = Workspace()     # the cost volumes, reused frame after frame
         self._supported = False
+        self._refusal = ""                          # why the latest test supported nothing without asking the echo
         self._trusted: np.ndarray | None = None     # the last echo test's trusted pixels of the left map
         self._held_mask: np.ndarray | None = None   # ... those still held in the previous frame
         self._previous: np.ndarray | None = None    # the previous frame's map
@@ -179,8 +185,9 @@ class DenseSensor:
         d = dense.result.disparity_left
         held = self._held(d)
         tested = self.frames % TRUST_EVERY == 0 or held is None or held.sum() < HELD_SHARE * self._trusted.sum()
-        if tested:
-            self._trusted = rig_trust(dense).trusted_left       # due, or the scene changed: tested again
+        if tested:                              # due, or the scene changed: tested again
+            self._refusal = block_grid_refusal(frame)
+            self._trusted = np.zeros(d.shape, bool) if self._refusal else rig_trust(dense).trusted_left
             self._supported = bool(self._trusted.any())
             held = self._trusted
         self._previous, self._held_mask, self._last = d, held, dense
@@ -193,7 +200,8 @@ class DenseSensor:
         out = DenseFrame(self.frames, d, dense.result.searched_px, cloud.points_mm, cloud.pixels,
                          cloud.depth_mm[grid], float(np.median(z)) if len(z) else float("nan"),
                          100.0 * float(np.mean(finite)) if self._supported else 0.0,
-                         time.perf_counter() - t0, self._supported, bool(finite.any()), held, tested)
+                         time.perf_counter() - t0, self._supported, bool(finite.any()), held, tested,
+                         self._refusal)
         self.frames += 1
         return out
 

@@ -114,5 +114,6 @@ class LiveRunner(BackgroundRunner):
             out["dense"] = {"frame": dstep.frame, "median_z_mm": dstep.median_z_mm if np.isfinite(dstep.median_z_mm)
                             else None, "answered_pct": round(dstep.answered_pct, 2),
                             "supported": bool(dstep.supported), "mapped": bool(dstep.mapped),
+                            "refusal": dstep.refusal,
                             "latency_ms": round(dstep.elapsed_s * 1e3, 3), "range_px": list(dstep.searched_px)}
         return out

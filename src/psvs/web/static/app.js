@@ -270,8 +270,8 @@ async function livePoll() {
       $("live-dense-z").dataset.mm = s.dense.median_z_mm ?? "";
       $("live-dense-z").dataset.frame = s.dense.frame;
       $("live-dense-ms").textContent = fmt(s.dense.latency_ms, 0, "ms");
-      if (!s.dense.supported) setStatus("live dense: no depth, the scene's echo does not stand above chance " +
-        "(its map in grey: no measurement)");
+      if (!s.dense.supported) setStatus("live dense: no depth, " + (s.dense.refusal ||
+        "the scene's echo does not stand above chance") + " (its map in grey: no measurement)");
       $("live-dense-figure").hidden = false;
       $("live-dense-map").src = "/api/live/dense.png?t=" + Date.now();
       liveCloud(s.dense.frame);
