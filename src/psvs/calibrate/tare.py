@@ -18,6 +18,9 @@ import numpy as np
 from psvs.errors import MeasurementError
 from psvs.optics.rig import Rig
 
+#: mm, 1 sigma: how well a tare's stated distance from the optical centre O is known, by default (a robot's
+#: stated accuracy, as ``psvs handeye`` takes it; a tape from the rig's front knows O's place less well).
+TARE_SIGMA_MM = 0.5
 #: A tare surface whose points scatter about their best plane by more than this (px of disparity, RMS) and
 #: 3 times the tiles' noise is not flat.
 TARE_FLAT_PX = 0.5

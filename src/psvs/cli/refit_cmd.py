@@ -7,6 +7,7 @@ import json
 import math
 from pathlib import Path
 
+from psvs.calibrate.tare import TARE_SIGMA_MM
 from psvs.cli.common import (
     add_range_arguments,
     add_rig_argument,
@@ -44,6 +45,10 @@ def add_parser(sub) -> None:
     p.add_argument("--tare-mm", type=float, metavar="Z", action="append", default=[],
                    help="each --tare surface's distance along the optical axis from the camera's optical centre, "
                         "mm (in the order of the --tare images)")
+    p.add_argument("--tare-sigma-mm", type=float, default=TARE_SIGMA_MM, metavar="S",
+                   help="how well each --tare-mm is known, 1 sigma, mm: from the optical centre O as the "
+                        f"calibration places it (default {TARE_SIGMA_MM:g}; a robot's accuracy; a tape from the "
+                        "rig's front knows O less well); the stated depth sigma includes it")
     p.add_argument("--adjust", action="store_true",
                    help="also print the screw turns that put the twins back on their rows (as psvs adjust)")
     add_range_arguments(p)
@@ -66,6 +71,8 @@ def run(args) -> int:
     for z in args.tare_mm:
         if not math.isfinite(z):
             raise ValueError(f"--tare-mm must be a distance in mm, got {z}")
+    if not (math.isfinite(args.tare_sigma_mm) and args.tare_sigma_mm >= 0):
+        raise ValueError(f"--tare-sigma-mm must be a length >= 0 mm, got {args.tare_sigma_mm}")
     if not (math.isfinite(args.tolerance_px) and args.tolerance_px > 0):
         raise ValueError(f"--tolerance-px must be a number > 0 px, got {args.tolerance_px}")
     out = check_output_path(args.output, (".toml", ".json"))
@@ -79,7 +86,7 @@ def run(args) -> int:
     frames = [read_grey(f, expect_size=size) for f in args.frames]
     tares = [(read_grey(f, expect_size=size), z) for f, z in zip(args.tare, args.tare_mm, strict=True)]
     from psvs.calibrate.refit import refit_rig
-    res = refit_rig(frames, rig, tares, near, far, args.tolerance_px)
+    res = refit_rig(frames, rig, tares, near, far, args.tolerance_px, args.tare_sigma_mm)
     for line in summary_lines(res):
         print(line)
     if args.adjust:
@@ -117,11 +124,13 @@ def summary_lines(res) -> list[str]:
                      "calibration by their priors:")
         lines += [f"  {combination_text(c)}" for c in res.unpinned]
     for k, t in enumerate(res.tares):
-        lines.append(f"tare {k + 1}: the surface at {t.distance_mm:g} mm read {t.before_mm:.2f} mm before, "
+        lines.append(f"tare {k + 1}: the surface at {t.distance_mm:g} +- {res.tare_sigma_mm:g} mm read "
+                     f"{t.before_mm:.2f} mm before, "
                      f"{t.after_mm:.2f} mm after ({t.tiles} tiles, flat to {t.flat_rms_px:.2f} px of disparity, "
                      f"slope {t.slope_deg[0]:+.2f}/{t.slope_deg[1]:+.2f} deg)")
     advice = {0: "; a tare (--tare IMAGE --tare-mm Z) pins its offset, two at two distances its scale",
               1: "; a second tare at another distance pins its scale"}.get(len(res.tares), "")
     depth = ", ".join(f"+- {100 * sz:.2f} % at {z:g} mm" for z, sz in res.depth_sigma)
-    lines.append(f"depth on the axis: {depth} (1 sigma) from what no frame pinned{advice}")
+    tared = " and the tares' distances" if res.tares else ""
+    lines.append(f"depth on the axis: {depth} (1 sigma) from what no frame pinned{tared}{advice}")
     return lines
