@@ -16,6 +16,7 @@ import pytest
 from psvs.calibrate.folder import calibrate_folder
 from psvs.calibrate.report import vertical_disagreement
 from psvs.calibrate.synthetic import random_poses, render_grid_shots
+from psvs.cli.main import main
 from psvs.io.images import write_png
 from psvs.io.params import load_rig
 from psvs.simulate.textures import CircleGrid
@@ -292,3 +293,36 @@ def test_refit_on_the_card_calibration(calibrated, card_dir):
     for z, sigma in res.depth_sigma:
         got = axis_depth(res.rig, moved, z)
         assert abs(got - z) <= 2 * sigma * z, (z, got, sigma)
+
+
+@pytest.fixture(scope="module")
+def hand_views(tmp_path_factory):
+    """16 views of the misaligned build as `psvs card-views` makes them (the adversarial trial's, seed 1)."""
+    folder = tmp_path_factory.mktemp("hand") / "views"
+    code = main(["card-views", str(folder), "--rig", "misaligned", "--views", "16", "--seed", "1"])
+    assert code == 0
+    return folder
+
+
+@pytest.mark.parametrize("turn", ["rotated 180 deg", "mirrored"])
+def test_card_views_turned_or_mirrored_are_refused(hand_views, turn, tmp_path, capsys):
+    """An adversarial trial: ten of these views turned by 180 degrees (or mirrored left-right) calibrated at
+    RMS 0.20 px with every value plausible (f 11.29 +- 0.002 mm, 68 sigma off) and exit 0; the views' own
+    detections carry 0.026 px of noise. Now refused (exit 1) naming both figures, nothing written. (Other
+    views, mirrored, can fit at their noise: a mirror image of a PSVS is one with its paths swapped;
+    docs/right-or-refuse.md.)"""
+    bad = tmp_path / "turned"
+    bad.mkdir()
+    (bad / "target.toml").write_text((hand_views / "target.toml").read_text())
+    for path in sorted(hand_views.glob("card_*.png"))[:10]:
+        img = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        write_png(bad / path.name, img[::-1, ::-1] if turn == "rotated 180 deg" else img[:, ::-1])
+    out = tmp_path / "rig.toml"
+    code, _, err = run(capsys, "calibrate", str(bad), "--rig", "clear", "-o", str(out))
+    assert code == 1 and not out.exists(), err
+    assert re.search(r"does not fit its views: reprojection RMS 0\.[12]\d\d px against the detections' own noise "
+                     r"0\.0[1-4]\d px", err), err
+    assert len(err.strip().splitlines()) == 1
+    # the views as taken calibrate
+    code, _, err = run(capsys, "calibrate", str(hand_views), "--rig", "clear", "-o", str(out))
+    assert code == 0 and out.exists(), err

@@ -21,10 +21,11 @@ __getattr__, __dir__, __all__ = _lazy.attach(
                     "check_card_visible", "event_lines"],
         "folder": ["calibrate_folder", "grid_view"],
         "handheld": ["HandParams", "hand_path", "render_hand_video"],
+        "misfit": ["MISFIT_FLOOR_PX", "MISFIT_RATIO", "check_misfit", "lattice_noise_px"],
         "refit": ["REFIT_PARAMS", "Refit", "combination_text", "refit_rig"],
         "report": ["write_report"],
         "sweep": ["calibrate_sweep", "dumps_sweep"],
         "synthetic": ["check_card_fits", "random_poses", "render_grid_shots"],
-        "tare": ["Tare", "tare_plane"],
+        "tare": ["TARE_SIGMA_MM", "Tare", "tare_plane"],
     },
 )

@@ -23,6 +23,7 @@ import numpy as np
 
 from psvs._threads import one_blas_thread
 from psvs.calibrate.bundle import BundleResult, GridView, bundle_adjust
+from psvs.calibrate.misfit import check_misfit
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
 from psvs.evidence import check_build
 from psvs.io.images import IMAGE_SUFFIXES, first_repeat, read_grey
@@ -152,7 +153,9 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
             grids, sweeps = kept_g, kept_s
     used = {**{g.name: "grid" for g in grids}, **{s.name: "sweep" for s in sweeps}}
     # docs/right-or-refuse.md; the design's baseline checks a scale that rests on the card's print alone
-    check_build(res.rig, start, f"calibrating from {len(used)} image(s) of {folder}", baseline=not sweeps)
+    what = f"calibrating from {len(used)} image(s) of {folder}"
+    check_build(res.rig, start, what, baseline=not sweeps)      # the more telling, where it applies
+    check_misfit(res, grids, what)
     b, sb = effective_baseline(res)
     return CalibrationResult(res, used, skipped, b, sb)
 
