@@ -9,7 +9,7 @@ cancels the smooth field that a wrong model leaves over a card (views turned by 
 parameter is fitted, none is implausible, and RMS 0.20 px stood against the views' 0.026 px of noise; a fit
 stopped in a wrong minimum: 0.30 px) and keeps white noise (its variance is 6 sigma^2 for each coordinate).
 A fit whose RMS exceeds :data:`MISFIT_RATIO` times that noise, and :data:`MISFIT_FLOOR_PX`, is refused. Good
-calibrations read a ratio of 0.95-1.05 here.
+calibrations read a ratio of 0.91-0.99 here (four sets of card views through the misaligned build).
 
 Only card views are read (a robot sweep's single row of circles is too short to tell the two apart).
 """
