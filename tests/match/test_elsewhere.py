@@ -9,7 +9,7 @@ from scipy.ndimage import minimum_filter
 from psvs.cli.main import main
 from psvs.io.images import read_grey
 from psvs.io.params import load_rig
-from psvs.match.chance import ELSEWHERE_SHARE, Elsewhere
+from psvs.match.chance import AS_STRONG, ELSEWHERE_SHARE, Elsewhere
 from psvs.match.correspondence import match_image
 
 
@@ -52,7 +52,7 @@ def test_the_cli_refuses_in_words_that_say_where_the_twins_are(far_ashtrays, cap
     assert "edges twin beyond chance below the range too" in err and "a scene beyond the far limit" in err, err
 
 
-def test_elsewhere_sets_a_candidate_aside_only_where_most_of_its_votes_twin_more_strongly():
+def test_elsewhere_sets_a_candidate_aside_only_where_most_of_its_votes_twin_as_strongly_or_more():
     """By hand: pixels 0-3 twin at 40 px on 50 rows, pixels 4-7 nowhere below the range."""
     rows = np.array([50.0] * 4 + [0.0] * 4)
     lag = np.array([40.0] * 4 + [0.0] * 4)
@@ -60,7 +60,8 @@ def test_elsewhere_sets_a_candidate_aside_only_where_most_of_its_votes_twin_more
     assert e.strongest() == (50.0, 40.0)
     left, right = np.arange(4), np.arange(4, 8)
     assert e.beats(left, right, rows=30.0, level=20.0) == 40.0          # all its left pixels: stronger there
-    assert e.beats(left, right, rows=50.0, level=20.0) == 0.0           # as strong in the range: it stands
+    assert e.beats(left, right, rows=50.0, level=20.0) == 40.0          # as strong below: no evidence for it
+    assert AS_STRONG * 56.0 > 50.0 and e.beats(left, right, rows=56.0, level=20.0) == 0.0  # stronger in the range
     assert e.beats(left, right, rows=30.0, level=60.0) == 0.0           # there within chance: no evidence
     half = np.array([0, 1, 4, 5, 6])                                    # 2 of 5 votes: under the share
     assert 2 / 5 < ELSEWHERE_SHARE and e.beats(half, half, rows=30.0, level=20.0) == 0.0
@@ -158,3 +159,18 @@ def test_the_tracker_loses_an_edge_that_leaves_the_range_instead_of_taking_anoth
             answered += 1
         assert answered >= 3, seed                     # the frames within the range are tracked
         assert not step.ok, seed                       # the last, at 1500 mm, is not
+
+
+def test_a_scene_just_past_the_far_limit_pairs_no_look_alike(tmp_path, capsys):
+    """An adversarial trial: Fig. 5b at 1300 mm (nothing nearer than 1290 mm) over the default 400-1200 mm
+    answered 'edge 0: 35 pixel pairs, disparity 165 px, median Z 643.3 mm' (one ashtray's view paired with
+    the other's), exit 0, while its own summary said the edges twin below the range (their own views, 82 px, on
+    as many rows). A twin that its pixels match as well below the range is no evidence: refused, in words that
+    say where the twins are."""
+    image, out = tmp_path / "f.png", tmp_path / "m.json"
+    assert main(["simulate", "fig5b:distance_mm=1300", "--rig", "default", "-o", str(image)]) == 0
+    capsys.readouterr()
+    code = main(["match", str(image), "--rig", "default", "--auto", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert code == 1 and not out.exists(), err
+    assert "edges twin beyond chance below the range too" in err and "a scene beyond the far limit" in err, err

@@ -115,8 +115,8 @@ def refuse_unanswered(res, seeded: bool) -> None:
     if seeded:
         if res.chance.twins_below:
             raise MeasurementError(f"{what} beyond chance at the working range's disparities {lo:.0f}..{hi:.0f} "
-                                   "px, or its pixels twin more strongly below them (a scene beyond the far limit: "
-                                   f"widen the range) ({res.chance.describe()})")
+                                   "px, or its pixels twin as strongly or more below them (a scene beyond the far "
+                                   f"limit: widen the range) ({res.chance.describe()})")
         raise MeasurementError(f"{what} beyond chance at the working range's disparities {lo:.0f}..{hi:.0f} px: "
                                "the twin it pairs with agrees on too few rows to stand alone, and the automatic "
                                f"matcher pairs no edge there that backs it ({res.chance.describe()})")

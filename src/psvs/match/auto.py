@@ -374,10 +374,10 @@ def _beyond_chance(ev: Evidence, c: Candidate, chance: Chance, reach: int) -> bo
     their rows) where chance makes none as strong within ``reach`` px at one disparity
     (:meth:`~psvs.match.chance.Chance.backed_beyond_chance`), or alone, beyond chance's level for one pair
     (:attr:`~psvs.match.chance.Chance.pair_level_rows`, read on the very statistic ``c.rows`` is); never when
-    either of its edges twins more strongly, beyond chance, at a lag below the range
+    either of its edges twins as strongly or more, beyond chance, at a lag below the range
     (:meth:`~psvs.match.chance.Chance.twin_elsewhere`)."""
     if chance.twin_elsewhere(ev.p[c.votes], ev.q[c.votes], c.rows):
-        return False                      # its edge twins more strongly outside the range: another edge's view
+        return False                      # its edge twins as well outside the range: another edge's view
     if c.rank > c.rows and chance.backed_beyond_chance(c.rows, c.box, reach):
         return True
     return c.rows > chance.pair_level_rows

@@ -51,8 +51,13 @@ MIN_TAIL = 20
 MIN_BAND_PX = 8.0
 
 
-#: The share of a candidate's votes whose pixels must twin more strongly below the range to set it aside.
+#: The share of a candidate's votes whose pixels must twin as strongly or more below the range to set it aside.
 ELSEWHERE_SHARE = 0.5
+#: A twin below the range this strong, relative to the candidate's agreeing rows, or stronger, contradicts it:
+#: a pixel that twins about as well below the range as in it is no evidence for the twin in it (an adversarial
+#: trial: Fig. 5b at 1300 mm, just past the far limit of 1200, paired one ashtray's view with the other's,
+#: 165 px, 643 mm, on 67 rows while its pixels twinned with their own views at 82 px on as many).
+AS_STRONG = 0.9
 
 #: The lags a backing pair's disparity window spans (+-2 px: psvs.match.auto's support).
 BACKED_LAGS = 5
@@ -89,8 +94,8 @@ class Elsewhere:
     left pixel (``left_rows``) or the right pixel (``right_rows``) at one of those lags, and that candidate's
     lag (``left_lag``, ``right_lag``, px; 0 where none); ``band`` the lags (lo, hi) px searched; ``left_keys``
     and ``right_keys`` (N,) each pixel's place in the left and the right view (:func:`_pixel_keys` of its
-    integer (u, v)), to find a seeded pair's pixels (:meth:`beats_pixels`). A candidate
-    in the range most of whose pixels twin more strongly there, beyond chance, is the view of something the
+    integer (u, v)), to find a seeded pair's pixels (:meth:`beats_pixels`). A candidate in the range most of
+    whose pixels twin as strongly there (:data:`AS_STRONG`) or more, beyond chance, is the view of something the
     range does not hold: pairing it in the range would pair it with the wrong edge (an adversarial trial:
     Fig. 5b at 1100 mm searched at 400-700 mm paired each ashtray's view with the other's, at 541-609 mm,
     exit 0). Read per pixel, not per edge component: a component merged of a clutter's many outlines twins
@@ -126,13 +131,13 @@ class Elsewhere:
         return self.beats(found[0], found[1], rows, level)
 
     def beats(self, left: np.ndarray, right: np.ndarray, rows: float, level: float) -> float:
-        """The lag (px) of the candidates outside the range that are stronger than a candidate (its votes' left
-        pixels ``left`` and right pixels ``right``, indices (K,), ``rows`` agreeing rows) and beyond chance's
-        ``level``, on at least :data:`ELSEWHERE_SHARE` of its votes through either side; 0.0 when none are."""
-        best = max(rows, level)
+        """The lag (px) of the candidates outside the range that are as strong as a candidate (its votes' left
+        pixels ``left`` and right pixels ``right``, indices (K,), ``rows`` agreeing rows; :data:`AS_STRONG` of its
+        rows) or stronger and beyond chance's ``level``, on at least :data:`ELSEWHERE_SHARE` of its votes through
+        either side; 0.0 when none are."""
         for mine, lags in ((self.left_rows[left], self.left_lag[left]),
                            (self.right_rows[right], self.right_lag[right])):
-            stronger = mine > best
+            stronger = (mine >= AS_STRONG * rows) & (mine > level)
             if len(mine) and stronger.mean() >= ELSEWHERE_SHARE:
                 return float(np.median(lags[stronger]))
         return 0.0
@@ -165,8 +170,8 @@ class Chance:
 
     def twin_elsewhere(self, left: np.ndarray, right: np.ndarray, rows: float) -> float:
         """The lag (px) outside the range at which most of a candidate's votes (their left and right pixels'
-        indices, (K,) each; ``rows`` agreeing rows) twin more strongly, beyond chance (:class:`Elsewhere`); 0.0
-        when they do not (or it was not read)."""
+        indices, (K,) each; ``rows`` agreeing rows) twin as strongly (:data:`AS_STRONG`) or more, beyond chance
+        (:class:`Elsewhere`); 0.0 when they do not (or it was not read)."""
         return 0.0 if self.elsewhere is None else self.elsewhere.beats(left, right, rows, self.level_rows)
 
     def backed_beyond_chance(self, rows: float, box, reach: float) -> bool:
@@ -309,7 +314,7 @@ def seed_pair_stands(pair, chance: Chance, backing, tol_px: float) -> bool:
     :data:`BACKED_SHARE` of its pixels at its disparity (within :data:`BACKED_LAGS` // 2 px). The paper's
     algorithm pairs the seed's edge with whatever agrees best, on a photograph's texture as readily as on a
     twin (an adversarial trial: 12 of 22 seeds on the textured scene paired 3-22 rows at a wrong disparity).
-    Never when its pixels twin more strongly below the range (``chance.elsewhere``, when read with the pixels'
+    Never when its pixels twin as strongly or more below the range (``chance.elsewhere``, when read with the pixels'
     places: :meth:`Elsewhere.beats_pixels`): Fig. 5b at 1100 mm searched to 700 mm paired 4 of 5 seeds with the
     other ashtray's view at 544-698 mm."""
     if not len(pair) or not chance.answered:
@@ -318,7 +323,7 @@ def seed_pair_stands(pair, chance: Chance, backing, tol_px: float) -> bool:
     e = chance.elsewhere
     if e is not None and e.left_keys is not None and e.beats_pixels(pair.left_px, pair.right_px, rows,
                                                                     chance.level_rows):
-        return False                     # its pixels twin more strongly below the range (:class:`Elsewhere`)
+        return False                     # its pixels twin as strongly or more below the range
     if rows > chance.pair_level_rows:
         return True
     mine = _pixel_keys(pair.left_px)
