@@ -68,6 +68,17 @@ def test_gap_is_bridged():
     assert np.all(np.abs(tips[:, 1]) < 1e-6) and tips[-1, 0] > 120.0     # on across the gap
 
 
+def test_a_stretch_too_long_to_bridge_stops_and_says_what_it_saw():
+    """The seam unseen over 15 mm, then seen again: longer than the 10 mm bridge, the run stops. The stop says
+    what the sensor saw, not what caused it (an adversarial trial: a sensor window of the whole frame lost a
+    seam that had no gap, and the run said 'seam gap of 31.3 mm')."""
+    tracker, _ = run(1000, present=lambda x: (x < 100.0) | (x >= 115.0))
+    assert tracker.stopped
+    assert tracker.stop_reason.startswith("no seam seen over 15."), tracker.stop_reason
+    assert tracker.stop_reason.endswith("(a gap in the seam, or frames the sensor could not read), longer than "
+                                        "the 10 mm bridge"), tracker.stop_reason
+
+
 def test_lost_seam_stops_safely_at_the_last_seam_point():
     """The seam ends at x = 150 mm: the torch slows down and stops there, never beyond."""
     tracker, cmds = run(1000, present=lambda x: x < 150.0)

@@ -275,8 +275,10 @@ class SeamTracker:
         if gap > cfg.bridge_mm + GAP_TOL_MM:
             if self.stopping_at is None:
                 self.stopping_at = self.s_far
-                self.stop_reason = (f"seam gap of {gap:.1f} mm after s = {self.s_far:.1f} mm, longer than "
-                                    f"the {cfg.bridge_mm:g} mm bridge")
+                # a gap or frames the sensor could not read: from here neither tells the two apart
+                self.stop_reason = (f"no seam seen over {gap:.1f} mm after s = {self.s_far:.1f} mm (a gap in the "
+                                    f"seam, or frames the sensor could not read), longer than the {cfg.bridge_mm:g} "
+                                    "mm bridge")
             return "beyond a gap too long to bridge", False
         if gap > GAP_TOL_MM:      # shorter: a frame or two lost, within the measuring slack
             self.gaps.append((self.s_far, self.s_far + gap))
