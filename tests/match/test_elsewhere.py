@@ -165,8 +165,8 @@ def test_a_scene_just_past_the_far_limit_pairs_no_look_alike(tmp_path, capsys):
     """An adversarial trial: Fig. 5b at 1300 mm (nothing nearer than 1290 mm) over the default 400-1200 mm
     answered 'edge 0: 35 pixel pairs, disparity 165 px, median Z 643.3 mm' (one ashtray's view paired with
     the other's), exit 0, while its own summary said the edges twin below the range (their own views, 82 px, on
-    as many rows). A twin that its pixels match as well below the range is no evidence: refused, in words that
-    say where the twins are."""
+    about as many rows or more, the strongest on 91). A twin that its pixels match as well below the range is no
+    evidence: refused, in words that say where the twins are."""
     image, out = tmp_path / "f.png", tmp_path / "m.json"
     assert main(["simulate", "fig5b:distance_mm=1300", "--rig", "default", "-o", str(image)]) == 0
     capsys.readouterr()

@@ -56,7 +56,8 @@ ELSEWHERE_SHARE = 0.5
 #: A twin below the range this strong, relative to the candidate's agreeing rows, or stronger, contradicts it:
 #: a pixel that twins about as well below the range as in it is no evidence for the twin in it (an adversarial
 #: trial: Fig. 5b at 1300 mm, just past the far limit of 1200, paired one ashtray's view with the other's,
-#: 165 px, 643 mm, on 67 rows while its pixels twinned with their own views at 82 px on as many).
+#: 165 px, 643 mm, on 67 rows while its pixels twinned with their own views at 82 px on about as many or
+#: more, the strongest on 91).
 AS_STRONG = 0.9
 
 #: The lags a backing pair's disparity window spans (+-2 px: psvs.match.auto's support).
