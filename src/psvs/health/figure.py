@@ -5,7 +5,8 @@ import io
 
 import numpy as np
 
-from psvs.health.check import HealthCheck, field_basis
+from psvs.health.check import HealthCheck
+from psvs.health.field import field_basis
 
 
 def offset_figure(check: HealthCheck) -> bytes:

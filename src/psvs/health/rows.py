@@ -74,7 +74,9 @@ class FrameTiles:
     well on other rows (a texture running along one direction: not accepted); ``places_px`` (m, 2) the centres
     of all the frame's tiles (the field a judgement speaks for); ``size_px`` a tile's side, ``reach_px`` the
     rows searched either side, ``grid_shape`` (H', W'), ``rect`` the rectification read through (None: the
-    paper's geometry), ``of_tiles`` how many tiles the whole frame holds (these may be a subset of them)."""
+    paper's geometry), ``of_tiles`` how many tiles the whole frame holds (these may be a subset of them),
+    ``focal_px`` the grid's focal length (px, the shorter axis's; None: not known, and the field's curvature
+    is not bounded by what a turned view can make, psvs.health.field)."""
 
     centre_px: np.ndarray
     offset_px: np.ndarray
@@ -91,6 +93,7 @@ class FrameTiles:
     repeating: np.ndarray | None = None
     ridged: np.ndarray | None = None
     places_px: np.ndarray | None = None
+    focal_px: float | None = None
 
 
 def reach_px(rig: Rig, reach_deg: float = REACH_DEG) -> int:
@@ -194,8 +197,10 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
     ridged = textured & unique & (score - row_rival < UNIQUE_SHARE * (score - chance))
     accepted = np.isfinite(arr[:, 2]) & textured & unique & ~ridged
     at_edge = (arr[:, 7] > 0) & textured & unique & ~ridged
+    focal = (rig.camera.focal_length_mm / max(rig.camera.pixel_pitch_mm) if rect is None
+             else min(rect.camera_matrix[0, 0], rect.camera_matrix[1, 1]))
     return FrameTiles(arr[:, :2], arr[:, 2], arr[:, 3], arr[:, 4], arr[:, 5], accepted, at_edge, size, reach,
-                      (h, w), rect, len(rows) * len(cols), textured & ~unique, ridged, places)
+                      (h, w), rect, len(rows) * len(cols), textured & ~unique, ridged, places, float(focal))
 
 
 def spread_tiles(n_rows: int, n_cols: int, count: int) -> list[int]:
