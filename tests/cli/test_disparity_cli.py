@@ -317,11 +317,12 @@ def test_a_knocked_build_whose_echo_stays_strong_is_refused(capsys, mv1440_wall)
 RIG_REFUSED = ("psvs disparity: cannot measure: the rig does not fit this image: ",
                "psvs disparity: cannot measure: whether the rig fits this image cannot be told: ")
 
+
 def test_another_formats_frame_is_refused(capsys, mv1440_wall, tmp_path):
     """An adversarial trial's case: the middle 720 x 540 px of a 1440 x 1080 frame read through a rig of the
     same camera binned 2 x 2 (720 x 540, 6.9 um): the wall at 700 mm read 321 mm with 34 % of the map trusted.
-    The image's twins stand off the binned rig's rows (0.86 +- 0.19 px over 174 tiles; no field a turned view
-    makes fits them, so that it passes the tolerance is not pinned, only suspected): refused."""
+    The image's twins stand off the binned rig's rows (0.86 +- 0.19 px over 174 tiles: held to the curvature a
+    turned view makes, the field that passes the tolerance is suspected, not pinned): refused."""
     from psvs.io.params import load_rig, save_rig
     crop = read_grey(mv1440_wall / "ideal.png")[270:810, 360:1080]
     write_png(tmp_path / "crop.png", crop)
@@ -339,8 +340,7 @@ def test_another_cameras_frame_resized_to_this_ones_size_is_refused(capsys, tmp_
     """An adversarial trial's case: the textured scene at 700 mm through the 1440 x 1080 camera (k1 -0.27), resized
     to 640 x 480 and read through the default rig: 44 % of the map trusted at depths 11 % long, exit 0. The quick
     look's few tiles read the twins 0.96 +- 0.28 px off their rows (cannot judge); the whole check, now asked
-    whenever the look reads the offset above the tolerance, reads 0.78 +- 0.11 px (0.73 +- 0.11 px without the 2
-    tiles that bear it most: beyond the tolerance, if not by two standard errors): refused."""
+    whenever the look reads the offset above the tolerance, reads 0.78 +- 0.11 px: refused."""
     import cv2
     big = tmp_path / "big.png"
     assert run(capsys, "simulate", "textured:distance_mm=700", "--rig", "mv1440", "--supersample", "1", "-o",
@@ -350,7 +350,7 @@ def test_another_cameras_frame_resized_to_this_ones_size_is_refused(capsys, tmp_
     code, stdout, err = run(capsys, "disparity", str(tmp_path / "small.png"), "--rig", "default", "-o", str(out),
                             "--depth", str(tmp_path / "z.npy"))
     assert code == 1 and stdout == "" and err.count("\n") == 1, (code, stdout, err)
-    assert err.startswith(RIG_REFUSED) and "the twins stand off their rows" in err, err
+    assert err.startswith("psvs disparity: cannot measure: the rig does not fit this image: the twins stand off "), err
     assert not out.exists()
 
 

@@ -25,12 +25,13 @@ def places() -> np.ndarray:
     return np.array([(x + 0.5 * (SIZE - 1), y + 0.5 * (SIZE - 1)) for y in rows for x in cols])
 
 
-def tiles_at(centres: np.ndarray, offsets: np.ndarray) -> FrameTiles:
-    """A frame whose tiles at ``centres`` (n, 2) passed their chance test with row offsets ``offsets`` (n,)."""
-    n = len(centres)
+def tiles_at(centres: np.ndarray, offsets: np.ndarray, at: np.ndarray | None = None) -> FrameTiles:
+    """A frame whose tiles at ``centres`` (n, 2) passed their chance test with row offsets ``offsets`` (n,), of
+    a frame whose tiles stand at ``at`` (m, 2; default :func:`places`)."""
+    n, at = len(centres), places() if at is None else at
     yes, no = np.ones(n, bool), np.zeros(n, bool)
     return FrameTiles(centres, offsets, np.full(n, 30.0), np.full(n, 0.8), np.full(n, 0.3), yes, no, SIZE, 10,
-                      GRID, None, len(places()), no, no, places(), FOCAL_PX)
+                      GRID, None, len(at), no, no, at, FOCAL_PX)
 
 
 def test_independent_tiles_count_each_frames_union_once():
@@ -81,7 +82,7 @@ def test_a_wrong_tile_the_field_bends_to_is_left_out(seed):
     offsets = rng.normal(0.0, 0.05, 14)
     offsets[0] = 3.0
     c = judge([tiles_at(p[pick], offsets)])
-    assert c.tiles == 13 and not any(np.all(c.centre_px == p[corner], axis=1)), c.reason
+    assert c.tiles >= 12 and not any(np.all(c.centre_px == p[corner], axis=1)), c.reason
     assert c.verdict in ("healthy", "cannot judge") and c.row_offset_rms_px < 0.2, c.reason
 
 
@@ -255,9 +256,10 @@ def test_another_cameras_frame_resized_to_this_one_is_refused_where_its_twins_st
     assert code == 0 and out.exists(), err
 
 #: A CI run's false alarm (the undrifted build's seam plates, a rolling sweep's first 6 steps on frames 0, 1,
-#: 2, 3, 6 and 8): the 15 tiles judged, (u', v') px and row offset px. Three of them (a weak peak, two at
-#: disparities 40-60 px off their neighbours') stand 3.7-4.9 px off; a quadratic through 15 tiles bent to
-#: pass them all (its u v term 27 px) and read "drifted 2.05 +- 0.39 px".
+#: 2, 3, 6 and 8): the 15 tiles judged, (u', v') px and row offset px, of a frame whose tiles stand from
+#: u' = 241 px (the seam sensor's nearest disparity) and v' = 10 px (the rows searched) on the 660 x 506 grid.
+#: Three of them (a weak peak, two at disparities 40-60 px off their neighbours') stand 3.7-4.9 px off; a
+#: quadratic through 15 tiles bent to pass them all (its u v term 27 px) and read "drifted 2.05 +- 0.39 px".
 CI_WINDOW = np.array([
     [432.5, 41.5, -0.21], [560.5, 41.5, -3.69], [368.5, 73.5, -0.25], [400.5, 73.5, -0.11], [432.5, 73.5, 0.80],
     [368.5, 105.5, -0.93], [400.5, 105.5, -0.47], [432.5, 105.5, -0.18], [304.5, 137.5, -4.94],
@@ -265,21 +267,32 @@ CI_WINDOW = np.array([
     [432.5, 201.5, 2.02], [624.5, 201.5, 4.44]])
 
 
+def ci_places() -> np.ndarray:
+    """Where the CI window's frame's tiles stand (:data:`CI_WINDOW`), centres (m, 2)."""
+    rows, cols = range(10, GRID[0] - SIZE - 10 + 1, SIZE // 2), range(241, GRID[1] - SIZE + 1, SIZE // 2)
+    return np.array([(x + 0.5 * (SIZE - 1), y + 0.5 * (SIZE - 1)) for y in rows for x in cols])
+
+
 def test_no_field_bends_further_than_a_turned_view_makes():
-    """The CI window is not judged drifted: the field's curvature is held to what a view turned by up to
-    MAX_TURN_DEG makes (psvs.health.check.curvature_bound_px), and the three wrong tiles then lie off it."""
-    c = judge([tiles_at(CI_WINDOW[:, :2], CI_WINDOW[:, 2])])
-    assert c.verdict != "drifted", c.reason
+    """The CI window (its tiles over 6 of the frame's ninths) is not judged drifted: the field's curvature is
+    held to what a view turned by up to MAX_TURN_DEG makes (psvs.health.field.curvature_bound_px), and the
+    three wrong tiles lie off it; unbounded, the fit passed through them."""
+    at = ci_places()
+    assert covered_regions(CI_WINDOW[:, :2], at) == 6
+    c = judge([tiles_at(CI_WINDOW[:, :2], CI_WINDOW[:, 2], at)])
+    assert c.verdict == "cannot judge" and "(scatter 0.49 px, 11 consistent)" in c.reason, c.reason
+    t, hu, hv = np.tan(np.radians(4.0)), 329.5, 252.5           # a view turned 4 deg: u v and v^2 at the corners
     bound = curvature_bound_px(GRID, FOCAL_PX)
-    turned = np.tan(np.radians(4.0)) * 329.5 * 252.5 / FOCAL_PX       # a view turned 4 deg, u v at the corners
-    assert np.all(np.isinf(bound[:3])) and bound[3:] == pytest.approx(turned)
+    expected = [0.1 * t * hu * hv / FOCAL_PX, t * hu * hv / FOCAL_PX, t * hv * hv / FOCAL_PX]
+    assert np.all(np.isinf(bound[:3])) and bound[3:] == pytest.approx(expected)
+    assert np.all(np.isinf(curvature_bound_px(GRID, None)))
 
 
 def test_wrong_tiles_at_the_edge_of_a_sweeps_first_steps_raise_no_alarm():
     """Drawn as the CI window, 100 times: 15 tiles of the top half of the frame (a sweep's first steps) on an
     undrifted rig, each off by its texture's 0.4 px, three of them wrong by 3-5 px either way, the three
     farthest from the middle. The verdict is never drifted (before: 21 of 200 such draws; with the curvature
-    bound alone 11; with a drift made to stand without the 3 tiles that bear it most, none of 400). The same
+    bound alone 1 of 400, below; with a drift made to stand without the 3 tiles that bear it most, none). The same
     15 tiles, none wrong, on a field a turned view makes (2 px, u v term 0.6 px) are judged to within their
     uncertainty whenever judged (12 tiles would not be: a drift must stand on 12 with 3 left out)."""
     judged = 0
@@ -303,3 +316,26 @@ def test_wrong_tiles_at_the_edge_of_a_sweeps_first_steps_raise_no_alarm():
             err = abs(c.row_offset_rms_px - np.sqrt(np.mean(truth ** 2)))
             assert c.verdict == "drifted" and err <= 3 * c.uncertainty_px + 0.05, (seed, c.reason)
     assert judged >= 20, judged
+
+
+#: One of those draws (seed 91): the three wrong tiles, 3.2-4.1 px off, all on one row of tiles.
+ONE_ROW_WRONG = np.array([
+    [385.5, 201.5, 0.24], [65.5, 73.5, 4.10], [225.5, 137.5, 0.74], [385.5, 169.5, 0.21], [417.5, 41.5, -0.06],
+    [577.5, 73.5, 3.18], [449.5, 201.5, 0.03], [545.5, 201.5, 0.21], [129.5, 233.5, 0.41], [193.5, 105.5, 0.10],
+    [513.5, 201.5, 0.00], [481.5, 73.5, 0.19], [225.5, 201.5, 0.17], [353.5, 233.5, -0.18], [609.5, 73.5, 4.06]])
+
+
+def test_a_drift_that_rests_on_a_few_tiles_is_not_said(monkeypatch):
+    """The one draw of 400 a field within the curvature bound still read as a drift (12 tiles, 1.46 +- 0.31 px,
+    two of the wrong tiles among them): without the 2 tiles that bear it most the field reads 0.27 px over all
+    12, so the offset is theirs, not the rig's (psvs.health.check.SPARE_TILES). With the test turned off it is
+    said; a real drift on the same places (2 px, the tiles' own 0.4 px) stands without any 3 of its tiles."""
+    import psvs.health.check as check
+    c = judge([tiles_at(ONE_ROW_WRONG[:, :2], ONE_ROW_WRONG[:, 2])])
+    assert c.verdict == "cannot judge" and c.reason.startswith("the offset rests on a few tiles: 12 tiles"), c.reason
+    said = c.reason.split("with the 2 tile(s) that bear it most left out the field reads ")[1]
+    assert float(said.split(" px")[0]) == pytest.approx(0.27, abs=0.05), c.reason
+    real = judge([tiles_at(ONE_ROW_WRONG[:, :2], 2.0 + np.random.default_rng(0).normal(0.0, 0.4, 15))])
+    assert real.verdict == "drifted" and abs(real.row_offset_rms_px - 2.0) <= 3 * real.uncertainty_px, real.reason
+    monkeypatch.setattr(check, "SPARE_TILES", 0)
+    assert judge([tiles_at(ONE_ROW_WRONG[:, :2], ONE_ROW_WRONG[:, 2])]).verdict == "drifted"

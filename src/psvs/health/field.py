@@ -17,9 +17,12 @@ OUTLIER_SIGMAS = 3.0
 #: A tile whose leverage on the fitted field exceeds this pins a term of it alone: the others cannot check it.
 MAX_LEVERAGE = 0.97
 #: The largest turn of a view whose field the check fits (deg): twice the farthest it searches the rows
-#: (psvs.health.rows.FAR_REACH_DEG; a mirror turned by an angle turns its view by twice it). It bounds the
-#: field's curvature (:func:`curvature_bound_px`).
+#: (psvs.health.rows.FAR_REACH_DEG), a margin for turns about the other axes. It bounds the field's curvature
+#: (:func:`curvature_bound_px`).
 MAX_TURN_DEG = 2.0 * FAR_REACH_DEG
+#: The u^2 term's bound as a share of the u v term's: nil for a turn, the plate's refraction gives it a little
+#: (drawn rigs, a mirror turned up to 0.5 deg about both axes: at most 0.085 of tan(0.5 deg) (W'/2)(H'/2) / f).
+U2_SHARE = 0.1
 
 
 def field_basis(centre_px: np.ndarray, grid_shape: tuple[int, int]) -> np.ndarray:
@@ -32,18 +35,21 @@ def field_basis(centre_px: np.ndarray, grid_shape: tuple[int, int]) -> np.ndarra
 
 
 def curvature_bound_px(grid_shape: tuple[int, int], focal_px: float | None) -> np.ndarray:
-    """Bounds (6,) on the field's coefficients (:func:`field_basis`) that a view turned by up to
-    :data:`MAX_TURN_DEG` can make on a grid (H', W') of focal length ``focal_px`` (px): its constant and
-    linear terms free (inf), each quadratic one at most tan(turn) (W'/2)(H'/2) / f px. A turn (w_x, w_y, w_z)
-    of one view moves its rows by f w_x + w_z u + (w_x v^2 + w_y u v) / f (u, v px from the grid's centre):
-    a quadratic, its u^2 term nil (a mirror of drawn rigs turned up to 0.5 deg: |u^2| 0.05 px, the others
-    up to 1.4 times tan(0.5 deg) (W'/2)(H'/2) / f, a mirror turning its view by twice its own turn). A fit
-    bent further (wrong tiles at the edge of a few, the field passing through them: an undrifted build's seam
-    plates, 15 tiles, u v 27 px, read as a drift of 2.05 px) is no moved mirror's. ``focal_px`` None: all free."""
+    """Bounds (6,) on the field's coefficients (:func:`field_basis`, px) that a view turned by up to
+    :data:`MAX_TURN_DEG` can make on a grid (H', W') of focal length ``focal_px`` (px). A turn (w_x, w_y, w_z)
+    of one view moves its rows by f w_x + w_z u + (w_x v^2 + w_y u v) / f (u, v px from the grid's centre): the
+    constant and linear terms are free (inf), the u v term at most t (W'/2)(H'/2) / f and the v^2 term
+    t (H'/2)^2 / f (t = tan(turn)), the u^2 term nil but for the plate's refraction (:data:`U2_SHARE` of the
+    u v term's bound). Drawn rigs, a mirror turned up to 0.5 deg about both axes: u v and v^2 up to 1.4 times
+    tan(0.5 deg) (W'/2)(H'/2) / f (a mirror turns its view by twice its own turn). A field bent further (wrong
+    tiles at the ends of a few rows, the field passing through them: an undrifted build's seam plates, 15
+    tiles, u^2 -17 px and u v 27 px, read as a drift of 2.05 px) is no moved mirror's. ``focal_px`` None: all
+    free."""
     h, w = grid_shape
     bound = np.full(6, np.inf)
     if focal_px is not None and math.isfinite(focal_px) and focal_px > 0:
-        bound[3:] = math.tan(math.radians(MAX_TURN_DEG)) * 0.5 * (w - 1) * 0.5 * (h - 1) / focal_px
+        t, hu, hv = math.tan(math.radians(MAX_TURN_DEG)), 0.5 * (w - 1), 0.5 * (h - 1)
+        bound[3:] = [U2_SHARE * t * hu * hv / focal_px, t * hu * hv / focal_px, t * hv * hv / focal_px]
     return bound
 
 
