@@ -143,6 +143,22 @@ def test_a_texture_repeating_along_the_rows_is_not_judged(period, rig_name):
     assert c.verdict == "cannot judge" and c.reason.startswith("the texture repeats along the rows: "), c.reason
 
 
+@pytest.mark.parametrize("rig_name, z_mm, square_mm, seed", [("misaligned", 700.0, 23.0, 0),
+                                                             ("misaligned", 450.0, 15.0, 1),
+                                                             ("misaligned_knocked", 1000.0, 30.0, 2)])
+def test_a_checkerboard_before_a_build_is_not_judged(rig_name, z_mm, square_mm, seed):
+    """An adversarial trial (2026-12-05): a checkerboard wall through the undrifted misaligned build read
+    'drifted 7.07 +- 0.11 px' over 101 tiles. The build's two grids resample one image, and a tile's own
+    pixels stand 3-8 rows off on the right grid; the board copies that self-image along its lattice into the
+    searched rows, and each tile's peak was such a copy (psvs.health.rows._own_repeat's docstring). Each
+    tile's own grid shows the repeat: not judged, through the rig it was rendered by."""
+    from psvs.simulate.textures import Checker
+    rig = load_rig(rig_name)
+    board = Scene((), regulated_light(z_mm), z_mm, Checker(square_mm=square_mm), "checkerboard")
+    c = check_frames([render(board, rig, seed=seed, supersample=1).image], rig)
+    assert c.verdict == "cannot judge" and c.reason.startswith("the texture repeats along the rows: "), c.reason
+
+
 def test_bad_arguments_are_named():
     rig = load_rig("default")
     img = np.zeros((480, 640), np.uint8)

@@ -18,7 +18,9 @@ away from its peak (at another disparity, more than the band-pass's coarse sigma
 as well a period away: it tells no twin), stand above its best match on rows away from its peak's (each row's best
 over the disparities, more than that sigma off the peak's row) by the same share (a texture that runs along
 one direction, a seam's edges or a groove, matches along a ridge: shifted along itself it matches as well
-on other rows at other disparities, and tells no row: the aperture problem), its texture must stand above the sensor's
+on other rows at other disparities, and tells no row: the aperture problem), on a build its own texture must not
+repeat on its own grid as strongly as its twin matches (:func:`_own_repeat`: a checkerboard), its texture must
+stand above the sensor's
 noise (:data:`MIN_TEXTURE_DN`), and the peak must be a peak (a negative-definite quadratic, inside the
 searched rows). A tile whose best peak lies on the searched rows' edge is counted apart: its twin may be
 farther off than the search reaches.
@@ -69,9 +71,10 @@ class FrameTiles:
     (n,) its twin's row offset and ``disparity_px`` (n,) its disparity (NaN where not read), ``score`` (n,)
     its peak's correlation and ``chance`` (n,) the best its texture gave by chance, ``accepted`` (n,) the
     tiles that pass the chance test, ``at_edge`` (n,) those whose best peak lay on the searched rows' edge,
-    ``repeating`` (n,) those above chance that match almost as well away from their peak along the rows (a
-    repeating texture: not accepted), ``ridged`` (n,) those above chance, not repeating, that match almost as
-    well on other rows (a texture running along one direction: not accepted); ``places_px`` (m, 2) the centres
+    ``repeating`` (n,) those above chance that match almost as well away from their peak along the rows, or
+    on a build whose own texture repeats as strongly as their twin matches (a repeating texture: not
+    accepted), ``ridged`` (n,) those above chance, not repeating, that match almost as well on other rows (a
+    texture running along one direction: not accepted); ``places_px`` (m, 2) the centres
     of all the frame's tiles (the field a judgement speaks for); ``size_px`` a tile's side, ``reach_px`` the
     rows searched either side, ``grid_shape`` (H', W'), ``rect`` the rectification read through (None: the
     paper's geometry), ``of_tiles`` how many tiles the whole frame holds (these may be a subset of them),
@@ -186,8 +189,10 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
     if (subset is not None or spread is not None) and at:
         if subset is not None:
             at = [at[k % len(at)] for k in range(subset[0], subset[0] + min(subset[1], len(at)))]
-        read = {yy for _, y in at for yy in [y, *_null_rows(y, rows, size)]}
-        bands = _merged([(y - reach, y + size + reach) for y in read])
+        read = {yy for _, y in at for yy in _null_rows(y, rows, size)}
+        own = size if rect is not None else reach      # a build's tiles read their own grid a side around
+        bands = _merged([(y - reach, y + size + reach) for y in read]
+                        + [(max(y - own, 0), min(y + size + own, h)) for _, y in at])
     a, b = _band_passed(image, rig, rect, bands, (h, w))
     out = [_tile(a, b, xy, (size, reach), (lo, hi), rows) for xy in at]
     arr = np.array(out, dtype=float).reshape(-1, 10)
@@ -195,6 +200,10 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
     textured = (score >= chance + NULL_MARGIN) & (arr[:, 6] >= MIN_TEXTURE_DN)
     unique = score - rival >= UNIQUE_SHARE * (score - chance)
     ridged = textured & unique & (score - row_rival < UNIQUE_SHARE * (score - chance))
+    if rect is not None:          # a build's two grids of one image: the tile's own texture may repeat (_own_repeat)
+        for k in np.flatnonzero(textured & unique & ~ridged):
+            x, y = at[k]
+            unique[k] = _own_repeat(a, a[y:y + size, x:x + size], x, y, lo) < score[k]
     accepted = np.isfinite(arr[:, 2]) & textured & unique & ~ridged
     at_edge = (arr[:, 7] > 0) & textured & unique & ~ridged
     focal = (rig.camera.focal_length_mm / max(rig.camera.pixel_pitch_mm) if rect is None
@@ -252,6 +261,31 @@ def _tile(a, b, at, size_reach, span, rows) -> tuple:
     edge = int(i == 0 or i == r.shape[0] - 1)
     di, dj = _peak(r, i, j)
     return (*centre, i + di - reach, x - (x0 + j + dj), float(r[i, j]), chance, texture, edge, rival, row_rival)
+
+
+def _own_repeat(a, t, x: int, y: int, lo: float) -> float:
+    """The best correlation (NCC) of the tile ``t`` (side s, at (x, y) of its own grid ``a``) with its own grid
+    at shifts within s rows and within s and the smallest disparity ``lo`` columns (less a lobe: no twin's
+    echo), off its own lobe. On a build the two grids resample one complex image, and a tile's own pixels
+    stand on the right grid where the rectifications disagree, rows off its own: a texture that repeats in
+    two directions (a checkerboard) copies that self-image along its lattice into the searched rows and
+    disparities, each copy a little weaker, and the search's own rival tests see one copy alone (an
+    adversarial trial: a checkerboard through the undrifted misaligned build read "drifted 7.07 +- 0.11 px").
+    Its own grid shows the repeat whole: its correlation's peaks (local maxima over a lobe) off its own. A
+    tile whose best such peak is as strong as its twin's (its own grid's copy is not degraded by the other
+    view's texture and a second resampling, as a twin is) tells no twin: a random texture's peaks there stand
+    near its chance level, below any accepted twin's."""
+    size, lobe = t.shape[0], int(BAND_SIGMAS_PX[1])
+    cols = min(size, int(lo) - lobe)
+    y0, y1 = max(y - size, 0), min(y + 2 * size, a.shape[0])
+    x0, x1 = max(x - cols, 0), min(x + size + cols, a.shape[1])
+    if cols <= lobe or y1 - y0 < size or x1 - x0 < size:
+        return -1.0
+    r = cv2.matchTemplate(a[y0:y1, x0:x1], t, cv2.TM_CCOEFF_NORMED)
+    peaks = r >= cv2.dilate(r, np.ones((2 * lobe + 1, 2 * lobe + 1), np.uint8))   # its own lobe's slope is none
+    i, j = y - y0, x - x0                                   # the tile itself
+    peaks[max(0, i - lobe):i + lobe + 1, max(0, j - lobe):j + lobe + 1] = False
+    return float(r[peaks].max()) if peaks.any() else -1.0
 
 
 def _peak(r: np.ndarray, i: int, j: int) -> tuple[float, float]:
