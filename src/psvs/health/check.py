@@ -4,8 +4,8 @@ field fitted to them, and a verdict that says on how much evidence it stands (do
 Each frame's tiles (:func:`psvs.health.rows.frame_tiles`) that pass their chance test are pooled. A mirror
 that moved turns a view's image a little: its rows move by a smooth field over the image (near affine; a
 quadratic in u', v' holds it, its curvature no more than a turned view makes: :func:`curvature_bound_px`), so
-the field is fitted to the tiles (robustly: soft-L1, then least squares
-on the tiles within :data:`OUTLIER_SIGMAS` of it, each tile judged by the residual it would have were it left
+the field is fitted to the tiles (robustly, :func:`psvs.health.field.robust_fit`: soft-L1, then least squares
+on the tiles within a few robust sigmas of it, each tile judged by the residual it would have were it left
 out), and the field is what is judged: its RMS and largest value over the judged tiles, which must spread
 over the frame (:data:`MIN_REGIONS`: a quadratic through tiles bunched in one part of it extrapolates
 anything). A tile's own offset scatters by a few tenths of a pixel (the other view's

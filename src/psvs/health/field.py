@@ -96,6 +96,7 @@ def robust_fit(A: np.ndarray, y: np.ndarray, bound: np.ndarray) -> tuple[np.ndar
     dof = max(int(inliers.sum()) - p, 1)
     return c, inliers, float(np.sqrt(np.sum(r[inliers] ** 2) / dof))
 
+
 def bounded_lstsq(A: np.ndarray, y: np.ndarray, bound: np.ndarray) -> np.ndarray:
     """Least squares of A (n, p) x = y (n,) with |x| <= ``bound`` (p,): NumPy's when that is within the bounds,
     else SciPy's bounded-variable least squares."""
