@@ -12,12 +12,14 @@ import os
 import threading
 
 _local = threading.local()
+#: the machine's cores, read once (os.cpu_count reads the system on every call; a projection asks twice)
+_CORES = os.cpu_count() or 1
 
 
 def pool_size(limit: int | None = None) -> int:
     """Threads for a pool started in this thread: the share set by :func:`thread_share`, else the cores,
     at most ``limit``."""
-    n = getattr(_local, "share", None) or os.cpu_count() or 1
+    n = getattr(_local, "share", None) or _CORES
     return max(1, min(n, limit) if limit else n)
 
 

@@ -82,9 +82,8 @@ def one_sample(geom: SceneGeometry, scene: Scene, rays, size_px, step: int = COA
     ix = np.clip(np.searchsorted(xs, np.arange(w), side="right") - 1, 0, len(xs) - 2)
     fy = ((np.arange(h) - ys[iy]) / (ys[iy + 1] - ys[iy]))[:, None]
     fx = ((np.arange(w) - xs[ix]) / (xs[ix + 1] - xs[ix]))[None, :]
-    c00, c01 = coarse[iy][:, ix], coarse[iy][:, ix + 1]
-    c10, c11 = coarse[iy + 1][:, ix], coarse[iy + 1][:, ix + 1]
-    out = np.ascontiguousarray((c00 * (1 - fx) + c01 * fx) * (1 - fy) + (c10 * (1 - fx) + c11 * fx) * fy)
+    along = coarse[:, ix] * (1 - fx) + coarse[:, ix + 1] * fx        # each node row along the columns
+    out = np.ascontiguousarray(along[iy] * (1 - fy) + along[iy + 1] * fy)
     traced = rough_cell[iy][:, ix]
     idx = np.flatnonzero(traced)
     out.ravel()[idx] = radiance(geom, scene, Rays(rays.origins_mm[idx], rays.dirs[idx], rays.valid[idx]))
