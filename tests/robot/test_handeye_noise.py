@@ -67,3 +67,19 @@ def test_poses_as_noisy_as_stated_pass_and_three_times_noisier_are_refused(cell,
     assert err <= 3 * math.sqrt(3) * he.mount_sigma_mm, (err, he.mount_sigma_mm)     # within 3 sigma (3 axes)
     with pytest.raises(MeasurementError, match=r"RMS residual [0-9.]+ px is [0-9.]+ times .* \(limit [0-9.]+ px"):
         calibrate_from_views(images, _noisy(flanges, 3 * ROBOT_ACCURACY_MM, rng), rig, CELL_GRID)
+
+
+@pytest.mark.parametrize("factor", (1.02, 1.06))
+def test_a_rig_file_whose_focal_length_is_off_is_refused(cell, factor):
+    """Issue 41's fourth trial: the default rig's file with its focal length 6 % long (12.0 mm, a lens's label
+    value) wrote a mount 21 mm off at a stated 1-sigma of 1.45 mm, exit 0; 2 % long, 6.7 mm off. The discs'
+    pixels fit within what a 0.5 mm robot leaves (0.13 px against 0.94), but each view's card, triangulated
+    through the wrong depth, turns against the flange's turn (psvs.robot.handeye_turns): refused, naming it.
+    The same views through the rig as built: its mount within 3 sigma of the truth."""
+    cfg, images, flanges = cell
+    he = calibrate_from_views(images, flanges, default_rig(), CELL_GRID)
+    assert np.linalg.norm(he.cam2flange[:3, 3] - true_cam2flange(cfg)[:3, 3]) <= 3 * math.sqrt(3) * he.mount_sigma_mm
+    wrong = default_rig().replace(focal_length_mm=factor * default_rig().camera.focal_length_mm)
+    with pytest.raises(MeasurementError, match=r"^the target's turn in the views disagrees with the flange's: "
+                                               r"[0-9.]+ deg RMS against the [0-9.]+ deg .* calibrate the rig first"):
+        calibrate_from_views(images, flanges, wrong, CELL_GRID)

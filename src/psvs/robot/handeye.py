@@ -286,6 +286,7 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
     whose grid cannot be read (:func:`grid_views`) is left out and listed in ``skipped``; ValueError when
     fewer than 3 views are read."""
     from psvs.robot.handeye_refine import fit_noise, refine_hand_eye
+    from psvs.robot.handeye_turns import check_turns, turn_agreement
     check_robot_accuracy(robot_accuracy_mm)
     if len(images) != len(flange2base):
         raise ValueError(f"{len(images)} images but {len(flange2base)} flange poses")
@@ -313,6 +314,7 @@ def calibrate_from_views(images: list[np.ndarray], flange2base: list[np.ndarray]
     _check_fit(rms_px, noise, robot_accuracy_mm)
     check_mount_pinned(noise.mount_sigma_mm, noise.mount_sigma_rad, f"from the detector's precision and a "
                        f"{robot_accuracy_mm:g} mm robot accuracy over {len(used)} views")
+    check_turns(turn_agreement(fits, flange2base, X, grid_points(grid), robot_accuracy_mm), robot_accuracy_mm)
     targets = [concat(T, X, F) for F, T in zip(flange2base, t2c, strict=True)]
     pos = np.array([T[:3, 3] for T in targets])
     ang = [rotation_angle_rad(targets[0][:3, :3].T @ T[:3, :3]) for T in targets]
