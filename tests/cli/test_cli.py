@@ -121,6 +121,19 @@ def test_triangulate_marks_pixels_that_are_not_twins_invalid(capsys, tmp_path, m
     assert code == 2 and "column(s) u_l appear more than once" in err and not out.exists()
 
 
+def test_triangulate_says_which_rows_are_no_pixels(tmp_path, capsys):
+    """Rows of NaN or infinite coordinates are no pixels (an adversarial trial: they were called vignetted, "where
+    the rig's glass blocks a view"): said as such with the first of them, marked invalid; the good row answers."""
+    csv_in, out = tmp_path / "w.csv", tmp_path / "p.csv"
+    csv_in.write_text("u_l,v_l,u_r,v_r\ninf,239.5,206.5,239.5\nnan,nan,nan,nan\n435.2,239.5,206.5,239.5\n")
+    code, _, err = run(capsys, "triangulate", "--rig", "clear", str(csv_in), "-o", str(out))
+    assert code == 0, err
+    assert err.startswith("2 pair(s) are not pixels (NaN or infinite coordinates; row 2: (inf, 239.5) left, "
+                          "(206.5, 239.5) right), marked invalid\n") and "vignetted" not in err
+    rows = np.genfromtxt(out, delimiter=",", names=True)
+    assert list(rows["valid"]) == [0, 0, 1] and rows["Z_mm"][2] == pytest.approx(450.0, abs=0.1)
+
+
 def _header_only(folder):
     path = folder / "header.csv"
     path.write_text("u_l,v_l,u_r,v_r\n")

@@ -169,6 +169,14 @@ def measuring_rig(path: str | None) -> Rig:
     return check_clear(rig, f"rig {path}" if path else "the paper's rig")
 
 
+def measuring_model(args, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0) -> str | None:
+    """``args.model`` (None: the rig's default), refused (ValueError, exit 2) when it is a closed form that errs
+    on this build over near..far mm beyond a match's noise (:func:`psvs.measure.model_check.check_closed_form`)."""
+    from psvs.measure.model_check import check_closed_form
+    check_closed_form(rig, args.model, near_mm, far_mm)
+    return args.model
+
+
 def check_output_path(path: str | None, suffixes: tuple[str, ...]) -> Path | None:
     """Validate an output path before any work: known suffix, existing folder."""
     if path is None:

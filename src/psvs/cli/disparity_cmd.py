@@ -13,6 +13,7 @@ from psvs.cli.common import (
     check_distinct,
     check_output_path,
     check_rerun_arguments,
+    measuring_model,
     measuring_rig,
     range_from_args,
 )
@@ -110,6 +111,7 @@ def _inputs(args, image=None):
     rect = None
     if rig is not None:
         near_mm, far_mm = range_from_args(args, rig)
+        measuring_model(args, rig, near_mm, far_mm)
         rect = rectification(rig, near_mm, far_mm)     # with its remaps, from the cache when it holds them
     shape = image.shape if rect is None else rect.size_px[::-1]
     lo, hi = _range(args, rig, rect, shape[1])

@@ -20,6 +20,7 @@ from psvs.cli.common import (
     check_output_path,
     check_telemetry_arguments,
     check_tolerance,
+    measuring_model,
     measuring_rig,
     open_telemetry,
     parse_seed,
@@ -83,6 +84,7 @@ def _sensors(args):
     rig = measuring_rig(args.rig)
     pipeline = pipeline_from_args(args)
     near_mm, far_mm = range_from_args(args, rig)
+    measuring_model(args, rig, near_mm, far_mm)
     tracker = None if seed is None else EdgeTracker(rig, seed, pipeline=pipeline, near_mm=near_mm, far_mm=far_mm,
                                                     match=MatchParams(model=args.model))
     dense = DenseSensor(rig, near_mm, far_mm, params=FAST if args.fast else DEFAULT,

@@ -10,6 +10,7 @@ from psvs.cli.common import (
     add_rig_argument,
     check_distinct,
     check_output_path,
+    measuring_model,
     measuring_rig,
     parse_seed,
     pipeline_from_args,
@@ -67,6 +68,7 @@ def prepare(args, image=None) -> tuple:
         raise ValueError(f"--n-seeds must be 2-100, got {args.n_seeds}")
     rig = measuring_rig(args.rig)
     near_mm, far_mm = range_from_args(args, rig)
+    measuring_model(args, rig, near_mm, far_mm)
     pipeline = pipeline_from_args(args)
     size = rig.camera.image_size_px
     image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)

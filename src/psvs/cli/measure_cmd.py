@@ -8,6 +8,7 @@ from psvs.cli.common import (
     add_model_argument,
     add_range_arguments,
     add_rig_argument,
+    measuring_model,
     measuring_rig,
     range_from_args,
 )
@@ -44,6 +45,7 @@ def prepare(args, image=None) -> tuple:
     rig = measuring_rig(args.rig)
     check_pattern_sizes(args.spacing_mm, args.diameter_mm, ("--spacing-mm", "--diameter-mm"))
     z_mm = range_from_args(args, rig)
+    measuring_model(args, rig, *z_mm)
     size = rig.camera.image_size_px
     image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)
     return image, rig, z_mm

@@ -10,6 +10,7 @@ from psvs.cli.common import (
     add_rig_argument,
     check_distinct,
     check_output_path,
+    measuring_model,
     measuring_rig,
 )
 from psvs.errors import MeasurementError
@@ -44,25 +45,37 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+def _unread(left: np.ndarray, right: np.ndarray, rig, res) -> tuple[list[str], np.ndarray]:
+    """Mark invalid in ``res`` the pairs that are no pixels (NaN or inf) and those where the rig's glass blocks a
+    view (the image shows no twin there): the notes saying so, with the first row of each, and those pairs
+    (N,) bool."""
+    notes = []
+    blank = ~(np.all(np.isfinite(left), axis=1) & np.all(np.isfinite(right), axis=1))
+    dark = ~blank & ~lit_pairs(np.nan_to_num(left), np.nan_to_num(right), rig)
+    for mask, what in ((blank, "are not pixels (NaN or infinite coordinates"),
+                       (dark, "lie where the rig's glass blocks a view (vignetted")):
+        if mask.any():
+            k = int(np.flatnonzero(mask)[0])
+            notes.append(f"{int(mask.sum())} pair(s) {what}; row {k + 2}: ({left[k, 0]:g}, {left[k, 1]:g}) left, "
+                         f"({right[k, 0]:g}, {right[k, 1]:g}) right)")
+            res.points_mm[mask] = np.nan
+            res.valid[mask] = False
+    return notes, blank | dark
+
+
 def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
     check_distinct({"-o": args.output}, {"POINTS.csv": args.points, "--rig": args.rig})
     rig = measuring_rig(args.rig)
+    measuring_model(args, rig)
     check_rows_memory(args.points)        # before the rows are read: each costs about a kB through the models
     left, right = read_matches_csv(args.points)
     if len(left) == 0:
         raise ValueError(f"{args.points}: no pairs to triangulate (a header and no rows)")
     model = args.model or default_model(rig)
     res = triangulate(left, right, rig, model=model)
-    notes = []                # why rows are invalid: printed, or the refusal's reason when no row is left
-    dark = ~lit_pairs(left, right, rig)
-    if dark.any():            # the glass blocks a view's light there: the image shows no twin of it
-        k = int(np.flatnonzero(dark)[0])
-        notes.append(f"{int(dark.sum())} pair(s) lie where the rig's glass blocks a view (vignetted; row {k + 2}: "
-                     f"({left[k, 0]:g}, {left[k, 1]:g}) left, ({right[k, 0]:g}, {right[k, 1]:g}) right)")
-        res.points_mm[dark] = np.nan
-        res.valid[dark] = False
-    lost = ~res.valid & ~dark
+    notes, unread = _unread(left, right, rig, res)    # why rows are invalid: printed, or the refusal's reason
+    lost = ~res.valid & ~unread
     if lost.any():            # rays that meet behind the rig or not at all: not a pair of this rig's twins
         k = int(np.flatnonzero(lost)[0])
         swapped = " (u_l and u_r swapped?)" if left[k, 0] - right[k, 0] <= 0 else ""

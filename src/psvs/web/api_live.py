@@ -10,6 +10,7 @@ from psvs.health.rolling import RollingCheck
 from psvs.live.dense import DenseSensor
 from psvs.live.tracker import EdgeTracker, TrackerParams
 from psvs.match.correspondence import MatchParams
+from psvs.measure.model_check import check_closed_form
 from psvs.web.api_dense import even_subset
 from psvs.web.api_match import SNAP_PX
 from psvs.web.bodies import LiveBody
@@ -30,6 +31,7 @@ def live_start(body: LiveBody, session: SessionDep):
         raise ValueError("live mode tracks one edge or shows dense depth: double-click an edge first, "
                          "or tick dense")
     rig = session.rig
+    check_closed_form(rig, body.model, body.near_mm, body.far_mm)
     tracker = None if body.seed is None else EdgeTracker(
         rig, body.seed, pipeline=body.pipeline(), near_mm=body.near_mm, far_mm=body.far_mm,
         match=MatchParams(model=body.model), params=TrackerParams(snap_px=SNAP_PX))

@@ -14,6 +14,7 @@ from psvs.imaging.pipeline import Pipeline
 from psvs.live.tracker import nearest_edge_pixels
 from psvs.match.correspondence import match_image
 from psvs.match.export import result_to_dict, write_csv, write_json, write_ply
+from psvs.measure.model_check import check_closed_form
 from psvs.optics.illumination import flat_field
 from psvs.optics.rig import Rig
 from psvs.optics.scale import pixel_scale
@@ -58,6 +59,7 @@ def match(body: MatchBody, session: SessionDep):
     was replaced while it was computed."""
     still, pipeline = session.still(), body.pipeline()
     rig = session.rig
+    check_closed_form(rig, body.model, body.near_mm, body.far_mm)
     seed = None if body.seed is None else snap_seed(flat_field(still.grey, rig.camera), pipeline, body.seed,
                                                     snap_px(rig))
     res = match_image(still.grey, rig, seed_px=seed, pipeline=pipeline, near_mm=body.near_mm,
