@@ -192,9 +192,11 @@ def refuse_if_drifted(grey, rig: Rig, near_mm: float = 400.0, far_mm: float = 12
         raise MeasurementError(f"the rig does not fit this image: {check.reason} (psvs check; psvs refit or "
                                f"calibrate again)") from cause
     if suspected_offset(check):
-        raise MeasurementError(f"whether the rig fits this image cannot be told: {check.reason}; the twins stand off "
-                               f"their rows by more than the tolerance, and by more than {SUSPECT_SIGMAS:g} times "
-                               f"their uncertainty (psvs check; psvs refit or calibrate again)") from cause
+        raise MeasurementError(f"whether the rig fits this image cannot be told: {check.reason}; yet the twins do "
+                               f"stand off their rows ({check.row_offset_rms_px:.2f} px, more than "
+                               f"{SUSPECT_SIGMAS:g} times its uncertainty from none, and above the tolerance as "
+                               f"read): no answer through this rig can be shown right (psvs check; psvs refit or "
+                               f"calibrate again)") from cause
     return check
 
 
