@@ -69,8 +69,10 @@ class HealthCheck:
     (largest |offset|) over the judged tiles with its ``uncertainty_px`` (NaN when it cannot judge),
     ``scatter_px`` (tiles about the field, robust sigma), ``judged_px`` (pixels of the tiles judged),
     ``tiles`` (judged) of ``tiles_tried``, ``frames``, ``tolerance_px``; the judged tiles' ``centre_px``
-    (n, 2) on the left grid with their measured ``offset_px`` (n,), ``fitted_px`` (n,) the field there, and
-    ``coefficients`` (6,) of the field in the grid's normalised coordinates (:func:`field_basis`)."""
+    (n, 2) on the left grid with their ``offset_px`` (n,) (measured, less ``expected_px`` (n,), what the rig itself
+    makes there: the plate's row shift on the paper's geometry, :mod:`psvs.health.plate_shift`; None: none),
+    ``fitted_px`` (n,) the field there, and ``coefficients`` (6,) of the field in the grid's normalised
+    coordinates (:func:`field_basis`)."""
 
     verdict: str
     reason: str
@@ -89,6 +91,7 @@ class HealthCheck:
     fitted_px: np.ndarray = field(repr=False)
     coefficients: np.ndarray = field(repr=False)
     disparity_px: np.ndarray = field(repr=False)
+    expected_px: np.ndarray | None = field(default=None, repr=False)
 
     def as_dict(self) -> dict:
         """The check as JSON-ready values (NaN as None)."""
@@ -110,7 +113,8 @@ def judged_pairs_px(check: HealthCheck, rig: Rig, near_mm: float = 400.0,
     the row, its measured offset across), read back through the rectification the check read through
     (``rig``'s over near..far mm)."""
     left = check.centre_px
-    right = left - np.column_stack([check.disparity_px, -check.offset_px])
+    measured = check.offset_px if check.expected_px is None else check.offset_px + check.expected_px
+    right = left - np.column_stack([check.disparity_px, -measured])
     rect = rectification(rig, near_mm, far_mm)
     if rect is not None:
         left, right = rect.to_complex(left, "left"), rect.to_complex(right, "right")
@@ -252,14 +256,16 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX, scenes: l
     frame_of = frame_no if scenes is None else np.asarray(scenes)[frame_no]
     edge = int(np.concatenate([t.at_edge for t in tiles]).sum())
     centre = np.concatenate([t.centre_px for t in tiles])[ok]
-    offset = np.concatenate([t.offset_px for t in tiles])[ok]
+    expected = np.concatenate([np.zeros(len(t.accepted)) if t.expected_px is None else t.expected_px
+                               for t in tiles])[ok]
+    offset = np.concatenate([t.offset_px for t in tiles])[ok] - np.nan_to_num(expected)   # what the rig did not make
     disparity = np.concatenate([t.disparity_px for t in tiles])[ok]
     tried = sum(len(t.accepted) for t in tiles)
     nan, n_nan = float("nan"), np.full(len(offset), np.nan)
     found = dict(row_offset_rms_px=nan, row_offset_max_px=nan, uncertainty_px=nan, scatter_px=nan, judged_px=0,
                  tiles=len(offset), tiles_tried=tried, frames=len(tiles), tolerance_px=float(tolerance_px),
                  grid_shape=t0.grid_shape, centre_px=centre, offset_px=offset, fitted_px=n_nan,
-                 coefficients=np.full(6, np.nan), disparity_px=disparity)
+                 coefficients=np.full(6, np.nan), disparity_px=disparity, expected_px=np.nan_to_num(expected))
     repeating = int(sum(int(t.repeating.sum()) for t in tiles if t.repeating is not None))
     ridged = int(sum(int(t.ridged.sum()) for t in tiles if t.ridged is not None))
     if len(offset) < MIN_TILES and ridged > max(len(offset), repeating):
@@ -297,7 +303,7 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX, scenes: l
     judged = n * t0.size_px ** 2
     found.update(row_offset_rms_px=rms, row_offset_max_px=top, uncertainty_px=unc, scatter_px=scatter,
                  judged_px=judged, tiles=n, centre_px=centre[inliers], offset_px=offset[inliers], fitted_px=at,
-                 coefficients=coef, disparity_px=disparity[inliers])
+                 coefficients=coef, disparity_px=disparity[inliers], expected_px=np.nan_to_num(expected)[inliers])
     evidence = (f"{n} tiles ({judged} px) of {len(tiles)} frame(s), field RMS {rms:.2f} +- {unc:.2f} px, "
                 f"largest {top:.2f} px, tolerance {tolerance_px:g} px")
     k = _two_sigma(dof)

@@ -35,6 +35,7 @@ import numpy as np
 
 from psvs.dense.build import rectified_images
 from psvs.dense.rig_cache import rectification
+from psvs.health.plate_shift import rig_row_offsets
 from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
@@ -79,7 +80,9 @@ class FrameTiles:
     rows searched either side, ``grid_shape`` (H', W'), ``rect`` the rectification read through (None: the
     paper's geometry), ``of_tiles`` how many tiles the whole frame holds (these may be a subset of them),
     ``focal_px`` the grid's focal length (px, the shorter axis's; None: not known, and the field's curvature
-    is not bounded by what a turned view can make, psvs.health.field)."""
+    is not bounded by what a turned view can make, psvs.health.field), ``expected_px`` (n,) the offset the rig
+    itself makes at each accepted tile (the plate's row shift on the paper's geometry,
+    :func:`psvs.health.plate_shift.rig_row_offsets`; None: none, a build's rectified grids)."""
 
     centre_px: np.ndarray
     offset_px: np.ndarray
@@ -97,6 +100,7 @@ class FrameTiles:
     ridged: np.ndarray | None = None
     places_px: np.ndarray | None = None
     focal_px: float | None = None
+    expected_px: np.ndarray | None = None
 
 
 def reach_px(rig: Rig, reach_deg: float = REACH_DEG) -> int:
@@ -208,8 +212,13 @@ def frame_tiles(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
     at_edge = (arr[:, 7] > 0) & textured & unique & ~ridged
     focal = (rig.camera.focal_length_mm / max(rig.camera.pixel_pitch_mm) if rect is None
              else min(rect.camera_matrix[0, 0], rect.camera_matrix[1, 1]))
+    expected = None
+    if rect is None and rig.mirrors.plate_thickness_mm > 0 and accepted.any():   # the plate's own row shift
+        expected = np.zeros(len(accepted))
+        expected[accepted] = rig_row_offsets(rig, arr[accepted, :2], arr[accepted, 3])
     return FrameTiles(arr[:, :2], arr[:, 2], arr[:, 3], arr[:, 4], arr[:, 5], accepted, at_edge, size, reach,
-                      (h, w), rect, len(rows) * len(cols), textured & ~unique, ridged, places, float(focal))
+                      (h, w), rect, len(rows) * len(cols), textured & ~unique, ridged, places, float(focal),
+                      expected)
 
 
 def spread_tiles(n_rows: int, n_cols: int, count: int) -> list[int]:
