@@ -144,3 +144,20 @@ def test_cli_writes_the_files_and_rejects_bad_input(tmp_path, capsys):
         assert msg in err and len(err.strip().splitlines()) == 1
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before       # nothing half-written
     assert afile.read_text() == "keep"
+
+
+def test_the_three_files_land_together_or_not_at_all(tmp_path, capsys):
+    """A folder in the way of stereo.yml (an adversarial trial): exit 2 in one line, and the earlier left.yaml is
+    what it was, no right.yaml written, no temporary file left; cleared, the three are written."""
+    out = tmp_path / "out"
+    (out / "stereo.yml").mkdir(parents=True)
+    (out / "left.yaml").write_text("OLD CALIBRATION\n")
+    assert main(["export-calibration", "misaligned", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "stereo.yml: it is a folder" in err
+    assert (out / "left.yaml").read_text() == "OLD CALIBRATION\n"
+    assert sorted(p.name for p in out.iterdir()) == ["left.yaml", "stereo.yml"]
+    (out / "stereo.yml").rmdir()
+    assert main(["export-calibration", "misaligned", "-o", str(out)]) == 0
+    assert YAML(typ="safe").load((out / "left.yaml").read_text())["image_width"] == 640
+    assert cv2.FileStorage(str(out / "stereo.yml"), cv2.FILE_STORAGE_READ).getNode("K1").mat().shape == (3, 3)

@@ -19,7 +19,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from psvs.io.atomic import write_atomic
+from psvs.io.atomic import output_batch, write_atomic
 from psvs.optics.pinhole_views import PinholeView
 
 ROS_NAMES = {"left": "left.yaml", "right": "right.yaml"}
@@ -95,14 +95,15 @@ def stereo_filestorage(views: dict[str, PinholeView], near_mm: float, far_mm: fl
 
 def write_calibration_files(folder, views: dict[str, PinholeView], near_mm: float, far_mm: float,
                             rig_name: str = "psvs") -> list[Path]:
-    """Write left.yaml, right.yaml (ROS) and stereo.yml (OpenCV) into ``folder`` (created; each file
-    atomically). Returns the paths written."""
+    """Write left.yaml, right.yaml (ROS) and stereo.yml (OpenCV) into ``folder`` (created; the three as one batch:
+    all or none, :func:`psvs.io.atomic.output_batch`). Returns the paths written."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     texts = {ROS_NAMES[v]: camera_info_yaml(views[v], near_mm, far_mm, rig_name) for v in ("left", "right")}
     texts[OPENCV_NAME] = stereo_filestorage(views, near_mm, far_mm)
     paths = []
-    for name, text in texts.items():
-        write_atomic(folder / name, text)
-        paths.append(folder / name)
+    with output_batch():            # all three land, or none (a folder in the way of the last kept the first two)
+        for name, text in texts.items():
+            write_atomic(folder / name, text)
+            paths.append(folder / name)
     return paths
