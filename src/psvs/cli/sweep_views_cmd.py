@@ -27,7 +27,7 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     from psvs.accuracy.table1 import ROBOT_OFFSET_MM, SUPERSAMPLE, check_pattern_depths, pattern_image
     from psvs.calibrate.sweep import dumps_sweep
-    from psvs.io.atomic import write_atomic
+    from psvs.io.atomic import output_batch, write_atomic
     from psvs.io.images import write_png
     from psvs.simulate.render import check_render_work
 
@@ -50,10 +50,11 @@ def run(args) -> int:
     images = [pattern_image(rig, float(z), args.seed + k) for k, z in enumerate(depths)]
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
-    for z, img in zip(depths, images, strict=True):
-        name = f"sweep_{z:06.1f}.png".replace(".", "_", 1)
-        write_png(folder / name, img)
-        rows.append((name, float(z) - ROBOT_OFFSET_MM))
-    write_atomic(folder / "sweep.csv", dumps_sweep(rows))
+    with output_batch():            # the images and sweep.csv land together, or none of them
+        for z, img in zip(depths, images, strict=True):
+            name = f"sweep_{z:06.1f}.png".replace(".", "_", 1)
+            write_png(folder / name, img)
+            rows.append((name, float(z) - ROBOT_OFFSET_MM))
+        write_atomic(folder / "sweep.csv", dumps_sweep(rows))
     print(f"wrote {len(rows)} sweep images and sweep.csv to {folder}")
     return 0
