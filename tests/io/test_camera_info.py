@@ -161,3 +161,12 @@ def test_the_three_files_land_together_or_not_at_all(tmp_path, capsys):
     assert main(["export-calibration", "misaligned", "-o", str(out)]) == 0
     assert YAML(typ="safe").load((out / "left.yaml").read_text())["image_width"] == 640
     assert cv2.FileStorage(str(out / "stereo.yml"), cv2.FILE_STORAGE_READ).getNode("K1").mat().shape == (3, 3)
+
+
+def test_a_range_inside_the_rig_is_refused_before_any_file(tmp_path, capsys):
+    """--near-mm 10 lies inside the misaligned build's mirrors (44 mm): refused as every command refuses it (an
+    adversarial trial: export-calibration took it), nothing written."""
+    out = tmp_path / "ros"
+    assert main(["export-calibration", "misaligned", "--near-mm", "10", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--near-mm 10 mm lies inside the rig" in err and not out.exists()
