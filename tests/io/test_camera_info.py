@@ -137,7 +137,8 @@ def test_cli_writes_the_files_and_rejects_bad_input(tmp_path, capsys):
     afile = tmp_path / "afile"
     afile.write_text("keep")
     for args, msg in ((["nosuch", "-o", str(out)], "rig file not found"),
-                      (["misaligned", "-o", str(out), "--near-mm", "900", "--far-mm", "500"], "working range"),
+                      (["misaligned", "-o", str(out), "--near-mm", "900", "--far-mm", "500"],
+                       "must be less than --far-mm"),
                       (["misaligned", "-o", str(afile)], "is a file")):
         assert main(["export-calibration", *args]) == 2
         err = capsys.readouterr().err
