@@ -433,3 +433,13 @@ def test_dense_depth_of_a_hard_compressed_jpeg_is_refused_in_the_commands_words(
             assert res["trusted_pct"] == 0 and res["median_z_mm"] is None and res["cloud"]["points_mm"] == []
         else:
             assert res["refused"] == "" and res["trusted_pct"] > 30, res["refused"]
+
+
+def test_dense_depth_of_a_constant_image_is_refused_as_the_command_refuses_it():
+    """A blank upload (every pixel 128): 422 with psvs disparity's words (an adversarial trial: 200 with an
+    all-NaN map, nothing refused, a warning on the server's terminal)."""
+    blank = np.full((480, 640), 128, np.uint8)
+    with local_client(create_app(image_source("blank", blank), default_rig())) as c:
+        res = c.post("/api/dense", json={"fast": True})
+    assert res.status_code == 422
+    assert "the complex image is constant (every pixel 128): no texture to match" in json.dumps(res.json())

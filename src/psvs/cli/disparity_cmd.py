@@ -20,7 +20,7 @@ from psvs.cli.common import (
 from psvs.dense import BLOCK_CELLS, CELL_PX, MIN_LAGS, dense_disparity, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_depth, rig_trust
 from psvs.dense.compiled import announce_dense
-from psvs.dense.disparity import check_dense_memory, check_range
+from psvs.dense.disparity import check_dense_memory, check_range, constant_refusal
 from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.rig_cache import rectification
 from psvs.dense.separate import rig_views
@@ -297,9 +297,9 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
     them all, about 250 MiB more at 2.3 MP). ``say_compiling``: the command's name, to say in a line, once
     its inputs are checked, that the dense kernels compile on this run (psvs.dense.compiled)."""
     out, (rig, image, rect, split, (lo, hi), params) = prepare(args, image)
-    if image.min() == image.max():          # nothing to match: said before any work, nothing written
-        raise MeasurementError(f"the complex image is constant (every pixel {image.flat[0]:g}): no texture to "
-                               "match")
+    constant = constant_refusal(image)      # nothing to match: said before any work, nothing written
+    if constant:
+        raise MeasurementError(constant)
     check_block_grid(image)                 # JPEG's grid echoes at every 8 px lag: said before any work
     look = _quick_look(image, rig, args)
     if say_compiling:

@@ -10,7 +10,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "build": ["RigDense", "dense_on_rig", "rectified_images", "rig_cloud", "rig_depth", "rig_trust"],
         "cloud": ["Cloud", "disparity_cloud", "write_cloud_ply"],
         "compiled": ["announce_dense"],
-        "disparity": ["DenseResult", "check_dense_memory", "check_range", "dense_disparity"],
+        "disparity": ["DenseResult", "check_dense_memory", "check_range", "constant_refusal", "dense_disparity"],
         "echo_test": ["BLOCK_CELLS", "CELL_PX", "MIN_LAGS"],
         "evaluate": ["evaluate_pair", "motorcycle"],
         "params": ["DEFAULT", "DenseParams", "FAST", "searched_lags"],

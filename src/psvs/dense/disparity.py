@@ -94,6 +94,15 @@ def check_image(image) -> np.ndarray:
     return a
 
 
+def constant_refusal(image) -> str:
+    """Why a complex image (H, W) gives no depth map before any work: every pixel the same value (no texture to
+    match; a lens cap, a blank upload); "" otherwise. ``psvs disparity`` and the page's dense run refuse it alike."""
+    a = np.asarray(image)
+    if a.size and a.min() == a.max():
+        return f"the complex image is constant (every pixel {a.flat[0]:g}): no texture to match"
+    return ""
+
+
 def check_range(d_min: float, d_max: float, width: int) -> None:
     """ValueError unless 0 ≤ d_min < d_max < width (px) and d_max is at least :data:`MIN_LAG_PX`. A range between
     two whole px is searched on the lags either side (:func:`~psvs.dense.params.searched_lags`)."""

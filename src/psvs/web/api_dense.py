@@ -10,6 +10,8 @@ from fastapi.responses import JSONResponse, Response
 
 from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
+from psvs.dense.disparity import constant_refusal
+from psvs.errors import MeasurementError
 from psvs.health.check import whole_check_due
 from psvs.imaging.block_grid import block_grid_refusal
 from psvs.imaging.grey import to_grey8
@@ -68,6 +70,9 @@ def dense(body: DenseBody, session: SessionDep):
     run under DENSE_LOCK (one at a time, with live mode's)."""
     still, rig = session.still(), session.rig
     grey = still.grey
+    constant = constant_refusal(grey)        # as psvs disparity: nothing to match, refused before any work
+    if constant:
+        raise MeasurementError(constant)
     with DENSE_LOCK:
         dense_res = dense_on_rig(grey, rig, body.near_mm, body.far_mm, params=FAST if body.fast else DEFAULT)
     res = dense_res.result
