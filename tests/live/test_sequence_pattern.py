@@ -47,3 +47,29 @@ def test_a_pattern_that_is_not_one_frame_number_is_one_short_line(capsys, tmp_pa
                        str(tmp_path / "out"))
     assert code == 2 and len(err.strip().splitlines()) == 1 and len(err) < 300 and message in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_a_frame_of_another_size_stops_the_run_and_keeps_the_frames_before_it(tmp_path, capsys):
+    """A sequence whose second frame is another camera's (an adversarial trial: exit 2 after frame 0, the frame
+    not named, the log not written): as a damaged frame, the run stops there, names it, keeps frame 0 in its log
+    (the csv module reads it back) and exits 1; the odd frame first is bad input, exit 2."""
+    import csv
+
+    from psvs.io.params import load_rig
+    from psvs.simulate.builtin import fig5a
+    from psvs.simulate.render import render
+    small = render(fig5a(), load_rig("default"), supersample=1, seed=1).image
+    seq = tmp_path / "seq"
+    seq.mkdir()
+    for k, img in enumerate((small, np.zeros((1080, 1440), np.uint8), small)):
+        write_png(seq / f"s_{k:03d}.png", img)
+    log = tmp_path / "log.csv"
+    code, out, err = run(capsys, "live", "--video", str(seq), "--rig", "default", "--seed", "540,330", "-o", str(log))
+    assert code == 1 and "frame 0: Z " in out
+    assert "psvs live: frame 1 is 1440x1080 px but the rig's camera is 640x480 px; frames 0-0 are kept" in err
+    with log.open() as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 1 and rows[0]["frame"] == "0"
+    (seq / "s_000.png").unlink()
+    code, _, err = run(capsys, "live", "--video", str(seq), "--rig", "default", "--seed", "540,330", "-o", str(log))
+    assert code == 2 and err.count("\n") == 1 and "1440x1080 px but the rig's camera is 640x480 px" in err

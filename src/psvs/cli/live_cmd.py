@@ -131,8 +131,11 @@ def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, 
     steps, dense_frames, metas, checks, lost, stopped_by = [], [], [], [], False, None
     t0 = time.perf_counter()
     t_first = None
+    rig = (tracker if tracker is not None else dense).rig
     try:
         while (frame := source.grab()) is not None:
+            if steps:                   # the first frame's size is the sensors' own check (bad input, exit 2)
+                _check_frame_size(frame, rig)
             if t_first is None:
                 t_first = frame.timestamp_s
             t_s = frame.timestamp_s - t_first       # a video's frames at its own rate; a camera's on its clock
@@ -173,6 +176,15 @@ def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, 
         if stopped_by is None:
             raise
     return steps, dense_frames, metas, checks, time.perf_counter() - t0, lost, stopped_by
+
+
+def _check_frame_size(frame, rig) -> None:
+    """DamagedVideo (a source whose frame the run cannot use: it stops there and keeps the frames before it)
+    when ``frame`` is not the size of the rig's camera (a sequence with another camera's image in it)."""
+    w, h = rig.camera.image_size_px
+    if frame.image.shape[:2] != (h, w):
+        raise DamagedVideo(f"frame {frame.index} is {frame.image.shape[1]}x{frame.image.shape[0]} px but the rig's "
+                           f"camera is {w}x{h} px")
 
 
 def _dropped_note(frame) -> str:
