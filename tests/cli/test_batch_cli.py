@@ -66,7 +66,8 @@ def test_batch_measure_over_a_video_gives_each_frame_what_measure_json_prints(ca
 
 
 def test_batch_over_a_folder_records_a_damaged_image_and_a_missed_pattern(capsys, tmp_path, fig9):
-    """A folder of the frames, a truncated PNG and a blank image: the frames measure, the damaged file is a
+    """A folder of the frames, a truncated PNG, a blank image, a dangling link and a folder named as frames: the
+    frames measure, the damaged file (and the link and the folder) is a
     "bad input" row with the one line `psvs measure` gives, the blank one a "cannot measure" row or "bad
     input" (as the single command answers it), and neither leaves a file."""
     _, pngs = fig9
@@ -76,17 +77,22 @@ def test_batch_over_a_folder_records_a_damaged_image_and_a_missed_pattern(capsys
         (folder / p.name).write_bytes(p.read_bytes())
     (folder / "g_broken.png").write_bytes(pngs[0].read_bytes()[:300])
     write_png(folder / "h_blank.png", np.full((480, 640), 90, np.uint8))
+    (folder / "i_link.png").symlink_to(tmp_path / "nowhere.png")      # named as frames, no image: their rows say
+    (folder / "j_folder.png").mkdir()                                 # so (an adversarial trial: left out unsaid)
     code, out, err = run(capsys, "batch", "measure", "circles", str(folder), "--rig", "default", "-o",
                          str(tmp_path / "m"), "--workers", "2")
     assert code == 0, err
     rows = {r["key"]: r for r in pq.read_table(tmp_path / "m" / "results.parquet").to_pylist()}
-    assert sorted(rows) == ["f00.png", "f01.png", "f02.png", "g_broken.png", "h_blank.png"]
+    assert sorted(rows) == ["f00.png", "f01.png", "f02.png", "g_broken.png", "h_blank.png", "i_link.png",
+                            "j_folder.png"]
+    assert rows["i_link.png"]["status"] == "bad input" and "image not found" in rows["i_link.png"]["message"]
+    assert rows["j_folder.png"]["status"] == "bad input" and "is a folder" in rows["j_folder.png"]["message"]
     assert rows["g_broken.png"]["status"] == "bad input" and "g_broken.png" in rows["g_broken.png"]["message"]
     code, _, single_err = run(capsys, "measure", "circles", str(folder / "h_blank.png"), "--rig", "default")
     assert rows["h_blank.png"]["message"] in single_err and code in (1, 2)
     assert rows["h_blank.png"]["status"] == {1: "cannot measure", 2: "bad input"}[code]
     assert sorted(p.name for p in (tmp_path / "m").glob("f*")) == ["f00.json", "f01.json", "f02.json"]
-    assert "5 frames, 3 ok" in out
+    assert "7 frames, 3 ok" in out
 
 
 @pytest.fixture(scope="module")

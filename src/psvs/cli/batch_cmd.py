@@ -201,8 +201,11 @@ def _input_digest(frames: Frames) -> str:
     paths = [Path(frames.source)] if frames.video else [Path(frames.folder) / k for k in frames.keys]
     h = hashlib.sha256()
     for p in paths:
-        st = p.stat()
-        h.update(f"{p.name}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
+        try:
+            st = p.stat()
+            h.update(f"{p.name}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
+        except OSError:             # a dangling link named as a frame: its frame is refused by its reader
+            h.update(f"{p.name}\0missing\n".encode())
     return h.hexdigest()
 
 

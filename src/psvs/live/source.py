@@ -202,7 +202,11 @@ class ImageSequence(_Source):
             raise ValueError(f"{self.name} is not open")
         if self._index >= len(self._files):
             return None
-        return self._frame(read_grey(self._files[self._index]), True)
+        try:
+            image = read_grey(self._files[self._index])
+        except (OSError, ValueError) as exc:        # a frame the sequence names but no image: the run stops there
+            raise DamagedVideo(str(exc)) from None
+        return self._frame(image, True)
 
     def close(self) -> None:
         """Stop reading the sequence."""
@@ -232,12 +236,15 @@ def check_pattern(pattern: str) -> bool:
 
 
 def sequence_files(pattern: str) -> list[Path]:
-    """The image files of a sequence: a folder's images (:data:`SEQUENCE_SUFFIXES`) in name order, or a printf
+    """The image files of a sequence: a folder's entries named as images (:data:`SEQUENCE_SUFFIXES`; a folder or a
+    dangling link so named too, for its reader to refuse) in name order, or a printf
     pattern's files (:func:`check_pattern`) from the first index 0..999 that exists to the first missing
     one; [] when none."""
     path = Path(pattern)
     if path.is_dir():
-        return sorted(p for p in path.iterdir() if p.suffix.lower() in SEQUENCE_SUFFIXES and p.is_file())
+        # every entry named as a frame, readable or not: a dangling link or a folder named x.png is a frame the
+        # reader then refuses by name, not one left out without a word
+        return sorted(p for p in path.iterdir() if p.suffix.lower() in SEQUENCE_SUFFIXES)
     if not check_pattern(pattern):
         return []
     start = next((k for k in range(1000) if Path(pattern % k).is_file()), None)
