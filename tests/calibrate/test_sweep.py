@@ -83,6 +83,9 @@ def test_calibrate_cli(capsys, tmp_path, sweep_dir):
     assert rig.mirrors.error("m4").shift_mm == pytest.approx(printed["m4_shift_mm"], abs=1e-5)
     held = re.search(r"parameter\(s\) held near nominal by their priors \((.*)\)", text)[1]
     assert {"k2 +-0.5", "p1 +-0.02", "m4_tilt_a_deg +-0.3", "box_z_deg +-0.3"} <= set(held.split(", "))
+    # a term held at the design outright is printed with its prior's 1-sigma, not 0 (an adversarial trial)
+    sigma = {m[0]: float(m[1]) for m in re.findall(r"^  (\w+)\s+-?[0-9.]+  \+- ([0-9.]+)  \(not seen", text, re.M)}
+    assert sigma["k2"] == 0.5 and sigma["p1"] == 0.02 and all(v > 0 for v in sigma.values())
 
 
 def test_bad_sweeps(capsys, tmp_path, sweep_dir):

@@ -73,7 +73,10 @@ def run(args) -> int:
     print("parameters (1-sigma):")
     for name, value in b.values.items():
         held = "  (not seen by these images: held near nominal by its prior)" if name in b.held_by_prior else ""
-        print(_fmt(name, value, b.sigma[name]) + held)
+        sigma = b.sigma[name]
+        if held and not sigma > 0:          # held at the design outright (a sweep): as uncertain as its prior
+            sigma = PRIOR_SIGMA[name]
+        print(_fmt(name, value, sigma) + held)
     print(f"  {'baseline_mm (|O1 O2|)':<22}{res.baseline_mm:12.5f}  +- {res.baseline_sigma_mm:.5f}")
     if b.sweep:
         print(f"  robot offset: Z = reading + {b.sweep['offset_mm']:.3f} mm")
