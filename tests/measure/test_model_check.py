@@ -1,7 +1,8 @@
 """A closed-form model asked for on a build (psvs.measure.model_check): refused where what the build adds to its
 error exceeds a match's noise, against a closed form of that error (a mirror turned about the vertical turns its
-view by twice as much: a disparity of f 2 delta, a depth error of Z^2 2 delta / b); the CLI's one line (issue
-41's fourth trial: fig. 9 at 900 mm through the misaligned build read 892.7 mm with the paper's model, exit 0)."""
+view by twice as much: a disparity of f 2 delta, a depth error of Z^2 2 delta / b); the CLI's one line (an
+adversarial trial, 2026-12-05: fig. 9 at 900 mm through the misaligned build read 892.7 mm with the paper's model,
+exit 0)."""
 import math
 
 import numpy as np

@@ -71,8 +71,8 @@ def test_poses_as_noisy_as_stated_pass_and_three_times_noisier_are_refused(cell,
 
 @pytest.mark.parametrize("factor", (1.02, 1.06))
 def test_a_rig_file_whose_focal_length_is_off_is_refused(cell, factor):
-    """Issue 41's fourth trial: the default rig's file with its focal length 6 % long (12.0 mm, a lens's label
-    value) wrote a mount 21 mm off at a stated 1-sigma of 1.45 mm, exit 0; 2 % long, 6.7 mm off. The discs'
+    """An adversarial trial (2026-12-05): the default rig's file with its focal length 6 % long (12.0 mm, a lens's
+    label value) wrote a mount 21 mm off at a stated 1-sigma of 1.45 mm, exit 0; 2 % long, 6.7 mm off. The discs'
     pixels fit within what a 0.5 mm robot leaves (0.13 px against 0.94), but each view's card, triangulated
     through the wrong depth, turns against the flange's turn (psvs.robot.handeye_turns): refused, naming it.
     The same views through the rig as built: its mount within 3 sigma of the truth."""

@@ -4,7 +4,7 @@ The closed forms triangulate through the paper's ideal geometry: parallel virtua
 lens. A build's rig file states what departs from it (mirror tilts and shifts, a turned box, the lens's
 distortion), and the exact model traces through all of it. Asked for a closed form on a build, psvs answered
 with it: fig. 9's pattern at 900 mm through the `misaligned` build read 892.7 mm with the paper's model and
-903.2 mm with refraction's (exact: 900.0), every pattern check passed (issue 41's fourth trial). A closed form
+903.2 mm with refraction's (exact: 900.0), every pattern check passed (an adversarial trial, 2026-12-05). A closed form
 is not wrong by itself: on the paper's geometry the paper's model is the paper's (about 1 % off for the plate
 it leaves out, eq. 15 corrects it). What a build adds is.
 

@@ -6,7 +6,7 @@ and the same rotation T in every view k. The hand-eye fit itself (:mod:`psvs.rob
 the discs' pixels, where a rig whose depth is scaled wrongly hides: a focal length 6 % long in the rig file
 moves every view's pixels by 0.13 px RMS (0.04 px with the right one), well inside what a 0.5 mm robot
 accuracy leaves (0.94 px), yet it stretches each view's triangulated card in depth and turns its plane by up
-to 2 deg, and the mount comes out 21 mm off at a stated 1-sigma of 1.45 mm (issue 41's fourth trial). The
+to 2 deg, and the mount comes out 21 mm off at a stated 1-sigma of 1.45 mm (an adversarial trial, 2026-12-05). The
 turns tell.
 
 **The test.** Linearised at the fit's X and the views' mean orientation, each view's misfit
