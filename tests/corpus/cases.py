@@ -525,7 +525,7 @@ def _small() -> list[Case]:
         Case("export-calibration-output-is-a-file", ("export-calibration", "default", "-o", "afile"), 2, "afile",
              outputs=("afile",)),
         Case("export-calibration-near-beyond-far", ("export-calibration", "default", "--near-mm", "900",
-                                                    "--far-mm", "500"), 2, "range"),
+                                                    "--far-mm", "500"), 2, "must be less than --far-mm"),
         Case("rig-show-missing", ("rig", "show", "none.toml"), 2, "not found"),
         Case("rig-show-device", ("rig", "show", "/dev/null"), 2, "not a regular file"),     # said "not found"
         Case("rig-show-folder", ("rig", "show", "examples"), 2, "is a folder"),

@@ -212,9 +212,10 @@ def test_the_dense_cloud_is_the_trusted_pixels_at_their_depth(textured_app):
     blank = create_app(image_source("blank", np.full((480, 640), 90, np.uint8)), default_rig())
     with local_client(blank) as c:
         assert c.get("/api/dense/map", params={"name": "z", "run": 0}).status_code == 404
-        res = c.post("/api/dense", json={"fast": True}).json()
-    assert res["trusted_pct"] == 0 and res["median_z_mm"] is None and res["cloud"]["points_mm"] == []
-    assert res["refused"] == ""         # the self-check asked (nothing trusted): a blank wall, it cannot judge
+        res = c.post("/api/dense", json={"fast": True})
+        # a constant image: refused before any work, in psvs disparity's words (it answered an all-NaN map)
+        assert res.status_code == 422 and "the complex image is constant (every pixel 90)" in res.text
+        assert c.get("/api/dense/map", params={"name": "z", "run": 0}).status_code == 404      # no run kept
     noise = create_app(image_source("noise", np.random.default_rng(3).integers(0, 256, (480, 640)).astype(np.uint8)),
                        default_rig())
     with local_client(noise) as c:
