@@ -77,3 +77,10 @@ def test_measure_circles_with_the_papers_model_on_a_build_is_refused(tmp_path, c
         code, out, err = run(capsys, "measure", "circles", str(img), "--rig", "misaligned", "--model", model)
         assert code == 2 and out == "" and err.count("\n") == 1, (code, out, err)
         assert err.startswith(f"psvs measure: error: the {model} model leaves out what this rig file states")
+
+
+def test_a_range_no_point_of_which_both_views_see_weighs_nothing():
+    """A working range in front of the rig where the views do not overlap (5-6 mm): no point to weigh the model
+    on, no excess (the range itself is every command's check)."""
+    excess, err, z = closed_form_excess(load_rig("misaligned"), "paper", 5.0, 6.0)
+    assert excess == float("-inf") and math.isnan(err) and math.isnan(z)

@@ -55,8 +55,11 @@ def closed_form_excess(rig: Rig, model: str, near_mm: float, far_mm: float) -> t
     """How far the closed form ``model`` ('paper' or 'refraction') triangulates points of the build ``rig`` over
     near..far mm beyond what it does on the rig as designed (:func:`designed`), against the depth a
     :data:`~psvs.measure.triangulate.MATCH_SIGMA_PX` disparity moves: (the worst excess over that move (mm;
-    <= 0: the model stands), the build's depth error there (mm), its depth (mm))."""
+    <= 0: the model stands), the build's depth error there (mm), its depth (mm)); (-inf, NaN, NaN) when no point
+    of the range is seen by both views."""
     pts = field_points(rig, near_mm, far_mm)
+    if not len(pts):                 # no point both views see over the range: nothing to weigh the model on
+        return float("-inf"), float("nan"), float("nan")
     ideal = designed(rig)
     out = []
     for r in (rig, ideal):
