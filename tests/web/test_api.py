@@ -443,3 +443,18 @@ def test_dense_depth_of_a_constant_image_is_refused_as_the_command_refuses_it():
         res = c.post("/api/dense", json={"fast": True})
     assert res.status_code == 422
     assert "the complex image is constant (every pixel 128): no texture to match" in json.dumps(res.json())
+
+
+def test_a_closed_form_model_on_a_build_is_refused_by_the_page_as_by_the_commands():
+    """The page's matching and live mode with the paper's model through the misaligned build: 400 in the words
+    of psvs.measure.model_check (the commands' exit 2); the exact model is taken."""
+    from psvs.io.params import load_rig
+    from psvs.simulate.builtin import textured
+    from psvs.simulate.render import render
+    rig = load_rig("misaligned")
+    img = render(textured(), rig, supersample=1, seed=2).image
+    with local_client(create_app(image_source("build", img), rig)) as c:
+        for path, body in (("/api/match", {"model": "paper"}), ("/api/live/start", {"model": "paper", "dense": True})):
+            res = c.post(path, json=body)
+            assert res.status_code == 400 and "the paper model leaves out what this rig file states" in res.text
+        assert c.post("/api/match", json={"model": "exact"}).status_code in (200, 422)
