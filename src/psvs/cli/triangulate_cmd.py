@@ -45,21 +45,26 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+def _invalid(res, mask: np.ndarray, notes: list[str], say) -> None:
+    """Mark the pairs of ``mask`` (N,) bool invalid in ``res`` and, when there are any, add ``say(k, n)`` to
+    ``notes`` (k the first of them, n how many; said before they are marked, so it may read their point)."""
+    if mask.any():
+        notes.append(say(int(np.flatnonzero(mask)[0]), int(mask.sum())))
+        res.points_mm[mask] = np.nan
+        res.valid[mask] = False
+
+
 def _unread(left: np.ndarray, right: np.ndarray, rig, res) -> tuple[list[str], np.ndarray]:
     """Mark invalid in ``res`` the pairs that are no pixels (NaN or inf) and those where the rig's glass blocks a
     view (the image shows no twin there): the notes saying so, with the first row of each, and those pairs
     (N,) bool."""
-    notes = []
+    notes: list[str] = []
     blank = ~(np.all(np.isfinite(left), axis=1) & np.all(np.isfinite(right), axis=1))
     dark = ~blank & ~lit_pairs(np.nan_to_num(left), np.nan_to_num(right), rig)
     for mask, what in ((blank, "are not pixels (NaN or infinite coordinates"),
                        (dark, "lie where the rig's glass blocks a view (vignetted")):
-        if mask.any():
-            k = int(np.flatnonzero(mask)[0])
-            notes.append(f"{int(mask.sum())} pair(s) {what}; row {k + 2}: ({left[k, 0]:g}, {left[k, 1]:g}) left, "
-                         f"({right[k, 0]:g}, {right[k, 1]:g}) right)")
-            res.points_mm[mask] = np.nan
-            res.valid[mask] = False
+        _invalid(res, mask, notes, lambda k, n, what=what: f"{n} pair(s) {what}; row {k + 2}: ({left[k, 0]:g}, "
+                 f"{left[k, 1]:g}) left, ({right[k, 0]:g}, {right[k, 1]:g}) right)")
     return notes, blank | dark
 
 
@@ -83,21 +88,13 @@ def run(args) -> int:
                      f"u_l - u_r {left[k, 0] - right[k, 0]:.1f} px{swapped})")
     gap = epipolar_gap_px(left, right, rig)
     off = res.valid & ~(gap <= EPIPOLAR_TOL_PX)        # not twins: the pixels see two different points
-    if off.any():
-        k = int(np.flatnonzero(off)[0])
-        notes.append(f"{int(off.sum())} pair(s) stand more than {EPIPOLAR_TOL_PX:g} px off their twin's epipolar "
-                     f"curve (row {k + 2}: {gap[k]:.1f} px): not twins")
-        res.points_mm[off] = np.nan
-        res.valid[off] = False
+    _invalid(res, off, notes, lambda k, n: f"{n} pair(s) stand more than {EPIPOLAR_TOL_PX:g} px off their twin's "
+             f"epipolar curve (row {k + 2}: {gap[k]:.1f} px): not twins")
     sigma = depth_sigma_mm(left, right, rig, model, args.match_sigma_px)
     loose = res.valid & ~(sigma < res.points_mm[:, 2])
-    if loose.any():
-        k = int(np.flatnonzero(loose)[0])
-        notes.append(f"{int(loose.sum())} pair(s) have a disparity within twice the match noise "
-                     f"({args.match_sigma_px:g} px): their depth is not pinned (row {k + 2}: Z "
-                     f"{res.points_mm[k, 2]:.0f} mm, +-{sigma[k]:.0f} mm)")
-        res.points_mm[loose] = np.nan
-        res.valid[loose] = False
+    _invalid(res, loose, notes, lambda k, n: f"{n} pair(s) have a disparity within twice the match noise "
+             f"({args.match_sigma_px:g} px): their depth is not pinned (row {k + 2}: Z {res.points_mm[k, 2]:.0f} "
+             f"mm, +-{sigma[k]:.0f} mm)")
     sigma[~res.valid] = np.nan
     if not res.valid.any():
         raise MeasurementError(f"none of the {len(res.valid)} pair(s) gives a point: {'; '.join(notes)}")

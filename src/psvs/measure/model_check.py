@@ -21,7 +21,7 @@ import numpy as np
 from psvs.measure.triangulate import MATCH_SIGMA_PX, depth_sigma_mm, triangulate
 from psvs.optics.project import in_image, project_points
 from psvs.optics.rectify import needs_rectification
-from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
+from psvs.optics.rig import Rig
 from psvs.optics.trace import trace_pixels
 
 #: Points a side of the field's grid, and depths over the working range, the check triangulates.
@@ -31,8 +31,7 @@ DEPTHS = 5
 
 def designed(rig: Rig) -> Rig:
     """``rig`` as designed: no mirror error, the box not turned, the lens without distortion."""
-    ideal = rig.replace(distortion=(0.0,) * len(rig.camera.distortion), box_rotation_rad=(0.0, 0.0, 0.0))
-    return ideal.with_errors({m: MirrorError() for m in MIRROR_NAMES})
+    return rig.designed_mirrors().replace(distortion=(0.0,) * len(rig.camera.distortion))
 
 
 def field_points(rig: Rig, near_mm: float, far_mm: float) -> np.ndarray:

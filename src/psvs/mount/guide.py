@@ -40,7 +40,7 @@ from psvs.evidence import ROW_TOLERANCE_PX
 from psvs.measure.tolerance import field_points
 from psvs.mount.seats import DEFAULT_PITCH_MM, SCREWS, Seat, apply_turns, handedness, screw_rates
 from psvs.optics.project import project_points
-from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
+from psvs.optics.rig import MIRROR_NAMES, Rig
 
 #: Turns are given in steps of this (a builder can set a screw to 1/16 of a turn by its hex key).
 TURN_STEP = 1.0 / 16.0
@@ -147,7 +147,7 @@ def check_aligned(g: AlignmentGuide) -> AlignmentGuide:
 
 def designed_twin(rig: Rig) -> Rig:
     """The build's design: the same camera, every mirror as designed, the box not turned."""
-    return rig.with_errors({n: MirrorError() for n in MIRROR_NAMES}).replace(box_rotation_rad=(0.0, 0.0, 0.0))
+    return rig.designed_mirrors()
 
 
 def twin_rows_px(rig: Rig, points_mm: np.ndarray) -> np.ndarray:

@@ -146,8 +146,7 @@ def _seat(name: str, ext: MirrorExtent, pitch_mm: float, inset: float, back_mm: 
 
 def _designed_planes(rig: Rig) -> dict:
     """The designed planes in the mirror box's frame (no pose error, no box turn)."""
-    zero = {n: MirrorError() for n in MIRROR_NAMES}
-    return mirror_planes(rig.with_errors(zero).replace(box_rotation_rad=(0.0, 0.0, 0.0)))
+    return mirror_planes(rig.designed_mirrors())
 
 
 def handedness(rig: Rig, mirror: str) -> float:

@@ -11,7 +11,7 @@ import numpy as np
 from psvs.optics.design import footprint_extents
 from psvs.optics.field import field_pixels
 from psvs.optics.mirrors import mirror_planes, virtual_centre
-from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
+from psvs.optics.rig import Rig
 from psvs.optics.surfaces import Plane
 from psvs.optics.trace import trace_pixels
 
@@ -96,7 +96,7 @@ def rig_layout(rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0, per_sid
         glasses.append(g)
     designed = None
     if not rig.mirrors.as_designed:
-        nominal = rig.with_errors({n: MirrorError() for n in MIRROR_NAMES}).replace(box_rotation_rad=(0.0, 0.0, 0.0))
+        nominal = rig.designed_mirrors()
         nominal_planes = mirror_planes(nominal)
         designed = [{"name": name.upper(), "corners_mm": plane_corners(
             nominal_planes[name] if nominal_planes[name].extent is not None

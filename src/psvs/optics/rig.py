@@ -275,6 +275,10 @@ class Rig:
         """No mirror pose error and no box rotation (the lens may still distort)."""
         return self.mirrors.as_designed
 
+    def designed_mirrors(self) -> "Rig":
+        """A copy with every mirror as designed (no pose error) and the box not turned; the camera as it is."""
+        return self.with_errors({n: MirrorError() for n in MIRROR_NAMES}).replace(box_rotation_rad=(0.0, 0.0, 0.0))
+
     @property
     def virtual_z_mm(self) -> float:
         """Z of both virtual optical centres: -(b/2) tan(omega_1), i.e. -b/2 at 45 deg (paper III.2)."""
