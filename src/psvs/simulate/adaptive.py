@@ -22,6 +22,7 @@ from scipy.ndimage import binary_dilation
 from psvs.optics.rig import Rig
 from psvs.optics.trace import Rays
 from psvs.simulate.geometry import SceneGeometry
+from psvs.simulate.kernels import bilinear_fill, not_smooth
 from psvs.simulate.radiance import radiance, sample_rays, view_rays
 from psvs.simulate.scene import Scene
 
@@ -43,13 +44,9 @@ def rough_pixels(radiance_img: np.ndarray, tol: float = SMOOTH_TOL, reach: int =
     difference along a row, a column or a diagonal above ``tol``), grown by ``reach`` px, and with
     ``border`` the frame's outer ``reach`` px (a feature between a border pixel's centre and its outer edge,
     such as a build's vignetting, has no pixel beyond it to show a step)."""
-    f = np.pad(radiance_img, 1, mode="edge")
-    c = f[1:-1, 1:-1]
-    d2 = np.zeros_like(c)
-    for a, b in (((1, 0), (1, 2)), ((0, 1), (2, 1)), ((0, 0), (2, 2)), ((0, 2), (2, 0))):
-        d2 = np.maximum(d2, np.abs(f[a[0]:a[0] + c.shape[0], a[1]:a[1] + c.shape[1]]
-                                   + f[b[0]:b[0] + c.shape[0], b[1]:b[1] + c.shape[1]] - 2 * c))
-    rough = (d2 > tol).astype(np.uint8)
+    img = np.ascontiguousarray(radiance_img, dtype=np.float64)
+    rough = np.empty(img.shape, np.uint8)
+    not_smooth(img, float(tol), rough)
     if reach == 0:
         return rough.astype(bool)
     if border:                                  # the frame's border: no neighbour beyond it shows a step
@@ -80,11 +77,10 @@ def one_sample(geom: SceneGeometry, scene: Scene, rays, size_px, step: int = COA
     # bilinear interpolation of the nodes everywhere, then the rough cells traced pixel by pixel
     iy = np.clip(np.searchsorted(ys, np.arange(h), side="right") - 1, 0, len(ys) - 2)
     ix = np.clip(np.searchsorted(xs, np.arange(w), side="right") - 1, 0, len(xs) - 2)
-    fy = ((np.arange(h) - ys[iy]) / (ys[iy + 1] - ys[iy]))[:, None]
-    fx = ((np.arange(w) - xs[ix]) / (xs[ix + 1] - xs[ix]))[None, :]
-    along = coarse[:, ix] * (1 - fx) + coarse[:, ix + 1] * fx        # each node row along the columns
-    out = np.ascontiguousarray(along[iy] * (1 - fy) + along[iy + 1] * fy)
-    traced = rough_cell[iy][:, ix]
+    fy = (np.arange(h) - ys[iy]) / (ys[iy + 1] - ys[iy])
+    fx = (np.arange(w) - xs[ix]) / (xs[ix + 1] - xs[ix])
+    out, traced = np.empty((h, w)), np.empty((h, w), bool)
+    bilinear_fill(coarse, iy, ix, fy, fx, rough_cell, out, traced)
     idx = np.flatnonzero(traced)
     out.ravel()[idx] = radiance(geom, scene, Rays(rays.origins_mm[idx], rays.dirs[idx], rays.valid[idx]))
     out.ravel()[node] = coarse.ravel()

@@ -177,3 +177,45 @@ def value_noise(lattice, xy, scale_mm, low, high):  # pragma: no cover - compile
         bot = lattice[iy1, ix] * (1 - fx) + lattice[iy1, ix1] * fx
         out[i] = low + (high - low) * (top * (1 - fy) + bot * fy)
     return out
+
+
+@_kernel
+def not_smooth(img, tol, out):  # pragma: no cover - compiled
+    """In place: ``out`` (H, W) uint8 is 1 where the float64 image ``img`` (H, W) is not smooth: the largest of
+    its second differences along the row, the column and both diagonals (``|a + b - 2 c|``, the frame's edge
+    pixels repeated beyond it) exceeds ``tol``; 0 elsewhere, and where any of the four is NaN (NumPy's
+    maximum carries a NaN through: :func:`psvs.simulate.adaptive.rough_pixels`' form)."""
+    h, w = img.shape
+    for y in range(h):
+        ym, yp = max(y - 1, 0), min(y + 1, h - 1)
+        for x in range(w):
+            xm, xp = max(x - 1, 0), min(x + 1, w - 1)
+            c = img[y, x]
+            c2 = c + c                          # 2 c, exactly
+            e1 = abs(img[y, xm] + img[y, xp] - c2)
+            e2 = abs(img[ym, x] + img[yp, x] - c2)
+            e3 = abs(img[ym, xm] + img[yp, xp] - c2)
+            e4 = abs(img[ym, xp] + img[yp, xm] - c2)
+            if np.isnan(e1) or np.isnan(e2) or np.isnan(e3) or np.isnan(e4):
+                out[y, x] = 0
+            else:
+                out[y, x] = 1 if max(max(e1, e2), max(e3, e4)) > tol else 0
+
+
+@_kernel
+def bilinear_fill(coarse, iy, ix, fy, fx, rough_cell, out, traced):  # pragma: no cover - compiled
+    """In place: ``out`` (H, W) interpolated bilinearly from the coarse grid's values ``coarse`` (h, w), each
+    pixel from the grid cell (``iy`` (H,), ``ix`` (W,)) it lies in at the fractions ``fy`` (H,), ``fx`` (W,),
+    along the rows first and then across them (:func:`psvs.simulate.adaptive.one_sample`'s NumPy form, the
+    same operations in the same order); ``traced`` (H, W) whether that cell is ``rough_cell`` (h - 1, w - 1)."""
+    h, w = out.shape
+    for y in range(h):
+        r = iy[y]
+        gy = fy[y]
+        for x in range(w):
+            c = ix[x]
+            gx = fx[x]
+            top = coarse[r, c] * (1 - gx) + coarse[r, c + 1] * gx
+            bottom = coarse[r + 1, c] * (1 - gx) + coarse[r + 1, c + 1] * gx
+            out[y, x] = top * (1 - gy) + bottom * gy
+            traced[y, x] = rough_cell[r, c]
