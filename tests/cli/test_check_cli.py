@@ -32,6 +32,11 @@ def frames(tmp_path_factory):
 def test_statuses_and_lines(frames, capsys):
     code, out, err = run(capsys, "check", str(frames["ok"]), "--rig", "misaligned")
     assert (code, err) == (0, "") and out.startswith("healthy: the twins stand on their rows")
+    # a healthy verdict says what the rows cannot show (issue 41's trial: M3 turned 0.1 deg about the vertical
+    # read healthy while depth was 2.6 % far at 700 mm), with the closed form's figure at the range's far end
+    said = out.splitlines()[-1]
+    assert said.startswith("not checked (the rows cannot show it): a mirror turned about the vertical")
+    assert "(a turn of 0.1 deg: 4.5 % at 1200 mm)" in said and "psvs refit --tare" in said
     code, out, err = run(capsys, "check", str(frames["knocked"]), str(frames["knocked"]), "--rig", "misaligned")
     assert code == 3 and err == "" and out.startswith("drifted: the twins stand off their rows")
     assert "of 2 frame(s)" in out and "best explained by" in out and "M3" in out
@@ -51,6 +56,7 @@ def test_json_reads_back_as_the_library_s_check(frames, capsys, tmp_path):
     np.testing.assert_allclose(np.array(got["tile_centres_px"], float), lib.centre_px, atol=1e-4)
     np.testing.assert_allclose(np.array(got["tile_offsets_px"], float), lib.offset_px, atol=1e-4)
     assert got["explained_by"][0]["mirror"] in ("m1", "m2", "m3", "m4") and len(got["explained_by"]) == 4
+    assert got["not_checked"].startswith("not checked (the rows cannot show it)")
     picture = cv2.imread(str(tmp_path / "map.png"))
     assert picture is not None and picture.shape[0] > 400 and picture.shape[1] > 600
     # a positive field (the right twins lower) is drawn red: the map holds far more red than blue pixels

@@ -56,13 +56,17 @@ def run(args) -> int:
         from psvs.health.figure import offset_figure
         with output_batch():
             write_atomic(out, offset_figure(check))
+    from psvs.health.unseen import not_checked_line
+    unseen = not_checked_line(rig, far)         # what a healthy verdict did not judge
     if args.json:
-        d = check.as_dict() | {"explained_by": [e.as_dict() for e in found]}
+        d = check.as_dict() | {"explained_by": [e.as_dict() for e in found], "not_checked": unseen}
         print(json.dumps(d))
     elif check.verdict != "cannot judge":       # a refusal is said once, on stderr
         print(f"{check.verdict}: {check.reason}")
         if found:
             print(f"best explained by {explanation_line(found, check.tolerance_px)}")
+        if check.verdict == "healthy":
+            print(unseen)
     if check.verdict == "cannot judge":
         print(f"psvs check: cannot judge: {check.reason}", file=sys.stderr)
         return 1

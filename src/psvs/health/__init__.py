@@ -3,7 +3,8 @@
 ``rows`` reads each tile's twin row offset off one frame through a calibration, tested against chance; ``field``
 is the smooth field a moved mirror makes and its robust fit; ``check`` judges it (``psvs check``); ``explain``
 says which mirrors' tilts best explain it; ``figure`` draws the field; ``rolling`` keeps the check going on a
-running sensor's frames at a small share of its time (``psvs live``).
+running sensor's frames at a small share of its time (``psvs live``); ``unseen`` puts a figure on what the rows
+cannot show (a mirror turned about the vertical).
 """
 import lazy_loader as _lazy
 
@@ -21,5 +22,6 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "figure": ["offset_figure"],
         "rolling": ["FIRST_COST_S", "HealthEvent", "RollingCheck", "SHARE", "health_record"],
         "rows": ["FrameTiles", "frame_tiles", "spread_tiles"],
+        "unseen": ["QUOTED_TURN_RAD", "depth_share_of_turn", "not_checked_line"],
     },
 )
