@@ -313,6 +313,33 @@ def test_the_command_refuses_what_it_cannot_do(capsys, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["blank.png", "n.refit.json"]
 
 
+def test_the_same_tare_twice_is_one_image_and_refused(build):
+    """An adversarial trial (2026-12-05): the same tare given twice counted as two (364 pairs for 182, the depth
+    sigma narrowed); an image stated at two distances is no tare. Refused before any work, naming both."""
+    rng = np.random.default_rng(3)
+    img = rng.integers(0, 255, (480, 640), dtype=np.uint8)
+    other = rng.integers(0, 255, (480, 640), dtype=np.uint8)
+    for distances in ((700.0, 700.0), (700.0, 900.0)):
+        with pytest.raises(ValueError, match=r"^tare 3 is the same image as tare 1: one image of a surface is one "
+                                             r"tare, however often it is given"):
+            refit_rig([other], build, [(img, distances[0]), (other, 800.0), (img.copy(), distances[1])])
+
+
+def test_a_tare_taken_before_the_knock_is_named(build):
+    """An adversarial trial (2026-12-05): frames after the knock, a tare taken before it (its twins on the old
+    rows). The refit was refused as 'what moved is more than the mirrors' tilts; calibrate again' (or as a turn
+    of 1.09 deg), though the frames refit cleanly with a tare of their own state. The tare's own twins are now
+    checked under the frames' own rows' refit: the refusal names the tare."""
+    moved = knocked(build, DRIFTS["m3 and m4 (issue 43)"])
+    walls, _ = frames_of(moved, seed=90)
+    _, old_tares = frames_of(build, seed=90)
+    for tares in (old_tares[:1], old_tares[1:]):
+        with pytest.raises(MeasurementError, match=r"^tare 1 shows another state of the rig than the frames: under "
+                                                   r"their refit its twins stand off their rows \(the twins stand off "
+                                                   r"their rows: .*\); was it taken before a knock\?"):
+            refit_rig(walls, build, tares)
+
+
 def test_a_tare_stated_at_the_wrong_distance_is_refused(build):
     """Issue 41's trial: the second tare stated 50 mm beyond where its wall was wanted every mirror turned about
     4 deg about the vertical (a blocked layout every command then refused). A change beyond what a knock does

@@ -37,6 +37,7 @@ rows (something moved that the mirrors' tilts do not explain, e.g. the lens: cal
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import math
 from dataclasses import dataclass, field
 
@@ -156,6 +157,7 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
     for _, z in tares:
         if not (math.isfinite(z) and near_mm <= z <= far_mm):
             raise ValueError(f"a tare's distance must lie in the working range {near_mm:g}-{far_mm:g} mm, got {z:g}")
+    _check_distinct_tares([img for img, _ in tares])
     before = check_frames(frames, rig, near_mm, far_mm, tolerance_px)
     new, x, pairs, steps = rig, np.zeros(len(REFIT_PARAMS)), None, []
     cov = np.diag(np.full(len(REFIT_PARAMS), DRIFT_SIGMA_RAD ** 2))
@@ -164,11 +166,12 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
     for k in range(ROUNDS):
         read = before if k == 0 else check_frames(frames, new, near_mm, far_mm, tolerance_px)
         pairs = _read_pairs(read, [img for img, _ in tares], new, near_mm, far_mm, tolerance_px)
+        if k == 0 and tares:            # the frames' own rows' answer: a tare of another state must not steer it
+            rows_only = _fit(_Stage(rig, _frames_only(pairs), x, ROW_PARAMS))[0]
+            _check_tares_rows([img for img, _ in tares], _rig(rows_only, rig), near_mm, far_mm, tolerance_px)
         x, c, n_rows = _fit(_Stage(rig, pairs, x, ROW_PARAMS))
         cov[np.ix_(ROW_PARAMS, ROW_PARAMS)] = c
         steps = [n_rows]
-        if k == 0:
-            rows_only = x.copy()        # the rows' answer before any tare's
         if tares:
             pairs = _on_tare_planes(x, rig, pairs, distances)
             x, c, n_depth = _fit(_Stage(rig, pairs, x, DEPTH_PARAMS, distances, tare_sigma_mm))
@@ -217,12 +220,39 @@ def _check_changes(x: np.ndarray, old: Rig, new: Rig, distances) -> None:
         raise MeasurementError(f"{exc}{tares}") from None
 
 
+def _check_distinct_tares(images) -> None:
+    """ValueError when two tares are the same image: one surface seen once is one tare's evidence, however often
+    it is given (an adversarial trial: the same tare given twice doubled its pairs and narrowed the stated depth
+    sigma, and an image stated at two distances is no tare at all)."""
+    seen: dict[bytes, int] = {}
+    for k, img in enumerate(images):
+        a = np.ascontiguousarray(img)
+        key = hashlib.sha256(a.tobytes() + repr((a.shape, a.dtype.str)).encode()).digest()
+        if key in seen:
+            raise ValueError(f"tare {k + 1} is the same image as tare {seen[key] + 1}: one image of a surface is one "
+                             "tare, however often it is given (a second tare is another image, at another distance)")
+        seen[key] = k
+
+
+def _check_tares_rows(images, rows_rig: Rig, near_mm, far_mm, tolerance_px) -> None:
+    """MeasurementError when a tare's own twins stand off their rows under the frames' own rows' refit
+    (``rows_rig``): it shows another state of the rig than the frames (a tare taken before a knock, an adversarial
+    trial: its refusal blamed the rig, 'calibrate again')."""
+    for k, img in enumerate(images):
+        c = check_frames([img], rows_rig, near_mm, far_mm, tolerance_px)
+        if c.verdict == "drifted":
+            raise MeasurementError(f"tare {k + 1} shows another state of the rig than the frames: under their refit "
+                                   f"its twins stand off their rows ({c.reason}); was it taken before a knock? take "
+                                   "it again after the frames, or the frames again with it")
+
+
 def _check_tares_agree(after: HealthCheck, rows_only: HealthCheck, distances) -> None:
     """MeasurementError when the tares' depth moved the twins off their rows: the frames' field under the refitted
     rig (``after``) stands more than :data:`TARE_ROWS_SIGMAS` of the two fields' uncertainties, and
-    :data:`TARE_ROWS_PX`, beyond the field under the rows' own answer (``rows_only``: the first round's, before any
-    tare was fitted). A tare at its true distance asks the turns the frames were taken with, which put the twins
-    on their rows as well as the rows' answer does; a distance stated wrongly asks turns that no frame shows, and
+    :data:`TARE_ROWS_PX`, beyond the field under the frames' own rows' answer (``rows_only``: the first round's, on
+    the frames' pairs alone: a tare taken before a knock shows its twins on the old rows, and would pull it too).
+    A tare at its true distance asks the turns the frames were taken with, which put the twins on their rows as
+    well as the rows' answer does; a distance stated wrongly asks turns that no frame shows, and
     the rows say so (a tare at 700 mm stated as 800: 0.26 +- 0.05 px against 0.02 +- 0.04)."""
     worse = after.row_offset_rms_px - rows_only.row_offset_rms_px
     sigma = math.hypot(after.uncertainty_px, rows_only.uncertainty_px)
@@ -261,6 +291,12 @@ def _read_pairs(check: HealthCheck, tare_images, rig: Rig, near_mm, far_mm, tole
     ok = triangulate(left, right, rig, model="exact").valid
     sigma = math.sqrt(OVERLAP) * max(check.scatter_px, MIN_SCATTER_PX) / math.sqrt(2)
     return _Pairs(left[ok], right[ok], source[ok], sigma)
+
+
+def _frames_only(pairs: _Pairs) -> _Pairs:
+    """The frames' pairs of ``pairs`` (the tares' left out)."""
+    keep = pairs.source < 0
+    return _Pairs(pairs.left[keep], pairs.right[keep], pairs.source[keep], pairs.sigma_px)
 
 
 def _rig(x: np.ndarray, old: Rig) -> Rig:
