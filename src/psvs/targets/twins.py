@@ -3,9 +3,9 @@
 Every feature of a target appears twice, once per view. Its left-view image at p sees a ray; the points
 of that ray over the working depths project into the right view along a known curve, the epipolar curve of
 p (:func:`psvs.optics.trace.trace_pixels`, :func:`psvs.optics.project.project_points`). The twin of a
-left-view feature lies on that curve, at a disparity u_l - u_r > 0 in the working range's. A build differs
-from its nominal design by a fraction of a degree, so the curve is searched in a band of
-:data:`BAND_DEG` (in angle through the lens) on either side and along it.
+left-view feature lies on that curve, at a disparity u_l - u_r > 0 in the working range's. A build's mirrors
+differ from its nominal design by fractions of a degree, which add up along the two paths, so the curve is
+searched in a band of :data:`BAND_DEG` (in angle through the lens) on either side and along it.
 
 That test alone cannot tell a disc's twin from a neighbour of its twin along the same curve (a card
 wider than its disparity puts several discs of the other view on the curve). A target is one plane: its
@@ -26,9 +26,12 @@ from psvs.optics.project import epipolar_curves_px
 from psvs.optics.rig import Rig
 from psvs.optics.trace import trace_pixels
 
-#: How far (degrees through the lens) a build may put a twin off its nominal epipolar curve; mirrors glued
-#: 0.3 deg off and a box turned as much move twins by up to about twice their tilt.
-BAND_DEG = 1.0
+#: How far (degrees through the lens) a build may put a twin off its nominal epipolar curve. A mirror tilted
+#: b out of vertical turns its view by 2 b; four mirrors glued up to 0.3 deg off (issue 40's builds) put one
+#: view's rows up to 2.4 deg off the other's. With 1 deg a fresh sweep draw's copies of its card, 35 px (one row
+#: of discs) apart, paired one row off in every view (tests/targets/test_detect.py). Wider costs 30 % of a
+#: view's detection time; the pairing that explains the most discs still wins.
+BAND_DEG = 2.5
 #: A pair's shift may differ from its neighbour's by this share of the two blobs' distance.
 SHIFT_TOL = 0.3
 #: The working depths (mm) whose epipolar curve is searched (a build's depths may be far off the design's).
@@ -99,7 +102,7 @@ def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: 
     reach_px : ndarray, shape (n,)
         How far a feature's nearest neighbours on the target lie in the image (at most), px.
     rig : Rig
-        The nominal design (its epipolar geometry; a build may be a degree off, :data:`BAND_DEG`).
+        The nominal design (its epipolar geometry; a build may be degrees off, :data:`BAND_DEG`).
     sizes_px : ndarray, shape (n,), optional
         The features' sizes: twins differ by less than a factor 1.4.
     prefer : callable, optional
