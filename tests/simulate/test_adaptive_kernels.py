@@ -4,7 +4,7 @@ edges, a step, a ramp, noise), and the one-sample pass's interpolation of its co
 import numpy as np
 import pytest
 
-from psvs.simulate.adaptive import SMOOTH_TOL, rough_pixels
+from psvs.simulate.adaptive import SMOOTH_TOL, grid_cells, rough_pixels
 from psvs.simulate.kernels import bilinear_fill
 
 
@@ -64,13 +64,11 @@ def test_bilinear_fill_is_numpys(step):
     xs = np.unique(np.r_[np.arange(0, w, step), w - 1])
     coarse = rng.random((len(ys), len(xs)))
     rough_cell = rng.random((len(ys) - 1, len(xs) - 1)) < 0.3
-    iy = np.clip(np.searchsorted(ys, np.arange(h), side="right") - 1, 0, len(ys) - 2)
-    ix = np.clip(np.searchsorted(xs, np.arange(w), side="right") - 1, 0, len(xs) - 2)
-    fy = (np.arange(h) - ys[iy]) / (ys[iy + 1] - ys[iy])
-    fx = (np.arange(w) - xs[ix]) / (xs[ix + 1] - xs[ix])
+    (iy, fy), (ix, fx) = grid_cells(ys, h), grid_cells(xs, w)
     out, traced = np.empty((h, w)), np.empty((h, w), bool)
     bilinear_fill(coarse, iy, ix, fy, fx, rough_cell, out, traced)
     along = coarse[:, ix] * (1 - fx[None, :]) + coarse[:, ix + 1] * fx[None, :]
     assert np.array_equal(out, along[iy] * (1 - fy[:, None]) + along[iy + 1] * fy[:, None])
     assert np.array_equal(traced, rough_cell[iy][:, ix])
     assert np.array_equal(out[np.ix_(ys, xs)], coarse)         # the nodes themselves, exactly
+    assert iy[-1] == len(ys) - 2 and fy[-1] == 1.0 and fx[0] == 0.0   # the last pixel: the last cell's far end

@@ -55,6 +55,13 @@ def rough_pixels(radiance_img: np.ndarray, tol: float = SMOOTH_TOL, reach: int =
     return cv2.dilate(rough, np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)).astype(bool)
 
 
+def grid_cells(nodes: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """For each of the ``n`` pixels along an axis, the cell of the coarse grid ``nodes`` (sorted pixel indices,
+    at least two) it lies in ((n,) int, clipped to the last cell) and its fraction across that cell ((n,))."""
+    cell = np.clip(np.searchsorted(nodes, np.arange(n), side="right") - 1, 0, len(nodes) - 2)
+    return cell, (np.arange(n) - nodes[cell]) / (nodes[cell + 1] - nodes[cell])
+
+
 def _grid(n: int, step: int) -> np.ndarray:
     return np.unique(np.r_[np.arange(0, n, step), n - 1])
 
@@ -75,10 +82,7 @@ def one_sample(geom: SceneGeometry, scene: Scene, rays, size_px, step: int = COA
     rough_cell = rough_node[:-1, :-1] | rough_node[1:, :-1] | rough_node[:-1, 1:] | rough_node[1:, 1:]
     rough_cell = binary_dilation(rough_cell, np.ones((3, 3), bool))
     # bilinear interpolation of the nodes everywhere, then the rough cells traced pixel by pixel
-    iy = np.clip(np.searchsorted(ys, np.arange(h), side="right") - 1, 0, len(ys) - 2)
-    ix = np.clip(np.searchsorted(xs, np.arange(w), side="right") - 1, 0, len(xs) - 2)
-    fy = (np.arange(h) - ys[iy]) / (ys[iy + 1] - ys[iy])
-    fx = (np.arange(w) - xs[ix]) / (xs[ix + 1] - xs[ix])
+    (iy, fy), (ix, fx) = grid_cells(ys, h), grid_cells(xs, w)
     out, traced = np.empty((h, w)), np.empty((h, w), bool)
     bilinear_fill(coarse, iy, ix, fy, fx, rough_cell, out, traced)
     idx = np.flatnonzero(traced)
