@@ -4,7 +4,13 @@ import pytest
 
 from psvs.errors import MeasurementError
 from psvs.io.params import load_rig
-from psvs.measure.refraction_fit import DISPARITY_NOISE_PX, RESIDUAL_FACTOR, fit_refraction, fit_refraction_terms
+from psvs.measure.refraction_fit import (
+    DISPARITY_NOISE_PX,
+    RESIDUAL_FACTOR,
+    fit_refraction,
+    fit_refraction_terms,
+    point_limit,
+)
 from psvs.optics.project import project_points
 from tests.support.geometry import EXAMPLES
 
@@ -185,3 +191,53 @@ def test_the_plausible_terms_are_the_plate_formulas_at_their_ends():
     l0, m0 = derived_refraction_terms(rig)
     assert l_lo < l0 < l_hi and m_lo < m0 < m_hi
     assert plausible_refraction_terms(rig.replace(plate_thickness_mm=0.0)) == ((0.0, 0.0), (0.0, 0.0))
+
+
+def _field_points(rng, n):
+    """n points spread over the clear rig's field at 450-1300 mm (frame C, mm)."""
+    z = rng.uniform(450.0, 1300.0, n)
+    return np.stack([rng.uniform(-0.12, 0.12, n) * z, rng.uniform(-0.15, 0.15, n) * z, z], axis=1)
+
+
+def test_one_mistyped_point_among_many_is_refused_by_its_own_residual(known):
+    """Trial 31: one Z 80 mm off among 40 points passed the RMS test (2.5 times the noise) and the rig written
+    triangulated 4-5 of its sigmas off. Planted: 40 points through the clear rig, the farthest one's Z raised
+    40 mm (the RMS test passes it); refused, naming that point and how far it lies off against its own noise;
+    the clean points fit."""
+    rig = known[0]
+    pts = _field_points(np.random.default_rng(31), 40)
+    left, right = planted(rig, pts)
+    fit = fit_refraction(left, right, pts, rig)
+    assert fit.rms_residual_mm < fit.noise_rms_mm
+    typo = pts.copy()
+    k = int(np.argmax(pts[:, 2]))                   # the farthest: its own noise is the largest
+    typo[k, 2] += 40.0
+    with pytest.raises(MeasurementError, match=rf"^the known point \(\S+, \S+, {typo[k, 2]:.6g}\) mm is \+\S+ mm "
+                                               r"off eq. \(15\)'s fit, \S+ times .* \(limit 3\.7 for 40 points\): a "
+                                               "mistyped"):
+        fit_refraction(left, right, typo, rig)
+
+
+def test_the_point_limit_is_the_largest_normal_deviate_at_its_false_alarm_rate():
+    """The per-point limit against a direct draw: the largest |N(0,1)| of n passes it in about 1 % of draws
+    (the union bound makes it a little less), for the counts users give."""
+    rng = np.random.default_rng(5)
+    for n in (6, 40, 200):
+        largest = np.abs(rng.standard_normal((20000, n))).max(axis=1)
+        assert 0.002 < np.mean(largest > point_limit(n)) <= 0.011
+    assert point_limit(3) == RESIDUAL_FACTOR            # few points: never below the RMS test's factor
+
+
+def test_points_with_match_noise_pass_the_point_test(known):
+    """Matches with a 0.15 px disparity error (sub-pixel matching's middle; the check's dz takes 0.3 px): no
+    draw of 40 points is refused by one point's residual (each fit answers)."""
+    rig = known[0]
+    rng = np.random.default_rng(8)
+    per_view = 0.15 / np.sqrt(2.0)                   # px on each view: 0.15 px on their difference
+    for _ in range(30):
+        pts = _field_points(rng, 40)
+        left, right = planted(rig, pts)
+        left = left + np.c_[rng.normal(0.0, per_view, len(pts)), np.zeros(len(pts))]
+        right = right + np.c_[rng.normal(0.0, per_view, len(pts)), np.zeros(len(pts))]
+        fit = fit_refraction(left, right, pts, rig)
+        assert fit.rms_residual_mm < fit.noise_rms_mm

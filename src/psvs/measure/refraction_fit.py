@@ -26,6 +26,9 @@ file is used for every later depth, so the fit answers only when the points supp
 * **Residual above the noise** (``MeasurementError``): the RMS of the fitted depths' residuals is compared
   with the RMS of dz over the points; more than :data:`RESIDUAL_FACTOR` times that means the matches or the
   known points disagree with eq. (15) (a wrong match, a mistyped point, another rig's pixels).
+* **One point off** (``MeasurementError``): each point's residual against its own dz; a mistyped point
+  among many moves the RMS little, but its own residual stands out beyond what the largest of N noisy
+  points reaches (:func:`point_limit`).
 * **X, Y off the pixels** (``MeasurementError``): the fit uses depth only, but the rig written is used for
   whole points. Each known point's X, Y is compared with eqs. (16)-(17) at the fitted depth; the RMS of those
   lateral errors may reach :data:`RESIDUAL_FACTOR` times the RMS that the same sub-pixel error explains
@@ -59,6 +62,8 @@ from psvs.optics.trace import ideal_sensor_from_pixels
 DISPARITY_NOISE_PX = 0.3
 #: How many times the noise's RMS depth error the fit's RMS residual may reach.
 RESIDUAL_FACTOR = 3.0
+#: The chance that the largest of the points' residuals passes :func:`point_limit` by noise alone.
+POINT_FALSE_ALARM = 0.01
 #: mm: the smallest term size the conditioning check asks the fit to resolve (a rig without a plate has
 #: derived l = m = 0).
 TERM_FLOOR_MM = 0.1
@@ -128,9 +133,39 @@ def fit_refraction(left_px, right_px, points_mm, rig: Rig) -> RefractionFit:
             f"the fit's RMS depth residual {rms:.3g} mm is {rms / noise:.1f} times the {noise:.3g} mm RMS that a "
             f"{DISPARITY_NOISE_PX} px disparity error explains at these depths (limit {RESIDUAL_FACTOR:g} times): "
             "the matches or the known points disagree with eq. (15) (a wrong match, a mistyped point, another rig)")
-    _check_plausible((float(l_mm), float(m_mm)), A / dz[:, None], rig)
+    _check_plausible((float(l_mm), float(m_mm)), A / dz[:, None], rig)   # (a systematic error says so first)
+    _check_points_alone(rhs - A @ np.array([l_mm, m_mm]), dz, pts)
     _check_lateral(sensor_r, pts[:, 2] - (rhs - A @ np.array([l_mm, m_mm])), pts, dz, rig)   # at eq. (15)'s z
     return RefractionFit(float(l_mm), float(m_mm), int(ok.sum()), rms, noise, kappa, limit)
+
+
+def point_limit(n: int) -> float:
+    """How many times its own depth noise dz one point's residual may reach among ``n`` points: the larger of
+    :data:`RESIDUAL_FACTOR` and the level that any of n normal deviates passes with probability at most
+    :data:`POINT_FALSE_ALARM` (Bonferroni over both tails: the normal's upper alpha / (2 n) quantile; 3.7 for
+    40 points).
+
+    >>> round(point_limit(6), 2), round(point_limit(40), 2)
+    (3.14, 3.66)
+    """
+    from scipy.special import ndtri
+    return max(RESIDUAL_FACTOR, float(-ndtri(POINT_FALSE_ALARM / (2.0 * n))))
+
+
+def _check_points_alone(residual: np.ndarray, dz: np.ndarray, pts: np.ndarray) -> None:
+    """Each point's depth residual (mm, (N,)) against its own noise ``dz`` (mm, (N,)): one mistyped point
+    among many moves the RMS little (one Z 80 mm off among 40 points passed the RMS test at 2.5 times the
+    noise, and the rig written then triangulated 4-5 of its sigmas off), but its own residual stands out."""
+    ratio = np.abs(residual) / dz
+    k = int(np.argmax(ratio))
+    limit = point_limit(len(ratio))
+    if ratio[k] > limit:
+        x, y, z = pts[k]
+        raise MeasurementError(
+            f"the known point ({x:.6g}, {y:.6g}, {z:.6g}) mm is {residual[k]:+.3g} mm off eq. (15)'s fit, "
+            f"{ratio[k]:.1f} times the {dz[k]:.3g} mm that a {DISPARITY_NOISE_PX} px disparity error gives at its "
+            f"depth (limit {limit:.1f} for {len(ratio)} points): a mistyped point or a wrong match; correct or "
+            "remove it")
 
 
 def _check_plausible(terms: tuple[float, float], weighted: np.ndarray, rig: Rig) -> None:
