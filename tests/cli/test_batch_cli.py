@@ -234,3 +234,35 @@ def test_a_run_folder_of_an_input_since_changed_is_refused(capsys, tmp_path, fig
     code, out, err = run(capsys, *argv)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "input_files_sha256" in err, err
     assert {p.name: p.read_bytes() for p in (tmp_path / "m").iterdir() if p.is_file()} == before
+
+
+@pytest.mark.parametrize("damage", ["delete", "truncate", "overwrite"])
+def test_a_result_file_damaged_since_the_run_is_computed_again(capsys, tmp_path, fig9, damage):
+    """Trial 31: a frame's JSON deleted, cut short or written over with another Z after a run, and the next run
+    said "1 ok, 0 computed now" and left it so. Now the next run says which file no longer reads back,
+    computes that frame again (its JSON the same as the first run's, by value) and skips the intact one."""
+    _, pngs = fig9
+    folder = tmp_path / "in"
+    folder.mkdir()
+    for p in pngs[:2]:
+        (folder / p.name).write_bytes(p.read_bytes())
+    out_dir = tmp_path / "m"
+    argv = ("batch", "measure", "circles", str(folder), "--rig", "default", "-o", str(out_dir), "--workers", "1")
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and "2 frames, 2 ok (2 computed now" in out, err
+    target = out_dir / f"{pngs[0].stem}.json"
+    first = json.loads(target.read_text())
+    if damage == "delete":
+        target.unlink()
+    elif damage == "truncate":
+        target.write_text(target.read_text()[:40])
+    else:
+        target.write_text(json.dumps({**first, "Z_mm": 123.0}) + "\n")
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and "2 frames, 2 ok (1 computed now, 1 before" in out, err
+    assert f"1 frame(s)' results no longer read back and are computed again ({pngs[0].name}: {target.name}" in err
+    assert json.loads(target.read_text()) == first
+    rows = {r["key"]: r for r in pq.read_table(out_dir / "results.parquet").to_pylist()}
+    assert len(rows) == 2 and rows[pngs[0].name]["Z_mm"] == first["Z_mm"]
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and "(0 computed now, 2 before" in out and "no longer read back" not in err, err

@@ -72,3 +72,18 @@ def test_the_progress_bar_redraws_one_line_on_a_terminal():
     text = out.getvalue()
     assert text.startswith("\rwork [") and text.endswith("\n") and text.count("\n") == 1
     assert "4/4, 1 failed" in text and "#" * 30 in text
+
+
+def test_forgotten_keys_leave_the_results_and_the_rest_stay_by_value(tmp_path):
+    """ResultStore.forget: the parts merged, the named keys' rows gone from results.parquet (read back by
+    pyarrow directly), every other row as written; forgetting nothing or an unknown key changes nothing."""
+    record_params(tmp_path, {"n": 3})
+    store = ResultStore(tmp_path)
+    store.append([{"key": "a", "v": 1.5}, {"key": "b", "v": 2.5}])
+    store.append([{"key": "c", "v": 3.5}])
+    store.forget([])
+    assert (tmp_path / "parts").is_dir()            # nothing to forget: the parts as they were
+    store.forget(["b", "zz"])
+    assert not (tmp_path / "parts").exists()
+    assert pq.read_table(tmp_path / "results.parquet").to_pylist() == [{"key": "a", "v": 1.5}, {"key": "c", "v": 3.5}]
+    assert store.done_keys() == {"a", "c"}

@@ -43,7 +43,9 @@ def add_parser(sub) -> None:
                                    "tcp://HOST:8786 (docs/cluster.md). Each frame's result is the file the single "
                                    "command writes, named after the frame in DIR (frame_000012.npy, or the "
                                    "image's name); a row per frame goes to DIR/results.parquet as it finishes. "
-                                   "A second run over DIR computes only what is missing. The command's options "
+                                   "A second run over DIR computes only what is missing (and a frame whose files "
+                                   "no longer read back: deleted, cut short or written over since). The command's "
+                                   "options "
                                    "follow it (e.g. psvs batch match run.avi --rig default -o out --auto); its "
                                    "other outputs (--right R.npy, --csv M.csv, ...) are written per frame as "
                                    "DIR/<frame>.<the name given>.")
@@ -248,6 +250,20 @@ def _out_dir(text: str) -> Path:
     return check_run_folder(text, "psvs batch")
 
 
+def _recompute_damaged(job: dict, out_dir: Path) -> None:
+    """Frames stored as done whose files no longer read back (psvs.cli.batch_resume) are forgotten, so this
+    run computes them again, and said in one line."""
+    from psvs.cli.batch_resume import damaged_results
+    from psvs.cluster.store import ResultStore
+    store = ResultStore(out_dir)
+    damaged = damaged_results(job, store.read(), frame_args)
+    if damaged:
+        store.forget(damaged)
+        key, why = next(iter(damaged.items()))
+        print(f"psvs batch: {len(damaged)} frame(s)' results no longer read back and are computed again "
+              f"({key}: {why})", file=sys.stderr)
+
+
 def run(args) -> int:
     from psvs.cluster import RunOptions, connect, read_results, run_tasks, task_threads
     from psvs.cluster.store import check_params
@@ -273,6 +289,7 @@ def run(args) -> int:
         if created:                      # refused: nothing left behind
             shutil.rmtree(out_dir, ignore_errors=True)
         raise
+    _recompute_damaged(job, out_dir)
     with client:
         summary = run_tasks(client, functools.partial(frame_task, job), frames.keys, out_dir, params,
                             RunOptions(label=f"psvs batch {job['command']}", threads=task_threads(client)))

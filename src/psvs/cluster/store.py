@@ -146,6 +146,20 @@ class ResultStore:
             self.parts.rmdir()
 
 
+    def forget(self, keys) -> None:
+        """Drop the rows of ``keys`` (their tasks are run again by the next run): the parts merged and
+        results.parquet written again without them, atomically."""
+        keys = set(keys)
+        if not keys:
+            return
+        self.compact()
+        table = self.read()
+        if table is None:
+            return
+        keep = [i for i, k in enumerate(table.column(KEY).to_pylist()) if k not in keys]
+        _write_table(self.out_dir / RESULTS_FILE, table.take(keep))
+
+
 def _write_table(path: Path, table: pa.Table) -> None:
     buf = io.BytesIO()
     pq.write_table(table, buf)
