@@ -134,6 +134,26 @@ def test_triangulate_says_which_rows_are_no_pixels(tmp_path, capsys):
     assert list(rows["valid"]) == [0, 0, 1] and rows["Z_mm"][2] == pytest.approx(450.0, abs=0.1)
 
 
+def test_triangulate_says_which_rows_lie_outside_the_image(tmp_path, capsys):
+    """Trial 31: a pair with u_l = 700 on a 640 px camera was 'cannot measure' (exit 1) as one that 'does not
+    triangulate in front of the rig (disparity 90.0 px)', and u_l = 1e300 printed a 300-digit disparity. Rows off
+    the image are said as such (the image's size named), marked invalid, the good row answers; when no row is a
+    pixel of the camera, it is bad input (exit 2), every number short."""
+    csv_in, out = tmp_path / "o.csv", tmp_path / "p.csv"
+    csv_in.write_text("u_l,v_l,u_r,v_r\n700,200,610,200\n1e300,239.5,206.5,239.5\n435.2,239.5,206.5,239.5\n")
+    code, _, err = run(capsys, "triangulate", "--rig", "clear", str(csv_in), "-o", str(out))
+    assert code == 0, err
+    assert err.startswith("2 pair(s) lie outside the camera's 640x480 px image (pixel centres 0..639, 0..479; row 2: "
+                          "(700, 200) left, (610, 200) right), marked invalid\n")
+    rows = np.genfromtxt(out, delimiter=",", names=True)
+    assert list(rows["valid"]) == [0, 0, 1] and rows["Z_mm"][2] == pytest.approx(450.0, abs=0.1)
+    csv_in.write_text("u_l,v_l,u_r,v_r\n1e300,239.5,206.5,239.5\n-3,10,-90,10\n")
+    code, _, err = run(capsys, "triangulate", "--rig", "clear", str(csv_in), "-o", str(out))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and len(err) < 300, err
+    assert "none of the 2 pair(s) gives a point: 2 pair(s) lie outside the camera's 640x480 px image" in err
+    assert "(1e+300, 239.5) left" in err
+
+
 def _header_only(folder):
     path = folder / "header.csv"
     path.write_text("u_l,v_l,u_r,v_r\n")

@@ -60,12 +60,22 @@ def _unread(left: np.ndarray, right: np.ndarray, rig, res) -> tuple[list[str], n
     (N,) bool."""
     notes: list[str] = []
     blank = ~(np.all(np.isfinite(left), axis=1) & np.all(np.isfinite(right), axis=1))
-    dark = ~blank & ~lit_pairs(np.nan_to_num(left), np.nan_to_num(right), rig)
+    outside = ~blank & ~(_inside(left, rig) & _inside(right, rig))
+    dark = ~blank & ~outside & ~lit_pairs(np.nan_to_num(left), np.nan_to_num(right), rig)
+    w, h = (int(x) for x in rig.camera.image_size_px)
     for mask, what in ((blank, "are not pixels (NaN or infinite coordinates"),
+                       (outside, f"lie outside the camera's {w}x{h} px image (pixel centres 0..{w - 1}, 0..{h - 1}"),
                        (dark, "lie where the rig's glass blocks a view (vignetted")):
-        _invalid(res, mask, notes, lambda k, n, what=what: f"{n} pair(s) {what}; row {k + 2}: ({left[k, 0]:g}, "
-                 f"{left[k, 1]:g}) left, ({right[k, 0]:g}, {right[k, 1]:g}) right)")
-    return notes, blank | dark
+        _invalid(res, mask, notes, lambda k, n, what=what: f"{n} pair(s) {what}; row {k + 2}: ({left[k, 0]:.6g}, "
+                 f"{left[k, 1]:.6g}) left, ({right[k, 0]:.6g}, {right[k, 1]:.6g}) right)")
+    return notes, blank | outside | dark
+
+
+def _inside(px: np.ndarray, rig) -> np.ndarray:
+    """(N,) bool: the pixels (N, 2) that lie on the camera's image (within half a pixel of its edge pixels'
+    centres)."""
+    w, h = rig.camera.image_size_px
+    return (px[:, 0] >= -0.5) & (px[:, 0] <= w - 0.5) & (px[:, 1] >= -0.5) & (px[:, 1] <= h - 0.5)
 
 
 def run(args) -> int:
@@ -85,7 +95,7 @@ def run(args) -> int:
         k = int(np.flatnonzero(lost)[0])
         swapped = " (u_l and u_r swapped?)" if left[k, 0] - right[k, 0] <= 0 else ""
         notes.append(f"{int(lost.sum())} pair(s) do not triangulate in front of the rig (row {k + 2}: disparity "
-                     f"u_l - u_r {left[k, 0] - right[k, 0]:.1f} px{swapped})")
+                     f"u_l - u_r {left[k, 0] - right[k, 0]:.6g} px{swapped})")
     gap = epipolar_gap_px(left, right, rig)
     off = res.valid & ~(gap <= EPIPOLAR_TOL_PX)        # not twins: the pixels see two different points
     _invalid(res, off, notes, lambda k, n: f"{n} pair(s) stand more than {EPIPOLAR_TOL_PX:g} px off their twin's "
@@ -96,8 +106,11 @@ def run(args) -> int:
              f"({args.match_sigma_px:g} px): their depth is not pinned (row {k + 2}: Z {res.points_mm[k, 2]:.0f} "
              f"mm, +-{sigma[k]:.0f} mm)")
     sigma[~res.valid] = np.nan
-    if not res.valid.any():
-        raise MeasurementError(f"none of the {len(res.valid)} pair(s) gives a point: {'; '.join(notes)}")
+    if not res.valid.any():     # every row no pixel of this camera: bad input (2); else the data cannot (1)
+        finite = np.all(np.isfinite(left), axis=1) & np.all(np.isfinite(right), axis=1)
+        bad_input = not (finite & _inside(left, rig) & _inside(right, rig)).any()
+        raise (ValueError if bad_input else MeasurementError)(
+            f"none of the {len(res.valid)} pair(s) gives a point: {'; '.join(notes)}")
     for note in notes:
         print(f"{note}, marked invalid", file=sys.stderr)
     if out is None:
