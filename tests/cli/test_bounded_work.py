@@ -4,6 +4,7 @@ is loaded. Each refusal: exit status 2, one line on stderr naming the option (or
 estimate and the limit, within seconds, and an earlier output file left as it was. psvs design answers in
 seconds on the most extreme rigs the bounds allow."""
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -197,6 +198,19 @@ def test_table1_refuses_a_start_of_another_camera_before_rendering(capsys, tmp_p
     refused(capsys, ["table1", "--rig", "mv1440", "--start", "default", "-o", tmp_path / "t1"],
             "the start rig is another camera: 640x480 px of 10 um, the build's 1440x1080 px of 3.45 um: start "
             "from the build's own design", [table])
+
+
+def test_table1_refusal_at_a_test_distance_ends_the_bar_and_names_the_distance(capsys, tmp_path):
+    """Trial 31: on a build whose sweep calibration cannot measure a test pattern, the refusal was written onto
+    the progress bar's line and advised --near-mm/--far-mm, which table1 does not have (its patterns stand at
+    known distances). Now the bar's line is ended first, the refusal names the test distance and the
+    calibration, and no option table1 lacks."""
+    code, _, err = run(capsys, "table1", "--rig", "misaligned_knocked", "-o", str(tmp_path / "t1"))
+    last = err.replace("\r", "\n").rstrip("\n").split("\n")[-1]
+    assert code == 1 and err.endswith("\n") and "near-mm" not in err, err
+    assert re.match(r"psvs table1: cannot measure: the test pattern at \d+ mm does not measure through the rig "
+                    r"calibrated from the robot sweep \(RMS \d\.\d{3} px\): ", last), last
+    assert err.count("psvs table1:") == 1 and not (tmp_path / "t1").exists()
 
 
 # ---- handeye, track, live ----------------------------------------------------------------------------------

@@ -315,6 +315,19 @@ def check_pattern_sizes(spacing_mm: float, diameter_mm: float,
     return s, d
 
 
+#: How a refusal adds that the pattern may stand outside the working range searched (:func:`without_range_hint`).
+_OUTSIDE = (", or the pattern stands outside the working range", "; or the pattern lies outside the working range")
+
+
+def without_range_hint(message: str) -> str:
+    """A refusal of :func:`measure_pattern` without its hint that the pattern may stand outside the working
+    range (and the options that widen it): for a caller that placed the pattern at a known distance itself
+    (Table I's test distances)."""
+    for marker in _OUTSIDE:
+        message = message.split(marker)[0]
+    return message
+
+
 def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int = 5,
                     detection: PatternDetection | None = None, spacing_mm: float = 20.0,
                     diameter_mm: float = 10.0, z_mm: tuple[float, float] = (400.0, 1200.0)) -> PatternMeasurement:
@@ -349,7 +362,7 @@ def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int
         if "circle(s)" not in str(exc):
             raise
         # the sizes looked for come from the working range: a pattern outside it is the same few circles
-        raise MeasurementError(f"{exc}, or the pattern stands outside the working range {near_mm:g}-{far_mm:g} mm "
+        raise MeasurementError(f"{exc}{_OUTSIDE[0]} {near_mm:g}-{far_mm:g} mm "
                                f"(its circles looked for {2 * math.sqrt(min_area / math.pi):.0f}-{max_diameter:.0f} "
                                "px across): give --near-mm/--far-mm that hold it") from None
     return pair_pattern(circles, rig, model, (near_mm, far_mm), spacing_mm, diameter_mm)
@@ -440,7 +453,7 @@ def pair_pattern(circles: list[Ellipse], rig: Rig, model: str, z_mm: tuple[float
 
     stage, ratio, why, _, c = max(tried, key=nearness)
     # twins of a pattern outside the range can stand on other twins' curves: no pairing then fits
-    hint = (f"; or the pattern lies outside the working range {z_mm[0]:g}-{z_mm[1]:g} mm: give --near-mm/--far-mm "
+    hint = (f"{_OUTSIDE[1]} {z_mm[0]:g}-{z_mm[1]:g} mm: give --near-mm/--far-mm "
             f"that hold it")
     if len(ways) == 1:
         raise MeasurementError(why + hint)

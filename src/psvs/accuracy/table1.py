@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from psvs.accuracy.pattern_measure import PatternMeasurement, measure_pattern
+from psvs.accuracy.pattern_measure import PatternMeasurement, measure_pattern, without_range_hint
 from psvs.calibrate.bundle import BundleResult, bundle_adjust
 from psvs.calibrate.sweep import calibrate_sweep
 from psvs.errors import MeasurementError
@@ -187,7 +187,13 @@ def run_table1(true_rig: Rig, progress=None, start: Rig | None = None, method: s
         cal = bundle_adjust(views, [], start)
     meas = []
     for z in PAPER_TABLE1[:, 0]:
-        meas.append(measure_pattern(pattern_image(true_rig, z, int(z) + 1), cal.rig))
+        try:
+            meas.append(measure_pattern(pattern_image(true_rig, z, int(z) + 1), cal.rig))
+        except MeasurementError as exc:   # placed at a known distance: the range hint would mislead
+            source = "robot sweep" if method == "sweep" else "card views"
+            raise MeasurementError(f"the test pattern at {z:g} mm does not measure through the rig calibrated "
+                                   f"from the {source} (RMS {cal.rms_px:.3f} px): "
+                                   f"{without_range_hint(str(exc))}") from None
         tick(f"test {z:.1f} mm")
     return Table1(cal, PAPER_TABLE1[:, 0].copy(), meas)
 

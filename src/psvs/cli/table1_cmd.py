@@ -25,12 +25,26 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
-def _progress(i, n, what):
-    bar = "#" * (30 * i // n)
-    sys.stderr.write(f"\r[{bar:<30}] {i}/{n} {what:<20}")
-    if i == n:
-        sys.stderr.write("\n")
-    sys.stderr.flush()
+class _Progress:
+    """The progress bar on stderr, redrawn in place; :meth:`close` ends its line (a refusal then starts on a
+    line of its own, not after the bar: trial 31)."""
+
+    def __init__(self):
+        self.open = False
+
+    def __call__(self, i, n, what):
+        bar = "#" * (30 * i // n)
+        sys.stderr.write(f"\r[{bar:<30}] {i}/{n} {what:<20}")
+        self.open = i != n
+        if i == n:
+            sys.stderr.write("\n")
+        sys.stderr.flush()
+
+    def close(self):
+        if self.open:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+            self.open = False
 
 
 def run(args) -> int:
@@ -39,7 +53,11 @@ def run(args) -> int:
     rig, method = measuring_rig(args.rig), "grid" if args.card else "sweep"
     check_table1(rig, method)             # before the progress bar starts: what cannot be done, in one line
     check_start(rig, start)
-    t = run_table1(rig, progress=_progress, start=start, method=method)
+    progress = _Progress()
+    try:
+        t = run_table1(rig, progress=progress, start=start, method=method)
+    finally:
+        progress.close()
     out.mkdir(parents=True, exist_ok=True)
     cal = t.calibration
     b = virtual_baseline_mm(cal.rig)
