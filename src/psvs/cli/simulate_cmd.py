@@ -100,6 +100,8 @@ def run(args) -> int:
                                   truth=truth_path is not None)
         names = [out.with_name(f"{out.stem}_{i:03d}.png") for i in range(args.frames)]
 
+    said = []        # each frame's line, printed once every file has landed (a refused run wrote none of them)
+
     def frames():
         for i, (res, name) in enumerate(zip(results, names, strict=True)):
             if not video:
@@ -108,16 +110,17 @@ def run(args) -> int:
                 _write_truth(truth_path if args.frames == 1 else
                              truth_path.with_name(f"{truth_path.stem}_{i:03d}.npz"), res, rig)
             h, w = res.image.shape
-            print(f"{f'frame {i}' if video else name}: {w}x{h}, mean grey {res.image.mean():.1f}", file=sys.stderr)
+            said.append(f"{f'frame {i}' if video else name}: {w}x{h}, mean grey {res.image.mean():.1f}")
             yield res.image
 
     if video:
         n = write_video(out, frames(), fps=args.fps)
-        print(f"{out}: {n} frames, FFV1, {args.fps:g} frames/s", file=sys.stderr)
+        said.append(f"{out}: {n} frames, FFV1, {args.fps:g} frames/s")
     else:
         with output_batch():     # a sequence lands whole or not at all (an interrupted run leaves the old one)
             for _ in frames():
                 pass
+    print("\n".join(said), file=sys.stderr)
     return 0
 
 
