@@ -254,7 +254,7 @@ def _recompute_damaged(job: dict, out_dir: Path) -> None:
     """Frames stored as done whose files no longer read back (psvs.cli.batch_resume) are forgotten, so this
     run computes them again, and said in one line."""
     from psvs.cli.batch_resume import damaged_results
-    from psvs.cluster.store import ResultStore
+    from psvs.cluster import ResultStore
     store = ResultStore(out_dir)
     damaged = damaged_results(job, store.read(), frame_args)
     if damaged:

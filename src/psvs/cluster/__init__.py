@@ -11,6 +11,6 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submod_attrs={
         "client": ["connect", "local_workers", "task_threads"],
         "runner": ["RunOptions", "RunSummary", "run_tasks"],
-        "store": ["check_params", "check_run_folder", "read_results"],
+        "store": ["ResultStore", "check_params", "check_run_folder", "read_results"],
     },
 )
