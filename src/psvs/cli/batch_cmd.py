@@ -289,8 +289,8 @@ def run(args) -> int:
         if created:                      # refused: nothing left behind
             shutil.rmtree(out_dir, ignore_errors=True)
         raise
-    _recompute_damaged(job, out_dir)
     with client:
+        _recompute_damaged(job, out_dir)
         summary = run_tasks(client, functools.partial(frame_task, job), frames.keys, out_dir, params,
                             RunOptions(label=f"psvs batch {job['command']}", threads=task_threads(client)))
     status = read_results(out_dir).column("status").to_pylist()

@@ -145,7 +145,6 @@ class ResultStore:
         if not any(self.parts.iterdir()):
             self.parts.rmdir()
 
-
     def forget(self, keys) -> None:
         """Drop the rows of ``keys`` (their tasks are run again by the next run): the parts merged and
         results.parquet written again without them, atomically."""
