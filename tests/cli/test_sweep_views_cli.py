@@ -22,3 +22,32 @@ def test_the_images_and_sweep_csv_land_together(tmp_path, capsys):
         rows = list(csv.reader(f))[1:]
     assert len(rows) == 3 and all((folder / r[0]).is_file() for r in rows)
     np.testing.assert_allclose(np.diff([float(r[1]) for r in rows]), 100.0)
+
+
+def _rows(folder):
+    with (folder / "sweep.csv").open() as f:      # the csv module: an independent reader
+        return list(csv.reader(f))[1:]
+
+
+def test_a_fine_step_names_every_position_and_a_new_sweep_replaces_the_old_images(tmp_path, capsys):
+    """Trial 32: a step of 0.05 mm named its images with one decimal, so five positions went into three files,
+    each overwritten by the last, and sweep.csv pointed readings at images of another depth (812.9000000000001
+    among them); and a second sweep into the folder left the first one's images. Now every position has its
+    own image, the readings are the depths less the robot's offset as typed, and only the new sweep's images
+    remain."""
+    folder = tmp_path / "sw"
+    code, out, err = run(capsys, "sweep-views", str(folder), "--rig", "default", "--from-mm", "500", "--to-mm",
+                         "500.2", "--step-mm", "0.05")
+    assert code == 0, err
+    rows = _rows(folder)
+    names = [r[0] for r in rows]
+    assert names == [f"sweep_0500_{k:02d}.png" for k in (0, 5, 10, 15, 20)]
+    assert sorted(p.name for p in folder.glob("*.png")) == names
+    readings = [float(r[1]) for r in rows]
+    assert [r[1] for r in rows] == [repr(v) for v in readings] and max(len(r[1]) for r in rows) <= 6
+    np.testing.assert_allclose(np.diff(readings), 0.05, atol=1e-9)
+    code, out, err = run(capsys, "sweep-views", str(folder), "--rig", "default", "--from-mm", "700", "--to-mm",
+                         "800", "--step-mm", "50")
+    assert code == 0 and "removed 5 image(s) of an earlier sweep" in out, err
+    assert sorted(p.name for p in folder.glob("*.png")) == sorted(r[0] for r in _rows(folder)) == [
+        "sweep_0700_0.png", "sweep_0750_0.png", "sweep_0800_0.png"]

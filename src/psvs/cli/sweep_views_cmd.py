@@ -40,7 +40,8 @@ def run(args) -> int:
     n = math.ceil((args.to_mm + 1e-9 - args.from_mm) / args.step_mm)   # np.arange's count, before any array
     if not 3 <= n <= 60:
         raise ValueError(f"the sweep has {n} positions; give 3-60 (--from-mm, --to-mm, --step-mm)")
-    depths = np.arange(args.from_mm, args.to_mm + 1e-9, args.step_mm)
+    depths = np.round(args.from_mm + args.step_mm * np.arange(n), 6)    # 812.9, not 812.9000000000001
+    names = _names(depths, args.step_mm)
     if args.seed < 0:
         raise ValueError(f"--seed must be >= 0, got {args.seed}")
     folder = check_output_folder(args.folder)
@@ -51,10 +52,24 @@ def run(args) -> int:
     folder.mkdir(parents=True, exist_ok=True)
     rows = []
     with output_batch():            # the images and sweep.csv land together, or none of them
-        for z, img in zip(depths, images, strict=True):
-            name = f"sweep_{z:06.1f}.png".replace(".", "_", 1)
+        for z, img, name in zip(depths, images, names, strict=True):
             write_png(folder / name, img)
-            rows.append((name, float(z) - ROBOT_OFFSET_MM))
+            rows.append((name, round(float(z) - ROBOT_OFFSET_MM, 6)))
         write_atomic(folder / "sweep.csv", dumps_sweep(rows))
-    print(f"wrote {len(rows)} sweep images and sweep.csv to {folder}")
+    stale = sorted(set(p.name for p in folder.glob("sweep_*.png")) - set(names))
+    for name in stale:              # an earlier sweep's images: sweep.csv no longer lists them
+        (folder / name).unlink(missing_ok=True)
+    print(f"wrote {len(rows)} sweep images and sweep.csv to {folder}"
+          + (f" (removed {len(stale)} image(s) of an earlier sweep)" if stale else ""))
     return 0
+
+
+def _names(depths: np.ndarray, step_mm: float) -> list[str]:
+    """The images' names, sweep_DDDD_d.png: each depth with as many decimals as the step has (at least one,
+    at most six), so that no two positions share a name (a step of 0.05 mm wrote five positions into three files,
+    each overwritten by the last; a trial)."""
+    decimals = next((k for k in range(1, 7) if abs(round(step_mm, k) - step_mm) < 1e-9), 6)
+    names = [f"sweep_{z:0{5 + decimals}.{decimals}f}.png".replace(".", "_", 1) for z in depths]
+    if len(set(names)) != len(names):
+        raise ValueError(f"--step-mm {step_mm:g} is finer than the images' names can tell apart (6 decimals of a mm)")
+    return names
