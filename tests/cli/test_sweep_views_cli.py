@@ -2,6 +2,7 @@
 last file leaves nothing of the new sweep (an adversarial trial found export-calibration's three files landing
 one by one; the sweep's images then sweep.csv did the same)."""
 import csv
+import re
 
 import numpy as np
 
@@ -51,3 +52,20 @@ def test_a_fine_step_names_every_position_and_a_new_sweep_replaces_the_old_image
     assert code == 0 and "removed 5 image(s) of an earlier sweep" in out, err
     assert sorted(p.name for p in folder.glob("*.png")) == sorted(r[0] for r in _rows(folder)) == [
         "sweep_0700_0.png", "sweep_0750_0.png", "sweep_0800_0.png"]
+
+
+def test_calibrate_counts_every_image_it_skips(tmp_path, capsys):
+    """Trial 32: a sweep of the misaligned build calibrated from the clear design read 2 of its 8 images and
+    said "got 2 (skipped a; b; c)", three images unaccounted for. The refusal now counts the skipped of all
+    and says how many it does not show."""
+    folder = tmp_path / "swm"
+    code, _, err = run(capsys, "sweep-views", str(folder), "--rig", "misaligned", "--step-mm", "100")
+    assert code == 0, err
+    images = len(list(folder.glob("sweep_*.png")))
+    code, _, err = run(capsys, "calibrate", str(folder), "--rig", "clear", "-o", str(tmp_path / "c.toml"))
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    got = int(re.search(r"usable images, got (\d+) ", err).group(1))
+    skipped, total = (int(x) for x in re.search(r"\(skipped (\d+) of (\d+): ", err).groups())
+    assert total == images == got + skipped and got < 3
+    more = re.search(r" and (\d+) more\)$", err.strip())
+    assert err.count(".png: ") + (int(more.group(1)) if more else 0) == skipped

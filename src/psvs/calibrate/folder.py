@@ -208,8 +208,11 @@ def _whole_target_seen(grids: list, most: int, target: Target) -> None:
 def _enough(grids, sweeps, skipped) -> None:
     n = len(grids) + len(sweeps)
     if n < 3:
-        why = "; ".join(f"{k}: {v}" for k, v in sorted(skipped.items())[:3])
-        raise ValueError(f"calibration needs at least 3 usable images, got {n}" + (f" (skipped {why})" if why else ""))
+        shown = sorted(skipped.items())[:3]
+        why = "; ".join(f"{k}: {v}" for k, v in shown)
+        more = f" and {len(skipped) - len(shown)} more" if len(skipped) > len(shown) else ""
+        raise ValueError(f"calibration needs at least 3 usable images, got {n}"
+                         + (f" (skipped {len(skipped)} of {n + len(skipped)}: {why}{more})" if why else ""))
 
 
 def effective_baseline(res: BundleResult) -> tuple[float, float]:
