@@ -77,6 +77,7 @@ def test_seeded(capsys, tmp_path, fig5a_png):
 @pytest.mark.parametrize("args, message", [
     (["--seed", "5,5"], r"seed (5, 5) is not on an edge pixel"),
     (["--seed", "900,5"], "is outside the 640x480 image"),
+    (["--seed", "1e308,1"], "the seed (1e+308, 1) is outside the 640x480 image"),     # trial 32: was "vignetted"
     (["--seed", "x"], "--seed must be 'u,v'"),
     (["--seed", "200.5,100"], "--seed must name a pixel, 'u,v' in whole px"),    # was read as (200, 100)
     (["--auto", "--pipeline", "nope.toml"], "pipeline file not found"),

@@ -148,3 +148,19 @@ def test_old_files_load_as_designed():
 def test_build_keys_are_checked(tmp_path, edit, message):
     with pytest.raises((ValueError, TypeError), match=message):
         load_rig(write(tmp_path, edit(BASE)))
+
+
+def test_a_json_rig_with_a_key_given_twice_is_refused_as_such(tmp_path):
+    """Trial 32: a JSON rig file holding two "mirrors" objects was read as the last one and refused for a
+    'missing key' it did have; TOML refuses a key given twice. JSON now does too, naming the key; the same
+    file with the key once loads as the rig dumped."""
+    text = dumps_rig(default_rig(), "json")
+    mirrors = text[text.index('"mirrors"'):]
+    twice = text.replace('"mirrors"', '"mirrors": {"baseline_mm": 90.0},\n  "mirrors"', 1)
+    assert twice.count('"mirrors"') == 2 and mirrors
+    path = tmp_path / "twice.json"
+    path.write_text(twice)
+    with pytest.raises(ValueError, match=r"twice\.json: malformed JSON: key 'mirrors' is given twice in one object$"):
+        load_rig(path)
+    path.write_text(text)
+    assert load_rig(path) == default_rig()

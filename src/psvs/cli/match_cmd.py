@@ -72,6 +72,8 @@ def prepare(args, image=None) -> tuple:
     pipeline = pipeline_from_args(args)
     size = rig.camera.image_size_px
     image = read_grey(args.image, expect_size=size) if image is None else check_frame_size(image, size, args.image)
+    if seed is not None and not (-0.5 <= seed[0] <= size[0] - 0.5 and -0.5 <= seed[1] <= size[1] - 0.5):
+        raise ValueError(f"the seed ({seed[0]:g}, {seed[1]:g}) is outside the {size[0]}x{size[1]} image")
     if seed is not None and not trace_pixels([seed], rig, "left").valid[0]:
         raise ValueError(f"the seed ({seed[0]:g}, {seed[1]:g}) lies where the rig's glass blocks the left view "
                          "(vignetted: what the image shows there is not that view); pick a pixel on an edge of "

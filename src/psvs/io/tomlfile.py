@@ -35,7 +35,9 @@ def parse_text(text: str, where: str, kind: str = "TOML") -> dict:
     leading byte-order mark is dropped; ValueError("<where>: malformed <kind>: ...") as :func:`load_toml`."""
     text = text.removeprefix("\ufeff")
     try:
-        return json.loads(text) if kind == "JSON" else tomllib.loads(text)
+        return json.loads(text, object_pairs_hook=_unique_keys) if kind == "JSON" else tomllib.loads(text)
+    except _DuplicateKey as exc:
+        raise ValueError(f"{where}: malformed {kind}: {exc}") from None
     except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
         raise ValueError(f"{where}: malformed {kind}: {exc}") from None
     except RecursionError:
@@ -43,6 +45,21 @@ def parse_text(text: str, where: str, kind: str = "TOML") -> dict:
     except ValueError as exc:     # Python's own limits (an integer of thousands of digits)
         why = (str(exc).splitlines() or [type(exc).__name__])[0].strip("'\"").split(";")[0]
         raise ValueError(f"{where}: malformed {kind}: {why}") from None
+
+
+class _DuplicateKey(ValueError):
+    pass
+
+
+def _unique_keys(pairs: list) -> dict:
+    """A JSON object as a dict, refusing a key given twice (JSON keeps the last silently, TOML refuses it: a
+    rig file with two "mirrors" objects read as one of them; a trial)."""
+    out = {}
+    for k, v in pairs:
+        if k in out:
+            raise _DuplicateKey(f"key {k!r} is given twice in one object")
+        out[k] = v
+    return out
 
 
 def single_table(data: dict, table: str, keys: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
