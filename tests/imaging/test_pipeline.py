@@ -127,6 +127,11 @@ def test_bad_step_values():
         steps.threshold(square_image(), method="magic")
     with pytest.raises(ValueError, match=r"image must be a grey \(H, W\) uint8 image"):
         PAPER.run(np.zeros((4, 4, 3), np.uint8))
+    # trial 32: low above high was taken (OpenCV swaps them without a word)
+    for low, high in ((200, 100), (-1, 100), (50, float("inf")), (float("nan"), 100)):
+        with pytest.raises(ValueError, match=r"^canny thresholds must satisfy 0 <= low <= high \(finite\), got "):
+            steps.canny(square_image(), low=low, high=high)
+    assert steps.canny(square_image(), low=100, high=100).any()
 
 
 @pytest.mark.parametrize("text, message", [

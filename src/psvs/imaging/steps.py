@@ -6,6 +6,8 @@ images and edge maps are (H, W) bool. Each step takes an image and keyword param
 """
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 
@@ -157,7 +159,10 @@ def laplacian(img, level: float = 20.0):
 
 
 def canny(img, low: float = 50.0, high: float = 120.0):
-    """Canny edges (OpenCV) with hysteresis thresholds low, high."""
+    """Canny edges (OpenCV) with hysteresis thresholds 0 <= low <= high (an edge starts above high and
+    continues above low; OpenCV swaps a low above high without a word: refused here, naming both)."""
+    if not (isinstance(low, (int, float)) and isinstance(high, (int, float)) and 0 <= low <= high < math.inf):
+        raise ValueError(f"canny thresholds must satisfy 0 <= low <= high (finite), got low={low!r}, high={high!r}")
     return cv2.Canny(_grey(img, "canny"), low, high, L2gradient=True) > 0
 
 
