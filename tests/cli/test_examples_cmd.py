@@ -53,3 +53,13 @@ def test_a_second_run_writes_nothing_and_an_edited_file_is_kept(tmp_path, capsys
     code, _, err = run(capsys, "examples", "-o", str(out))
     assert code == 2 and "matches.csv exists with other contents" in err and len(err.strip().splitlines()) == 1
     assert (out / "matches.csv").read_bytes() == mine and not (out / "scenes/desk.toml").exists()
+
+
+def test_a_folder_where_a_file_goes_is_named_as_a_folder(tmp_path, capsys):
+    """Trial 32: a folder named matches.csv in the way was 'exists with other contents'; nothing is written."""
+    out = tmp_path / "ex"
+    (out / "matches.csv").mkdir(parents=True)
+    code, _, err = run(capsys, "examples", "-o", str(out))
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "matches.csv is a folder where the example file goes: not replaced (nothing written)" in err
+    assert [p.name for p in out.iterdir()] == ["matches.csv"] and not any((out / "matches.csv").iterdir())

@@ -25,7 +25,9 @@ def run(args) -> int:
     todo = {}
     for name, src in files.items():
         data, dest = src.read_bytes(), out / name
-        if dest.is_dir() or (dest.exists() and dest.read_bytes() != data):
+        if dest.is_dir():
+            raise ValueError(f"{dest} is a folder where the example file goes: not replaced (nothing written)")
+        if dest.exists() and dest.read_bytes() != data:
             raise ValueError(f"{dest} exists with other contents: not overwritten (nothing written)")
         if not dest.exists():
             todo[dest] = data
