@@ -103,3 +103,21 @@ def test_a_longer_sequences_truth_or_thousandth_frame_is_refused_too(tmp_path, c
     assert f"longer sequence ({older} ...)" in err and ("--truth" if older.endswith(".npz") else "-o") in err
     assert len(err.strip().splitlines()) == 1
     assert [p.name for p in tmp_path.iterdir()] == [older]
+
+
+def test_a_signal_while_the_command_closes_ends_in_one_line(monkeypatch, capsys):
+    """The fresh clone's run of 2026-12-06: SIGTERM arriving after a command had finished, while its contexts
+    closed, ended in Python's traceback (exit 1). Planted: the library-quieting context raises the signal as
+    it closes; main returns 128 + SIGTERM with psvs's one line."""
+    import contextlib
+
+    import psvs.cli.main as cli_main
+
+    @contextlib.contextmanager
+    def closing_on_a_signal(name):
+        yield
+        raise cli_main.Terminated(signal.SIGTERM)
+
+    monkeypatch.setattr(cli_main, "quiet_libraries", closing_on_a_signal)
+    assert main(["rig", "list"]) == 128 + signal.SIGTERM
+    assert capsys.readouterr().err == "psvs rig: terminated (SIGTERM)\n"

@@ -49,21 +49,24 @@ def test_sequence(capsys, tmp_path, small_rig_file):
     assert sorted(p.name for p in tmp_path.glob("seq_*.png")) == ["seq_000.png", "seq_001.png", "seq_002.png"]
 
 
-def test_a_sequence_refused_part_way_says_only_why(capsys, tmp_path, small_rig_file):
+def test_a_sequence_refused_part_way_says_what_it_did(capsys, tmp_path, small_rig_file):
     """Trial 31: a sequence whose third frame is refused (the rig moved into the pattern) printed the first two
-    frames' lines as if written, then removed them. Now nothing is written and the one line is the refusal;
-    a sequence that lands names each frame (read back: the images it says)."""
+    frames' lines as if written, then removed them. Now each frame's progress line says it was rendered, the
+    refusal is the last line and nothing is written; a sequence that lands says which files it wrote (read
+    back: the images the lines describe)."""
     out = tmp_path / "a.png"
     argv = ("simulate", "fig9", "--rig", small_rig_file, "-o", str(out), "--frames", "3", "--supersample", "1")
     code, _, err = run(capsys, *argv, "--move-mm", "0,0,600")
-    assert code == 2 and len(err.strip().splitlines()) == 1 and "is behind the rig" in err, err
+    lines = err.strip().splitlines()
+    assert code == 2 and "is behind the rig" in lines[-1] and "wrote" not in err, err
+    assert all(" rendered (a_00" in line for line in lines[:-1])
     assert not list(tmp_path.glob("a_*.png"))
     code, _, err = run(capsys, *argv, "--move-mm", "0,0,100")
     lines = err.strip().splitlines()
-    assert code == 0 and len(lines) == 3, err
-    for i, line in enumerate(lines):
+    assert code == 0 and len(lines) == 4 and lines[-1] == "wrote a_000.png ... a_002.png: 3 frames", err
+    for i, line in enumerate(lines[:3]):
         name = tmp_path / f"a_{i:03d}.png"
-        assert line.startswith(f"{name}: 160x120, mean grey ")
+        assert line.startswith(f"frame {i} rendered ({name.name}): 160x120, mean grey ")
         assert float(line.rsplit(" ", 1)[1]) == pytest.approx(read_grey(name).mean(), abs=0.05)
 
 

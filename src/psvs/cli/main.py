@@ -85,19 +85,22 @@ def main(argv: list[str] | None = None) -> int:
     command = argv[0] if argv and argv[0] in COMMANDS else None
     debug = os.environ.get(DEBUG_ENV, "").strip() not in ("", "0")
     name = f"psvs {command}" if command else "psvs"
-    with contextlib.ExitStack() as stack:
-        stack.enter_context(_signals_unwind())
-        try:        # the command's module (and its libraries) load here: Ctrl-C then ends as it does later on
-            if not debug:
-                stack.enter_context(quiet_libraries(name))
-            args = build_parser(command).parse_args(argv)
-        except KeyboardInterrupt as exc:
-            return _interrupted("psvs", exc)
-        except Exception as exc:        # a library that does not load
-            if debug:
-                raise
-            return _internal_error(name, exc)
-        return _run(args, debug)
+    try:    # a signal while the command's contexts close (its result already out) ends as one during it
+        with contextlib.ExitStack() as stack:
+            stack.enter_context(_signals_unwind())
+            try:    # the command's module (and its libraries) load here: Ctrl-C then ends as it does later on
+                if not debug:
+                    stack.enter_context(quiet_libraries(name))
+                args = build_parser(command).parse_args(argv)
+            except KeyboardInterrupt as exc:
+                return _interrupted("psvs", exc)
+            except Exception as exc:        # a library that does not load
+                if debug:
+                    raise
+                return _internal_error(name, exc)
+            return _run(args, debug)
+    except KeyboardInterrupt as exc:
+        return _interrupted(name, exc)
 
 
 def _interrupted(name: str, exc: KeyboardInterrupt) -> int:

@@ -100,8 +100,6 @@ def run(args) -> int:
                                   truth=truth_path is not None)
         names = [out.with_name(f"{out.stem}_{i:03d}.png") for i in range(args.frames)]
 
-    said = []        # each frame's line, printed once every file has landed (a refused run wrote none of them)
-
     def frames():
         for i, (res, name) in enumerate(zip(results, names, strict=True)):
             if not video:
@@ -110,17 +108,21 @@ def run(args) -> int:
                 _write_truth(truth_path if args.frames == 1 else
                              truth_path.with_name(f"{truth_path.stem}_{i:03d}.npz"), res, rig)
             h, w = res.image.shape
-            said.append(f"{f'frame {i}' if video else name}: {w}x{h}, mean grey {res.image.mean():.1f}")
+            said = f"{w}x{h}, mean grey {res.image.mean():.1f}"
+            if args.frames == 1 and not video:
+                single.append(f"{name}: {said}")
+            else:   # progress, honest if a later frame is refused: rendered, not yet written (it lands whole)
+                print(f"frame {i} rendered{'' if video else f' ({name.name})'}: {said}", file=sys.stderr)
             yield res.image
 
+    single: list[str] = []
     if video:
         n = write_video(out, frames(), fps=args.fps)
-        said.append(f"{out}: {n} frames, FFV1, {args.fps:g} frames/s")
+        print(f"wrote {out}: {n} frames, FFV1, {args.fps:g} frames/s", file=sys.stderr)
     else:
         with output_batch():     # a sequence lands whole or not at all (an interrupted run leaves the old one)
-            for _ in frames():
-                pass
-    print("\n".join(said), file=sys.stderr)
+            n = sum(1 for _ in frames())
+        print(single[0] if single else f"wrote {names[0].name} ... {names[-1].name}: {n} frames", file=sys.stderr)
     return 0
 
 
