@@ -16,7 +16,7 @@ import pytest
 from psvs.cluster import RunOptions, connect, read_results
 from psvs.io.params import load_rig
 from psvs.study.montecarlo import prepare_study, run_study
-from psvs.study.sample import TIMING, run_sample
+from psvs.study.sample import STUDY_TMP_ENV, TIMING, run_sample
 from psvs.study.tolerances import tolerances_from_dict
 from tests.support.cli import run
 
@@ -30,9 +30,20 @@ SEED = 11
 
 
 @pytest.fixture(scope="module")
-def client():
-    with connect(workers=2) as c:
-        yield c
+def client(tmp_path_factory):
+    """A 2-worker LocalCluster whose samples render under a pytest folder (as ``psvs montecarlo`` gives its
+    workers one): the worker the test kills leaves its half-rendered card views there, not in TMPDIR."""
+    renders = tmp_path_factory.mktemp("renders")
+    before = os.environ.get(STUDY_TMP_ENV)
+    os.environ[STUDY_TMP_ENV] = str(renders)            # inherited by the workers as they start
+    try:
+        with connect(workers=2) as c:
+            yield c
+    finally:
+        if before is None:
+            os.environ.pop(STUDY_TMP_ENV, None)
+        else:
+            os.environ[STUDY_TMP_ENV] = before
 
 
 @pytest.fixture(scope="module")

@@ -50,9 +50,11 @@ What is drawn (units as in psvs: mm, px; degrees only in names ending ``_deg``):
 """
 from __future__ import annotations
 
+import atexit
 import dataclasses
 import functools
 import math
+import shutil
 import tempfile
 import time
 from dataclasses import dataclass, replace
@@ -442,10 +444,12 @@ _ROOT = None
 
 
 def scratch(name: str) -> Path:
-    """A folder for the session's files (one temporary root per process)."""
+    """A folder for the session's files (one temporary root per process, removed when the process ends: a
+    run of the suite left a psvs-sweep-* folder of card views in TMPDIR every time)."""
     global _ROOT
     if _ROOT is None:
         _ROOT = Path(tempfile.mkdtemp(prefix="psvs-sweep-"))
+        atexit.register(shutil.rmtree, _ROOT, True)
     path = _ROOT / name
     path.mkdir(parents=True, exist_ok=True)
     return path
