@@ -138,6 +138,13 @@ def frame_args(job: dict, key: str) -> argparse.Namespace:
     return argparse.Namespace(**args)
 
 
+def frame_outputs(job: dict, key: str) -> list[str]:
+    """Every file one frame writes (its output and its per-frame files), as :func:`frame_args` names them."""
+    a = frame_args(job, key)
+    named = [a.output, *(getattr(a, k) for k in job["per_frame"])]
+    return [x for v in named for x in (v if isinstance(v, list) else [v])]
+
+
 def _frame_index(job: dict, key: str) -> int:
     return int(key.rsplit("_", 1)[1]) if job["video"] else -1
 
@@ -233,10 +240,7 @@ def _preflight(job: dict, frames: Frames) -> None:
         fw, fh = frames.size_px
         raise ValueError(f"{frames.source}: frames are {fw}x{fh} px but the rig's camera is {w}x{h} px")
     for key in frames.keys:                  # a frame's output named as the run's own files would replace them
-        a = frame_args(job, key)
-        named = [a.output, *(getattr(a, k) for k in job["per_frame"])]
-        outs = [x for v in named for x in (v if isinstance(v, list) else [v])]
-        clash = sorted({Path(x).name for x in outs} & RUN_FILES)
+        clash = sorted({Path(x).name for x in frame_outputs(job, key)} & RUN_FILES)
         if clash:
             raise ValueError(f"frame {key}: its result would be named {clash[0]}, as the run's own file in "
                              f"{job['out_dir']}: rename that frame")
@@ -256,7 +260,7 @@ def _recompute_damaged(job: dict, out_dir: Path) -> None:
     from psvs.cli.batch_resume import damaged_results
     from psvs.cluster import ResultStore
     store = ResultStore(out_dir)
-    damaged = damaged_results(job, store.read(), frame_args)
+    damaged = damaged_results(job, store.read(), frame_outputs)
     if damaged:
         store.forget(damaged)
         key, why = next(iter(damaged.items()))

@@ -28,19 +28,17 @@ def _reads_back(path: Path, row: dict) -> str:
     return ""
 
 
-def damaged_results(job: dict, table, frame_args) -> dict[str, str]:
+def damaged_results(job: dict, table, frame_outputs) -> dict[str, str]:
     """The keys of the frames stored as ``ok`` in ``table`` (the run's results, or None) whose files do not
-    read back (:func:`_reads_back`), each with the first file and why; ``frame_args(job, key)`` gives a frame's
-    arguments (its output and per-frame files)."""
+    read back (:func:`_reads_back`), each with the first file and why; ``frame_outputs(job, key)`` lists the
+    files a frame writes."""
     if table is None:
         return {}
     out = {}
     for row in table.to_pylist():
         if row.get("status") != "ok":
             continue
-        args = frame_args(job, row["key"])
-        named = [args.output, *(getattr(args, k) for k in job["per_frame"])]
-        for f in (x for v in named for x in (v if isinstance(v, list) else [v])):
+        for f in frame_outputs(job, row["key"]):
             why = _reads_back(Path(f), row)
             if why:
                 out[row["key"]] = f"{Path(f).name}: {why}"

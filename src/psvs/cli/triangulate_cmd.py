@@ -54,10 +54,10 @@ def _invalid(res, mask: np.ndarray, notes: list[str], say) -> None:
         res.valid[mask] = False
 
 
-def _unread(left: np.ndarray, right: np.ndarray, rig, res) -> tuple[list[str], np.ndarray]:
-    """Mark invalid in ``res`` the pairs that are no pixels (NaN or inf) and those where the rig's glass blocks a
-    view (the image shows no twin there): the notes saying so, with the first row of each, and those pairs
-    (N,) bool."""
+def _unread(left: np.ndarray, right: np.ndarray, rig, res) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """Mark invalid in ``res`` the pairs that are no pixels of this camera (NaN, inf or off its image) and those
+    where the rig's glass blocks a view (the image shows no twin there): the notes saying so, with the first
+    row of each; all those pairs, (N,) bool; and those that are no pixels of the camera, (N,) bool."""
     notes: list[str] = []
     blank = ~(np.all(np.isfinite(left), axis=1) & np.all(np.isfinite(right), axis=1))
     outside = ~blank & ~(_inside(left, rig) & _inside(right, rig))
@@ -68,7 +68,7 @@ def _unread(left: np.ndarray, right: np.ndarray, rig, res) -> tuple[list[str], n
                        (dark, "lie where the rig's glass blocks a view (vignetted")):
         _invalid(res, mask, notes, lambda k, n, what=what: f"{n} pair(s) {what}; row {k + 2}: ({left[k, 0]:.6g}, "
                  f"{left[k, 1]:.6g}) left, ({right[k, 0]:.6g}, {right[k, 1]:.6g}) right)")
-    return notes, blank | outside | dark
+    return notes, blank | outside | dark, blank | outside
 
 
 def _inside(px: np.ndarray, rig) -> np.ndarray:
@@ -89,7 +89,7 @@ def run(args) -> int:
         raise ValueError(f"{args.points}: no pairs to triangulate (a header and no rows)")
     model = args.model or default_model(rig)
     res = triangulate(left, right, rig, model=model)
-    notes, unread = _unread(left, right, rig, res)    # why rows are invalid: printed, or the refusal's reason
+    notes, unread, no_pixel = _unread(left, right, rig, res)    # why rows are invalid: printed, or the refusal's reason
     lost = ~res.valid & ~unread
     if lost.any():            # rays that meet behind the rig or not at all: not a pair of this rig's twins
         k = int(np.flatnonzero(lost)[0])
@@ -107,9 +107,7 @@ def run(args) -> int:
              f"mm, +-{sigma[k]:.0f} mm)")
     sigma[~res.valid] = np.nan
     if not res.valid.any():     # every row no pixel of this camera: bad input (2); else the data cannot (1)
-        finite = np.all(np.isfinite(left), axis=1) & np.all(np.isfinite(right), axis=1)
-        bad_input = not (finite & _inside(left, rig) & _inside(right, rig)).any()
-        raise (ValueError if bad_input else MeasurementError)(
+        raise (ValueError if no_pixel.all() else MeasurementError)(
             f"none of the {len(res.valid)} pair(s) gives a point: {'; '.join(notes)}")
     for note in notes:
         print(f"{note}, marked invalid", file=sys.stderr)
