@@ -153,3 +153,24 @@ def test_a_frame_of_another_build_is_refused_by_its_own_twins(capsys, tmp_path):
                           "rows: ") and "psvs check" in err and not out.exists(), err
     code, stdout, err = run(capsys, "match", str(path), "--rig", "misaligned", "--auto", "-o", str(out))
     assert code == 0 and out.exists() and "edge 0:" in stdout, (code, stdout, err)
+
+
+def test_live_tracking_refuses_a_seed_off_the_rigs_rows(knocked_fig5a, capsys, tmp_path):
+    """An adversarial trial (2026-12-06): `match --seed` refused a frame through the wrong rig, `live --seed` on
+    the same frame answered 665.5 mm (651.1 through the right rig), exit 0. The tracker's first match now asks
+    the rows as match --seed does: through the old calibration the frame is refused with the same words, and
+    `psvs live` exits 1 saying so; through the rig as it is, the tracked depth is match --seed's."""
+    from psvs.live.tracker import EdgeTracker
+    seed = (466, 329)
+    step = EdgeTracker(load_rig("misaligned"), seed).step(knocked_fig5a)
+    assert not step.ok and step.message.startswith("the seed's edge has no twin on the rig's rows: ")
+    assert "+2 rows off the rig's rows" in step.message, step.message
+    step = EdgeTracker(load_rig("misaligned_knocked"), seed).step(knocked_fig5a)
+    pair = match_image(knocked_fig5a, load_rig("misaligned_knocked"), seed_px=seed).pairs[0]
+    assert step.ok and step.depth_mm == pytest.approx(float(np.nanmedian(pair.points_mm[:, 2])), abs=1e-6)
+    folder = tmp_path / "seq"
+    folder.mkdir()
+    write_png(folder / "f000.png", knocked_fig5a)
+    code, out, err = run(capsys, "live", "--video", str(folder), "--rig", "misaligned", "--seed", "466,329",
+                         "-o", str(tmp_path / "log.csv"))
+    assert code == 1 and "on the rig's rows" in err and "+2 rows off" in err and err.count("\n") == 1, (out, err)

@@ -308,8 +308,9 @@ def compute(args, image=None, workspace=None, say_compiling: str | None = None) 
     if rig is None:
         dense = RigDense(dense_disparity(image, lo, hi, params=params, workspace=workspace), None, image)
     else:
-        dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params, d_range=(lo, hi),
-                             workspace=workspace)
+        given = getattr(args, "min_disparity", None) is not None      # else the working range's (lo, hi)
+        dense = dense_on_rig(image, rig, args.near_mm, args.far_mm, params=params,
+                             d_range=(lo, hi) if given else None, workspace=workspace)
     dense, trust = _checked_trust(dense, image, rig, args, look)
     written = _write(out, dense, image, rig, split, args.model)
     return out, dense, trust, written

@@ -31,7 +31,7 @@ from psvs.measure.triangulate import default_model
 from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import Rectification
 from psvs.optics.rig import Rig
-from psvs.optics.search_range import disparity_range
+from psvs.optics.search_range import disparity_range, working_disparities
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,13 +40,17 @@ class RigDense:
     paper's geometry), the image the left map is aligned with (H', W') (the complex image itself, or its
     left-grid resampling), e.g. for grey levels of the cloud, and on a build the right grid's (None on the
     paper's geometry): the images the maps were made of; on a build, ``image`` the complex image (H, W)
-    they were resampled from (as the maps saw it: flat-fielded), whose pixels carry the sensor's own noise."""
+    they were resampled from (as the maps saw it: flat-fielded), whose pixels carry the sensor's own noise;
+    ``rig`` and ``range_mm`` (near, far) the rig and working range searched (None when searched by a disparity
+    range given in px)."""
 
     result: DenseResult
     rect: Rectification | None
     left_image: np.ndarray
     right_image: np.ndarray | None = None
     image: np.ndarray | None = None
+    rig: Rig | None = None
+    range_mm: tuple[float, float] | None = None
 
     @property
     def asked_px(self) -> tuple[float, float] | None:
@@ -54,6 +58,15 @@ class RigDense:
         ``searched_px`` may be narrower, a coarse pass pruning it to what the scene shows, and reaches a lag
         beyond each end), which set the scale of the echo test."""
         return self.result.asked_px
+
+    @property
+    def working_px(self) -> tuple[float, float] | None:
+        """The disparities (px) the working range gives anywhere in the field, traced exactly, without the
+        search's margin (:func:`psvs.optics.search_range.working_disparities`): an answer outside them is a
+        depth outside ``range_mm``; the asked disparities when the search was given in px."""
+        if self.rig is None or self.range_mm is None:
+            return self.asked_px
+        return working_disparities(self.rig, *self.range_mm, self.rect) or self.asked_px
 
 
 def rectified_images(image, rect: Rectification,
@@ -86,7 +99,8 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
     rect = rectification(rig, near_mm, far_mm)
     if rect is None:
         lo, hi = d_range or disparity_range(rig, near_mm, far_mm, width_px=img.shape[1])
-        return RigDense(dense_disparity(img, lo, hi, params=params, workspace=workspace), None, img)
+        return RigDense(dense_disparity(img, lo, hi, params=params, workspace=workspace), None, img, rig=rig,
+                        range_mm=None if d_range else (float(near_mm), float(far_mm)))
     a, b = rectified_images(img, rect)
     lo, hi = d_range or disparity_range(rig, near_mm, far_mm, rect, width_px=a.shape[1])
     hi = min(hi, a.shape[1] - 1.0)
@@ -97,7 +111,7 @@ def dense_on_rig(image, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0
         outside = outside_pixels(rect, view)
         np.put(disparity, outside, np.nan)
         np.put(confidence, outside, 0.0)
-    return RigDense(res, rect, a, b, img)
+    return RigDense(res, rect, a, b, img, rig=rig, range_mm=None if d_range else (float(near_mm), float(far_mm)))
 
 
 def rig_trust(dense: RigDense) -> EchoTrust:
@@ -105,9 +119,10 @@ def rig_trust(dense: RigDense) -> EchoTrust:
     on the images the maps were made of; on a build, on the two rectified grids, each view's texture counted
     inside its field only, and a pixel's own texture judged on the complex image's pixel it samples
     (:func:`psvs.dense.noise.textured_pixels`); at the scale the asked range sets (:attr:`RigDense.asked_px`),
-    whatever the mode pruned it to."""
+    whatever the mode pruned it to; no answer trusted outside the disparities the working range gives
+    (:attr:`RigDense.working_px`: the searched range's margin holds depths outside it)."""
     if dense.rect is None:
-        return echo_trust(dense.left_image, dense.result, scale_range=dense.asked_px)
+        return echo_trust(dense.left_image, dense.result, scale_range=dense.asked_px, answers_px=dense.working_px)
     inside = tuple(dense.rect.maps(v)[0] >= 0 for v in ("left", "right"))
     textured = noise = None
     if dense.image is not None:     # judged on the camera's pixels: a resampled grid's noise varies with its phase
@@ -116,7 +131,7 @@ def rig_trust(dense: RigDense) -> EchoTrust:
         textured = tuple(cv2.remap(own, *filled_maps(dense.rect, view), cv2.INTER_NEAREST,
                                    borderMode=cv2.BORDER_CONSTANT) > 0 for view in ("left", "right"))
     return echo_trust(dense.left_image, dense.result, image_right=dense.right_image, inside=inside,
-                      textured=textured, noise=noise, scale_range=dense.asked_px)
+                      textured=textured, noise=noise, scale_range=dense.asked_px, answers_px=dense.working_px)
 
 
 def rig_cloud(dense: RigDense, rig: Rig, model: str | None = None, mask=None) -> Cloud:

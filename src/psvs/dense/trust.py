@@ -284,7 +284,8 @@ def _supported(test: EchoTest, elsewhere: Elsewhere, maps: tuple, scale: float,
 
 def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.ndarray, np.ndarray] | None = None,
                textured: tuple[np.ndarray, np.ndarray] | None = None, noise: NoiseLevel | None = None,
-               scale_range: tuple[float, float] | None = None) -> EchoTrust:
+               scale_range: tuple[float, float] | None = None,
+               answers_px: tuple[float, float] | None = None) -> EchoTrust:
     """Which pixels of ``result`` (the maps :func:`~psvs.dense.disparity.dense_disparity` gave for ``image``
     (H, W), and ``image_right`` on a build) the echo supports beyond chance (module docstring), whatever the
     parameters the maps were made with. ``inside``: the (left, right) masks (H, W) of the pixels inside each
@@ -295,7 +296,9 @@ def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.nd
     answer further than :data:`ASKED_TOL_PX` outside them is trusted), which also choose the tested level (the
     maps' ``searched_px`` only when neither is known): the fast mode's coarse pass prunes the search to what a
     scene shows, and a narrower search would test a textured scene at twice the resolution (four times the
-    cost) of a blank one."""
+    cost) of a blank one. ``answers_px``: the disparities (px) an answer may have to be trusted (within
+    :data:`ASKED_TOL_PX`; default the asked ones): a rig's working range traced exactly, without the search's
+    margin (:func:`psvs.optics.search_range.working_disparities`)."""
     left = np.asarray(image, dtype=np.float64)
     right = None if image_right is None else np.asarray(image_right, dtype=np.float64)
     lo, hi = result.searched_px
@@ -324,8 +327,9 @@ def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.nd
                          f"{left.shape}")
     maps = ((result.disparity_left, result.confidence_left), (result.disparity_right, result.confidence_right))
     trusted = _supported(test, away, maps, scale, (tex_left, tex_right))
-    if asked is not None:
-        trusted = tuple(_within(t, d, asked) for t, (d, _) in zip(trusted, maps, strict=True))
+    answers_px = answers_px or asked
+    if answers_px is not None:
+        trusted = tuple(_within(t, d, answers_px) for t, (d, _) in zip(trusted, maps, strict=True))
     return EchoTrust(*trusted, test, level, noise, away)
 
 

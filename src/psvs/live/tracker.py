@@ -19,7 +19,8 @@ from psvs._validate import check_count, check_grey, check_positive
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.auto import image_chance, twin_lags
 from psvs.match.chance import agreeing_rows, seed_pair_stands
-from psvs.match.correspondence import MatchParams, automatic_pairs, finish_pairs
+from psvs.match.correspondence import MatchParams, automatic_pairs, finish_pairs, seed_rows
+from psvs.match.edges import edge_pixels
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
 from psvs.optics.illumination import flat_field
@@ -192,6 +193,10 @@ class EdgeTracker:
                 if not seed_pair_stands(pair, chance, automatic, self.match.auto.tol_px):
                     msg = ("the seed's edge has no twin beyond chance: the twin it pairs with agrees on too few "
                            f"rows to stand alone, and no pair of the automatic matcher backs it ({chance.describe()})")
+                    continue
+                rows = seed_rows(pair, edge_pixels(edges, self.rect), self.match)   # as match --seed asks
+                if rows.refuses:
+                    msg = f"the seed's edge has no twin on the rig's rows: {rows.describe()}"
                     continue
             d = float(np.median(pair.disparity_px))
             if not first and abs(d - self._disparity) > p.max_jump_px * (1 + self._lost):

@@ -157,9 +157,7 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         pair = match_seeded(edges, seed_px, rng, n_seeds=params.n_seeds, rect=rect)
         px = edge_pixels(edges, rect)            # labelled once: the chance test and the rows' check read them
         chance = image_chance(edges, rng, params=params.auto, grey=grey, rect=rect, px=px, elsewhere=True)
-        rows = None
-        if len(pair) and chance.answered:
-            rows = check_pair(pair.left_px, px, pair.shape_disparity_px, params.auto.min_rows)
+        rows = seed_rows(pair, px, params) if len(pair) and chance.answered else None
         stands = rows is not None and not rows.refuses and seed_pair_stands(
             pair, chance, automatic_pairs(edges, rng, params=params, grey=grey, rect=rect), params.auto.tol_px)
         pairs, unmatched = ([pair] if stands else []), []
@@ -168,6 +166,14 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         pairs, unmatched, chance, rows = auto.pairs, auto.unmatched, auto.chance, auto.rows
     finished = finish_pairs(grey, pairs, rig, subpixel=params.subpixel, model=params.model, rect=rect)
     return MatchResult(finished, unmatched, edges, rng, stages, chance, rows)
+
+
+def seed_rows(pair: EdgePair, px, params: MatchParams = MatchParams()) -> RowCheck:
+    """Whether a pair found from a seed stands on the rig's rows (:func:`psvs.match.rows.check_pair`: its whole
+    edges against every edge pixel, shifted -6..6 rows); ``px`` the frame's :func:`~psvs.match.edges.edge_pixels`.
+    A pair that ``refuses`` lines up rows off: the rig does not fit the image (``match --seed`` and live
+    tracking's first frame refuse it alike)."""
+    return check_pair(pair.left_px, px, pair.shape_disparity_px, params.auto.min_rows)
 
 
 def automatic_pairs(edges: np.ndarray, disparity_range_px: tuple[float, float], *, params: MatchParams = MatchParams(),

@@ -25,7 +25,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "rig": ["Calibration", "Camera", "MIRROR_NAMES", "MirrorError", "MirrorExtent", "Mirrors", "Rig",
                 "default_rig"],
         "scale": ["PAPER_FOCAL_PX", "pixel_scale"],
-        "search_range": ["disparity_range", "rectification_for"],
+        "search_range": ["disparity_range", "rectification_for", "working_disparities"],
         "solids": ["finite_solids", "segments_hit"],
         "trace": ["Rays", "distort", "ideal_sensor_from_pixels", "lit_pairs", "trace_pixels", "undistort"],
         "window": ["roi_rig"],
