@@ -74,3 +74,8 @@ def test_camera_specs():
     assert parse_camera("Basler") == CameraSpec("basler", "0") and str(parse_camera("basler:1")) == "basler:1"
     with pytest.raises(ValueError, match="--camera must be an OpenCV index"):
         parse_camera("-1")
+    with pytest.raises(ValueError, match="--camera must be an OpenCV index"):
+        parse_camera("²")                            # a digit to str.isdigit, no number to int()
+    assert parse_camera("2147483647") == CameraSpec("opencv", "2147483647")
+    with pytest.raises(ValueError, match=r"--camera 99999999999: an OpenCV index is at most 2147483647"):
+        parse_camera("99999999999")       # a trial's: OpenCV's "Bad argument", exit 1 (live, capture, serve)

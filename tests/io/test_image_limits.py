@@ -138,7 +138,7 @@ def test_a_truncated_png_is_one_line_and_libpng_says_nothing(tmp_path, noise, ca
 
 @pytest.mark.parametrize("name, content, reason", [
     ("text.png", b"not a PNG at all\n", "not a PNG, JPEG, BMP, TIFF or PNM"),
-    ("empty.png", b"", "not a PNG, JPEG, BMP, TIFF or PNM"),
+    ("empty.png", b"", r"the file is empty \(0 bytes\)"),
     ("head.png", b"\x89PNG\r\n\x1a\n\x00\x00", "the file is cut short inside its header"),
     ("zero.png", None, "claims a size of 0x480 px"),
     ("riff.webp", b"RIFF\x00\x00\x00\x00WEBPVP8 ", "not a PNG, JPEG, BMP, TIFF or PNM"),

@@ -66,3 +66,15 @@ def test_a_cut_file_says_it_is_damaged_or_cut_short(tmp_path, capsys):
     assert main(["replay", str(path), "--rig", "default"]) == 2
     err = capsys.readouterr().err
     assert "the file is damaged or cut short" in err and len(err.strip().splitlines()) == 1, err
+
+
+@pytest.mark.parametrize("rig, says", [("default", "640x480"), ("mv1440", "1440x1080")])
+def test_a_recording_of_another_camera_is_named(tmp_path, capsys, rig, says):
+    """Frames another camera recorded (10 px wide here): named with the rig's camera (a trial: replay of a
+    default-rig run through mv1440 said "image is 640x32 px but the camera is 1440x34 px", its sensor window)."""
+    path = tmp_path / "r.mcap"
+    _write(path)
+    assert main(["replay", str(path), "--rig", rig]) == 2
+    err = capsys.readouterr().err
+    assert f"its frames are 10 px wide but the rig's camera is {says} px: replay it with the rig the run was " \
+           "recorded with" in err and len(err.strip().splitlines()) == 1, err

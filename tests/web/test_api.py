@@ -179,9 +179,12 @@ def test_a_truncated_upload_is_refused_in_one_line_and_libpng_says_nothing(clien
     ({"steps": []}, 400, "steps must be a list of 1 to 8 steps"),
     ({"steps": [{"op": "roberts", "level": "high"}]}, 400, "must be a number"),
     ({"unexpected": 1}, 422, "malformed request"),
+    ('{"near_mm": NaN}', 422, "finite number"),             # a trial: "less than or equal to 100000"
+    ({"seed": [True, False]}, 400, "seed must be two numbers (u, v) in px, got [True, False]"),  # was (1, 0)
 ])
 def test_bad_match_requests(client, body, status, detail):
-    r = client.post("/api/match", json=body)
+    r = client.post("/api/match", content=body, headers={"content-type": "application/json"}) if isinstance(
+        body, str) else client.post("/api/match", json=body)
     assert r.status_code == status and detail in r.json()["detail"], r.json()
 
 

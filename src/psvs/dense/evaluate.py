@@ -7,6 +7,7 @@ more than k px, a missing answer (NaN) counting as wrong; MAE is over valid pixe
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -142,6 +143,11 @@ def evaluate_pair(left, right, truth, d_min: float = 0.0, d_max: float = 64.0, s
     """Run the default and fast modes on the superimposed pair and StereoSGBM on the separate pair; each
     method's time is that of a second call (the first compiles or loads the kernels). ValueError before any
     work when the truth cannot be the left view's map over d_min..d_max (:func:`check_truth_range`)."""
+    if not 0.0 < split < 1.0:                    # (NaN too)
+        raise ValueError(f"split must lie strictly between 0 and 1 (the right view's share), got {split:g}")
+    if not (math.isfinite(d_min) and math.isfinite(d_max) and d_min < d_max):
+        raise ValueError(f"the searched disparities need min < max (--min-disparity, --max-disparity), got "
+                         f"{d_min:g}..{d_max:g} px")
     check_truth_range(truth, d_min, d_max)
     c = superimpose(left, right, split)
     scores, seconds, results = {}, {}, {}

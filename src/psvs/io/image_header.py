@@ -56,6 +56,8 @@ def read_header(f: BinaryIO) -> ImageHeader:
     it is none of :data:`FORMATS` or is cut short, or claims a zero size."""
     f.seek(0)
     head = f.read(16)
+    if not head:                            # (a trial's frame written as 0 bytes was "not a PNG, JPEG ... file")
+        raise HeaderError("the file is empty (0 bytes)")
     if head.startswith(PNG_SIGNATURE):
         h = _png(f)
     elif head.startswith(b"\xff\xd8"):

@@ -152,10 +152,17 @@ class CameraSpec:
         return self.device if self.kind == "opencv" else f"{self.kind}:{self.device}"
 
 
+#: The largest camera index OpenCV's VideoCapture takes (a C int).
+MAX_OPENCV_INDEX = 2**31 - 1
+
+
 def parse_camera(text) -> CameraSpec:
     """``N`` (an OpenCV index >= 0), ``basler:SERIAL`` or ``basler:N`` (the N-th found), ``basler`` (the first)."""
     text = str(text).strip()
-    if text.isdigit():
+    if text.isascii() and text.isdigit():
+        if int(text) > MAX_OPENCV_INDEX:      # OpenCV takes a C int: a larger one was its "Bad argument"
+            raise ValueError(f"--camera {text}: an OpenCV index is at most {MAX_OPENCV_INDEX} (psvs cameras lists "
+                             "them)")
         return CameraSpec("opencv", str(int(text)))
     kind, _, device = text.partition(":")
     if kind.lower() not in VENDORS:

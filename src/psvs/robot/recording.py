@@ -229,6 +229,11 @@ def replay_recording(path, rig):
     :func:`psvs.robot.loop.replay_cell`; returns (the :class:`Recording`, the replay cell: ``mismatches``
     empty when every command was reproduced)."""
     rec = read_recording(path)
+    w, h = rig.camera.image_size_px
+    widths = {f.image.shape[1] for f in rec.frames}
+    if widths - {w}:                    # (was the window's "camera is 1440x34 px", a trial found)
+        raise ValueError(f"{path}: its frames are {min(widths - {w})} px wide but the rig's camera is {w}x{h} px: "
+                         "replay it with the rig the run was recorded with")
     cell = ReplayCell(rec.frames, rec.commands, rec.faults)
     return rec, replay_cell(rec.config, rec.cam2flange, rec.teach, rec.seed_px, cell, rig, rec.halts, rec.holds)
 

@@ -27,7 +27,7 @@ MAX_FILE_CHARS = 1_000_000
 class Body(BaseModel):
     """A request body: unknown keys are refused (a misspelt key is an error, not a silent default)."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)     # NaN: "a finite number", not a bound
 
 
 class RangeBody(Body):
@@ -60,6 +60,13 @@ class MatchBody(PipelineBody, RangeBody):
     seed: tuple[float, float] | None = Field(default=None, description="double-clicked (u, v) px; None: automatic")
     model: str | None = Field(default=None, description="triangulation model; default: refraction on the "
                                                         "paper's geometry, exact on a build")
+
+    @field_validator("seed", mode="before")
+    @classmethod
+    def _seed_of_numbers(cls, seed):
+        if isinstance(seed, (list, tuple)) and any(isinstance(c, bool) for c in seed):   # pydantic takes true as 1
+            raise ValueError(f"seed must be two numbers (u, v) in px, got {list(seed)!r}")
+        return seed
 
     @field_validator("model")
     @classmethod
