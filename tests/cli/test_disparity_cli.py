@@ -485,3 +485,22 @@ def test_the_cloud_holds_the_trusted_pixels_and_the_depth_map_every_answer(capsy
     pts = np.asarray(trimesh.load(out["cloud"]).vertices)
     assert len(pts) == trusted.sum() and f"; {len(pts)} points in the cloud (the trusted pixels)" in text
     np.testing.assert_allclose(np.sort(pts[:, 2]), np.sort(depth[trusted]), rtol=1e-5)
+
+
+def test_an_echo_no_answer_stands_on_is_said_as_such(capsys, tmp_path):
+    """An adversarial trial (2026-12-06): a checker wall (12 mm squares) at 1000 mm behind a noise card at 650 mm
+    was refused as "no part of the image echoes beyond chance" while quoting an echo of 11.5 spreads against
+    chance's 9.7. The refusal now says the echo stands and no answer stands on it; its figures agree."""
+    import re
+    scene = tmp_path / "checker.toml"
+    scene.write_text('name = "checker"\n[backdrop]\nz_mm = 1000\ntexture = { type = "checker", square_mm = 12, '
+                     'low = 0.1, high = 0.9 }\n[[objects]]\nname = "card"\ntype = "rectangle"\nsize_mm = [150, 150]\n'
+                     'position_mm = [0, 0, 650]\ntexture = { type = "noise", scale_mm = 3, seed = 5, low = 0.1, '
+                     'high = 0.9 }\n')
+    img = tmp_path / "checker.png"
+    assert run(capsys, "simulate", str(scene), "--rig", "default", "-o", str(img))[0] == 0
+    code, text, err = run(capsys, "disparity", str(img), "--rig", "default", "-o", str(tmp_path / "d.npy"))
+    assert code == 1 and len(err.strip().splitlines()) == 1, err
+    m = re.search(r"no answer of the maps stands on the image's echo: .* stands ([\d.]+) spreads .* chance on this "
+                  r"image reaches ([\d.]+) .*, but no answer within 1.5 px of an echoing lag", err)
+    assert m and float(m.group(1)) > float(m.group(2)), err

@@ -24,7 +24,7 @@ from psvs.dense.disparity import check_dense_memory, check_range, constant_refus
 from psvs.dense.params import DEFAULT, FAST
 from psvs.dense.rig_cache import rectification
 from psvs.dense.separate import rig_views
-from psvs.dense.trust import ALPHA, EchoTrust, trusted_maps
+from psvs.dense.trust import ALPHA, TOL_PX, EchoTrust, trusted_maps
 from psvs.errors import MeasurementError
 from psvs.health.check import refuse_if_drifted, whole_check_due
 from psvs.imaging.block_grid import check_block_grid
@@ -213,6 +213,12 @@ def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
                                    f"{e.edge_z:.1f} spreads where chance reaches {e.edge_threshold:.1f}, repeats "
                                    f"{e.edge_lag_px * k:.0f} px to its left: widen the range searched (--near-mm/"
                                    "--far-mm, or --min-disparity/--max-disparity) to measure it")
+        if t.echoes or t.strongest > 1.0:       # an echo stands, but no answer of the maps stands on it
+            raise MeasurementError(
+                f"no answer of the maps stands on the image's echo: {strongest_echo(trust)}, but no answer within "
+                f"{TOL_PX:g} px of an echoing lag carries its own echo and texture (the search answered those "
+                f"pixels elsewhere: a texture that repeats, or one surface's echo over another's): nothing in "
+                f"{lo:.0f}..{hi:.0f} px is trusted")
         raise MeasurementError(f"no part of the image echoes beyond chance: {strongest_echo(trust)}: the image "
                                f"shows no echo of the disparities {lo:.0f}..{hi:.0f} px")
     return dataclasses.replace(dense, result=trusted_maps(res, trust)), trust

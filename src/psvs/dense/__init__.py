@@ -17,7 +17,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "report": ["scores_markdown", "write_report"],
         "rig_cache": ["filled_maps", "rectification"],
         "separate": ["SeparationParams", "psnr_db", "rig_views", "separate_views"],
-        "trust": ["ALPHA", "EchoTrust", "trusted_maps"],
+        "trust": ["ALPHA", "TOL_PX", "EchoTrust", "trusted_maps"],
         "workspace": ["Workspace"],
     },
 )
