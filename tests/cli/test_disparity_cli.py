@@ -504,3 +504,27 @@ def test_an_echo_no_answer_stands_on_is_said_as_such(capsys, tmp_path):
     m = re.search(r"no answer of the maps stands on the image's echo: .* stands ([\d.]+) spreads .* chance on this "
                   r"image reaches ([\d.]+) .*, but no answer within 1.5 px of an echoing lag", err)
     assert m and float(m.group(1)) > float(m.group(2)), err
+
+
+def test_a_pruned_search_that_finds_nothing_searches_the_whole_range(capsys, tmp_path):
+    """An adversarial trial (2026-12-06): a circle-pattern card (10 mm pitch) at 650 mm before a noise wall at
+    1000 mm. The default mode's coarse pass pruned the search to 85-180 px and the maps found nothing to trust
+    (exit 1), where --fast, searching the whole range, answered it. A pruned search now searches the whole
+    range before it refuses: answered, and its trusted depths right (measured 93.5 % within 2 % of Z)."""
+    scene = tmp_path / "pcard.toml"
+    scene.write_text('name = "pcard"\n[backdrop]\nz_mm = 1000\ntexture = { type = "noise", scale_mm = 4, seed = 3, '
+                     'low = 0.1, high = 0.9 }\n[[objects]]\nname = "card"\ntype = "rectangle"\nsize_mm = [200, 200]\n'
+                     'position_mm = [0, 0, 650]\ntexture = { type = "circles", diameter_mm = 6, spacing_mm = 10, '
+                     'count = 30, low = 0.05, high = 0.9 }\n')
+    img, truth = tmp_path / "p.png", tmp_path / "p.npz"
+    assert run(capsys, "simulate", str(scene), "--rig", "default", "-o", str(img), "--truth", str(truth))[0] == 0
+    out = {k: tmp_path / f"{k}.npy" for k in ("d", "conf", "depth")}
+    code, text, err = run(capsys, "disparity", str(img), "--rig", "default", "-o", str(out["d"]), "--confidence",
+                          str(out["conf"]), "--depth", str(out["depth"]))
+    assert code == 0, err
+    t = np.load(truth)
+    zt = np.where(t["valid_left"], t["depth_left_mm"], np.nan)
+    conf, depth = np.load(out["conf"]), np.load(out["depth"])
+    on = (conf > 0) & np.isfinite(zt)
+    assert on.sum() > 50_000 and "(85..257 searched)" in text, text
+    assert np.mean(np.abs(depth[on] - zt[on]) <= 0.02 * zt[on]) >= 0.9
