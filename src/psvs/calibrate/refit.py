@@ -183,6 +183,8 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
     if tares and np.isfinite(after.row_offset_rms_px):      # before the verdict: a wrong distance explains it
         rows = check_frames(frames, _rig(rows_only, rig), near_mm, far_mm, tolerance_px)
         _check_tares_agree(after, rows, distances)
+    if tares:                   # the distances agree with the frames: is the knock within what the prior holds?
+        _check_prior_holds(x, cov, distances)
     if after.verdict == "drifted":
         raise MeasurementError(f"after the refit the twins still stand off their rows ({after.reason}): what moved "
                                f"is more than the mirrors' tilts; calibrate again from card views (psvs calibrate)")
@@ -218,6 +220,33 @@ def _check_changes(x: np.ndarray, old: Rig, new: Rig, distances) -> None:
         check_clear(new, "the refitted rig")
     except RigGeometryError as exc:
         raise MeasurementError(f"{exc}{tares}") from None
+
+
+def _check_prior_holds(x: np.ndarray, cov: np.ndarray, distances) -> None:
+    """MeasurementError when the tares' depth asks the turns about the vertical to change by more than the prior
+    (:data:`DRIFT_SIGMA_RAD` each) lets a knock do, while some combination of them no tare pins is held to that
+    prior: the knock was larger than the prior says, those combinations may have moved as far, and the depth
+    sigma the prior gives them would be stated too small. The pinned change's chi^2 in the prior's units
+    against its 99.9 % point for as many degrees of freedom as the tares pin. (An adversarial trial: M1 of the
+    misaligned build turned 0.8 deg about the vertical, refit with one tare, changed the four turns by 0.21 deg
+    each (4.2 of the prior's sigmas in all) and stated depth to 0.26 % at 1200 mm; a wall at 1150 mm read
+    1.05 % off through it, a wall at 450 mm 0.26 % against 0.09.)"""
+    from scipy.stats import chi2
+    k = list(DEPTH_PARAMS)
+    z = x[k] / DRIFT_SIGMA_RAD
+    held = np.linalg.eigvalsh(cov[np.ix_(k, k)] / DRIFT_SIGMA_RAD ** 2)
+    pinned = int(np.sum(held < 0.99))
+    if pinned == 0 or pinned == len(k):         # nothing pinned, or every turn pinned by the tares themselves
+        return
+    pull = float(z @ z)
+    if pull > chi2.ppf(0.999, pinned):
+        raise MeasurementError(
+            f"the tares' depth asks the mirrors' turns about the vertical to change by "
+            f"{math.degrees(float(np.sqrt(np.sum(x[k] ** 2)))):.2f} deg in all, {np.sqrt(pull):.1f} times what a "
+            f"knock does ({math.degrees(DRIFT_SIGMA_RAD):g} deg a turn), while {len(k) - pinned} combination(s) of "
+            f"them no tare pins are held to that: they may have moved as far, and the depth would be off by more "
+            f"than stated (the tares at {', '.join(f'{d:g}' for d in distances)} mm): calibrate again from card "
+            "views (psvs calibrate)")
 
 
 def _check_distinct_tares(images) -> None:
