@@ -124,3 +124,27 @@ def test_rss_is_not_fitted_on_too_few_builds():
     """4 varied deviations need 10 builds: at 8 the RSS ranking is left out, the rank correlation is not."""
     got = summarise(planted_rows(9, seed=2))     # one of the 9 failed: 8 calibrated builds
     assert "rms_3d_mm" not in got["rss_sensitivity"] and "rms_3d_mm" in got["sensitivity"]
+
+
+def test_a_yield_has_its_interval_and_few_builds_no_percentiles(tmp_path):
+    """An adversarial trial (2026-12-06): `montecarlo -n 2` reported p90 and p95 interpolated between two builds
+    and a yield of "100.0 %". The yield now carries its 95 % Clopper-Pearson interval (checked against the beta
+    distribution's quantiles), and p90/p95 need 10 and 20 builds (NaN, None in scores.json, said in report.md)."""
+    from scipy.stats import beta
+    rows = planted_rows()[:2]
+    for r in rows:
+        r.update(ok=True, reason="", rms_3d_mm=0.1)
+    write_report(rows, tmp_path, {"rms_3d_mm": 0.12})
+    got = json.loads((tmp_path / "scores.json").read_text())
+    lo, hi = got["targets"]["rms_3d_mm"]["interval_95"]
+    assert got["targets"]["rms_3d_mm"]["fraction"] == 1.0 and hi == 1.0
+    assert lo == pytest.approx(beta.ppf(0.025, 2, 1), abs=1e-9)           # x = n: the lower bound alone
+    st = got["scores"]["rms_3d_mm"]
+    assert st["n"] == 2 and st["p90"] is None and st["p95"] is None and st["median"] == pytest.approx(0.1)
+    md = (tmp_path / "report.md").read_text()
+    assert "| needs 10 builds | needs 20 builds |" in md and "100.0 % (95 %: 16-100 %)" in md
+    # 27 of 54: the interval of a middle yield, both ends by the beta distribution
+    from psvs.study.report import yield_interval
+    lo, hi = yield_interval(27, 54)
+    assert lo == pytest.approx(beta.ppf(0.025, 27, 28), abs=1e-9) and hi == pytest.approx(beta.ppf(0.975, 28, 27),
+                                                                                         abs=1e-9)

@@ -49,7 +49,9 @@ def summary_lines(result, n: int, out_dir: Path) -> list[str]:
     for name, unit in (("rms_3d_mm", "mm"), ("max_3d_mm", "mm"), ("reproj_rms_px", "px"), ("row_offset_px", "px")):
         st = s["scores"].get(name)
         if st:
-            lines.append(f"  {name:<15} median {_fmt(st.get('median'))} {unit}, 90 % {_fmt(st.get('p90'))} {unit}")
+            p90 = st.get("p90")
+            p90 = f"{_fmt(p90)} {unit}" if p90 is not None and math.isfinite(p90) else "- (needs 10 builds)"
+            lines.append(f"  {name:<15} median {_fmt(st.get('median'))} {unit}, 90 % {p90}")
     for reason, count in list(s["failure_reasons"].items())[:3]:
         lines.append(f"  failed ({count}): {reason}")
     lines.append(f"report: {out_dir / 'report.md'}")

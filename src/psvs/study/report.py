@@ -55,13 +55,30 @@ def _floats(values) -> np.ndarray:
     return np.array([math.nan if v is None else float(v) for v in values], dtype=float)
 
 
+#: The fewest builds a percentile is read from: with fewer, the q-th percentile lies beyond every build but
+#: the largest and is an interpolation, no estimate (an adversarial trial: p90 and p95 of 2 builds).
+MIN_BUILDS = {"p90": 10, "p95": 20}
+
+
 def _stats(x: np.ndarray) -> dict:
+    """A score's statistics over the builds that gave it: n, mean, median, p90, p95 (NaN with fewer than
+    :data:`MIN_BUILDS` builds), max."""
     x = x[np.isfinite(x)]
     if not len(x):
         return {"n": 0}
     q = np.percentile(x, [50, 90, 95])
-    return {"n": int(len(x)), "mean": float(x.mean()), "median": float(q[0]), "p90": float(q[1]),
-            "p95": float(q[2]), "max": float(x.max())}
+    out = {"n": int(len(x)), "mean": float(x.mean()), "median": float(q[0]), "p90": float(q[1]),
+           "p95": float(q[2]), "max": float(x.max())}
+    out.update({k: math.nan for k, m in MIN_BUILDS.items() if len(x) < m})
+    return out
+
+
+def yield_interval(met: int, n: int) -> tuple[float, float]:
+    """The 95 % Clopper-Pearson interval of a yield of ``met`` builds of ``n`` (fractions 0-1): 2 of 2 builds
+    meeting a target is a yield of 16-100 %, not 100 %."""
+    from scipy.stats import binomtest
+    ci = binomtest(int(met), int(n)).proportion_ci(0.95, method="exact")
+    return float(ci.low), float(ci.high)
 
 
 def sensitivity(cols: dict, ok: np.ndarray) -> dict:
@@ -121,7 +138,8 @@ def summarise(rows, targets: dict | None = None) -> dict:
             raise ValueError(f"target {name!r} is no score of the samples (scores: {', '.join(SCORES)})")
         y = _floats(cols[name])
         met = ok & np.isfinite(y) & (y <= limit)
-        yields[name] = {"target": float(limit), "fraction": float(met.sum() / n), "met": int(met.sum())}
+        yields[name] = {"target": float(limit), "fraction": float(met.sum() / n), "met": int(met.sum()),
+                        "interval_95": yield_interval(int(met.sum()), n)}
     return {"samples": n, "ok": int(ok.sum()), "failed_fraction": float(1 - ok.sum() / n),
             "failure_reasons": dict(reasons.most_common()), "scores": scores, "targets": yields,
             "sensitivity": sensitivity(cols, ok), "rss_sensitivity": rss(cols, ok)}
@@ -205,9 +223,10 @@ def report_markdown(summary: dict) -> str:
         if not st["n"]:
             continue
         t = s["targets"].get(name)
-        tt = f"{t['target']:g} | {100 * t['fraction']:.1f} %" if t else "| "
-        lines.append(f"| {name} | {st['n']} | {st['mean']:.4g} | {st['median']:.4g} | {st['p90']:.4g} | "
-                     f"{st['p95']:.4g} | {st['max']:.4g} | {tt} |")
+        tt = (f"{t['target']:g} | {100 * t['fraction']:.1f} % (95 %: {100 * t['interval_95'][0]:.0f}-"
+              f"{100 * t['interval_95'][1]:.0f} %)") if t else "| "
+        pct = " | ".join(f"{st[k]:.4g}" if math.isfinite(st[k]) else f"needs {m} builds" for k, m in MIN_BUILDS.items())
+        lines.append(f"| {name} | {st['n']} | {st['mean']:.4g} | {st['median']:.4g} | {pct} | {st['max']:.4g} | {tt} |")
     lines += ["", "## Sensitivity (Spearman rank correlation of |deviation| with the score)", ""]
     for name, ranking in s["sensitivity"].items():
         top = ", ".join(f"{r['parameter']} {r['rho']:+.2f}" for r in ranking[:TOP])
