@@ -285,7 +285,8 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX, scenes: l
     if len(offset) < MIN_TILES:
         return HealthCheck("cannot judge", f"only {len(offset)} of {tried} tiles show a twin above chance (needs "
                            f"{MIN_TILES}): frames of a textured scene filling more of the field, over the working "
-                           f"range, are needed", **found)
+                           f"range, are needed (or the scene lies outside the range as this calibration sees "
+                           f"it: a rig far off puts a wall's twins past the disparities searched)", **found)
     places = t0.places_px if t0.places_px is not None and len(t0.places_px) else _grid_corners(t0.grid_shape)
     regions = covered_regions(centre, places)
     if regions < MIN_REGIONS:
@@ -396,8 +397,9 @@ def _not_one_field(A: np.ndarray, coef: np.ndarray, inliers: np.ndarray, scatter
     n, m = int(inliers.sum()), len(inliers)
     if n < MIN_TILES or scatter > MAX_SCATTER_PX or n < MIN_CONSISTENT * m:
         return HealthCheck("cannot judge", f"the {m} tiles above chance disagree with any smooth field (scatter "
-                           f"{scatter:.2f} px, {n} consistent): the frames do not show one rig's twins; frames of "
-                           "a still, textured scene are needed", **found)
+                           f"{scatter:.2f} px, at most {MAX_SCATTER_PX:g} allowed; {n} of {m} on it, "
+                           f"{max(MIN_TILES, math.ceil(MIN_CONSISTENT * m))} needed): the frames do not show one "
+                           "rig's twins; frames of a still, textured scene are needed", **found)
     apart = _another_field(A, coef, inliers, frame, places, found, bound)
     if apart:
         return HealthCheck("cannot judge", f"the tiles above chance hold two fields: {apart}: frames of one rig, "
