@@ -93,19 +93,21 @@ def test_live_records_every_frames_depth(video, tmp_path, capsys):
 
 
 def test_disparity_records_its_maps_views_and_cloud(video, tmp_path, capsys):
-    """One complex image: its maps equal the .npy files written beside, the depth the --depth map, the views
-    the complex image's size on the ideal rig, the points as many as the depth map's finite pixels."""
+    """One complex image: its maps equal the .npy files written beside, the depth the --depth map at the trusted
+    pixels (NaN elsewhere: the recorded cloud's, as --cloud's), the views the complex image's size on the ideal
+    rig, the points as many as that depth's finite pixels."""
     image = tmp_path / "frame.png"
     cv2.imwrite(str(image), _decoded(video)[0])
-    out = {k: tmp_path / f"{k}.npy" for k in ("d", "r", "z")}
+    out = {k: tmp_path / f"{k}.npy" for k in ("d", "r", "z", "c")}
     rrd = tmp_path / "d.rrd"
     assert main(["disparity", str(image), "--rig", "default", "--fast", "-o", str(out["d"]), "--right", str(out["r"]),
-                 "--depth", str(out["z"]), "--rerun", str(rrd)]) == 0
+                 "--depth", str(out["z"]), "--confidence", str(out["c"]), "--rerun", str(rrd)]) == 0
     capsys.readouterr()
     got = read_rrd(rrd)
     np.testing.assert_array_equal(image_of(got["/maps/disparity_left"][0], "DepthImage"), np.load(out["d"]))
     np.testing.assert_array_equal(image_of(got["/maps/disparity_right"][0], "DepthImage"), np.load(out["r"]))
-    z = np.load(out["z"])
+    z = np.where(np.load(out["c"]) > 0, np.load(out["z"]), np.nan)
+    assert 0.3 * z.size < np.isfinite(z).sum() < np.isfinite(np.load(out["z"])).sum()
     np.testing.assert_array_equal(image_of(got["/maps/depth"][0], "DepthImage"), z)
     assert len(got["/psvs_optical_frame/dense_points"][0]["Points3D:positions"]) == int(np.isfinite(z).sum())
     for view in ("left", "right"):
