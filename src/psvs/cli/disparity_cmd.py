@@ -146,10 +146,10 @@ def _write(out: dict, dense: RigDense, image, rig, split: float, model: str | No
             depth = cloud.depth_mm if cloud is not None else rig_depth(dense, rig, model)
             write_npy(out["depth"], depth.astype(np.float32))
         if cloud is not None:      # the trusted pixels' points
+            trusted = res.confidence_left > 0
             u, v = cloud.pixels.T.astype(np.intp)
-            keep = res.confidence_left[v, u] > 0
-            cloud = Cloud(cloud.points_mm[keep], cloud.pixels[keep], np.where(res.confidence_left > 0,
-                                                                              cloud.depth_mm, np.nan))
+            keep = trusted[v, u]
+            cloud = Cloud(cloud.points_mm[keep], cloud.pixels[keep], np.where(trusted, cloud.depth_mm, np.nan))
         points = len(cloud.points_mm) if cloud is not None else \
             int(np.count_nonzero(np.isfinite(depth))) if out["depth"] else None
         if out["cloud"]:

@@ -148,13 +148,16 @@ class EdgeTracker:
         self._frame = 0
 
     def _frame_chance(self, edges: np.ndarray, grey: np.ndarray):
-        """Whether the frame holds twins beyond chance (psvs.match.auto.image_chance), asked on every frame
+        """(Whether the frame holds twins beyond chance, psvs.match.auto.image_chance; the edge pixels it read,
+        :func:`~psvs.match.edges.edge_pixels`, which the first frame's rows check reads too), asked on every frame
         (2.5 ms at 640 x 480, 7.4 ms at 1440 x 1080): the paper's algorithm pairs the seed's edge with whatever
         agrees best, on noise or stripes as readily as on a twin. With the twins below the range a pair must not
         contradict (psvs.match.chance.Elsewhere): an edge that leaves the range beyond its far limit pairs, a
         few frames on, with another edge inside it (an adversarial trial: Fig. 5b moving 1100 -> 1500 mm was
         tracked at 750 mm for 1520)."""
-        return image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect, elsewhere=True)
+        px = edge_pixels(edges, self.rect)
+        return image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect, px=px,
+                            elsewhere=True), px
 
     def step(self, grey: np.ndarray) -> TrackStep:
         """Process the next frame (H, W) uint8 and return its :class:`TrackStep`."""
@@ -172,14 +175,14 @@ class EdgeTracker:
         radius = p.snap_px if first else p.search_px * (1 + self._lost) + float(np.hypot(*self._velocity))
         cands = nearest_edge_pixels(edges, predicted, radius, p.candidates)
         msg = "no edge pixel near the seed" if first else "edge lost"
-        chance = automatic = None
+        chance = automatic = px = None
         for cand in cands:
             pair = match_seeded(edges, cand, self.range_px, n_seeds=self.match.n_seeds, rect=self.rect)
             if len(pair) < p.min_pairs:
                 continue
             # asked once a frame, when a candidate first pairs: a frame turned to noise (a covered lens, a
             # lamp's flash) loses the edge there, not several frames later at whatever depth noise pairs at
-            chance = self._frame_chance(edges, grey) if chance is None else chance
+            chance, px = self._frame_chance(edges, grey) if chance is None else (chance, px)
             if not chance.answered:
                 msg = f"no twin beyond chance in the frame: {chance.describe()}"
                 break
@@ -194,7 +197,7 @@ class EdgeTracker:
                     msg = ("the seed's edge has no twin beyond chance: the twin it pairs with agrees on too few "
                            f"rows to stand alone, and no pair of the automatic matcher backs it ({chance.describe()})")
                     continue
-                rows = seed_rows(pair, edge_pixels(edges, self.rect), self.match)   # as match --seed asks
+                rows = seed_rows(pair, px, self.match)      # as match --seed asks
                 if rows.refuses:
                     msg = f"the seed's edge has no twin on the rig's rows: {rows.describe()}"
                     continue

@@ -256,24 +256,30 @@ def _frame(c_left: np.ndarray, c_right: np.ndarray, rig: Rig) -> np.ndarray:
     return np.stack([ex, np.cross(ez, ex), ez])
 
 
-def _samples(rig: Rig, near_mm: float, far_mm: float) -> tuple[np.ndarray, np.ndarray]:
-    """Twin pixels (left (N, 2), right (N, 2)) of points on a grid of left pixels x depths (uniform in
-    1/Z over the working range), both inside the image: the fit's data."""
+def field_twins(rig: Rig, depths_mm, grid: tuple[int, int]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """For each depth (Z of frame C, mm): the twin pixels (left (N, 2), right (N, 2)) of the points the left
+    view's rays of a ``grid`` (columns, rows) of pixels over the image meet there, both inside the image
+    (traced exactly: the plate, the mirrors as built, the lens)."""
     w, h = rig.camera.image_size_px
-    uu, vv = np.meshgrid(np.linspace(0, w - 1, 21), np.linspace(0, h - 1, 15))
+    uu, vv = np.meshgrid(np.linspace(0, w - 1, grid[0]), np.linspace(0, h - 1, grid[1]))
     left = np.column_stack([uu.ravel(), vv.ravel()])
     rays = trace_pixels(left, rig, "left")
-    pts, lefts = [], []
-    for z in 1.0 / np.linspace(1.0 / far_mm, 1.0 / near_mm, 7):
+    out = []
+    for z in depths_mm:
         with np.errstate(divide="ignore", invalid="ignore"):
             t = (z - rays.origins_mm[:, 2]) / rays.dirs[:, 2]
         ok = rays.valid & (t > 0)
-        pts.append(rays.origins_mm[ok] + t[ok, None] * rays.dirs[ok])
-        lefts.append(left[ok])
-    pts, lefts = np.concatenate(pts), np.concatenate(lefts)
-    right, ok = project_points(pts, rig, "right")
-    ok &= (right[:, 0] >= 0) & (right[:, 0] <= w - 1) & (right[:, 1] >= 0) & (right[:, 1] <= h - 1)
-    return lefts[ok], right[ok]
+        right, seen = project_points(rays.origins_mm[ok] + t[ok, None] * rays.dirs[ok], rig, "right")
+        seen &= (right[:, 0] >= 0) & (right[:, 0] <= w - 1) & (right[:, 1] >= 0) & (right[:, 1] <= h - 1)
+        out.append((left[ok][seen], right[seen]))
+    return out
+
+
+def _samples(rig: Rig, near_mm: float, far_mm: float) -> tuple[np.ndarray, np.ndarray]:
+    """Twin pixels (left (N, 2), right (N, 2)) of points on a grid of left pixels x depths (uniform in
+    1/Z over the working range), both inside the image: the fit's data."""
+    twins = field_twins(rig, 1.0 / np.linspace(1.0 / far_mm, 1.0 / near_mm, 7), (21, 15))
+    return np.concatenate([lt for lt, _ in twins]), np.concatenate([rt for _, rt in twins])
 
 
 def remembered(rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0) -> Rectification | None:

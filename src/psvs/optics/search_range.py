@@ -11,10 +11,8 @@ import numpy as np
 
 from psvs.optics.design import working_range
 from psvs.optics.mirrors import check_in_front
-from psvs.optics.project import project_points
-from psvs.optics.rectify import Rectification, needs_rectification, rectify
+from psvs.optics.rectify import Rectification, field_twins, needs_rectification, rectify
 from psvs.optics.rig import Rig
-from psvs.optics.trace import trace_pixels
 
 #: Extra disparity margin (px) around the working range's ideal disparities (plate shift, edge width).
 RANGE_MARGIN_PX = 4.0
@@ -60,27 +58,17 @@ def working_disparities(rig: Rig, near_mm: float, far_mm: float,
     outside this span is a depth outside the range (:func:`disparity_range` widens it to search). None when
     neither depth shows a point to both views (e.g. a range nearer than the views overlap).
 
-    Points: the left view's rays of a 41 x 31 grid of pixels over the image, cut at each depth (Z of frame C),
-    seen by the right view inside the image."""
-    w, h = rig.camera.image_size_px
-    uu, vv = np.meshgrid(np.linspace(0, w - 1, 41), np.linspace(0, h - 1, 31))
-    left = np.column_stack([uu.ravel(), vv.ravel()])
-    rays = trace_pixels(left, rig, "left")
+    Points: :func:`psvs.optics.rectify.field_twins` of a 41 x 31 grid of the left view's pixels."""
     span = []
-    for z in (float(far_mm), float(near_mm)):
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (z - rays.origins_mm[:, 2]) / rays.dirs[:, 2]
-        ok = rays.valid & (t > 0)
-        right, seen = project_points(rays.origins_mm[ok] + t[ok, None] * rays.dirs[ok], rig, "right")
-        seen &= (right[:, 0] >= 0) & (right[:, 0] <= w - 1) & (right[:, 1] >= 0) & (right[:, 1] <= h - 1)
-        lu, ru = left[ok][seen], right[seen]
+    for (lu, ru), far in zip(field_twins(rig, (float(far_mm), float(near_mm)), (41, 31)), (True, False),
+                             strict=True):
         if rect is not None:
             lu, ru = rect.to_rectified(lu, "left"), rect.to_rectified(ru, "right")
         d = lu[:, 0] - ru[:, 0]
         d = d[np.isfinite(d)]
         if not len(d):
             return None
-        span.append(float(d.min()) if z == float(far_mm) else float(d.max()))
+        span.append(float(d.min()) if far else float(d.max()))
     return span[0], span[1]
 
 
