@@ -138,11 +138,15 @@ def filled_maps(rect: Rectification, view: str) -> tuple[np.ndarray, np.ndarray]
     resamples only that band of it."""
     per_rect = _FILLED.setdefault(rect, {})
     if view not in per_rect:
-        index = nearest_inside(rect, view)
-        out = tuple(np.ascontiguousarray(np.take(m, index)) for m in rect.maps(view))
-        for m in out:
-            m.setflags(write=False)
-        per_rect[view] = out
+        outside = outside_pixels(rect, view)          # inside the field, each pixel its own nearest
+        source = nearest_inside(rect, view).ravel()[outside]
+        out = []
+        for m in rect.maps(view):
+            filled = np.array(m, np.float32, order="C")
+            filled.ravel()[outside] = m.ravel()[source]
+            filled.setflags(write=False)
+            out.append(filled)
+        per_rect[view] = tuple(out)
     return per_rect[view]
 
 

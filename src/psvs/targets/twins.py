@@ -60,6 +60,7 @@ def twin_distances_px(centres_px: np.ndarray, rig: Rig, near_mm: float, far_mm: 
     across, beyond = np.full((n, n), np.inf), np.full((n, n), np.inf)
     reach = 10.0 * sum(rig.camera.image_size_px)                     # the straight continuations, px
     live = np.flatnonzero(rays.valid)
+    cu, cv = c[:, :1], c[:, 1:]                                                     # (N, 1) each
     curves, seen = epipolar_curves_px(rays.origins_mm[live], rays.dirs[live], z, rig)
     for a, uv, ok in zip(live, curves, seen, strict=True):
         uv = uv[ok]
@@ -68,9 +69,11 @@ def twin_distances_px(centres_px: np.ndarray, rig: Rig, near_mm: float, far_mm: 
         t0, t1 = uv[0] - uv[1], uv[-1] - uv[-2]
         uv = np.vstack([uv[0] + reach * t0 / np.linalg.norm(t0), uv, uv[-1] + reach * t1 / np.linalg.norm(t1)])
         p, ab = uv[:-1], np.diff(uv, axis=0)                                        # (S, 2) segments
-        rel = c[:, None, :] - p[None]                                               # (N, S, 2)
-        s = np.clip(np.einsum("nsk,sk->ns", rel, ab) / np.maximum((ab * ab).sum(1), 1e-300), 0.0, 1.0)
-        d = np.linalg.norm(rel - s[..., None] * ab[None], axis=2)
+        ru, rv = cu - p[:, 0], cv - p[:, 1]                                         # (N, S) each
+        s = np.clip((ru * ab[:, 0] + rv * ab[:, 1]) / np.maximum((ab * ab).sum(1), 1e-300), 0.0, 1.0)
+        ru -= s * ab[:, 0]
+        rv -= s * ab[:, 1]
+        d = np.sqrt(ru * ru + rv * rv)
         k = d.argmin(axis=1)
         rows = np.arange(n)
         across[a] = d[rows, k]
@@ -140,10 +143,11 @@ def pair_twins(points_px: np.ndarray, reach_px: np.ndarray, rig: Rig, sizes_px: 
     near = [tree.query_ball_point(p, r) for p, r in zip(pts, reach_px, strict=True)]
     grown_sets: list[list[tuple[int, int]]] = []
     seen: set[tuple[int, int]] = set()
+    as_tuples = [tuple(p) for p in pts.tolist()]
     for i, c in enumerate(cands):
         for j in c:
             if (i, j) not in seen:
-                grown = _grow(i, j, pts, cands, near, shared)
+                grown = _grow(i, j, as_tuples, cands, near, shared)
                 seen.update(grown)
                 grown_sets.append(grown)
     if not grown_sets:
@@ -201,16 +205,18 @@ def _inliers(p: np.ndarray, shift: np.ndarray, tol: float) -> np.ndarray:
     """The pairs an affine shift model explains within ``tol`` px: RANSAC over triples (seeded: the same
     image gives the same answer), the largest consensus."""
     rng = np.random.default_rng(0)
-    best = np.zeros(len(p), bool)
-    for _ in range(200):
-        k = rng.choice(len(p), 3, replace=False)
-        if abs(np.linalg.det(np.column_stack([p[k] - p[k[0]], [1, 1, 1]])[1:, :2])) < 1e-6:
-            continue
-        model = _shift_model(p[k], shift[k], quadratic=False)
-        ok = np.linalg.norm(shift - model(p), axis=1) <= tol
-        if ok.sum() > best.sum():
-            best = ok
-    return best
+    triples = np.array([rng.choice(len(p), 3, replace=False) for _ in range(200)])           # (T, 3)
+    q = p[triples]                                                                           # (T, 3, 2)
+    d = q[:, 1:] - q[:, :1]
+    ok = np.abs(d[:, 0, 0] * d[:, 1, 1] - d[:, 0, 1] * d[:, 1, 0]) >= 1e-6    # not collinear
+    if not ok.any():
+        return np.zeros(len(p), bool)
+    triples, q = triples[ok], q[ok]
+    # each triple's affine shift model (1, u, v) through its three pairs exactly, all triples at once
+    coef = np.linalg.solve(np.concatenate([np.ones(q.shape[:2] + (1,)), q], axis=2), shift[triples])
+    pred = np.concatenate([np.ones((len(p), 1)), p], axis=1) @ coef                         # (T, N, 2)
+    inside = np.hypot(*np.moveaxis(shift[None] - pred, 2, 0)) <= tol                        # (T, N)
+    return inside[int(np.argmax(inside.sum(axis=1)))]
 
 
 def _repair(pts: np.ndarray, pairs: np.ndarray, cands: list[list[int]], step_px: float,
@@ -254,31 +260,34 @@ class _Roles:
         self.right.add(j)
 
 
-def _grow(i: int, j: int, pts: np.ndarray, cands: list[list[int]], near: list[list[int]],
+def _grow(i: int, j: int, pts: list[tuple[float, float]], cands: list[list[int]], near: list[list[int]],
           shared: np.ndarray) -> list[tuple[int, int]]:
     """The pairs reached from (i, j) over image neighbours of the left members, each pair's shift
     (left - right) within :data:`SHIFT_TOL` of the neighbour's it was reached from; every point used once
-    (a ``shared`` one once per role)."""
-    used = _Roles(shared)
-    used.take(i, j)
+    (a ``shared`` one once per role). ``pts``: the points as (u, v) tuples, px (scalar arithmetic: this loop
+    runs over every candidate pair of a card's hundreds of blobs, for every card view)."""
+    left, right, two = {i}, {j}, shared.tolist()       # _Roles's sets, inlined: the inner loop's every step
     pairs = [(i, j)]
     queue = deque(pairs)
     while queue:
         a, b = queue.popleft()
-        shift = pts[a] - pts[b]
+        (ua, va), (ub, vb) = pts[a], pts[b]
+        su, sv = ua - ub, va - vb
         for k in near[a]:
-            if not used.free(k, "left"):
+            if k in left or (k in right and not two[k]):
                 continue
-            tol = SHIFT_TOL * np.linalg.norm(pts[k] - pts[a])
-            best, err = -1, tol
+            uk, vk = pts[k]
+            best, err = -1, SHIFT_TOL * math.hypot(uk - ua, vk - va)
             for m in cands[k]:
-                if m == k or not used.free(m, "right"):
+                if m == k or m in right or (m in left and not two[m]):
                     continue
-                e = np.linalg.norm(pts[k] - pts[m] - shift)
+                um, vm = pts[m]
+                e = math.hypot(uk - um - su, vk - vm - sv)
                 if e <= err:
                     best, err = m, e
             if best >= 0:
-                used.take(k, best)
+                left.add(k)
+                right.add(best)
                 pairs.append((k, best))
                 queue.append((k, best))
     return pairs
