@@ -35,12 +35,14 @@ def pattern_png(rig_name: str = "default", distance_mm: float = 640.0, crop: boo
 
 
 @lru_cache(maxsize=None)
-def scene_png(scene: str, rig_name: str) -> bytes:
-    """A built-in scene rendered through a shipped rig (one sample a pixel)."""
+def scene_png(scene: str, rig_name: str, flip: bool = False, supersample: int = 1) -> bytes:
+    """A built-in scene rendered through a shipped rig (one sample a pixel unless ``supersample``); ``flip``:
+    upside down, as a camera's vertical flip gives it."""
     from psvs.io.params import load_rig
     from psvs.simulate.builtin import builtin_scene
     from psvs.simulate.render import render
-    return png(render(builtin_scene(scene), load_rig(rig_name), supersample=1, seed=3).image)
+    img = render(builtin_scene(scene), load_rig(rig_name), supersample=supersample, seed=3).image
+    return png(np.ascontiguousarray(img[::-1]) if flip else img)
 
 
 def _design() -> list[Case]:
@@ -193,6 +195,10 @@ def _match() -> list[Case]:
         Case("match-seed-twin-within-chance", ("match", "img.png", "--rig", "default", "--seed", "301,173", "-o",
                                                "m.json"), 1, "beyond chance",
              {"img.png": scene_png("textured:distance_mm=700", "default")}, ("m.json",)),
+        # a camera's vertical flip through a build: every twin rows off, edges paired at 767-955 mm (truth 690-720)
+        Case("match-flipped-frame-through-a-build", ("match", "img.png", "--rig", "misaligned", "--auto", "-o",
+                                                     "m.json"), 1, "rows hold",
+             {"img.png": scene_png("fig5b", "misaligned", flip=True, supersample=2)}, ("m.json",)),
         Case("match-n-seeds-one", (*base[:4], "--seed", "100,100", "--n-seeds", "1", "-o", "m.json"), 2,
              "n-seeds", tex, ("m.json",)),
         Case("match-near-beyond-far", (*base, "--near-mm", "900", "--far-mm", "500"), 2, "near", tex,

@@ -396,6 +396,26 @@ def test_matching_through_a_rig_the_image_has_left_is_refused_in_its_twins_words
             assert exported["pairs"] == []
 
 
+def test_matching_a_frame_that_shows_no_row_is_refused_as_psvs_match_refuses_it():
+    """Fig. 5b through the misaligned build, flipped upside down (tests/match/test_rows_unshown.py): its self-check
+    cannot judge and no pair fits the rows; the page gets no pair, not answered, in psvs match's words. The frame
+    as taken is answered."""
+    from psvs.io.params import load_rig
+    from psvs.simulate.builtin import builtin_scene
+    from psvs.simulate.render import render
+    from psvs.web.sources import scene_source
+    rig = load_rig("misaligned")
+    img = render(builtin_scene("fig5b"), rig, seed=3).image
+    for frame, shown in ((img[::-1], False), (img, True)):
+        png = cv2.imencode(".png", np.ascontiguousarray(frame))[1].tobytes()
+        with local_client(create_app(scene_source("fig5b", builtin_scene("fig5b"), rig), rig)) as c:
+            assert c.post("/api/upload", content=png, headers=PNG).status_code == 200
+            res = c.post("/api/match", json={"seed": None}).json()
+            assert res["chance"]["answered"] is shown and bool(res["pairs"]) is shown, res["chance"]
+            if not shown:
+                assert res["chance"]["text"].startswith("nothing in the image shows that the rig's rows hold: ")
+
+
 def test_dense_depth_through_a_rig_the_image_has_left_is_refused_in_its_twins_words():
     """As psvs disparity: issue 43's knock (the textured scene through misaligned_knocked) on a page serving the
     build's calibration from before it: the echo weak, the self-check asked, the rig refused in its words, no

@@ -21,7 +21,7 @@ from psvs.health.check import refuse_if_drifted
 from psvs.io.atomic import output_batch
 from psvs.io.images import check_frame_size, read_grey
 from psvs.match.auto import MIN_TWIN_LAG_PX
-from psvs.match.correspondence import MatchParams, match_image
+from psvs.match.correspondence import MatchParams, match_image, rows_unshown
 from psvs.match.export import write_csv, write_json, write_ply
 from psvs.optics.trace import trace_pixels
 
@@ -92,7 +92,10 @@ def compute(args, image=None):
     # the pairs' own rows check sees only the pairs, and where a knock's field crosses zero some pairs fit: on
     # a frame of the misaligned build read through the ideal rig (7 px off), two of three pairs were 170 and
     # 320 mm off; the image's self-check sees the whole field
-    refuse_if_drifted(work["grey"], work["rig"], work["near_mm"], work["far_mm"])
+    check = refuse_if_drifted(work["grey"], work["rig"], work["near_mm"], work["far_mm"])
+    unshown = rows_unshown(res, check)       # a check that cannot judge, and no pair on the rows either
+    if unshown:
+        raise MeasurementError(unshown)
     with output_batch():   # all outputs land together, or none replaces an earlier file
         write_json(out, res)
         if csv_path:

@@ -71,7 +71,10 @@ class MatchResult:
     (:class:`psvs.match.chance.Chance`: whether the image holds twins at all, asked in either mode; no pair
     when it is not ``answered``), and what the pairs said of the rig's rows
     (:class:`psvs.match.rows.RowCheck`, of the seed's pair from a seed; no pair when it ``refuses``; None
-    when there was no pair to check)."""
+    when there was no pair to check). ``rows_fit``: how many of the image's edge pairs decisively stand on the
+    rig's rows (:mod:`psvs.match.rows`): the automatic matcher's; from a seed, its pair's, else the
+    automatic matcher's on the same image. 0 when no pair shows the rows hold (steep straight edges fit
+    every row: :func:`rows_unshown`)."""
 
     pairs: list[EdgePair]
     unmatched: list[Unmatched]
@@ -80,6 +83,7 @@ class MatchResult:
     stages: list
     chance: Chance
     rows: RowCheck | None = None
+    rows_fit: int = 0
 
 
 def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
@@ -158,14 +162,33 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         px = edge_pixels(edges, rect)            # labelled once: the chance test and the rows' check read them
         chance = image_chance(edges, rng, params=params.auto, grey=grey, rect=rect, px=px, elsewhere=True)
         rows = seed_rows(pair, px, params) if len(pair) and chance.answered else None
+        automatic = functools.cache(lambda: match_auto(edges, rng, params=params.auto, grey=grey, rect=rect))
         stands = rows is not None and not rows.refuses and seed_pair_stands(
-            pair, chance, automatic_pairs(edges, rng, params=params, grey=grey, rect=rect), params.auto.tol_px)
+            pair, chance, lambda: automatic().pairs, params.auto.tol_px)
         pairs, unmatched = ([pair] if stands else []), []
+        fit = (rows.fits or automatic().rows.fits) if stands else 0
     else:
         auto = match_auto(edges, rng, params=params.auto, grey=grey, rect=rect)
-        pairs, unmatched, chance, rows = auto.pairs, auto.unmatched, auto.chance, auto.rows
+        pairs, unmatched, chance, rows, fit = auto.pairs, auto.unmatched, auto.chance, auto.rows, auto.rows.fits
     finished = finish_pairs(grey, pairs, rig, subpixel=params.subpixel, model=params.model, rect=rect)
-    return MatchResult(finished, unmatched, edges, rng, stages, chance, rows)
+    return MatchResult(finished, unmatched, edges, rng, stages, chance, rows, fit)
+
+
+def rows_unshown(res: MatchResult, check) -> str:
+    """Why ``res``'s pairs cannot be shown to stand on the rig's rows, or "": when the image's self-check
+    (``check``, :class:`psvs.health.check.HealthCheck` of the same image) cannot judge and no pair decisively
+    fits the rows (``res.rows_fit`` 0: steep straight edges fit every row), nothing in the image tells the
+    rig's rows from others, and pairs found on them may be wrong ones. A frame flipped upside down through a
+    build (a camera's vertical flip) paired Fig. 5b's edges with others at 767-955 mm, its ashtrays standing
+    at 690 and 720 mm (an adversarial trial; the frame as taken shows 2 of its 5 pairs on the rows)."""
+    if not res.pairs or res.rows_fit > 0 or check is None or check.verdict != "cannot judge":
+        return ""
+    n = len(res.pairs)
+    pairs = "its edge pair does not" if n == 1 else f"none of its {n} edge pairs"
+    return (f"nothing in the image shows that the rig's rows hold: its self-check cannot judge ({check.reason}), "
+            f"and {pairs} line up on the rig's rows more decisively than some rows off (steep straight edges "
+            "fit any row): a frame flipped, or another build's, would give such pairs too. Match a frame with "
+            "curved or slanted edges or some texture (psvs check)")
 
 
 def seed_rows(pair: EdgePair, px, params: MatchParams = MatchParams()) -> RowCheck:

@@ -12,7 +12,7 @@ from fastapi.responses import JSONResponse, Response
 
 from psvs.imaging.pipeline import Pipeline
 from psvs.live.tracker import nearest_edge_pixels
-from psvs.match.correspondence import match_image
+from psvs.match.correspondence import match_image, rows_unshown
 from psvs.match.export import result_to_dict, write_csv, write_json, write_ply
 from psvs.measure.model_check import check_closed_form
 from psvs.optics.illumination import flat_field
@@ -68,8 +68,10 @@ def match(body: MatchBody, session: SessionDep):
     chance = {"answered": res.chance.answered and not off_rows,
               "text": res.rows.describe() if off_rows else res.chance.describe()}
     if res.pairs:
-        drift, _ = drift_refusal(still, rig, body.near_mm, body.far_mm)
-        if drift:           # as psvs match: no pair through a rig the image's own twins say it has left
+        drift, check = drift_refusal(still, rig, body.near_mm, body.far_mm)
+        drift = drift or rows_unshown(res, check)
+        if drift:           # as psvs match: no pair through a rig the image's own twins say it has left, or
+            # where neither they nor a pair shows its rows hold
             res = dataclasses.replace(res, pairs=[])
             chance = {"answered": False, "text": drift}
     session.keep_result(res, still.generation)
