@@ -195,6 +195,29 @@ def test_a_scene_moving_smoothly_keeps_its_support_between_tests(monkeypatch):
     assert len(tests) == 1
 
 
+def test_a_wall_moving_out_of_the_range_is_not_held_past_its_far_end():
+    """An adversarial trial (2026-12-06): a textured wall moving from 1220 to 1420 mm, 10 mm a frame, through the
+    default rig's 400-1200 mm. The support of frame 0's test followed the answers out of the range to the
+    search's outer lag, where they stuck: frames 15-19 read 1299 mm against 1302-1317, exit 0, while
+    ``psvs disparity`` refused the same frames. An answer that leaves the working range's disparities is no
+    longer held (as the test holds them): every frame with depth is within 2 % of its wall, none past 1250 mm."""
+    from psvs.live.simulated import SimulatedSequence
+    from psvs.simulate.builtin import builtin_scene
+    rig = default_rig()
+    positions = np.outer(np.arange(20), [0.0, 0.0, -10.0])
+    frames = SimulatedSequence(builtin_scene("wall:distance_mm=1220"), rig, positions, seed=2)
+    sensor = DenseSensor(rig)
+    answered = []
+    for k in range(20):
+        f = sensor.step(frames[k])
+        truth = 1220.0 + 10.0 * k
+        if np.isfinite(f.median_z_mm):
+            answered.append(k)
+            assert f.median_z_mm == pytest.approx(truth, rel=0.02), (k, f.median_z_mm, truth)
+            assert truth <= 1250.0, (k, f.median_z_mm)
+    assert answered[:1] == [0] and answered[-1] < 19, answered
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sig, status", [("SIGINT", 0), ("SIGTERM", 143)])
 def test_a_signal_during_live_dense_keeps_the_log_and_the_recording(tmp_path, sig, status):

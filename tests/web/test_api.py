@@ -481,3 +481,21 @@ def test_a_closed_form_model_on_a_build_is_refused_by_the_page_as_by_the_command
             res = c.post(path, json=body)
             assert res.status_code == 400 and "the paper model leaves out what this rig file states" in res.text
         assert c.post("/api/match", json={"model": "exact"}).status_code in (200, 422)
+
+
+def test_dense_depth_of_a_wall_beyond_the_range_says_why_in_the_commands_words(tmp_path, capsys):
+    """An adversarial trial (2026-12-06): a textured wall at 2000 mm, the range 400-1200 mm: the page gave no
+    depth with ``refused`` empty, while psvs disparity said why (exit 1). Now the page says the command's line."""
+    from psvs import default_rig
+    from psvs.io.images import write_png
+    from psvs.simulate.builtin import builtin_scene
+    from psvs.simulate.render import render
+    from tests.support.cli import run
+    rig = default_rig()
+    img = render(builtin_scene("wall:distance_mm=2000"), rig, supersample=1, seed=2).image
+    with local_client(create_app(image_source("far wall", img), rig)) as c:
+        res = c.post("/api/dense", json={"fast": False}).json()
+    assert res["trusted_pct"] == 0 and res["median_z_mm"] is None and res["cloud"]["points_mm"] == []
+    write_png(tmp_path / "w.png", img)
+    code, _, err = run(capsys, "disparity", str(tmp_path / "w.png"), "--rig", "default", "-o", str(tmp_path / "d.npy"))
+    assert code == 1 and err == f"psvs disparity: cannot measure: {res['refused']}\n", (err, res["refused"])

@@ -33,7 +33,7 @@ from scipy.spatial.transform import Rotation
 
 from psvs._threads import one_blas_thread
 from psvs.optics.mirrors import direction_map, virtual_centre
-from psvs.optics.project import project_points
+from psvs.optics.project import project_from
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
 from psvs.transforms import transform_from_rotvec
 
@@ -271,18 +271,27 @@ class _Problem:
             parts.append(_sweep_points(s, self.positions, self.local))
         return np.concatenate(parts)
 
-    def project(self, x) -> np.ndarray:
-        """Image residuals (2 * n_points, 2): left view rows first, px."""
+    def project(self, x, starts=None) -> np.ndarray:
+        """Image residuals (2 * n_points, 2): left view rows first, px; ``starts``: :meth:`rays` to start each
+        view's projection from (:func:`psvs.optics.project.project_from`)."""
+        return self._views(x, starts)[0]
+
+    def rays(self, x) -> list[np.ndarray]:
+        """The camera rays (N, 3) each view's projection converges to at ``x`` (left, right)."""
+        return self._views(x)[1]
+
+    def _views(self, x, starts=None) -> tuple[np.ndarray, list[np.ndarray]]:
         rig = self.rig(x)
         pts = self.points(x)
-        out = []
-        for view in ("left", "right"):
-            uv, ok = project_points(pts, rig, view)
+        out, rays = [], []
+        for k, view in enumerate(("left", "right")):
+            uv, ok, dirs = project_from(pts, rig, view, None if starts is None else starts[k])
             uv[~ok] = np.nan
             out.append(uv)
+            rays.append(dirs)
         r = np.concatenate(out) - self.obs
         r[~np.isfinite(r)] = _MISS_PX
-        return r
+        return r, rays
 
     def residuals(self, x) -> np.ndarray:
         prior = NOISE_PX * (x[:self.n_rig] - self.x_start) / self.sigma
@@ -292,17 +301,18 @@ class _Problem:
         n_img_rows = 4 * self.n_points
         J = np.zeros((n_img_rows + self.n_rig, len(x)))
         steps = [_STEP[p] for p in self.names] + [_STEP[p] for p in SWEEP_PARAMS[:self.n_sweep]]
+        base = self.rays(x)          # each step's projection starts where x's converged (a few steps fewer)
         for k, h in enumerate(steps):
             dx = np.zeros(len(x))
             dx[k] = h
-            J[:n_img_rows, k] = ((self.project(x + dx) - self.project(x - dx)) / (2 * h)).ravel()
+            J[:n_img_rows, k] = ((self.project(x + dx, base) - self.project(x - dx, base)) / (2 * h)).ravel()
         first = self.n_rig + self.n_sweep
         grid_rows = np.flatnonzero(self.owner < len(self.grids))
         img_of_row = np.concatenate([self.owner, self.owner])           # both views
         for q, h in enumerate(_POSE_STEP):
             dx = np.zeros(len(x))
             dx[first + q::6] = h
-            diff = (self.project(x + dx) - self.project(x - dx)) / (2 * h)   # (2 n_points, 2)
+            diff = (self.project(x + dx, base) - self.project(x - dx, base)) / (2 * h)   # (2 n_points, 2)
             for view in range(2):
                 rows = grid_rows + view * self.n_points
                 cols = first + 6 * img_of_row[rows] + q

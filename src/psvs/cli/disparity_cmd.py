@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import replace
 
 import numpy as np
@@ -18,14 +17,15 @@ from psvs.cli.common import (
     measuring_rig,
     range_from_args,
 )
-from psvs.dense import BLOCK_CELLS, CELL_PX, MIN_LAGS, Cloud, dense_disparity, write_cloud_ply
+from psvs.dense import Cloud, dense_disparity, write_cloud_ply
 from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_depth, rig_trust
 from psvs.dense.compiled import announce_dense
 from psvs.dense.disparity import check_dense_memory, check_range, constant_refusal
 from psvs.dense.params import DEFAULT, FAST, DenseParams
+from psvs.dense.refusal import elsewhere_words, nothing_trusted, repeat_words
 from psvs.dense.rig_cache import rectification
 from psvs.dense.separate import rig_views
-from psvs.dense.trust import ALPHA, TOL_PX, EchoTrust, trusted_maps
+from psvs.dense.trust import EchoTrust, trusted_maps
 from psvs.errors import MeasurementError
 from psvs.health.check import refuse_if_drifted, whole_check_due
 from psvs.imaging.block_grid import check_block_grid
@@ -177,52 +177,14 @@ def _rerun(args, out: dict, dense: RigDense, cloud, image, rig) -> None:
 
 def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
     """``dense`` with its confidence 0 where the echo does not support the answer beyond chance, and that
-    judgement; MeasurementError when the maps answer nothing or nothing they answer is trusted (naming the
-    disparities asked for: the search also reads a lag beyond each end, psvs.dense.params.searched_lags)."""
-    res = dense.result
-    lo, hi = dense.asked_px or res.searched_px
-    if not np.isfinite(res.disparity_left).any():
-        raise MeasurementError(f"no pixel found a disparity in {lo:.0f}..{hi:.0f} px: the image holds no texture "
-                               "the search can match")
-    trust = rig_trust(dense)
-    if trust.count == 0:
-        t = trust.test
-        if t.ambiguous.any() and not t.echoes:
-            k = 2 ** trust.level * t.cell_px
-            raise MeasurementError(
-                f"the image's texture repeats along its rows: {int(t.ambiguous.sum())} cells of {k}x{k} px echo "
-                f"beyond chance at two or more separate disparities alike (stripes, bricks, a row of identical "
-                f"windows), and nothing else echoes: which of them is the twin cannot be told in "
-                f"{lo:.0f}..{hi:.0f} px")
-        if t.tests == 0:
-            h, w = dense.left_image.shape
-            k = 2 ** trust.level
-            raise MeasurementError(f"the echo test has no patch to judge on {w // k}x{h // k} px (the image at the "
-                                   f"level it is tested): its patches are {min(BLOCK_CELLS) * CELL_PX} px and "
-                                   f"more a side, each needing its twin inside the image at {MIN_LAGS} lags or more")
-        if trust.elsewhere is not None and trust.elsewhere.any:
-            raise MeasurementError(f"the image echoes beyond chance only outside the searched disparities "
-                                   f"{lo:.0f}..{hi:.0f} px: {elsewhere_words(trust)}")
-        if trust.elsewhere is not None and trust.elsewhere.repeats:
-            raise MeasurementError(f"the image echoes beyond chance only as a short repeat along its rows, not in "
-                                   f"the searched disparities {lo:.0f}..{hi:.0f} px: {repeat_words(trust)}")
-        e = trust.elsewhere
-        if e is not None and math.isfinite(e.edge_lag_px):
-            k = 2 ** trust.level
-            raise MeasurementError(f"the image echoes beyond chance only at the edge of the searched disparities "
-                                   f"{lo:.0f}..{hi:.0f} px, where the search cannot pin it: the strongest, "
-                                   f"{e.edge_z:.1f} spreads where chance reaches {e.edge_threshold:.1f}, repeats "
-                                   f"{e.edge_lag_px * k:.0f} px to its left: widen the range searched (--near-mm/"
-                                   "--far-mm, or --min-disparity/--max-disparity) to measure it")
-        if t.echoes or t.strongest > 1.0:       # an echo stands, but no answer of the maps stands on it
-            raise MeasurementError(
-                f"no answer of the maps stands on the image's echo: {strongest_echo(trust)}, but no answer within "
-                f"{TOL_PX:g} px of an echoing lag carries its own echo and texture (the search answered those "
-                f"pixels elsewhere: a texture that repeats, or one surface's echo over another's): nothing in "
-                f"{lo:.0f}..{hi:.0f} px is trusted")
-        raise MeasurementError(f"no part of the image echoes beyond chance: {strongest_echo(trust)}: the image "
-                               f"shows no echo of the disparities {lo:.0f}..{hi:.0f} px")
-    return dataclasses.replace(dense, result=trusted_maps(res, trust)), trust
+    judgement; MeasurementError when the maps answer nothing or nothing they answer is trusted
+    (:func:`psvs.dense.refusal.nothing_trusted`'s words)."""
+    why = nothing_trusted(dense, None)
+    trust = None if why else rig_trust(dense)
+    why = why or nothing_trusted(dense, trust)
+    if why:
+        raise MeasurementError(why)
+    return dataclasses.replace(dense, result=trusted_maps(dense.result, trust)), trust
 
 
 def _checked_trust(dense: RigDense, image, rig, args, look, whole=None) -> tuple[RigDense, EchoTrust]:
@@ -250,38 +212,6 @@ def _quick_look(image, rig, args):
     leaves the echo 20-50 % of a 1440 x 1080 map to trust, at depths a few percent off (an adversarial
     trial), so the answer's own strength cannot tell. The look, or None without a rig."""
     return None if rig is None else refuse_if_drifted(image, rig, args.near_mm, args.far_mm, quick=True)
-
-
-def strongest_echo(trust: EchoTrust) -> str:
-    """The echo test's strongest patch in words a user can check on the image (px of the maps' grid)."""
-    t = trust.test
-    k = 2 ** trust.level
-    u, v, side, lag = t.strongest_at
-    return (f"its strongest echo, a {side * k}x{side * k} px patch centred at ({(u + 0.5) * k - 0.5:.0f}, "
-            f"{(v + 0.5) * k - 0.5:.0f}) that repeats {lag * k} px to its left, stands {t.strongest_z:.1f} spreads "
-            f"above the patch's correlation at other lags, where chance on this image reaches "
-            f"{t.strongest_threshold:.1f} (the {ALPHA:.0%} false-alarm level read from the correlations' negative "
-            "side, which no echo reaches)")
-
-
-def elsewhere_words(trust: EchoTrust) -> str:
-    """What the image shows outside the searched range, in words a user can act on."""
-    e = trust.elsewhere
-    k = 2 ** trust.level
-    return (f"the strongest, {e.strongest_z:.1f} spreads where chance reaches {e.threshold:.1f}, repeats "
-            f"{e.strongest_lag_px * k:.0f} px to its left; nothing in {int(e.cells.sum())} cells of "
-            f"{e.cell_px * e.scale * k:.0f} px a side showing it is trusted: widen the range searched "
-            "(--near-mm/--far-mm, or --min-disparity/--max-disparity) to measure it")
-
-
-def repeat_words(trust: EchoTrust) -> str:
-    """Where the image's texture repeats along its rows (psvs.dense.elsewhere), in words a user can check."""
-    e = trust.elsewhere
-    k = 2 ** trust.level
-    return (f"{int(e.repeating.sum())} cells of {e.cell_px * e.scale * k:.0f} px a side correlate with themselves "
-            f"{e.period_px * k:.0f} px to their left ({e.period_z:.1f} spreads where chance reaches "
-            f"{e.period_threshold:.1f}): a texture that repeats along the rows (bricks, stripes), or a surface far "
-            "beyond the range; there only a surface whose own echo supports its answer is trusted")
 
 
 def _summary(dense: RigDense, trust: EchoTrust) -> str:

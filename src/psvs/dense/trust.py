@@ -52,7 +52,7 @@ __all__ = ["ALPHA", "ASKED_TOL_PX", "STEP_PX", "TOL_PX", "EchoTrust", "bracketed
 TOL_PX = 1.5
 #: px: neighbours whose disparities differ by more are not one surface.
 STEP_PX = 1.0
-#: px: an answer further than this outside the disparities asked for is not trusted (:func:`_within`).
+#: px: an answer further than this outside the disparities asked for is not trusted (:func:`within_disparities`).
 ASKED_TOL_PX = 0.5
 
 
@@ -329,15 +329,15 @@ def echo_trust(image, result: DenseResult, image_right=None, inside: tuple[np.nd
     trusted = _supported(test, away, maps, scale, (tex_left, tex_right))
     answers_px = answers_px or asked
     if answers_px is not None:
-        trusted = tuple(_within(t, d, answers_px) for t, (d, _) in zip(trusted, maps, strict=True))
+        trusted = tuple(within_disparities(t, d, answers_px) for t, (d, _) in zip(trusted, maps, strict=True))
     return EchoTrust(*trusted, test, level, noise, away)
 
 
-def _within(trusted: np.ndarray, disparity: np.ndarray, asked: tuple[float, float]) -> np.ndarray:
+def within_disparities(trusted: np.ndarray, disparity: np.ndarray, asked: tuple[float, float]) -> np.ndarray:
     """``trusted`` (H, W) without the answers more than :data:`ASKED_TOL_PX` outside the ``asked`` disparities
     (px): on the lag the search adds beyond each end (psvs.dense.params.searched_lags) a minimum is not
     bracketed, and what lies there is beyond the working range (a planted wall 2.6 px past the far end is
-    answered on that outer lag)."""
+    answered on that outer lag). A live loop holds its supported answers to them frame after frame too."""
     with np.errstate(invalid="ignore"):
         return trusted & (disparity >= asked[0] - ASKED_TOL_PX) & (disparity <= asked[1] + ASKED_TOL_PX)
 

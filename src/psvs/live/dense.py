@@ -31,6 +31,7 @@ import numpy as np
 from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
 from psvs.dense.params import FAST, DenseParams
 from psvs.dense.separate import rig_views
+from psvs.dense.trust import within_disparities
 from psvs.dense.workspace import Workspace
 from psvs.imaging.block_grid import block_grid_refusal
 from psvs.optics.rig import Rig
@@ -144,6 +145,7 @@ class DenseSensor:
         self._held_mask: np.ndarray | None = None   # ... those still held in the previous frame
         self._previous: np.ndarray | None = None    # the previous frame's map
         self._last = None                           # the last frame's maps (RigDense), for its views
+        self._working = False                       # the working range's disparities (px), once known
 
     def _held(self, d: np.ndarray) -> np.ndarray | None:
         """(H', W') bool: the pixels the latest echo test supported whose answer has moved continuously since,
@@ -184,6 +186,10 @@ class DenseSensor:
                                  workspace=self._workspace)
         d = dense.result.disparity_left
         held = self._held(d)
+        if self._working is False:                  # the working range's disparities (traced once)
+            self._working = dense.working_px
+        if held is not None and self._working is not None:   # an answer moved out of them is supported no more
+            held = within_disparities(held, d, self._working)
         tested = self.frames % TRUST_EVERY == 0 or held is None or held.sum() < HELD_SHARE * self._trusted.sum()
         if tested:                              # due, or the scene changed: tested again
             self._refusal = block_grid_refusal(frame)

@@ -20,7 +20,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "pinhole_views": ["PinholeView"],
         "plate": ["FILE_MARGIN_MM", "PLAUSIBLE_PLATE", "derived_refraction_terms", "file_refraction_terms",
                   "plausible_refraction_terms", "refraction_terms"],
-        "project": ["epipolar_curve_px", "epipolar_curves_px", "in_image", "project_points"],
+        "project": ["epipolar_curve_px", "epipolar_curves_px", "in_image", "project_from", "project_points"],
         "rectify": ["Rectification", "forget", "needs_rectification", "remember", "remembered"],
         "rig": ["Calibration", "Camera", "MIRROR_NAMES", "MirrorError", "MirrorExtent", "Mirrors", "Rig",
                 "default_rig"],

@@ -20,7 +20,7 @@ from psvs.optics.trace import pixels_from_camera_dirs, trace_camera_rays
 
 
 def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max_iter: int = 60):
-    """Pixels where scene points appear in one view of the complex image.
+    """Pixels where scene points appear in one view of the complex image (:func:`project_from` without a start).
 
     Parameters
     ----------
@@ -48,6 +48,15 @@ def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max
     >>> uv.round(9), ok
     (array([[319.5, 239.5]]), array([ True]))
     """
+    uv, valid, _ = project_from(points_mm, rig, view, None, tol_px=tol_px, max_iter=max_iter)
+    return uv, valid
+
+
+def project_from(points_mm, rig: Rig, view: str, start_dirs=None, *, tol_px: float = 1e-10, max_iter: int = 60):
+    """:func:`project_points`, the iteration started from camera rays ``start_dirs`` (N, 3) (the rays a nearby
+    rig or nearby points converged to: a numerical derivative's, which then takes 2-4 of the left view's
+    6 iterations; None, or NaN rows: aimed from the view's virtual centre). Returns (uv_px (N, 2), valid (N,),
+    the converged camera rays (N, 3), NaN where the input is)."""
     pts = check_points(points_mm, "points_mm", 3)
     cam = rig.camera
     R = direction_map(rig, view)
@@ -66,6 +75,10 @@ def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max
         return o + np.einsum("ij,ij->i", centre - o, d)[:, None] * d
 
     dirs = aim(centre[None, :])
+    if start_dirs is not None:
+        start = np.asarray(start_dirs, dtype=float).reshape(dirs.shape)
+        usable = np.all(np.isfinite(start), axis=1)
+        dirs[usable] = start[usable]
     uv = pixels_from_camera_dirs(dirs, cam)
     converged = np.zeros(len(pts), dtype=bool)
     for _ in range(max_iter):
@@ -80,7 +93,7 @@ def project_points(points_mm, rig: Rig, view: str, *, tol_px: float = 1e-10, max
     ahead = np.einsum("ij,ij->i", pts - rays.origins_mm, rays.dirs) > 0
     valid = finite & converged & rays.valid & ahead
     uv[~valid] = np.nan
-    return uv, valid
+    return uv, valid, dirs
 
 
 def in_image(uv_px, rig: Rig) -> np.ndarray:

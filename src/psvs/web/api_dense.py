@@ -11,6 +11,7 @@ from fastapi.responses import JSONResponse, Response
 from psvs.dense import DEFAULT, FAST, separate_views
 from psvs.dense.build import dense_on_rig, rig_cloud, rig_trust
 from psvs.dense.disparity import constant_refusal
+from psvs.dense.refusal import nothing_trusted
 from psvs.errors import MeasurementError
 from psvs.health.check import whole_check_due
 from psvs.imaging.block_grid import block_grid_refusal
@@ -64,9 +65,10 @@ def dense(body: DenseBody, session: SessionDep):
     share the echo supports beyond chance (``trusted_pct``), their median disparity and depth (None when none
     is) and point cloud, and optionally the separated views, as PNG data URLs. ``refused``: why no depth is
     given (then nothing is trusted): a JPEG block grid that would pull the answers
-    (:func:`psvs.imaging.block_grid.block_grid_refusal`), or the image's self-check saying the rig does not fit
-    the image: its quick look, and its whole check when that is due
-    (:func:`psvs.health.check.whole_check_due`); else "". The library's dense kernels
+    (:func:`psvs.imaging.block_grid.block_grid_refusal`), the image's self-check saying the rig does not fit
+    the image (its quick look, and its whole check when that is due: :func:`psvs.health.check.whole_check_due`),
+    or nothing the echo supports (:func:`psvs.dense.refusal.nothing_trusted`, ``psvs disparity``'s words); else
+    "". The library's dense kernels
     run under DENSE_LOCK (one at a time, with live mode's)."""
     still, rig = session.still(), session.rig
     grey = still.grey
@@ -79,13 +81,15 @@ def dense(body: DenseBody, session: SessionDep):
     lo, hi = res.searched_px
     d = res.disparity_left       # on a build: on the left view's rectified grid
     with DENSE_LOCK:
-        trusted = rig_trust(dense_res).trusted_left
+        trust = rig_trust(dense_res)
+    trusted = trust.trusted_left
     seen = trusted & np.isfinite(d)          # the medians of what the echo supports: never a noisy median
     refused = block_grid_refusal(grey)      # as psvs disparity: a hard-compressed JPEG's grid pulls the answers
     if not refused:
         refused, look = drift_refusal(still, rig, body.near_mm, body.far_mm, quick=True)
         if not refused and whole_check_due(look, float(np.mean(seen))):
             refused, _ = drift_refusal(still, rig, body.near_mm, body.far_mm)
+    refused = refused or nothing_trusted(dense_res, trust)     # as psvs disparity refuses it, in its words
     if refused:                              # as psvs disparity: no depth through a rig the image has left
         seen = np.zeros_like(seen)
     cloud = rig_cloud(dense_res, rig, mask=seen)       # only the trusted pixels are triangulated
