@@ -57,6 +57,9 @@ SWEEP_HOLDS = ("k2", "p1", "p2", "k3")
 DESIGN_HOLDS = SWEEP_HOLDS + tuple(p for p in RIG_PARAMS if p.startswith(("m1_", "m2_", "m3_", "m4_", "box_")))
 DESIGN_FITS_PX = 3 * NOISE_PX
 LOSS_SCALE_PX = 0.5      # soft-L1: residuals beyond this are treated as outliers
+#: A loss scale beyond any residual of a build seen through its design (its mirrors put the twins some px off):
+#: the soft-L1 fit is then plain least squares, whose every residual pulls (:func:`bundle_adjust`).
+PLAIN_SCALE_PX = 50.0
 _MISS_PX = 100.0         # residual of a point the optics cannot reach
 _STEP = {"focal_length_mm": 1e-5, "cx_px": 1e-3, "cy_px": 1e-3, "k1": 1e-6, "k2": 1e-6, "p1": 1e-7,
          "p2": 1e-7, "k3": 1e-6, "plate_thickness_mm": 1e-4, "baseline_mm": 1e-4,
@@ -325,7 +328,7 @@ class _Problem:
 @one_blas_thread()     # the same numbers on any core count
 def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
                   sweep_local_mm: np.ndarray | None = None, max_nfev: int = 60, hold=None,
-                  init: Rig | None = None) -> BundleResult:
+                  init: Rig | None = None, loss_scale_px: float = LOSS_SCALE_PX) -> BundleResult:
     """Calibrate a build from grid views and/or sweep views, starting from ``start`` (the nominal design).
 
     Parameters
@@ -347,6 +350,9 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
     init : Rig, optional
         Where the solver starts (e.g. an earlier adjustment of a subset of the images); the priors stay
         centred on ``start``. Default: ``start``.
+    loss_scale_px : float
+        The soft-L1 loss's scale: residuals beyond it count as outliers (:data:`LOSS_SCALE_PX`); one beyond
+        every residual makes the fit plain least squares (:data:`PLAIN_SCALE_PX`).
     """
     if len(grids) + len(sweeps) < 3:
         raise ValueError(f"calibration needs at least 3 usable images, got {len(grids) + len(sweeps)}")
@@ -354,7 +360,8 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
         raise ValueError("sweep views need the pattern's layout (sweep_local_mm)")
     local = np.zeros((0, 3)) if sweep_local_mm is None else np.asarray(sweep_local_mm, float)
     if hold is None and not grids:
-        first = bundle_adjust(grids, sweeps, start, sweep_local_mm, max_nfev, hold=DESIGN_HOLDS, init=init)
+        first = bundle_adjust(grids, sweeps, start, sweep_local_mm, max_nfev, hold=DESIGN_HOLDS, init=init,
+                              loss_scale_px=loss_scale_px)
         if first.rms_px <= DESIGN_FITS_PX:
             return first
         hold = SWEEP_HOLDS
@@ -371,7 +378,7 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
     pad = 1e-9 * (hi[:prob.n_rig] - lo[:prob.n_rig])
     x0[:prob.n_rig] = np.clip(x0[:prob.n_rig], lo[:prob.n_rig] + pad, hi[:prob.n_rig] - pad)
     sol = least_squares(prob.residuals, x0, jac=prob.jacobian, bounds=(lo, hi), method="trf", loss="soft_l1",
-                        f_scale=LOSS_SCALE_PX, x_scale="jac", max_nfev=max_nfev, tr_solver="exact")
+                        f_scale=loss_scale_px, x_scale="jac", max_nfev=max_nfev, tr_solver="exact")
     return _result(prob, sol)
 
 

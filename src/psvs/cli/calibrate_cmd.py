@@ -78,6 +78,9 @@ def run(args) -> int:
             sigma = PRIOR_SIGMA[name]
         print(_fmt(name, value, sigma) + held)
     print(f"  {'baseline_mm (|O1 O2|)':<22}{res.baseline_mm:12.5f}  +- {res.baseline_sigma_mm:.5f}")
+    if "grid" in res.used.values() and not b.sweep:    # the card's print is the one length the images have
+        print("  every length (the baseline, depth) scales with the card's spacing as target.toml states it: a card "
+              "printed 1 % large reads them all 1 % long, which these +- leave out (measure the printed card)")
     if b.sweep:
         print(f"  robot offset: Z = reading + {b.sweep['offset_mm']:.3f} mm")
     if b.held_by_prior:
