@@ -71,7 +71,9 @@ def test_live_records_every_frames_depth(video, tmp_path, capsys):
     assert len(maps) == 4 and all(r["DepthImage:meter"] == [1.0] for r in maps)
     for r, (d, _) in zip(maps, again, strict=True):
         np.testing.assert_array_equal(image_of(r, "DepthImage"), np.where(d.held, d.disparity_px, np.nan))
-        assert np.isfinite(image_of(r, "DepthImage")).mean() > 0.3
+        # the objects at least (the wall behind them leaves the 400-1200 mm range at the third frame, 1232 mm,
+        # and is held no more: psvs.live.dense)
+        assert np.isfinite(image_of(r, "DepthImage")).mean() > 0.15
     tested = [k for k, (d, _) in enumerate(again) if d.tested]
     assert tested[0] == 0 and [r["time"] for r in got["/views/left"]] == pytest.approx(
         [float(rows[k]["timestamp_s"]) for k in tested], abs=1e-6)
