@@ -31,12 +31,14 @@ def kabsch(src: np.ndarray, dst: np.ndarray):
     return R, cd - R @ cs
 
 
-def reconstruction_errors(calibrated, true_rig, depths=(400.0, 600.0, 800.0, 1000.0, 1200.0), scale=1.0):
+def reconstruction_errors(calibrated, true_rig, depths=(400.0, 600.0, 800.0, 1000.0, 1200.0), scale=1.0,
+                          missing_ok=False):
     """Triangulate the true correspondences of points over the whole common field (400-1200 mm) with a
     calibrated rig (exact model). Returns (3-D errors in frame C, mm; 3-D errors after the best rigid
     motion, mm; the points (N, 3)). Images cannot fix frame C's placement behind the mirrors completely
     (docs/calibration.md): the second number is the reconstruction's own accuracy. ``scale`` multiplies
-    the reconstruction first (to take out a known scale error)."""
+    the reconstruction first (to take out a known scale error). ``missing_ok``: points the calibrated rig
+    does not triangulate (its field's edges) have NaN errors, the rigid motion fitted on the others."""
     from psvs.measure.triangulate import triangulate
     from psvs.optics.project import in_image, project_points
     pts = whole_field_points(default_rig(), n_side=9, depths=depths)
@@ -45,6 +47,7 @@ def reconstruction_errors(calibrated, true_rig, depths=(400.0, 600.0, 800.0, 100
     seen = okl & okr & in_image(left, true_rig) & in_image(right, true_rig)
     got = scale * triangulate(left[seen], right[seen], calibrated, model="exact").points_mm
     raw = np.linalg.norm(got - pts[seen], axis=1)
-    R, t = kabsch(got, pts[seen])
+    found = np.isfinite(raw) if missing_ok else np.ones(len(raw), bool)
+    R, t = kabsch(got[found], pts[seen][found])
     aligned = np.linalg.norm(got @ R.T + t - pts[seen], axis=1)
     return raw, aligned, pts[seen]

@@ -22,7 +22,7 @@ from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_depth, rig_t
 from psvs.dense.compiled import announce_dense
 from psvs.dense.disparity import check_dense_memory, check_range, constant_refusal
 from psvs.dense.params import DEFAULT, FAST, DenseParams
-from psvs.dense.refusal import elsewhere_words, nothing_trusted, repeat_words
+from psvs.dense.refusal import elsewhere_words, nothing_answered, nothing_trusted, repeat_words
 from psvs.dense.rig_cache import rectification
 from psvs.dense.separate import rig_views
 from psvs.dense.trust import EchoTrust, trusted_maps
@@ -178,10 +178,12 @@ def _rerun(args, out: dict, dense: RigDense, cloud, image, rig) -> None:
 def _trusted(dense: RigDense) -> tuple[RigDense, EchoTrust]:
     """``dense`` with its confidence 0 where the echo does not support the answer beyond chance, and that
     judgement; MeasurementError when the maps answer nothing or nothing they answer is trusted
-    (:func:`psvs.dense.refusal.nothing_trusted`'s words)."""
-    why = nothing_trusted(dense, None)
-    trust = None if why else rig_trust(dense)
-    why = why or nothing_trusted(dense, trust)
+    (:mod:`psvs.dense.refusal`'s words)."""
+    why = nothing_answered(dense)            # before the echo test: nothing to test
+    if why:
+        raise MeasurementError(why)
+    trust = rig_trust(dense)
+    why = nothing_trusted(dense, trust)
     if why:
         raise MeasurementError(why)
     return dataclasses.replace(dense, result=trusted_maps(dense.result, trust)), trust

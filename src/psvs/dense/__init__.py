@@ -17,7 +17,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "report": ["scores_markdown", "write_report"],
         "rig_cache": ["filled_maps", "rectification"],
         "separate": ["SeparationParams", "psnr_db", "rig_views", "separate_views"],
-        "refusal": ["elsewhere_words", "nothing_trusted", "repeat_words", "strongest_echo"],
+        "refusal": ["elsewhere_words", "nothing_answered", "nothing_trusted", "repeat_words", "strongest_echo"],
         "trust": ["ALPHA", "TOL_PX", "EchoTrust", "trusted_maps", "within_disparities"],
         "workspace": ["Workspace"],
     },

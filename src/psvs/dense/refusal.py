@@ -11,17 +11,29 @@ from psvs.dense.echo_test import BLOCK_CELLS, CELL_PX, MIN_LAGS
 from psvs.dense.trust import ALPHA, TOL_PX, EchoTrust
 
 
-def nothing_trusted(dense: RigDense, trust: EchoTrust | None) -> str:
-    """Why ``dense`` answers nothing, or nothing of it is trusted (``trust``, :func:`psvs.dense.build.rig_trust`
-    of it; None: not tested yet, only the maps' answers asked), naming the disparities asked for (the search also
-    reads a lag beyond each end, psvs.dense.params.searched_lags); "" when some answer is trusted."""
-    res = dense.result
-    lo, hi = dense.asked_px or res.searched_px
-    asked = f"{lo:.0f}..{hi:.0f} px"
-    if not np.isfinite(res.disparity_left).any():
-        return f"no pixel found a disparity in {asked}: the image holds no texture the search can match"
-    if trust is None or trust.count > 0:
+def _asked(dense: RigDense) -> str:
+    """The disparities asked for, in words (the search also reads a lag beyond each end,
+    psvs.dense.params.searched_lags)."""
+    lo, hi = dense.asked_px or dense.result.searched_px
+    return f"{lo:.0f}..{hi:.0f} px"
+
+
+def nothing_answered(dense: RigDense) -> str:
+    """Why ``dense``'s left map answers no pixel at all, naming the disparities asked for; "" when it answers
+    some (to be asked before its trust is tested: :func:`nothing_trusted`)."""
+    if np.isfinite(dense.result.disparity_left).any():
         return ""
+    return f"no pixel found a disparity in {_asked(dense)}: the image holds no texture the search can match"
+
+
+def nothing_trusted(dense: RigDense, trust: EchoTrust) -> str:
+    """Why ``dense`` answers nothing (:func:`nothing_answered`), or nothing of it is trusted (``trust``,
+    :func:`psvs.dense.build.rig_trust` of it), naming the disparities asked for; "" when some answer is
+    trusted."""
+    why = nothing_answered(dense)
+    if why or trust.count > 0:
+        return why
+    asked = _asked(dense)
     t, e, k = trust.test, trust.elsewhere, 2 ** trust.level
     if t.ambiguous.any() and not t.echoes:
         return (f"the image's texture repeats along its rows: {int(t.ambiguous.sum())} cells of {k * t.cell_px}x"

@@ -182,13 +182,13 @@ REACH_OVER_STEP = 1.6
 MODEL_TOL = 0.2
 
 
-def _shift_model(p: np.ndarray, shift: np.ndarray, quadratic: bool = True):
+def _shift_model(p: np.ndarray, shift: np.ndarray):
     """Least-squares shift (left - right, px) as a function of the left position: affine in (u, v) (a
-    plane's disparity is affine in a pinhole view), quadratic with ``quadratic`` and 12 or more pairs (the
-    lens bends it a little). Returns a function (n, 2) -> (n, 2)."""
+    plane's disparity is affine in a pinhole view), quadratic with 12 or more pairs (the lens bends it a
+    little). Returns a function (n, 2) -> (n, 2)."""
     c = p.mean(axis=0)
     s = max(float(np.ptp(p, axis=0).max()), 1.0)
-    quadratic = quadratic and len(p) >= 12
+    quadratic = len(p) >= 12
 
     def terms(x):
         x = (x - c) / s
