@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from psvs.dense import dense_disparity, disparity_cloud, psnr_db, separate_views
-from psvs.dense.evaluate import disparity_scores, evaluate_pair, mirrored, motorcycle, sgbm_reference, superimpose
+from psvs.dense.evaluate import (check_truth_fits, disparity_scores, evaluate_pair, mirrored, motorcycle, sgbm_reference,
+                                 superimpose, truth_fit)
 from psvs.optics.search_range import disparity_range
 from psvs.simulate.builtin import textured
 from psvs.simulate.render import render
@@ -35,6 +36,38 @@ def test_superimpose_and_the_sgbm_reference_on_a_planted_pair():
         superimpose(left, right[:, :10])
     s = disparity_scores(sgbm_reference(left, right, 40), tl)   # the separate pair is easy for SGBM
     assert s["bad2_pct"] < 15 and s["mae_px"] < 0.5
+
+
+def test_the_truth_fit_is_one_on_an_exact_shift_and_falls_off_it():
+    """truth_fit against its closed form: a right view that is the left shifted by a whole 12 px maps back
+    exactly (correlation 1 over the pixels whose twin is in the image); shifted 5 px further, white noise's
+    band-passed texture no longer correlates (|r| < 0.05)."""
+    rng = np.random.default_rng(4)
+    scene = rng.uniform(0, 255, (120, 212))
+    left, right = scene[:, :-12], scene[:, 12:]             # right(x - 12) = left(x): the left pixel x at x - 12
+    truth = np.full(left.shape, 12.0)
+    inner = np.full(left.shape, np.nan)                     # clear of the band-pass's borders (7 px) in both views
+    inner[8:-8, 20:-8] = 12.0
+    assert truth_fit(left, right, inner) == pytest.approx(1.0, abs=1e-6)
+    assert abs(truth_fit(left, right, truth, 5.0)) < 0.05
+    check_truth_fits(left, right, truth)
+
+
+@pytest.mark.parametrize("mistake", ["views swapped", "one image twice", "truth at half scale", "truth of another pair"])
+def test_a_truth_that_does_not_map_the_pair_is_refused(mistake):
+    """An adversarial trial (issue 41): dense-eval scored a planted pair with its views swapped at psvs's own
+    2.1 % bad-2 (the superimposed image is the same) while the pair was the other way round; a truth at half
+    scale scored every method 100 % bad; one image given twice was scored. Each is refused before any work,
+    naming the correlations."""
+    left, right, truth, _ = layered_pair()
+    check_truth_fits(left, right, truth)
+    other, _, _, _ = layered_pair(seed=7)
+    args = {"views swapped": (right, left, truth), "one image twice": (left, left, truth),
+            "truth at half scale": (left, right, truth / 2), "truth of another pair": (other, right, truth)}[mistake]
+    with pytest.raises(ValueError, match=r"^the ground truth does not map the right view onto the left: warped by "
+                                         r"it, the right view correlates -?\d\.\d\d with the left, and -?\d\.\d\d "
+                                         r"with the truth shifted 3-15 px \(chance\)"):
+        evaluate_pair(*args, 0, 40)
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "compiled": ["announce_dense"],
         "disparity": ["DenseResult", "check_dense_memory", "check_range", "constant_refusal", "dense_disparity"],
         "echo_test": ["BLOCK_CELLS", "CELL_PX", "MIN_LAGS"],
-        "evaluate": ["evaluate_pair", "motorcycle"],
+        "evaluate": ["check_truth_fits", "evaluate_pair", "motorcycle", "truth_fit"],
         "params": ["DEFAULT", "DenseParams", "FAST", "searched_lags"],
         "report": ["scores_markdown", "write_report"],
         "rig_cache": ["filled_maps", "rectification"],

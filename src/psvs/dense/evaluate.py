@@ -71,6 +71,53 @@ def check_truth_range(truth, d_min: float, d_max: float) -> None:
                          "(--min-disparity, --max-disparity)")
 
 
+#: The offsets (px, either side) at which :func:`check_truth_fits` reads chance: the truth shifted by as much.
+CHANCE_OFFSETS_PX = tuple(range(3, 16))
+#: The band the views are compared in (their Gaussian blur of this sigma, px, taken off): texture, not shading.
+FIT_BAND_SIGMA_PX = 2.0
+
+
+def truth_fit(left, right, truth, offset_px: float = 0.0) -> float:
+    """The normalised correlation (-1..1) of the left view with the right view warped by ``truth`` (+
+    ``offset_px``): R(x - d(x), y) against L(x, y), band-passed (:data:`FIT_BAND_SIGMA_PX`), over the truth's
+    valid pixels whose twin lies in the image. (H, W) grey images and truth (px, NaN where none)."""
+    gt = np.asarray(truth, dtype=np.float64)
+    h, w = gt.shape
+
+    def band(a):
+        a = np.asarray(a, dtype=np.float64)
+        return a - cv2.GaussianBlur(a, (0, 0), FIT_BAND_SIGMA_PX)
+    xs = (np.arange(w)[None, :] - np.nan_to_num(gt) - offset_px).astype(np.float32)
+    ys = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None], (h, w)).copy()
+    warped = cv2.remap(band(right).astype(np.float32), xs, ys, cv2.INTER_LINEAR)
+    seen = np.isfinite(gt) & (xs >= 0) & (xs <= w - 1)
+    a, b = band(left)[seen], warped[seen].astype(np.float64)
+    a, b = a - a.mean(), b - b.mean()
+    norm = math.sqrt(float(a @ a) * float(b @ b))
+    return float(a @ b) / norm if norm > 0 else 0.0
+
+
+def check_truth_fits(left, right, truth) -> None:
+    """ValueError unless ``truth`` is the disparity of this pair: the right view warped by it must match the left
+    view at least twice as well as warped by the truth shifted 3-15 px either way (chance: what the texture's own
+    likeness gives off the truth), and with a correlation of at least 0.1. Motorcycle: 0.81 against up to 0.07
+    (its mirrored pair 0.90 against 0.08). An adversarial trial's planted pair scored with its views swapped gave
+    psvs's own 2.1 % bad-2 (the superimposed image is the same) while the pair was the other way round
+    (correlation 0.00 against 0.01); its truth at half scale, 100 % bad for every method (0.00 against up to
+    0.78); one image given as both views (0.03 against 0.02): each is refused."""
+    left, right = np.asarray(left, dtype=np.float64), np.asarray(right, dtype=np.float64)
+    if left.shape != right.shape or left.shape != np.shape(truth):
+        raise ValueError(f"left {left.shape}, right {right.shape} and ground truth {np.shape(truth)} must be of one "
+                         "size")
+    fit = truth_fit(left, right, truth)
+    chance = max(truth_fit(left, right, truth, s * k) for k in CHANCE_OFFSETS_PX for s in (-1, 1))
+    if fit < max(2.0 * chance, 0.1):
+        raise ValueError(f"the ground truth does not map the right view onto the left: warped by it, the right view "
+                         f"correlates {fit:.2f} with the left, and {chance:.2f} with the truth shifted "
+                         f"{CHANCE_OFFSETS_PX[0]}-{CHANCE_OFFSETS_PX[-1]} px (chance): the views swapped, one image "
+                         "given twice, or a truth at another scale or of another pair?")
+
+
 def sgbm_reference(left, right, d_max: int, block: int = 5) -> np.ndarray:
     """OpenCV StereoSGBM (3-way, ``block`` px) on the separate pair, disparities 0..d_max (rounded up to a
     multiple of 16; SGBM searches 0..n−1), NaN where it gives no answer: the usual settings P1 = 8·b², P2 = 32·b²,
@@ -142,13 +189,15 @@ def _warm(fn):
 def evaluate_pair(left, right, truth, d_min: float = 0.0, d_max: float = 64.0, split: float = 0.5) -> Evaluation:
     """Run the default and fast modes on the superimposed pair and StereoSGBM on the separate pair; each
     method's time is that of a second call (the first compiles or loads the kernels). ValueError before any
-    work when the truth cannot be the left view's map over d_min..d_max (:func:`check_truth_range`)."""
+    work when the truth cannot be the left view's map over d_min..d_max (:func:`check_truth_range`) or does not
+    map this pair's right view onto its left (:func:`check_truth_fits`)."""
     if not 0.0 < split < 1.0:                    # (NaN too)
         raise ValueError(f"split must lie strictly between 0 and 1 (the right view's share), got {split:g}")
     if not (math.isfinite(d_min) and math.isfinite(d_max) and d_min < d_max):
         raise ValueError(f"the searched disparities need min < max (--min-disparity, --max-disparity), got "
                          f"{d_min:g}..{d_max:g} px")
     check_truth_range(truth, d_min, d_max)
+    check_truth_fits(left, right, truth)
     c = superimpose(left, right, split)
     scores, seconds, results = {}, {}, {}
     for name, params in (("psvs dense", DEFAULT), ("psvs dense --fast", FAST)):
