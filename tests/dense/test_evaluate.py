@@ -5,8 +5,16 @@ import numpy as np
 import pytest
 
 from psvs.dense import dense_disparity, disparity_cloud, psnr_db, separate_views
-from psvs.dense.evaluate import (check_truth_fits, disparity_scores, evaluate_pair, mirrored, motorcycle, sgbm_reference,
-                                 superimpose, truth_fit)
+from psvs.dense.evaluate import (
+    check_truth_fits,
+    disparity_scores,
+    evaluate_pair,
+    mirrored,
+    motorcycle,
+    sgbm_reference,
+    superimpose,
+    truth_fit,
+)
 from psvs.optics.search_range import disparity_range
 from psvs.simulate.builtin import textured
 from psvs.simulate.render import render
@@ -53,7 +61,8 @@ def test_the_truth_fit_is_one_on_an_exact_shift_and_falls_off_it():
     check_truth_fits(left, right, truth)
 
 
-@pytest.mark.parametrize("mistake", ["views swapped", "one image twice", "truth at half scale", "truth of another pair"])
+@pytest.mark.parametrize("mistake", ["views swapped", "one image twice", "truth at half scale",
+                                     "truth of another pair"])
 def test_a_truth_that_does_not_map_the_pair_is_refused(mistake):
     """An adversarial trial (issue 41): dense-eval scored a planted pair with its views swapped at psvs's own
     2.1 % bad-2 (the superimposed image is the same) while the pair was the other way round; a truth at half
