@@ -7,6 +7,8 @@ for memory later.
 - **Memory.** An allocation plan beyond :data:`USABLE_SHARE` of the memory available now
   (:func:`available_bytes`: the system's figure, or ``$PSVS_MEMORY_AVAILABLE_MIB``) is refused before the
   allocation (:func:`check_memory`).
+- **Pages.** psvs's commands keep NumPy from advising the kernel to back large arrays with huge pages
+  (:func:`small_pages`): on a kernel that compacts memory to grant them, every fresh array paid for it.
 """
 from __future__ import annotations
 
@@ -87,3 +89,29 @@ def check_time(seconds: float, what: str, hint: str = "", limit_s: float | None 
     if not seconds <= limit:   # NaN and inf too
         tail = f"; {hint}" if hint else ""
         raise ValueError(f"{what} takes about {duration(seconds)}, more than the {duration(limit)} limit{tail}")
+
+
+#: The environment variable NumPy reads at import: 1 advises the kernel to back large arrays with transparent
+#: huge pages (NumPy's default on Linux), 0 does not.
+HUGEPAGE_ENV = "NUMPY_MADVISE_HUGEPAGE"
+
+
+def small_pages() -> bool:
+    """Turn NumPy's huge-page advice off in this process and the processes it starts (workers, subprocesses),
+    unless the user set :data:`HUGEPAGE_ENV`; True when it was turned off here. Where the kernel grants huge
+    pages only after compacting memory on the fault (``/sys/kernel/mm/transparent_hugepage/defrag`` at
+    ``madvise``, a common default), each fresh large array waits for it, and a grant that fails is waited for
+    all the same: on the 2-core EPYC the benchmarks run on, first touching a new array ran at 0.2-1.1 GB/s with
+    the advice and 2.1-2.6 without, and ``psvs disparity --depth`` on the 1440x1080 build took 2.02-2.96 s
+    (median 2.49) with it against 2.04-2.09 s (median 2.06) without; ``--fast`` 1.61-2.04 (1.89) against
+    1.53-1.56 (1.54); OpenCV's StereoSGBM script 0.42-0.43 s either way (docs/dense.md, Speed). A loop that
+    keeps its arrays (``live``, ``batch``) touches them once either way."""
+    if HUGEPAGE_ENV in os.environ:
+        return False
+    os.environ[HUGEPAGE_ENV] = "0"
+    try:
+        from numpy._core.multiarray import _set_madvise_hugepage
+    except ImportError:                 # a NumPy without the switch: the variable alone, for what starts later
+        return False
+    _set_madvise_hugepage(False)
+    return True

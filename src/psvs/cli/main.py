@@ -16,6 +16,7 @@ import signal
 import sys
 import threading
 
+from psvs._budget import small_pages
 from psvs._quiet import quiet_libraries
 from psvs.errors import MeasurementError, RigGeometryError
 
@@ -82,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     :data:`DEBUG_ENV` is set. While the command runs, what libraries print on their own is kept off the
     terminal (:func:`quiet_libraries`)."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    small_pages()
     command = argv[0] if argv and argv[0] in COMMANDS else None
     debug = os.environ.get(DEBUG_ENV, "").strip() not in ("", "0")
     name = f"psvs {command}" if command else "psvs"
