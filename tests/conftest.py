@@ -6,6 +6,7 @@ import tempfile
 import pytest
 
 from psvs import default_rig
+from psvs._budget import small_pages
 from psvs.io.params import load_rig
 from psvs.optics.design import design_mirrors
 from tests.reference_optics import ReferenceRig
@@ -25,6 +26,10 @@ atexit.register(shutil.rmtree, SESSION_CACHE, ignore_errors=True)
 #: A fresh clone's first dense command says that it compiles (psvs._compiled); the tests check commands'
 #: stderr line by line, and which test compiles first is chance: the notice is off (tests/test_compiled.py on).
 os.environ["PSVS_NO_COMPILE_NOTICE"] = "1"
+#: NumPy's huge-page advice off, as psvs's commands have it (psvs._budget.small_pages): the tests that run a
+#: library call in this process then measure what a command does, and on this machine's kernel the dense tests
+#: took 52-54 s against 64-66 s with the advice (docs/dense.md, Speed). Workers and subprocesses inherit it.
+small_pages()
 #: The memory guard (psvs._budget) sees 8 GiB, whatever else the machine runs: a test's refusal or answer must
 #: not depend on the free memory of the moment (a fresh clone failed once with 196 MiB free). Tests of the
 #: guard itself set their own figure.
