@@ -216,7 +216,7 @@ def _write_recording(run, path, tamper_cycle=None, cycles=None):
     from psvs.robot.mounting import tool2flange
     from psvs.robot.recording import CyclePublisher, publish_setup, publish_stop
     with Telemetry(path, t0_ns=1_700_000_000 * 10**9) as tel:
-        publish_setup(tel, run.config, run.handeye.cam2flange, run.teach, None)
+        publish_setup(tel, run.config, run.handeye.cam2flange, run.teach, None, default_rig())
         pub = CyclePublisher(tel, run.handeye.cam2flange, tool2flange())
         for k, c in enumerate(run.cycles[:cycles]):
             if k == tamper_cycle:
@@ -266,7 +266,10 @@ def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
     assert np.allclose(got, c25.flange2base[:3, 3], atol=1e-9)
 
     rec = read_recording(path)
-    assert rec.config == run.config and rec.seed_px is None and len(rec.frames) == n
+    assert rec.config == run.config and rec.seed_px is None and len(rec.frames) == n and rec.rig == default_rig()
+    assert json.loads(next(m.data for _, c, m in msgs if c.topic == "/psvs/setup"))["rig"]["camera"] == \
+        {"focal_length_mm": 11.3, "pixel_pitch_mm": [0.01, 0.01], "image_size_px": [640, 480],
+         "principal_point_px": [319.5, 239.5]}
     assert np.array_equal(rec.cam2flange, run.handeye.cam2flange)
     assert all(np.array_equal(f.image, c.image) and np.array_equal(f.flange2base, c.flange2base) and f.t_s == c.t_s
                for f, c in zip(rec.frames, run.cycles, strict=True))
@@ -275,6 +278,13 @@ def test_mcap_recording_reads_back_and_replays(gap10, tmp_path, capsys):
     assert capsys.readouterr().out.strip() == \
         f"replayed {n} cycles: every command equals the recorded one (the run's stop: weld length reached)"
     assert rec.stop_reason == "weld length reached"
+
+    # an adversarial trial: another rig of the same camera gave "157 of 157 commands differ", not why
+    assert main(["replay", str(path), "--rig", "examples/rigs/misaligned.toml"]) == 2
+    assert capsys.readouterr().err.strip() == (
+        f"psvs replay: error: {path} was recorded through another rig than the one given (they differ in "
+        "camera.distortion, camera.focal_length_mm, camera.principal_point_px, mirrors.box_rotation_deg ...): "
+        "replay it with the rig the run was recorded with")
 
     _write_recording(run, tmp_path / "cut.mcap", cycles=40)          # Ctrl-C after 40 cycles
     assert main(["replay", str(tmp_path / "cut.mcap"), "--rig", "examples/rigs/default.toml"]) == 0

@@ -156,7 +156,7 @@ def run(args) -> int:
     try:
         with open_telemetry(args, t0_ns, robot=True) as tel:
             from psvs.robot.recording import RunRecorder, publish_stop
-            recorder = None if tel is None else RunRecorder(tel, cfg, seed)
+            recorder = None if tel is None else RunRecorder(tel, cfg, seed, rig)
             watch = None if args.no_check else drift_watch(rig, cfg, args.tolerance_px, args.stop_on_drift,
                                                               args.check_share / 100)
             listener = _Progress(recorder) if watch is None else Watching(watch, _Progress(recorder))

@@ -7,7 +7,9 @@ path on /psvs/seam, status on /psvs/log), a recording holds what the controller 
 exactly:
 
 - ``/psvs/setup`` (once, at t = 0): the TrackConfig, the hand-eye transform cam2flange, the teach point,
-  the taught direction of travel and the seed pixel (null: found on the first frame);
+  the taught direction of travel, the seed pixel (null: found on the first frame) and the rig the sensor
+  measured through (``rig``: a rig file's values; recordings before it have none), which a replay compares
+  with the rig it is given;
 - ``/psvs/cycle`` (every frame): t_s, the flange pose flange2base at the exposure (the controller's
   input), the torch pose tool2base commanded (its output), the arm's fault, and the controller's state
   (s_mm, valid, reason) for reading, and the stop the self-check gave the controller on it (``halt``, '' none:
@@ -28,7 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs.health.rolling import health_record
+from psvs.io.params import rig_from_dict, rig_to_dict
 from psvs.io.telemetry import BASE_FRAME, CAMERA_FRAME, FLANGE_FRAME, TORCH_FRAME
+from psvs.optics.rig import Rig
 from psvs.robot.cells import Frame, ReplayCell
 from psvs.robot.controller import TrackConfig
 from psvs.robot.loop import Teach, replay_cell
@@ -48,11 +52,15 @@ def _mat(a) -> list[float]:
     return [float(x) for x in np.asarray(a, float).ravel()]
 
 
-def publish_setup(tel, cfg: TrackConfig, cam2flange: np.ndarray, teach: Teach, seed_px) -> None:
-    """The run's /psvs/setup record and a status line."""
-    tel.record("setup", 0.0, {"config": {k: getattr(cfg, k) for k in cfg.__dataclass_fields__},
-                              "cam2flange": _mat(cam2flange), "taught_mm": _mat(teach.taught_mm),
-                              "travel": _mat(teach.travel), "seed_px": None if seed_px is None else _mat(seed_px)})
+def publish_setup(tel, cfg: TrackConfig, cam2flange: np.ndarray, teach: Teach, seed_px, rig: Rig | None = None) -> None:
+    """The run's /psvs/setup record and a status line; with ``rig``, the rig the sensor measured through (as a
+    rig file's values: :func:`psvs.io.params.rig_to_dict`), so that a replay can say it was given another."""
+    setup = {"config": {k: getattr(cfg, k) for k in cfg.__dataclass_fields__}, "cam2flange": _mat(cam2flange),
+             "taught_mm": _mat(teach.taught_mm), "travel": _mat(teach.travel),
+             "seed_px": None if seed_px is None else _mat(seed_px)}
+    if rig is not None:
+        setup["rig"] = rig_to_dict(rig)
+    tel.record("setup", 0.0, setup)
     tel.log(0.0, f"tracking at {cfg.speed_mm_s:g} mm/s, {cfg.rate_hz:g} Hz")
 
 
@@ -100,13 +108,13 @@ class RunRecorder:
     """Records a run as it happens (a :class:`psvs.robot.loop.TrackListener`): /psvs/setup when it starts,
     then every cycle (:class:`CyclePublisher`)."""
 
-    def __init__(self, tel, cfg: TrackConfig, seed_px):
-        self.tel, self.cfg, self.seed_px = tel, cfg, seed_px
+    def __init__(self, tel, cfg: TrackConfig, seed_px, rig: Rig | None = None):
+        self.tel, self.cfg, self.seed_px, self.rig = tel, cfg, seed_px, rig
         self._publish: CyclePublisher | None = None
 
     def started(self, cam2flange: np.ndarray, teach: Teach) -> None:
-        """Publish the run's set-up (the mount, the taught start, the seed) before the first cycle."""
-        publish_setup(self.tel, self.cfg, cam2flange, teach, self.seed_px)
+        """Publish the run's set-up (the mount, the taught start, the seed, the rig) before the first cycle."""
+        publish_setup(self.tel, self.cfg, cam2flange, teach, self.seed_px, self.rig)
         self._publish = CyclePublisher(self.tel, cam2flange, tool2flange())
 
     def cycle(self, cycle) -> None:
@@ -129,6 +137,7 @@ class Recording:
     stop_reason: str | None        # None: the recording was cut short
     halts: list[str] | None = None  # the stop reason the self-check gave on each cycle ('' none)
     holds: list[bool] | None = None  # whether the self-check held the torch short of the arc's start on each
+    rig: Rig | None = None          # the rig the sensor measured through (recordings before it: None)
 
 
 def read_recording(path) -> Recording:
@@ -191,7 +200,7 @@ def _read(path) -> Recording:
         return Recording(TrackConfig(**config), _pose(setup["cam2flange"], "cam2flange"),
                          Teach(_vector(setup["taught_mm"], "taught_mm"), _direction(setup["travel"])),
                          None if seed is None else tuple(_vector(seed, "seed_px", 2)), frames, commands, faults,
-                         stop, halts, holds)
+                         stop, halts, holds, _recorded_rig(setup.get("rig")))
     except (KeyError, TypeError) as exc:
         raise ValueError(f"a /psvs/setup or /psvs/cycle record lacks or mistypes {exc}") from None
 
@@ -234,8 +243,35 @@ def replay_recording(path, rig):
     if widths - {w}:                    # (was the window's "camera is 1440x34 px", a trial found)
         raise ValueError(f"{path}: its frames are {min(widths - {w})} px wide but the rig's camera is {w}x{h} px: "
                          "replay it with the rig the run was recorded with")
+    if rec.rig is not None and rec.rig != rig:
+        differ = _differences(rig_to_dict(rec.rig), rig_to_dict(rig))
+        raise ValueError(f"{path} was recorded through another rig than the one given (they differ in "
+                         f"{', '.join(differ[:4])}{' ...' if len(differ) > 4 else ''}): replay it with the rig the "
+                         "run was recorded with")
     cell = ReplayCell(rec.frames, rec.commands, rec.faults)
     return rec, replay_cell(rec.config, rec.cam2flange, rec.teach, rec.seed_px, cell, rig, rec.halts, rec.holds)
+
+
+def _recorded_rig(values) -> Rig | None:
+    """The recorded rig (None when the recording has none), ValueError when it is no rig."""
+    if values is None:
+        return None
+    try:
+        return rig_from_dict(values)
+    except (ValueError, TypeError, KeyError) as exc:
+        raise ValueError(f"the recorded rig is not a rig: {exc}") from None
+
+
+def _differences(a: dict, b: dict, prefix: str = "") -> list[str]:
+    """The keys (dotted, e.g. camera.focal_length_mm) whose values differ between two rig files' tables."""
+    out = []
+    for key in sorted(set(a) | set(b)):
+        va, vb = a.get(key), b.get(key)
+        if isinstance(va, dict) and isinstance(vb, dict):
+            out += _differences(va, vb, f"{prefix}{key}.")
+        elif va != vb:
+            out.append(f"{prefix}{key}")
+    return out
 
 
 def _flag(v) -> bool:
