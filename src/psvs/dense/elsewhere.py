@@ -76,7 +76,11 @@ class Elsewhere:
     the search may not quite reach). ``past_ends`` (2, ny, nx): the cells whose patches echo most strongly a
     whole lag or more past the asked range's far end ([0], below its smallest disparity) or near end ([1]), within
     :data:`EDGE_LAGS`, and none of that size most strongly inside it: a surface just beyond the range, which the
-    search answers at the end's lag (:mod:`psvs.dense.trust` trusts no answer there)."""
+    search answers at the end's lag (:mod:`psvs.dense.trust` trusts no answer there). ``periodic`` (ny, nx): the
+    cells of patches whose strongest echo in the range stands in a whole ratio to another echo along the row
+    (:func:`periodic_patches`: a texture that repeats every p px, whose echo in the range is its repeat, not
+    its twin; nothing there is trusted), ``periodic_px``, ``periodic_z`` and ``periodic_threshold`` the strongest
+    such repeat."""
 
     cells: np.ndarray
     cell_px: int
@@ -92,6 +96,15 @@ class Elsewhere:
     edge_z: float = math.nan
     edge_threshold: float = math.nan
     past_ends: np.ndarray | None = None
+    periodic: np.ndarray | None = None
+    periodic_px: float = math.nan
+    periodic_z: float = math.nan
+    periodic_threshold: float = math.nan
+
+    @property
+    def periodic_any(self) -> bool:
+        """Whether some cell's echo in the range is a multiple of a shorter repeat (:attr:`periodic`)."""
+        return self.periodic is not None and bool(self.periodic.any())
 
     @property
     def past_any(self) -> bool:
@@ -137,6 +150,49 @@ class _Strongest:
                 self.lag, self.threshold = float(lags[at.ravel()[k]]), threshold
 
 
+#: A lag lies on the comb of a period p when within this many lags, plus half a lag for each multiple k (p is
+#: read to the nearest lag), of k p.
+PERIODIC_TOL_LAGS = 1.0
+#: The least number of multiples of one period (p, 2p, 3p, ...) at which a patch must echo for its texture to
+#: repeat, of those its row lets it see (at least 2): two surfaces in one patch, one at about twice the other's
+#: disparity, make two.
+PERIODIC_MULTIPLES = 3
+#: Multiples counted (beyond: the row's end).
+_MAX_MULTIPLE = 24
+
+
+def periodic_patches(z: np.ndarray, threshold: float, judged: np.ndarray,
+                     lags: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Patches whose echo in the searched range is a repeat: each echoes beyond ``threshold`` at
+    :data:`PERIODIC_MULTIPLES` or more multiples k p of one period p (within :data:`PERIODIC_TOL_LAGS` + k / 2
+    lags; p its shortest echoing lag), or at each of the two it can see (near the image's edge), its strongest
+    echo in the range (``judged``, bool (D,)) among them. A wall
+    of a texture that repeats every p px (a fence, blinds, a tiled facade) makes a complex image that repeats
+    every p px, whatever its twins' disparity: its patches correlate fully at p, 2p, ..., and the twin's own
+    echo, halved by the other view, stands below those (an adversarial trial: walls at 800 mm repeating every
+    40-90 px were trusted on 9-70 % of the frame, 60-100 % of it 2-27 % off). A texture that does not repeat
+    echoes at its twin's lag; a patch across two surfaces at both (a card at 96 px before a wall at 45 px: two
+    lags in a ratio of about 2, not three multiples). ``z`` (D, ny, nx) the patches' standardised correlations
+    (NaN where not judged: the image's own autocorrelation), ``lags`` (D,). Returns (periodic (ny, nx) bool,
+    p (ny, nx) lags, the z of the strongest echo on the comb (ny, nx))."""
+    filled = np.nan_to_num(z, nan=-np.inf)
+    echo = filled > threshold
+    high = np.where(judged[:, None, None], filled, -np.inf)
+    at = high.argmax(axis=0)
+    lag = lags.astype(float)
+    p = np.where(echo.any(axis=0), lag[echo.argmax(axis=0)], np.inf)       # the shortest echoing lag
+    with np.errstate(invalid="ignore"):     # no echo: p infinite, k 0, k p NaN (off every comb)
+        k = np.rint(lag[:, None, None] / p[None])
+        comb = (k >= 1) & (np.abs(lag[:, None, None] - k * p[None]) <= PERIODIC_TOL_LAGS + 0.5 * k)
+    on, seen = echo & comb, np.isfinite(z) & comb
+    multiples = sum(np.any(on & (k == m), axis=0).astype(int) for m in range(1, _MAX_MULTIPLE + 1))
+    visible = sum(np.any(seen & (k == m), axis=0).astype(int) for m in range(1, _MAX_MULTIPLE + 1))
+    strongest_on = np.take_along_axis(on, at[None], 0)[0] & np.take_along_axis(echo, at[None], 0)[0]
+    periodic = strongest_on & (multiples >= np.minimum(visible, PERIODIC_MULTIPLES)) & (multiples >= 2)
+    z_on = np.where(on, filled, -np.inf).max(axis=0)
+    return periodic, np.where(np.isfinite(p), p, np.nan), z_on
+
+
 def _family(sums, m: int, sigma: float, lags: np.ndarray, classes: tuple, alpha: float, strongest: tuple):
     """One band's patches of m x m cells: the cells they show echoing (here, above or just below the range,
     repeating), each (ny, nx) bool, or None when no patch profile can be standardised. ``classes``: the lags
@@ -162,6 +218,10 @@ def _family(sums, m: int, sigma: float, lags: np.ndarray, classes: tuple, alpha:
     echoing = (top > level.threshold) & clear
     for which in (exact, past_far, past_near):      # where the strongest echo lies: in the range, just past it
         out.append(spread_to_cells((echoing & which[at])[None], m)[0])
+    periodic, period, z_period = periodic_patches(z, level.threshold, judged, lags)
+    strongest[3].update(z_period, period.ravel(), np.arange(period.size).reshape(period.shape), periodic,
+                        level.threshold)
+    out.append(spread_to_cells(periodic[None], m)[0])
     return spread_to_cells(here[None], m)[0], *out
 
 
@@ -190,8 +250,8 @@ def echo_elsewhere(image: np.ndarray, d_min: float, d_max: float, image_right: n
                (lags >= a_lo) & (lags <= math.floor(a_min / scale) - 1),     # a whole lag or more past an end
                (lags <= a_hi) & (lags >= math.ceil(a_max / scale) + 1))
     ny, nx = h // CELL_PX, w // CELL_PX
-    seen = {m: np.zeros((6, ny, nx), bool) for m in BLOCK_CELLS}
-    strongest = (_Strongest(), _Strongest(), _Strongest())
+    seen = {m: np.zeros((7, ny, nx), bool) for m in BLOCK_CELLS}
+    strongest = (_Strongest(), _Strongest(), _Strongest(), _Strongest())
     families = len(BANDS_PX) * len(BLOCK_CELLS)
     for sigma in BANDS_PX:
         f, g = band_features(left, sigma), band_features(right, sigma)
@@ -204,12 +264,14 @@ def echo_elsewhere(image: np.ndarray, d_min: float, d_max: float, image_right: n
             out = _family(sums, m, sigma, lags, classes, alpha / families, strongest)
             if out is not None:
                 seen[m] |= np.stack(out)
-    away, repeating = np.zeros((ny, nx), bool), np.zeros((ny, nx), bool)
+    away, repeating, periodic = (np.zeros((ny, nx), bool) for _ in range(3))
     past = np.zeros((2, ny, nx), bool)
-    for here, beyond, short, inside_range, past_far, past_near in seen.values():   # each patch size its own cells
+    for here, beyond, short, inside_range, past_far, past_near, cyclic in seen.values():   # each size its own
         away |= beyond & ~here
         repeating |= short & ~here
         past |= np.stack((past_far, past_near)) & ~inside_range
-    a, r, e = strongest
+        periodic |= cyclic
+    a, r, e, c = strongest
     return Elsewhere(_widened(away), CELL_PX, scale, a.lag * scale, a.z, a.threshold, _widened(repeating),
-                     r.lag * scale, r.z, r.threshold, e.lag * scale, e.z, e.threshold, past)
+                     r.lag * scale, r.z, r.threshold, e.lag * scale, e.z, e.threshold, past, _widened(periodic),
+                     c.lag * scale, c.z, c.threshold)

@@ -50,6 +50,8 @@ def nothing_trusted(dense: RigDense, trust: EchoTrust) -> str:
     if e is not None and e.repeats:
         return (f"the image echoes beyond chance only as a short repeat along its rows, not in the searched "
                 f"disparities {asked}: {repeat_words(trust)}")
+    if e is not None and e.periodic_any:
+        return f"the image's texture repeats along its rows: {periodic_words(trust)}: nothing in {asked} is trusted"
     if e is not None and math.isfinite(e.edge_lag_px):
         return (f"the image echoes beyond chance only at the edge of the searched disparities {asked}, where the "
                 f"search cannot pin it: the strongest, {e.edge_z:.1f} spreads where chance reaches "
@@ -94,3 +96,15 @@ def repeat_words(trust: EchoTrust) -> str:
             f"{e.period_px * k:.0f} px to their left ({e.period_z:.1f} spreads where chance reaches "
             f"{e.period_threshold:.1f}): a texture that repeats along the rows (bricks, stripes), or a surface far "
             "beyond the range; there only a surface whose own echo supports its answer is trusted")
+
+
+def periodic_words(trust: EchoTrust) -> str:
+    """Where the image's echo in the range is a multiple of a shorter repeat
+    (:func:`psvs.dense.elsewhere.periodic_patches`), in words a user can check."""
+    e = trust.elsewhere
+    k = 2 ** trust.level
+    return (f"{int(e.periodic.sum())} cells of {e.cell_px * e.scale * k:.0f} px a side correlate with themselves "
+            f"{e.periodic_px * k:.0f} px to their left and at a multiple of that ({e.periodic_z:.1f} spreads where "
+            f"chance reaches {e.periodic_threshold:.1f}): a texture that repeats along the rows (a fence, blinds, "
+            "tiles) echoes at every multiple of its period, and which one is the twin cannot be told; nothing on "
+            "that surface is trusted")

@@ -223,14 +223,16 @@ def _surfaces(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarra
 def _unambiguous(test: EchoTest, elsewhere: Elsewhere, trusted: np.ndarray, disparity: np.ndarray, scale: float,
                  right: bool) -> np.ndarray:
     """``trusted`` (H, W) without its pixels in the echo test's ambiguous cells (a texture that repeats along the
-    rows: a region does not grow over it), in the cells that echo only outside the searched range and in those
+    rows: a region does not grow over it), in the cells whose echo in the range is a multiple of a shorter repeat
+    (:func:`psvs.dense.elsewhere.periodic_patches`), in the cells that echo only outside the searched range and in those
     whose echo lies just past one of its ends (:mod:`psvs.dense.elsewhere`: the search stops there, the surface
     does not; the textured scene at 1250-1320 mm searched to 1200 mm was trusted at the end's lag, 1262 mm, on
     8438 px), each pixel placed as :meth:`~psvs.dense.echo_test.EchoTest.covers_map` places it."""
     d = np.ascontiguousarray(disparity)
     if test.ambiguous.any() and trusted.any():
         _clear_ambiguous(trusted, d, test.ambiguous, test.cell_px, float(scale), bool(right))
-    for cells in (elsewhere.cells, elsewhere.past_ends.any(axis=0) if elsewhere.past_any else None):
+    for cells in (elsewhere.cells, elsewhere.past_ends.any(axis=0) if elsewhere.past_any else None,
+                  elsewhere.periodic):
         if cells is not None and cells.any() and trusted.any():
             _clear_ambiguous(trusted, d, cells, elsewhere.cell_px, float(scale * elsewhere.scale), bool(right))
     return trusted
@@ -269,6 +271,24 @@ def _own_repeats(trusted: np.ndarray, anchored: np.ndarray, labels: np.ndarray |
     return kept | (inside & own[labels])
 
 
+def _periodic_surfaces(trusted: np.ndarray, labels: np.ndarray | None, n: int, elsewhere: Elsewhere,
+                       disparity: np.ndarray, scale: float, right: bool) -> np.ndarray:
+    """``trusted`` (H, W) without the consistent regions (``labels``, numbered 0..n-1, -1 none) that reach into
+    the cells whose echo in the range is a repeat (:attr:`~psvs.dense.elsewhere.Elsewhere.periodic`): such a
+    region is the repeating surface, answered at a multiple of its period, also where its patches' repeats did
+    not stand out (a tiled wall whose rows differ and carry grime: 2 % of the frame was still trusted, all of it
+    at the repeat's lag, 4 % short of the wall)."""
+    if labels is None or not elsewhere.periodic_any or not trusted.any():
+        return trusted
+    kept = trusted.copy()
+    _clear_ambiguous(kept, np.ascontiguousarray(disparity), elsewhere.periodic, elsewhere.cell_px,
+                     float(scale * elsewhere.scale), bool(right))
+    reached = np.zeros(n + 1, bool)         # the last entry: "no region" (label -1)
+    reached[labels[trusted & ~kept]] = True
+    reached[-1] = False
+    return trusted & ~reached[labels]
+
+
 def _supported(test: EchoTest, elsewhere: Elsewhere, maps: tuple, scale: float,
                textured: tuple) -> tuple[np.ndarray, np.ndarray]:
     """Which pixels of the (left, right) maps are trusted (module docstring): ``maps`` ((disparity, confidence)
@@ -277,8 +297,9 @@ def _supported(test: EchoTest, elsewhere: Elsewhere, maps: tuple, scale: float,
     anchors = [_anchors(test, d, c, scale, k == 1, t) for k, ((d, c), t) in enumerate(zip(maps, textured, strict=True))]
     with ThreadPoolExecutor(max_workers=pool_size(2)) as pool:
         grown_maps = list(pool.map(_surfaces, anchors, [d for d, _ in maps], [c for _, c in maps], textured))
-    return tuple(_own_repeats(_unambiguous(test, elsewhere, t, d, scale, k == 1), a, labels, n, elsewhere, d, scale,
-                              k == 1)
+    return tuple(_own_repeats(_unambiguous(test, elsewhere, _periodic_surfaces(t, labels, n, elsewhere, d, scale,
+                                                                               k == 1), d, scale, k == 1),
+                              a, labels, n, elsewhere, d, scale, k == 1)
                  for k, ((t, labels, n), (d, _), a) in enumerate(zip(grown_maps, maps, anchors, strict=True)))
 
 
