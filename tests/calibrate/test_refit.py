@@ -358,8 +358,8 @@ def test_a_tare_whose_distance_the_rows_contradict_is_refused(build, error_mm):
     (0.02 with the truth), and the new rig read a 650 mm wall at 736 mm; a tare at 600 mm stated as 556 (taped
     from the rig's front, not from O) was taken with depth 5-13 % off, stated to 0.1-0.3 %. The turns a wrongly
     stated distance asks fit the frames' twins worse than the calibration's turns by more than chance: refused,
-    naming the tare and the figures (three walls: a tare 20 mm off gave a chi-square of 13-70, the right ones
-    -8 to +6, chance 10.8)."""
+    naming the tare and the figures (three walls: a tare 20 mm off gave a chi-square of 13-65, the right ones
+    -7.3 to +0.5, chance 10.8)."""
     moved = knocked(build, DRIFTS["m3 and m4 (issue 43)"])
     walls, tares = frames_of(moved, seed=80)
     image, z = tares[0]

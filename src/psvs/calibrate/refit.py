@@ -282,8 +282,8 @@ def _check_tares_agree(x: np.ndarray, cov: np.ndarray, old: Rig, frames: _Pairs,
     its true distance asks the turns the frames were taken with, which put the twins on their rows at least as
     well as the old turns (a knock about the vertical moves the rows too, a little); a distance stated wrongly
     asks turns no frame shows, and the rows say so. Over three knocks and three seeds (three walls, 588 pairs)
-    the right distances gave -8 to +6 against the limit's 10.8 (one tare), a tare 20 mm off 13-70, 44-50 mm off
-    220-335. (Before: the fields' RMS compared, 3 of their sigmas and 0.1 px, and an adversarial trial's tare
+    the right distances gave -7.3 to +0.5 against the limit's 10.8 (one tare; 13.8 for two), a tare 20 mm off
+    13-65. (Before: the fields' RMS compared, 3 of their sigmas and 0.1 px, and an adversarial trial's tare
     at 600 mm stated as 556, taped from the rig's front, was taken: the twins 0.20 +- 0.04 px off their rows
     against 0.04, within the sigmas of two fields of the same tiles, whose noise is common to both; depth 5-13 %
     off, stated to 0.1-0.3 %.) ``fields`` gives (the check after the refit, the check under the rows' own answer)
