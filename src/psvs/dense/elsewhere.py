@@ -166,9 +166,9 @@ def periodic_patches(z: np.ndarray, threshold: float, judged: np.ndarray,
     """Patches whose echo in the searched range is a repeat: each echoes beyond ``threshold`` at
     :data:`PERIODIC_MULTIPLES` or more multiples k p of one period p (within :data:`PERIODIC_TOL_LAGS` + k / 2
     lags; p its shortest echoing lag), or at each of the two it can see (near the image's edge), its strongest
-    echo in the range (``judged``, bool (D,)) among them. A wall
-    of a texture that repeats every p px (a fence, blinds, a tiled facade) makes a complex image that repeats
-    every p px, whatever its twins' disparity: its patches correlate fully at p, 2p, ..., and the twin's own
+    echo in the range (``judged``, bool (D,)) among them. A wall of a texture that repeats every p px (a fence,
+    blinds, a tiled facade) makes a complex image that repeats every p px, whatever its twins' disparity: its
+    patches correlate fully at p, 2p, ..., and the twin's own
     echo, halved by the other view, stands below those (an adversarial trial: walls at 800 mm repeating every
     40-90 px were trusted on 9-70 % of the frame, 60-100 % of it 2-27 % off). A texture that does not repeat
     echoes at its twin's lag; a patch across two surfaces at both (a card at 96 px before a wall at 45 px: two
@@ -176,21 +176,34 @@ def periodic_patches(z: np.ndarray, threshold: float, judged: np.ndarray,
     (NaN where not judged: the image's own autocorrelation), ``lags`` (D,). Returns (periodic (ny, nx) bool,
     p (ny, nx) lags, the z of the strongest echo on the comb (ny, nx))."""
     filled = np.nan_to_num(z, nan=-np.inf)
-    echo = filled > threshold
-    high = np.where(judged[:, None, None], filled, -np.inf)
-    at = high.argmax(axis=0)
+    ny, nx = filled.shape[1:]
     lag = lags.astype(float)
-    p = np.where(echo.any(axis=0), lag[echo.argmax(axis=0)], np.inf)       # the shortest echoing lag
-    with np.errstate(invalid="ignore"):     # no echo: p infinite, k 0, k p NaN (off every comb)
-        k = np.rint(lag[:, None, None] / p[None])
-        comb = (k >= 1) & (np.abs(lag[:, None, None] - k * p[None]) <= PERIODIC_TOL_LAGS + 0.5 * k)
-    on, seen = echo & comb, np.isfinite(z) & comb
-    multiples = sum(np.any(on & (k == m), axis=0).astype(int) for m in range(1, _MAX_MULTIPLE + 1))
-    visible = sum(np.any(seen & (k == m), axis=0).astype(int) for m in range(1, _MAX_MULTIPLE + 1))
-    strongest_on = np.take_along_axis(on, at[None], 0)[0] & np.take_along_axis(echo, at[None], 0)[0]
-    periodic = strongest_on & (multiples >= np.minimum(visible, PERIODIC_MULTIPLES)) & (multiples >= 2)
-    z_on = np.where(on, filled, -np.inf).max(axis=0)
-    return periodic, np.where(np.isfinite(p), p, np.nan), z_on
+    inside = np.flatnonzero(judged)
+    at = filled[inside].argmax(axis=0)
+    strongest = inside[at]                                       # (ny, nx) index of the strongest lag in range
+    strong = np.take_along_axis(filled[inside], at[None], 0)[0] > threshold
+    echo = filled > threshold
+    p = np.where(echo.any(axis=0), lag[echo.argmax(axis=0)], np.inf)    # the shortest echoing lag
+    di, yi, xi = np.nonzero(echo)                                 # the echoes on p's comb: k p, k >= 1
+    k = np.rint(lag[di] / p[yi, xi])
+    on = (k >= 1) & (np.abs(lag[di] - k * p[yi, xi]) <= PERIODIC_TOL_LAGS + 0.5 * k)
+    di, yi, xi, k = di[on], yi[on], xi[on], k[on].astype(np.int64)
+    cell = yi * nx + xi
+    span = _MAX_MULTIPLE + 1
+    multiples = np.bincount(np.unique(cell * span + np.minimum(k, _MAX_MULTIPLE)) // span,
+                            minlength=ny * nx).reshape(ny, nx)
+    strongest_on = np.zeros(ny * nx, bool)
+    strongest_on[cell[di == strongest[yi, xi]]] = True
+    z_on = np.full(ny * nx, -np.inf)
+    np.maximum.at(z_on, cell, filled[di, yi, xi])
+    finite = np.isfinite(z)                 # the lags the patch can see: from its first to its last judged one
+    first = lag[finite.argmax(axis=0)]
+    last = lag[len(lag) - 1 - finite[::-1].argmax(axis=0)]
+    with np.errstate(invalid="ignore"):
+        visible = np.where(np.isfinite(p), np.floor(last / p) - np.ceil(first / p) + 1, 0)
+    periodic = (strong & strongest_on.reshape(ny, nx) & (multiples >= np.minimum(visible, PERIODIC_MULTIPLES))
+                & (multiples >= 2))
+    return periodic, np.where(np.isfinite(p), p, np.nan), z_on.reshape(ny, nx)
 
 
 def _family(sums, m: int, sigma: float, lags: np.ndarray, classes: tuple, alpha: float, strongest: tuple):
