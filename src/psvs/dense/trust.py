@@ -22,8 +22,9 @@ region along its row or its column: interpolated across a smooth surface, not ex
 aggregation gives a plain backdrop beside an object the object's disparity; on Fig. 5b 41 % of the trusted
 pixels were such backdrop, 13 % now, the objects' outline). Where patches echo only outside the searched
 range nothing is trusted, and where a texture repeats along the rows only a region anchored there
-(:mod:`psvs.dense.elsewhere`). The test is made at the
-level the method searches the whole asked range (psvs.dense.pyramid: the image halved as often as
+(:mod:`psvs.dense.elsewhere`); on a surface whose echo in the range is a multiple of its texture's period (a
+fence, blinds: :func:`psvs.dense.elsewhere.periodic_patches`) nothing, nor in a region reaching it. The test
+is made at the level the method searches the whole asked range (psvs.dense.pyramid: the image halved as often as
 :func:`~psvs.dense.pyramid.pyramid_levels` says, whatever the mode and whatever range a coarse pass pruned the
 search to), so its patches see the scene at the scale
 they would on a 640 x 480 camera; it costs one multiply-add per pixel, lag and band there, not a second run
