@@ -77,10 +77,10 @@ class Elsewhere:
     whole lag or more past the asked range's far end ([0], below its smallest disparity) or near end ([1]), within
     :data:`EDGE_LAGS`, and none of that size most strongly inside it: a surface just beyond the range, which the
     search answers at the end's lag (:mod:`psvs.dense.trust` trusts no answer there). ``periodic`` (ny, nx): the
-    cells of patches whose strongest echo in the range stands in a whole ratio to another echo along the row
-    (:func:`periodic_patches`: a texture that repeats every p px, whose echo in the range is its repeat, not
-    its twin; nothing there is trusted), ``periodic_px``, ``periodic_z`` and ``periodic_threshold`` the strongest
-    such repeat."""
+    cells of patches that echo at every multiple of one period they can see, up to three, their strongest echo
+    in the range among them (:func:`periodic_patches`: a texture that repeats every p px, whose echo in the
+    range is its repeat, not its twin; nothing there is trusted, nor in a region reaching it), ``periodic_px``,
+    ``periodic_z`` and ``periodic_threshold`` the strongest such repeat."""
 
     cells: np.ndarray
     cell_px: int

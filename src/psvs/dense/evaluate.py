@@ -81,17 +81,22 @@ def truth_fit(left, right, truth, offset_px: float = 0.0) -> float:
     """The normalised correlation (-1..1) of the left view with the right view warped by ``truth`` (+
     ``offset_px``): R(x - d(x), y) against L(x, y), band-passed (:data:`FIT_BAND_SIGMA_PX`), over the truth's
     valid pixels whose twin lies in the image. (H, W) grey images and truth (px, NaN where none)."""
-    gt = np.asarray(truth, dtype=np.float64)
-    h, w = gt.shape
+    return _banded_fit(_band(left), _band(right), np.asarray(truth, dtype=np.float64), offset_px)
 
-    def band(a):
-        a = np.asarray(a, dtype=np.float64)
-        return a - cv2.GaussianBlur(a, (0, 0), FIT_BAND_SIGMA_PX)
+
+def _band(image) -> np.ndarray:
+    a = np.asarray(image, dtype=np.float64)
+    return a - cv2.GaussianBlur(a, (0, 0), FIT_BAND_SIGMA_PX)
+
+
+def _banded_fit(left: np.ndarray, right: np.ndarray, gt: np.ndarray, offset_px: float) -> float:
+    """:func:`truth_fit` of views already band-passed (:func:`_band`)."""
+    h, w = gt.shape
     xs = (np.arange(w)[None, :] - np.nan_to_num(gt) - offset_px).astype(np.float32)
     ys = np.broadcast_to(np.arange(h, dtype=np.float32)[:, None], (h, w)).copy()
-    warped = cv2.remap(band(right).astype(np.float32), xs, ys, cv2.INTER_LINEAR)
+    warped = cv2.remap(right.astype(np.float32), xs, ys, cv2.INTER_LINEAR)
     seen = np.isfinite(gt) & (xs >= 0) & (xs <= w - 1)
-    a, b = band(left)[seen], warped[seen].astype(np.float64)
+    a, b = left[seen], warped[seen].astype(np.float64)
     a, b = a - a.mean(), b - b.mean()
     norm = math.sqrt(float(a @ a) * float(b @ b))
     return float(a @ b) / norm if norm > 0 else 0.0
@@ -109,8 +114,9 @@ def check_truth_fits(left, right, truth) -> None:
     if left.shape != right.shape or left.shape != np.shape(truth):
         raise ValueError(f"left {left.shape}, right {right.shape} and ground truth {np.shape(truth)} must be of one "
                          "size")
-    fit = truth_fit(left, right, truth)
-    chance = max(truth_fit(left, right, truth, s * k) for k in CHANCE_OFFSETS_PX for s in (-1, 1))
+    bl, br, gt = _band(left), _band(right), np.asarray(truth, dtype=np.float64)     # banded once, warped 27 times
+    fit = _banded_fit(bl, br, gt, 0.0)
+    chance = max(_banded_fit(bl, br, gt, s * k) for k in CHANCE_OFFSETS_PX for s in (-1, 1))
     if fit < max(2.0 * chance, 0.1):
         raise ValueError(f"the ground truth does not map the right view onto the left: warped by it, the right view "
                          f"correlates {fit:.2f} with the left, and {chance:.2f} with the truth shifted "

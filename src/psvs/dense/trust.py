@@ -224,16 +224,14 @@ def _surfaces(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarra
 def _unambiguous(test: EchoTest, elsewhere: Elsewhere, trusted: np.ndarray, disparity: np.ndarray, scale: float,
                  right: bool) -> np.ndarray:
     """``trusted`` (H, W) without its pixels in the echo test's ambiguous cells (a texture that repeats along the
-    rows: a region does not grow over it), in the cells whose echo in the range is a multiple of a shorter repeat
-    (:func:`psvs.dense.elsewhere.periodic_patches`), in the cells that echo only outside the searched range and in those
+    rows: a region does not grow over it), in the cells that echo only outside the searched range and in those
     whose echo lies just past one of its ends (:mod:`psvs.dense.elsewhere`: the search stops there, the surface
     does not; the textured scene at 1250-1320 mm searched to 1200 mm was trusted at the end's lag, 1262 mm, on
     8438 px), each pixel placed as :meth:`~psvs.dense.echo_test.EchoTest.covers_map` places it."""
     d = np.ascontiguousarray(disparity)
     if test.ambiguous.any() and trusted.any():
         _clear_ambiguous(trusted, d, test.ambiguous, test.cell_px, float(scale), bool(right))
-    for cells in (elsewhere.cells, elsewhere.past_ends.any(axis=0) if elsewhere.past_any else None,
-                  elsewhere.periodic):
+    for cells in (elsewhere.cells, elsewhere.past_ends.any(axis=0) if elsewhere.past_any else None):
         if cells is not None and cells.any() and trusted.any():
             _clear_ambiguous(trusted, d, cells, elsewhere.cell_px, float(scale * elsewhere.scale), bool(right))
     return trusted
@@ -263,29 +261,34 @@ def _own_repeats(trusted: np.ndarray, anchored: np.ndarray, labels: np.ndarray |
     pixel's region numbered 0..n-1 (-1 none)."""
     if labels is None or not elsewhere.repeats or not trusted.any():
         return trusted
-    kept = trusted.copy()                   # the trusted pixels outside the repeating cells
-    _clear_ambiguous(kept, np.ascontiguousarray(disparity), elsewhere.repeating, elsewhere.cell_px,
-                     float(scale * elsewhere.scale), bool(right))
-    inside = trusted & ~kept
+    inside = _in_cells(trusted, elsewhere.repeating, elsewhere, disparity, scale, right)
     own = np.zeros(n + 1, bool)             # the last entry: "no region" (label -1), never anchored
     own[labels[anchored & inside & (labels >= 0)]] = True
-    return kept | (inside & own[labels])
+    return (trusted & ~inside) | (inside & own[labels])
+
+
+def _in_cells(trusted: np.ndarray, cells: np.ndarray, elsewhere: Elsewhere, disparity: np.ndarray, scale: float,
+              right: bool) -> np.ndarray:
+    """The pixels of ``trusted`` (H, W) that lie in ``cells`` (ny, nx) of the elsewhere test's grid, each placed as
+    :meth:`~psvs.dense.echo_test.EchoTest.covers_map` places it."""
+    kept = trusted.copy()
+    _clear_ambiguous(kept, np.ascontiguousarray(disparity), cells, elsewhere.cell_px, float(scale * elsewhere.scale),
+                     bool(right))
+    return trusted & ~kept
 
 
 def _periodic_surfaces(trusted: np.ndarray, labels: np.ndarray | None, n: int, elsewhere: Elsewhere,
                        disparity: np.ndarray, scale: float, right: bool) -> np.ndarray:
     """``trusted`` (H, W) without the consistent regions (``labels``, numbered 0..n-1, -1 none) that reach into
-    the cells whose echo in the range is a repeat (:attr:`~psvs.dense.elsewhere.Elsewhere.periodic`): such a
-    region is the repeating surface, answered at a multiple of its period, also where its patches' repeats did
-    not stand out (a tiled wall whose rows differ and carry grime: 2 % of the frame was still trusted, all of it
-    at the repeat's lag, 4 % short of the wall)."""
+    the cells whose echo in the range is a repeat (:attr:`~psvs.dense.elsewhere.Elsewhere.periodic`), and so
+    without those cells' own pixels (every trusted pixel lies in a region): such a region is the repeating
+    surface, answered at a multiple of its period, also where its patches' repeats did not stand out (a tiled
+    wall whose rows differ and carry grime: 2 % of the frame was still trusted, all of it at the repeat's lag,
+    4 % short of the wall)."""
     if labels is None or not elsewhere.periodic_any or not trusted.any():
         return trusted
-    kept = trusted.copy()
-    _clear_ambiguous(kept, np.ascontiguousarray(disparity), elsewhere.periodic, elsewhere.cell_px,
-                     float(scale * elsewhere.scale), bool(right))
     reached = np.zeros(n + 1, bool)         # the last entry: "no region" (label -1)
-    reached[labels[trusted & ~kept]] = True
+    reached[labels[_in_cells(trusted, elsewhere.periodic, elsewhere, disparity, scale, right)]] = True
     reached[-1] = False
     return trusted & ~reached[labels]
 
