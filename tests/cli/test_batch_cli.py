@@ -167,19 +167,21 @@ def test_ctrl_c_stops_the_batch_in_one_line_and_keeps_what_finished(tmp_path):
     """Ctrl-C in a terminal reaches the whole process group, the local workers too: psvs says one line (no
     worker's traceback), exits 130, and every frame with a row has its file; the next run does the rest."""
     import os
+    import re
     import select
     import signal
     import subprocess
     import sys
     import time
-    video, _ = _video_and_frames(tmp_path, "textured", 4, "0,0,-30")
+    video, _ = _video_and_frames(tmp_path, "textured", 6, "0,0,-30")
     out = tmp_path / "b"
     argv = [sys.executable, "-m", "psvs", "batch", "disparity", str(video), "--rig", "default", "-o", str(out),
             "--workers", "2"]
     proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    # two workers may finish their first frames together (a CI run saw 0/6 jump to 2/6): any count short of all
     seen, t0 = b"", time.monotonic()
-    while b": 1/4" not in seen and time.monotonic() - t0 < 120:
+    while not re.search(rb": [1-5]/6", seen) and time.monotonic() - t0 < 120:
         assert proc.poll() is None, seen.decode(errors="replace")
         if select.select([proc.stderr], [], [], 0.5)[0]:
             seen += os.read(proc.stderr.fileno(), 65536)
@@ -188,10 +190,10 @@ def test_ctrl_c_stops_the_batch_in_one_line_and_keeps_what_finished(tmp_path):
     assert proc.returncode == 130 and "Traceback" not in err, err
     assert err.strip().splitlines()[-1] == "psvs batch: interrupted"
     rows = [r["key"] for p in sorted((out / "parts").glob("*.parquet")) for r in pq.read_table(p).to_pylist()]
-    assert 1 <= len(rows) < 4
+    assert 1 <= len(rows) < 6
     assert all((out / f"{k}.npy").is_file() for k in rows)
     done = subprocess.run(argv, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0 and f"({4 - len(rows)} computed now, {len(rows)} before" in done.stdout
+    assert done.returncode == 0 and f"({6 - len(rows)} computed now, {len(rows)} before" in done.stdout
 
 
 def test_batch_whose_every_frame_is_refused_exits_1(capsys, tmp_path):
