@@ -73,6 +73,17 @@ AUTOCORRELATION_MAX_PX = 40
 #: it or more is ambiguous: its texture repeats along the row (stripes, bricks, a row of identical windows),
 #: and which lag is its twin cannot be told from it (:func:`ambiguous_patches`).
 RIVAL_RATIO = 0.5
+#: By patch side in cells: a patch whose correlation with a patch along its row exceeds this is a copy of it,
+#: not its twin. The complex image (1 - s) L + s R of a texture uncorrelated at other lags correlates with its
+#: twin at s (1 - s) / ((1 - s)^2 + s^2) <= 1/2 at most (any split); a patch measures that to about 0.075 at 32
+#: px a side and half that at 64 (band features correlated over a few px), so 0.9 and 0.75 lie 5 and 7 of those
+#: beyond it. A texture that repeats along the row with a period p (stripes, a grating, a row of identical
+#: parts) correlates with itself at every multiple of p, at 0.9-1 where it fills the patch and 0.7-0.85 where
+#: the other view's texture lies over it, whatever its twins' disparity: its twin's echo is hidden, and each
+#: multiple is as good an answer. (Measured, the largest of any patch: Fig. 5b, Middlebury Motorcycle and its
+#: mirrored pair 0.51-0.80 at 32 px, 0.54-0.61 at 64 px; a card of 14 px stripes before a wall, its patches'
+#: median 0.80-0.83; :func:`copied_patches`.)
+COPY_RHO = {2: 0.9, 4: 0.75}
 
 
 def band_features(image: np.ndarray, sigma_px: float) -> np.ndarray:
@@ -292,10 +303,11 @@ def standardising_lags(lo: int, hi: int, width: int) -> np.ndarray:
 
 
 def standardised_patches(sums: CellSums, m: int, sigma: float, lags: np.ndarray):
-    """(z, first lag judged) of the patches of m x m cells of one band (scale ``sigma`` px): their correlations
-    (:func:`patch_correlations`) standardised (:func:`standardised`) and, when the band's short lags or the
-    image's own autocorrelation (:func:`autocorrelation_lags`) reach past the first of ``lags``, standardised
-    again without those lags (NaN in z); None when no patch profile can be standardised."""
+    """(z, first lag judged, rho) of the patches of m x m cells of one band (scale ``sigma`` px): their
+    correlations rho (D, by, bx) (:func:`patch_correlations`) standardised (:func:`standardised`) and, when the
+    band's short lags or the image's own autocorrelation (:func:`autocorrelation_lags`) reach past the first of
+    ``lags``, standardised again without those lags (NaN in z and rho); None when no patch profile can be
+    standardised."""
     rho = patch_correlations(sums, m)
     z, spread = standardised(rho)
     if not np.isfinite(spread).any():
@@ -304,7 +316,18 @@ def standardised_patches(sums: CellSums, m: int, sigma: float, lags: np.ndarray)
     if start > lags[0]:
         rho[lags < start] = np.nan
         z, _ = standardised(rho)
-    return z, start
+    return z, start, rho
+
+
+def copied_patches(rho: np.ndarray, m: int) -> np.ndarray:
+    """bool (...) of the patches of m x m cells whose correlations ``rho`` (D, ...: NaN ignored) exceed
+    :data:`COPY_RHO` [m] at some lag: more than any twin's echo gives, so the texture repeats there along the
+    row (a copy, not a twin).
+    The standardised z cannot show it: a periodic profile's spread is as large as its peaks (a card of
+    14 px stripes before a textured wall peaked at z 1-2, and was trusted, answered at a multiple of its period,
+    through the wall's region it joined)."""
+    with np.errstate(invalid="ignore"):
+        return (np.nan_to_num(rho, nan=-1.0) > COPY_RHO[m]).any(axis=0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -316,7 +339,9 @@ class EchoTest:
     (``strongest_at``: (u, v) px of the patch's centre, its side px, its lag px); ``first_lag`` the
     smallest lag judged (the autocorrelation's end); ``patches`` judged (patch, lag) tests in all;
     ``ambiguous`` (ny, nx) bool: cells that only patches echoing at two separate peaks cover
-    (:func:`ambiguous_patches`: a repeating texture; not counted as echoes)."""
+    (:func:`ambiguous_patches`: a repeating texture; not counted as echoes), and every cell a patch that
+    copies itself along the row covers (:func:`copied_patches`), whatever other patches show there; those
+    alone in ``copied`` (ny, nx) bool."""
 
     echo: np.ndarray
     lags: np.ndarray
@@ -328,6 +353,7 @@ class EchoTest:
     first_lag: int
     tests: int
     ambiguous: np.ndarray
+    copied: np.ndarray | None = None
 
     @property
     def echoes(self) -> bool:
@@ -446,7 +472,7 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
     families = len(BANDS_PX) * len(BLOCK_CELLS)
     ny, nx = h // CELL_PX, w // CELL_PX
     echo = np.zeros((len(lags), ny, nx), bool)
-    ambiguous = np.zeros((ny, nx), bool)
+    ambiguous, copied = np.zeros((ny, nx), bool), np.zeros((ny, nx), bool)
     best = (-math.inf, 0.0, 1.0, (0.0, 0.0, 0, 0))
     first, tests = int(lags[0]), 0
     judged = (lags >= math.ceil(d_min)) & (lags <= math.floor(d_max))
@@ -462,7 +488,7 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
             patches = standardised_patches(sums, m, sigma, lags)
             if patches is None:
                 continue
-            z, start = patches
+            z, start, rho = patches
             first = max(first, start)
             level = chance_level(z, alpha / families)
             tests += level.tests
@@ -471,13 +497,15 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
             # a repeat beyond the range counts, and one to the right (a patch near the left edge sees its
             # texture's copies there): the patch, or the cells a mirrored patch covers, say no echo
             amb = ambiguous_patches(z, level.threshold)
+            copies = copied_patches(rho, m)
             amb_right = np.zeros_like(above)
             if above.any():        # a family without a judged test above chance has no echo to call ambiguous
                 if mirrored is None:
                     mirrored = cell_sums(g[:, ::-1], f[:, ::-1], lags)
                 amb_right = _repeats_to_the_right(mirrored, m, lags < start, level.threshold, w)
             ambiguous |= above & (spread_to_cells(amb[None], m)[0] | amb_right)
-            zj[:, amb] = np.nan
+            copied |= spread_to_cells(copies[None], m)[0]
+            zj[:, amb | copies] = np.nan
             if np.isfinite(zj).any():
                 k, by, bx = np.unravel_index(np.nanargmax(zj), zj.shape)
                 ratio = zj[k, by, bx] / level.threshold
@@ -487,4 +515,4 @@ def echo_test(image: np.ndarray, d_min: float, d_max: float, image_right: np.nda
                             (bx * CELL_PX + side / 2 - 0.5, by * CELL_PX + side / 2 - 0.5, side, int(lags[k])))
             echo |= spread_to_cells(np.nan_to_num(zj, nan=-np.inf) > level.threshold, m) & ~amb_right[None]
     return EchoTest(echo, lags, CELL_PX, float(best[0]), float(best[1]), float(best[2]), best[3], first, tests,
-                    ambiguous & ~echo.any(axis=0))
+                    (ambiguous & ~echo.any(axis=0)) | copied, copied)

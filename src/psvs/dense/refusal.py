@@ -35,10 +35,18 @@ def nothing_trusted(dense: RigDense, trust: EchoTrust) -> str:
         return why
     asked = _asked(dense)
     t, e, k = trust.test, trust.elsewhere, 2 ** trust.level
-    if t.ambiguous.any() and not t.echoes:
-        return (f"the image's texture repeats along its rows: {int(t.ambiguous.sum())} cells of {k * t.cell_px}x"
-                f"{k * t.cell_px} px echo beyond chance at two or more separate disparities alike (stripes, bricks, "
-                f"a row of identical windows), and nothing else echoes: which of them is the twin cannot be told in "
+    copied = t.copied if t.copied is not None else np.zeros_like(t.ambiguous)
+    if (t.ambiguous & ~copied).any() and not t.echoes:
+        return (f"the image's texture repeats along its rows: {int((t.ambiguous & ~copied).sum())} cells of "
+                f"{k * t.cell_px}x{k * t.cell_px} px echo beyond chance at two or more separate disparities alike "
+                f"(stripes, bricks, a row of identical windows), and nothing else echoes: which of them is the twin "
+                f"cannot be told in {asked}")
+    if copied.any() and not t.echoes and e is not None and e.periodic_any:
+        return f"the image's texture repeats along its rows: {periodic_words(trust)}: nothing in {asked} is trusted"
+    if copied.any() and not t.echoes:
+        return (f"the image's texture repeats along its rows: in {int(copied.sum())} cells of {k * t.cell_px}x"
+                f"{k * t.cell_px} px a patch matches one beside it more closely than any twin can (stripes, a "
+                f"grating): every multiple of its period is as good an answer, and nothing else is trusted in "
                 f"{asked}")
     if t.tests == 0:
         h, w = dense.left_image.shape
