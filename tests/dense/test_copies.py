@@ -128,9 +128,10 @@ def test_a_striped_card_through_a_build_of_another_format(tmp_path):
     x = np.arange(3200) * cycles / 3200
     write_png(tmp_path / "stripes.png", np.tile(np.where(x % 1 < 0.5, 230, 25).astype(np.uint8), (400, 1)))
     scene = tmp_path / "card.toml"
+    stripes = tmp_path / "stripes.png"
     scene.write_text('name = "stripecard"\n[backdrop]\nz_mm = 1000\ntexture = { type = "noise", scale_mm = 4, '
                      'low = 0.1, high = 0.9 }\n[[objects]]\ntype = "rectangle"\nsize_mm = [200, 150]\n'
-                     f'position_mm = [-30, 0, 620]\ntexture = {{ type = "image", file = "{tmp_path / "stripes.png"}" }}\n')
+                     'position_mm = [-30, 0, 620]\ntexture = { type = "image", file = "%s" }\n' % stripes)
     assert main(["simulate", str(scene), "--rig", "mv1440_misaligned", "-o", str(tmp_path / "card.png"), "--truth",
                  str(tmp_path / "card.npz"), "--supersample", "1"]) == 0
     dense = dense_on_rig(read_grey(tmp_path / "card.png"), rig, 400, 1200)
