@@ -73,7 +73,10 @@ def _bands(d: np.ndarray, lo: int, hi: int, n_lanes: int) -> np.ndarray:
     """Each pixel's first lag (int64 (h, w)) of a band of ``n_lanes`` about ``d`` (h, w, px; the coarser
     level's map brought to this level): centred on its 5 x 5 neighbourhood's span when that fits in the
     band with 2 px to spare each side, else on the pixel's own value (a depth edge); within lo..hi."""
-    d = np.where(np.isfinite(d), d, np.nanmedian(d) if np.isfinite(d).any() else lo).astype(np.float32)
+    finite = np.isfinite(d)
+    if not finite.all():        # (the median only when a pixel needs it: a map is most often finite throughout)
+        d = np.where(finite, d, np.median(d[finite]) if finite.any() else lo)
+    d = d.astype(np.float32)
     kernel = np.ones((5, 5), np.uint8)
     d_lo, d_hi = cv2.erode(d, kernel), cv2.dilate(d, kernel)
     centre = np.where(d_hi - d_lo <= n_lanes - 4, 0.5 * (d_lo + d_hi), d)
