@@ -25,6 +25,10 @@ n tests exceed with probability at most alpha is ``u + beta ln(k / alpha)`` (an 
 P(z > u + x) = (k / n) exp(-x / beta); exceeded by n tests alpha times in all: the union bound). The bands
 and patch sizes are :data:`BANDS_PX` x :data:`BLOCK_CELLS` families, each at alpha / families.
 
+**What is no twin.** A twin's echo in C correlates at s (1 - s) / ((1 - s)^2 + s^2) <= 1/2 whatever the split;
+a patch that correlates with one along its row well beyond that copies itself there (stripes, a grating), so
+its twin cannot be told and nothing in its cells counts as an echo (:data:`COPY_RHO`, :func:`copied_patches`).
+
 **What chance is not.** At small lags a smooth texture correlates with itself (the image's own
 autocorrelation, the same sign in every patch): lags below the first beyond which the median over all
 patches stays within half a spread of zero are not tested (:func:`autocorrelation_lags`), as the dense
@@ -322,12 +326,10 @@ def standardised_patches(sums: CellSums, m: int, sigma: float, lags: np.ndarray)
 def copied_patches(rho: np.ndarray, m: int) -> np.ndarray:
     """bool (...) of the patches of m x m cells whose correlations ``rho`` (D, ...: NaN ignored) exceed
     :data:`COPY_RHO` [m] at some lag: more than any twin's echo gives, so the texture repeats there along the
-    row (a copy, not a twin).
-    The standardised z cannot show it: a periodic profile's spread is as large as its peaks (a card of
-    14 px stripes before a textured wall peaked at z 1-2, and was trusted, answered at a multiple of its period,
-    through the wall's region it joined)."""
-    with np.errstate(invalid="ignore"):
-        return (np.nan_to_num(rho, nan=-1.0) > COPY_RHO[m]).any(axis=0)
+    row (a copy, not a twin). The standardised z cannot show it: a periodic profile's spread is as large as
+    its peaks (a card of 14 px stripes before a textured wall peaked at z 1-2, and was trusted, answered at a
+    multiple of its period, through the wall's region it joined)."""
+    return (np.nan_to_num(rho, nan=-1.0) > COPY_RHO[m]).any(axis=0)
 
 
 @dataclass(frozen=True, eq=False)
