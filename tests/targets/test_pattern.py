@@ -87,6 +87,23 @@ def test_bad_images():
         measure_pattern(render(four, rig, seed=1).image, rig)
 
 
+def test_a_pattern_before_a_striped_wall_names_the_background(tmp_path):
+    """An adversarial trial (2026-12-06): the pattern at 800 mm, wholly in view and in range, before a wall of
+    vertical stripes (30 px) was refused as "a circle is missing or the pattern is partly out of view": the
+    stripes' edges run into the circles' outlines. The refusal now names that cause too."""
+    from psvs.io.scene_file import load_scene
+    x = np.arange(1600)
+    write_png(tmp_path / "stripes.png", np.tile(np.where((x // 15) % 2 == 0, 230, 20).astype(np.uint8), (1200, 1)))
+    scene = tmp_path / "scene.toml"
+    scene.write_text('name = "pattern_on_stripes"\n[backdrop]\nz_mm = 1050\ntexture = { type = "image", file = '
+                     '"stripes.png", size_mm = [1600, 1200] }\n[[objects]]\ntype = "rectangle"\n'
+                     'size_mm = [120, 50]\nposition_mm = [0, 0, 800]\ntexture = { type = "circles", diameter_mm = 10, '
+                     'spacing_mm = 20, count = 5, low = 0.05, high = 0.9 }\n')
+    image = render(load_scene(scene), default_rig(), seed=1).image
+    with pytest.raises(MeasurementError, match=r"expected 10 \(5 per view\): .*run into what lies behind them"):
+        measure_pattern(image, default_rig())
+
+
 def test_cli(capsys, tmp_path, images):
     path = tmp_path / "p.png"
     write_png(path, images[(589, 0)])

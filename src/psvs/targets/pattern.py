@@ -93,7 +93,9 @@ def detect_circles(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_
                                f"shows a circle the other does not (covered, out of its field, or a blot)")
     if len(blobs) < 2 * count:
         raise MeasurementError(f"found {len(blobs)} circle(s), expected {2 * count} ({count} per view): a circle is "
-                         f"missing or the pattern is partly out of view")
+                               f"missing, the pattern is partly out of view, or its circles run into what lies "
+                               f"behind them (each must stand out as a closed outline: a busy or striped "
+                               f"background beside the sheet)")
     blobs.sort(key=lambda b: b[0][0])
     circles = [refine_circle(grey, c, r) for c, r in blobs]
     rows = np.array([e.centre_px[1] for e in circles])
