@@ -23,7 +23,9 @@ aggregation gives a plain backdrop beside an object the object's disparity; on F
 pixels were such backdrop, 13 % now, the objects' outline). Where patches echo only outside the searched
 range nothing is trusted, and where a texture repeats along the rows only a region anchored there
 (:mod:`psvs.dense.elsewhere`); on a surface whose echo in the range is a multiple of its texture's period (a
-fence, blinds: :func:`psvs.dense.elsewhere.periodic_patches`) nothing, nor in a region reaching it. The test
+fence, blinds: :func:`psvs.dense.elsewhere.periodic_patches`) nothing, nor in a region reaching it; nor in the
+cells of a patch that copies itself along the row more closely than any twin can
+(:func:`psvs.dense.echo_test.copied_patches`: stripes, a grating). The test
 is made at the level the method searches the whole asked range (psvs.dense.pyramid: the image halved as often as
 :func:`~psvs.dense.pyramid.pyramid_levels` says, whatever the mode and whatever range a coarse pass pruned the
 search to), so its patches see the scene at the scale
