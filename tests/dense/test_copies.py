@@ -4,8 +4,9 @@ from the image. Found at the end of a session (a card of 14 px stripes at 620 mm
 mm, default rig): 17570 card pixels trusted, every one answered at a multiple of the period near the wall's
 disparity and more than 2 % off, through the wall's consistent region that the card's answers joined; a
 stripe period within the test's short lags, so the periodic-wall rule (psvs.dense.elsewhere) could not see it,
-and a periodic profile's standardised peaks stay at 1-2 spreads. Now no card pixel is trusted, and the wall
-stays answered."""
+and a periodic profile's standardised peaks stay at 1-2 spreads. Now nothing is trusted in the cells where the
+card copies itself (that frame: 0 card pixels trusted), and the wall stays answered. Longer periods (20-60 px)
+before a textured wall are not caught yet (docs/right-or-refuse.md, "Not yet")."""
 import cv2
 import numpy as np
 import pytest
