@@ -329,7 +329,7 @@ def copied_patches(rho: np.ndarray, m: int) -> np.ndarray:
     row (a copy, not a twin). The standardised z cannot show it: a periodic profile's spread is as large as
     its peaks (a card of 14 px stripes before a textured wall peaked at z 1-2, and was trusted, answered at a
     multiple of its period, through the wall's region it joined)."""
-    return (np.nan_to_num(rho, nan=-1.0) > COPY_RHO[m]).any(axis=0)
+    return (rho > COPY_RHO[m]).any(axis=0)          # (NaN compares false: a lag not judged copies nothing)
 
 
 @dataclass(frozen=True, eq=False)

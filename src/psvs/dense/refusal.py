@@ -26,6 +26,11 @@ def nothing_answered(dense: RigDense) -> str:
     return f"no pixel found a disparity in {_asked(dense)}: the image holds no texture the search can match"
 
 
+def _periodic_refusal(trust: EchoTrust, asked: str) -> str:
+    """The refusal of a frame whose texture repeats with a period the elsewhere test names."""
+    return f"the image's texture repeats along its rows: {periodic_words(trust)}: nothing in {asked} is trusted"
+
+
 def nothing_trusted(dense: RigDense, trust: EchoTrust) -> str:
     """Why ``dense`` answers nothing (:func:`nothing_answered`), or nothing of it is trusted (``trust``,
     :func:`psvs.dense.build.rig_trust` of it), naming the disparities asked for; "" when some answer is
@@ -36,14 +41,16 @@ def nothing_trusted(dense: RigDense, trust: EchoTrust) -> str:
     asked = _asked(dense)
     t, e, k = trust.test, trust.elsewhere, 2 ** trust.level
     copied = t.copied if t.copied is not None else np.zeros_like(t.ambiguous)
-    if (t.ambiguous & ~copied).any() and not t.echoes:
-        return (f"the image's texture repeats along its rows: {int((t.ambiguous & ~copied).sum())} cells of "
+    rivals = t.ambiguous & ~copied
+    periodic = e is not None and e.periodic_any
+    if rivals.any() and not t.echoes:
+        return (f"the image's texture repeats along its rows: {int(rivals.sum())} cells of "
                 f"{k * t.cell_px}x{k * t.cell_px} px echo beyond chance at two or more separate disparities alike "
                 f"(stripes, bricks, a row of identical windows), and nothing else echoes: which of them is the twin "
                 f"cannot be told in {asked}")
-    if copied.any() and not t.echoes and e is not None and e.periodic_any:
-        return f"the image's texture repeats along its rows: {periodic_words(trust)}: nothing in {asked} is trusted"
     if copied.any() and not t.echoes:
+        if periodic:                   # a periodic wall's own words name its period
+            return _periodic_refusal(trust, asked)
         return (f"the image's texture repeats along its rows: in {int(copied.sum())} cells of {k * t.cell_px}x"
                 f"{k * t.cell_px} px a patch matches one beside it more closely than any twin can (stripes, a "
                 f"grating): every multiple of its period is as good an answer, and nothing else is trusted in "
@@ -58,8 +65,8 @@ def nothing_trusted(dense: RigDense, trust: EchoTrust) -> str:
     if e is not None and e.repeats:
         return (f"the image echoes beyond chance only as a short repeat along its rows, not in the searched "
                 f"disparities {asked}: {repeat_words(trust)}")
-    if e is not None and e.periodic_any:
-        return f"the image's texture repeats along its rows: {periodic_words(trust)}: nothing in {asked} is trusted"
+    if periodic:
+        return _periodic_refusal(trust, asked)
     if e is not None and math.isfinite(e.edge_lag_px):
         return (f"the image echoes beyond chance only at the edge of the searched disparities {asked}, where the "
                 f"search cannot pin it: the strongest, {e.edge_z:.1f} spreads where chance reaches "
