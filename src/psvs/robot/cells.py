@@ -36,9 +36,9 @@ from psvs.robot.mounting import tool2flange
 from psvs.robot.seam import SeamObservation
 from psvs.robot.sensor import SeamSensor, SensorSetup
 from psvs.robot.workpiece import Workpiece
-from psvs.simulate.render import render
+from psvs.simulate.geometry import SceneGeometry
 from psvs.simulate.sensor import Sensor
-from psvs.simulate.sequence import scene_in_rig_frame
+from psvs.simulate.sequence import render_from
 from psvs.transforms import concat, invert_transform
 
 #: The arm is at rest when every joint turns slower than this (rad/s): the torch then moves < 0.3 mm/s.
@@ -108,6 +108,7 @@ class SimulatedCell:
         self.dt, self.sim = 1.0 / rate_hz, sim
         self._tool = tool2flange()
         self._flange2base = None
+        self._scene_geometry: SceneGeometry | None = None
         self.camera = RenderedCamera(self, "simulated sensor window")
 
     @property
@@ -125,8 +126,14 @@ class SimulatedCell:
     def render_now(self, k: int) -> np.ndarray:
         """Frame ``k`` rendered from the camera pose the joints gave at :meth:`read` (H, W) uint8."""
         world2cam = invert_transform(concat(self.cam2flange, self._flange2base))
-        return render(scene_in_rig_frame(self.workpiece.scene, world2cam), self.rig, supersample=self.sim.supersample,
-                      sensor=Sensor(), seed=self.sim.noise_seed + k).image
+        return render_from(self.workpiece.scene, world2cam, self.rig, self._geometry(),
+                           supersample=self.sim.supersample, sensor=Sensor(), seed=self.sim.noise_seed + k).image
+
+    def _geometry(self) -> SceneGeometry:
+        """The workpiece's ray-tracing geometry, built at the first frame (each frame moves it to the camera)."""
+        if self._scene_geometry is None:
+            self._scene_geometry = SceneGeometry(self.workpiece.scene)
+        return self._scene_geometry
 
     def full_frame(self) -> np.ndarray:
         """The camera's whole frame (H, W) uint8 at the pose of the last :meth:`read` (the sensor window is
@@ -134,9 +141,9 @@ class SimulatedCell:
         if self.full_rig is None:
             raise ValueError("this cell renders only the sensor window: give it the whole rig as built")
         world2cam = invert_transform(concat(self.cam2flange, self._flange2base))
-        return render(scene_in_rig_frame(self.workpiece.scene, world2cam), self.full_rig,
-                      supersample=self.sim.supersample, sensor=Sensor(),
-                      seed=FULL_FRAME_SEED + self.sim.noise_seed + self.k).image
+        return render_from(self.workpiece.scene, world2cam, self.full_rig, self._geometry(),
+                           supersample=self.sim.supersample, sensor=Sensor(),
+                           seed=FULL_FRAME_SEED + self.sim.noise_seed + self.k).image
 
     def send(self, tool2base: np.ndarray) -> ServoStep:
         """Command the tool pose ``tool2base`` (4, 4) mm for the next cycle."""

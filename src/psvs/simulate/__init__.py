@@ -9,10 +9,11 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submod_attrs={
         "builtin": ["BUILTINS", "builtin_scene", "describe", "parse_spec", "regulated_light", "seam_centre_line",
                     "weld_seam"],
+        "geometry": ["MovedGeometry", "SceneGeometry"],
         "render": ["SAMPLE_SECONDS", "check_render_work", "check_supersample", "render_seconds", "render_views"],
         "scene": ["KINDS", "MAX_OBJECTS", "Lighting", "Pose", "Scene", "SceneObject", "check_object_count"],
         "sensor": ["MAX_BLUR_PX", "Sensor", "expose"],
-        "sequence": ["render_sequence", "scene_in_rig_frame", "straight_path"],
+        "sequence": ["render_from", "render_sequence", "scene_in_rig_frame", "straight_path"],
         "textures": ["AsymmetricCircleGrid", "CharucoBoard", "CircleGrid", "Circles", "Uniform"],
     },
 )

@@ -219,3 +219,16 @@ def bilinear_fill(coarse, iy, ix, fy, fx, rough_cell, out, traced):  # pragma: n
             bottom = coarse[r + 1, c] * (1 - gx) + coarse[r + 1, c + 1] * gx
             out[y, x] = top * (1 - gy) + bottom * gy
             traced[y, x] = rough_cell[r, c]
+
+
+@_kernel
+def rigid_rows(v, R, t):  # pragma: no cover - compiled
+    """R v + t of each row of ``v`` (N, 3) float64 (``t`` (3,); zeros for a direction), in one pass (NumPy's
+    matrix product or broadcasts made several passes and temporaries: slower than building Embree's scene)."""
+    n = v.shape[0]
+    out = np.empty((n, 3))
+    for i in range(n):
+        x, y, z = v[i, 0], v[i, 1], v[i, 2]
+        for j in range(3):
+            out[i, j] = R[j, 0] * x + R[j, 1] * y + R[j, 2] * z + t[j]
+    return out

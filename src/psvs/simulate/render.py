@@ -21,7 +21,7 @@ from psvs.optics.project import in_image, project_points
 from psvs.optics.rig import Rig
 from psvs.optics.trace import trace_pixels
 from psvs.simulate.adaptive import adaptive_views
-from psvs.simulate.geometry import SceneGeometry
+from psvs.simulate.geometry import MovedGeometry, SceneGeometry
 from psvs.simulate.radiance import radiance, view_rays
 from psvs.simulate.scene import Scene
 from psvs.simulate.sensor import Sensor, expose
@@ -185,7 +185,8 @@ def ground_truth(scene: Scene, rig: Rig, geom: SceneGeometry | None = None) -> G
 
 
 def render(scene: Scene, rig: Rig, *, supersample: int = 2, sensor: Sensor = Sensor(), seed: int | None = 0,
-           truth: bool = False, adaptive: bool = False) -> RenderResult:
+           truth: bool = False, adaptive: bool = False,
+           geometry: SceneGeometry | MovedGeometry | None = None) -> RenderResult:
     """Render the complex image of a scene through a rig.
 
     Parameters
@@ -204,12 +205,16 @@ def render(scene: Scene, rig: Rig, *, supersample: int = 2, sensor: Sensor = Sen
         Spend the K x K samples only where the image is not smooth (:mod:`psvs.simulate.adaptive`: the same
         image within 1e-6 of full well, 3-5 times faster on a card or the accuracy pattern), for scenes whose
         features are 3 px wide or more.
+    geometry : SceneGeometry or MovedGeometry, optional
+        ``scene``'s ray-tracing geometry, built beforehand: a camera moving through one rigid scene moves the
+        scene's geometry built once (:func:`psvs.simulate.sequence.render_from`) instead of building it for
+        every frame.
 
     Returns
     -------
     RenderResult
     """
-    geom = SceneGeometry(scene)
+    geom = SceneGeometry(scene) if geometry is None else geometry
     left, right = render_views(scene, rig, supersample, geom, adaptive)
     irradiance = complex_irradiance(left, right, rig)
     image = expose(irradiance, sensor, seed)

@@ -6,7 +6,7 @@ from collections.abc import Iterable, Iterator
 import numpy as np
 
 from psvs.optics.rig import Rig
-from psvs.simulate.geometry import backdrop_object
+from psvs.simulate.geometry import SceneGeometry, backdrop_object
 from psvs.simulate.render import RenderResult, render
 from psvs.simulate.scene import Pose, Scene
 from psvs.simulate.sensor import Sensor
@@ -38,7 +38,19 @@ def straight_path(start_mm, end_mm, frames: int) -> list[np.ndarray]:
 
 def render_sequence(scene: Scene, rig: Rig, world2rig: Iterable[np.ndarray], *, supersample: int = 2,
                     sensor: Sensor = Sensor(), seed: int = 0, truth: bool = False) -> Iterator[RenderResult]:
-    """Render one frame per rig pose; frame i uses noise seed ``seed + i`` (reproducible)."""
+    """Render one frame per rig pose; frame i uses noise seed ``seed + i`` (reproducible). The scene's
+    geometry is built once (:func:`render_from`)."""
+    geometry = SceneGeometry(scene)
     for i, T in enumerate(world2rig):
-        yield render(scene_in_rig_frame(scene, np.asarray(T, float)), rig, supersample=supersample,
-                     sensor=sensor, seed=seed + i, truth=truth)
+        yield render_from(scene, T, rig, geometry, supersample=supersample, sensor=sensor, seed=seed + i,
+                          truth=truth)
+
+
+def render_from(scene: Scene, world2rig: np.ndarray, rig: Rig, geometry: SceneGeometry | None = None,
+                **kwargs) -> RenderResult:
+    """:func:`psvs.simulate.render.render` of ``scene`` seen from a rig at ``world2rig`` (4x4: world points ->
+    frame C), i.e. of :func:`scene_in_rig_frame`, with ``geometry`` (``SceneGeometry(scene)``, built once for
+    every pose of a moving rig) moved there instead of built for this pose. ``kwargs``: render's."""
+    T = np.asarray(world2rig, dtype=np.float64)
+    moved = scene_in_rig_frame(scene, T)
+    return render(moved, rig, geometry=None if geometry is None else geometry.moved(T, moved.objects), **kwargs)
