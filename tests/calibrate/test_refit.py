@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from psvs.calibrate.refit import REFIT_PARAMS, refit_rig
-from psvs.calibrate.tare import tare_plane
+from psvs.calibrate.tare import MIN_TARE_SIGMA_MM, tare_plane
 from psvs.errors import MeasurementError
 from psvs.health.check import check_frames
 from psvs.io.images import write_png
@@ -60,7 +60,7 @@ def test_the_depth_sigma_carries_the_tares_stated_distances(build):
     moved = knocked(build, DRIFTS["m3 and m4 (issue 43)"])
     walls, tares = frames_of(moved, seed=70)
     stated = [(img, z + error) for (img, z), error in zip(tares, (0.4, -0.3), strict=True)]
-    exact = refit_rig(walls, build, stated, tare_sigma_mm=0.0)
+    exact = refit_rig(walls, build, stated, tare_sigma_mm=MIN_TARE_SIGMA_MM)    # as good as exact
     worst = max(abs(axis_depth(exact.rig, moved, z) - z) / (s * z) for z, s in exact.depth_sigma)
     assert worst > 3.0, worst
     res = refit_rig(walls, build, stated)
@@ -68,8 +68,9 @@ def test_the_depth_sigma_carries_the_tares_stated_distances(build):
         got = axis_depth(res.rig, moved, z)
         assert abs(got - z) <= 2 * sigma * z, (z, got, sigma)
     assert all(s > s0 for (_, s), (_, s0) in zip(res.depth_sigma, exact.depth_sigma, strict=True))
-    with pytest.raises(ValueError, match="a tare's distance sigma must be a length >= 0 mm"):
-        refit_rig(walls, build, stated, tare_sigma_mm=-1.0)
+    for bad in (-1.0, 0.0, 0.5 * MIN_TARE_SIGMA_MM, math.nan):
+        with pytest.raises(ValueError, match="a tare's distance sigma must be a length of at least 0.01 mm"):
+            refit_rig(walls, build, stated, tare_sigma_mm=bad)
 
 
 def test_dense_depth_after_the_refit_is_the_undrifted_builds(build):
@@ -299,10 +300,12 @@ def test_the_command_refuses_what_it_cannot_do(capsys, tmp_path):
     assert code == 2 and "give -o NEW.toml" in err
     code, _, err = run(capsys, "refit", str(blank), "--rig", rig, "-o", str(tmp_path / "n.toml"), "--tare-mm", "700")
     assert code == 2 and "each tare needs both --tare IMAGE and --tare-mm Z: 0 image(s), 1 distance(s)" in err
-    for bad in ("-0.1", "nan"):
+    for bad in ("-0.1", "nan", "0", "0.005"):      # (trial 43: 0 was taken, the depth stated as if exact)
         code, _, err = run(capsys, "refit", str(blank), "--rig", rig, "-o", str(tmp_path / "n.toml"),
                            "--tare-sigma-mm", bad)
-        assert code == 2 and f"--tare-sigma-mm must be a length >= 0 mm, got {float(bad)}" in err, err
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"--tare-sigma-mm must be a length of at least 0.01 mm (no surface's distance from the optical " \
+               f"centre is known exactly), got {float(bad):g}" in err, err
     code, _, err = run(capsys, "refit", str(blank), "--rig", rig, "-o", str(tmp_path / "n.toml"))
     assert code == 1 and "cannot refit" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "n.toml").exists() and not (tmp_path / "n.refit.json").exists()

@@ -51,15 +51,15 @@ def test_sequence(capsys, tmp_path, small_rig_file):
 
 def test_a_sequence_refused_part_way_says_what_it_did(capsys, tmp_path, small_rig_file):
     """Trial 31: a sequence whose third frame is refused (the rig moved into the pattern) printed the first two
-    frames' lines as if written, then removed them. Now each frame's progress line says it was rendered, the
-    refusal is the last line and nothing is written; a sequence that lands says which files it wrote (read
-    back: the images the lines describe)."""
+    frames' lines as if written, then removed them; trial 43: it was refused only after rendering two frames.
+    Now every pose is checked before any frame is rendered: the refusal, naming the frame, is the one line
+    and nothing is written; a sequence that lands says which files it wrote (read back: the images the lines
+    describe)."""
     out = tmp_path / "a.png"
     argv = ("simulate", "fig9", "--rig", small_rig_file, "-o", str(out), "--frames", "3", "--supersample", "1")
     code, _, err = run(capsys, *argv, "--move-mm", "0,0,600")
-    lines = err.strip().splitlines()
-    assert code == 2 and "is behind the rig" in lines[-1] and "wrote" not in err, err
-    assert all(" rendered (a_00" in line for line in lines[:-1])
+    assert code == 2 and err.count("\n") == 1, err
+    assert err.startswith("psvs simulate: error: frame 2 of 3: object ") and "is behind the rig" in err, err
     assert not list(tmp_path.glob("a_*.png"))
     code, _, err = run(capsys, *argv, "--move-mm", "0,0,100")
     lines = err.strip().splitlines()

@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from psvs.calibrate.bundle import PRIOR_SIGMA, rig_from_values, rig_values
-from psvs.calibrate.tare import TARE_SIGMA_MM, Tare, check_flat, depth_residuals_px, tare_record
+from psvs.calibrate.tare import MIN_TARE_SIGMA_MM, TARE_SIGMA_MM, Tare, check_flat, depth_residuals_px, tare_record
 from psvs.errors import MeasurementError, RigGeometryError
 from psvs.health.check import OVERLAP, HealthCheck, check_frames, judged_pairs_px
 from psvs.io.jsonsafe import json_safe
@@ -151,8 +151,9 @@ def refit_rig(frames, rig: Rig, tares=(), near_mm: float = 400.0, far_mm: float 
     ((image (H, W), distance mm along the axis from the optical centre O) each: a flat textured surface facing
     the rig, each distance known to ``tare_sigma_mm``, 1 sigma), module docstring. MeasurementError when the
     frames cannot give a right answer."""
-    if not (math.isfinite(tare_sigma_mm) and tare_sigma_mm >= 0):
-        raise ValueError(f"a tare's distance sigma must be a length >= 0 mm, got {tare_sigma_mm}")
+    if not (math.isfinite(tare_sigma_mm) and tare_sigma_mm >= MIN_TARE_SIGMA_MM):
+        raise ValueError(f"a tare's distance sigma must be a length of at least {MIN_TARE_SIGMA_MM:g} mm (no "
+                         f"surface's distance from the optical centre is known exactly), got {tare_sigma_mm}")
     tares = [(img, float(z)) for img, z in tares]
     for _, z in tares:
         if not (math.isfinite(z) and near_mm <= z <= far_mm):

@@ -21,6 +21,9 @@ from psvs.optics.rig import Rig
 #: mm, 1 sigma: how well a tare's stated distance from the optical centre O is known, by default (a robot's
 #: stated accuracy, as ``psvs handeye`` takes it; a tape from the rig's front knows O's place less well).
 TARE_SIGMA_MM = 0.5
+#: mm: the least sigma a tare's distance may be stated with: no surface's distance from O is known exactly (a
+#: laser tracker's few um, and O's own place on the axis, which a calibration knows to about 0.1 mm).
+MIN_TARE_SIGMA_MM = 0.01
 #: A tare surface whose points scatter about their best plane by more than this (px of disparity, RMS) and
 #: 3 times the tiles' noise is not flat.
 TARE_FLAT_PX = 0.5

@@ -7,7 +7,7 @@ import json
 import math
 from pathlib import Path
 
-from psvs.calibrate.tare import TARE_SIGMA_MM
+from psvs.calibrate.tare import MIN_TARE_SIGMA_MM, TARE_SIGMA_MM
 from psvs.cli.common import (
     add_range_arguments,
     add_rig_argument,
@@ -71,8 +71,9 @@ def run(args) -> int:
     for z in args.tare_mm:
         if not math.isfinite(z):
             raise ValueError(f"--tare-mm must be a distance in mm, got {z}")
-    if not (math.isfinite(args.tare_sigma_mm) and args.tare_sigma_mm >= 0):
-        raise ValueError(f"--tare-sigma-mm must be a length >= 0 mm, got {args.tare_sigma_mm}")
+    if not (math.isfinite(args.tare_sigma_mm) and args.tare_sigma_mm >= MIN_TARE_SIGMA_MM):
+        raise ValueError(f"--tare-sigma-mm must be a length of at least {MIN_TARE_SIGMA_MM:g} mm (no surface's "
+                         f"distance from the optical centre is known exactly), got {args.tare_sigma_mm:g}")
     if not (math.isfinite(args.tolerance_px) and args.tolerance_px > 0):
         raise ValueError(f"--tolerance-px must be a number > 0 px, got {args.tolerance_px}")
     out = check_output_path(args.output, (".toml", ".json"))

@@ -7,7 +7,7 @@ import numpy as np
 
 from psvs.optics.rig import Rig
 from psvs.simulate.geometry import SceneGeometry, backdrop_object
-from psvs.simulate.render import RenderResult, render
+from psvs.simulate.render import RenderResult, check_scene_in_front, render
 from psvs.simulate.scene import Pose, Scene
 from psvs.simulate.sensor import Sensor
 from psvs.transforms import translation
@@ -39,9 +39,17 @@ def straight_path(start_mm, end_mm, frames: int) -> list[np.ndarray]:
 def render_sequence(scene: Scene, rig: Rig, world2rig: Iterable[np.ndarray], *, supersample: int = 2,
                     sensor: Sensor = Sensor(), seed: int = 0, truth: bool = False) -> Iterator[RenderResult]:
     """Render one frame per rig pose; frame i uses noise seed ``seed + i`` (reproducible). The scene's
-    geometry is built once (:func:`render_from`)."""
+    geometry is built once (:func:`render_from`), and every pose is checked before the first frame is
+    rendered: ValueError naming the first frame whose scene reaches behind the rig (a move that carries the
+    rig into it)."""
     geometry = SceneGeometry(scene)
-    for i, T in enumerate(world2rig):
+    poses = [np.asarray(T, dtype=np.float64) for T in world2rig]
+    for i, T in enumerate(poses):
+        try:
+            check_scene_in_front(geometry.moved(T, scene_in_rig_frame(scene, T).objects), rig)
+        except ValueError as exc:
+            raise ValueError(f"frame {i} of {len(poses)}: {exc}") from None
+    for i, T in enumerate(poses):
         yield render_from(scene, T, rig, geometry, supersample=supersample, sensor=sensor, seed=seed + i,
                           truth=truth)
 
