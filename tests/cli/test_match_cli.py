@@ -137,3 +137,50 @@ def test_auto_on_a_misaligned_build(capsys, tmp_path):
         err = np.concatenate([depth_errors_mm(p["left_px"], np.array(p["points_mm"], float)[:, 2],
                                               res.truth.depth_left_mm) for p in pairs])
         assert np.median(err) < 4.0, (label, np.median(err))
+
+
+@pytest.mark.parametrize("steps", ['op = "canny"\nlow = 2\nhigh = 6\n',
+                                   'op = "median"\nksize = 3\n[[steps]]\nop = "canny"\nlow = 0\nhigh = 0\n'])
+def test_edges_of_the_sensors_noise_are_refused(capsys, tmp_path, fig5a_render, steps):
+    """Trial 43: a pipeline whose thresholds sit at the noise's own gradients (Canny 2/6, or a median and 0/0)
+    marked a fifth of Fig. 5a's pixels, and `match --auto` paired noise with noise at 720-830 mm, where no
+    surface stands (56-90 % of the paired pixels 25-37 % off), exit 0 on every noise seed. Now the edges are
+    asked whether they come back under a fresh draw of the frame's noise: exit 1, one line saying so, nothing
+    written. A Canny at the scene's steps (20/60) pairs the box and the cylinder, at their depths."""
+    fig5a_png, depth_truth = fig5a_render
+    pipe = tmp_path / "pipe.toml"
+    pipe.write_text("[[steps]]\n" + steps)
+    out = tmp_path / "m.json"
+    from psvs.io.images import read_grey
+    from psvs.io.pipeline_file import load_pipeline
+    v, u = np.argwhere(load_pipeline(pipe).run(read_grey(fig5a_png)))[1000]       # a seed on the edge map
+    for args in (["--auto"], ["--seed", f"{u},{v}"]):
+        code, text, err = run(capsys, "match", str(fig5a_png), "--rig", EXAMPLE, *args, "--pipeline", str(pipe),
+                              "-o", str(out))
+        assert code == 1 and text == "" and err.count("\n") == 1, (code, text, err)
+        assert "to be trusted: the pipeline's edges are mostly the sensor's noise: with the frame's noise (" in err
+        assert err.rstrip().endswith("raise the pipeline's thresholds, or smooth before its edge detector"), err
+        assert not out.exists()
+    pipe.write_text('[[steps]]\nop = "canny"\nlow = 20\nhigh = 60\n')
+    code, text, err = run(capsys, "match", str(fig5a_png), "--rig", EXAMPLE, "--auto", "--pipeline", str(pipe),
+                          "-o", str(out))
+    assert code == 0, err
+    pairs = json.loads(out.read_text())["pairs"]
+    assert pairs and sum(p["n"] for p in pairs) > 300
+    for p in pairs:
+        errors = depth_errors_mm(p["left_px"], np.array(p["points_mm"], float)[:, 2], depth_truth)
+        assert np.median(errors) < 5.0
+
+
+def test_a_long_list_of_unpaired_edges_is_cut_short(capsys, tmp_path):
+    """The textured scene's many small edges: the summary names 20 of those without a twin and says where the
+    rest are (trial 43: a 45 kB line of 7742 labels); the JSON file holds them all."""
+    path = tmp_path / "tex.png"
+    write_png(path, render(builtin_scene("textured"), default_rig(), supersample=1, seed=2).image)
+    out = tmp_path / "t.json"
+    code, text, err = run(capsys, "match", str(path), "--rig", EXAMPLE, "--auto", "-o", str(out))
+    assert code == 0, err
+    n = len(json.loads(out.read_text())["unmatched"])
+    line, = [x for x in text.splitlines() if "without a twin" in x]
+    assert n > 20 and line == (f"{n} edge(s) without a twin: {', '.join(str(k) for k in range(20))} ... and {n - 20} "
+                               f"more (all in {out})"), line

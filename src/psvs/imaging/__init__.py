@@ -9,7 +9,9 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submodules=[],
     submod_attrs={
         "block_grid": ["BLOCK_GRID_LIMIT", "block_grid_refusal", "block_grid_strength", "check_block_grid"],
+        "edge_noise": ["MIN_STABLE_SHARE", "EdgeStability", "edge_stability"],
         "grey": ["to_grey8"],
+        "noise": ["NoiseLevel", "noise_level"],
         "pipeline": ["PAPER", "Pipeline", "make_pipeline"],
         "steps": ["STEPS"],
     },

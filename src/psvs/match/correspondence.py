@@ -15,6 +15,7 @@ import cv2
 import numpy as np
 
 from psvs._validate import check_grey
+from psvs.imaging.edge_noise import EdgeStability, edge_stability
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.auto import AutoParams, Unmatched, image_chance, match_auto, twin_lags
 from psvs.match.chance import Chance, seed_pair_stands
@@ -74,7 +75,8 @@ class MatchResult:
     when there was no pair to check). ``rows_fit``: how many of the image's edge pairs decisively stand on the
     rig's rows (:mod:`psvs.match.rows`): the automatic matcher's; from a seed, its pair's, else the
     automatic matcher's on the same image. 0 when no pair shows the rows hold (steep straight edges fit
-    every row: :func:`rows_unshown`)."""
+    every row: :func:`rows_unshown`). ``edge_noise``: how the pipeline's edges stood a fresh draw of the
+    frame's noise (:func:`psvs.imaging.edge_noise.edge_stability`); no pair when they are mostly noise."""
 
     pairs: list[EdgePair]
     unmatched: list[Unmatched]
@@ -84,6 +86,7 @@ class MatchResult:
     chance: Chance
     rows: RowCheck | None = None
     rows_fit: int = 0
+    edge_noise: EdgeStability | None = None
 
 
 def correct_rows(grey: np.ndarray, pair: EdgePair, rig: Rig) -> EdgePair:
@@ -143,7 +146,8 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     Returns
     -------
     MatchResult
-        Pairs in complex-image pixels; on a build their disparity is the rectified one.
+        Pairs in complex-image pixels; on a build their disparity is the rectified one. None when the
+        pipeline's edges are mostly the frame's noise (``edge_noise``).
     """
     grey = check_grey(grey)
     w, h = rig.camera.image_size_px
@@ -170,8 +174,11 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
     else:
         auto = match_auto(edges, rng, params=params.auto, grey=grey, rect=rect)
         pairs, unmatched, chance, rows, fit = auto.pairs, auto.unmatched, auto.chance, auto.rows, auto.rows.fits
+    noise = edge_stability(grey, pipeline)
+    if noise.noise:                 # the pairs of noise edges are no answer (docstring of psvs.imaging.edge_noise)
+        pairs = []
     finished = finish_pairs(grey, pairs, rig, subpixel=params.subpixel, model=params.model, rect=rect)
-    return MatchResult(finished, unmatched, edges, rng, stages, chance, rows, fit)
+    return MatchResult(finished, unmatched, edges, rng, stages, chance, rows, fit, noise)
 
 
 def rows_unshown(res: MatchResult, check) -> str:

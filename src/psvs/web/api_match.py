@@ -67,6 +67,8 @@ def match(body: MatchBody, session: SessionDep):
     off_rows = res.rows is not None and res.rows.refuses       # the twins stand off the rig's rows
     chance = {"answered": res.chance.answered and not off_rows,
               "text": res.rows.describe() if off_rows else res.chance.describe()}
+    if res.edge_noise is not None and res.edge_noise.noise:    # the edges are the sensor's noise: no pair
+        chance = {"answered": False, "text": res.edge_noise.describe()}
     if res.pairs:
         drift, check = drift_refusal(still, rig, body.near_mm, body.far_mm)
         drift = drift or rows_unshown(res, check)
