@@ -3,6 +3,7 @@ planted truth (the calibration is the true build; mirrors moved since by a knock
 moved build); what frames cannot give refused."""
 import json
 import math
+import re
 import tomllib
 
 import numpy as np
@@ -109,6 +110,35 @@ def test_one_tare_pins_the_offset_and_says_the_scale_is_not_pinned(build):
             got = axis_depth(res.rig, moved, z)
             assert abs(got - z) <= most * sigma * z + 0.02, (len(res.tares), z, got, sigma)
     assert all(s_none > 5 * s_one for (_, s_none), (_, s_one) in zip(none.depth_sigma, one.depth_sigma, strict=True))
+
+
+@pytest.mark.parametrize("f_change", [0.02, -0.01])
+def test_one_tare_says_what_a_hidden_scale_would_do(build, capsys, tmp_path, f_change):
+    """Trial 43: a lens 2 % longer than calibrated (a focus ring turned), refitted with one tare at 700 mm, read
+    walls at 450 and 1150 mm 0.76 % short and 1.4 % long, 8 of the sigmas stated, and said nothing of it: one
+    tare cannot tell a depth scale from the mirrors' turns. The refit now says what a scale s hidden in what it
+    holds does to depth, s (Z / Z_tare - 1): the planted lens change's errors follow it within a fifth of s
+    (an independent reading: the exact optics through the refitted rig against the truth)."""
+    moved = build.replace(focal_length_mm=build.camera.focal_length_mm * (1 + f_change))
+    walls, tares = frames_of(moved, seed=80)
+    z_t = tares[0][1]
+    res = refit_rig(walls[:1], build, tares[:1])
+    for z in (450.0, 800.0, 1150.0):
+        got = (axis_depth(res.rig, moved, z) - z) / z
+        assert got == pytest.approx(f_change * (z / z_t - 1), abs=0.2 * abs(f_change)), (z, got)
+    paths = []
+    for k, img in enumerate((walls[0], tares[0][0])):
+        paths.append(tmp_path / f"f{k}.png")
+        write_png(paths[-1], img)
+    rig_file = tmp_path / "build.toml"
+    rig_file.write_text((EXAMPLES / "rigs" / "misaligned.toml").read_text())
+    code, text, err = run(capsys, "refit", str(paths[0]), "--rig", str(rig_file), "--tare", str(paths[1]),
+                          "--tare-mm", f"{z_t:g}", "-o", str(tmp_path / "new.toml"))
+    assert code == 0, err
+    line, = [x for x in text.splitlines() if x.startswith("held as calibrated: ")]
+    said = [float(v) for v in re.findall(r"([-+]\d+\.\d+) % at \d+ mm", line)]
+    assert said == pytest.approx([z / z_t - 1 for z in (400.0, 800.0, 1200.0)], abs=0.005), line
+    assert line.endswith("beyond the sigma above: a second tare at another distance shows it")
 
 
 def test_without_a_tare_the_depth_sigma_covers_a_knock_about_the_vertical(build):

@@ -29,5 +29,5 @@ def not_checked_line(rig: Rig, far_mm: float) -> str:
     share = depth_share_of_turn(rig, far_mm)
     return (f"not checked (the rows cannot show it): a mirror turned about the vertical, a focal length or a pixel "
             f"pitch off, which move depth along the rows (a turn of {math.degrees(QUOTED_TURN_RAD):g} deg: "
-            f"{100.0 * share:.1f} % at {far_mm:g} mm); a tare at a known distance (psvs refit --tare) or a known "
-            f"length (psvs measure circles) checks them")
+            f"{100.0 * share:.1f} % at {far_mm:g} mm); tares at two known distances (psvs refit --tare) or a "
+            f"known length (psvs measure circles) check them (one tare only at its own distance)")
