@@ -7,6 +7,7 @@ import time
 import pytest
 
 from psvs.io.params import load_rig
+from psvs.live import WITHHELD
 from psvs.io.video import write_video
 from psvs.simulate.builtin import textured, wall
 from psvs.simulate.render import render
@@ -57,6 +58,9 @@ def test_the_state_says_a_knock_and_stays_quiet_on_the_undrifted_build(videos):
         assert h["uncertainty_px"] < 0.5 and h["tiles"] >= 12, h
         assert len(h["lines"]) == 1 and "the calibration has drifted" in h["lines"][0]
         assert h["steps"] >= 1 and 0 < h["cost_pct"] < 50 and h["tolerance_px"] == 0.5
+        # while it says so, no depth: the frame's dense result withheld, saying why (trial 44)
+        d = s["dense"]
+        assert d["median_z_mm"] is None and not d["supported"] and d["refusal"] == WITHHELD, d
     with local_client(create_app(video_source(str(videos["misaligned"])), rig)) as c:
         s = live_health(c, {"dense": True}, lambda s: (s["health"] or {}).get("verdict") == "healthy")
         assert s["health"]["lines"] == [], s["health"]       # no alarm said on the way

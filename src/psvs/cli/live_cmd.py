@@ -34,6 +34,7 @@ from psvs.dense.params import DEFAULT, FAST
 from psvs.io import DamagedVideo
 from psvs.live.camera import CameraLost
 from psvs.live.dense import DenseSensor
+from psvs.live.drift_gate import drifted, withheld
 from psvs.live.log import write_log
 from psvs.live.tracker import EdgeTracker
 from psvs.match.correspondence import MatchParams
@@ -146,6 +147,8 @@ def _loop(args, source, tel, tracker, dense, health) -> tuple[list, list, list, 
             dstep = dense.step(frame.image) if dense is not None else None
             t_sensor = time.perf_counter() - t_sensor
             checks.append(check_step(health, frame.image, len(steps), t_sensor, tel, t_s, "live"))
+            if drifted(checks[-1]):     # no depth through a calibration its own frames say has moved
+                step, dstep = withheld(step, dstep)
             steps.append(step)
             dense_frames.append(dstep.brief() if dstep is not None else None)   # the log keeps no maps
             metas.append(replace(frame, image=None))
@@ -251,6 +254,11 @@ def run(args) -> int:
         print(health_summary(health))
     status = _summary(steps, dense_frames if dense is not None else None, wall, args.realtime,
                       "fast" if args.fast else "default")
+    if health is not None and status == 0 and any(drifted(c) for c in checks):
+        first = next(k for k, c in enumerate(checks) if drifted(c))
+        print(f"psvs live: cannot measure from frame {first} on: the calibration has drifted "
+              f"({checks[first].reason}): no depth given from there (psvs check, psvs refit)", file=sys.stderr)
+        status = 1
     from psvs.cli.main import Terminated
     if isinstance(stopped_by, Terminated):   # the outputs written: then the shell's status for the signal
         raise stopped_by

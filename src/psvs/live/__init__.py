@@ -15,5 +15,6 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "simulated": ["SimulatedSequence", "ping_pong_positions"],
         "source": ["SEQUENCE_SUFFIXES", "open_camera", "open_video", "sequence_files"],
         "tracker": ["EdgeTracker", "TrackStep", "TrackerParams", "nearest_edge_pixels"],
+        "drift_gate": ["WITHHELD", "drifted", "withheld"],
     },
 )

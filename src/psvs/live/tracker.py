@@ -197,10 +197,11 @@ class EdgeTracker:
                     msg = ("the seed's edge has no twin beyond chance: the twin it pairs with agrees on too few "
                            f"rows to stand alone, and no pair of the automatic matcher backs it ({chance.describe()})")
                     continue
-                rows = seed_rows(pair, px, self.match)      # as match --seed asks
-                if rows.refuses:
-                    msg = f"the seed's edge has no twin on the rig's rows: {rows.describe()}"
-                    continue
+            rows = seed_rows(pair, px, self.match)          # as match --seed asks, on every frame
+            if rows.refuses:
+                msg = (f"the seed's edge has no twin on the rig's rows: {rows.describe()}" if first else
+                       f"edge lost (its twin lines up off the rig's rows: knocked?): {rows.describe()}")
+                continue
             d = float(np.median(pair.disparity_px))
             if not first and abs(d - self._disparity) > p.max_jump_px * (1 + self._lost):
                 msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"

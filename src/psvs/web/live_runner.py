@@ -13,6 +13,7 @@ import numpy as np
 
 from psvs.health.rolling import RollingCheck
 from psvs.live.dense import DenseFrame, DenseSensor
+from psvs.live.drift_gate import drifted, withheld
 from psvs.live.tracker import EdgeTracker, TrackStep
 from psvs.web.runner import BackgroundRunner
 from psvs.web.sources import Source
@@ -72,6 +73,8 @@ class LiveRunner(BackgroundRunner):
                 with DENSE_LOCK:
                     dstep = dense.step(frame)
             event = None if health is None else health.step(frame, k, time.perf_counter() - t0)   # OpenCV only
+            if health is not None and drifted(health.latest):     # no depth through a moved calibration
+                step, dstep = withheld(step, dstep)
             now = time.perf_counter()
             with self._lock:
                 self._frame, self._step, self._dense = frame, step, dstep
