@@ -131,3 +131,22 @@ def test_supersample_limit_follows_the_memory_available(capsys, tmp_path, small_
     assert code == 2 and len(err.strip().splitlines()) == 1
     assert "--supersample 13" in err and "more than the 819.2 MiB available; at most --supersample 12 fits" in err
     assert not out.exists()
+
+
+def test_a_move_along_minus_x_is_a_value_not_an_option(capsys, tmp_path, small_rig_file):
+    """Trial 44: ``--move-mm -150,0,0`` was taken for an option ("expected one argument"); a list of numbers
+    that starts with a negative one is the option's value, as ``--move-mm=-150,0,0`` is, and the frames move."""
+    from psvs.cli.main import negative_lists_joined
+    assert negative_lists_joined(["simulate", "--move-mm", "-1.5e1,0,-.5", "--seed", "-5,10", "-o", "-x,1"]) == [
+        "simulate", "--move-mm=-1.5e1,0,-.5", "--seed=-5,10", "-o", "-x,1"]
+    assert negative_lists_joined(["--frames", "-3", "--move-mm=-1,0,0", "-q", "-1,2"]) == [
+        "--frames", "-3", "--move-mm=-1,0,0", "-q", "-1,2"]
+    outs = []
+    for move in ("-20,0,0", "0,0,0"):
+        out = tmp_path / f"m{move[0]}.png"
+        code, _, err = run(capsys, "simulate", "fig5b", "--rig", small_rig_file, "-o", str(out), "--frames", "2",
+                           "--move-mm", move, "--supersample", "1")
+        assert code == 0, err
+        outs.append([read_grey(out.with_name(f"{out.stem}_{k:03d}.png")) for k in range(2)])
+    moved, still = outs
+    assert np.array_equal(moved[0], still[0]) and not np.array_equal(moved[1], still[1])

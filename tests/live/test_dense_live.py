@@ -72,6 +72,11 @@ def test_dense_sensor_and_cli_errors(capsys):
     assert "give --seed U,V" in capsys.readouterr().err
     assert main(["live", "--video", "x.avi", "--rig", "default", "--dense", "--dense-stride", "0"]) == 2
     assert "--dense-stride must be >= 1" in capsys.readouterr().err
+    # a stride that leaves a corner pixel for the map's median (trial 44: 700 px, "100 % answered", exit 1 blamed
+    # on texture): bad input, refused before any frame is read
+    assert main(["live", "--video", "x.avi", "--rig", "default", "--dense", "--dense-stride", "61"]) == 2
+    assert capsys.readouterr().err == ("psvs live: error: --dense-stride must be at most 60 px on this 640x480 camera "
+                                       "(at least 8 points along each side of the map), got 61\n")
     assert main(["live", "--video", "x.avi", "--rig", "default", "--seed", "5,5", "--fast"]) == 2
     assert "--fast is the dense map's fast mode: give it with --dense" in capsys.readouterr().err
 

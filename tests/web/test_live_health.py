@@ -7,8 +7,8 @@ import time
 import pytest
 
 from psvs.io.params import load_rig
-from psvs.live import WITHHELD
 from psvs.io.video import write_video
+from psvs.live import WITHHELD
 from psvs.simulate.builtin import textured, wall
 from psvs.simulate.render import render
 from psvs.web.app import create_app

@@ -70,6 +70,10 @@ def add_parser(sub) -> None:
     p.set_defaults(run=run)
 
 
+#: The least points along each side of the map a --dense-stride must leave.
+MIN_STRIDE_POINTS = 8
+
+
 def _sensors(args):
     """The edge tracker and the dense sensor the arguments ask for (None each when not asked), checked
     before any frame is read."""
@@ -86,6 +90,11 @@ def _sensors(args):
     pipeline = pipeline_from_args(args)
     near_mm, far_mm = range_from_args(args, rig)
     measuring_model(args, rig, near_mm, far_mm)
+    most = min(rig.camera.image_size_px) // MIN_STRIDE_POINTS
+    if args.dense and args.dense_stride > most:     # (trial 44: 700 px left one corner pixel a frame, "100 %")
+        raise ValueError(f"--dense-stride must be at most {most} px on this {rig.camera.image_size_px[0]}x"
+                         f"{rig.camera.image_size_px[1]} camera (at least {MIN_STRIDE_POINTS} points along each "
+                         f"side of the map), got {args.dense_stride}")
     tracker = None if seed is None else EdgeTracker(rig, seed, pipeline=pipeline, near_mm=near_mm, far_mm=far_mm,
                                                     match=MatchParams(model=args.model))
     dense = DenseSensor(rig, near_mm, far_mm, params=FAST if args.fast else DEFAULT,

@@ -12,6 +12,7 @@ import argparse
 import contextlib
 import importlib
 import os
+import re
 import signal
 import sys
 import threading
@@ -74,6 +75,23 @@ def _signals_unwind():
             signal.signal(s, handler)
 
 
+#: A value that is a comma-separated list of numbers starting with a negative one (``-150,0,0``).
+_NEGATIVE_LIST = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?(,[-+]?(\d+\.?\d*|\.\d+)?([eE][-+]?\d+)?)+$")
+
+
+def negative_lists_joined(argv: list[str]) -> list[str]:
+    """``argv`` with each ``--option -1,2,3`` written ``--option=-1,2,3``: argparse takes a value that starts
+    with "-" for an option unless it is one plain negative number, and said "expected one argument" of
+    ``--move-mm -150,0,0`` (trial 44), an ordinary request to move the rig along -x."""
+    out = []
+    for word in argv:
+        if out and out[-1].startswith("--") and "=" not in out[-1] and _NEGATIVE_LIST.match(word):
+            out[-1] = f"{out[-1]}={word}"
+        else:
+            out.append(word)
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run ``psvs COMMAND ...``: a result and exit status 0, or one line on stderr and a non-zero status.
 
@@ -93,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
             try:    # the command's module (and its libraries) load here: Ctrl-C then ends as it does later on
                 if not debug:
                     stack.enter_context(quiet_libraries(name))
-                args = build_parser(command).parse_args(argv)
+                args = build_parser(command).parse_args(negative_lists_joined(argv))
             except KeyboardInterrupt as exc:
                 return _interrupted("psvs", exc)
             except Exception as exc:        # a library that does not load

@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import math
+import shutil
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -150,6 +152,7 @@ def run(args) -> int:
         if he.mount_sigma_mm is not None:   # a file written before the hand-eye fit refused a mount this loose
             check_mount_pinned(he.mount_sigma_mm, he.mount_sigma_rad, f"in {args.handeye}")
         handeye = (he, true_cam2flange(cfg))   # the simulated hardware's truth: scoring
+    _check_run_folder(out, (args.mcap, args.rerun))
     made = not out.exists()
     out.mkdir(exist_ok=True)                     # before the run: a recording may go into it
     t0_ns = time.time_ns()                       # the run's start: the recording's and the bag's time base
@@ -166,12 +169,35 @@ def run(args) -> int:
         summary = write_report(result, wp, out)
         if not args.no_bag:
             write_bag(result, out / "bag", args.bag_storage, t0_ns)
+        elif (out / "bag").is_dir():             # an earlier run's bag is not this run's (trial 44)
+            shutil.rmtree(out / "bag")
     except BaseException:
         if made and not any(out.iterdir()):      # refused or stopped before writing: no empty folder left
             out.rmdir()
         raise
     _print_summary(summary, bool(args.handeye))
+    if not summary["valid_frames"]:
+        where = "" if seed is None else f" near the seed ({seed[0]:g}, {seed[1]:g})"
+        print(f"psvs track: cannot measure: the seam was never seen: no groove edge{where} in any sensor frame "
+              "(the seed off the groove, or the workpiece out of the window?)", file=sys.stderr)
+        return 1
     return _exit_status(result.stop.reason)
+
+
+def _check_run_folder(out, recordings) -> None:
+    """ValueError when the output folder (besides this run's own ``recordings``) holds anything but an earlier
+    run's files (its :data:`REPORT_FILES` with its report.json, bag/): a run replaces an earlier run's files,
+    never a user's (trial 44: a log.csv of the user's own, in the folder given to -o, was replaced without a
+    word)."""
+    if not out.is_dir():
+        return
+    ours = {Path(r).name for r in recordings if r and Path(r).parent.resolve() == out.resolve()}
+    held = {p.name for p in out.iterdir()} - ours
+    foreign = sorted(held - {*REPORT_FILES, "bag"} if "report.json" in held else held)    # no report: no run's
+    if foreign:
+        more = f" and {len(foreign) - 3} more" if len(foreign) > 3 else ""
+        raise ValueError(f"output folder {out} holds what no track run writes ({', '.join(foreign[:3])}{more}): "
+                         "give a new folder, or an earlier run's")
 
 
 #: Stops that are no clean weld besides the drift stop: a fault of the arm (a joint at its limit, an inverse
