@@ -299,3 +299,13 @@ def test_fit_refraction_writes_rig(capsys, tmp_path):
     (tmp_path / "short.csv").write_text("u_l,v_l,u_r,v_r\n1,2,3,4\n")
     code, _, err = run(capsys, "fit-refraction", "--rig", EXAMPLE, str(tmp_path / "short.csv"))
     assert code == 2 and "missing column(s) X_mm, Y_mm, Z_mm" in err
+
+
+def test_demo_checks_its_folder_before_the_work(capsys, tmp_path):
+    """Trial 44: ``demo --out /proc/x`` ran its sections, then ended on a raw errno that did not name --out. Now
+    a folder it cannot write is refused first, in one line naming --out, nothing printed before it."""
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    for out, words in (("/proc/x", "cannot write --out folder /proc/x: "), (str(blocker), "is a file")):
+        code, text, err = run(capsys, "demo", "--out", out)
+        assert code == 2 and text == "" and err.count("\n") == 1 and words in err, (code, text, err)

@@ -72,6 +72,21 @@ def test_what_is_no_video_is_refused_in_one_line_and_the_source_stays(body, kind
         assert folder is None or list(folder.iterdir()) == []
 
 
+def test_a_truncated_video_is_refused_at_the_upload(video):
+    """Trial 44: the first part of a video (its header declaring all its frames) was taken, and live mode then
+    failed on "DamagedVideo: /tmp/psvs-serve-video-..."; now it is read through when sent: refused in one line
+    naming the file as the user named it and what is missing, the image served before stays."""
+    data = video.read_bytes()
+    with local_client(_app()) as c:
+        r = c.post("/api/source/video?name=mine.avi", content=data[:len(data) // 2],
+                   headers={"Content-Type": "video/x-msvideo"})
+        detail = r.json()["detail"]
+        assert r.status_code == 400 and "\n" not in detail, r.json()
+        assert "mine.avi" in detail and "psvs-serve" not in detail and "DamagedVideo" not in detail, detail
+        assert "of the 3 frames its header declares" in detail or "is damaged" in detail, detail
+        assert c.get("/api/info").json()["source"]["kind"] == "image"
+
+
 def test_a_video_of_another_camera_is_refused(tmp_path):
     """Frames of another size than the rig's camera: refused, the image served before stays."""
     path = tmp_path / "small.avi"

@@ -8,6 +8,7 @@ import numpy as np
 
 from psvs.cli.common import add_rig_argument, rig_from_args
 from psvs.cli.design_cmd import format_design
+from psvs.io.atomic import check_output_folder
 from psvs.measure.triangulate import MODELS, fit_refraction_terms, triangulate
 from psvs.optics.design import design_mirrors
 from psvs.optics.plate import derived_refraction_terms
@@ -38,6 +39,7 @@ def planted_points(rig, depths_mm, per_depth: int, seed: int = 0):
 
 
 def run(args) -> int:
+    check_output_folder(args.out, "--out folder")     # before any work (trial 44: /proc/x failed at the end)
     rig = rig_from_args(args)
     print("== 1. Mirror design (eqs. 1-8 and the full 3-D footprint) ==")
     design = design_mirrors(rig)

@@ -50,9 +50,14 @@ def image_source(name: str, grey: np.ndarray) -> Source:
 
 
 def video_source(path: str) -> Source:
-    """A video file, an image sequence or a folder of images, played in a loop."""
+    """A video file, an image sequence or a folder of images, played in a loop. Read through once now: a file
+    whose frame is damaged, or that ends before the frames its header declares, is refused here (DamagedVideo,
+    naming it), not in the middle of a live run (trial 44: a truncated upload was taken, and live mode then
+    failed on "DamagedVideo: /tmp/psvs-serve-video-...")."""
     with open_video(path) as v:
         first, fps = v.read(), v.fps
+        for _ in v:
+            pass
     if first is None:
         raise ValueError(f"no frame could be read from {path}")
 
