@@ -149,7 +149,7 @@ class EdgeTracker:
 
     def _frame_chance(self, edges: np.ndarray, grey: np.ndarray):
         """(Whether the frame holds twins beyond chance, psvs.match.auto.image_chance; the edge pixels it read,
-        :func:`~psvs.match.edges.edge_pixels`, which the first frame's rows check reads too), asked on every frame
+        :func:`~psvs.match.edges.edge_pixels`, which each frame's rows check reads too), asked on every frame
         (2.5 ms at 640 x 480, 7.4 ms at 1440 x 1080): the paper's algorithm pairs the seed's edge with whatever
         agrees best, on noise or stripes as readily as on a twin. With the twins below the range a pair must not
         contradict (psvs.match.chance.Elsewhere): an edge that leaves the range beyond its far limit pairs, a
