@@ -6,15 +6,8 @@ import numpy as np
 import pytest
 from skimage import data
 
-from psvs.dense.noise import (
-    FALSE_ALARM,
-    SCALES,
-    NoiseLevel,
-    noise_level,
-    noise_quantile,
-    simulated_quantile,
-    textured_pixels,
-)
+from psvs.dense.noise import FALSE_ALARM, SCALES, noise_quantile, simulated_quantile, textured_pixels
+from psvs.imaging import NoiseLevel, noise_level
 
 
 def _noisy(clean: np.ndarray, a: float, b: float, seed: int) -> np.ndarray:

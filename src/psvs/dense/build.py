@@ -22,11 +22,12 @@ import numpy as np
 from psvs.dense.cloud import Cloud, disparity_cloud, pixel_cloud
 from psvs.dense.depth_table import exact_points, table_cloud, table_depth
 from psvs.dense.disparity import DenseResult, dense_disparity
-from psvs.dense.noise import noise_level, textured_pixels
+from psvs.dense.noise import textured_pixels
 from psvs.dense.params import DEFAULT, DenseParams
 from psvs.dense.rig_cache import depth_table, filled_maps, outside_pixels, rectification
 from psvs.dense.trust import EchoTrust, echo_trust
 from psvs.dense.workspace import Workspace
+from psvs.imaging import noise_level
 from psvs.measure.triangulate import default_model
 from psvs.optics.illumination import flat_field
 from psvs.optics.rectify import Rectification

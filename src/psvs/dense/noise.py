@@ -30,9 +30,6 @@ import numpy as np
 
 from psvs.imaging import NoiseLevel, noise_level
 
-__all__ = ["FALSE_ALARM", "QUANTILES", "SCALES", "NoiseLevel", "noise_level", "noise_quantile", "simulated_quantile",
-           "textured_pixels"]
-
 #: The texture's bands and windows, px: (sigma, window side); band sigma is the image minus its Gaussian blur
 #: of sigma for sigma <= 1, else blur(sigma / 2) minus blur(sigma). A pixel is textured in any of them.
 SCALES = ((1.0, 3), (2.0, 5))

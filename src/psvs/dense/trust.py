@@ -45,8 +45,9 @@ from psvs._threads import pool_size
 from psvs.dense.disparity import DenseResult
 from psvs.dense.echo_test import ALPHA, EchoTest, echo_test
 from psvs.dense.elsewhere import Elsewhere, echo_elsewhere
-from psvs.dense.noise import NoiseLevel, noise_level, textured_pixels
+from psvs.dense.noise import textured_pixels
 from psvs.dense.pyramid import coarse_level, pyramid_levels
+from psvs.imaging import NoiseLevel, noise_level
 
 __all__ = ["ALPHA", "ASKED_TOL_PX", "STEP_PX", "TOL_PX", "EchoTrust", "bracketed", "consistent_regions",
            "echo_trust", "grown", "trusted_maps"]

@@ -30,6 +30,7 @@ MIN_BIN_PATCHES = 200
 #: patches read at most (a regular subsample of every patch position: the covariance needs no more).
 MAX_PATCHES = 60000
 
+
 @dataclass(frozen=True)
 class NoiseLevel:
     """The sensor noise's variance ``a + b I`` (grey levels squared) at grey level I."""

@@ -9,12 +9,12 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submod_attrs={
         "camera": ["Acquisition", "CameraLost", "CameraSpec", "Frame", "TRIGGERS", "parse_camera", "parse_features",
                    "vendor_module"],
+        "drift_gate": ["WITHHELD", "drifted", "withheld"],
         "discover": ["FoundCamera", "OPENCV_INDICES", "opencv_cameras", "vendor_cameras"],
         "dense": ["DenseFrame", "DenseSensor"],
         "log": ["HEALTH_COLUMNS", "health_cells", "write_log"],
         "simulated": ["SimulatedSequence", "ping_pong_positions"],
         "source": ["SEQUENCE_SUFFIXES", "open_camera", "open_video", "sequence_files"],
         "tracker": ["EdgeTracker", "TrackStep", "TrackerParams", "nearest_edge_pixels"],
-        "drift_gate": ["WITHHELD", "drifted", "withheld"],
     },
 )
