@@ -2,6 +2,8 @@
 by tomllib / csv / OpenCV), a folder calibrates without any pose guess to the cell's result, psvs track
 --handeye uses the file, and bad files exit 2 with one line."""
 import csv
+import dataclasses
+import hashlib
 import json
 import math
 import re
@@ -12,14 +14,20 @@ import numpy as np
 import pytest
 
 from psvs.cli.main import main
+from psvs.io.params import dumps_rig, load_rig, rig_digest, rig_to_dict
 from psvs.optics.rig import default_rig
 from psvs.robot.arm import Arm
 from psvs.robot.controller import TrackConfig
 from psvs.robot.handeye import HandEyeResult, calibrate_from_views
-from psvs.robot.handeye_io import dumps_handeye, load_handeye, read_views, save_handeye, write_views
+from psvs.robot.handeye_io import check_same_rig, dumps_handeye, load_handeye, read_views, save_handeye, write_views
 from psvs.robot.handeye_session import CELL_GRID, CELL_TARGET2BASE, cell_views, nominal_cam2flange, true_cam2flange
 from psvs.robot.mounting import HOME_Q
 from tests.support.cli import run
+
+
+def _geometry(rig) -> dict:
+    """What a rig's digest covers, read from its file's own dict: the camera and the mirrors."""
+    return {k: v for k, v in rig_to_dict(rig).items() if k in ("camera", "mirrors")}
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +43,7 @@ def _result():
     X[:3, :3] = Rotation.from_rotvec([0.3, -1.2, 0.7]).as_matrix()
     X[:3, 3] = [-31.2, 1.0 / 3.0, 12.6]
     return HandEyeResult(X, np.array([0.05, 0.061, 1 / 7]), 0.072, 0.00195, 0.043, mount_sigma_mm=1 / 3,
-                         mount_sigma_rad=0.0123)
+                         mount_sigma_rad=0.0123, rig_sha256=rig_digest(default_rig()))
 
 
 def test_handeye_file_round_trips_exactly(tmp_path):
@@ -56,17 +64,20 @@ def test_handeye_file_round_trips_exactly(tmp_path):
     assert np.array_equal(back.target_rms_mm, he.target_rms_mm)
     assert back.spread_mm == he.spread_mm and back.spread_rad == pytest.approx(he.spread_rad, rel=1e-15)
     assert back.reprojection_rms_px == he.reprojection_rms_px
+    assert raw["rig_sha256"] == back.rig_sha256 == hashlib.sha256(
+        json.dumps(_geometry(default_rig()), sort_keys=True).encode()).hexdigest()
 
 
 def test_an_older_closed_form_file_still_reads(tmp_path):
     """A file from an earlier psvs (method park_martin, no reprojection RMS) reads back."""
     he = _result()
     text = dumps_handeye(he, "x", "y").replace('method = "reprojection"', 'method = "park_martin"')
-    text = "\n".join(line for line in text.splitlines() if not line.startswith(("reprojection_rms_px", "mount_")))
+    text = "\n".join(line for line in text.splitlines() if not line.startswith(("reprojection_rms_px", "mount_", "rig_sha256")))
     (tmp_path / "old.toml").write_text(text + "\n")
     back = load_handeye(tmp_path / "old.toml")
     assert np.array_equal(back.cam2flange, he.cam2flange) and back.reprojection_rms_px is None
     assert back.mount_sigma_mm is None and back.mount_sigma_rad is None
+    assert back.rig_sha256 is None                    # an older file names its rig by name only: not checked
 
 
 @pytest.mark.parametrize("edit, msg", [
@@ -79,6 +90,7 @@ def test_an_older_closed_form_file_still_reads(tmp_path):
     (lambda t: t.replace("views = 3", "views = 4"), "handeye.views must be"),
     (lambda t: t.replace("[0.0, 0.0, 0.0, 1.0]", "[0.0, 0.0, 0.0, 2.0]"), "not a rigid transform"),
     (lambda t: t.replace("-31.2", '"x"'), "must hold numbers"),
+    (lambda t: t.replace('rig_sha256 = "', 'rig_sha256 = "z'), "rig_sha256 must be 64 hex digits"),
     (lambda t: t + "[[oops\n", "malformed TOML"),
 ])
 def test_bad_handeye_files(tmp_path, edit, msg):
@@ -309,3 +321,28 @@ def test_a_run_an_arm_fault_stops_is_not_a_clean_weld(tmp_path, capsys):
     rep = json.loads((tmp_path / "r" / "report.json").read_text())
     assert rep["stop"]["reason"].startswith("arm: ") and rep["welded_mm"] == 0.0, rep["stop"]
     assert code == 1 and err.strip() == f"psvs track: not a clean weld: the run stopped on {rep['stop']['reason']}"
+
+
+def test_a_rig_digest_names_the_rig_by_its_values(tmp_path):
+    """The same rig read twice (a file, its copy) has one digest; any value of its camera or mirrors changed,
+    another; its calibration's statistics are not geometry."""
+    rig = load_rig("mv1440")
+    (tmp_path / "copy.toml").write_text(dumps_rig(rig))
+    assert rig_digest(load_rig(tmp_path / "copy.toml")) == rig_digest(rig)
+    for change in ({"focal_length_mm": rig.camera.focal_length_mm * (1 + 1e-9)}, {"baseline_mm": 100.5},
+                   {"plate_thickness_mm": 1.5}, {"image_size_px": (1280, 1024)}):
+        assert rig_digest(rig.replace(**change)) != rig_digest(rig), change
+    assert rig_digest(load_rig("default")) != rig_digest(rig)
+
+
+def test_track_refuses_a_mount_calibrated_through_another_rig(tmp_path, capsys):
+    """A handeye.toml written through mv1440 used with --rig default (an adversarial trial: tracked without a
+    word): exit 2 before any work, one line; the same file through its own rig is not refused for it."""
+    he = tmp_path / "he.toml"
+    save_handeye(he, dataclasses.replace(_result(), rig_sha256=rig_digest(load_rig("mv1440"))), "trial", "mv1440")
+    code, text, err = run(capsys, "track", "weld_seam", "--rig", "default", "--handeye", str(he), "--no-bag",
+                          "-o", str(tmp_path / "r"))
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"--handeye {he} was calibrated through a rig of other values than --rig default" in err
+    assert not (tmp_path / "r").exists()
+    check_same_rig(load_handeye(he), rig_digest(load_rig("mv1440")), "x", "y")     # its own rig: no error

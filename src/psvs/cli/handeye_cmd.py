@@ -2,6 +2,7 @@
 views folder, or rendered in the simulated cell), written as handeye.toml for ``psvs track --handeye``."""
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from pathlib import Path
@@ -49,7 +50,7 @@ def _check_cell_work(views: int, rig, supersample: int) -> None:
 
 
 def run(args) -> int:
-    from psvs.io.params import load_rig
+    from psvs.io.params import load_rig, rig_digest
     from psvs.robot.arm import Arm
     from psvs.robot.controller import TrackConfig
     from psvs.robot.handeye import calibrate_from_views, check_robot_accuracy
@@ -78,6 +79,7 @@ def run(args) -> int:
     he = calibrate_from_views(images, flanges, rig, grid, robot_accuracy_mm=args.robot_accuracy_mm)
     if save is not None:
         write_views(save, images, flanges, grid)
+    he = dataclasses.replace(he, rig_sha256=rig_digest(rig))
     save_handeye(out, he, source, Path(args.rig).stem if args.rig else "default")
     for k, why in he.skipped:
         print(f"skipped view {k}: {why}", file=sys.stderr)

@@ -145,10 +145,12 @@ def run(args) -> int:
     cfg, rig, true_rig, wp = _job(args)
     handeye = None
     if args.handeye:
+        from psvs.io.params import rig_digest
         from psvs.robot.handeye import check_mount_pinned
-        from psvs.robot.handeye_io import load_handeye
+        from psvs.robot.handeye_io import check_same_rig, load_handeye
         from psvs.robot.handeye_session import true_cam2flange
         he = load_handeye(args.handeye)
+        check_same_rig(he, rig_digest(rig), f"--handeye {args.handeye}", f"--rig {args.rig or 'default'}")
         if he.mount_sigma_mm is not None:   # a file written before the hand-eye fit refused a mount this loose
             check_mount_pinned(he.mount_sigma_mm, he.mount_sigma_rad, f"in {args.handeye}")
         handeye = (he, true_cam2flange(cfg))   # the simulated hardware's truth: scoring

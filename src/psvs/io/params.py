@@ -234,6 +234,16 @@ def rig_to_dict(rig: Rig) -> dict:
     })
 
 
+def rig_digest(rig: Rig) -> str:
+    """SHA-256 (64 hex digits) of a rig's geometry: every value of its camera and mirrors as
+    :func:`rig_to_dict` writes them (floats exactly; its calibration's statistics left out). A file fitted or
+    triangulated through one rig names it by this, so that a reader can tell another rig's values from its own
+    (a hand-eye mount calibrated through another camera used without a word: an adversarial trial)."""
+    import hashlib
+    values = {k: v for k, v in rig_to_dict(rig).items() if k != "calibration"}
+    return hashlib.sha256(json.dumps(values, sort_keys=True).encode()).hexdigest()
+
+
 def _plain(value):
     """The dict with every number a plain Python int or float (a rig may hold NumPy scalars, e.g. from a
     calibration; TOML and JSON writers must never see them)."""

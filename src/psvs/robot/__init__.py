@@ -14,7 +14,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "controller": ["TrackConfig"],
         "drift": ["DRIFT_STOP", "DriftWatch", "HealthNote"],
         "handeye": ["calibrate_from_views", "check_mount_pinned", "check_robot_accuracy"],
-        "handeye_io": ["load_handeye", "read_views", "save_handeye", "write_views"],
+        "handeye_io": ["check_same_rig", "load_handeye", "read_views", "save_handeye", "write_views"],
         "handeye_session": ["CELL_GRID", "CELL_SUPERSAMPLE", "CELL_VIEWS", "cell_views", "nominal_cam2flange",
                             "true_cam2flange"],
         "loop": ["CYCLE_SECONDS", "RUN_IN_OUT_MM", "SHARE", "Watching", "check_frames_expected", "cycle_seconds",

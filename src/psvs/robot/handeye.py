@@ -155,7 +155,8 @@ class HandEyeResult:
     the grid's discs in both views at the solution (px; None when not known, e.g. an older file); the
     views left out as unreadable, (index, reason) each (a session's fact, not kept in handeye.toml); and the
     mount's 1-sigma uncertainty from its inputs' noise, position (mm, RMS over the axes) and orientation
-    (rad) (:mod:`psvs.robot.handeye_noise`; None when not known)."""
+    (rad) (:mod:`psvs.robot.handeye_noise`; None when not known); and the geometry of the rig it was
+    calibrated through (:func:`psvs.io.rig_digest`; None when not known: a session's result, an older file)."""
 
     cam2flange: np.ndarray
     target_rms_mm: np.ndarray
@@ -165,6 +166,7 @@ class HandEyeResult:
     skipped: tuple = ()
     mount_sigma_mm: float | None = None
     mount_sigma_rad: float | None = None
+    rig_sha256: str | None = None
 
 
 def _check_fit(rms_px: float, noise, robot_accuracy_mm: float) -> None:

@@ -6,7 +6,8 @@
     method = "reprojection"      # the discs' reprojection error over cam2flange and the target's pose,
                                  # from Park & Martin's closed form (1994); older files: "park_martin"
     source = "simulated cell"    # or the views folder
-    rig = "default"              # the rig the views were triangulated with
+    rig = "default"              # the rig the views were triangulated with, by name
+    rig_sha256 = "9c1e..."       # and by its values (psvs.io.params.rig_digest; optional: older files lack it)
     views = 12
     cam2flange = [[r00, r01, r02, x_mm], [r10, r11, r12, y_mm], [r20, r21, r22, z_mm], [0.0, 0.0, 0.0, 1.0]]
     target_rms_mm = [...]        # per view: the grid's rigid fit to its triangulated discs
@@ -28,6 +29,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -46,13 +48,14 @@ METHOD = "reprojection"
 #: Methods a file may name: this psvs's, and the closed form alone that earlier versions wrote.
 METHODS = (METHOD, "park_martin")
 _KEYS = ("method", "source", "rig", "views", "cam2flange", "target_rms_mm", "spread_mm", "spread_deg")
-_OPTIONAL = ("reprojection_rms_px", "mount_sigma_mm", "mount_sigma_deg")
+_OPTIONAL = ("reprojection_rms_px", "mount_sigma_mm", "mount_sigma_deg", "rig_sha256")
 POSES_CSV = "flange_poses.csv"
 POSE_COLUMNS = ("image", "x_mm", "y_mm", "z_mm", "qx", "qy", "qz", "qw")
 
 
 def dumps_handeye(result: HandEyeResult, source: str, rig: str) -> str:
-    """The ``handeye.toml`` text of a calibration (read back exactly by :func:`load_handeye`)."""
+    """The ``handeye.toml`` text of a calibration through the rig named ``rig`` (read back exactly by
+    :func:`load_handeye`); the rig's values by ``result.rig_sha256`` when known."""
     data = {"handeye": {
         "method": METHOD, "source": str(source), "rig": str(rig), "views": int(len(result.target_rms_mm)),
         "cam2flange": [[float(x) for x in row] for row in result.cam2flange],
@@ -63,6 +66,8 @@ def dumps_handeye(result: HandEyeResult, source: str, rig: str) -> str:
     if result.mount_sigma_mm is not None and result.mount_sigma_rad is not None:
         data["handeye"]["mount_sigma_mm"] = float(result.mount_sigma_mm)
         data["handeye"]["mount_sigma_deg"] = math.degrees(result.mount_sigma_rad)
+    if result.rig_sha256 is not None:
+        data["handeye"]["rig_sha256"] = str(result.rig_sha256)
     return ("# psvs handeye: frame C (the PSVS) in the flange frame; rotation and mm (docs/robot.md)\n"
             + dumps_toml(data))
 
@@ -89,7 +94,10 @@ def _handeye(h: dict) -> HandEyeResult:
     if isinstance(h["views"], bool) or not isinstance(h["views"], int) or h["views"] != len(rms) or len(rms) < 3:
         raise ValueError(f"handeye.views must be the number of target_rms_mm values (>= 3), got {h['views']!r}")
     spreads = [_numbers(h[k], k).item() for k in ("spread_mm", "spread_deg")]
-    extra = {k: _numbers(h[k], k).item() for k in _OPTIONAL if k in h}
+    digest = h.get("rig_sha256")
+    if digest is not None and not (isinstance(digest, str) and re.fullmatch("[0-9a-f]{64}", digest)):
+        raise ValueError(f"handeye.rig_sha256 must be 64 hex digits (psvs handeye writes it), got {digest!r}")
+    extra = {k: _numbers(h[k], k).item() for k in _OPTIONAL if k in h and k != "rig_sha256"}
     if np.any(rms < 0) or min(spreads + list(extra.values())) < 0:
         raise ValueError("handeye residuals and uncertainties must be >= 0")
     if ("mount_sigma_mm" in extra) != ("mount_sigma_deg" in extra):
@@ -97,7 +105,18 @@ def _handeye(h: dict) -> HandEyeResult:
     sigma_deg = extra.get("mount_sigma_deg")
     return HandEyeResult(X, rms, spreads[0], math.radians(spreads[1]), extra.get("reprojection_rms_px"),
                          mount_sigma_mm=extra.get("mount_sigma_mm"),
-                         mount_sigma_rad=None if sigma_deg is None else math.radians(sigma_deg))
+                         mount_sigma_rad=None if sigma_deg is None else math.radians(sigma_deg), rig_sha256=digest)
+
+
+def check_same_rig(result: HandEyeResult, rig_sha256: str, where: str, rig_name: str) -> None:
+    """ValueError (exit 2) when a hand-eye result was calibrated through a rig of other values than the one
+    it is about to serve (``rig_sha256``: :func:`psvs.io.params.rig_digest` of it): the mount is frame C's
+    pose as that rig triangulated the target, and another camera, baseline or refit gives another (an
+    adversarial trial: an mv1440 mount tracked through the paper's rig without a word). Nothing to check on
+    a file that does not name its rig's values (older files)."""
+    if result.rig_sha256 is not None and result.rig_sha256 != rig_sha256:
+        raise ValueError(f"{where} was calibrated through a rig of other values than {rig_name}: its mount is "
+                         f"not this rig's; calibrate it through this one (psvs handeye --rig ...)")
 
 
 def _numbers(value, key: str) -> np.ndarray:
