@@ -72,7 +72,8 @@ def test_an_older_closed_form_file_still_reads(tmp_path):
     """A file from an earlier psvs (method park_martin, no reprojection RMS) reads back."""
     he = _result()
     text = dumps_handeye(he, "x", "y").replace('method = "reprojection"', 'method = "park_martin"')
-    text = "\n".join(line for line in text.splitlines() if not line.startswith(("reprojection_rms_px", "mount_", "rig_sha256")))
+    newer = ("reprojection_rms_px", "mount_", "rig_sha256")
+    text = "\n".join(line for line in text.splitlines() if not line.startswith(newer))
     (tmp_path / "old.toml").write_text(text + "\n")
     back = load_handeye(tmp_path / "old.toml")
     assert np.array_equal(back.cam2flange, he.cam2flange) and back.reprojection_rms_px is None
