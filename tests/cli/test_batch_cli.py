@@ -1,8 +1,10 @@
 """``psvs batch`` end to end on a 2-worker local cluster: each frame's file equals what the single command
 writes on that frame (byte for byte), a second run computes nothing, a damaged image is a row that says so,
 and a bad option is refused once, in one line, with nothing written."""
+import hashlib
 import json
 
+import cv2
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
@@ -268,3 +270,63 @@ def test_a_result_file_damaged_since_the_run_is_computed_again(capsys, tmp_path,
     assert len(rows) == 2 and rows[pngs[0].name]["Z_mm"] == first["Z_mm"]
     code, out, err = run(capsys, *argv)
     assert code == 0 and "(0 computed now, 2 before" in out and "no longer read back" not in err, err
+
+
+@pytest.fixture(scope="module")
+def walls(tmp_path_factory):
+    """Two frames of the default rig: walls at 700 and 500 mm (a.png, b.png)."""
+    folder = tmp_path_factory.mktemp("walls")
+    for name, z in (("a", 700), ("b", 500)):
+        assert main(["simulate", f"wall:distance_mm={z}", "--rig", "default", "-o", str(folder / f"{name}.png")]) == 0
+    return folder
+
+
+def _maps_and_views(out_dir) -> dict:
+    """Every map and view of a disparity run by value (NumPy's and OpenCV's readers)."""
+    return {p.name: np.load(p) if p.suffix == ".npy" else cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+            for p in sorted(out_dir.iterdir()) if p.suffix in (".npy", ".png")}
+
+
+def test_a_result_written_over_or_cut_short_is_computed_again_whatever_its_kind(capsys, tmp_path, walls):
+    """Trial 45: another frame's map copied over a frame's, a view replaced by text, another cut short; the
+    next run said "2 ok (0 computed now)" (only a .npy that no longer loaded and a .json's Z were checked). Each
+    ok row names its files' SHA-256 (checked here by hashlib), and a file that differs is computed again."""
+    argv = ("batch", "disparity", str(walls), "--rig", "default", "-o", str(tmp_path / "out"), "--views", "l.png",
+            "r.png", "--workers", "1")
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and "2 frames, 2 ok (2 computed now" in out, err
+    out_dir = tmp_path / "out"
+    rows = {r["key"]: r for r in pq.read_table(out_dir / "results.parquet").to_pylist()}
+    for key, stem in (("a.png", "a"), ("b.png", "b")):
+        named = dict(item.split("=") for item in rows[key]["files_sha256"].split(";"))
+        assert named == {f.name: hashlib.sha256(f.read_bytes()).hexdigest()
+                         for f in (out_dir / f"{stem}.npy", out_dir / f"{stem}.l.png", out_dir / f"{stem}.r.png")}
+    first = _maps_and_views(out_dir)
+    assert abs(np.nanmedian(first["a.npy"]) - np.nanmedian(first["b.npy"])) > 30       # two walls apart
+    (out_dir / "a.npy").write_bytes((out_dir / "b.npy").read_bytes())
+    (out_dir / "b.l.png").write_text("garbage\n")
+    (out_dir / "a.r.png").write_bytes((out_dir / "a.r.png").read_bytes()[:1000])
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and "2 frames, 2 ok (2 computed now, 0 before" in out, err
+    assert "2 frame(s)' results no longer read back and are computed again (a.png: a.npy: changed since" in err
+    again = _maps_and_views(out_dir)
+    assert again.keys() == first.keys()
+    assert all(np.array_equal(again[k], first[k], equal_nan=again[k].dtype.kind == "f") for k in first)
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and "(0 computed now, 2 before" in out and "no longer read back" not in err, err
+
+
+def test_a_run_whose_every_result_is_damaged_resumes(capsys, tmp_path, walls):
+    """Trial 45: one frame, its map cut short: every later run ended in an internal error (Arrow could not take
+    an empty list of rows) and the folder could never be resumed. Now the frame is computed again."""
+    folder = tmp_path / "in"
+    folder.mkdir()
+    (folder / "a.png").write_bytes((walls / "a.png").read_bytes())
+    argv = ("batch", "disparity", str(folder), "--rig", "default", "-o", str(tmp_path / "out"), "--workers", "1")
+    assert run(capsys, *argv)[0] == 0
+    target = tmp_path / "out" / "a.npy"
+    first = np.load(target)
+    target.write_bytes(target.read_bytes()[:1000])
+    code, out, err = run(capsys, *argv)
+    assert code == 0 and "1 ok (1 computed now, 0 before" in out and "computed again (a.png: a.npy" in err, err
+    assert np.array_equal(np.load(target), first, equal_nan=True)

@@ -194,6 +194,9 @@ def frame_task(job: dict, key: str) -> dict:
             row.update(status="bad input", message=_line(exc))
     said = [str(w.message) for w in caught if str(w.filename).startswith(_PSVS_DIR)]
     row["warnings"] = "; ".join(dict.fromkeys(said))
+    if row["status"] == "ok":
+        from psvs.cli.batch_resume import files_digest
+        row["files_sha256"] = files_digest(frame_outputs(job, key))
     return row
 
 

@@ -156,7 +156,8 @@ class ResultStore:
         if table is None:
             return
         keep = [i for i, k in enumerate(table.column(KEY).to_pylist()) if k not in keys]
-        _write_table(self.out_dir / RESULTS_FILE, table.take(keep))
+        # typed: an empty list alone is null to Arrow, and taking it failed (every row forgotten: a trial)
+        _write_table(self.out_dir / RESULTS_FILE, table.take(pa.array(keep, type=pa.int64())))
 
 
 def _write_table(path: Path, table: pa.Table) -> None:
