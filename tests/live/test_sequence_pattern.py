@@ -9,11 +9,29 @@ from tests.support.cli import run
 
 
 def test_a_pattern_reads_its_frames_in_order_from_the_first_that_exists(tmp_path):
-    for k in (3, 4, 5, 7):
+    for k in (3, 4, 5):
         write_png(tmp_path / f"a%b_{k:04d}.png", np.full((4, 6), k, np.uint8))
+    write_png(tmp_path / "a%b_7.png", np.zeros((4, 6), np.uint8))        # not of the pattern: %04d writes 0007
+    write_png(tmp_path / "a%b_00070.png", np.zeros((4, 6), np.uint8))    # nor this (0070)
     files = sequence_files(str(tmp_path / "a%%b_%04d.png"))
-    assert [f.name for f in files] == ["a%b_0003.png", "a%b_0004.png", "a%b_0005.png"]     # 6 is missing
+    assert [f.name for f in files] == ["a%b_0003.png", "a%b_0004.png", "a%b_0005.png"]
     assert check_pattern("seq_%d.png") and check_pattern("seq_%012d.png") and not check_pattern("seq.png")
+
+
+@pytest.mark.parametrize("pattern, later", [("q_%03d.png", ("q_010.png", "q_011.png")), ("q_%d.png", ("q_1000.png",))])
+def test_a_sequence_with_a_gap_is_refused_not_cut_at_it(capsys, tmp_path, pattern, later):
+    """Trial 45: q_005..007 then q_010, q_011: the batch read 3 frames, said "3 ok", exit 0, and never read the
+    rest. Frames of the pattern after a missing one: exit 2, one line naming the gap, nothing written."""
+    for k in (5, 6, 7):
+        write_png(tmp_path / (pattern % k), np.full((4, 6), k, np.uint8))
+    for name in later:
+        write_png(tmp_path / name, np.zeros((4, 6), np.uint8))
+    with pytest.raises(ValueError, match=f"{pattern % 8} is missing, yet {len(later)} frame"):
+        sequence_files(str(tmp_path / pattern))
+    code, _, err = run(capsys, "batch", "disparity", str(tmp_path / pattern), "--rig", "default", "-o",
+                       str(tmp_path / "out"))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and f"(from {later[0]})" in err, err
+    assert not (tmp_path / "out").exists()
 
 
 def test_a_folder_sequence_holds_every_format_psvs_reads(tmp_path):

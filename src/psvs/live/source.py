@@ -239,7 +239,8 @@ def sequence_files(pattern: str) -> list[Path]:
     """The image files of a sequence: a folder's entries named as images (:data:`SEQUENCE_SUFFIXES`; a folder or a
     dangling link so named too, for its reader to refuse) in name order, or a printf
     pattern's files (:func:`check_pattern`) from the first index 0..999 that exists to the first missing
-    one; [] when none."""
+    one, ValueError when frames of the pattern follow that gap (an adversarial trial: q_005..007 and q_010,
+    q_011 gave a batch of 3 frames, "3 ok", the rest never read); [] when none."""
     path = Path(pattern)
     if path.is_dir():
         # every entry named as a frame, readable or not: a dangling link or a folder named x.png is a frame the
@@ -252,7 +253,26 @@ def sequence_files(pattern: str) -> list[Path]:
     while k is not None and Path(pattern % k).is_file():
         files.append(Path(pattern % k))
         k += 1
+    after = sorted(i for i in _numbered(pattern) if k is not None and i > k)
+    if after:
+        raise ValueError(f"image sequence {pattern}: {Path(pattern % k).name} is missing, yet {len(after)} "
+                         f"frame(s) of the pattern follow it (from {Path(pattern % after[0]).name}): fill the gap, "
+                         f"or give the frames' folder")
     return files
+
+
+def _numbered(pattern: str) -> list[int]:
+    """The frame numbers of the files in ``pattern``'s folder that its name matches (a checked pattern)."""
+    folder, name = Path(pattern).parent, Path(pattern).name
+    parts = re.split(r"(%%|%0?\d*d)", name)
+    regex = re.compile("".join("%" if part == "%%" else r"( *\d+)" if part.startswith("%") else re.escape(part)
+                               for part in parts))
+    try:
+        names = [p.name for p in folder.iterdir()] if folder.is_dir() else []
+    except OSError:
+        return []
+    found = (int(m[1]) for m in map(regex.fullmatch, names) if m is not None)
+    return [i for i in found if Path(pattern % i).name in names]      # as the pattern writes it (q_5 not q_005)
 
 
 def open_video(video: str, fps: float = 0.0) -> _Source:
