@@ -116,6 +116,25 @@ def test_dense_eval_on_own_pair(capsys, tmp_path, planted):
     assert fig is not None and min(fig.shape[:2]) > 200 and fig.std() > 10
 
 
+def test_dense_eval_takes_a_truth_of_0_as_none(capsys, tmp_path, planted):
+    """Trial 45: a truth whose unknown pixels are 0 (KITTI's, Middlebury's older maps) was scored as disparity 0
+    (bad-2 7 % -> 31 %, exit 0, not a word). Now those pixels are none, said in one line, and the scores are
+    the NaN truth's."""
+    paths, tl = planted
+    holes = np.zeros(tl.shape, bool)
+    holes[::3] = True
+    scores = {}
+    for name, fill in (("nan", np.nan), ("zero", 0.0)):
+        np.save(tmp_path / f"{name}.npy", np.where(holes, fill, tl))
+        code, text, err = run(capsys, "dense-eval", "--left", str(paths["left"]), "--right", str(paths["right"]),
+                              "--truth", str(tmp_path / f"{name}.npy"), "--max-disparity", "40", "-o",
+                              str(tmp_path / name))
+        assert code == 0, err
+        scores[name] = json.loads((tmp_path / name / "scores.json").read_text())["scores"]
+        assert (f"{int(holes.sum())} ground-truth pixels of 0 px taken as none" in err) == (name == "zero"), err
+    assert scores["zero"] == scores["nan"] and scores["nan"]["psvs dense"]["bad2_pct"] < 10
+
+
 @pytest.mark.parametrize("extra, message", [
     (["--left", "a.png"], "go together"),
     (["-o", "afile"], "is a file"),

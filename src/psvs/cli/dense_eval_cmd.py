@@ -1,6 +1,7 @@
 """``psvs dense-eval``: score dense disparity on a superimposed real stereo pair with ground truth."""
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,8 @@ def add_parser(sub) -> None:
                                    "views. Default pair: Middlebury 2014 Motorcycle from scikit-image.")
     p.add_argument("--left", metavar="IM0.png", help="left image of your own pair (with --right and --truth)")
     p.add_argument("--right", metavar="IM1.png", help="right image")
-    p.add_argument("--truth", metavar="DISP0.pfm", help="left ground-truth disparity (.pfm or .npy; inf/NaN = none)")
+    p.add_argument("--truth", metavar="DISP0.pfm",
+                   help="left ground-truth disparity (.pfm or .npy; inf, NaN and 0 = none)")
     p.add_argument("--min-disparity", type=float, default=0.0, help="default 0")
     p.add_argument("--max-disparity", type=float, default=64.0, help="default 64")
     p.add_argument("--split", type=float, default=0.5, help="right view's share s (default 0.5)")
@@ -52,6 +54,11 @@ def _truth(path: str) -> np.ndarray:
     if gt.ndim != 2:
         raise ValueError(f"ground truth must be one channel (H, W), got shape {gt.shape}")
     gt[~np.isfinite(gt)] = np.nan
+    zeros = int(np.sum(gt == 0.0))
+    if zeros:       # KITTI's and Middlebury's older maps mark "no data" so; a PSVS measures no disparity 0
+        gt[gt == 0.0] = np.nan
+        print(f"psvs dense-eval: {zeros} ground-truth pixels of 0 px taken as none (a twin at its own pixel is no "
+              "disparity a PSVS measures; 0 marks no data in KITTI's and Middlebury's older maps)", file=sys.stderr)
     return gt
 
 
