@@ -116,6 +116,14 @@ def test_cli(capsys, tmp_path, images):
     write_png(blank, np.full((480, 640), 40, np.uint8))
     code, _, err = run(capsys, "measure", "circles", str(blank), "--rig", EXAMPLE)
     assert code == 2 and "image is blank" in err
+    # trial 45: a dark 16-bit file (3..63 of a 10-bit depth) was "blank (no contrast)", exit 2; it is too dark
+    # to tell the pattern, exit 1, its grey levels named
+    import cv2
+    dark = tmp_path / "dark16.png"
+    assert cv2.imwrite(str(dark), (images[(589, 0)] // 4).astype(np.uint16))
+    code, _, err = run(capsys, "measure", "circles", str(dark), "--rig", EXAMPLE)
+    assert code == 1 and len(err.strip().splitlines()) == 1, err
+    assert "contrast is too low to find the pattern: grey levels 1..16 of 255 (a range of 15, at least 20" in err
 
 
 # --- a measurement is checked against the pattern it claims to be (psvs.accuracy.pattern_measure) ---

@@ -239,8 +239,11 @@ def _name(target) -> str:
 
 
 def _advice_none(grey: np.ndarray, far_px: float) -> str:
-    if float(grey.max()) - float(grey.min()) < 20:
+    lo, hi = float(grey.min()), float(grey.max())
+    if hi == lo:
         return "the image is blank (no contrast)"
+    if hi - lo < 20:
+        return f"the image's contrast is too low: grey levels {lo:g}..{hi:g} of 255 (light the card, expose longer)"
     return ("no target in view: hold the whole card in both views, within the working range "
             f"(its discs at least {MIN_DISC_PX:g} px across; {far_px:.1f} px at the farthest)")
 

@@ -53,6 +53,9 @@ from psvs.targets.discs import MAX_DIAMETER_PX, MIN_AREA_PX, blob_centre, blob_c
 from psvs.targets.rim import Ellipse, refine_circle
 from psvs.targets.twins import twin_distances_px
 
+#: The least span of grey levels (of 255) in which the pattern's circles are told from the background.
+MIN_CONTRAST = 20
+
 
 @dataclass(frozen=True, eq=False)
 class PatternDetection:
@@ -70,7 +73,8 @@ def detect_circles(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_
     pattern wider than the baseline), their union is split in two (:func:`split_two_discs`) when the round
     blobs are too few.
 
-    Raises ValueError for a blank image (nothing to measure in it); MeasurementError, naming the problem, when
+    Raises ValueError for a blank image (nothing to measure in it); MeasurementError, naming the problem, for
+    one whose grey levels span less than :data:`MIN_CONTRAST` (too dark to tell the pattern), and when
     the image does not show the pattern asked for: fewer than 2 ``count`` - 1 circles (circles missing or the
     pattern out of view), more than 2 ``count`` (another pattern: the count is checked, never chosen from),
     exactly one fewer (one view shows a circle the other does not: the views disagree), circles not on one row.
@@ -79,8 +83,12 @@ def detect_circles(grey: np.ndarray, count: int = 5, max_diameter_px: int = MAX_
         raise ValueError(f"count must be an integer >= 2 (circles in the pattern), got {count!r}")
     grey = check_grey(grey)
     lo, hi, _, _ = cv2.minMaxLoc(grey)
-    if hi - lo < 20:
+    if hi == lo:
         raise ValueError("image is blank (no contrast): no pattern to find")
+    if hi - lo < MIN_CONTRAST:      # a dark frame, not a blank one (trial 45: a 16-bit file of 3..63 was "blank")
+        raise MeasurementError(f"the image's contrast is too low to find the pattern: grey levels {lo:g}..{hi:g} "
+                               f"of 255 (a range of {hi - lo:g}, at least {MIN_CONTRAST} needed): expose longer or "
+                               "light the pattern")
     found = blob_contours(grey, max_diameter_px, min_area_px)
     blobs = [(blob_centre(c), float(np.sqrt(a / np.pi))) for c, a, r in found if r >= 0.6]
     if len(blobs) < 2 * count:
