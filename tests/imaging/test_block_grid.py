@@ -52,3 +52,31 @@ def test_a_hard_compressed_frame_is_refused_and_a_fair_one_answered(frame, capsy
         got, _, err = run(capsys, "disparity", str(tmp_path / name), "--rig", "default", "-o", str(out))
         assert got == code and out.exists() == (code == 0), err
         assert code == 0 or err.startswith("psvs disparity: cannot measure: the image carries JPEG's 8 px block grid")
+
+
+@pytest.mark.parametrize("period", [24, 32, 40, 48])
+def test_stripes_whose_edges_fall_on_one_phase_of_8_are_no_grid(period):
+    """Trial 42: a lossless PNG of stripes whose period is a multiple of 8 px was refused as carrying JPEG's
+    grid (its edges all on one phase of 8: 4.5-24 by the mean alone). A grid lifts every border: the columns'
+    median |step| at that phase is no higher than elsewhere. The same stripes saved at JPEG quality 50 do."""
+    x = np.arange(640)
+    stripes = np.tile(np.where((x // (period // 2)) % 2 == 0, 200.0, 40.0), (480, 1))
+    png = np.clip(stripes + np.random.default_rng(period).normal(0, 3, stripes.shape), 0, 255).astype(np.uint8)
+    assert block_grid_strength(png) < 1.1
+    assert block_grid_strength(jpeg(png, 50)) > BLOCK_GRID_LIMIT
+
+
+def test_a_pattern_and_a_tiny_frame_are_no_grid(capsys, tmp_path):
+    """The Fig. 9 pattern as a lossless PNG (1.7 by the mean alone: `psvs disparity` refused it as carrying
+    JPEG's grid) and, trial 45, a 16 x 16 px crop of it (an axis with fewer than 6 borders a phase is not
+    judged: one edge made a phase, 1.62): no grid; the tiny frame is refused for what it is."""
+    from psvs.imaging.block_grid import MIN_BORDERS
+    from psvs.simulate.builtin import builtin_scene
+    fig9 = render(builtin_scene("fig9:distance_mm=600"), default_rig(), seed=1, supersample=1).image
+    assert block_grid_strength(fig9) < 1.1 and block_grid_strength(jpeg(fig9, 30)) > BLOCK_GRID_LIMIT
+    tiny = fig9[200:216, 300:316]
+    assert MIN_BORDERS == 6 and block_grid_strength(tiny) == 1.0
+    cv2.imwrite(str(tmp_path / "tiny.png"), tiny)
+    code, _, err = run(capsys, "disparity", str(tmp_path / "tiny.png"), "--min-disparity", "2", "--max-disparity",
+                       "8", "-o", str(tmp_path / "t.npy"))
+    assert code == 1 and "block grid" not in err and "no patch to judge on 16x16 px" in err, err
