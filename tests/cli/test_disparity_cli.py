@@ -171,6 +171,19 @@ def test_dense_eval_bad_truth_and_sizes(capsys, tmp_path, planted):
         assert code == 2 and says in err and len(err.strip().splitlines()) == 1 and text == "", err
 
 
+@pytest.mark.parametrize("given", [["--near-mm", "1000"], ["--far-mm", "1100"]])
+def test_a_range_given_two_ways_is_refused(capsys, tmp_path, given):
+    """Trial 45: --min/--max-disparity with --near-mm: the depths were left unused without a word (the search
+    then reached 604 px where 1000 mm allowed 190). Exit 2, one line, nothing written."""
+    frame = tmp_path / "frame.png"
+    write_png(frame, np.random.default_rng(1).integers(0, 256, (480, 640)).astype(np.uint8))   # the rig's size
+    out = tmp_path / "d.npy"
+    code, _, err = run(capsys, "disparity", str(frame), "--rig", "default", "--min-disparity", "10",
+                       "--max-disparity", "40", *given, "-o", str(out))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not out.exists(), err
+    assert "give the disparities to search one way: --min-disparity/--max-disparity, or --near-mm/--far-mm" in err
+
+
 def test_disparity_on_a_file_that_is_not_an_image(capsys, tmp_path):
     fake = tmp_path / "fake.png"
     fake.write_text("not a PNG")

@@ -1,6 +1,7 @@
 """Helpers shared by the subcommands."""
 from __future__ import annotations
 
+import argparse
 import math
 import os
 from contextlib import contextmanager
@@ -20,10 +21,21 @@ def add_rig_argument(parser, required: bool = True) -> None:
                              ("" if required else "; default: the paper's rig"))
 
 
+class _RangeGiven(argparse.Action):
+    """Stores the value and marks the namespace ``range_given`` (only when given: a command that takes its
+    search another way, ``disparity --min-disparity``, can refuse a range it would leave unused)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        namespace.range_given = True
+
+
 def add_range_arguments(parser, what: str = "working range") -> None:
     """--near-mm and --far-mm: the depths (mm) of ``what`` (checked by :func:`range_from_args`)."""
-    parser.add_argument("--near-mm", type=float, default=400.0, help=f"near end of the {what}, mm (default 400)")
-    parser.add_argument("--far-mm", type=float, default=1200.0, help=f"far end of the {what}, mm (default 1200)")
+    parser.add_argument("--near-mm", type=float, default=400.0, action=_RangeGiven,
+                        help=f"near end of the {what}, mm (default 400)")
+    parser.add_argument("--far-mm", type=float, default=1200.0, action=_RangeGiven,
+                        help=f"far end of the {what}, mm (default 1200)")
 
 
 def range_from_args(args, rig=None) -> tuple[float, float]:

@@ -73,6 +73,9 @@ def _range(args, rig, rect, width: int) -> tuple[float, float]:
     if (args.min_disparity is None) != (args.max_disparity is None):
         raise ValueError("give both --min-disparity and --max-disparity, or neither (with --rig)")
     if args.min_disparity is not None:
+        if getattr(args, "range_given", False):      # a trial's --near-mm 1000 was left unused without a word
+            raise ValueError("give the disparities to search one way: --min-disparity/--max-disparity, or "
+                             "--near-mm/--far-mm with --rig")
         return args.min_disparity, args.max_disparity
     if rig is None:
         raise ValueError("give --rig or --min-disparity and --max-disparity")
