@@ -53,6 +53,9 @@ OBJ = '[[objects]]\ntype = "rectangle"\nsize_mm = [10, 10]\nposition_mm = [0, 0,
     (OBJ + 'texture = { type = "circles", count = 1000000000 }\n', ValueError,
      "count must be at most 1000 circles in a row, got 1000000000"),
     (OBJ * 1001, ValueError, r"1001 objects, at most 1000 \(a shape of many parts is one mesh object"),
+    # trial 45: a numpy repr, and no file name (said when the backdrop was built, after the file was read)
+    ("[backdrop]\nz_mm = 1e300\n", ValueError, r"backdrop z_mm must be at most 1e\+07 mm, got 1e\+300 \(the ray"),
+    (OBJ.replace("[0, 0, 500]", "[0, 0, 2e7]"), ValueError, r"position beyond 1e\+07 mm, got \[0, 0, 2e\+07\]"),
 ])
 def test_bad_scene_files(tmp_path, text, exc, message):
     path = write(tmp_path, text)

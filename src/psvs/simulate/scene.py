@@ -89,7 +89,8 @@ class SceneObject:
         for what, values in (("size_mm", self.size_mm), ("radius_mm", (self.radius_mm,)),
                              ("height_mm", (self.height_mm,)), ("position", self.pose.position_mm)):
             if np.any(np.abs(np.asarray(values, dtype=float)) > MAX_SCENE_MM):
-                raise ValueError(f"{label}: {what} beyond {MAX_SCENE_MM:g} mm, got {values!r} (the ray tracer's "
+                shown = ", ".join(f"{float(v):g}" for v in np.ravel(np.asarray(values, dtype=float)))
+                raise ValueError(f"{label}: {what} beyond {MAX_SCENE_MM:g} mm, got [{shown}] (the ray tracer's "
                                  "single precision loses such an object)")
 
 
@@ -139,6 +140,9 @@ class Scene:
     def __post_init__(self):
         if self.backdrop_z_mm is not None:
             check_positive(self.backdrop_z_mm, "backdrop z_mm", "mm")
+            if self.backdrop_z_mm > MAX_SCENE_MM:       # said here, in the scene file's words and name
+                raise ValueError(f"backdrop z_mm must be at most {MAX_SCENE_MM:g} mm, got {self.backdrop_z_mm:g} "
+                                 "(the ray tracer's single precision loses such a plane)")
         if not self.objects and self.backdrop_z_mm is None:
             raise ValueError("a scene needs at least one object or a backdrop")
         # one more than a user's scene may hold: psvs turns a scene's backdrop into an object of its own (a
