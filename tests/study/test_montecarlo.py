@@ -133,6 +133,20 @@ def test_a_folder_of_another_study_is_refused_before_any_work(study, tmp_path):
         prepare_study(nominal, tol, SMALL, 0, SEED, tmp_path / "other")
 
 
+@pytest.mark.parametrize("table, front", [("test", 30.0), ("calibration", 40.0)])
+def test_a_range_inside_the_mirror_box_is_refused_before_any_work(capsys, tmp_path, table, front):
+    """Trial 46: a tolerances file whose test set (or simulated calibration) starts at 30 mm, inside the mirror
+    box, was scored (exit 0), where every command's working range is refused there. Exit 2, one line naming
+    the key and where the mirrors reach, no folder."""
+    tol = tmp_path / "t.toml"
+    tol.write_text(f"[tolerances]\nmirror_tilt_deg = {{ uniform = 0.2 }}\n[{table}]\nnear_mm = {front}\n")
+    out = tmp_path / "study"
+    code, _, err = run(capsys, "montecarlo", "--rig", "default", "--tolerances", str(tol), "-n", "1", "--workers",
+                       "1", "-o", str(out))
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not out.exists(), err
+    assert f"the tolerances' {table}.near_mm {front:g} mm lies inside the rig: its mirrors reach Z = 44.0 mm" in err
+
+
 def test_a_study_beyond_a_night_is_refused_before_any_work(capsys, tmp_path):
     """Issue 41: `montecarlo -n 1000000` started instead of saying what it costs. One sample's renders are
     estimated (the shipped tolerances: 16 card views of 640x480 at 2x2 samples a pixel), times n,

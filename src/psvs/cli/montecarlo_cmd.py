@@ -64,6 +64,10 @@ def run(args) -> int:
     nominal = measuring_rig(args.rig)
     tol = load_tolerances(args.tolerances)
     tol_data = load_toml(tolerances_path(args.tolerances), "tolerances")
+    from psvs.optics.mirrors import check_in_front
+    # as every command's working range (trial 46: a test set from 30 mm was scored)
+    check_in_front(nominal, tol.test.near_mm, "the tolerances' test.near_mm")
+    check_in_front(nominal, tol.procedure.near_mm, "the tolerances' calibration.near_mm")
     from psvs.study.montecarlo import check_study_time, prepare_study, run_study
     from psvs.study.sample import STUDY_TMP_ENV
     out_dir = Path(args.output)
