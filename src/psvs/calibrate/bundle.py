@@ -21,7 +21,7 @@ Residuals: every detected disc or circle centre in both views minus the exact pr
 the priors are residuals (value - start) / sigma scaled to the detections' noise. Solved by scipy's
 least_squares (trust-region reflective) with a finite-difference Jacobian that perturbs one pose component
 of all images at once (each image sees only its own pose). Standard deviations come from the Gauss-Newton
-covariance at the solution, scaled by the residuals' variance.
+covariance at the solution (:func:`covariance`, its columns scaled), scaled by the residuals' variance.
 """
 from __future__ import annotations
 
@@ -402,6 +402,19 @@ def _bounds(name: str, value: float, start: Rig) -> tuple[float, float]:
     return (-2.0, 2.0) if name in ("k1", "k2", "k3") else (-0.2, 0.2)
 
 
+def covariance(J: np.ndarray) -> np.ndarray:
+    """(J^T J)^-1 (n, n) of a Jacobian (m, n), through its columns scaled to unit length: the parameters' units
+    (mm, rad, px, k's) put the unscaled normal matrix's condition near 1e16, where a pseudo-inverse drops a
+    weakly pinned combination as if it had no variance at all (an adversarial trial: cards held square to the
+    camera, along whose f-distance valley the fit's cost changes by 0.2 chi-square over 6 %, stated f to
+    +-0.02 %, 123 sigma from the truth; scaled, +-4.7 %). Scaled, the condition is about 1e9."""
+    A = J.T @ J
+    d = np.sqrt(np.diag(A))
+    d[d == 0] = 1.0                     # a column no row sees: its own (infinite) variance stays undefined
+    scaled = A / np.outer(d, d)
+    return np.linalg.pinv(scaled, rcond=1e-13, hermitian=True) / np.outer(d, d)
+
+
 def _result(prob: _Problem, sol) -> BundleResult:
     x = sol.x
     img = prob.project(x)                                   # (2 n_points, 2)
@@ -411,7 +424,7 @@ def _result(prob: _Problem, sol) -> BundleResult:
     k = len(names)
     dof = max(1, img.size - len(x) + prob.n_rig)
     s2 = max(float(np.sum(img ** 2)) / dof, 1e-12)
-    cov = np.linalg.pinv(J.T @ J) * s2
+    cov = covariance(J) * s2
     sig = np.sqrt(np.clip(np.diag(cov)[:k], 0, None))
     # what the data did not pin down: held on purpose, or its posterior sigma is still over half its prior's
     sigma = dict(zip(names, map(float, sig), strict=True))

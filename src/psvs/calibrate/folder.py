@@ -24,6 +24,7 @@ import numpy as np
 from psvs._threads import one_blas_thread
 from psvs.calibrate.bundle import PLAIN_SCALE_PX, BundleResult, GridView, bundle_adjust
 from psvs.calibrate.misfit import check_misfit
+from psvs.calibrate.pinned import check_scale_pinned
 from psvs.calibrate.sweep import COUNT, detect_sweep, pattern_layout, read_sweep, sweep_views
 from psvs.errors import MeasurementError
 from psvs.evidence import check_build
@@ -159,6 +160,8 @@ def calibrate_folder(folder, start: Rig) -> CalibrationResult:
     what = f"calibrating from {len(used)} image(s) of {folder}"
     check_build(res.rig, start, what, baseline=not sweeps)      # the more telling, where it applies
     check_misfit(res, grids, what)
+    if not sweeps:                                              # a sweep's known steps pin the scale
+        check_scale_pinned(res, what)
     b, sb = effective_baseline(res)
     return CalibrationResult(res, used, skipped, b, sb)
 

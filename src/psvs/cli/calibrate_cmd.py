@@ -63,6 +63,10 @@ def run(args) -> int:
         read_mount(args.adjust, start)
     res = calibrate_folder(args.folder, start)
     b = res.bundle
+    if not b.success:   # no calibration, so no table of its values (a trial: 35 lines of them, then the refusal)
+        raise MeasurementError(f"the bundle adjustment {b.message}: no rig written (views of more than one build, "
+                               "a card unlike its target.toml, a start rig far from the build, or cards all at "
+                               "one distance and square to the camera?)")
     for name, reason in sorted(res.skipped.items()):
         print(f"skipped {name}: {reason}", file=sys.stderr)
     print(f"used {len(res.used)} image(s) ({res.kinds})")
@@ -89,9 +93,6 @@ def run(args) -> int:
         print(f"{len(b.held_by_prior)} parameter(s) held near nominal by their priors ({priors}): "
               "the images do not show them; more card views, tilted and over the whole field, would pin them down")
     print(f"bundle adjustment {b.message}")
-    if not b.success:   # a fit that did not converge is no calibration: nothing written
-        raise MeasurementError(f"the bundle adjustment {b.message}: no rig written (views of more than one build, "
-                               "a card unlike its target.toml, or a start rig far from the build?)")
     # before any file: a guide that fails writes none
     guide = _guide(res.rig, start, args.adjust) if args.adjust else None
     with output_batch():   # the rig file and the report land together
