@@ -44,6 +44,19 @@ def test_fast_mode_finds_both_layers(pair):
     assert disparity_scores(res.disparity_left, tl)["bad2_pct"] < 10.0
 
 
+@pytest.mark.parametrize("params", [DEFAULT, FAST])
+def test_the_callers_image_is_read_never_written(pair, params):
+    """A float64 image is searched as it is, not copied (check_image): the caller's array holds the same
+    values after the search, and a copy of it gives the same maps."""
+    left, right, _, _ = pair
+    image = superimpose(left, right)
+    before = image.copy()
+    res = dense_disparity(image, 0, 40, params=params)
+    assert image.dtype == np.float64 and np.array_equal(image, before)
+    again = dense_disparity(np.ascontiguousarray(image[:, ::-1][:, ::-1]), 0, 40, params=params)
+    assert np.array_equal(res.disparity_left, again.disparity_left, equal_nan=True)
+
+
 def test_confidence_is_zero_where_filled_and_high_where_owned(pair):
     """Against the planted truth (thresholds from 6 seeds x splits 0.5 and 0.3, with margin: pixels with a
     confidence were within 1 px on 96-98 %, those above 0.5 on 97-99 %; 91-93 % of the pixels had one)."""

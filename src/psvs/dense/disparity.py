@@ -77,7 +77,8 @@ class DenseResult:
 
 
 def check_image(image) -> np.ndarray:
-    """The complex image as float64 (H, W), or ValueError naming what is wrong."""
+    """The complex image as float64 (H, W) (the array itself when it is one: read, never written), or
+    ValueError naming what is wrong."""
     a = np.asarray(image)
     if a.ndim == 3 and a.shape[2] in (3, 4):
         raise ValueError(f"complex image must be grey (H, W), got colour of shape {a.shape}")
@@ -88,8 +89,9 @@ def check_image(image) -> np.ndarray:
     if min(a.shape) < MIN_SIZE_PX:
         raise ValueError(f"complex image of {a.shape[1]}x{a.shape[0]} px is too small (at least "
                          f"{MIN_SIZE_PX} px a side)")
-    a = a.astype(np.float64)
-    if not np.all(np.isfinite(a)):
+    whole = a.dtype.kind in "biu"           # integers (a camera's grey levels) are finite by construction
+    a = np.ascontiguousarray(a, dtype=np.float64)   # no copy of a float64 image: nothing here writes into it
+    if not whole and not np.all(np.isfinite(a)):
         raise ValueError("complex image has NaN or infinite values")
     return a
 
