@@ -268,7 +268,7 @@ def _numbered(pattern: str) -> list[int]:
     regex = re.compile("".join("%" if part == "%%" else r"( *\d+)" if part.startswith("%") else re.escape(part)
                                for part in parts))
     try:
-        names = [p.name for p in folder.iterdir()] if folder.is_dir() else []
+        names = {p.name for p in folder.iterdir()} if folder.is_dir() else set()
     except OSError:
         return []
     found = (int(m[1]) for m in map(regex.fullmatch, names) if m is not None)
