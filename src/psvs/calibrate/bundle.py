@@ -407,7 +407,7 @@ def covariance(J: np.ndarray) -> np.ndarray:
     (mm, rad, px, k's) put the unscaled normal matrix's condition near 1e16, where a pseudo-inverse drops a
     weakly pinned combination as if it had no variance at all (an adversarial trial: cards held square to the
     camera, along whose f-distance valley the fit's cost changes by 0.2 chi-square over 6 %, stated f to
-    +-0.02 %, 123 sigma from the truth; scaled, +-4.7 %). Scaled, the condition is about 1e9."""
+    +-0.02 %, 123 sigma from the truth; scaled, +-4.8 %). Scaled, the condition is about 1e9."""
     A = J.T @ J
     d = np.sqrt(np.diag(A))
     d[d == 0] = 1.0                     # a column no row sees: its own (infinite) variance stays undefined

@@ -18,7 +18,7 @@ __all__ = ["MAX_SCALE_SIGMA", "check_scale_pinned"]
 
 #: The largest 1-sigma of the focal length (a fraction of it) a calibration may leave: every depth through the
 #: rig carries it. Cards tilted +-25 deg pin it to 0.13-0.2 %, three views 0.35 %; the same cards tilted only
-#: +-6 deg at one distance 1.2 %, held square 3.3-4.7 % (their f 1.2 % and 2.6-2.7 % off).
+#: +-6 deg at one distance 1.3 %, held square 3.3-5.5 % (their f 1.2 % and 2.6-3.2 % off).
 MAX_SCALE_SIGMA = 0.01
 
 
