@@ -16,10 +16,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from psvs._validate import check_count, check_grey, check_positive
+from psvs.health.check import check_frames
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.auto import image_chance, twin_lags
 from psvs.match.chance import agreeing_rows, seed_pair_stands
-from psvs.match.correspondence import MatchParams, automatic_pairs, finish_pairs, seed_rows
+from psvs.match.correspondence import MatchParams, automatic_match, finish_pairs, seed_rows, unshown_rows_reason
 from psvs.match.edges import edge_pixels
 from psvs.match.pairs import EdgePair
 from psvs.match.seeded import match_seeded
@@ -141,6 +142,7 @@ class EdgeTracker:
         self.params = params.scaled(pixel_scale(rig.camera))   # the paper camera's px to this camera's
         self.rect = rectification_for(rig, near_mm, far_mm)       # a build: twins on rectified rows
         self.range_px = twin_lags(disparity_range(rig, near_mm, far_mm, self.rect))
+        self.near_mm, self.far_mm = near_mm, far_mm
         self._seed = seed
         self._velocity = np.zeros(2)
         self._disparity = None          # last median disparity (px); None before the first match
@@ -159,6 +161,17 @@ class EdgeTracker:
         return image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect, px=px,
                             elsewhere=True), px
 
+    def _rows_unshown(self, grey: np.ndarray) -> str:
+        """Why the first frame (H, W) cannot show that the rig's rows hold when no pair of it decisively fits
+        them (:func:`psvs.match.correspondence.unshown_rows_reason`: its self-check cannot judge either), or
+        why it shows they do not (drifted); "" when its self-check says healthy. As ``match --seed`` refuses
+        such a frame (an adversarial trial: a card of the mv1440_misaligned build tracked through the mv1440
+        design file at 767 mm for 650, exit 0, where match refused)."""
+        check = check_frames([grey], self.rig, self.near_mm, self.far_mm)
+        if check.verdict == "drifted":
+            return f"the rig does not fit this image: {check.reason} (psvs check; psvs refit or calibrate again)"
+        return unshown_rows_reason(1, check)
+
     def step(self, grey: np.ndarray) -> TrackStep:
         """Process the next frame (H, W) uint8 and return its :class:`TrackStep`."""
         t0 = time.perf_counter()
@@ -167,7 +180,7 @@ class EdgeTracker:
         if grey.shape != (h, w):
             raise ValueError(f"frame is {grey.shape[1]}x{grey.shape[0]} px but the rig's camera is {w}x{h} px")
         frame, self._frame = self._frame, self._frame + 1
-        grey = flat_field(grey, self.rig.camera)    # the lens's fall-off undone (psvs.optics.illumination)
+        raw, grey = grey, flat_field(grey, self.rig.camera)    # the lens's fall-off undone (psvs.optics.illumination)
         edges = self.pipeline.run(grey)
         first = self._disparity is None
         predicted = self._seed + self._velocity
@@ -175,7 +188,7 @@ class EdgeTracker:
         radius = p.snap_px if first else p.search_px * (1 + self._lost) + float(np.hypot(*self._velocity))
         cands = nearest_edge_pixels(edges, predicted, radius, p.candidates)
         msg = "no edge pixel near the seed" if first else "edge lost"
-        chance = automatic = px = None
+        chance = automatic = px = unshown = None
         for cand in cands:
             pair = match_seeded(edges, cand, self.range_px, n_seeds=self.match.n_seeds, rect=self.rect)
             if len(pair) < p.min_pairs:
@@ -191,9 +204,9 @@ class EdgeTracker:
                 msg = "edge lost (its pixels twin more strongly below the range: beyond the far limit?)"
                 continue
             if first:                   # the edge taken as match --seed takes it (the automatic matcher run once)
-                automatic = automatic or automatic_pairs(edges, self.range_px, params=self.match, grey=grey,
+                automatic = automatic or automatic_match(edges, self.range_px, params=self.match, grey=grey,
                                                          rect=self.rect)
-                if not seed_pair_stands(pair, chance, automatic, self.match.auto.tol_px):
+                if not seed_pair_stands(pair, chance, lambda: automatic().pairs, self.match.auto.tol_px):
                     msg = ("the seed's edge has no twin beyond chance: the twin it pairs with agrees on too few "
                            f"rows to stand alone, and no pair of the automatic matcher backs it ({chance.describe()})")
                     continue
@@ -202,6 +215,11 @@ class EdgeTracker:
                 msg = (f"the seed's edge has no twin on the rig's rows: {rows.describe()}" if first else
                        f"edge lost (its twin lines up off the rig's rows: knocked?): {rows.describe()}")
                 continue
+            if first and not (rows.fits or automatic().rows.fits):
+                unshown = self._rows_unshown(raw) if unshown is None else unshown
+                if unshown:
+                    msg = unshown
+                    continue
             d = float(np.median(pair.disparity_px))
             if not first and abs(d - self._disparity) > p.max_jump_px * (1 + self._lost):
                 msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"

@@ -11,8 +11,8 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submod_attrs={
         "auto": ["MIN_TWIN_LAG_PX", "image_chance", "twin_lags"],
         "chance": ["Chance", "Elsewhere", "agreeing_rows", "seed_pair_stands"],
-        "correspondence": ["MatchParams", "MatchResult", "automatic_pairs", "finish_pairs", "match_image",
-                           "rows_unshown", "seed_rows"],
+        "correspondence": ["MatchParams", "MatchResult", "automatic_match", "finish_pairs", "match_image",
+                           "rows_unshown", "seed_rows", "unshown_rows_reason"],
         "edges": ["edge_pixels"],
         "export": ["result_to_dict", "write_csv", "write_json", "write_ply"],
         "figures": ["write_figures"],

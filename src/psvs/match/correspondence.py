@@ -166,7 +166,7 @@ def match_image(grey: np.ndarray, rig: Rig, *, seed_px=None, pipeline: Pipeline 
         px = edge_pixels(edges, rect)            # labelled once: the chance test and the rows' check read them
         chance = image_chance(edges, rng, params=params.auto, grey=grey, rect=rect, px=px, elsewhere=True)
         rows = seed_rows(pair, px, params) if len(pair) and chance.answered else None
-        automatic = functools.cache(lambda: match_auto(edges, rng, params=params.auto, grey=grey, rect=rect))
+        automatic = automatic_match(edges, rng, params=params, grey=grey, rect=rect)
         stands = rows is not None and not rows.refuses and seed_pair_stands(
             pair, chance, lambda: automatic().pairs, params.auto.tol_px)
         pairs, unmatched = ([pair] if stands else []), []
@@ -188,10 +188,17 @@ def rows_unshown(res: MatchResult, check) -> str:
     rig's rows from others, and pairs found on them may be wrong ones. A frame flipped upside down through a
     build (a camera's vertical flip) paired Fig. 5b's edges with others at 767-955 mm, its ashtrays standing
     at 690 and 720 mm (an adversarial trial; the frame as taken shows 2 of its 5 pairs on the rows)."""
-    if not res.pairs or res.rows_fit > 0 or check is None or check.verdict != "cannot judge":
+    if not res.pairs or res.rows_fit > 0:
         return ""
-    n = len(res.pairs)
-    pairs = "its edge pair does not" if n == 1 else f"none of its {n} edge pairs"
+    return unshown_rows_reason(len(res.pairs), check)
+
+
+def unshown_rows_reason(n_pairs: int, check) -> str:
+    """:func:`rows_unshown`'s words for ``n_pairs`` edge pairs none of which decisively fits the rig's rows,
+    when the image's self-check (``check``) cannot judge; "" when it can (or there is none)."""
+    if check is None or check.verdict != "cannot judge":
+        return ""
+    pairs = "its edge pair does not" if n_pairs == 1 else f"none of its {n_pairs} edge pairs"
     return (f"nothing in the image shows that the rig's rows hold: its self-check cannot judge ({check.reason}), "
             f"and {pairs} line up on the rig's rows more decisively than some rows off (steep straight edges "
             "fit any row): a frame flipped, or another build's, would give such pairs too. Match a frame with "
@@ -206,13 +213,13 @@ def seed_rows(pair: EdgePair, px, params: MatchParams = MatchParams()) -> RowChe
     return check_pair(pair.left_px, px, pair.shape_disparity_px, params.auto.min_rows)
 
 
-def automatic_pairs(edges: np.ndarray, disparity_range_px: tuple[float, float], *, params: MatchParams = MatchParams(),
-                    grey: np.ndarray | None = None, rect: Rectification | None = None) -> Callable[[], list[EdgePair]]:
-    """The automatic matcher's accepted pairs of ``edges`` (:func:`psvs.match.auto.match_auto`), as a function
-    that runs it on its first call and keeps the answer: the backing a seeded pair may need
-    (:func:`psvs.match.chance.seed_pair_stands`), asked at most once per image however many seeds are tried."""
-    return functools.cache(lambda: match_auto(edges, disparity_range_px, params=params.auto, grey=grey,
-                                              rect=rect).pairs)
+def automatic_match(edges: np.ndarray, disparity_range_px: tuple[float, float], *, params: MatchParams = MatchParams(),
+                    grey: np.ndarray | None = None, rect: Rectification | None = None) -> Callable:
+    """The automatic matcher's result on ``edges`` (:func:`psvs.match.auto.match_auto`: its accepted pairs, and
+    how many decisively fit the rig's rows), as a function that runs it on its first call and keeps the
+    answer: the backing a seeded pair may need (:func:`psvs.match.chance.seed_pair_stands`) and the image's
+    rows (:func:`rows_unshown`), asked at most once per image however many seeds are tried."""
+    return functools.cache(lambda: match_auto(edges, disparity_range_px, params=params.auto, grey=grey, rect=rect))
 
 
 def finish_pairs(grey: np.ndarray, pairs: list[EdgePair], rig: Rig, *, subpixel: bool = True,
