@@ -117,8 +117,10 @@ def test_sequence_as_lossless_video(capsys, tmp_path, small_rig_file):
         assert src.fps == 25
     assert len(frames) == 3
     assert all(np.array_equal(f, read_grey(tmp_path / f"seq_{i:03d}.png")) for i, f in enumerate(frames))
-    code, _, err = run(capsys, "simulate", *args, "-o", str(tmp_path / "bad.avi"), "--fps", "0")
-    assert code == 2 and "--fps must be > 0" in err and not (tmp_path / "bad.avi").exists()
+    for fps in ("0", "0.001", "1e9"):       # trial 47: 1e9 written as 600 frames/s, 0.001 an FFmpeg error
+        code, _, err = run(capsys, "simulate", *args, "-o", str(tmp_path / "bad.avi"), "--fps", fps)
+        assert code == 2 and "--fps must be 0.1..1000 frames/s" in err and not (tmp_path / "bad.avi").exists()
+        assert len(err.strip().splitlines()) == 1, err
 
 
 def test_supersample_limit_follows_the_memory_available(capsys, tmp_path, small_rig_file, monkeypatch):

@@ -18,6 +18,7 @@ def test_read_matches(tmp_path):
     ("a,b,c,d\n1,2,3,4\n", r"missing column\(s\) u_l, v_l, u_r, v_r"),
     ("", "empty file"),
     ("u_l,v_l,u_r,v_r\n1,2,x,4\n", r":2: not a number: 'x'"),
+    ("u_l,v_l,u_r,v_r\n1,2,4_00,4\n", r":2: not a number: '4_00'"),     # trial 47: read as 400
     ("u_l,v_l,u_r,v_r\n1,2,3\n", r":2: expected 4 columns as the header names, got 3$"),
     ("u_l,v_l,u_r,v_r\n1,2,3,4\n1,2,3,4,\n",
      r":3: expected 4 columns as the header names, got 5 \(a trailing comma\?\)"),

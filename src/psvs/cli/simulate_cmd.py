@@ -14,6 +14,10 @@ from psvs.simulate.render import check_render_work, check_supersample, render
 from psvs.simulate.sensor import MAX_BLUR_PX, Sensor
 from psvs.simulate.sequence import render_sequence, straight_path
 
+#: The frame rates a video output is written at (trial 47: OpenCV's writer stored 1e9 as 600 while the line
+#: said 1e+09, and 0.001 failed in FFmpeg with its own line on the terminal).
+MIN_FPS, MAX_FPS = 0.1, 1000.0
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser("simulate", help="render a PSVS complex image of a scene",
@@ -70,8 +74,9 @@ def run(args) -> int:
         raise ValueError("give a SCENE and -o OUT.png (or --list)")
     out = check_output_path(args.output, (".png", *VIDEO_SUFFIXES))
     video = out.suffix.lower() in VIDEO_SUFFIXES
-    if video and not args.fps > 0:
-        raise ValueError(f"--fps must be > 0, got {args.fps}")
+    if video and not MIN_FPS <= args.fps <= MAX_FPS:
+        raise ValueError(f"--fps must be {MIN_FPS:g}..{MAX_FPS:g} frames/s (what an FFV1 AVI holds), "
+                         f"got {args.fps:g}")
     truth_path = check_output_path(args.truth, (".npz",))
     check_distinct({"-o": args.output, "--truth": args.truth}, {"SCENE": args.scene, "--rig": args.rig})
     if args.frames < 1:

@@ -63,15 +63,18 @@ def read_csv_columns(path, columns: tuple[str, ...]) -> np.ndarray:
             raise ValueError(f"{path}:{lineno}: expected {len(header)} columns as the header names, got {len(row)}"
                              + (" (a trailing comma?)" if len(row) == len(header) + 1 and not row[-1].strip()
                                 else ""))
-        try:
-            rows.append([float(row[i]) if row[i].strip() else np.nan for i in idx])
-        except ValueError:
-            bad = next(row[i] for i in idx if not _is_float(row[i]))
-            raise ValueError(f"{path}:{lineno}: not a number: {bad!r}") from None
+        bad = next((row[i] for i in idx if not _is_float(row[i])), None)
+        if bad is not None:
+            raise ValueError(f"{path}:{lineno}: not a number: {bad!r}")
+        rows.append([float(row[i]) if row[i].strip() else np.nan for i in idx])
     return np.array(rows, dtype=float).reshape(-1, len(columns))
 
 
 def _is_float(text: str) -> bool:
+    """A decimal number as a CSV holds one (or an empty cell); not Python's own literals beyond it: ``4_00``
+    (an adversarial trial: read as 400 where ``0x1p8`` was refused)."""
+    if "_" in text:
+        return False
     try:
         float(text)
         return True
