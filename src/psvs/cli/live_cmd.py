@@ -96,10 +96,18 @@ def _sensors(args):
                          f"{rig.camera.image_size_px[1]} camera (at least {MIN_STRIDE_POINTS} points along each "
                          f"side of the map), got {args.dense_stride}")
     tracker = None if seed is None else EdgeTracker(rig, seed, pipeline=pipeline, near_mm=near_mm, far_mm=far_mm,
-                                                    match=MatchParams(model=args.model))
+                                                    match=MatchParams(model=args.model),
+                                                    frame_check=frame_checker(rig, near_mm, far_mm))
     dense = DenseSensor(rig, near_mm, far_mm, params=FAST if args.fast else DEFAULT,
                                    stride=args.dense_stride) if args.dense else None
     return tracker, dense, rolling_check(args, rig, near_mm, far_mm)
+
+
+def frame_checker(rig, near_mm: float, far_mm: float):
+    """One frame's self-check over near..far mm (:func:`psvs.health.check.check_frames`), for the tracker's
+    first frame (:class:`psvs.live.tracker.EdgeTracker`'s ``frame_check``)."""
+    from psvs.health.check import check_frames
+    return lambda grey: check_frames([grey], rig, near_mm, far_mm)
 
 
 def rolling_check(args, rig, near_mm: float, far_mm: float):

@@ -16,7 +16,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from psvs._validate import check_count, check_grey, check_positive
-from psvs.health.check import check_frames
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.auto import image_chance, twin_lags
 from psvs.match.chance import agreeing_rows, seed_pair_stands
@@ -125,10 +124,16 @@ class EdgeTracker:
     match : MatchParams
         Sub-pixel refinement and the triangulation model of each frame's pair.
     params : TrackerParams
+    frame_check : callable, optional
+        ``frame_check(grey)``: the frame's self-check (a :class:`psvs.health.check.HealthCheck`, e.g. of
+        :func:`psvs.health.check.check_frames` over near..far), asked of a first frame none of whose pairs
+        decisively fits the rig's rows (:meth:`_rows_unshown`); ``psvs live`` and the page pass it. Without it
+        such a frame is taken on its pairs alone.
     """
 
     def __init__(self, rig: Rig, seed_px, *, pipeline: Pipeline = PAPER, near_mm: float = 400.0,
-                 far_mm: float = 1200.0, match: MatchParams = MatchParams(), params: TrackerParams = TrackerParams()):
+                 far_mm: float = 1200.0, match: MatchParams = MatchParams(), params: TrackerParams = TrackerParams(),
+                 frame_check=None):
         try:
             seed = np.array([float(c) for c in seed_px])
         except (TypeError, ValueError):
@@ -142,7 +147,7 @@ class EdgeTracker:
         self.params = params.scaled(pixel_scale(rig.camera))   # the paper camera's px to this camera's
         self.rect = rectification_for(rig, near_mm, far_mm)       # a build: twins on rectified rows
         self.range_px = twin_lags(disparity_range(rig, near_mm, far_mm, self.rect))
-        self.near_mm, self.far_mm = near_mm, far_mm
+        self.frame_check = frame_check
         self._seed = seed
         self._velocity = np.zeros(2)
         self._disparity = None          # last median disparity (px); None before the first match
@@ -167,7 +172,9 @@ class EdgeTracker:
         why it shows they do not (drifted); "" when its self-check says healthy. As ``match --seed`` refuses
         such a frame (an adversarial trial: a card of the mv1440_misaligned build tracked through the mv1440
         design file at 767 mm for 650, exit 0, where match refused)."""
-        check = check_frames([grey], self.rig, self.near_mm, self.far_mm)
+        if self.frame_check is None:
+            return ""
+        check = self.frame_check(grey)
         if check.verdict == "drifted":
             return f"the rig does not fit this image: {check.reason} (psvs check; psvs refit or calibrate again)"
         return unshown_rows_reason(1, check)
