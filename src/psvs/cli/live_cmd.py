@@ -77,6 +77,7 @@ MIN_STRIDE_POINTS = 8
 def _sensors(args):
     """The edge tracker and the dense sensor the arguments ask for (None each when not asked), checked
     before any frame is read."""
+    from psvs.health.check import frame_checker
     if args.max_frames is not None and args.max_frames < 1:
         raise ValueError(f"--max-frames must be >= 1, got {args.max_frames}")
     if args.seed is None and not args.dense:
@@ -101,13 +102,6 @@ def _sensors(args):
     dense = DenseSensor(rig, near_mm, far_mm, params=FAST if args.fast else DEFAULT,
                                    stride=args.dense_stride) if args.dense else None
     return tracker, dense, rolling_check(args, rig, near_mm, far_mm)
-
-
-def frame_checker(rig, near_mm: float, far_mm: float):
-    """One frame's self-check over near..far mm (:func:`psvs.health.check.check_frames`), for the tracker's
-    first frame (:class:`psvs.live.tracker.EdgeTracker`'s ``frame_check``)."""
-    from psvs.health.check import check_frames
-    return lambda grey: check_frames([grey], rig, near_mm, far_mm)
 
 
 def rolling_check(args, rig, near_mm: float, far_mm: float):

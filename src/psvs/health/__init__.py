@@ -15,6 +15,7 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     submodules=[],
     submod_attrs={
         "check": ["HealthCheck", "OVERLAP", "QUICK_TILES", "SPARE_TILES", "TOLERANCE_PX", "WEAK_SHARE", "check_frames",
+                  "frame_checker",
                   "checked_tolerance", "covered_regions", "evidence_factors", "independent_tiles", "judge",
                   "judged_pairs_px", "refuse_if_drifted", "whole_check_due"],
         "explain": ["Explanation", "explain_drift", "explain_offsets", "explanation_line", "tilted"],

@@ -132,6 +132,13 @@ def checked_tolerance(tolerance_px: float, rig: Rig) -> float:
     return float(tolerance_px)
 
 
+def frame_checker(rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0):
+    """One frame's check over near..far mm (:func:`check_frames` of that frame alone), as a function of the
+    frame (H, W): the ``frame_check`` a live tracker asks of a first frame whose pairs cannot show the rig's
+    rows (:class:`psvs.live.tracker.EdgeTracker`; ``psvs live`` and the page give it)."""
+    return lambda grey: check_frames([grey], rig, near_mm, far_mm)
+
+
 def check_frames(frames, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0,
                  tolerance_px: float = TOLERANCE_PX) -> HealthCheck:
     """Judge a calibration (``rig``) on ordinary frames (a list of (H, W) grey images of any textured scene

@@ -27,6 +27,7 @@ from psvs.optics.rig import Rig
 from psvs.simulate.textures import AsymmetricCircleGrid, CharucoBoard
 from psvs.targets.discs import find_discs
 from psvs.targets.lattice import label_lattice, place_on_target
+from psvs.targets.pattern import MIN_CONTRAST
 from psvs.targets.target_points import Target, TargetDetection
 from psvs.targets.twins import REACH_OVER_STEP, pair_twins
 
@@ -242,7 +243,7 @@ def _advice_none(grey: np.ndarray, far_px: float) -> str:
     lo, hi = float(grey.min()), float(grey.max())
     if hi == lo:
         return "the image is blank (no contrast)"
-    if hi - lo < 20:
+    if hi - lo < MIN_CONTRAST:
         return f"the image's contrast is too low: grey levels {lo:g}..{hi:g} of 255 (light the card, expose longer)"
     return ("no target in view: hold the whole card in both views, within the working range "
             f"(its discs at least {MIN_DISC_PX:g} px across; {far_px:.1f} px at the farthest)")

@@ -6,7 +6,7 @@ import numpy as np
 from fastapi import APIRouter
 from fastapi.responses import JSONResponse
 
-from psvs.health.check import check_frames
+from psvs.health.check import frame_checker
 from psvs.health.rolling import RollingCheck
 from psvs.live.dense import DenseSensor
 from psvs.live.tracker import EdgeTracker, TrackerParams
@@ -36,7 +36,7 @@ def live_start(body: LiveBody, session: SessionDep):
     tracker = None if body.seed is None else EdgeTracker(
         rig, body.seed, pipeline=body.pipeline(), near_mm=body.near_mm, far_mm=body.far_mm,
         match=MatchParams(model=body.model), params=TrackerParams(snap_px=SNAP_PX),
-        frame_check=lambda grey: check_frames([grey], rig, body.near_mm, body.far_mm))
+        frame_check=frame_checker(rig, body.near_mm, body.far_mm))
     dense = DenseSensor(rig, body.near_mm, body.far_mm) if body.dense else None
     health = RollingCheck(rig, body.near_mm, body.far_mm, body.tolerance_px) if body.check else None
     session.start_live(tracker, dense, health)
