@@ -3,9 +3,9 @@ one line and status 130 (the commands themselves handle it in :func:`psvs.cli.ma
 import sys
 
 try:
-    from psvs.cli.main import main
+    from psvs.cli.main import entry
 except KeyboardInterrupt:
     print("\npsvs: interrupted", file=sys.stderr)
     raise SystemExit(130) from None
 
-raise SystemExit(main())
+entry()
