@@ -77,10 +77,14 @@ class DenseParams:
 #: average over the 1440 façades and a 2.3 MP build against 4.60 % pruned).
 DEFAULT = DenseParams(top=DenseParams(prune=False))
 #: The fast mode: half resolution, plain 9 x 9 windows, no guided filter, 4 paths, one pass, no median.
-#: With a pyramid (a large image or range) its coarse level runs the default mode, pruned (it is small), and the
-#: finer levels down to half resolution search their bands on 4 paths, with a 5 x 5 median at the end.
+#: With a pyramid (a large image or range) its coarse level runs the default mode on 4 paths, pruned (it is
+#: small), and the finer levels down to half resolution search their bands on 4 paths, with a 5 x 5 median at the
+#: end. (The coarse level on 8 paths was 4 % slower and no better: on four drawn builds of 0.4-2.1 MP
+#: (tests/support/rig_draws.py, seeds 1, 3, 6, 7) the wrong share within 0.5 points either way on cards and walls
+#: but one 1.5 better with 4 paths, and 0.3-1.7 better on slanted planes with 4. Without its second pass: 15 %
+#: faster, but 10-15 points worse on slanted planes.)
 FAST = DenseParams(sigma_px=0.5, window=9, shift_window=1, guided_radius=0, n_paths=4, scale=2, second_pass=False,
-                   median_px=1, prune=False, refine_median_px=5, finest_local_px=0, top=DenseParams())
+                   median_px=1, prune=False, refine_median_px=5, finest_local_px=0, top=DenseParams(n_paths=4))
 #: The coarse pass that prunes the default mode's search: the fast mode. (At quarter resolution it would
 #: take 12 ms instead of 55 at 160 disparities, but it misses a 64 x 64 px object whose disparity stands
 #: apart: tests/dense/test_disparity.py.)
