@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from psvs._validate import check_count, check_grey, check_positive
+from psvs.imaging.edge_noise import EdgeStability, edge_stability
 from psvs.imaging.pipeline import PAPER, Pipeline
 from psvs.match.auto import image_chance, twin_lags
 from psvs.match.chance import agreeing_rows, seed_pair_stands
@@ -27,6 +28,12 @@ from psvs.optics.illumination import flat_field
 from psvs.optics.rig import Rig
 from psvs.optics.scale import pixel_scale
 from psvs.optics.search_range import disparity_range, rectification_for
+
+#: A tracked edge's pixel count may grow this many times from one frame to the next before its edges are asked
+#: whether they are the scene's or the sensor's noise (:meth:`EdgeTracker._speckled`); the first frame's always are.
+SPECKLE_GROWTH = 1.5
+#: Rows either side of the tracked pair's rows read for that test.
+SPECKLE_MARGIN_PX = 8
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,6 +159,7 @@ class EdgeTracker:
         self._velocity = np.zeros(2)
         self._disparity = None          # last median disparity (px); None before the first match
         self._lost = 0                  # frames since the edge was last tracked
+        self._pixels = 0                # the last tracked pair's pixel count
         self._frame = 0
 
     def _frame_chance(self, edges: np.ndarray, grey: np.ndarray):
@@ -165,6 +173,22 @@ class EdgeTracker:
         px = edge_pixels(edges, self.rect)
         return image_chance(edges, self.range_px, params=self.match.auto, grey=grey, rect=self.rect, px=px,
                             elsewhere=True), px
+
+    def _speckled(self, grey: np.ndarray, pair: EdgePair, first: bool) -> EdgeStability | None:
+        """On the first frame, and when the edge's pixels grew :data:`SPECKLE_GROWTH` times or more since the
+        last tracked frame, whether the pipeline's edges on the pair's rows (:data:`SPECKLE_MARGIN_PX` either
+        side, the whole width) are mostly the sensor's noise (:func:`psvs.imaging.edge_noise.edge_stability`,
+        as ``match`` asks of the whole frame): the stability, or None when they are the scene's or were not
+        asked. An object whose grey sits at the pipeline's threshold turns its area to speckle, which pairs at
+        many lags (an adversarial trial: a disc at grey 92 under the paper's threshold of 92 tracked at 743.7 mm
+        for 740 on 640 pairs, three times the frames before, exit 0; ``match`` refused the frame as noise)."""
+        if not first and len(pair.disparity_px) < SPECKLE_GROWTH * self._pixels:
+            return None
+        rows = np.concatenate([pair.left_px[:, 1], pair.right_px[:, 1]])
+        r0 = max(int(np.floor(rows.min())) - SPECKLE_MARGIN_PX, 0)
+        r1 = min(int(np.ceil(rows.max())) + SPECKLE_MARGIN_PX + 1, grey.shape[0])
+        stability = edge_stability(grey[r0:r1], self.pipeline)
+        return stability if stability.noise else None
 
     def _rows_unshown(self, grey: np.ndarray) -> str:
         """Why the first frame (H, W) cannot show that the rig's rows hold when no pair of it decisively fits
@@ -206,9 +230,15 @@ class EdgeTracker:
             if not chance.answered:
                 msg = f"no twin beyond chance in the frame: {chance.describe()}"
                 break
+            speckle = self._speckled(grey, pair, first)
+            if speckle is not None:
+                msg = (f"the seed's edge is not the scene's: {speckle.describe()}" if first else
+                       f"edge lost (its edge map turned to the sensor's noise): {speckle.describe()}")
+                continue
             if not first and chance.elsewhere is not None and chance.elsewhere.beats_pixels(
                     pair.left_px, pair.right_px, agreeing_rows(pair, self.match.auto.tol_px), chance.level_rows):
-                msg = "edge lost (its pixels twin more strongly below the range: beyond the far limit?)"
+                msg = ("edge lost (its pixels twin more strongly below the range: a scene beyond the far limit, or an "
+                       "edge of speckle, which twins at any lag, as an object whose grey is at the threshold gives)")
                 continue
             if first:                   # the edge taken as match --seed takes it (the automatic matcher run once)
                 automatic = automatic or automatic_match(edges, self.range_px, params=self.match, grey=grey,
@@ -245,6 +275,7 @@ class EdgeTracker:
             self._velocity = np.zeros(2) if first else new_seed - self._seed
             self._seed = new_seed
             self._disparity = float(np.median(pair.disparity_px))
+            self._pixels = len(pair.disparity_px)
             self._lost = 0
             return TrackStep(frame, (int(new_seed[0]), int(new_seed[1])), pair, self._disparity,
                              float(np.nanmedian(z)), time.perf_counter() - t0, "tracked")

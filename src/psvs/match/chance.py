@@ -227,7 +227,8 @@ class Chance:
             return ""
         rows, lag = self.elsewhere.strongest()
         return (f"; edges twin beyond chance below the range too, the strongest on {rows:.0f} rows at {lag:.0f} px "
-                "(a scene beyond the far limit: those edges are not paired in the range; widen it to measure them)")
+                "(a scene beyond the far limit: those edges are not paired in the range, widen it to measure them; or "
+                "an edge map of speckle, which twins at any lag: an object whose grey is at the pipeline's threshold)")
 
 
 def null_bands(d_min: float, d_max: float, width_px: int) -> list[tuple[float, float]]:
