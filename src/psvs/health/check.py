@@ -93,6 +93,12 @@ class HealthCheck:
     disparity_px: np.ndarray = field(repr=False)
     expected_px: np.ndarray | None = field(default=None, repr=False)
 
+    @property
+    def misfit_words(self) -> str:
+        """A ``drifted`` check as the reason an answer through its rig is refused, in one place for every
+        command and the live tracker."""
+        return f"the rig does not fit this image: {self.reason} (psvs check; psvs refit or calibrate again)"
+
     def as_dict(self) -> dict:
         """The check as JSON-ready values (NaN as None)."""
         num = lambda x: None if not np.isfinite(x) else round(float(x), 4)  # noqa: E731
@@ -200,8 +206,7 @@ def refuse_if_drifted(grey, rig: Rig, near_mm: float = 400.0, far_mm: float = 12
             return look
     check = check_frames([grey], rig, near_mm, far_mm)
     if check.verdict == "drifted":
-        raise MeasurementError(f"the rig does not fit this image: {check.reason} (psvs check; psvs refit or "
-                               f"calibrate again)") from cause
+        raise MeasurementError(check.misfit_words) from cause
     if suspected_offset(check):
         raise MeasurementError(f"whether the rig fits this image cannot be told: {check.reason}; yet the twins do "
                                f"stand off their rows ({check.row_offset_rms_px:.2f} px, more than "

@@ -200,7 +200,7 @@ class EdgeTracker:
             return ""
         check = self.frame_check(grey)
         if check.verdict == "drifted":
-            return f"the rig does not fit this image: {check.reason} (psvs check; psvs refit or calibrate again)"
+            return check.misfit_words
         return unshown_rows_reason(1, check)
 
     def step(self, grey: np.ndarray) -> TrackStep:
