@@ -207,14 +207,14 @@ def end_process(code: int) -> NoReturn:
     try:
         sys.stdout.flush()
         sys.stderr.flush()
-    except (OSError, ValueError):       # a reader that went away: the usual ending says nothing more
+    except (OSError, ValueError, AttributeError):   # a reader gone, a stream closed or none: the usual ending
         raise SystemExit(code) from None
     others = [t for t in threading.enumerate() if t is not threading.main_thread() and not t.daemon]
     run_exit_handlers = getattr(atexit, "_run_exitfuncs", None)      # CPython's, as its own ending runs them
     if others or run_exit_handlers is None:
         raise SystemExit(code)
     run_exit_handlers()
-    with contextlib.suppress(OSError, ValueError):
+    with contextlib.suppress(OSError, ValueError, AttributeError):
         sys.stdout.flush()
         sys.stderr.flush()
     os._exit(code)
