@@ -2,6 +2,7 @@
 back from the cache folder by value (the same arrays as computed, without computing them), never for
 another rig's values, recomputed over a damaged file, and no cache at all (but the same answers) where the
 folder cannot be written. Each test has its own folder (the session's is tests/conftest.py's)."""
+import os
 import threading
 
 import numpy as np
@@ -122,7 +123,7 @@ def test_the_key_is_the_values_and_the_range():
     assert rig_key(rig, 400.0, 1199.0) != key and rig_key(rig, 401.0, 1200.0) != key
 
 
-@pytest.mark.parametrize("damage", ["truncated", "flipped", "garbage", "empty", "other key"])
+@pytest.mark.parametrize("damage", ["truncated", "flipped", "header length", "garbage", "empty", "other key", "pipe"])
 @pytest.mark.parametrize("kind", ["rect", "depth"])
 def test_a_damaged_file_is_recomputed_and_rewritten(folder, work, damage, kind):
     rig = load_rig("misaligned")
@@ -134,6 +135,14 @@ def test_a_damaged_file_is_recomputed_and_rewritten(folder, work, damage, kind):
     elif damage == "flipped":                      # one bit in the middle of an array's bytes
         k = len(data) // 2
         path.write_bytes(data[:k] + bytes([data[k] ^ 0x10]) + data[k + 1:])
+    elif damage == "header length":                # one bit of an array's .npy header length (trial 48: the
+        at = [k for k in range(len(data)) if data.startswith(b"\x93NUMPY\x01\x00", k)]     # array read a few
+        k = at[len(at) // 2] + 8                   # bytes early, its member not read to its end, unchecked
+        assert data[k] & 0x04
+        path.write_bytes(data[:k] + bytes([data[k] ^ 0x04]) + data[k + 1:])
+    elif damage == "pipe":                         # a read would wait for a writer
+        path.unlink()
+        os.mkfifo(path)
     elif damage == "garbage":
         path.write_bytes(b"PK\x03\x04 not a cache file")
     elif damage == "empty":
