@@ -94,6 +94,28 @@ def test_live_records_every_frames_depth(video, tmp_path, capsys):
     assert not list(tmp_path.glob(".*.tmp"))
 
 
+def test_disparity_interrupted_while_recording_keeps_the_earlier_results(video, tmp_path, capsys, monkeypatch):
+    """Ctrl-C while the recording is written: the earlier complete recording and maps stay as they were, no
+    temporary file is left (trial 48: the .rrd had been replaced by the rig and the image alone, the maps
+    written)."""
+    image = tmp_path / "frame.png"
+    cv2.imwrite(str(image), _decoded(video)[0])
+    d, rrd = tmp_path / "d.npy", tmp_path / "d.rrd"
+    argv = ["disparity", str(image), "--rig", "default", "--fast", "-o", str(d), "--rerun", str(rrd)]
+    assert main(argv) == 0
+    capsys.readouterr()
+    before = {p.name: p.read_bytes() for p in (d, rrd)}
+    from psvs.io.rerun_sink import RerunSink
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(RerunSink, "disparity", interrupted)
+    assert main([*argv[:2], "--rig", "default", "-o", str(d), "--rerun", str(rrd)]) == 130   # default mode
+    assert "interrupted" in capsys.readouterr().err
+    assert {p.name: p.read_bytes() for p in (d, rrd)} == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["d.npy", "d.rrd", "frame.png"]
+
+
 def test_disparity_records_its_maps_views_and_cloud(video, tmp_path, capsys):
     """One complex image: its maps equal the .npy files written beside, the depth the --depth map at the trusted
     pixels (NaN elsewhere: the recorded cloud's, as --cloud's), the views the complex image's size on the ideal

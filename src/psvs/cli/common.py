@@ -129,15 +129,16 @@ def check_rerun_arguments(args) -> None:
 
 
 @contextmanager
-def open_rerun(args, robot: bool = False):
+def open_rerun(args, robot: bool = False, keep_on_interrupt: bool = True):
     """The :class:`psvs.io.rerun_sink.RerunSink` --rerun / --rerun-serve ask for (None when neither), closed
-    on exit: the file is moved into place unless the command failed."""
+    on exit: the file is moved into place unless the command failed (or was interrupted, unless
+    ``keep_on_interrupt``: a live run, which Ctrl-C ends)."""
     rrd, port = check_output_path(args.rerun, (".rrd",)), getattr(args, "rerun_serve", None)
     if rrd is None and port is None:
         yield None
         return
     from psvs.io.rerun_sink import RerunSink
-    sink = RerunSink(rrd, port, robot)
+    sink = RerunSink(rrd, port, robot, keep_on_interrupt)
     if sink.url is not None:
         print(f"Rerun: {sink.url}", flush=True)
     with sink:

@@ -165,7 +165,7 @@ def _rerun(args, out: dict, dense: RigDense, cloud, image, rig) -> None:
     from psvs.cli.common import open_rerun
     res = dense.result
     split = args.split if args.split is not None else (rig.mirrors.split_ratio if rig else 0.5)
-    with open_rerun(args) as sink:
+    with open_rerun(args, keep_on_interrupt=False) as sink:     # one map: a recording cut short is no result
         if rig is not None:
             sink.rig(rig, args.near_mm, args.far_mm)
         sink.image(0.0, image)
@@ -297,10 +297,11 @@ def summary_row(dense: RigDense, trust: EchoTrust) -> dict:
 
 
 def run(args) -> int:
-    out, dense, trust, (cloud, points) = compute(args, say_compiling="psvs disparity")
-    if out["rerun"]:
-        rig = measuring_rig(args.rig) if args.rig else None
-        _rerun(args, out, dense, cloud, read_grey(args.image), rig)
+    with output_batch():    # the maps land with the recording or not at all (Ctrl-C while it is written)
+        out, dense, trust, (cloud, points) = compute(args, say_compiling="psvs disparity")
+        if out["rerun"]:
+            rig = measuring_rig(args.rig) if args.rig else None
+            _rerun(args, out, dense, cloud, read_grey(args.image), rig)
     print(f"{out['disparity']}: {_summary(dense, trust)}"
           + (f"; {points} {'points in the cloud (the trusted pixels)' if out['cloud'] else 'depths'}"
              if points is not None else ""))

@@ -66,10 +66,14 @@ class RerunSink:
     """The channels of :class:`psvs.io.telemetry.Telemetry` (the same methods) recorded to ``path`` (.rrd)
     and/or served to Rerun's web viewer, the one the rerun-sdk wheel ships (``serve_port``: its page on
     http://127.0.0.1:PORT, the data on gRPC at PORT + 1, both on the loopback); ``robot``: the entity tree of a
-    robot run (module docstring). OSError naming the port when it cannot be bound."""
+    robot run (module docstring). OSError naming the port when it cannot be bound. Used as a context, the file
+    is moved into place when the block ends, or is ended by Ctrl-C if ``keep_on_interrupt`` (a live run, which
+    Ctrl-C stops); a one-shot command's recording cut short is discarded, the earlier file kept."""
 
-    def __init__(self, path=None, serve_port: int | None = None, robot: bool = False):
+    def __init__(self, path=None, serve_port: int | None = None, robot: bool = False,
+                 keep_on_interrupt: bool = True):
         rr = self._rr = import_rerun()
+        self.keep_on_interrupt = keep_on_interrupt
         self.path = Path(path) if path is not None else None
         self.paths = ROBOT_PATHS if robot else SENSOR_PATHS
         self.camera = self.paths[CAMERA_FRAME]
@@ -221,7 +225,7 @@ class RerunSink:
         return self
 
     def __exit__(self, exc_type, *exc):
-        self.close(keep=exc_type is None or exc_type is KeyboardInterrupt)
+        self.close(keep=exc_type is None or (exc_type is KeyboardInterrupt and self.keep_on_interrupt))
 
 
 def _check_free(port: int) -> None:
