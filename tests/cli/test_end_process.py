@@ -71,10 +71,11 @@ def _psvs(argv, tmp_path, unbuffered: bool, **kw) -> subprocess.Popen:
                             text=True, **kw)
 
 
+@pytest.mark.parametrize("argv", [["rig", "show", "default"], ["rig", "--help"]])    # --help: argparse's own exit
 @pytest.mark.parametrize("unbuffered", [False, True])
-def test_output_to_a_full_disk_is_one_line_and_status_2(tmp_path, unbuffered):
+def test_output_to_a_full_disk_is_one_line_and_status_2(tmp_path, unbuffered, argv):
     with open("/dev/full", "w") as full:
-        proc = _psvs(["rig", "show", "default"], tmp_path, unbuffered, stdout=full)
+        proc = _psvs(argv, tmp_path, unbuffered, stdout=full)
         _, err = proc.communicate(timeout=120)
     assert proc.returncode == 2
     assert len(err.strip().splitlines()) == 1 and err.startswith("psvs rig: error: ") and "No space left" in err, err

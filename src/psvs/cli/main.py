@@ -198,7 +198,13 @@ def entry() -> NoReturn:
     (:func:`_whole_writes`), then :func:`end_process`."""
     _whole_writes()
     argv = sys.argv[1:]
-    end_process(main(argv), f"psvs {argv[0]}" if argv and argv[0] in COMMANDS else "psvs")
+    try:
+        code = main(argv)
+    except SystemExit as exc:        # argparse's --help (0) and usage errors (2), its words already printed
+        code = exc.code if isinstance(exc.code, int) else 0 if exc.code is None else 1
+        if not isinstance(exc.code, int | None):
+            print(exc.code, file=sys.stderr)
+    end_process(code, f"psvs {argv[0]}" if argv and argv[0] in COMMANDS else "psvs")
 
 
 def _whole_writes() -> None:
