@@ -107,3 +107,12 @@ def test_a_large_result_cut_short_by_the_disk_is_an_error(tmp_path, unbuffered):
         _, err = proc.communicate(timeout=300)
     assert proc.returncode == 2, err
     assert len(err.strip().splitlines()) == 1 and err.startswith("psvs triangulate: error: ") and "too large" in err
+
+
+@pytest.mark.parametrize("unbuffered", [False, True])
+def test_a_full_disk_without_a_stderr_is_still_status_2(tmp_path, unbuffered):
+    """No stderr to say it on (closed): the status says it (trial 48's review: exit 0, and 120 unbuffered)."""
+    with open("/dev/full", "w") as full:
+        proc = _psvs(["rig", "show", "default"], tmp_path, unbuffered, stdout=full, preexec_fn=lambda: os.close(2))
+        proc.communicate(timeout=120)
+    assert proc.returncode == 2

@@ -204,7 +204,10 @@ def entry() -> NoReturn:
         code = exc.code if isinstance(exc.code, int) else 0 if exc.code is None else 1
         if not isinstance(exc.code, int | None):
             print(exc.code, file=sys.stderr)
-    end_process(code, f"psvs {argv[0]}" if argv and argv[0] in COMMANDS else "psvs")
+    try:
+        end_process(code, f"psvs {argv[0]}" if argv and argv[0] in COMMANDS else "psvs")
+    except KeyboardInterrupt:        # Ctrl-C while the output is flushed: the shell's status, no traceback
+        os._exit(130)
 
 
 def _whole_writes() -> None:
@@ -212,6 +215,8 @@ def _whole_writes() -> None:
     their file, and Python's text layer ignores a short write's count: a result on stdout to a full disk or a
     closed pipe was cut short at exit 0 (an adversarial trial: 2 MB of an 18.7 MB ``psvs triangulate``). Each
     such stream is given a buffer that writes whole and says when it cannot, flushed at every line as before."""
+    if sys.stderr is None:           # closed: psvs's one lines go nowhere, never onto stdout (print's default)
+        sys.stderr = open(os.devnull, "w")  # noqa: SIM115 - the process's own stream, open until it ends
     for name in ("stdout", "stderr"):
         stream = getattr(sys, name)
         raw = getattr(stream, "buffer", None)
@@ -256,11 +261,12 @@ def _flushed(code: int, name: str) -> int:
         if isinstance(exc, BrokenPipeError):
             return code or 141
         if code == 0:                               # (a command that failed has said why)
-            with contextlib.suppress(OSError):
-                print(f"{name}: error: the output could not be written: {exc.strerror or exc}", file=sys.stderr)
+            if sys.stderr is not None:
+                with contextlib.suppress(OSError, ValueError):
+                    print(f"{name}: error: the output could not be written: {exc.strerror or exc}", file=sys.stderr)
             code = 2
-    with contextlib.suppress(OSError):              # an error line that cannot be written: nothing to say it on
-        sys.stderr.flush()
+    with contextlib.suppress(OSError, ValueError, AttributeError):   # an error line that cannot be written,
+        sys.stderr.flush()                                           # or no stderr: nothing to say it on
     return code
 
 

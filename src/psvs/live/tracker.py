@@ -32,8 +32,9 @@ from psvs.optics.search_range import disparity_range, rectification_for
 #: A tracked edge's pixel count may grow this many times from one frame to the next before its edges are asked
 #: whether they are the scene's or the sensor's noise (:meth:`EdgeTracker._speckled`); the first frame's always are.
 SPECKLE_GROWTH = 1.5
-#: Rows either side of the tracked pair's rows read for that test.
+#: Rows either side of the tracked pair's rows read for that test, and the fewest rows it reads.
 SPECKLE_MARGIN_PX = 8
+SPECKLE_MIN_ROWS = 2 * SPECKLE_MARGIN_PX + 1
 
 
 @dataclass(frozen=True, eq=False)
@@ -176,17 +177,29 @@ class EdgeTracker:
 
     def _speckled(self, grey: np.ndarray, pair: EdgePair, first: bool) -> EdgeStability | None:
         """On the first frame, and when the edge's pixels grew :data:`SPECKLE_GROWTH` times or more since the
-        last tracked frame, whether the pipeline's edges on the pair's rows (:data:`SPECKLE_MARGIN_PX` either
-        side, the whole width) are mostly the sensor's noise (:func:`psvs.imaging.edge_noise.edge_stability`,
-        as ``match`` asks of the whole frame): the stability, or None when they are the scene's or were not
-        asked. An object whose grey sits at the pipeline's threshold turns its area to speckle, which pairs at
-        many lags (an adversarial trial: a disc at grey 92 under the paper's threshold of 92 tracked at 743.7 mm
-        for 740 on 640 pairs, three times the frames before, exit 0; ``match`` refused the frame as noise)."""
+        last tracked frame (both counted as the seeded match gives them), whether the pipeline's edges on the
+        pair's rows of the complex image (:data:`SPECKLE_MARGIN_PX` either side, at least
+        :data:`SPECKLE_MIN_ROWS`, the whole width) are mostly the sensor's noise
+        (:func:`psvs.imaging.edge_noise.edge_stability`, as ``match`` asks of the whole frame): the stability,
+        or None when they are the scene's or were not asked. An object whose grey sits at the pipeline's
+        threshold turns its area to speckle, which pairs at many lags (an adversarial trial: a disc at grey 92
+        under the paper's threshold of 92 tracked at 743.7 mm for 740 on 640 pairs, three times the frames
+        before, exit 0; ``match`` refused the frame as noise)."""
         if not first and len(pair.disparity_px) < SPECKLE_GROWTH * self._pixels:
             return None
-        rows = np.concatenate([pair.left_px[:, 1], pair.right_px[:, 1]])
+        left, right = pair.left_px, pair.right_px
+        if self.rect is not None:            # a build's pairs are on its rectified grids: their image rows
+            left, right = self.rect.to_complex(left, "left"), self.rect.to_complex(right, "right")
+        rows = np.concatenate([left[:, 1], right[:, 1]])
+        rows = rows[np.isfinite(rows)]
+        h = grey.shape[0]
+        if not rows.size or h < SPECKLE_MIN_ROWS:
+            return None
         r0 = max(int(np.floor(rows.min())) - SPECKLE_MARGIN_PX, 0)
-        r1 = min(int(np.ceil(rows.max())) + SPECKLE_MARGIN_PX + 1, grey.shape[0])
+        r1 = min(int(np.ceil(rows.max())) + SPECKLE_MARGIN_PX + 1, h)
+        if r1 - r0 < SPECKLE_MIN_ROWS:       # a short edge at the image's border: the rows about it
+            r0 = min(max((r0 + r1 - SPECKLE_MIN_ROWS) // 2, 0), h - SPECKLE_MIN_ROWS)
+            r1 = r0 + SPECKLE_MIN_ROWS
         stability = edge_stability(grey[r0:r1], self.pipeline)
         return stability if stability.noise else None
 
@@ -261,6 +274,7 @@ class EdgeTracker:
             if not first and abs(d - self._disparity) > p.max_jump_px * (1 + self._lost):
                 msg = f"edge lost (disparity jumped {d - self._disparity:+.1f} px)"
                 continue
+            seen = len(pair.disparity_px)      # as the seeded match gives them (:meth:`_speckled`'s growth)
             finished = finish_pairs(grey, [pair], self.rig, subpixel=self.match.subpixel, model=self.match.model,
                                     rect=self.rect)
             if not finished:            # no row pins a disparity (the edge runs along the rows), or none is lit
@@ -270,12 +284,11 @@ class EdgeTracker:
             z = pair.points_mm[:, 2]
             if not np.any(np.isfinite(z)):
                 continue
-            new_seed = pair.left_px[np.argmin(np.hypot(*(pair.left_px - predicted).T))]
-            new_seed = np.rint(new_seed)
+            new_seed = np.rint(pair.left_px[np.argmin(np.hypot(*(pair.left_px - predicted).T))])
             self._velocity = np.zeros(2) if first else new_seed - self._seed
             self._seed = new_seed
             self._disparity = float(np.median(pair.disparity_px))
-            self._pixels = len(pair.disparity_px)
+            self._pixels = seen
             self._lost = 0
             return TrackStep(frame, (int(new_seed[0]), int(new_seed[1])), pair, self._disparity,
                              float(np.nanmedian(z)), time.perf_counter() - t0, "tracked")
