@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
+from psvs.calibrate.bundle import ASPECT_SCORE_LIMIT
 from psvs.calibrate.folder import calibrate_folder
 from psvs.calibrate.report import vertical_disagreement
 from psvs.calibrate.synthetic import random_poses, render_grid_shots
@@ -88,6 +89,16 @@ def test_the_lens_is_recovered(calibrated, card_dir):
                                   ("plate_thickness_mm", 3.0, 0.3)):
         assert s[name] < max_sigma, name
         assert abs(v[name] - want) < 4 * s[name] + 1e-9, (name, v[name], want, s[name])
+
+
+def test_square_pixels_stay_square(calibrated):
+    """The build's pixels are square, as the start rig says: the score test for freeing the pixel's aspect
+    stays under chi-square's 99.9 % point (tests/calibrate/test_aspect.py frees it on pixels 0.5-1 % off), so
+    the calibrated pitch is the start's to the bit and the aspect is not listed as held by a prior."""
+    b = calibrated.bundle
+    assert b.aspect_score is not None and 0 <= b.aspect_score <= ASPECT_SCORE_LIMIT
+    assert calibrated.rig.camera.pixel_pitch_mm == nominal().camera.pixel_pitch_mm
+    assert "pixel_aspect" not in b.held_by_prior and b.sigma["pixel_aspect"] == 0.0
 
 
 def test_skipped_images_say_why(calibrated):

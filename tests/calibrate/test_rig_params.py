@@ -14,8 +14,8 @@ from psvs.optics.rig import MirrorError
 
 
 def distinct_rig():
-    """The default rig with each of the 25 calibrated parameters set to a value no other one has."""
-    rig = default_rig().replace(focal_length_mm=11.41, principal_point_px=(321.7, 238.2),
+    """The default rig with each of the 26 calibrated parameters set to a value no other one has."""
+    rig = default_rig().replace(focal_length_mm=11.41, principal_point_px=(321.7, 238.2), pixel_pitch_mm=(0.01, 0.0101),
                                 distortion=(-0.21, 0.07, 1.2e-3, -8e-4, -0.015), plate_thickness_mm=2.9,
                                 baseline_mm=101.3, box_rotation_rad=(1.1e-3, -2.2e-3, 3.3e-3))
     return rig.with_errors({"m1": MirrorError((math.radians(0.11), math.radians(-0.12)), 0.31),
@@ -28,6 +28,7 @@ def fields(rig) -> dict:
     """Each calibrated parameter read from the rig's own fields, written out here by hand."""
     c, m = rig.camera, rig.mirrors
     out = {"focal_length_mm": c.focal_length_mm, "cx_px": c.principal_point_px[0], "cy_px": c.principal_point_px[1],
+           "pixel_aspect": c.pixel_pitch_mm[1] / c.pixel_pitch_mm[0],
            "k1": c.distortion[0], "k2": c.distortion[1], "p1": c.distortion[2], "p2": c.distortion[3],
            "k3": c.distortion[4], "plate_thickness_mm": m.plate_thickness_mm, "baseline_mm": m.baseline_mm,
            "box_x_rad": m.box_rotation_rad[0], "box_y_rad": m.box_rotation_rad[1], "box_z_rad": m.box_rotation_rad[2]}
@@ -50,9 +51,9 @@ def check_round_trip():
     back = rig_from_vector(vec, default_rig())
     assert fields(back) == want
     assert fields(rig_from_values(want, default_rig())) == want
-    # the fields calibration does not touch stay the start rig's
+    # the fields calibration does not touch stay the start rig's; the pixel's width too (f carries the scale)
     start = default_rig()
-    assert back.camera.pixel_pitch_mm == start.camera.pixel_pitch_mm
+    assert back.camera.pixel_pitch_mm[0] == start.camera.pixel_pitch_mm[0]
     assert back.camera.image_size_px == start.camera.image_size_px
     assert back.mirrors.angle_rad == start.mirrors.angle_rad
     assert back.mirrors.m1_axis_distance_mm == start.mirrors.m1_axis_distance_mm
@@ -75,8 +76,8 @@ def test_every_parameter_has_a_prior_and_a_step():
 
 
 def test_bad_vectors_name_the_problem():
-    with pytest.raises(ValueError, match=r"a rig vector holds 25 parameters, got shape \(24,\)"):
-        rig_from_vector(np.zeros(24), default_rig())
+    with pytest.raises(ValueError, match=r"a rig vector holds 26 parameters, got shape \(25,\)"):
+        rig_from_vector(np.zeros(25), default_rig())
     values = fields(distinct_rig())
     del values["m3_shift_mm"]
     with pytest.raises(ValueError, match="rig parameter m3_shift_mm is missing"):

@@ -16,7 +16,8 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     __name__,
     submodules=[],
     submod_attrs={
-        "bundle": ["BundleResult", "PRIOR_SIGMA", "bundle_adjust", "covariance"],
+        "bundle": ["ASPECT", "ASPECT_SCORE_LIMIT", "BundleResult", "PRIOR_SIGMA", "aspect_score", "bundle_adjust",
+                   "covariance"],
         "capture": ["CaptureAssistant", "CaptureFolder", "CaptureParams", "CaptureStep", "check_capture_folder",
                     "check_card_visible", "event_lines"],
         "folder": ["calibrate_folder", "grid_view"],

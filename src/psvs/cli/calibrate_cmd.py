@@ -4,7 +4,7 @@ from __future__ import annotations
 import math
 import sys
 
-from psvs.calibrate.bundle import PRIOR_SIGMA
+from psvs.calibrate.bundle import ASPECT, ASPECT_SCORE_LIMIT, PRIOR_SIGMA
 from psvs.calibrate.folder import calibrate_folder
 from psvs.cli.common import add_rig_argument, check_distinct, check_output_path, rig_from_args
 from psvs.errors import MeasurementError
@@ -77,6 +77,10 @@ def run(args) -> int:
     print("parameters (1-sigma):")
     for name, value in b.values.items():
         held = "  (not seen by these images: held near nominal by its prior)" if name in b.held_by_prior else ""
+        if name == ASPECT and b.aspect_score is not None:
+            print(f"  {name:<22}{value:12.5f}  held at the start rig's: the views show no other (score "
+                  f"{b.aspect_score:.1f} <= {ASPECT_SCORE_LIMIT:g})")
+            continue
         sigma = b.sigma[name]
         if held and not sigma > 0:          # held at the design outright (a sweep): as uncertain as its prior
             sigma = PRIOR_SIGMA[name]

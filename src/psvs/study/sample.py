@@ -198,7 +198,10 @@ def _calibrate_and_score(row: dict, nominal: Rig, build: Rig, tol: Tolerances) -
                                      ) as tmp:
         render = render_sweep_folder if tol.procedure.method == "sweep" else render_card_folder
         render(build, tol.procedure, row["views_seed"], tmp)
-        res = calibrate_folder(tmp, nominal)
+        try:
+            res = calibrate_folder(tmp, nominal)
+        except (ValueError, MeasurementError) as exc:    # the reason names no temporary folder: a rerun's row
+            raise type(exc)(str(exc).replace(tmp, "the sample's views")) from None   # is the same row
     b = res.bundle
     row.update(images_used=len(res.used), images_skipped=len(res.skipped), reproj_rms_px=float(b.rms_px))
     row.update(reconstruction_errors(res.rig, build, scoring_points_mm(nominal, tol.test)))
