@@ -41,6 +41,28 @@ def test_adjust_on_the_mounts_seats(capsys, mount_dir):
     assert text.strip() == format_guide(g).strip()
 
 
+def test_the_pitch_of_the_screws_fitted_turns_them(capsys, mount_dir):
+    """The mount's mount.toml lists M3 x 0.5 (its BOM); screws of another pitch fitted (--pitch-mm 0.35, trial
+    49: it was ignored, every turn 43 % too far): the guide on the same seats with that pitch, and a line
+    saying which pitch it used. The same pitch given: no line."""
+    from dataclasses import replace
+
+    from psvs.mount.report import format_guide
+    assert read_mount(mount_dir)[1]["m1"].pitch_mm == 0.5
+    code, text, err = run(capsys, "adjust", "misaligned", "--rig", "clear", "--mount", str(mount_dir),
+                          "--pitch-mm", "0.35")
+    assert code == 0, err
+    seats = {n: replace(s, pitch_mm=0.35) for n, s in read_mount(mount_dir)[1].items()}
+    g = alignment_guide(load_rig(shipped_rig_path("misaligned")), seats)
+    assert text.strip() == format_guide(g).strip() and "0.35 mm pitch" in text
+    assert err.strip() == f"screws of 0.35 mm pitch (--pitch-mm), not the 0.5 mm that {mount_dir}/mount.toml lists"
+    code, same, err = run(capsys, "adjust", "misaligned", "--rig", "clear", "--mount", str(mount_dir),
+                          "--pitch-mm", "0.5")
+    assert code == 0 and err == ""
+    code, listed, _ = run(capsys, "adjust", "misaligned", "--rig", "clear", "--mount", str(mount_dir))
+    assert same == listed != text
+
+
 def test_a_mount_of_another_design_is_refused(capsys, mount_dir):
     """Issue 41's second trial: `adjust misaligned --rig clear --mount` with a mount psvs made for mv1440 (M1 at
     16 mm for clear's 22) answered turns, some the wrong way round. The seats' contacts are checked on the

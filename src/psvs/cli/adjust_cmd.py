@@ -3,6 +3,8 @@ a calibrated build's twins land on the same rows (psvs.mount, docs/mount.md)."""
 from __future__ import annotations
 
 import json
+import sys
+from dataclasses import replace
 
 from psvs.cli.common import (
     add_range_arguments,
@@ -28,8 +30,9 @@ def add_parser(sub) -> None:
     p.add_argument("calibrated", metavar="CALIBRATED_RIG.toml", help="the calibrated build (psvs calibrate -o)")
     add_rig_argument(p)
     add_range_arguments(p)
-    p.add_argument("--pitch-mm", type=float, default=DEFAULT_PITCH_MM,
-                   help=f"screw pitch, mm per turn (default {DEFAULT_PITCH_MM}: M3 x 0.5)")
+    p.add_argument("--pitch-mm", type=float, default=None,
+                   help=f"screw pitch, mm per turn (default {DEFAULT_PITCH_MM}: M3 x 0.5, or with --mount the pitch "
+                        "its mount.toml lists; given, it is the pitch of the screws fitted)")
     p.add_argument("--mount", metavar="MOUNT_DIR",
                    help="the seats psvs mount wrote there (mount.toml) instead of the default ones")
     p.add_argument("--json", metavar="FILE.json", help="also write the guide here")
@@ -39,15 +42,21 @@ def add_parser(sub) -> None:
 def run(args) -> int:
     out = check_output_path(args.json, (".json",))
     check_distinct({"--json": args.json}, {"calibrated": args.calibrated, "--rig": args.rig})
-    check_pitch(args.pitch_mm, "--pitch-mm")
+    if args.pitch_mm is not None:
+        check_pitch(args.pitch_mm, "--pitch-mm")
     built, nominal = measuring_rig(args.calibrated), measuring_rig(args.rig)
     check_same_design(built, nominal)
     near, far = range_from_args(args, built)
     if args.mount is not None:
         from psvs.mount.files import read_mount
         seats = read_mount(args.mount, nominal)[1]
+        listed = seats["m1"].pitch_mm
+        if args.pitch_mm is not None and args.pitch_mm != listed:  # the screws fitted, not the ones the BOM lists
+            seats = {n: replace(seat, pitch_mm=args.pitch_mm) for n, seat in seats.items()}
+            print(f"screws of {args.pitch_mm:g} mm pitch (--pitch-mm), not the {listed:g} mm that "
+                  f"{args.mount}/mount.toml lists", file=sys.stderr)
     else:
-        seats = seats_for(nominal, pitch_mm=args.pitch_mm)
+        seats = seats_for(nominal, pitch_mm=DEFAULT_PITCH_MM if args.pitch_mm is None else args.pitch_mm)
     g = check_aligned(alignment_guide(built, seats, near, far))     # turns that do not align: exit 1
     print(format_guide(g))
     if out is not None:
