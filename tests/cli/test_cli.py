@@ -103,6 +103,8 @@ def test_triangulate_marks_pixels_that_are_not_twins_invalid(capsys, tmp_path, m
     code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv_in), "--model", model, "-o", str(out))
     assert code == 0
     lines = err.splitlines()
+    if model == "paper":     # the paper's model on the paper's geometry: its own error said first (about 1 % short)
+        assert lines.pop(0).startswith("the paper model reads depth -")
     # row 5 of the example is no pair of twins (its disparity is negative); row 6 the planted one
     assert lines[0].startswith("1 pair(s) do not triangulate in front of the rig (row 5: disparity u_l - u_r -")
     assert lines[1].startswith("1 pair(s) stand more than 2 px off their twin's epipolar curve (row 6: ")
@@ -114,7 +116,7 @@ def test_triangulate_marks_pixels_that_are_not_twins_invalid(capsys, tmp_path, m
                       + "\n")
     out.unlink()
     code, _, err = run(capsys, "triangulate", "--rig", EXAMPLE, str(csv_in), "--model", model, "-o", str(out))
-    assert code == 1 and not out.exists() and len(err.strip().splitlines()) == 1
+    assert code == 1 and not out.exists() and len(err.strip().splitlines()) == 1 + (model == "paper")
     assert "none of the 3 pair(s) gives a point: 3 pair(s) do not triangulate in front of the rig (row 2" in err
     assert "(u_l and u_r swapped?)" in err
     csv_in.write_text("u_l,v_l,u_r,v_r,u_l\n" + "\n".join(rows[1:]) + "\n")

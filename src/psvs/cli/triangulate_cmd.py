@@ -15,6 +15,7 @@ from psvs.cli.common import (
 )
 from psvs.errors import MeasurementError
 from psvs.io.points import check_rows_memory, points_csv_text, read_matches_csv, write_points_csv
+from psvs.measure.model_check import model_error_note
 from psvs.measure.triangulate import (
     EPIPOLAR_TOL_PX,
     MATCH_SIGMA_PX,
@@ -32,7 +33,9 @@ def add_parser(sub) -> None:
                                    "Input CSV columns u_l,v_l,u_r,v_r (px); output X_mm,Y_mm,Z_mm,Z_sigma_mm,valid. "
                                    "A pair whose pixels stand more than 2 px off each other's epipolar curve (the "
                                    "exact rays' closest approach) sees two points, not one: invalid. Z_sigma_mm is "
-                                   "how far the depth moves for a match error of --match-sigma-px; a pair whose "
+                                   "how far the depth moves for a match error of --match-sigma-px (and, with a "
+                                   "closed-form --model that errs on the rig by more than 0.5 %, its own error at the "
+                                   "pair: said on stderr); a pair whose "
                                    "depth that error moves by its own size or more (a disparity within twice the "
                                    "noise) is not pinned: invalid.")
     add_rig_argument(p)
@@ -101,6 +104,10 @@ def run(args) -> int:
     _invalid(res, off, notes, lambda k, n: f"{n} pair(s) stand more than {EPIPOLAR_TOL_PX:g} px off their twin's "
              f"epipolar curve (row {k + 2}: {gap[k]:.1f} px): not twins")
     sigma = depth_sigma_mm(left, right, rig, model, args.match_sigma_px)
+    if model_error_note(rig, model):    # a closed form that errs on this rig: its own error at each pair counts too
+        exact = triangulate(left, right, rig, model="exact")
+        own = np.abs(res.points_mm[:, 2] - exact.points_mm[:, 2])
+        sigma = np.where(exact.valid, np.hypot(sigma, own), sigma)
     loose = res.valid & ~(sigma < res.points_mm[:, 2])
     _invalid(res, loose, notes, lambda k, n: f"{n} pair(s) have a disparity within twice the match noise "
              f"({args.match_sigma_px:g} px): their depth is not pinned (row {k + 2}: Z {res.points_mm[k, 2]:.0f} "
