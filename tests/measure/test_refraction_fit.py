@@ -241,3 +241,21 @@ def test_points_with_match_noise_pass_the_point_test(known):
         right = right + np.c_[rng.normal(0.0, per_view, len(pts)), np.zeros(len(pts))]
         fit = fit_refraction(left, right, pts, rig)
         assert fit.rms_residual_mm < fit.noise_rms_mm
+
+
+def test_a_build_is_told_that_eq_15_is_not_its_model():
+    """Trial 49: pairs projected exactly through the misaligned build were refused, rightly, but blamed on the
+    pairs ("a wrong match, a mistyped point, another rig"). eq. (15) describes the paper's ideal geometry: the
+    refusal says that this rig is a build, whose exact model needs no l, m."""
+    import re
+
+    from psvs.optics.project import in_image, project_points
+    rig = load_rig("misaligned")
+    g = np.random.default_rng(49)
+    pts = np.column_stack([g.uniform(-150, 150, 200), g.uniform(-100, 100, 200), g.uniform(450, 1150, 200)])
+    (left, okl), (right, okr) = (project_points(pts, rig, v) for v in ("left", "right"))
+    ok = okl & okr & in_image(left, rig) & in_image(right, rig)
+    assert ok.sum() >= 40
+    with pytest.raises(MeasurementError, match=re.escape("eq. (15) is the paper's ideal geometry, and this rig file "
+                                                         "is a build")):
+        fit_refraction(left[ok][:40], right[ok][:40], pts[ok][:40], rig)

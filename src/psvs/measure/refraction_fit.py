@@ -54,6 +54,7 @@ from psvs.optics.plate import (
     file_refraction_terms,
     plausible_refraction_terms,
 )
+from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
 from psvs.optics.trace import ideal_sensor_from_pixels
 
@@ -62,6 +63,9 @@ from psvs.optics.trace import ideal_sensor_from_pixels
 DISPARITY_NOISE_PX = 0.3
 #: How many times the noise's RMS depth error the fit's RMS residual may reach.
 RESIDUAL_FACTOR = 3.0
+#: Why eq. (15) fits no build (trial 49: its refusal blamed the user's pairs, made exactly through the build).
+BUILD_WORDS = ("this rig file is a build (its mirrors' errors, the box's turn, the lens's distortion), which no l, m "
+               "describe: its exact model (the default on a build) traces all of it and needs no refraction terms")
 #: The chance that the largest of the points' residuals passes :func:`point_limit` by noise alone.
 POINT_FALSE_ALARM = 0.01
 #: mm: the smallest term size the conditioning check asks the fit to resolve (a rig without a plate has
@@ -132,7 +136,8 @@ def fit_refraction(left_px, right_px, points_mm, rig: Rig) -> RefractionFit:
         raise MeasurementError(
             f"the fit's RMS depth residual {rms:.3g} mm is {rms / noise:.1f} times the {noise:.3g} mm RMS that a "
             f"{DISPARITY_NOISE_PX} px disparity error explains at these depths (limit {RESIDUAL_FACTOR:g} times): "
-            "the matches or the known points disagree with eq. (15) (a wrong match, a mistyped point, another rig)")
+            + (f"eq. (15) is the paper's ideal geometry, and {BUILD_WORDS}" if needs_rectification(rig) else
+               "the matches or the known points disagree with eq. (15) (a wrong match, a mistyped point, another rig)"))
     _check_plausible((float(l_mm), float(m_mm)), A / dz[:, None], rig)   # (a systematic error says so first)
     _check_points_alone(rhs - A @ np.array([l_mm, m_mm]), dz, pts)
     _check_lateral(sensor_r, pts[:, 2] - (rhs - A @ np.array([l_mm, m_mm])), pts, dz, rig)   # at eq. (15)'s z
