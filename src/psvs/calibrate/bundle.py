@@ -383,24 +383,34 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
             return first
         hold = SWEEP_HOLDS
     if hold is None:                       # the pixel's aspect freed only where the views show it
-        prob, sol = _solve(grids, sweeps, local, start, (ASPECT,), init, max_nfev, loss_scale_px)
+        prob = _Problem(grids, sweeps, local, start, (ASPECT,))
+        sol = _solve(prob, init, max_nfev, loss_scale_px)
+        held = _result(prob, sol)
+        if held.rms_px > LOSS_SCALE_PX:    # views the fit does not explain yet: no evidence of the aspect's
+            return held
         score = aspect_score(prob, sol.x, loss_scale_px)
         if score <= ASPECT_SCORE_LIMIT:
-            res = _result(prob, sol)
-            return replace(res, held_by_prior=tuple(p for p in res.held_by_prior if p != ASPECT), aspect_score=score)
-        init = prob.rig(sol.x)
-    return _result(*_solve(grids, sweeps, local, start, tuple(hold or ()), init, max_nfev, loss_scale_px))
+            return replace(held, held_by_prior=tuple(p for p in held.held_by_prior if p != ASPECT),
+                           aspect_score=score)
+        free = _Problem(grids, sweeps, local, start, ())       # from where the held fit ended, poses and all
+        x0 = np.insert(sol.x, free.names.index(ASPECT), free.x_start[free.names.index(ASPECT)])
+        return _result(free, _solve(free, init, max_nfev, loss_scale_px, x0))
+    prob = _Problem(grids, sweeps, local, start, tuple(hold or ()))
+    return _result(prob, _solve(prob, init, max_nfev, loss_scale_px))
 
 
-def _solve(grids, sweeps, local, start: Rig, hold: tuple, init: Rig | None, max_nfev: int, loss_scale_px: float):
-    """One bundle adjustment (:func:`bundle_adjust`) with ``hold`` held: (the problem, SciPy's solution)."""
-    prob = _Problem(grids, sweeps, local, start, hold)
+def _solve(prob: _Problem, init: Rig | None, max_nfev: int, loss_scale_px: float, x0: np.ndarray | None = None):
+    """One bundle adjustment (:func:`bundle_adjust`) of ``prob`` from ``x0`` (its vector) or else from ``init``
+    (or the start rig) and each view's pose it implies: SciPy's solution."""
+    start = prob.start
     first_guess = start if init is None else init
-    x0 = [rig_vector(first_guess)[prob.free]]
-    if sweeps:
-        x0.append(initial_sweep(sweeps, local, first_guess))
-    x0 += [initial_grid_pose(g, first_guess) for g in grids]
-    x0 = np.concatenate(x0)
+    if x0 is None:
+        x0 = [rig_vector(first_guess)[prob.free]]
+        if prob.sweeps:
+            x0.append(initial_sweep(prob.sweeps, prob.local, first_guess))
+        x0 += [initial_grid_pose(g, first_guess) for g in prob.grids]
+        x0 = np.concatenate(x0)
+    x0 = np.array(x0, dtype=np.float64)
     lo, hi = np.full(len(x0), -np.inf), np.full(len(x0), np.inf)
     for k, name in enumerate(prob.names):
         lo[k], hi[k] = _bounds(name, prob.x_start[k], start)
@@ -408,7 +418,7 @@ def _solve(grids, sweeps, local, start: Rig, hold: tuple, init: Rig | None, max_
     x0[:prob.n_rig] = np.clip(x0[:prob.n_rig], lo[:prob.n_rig] + pad, hi[:prob.n_rig] - pad)
     sol = least_squares(prob.residuals, x0, jac=prob.jacobian, bounds=(lo, hi), method="trf", loss="soft_l1",
                         f_scale=loss_scale_px, x_scale="jac", max_nfev=max_nfev, tr_solver="exact")
-    return prob, sol
+    return sol
 
 
 def aspect_score(prob: _Problem, x: np.ndarray, loss_scale_px: float) -> float:
