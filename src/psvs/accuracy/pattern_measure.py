@@ -328,37 +328,6 @@ def without_range_hint(message: str) -> str:
     return message
 
 
-#: A circle's rim is read only where the sensor did not clip the light about it: more than this share of the
-#: pixels within 3 px of its rim at the image's top code is refused (trial 49: Fig. 9 through the default rig
-#: at 1.15 times the exposure clipped 20-25 % there, where the two views' white sheets overlap, and circle 5
-#: read 10.43 mm for 10; at the renderer's own exposure 1-2 % of them, noise peaks, read right).
-CLIPPED_RIM_SHARE = 0.05
-RIM_BAND_PX = 3.0
-
-
-def check_unclipped(grey: np.ndarray, circles: list[Ellipse]) -> None:
-    """MeasurementError naming the first circle (by its place in the image) more than
-    :data:`CLIPPED_RIM_SHARE` of whose rim band (:data:`RIM_BAND_PX` either side of its mean radius) lies at
-    255 in ``grey`` (H, W) uint8 (a 16-bit frame read as 8 bits clips at 255 too): a rim fitted against
-    clipped light is biased (its bright side flattened)."""
-    top = 255
-    h, w = grey.shape[:2]
-    for k, c in enumerate(sorted(circles, key=lambda e: e.centre_px[0])):
-        r = float(np.mean(c.axes_px)) + RIM_BAND_PX
-        u0, v0 = (int(max(0, math.floor(x - r))) for x in c.centre_px)
-        u1, v1 = int(min(w, math.ceil(c.centre_px[0] + r) + 1)), int(min(h, math.ceil(c.centre_px[1] + r) + 1))
-        vv, uu = np.mgrid[v0:v1, u0:u1]
-        dist = np.hypot(uu - c.centre_px[0], vv - c.centre_px[1])
-        band = np.abs(dist - (r - RIM_BAND_PX)) <= RIM_BAND_PX
-        share = float(np.mean(grey[v0:v1, u0:u1][band] == top)) if band.any() else 0.0
-        if share > CLIPPED_RIM_SHARE:
-            raise MeasurementError(f"the circle at u = {c.centre_px[0]:.0f}, v = {c.centre_px[1]:.0f} px (the "
-                                   f"{k + 1}. of the {len(circles)} found, left to right) has {100 * share:.0f} % "
-                                   f"of the pixels about its rim at "
-                                   f"{top}, clipped (limit {100 * CLIPPED_RIM_SHARE:g} %): its rim would be read off; "
-                                   "lower the exposure or the gain")
-
-
 def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int = 5,
                     detection: PatternDetection | None = None, spacing_mm: float = 20.0,
                     diameter_mm: float = 10.0, z_mm: tuple[float, float] = (400.0, 1200.0)) -> PatternMeasurement:
@@ -396,7 +365,6 @@ def measure_pattern(grey: np.ndarray, rig: Rig, model: str = "exact", count: int
         raise MeasurementError(f"{exc}{_OUTSIDE[0]} {near_mm:g}-{far_mm:g} mm "
                                f"(its circles looked for {2 * math.sqrt(min_area / math.pi):.0f}-{max_diameter:.0f} "
                                "px across): give --near-mm/--far-mm that hold it") from None
-    check_unclipped(grey, circles)
     return pair_pattern(circles, rig, model, (near_mm, far_mm), spacing_mm, diameter_mm)
 
 
