@@ -122,7 +122,8 @@ class BundleResult:
     message: str
     sweep: dict = field(default_factory=dict)
     covariance: np.ndarray | None = None   # (len(RIG_PARAMS),) * 2, of the rig parameters
-    aspect_score: float | None = None      # the pixel's aspect held where this score test found no departure
+    aspect_score: float | None = None      # the pixel's aspect held where this test (the score at the held fit,
+    #                                        or the freed fit's (a - a0)^2 / sigma^2) found no departure
 
 
 #: What SciPy's least_squares status means, in the words of the fit (its own message names its tolerances).
@@ -394,7 +395,14 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
                            aspect_score=score)
         free = _Problem(grids, sweeps, local, start, ())       # from where the held fit ended, poses and all
         x0 = np.insert(sol.x, free.names.index(ASPECT), free.x_start[free.names.index(ASPECT)])
-        return _result(free, _solve(free, init, max_nfev, loss_scale_px, x0))
+        freed = _result(free, _solve(free, init, max_nfev, loss_scale_px, x0))
+        wald = ((freed.values[ASPECT] - rig_values(start)[ASPECT]) / max(freed.sigma[ASPECT], 1e-300)) ** 2
+        if wald > ASPECT_SCORE_LIMIT:      # and where it ends, the aspect stands apart from the start's too
+            return freed
+        # (views turned 180 deg, fitted on from where the held fit stopped at 0.2 px, reached 0.04 px with the
+        # aspect 1.3 of its sigmas from square and f 1 % off: no evidence of the aspect, and the held fit's misfit
+        # is the views' own)
+        return replace(held, held_by_prior=tuple(p for p in held.held_by_prior if p != ASPECT), aspect_score=wald)
     prob = _Problem(grids, sweeps, local, start, tuple(hold or ()))
     return _result(prob, _solve(prob, init, max_nfev, loss_scale_px))
 
