@@ -89,7 +89,7 @@ def test_a_range_no_point_of_which_both_views_see_weighs_nothing():
 def test_the_papers_model_says_its_own_error_and_carries_it_in_its_sigma(capsys):
     """Trial 49: `triangulate --model paper` on the default rig read 444.03 mm for 450 (the plate eq. 12 leaves out:
     about 1 % short, docs/optics.md) with Z_sigma_mm 0.22, valid, no word. Now the model's own error over the
-    working range is said (-1.2 to -0.5 % off on these two rigs' fields, the 3 mm plate's lateral shift of the
+    working range is said (-1.68 to -0.79 % off on the default rig's field: the 3 mm plate's lateral shift of the
     transmitted view, t sin 45 (1 - cos 45 / sqrt(n^2 - 1/2)) = 1.0 mm on a 100 mm baseline), and each point's
     sigma holds its own error, so every truth of examples/matches_truth.csv lies within 1.1 of its sigma; the
     refraction model (eq. 15, within 0.11 %) and the exact one say nothing and keep their sigmas."""
