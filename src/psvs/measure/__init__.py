@@ -7,7 +7,8 @@ __getattr__, __dir__, __all__ = _lazy.attach(
     __name__,
     submodules=["triangulate"],
     submod_attrs={
-        "model_check": ["check_closed_form", "closed_form_excess", "designed"],
+        "model_check": ["MODEL_ERROR_NOTE", "check_closed_form", "closed_form_depth_error", "closed_form_excess",
+                        "designed", "model_error_note"],
         "refraction_fit": ["fit_refraction"],
         "tolerance": ["Sensitivity", "field_points", "tolerance_analysis"],
         "triangulate": ["EPIPOLAR_TOL_PX", "MATCH_SIGMA_PX", "MODELS", "Triangulation", "default_model",
