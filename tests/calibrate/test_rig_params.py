@@ -72,7 +72,7 @@ def test_round_trip_survives_another_order(monkeypatch):
 
 def test_every_parameter_has_a_prior_and_a_step():
     assert set(PRIOR_SIGMA) == set(RIG_PARAMS)
-    assert set(RIG_PARAMS) <= set(bundle._STEP)
+    assert set(RIG_PARAMS) <= set(bundle.DIFF_STEP)
 
 
 def test_bad_vectors_name_the_problem():

@@ -19,9 +19,10 @@ terms from a sweep alone); the result says which parameters the data did not pin
 Residuals: every detected disc or circle centre in both views minus the exact projection
 (:func:`psvs.optics.project.project_points`) of its target point, px, with a soft-L1 loss (scale 0.5 px);
 the priors are residuals (value - start) / sigma scaled to the detections' noise. Solved by scipy's
-least_squares (trust-region reflective) with a finite-difference Jacobian that perturbs one pose component
-of all images at once (each image sees only its own pose). Standard deviations come from the Gauss-Newton
-covariance at the solution (:func:`covariance`, its columns scaled), scaled by the residuals' variance.
+least_squares (trust-region reflective) with a finite-difference Jacobian (:meth:`BundleProblem.jacobian`: the
+lens's columns without tracing a ray, the poses' through the projection's derivative by the point). Standard
+deviations come from the Gauss-Newton covariance at the solution (:func:`covariance`, its columns scaled), scaled
+by the residuals' variance.
 """
 from __future__ import annotations
 
@@ -35,6 +36,7 @@ from psvs._threads import one_blas_thread
 from psvs.optics.mirrors import direction_map, virtual_centre
 from psvs.optics.project import project_from
 from psvs.optics.rig import MIRROR_NAMES, MirrorError, Rig
+from psvs.optics.trace import pixels_from_camera_dirs
 from psvs.transforms import transform_from_rotvec
 
 #: Calibrated rig parameters, in the vector's order; tilts in rad. ``pixel_aspect``: the pixel's height over its
@@ -71,12 +73,15 @@ LOSS_SCALE_PX = 0.5      # soft-L1: residuals beyond this are treated as outlier
 #: the soft-L1 fit is then plain least squares, whose every residual pulls (:func:`bundle_adjust`).
 PLAIN_SCALE_PX = 50.0
 _MISS_PX = 100.0         # residual of a point the optics cannot reach
-_STEP = {"focal_length_mm": 1e-5, "cx_px": 1e-3, "cy_px": 1e-3, "pixel_aspect": 1e-7, "k1": 1e-6, "k2": 1e-6,
+DIFF_STEP = {"focal_length_mm": 1e-5, "cx_px": 1e-3, "cy_px": 1e-3, "pixel_aspect": 1e-7, "k1": 1e-6, "k2": 1e-6,
          "p1": 1e-7, "p2": 1e-7, "k3": 1e-6, "plate_thickness_mm": 1e-4, "baseline_mm": 1e-4,
          **{f"m{k}_shift_mm": 1e-4 for k in range(1, 5)}, **{f"box_{a}_rad": 1e-7 for a in "xyz"},
          **{f"m{k}_tilt_{a}_rad": 1e-7 for k in range(1, 5) for a in "ab"},
          "offset_mm": 1e-4, "ry_rad": 1e-7, "rz_rad": 1e-7, "x0_mm": 1e-4, "y0_mm": 1e-4}
-_POSE_STEP = (1e-7, 1e-7, 1e-7, 1e-4, 1e-4, 1e-4)
+POSE_STEP = (1e-7, 1e-7, 1e-7, 1e-4, 1e-4, 1e-4)
+_POINT_STEP_MM = 1e-4
+#: The lens's parameters: they change no ray through the mirrors, only the pixel a camera ray lands on.
+LENS_PARAMS = ("focal_length_mm", "cx_px", "cy_px", "pixel_aspect", "k1", "k2", "p1", "p2", "k3")
 
 
 @dataclass(frozen=True, eq=False)
@@ -249,7 +254,7 @@ def _sweep_points(s: np.ndarray, positions: np.ndarray, local_mm: np.ndarray) ->
     return np.concatenate([pts + [p["x0_mm"], p["y0_mm"], z + p["offset_mm"]] for z in positions])
 
 
-class _Problem:
+class BundleProblem:
     """The residual function and its Jacobian over x = [the free rig parameters (those of :data:`RIG_PARAMS`
     not held, in its order), the sweep's :data:`SWEEP_PARAMS` (if any), 6 pose terms per grid view (rotation
     vector rad, translation mm)]."""
@@ -269,76 +274,111 @@ class _Problem:
         self.owner = np.repeat(np.arange(len(counts)), counts)           # image index of each point
         self.n_points = int(sum(counts))
         self.positions = np.array([s.position_mm for s in sweeps])
+        self._grid_object = np.concatenate([g.object_mm for g in grids]) if grids else np.zeros((0, 3))
+        self._grid_owner = self.owner[:len(self._grid_object)]
 
     def rig(self, x) -> Rig:
+        """The rig of ``x``: the start rig with the free parameters set from ``x``."""
         full = self.full_start.copy()
         full[self.free] = x[:self.n_rig]
         return rig_from_vector(full, self.start)
 
     def split(self, x):
+        """``x`` as (the free rig parameters, the sweep's parameters, the poses (n_grids, 6))."""
         r = x[:self.n_rig]
         s = x[self.n_rig:self.n_rig + self.n_sweep]
         poses = x[self.n_rig + self.n_sweep:].reshape(-1, 6)
         return r, s, poses
 
     def points(self, x) -> np.ndarray:
+        """Every target point (n_points, 3) mm in frame C at ``x``: the grid views' (each moved by its pose), then
+        the sweep's."""
         _, s, poses = self.split(x)
         parts = []
-        for g, p in zip(self.grids, poses, strict=True):
-            parts.append(g.object_mm @ Rotation.from_rotvec(p[:3]).as_matrix().T + p[3:])
+        if self.grids:
+            R = Rotation.from_rotvec(poses[:, :3]).as_matrix()                 # (n_grids, 3, 3), one call
+            parts.append(np.einsum("nij,nj->ni", R[self._grid_owner], self._grid_object) + poses[self._grid_owner, 3:])
         if self.sweeps:
             parts.append(_sweep_points(s, self.positions, self.local))
         return np.concatenate(parts)
 
     def project(self, x, starts=None) -> np.ndarray:
-        """Image residuals (2 * n_points, 2): left view rows first, px; ``starts``: :meth:`rays` to start each
-        view's projection from (:func:`psvs.optics.project.project_from`)."""
-        return self._views(x, starts)[0]
+        """Image residuals (2 * n_points, 2): left view rows first, px; ``starts``: camera rays (left, right) to
+        start each view's projection from (:func:`psvs.optics.project.project_from`)."""
+        return self._views(self.rig(x), self.points(x), starts)[0]
 
-    def rays(self, x) -> list[np.ndarray]:
-        """The camera rays (N, 3) each view's projection converges to at ``x`` (left, right)."""
-        return self._views(x)[1]
-
-    def _views(self, x, starts=None) -> tuple[np.ndarray, list[np.ndarray]]:
-        rig = self.rig(x)
-        pts = self.points(x)
-        out, rays = [], []
+    def _views(self, rig: Rig, pts: np.ndarray, starts=None) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
+        out, rays, seen = [], [], []
         for k, view in enumerate(("left", "right")):
             uv, ok, dirs = project_from(pts, rig, view, None if starts is None else starts[k])
             uv[~ok] = np.nan
             out.append(uv)
             rays.append(dirs)
+            seen.append(ok)
         r = np.concatenate(out) - self.obs
         r[~np.isfinite(r)] = _MISS_PX
-        return r, rays
+        return r, rays, np.concatenate(seen)
+
+    def _pixels(self, x, rays: list[np.ndarray], seen: np.ndarray) -> np.ndarray:
+        """The pixels (2 * n_points, 2) of the camera rays ``rays`` (left, right) through the lens of ``x``'s rig,
+        0 on the rows the optics do not reach (their residual is a constant)."""
+        cam = self.rig(x).camera
+        uv = np.concatenate([pixels_from_camera_dirs(d, cam) for d in rays])
+        uv[~seen] = 0.0
+        return uv
 
     def residuals(self, x) -> np.ndarray:
+        """The image residuals (4 * n_points,) px, then the priors' (n_rig,) scaled to the detections' noise."""
         prior = NOISE_PX * (x[:self.n_rig] - self.x_start) / self.sigma
         return np.concatenate([self.project(x).ravel(), prior])
 
     def jacobian(self, x) -> np.ndarray:
+        """d residuals / d x (4 * n_points + n_rig, len(x)), forward differences (each step's truncation, h times
+        the second derivative, is far below the projection's 1e-10 px over the step). The mirrors' and the
+        plate's columns project every point again (from the rays ``x``'s converged to: a few steps fewer); the
+        lens's move no ray, only the pixel a ray lands on (:meth:`_pixels`); the poses' are the projection's
+        derivative by the point (three projections, not one per pose term) times the point's by the pose."""
         n_img_rows = 4 * self.n_points
         J = np.zeros((n_img_rows + self.n_rig, len(x)))
-        steps = [_STEP[p] for p in self.names] + [_STEP[p] for p in SWEEP_PARAMS[:self.n_sweep]]
-        base = self.rays(x)          # each step's projection starts where x's converged (a few steps fewer)
-        for k, h in enumerate(steps):
+        names = self.names + list(SWEEP_PARAMS[:self.n_sweep])
+        rig, pts = self.rig(x), self.points(x)
+        r0, base, seen = self._views(rig, pts)
+        pix0 = self._pixels(x, base, seen)
+        for k, name in enumerate(names):
+            h = DIFF_STEP[name]
             dx = np.zeros(len(x))
             dx[k] = h
-            J[:n_img_rows, k] = ((self.project(x + dx, base) - self.project(x - dx, base)) / (2 * h)).ravel()
-        first = self.n_rig + self.n_sweep
-        grid_rows = np.flatnonzero(self.owner < len(self.grids))
-        img_of_row = np.concatenate([self.owner, self.owner])           # both views
-        for q, h in enumerate(_POSE_STEP):
-            dx = np.zeros(len(x))
-            dx[first + q::6] = h
-            diff = (self.project(x + dx, base) - self.project(x - dx, base)) / (2 * h)   # (2 n_points, 2)
-            for view in range(2):
-                rows = grid_rows + view * self.n_points
-                cols = first + 6 * img_of_row[rows] + q
-                J[2 * rows, cols] = diff[rows, 0]
-                J[2 * rows + 1, cols] = diff[rows, 1]
+            if name in LENS_PARAMS:
+                diff = self._pixels(x + dx, base, seen) - pix0
+            else:
+                diff = self.project(x + dx, base) - r0
+            J[:n_img_rows, k] = (diff / h).ravel()
+        if self.grids:
+            self._pose_columns(x, J, rig, pts, r0, base)
         J[n_img_rows + np.arange(self.n_rig), np.arange(self.n_rig)] = NOISE_PX / self.sigma
         return J
+
+    def _pose_columns(self, x, J: np.ndarray, rig: Rig, pts: np.ndarray, r0: np.ndarray, base) -> None:
+        """The grid views' pose columns of :meth:`jacobian`, in place: d uv / d pose = (d uv / d point) (d point /
+        d pose), each image's rows in its own pose's six columns (``pts``, ``r0``, ``base``: the points, the
+        residuals and the rays at ``x``)."""
+        by_point = []                                   # d uv / d point: (2 n_points, 2) per axis
+        for axis in range(3):
+            dp = np.zeros_like(pts)
+            dp[:, axis] = _POINT_STEP_MM
+            by_point.append((self._views(rig, pts + dp, base)[0] - r0) / _POINT_STEP_MM)
+        first = self.n_rig + self.n_sweep
+        grid_points = np.flatnonzero(self.owner < len(self.grids))
+        for q, h in enumerate(POSE_STEP):
+            dx = np.zeros(len(x))
+            dx[first + q::6] = h
+            moved = (self.points(x + dx) - self.points(x - dx))[grid_points] / (2 * h)    # (n_grid, 3)
+            cols = first + 6 * self.owner[grid_points] + q
+            for view in range(2):
+                rows = grid_points + view * self.n_points
+                diff = sum(by_point[a][rows] * moved[:, a:a + 1] for a in range(3))          # (n_grid, 2)
+                J[2 * rows, cols] = diff[:, 0]
+                J[2 * rows + 1, cols] = diff[:, 1]
 
 
 @one_blas_thread()     # the same numbers on any core count
@@ -384,7 +424,7 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
             return first
         hold = SWEEP_HOLDS
     if hold is None:                       # the pixel's aspect freed only where the views show it
-        prob = _Problem(grids, sweeps, local, start, (ASPECT,))
+        prob = BundleProblem(grids, sweeps, local, start, (ASPECT,))
         sol = _solve(prob, init, max_nfev, loss_scale_px)
         held = _result(prob, sol)
         if held.rms_px > LOSS_SCALE_PX:    # views the fit does not explain yet: no evidence of the aspect's
@@ -393,7 +433,7 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
         if score <= ASPECT_SCORE_LIMIT:
             return replace(held, held_by_prior=tuple(p for p in held.held_by_prior if p != ASPECT),
                            aspect_score=score)
-        free = _Problem(grids, sweeps, local, start, ())       # from where the held fit ended, poses and all
+        free = BundleProblem(grids, sweeps, local, start, ())       # from where the held fit ended, poses and all
         x0 = np.insert(sol.x, free.names.index(ASPECT), free.x_start[free.names.index(ASPECT)])
         freed = _result(free, _solve(free, init, max_nfev, loss_scale_px, x0))
         wald = ((freed.values[ASPECT] - rig_values(start)[ASPECT]) / max(freed.sigma[ASPECT], 1e-300)) ** 2
@@ -403,11 +443,11 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
         # aspect 1.3 of its sigmas from square and f 1 % off: no evidence of the aspect, and the held fit's misfit
         # is the views' own)
         return replace(held, held_by_prior=tuple(p for p in held.held_by_prior if p != ASPECT), aspect_score=wald)
-    prob = _Problem(grids, sweeps, local, start, tuple(hold or ()))
+    prob = BundleProblem(grids, sweeps, local, start, tuple(hold or ()))
     return _result(prob, _solve(prob, init, max_nfev, loss_scale_px))
 
 
-def _solve(prob: _Problem, init: Rig | None, max_nfev: int, loss_scale_px: float, x0: np.ndarray | None = None):
+def _solve(prob: BundleProblem, init: Rig | None, max_nfev: int, loss_scale_px: float, x0: np.ndarray | None = None):
     """One bundle adjustment (:func:`bundle_adjust`) of ``prob`` from ``x0`` (its vector) or else from ``init``
     (or the start rig) and each view's pose it implies: SciPy's solution."""
     start = prob.start
@@ -429,13 +469,13 @@ def _solve(prob: _Problem, init: Rig | None, max_nfev: int, loss_scale_px: float
     return sol
 
 
-def aspect_score(prob: _Problem, x: np.ndarray, loss_scale_px: float) -> float:
+def aspect_score(prob: BundleProblem, x: np.ndarray, loss_scale_px: float) -> float:
     """Rao's score statistic for freeing the pixel's aspect at the solution ``x`` of ``prob`` (which holds it at
     the start rig's): g' (J'WJ)^-1 g / s^2 over every parameter, the aspect's column added, with g = J'W r the
     cost's gradient there, W the soft-L1 loss's weights (1 / sqrt(1 + (r / scale)^2)) and s^2 the image
     residuals' variance. About chi-square with 1 degree of freedom where the views show no departure (the
     other parameters' gradients are zero at ``x``)."""
-    free = _Problem(prob.grids, prob.sweeps, prob.local, prob.start, tuple(p for p in RIG_PARAMS
+    free = BundleProblem(prob.grids, prob.sweeps, prob.local, prob.start, tuple(p for p in RIG_PARAMS
                                                                               if not prob.free[RIG_PARAMS.index(p)]
                                                                               and p != ASPECT))
     k = free.names.index(ASPECT)
@@ -483,7 +523,7 @@ def covariance(J: np.ndarray) -> np.ndarray:
     return np.linalg.pinv(scaled, rcond=1e-13, hermitian=True) / np.outer(d, d)
 
 
-def _result(prob: _Problem, sol) -> BundleResult:
+def _result(prob: BundleProblem, sol) -> BundleResult:
     x = sol.x
     img = prob.project(x)                                   # (2 n_points, 2)
     n = prob.n_points
