@@ -14,8 +14,9 @@ from tests.support.geometry import EXAMPLES
 from tests.support.video import write_hand_video, write_wall_video
 
 #: plugins of the whole suite: the browser tests' Chromium page (tests/support/browser.py), the quick tier and
-#: the record of durations it is chosen from (tests/support/durations.py)
-pytest_plugins = ["tests.support.browser", "tests.support.durations"]
+#: the record of durations it is chosen from (tests/support/durations.py), the session's renders kept by content
+#: (tests/support/render_cache.py)
+pytest_plugins = ["tests.support.browser", "tests.support.durations", "tests.support.render_cache"]
 
 #: The session's own cache folder (psvs.dense.rig_cache): the tests never read or write the user's, and each
 #: session starts empty. Set at import, before any test or command runs (subprocesses inherit it); removed
