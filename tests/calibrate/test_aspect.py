@@ -48,13 +48,19 @@ def stretched(request, tmp_path_factory):
     return folder, true, aspect
 
 
-def test_the_aspect_is_fitted_and_the_points_are_right(stretched):
+@pytest.fixture(scope="module")
+def calibrated(stretched):
+    """The folder calibrated from the nominal design (``calibrate_folder``), once per planted aspect."""
+    return calibrate_folder(stretched[0], nominal())
+
+
+def test_the_aspect_is_fitted_and_the_points_are_right(stretched, calibrated):
     """The aspect within 4 of its sigmas (sigma under 3e-4), the twins at the detections' noise, f within 3 of
     its sigmas, and the 3-D points over 400-1200 mm as tests/calibrate/test_card.py asks of square pixels:
     within 0.35 mm (mean) after the rigid motion and the scale of f's error, which no card view pins (measured
     0.10 and 0.31 mm; held square, the last test, 2.0 and 1.3 mm)."""
-    folder, true, aspect = stretched
-    res = calibrate_folder(folder, nominal())
+    _, true, aspect = stretched
+    res = calibrated
     b = res.bundle
     assert b.rms_px <= 0.05
     assert b.aspect_score is None                 # the score test freed it (held square: tests/calibrate/test_card.py)
@@ -70,9 +76,10 @@ def test_the_aspect_is_fitted_and_the_points_are_right(stretched):
     assert np.mean(aligned) <= 0.35
 
 
-def test_opencv_reads_the_same_aspect_from_the_right_view(stretched):
+def test_opencv_reads_the_same_aspect_from_the_right_view(stretched, calibrated):
     """cv2.calibrateCamera on the right view's centres of the same 16 views: its fx / fy within 1e-3 of the
-    planted aspect (the renderer's pixels are what the rig says), and psvs's within 1e-3 of OpenCV's."""
+    planted aspect (the renderer's pixels are what the rig says), and psvs's calibration's within 1e-3 of
+    OpenCV's."""
     folder, true, aspect = stretched
     start = nominal()
     views = [grid_view(p.name, cv2.imread(str(p), cv2.IMREAD_GRAYSCALE), CARD, start)
@@ -84,7 +91,7 @@ def test_opencv_reads_the_same_aspect_from_the_right_view(stretched):
     assert rms < 0.1
     print(f"OpenCV fx / fy {K[0, 0] / K[1, 1]:.5f}, planted {aspect}")
     assert K[0, 0] / K[1, 1] == pytest.approx(aspect, abs=1e-3)
-    ours = bundle_adjust(views, [], start).values["pixel_aspect"]
+    ours = calibrated.bundle.values["pixel_aspect"]
     assert ours == pytest.approx(K[0, 0] / K[1, 1], abs=1e-3)
 
 
