@@ -431,8 +431,7 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
             return held
         score = aspect_score(prob, sol.x, loss_scale_px)
         if score <= ASPECT_SCORE_LIMIT:
-            return replace(held, held_by_prior=tuple(p for p in held.held_by_prior if p != ASPECT),
-                           aspect_score=score)
+            return _aspect_held(held, score)
         free = BundleProblem(grids, sweeps, local, start, ())       # from where the held fit ended, poses and all
         x0 = np.insert(sol.x, free.names.index(ASPECT), free.x_start[free.names.index(ASPECT)])
         freed = _result(free, _solve(free, init, max_nfev, loss_scale_px, x0))
@@ -442,9 +441,15 @@ def bundle_adjust(grids: list[GridView], sweeps: list[SweepView], start: Rig,
         # (views turned 180 deg, fitted on from where the held fit stopped at 0.2 px, reached 0.04 px with the
         # aspect 1.3 of its sigmas from square and f 1 % off: no evidence of the aspect, and the held fit's misfit
         # is the views' own)
-        return replace(held, held_by_prior=tuple(p for p in held.held_by_prior if p != ASPECT), aspect_score=wald)
+        return _aspect_held(held, wald)
     prob = BundleProblem(grids, sweeps, local, start, tuple(hold or ()))
     return _result(prob, _solve(prob, init, max_nfev, loss_scale_px))
+
+
+def _aspect_held(held: BundleResult, score: float) -> BundleResult:
+    """The fit that held the pixel's aspect, where the views show no other (``score``: the test that found none):
+    the aspect is then no parameter the data left unpinned."""
+    return replace(held, held_by_prior=tuple(p for p in held.held_by_prior if p != ASPECT), aspect_score=score)
 
 
 def _solve(prob: BundleProblem, init: Rig | None, max_nfev: int, loss_scale_px: float, x0: np.ndarray | None = None):

@@ -183,17 +183,18 @@ def measuring_rig(path: str | None) -> Rig:
     return check_clear(rig, f"rig {path}" if path else "the paper's rig")
 
 
-def measuring_model(args, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0) -> str | None:
-    """``args.model`` (None: the rig's default), refused (ValueError, exit 2) when it is a closed form that errs
-    on this build over near..far mm beyond a match's noise (:func:`psvs.measure.model_check.check_closed_form`);
+def measuring_model(args, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200.0) -> str:
+    """``args.model`` (None: the rig's default) checked: refused (ValueError, exit 2) when it is a closed form that
+    errs on this build over near..far mm beyond a match's noise (:func:`psvs.measure.model_check.check_closed_form`);
     a closed form's own depth error on the rig said on stderr when it is more than 0.5 % (the paper's model on
-    the paper's geometry: about 1 % short, :func:`psvs.measure.model_check.model_error_note`)."""
+    the paper's geometry: about 1 % short, :func:`psvs.measure.model_check.model_error_note`). Returns that note
+    ("" when there is none)."""
     from psvs.measure.model_check import check_closed_form, model_error_note
     check_closed_form(rig, args.model, near_mm, far_mm)
     note = model_error_note(rig, args.model, near_mm, far_mm)
     if note:
         print(note, file=sys.stderr)
-    return args.model
+    return note
 
 
 def check_output_path(path: str | None, suffixes: tuple[str, ...]) -> Path | None:

@@ -15,7 +15,6 @@ from psvs.cli.common import (
 )
 from psvs.errors import MeasurementError
 from psvs.io.points import check_rows_memory, points_csv_text, read_matches_csv, write_points_csv
-from psvs.measure.model_check import model_error_note
 from psvs.measure.triangulate import (
     EPIPOLAR_TOL_PX,
     MATCH_SIGMA_PX,
@@ -85,7 +84,7 @@ def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
     check_distinct({"-o": args.output}, {"POINTS.csv": args.points, "--rig": args.rig})
     rig = measuring_rig(args.rig)
-    measuring_model(args, rig)
+    model_errs = measuring_model(args, rig)
     check_rows_memory(args.points)        # before the rows are read: each costs about a kB through the models
     left, right = read_matches_csv(args.points)
     if len(left) == 0:
@@ -104,7 +103,7 @@ def run(args) -> int:
     _invalid(res, off, notes, lambda k, n: f"{n} pair(s) stand more than {EPIPOLAR_TOL_PX:g} px off their twin's "
              f"epipolar curve (row {k + 2}: {gap[k]:.1f} px): not twins")
     sigma = depth_sigma_mm(left, right, rig, model, args.match_sigma_px)
-    if model_error_note(rig, model):    # a closed form that errs on this rig: its own error at each pair counts too
+    if model_errs:                      # a closed form that errs on this rig: its own error at each pair counts too
         exact = triangulate(left, right, rig, model="exact")
         own = np.abs(res.points_mm[:, 2] - exact.points_mm[:, 2])
         sigma = np.where(exact.valid, np.hypot(sigma, own), sigma)
