@@ -87,6 +87,20 @@ def test_automatic_and_exports(client):
     assert client.get("/api/export/xyz").status_code == 404
 
 
+def test_a_closed_form_that_errs_on_the_rig_says_so_beside_its_pairs(client):
+    """Trial 49: the paper's model (eq. 12 leaves the plate out) reads depth about 1 % short on the paper's own
+    geometry; the match answers with the note the commands print on stderr (the same words), and with none for
+    the rig's default model (refraction on this geometry: -0.11 %)."""
+    from psvs.measure.model_check import model_error_note
+    paper = client.post("/api/match", json={"seed": None, "model": "paper"}).json()
+    assert paper["model_note"] == model_error_note(default_rig(), "paper", 400.0, 1200.0)
+    assert re.match(r"the paper model reads depth -\d\.\d\d to -0\.\d\d % off on this rig over 400-1200 mm",
+                    paper["model_note"]), paper["model_note"]
+    (pair,) = paper["pairs"]
+    assert pair["median_z_mm"] == pytest.approx(DISC["z_mm"], rel=0.02)
+    assert client.post("/api/match", json={"seed": None}).json()["model_note"] == ""
+
+
 def test_automatic_matching_of_noise_answers_no_pair_and_says_why(client):
     """Sensor noise holds thousands of edges and no twin: the page gets no pair, and why: its edges are the
     noise's (they do not come back under a fresh draw of it), and no twin stood above chance anyway."""

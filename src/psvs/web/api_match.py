@@ -14,7 +14,7 @@ from psvs.imaging.pipeline import Pipeline
 from psvs.live.tracker import nearest_edge_pixels
 from psvs.match.correspondence import match_image, rows_unshown
 from psvs.match.export import result_to_dict, write_csv, write_json, write_ply
-from psvs.measure.model_check import check_closed_form
+from psvs.measure.model_check import check_closed_form, model_error_note
 from psvs.optics.illumination import flat_field
 from psvs.optics.rig import Rig
 from psvs.optics.scale import pixel_scale
@@ -55,8 +55,9 @@ def match(body: MatchBody, session: SessionDep):
     """The paper's algorithm from a double-clicked point (snapped to the nearest edge pixel within
     :func:`snap_px` of the rig), or automatic pairing of every edge when no seed is given, with how its twins
     stood against chance (``chance`` {answered, text}; not answered, and why, when the pairs stand off the rig's
-    rows: :mod:`psvs.match.rows`). The result is kept for the exports unless the image
-    was replaced while it was computed."""
+    rows: :mod:`psvs.match.rows`) and ``model_note``, what a closed-form model's own depth error on the rig is
+    when over 0.5 % ("" otherwise: :func:`psvs.measure.model_check.model_error_note`). The result is kept for the
+    exports unless the image was replaced while it was computed."""
     still, pipeline = session.still(), body.pipeline()
     rig = session.rig
     check_closed_form(rig, body.model, body.near_mm, body.far_mm)
@@ -77,7 +78,9 @@ def match(body: MatchBody, session: SessionDep):
             res = dataclasses.replace(res, pairs=[])
             chance = {"answered": False, "text": drift}
     session.keep_result(res, still.generation)
-    return {"seed_px": seed, **result_to_dict(res, decimals=4), "chance": chance}
+    # a closed form that reads depth more than 0.5 % off on this rig says so, as the commands do on stderr
+    note = model_error_note(rig, body.model, body.near_mm, body.far_mm)
+    return {"seed_px": seed, **result_to_dict(res, decimals=4), "chance": chance, "model_note": note}
 
 
 

@@ -111,7 +111,8 @@ function showResult(res) {
     setStatus(res.seed_px ? `no twin for this edge (double-click an edge of the left view): ${res.chance.text}`
       : `no pair: ${res.chance.text}`);
   }
-  else setStatus(res.seed_px ? "edge matched" : `${res.pairs.length} edge pairs, ${res.unmatched.length} without a twin`, true);
+  else setStatus((res.seed_px ? "edge matched" : `${res.pairs.length} edge pairs, ${res.unmatched.length} without a twin`)
+    + (res.model_note ? ` (${res.model_note})` : ""), true);
   plotFig8(res);
   draw();
 }
