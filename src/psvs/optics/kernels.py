@@ -83,36 +83,40 @@ CAMERA, SCENE = -1, -2
 
 
 @nb.njit(cache=True, nogil=True, error_model="numpy")
-def _segment_blocked(p0, p1, g, plate):  # pragma: no cover - compiled
-    """Whether the segment p0 -> p1 (3,) crosses one solid ``g`` (23,): its plane's point, normal, s and t
-    axes (12), its rectangle s0, s1, t0, t1 (4), the plate's thickness (1) and its bounding box lo, hi (6);
-    ``plate``: the box of the M1 plate (slab method), else the rectangle (crossed strictly inside).
-    :func:`psvs.optics.solids.segments_hit`, one segment."""
-    if not _box_meets(p0, p1, g[17:20], g[20:23]):     # the bounding-box pre-test
-        return False
-    off = g[0] * g[3] + g[1] * g[4] + g[2] * g[5]
-    d0 = p0[0] * g[3] + p0[1] * g[4] + p0[2] * g[5] - off
-    d1 = p1[0] * g[3] + p1[1] * g[4] + p1[2] * g[5] - off
-    s0, s1, t0, t1, thick = g[12], g[13], g[14], g[15], g[16]
+def _segment_blocked(pts, j, solids, m, plate):  # pragma: no cover - compiled
+    """Whether the segment pts[j] -> pts[j + 1] (rows of ``pts`` (P, 3)) crosses one solid ``solids[m]`` (23,):
+    its plane's point, normal, s and t axes (12), its rectangle s0, s1, t0, t1 (4), the plate's thickness (1)
+    and its bounding box lo, hi (6); ``plate``: the box of the M1 plate (slab method), else the rectangle
+    (crossed strictly inside). :func:`psvs.optics.solids.segments_hit`, one segment. Element reads, no row
+    views: a view takes and drops a reference on its array, an atomic operation per view (the occlusion test
+    took 4-14 times a ray's path so)."""
+    for k in range(3):                                 # the bounding-box pre-test
+        a, b = pts[j, k], pts[j + 1, k]
+        if np.isnan(a) or np.isnan(b) or max(a, b) < solids[m, 17 + k] or min(a, b) > solids[m, 20 + k]:
+            return False
+    off = solids[m, 0] * solids[m, 3] + solids[m, 1] * solids[m, 4] + solids[m, 2] * solids[m, 5]
+    d0 = pts[j, 0] * solids[m, 3] + pts[j, 1] * solids[m, 4] + pts[j, 2] * solids[m, 5] - off
+    d1 = pts[j + 1, 0] * solids[m, 3] + pts[j + 1, 1] * solids[m, 4] + pts[j + 1, 2] * solids[m, 5] - off
+    s0, s1, t0, t1, thick = solids[m, 12], solids[m, 13], solids[m, 14], solids[m, 15], solids[m, 16]
     if not plate:
         if not d0 * d1 < 0:
             return False
         f = d0 / (d0 - d1)
         s = t = 0.0
         for k in range(3):
-            r = p0[k] + f * (p1[k] - p0[k]) - g[k]
-            s += r * g[6 + k]
-            t += r * g[9 + k]
+            r = pts[j, k] + f * (pts[j + 1, k] - pts[j, k]) - solids[m, k]
+            s += r * solids[m, 6 + k]
+            t += r * solids[m, 9 + k]
         return s0 < s < s1 and t0 < t < t1
     za, zb = -d0, -d1    # depth into the glass
     if (za <= 0 and zb <= 0) or (za >= thick and zb >= thick) or not (np.isfinite(za) and np.isfinite(zb)):
         return False
     sa = ta = sb = tb = 0.0
     for k in range(3):
-        sa += (p0[k] - g[k]) * g[6 + k]
-        ta += (p0[k] - g[k]) * g[9 + k]
-        sb += (p1[k] - g[k]) * g[6 + k]
-        tb += (p1[k] - g[k]) * g[9 + k]
+        sa += (pts[j, k] - solids[m, k]) * solids[m, 6 + k]
+        ta += (pts[j, k] - solids[m, k]) * solids[m, 9 + k]
+        sb += (pts[j + 1, k] - solids[m, k]) * solids[m, 6 + k]
+        tb += (pts[j + 1, k] - solids[m, k]) * solids[m, 9 + k]
     enter, leave = -np.inf, np.inf
     for k in range(3):    # the slab method on the box's three axes: s, t and the depth into the glass
         if k == 0:
@@ -156,10 +160,10 @@ def trace_path(dirs, steps, kind, eta, label, solids, on, scene_depth_mm, tol_mm
             d[k] = dirs[i, k]
             pts[0, k] = 0.0
             ok = ok and np.isfinite(d[k])
-        for s in range(n_steps):
-            g = steps[s]
-            denom = d[0] * g[3] + d[1] * g[4] + d[2] * g[5]
-            t = ((g[0] * g[3] + g[1] * g[4] + g[2] * g[5]) - (o[0] * g[3] + o[1] * g[4] + o[2] * g[5])) / denom
+        for s in range(n_steps):     # the plane's values read element by element: a row view costs an atomic
+            nx, ny, nz = steps[s, 3], steps[s, 4], steps[s, 5]     # reference count (2x the path's time)
+            denom = d[0] * nx + d[1] * ny + d[2] * nz
+            t = ((steps[s, 0] * nx + steps[s, 1] * ny + steps[s, 2] * nz) - (o[0] * nx + o[1] * ny + o[2] * nz)) / denom
             if abs(denom) <= 1e-15:
                 t = np.nan
             for k in range(3):
@@ -167,18 +171,19 @@ def trace_path(dirs, steps, kind, eta, label, solids, on, scene_depth_mm, tol_mm
                 pts[s + 1, k] = o[k]
             if not np.isfinite(t):
                 ok = False
-            if not np.isnan(g[12]):   # a finite surface: met ahead and inside its rectangle
+            if not np.isnan(steps[s, 12]):   # a finite surface: met ahead and inside its rectangle
                 ls = lt = 0.0
                 for k in range(3):
-                    ls += (o[k] - g[k]) * g[6 + k]
-                    lt += (o[k] - g[k]) * g[9 + k]
-                inside = (g[12] - tol_mm <= ls <= g[13] + tol_mm) and (g[14] - tol_mm <= lt <= g[15] + tol_mm)
+                    ls += (o[k] - steps[s, k]) * steps[s, 6 + k]
+                    lt += (o[k] - steps[s, k]) * steps[s, 9 + k]
+                inside = ((steps[s, 12] - tol_mm <= ls <= steps[s, 13] + tol_mm)
+                          and (steps[s, 14] - tol_mm <= lt <= steps[s, 15] + tol_mm))
                 if not (t > 0 and inside):
                     ok = False
-            dn = d[0] * g[3] + d[1] * g[4] + d[2] * g[5]
+            dn = d[0] * nx + d[1] * ny + d[2] * nz
             if kind[s] == 0:
                 for k in range(3):
-                    d[k] -= 2.0 * dn * g[3 + k]
+                    d[k] -= 2.0 * dn * steps[s, 3 + k]
             elif kind[s] == 1:
                 side = -1.0 if dn > 0 else (1.0 if dn < 0 else 0.0)
                 cos_i = abs(dn)
@@ -186,7 +191,7 @@ def trace_path(dirs, steps, kind, eta, label, solids, on, scene_depth_mm, tol_mm
                 if sin2_t <= 1.0:
                     cos_t = np.sqrt(max(1.0 - sin2_t, 0.0))
                     for k in range(3):
-                        d[k] = eta[s] * d[k] + (eta[s] * cos_i - cos_t) * side * g[3 + k]
+                        d[k] = eta[s] * d[k] + (eta[s] * cos_i - cos_t) * side * steps[s, 3 + k]
                 else:
                     ok = False
                     for k in range(3):
@@ -202,7 +207,7 @@ def trace_path(dirs, steps, kind, eta, label, solids, on, scene_depth_mm, tol_mm
                 if start == end == 0:
                     continue   # inside the glass
                 for m in range(4):
-                    if on[m] and m != start and m != end and _segment_blocked(pts[j], pts[j + 1], solids[m], m == 0
+                    if on[m] and m != start and m != end and _segment_blocked(pts, j, solids, m, m == 0
                                                                                and solids[m, 16] > 0):
                         ok = False
                         break
