@@ -27,8 +27,8 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "scale": ["PAPER_FOCAL_PX", "pixel_scale"],
         "search_range": ["disparity_range", "rectification_for", "working_disparities"],
         "solids": ["finite_solids", "segments_hit"],
-        "trace": ["Rays", "distort", "ideal_sensor_from_pixels", "lit_pairs", "pixels_from_camera_dirs", "trace_pixels",
-                  "undistort"],
+        "trace": ["Rays", "camera_dirs", "distort", "ideal_sensor_from_pixels", "lit_pairs", "pixels_from_camera_dirs",
+                  "trace_camera_rays", "trace_pixels", "undistort"],
         "window": ["roi_rig"],
     },
 )

@@ -11,7 +11,7 @@ import numpy as np
 
 from psvs._threads import pool_size
 from psvs.optics.rig import Rig
-from psvs.optics.trace import trace_pixels
+from psvs.optics.trace import camera_dirs, trace_camera_rays, trace_pixels
 from psvs.simulate.geometry import Hits, SceneGeometry, group_by
 from psvs.simulate.kernels import lamp_rays, lit_radiance
 from psvs.simulate.scene import Scene
@@ -20,26 +20,44 @@ from psvs.simulate.scene import Scene
 SHADOW_OFFSET_MM = 0.1
 
 
-@functools.lru_cache(maxsize=8)
 def view_rays(rig: Rig, supersample: int, view: str):
-    """Scene rays of every sub-pixel sample of one view: (origins (H*W*K*K, 3), dirs, valid), cached per rig."""
+    """Scene rays of every sub-pixel sample of one view: (origins (H*W*K*K, 3), dirs, valid), cached per rig
+    (both views' at once: :func:`_both_views`)."""
+    if view not in ("left", "right"):
+        raise ValueError(f"view must be 'left' or 'right', got {view!r}")
+    return _both_views(rig, int(supersample))[view]
+
+
+@functools.lru_cache(maxsize=4)
+def _both_views(rig: Rig, supersample: int) -> dict:
+    """Both views' :func:`view_rays`, read-only: the camera's rays of the samples are found once (undoing the
+    lens's distortion, an iteration a sample) and traced through each view's path."""
     w, h = rig.camera.image_size_px
-    rays = sample_rays(rig, supersample, view, np.arange(h * w))
-    for a in rays:
-        a.setflags(write=False)
-    return rays
+    dirs = camera_dirs(_sample_pixels(rig, supersample, np.arange(h * w)), rig.camera)
+    out = {}
+    for view in ("left", "right"):
+        rays = trace_camera_rays(dirs, rig, view)
+        for a in rays:
+            a.setflags(write=False)
+        out[view] = rays
+    return out
+
+
+def _sample_pixels(rig: Rig, supersample: int, pixels: np.ndarray) -> np.ndarray:
+    """The K x K sub-pixel sample positions (N*K*K, 2) px of the pixels ``pixels`` (flat indices v * W + u,
+    (N,)), each pixel's samples together, row by row of its K x K grid."""
+    w = rig.camera.image_size_px[0]
+    offs = (np.arange(supersample) + 0.5) / supersample - 0.5
+    v, u = np.divmod(np.asarray(pixels, dtype=np.int64), w)
+    dv, du = (a.ravel() for a in np.meshgrid(offs, offs, indexing="ij"))
+    return np.column_stack([(u[:, None] + du[None, :]).ravel(), (v[:, None] + dv[None, :]).ravel()])
 
 
 def sample_rays(rig: Rig, supersample: int, view: str, pixels: np.ndarray):
     """Scene rays of the K x K sub-pixel samples (K = ``supersample``) of the pixels ``pixels`` (flat indices
     v * W + u, (N,)) of one view: (origins (N*K*K, 3), dirs, valid), each pixel's samples together, row by
     row of its K x K grid (as :func:`view_rays` orders them), traced now (no cache)."""
-    w = rig.camera.image_size_px[0]
-    offs = (np.arange(supersample) + 0.5) / supersample - 0.5
-    v, u = np.divmod(np.asarray(pixels, dtype=np.int64), w)
-    dv, du = (a.ravel() for a in np.meshgrid(offs, offs, indexing="ij"))
-    uv = np.column_stack([(u[:, None] + du[None, :]).ravel(), (v[:, None] + dv[None, :]).ravel()])
-    return trace_pixels(uv, rig, view)
+    return trace_pixels(_sample_pixels(rig, supersample, pixels), rig, view)
 
 
 def shade(geom: SceneGeometry, scene: Scene, hits: Hits) -> np.ndarray:
