@@ -121,3 +121,38 @@ def test_the_papers_model_says_its_own_error_and_carries_it_in_its_sigma(capsys)
     assert np.all(off > 4 * sigmas["refraction"])                  # beyond a match's noise: 9-28 of its sigmas
     assert np.all(off <= 1.1 * sigmas["paper"]) and np.all(sigmas["paper"] > 8 * sigmas["refraction"])
     assert np.all(np.abs(z["refraction"] - truth[:, 2]) <= 2 * sigmas["refraction"])
+
+
+def test_the_default_model_that_errs_on_a_thick_plate_carries_its_error_in_its_sigma(capsys, tmp_path):
+    """`triangulate` without --model on a rig whose default closed form errs beyond 0.5 % (the paper's geometry
+    with a 15 mm plate: the refraction model about -0.5 %): each point's sigma holds that model's own error
+    (a review of 2026-12-07: the check had read the flag, empty when the model is the rig's default)."""
+    from importlib.resources import files
+
+    from psvs.measure.model_check import closed_form_depth_error
+    from psvs.optics.project import project_points
+    text = (files("psvs.rigs") / "default.toml").read_text()
+    assert "plate_thickness_mm = 3.0" in text
+    rig_file = tmp_path / "thick.toml"
+    rig_file.write_text(text.replace("plate_thickness_mm = 3.0", "plate_thickness_mm = 15.0"))
+    rig = load_rig(rig_file)
+    lo, hi = closed_form_depth_error(rig, "refraction")
+    assert min(lo, -hi) < -0.005 or max(abs(lo), abs(hi)) > 0.005, (lo, hi)
+    pts = np.array([[x, y, z] for z in (450.0, 700.0, 1000.0) for x in (-30.0, 0.0, 40.0) for y in (-20.0, 15.0)])
+    left, ok_l = project_points(pts, rig, "left")
+    right, ok_r = project_points(pts, rig, "right")
+    assert (ok_l & ok_r).all()
+    matches = tmp_path / "m.csv"
+    matches.write_text("u_l,v_l,u_r,v_r\n" + "".join(f"{a:.10f},{b:.10f},{c:.10f},{d:.10f}\n"
+                                                    for (a, b), (c, d) in zip(left, right, strict=True)))
+    code, out, err = run(capsys, "triangulate", str(matches), "--rig", str(rig_file))
+    assert code == 0, err
+    assert err.strip() == (f"the refraction model reads depth {100 * lo:+.2f} to {100 * hi:+.2f} % off on this rig "
+                           "over 400-1200 mm (its closed form; --model exact traces the glass)")
+    import csv
+    rows = np.array([[float(x) for x in row] for row in list(csv.reader(out.splitlines()))[1:]])
+    off = np.abs(rows[:, 2] - pts[:, 2])
+    code, out, err = run(capsys, "triangulate", str(matches), "--rig", str(rig_file), "--model", "exact")
+    plain = np.array([[float(x) for x in row] for row in list(csv.reader(out.splitlines()))[1:]])[:, 3]
+    assert code == 0 and np.max(off / plain) > 3.0          # the model's own error, beyond a match's noise
+    assert np.all(off <= 1.1 * rows[:, 3]), np.column_stack([off, rows[:, 3]])

@@ -90,7 +90,7 @@ def test_automatic_and_exports(client):
 def test_a_closed_form_that_errs_on_the_rig_says_so_beside_its_pairs(client):
     """Trial 49: the paper's model (eq. 12 leaves the plate out) reads depth about 1 % short on the paper's own
     geometry; the match answers with the note the commands print on stderr (the same words), and with none for
-    the rig's default model (refraction on this geometry: -0.11 %)."""
+    the rig's default model (refraction on this geometry: -0.11 %, within a match's noise)."""
     from psvs.measure.model_check import model_error_note
     paper = client.post("/api/match", json={"seed": None, "model": "paper"}).json()
     assert paper["model_note"] == model_error_note(default_rig(), "paper", 400.0, 1200.0)

@@ -84,7 +84,7 @@ def run(args) -> int:
     out = check_output_path(args.output, (".csv",))
     check_distinct({"-o": args.output}, {"POINTS.csv": args.points, "--rig": args.rig})
     rig = measuring_rig(args.rig)
-    model_errs = measuring_model(args, rig)
+    noted = measuring_model(args, rig)
     check_rows_memory(args.points)        # before the rows are read: each costs about a kB through the models
     left, right = read_matches_csv(args.points)
     if len(left) == 0:
@@ -103,7 +103,7 @@ def run(args) -> int:
     _invalid(res, off, notes, lambda k, n: f"{n} pair(s) stand more than {EPIPOLAR_TOL_PX:g} px off their twin's "
              f"epipolar curve (row {k + 2}: {gap[k]:.1f} px): not twins")
     sigma = depth_sigma_mm(left, right, rig, model, args.match_sigma_px)
-    if model_errs:                      # a closed form that errs on this rig: its own error at each pair counts too
+    if noted:            # a closed form that errs on this rig (asked, or its default): its error at each pair counts
         exact = triangulate(left, right, rig, model="exact")
         own = np.abs(res.points_mm[:, 2] - exact.points_mm[:, 2])
         sigma = np.where(exact.valid, np.hypot(sigma, own), sigma)
