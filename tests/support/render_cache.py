@@ -6,7 +6,8 @@ from the session's shared folder (tests/support/shared_files.py, seen by every x
 tracing them again: :func:`psvs.simulate.render.render_views` and :func:`psvs.simulate.render.ground_truth`
 answer from files named by a hash of what they depend on (the scene, the rig, the samples per pixel, adaptive
 or not), made by the first caller under the file's lock. The renderer is deterministic, so what is read is
-what would have been traced (tests/simulate/test_render_cache.py compares them).
+what would have been traced (tests/simulate/test_render_cache.py compares them). The renderer's own refusals
+(the memory a render needs, a scene behind the rig's front) are made first, kept or not.
 
 Not kept: a render through a moved geometry (a camera moving through a scene: its hits are the moved
 scene's only to float64's rounding), a scene or rig that does not pickle, and the renders of a test marked
@@ -49,12 +50,17 @@ def _load(path: Path) -> dict:
 def cached_views(original):
     """``render_views`` kept by content (module docstring)."""
     from psvs.simulate.geometry import SceneGeometry
+    from psvs.simulate.render import check_scene_in_front, check_supersample
 
     def render_views(scene, rig, supersample=2, geom=None, adaptive=False):
         own = geom is None or type(geom) is SceneGeometry
         key = content_key("views", scene, rig, supersample, bool(adaptive)) if own and not _FRESH["on"] else None
         if key is None:
             return original(scene, rig, supersample, geom, adaptive)
+        # the renderer's refusals first, as it makes them: the memory a render needs (a test of the guard sets its
+        # own limit) and a scene before the rig
+        check_supersample(rig, supersample)
+        check_scene_in_front(geom or SceneGeometry(scene), rig)
 
         def make(path):
             left, right = original(scene, rig, supersample, geom, adaptive)
