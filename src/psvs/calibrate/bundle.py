@@ -74,10 +74,10 @@ LOSS_SCALE_PX = 0.5      # soft-L1: residuals beyond this are treated as outlier
 PLAIN_SCALE_PX = 50.0
 _MISS_PX = 100.0         # residual of a point the optics cannot reach
 DIFF_STEP = {"focal_length_mm": 1e-5, "cx_px": 1e-3, "cy_px": 1e-3, "pixel_aspect": 1e-7, "k1": 1e-6, "k2": 1e-6,
-         "p1": 1e-7, "p2": 1e-7, "k3": 1e-6, "plate_thickness_mm": 1e-4, "baseline_mm": 1e-4,
-         **{f"m{k}_shift_mm": 1e-4 for k in range(1, 5)}, **{f"box_{a}_rad": 1e-7 for a in "xyz"},
-         **{f"m{k}_tilt_{a}_rad": 1e-7 for k in range(1, 5) for a in "ab"},
-         "offset_mm": 1e-4, "ry_rad": 1e-7, "rz_rad": 1e-7, "x0_mm": 1e-4, "y0_mm": 1e-4}
+             "p1": 1e-7, "p2": 1e-7, "k3": 1e-6, "plate_thickness_mm": 1e-4, "baseline_mm": 1e-4,
+             **{f"m{k}_shift_mm": 1e-4 for k in range(1, 5)}, **{f"box_{a}_rad": 1e-7 for a in "xyz"},
+             **{f"m{k}_tilt_{a}_rad": 1e-7 for k in range(1, 5) for a in "ab"},
+             "offset_mm": 1e-4, "ry_rad": 1e-7, "rz_rad": 1e-7, "x0_mm": 1e-4, "y0_mm": 1e-4}
 POSE_STEP = (1e-7, 1e-7, 1e-7, 1e-4, 1e-4, 1e-4)
 _POINT_STEP_MM = 1e-4
 #: The lens's parameters: they change no ray through the mirrors, only the pixel a camera ray lands on.
@@ -354,19 +354,23 @@ class BundleProblem:
                 diff = self.project(x + dx, base) - r0
             J[:n_img_rows, k] = (diff / h).ravel()
         if self.grids:
-            self._pose_columns(x, J, rig, pts, r0, base)
+            self._pose_columns(x, J, rig, pts, (r0, seen), base)
         J[n_img_rows + np.arange(self.n_rig), np.arange(self.n_rig)] = NOISE_PX / self.sigma
         return J
 
-    def _pose_columns(self, x, J: np.ndarray, rig: Rig, pts: np.ndarray, r0: np.ndarray, base) -> None:
+    def _pose_columns(self, x, J: np.ndarray, rig: Rig, pts: np.ndarray, at_x: tuple, base) -> None:
         """The grid views' pose columns of :meth:`jacobian`, in place: d uv / d pose = (d uv / d point) (d point /
-        d pose), each image's rows in its own pose's six columns (``pts``, ``r0``, ``base``: the points, the
-        residuals and the rays at ``x``)."""
+        d pose), each image's rows in its own pose's six columns (``pts``, ``at_x`` = (residuals, rows seen) and
+        ``base``: the points, the projection and the rays at ``x``)."""
+        r0, seen = at_x
         by_point = []                                   # d uv / d point: (2 n_points, 2) per axis
         for axis in range(3):
             dp = np.zeros_like(pts)
             dp[:, axis] = _POINT_STEP_MM
-            by_point.append((self._views(rig, pts + dp, base)[0] - r0) / _POINT_STEP_MM)
+            r, _, stepped = self._views(rig, pts + dp, base)
+            # a point the step takes across a glass's edge (seen at one end only) has no derivative: 0 there,
+            # not (the miss's residual - its own) / step
+            by_point.append(np.where((stepped == seen)[:, None], (r - r0) / _POINT_STEP_MM, 0.0))
         first = self.n_rig + self.n_sweep
         grid_points = np.flatnonzero(self.owner < len(self.grids))
         for q, h in enumerate(POSE_STEP):
@@ -480,9 +484,8 @@ def aspect_score(prob: BundleProblem, x: np.ndarray, loss_scale_px: float) -> fl
     cost's gradient there, W the soft-L1 loss's weights (1 / sqrt(1 + (r / scale)^2)) and s^2 the image
     residuals' variance. About chi-square with 1 degree of freedom where the views show no departure (the
     other parameters' gradients are zero at ``x``)."""
-    free = BundleProblem(prob.grids, prob.sweeps, prob.local, prob.start, tuple(p for p in RIG_PARAMS
-                                                                              if not prob.free[RIG_PARAMS.index(p)]
-                                                                              and p != ASPECT))
+    held = tuple(p for p in RIG_PARAMS if not prob.free[RIG_PARAMS.index(p)] and p != ASPECT)
+    free = BundleProblem(prob.grids, prob.sweeps, prob.local, prob.start, held)
     k = free.names.index(ASPECT)
     xf = np.insert(x, k, free.x_start[k])
     r, J = free.residuals(xf), free.jacobian(xf)
