@@ -104,3 +104,32 @@ def test_a_sweep_without_grids_keeps_its_columns():
         dx[k] = h
         ref = (prob.residuals(x + dx) - prob.residuals(x - dx)) / (2 * h)
         assert np.max(np.abs(J[:, k] - ref)) <= 1e-5 * max(np.max(np.abs(ref)), 1e-9), k
+
+
+def test_grids_with_a_sweep_and_a_point_no_view_sees():
+    """Two card views (one holding a point 3 m to the side, which neither view reaches: its rows a constant
+    residual, zero in every column) and a robot sweep: every column the residuals' central difference."""
+    rig = drawn_rig(4)
+    grids = views(rig, 2, 4)
+    far = np.array([[3000.0, 0.0, 0.0]])
+    g = grids[0]
+    grids[0] = GridView(g.name, np.vstack([g.object_mm, far]), np.vstack([g.left, [[10.0, 10.0]]]),
+                        np.vstack([g.right, [[20.0, 10.0]]]))
+    local = np.column_stack([np.linspace(-20.0, 20.0, 5), np.zeros(5), np.zeros(5)])
+    sweeps = []
+    for k, z in enumerate(np.linspace(450.0, 900.0, 3)):
+        pts = local + [0.0, 0.0, z]
+        sweeps.append(SweepView(f"s{k}", z, project_points(pts, rig, "left")[0], project_points(pts, rig, "right")[0]))
+    prob = BundleProblem(grids, sweeps, local, rig, ("k2", "p1", "p2", "k3"))
+    x = np.concatenate([rig_vector(rig)[prob.free], initial_sweep(sweeps, local, rig)]
+                       + [initial_grid_pose(g, rig) for g in grids])
+    r0 = prob.residuals(x)
+    assert np.count_nonzero(np.abs(r0[:4 * prob.n_points]) == 100.0) == 4        # the far point's 4 rows: missed
+    J = prob.jacobian(x)
+    steps = ([DIFF_STEP[p] for p in prob.names + list(SWEEP_PARAMS)]
+             + [POSE_STEP[q % 6] for q in range(len(x) - prob.n_rig - len(SWEEP_PARAMS))])
+    for k, h in enumerate(steps):
+        dx = np.zeros(len(x))
+        dx[k] = h
+        ref = (prob.residuals(x + dx) - prob.residuals(x - dx)) / (2 * h)
+        assert np.max(np.abs(J[:, k] - ref)) <= 1e-5 * max(np.max(np.abs(ref)), 1e-9), k
