@@ -190,9 +190,8 @@ def measuring_model(args, rig: Rig, near_mm: float = 400.0, far_mm: float = 1200
     than 0.5 % (the paper's model on the paper's geometry: about 1 % short; the refraction model on a 15 mm plate:
     0.5 %; :func:`psvs.measure.model_check.model_error_note`). Returns that note ("" when there is none)."""
     from psvs.measure.model_check import check_closed_form, model_error_note
-    from psvs.measure.triangulate import default_model
     check_closed_form(rig, args.model, near_mm, far_mm)
-    note = model_error_note(rig, args.model or default_model(rig), near_mm, far_mm)   # the rig's default too
+    note = model_error_note(rig, args.model, near_mm, far_mm)
     if note:
         print(note, file=sys.stderr)
     return note

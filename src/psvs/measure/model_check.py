@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from psvs.measure.triangulate import MATCH_SIGMA_PX, depth_sigma_mm, triangulate
+from psvs.measure.triangulate import MATCH_SIGMA_PX, default_model, depth_sigma_mm, triangulate
 from psvs.optics.project import in_image, project_points
 from psvs.optics.rectify import needs_rectification
 from psvs.optics.rig import Rig
@@ -116,9 +116,11 @@ MODEL_ERROR_NOTE = 5e-3
 
 
 def model_error_note(rig: Rig, model: str | None, near_mm: float = 400.0, far_mm: float = 1200.0) -> str:
-    """One line saying how far the closed form ``model`` reads depth off on ``rig`` over near..far mm, when
-    more than :data:`MODEL_ERROR_NOTE` anywhere; '' otherwise (and for the exact model or None)."""
-    if model in (None, "exact"):
+    """One line saying how far the closed form ``model`` (None: the rig's default, which the commands then use)
+    reads depth off on ``rig`` over near..far mm, when more than :data:`MODEL_ERROR_NOTE` anywhere; '' otherwise
+    (and for the exact model)."""
+    model = model or default_model(rig)
+    if model == "exact":
         return ""
     lo, hi = closed_form_depth_error(rig, model, near_mm, far_mm)
     if max(abs(lo), abs(hi)) <= MODEL_ERROR_NOTE:

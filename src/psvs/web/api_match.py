@@ -15,7 +15,6 @@ from psvs.live.tracker import nearest_edge_pixels
 from psvs.match.correspondence import match_image, rows_unshown
 from psvs.match.export import result_to_dict, write_csv, write_json, write_ply
 from psvs.measure.model_check import check_closed_form, model_error_note
-from psvs.measure.triangulate import default_model
 from psvs.optics.illumination import flat_field
 from psvs.optics.rig import Rig
 from psvs.optics.scale import pixel_scale
@@ -80,7 +79,7 @@ def match(body: MatchBody, session: SessionDep):
             chance = {"answered": False, "text": drift}
     session.keep_result(res, still.generation)
     # a closed form that reads depth more than 0.5 % off on this rig says so, as the commands do on stderr
-    note = model_error_note(rig, body.model or default_model(rig), body.near_mm, body.far_mm)
+    note = model_error_note(rig, body.model, body.near_mm, body.far_mm)
     return {"seed_px": seed, **result_to_dict(res, decimals=4), "chance": chance, "model_note": note}
 
 
