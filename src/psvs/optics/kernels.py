@@ -57,12 +57,14 @@ def unit_camera_dirs(uv, cam, dist, iterations, tol, out):  # pragma: no cover -
 
 
 @nb.njit(cache=True, nogil=True)
-def _box_meets(p0, p1, lo, hi):  # pragma: no cover - compiled
-    """Whether the axis-aligned bounding box of the segment p0 -> p1 (3,) meets the box [lo, hi] (3,) (a NaN
-    coordinate meets nothing)."""
+def _box_meets(p0s, i0, p1s, i1, boxes, b, at):  # pragma: no cover - compiled
+    """Whether the axis-aligned bounding box of the segment p0s[i0] -> p1s[i1] (rows (3,)) meets the box whose
+    lo (3) and hi (3) are boxes[b, at:at + 6] (a NaN coordinate meets nothing). Element reads, no row views: a view
+    takes and drops a reference on its array, an atomic operation (the occlusion test took 4-14 times a ray's
+    path so)."""
     for k in range(3):
-        a, b = p0[k], p1[k]
-        if np.isnan(a) or np.isnan(b) or max(a, b) < lo[k] or min(a, b) > hi[k]:
+        a, c = p0s[i0, k], p1s[i1, k]
+        if np.isnan(a) or np.isnan(c) or max(a, c) < boxes[b, at + k] or min(a, c) > boxes[b, at + 3 + k]:
             return False
     return True
 
@@ -71,9 +73,11 @@ def _box_meets(p0, p1, lo, hi):  # pragma: no cover - compiled
 def boxes_meet(p0s, p1s, lo, hi):  # pragma: no cover - compiled
     """Mask (N,) of segments p0s -> p1s (N, 3) whose axis-aligned bounding box meets the box [lo, hi] (3,)
     (a NaN coordinate meets nothing)."""
+    box = np.empty((1, 6))
+    box[0, :3], box[0, 3:] = lo, hi
     out = np.zeros(p0s.shape[0], dtype=np.bool_)
     for i in range(p0s.shape[0]):
-        out[i] = _box_meets(p0s[i], p1s[i], lo, hi)
+        out[i] = _box_meets(p0s, i, p1s, i, box, 0, 0)
     return out
 
 
@@ -87,13 +91,10 @@ def _segment_blocked(pts, j, solids, m, plate):  # pragma: no cover - compiled
     """Whether the segment pts[j] -> pts[j + 1] (rows of ``pts`` (P, 3)) crosses one solid ``solids[m]`` (23,):
     its plane's point, normal, s and t axes (12), its rectangle s0, s1, t0, t1 (4), the plate's thickness (1)
     and its bounding box lo, hi (6); ``plate``: the box of the M1 plate (slab method), else the rectangle
-    (crossed strictly inside). :func:`psvs.optics.solids.segments_hit`, one segment. Element reads, no row
-    views: a view takes and drops a reference on its array, an atomic operation per view (the occlusion test
-    took 4-14 times a ray's path so)."""
-    for k in range(3):                                 # the bounding-box pre-test
-        a, b = pts[j, k], pts[j + 1, k]
-        if np.isnan(a) or np.isnan(b) or max(a, b) < solids[m, 17 + k] or min(a, b) > solids[m, 20 + k]:
-            return False
+    (crossed strictly inside). :func:`psvs.optics.solids.segments_hit`, one segment, read element by element
+    (:func:`_box_meets`)."""
+    if not _box_meets(pts, j, pts, j + 1, solids, m, 17):     # the bounding-box pre-test
+        return False
     off = solids[m, 0] * solids[m, 3] + solids[m, 1] * solids[m, 4] + solids[m, 2] * solids[m, 5]
     d0 = pts[j, 0] * solids[m, 3] + pts[j, 1] * solids[m, 4] + pts[j, 2] * solids[m, 5] - off
     d1 = pts[j + 1, 0] * solids[m, 3] + pts[j + 1, 1] * solids[m, 4] + pts[j + 1, 2] * solids[m, 5] - off
