@@ -92,9 +92,10 @@ def _regions(d, ok, step):  # pragma: no cover - compiled
                 continue
             i = y * w + x
             parent[i] = i
-            if x > 0 and ok[y, x - 1] and abs(d[y, x - 1] - d[y, x]) <= step:
+            here = np.float64(d[y, x])      # (float32 maps compared in float64, as converted maps were)
+            if x > 0 and ok[y, x - 1] and abs(np.float64(d[y, x - 1]) - here) <= step:
                 parent[i] = _find(parent, i - 1)
-            if y > 0 and ok[y - 1, x] and abs(d[y - 1, x] - d[y, x]) <= step:
+            if y > 0 and ok[y - 1, x] and abs(np.float64(d[y - 1, x]) - here) <= step:
                 _union(parent, i, i - w)
     labels = np.full((h, w), -1, np.int32)
     flat = labels.ravel()
@@ -119,24 +120,25 @@ def consistent_regions(disparity: np.ndarray, confidence: np.ndarray) -> tuple[n
 
 def _labelled(disparity: np.ndarray, confidence: np.ndarray) -> tuple[np.ndarray, int]:
     """(:func:`consistent_regions` as int32, R)."""
-    d = np.ascontiguousarray(disparity, dtype=np.float64)
+    d = _map(disparity)
     ok = np.ascontiguousarray((np.asarray(confidence) > 0) & np.isfinite(d))
     return _regions(d, ok, STEP_PX)
+
+
+def _map(disparity: np.ndarray) -> np.ndarray:
+    """A disparity map as the kernels read it: C-contiguous float32 or float64 as it is (no copy of a float32
+    map, the dense engine's), any other dtype as float64."""
+    d = np.asarray(disparity)
+    return np.ascontiguousarray(d if d.dtype in (np.float32, np.float64) else d.astype(np.float64))
 
 
 def grown(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarray) -> np.ndarray:
     """``anchored`` (H, W bool) and every consistent region of the map that holds an anchored pixel (the
     regions as :func:`consistent_regions` finds them)."""
-    return _grown(anchored, disparity, confidence)[0]
-
-
-def _grown(anchored: np.ndarray, disparity: np.ndarray,
-           confidence: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """(:func:`grown`, each pixel's region int32 (H, W) numbered 0..R-1, -1 outside any, R)."""
     labels, n = _labelled(disparity, confidence)
     hit = np.zeros(n + 1, bool)                  # the last entry: "no region" (label -1), never hit
     hit[labels[(labels >= 0) & anchored]] = True
-    return anchored | hit[labels], labels, n
+    return anchored | hit[labels]
 
 
 def bracketed(regions: np.ndarray, textured: np.ndarray) -> np.ndarray:
@@ -220,8 +222,41 @@ def _surfaces(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarra
     the two maps' run on two threads."""
     if not anchored.any():
         return anchored, None, 0
-    trusted, labels, n = _grown(anchored, disparity, confidence)
-    return trusted & (textured | _bracketed(labels, np.ascontiguousarray(textured & trusted), n)), labels, n
+    c = np.asarray(confidence)
+    return _surface_kernel(_map(disparity), np.ascontiguousarray(c if c.dtype in (np.float32, np.float64)
+                                                                else c.astype(np.float64)),
+                           np.ascontiguousarray(anchored, dtype=np.bool_),
+                           np.ascontiguousarray(textured, dtype=np.bool_), STEP_PX)
+
+
+@nb.njit(cache=True, nogil=True)
+def _surface_kernel(d, confidence, anchored, textured, step):  # pragma: no cover - compiled
+    """:func:`_surfaces` in one pass a step: the regions (:func:`_regions` of the pixels with confidence and a
+    finite answer), the regions holding an anchored pixel grown (:func:`grown`), then the untextured pixels of
+    them kept where :func:`bracketed` by their region's textured grown pixels."""
+    h, w = d.shape
+    ok = np.empty((h, w), np.bool_)
+    for y in range(h):
+        for x in range(w):
+            ok[y, x] = confidence[y, x] > 0 and np.isfinite(d[y, x])
+    labels, n = _regions(d, ok, step)
+    hit = np.zeros(n, np.bool_)
+    for y in range(h):
+        for x in range(w):
+            if anchored[y, x] and labels[y, x] >= 0:
+                hit[labels[y, x]] = True
+    trusted = np.empty((h, w), np.bool_)
+    seeds = np.empty((h, w), np.bool_)
+    for y in range(h):
+        for x in range(w):
+            t = anchored[y, x] or (labels[y, x] >= 0 and hit[labels[y, x]])
+            trusted[y, x] = t
+            seeds[y, x] = t and textured[y, x]
+    between = _bracketed(labels, seeds, n)
+    for y in range(h):
+        for x in range(w):
+            trusted[y, x] = trusted[y, x] and (textured[y, x] or between[y, x])
+    return trusted, labels, n
 
 
 def _unambiguous(test: EchoTest, elsewhere: Elsewhere, trusted: np.ndarray, disparity: np.ndarray, scale: float,

@@ -46,13 +46,16 @@ class NoiseLevel:
 def noise_level(image: np.ndarray, max_patches: int = MAX_PATCHES) -> NoiseLevel:
     """The noise level of ``image`` (H, W) grey, at least :data:`PATCH_PX` px a side (module docstring), read
     from at most ``max_patches`` patches (a regular subsample of every position)."""
-    f = np.asarray(image, dtype=np.float64)
+    f = np.asarray(image)
+    if f.dtype.kind not in "biuf":
+        f = f.astype(np.float64)
     if f.ndim != 2 or min(f.shape) < PATCH_PX:
         raise ValueError(f"the noise level needs a grey image of at least {PATCH_PX} px a side, got shape {f.shape}")
     m = PATCH_PX
     positions = (f.shape[0] - m + 1) * (f.shape[1] - m + 1)
     stride = max(1, math.ceil(math.sqrt(positions / max_patches)))
-    patches = sliding_window_view(f, (m, m))[::stride, ::stride].reshape(-1, m * m)
+    # the patches read, as float64 (not the whole image: a 2 MP frame's copy cost more than the patches' work)
+    patches = sliding_window_view(f, (m, m))[::stride, ::stride].reshape(-1, m * m).astype(np.float64)
     mean = patches.mean(axis=1)
     patches = patches - mean[:, None]
     bins = max(1, min(BINS, len(patches) // MIN_BIN_PATCHES))
