@@ -133,3 +133,49 @@ def test_grids_with_a_sweep_and_a_point_no_view_sees():
         dx[k] = h
         ref = (prob.residuals(x + dx) - prob.residuals(x - dx)) / (2 * h)
         assert np.max(np.abs(J[:, k] - ref)) <= 1e-5 * max(np.max(np.abs(ref)), 1e-9), k
+
+
+def _edge_x(rig, y: float, z: float, view: str) -> float:
+    """The X (mm) at (., y, z) where ``view`` stops seeing a point (a finite mirror vignettes it), to 1e-6 mm:
+    a point there is seen, one 1e-5 mm further out is not."""
+    seen = lambda x: bool(project_points([[x, y, z]], rig, view)[1][0])  # noqa: E731
+    inside, outside = 0.0, 50.0
+    while seen(outside):
+        inside, outside = outside, outside * 2.0
+    while outside - inside > 1e-6:
+        mid = 0.5 * (inside + outside)
+        inside, outside = (mid, outside) if seen(mid) else (inside, mid)
+    return inside
+
+
+@pytest.mark.parametrize("view", ["left", "right"])
+def test_a_point_the_step_takes_out_of_the_field_gives_no_derivative(view):
+    """A sweep point at the edge of one view's field (a mirror's rim), within the sweep's X step of it: stepped,
+    its rows would
+    read the miss's constant residual; the columns are 0 there (not (miss - residual) / step, 1e6 px/mm) and
+    the central difference elsewhere."""
+    rig = load_rig(EXAMPLES / "rigs" / "clear.toml")       # mirrors of finite size: a field with an edge
+    z = 600.0
+    x_edge = _edge_x(rig, 0.0, z, view)
+    step = DIFF_STEP["x0_mm"]
+    local = np.array([[-20.0, 0.0, 0.0], [0.0, 0.0, 0.0], [20.0, 0.0, 0.0], [x_edge - 0.4 * step, 0.0, 0.0]])
+    sweeps = []
+    for k, zz in enumerate((z, z + 50.0, z + 100.0)):
+        pts = local + [0.0, 0.0, zz]
+        sweeps.append(SweepView(f"s{k}", zz, project_points(pts, rig, "left")[0], project_points(pts, rig, "right")[0]))
+    prob = BundleProblem([], sweeps, local, rig, ("pixel_aspect", "k2", "p1", "p2", "k3"))
+    x = np.concatenate([rig_vector(rig)[prob.free], initial_sweep(sweeps, local, rig)])
+    x[prob.n_rig:] = [0.0, 0.0, 0.0, 0.0, 0.0]          # the sweep as planted: the edge point seen, just
+    k = prob.n_rig + SWEEP_PARAMS.index("x0_mm")
+    dx = np.zeros(len(x))
+    dx[k] = step
+    r0, r1 = prob.residuals(x), prob.residuals(x + dx)
+    rows = 4 * prob.n_points
+    flipped = np.flatnonzero((np.abs(r1[:rows]) == 100.0) != (np.abs(r0[:rows]) == 100.0))
+    assert len(flipped) == 2, "the edge point, in one view, leaves the field under the step"
+    J = prob.jacobian(x)
+    assert np.all(J[flipped, k] == 0.0)
+    assert np.max(np.abs(J[:rows])) < 1e5     # no (miss - residual) / step anywhere (100 px / 1e-4 mm: 1e6)
+    kept = np.setdiff1d(np.arange(rows), flipped)
+    ref = (prob.residuals(x + dx) - prob.residuals(x - dx)) / (2 * step)
+    assert np.max(np.abs(J[kept, k] - ref[kept])) <= 1e-5 * np.max(np.abs(ref[kept]))

@@ -337,7 +337,9 @@ class BundleProblem:
         the second derivative, is far below the projection's 1e-10 px over the step). The mirrors' and the
         plate's columns project every point again (from the rays ``x``'s converged to: a few steps fewer); the
         lens's move no ray, only the pixel a ray lands on (:meth:`_pixels`); the poses' are the projection's
-        derivative by the point (three projections, not one per pose term) times the point's by the pose."""
+        derivative by the point (three projections, not one per pose term) times the point's by the pose. A row
+        whose point the step takes across a glass's edge (seen at one end of the step only) is 0 in that
+        column, not the miss's constant residual less its own over the step."""
         n_img_rows = 4 * self.n_points
         J = np.zeros((n_img_rows + self.n_rig, len(x)))
         names = self.names + list(SWEEP_PARAMS[:self.n_sweep])
@@ -350,8 +352,9 @@ class BundleProblem:
             dx[k] = h
             if name in LENS_PARAMS:
                 diff = self._pixels(x + dx, base, seen) - pix0
-            else:
-                diff = self.project(x + dx, base) - r0
+            else:   # a row the step takes across a glass's edge has no derivative: 0, as the poses' columns
+                r, _, stepped = self._views(self.rig(x + dx), self.points(x + dx), base)
+                diff = np.where((stepped == seen)[:, None], r - r0, 0.0)
             J[:n_img_rows, k] = (diff / h).ravel()
         if self.grids:
             self._pose_columns(x, J, rig, pts, (r0, seen), base)
