@@ -90,6 +90,23 @@ def test_bad_seeds_and_files(capsys, tmp_path, fig5a_png, args, message):
     assert out.read_text() == "earlier"
 
 
+@pytest.mark.parametrize("step, message", [
+    ('method = "adaptive"\nblock = 1\noffset = 0', "threshold block must be an odd integer >= 3, got 1"),
+    ('method = "adaptive"\nblock = 11\noffset = nan', "threshold offset must be a finite number, got nan"),
+])
+def test_a_pipeline_files_bad_value_is_bad_input(capsys, tmp_path, fig5a_png, step, message):
+    """Trial 50: an adaptive threshold's 1 px block reached OpenCV ("internal error", its assertion, exit 1) and a
+    NaN offset ran to "cannot measure" (exit 1) naming a range it had not searched: both exit 2, one line naming
+    the file, the step's parameter and its value, nothing written."""
+    pipe = tmp_path / "pl.toml"
+    pipe.write_text(f'[[steps]]\nop = "threshold"\n{step}\n[[steps]]\nop = "roberts"\n')
+    out = tmp_path / "m.json"
+    code, _, err = run(capsys, "match", str(fig5a_png), "--rig", EXAMPLE, "--auto", "--pipeline", str(pipe),
+                       "-o", str(out))
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"{pipe}: {message}" in err and not out.exists()
+
+
 def test_bad_images(capsys, tmp_path):
     blank, small = tmp_path / "blank.png", tmp_path / "small.png"
     write_png(blank, np.full((480, 640), 30, np.uint8))

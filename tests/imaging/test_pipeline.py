@@ -139,7 +139,7 @@ def test_bad_step_values():
     ('op = "median"\nksize = 99999', r"median ksize 99999 px is wider than the image"),
     ('op = "mean"\nksize = 41', r"mean ksize 41 px is wider than the image \(40x30 px\): a window at most 40 px"),
     ('op = "gaussian"\nsigma = 1e300', r"gaussian window \(6 sigma \+ 1\) 6e\+300 px is wider than the image"),
-    ('op = "gaussian"\nsigma = nan', r"gaussian sigma must be > 0 px"),
+    ('op = "gaussian"\nsigma = nan', r"gaussian sigma must be a finite number, got nan"),
 ])
 def test_a_window_wider_than_the_image_is_refused_before_it_runs(tmp_path, text, message):
     """Issue 41: a bilateral diameter of 100000 in a pipeline file ran to 17 GB; sigma 1e300 and a 99999 px
@@ -175,3 +175,38 @@ def test_a_median_window_opencv_cannot_take_is_refused():
     v, u = 240, 320
     window = np.pad(img, 127, mode="reflect")[v:v + 255, u:u + 255]     # OpenCV's border: reflect 101 for 8u
     assert abs(int(out[v, u]) - int(np.median(window))) <= 1
+
+
+@pytest.mark.parametrize("step, message", [
+    # trial 50: OpenCV's assertion came back as "internal error" (exit 1), a NaN went through to a frame of noise
+    ({"op": "threshold", "method": "adaptive", "block": 1, "offset": 0},
+     r"^threshold block must be an odd integer >= 3, got 1$"),
+    ({"op": "threshold", "method": "adaptive", "block": 11, "offset": float("nan")},
+     r"^threshold offset must be a finite number, got nan$"),
+    ({"op": "threshold", "method": "adaptive", "block": 11, "offset": 1e300},
+     r"^threshold offset must be a number >= -255 and <= 255, got 1e\+300$"),
+    ({"op": "laplacian", "level": float("nan")}, r"^laplacian level must be a finite number, got nan$"),
+    ({"op": "bilateral", "diameter": 5, "sigma_color": float("nan")},
+     r"^bilateral sigma_color must be a finite number, got nan$"),
+    ({"op": "bilateral", "diameter": 5, "sigma_space": 0.0}, r"^bilateral sigma_space must be a number > 0, got 0.0$"),
+    ({"op": "bilateral", "diameter": 5.0}, r"^bilateral diameter must be an integer, got 5.0$"),
+    ({"op": "median", "ksize": True}, r"^median ksize must be an odd integer, got True$"),
+    ({"op": "sobel", "level": -1}, r"^sobel level must be a number >= 0, got -1$"),
+    ({"op": "canny", "low": float("inf")}, r"^canny low must be a finite number, got inf$"),
+    ({"op": "threshold", "method": 3}, r"^threshold method must be fixed, otsu or adaptive, got 3$"),
+])
+def test_a_steps_values_are_checked_when_it_is_made(step, message):
+    """Every parameter against psvs.imaging.steps.PARAM_RULES when the step is made (a pipeline file, the web
+    page's steps and the library's own pipelines alike): one line naming the step, the parameter and the value."""
+    with pytest.raises(ValueError, match=message):
+        make_pipeline([step, {"op": "roberts"}])
+
+
+def test_every_steps_parameter_has_a_rule_and_its_default_keeps_it():
+    """No parameter of a step escapes the rules, and every step's defaults pass them."""
+    import inspect
+    for op, fn in steps.STEPS.items():
+        params = inspect.signature(fn).parameters
+        for name in list(params)[1:]:
+            assert name == "method" or name in steps.PARAM_RULES, (op, name)
+            steps.check_param(op, name, params[name].default)

@@ -194,6 +194,9 @@ def test_a_truncated_upload_is_refused_in_one_line_and_libpng_says_nothing(clien
     ({"steps": [{"op": "median", "ksize": 4}, {"op": "roberts"}]}, 400, "median ksize must be an odd integer"),
     ({"steps": [{"op": "gaussian", "sigma": 1e9}, {"op": "roberts"}]}, 400, "sigma must be within"),
     ({"steps": [{"op": "median"}]}, 400, "the pipeline must end with an edge detector"),
+    # trial 50: OpenCV's assertion text was the answer's detail
+    ({"steps": [{"op": "threshold", "method": "adaptive", "block": 1, "offset": 0}, {"op": "roberts"}]}, 400,
+     "threshold block must be an odd integer >= 3, got 1"),
     ({"steps": []}, 400, "steps must be a list of 1 to 8 steps"),
     ({"steps": [{"op": "roberts", "level": "high"}]}, 400, "must be a number"),
     ({"unexpected": 1}, 422, "malformed request"),

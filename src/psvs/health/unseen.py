@@ -1,7 +1,8 @@
 """What the twins' rows cannot show (docs/health.md, "What frames can show"): a mirror turned *about the
-vertical* moves its view along its rows, not across them, and so does a focal length or a pixel pitch gone
-wrong. ``psvs check`` says healthy on the rows it judged; this module puts a figure on what it did not judge,
-so that a healthy verdict is not read as a depth checked.
+vertical* moves its view along its rows, not across them, and so does a focal length, a pixel pitch or a
+baseline gone wrong (depth is f b / d: a baseline 10 % long reads every depth about 10 % far). ``psvs check``
+says healthy on the rows it judged; this module puts a figure on what it did not judge, so that a healthy
+verdict is not read as a depth checked.
 
 A mirror turned by t turns its view by 2 t. The twins' disparity d = f b / (Z - z_v) (f in px, b the baseline,
 z_v the virtual cameras' Z, paper eq. 11 with the virtual cameras' offset behind O) then moves by f 2 t, and the
@@ -27,7 +28,8 @@ def depth_share_of_turn(rig: Rig, z_mm: float, turn_rad: float = QUOTED_TURN_RAD
 def not_checked_line(rig: Rig, far_mm: float) -> str:
     """One line on what a healthy check did not judge, with the depth a 0.1 deg turn moves at ``far_mm``."""
     share = depth_share_of_turn(rig, far_mm)
-    return (f"not checked (the rows cannot show it): a mirror turned about the vertical, a focal length or a pixel "
-            f"pitch off, which move depth along the rows (a turn of {math.degrees(QUOTED_TURN_RAD):g} deg: "
+    return (f"not checked (the rows cannot show it): a mirror turned about the vertical, a focal length, a pixel "
+            f"pitch or a baseline off, which move depth along the rows (a turn of "
+            f"{math.degrees(QUOTED_TURN_RAD):g} deg: "
             f"{100.0 * share:.1f} % at {far_mm:g} mm); tares at two known distances (psvs refit --tare) or a "
             f"known length (psvs measure circles) check them (one tare only at its own distance)")

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psvs._validate import check_grey
-from psvs.imaging.steps import STEPS
+from psvs.imaging.steps import STEPS, check_param
 
 
 @dataclass(frozen=True)
@@ -25,9 +25,10 @@ class Step:
         if self.op not in STEPS:
             raise ValueError(f"unknown pipeline step {self.op!r} (known: {', '.join(STEPS)})")
         allowed = list(inspect.signature(STEPS[self.op]).parameters)[1:]
-        for k, _ in self.params:
+        for k, v in self.params:
             if k not in allowed:
                 raise ValueError(f"step {self.op!r}: unknown parameter {k!r} (allowed: {', '.join(allowed) or 'none'})")
+            check_param(self.op, k, v)
 
     def __call__(self, img):
         return STEPS[self.op](img, **dict(self.params))

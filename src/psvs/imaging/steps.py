@@ -22,9 +22,43 @@ def _grey(img: np.ndarray, step: str) -> np.ndarray:
     return img
 
 
-def _odd(k, name: str, img: np.ndarray | None = None) -> int:
-    if not isinstance(k, int) or k < 1 or k % 2 == 0:
-        raise ValueError(f"{name} must be an odd integer >= 1, got {k!r}")
+#: What each step parameter may be, checked when a pipeline's step is made (psvs.imaging.pipeline.Step: a
+#: pipeline file, the web page's steps, the library's own), so that every caller refuses the same values:
+#: (kind, smallest, largest), kind "odd" (an odd integer), "int" or "real" (a finite number; bounds inclusive,
+#: None: open). A value no OpenCV call takes (an adaptive threshold's 1 px block, a NaN offset, which OpenCV
+#: takes without a word and answers with a frame of noise) is bad input, not a measurement's failure.
+PARAM_RULES = {"ksize": ("odd", 1, None), "diameter": ("int", 1, None), "block": ("odd", 3, None),
+               "sigma": ("real", 0.0, None), "sigma_color": ("real", 0.0, None), "sigma_space": ("real", 0.0, None),
+               "level": ("real", 0.0, None), "low": ("real", 0.0, None), "high": ("real", 0.0, None),
+               "offset": ("real", -255.0, 255.0)}
+#: The parameters that must be above their smallest value, not at it (a Gaussian or a bilateral of sigma 0).
+_ABOVE = ("sigma", "sigma_color", "sigma_space")
+#: The threshold's methods.
+METHODS = ("fixed", "otsu", "adaptive")
+
+
+def check_param(op: str, name: str, value) -> None:
+    """ValueError naming ``op``'s parameter ``name`` when ``value`` breaks :data:`PARAM_RULES` (or ``method``
+    is not one of :data:`METHODS`)."""
+    if name == "method":
+        if value not in METHODS:
+            raise ValueError(f"{op} method must be fixed, otsu or adaptive, got {value!r}")
+        return
+    kind, low, high = PARAM_RULES[name]
+    whole = kind in ("odd", "int")
+    if isinstance(value, bool) or not isinstance(value, int if whole else (int, float)) or not math.isfinite(value):
+        what = {"odd": "an odd integer", "int": "an integer", "real": "a finite number"}[kind]
+        raise ValueError(f"{op} {name} must be {what}, got {value!r}")
+    below = value <= low if name in _ABOVE else value < low
+    if below or (high is not None and value > high) or (kind == "odd" and value % 2 == 0):
+        span = (f"> {low:g}" if name in _ABOVE else f">= {low:g}") + ("" if high is None else f" and <= {high:g}")
+        raise ValueError(f"{op} {name} must be {'an odd integer' if kind == 'odd' else 'a number'} {span}, "
+                         f"got {value!r}")
+
+
+def _odd(k, name: str, img: np.ndarray | None = None, smallest: int = 1) -> int:
+    if not isinstance(k, int) or k < smallest or k % 2 == 0:
+        raise ValueError(f"{name} must be an odd integer >= {smallest}, got {k!r}")
     if img is not None:
         _within(k, name, img)
     return k
@@ -102,8 +136,9 @@ def threshold(img, level: int = 92, method: str = "fixed", block: int = 31, offs
         _, b = cv2.threshold(g, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
         return b > 0
     if method == "adaptive":
+        check_param("threshold", "offset", offset)
         b = cv2.adaptiveThreshold(g, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY,
-                                  _odd(block, "adaptive block"), offset)
+                                  _odd(block, "adaptive block", smallest=3), offset)
         return b > 0
     raise ValueError(f"threshold method must be fixed, otsu or adaptive, got {method!r}")
 
