@@ -125,10 +125,10 @@ def _labelled(disparity: np.ndarray, confidence: np.ndarray) -> tuple[np.ndarray
     return _regions(d, ok, STEP_PX)
 
 
-def _map(disparity: np.ndarray) -> np.ndarray:
-    """A disparity map as the kernels read it: C-contiguous float32 or float64 as it is (no copy of a float32
-    map, the dense engine's), any other dtype as float64."""
-    d = np.asarray(disparity)
+def _map(values: np.ndarray) -> np.ndarray:
+    """A map (disparities, confidences) as the kernels read it: C-contiguous float32 or float64 as it is (no
+    copy of a float32 map, the dense engine's), any other dtype as float64."""
+    d = np.asarray(values)
     return np.ascontiguousarray(d if d.dtype in (np.float32, np.float64) else d.astype(np.float64))
 
 
@@ -222,10 +222,7 @@ def _surfaces(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarra
     the two maps' run on two threads."""
     if not anchored.any():
         return anchored, None, 0
-    c = np.asarray(confidence)
-    return _surface_kernel(_map(disparity), np.ascontiguousarray(c if c.dtype in (np.float32, np.float64)
-                                                                else c.astype(np.float64)),
-                           np.ascontiguousarray(anchored, dtype=np.bool_),
+    return _surface_kernel(_map(disparity), _map(confidence), np.ascontiguousarray(anchored, dtype=np.bool_),
                            np.ascontiguousarray(textured, dtype=np.bool_), STEP_PX)
 
 
