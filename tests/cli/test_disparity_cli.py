@@ -193,9 +193,10 @@ def test_disparity_on_a_file_that_is_not_an_image(capsys, tmp_path):
 
 
 def test_memory_is_checked_before_the_cost_volume(capsys, tmp_path, planted, monkeypatch):
-    """24 B per (pixel, lag; the lags padded to a multiple of 8) + 400 B per pixel, and the coarse pass's
-    cells (half the size, half the lags), against 80 % of what is available: refused in one line that names
-    the options; the same range runs when the memory is there."""
+    """12 B per (pixel, lag; the lags padded to a multiple of 8: three float32 volumes, the echo, the costs and
+    SGM's sums) + 400 B per pixel, and the coarse pass's cells (half the size, half the lags), against 80 % of
+    what is available: refused in one line that names the options; the same range runs when the memory is
+    there."""
     from psvs import _budget
     from psvs.dense.disparity import dense_memory_bytes
     paths, _ = planted
@@ -203,7 +204,7 @@ def test_memory_is_checked_before_the_cost_volume(capsys, tmp_path, planted, mon
     need = dense_memory_bytes(h, w, 0, w - 1)
     lags = w - 1 - 3 + 1                                          # lags MIN_LAG_PX (3) .. w - 1
     padded = lambda n: -(-n // 8) * 8                              # noqa: E731
-    assert need == 20 * (h * w * padded(lags) + (h // 2) * (w // 2) * padded(lags // 2)) + 400 * h * w
+    assert need == 12 * (h * w * padded(lags) + (h // 2) * (w // 2) * padded(lags // 2)) + 400 * h * w
     monkeypatch.setattr(_budget, "available_bytes", lambda: int(need / 0.8) - 1)
     out = tmp_path / "d.npy"
     code, _, err = run(capsys, "disparity", str(paths["complex"]), "-o", str(out), "--min-disparity", "0",

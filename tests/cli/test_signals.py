@@ -56,7 +56,7 @@ def test_a_signal_inside_a_compiled_kernel_is_a_termination_not_an_internal_erro
         try:
             raise Terminated(signal.SIGTERM)
         except Terminated as exc:
-            raise SystemError("CPUDispatcher(<function one_sided_costs>) returned a result with an exception set") \
+            raise SystemError("CPUDispatcher(<function one_sided_cost>) returned a result with an exception set") \
                 from exc
     monkeypatch.setattr(disparity_cmd, "run", kernel_run)
     assert main(["disparity", "x.png", "-o", "d.npy"]) == 128 + signal.SIGTERM

@@ -127,7 +127,7 @@ def test_planted_layers_through_the_pyramid(large_pair, params, bad2):
 def test_memory_of_a_pyramid_is_the_coarse_levels_and_the_bands():
     """1502 x 1130 over 181..519 px: two levels; the estimate is the coarse level's (halved twice, a quarter
     of the range, the default mode unpruned: DEFAULT.top) plus 16 B per pixel and band lag plus 400 B per
-    pixel, a fraction of the one-level search's."""
+    pixel, about an eighth of the one-level search's (its cells at 12 B against 496 B a pixel and 338 lags)."""
     from dataclasses import replace
 
     from psvs.dense.disparity import BAND_BYTES, PIXEL_BYTES, dense_memory_bytes
@@ -137,7 +137,7 @@ def test_memory_of_a_pyramid_is_the_coarse_levels_and_the_bands():
     coarse = dense_memory_bytes(h // 4, w // 4, 181 / 4, 519 / 4, replace(DEFAULT, prune=False, pyramid=False,
                                                                             top=None))
     assert need == coarse + BAND_BYTES * DEFAULT.band_lags * h * w + PIXEL_BYTES * h * w
-    assert need < 0.1 * dense_memory_bytes(h, w, 181, 519, replace(DEFAULT, pyramid=False))
+    assert need < 0.15 * dense_memory_bytes(h, w, 181, 519, replace(DEFAULT, pyramid=False))
     fast = dense_memory_bytes(h, w, 181, 519, FAST)
     assert fast < need
 

@@ -197,23 +197,23 @@ def test_filter_volume_matches_opencv_box_filters_everywhere(radius, shape):
 
 @pytest.mark.parametrize("seed", [7, 8])
 def test_one_sided_costs_against_their_definition(seed):
-    """Each pixel's cost in both views, straight from the docstring: the fused cost where the view owns
-    the pixel, zero in the band where its twin may be outside, else the view's own echo (at x, or seen
-    from x + d) negated and shifted to a minimum of 0; the padding PAD_COST."""
-    from psvs.dense.cost import one_sided_costs, padded_lags
+    """Each pixel's cost in either view, straight from the docstring: the fused cost (``fused_cost`` of the
+    echo) where the view owns the pixel, zero in the band where its twin may be outside, else the view's own
+    echo (at x, or seen from x + d) negated and shifted to a minimum of 0; the padding PAD_COST. Written over
+    the fused cost's own volume, the same to the bit (the second pass's one volume of costs)."""
+    from psvs.dense.cost import one_sided_cost, padded_lags
     rng = np.random.default_rng(seed)
     lags = np.arange(3, 14)
     n, h, w = len(lags), 6, 40
     echo = rng.uniform(-1, 1, (n, h, w)).astype(np.float32)
-    fused = rng.random((h, w, padded_lags(n))).astype(np.float32)
+    fused = fused_cost(echo, lags)
     keeps = rng.random((2, h, w)) < 0.3
-    out = np.full((2, h, w, padded_lags(n)), np.nan, np.float32)
-    both = one_sided_costs(echo, lags, fused, keeps[0], keeps[1], out)
-    for right_view, keep, got in zip((False, True), keeps, both, strict=True):
+    for right_view, keep in zip((False, True), keeps, strict=True):
+        got = one_sided_cost(echo, lags, keep, right_view, np.full((h, w, padded_lags(n)), np.nan, np.float32))
         _check_one_sided(got, echo, lags, fused, keep, right_view)
-    over = np.full_like(out, np.nan)                # the left view's written over the fused cost itself
-    over[0] = fused
-    np.testing.assert_array_equal(one_sided_costs(echo, lags, over[0], keeps[0], keeps[1], over), both)
+        over = fused_cost(echo, lags)
+        np.testing.assert_array_equal(one_sided_cost(echo, lags, keep, right_view, over), got)
+        assert np.array_equal(got[keep], fused[keep])          # the fused cost made again: the same bits
 
 
 def _check_one_sided(got, echo, lags, fused, keep, right_view):

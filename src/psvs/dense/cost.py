@@ -287,47 +287,57 @@ def _echo_at_winner(echo, lags, index):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, parallel=True, fastmath=SAFE_MATH)
-def one_sided_costs(echo, lags, fused, keep_left, keep_right, cost):  # pragma: no cover - compiled
-    """Costs (2, H, W, D) of the two views' maps for the second pass, [0] the left view's, [1] the right's:
-    the fused cost where the pixel's own view owns it (``keep_left``, ``keep_right``), else that view's own
-    evidence alone — the echo at x (left view) or seen from x + d (right view) — shifted to a minimum of
-    0. Pixels in the band whose twin may lie outside the image (x < d_max for the left view, x ≥ W − d_max
-    for the right) get a neutral, all-zero cost there. Written into ``cost`` (2, H, W, D') float32
-    (:func:`padded_lags`, the padding :data:`PAD_COST`), which is returned; ``cost[0]`` may be ``fused``
-    itself (one volume less: the fused cost is then overwritten). Per row, the echo is read once in
-    lag-major order (as stored) into a buffer, then moved to (x, lag) order for both views, the right view
-    first (it reads the fused cost that the left view's may write over)."""
+def one_sided_cost(echo, lags, keep, right, cost):  # pragma: no cover - compiled
+    """The cost (H, W, D) of one view's map for the second pass (``right``: the right view's, else the left's):
+    the fused cost (:func:`fused_cost`, made again here from ``echo``) where the pixel's own view owns it
+    (``keep`` (H, W) bool), else that view's own evidence alone -- the echo at x (left view) or seen from x + d
+    (right view) -- shifted to a minimum of 0. Pixels in the band whose twin may lie outside the image (x <
+    d_max for the left view, x >= W - d_max for the right) get a neutral, all-zero cost there. Written into
+    ``cost`` (H, W, D') float32 (:func:`padded_lags`, the padding :data:`PAD_COST`), which is returned and may
+    be the fused cost's own volume: the two views in turn need one volume, not two beside the fused cost (a
+    quarter of the coarse level's memory). Per row, the echo is read once in lag-major order (as stored) into
+    two buffers, its negation and the fused cost before its minimum is taken off, then moved to (x, lag) order."""
     n, h, w = echo.shape
-    n_pad = cost.shape[3]
+    n_pad = cost.shape[2]
     d_max = lags[n - 1]
     for y in nb.prange(h):
-        buf = np.empty((n, w), np.float32)       # −echo, lag-major
+        buf = np.empty((n, w), np.float32)       # -echo, lag-major
+        fus = np.empty((n, w), np.float32)       # the fused cost less its minimum, lag-major (as _fused_cost)
+        low = np.full(w, np.float32(1e30), np.float32)
         for k in range(n):
-            row, e = buf[k], echo[k, y]
+            d = lags[k]
+            e, row, fr = echo[k, y], buf[k], fus[k]
             for x in range(w):
                 row[x] = -e[x]
-        for view in (1, 0):
-            right = view == 1
-            keep = keep_right if right else keep_left
+            m = max(w - d, 0)
+            ef = e[d:]
+            for x in range(m):
+                a, b = e[x], ef[x]
+                fr[x] = -(a if a > b else b)
+            for x in range(m, w):
+                fr[x] = -e[x]
             for x in range(w):
-                out = cost[view, y, x]
-                for k in range(n, n_pad):
-                    out[k] = PAD_COST
-                if keep[y, x]:
-                    f = fused[y, x]
-                    for k in range(n):
-                        out[k] = f[k]
-                elif (x >= w - d_max) if right else (x < d_max):
-                    for k in range(n):
-                        out[k] = 0.0
-                else:                            # (right: x + d < w for every lag, outside the band)
-                    best = np.float32(1e30)      # finite: the kernel uses fastmath
-                    for k in range(n):
-                        v = buf[k, x + lags[k]] if right else buf[k, x]
-                        out[k] = v
-                        best = min(best, v)
-                    for k in range(n):
-                        out[k] -= best
+                v = fr[x]
+                low[x] = v if v < low[x] else low[x]
+        for x in range(w):
+            out = cost[y, x]
+            for k in range(n, n_pad):
+                out[k] = PAD_COST
+            if keep[y, x]:
+                bx = low[x]
+                for k in range(n):
+                    out[k] = fus[k, x] - bx
+            elif (x >= w - d_max) if right else (x < d_max):
+                for k in range(n):
+                    out[k] = 0.0
+            else:                                # (right: x + d < w for every lag, outside the band)
+                best = np.float32(1e30)          # finite: the kernel uses fastmath
+                for k in range(n):
+                    v = buf[k, x + lags[k]] if right else buf[k, x]
+                    out[k] = v
+                    best = min(best, v)
+                for k in range(n):
+                    out[k] -= best
     return cost
 
 

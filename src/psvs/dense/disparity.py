@@ -38,7 +38,7 @@ import cv2
 import numpy as np
 
 from psvs._budget import check_memory
-from psvs.dense.cost import echo_at_winner, fused_cost, one_sided_costs, padded_lags, unit_scaled, weighted_echo
+from psvs.dense.cost import echo_at_winner, fused_cost, one_sided_cost, padded_lags, unit_scaled, weighted_echo
 from psvs.dense.maps import consistent, echo_at, fill_from_background, finite_median, upsample
 from psvs.dense.params import COARSE, DEFAULT, FAST, MIN_LAG_PX, MIN_SIZE_PX, DenseParams, searched_lags
 from psvs.dense.prune import pruned_range, widened, worth_pruning
@@ -129,11 +129,10 @@ def _check_params(params) -> DenseParams:
 
 
 #: Peak bytes per cell (pixel x searched disparity, the lags padded to whole vectors) of the cost volumes
-#: at the working scale: five float32 volumes (echo, SGM's two sums, the second pass's two one-sided costs,
-#: the left view's written over the fused cost); and per pixel of the full image. (Measured on 640x480, 62
-#: lags, neither pruned nor a pyramid: the peak resident memory grew 485 MiB, 560 with the fused cost apart;
-#: the estimate 492 MiB.)
-CELL_BYTES = 20
+#: at the working scale: three float32 volumes (the echo, the costs: the fused cost, then each view's of the
+#: second pass in turn, and SGM's sums); and per pixel of the full image. (Measured on 640x480, 62 lags, neither
+#: pruned nor a pyramid, with five volumes: the peak resident memory grew 485 MiB, the estimate 492 MiB.)
+CELL_BYTES = 12
 PIXEL_BYTES = 400
 #: Bytes per pixel and band lag of a pyramid's finer level: both maps' band costs and sums, float32.
 BAND_BYTES = 16
@@ -194,11 +193,11 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     cost_shape = (h, w, padded_lags(len(lags)))  # the cost volumes' lag axis, padded to whole vectors
     guide = unit_scaled(img)
     echo = weighted_echo(img, lags, p, guide, img_right, out=volume(workspace, "echo", (len(lags), h, w)))
-    costs = volume(workspace, "costs", (1 + p.second_pass, *cost_shape))  # the second pass's [0] is fused's own
-    fused = fused_cost(echo, lags, costs[0])
-    sgm = volume(workspace, "sgm", (2, *cost_shape))          # SGM's sums (work space): one volume, then two
+    costs = volume(workspace, "costs", cost_shape)      # the fused cost, then the second pass's views in turn
+    fused = fused_cost(echo, lags, costs)
+    sgm = volume(workspace, "sgm", cost_shape)          # SGM's sums (work space), one volume for every aggregation
     penalties = Penalties(p.p1, p.p2, p.n_paths, cv2.GaussianBlur(guide, (0, 0), 1.0), p.edge_contrast)
-    best, index = sgm_winners(fused, len(lags), penalties, sums=sgm[0], min_cost=0.0)   # costs >= 0
+    best, index = sgm_winners(fused, len(lags), penalties, sums=sgm, min_cost=0.0)   # costs >= 0
     d = lags[0] + best                          # (lags: consecutive whole px)
     own, other = echo_at_winner(echo, lags, index)
     keep_l = own >= other - p.ownership_margin
@@ -206,9 +205,11 @@ def _at_scale(img: np.ndarray, d_min: float, d_max: float, p: DenseParams, img_r
     dl, dr = fill_from_background(d, keep_l), fill_from_background(d, keep_r)
     ok_l, ok_r = consistent(dl, dr)
     if p.second_pass:  # each view's own evidence where the other view's texture dominated
-        one = one_sided_costs(echo, lags, fused, keep_l, keep_r, costs)   # (over fused: no longer needed)
-        best = sgm_winners(one, len(lags), penalties, sums=sgm, min_cost=0.0)[0]   # one view per thread
-        dl2, dr2 = lags[0] + best[0], lags[0] + best[1]
+        # one view after the other, each on both threads, its cost over the fused one (made again from the echo)
+        # and its sums in the one volume (one view a thread took a volume of costs and of sums each: 1.08 GiB
+        # for psvs disparity at 640 x 480 over 136 lags against 0.75, the same winners to the bit)
+        dl2, dr2 = (lags[0] + sgm_winners(one_sided_cost(echo, lags, keep, view == 1, costs), len(lags), penalties,
+                                          sums=sgm, min_cost=0.0)[0] for view, keep in enumerate((keep_l, keep_r)))
         ok2_l, ok2_r = consistent(dl2, dr2)
         dl = fill_from_background(np.where(~ok_l & ok2_l, dl2, dl), ok_l | ok2_l)
         dr = fill_from_background(np.where(~ok_r & ok2_r, dr2, dr), ok_r | ok2_r)
