@@ -130,6 +130,18 @@ def test_old_files_load_as_designed():
         assert rig.as_designed and all(rig.mirrors.error(n).is_zero for n in MIRROR_NAMES), f
 
 
+def test_a_lens_of_two_terms_is_written_with_the_current_key(tmp_path):
+    """Trial 52: ``design --rig-out`` wrote a lens of k1 and k2 alone as the older ``distortion_k``; every
+    written file now says ``distortion`` (five terms), read back to the same lens by an independent reader."""
+    import tomllib
+    rig = default_rig().replace(distortion=(-0.12, 0.05, 0.0, 0.0, 0.0))
+    path = tmp_path / "r.toml"
+    save_rig(rig, path)
+    camera = tomllib.loads(path.read_text())["camera"]
+    assert camera["distortion"] == [-0.12, 0.05, 0.0, 0.0, 0.0] and "distortion_k" not in camera
+    assert load_rig(path).camera.distortion == rig.camera.distortion
+
+
 @pytest.mark.parametrize("edit, message", [
     (lambda t: t + "\n[mirrors.m1]\ntilt_deg = [0.1]\n", r"mirrors\.m1\.tilt_deg must be a list of two numbers"),
     (lambda t: t + "\n[mirrors.m1]\ntilt_deg = [0.1, \"x\"]\n", r"mirrors\.m1\.tilt_deg must hold numbers \(degrees\)"),

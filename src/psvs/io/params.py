@@ -214,8 +214,7 @@ def rig_to_dict(rig: Rig) -> dict:
         if table:
             mirrors[name] = table
     dist = c.distortion
-    lens = {} if not c.distorted else \
-        {"distortion_k": list(dist[:2])} if dist[2:] == (0.0, 0.0, 0.0) else {"distortion": list(dist)}
+    lens = {"distortion": list(dist)} if c.distorted else {}     # the current key (distortion_k: older files')
     cal = rig.calibration
     calibration = {} if cal is None else {"calibration": {
         "rms_px": cal.rms_px, "rms_left_px": cal.rms_left_px, "rms_right_px": cal.rms_right_px,
