@@ -62,8 +62,14 @@ def plenty_of_memory(monkeypatch):
     (["--rows", "1000", "--cols", "1000"],
      "card (--rows 1000 --cols 1000 --spacing-mm 14 --diameter-mm 7): the grid of discs is 13993 x 13993 mm "
      "(1000 x 1000 discs 14 mm apart, 7 mm across); this rig's views hold at most 95 x 230 mm of it at 450-484 mm, "
-     "the nearest of the 16 poses"),
-    (["--rows", "4", "--cols", "8"], "the grid of discs is 105 x 49 mm"),
+     "the nearest of the 16 poses (both copies of the grid side by side, apart)"),        # (no --interleave fits it)
+    # trial 52: a card wider than its disparity, refused with its copy apart (it fits interleaved): the
+    # message names --interleave
+    (["--rows", "4", "--cols", "8"], "the grid of discs is 105 x 49 mm (8 x 4 discs 14 mm apart, 7 mm across); "
+                                     "this rig's views hold at most 95 x 230 mm of it at 450-484 mm, "
+                                     "the nearest of the 16 poses (both copies of the grid side by side, apart: a "
+                                     "card wider than its disparity interleaves with its copy, as a hand-held one "
+                                     "does: psvs card-views --interleave)"),
     (["--rows", "100", "--cols", "100", "--spacing-mm", "0.9", "--diameter-mm", "0.5"],
      "the discs (0.5 mm) are 0.56 px across at 966-1000 mm, the farthest poses, through this rig; the detector "
      "finds discs 3.9-40 px across: none of the 10000 would be found"),

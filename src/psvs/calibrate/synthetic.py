@@ -62,7 +62,10 @@ def check_card_fits(rig: Rig, grid: CircleGrid, n: int, z_range_mm=(450.0, 1000.
         raise ValueError(f"the grid of discs is {size[0]:g} x {size[1]:g} mm ({grid.cols} x {grid.rows} discs "
                          f"{grid.spacing_mm:g} mm apart, {d:g} mm across); this rig's views hold at most "
                          f"{max(most[0], 0):.0f} x {max(most[1], 0):.0f} mm of it at {z0:g}-{near:.0f} mm, the "
-                         f"nearest of the {n} poses (both copies of the grid side by side, apart)")
+                         f"nearest of the {n} poses (both copies of the grid side by side, "
+                         + ("interleaved)" if not apart else "apart: a card wider than its disparity interleaves "
+                            "with its copy, as a hand-held one does: psvs card-views --interleave)"
+                            if size[0] <= fits / cos_t and size[1] <= most[1] else "apart)"))
     smallest, largest = 2 * math.sqrt(MIN_AREA_PX / math.pi), MAX_DIAMETER_PX
     at_far, at_near = d * f / (px * (far - zv)), d * f / (px * (near - zv))
     if at_far < smallest or at_near > largest:
@@ -118,7 +121,10 @@ def random_poses(rig: Rig, grid, n: int, seed: int = 0, z_range_mm=(450.0, 1000.
                 out.append(pose)
                 break
         else:
-            raise ValueError(f"no pose at {edges[k]:.0f}-{edges[k + 1]:.0f} mm shows the whole grid in both views")
+            raise ValueError(f"no pose at {edges[k]:.0f}-{edges[k + 1]:.0f} mm shows the whole grid in both views"
+                             + (" with its two copies apart: a card wider than its disparity there interleaves "
+                                "with its copy, as a hand-held one does (psvs card-views --interleave)" if apart
+                                else ""))
     return out
 
 
