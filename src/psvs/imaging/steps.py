@@ -25,8 +25,8 @@ def _grey(img: np.ndarray, step: str) -> np.ndarray:
 #: What each step parameter may be, checked when a pipeline's step is made (psvs.imaging.pipeline.Step: a
 #: pipeline file, the web page's steps, the library's own), so that every caller refuses the same values:
 #: (kind, smallest, largest), kind "odd" (an odd integer), "int" or "real" (a finite number; bounds inclusive,
-#: None: open). A value no OpenCV call takes (an adaptive threshold's 1 px block, a NaN offset, which OpenCV
-#: takes without a word and answers with a frame of noise) is bad input, not a measurement's failure.
+#: None: open). A value OpenCV refuses with an assertion (an adaptive threshold's 1 px block) or takes without a
+#: word (a NaN offset or sigma: a frame of noise) is bad input, said in one line, not a measurement's failure.
 PARAM_RULES = {"ksize": ("odd", 1, None), "diameter": ("int", 1, None), "block": ("odd", 3, None),
                "sigma": ("real", 0.0, None), "sigma_color": ("real", 0.0, None), "sigma_space": ("real", 0.0, None),
                "level": ("real", 0.0, None), "low": ("real", 0.0, None), "high": ("real", 0.0, None),
