@@ -294,8 +294,8 @@ def one_sided_cost(echo, lags, keep, right, cost):  # pragma: no cover - compile
     (right view) -- shifted to a minimum of 0. Pixels in the band whose twin may lie outside the image (x <
     d_max for the left view, x >= W - d_max for the right) get a neutral, all-zero cost there. Written into
     ``cost`` (H, W, D') float32 (:func:`padded_lags`, the padding :data:`PAD_COST`), which is returned and may
-    be the fused cost's own volume: the two views in turn need one volume, not two beside the fused cost (a
-    quarter of the coarse level's memory). Per row, the echo is read once in lag-major order (as stored) into
+    be the fused cost's own volume: the two views in turn need that one volume, not two beside the fused cost
+    (4 of the search's 16 bytes a cell before). Per row, the echo is read once in lag-major order (as stored) into
     two buffers, its negation and the fused cost before its minimum is taken off, then moved to (x, lag) order."""
     n, h, w = echo.shape
     n_pad = cost.shape[2]

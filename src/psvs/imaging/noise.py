@@ -54,7 +54,7 @@ def noise_level(image: np.ndarray, max_patches: int = MAX_PATCHES) -> NoiseLevel
     m = PATCH_PX
     positions = (f.shape[0] - m + 1) * (f.shape[1] - m + 1)
     stride = max(1, math.ceil(math.sqrt(positions / max_patches)))
-    # the patches read, as float64 (not the whole image: a 2 MP frame's copy cost more than the patches' work)
+    # the patches read, as float64 (not a float64 copy of the whole frame first)
     patches = sliding_window_view(f, (m, m))[::stride, ::stride].reshape(-1, m * m).astype(np.float64)
     mean = patches.mean(axis=1)
     patches = patches - mean[:, None]
