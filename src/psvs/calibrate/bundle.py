@@ -352,28 +352,32 @@ class BundleProblem:
             dx[k] = h
             if name in LENS_PARAMS:
                 diff = self._pixels(x + dx, base, seen) - pix0
-            else:   # a row the step takes across a glass's edge has no derivative: 0, as the poses' columns
-                r, _, stepped = self._views(self.rig(x + dx), self.points(x + dx), base)
-                diff = np.where((stepped == seen)[:, None], r - r0, 0.0)
+            else:
+                diff = self._stepped(self.rig(x + dx), self.points(x + dx), base, (r0, seen))
             J[:n_img_rows, k] = (diff / h).ravel()
         if self.grids:
             self._pose_columns(x, J, rig, pts, (r0, seen), base)
         J[n_img_rows + np.arange(self.n_rig), np.arange(self.n_rig)] = NOISE_PX / self.sigma
         return J
 
+    def _stepped(self, rig: Rig, pts: np.ndarray, base, at_x: tuple) -> np.ndarray:
+        """The image residuals (2 * n_points, 2) through ``rig`` at the points ``pts`` (a step's) less those at x
+        (``at_x`` = (residuals, rows seen)), projected from ``base``'s rays; 0 on a row whose point the step takes
+        across a glass's edge (seen at one end of the step only): no derivative there, not the miss's constant
+        residual less its own."""
+        r0, seen = at_x
+        r, _, stepped = self._views(rig, pts, base)
+        return np.where((stepped == seen)[:, None], r - r0, 0.0)
+
     def _pose_columns(self, x, J: np.ndarray, rig: Rig, pts: np.ndarray, at_x: tuple, base) -> None:
         """The grid views' pose columns of :meth:`jacobian`, in place: d uv / d pose = (d uv / d point) (d point /
         d pose), each image's rows in its own pose's six columns (``pts``, ``at_x`` = (residuals, rows seen) and
         ``base``: the points, the projection and the rays at ``x``)."""
-        r0, seen = at_x
         by_point = []                                   # d uv / d point: (2 n_points, 2) per axis
         for axis in range(3):
             dp = np.zeros_like(pts)
             dp[:, axis] = _POINT_STEP_MM
-            r, _, stepped = self._views(rig, pts + dp, base)
-            # a point the step takes across a glass's edge (seen at one end only) has no derivative: 0 there,
-            # not (the miss's residual - its own) / step
-            by_point.append(np.where((stepped == seen)[:, None], (r - r0) / _POINT_STEP_MM, 0.0))
+            by_point.append(self._stepped(rig, pts + dp, base, at_x) / _POINT_STEP_MM)
         first = self.n_rig + self.n_sweep
         grid_points = np.flatnonzero(self.owner < len(self.grids))
         for q, h in enumerate(POSE_STEP):
