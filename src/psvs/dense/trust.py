@@ -135,10 +135,30 @@ def _map(values: np.ndarray) -> np.ndarray:
 def grown(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarray) -> np.ndarray:
     """``anchored`` (H, W bool) and every consistent region of the map that holds an anchored pixel (the
     regions as :func:`consistent_regions` finds them)."""
-    labels, n = _labelled(disparity, confidence)
-    hit = np.zeros(n + 1, bool)                  # the last entry: "no region" (label -1), never hit
-    hit[labels[(labels >= 0) & anchored]] = True
-    return anchored | hit[labels]
+    return _grow(_map(disparity), _map(confidence), np.ascontiguousarray(anchored, dtype=np.bool_), STEP_PX)[0]
+
+
+@nb.njit(cache=True, nogil=True)
+def _grow(d, confidence, anchored, step):  # pragma: no cover - compiled
+    """(:func:`grown`, each pixel's region int32 (H, W) numbered 0..R-1 (-1 none), R): the regions
+    (:func:`_regions` of the pixels with confidence and a finite answer), those holding an anchored pixel
+    taken whole."""
+    h, w = d.shape
+    ok = np.empty((h, w), np.bool_)
+    for y in range(h):
+        for x in range(w):
+            ok[y, x] = confidence[y, x] > 0 and np.isfinite(d[y, x])
+    labels, n = _regions(d, ok, step)
+    hit = np.zeros(n, np.bool_)
+    for y in range(h):
+        for x in range(w):
+            if anchored[y, x] and labels[y, x] >= 0:
+                hit[labels[y, x]] = True
+    trusted = np.empty((h, w), np.bool_)
+    for y in range(h):
+        for x in range(w):
+            trusted[y, x] = anchored[y, x] or (labels[y, x] >= 0 and hit[labels[y, x]])
+    return trusted, labels, n
 
 
 def bracketed(regions: np.ndarray, textured: np.ndarray) -> np.ndarray:
@@ -228,28 +248,11 @@ def _surfaces(anchored: np.ndarray, disparity: np.ndarray, confidence: np.ndarra
 
 @nb.njit(cache=True, nogil=True)
 def _surface_kernel(d, confidence, anchored, textured, step):  # pragma: no cover - compiled
-    """:func:`_surfaces` in one pass a step: the regions (:func:`_regions` of the pixels with confidence and a
-    finite answer), the regions holding an anchored pixel grown (:func:`grown`), then the untextured pixels of
-    them kept where :func:`bracketed` by their region's textured grown pixels."""
+    """:func:`_surfaces` in one pass a step: the anchored regions grown (:func:`_grow`), then their untextured
+    pixels kept where :func:`bracketed` by their region's textured grown pixels."""
     h, w = d.shape
-    ok = np.empty((h, w), np.bool_)
-    for y in range(h):
-        for x in range(w):
-            ok[y, x] = confidence[y, x] > 0 and np.isfinite(d[y, x])
-    labels, n = _regions(d, ok, step)
-    hit = np.zeros(n, np.bool_)
-    for y in range(h):
-        for x in range(w):
-            if anchored[y, x] and labels[y, x] >= 0:
-                hit[labels[y, x]] = True
-    trusted = np.empty((h, w), np.bool_)
-    seeds = np.empty((h, w), np.bool_)
-    for y in range(h):
-        for x in range(w):
-            t = anchored[y, x] or (labels[y, x] >= 0 and hit[labels[y, x]])
-            trusted[y, x] = t
-            seeds[y, x] = t and textured[y, x]
-    between = _bracketed(labels, seeds, n)
+    trusted, labels, n = _grow(d, confidence, anchored, step)
+    between = _bracketed(labels, trusted & textured, n)
     for y in range(h):
         for x in range(w):
             trusted[y, x] = trusted[y, x] and (textured[y, x] or between[y, x])
