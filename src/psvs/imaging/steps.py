@@ -56,9 +56,9 @@ def check_param(op: str, name: str, value) -> None:
                          f"got {value!r}")
 
 
-def _odd(k, name: str, img: np.ndarray | None = None, smallest: int = 1) -> int:
-    if not isinstance(k, int) or k < smallest or k % 2 == 0:
-        raise ValueError(f"{name} must be an odd integer >= {smallest}, got {k!r}")
+def _odd(k, name: str, img: np.ndarray | None = None) -> int:
+    if not isinstance(k, int) or k < 1 or k % 2 == 0:
+        raise ValueError(f"{name} must be an odd integer >= 1, got {k!r}")
     if img is not None:
         _within(k, name, img)
     return k
@@ -136,9 +136,9 @@ def threshold(img, level: int = 92, method: str = "fixed", block: int = 31, offs
         _, b = cv2.threshold(g, 0, 255, cv2.THRESH_BINARY + cv2.THRESH_OTSU)
         return b > 0
     if method == "adaptive":
-        check_param("threshold", "offset", offset)
-        b = cv2.adaptiveThreshold(g, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY,
-                                  _odd(block, "adaptive block", smallest=3), offset)
+        for name, value in (("block", block), ("offset", offset)):      # (a library call: no Step made them)
+            check_param("threshold", name, value)
+        b = cv2.adaptiveThreshold(g, 255, cv2.ADAPTIVE_THRESH_MEAN_C, cv2.THRESH_BINARY, block, offset)
         return b > 0
     raise ValueError(f"threshold method must be fixed, otsu or adaptive, got {method!r}")
 
