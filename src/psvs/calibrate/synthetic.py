@@ -40,6 +40,11 @@ def card_size_mm(grid) -> tuple[float, float]:
     return (grid.cols + 1) * grid.spacing_mm, (grid.rows + 1) * grid.spacing_mm
 
 
+#: What a card refused with its copy apart is told, where it would fit interleaved.
+INTERLEAVE_HINT = ("a card wider than its disparity interleaves with its copy, as a hand-held one does: psvs "
+                   "card-views --interleave")
+
+
 def check_card_fits(rig: Rig, grid: CircleGrid, n: int, z_range_mm=(450.0, 1000.0), tilt_deg: float = 25.0,
                     margin_px: float = 12.0, apart: bool = True) -> None:
     """ValueError, before any pose is tried, when no pose of :func:`random_poses` could show the grid: too
@@ -63,8 +68,7 @@ def check_card_fits(rig: Rig, grid: CircleGrid, n: int, z_range_mm=(450.0, 1000.
                          f"{grid.spacing_mm:g} mm apart, {d:g} mm across); this rig's views hold at most "
                          f"{max(most[0], 0):.0f} x {max(most[1], 0):.0f} mm of it at {z0:g}-{near:.0f} mm, the "
                          f"nearest of the {n} poses (both copies of the grid side by side, "
-                         + ("interleaved)" if not apart else "apart: a card wider than its disparity interleaves "
-                            "with its copy, as a hand-held one does: psvs card-views --interleave)"
+                         + ("interleaved)" if not apart else f"apart: {INTERLEAVE_HINT})"
                             if size[0] <= fits / cos_t and size[1] <= most[1] else "apart)"))
     smallest, largest = 2 * math.sqrt(MIN_AREA_PX / math.pi), MAX_DIAMETER_PX
     at_far, at_near = d * f / (px * (far - zv)), d * f / (px * (near - zv))
@@ -122,9 +126,7 @@ def random_poses(rig: Rig, grid, n: int, seed: int = 0, z_range_mm=(450.0, 1000.
                 break
         else:
             raise ValueError(f"no pose at {edges[k]:.0f}-{edges[k + 1]:.0f} mm shows the whole grid in both views"
-                             + (" with its two copies apart: a card wider than its disparity there interleaves "
-                                "with its copy, as a hand-held one does (psvs card-views --interleave)" if apart
-                                else ""))
+                             + (f" with its two copies apart: {INTERLEAVE_HINT}" if apart else ""))
     return out
 
 
