@@ -52,3 +52,19 @@ def test_a_tiny_change_of_one_pixel_moves_only_the_medians_whose_window_holds_it
     moved[max(y - 3, 0):y + 4, max(x - 3, 0):x + 4] = False
     assert not moved.any()
     np.testing.assert_array_equal(np.rint(after * LEVELS_PER_PX), after * LEVELS_PER_PX)
+
+
+@pytest.mark.parametrize("size", [1, 5, 11])
+def test_a_float32_result_is_the_float64_one_rounded(size):
+    """``dtype=np.float32`` (the pyramid's final median, its maps kept as float32): the float64 median rounded
+    to float32, value for value, also beside NaN rows (finite_median)."""
+    from psvs.dense.maps import finite_median
+    rng = np.random.default_rng(size)
+    d = np.cumsum(rng.normal(0, 1.5, (33, 47)), axis=1) + 200.0
+    d[4, :] = np.nan
+    d[10:12, 5:9] = np.inf
+    got = finite_median(d, size, np.float32)
+    want = finite_median(d, size)
+    assert got.dtype == np.float32 and want.dtype == np.float64
+    np.testing.assert_array_equal(got, want.astype(np.float32))
+    assert np.isnan(got[4]).all() and np.isfinite(got[5:]).all()

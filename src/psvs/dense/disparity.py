@@ -331,8 +331,8 @@ def _coarse_to_fine(img: np.ndarray, d_min: float, d_max: float, p: DenseParams,
         up = coarse_maps_up((dl, dr, cl, cr), im.shape)
         dl, dr, cl, cr = refine_level(im, pyr_r[level], up, (d_min / fl, min(d_max / fl, im.shape[1] - 1.0)), p,
                                       workspace, local=level == base and p.finest_local_px > 0)
-    if p.refine_median_px > 1:
-        dl, dr = (finite_median(m, p.refine_median_px) for m in (dl, dr))
+    if p.refine_median_px > 1:      # (float32: as the maps are returned)
+        dl, dr = (finite_median(m, p.refine_median_px, np.float32) for m in (dl, dr))
     h, w = img.shape
     fw = w / dl.shape[1]
     searched = (coarse.searched_px[0] * f, coarse.searched_px[1] * f)

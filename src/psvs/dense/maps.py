@@ -88,16 +88,17 @@ def _echo_lookup(echo, lags, d, right_view):  # pragma: no cover - compiled
     return out
 
 
-def finite_median(d: np.ndarray, size: int) -> np.ndarray:
-    """Median of each size × size neighbourhood (odd side, px) of the finite values of ``d`` (H, W, px); the
-    non-finite values count as the map's median, and a row without any finite value stays NaN."""
+def finite_median(d: np.ndarray, size: int, dtype=np.float64) -> np.ndarray:
+    """Median of each size × size neighbourhood (odd side, px) of the finite values of ``d`` (H, W, px), of
+    ``dtype`` (:func:`psvs.dense.median.median_filter`); the non-finite values count as the map's median, and a
+    row without any finite value stays NaN."""
     finite = np.isfinite(d)
     if finite.all():
-        return median_filter(d, size)
+        return median_filter(d, size, dtype)
     if not finite.any():
-        return d
-    out = median_filter(np.where(finite, d, np.median(d[finite])), size)
-    return np.where(np.isnan(d) & ~finite.any(axis=1, keepdims=True), np.nan, out)
+        return d.astype(dtype)
+    out = median_filter(np.where(finite, d, np.median(d[finite])), size, dtype)
+    return np.where(np.isnan(d) & ~finite.any(axis=1, keepdims=True), np.nan, out).astype(dtype, copy=False)
 
 
 def upsample(a: np.ndarray, shape: tuple[int, int], factor: float = 1.0) -> np.ndarray:

@@ -56,22 +56,23 @@ def _median_rows(q, size, n_bins):  # pragma: no cover - compiled
     return out
 
 
-def median_filter(d: np.ndarray, size: int) -> np.ndarray:
+def median_filter(d: np.ndarray, size: int, dtype=np.float64) -> np.ndarray:
     """Median of each ``size`` × ``size`` neighbourhood (odd size) of the finite map ``d`` (H, W, px), the
-    image's edge values repeated beyond it (scipy's mode "nearest"), float64 (H, W), to within 1/64 px (sizes 3
-    and 5: exact to float32's rounding)."""
+    image's edge values repeated beyond it (scipy's mode "nearest"), (H, W) of ``dtype`` (float32 for a map
+    kept as float32: sizes 3 and 5 then skip a copy), to within 1/64 px (sizes 3 and 5: exact to float32's
+    rounding)."""
     if size < 1 or size % 2 == 0:
         raise ValueError(f"median size must be an odd number >= 1, got {size}")
-    a = np.asarray(d, dtype=np.float64)
+    a = np.asarray(d)
     if not np.all(np.isfinite(a)):
         raise ValueError("median_filter needs a finite map")
     if size == 1:
-        return a.copy()
+        return a.astype(dtype)
     if size in OPENCV_SIZES:       # border: replicated, as "nearest"
-        return cv2.medianBlur(np.ascontiguousarray(a, dtype=np.float32), size).astype(np.float64)
+        return cv2.medianBlur(np.ascontiguousarray(a, dtype=np.float32), size).astype(dtype, copy=False)
     # on the absolute grid k / LEVELS_PER_PX, not one from the map's minimum: a tiny change of one pixel
     # then moves only the medians whose window holds it, not every median by that change
-    k = np.rint(a * LEVELS_PER_PX)
+    k = np.rint(np.asarray(a, dtype=np.float64) * LEVELS_PER_PX)
     k0 = k.min()
     q = (k - k0).astype(np.int32)
-    return (_median_rows(q, size, int(q.max()) + 1) + k0) / LEVELS_PER_PX
+    return ((_median_rows(q, size, int(q.max()) + 1) + k0) / LEVELS_PER_PX).astype(dtype, copy=False)

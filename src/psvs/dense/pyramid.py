@@ -18,6 +18,7 @@ halved together, so a point and its twin stay on the same row, at half the dispa
 from __future__ import annotations
 
 import cv2
+import numba as nb
 import numpy as np
 
 from psvs.dense.band import band_costs, band_local_winners, band_winners
@@ -69,19 +70,32 @@ def coarse_level(img: np.ndarray, right: np.ndarray | None, times: int) -> tuple
     return pyr, pyr_r
 
 
-def _bands(d: np.ndarray, lo: int, hi: int, n_lanes: int) -> np.ndarray:
-    """Each pixel's first lag (int64 (h, w)) of a band of ``n_lanes`` about ``d`` (h, w, px; the coarser
-    level's map brought to this level): centred on its 5 x 5 neighbourhood's span when that fits in the
-    band with 2 px to spare each side, else on the pixel's own value (a depth edge); within lo..hi."""
+def _bands(d: np.ndarray, lo: int, hi: int, n_lanes: int, out: np.ndarray | None = None) -> np.ndarray:
+    """Each pixel's first lag (int64 (h, w), into ``out`` if given) of a band of ``n_lanes`` about ``d`` (h, w,
+    px; the coarser level's map brought to this level): centred on its 5 x 5 neighbourhood's span when that
+    fits in the band with 2 px to spare each side, else on the pixel's own value (a depth edge); within lo..hi."""
     finite = np.isfinite(d)
     if not finite.all():        # (the median only when a pixel needs it: a map is most often finite throughout)
         d = np.where(finite, d, np.median(d[finite]) if finite.any() else lo)
-    d = d.astype(np.float32)
+    d = np.ascontiguousarray(d, dtype=np.float32)
     kernel = np.ones((5, 5), np.uint8)
-    d_lo, d_hi = cv2.erode(d, kernel), cv2.dilate(d, kernel)
-    centre = np.where(d_hi - d_lo <= n_lanes - 4, 0.5 * (d_lo + d_hi), d)
-    first = np.rint(centre - (n_lanes - 1) / 2).astype(np.int64)
-    return np.clip(first, lo, max(lo, hi - n_lanes + 1))
+    out = np.empty(d.shape, np.int64) if out is None else out
+    _band_starts(d, cv2.erode(d, kernel), cv2.dilate(d, kernel), n_lanes, lo, max(lo, hi - n_lanes + 1), out)
+    return out
+
+
+@nb.njit(cache=True, parallel=True)
+def _band_starts(d, d_lo, d_hi, n_lanes, lo, top, out):  # pragma: no cover - compiled
+    """:func:`_bands`' centring, rounding and clipping in one pass (float32 as the NumPy expressions were: the
+    same starts to the bit)."""
+    h, w = d.shape
+    half = (n_lanes - 1) / 2.0
+    spread = np.float32(n_lanes - 4)
+    for y in nb.prange(h):
+        for x in range(w):
+            a, b = d_lo[y, x], d_hi[y, x]
+            c = np.float32(0.5) * (a + b) if b - a <= spread else d[y, x]
+            out[y, x] = min(max(np.int64(np.rint(np.float64(c) - half)), lo), top)
 
 
 def window_stats(f: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
@@ -96,7 +110,7 @@ def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple, d_ran
     """One finer level (module docstring): ``img`` (h, w) (``right``: the right view's grid on a build),
     ``coarse`` the two maps of the coarser level and their confidences brought to (h, w) (the maps in this
     level's px), ``d_range`` the disparities asked for (px of this level). Returns (left map, right map,
-    left confidence, right confidence), float64 (h, w).
+    left confidence, right confidence), (h, w): the maps float64, the confidences as ``coarse``'s.
 
     A pixel keeps the coarser level's confidence (ultimately the coarse level's echo at its disparity,
     from the windows tuned to tell an echo from chance) where this level's maps pass the left-right check,
@@ -112,7 +126,9 @@ def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple, d_ran
     mu_f, isd_f = window_stats(f, r)
     mu_g, isd_g = (mu_f, isd_f) if right is None else window_stats(g, r)
     aperture = aperture_weight(f, p.aperture_window, p.aperture_share)
-    offsets = np.stack([_bands(c, lo, hi, n) for c in coarse[:2]])
+    offsets = np.empty((2, h, w), np.int64)
+    for view in range(2):
+        _bands(coarse[view], lo, hi, n, offsets[view])
     costs, _ = band_costs(f, g, (mu_f, isd_f, mu_g, isd_g, aperture), offsets, hi, n, r,
                             out=volume(workspace, "band", (2, h, w, n)))
     if local:
@@ -131,6 +147,6 @@ def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple, d_ran
 
 def coarse_maps_up(maps: tuple, shape: tuple[int, int]) -> tuple:
     """The two maps (h, w, px) of a coarser level and their two confidences brought to ``shape`` (H, W),
-    the maps to its px (nearest neighbour: a depth edge stays sharp), float64."""
+    the maps to its px (nearest neighbour: a depth edge stays sharp), float32."""
     factor = shape[1] / maps[0].shape[1]
-    return tuple(upsample(m, shape, factor if k < 2 else 1.0).astype(np.float64) for k, m in enumerate(maps))
+    return tuple(upsample(m, shape, factor if k < 2 else 1.0) for k, m in enumerate(maps))
