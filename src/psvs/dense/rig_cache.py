@@ -57,7 +57,7 @@ _CODE = ("optics/*.py", "measure/triangulate.py", "dense/depth_table.py", "dense
 
 _READY: weakref.WeakSet = weakref.WeakSet()                    # rectifications with their remaps in place
 _NEAREST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # rect -> {view: (H', W') int32}
-_FILLED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> {view: (map_u, map_v), (view, "fixed"): ...}
+_FILLED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> {view or (view, "fixed"): maps}
 _OUTSIDE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # rect -> {view: flat indices}
 _TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> DepthTable
 _LOCKS: dict[str, threading.Lock] = {}
