@@ -20,11 +20,35 @@ OPENCV_SIZES = (3, 5)
 
 
 @nb.njit(cache=True, parallel=True)
-def _median_rows(q, size, n_bins):  # pragma: no cover - compiled
+def _quantised(a, q):  # pragma: no cover - compiled
+    """q = rint(a · LEVELS_PER_PX) − k0 (int32, (H, W)) for the finite map ``a`` (H, W) float64, k0 the smallest
+    rint: returns (k0, the number of bins); two passes instead of NumPy's five."""
+    h, w = a.shape
+    lows = np.empty(h)
+    for y in nb.prange(h):
+        low = np.inf
+        for x in range(w):
+            low = min(low, np.rint(a[y, x] * LEVELS_PER_PX))
+        lows[y] = low
+    k0 = lows.min()
+    highs = np.zeros(h, np.int64)
+    for y in nb.prange(h):
+        high = 0
+        for x in range(w):
+            v = np.int32(np.rint(a[y, x] * LEVELS_PER_PX) - k0)
+            q[y, x] = v
+            high = max(high, v)
+        highs[y] = high
+    return k0, highs.max() + 1
+
+
+@nb.njit(cache=True, parallel=True)
+def _median_rows(q, size, n_bins, k0, out):  # pragma: no cover - compiled
+    """Each row's running-histogram medians of the bins ``q`` (H, W) int32, written as (bin + k0) / LEVELS_PER_PX
+    into ``out`` (H, W) of its dtype (float64 arithmetic, then rounded to it)."""
     h, w = q.shape
     r = size // 2
     half = (size * size) // 2            # the median is the (half + 1)-th smallest value
-    out = np.empty((h, w), np.int32)
     for y in nb.prange(h):
         hist = np.zeros(n_bins, np.int32)
         for j in range(-r, r + 1):
@@ -35,7 +59,7 @@ def _median_rows(q, size, n_bins):  # pragma: no cover - compiled
         while below + hist[m] <= half:
             below += hist[m]
             m += 1
-        out[y, 0] = m
+        out[y, 0] = (m + k0) / LEVELS_PER_PX
         for x in range(1, w):
             x_out, x_in = max(x - r - 1, 0), min(x + r, w - 1)
             for j in range(-r, r + 1):
@@ -52,8 +76,7 @@ def _median_rows(q, size, n_bins):  # pragma: no cover - compiled
             while below + hist[m] <= half:
                 below += hist[m]
                 m += 1
-            out[y, x] = m
-    return out
+            out[y, x] = (m + k0) / LEVELS_PER_PX
 
 
 def median_filter(d: np.ndarray, size: int, dtype=np.float64) -> np.ndarray:
@@ -72,7 +95,9 @@ def median_filter(d: np.ndarray, size: int, dtype=np.float64) -> np.ndarray:
         return cv2.medianBlur(np.ascontiguousarray(a, dtype=np.float32), size).astype(dtype, copy=False)
     # on the absolute grid k / LEVELS_PER_PX, not one from the map's minimum: a tiny change of one pixel
     # then moves only the medians whose window holds it, not every median by that change
-    k = np.rint(np.asarray(a, dtype=np.float64) * LEVELS_PER_PX)
-    k0 = k.min()
-    q = (k - k0).astype(np.int32)
-    return ((_median_rows(q, size, int(q.max()) + 1) + k0) / LEVELS_PER_PX).astype(dtype, copy=False)
+    a = np.ascontiguousarray(a, dtype=np.float64)
+    q = np.empty(a.shape, np.int32)
+    k0, n_bins = _quantised(a, q)
+    out = np.empty(a.shape, dtype)
+    _median_rows(q, size, int(n_bins), float(k0), out)
+    return out
