@@ -146,10 +146,13 @@ def aperture_weight(features: np.ndarray, window: int, full_share: float) -> np.
     f = np.asarray(features, dtype=np.float32)
     gx = cv2.Sobel(f, cv2.CV_32F, 1, 0, borderType=cv2.BORDER_REFLECT)
     gy = cv2.Sobel(f, cv2.CV_32F, 0, 1, borderType=cv2.BORDER_REFLECT)
-    sx = cv2.boxFilter(gx * gx, -1, (window, window), borderType=cv2.BORDER_REFLECT)
-    sy = cv2.boxFilter(gy * gy, -1, (window, window), borderType=cv2.BORDER_REFLECT)
-    share = sx / np.maximum(sx + sy, 1e-12)
-    return np.clip(share / full_share, 0.0, 1.0).astype(np.float32)
+    np.multiply(gx, gx, out=gx)         # (in place: each full-size temporary costs its page faults)
+    np.multiply(gy, gy, out=gy)
+    sx = cv2.boxFilter(gx, -1, (window, window), borderType=cv2.BORDER_REFLECT)
+    sy = cv2.boxFilter(gy, -1, (window, window), borderType=cv2.BORDER_REFLECT)
+    np.maximum(np.add(sx, sy, out=gx), np.float32(1e-12), out=gx)
+    np.divide(np.divide(sx, gx, out=sx), np.float32(full_share), out=sx)
+    return np.clip(sx, np.float32(0), np.float32(1), out=sx)
 
 
 def filter_volume(volume: np.ndarray, guide: np.ndarray, radius: int, eps: float, in_place: bool = False,

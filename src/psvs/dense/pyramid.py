@@ -102,7 +102,10 @@ def window_stats(f: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
     """Mean and inverse deviation of ``f``'s (2r + 1)² windows, float32 (h, w) each."""
     box = lambda a: cv2.boxFilter(a, -1, (2 * r + 1, 2 * r + 1), borderType=cv2.BORDER_REPLICATE)  # noqa: E731
     mu = box(f)
-    return mu, (1.0 / np.sqrt(np.maximum(box(f * f) - mu * mu, 1e-6))).astype(np.float32)
+    sq = f * f
+    var = box(sq)
+    np.maximum(np.subtract(var, np.multiply(mu, mu, out=sq), out=var), 1e-6, out=var)   # (in place: no temporaries)
+    return mu, np.divide(1.0, np.sqrt(var, out=var), out=var).astype(np.float32, copy=False)
 
 
 def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple, d_range: tuple[float, float],
