@@ -141,11 +141,9 @@ def refine_level(img: np.ndarray, right: np.ndarray | None, coarse: tuple, d_ran
         best = band_winners(costs, offsets, p.p1, p.p2, p.n_paths, guide, p.edge_contrast,
                             sums=volume(workspace, "band_sums", (2, h, w, n)))
     ok = consistent(best[0], best[1])
-    out = []
-    for view in range(2):
-        out.append(np.where(ok[view], best[view], coarse[view]))
-        out.append(np.where(ok[view], coarse[2 + view], 0.0))
-    return out[0], out[2], out[1], out[3]
+    for view in range(2):           # (the winners' own array: no full-size copy)
+        np.copyto(best[view], coarse[view], where=~ok[view])
+    return best[0], best[1], *(np.where(ok[view], coarse[2 + view], 0.0) for view in range(2))
 
 
 def coarse_maps_up(maps: tuple, shape: tuple[int, int]) -> tuple:
