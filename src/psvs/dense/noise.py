@@ -26,6 +26,7 @@ from __future__ import annotations
 import functools
 
 import cv2
+import numba as nb
 import numpy as np
 
 from psvs.imaging import NoiseLevel, noise_level
@@ -89,6 +90,19 @@ def textured_pixels(image: np.ndarray, noise: NoiseLevel | None = None,
     for sigma, window in SCALES:
         k2 = noise_quantile(sigma, window, false_alarm) ** 2
         mean = cv2.boxFilter(f, -1, (window, window), borderType=cv2.BORDER_REFLECT)
-        level = np.maximum(np.float32(noise.a) + np.float32(noise.b) * np.maximum(mean, 0.0), np.float32(floor))
-        out |= _window_power(_band(f, sigma, blurs), window) > np.float32(k2) * level
+        band = _band(f, sigma, blurs)
+        power = cv2.boxFilter(cv2.multiply(band, band), -1, (window, window), borderType=cv2.BORDER_REFLECT)
+        _beyond_noise(mean, power, np.float32(noise.a), np.float32(noise.b), np.float32(floor), np.float32(k2), out)
     return out
+
+
+@nb.njit(cache=True, parallel=True)
+def _beyond_noise(mean, power, a, b, floor, k2, out):  # pragma: no cover - compiled
+    """out |= max(power, 0) > k2 · max(a + b · max(mean, 0), floor), all float32 (H, W) and scalars: one pass,
+    in float32 as the NumPy expression was (the same pixels), not eight full-size temporaries."""
+    zero = np.float32(0.0)
+    for y in nb.prange(mean.shape[0]):
+        for x in range(mean.shape[1]):
+            level = max(a + b * max(mean[y, x], zero), floor)
+            if max(power[y, x], zero) > k2 * level:
+                out[y, x] = True
