@@ -68,3 +68,11 @@ def test_a_float32_result_is_the_float64_one_rounded(size):
     assert got.dtype == np.float32 and want.dtype == np.float64
     np.testing.assert_array_equal(got, want.astype(np.float32))
     assert np.isnan(got[4]).all() and np.isfinite(got[5:]).all()
+
+
+@pytest.mark.parametrize("shape", [(0, 5), (4, 0), (0, 0)])
+@pytest.mark.parametrize("size", [3, 11])
+def test_an_empty_map_has_an_empty_median(shape, size):
+    """A map without pixels: an empty result of its shape (the compiled median reads no pixel of it)."""
+    got = median_filter(np.zeros(shape), size, np.float32)
+    assert got.shape == shape and got.dtype == np.float32

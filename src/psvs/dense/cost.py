@@ -150,8 +150,8 @@ def aperture_weight(features: np.ndarray, window: int, full_share: float) -> np.
     np.multiply(gy, gy, out=gy)
     sx = cv2.boxFilter(gx, -1, (window, window), borderType=cv2.BORDER_REFLECT)
     sy = cv2.boxFilter(gy, -1, (window, window), borderType=cv2.BORDER_REFLECT)
-    np.maximum(np.add(sx, sy, out=gx), np.float32(1e-12), out=gx)
-    np.divide(np.divide(sx, gx, out=sx), np.float32(full_share), out=sx)
+    np.maximum(np.add(sx, sy, out=gx), 1e-12, out=gx)
+    np.divide(np.divide(sx, gx, out=sx), full_share, out=sx)   # (a float64 share: computed in float64, as before)
     return np.clip(sx, np.float32(0), np.float32(1), out=sx)
 
 

@@ -89,7 +89,7 @@ def median_filter(d: np.ndarray, size: int, dtype=np.float64) -> np.ndarray:
     a = np.asarray(d)
     if not np.all(np.isfinite(a)):
         raise ValueError("median_filter needs a finite map")
-    if size == 1:
+    if size == 1 or a.size == 0:
         return a.astype(dtype)
     if size in OPENCV_SIZES:       # border: replicated, as "nearest"
         return cv2.medianBlur(np.ascontiguousarray(a, dtype=np.float32), size).astype(dtype, copy=False)

@@ -89,13 +89,13 @@ def _band_starts(d, d_lo, d_hi, n_lanes, lo, top, out):  # pragma: no cover - co
     """:func:`_bands`' centring, rounding and clipping in one pass (float32 as the NumPy expressions were: the
     same starts to the bit)."""
     h, w = d.shape
-    half = (n_lanes - 1) / 2.0
+    half = np.float32((n_lanes - 1) / 2.0)
     spread = np.float32(n_lanes - 4)
     for y in nb.prange(h):
         for x in range(w):
             a, b = d_lo[y, x], d_hi[y, x]
             c = np.float32(0.5) * (a + b) if b - a <= spread else d[y, x]
-            out[y, x] = min(max(np.int64(np.rint(np.float64(c) - half)), lo), top)
+            out[y, x] = min(max(np.int64(np.rint(c - half)), lo), top)
 
 
 def window_stats(f: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:

@@ -142,7 +142,8 @@ def filled_maps(rect: Rectification, view: str, fixed: bool = False) -> tuple[np
     field's edge repeated outside it (:func:`psvs.dense.build.rectified_images`), and a band of their rows
     resamples only that band of it. ``fixed``: the same maps in OpenCV's fixed-point form (``cv2.convertMaps``
     to CV_16SC2 and its 1/32 px fractions, (H', W', 2) int16 and (H', W') uint16), which a bilinear remap of
-    float maps makes block by block on every call: the same image to the bit, in a third less time."""
+    float maps makes block by block on every call: the same image to the bit, in about a quarter less time
+    (and 6 bytes a pixel more in memory, 19 MB for both views at 1440 x 1080)."""
     per_rect = _FILLED.setdefault(rect, {})
     if view not in per_rect:
         outside = outside_pixels(rect, view)          # inside the field, each pixel its own nearest
