@@ -235,26 +235,3 @@ def test_the_filled_maps_resample_as_the_remap_and_its_fill_in(folder):
         mu, mv = filled_maps(rect, view)
         band = cv2.remap(img, mu[100:140], mv[100:140], cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
         np.testing.assert_allclose(band, grid[100:140], rtol=0, atol=1e-3)
-
-
-def test_the_fixed_point_maps_resample_as_the_float_maps_to_the_bit(folder):
-    """filled_maps(fixed=True), which rectified_images uses: OpenCV's bilinear remap of float maps rounds each
-    position to 1/32 px block by block; the maps converted once give the same grids to the bit (whole, and a band
-    of rows as the float maps' band), and the fixed maps are read-only as the float ones."""
-    import cv2
-
-    from psvs.dense.build import rectified_images
-    from psvs.dense.rig_cache import filled_maps
-    rig = load_rig("misaligned")
-    rect = rectification(rig, NEAR_MM, FAR_MM)
-    img = np.random.default_rng(1).uniform(0, 255, rig.camera.image_size_px[::-1]).astype(np.float32)
-    whole, band = rectified_images(img, rect), rectified_images(img, rect, rows=(37, 90))
-    for view, grid, part in zip(VIEWS, whole, band, strict=True):
-        mu, mv = filled_maps(rect, view)
-        want = cv2.remap(img, mu, mv, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-        np.testing.assert_array_equal(grid, want)
-        np.testing.assert_array_equal(part, cv2.remap(img, mu[37:90], mv[37:90], cv2.INTER_LINEAR,
-                                                      borderMode=cv2.BORDER_REPLICATE))
-        m1, m2 = filled_maps(rect, view, fixed=True)
-        assert m1.shape == mu.shape + (2,) and m2.shape == mu.shape and not m1.flags.writeable
-        assert filled_maps(rect, view, fixed=True)[0] is m1          # made once per rectification

@@ -78,7 +78,7 @@ def rectified_images(image, rect: Rectification,
     :func:`psvs.dense.rig_cache.filled_maps`."""
     img = np.asarray(image, dtype=np.float32)
     band = slice(None) if rows is None else slice(*rows)
-    return tuple(cv2.remap(img, *(m[band] for m in filled_maps(rect, view, fixed=True)), cv2.INTER_LINEAR,
+    return tuple(cv2.remap(img, *(m[band] for m in filled_maps(rect, view)), cv2.INTER_LINEAR,
                            borderMode=cv2.BORDER_REPLICATE) for view in ("left", "right"))
 
 

@@ -35,7 +35,6 @@ import weakref
 import zipfile
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from psvs._cache import cache_dir, content_key
@@ -57,7 +56,7 @@ _CODE = ("optics/*.py", "measure/triangulate.py", "dense/depth_table.py", "dense
 
 _READY: weakref.WeakSet = weakref.WeakSet()                    # rectifications with their remaps in place
 _NEAREST: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # rect -> {view: (H', W') int32}
-_FILLED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> {view or (view, "fixed"): maps}
+_FILLED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> {view: (map_u, map_v)}
 _OUTSIDE: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()   # rect -> {view: flat indices}
 _TABLES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()    # rect -> DepthTable
 _LOCKS: dict[str, threading.Lock] = {}
@@ -136,14 +135,11 @@ def outside_pixels(rect: Rectification, view: str) -> np.ndarray:
     return per_rect[view]
 
 
-def filled_maps(rect: Rectification, view: str, fixed: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def filled_maps(rect: Rectification, view: str) -> tuple[np.ndarray, np.ndarray]:
     """A view's cv2.remap maps (float32 (H', W'), read-only) with every pixel outside its field sampling where
     its :func:`nearest_inside` pixel samples: ``cv2.remap`` through them is the rectified image with the
     field's edge repeated outside it (:func:`psvs.dense.build.rectified_images`), and a band of their rows
-    resamples only that band of it. ``fixed``: the same maps in OpenCV's fixed-point form (``cv2.convertMaps``
-    to CV_16SC2 and its 1/32 px fractions, (H', W', 2) int16 and (H', W') uint16), which a bilinear remap of
-    float maps makes block by block on every call: the same image to the bit, in about a quarter less time
-    (and 6 bytes a pixel more in memory, 19 MB for both views at 1440 x 1080)."""
+    resamples only that band of it."""
     per_rect = _FILLED.setdefault(rect, {})
     if view not in per_rect:
         outside = outside_pixels(rect, view)          # inside the field, each pixel its own nearest
@@ -155,15 +151,7 @@ def filled_maps(rect: Rectification, view: str, fixed: bool = False) -> tuple[np
             filled.setflags(write=False)
             out.append(filled)
         per_rect[view] = tuple(out)
-    if not fixed:
-        return per_rect[view]
-    key = (view, "fixed")
-    if key not in per_rect:
-        maps = cv2.convertMaps(*per_rect[view], cv2.CV_16SC2)
-        for m in maps:
-            m.setflags(write=False)
-        per_rect[key] = maps
-    return per_rect[key]
+    return per_rect[view]
 
 
 def depth_table(rect: Rectification) -> DepthTable:
