@@ -104,7 +104,7 @@ def window_stats(f: np.ndarray, r: int) -> tuple[np.ndarray, np.ndarray]:
     mu = box(f)
     sq = f * f
     var = box(sq)
-    np.maximum(np.subtract(var, np.multiply(mu, mu, out=sq), out=var), 1e-6, out=var)   # (in place: 2 temporaries, not 6)
+    np.maximum(np.subtract(var, np.multiply(mu, mu, out=sq), out=var), 1e-6, out=var)   # (2 temporaries, not 6)
     return mu, np.divide(1.0, np.sqrt(var, out=var), out=var).astype(np.float32, copy=False)
 
 
