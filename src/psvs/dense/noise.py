@@ -51,9 +51,9 @@ def _band(image: np.ndarray, sigma: float, blurs: dict | None = None) -> np.ndar
 
 
 def _window_power(band: np.ndarray, window: int) -> np.ndarray:
-    """The mean square of ``band`` over each ``window``-square window (>= 0)."""
-    return np.maximum(cv2.boxFilter(cv2.multiply(band, band), -1, (window, window), borderType=cv2.BORDER_REFLECT),
-                      0.0)
+    """The mean square of ``band`` over each ``window``-square window (the box filter's rounding may leave it a
+    hair below 0: its readers clamp it)."""
+    return cv2.boxFilter(cv2.multiply(band, band), -1, (window, window), borderType=cv2.BORDER_REFLECT)
 
 
 #: :func:`noise_quantile` of the :data:`SCALES` at :data:`FALSE_ALARM`, as :func:`simulated_quantile` gives
@@ -72,7 +72,7 @@ def noise_quantile(sigma: float, window: int, false_alarm: float = FALSE_ALARM) 
 def simulated_quantile(sigma: float, window: int, false_alarm: float = FALSE_ALARM) -> float:
     """:func:`noise_quantile` read from 1024 x 1024 px of seeded white noise (the border's windows left out)."""
     z = np.random.default_rng(20261202).standard_normal((1024, 1024)).astype(np.float32)
-    r = np.sqrt(_window_power(_band(z, sigma), window))[16:-16, 16:-16]
+    r = np.sqrt(np.maximum(_window_power(_band(z, sigma), window), 0.0))[16:-16, 16:-16]
     return float(np.quantile(r, 1.0 - false_alarm))
 
 
@@ -91,8 +91,8 @@ def textured_pixels(image: np.ndarray, noise: NoiseLevel | None = None,
         k2 = noise_quantile(sigma, window, false_alarm) ** 2
         mean = cv2.boxFilter(f, -1, (window, window), borderType=cv2.BORDER_REFLECT)
         band = _band(f, sigma, blurs)
-        power = cv2.boxFilter(cv2.multiply(band, band), -1, (window, window), borderType=cv2.BORDER_REFLECT)
-        _beyond_noise(mean, power, np.float32(noise.a), np.float32(noise.b), np.float32(floor), np.float32(k2), out)
+        _beyond_noise(mean, _window_power(band, window), np.float32(noise.a), np.float32(noise.b),
+                      np.float32(floor), np.float32(k2), out)
     return out
 
 
