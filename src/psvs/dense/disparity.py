@@ -336,8 +336,8 @@ def _coarse_to_fine(img: np.ndarray, d_min: float, d_max: float, p: DenseParams,
     h, w = img.shape
     fw = w / dl.shape[1]
     searched = (coarse.searched_px[0] * f, coarse.searched_px[1] * f)
-    if dl.shape == img.shape:
-        f32 = lambda a: a.astype(np.float32)  # noqa: E731
+    if dl.shape == img.shape:       # (the maps are this call's own: no copy of those already float32)
+        f32 = lambda a: a.astype(np.float32, copy=False)  # noqa: E731
         return DenseResult(f32(dl), f32(dr), f32(cl), f32(cr), searched)
     return DenseResult(upsample(dl, (h, w), fw), upsample(dr, (h, w), fw), upsample(cl, (h, w)),
                        upsample(cr, (h, w)), searched)
