@@ -43,6 +43,22 @@ MEMORY_LIMIT_MIB = 1024.0
 _frames: dict = {}
 
 
+def cards_scene(near: float, far: float, wall_mm: tuple[float, float] | None = None):
+    """The benchmark's scene for a working range near..far mm: three photo cards at 20, 45 and 70 % of it,
+    turned a little, before a gravel wall at 90 %; the wall's photo (512 px) stretched over ``wall_mm`` (width,
+    height; default 2.2 x 1.7 times ``far``, which covers every shipped rig's field)."""
+    from psvs.simulate.builtin import photo_texture, pose_at, regulated_light
+    from psvs.simulate.scene import Scene, SceneObject
+    span = far - near
+    cards = tuple(SceneObject("rectangle", pose_at(x, y, near + f * span, 0, ry, rz), photo_texture(photo, size),
+                              size_mm=size)
+                  for x, y, f, ry, rz, photo, size in ((-70, -20, 0.2, 10, 5, "astronaut", (120, 90)),
+                                                       (60, 40, 0.45, -15, -4, "coffee", (150, 110)),
+                                                       (-20, 60, 0.7, 5, 2, "chelsea", (160, 120))))
+    wall = photo_texture("gravel", wall_mm or (2.2 * far, 1.7 * far))
+    return Scene(cards, regulated_light(0.5 * (near + far)), near + 0.9 * span, wall, "bench")
+
+
 def _frame(fmt: str) -> dict:
     """The build's complex image and views alone (PNG files in out/bench/), its rig and the dense search's
     disparity count."""
@@ -51,23 +67,13 @@ def _frame(fmt: str) -> dict:
     from psvs.io.images import read_grey, write_png
     from psvs.io.params import load_rig
     from psvs.optics.search_range import disparity_range, rectification_for
-    from psvs.simulate.builtin import photo_texture, pose_at, regulated_light
     from psvs.simulate.render import render
-    from psvs.simulate.scene import Scene, SceneObject
     name, near, far = BUILDS[fmt]
     rig = load_rig(name)
     paths = {k: OUT / f"depth_{fmt}_{k}.png" for k in ("complex", "left", "right")}
     if not all(p.exists() for p in paths.values()):
         OUT.mkdir(parents=True, exist_ok=True)
-        span = far - near
-        cards = tuple(SceneObject("rectangle", pose_at(x, y, near + f * span, 0, ry, rz), photo_texture(photo, size),
-                                  size_mm=size)
-                      for x, y, f, ry, rz, photo, size in ((-70, -20, 0.2, 10, 5, "astronaut", (120, 90)),
-                                                           (60, 40, 0.45, -15, -4, "coffee", (150, 110)),
-                                                           (-20, 60, 0.7, 5, 2, "chelsea", (160, 120))))
-        scene = Scene(cards, regulated_light(0.5 * (near + far)), near + 0.9 * span,
-                      photo_texture("gravel", (2.2 * far, 1.7 * far)), "bench")
-        rr = render(scene, rig, supersample=1, seed=1)
+        rr = render(cards_scene(near, far), rig, supersample=1, seed=1)
         # the views alone are radiance (0..1): as grey levels, a camera's 8 bits at full well
         for key, img in (("complex", rr.image), ("left", 255.0 * rr.left), ("right", 255.0 * rr.right)):
             write_png(paths[key], to_grey8(img))

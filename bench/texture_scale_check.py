@@ -28,15 +28,17 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "src"), str(ROOT)]
+sys.path[:0] = [str(ROOT / "src"), str(ROOT), str(ROOT / "bench")]
+
+from bench_depth import cards_scene  # noqa: E402
 
 from psvs.cli.main import main as psvs_main  # noqa: E402
 from psvs.dense.build import dense_on_rig, rig_depth, rig_trust  # noqa: E402
 from psvs.dense.params import DEFAULT, FAST  # noqa: E402
 from psvs.io.params import load_rig  # noqa: E402
-from psvs.simulate.builtin import photo_texture, pose_at, regulated_light, textured  # noqa: E402
+from psvs.simulate.builtin import textured  # noqa: E402
 from psvs.simulate.render import ground_truth, render  # noqa: E402
-from psvs.simulate.scene import Scene, SceneObject  # noqa: E402
+from psvs.simulate.scene import Scene  # noqa: E402
 from tests.support.sweep_scenes import truth_on_left_grid  # noqa: E402
 
 NEAR_MM, FAR_MM = 400.0, 1200.0
@@ -73,16 +75,9 @@ def camera_b(folder: Path):
 
 
 def cards(wall_texel_mm: float) -> Scene:
-    """The benchmark's three photo cards (bench/bench_depth.py) before a gravel wall at 1120 mm whose photo
-    (512 px) has texels of ``wall_texel_mm``."""
-    span = FAR_MM - NEAR_MM
-    objs = tuple(SceneObject("rectangle", pose_at(x, y, NEAR_MM + f * span, 0, ry, rz), photo_texture(photo, size),
-                             size_mm=size)
-                 for x, y, f, ry, rz, photo, size in ((-70, -20, 0.2, 10, 5, "astronaut", (120, 90)),
-                                                      (60, 40, 0.45, -15, -4, "coffee", (150, 110)),
-                                                      (-20, 60, 0.7, 5, 2, "chelsea", (160, 120))))
-    wall = photo_texture("gravel", (512 * wall_texel_mm, 512 * wall_texel_mm * 1.7 / 2.2))
-    return Scene(objs, regulated_light(0.5 * (NEAR_MM + FAR_MM)), NEAR_MM + 0.9 * span, wall, "cards")
+    """The benchmark's three photo cards (:func:`bench_depth.cards_scene`) before a gravel wall at 1120 mm whose
+    photo (512 px) has texels of ``wall_texel_mm``."""
+    return cards_scene(NEAR_MM, FAR_MM, (512 * wall_texel_mm, 512 * wall_texel_mm * 1.7 / 2.2))
 
 
 def score(rig, scene: Scene, params) -> str:
