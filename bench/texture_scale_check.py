@@ -37,9 +37,9 @@ from psvs.dense.build import dense_on_rig, rig_depth, rig_trust  # noqa: E402
 from psvs.dense.params import DEFAULT, FAST  # noqa: E402
 from psvs.io.params import load_rig  # noqa: E402
 from psvs.simulate.builtin import textured  # noqa: E402
-from psvs.simulate.render import ground_truth, render  # noqa: E402
+from psvs.simulate.render import render  # noqa: E402
 from psvs.simulate.scene import Scene  # noqa: E402
-from tests.support.sweep_scenes import truth_on_left_grid  # noqa: E402
+from tests.support.sweep_scenes import left_truth, truth_on_left_grid  # noqa: E402
 
 NEAR_MM, FAR_MM = 400.0, 1200.0
 #: mm: the depth bands scored apart (the textured scene's box, ball, panel and wall)
@@ -85,11 +85,10 @@ def score(rig, scene: Scene, params) -> str:
     depth band."""
     frame = render(scene, rig, supersample=1, seed=1).image
     image = np.clip(np.rint(frame), 0, 255).astype(np.uint8)
-    truth = ground_truth(scene, rig)
     dense = dense_on_rig(image, rig, NEAR_MM, FAR_MM, params=params)
     trusted = rig_trust(dense).trusted_left
     z = rig_depth(dense, rig)
-    left = np.where(truth.valid_left, truth.depth_left_mm, np.nan)
+    left = left_truth(scene, rig)
     tg = truth_on_left_grid(left, dense.rect, z.shape) if dense.rect is not None else left
     seen = np.isfinite(tg)
     wrong = seen & ~(np.abs(z - tg) <= 0.02 * tg)
