@@ -56,19 +56,23 @@ def test_an_undrifted_build_raises_no_alarm(frames):
     assert events == [] and check.latest.verdict == "healthy", check.latest.reason
 
 
-def test_idle_time_buys_steps_the_sensor_does_not_pay_for(frames):
-    """Time a cycle leaves idle (a tracking run's run-in, psvs.robot.drift) buys steps like the sensor's share
-    does, and steps on it are counted apart: the check's share of the sensor's time leaves them out. A sweep
-    is done once every place of the field has been read."""
+def test_idle_steps_run_when_told_and_the_sensor_does_not_pay_for_them(frames):
+    """Steps on time the sensor does not need (a tracking run's run-in, psvs.robot.drift) run whether or not
+    the sensor's share has bought one, and are counted apart: neither taken off the credit nor in the check's
+    share of the sensor's time. A sweep is done once every place of the field has been read."""
     check = RollingCheck(load_rig("misaligned"))
-    assert not check.due(0.005) and check.due(0.005, idle_s=0.035)       # 8 % of 5 ms: 0.4 ms, not a step
     places = len(frame_tiles(frames["misaligned"][0], check.rig).places_px)
     k = 0
     while not check.swept:
-        assert check.due(0.005, idle_s=1.0)
+        assert not check.due(0.005)                                         # 8 % of 5 ms: 0.4 ms, not a step
         check.take(frames["misaligned"][k % 3], k, idle=True)
         k += 1
     assert check.idle_steps == check.steps == k == math.ceil(places / TILES_PER_STEP) and check.cost_share == 0.0
+    assert check.idle_spent_s == check.spent_s > 0
+    n = 1              # the sweep owes nothing: the share buys its next step as if the sweep had not run (a
+    while not check.due(0.05):          # step's cost, some frames of 4 ms), not after paying the sweep's time
+        n += 1
+    assert n * SHARE * 0.05 < check.idle_spent_s / 2, (n, check.idle_spent_s)
     check.take(frames["misaligned"][0], k)                                 # one on the sensor's share
     assert check.cost_share == pytest.approx((check.spent_s - check.idle_spent_s) / check.sensor_s)
     assert 0 < check.cost_share and check.idle_spent_s < check.spent_s

@@ -235,7 +235,8 @@ def _print_summary(s: dict, handeye_file: bool) -> None:
     if h is not None:
         figure = "" if h["row_offset_rms_px"] is None else \
             f", twins' rows {h['row_offset_rms_px']:.2f} +- {h['uncertainty_px']:.2f} px RMS"
-        idle = f" ({h['idle_steps']} on the run-in's idle time)" if h["idle_steps"] else ""
+        late = f"{h['late_steps']} of them longer than" if h["late_steps"] else "all within"
+        idle = f" ({h['idle_steps']} in the run-in, {late} its cycle's idle time)" if h["idle_steps"] else ""
         before = "" if h["before_arc"] is None else f"; before the arc: {h['before_arc']['verdict']}"
         print(f"self-check: {h['verdict'] or 'no step taken'}{figure} ({h['steps']} steps{idle}, "
               f"{h['cost_pct']:.1f} % of the sensor's time{before})")

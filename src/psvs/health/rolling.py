@@ -105,21 +105,20 @@ class RollingCheck:
         credit allows; a :class:`HealthEvent` when the verdict crosses between healthy and drifted."""
         return self.take(image, frame) if self.due(sensor_s) else None
 
-    def due(self, sensor_s: float, idle_s: float = 0.0) -> bool:
-        """Count the sensor's time on a frame (s) into the credit, and ``idle_s``, time the frame's cycle leaves
-        idle that the check may have whole (a tracking run's cycle before the arc is struck:
-        psvs.robot.drift); whether a step is due on that frame (then call :meth:`take` with it, e.g. once a
-        frame only a step needs is read)."""
+    def due(self, sensor_s: float) -> bool:
+        """Count the sensor's time on a frame (s) into the credit; whether a step is due on that frame (then call
+        :meth:`take` with it, e.g. once a frame only a step needs is read)."""
         self.sensor_s += max(sensor_s, 0.0)
         cost = float(np.median(self._costs))
-        self._credit = min(self._credit + self.share * max(sensor_s, 0.0) + max(idle_s, 0.0), MAX_CREDIT_STEPS * cost)
+        self._credit = min(self._credit + self.share * max(sensor_s, 0.0), MAX_CREDIT_STEPS * cost)
         return self._credit >= cost
 
     def take(self, image, frame: int, idle: bool = False) -> HealthEvent | None:
         """One step on frame ``frame`` (its image (H, W)): its next tiles into the last sweep, judged; its time
-        taken off the credit. With ``idle`` the step ran on idle time (:meth:`due`'s ``idle_s``): its time is
-        counted apart (:attr:`idle_spent_s`), not in :attr:`cost_share`. A :class:`HealthEvent` when the verdict
-        crosses between healthy and drifted."""
+        taken off the credit. With ``idle`` the step runs on time the sensor does not need (a tracking run's
+        run-in, psvs.robot.drift), whether or not a step is due: its time is counted apart
+        (:attr:`idle_spent_s`), neither taken off the credit nor in :attr:`cost_share`. A :class:`HealthEvent`
+        when the verdict crosses between healthy and drifted."""
         t0 = time.perf_counter()
         tiles = frame_tiles(image, self.rig, self.near_mm, self.far_mm, subset=(self._next, TILES_PER_STEP))
         self._next = (self._next + TILES_PER_STEP) % max(tiles.of_tiles, 1)
@@ -137,7 +136,8 @@ class RollingCheck:
         if idle:
             self.idle_spent_s += spent
             self.idle_steps += 1
-        self._credit -= spent
+        else:
+            self._credit -= spent
         self._costs.append(spent)
         return self._event(frame)
 

@@ -12,14 +12,19 @@ controller's deceleration (:meth:`psvs.robot.controller.SeamTracker.halt`) and t
 
 A run told to stop on drift also sweeps the field before the arc is struck (the run-in,
 :attr:`psvs.robot.controller.TrackConfig.arc_on_mm`): until it has read every place of the field once, the
-check has each cycle's idle time too, the control period less the sensor's and the controller's time. A step
-of a few tens of ms fits in it every cycle or few, so a knocked build is found and stopped before it welds,
-not a minute into the seam at the sensor's share. The idle steps are not counted in the check's share of the
-sensor's time. (A real cell's idle time is free; a simulated cell renders a whole frame for each step, which
-is why a run that is not told to stop leaves the sweep out.) Once the check has halted the run its verdict
-stands: it takes no more steps while the torch brakes. The arc waits for the sweep: until it is done the
-torch is held short of the arc's start (:meth:`psvs.robot.controller.SeamTracker.hold_arc`; on the shipped
-builds at 10 mm/s the sweep ends long before the torch gets there, at 25 mm/s on 1440 x 1080 it may not).
+check takes a step on every cycle, on the run-in's idle time (the arc is not struck; the control period less
+the sensor's and the controller's time is about 30 of 40 ms, and a step takes 20-70 ms). Which frames it
+judges is thus the run-in's first cycles on any machine, not what a loaded machine's clock leaves: a sweep
+scheduled by measured idle time once ran on a busy machine only while the torch stood held at the arc's
+start, all its steps on one still frame, and judged differently. The steps that overran their cycle's idle
+time are counted (``late_steps``: on a real cell, the cycles whose command came late while the torch ran in);
+the run-in's steps are not counted in the check's share of the sensor's time. (A simulated cell renders a
+whole frame for each step, which is why a run that is not told to stop leaves the sweep out.) Once the check
+has halted the run its verdict stands: it takes no more steps while the torch brakes. The arc waits for the
+sweep: until it is done the torch is held short of the arc's start
+(:meth:`psvs.robot.controller.SeamTracker.hold_arc`; on the shipped builds at 10 mm/s the sweep ends long
+before the torch gets there, at 25 mm/s and 5 Hz it may not). A sweep that cannot judge (too little texture
+to tell) says so in one line when it releases the arc: the weld goes on unchecked until the check can judge.
 """
 from __future__ import annotations
 
@@ -52,35 +57,42 @@ class HealthNote:
 class DriftWatch:
     """The rolling check of a track run (module docstring): ``check`` a RollingCheck over the sensor's rig
     (what it was calibrated to) and depth range; ``stop_on_drift`` halts the run when it turns drifted, and
-    sweeps the field on the run-in's idle time, the arc waiting for it."""
+    sweeps the field on the run-in's cycles, the arc waiting for it."""
 
     def __init__(self, check: RollingCheck, stop_on_drift: bool = False):
         self.check, self.stop_on_drift = check, bool(stop_on_drift)
         self.lines: list[str] = []
         self.before_arc = None
         self.halted = False
+        self.late_steps = 0
 
     def look(self, cell, cycle: int, sensor_s: float, tracker, control_s: float = 0.0) -> HealthNote:
         """After cycle ``cycle``'s sensing (``sensor_s`` s of the sensor's time; ``control_s`` s the
-        controller's, as of the last cycle): a step on the cell's whole frame when one is due, on the cycle's
-        idle time too before the arc is struck (module docstring); a drifted verdict halts ``tracker`` when
+        controller's, as of the last cycle): a step on the cell's whole frame when one is due, and on every
+        cycle of the run-in until the field is swept (module docstring); a drifted verdict halts ``tracker`` when
         told to."""
         if self.halted:
             return HealthNote(self.check.latest, False, "", self.check.cost_share, arc_held=tracker.arc_held)
         run_in = self.stop_on_drift and not tracker.arc_struck and not self.check.swept
-        idle_s = max(1.0 / tracker.cfg.rate_hz - sensor_s - control_s, 0.0) if run_in else 0.0
-        judged = self.check.due(sensor_s, idle_s)
+        judged = self.check.due(sensor_s) or run_in
         event = self.check.take(cell.full_frame(), cycle, idle=run_in) if judged else None
+        if run_in and self.check.last_step_s > 1.0 / tracker.cfg.rate_hz - sensor_s - control_s:
+            self.late_steps += 1
         if judged and not tracker.arc_struck:
             self.before_arc = self.check.latest
         line = halt = ""
         if event is not None:
             line = event.line
-            self.lines.append(line)
             if self.stop_on_drift and event.check.verdict == "drifted":
                 halt = f"{DRIFT_STOP} at frame {cycle}: {event.check.reason}"
                 tracker.halt(halt)
                 self.halted = True
+        elif run_in and self.check.swept and self.check.latest.verdict == "cannot judge":
+            line = (f"frame {cycle}: the self-check cannot judge the calibration before the arc: "
+                    f"{self.check.latest.reason}; the arc is struck unchecked (a drift stops the run once it "
+                    f"can judge)")
+        if line:
+            self.lines.append(line)
         if self.stop_on_drift:
             tracker.hold_arc(not self.check.swept and not self.halted)
         return HealthNote(self.check.latest, judged, line, self.check.cost_share, halt, tracker.arc_held)
@@ -93,7 +105,7 @@ class DriftWatch:
         before = None if b is None else json_safe({"verdict": b.verdict, "row_offset_rms_px": b.row_offset_rms_px,
                                                    "uncertainty_px": b.uncertainty_px, "tiles": b.tiles})
         return {**self.check.summary(), "lines": list(self.lines), "stop_on_drift": self.stop_on_drift,
-                "before_arc": before}
+                "before_arc": before, "late_steps": self.late_steps}
 
 
 class RecordedHalts:

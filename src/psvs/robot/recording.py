@@ -95,7 +95,7 @@ class CyclePublisher:
         if h is not None and h.judged:
             tel.record("health", t, health_record(h.check, self.cycles, h.cost_share))
         if h is not None and h.line:
-            tel.log(t, h.line, "warning" if h.check.verdict == "drifted" else "info")
+            tel.log(t, h.line, "info" if h.check.verdict == "healthy" else "warning")
         self.cycles += 1
         if c.fault:
             tel.log(t, f"arm fault: {c.fault}", "error")
