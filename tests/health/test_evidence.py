@@ -186,6 +186,47 @@ def test_frames_of_the_rig_before_and_after_a_knock_are_not_one_field():
     assert check_frames(before, rig).verdict == "healthy"
 
 
+def test_a_frame_of_a_small_knock_beside_frames_before_it_is_not_one_field():
+    """An adversarial trial's case (2026-12-07): three frames of the undrifted build and one after M1 leaned
+    0.025 deg (alone: drifted, about 0.7 px) read 'healthy 0.11 +- 0.05 px': the knocked frame's tiles lay within
+    the fit's inlier band and the field of them all averaged it away. Each whole frame's own field is now
+    tested against the field of them all (psvs.health.check.frame_apart): refused as two fields. The same rig's
+    frames of four scenes stay healthy."""
+    import math
+
+    from psvs.health.check import check_frames
+    from psvs.health.explain import tilted
+    from psvs.simulate.builtin import textured, wall
+    rig = load_rig("misaligned")
+    leaned = tilted(rig, "m1", 0.0, math.radians(0.025))
+    before = [render(scene, rig, seed=60 + k, supersample=1).image
+              for k, scene in enumerate((wall(650.0, 1), wall(800.0, 2), textured(900.0), wall(950.0, 3)))]
+    after = render(wall(700.0, 4), leaned, seed=50, supersample=1).image
+    alone = check_frames([after], rig)
+    assert alone.verdict == "drifted" and 0.5 < alone.row_offset_rms_px < 1.0, alone.reason
+    assert check_frames(before, rig).verdict == "healthy"
+    for frames in (before[:3] + [after], [after] + before[1:3]):
+        c = check_frames(frames, rig)
+        assert c.verdict == "cannot judge" and "two fields" in c.reason and "px RMS off the field" in c.reason, c.reason
+
+
+def test_a_frames_own_field_is_weighed_as_refitting_it_would():
+    """frame_apart's chi-square is the drop in the residuals' sum of squares when the frame is given a field of
+    its own (least squares by NumPy), over OVERLAP tile noises squared; its gap the RMS of that field."""
+    from psvs.health.check import OVERLAP, frame_apart
+    rng = np.random.default_rng(7)
+    centre = rng.uniform([0, 0], [640, 480], (40, 2))
+    A = field_basis(centre, (480, 640))
+    own = A @ np.array([0.3, 0.1, -0.2, 0.05, 0.0, 0.02])
+    r = own + rng.normal(0, 0.2, 40)
+    gap, chi2 = frame_apart(A, r, 0.2)
+    fit, *_ = np.linalg.lstsq(A, r, rcond=None)
+    drop = float(np.sum(r ** 2) - np.sum((r - A @ fit) ** 2))
+    assert chi2 == pytest.approx(drop / (OVERLAP * 0.2 ** 2), rel=1e-9)
+    assert gap == pytest.approx(float(np.sqrt(np.mean((A @ fit) ** 2))), rel=1e-9)
+    assert gap == pytest.approx(float(np.sqrt(np.mean(own ** 2))), abs=0.08)
+
+
 def test_no_mirror_is_named_for_a_field_no_mirror_makes():
     """A frame turned upside down reads 'drifted 4.48 px'; naming M4, whose tilts leave 4.45 px of it, was a
     guess: when even the best mirror leaves more than the tolerance, none is named."""

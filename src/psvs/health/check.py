@@ -412,7 +412,7 @@ def _not_one_field(A: np.ndarray, coef: np.ndarray, inliers: np.ndarray, scatter
                            f"{scatter:.2f} px, at most {MAX_SCATTER_PX:g} allowed; {n} of {m} on it, "
                            f"{max(MIN_TILES, math.ceil(MIN_CONSISTENT * m))} needed): the frames do not show one "
                            "rig's twins; frames of a still, textured scene are needed", **found)
-    apart = _another_field(A, coef, inliers, frame, places, found, bound)
+    apart = _another_field(A, coef, inliers, frame, places, found, bound, scatter * math.sqrt(n / max(n - 6, 1)))
     if apart:
         return HealthCheck("cannot judge", f"the tiles above chance hold two fields: {apart}: frames of one rig, "
                            "as it stands now, are needed", **found)
@@ -421,13 +421,14 @@ def _not_one_field(A: np.ndarray, coef: np.ndarray, inliers: np.ndarray, scatter
 
 
 def _another_field(A: np.ndarray, main: np.ndarray, inliers: np.ndarray, frame: np.ndarray, places: np.ndarray,
-                   found: dict, bound: np.ndarray) -> str:
+                   found: dict, bound: np.ndarray, noise_px: float) -> str:
     """What says the tiles (:func:`_not_one_field`'s) hold a second field the fit left out ('' none): a whole
     frame (:data:`MIN_TILES` or more tiles over :data:`MIN_REGIONS` of its ninths) whose tiles mostly lie off
-    the field (a frame of the rig before or after a knock, or of another rig, beside the others), or left-out
-    tiles (a quarter of them all and :data:`MIN_TILES` or more) that mostly lie on one smooth field of their
-    own, apart from the fitted one by more than the tolerance. Wrong tiles scatter; a moved rig's lie on a
-    field."""
+    the field (a frame of the rig before or after a knock, or of another rig, beside the others) or whose tiles
+    on it stand apart from it as a field of their own (:func:`frame_apart`; ``noise_px`` a tile's noise about
+    the field), or left-out tiles (a quarter of them all and :data:`MIN_TILES` or more) that mostly lie on one
+    smooth field of their own, apart from the fitted one by more than the tolerance. Wrong tiles scatter; a
+    moved rig's lie on a field."""
     y, centre, tolerance_px = found["offset_px"], found["centre_px"], found["tolerance_px"]
     for k in np.unique(frame):
         at = frame == k
@@ -435,6 +436,12 @@ def _another_field(A: np.ndarray, main: np.ndarray, inliers: np.ndarray, frame: 
         if whole and inliers[at].mean() < MIN_CONSISTENT:
             return (f"{int((~inliers[at]).sum())} of frame {int(k) + 1}'s {int(at.sum())} tiles lie off the field "
                     f"the others hold")
+        on = at & inliers
+        if whole and on.sum() >= MIN_TILES:
+            gap, chi2 = frame_apart(A[on], y[on] - A[on] @ main, noise_px)
+            if gap > 0.5 * tolerance_px and chi2 > CHI2_APART:
+                return (f"frame {int(k) + 1}'s {int(on.sum())} tiles stand {gap:.2f} px RMS off the field of them "
+                        f"all (chi-square {chi2:.0f}, beyond {CHI2_APART:g})")
     out = ~inliers
     if out.sum() < max(MIN_TILES, 0.25 * len(y)):
         return ""
@@ -445,6 +452,25 @@ def _another_field(A: np.ndarray, main: np.ndarray, inliers: np.ndarray, frame: 
     if gap <= tolerance_px:
         return ""
     return f"{int(on.sum())} tiles left out lie on a field of their own, {gap:.2f} px RMS apart"
+
+
+#: The 99.9 % point of a chi-square of 6 degrees of freedom (the field's terms): a frame's own field apart from
+#: the field of all the frames by more is another state of the rig. One rig's frames of walls, photos, the
+#: textured scene and Fig. 6 read at most 14 here (a frame of another state beside them 80-107: the rig
+#: leaned 0.025 deg between them, 0.71 px).
+CHI2_APART = 22.46
+
+
+def frame_apart(A: np.ndarray, residual_px: np.ndarray, noise_px: float) -> tuple[float, float]:
+    """(gap px, chi-square): how far the field of one frame's tiles (basis rows A (n, 6), their ``residual_px``
+    (n,) about the field of all the frames) stands from that field, RMS over its tiles, and the chi-square of its
+    6 terms given a tile's noise ``noise_px`` and the tiles' :data:`OVERLAP` (a whole frame's: each pixel in that
+    many tiles)."""
+    g = np.linalg.pinv(A.T @ A)
+    delta = g @ A.T @ residual_px
+    gap = float(np.sqrt(np.mean((A @ delta) ** 2)))
+    chi2 = float(delta @ (A.T @ A) @ delta) / (OVERLAP * max(noise_px, 1e-9) ** 2)
+    return gap, chi2
 
 
 def _bunched(n: int, regions: int, found: dict) -> HealthCheck:
