@@ -139,6 +139,34 @@ def test_one_tare_says_what_a_hidden_scale_would_do(build, capsys, tmp_path, f_c
     said = [float(v) for v in re.findall(r"([-+]\d+\.\d+) % at \d+ mm", line)]
     assert said == pytest.approx([z / z_t - 1 for z in (400.0, 800.0, 1200.0)], abs=0.005), line
     assert line.endswith("beyond the sigma above: a second tare at another distance shows it")
+    # two tares 20 mm apart pin the scale no better (an adversarial trial: 700 and 720 mm silenced this line
+    # and the advice while the errors stayed those of one tare): said for them, about their mean distance
+    from dataclasses import replace
+
+    from psvs.calibrate.tare import SCALE_PINNED, tares_scale_sigma
+    from psvs.cli.refit_cmd import summary_lines
+    t = res.tares[0]
+    for apart, pinned in ((20.0, False), (0.0, False), (350.0, True)):
+        two = replace(res, tares=(t, replace(t, distance_mm=t.distance_mm + apart)), tare_sigma_mm=0.5)
+        sigma = tares_scale_sigma([z_t, z_t + apart], 0.5)
+        assert (sigma <= SCALE_PINNED) == pinned
+        said = [x for x in summary_lines(two) if x.startswith("held as calibrated: ")]
+        assert (said == []) == pinned, said
+        if not pinned:
+            effect = [float(v) for v in re.findall(r"([-+]\d+\.\d+) % at \d+ mm", said[0])]
+            assert effect == pytest.approx([z / (z_t + apart / 2) - 1 for z in (400.0, 800.0, 1200.0)], abs=0.005)
+            assert ("at one distance" in said[0]) == (apart == 0.0) and said[0].endswith("shows it")
+
+
+def test_the_tares_pin_a_scale_as_a_straight_lines_slope():
+    """tares_scale_sigma against NumPy's least-squares line: the slope's 1 sigma of readings at the tares'
+    distances each known to sigma_mm; inf for one distance."""
+    from psvs.calibrate.tare import tares_scale_sigma
+    z = np.array([600.0, 700.0, 950.0])
+    _, cov = np.polyfit(z, np.array([0.3, -0.2, 0.1]), 1, cov="unscaled")
+    assert tares_scale_sigma(z, 0.5) == pytest.approx(0.5 * np.sqrt(cov[0, 0]), rel=1e-9)
+    assert tares_scale_sigma([700.0, 720.0], 0.5) == pytest.approx(0.0354, abs=1e-4)
+    assert tares_scale_sigma([700.0], 0.5) == tares_scale_sigma([700.0, 700.0], 0.5) == float("inf")
 
 
 def test_without_a_tare_the_depth_sigma_covers_a_knock_about_the_vertical(build):

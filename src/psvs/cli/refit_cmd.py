@@ -7,7 +7,7 @@ import json
 import math
 from pathlib import Path
 
-from psvs.calibrate.tare import MIN_TARE_SIGMA_MM, TARE_SIGMA_MM
+from psvs.calibrate.tare import MIN_TARE_SIGMA_MM, SCALE_PINNED, TARE_SIGMA_MM, tares_scale_sigma
 from psvs.cli.common import (
     add_range_arguments,
     add_rig_argument,
@@ -129,23 +129,38 @@ def summary_lines(res) -> list[str]:
                      f"{t.before_mm:.2f} mm before, "
                      f"{t.after_mm:.2f} mm after ({t.tiles} tiles, flat to {t.flat_rms_px:.2f} px of disparity, "
                      f"slope {t.slope_deg[0]:+.2f}/{t.slope_deg[1]:+.2f} deg)")
-    advice = {0: "; a tare (--tare IMAGE --tare-mm Z) pins its offset, two at two distances its scale",
-              1: "; a second tare at another distance pins its scale"}.get(len(res.tares), "")
+    distances = [t.distance_mm for t in res.tares]
+    scale = tares_scale_sigma(distances, res.tare_sigma_mm)
+    advice = "" if scale <= SCALE_PINNED else {
+        0: "; a tare (--tare IMAGE --tare-mm Z) pins its offset, two at two distances its scale",
+        1: "; a second tare at another distance pins its scale"}.get(len(res.tares), "; a tare farther from the "
+                                                                      "others pins its scale")
     depth = ", ".join(f"+- {100 * sz:.2f} % at {z:g} mm" for z, sz in res.depth_sigma)
     tared = " and the tares' distances" if res.tares else ""
     lines.append(f"depth on the axis: {depth} (1 sigma) from what no frame pinned{tared}{advice}")
-    if len(res.tares) == 1:
-        lines.append(hidden_scale(res.tares[0].distance_mm, [z for z, _ in res.depth_sigma]))
+    if res.tares and scale > SCALE_PINNED:
+        lines.append(hidden_scale(distances, scale, [z for z, _ in res.depth_sigma]))
     return lines
 
 
-def hidden_scale(tare_mm: float, depths_mm) -> str:
-    """What one tare cannot see, in words: a depth scale that the held parameters hide (the lens's focal length,
-    the baseline, the mirrors' shifts), which one tare at ``tare_mm`` turns into an error of s (Z / Z_tare - 1)
-    at depth Z (depth pinned at the tare, scaled about it); for s = 1 % at ``depths_mm``. (Trial 43: a lens 2 %
-    longer than calibrated, refitted with one tare at 700 mm, read walls at 450 and 1150 mm 0.76 % short and
-    1.4 % long, against 0.71 and 1.29 by this rule, and the stated sigma did not say so.)"""
-    effect = ", ".join(f"{(z / tare_mm - 1):+.2f} % at {z:g} mm" for z in depths_mm)
+def hidden_scale(tares_mm, scale_sigma: float, depths_mm) -> str:
+    """What tares at ``tares_mm`` that pin a depth scale only to ``scale_sigma`` (relative, 1 sigma;
+    :func:`psvs.calibrate.tare.tares_scale_sigma`: inf for one tare) cannot see, in words: a depth scale that the
+    held parameters hide (the lens's focal length, the baseline, the mirrors' shifts), which they turn into an
+    error of s (Z / Z_tare - 1) at depth Z (depth pinned at their mean distance Z_tare, scaled about it); for
+    s = 1 % at ``depths_mm``. (Trial 43: a lens 2 % longer than calibrated, refitted with one tare at 700 mm,
+    read walls at 450 and 1150 mm 0.76 % short and 1.4 % long, against 0.71 and 1.29 by this rule, and the
+    stated sigma did not say so; two tares at 700 and 720 mm left the same errors and said nothing.)"""
+    z_t = sum(tares_mm) / len(tares_mm)
+    effect = ", ".join(f"{(z / z_t - 1):+.2f} % at {z:g} mm" for z in depths_mm)
+    if len(tares_mm) == 1:
+        who, remedy = "one tare", "a second tare at another distance shows it"
+    elif math.isinf(scale_sigma):
+        who, remedy = f"{len(tares_mm)} tares at one distance", "a tare at another distance shows it"
+    else:
+        who = (f"{len(tares_mm)} tares {max(tares_mm) - min(tares_mm):g} mm apart (they pin it to "
+               f"+- {100 * scale_sigma:.1f} % only)")
+        remedy = "a tare farther from the others shows it"
     return (f"held as calibrated: the lens, the plate, the baseline and the mirrors' shifts; a depth scale of 1 % "
-            f"they hide from the rows and one tare (a focus ring turned, a mirror slid in its seat) would move "
-            f"depth by {effect}, beyond the sigma above: a second tare at another distance shows it")
+            f"they hide from the rows and {who} (a focus ring turned, a mirror slid in its seat) would move "
+            f"depth by {effect}, beyond the sigma above: {remedy}")
