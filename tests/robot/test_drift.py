@@ -112,6 +112,35 @@ def test_the_undrifted_build_raises_no_alarm(build):
     assert {h.verdict for h in judged} <= {"healthy", "cannot judge"}, [h.reason for h in judged]
 
 
+@slow
+def test_a_sweep_that_reads_a_likely_drift_strikes_no_arc(build):
+    """An adversarial trial (2026-12-07): M2 leaned 0.05 deg (the twins 1.44 px off their rows), run in at 60
+    mm/s and 4 Hz: the run-in's sweep read 1.45 +- 0.56 px, `cannot judge` (the offset within 2.5 of its
+    uncertainties of the tolerance), and the arc was struck, 10 mm welded unchecked, exit 0. A sweep that cannot
+    judge but reads the field beyond the tolerance by more than its uncertainty (psvs.robot.drift.LIKELY_SIGMAS)
+    now halts the run before the arc: nothing welded, the stop a drift stop, said in one line."""
+    import math
+
+    from psvs.health.explain import tilted
+    from psvs.robot.arm import Arm
+    from psvs.robot.drift import LIKELY_SIGMAS
+    from psvs.robot.handeye_session import calibrate_cell
+    from psvs.robot.mounting import HOME_Q
+    cfg = TrackConfig(speed_mm_s=60.0, rate_hz=4.0, weld_length_mm=10.0)
+    wp = seam_workpiece("weld_seam", cfg.camera_distance_mm)
+    watch = drift_watch(build, cfg, stop_on_drift=True)
+    run = track(wp, build, cfg, true_rig=tilted(build, "m2", 0.0, math.radians(0.05)),
+                handeye=calibrate_cell(build, cfg, Arm(HOME_Q)), listener=Watching(watch))
+    said = [(k, c.health.line) for k, c in enumerate(run.cycles) if c.health.line]
+    assert len(said) == 1, said
+    k, line = said[0]
+    h = run.cycles[k].health.check
+    assert h.verdict in ("drifted", "cannot judge") and h.row_offset_rms_px - LIKELY_SIGMAS * h.uncertainty_px > 0.5
+    assert run.stop.reason.startswith(DRIFT_STOP) and f"at frame {k}" in run.stop.reason
+    assert ("has likely drifted" in line and line.endswith("the arc is not struck")) or "has drifted" in line, line
+    assert max(c.s_mm for c in run.cycles) < cfg.arc_on_mm          # no arc struck, nothing welded
+
+
 def test_a_cell_without_the_whole_rig_has_no_whole_frame(build):
     cell = SimulatedCell(None, None, build, np.eye(4), 25.0)
     with pytest.raises(ValueError, match="renders only the sensor window"):
