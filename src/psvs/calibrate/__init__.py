@@ -28,6 +28,6 @@ __getattr__, __dir__, __all__ = _lazy.attach(
         "report": ["write_report"],
         "sweep": ["calibrate_sweep", "dumps_sweep"],
         "synthetic": ["check_card_fits", "random_poses", "render_grid_shots"],
-        "tare": ["MIN_TARE_SIGMA_MM", "TARE_SIGMA_MM", "Tare", "tare_plane"],
+        "tare": ["MIN_TARE_SIGMA_MM", "SCALE_PINNED", "TARE_SIGMA_MM", "Tare", "tare_plane", "tares_scale_sigma"],
     },
 )
