@@ -24,7 +24,9 @@ has halted the run its verdict stands: it takes no more steps while the torch br
 sweep: until it is done the torch is held short of the arc's start
 (:meth:`psvs.robot.controller.SeamTracker.hold_arc`; on the shipped builds at 10 mm/s the sweep ends long
 before the torch gets there, at 25 mm/s and 5 Hz it may not). A sweep that cannot judge (too little texture
-to tell) says so in one line when it releases the arc: the weld goes on unchecked until the check can judge.
+to tell) says so in one line when it releases the arc: the weld goes on unchecked until the check can judge;
+one that reads the field beyond the tolerance by more than its uncertainty (:data:`LIKELY_SIGMAS`) halts the
+run there instead, no arc struck.
 """
 from __future__ import annotations
 
