@@ -22,7 +22,14 @@ from psvs.dense.build import RigDense, dense_on_rig, rig_cloud, rig_depth, rig_t
 from psvs.dense.compiled import announce_dense
 from psvs.dense.disparity import check_dense_memory, check_range, constant_refusal
 from psvs.dense.params import DEFAULT, FAST, DenseParams
-from psvs.dense.refusal import elsewhere_words, nothing_answered, nothing_trusted, periodic_words, repeat_words
+from psvs.dense.refusal import (
+    elsewhere_words,
+    mirror_words,
+    nothing_answered,
+    nothing_trusted,
+    periodic_words,
+    repeat_words,
+)
 from psvs.dense.rig_cache import rectification
 from psvs.dense.separate import rig_views
 from psvs.dense.trust import EchoTrust, trusted_maps
@@ -232,7 +239,9 @@ def _summary(dense: RigDense, trust: EchoTrust) -> str:
             + (f"; part of the image repeats along its rows: {repeat_words(trust)}"
                if trust.elsewhere is not None and trust.elsewhere.repeats else "")
             + (f"; part of the image's texture repeats along its rows: {periodic_words(trust)}"
-               if trust.elsewhere is not None and trust.elsewhere.periodic_any else ""))
+               if trust.elsewhere is not None and trust.elsewhere.periodic_any else "")
+            + (f"; part of the image's texture repeats beyond the range searched: {mirror_words(trust)}"
+               if trust.elsewhere is not None and trust.elsewhere.mirrored_any else ""))
 
 
 def prepare(args, image=None) -> tuple:

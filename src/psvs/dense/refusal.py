@@ -67,6 +67,9 @@ def nothing_trusted(dense: RigDense, trust: EchoTrust) -> str:
                 f"disparities {asked}: {repeat_words(trust)}")
     if periodic:
         return _periodic_refusal(trust, asked)
+    if e is not None and e.mirrored_any:
+        return (f"the image's texture repeats along its rows beyond the searched disparities {asked}: "
+                f"{mirror_words(trust)}")
     if e is not None and math.isfinite(e.edge_lag_px):
         return (f"the image echoes beyond chance only at the edge of the searched disparities {asked}, where the "
                 f"search cannot pin it: the strongest, {e.edge_z:.1f} spreads where chance reaches "
@@ -123,3 +126,14 @@ def periodic_words(trust: EchoTrust) -> str:
             f"chance reaches {e.periodic_threshold:.1f}): a texture that repeats along the rows (a fence, blinds, "
             "tiles) echoes at every multiple of its period, and which one is the twin cannot be told; nothing on "
             "that surface is trusted")
+
+
+def mirror_words(trust: EchoTrust) -> str:
+    """Where the image's echoes in the range mirror a repeat beyond it (:func:`psvs.dense.elsewhere.mirrored_patches`),
+    in words a user can check."""
+    e = trust.elsewhere
+    k = 2 ** trust.level
+    return (f"{int(e.mirrored.sum())} cells of {e.cell_px * e.scale * k:.0f} px a side correlate with themselves "
+            f"farther to their left than the range reaches, and echo in it at two disparities that add up to that "
+            "repeat: the twin's and its mirror's, which cannot be told apart (wallpaper, tiles); nothing on that "
+            "surface is trusted")

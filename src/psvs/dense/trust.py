@@ -322,11 +322,15 @@ def _periodic_surfaces(trusted: np.ndarray, labels: np.ndarray | None, n: int, e
     without those cells' own pixels (every trusted pixel lies in a region): such a region is the repeating
     surface, answered at a multiple of its period, also where its patches' repeats did not stand out (a tiled
     wall whose rows differ and carry grime: 2 % of the frame was still trusted, all of it at the repeat's lag,
-    4 % short of the wall)."""
-    if labels is None or not elsewhere.periodic_any or not trusted.any():
+    4 % short of the wall). So too the cells whose echoes in the range mirror a repeat above it
+    (:attr:`~psvs.dense.elsewhere.Elsewhere.mirrored`): the surface is answered at its twin's lag or at the
+    mirror's, and its patches that cannot see the repeat (near the row's end) lie in the same region."""
+    if labels is None or not (elsewhere.periodic_any or elsewhere.mirrored_any) or not trusted.any():
         return trusted
+    cells = elsewhere.periodic if not elsewhere.mirrored_any else (
+        elsewhere.mirrored if not elsewhere.periodic_any else elsewhere.periodic | elsewhere.mirrored)
     reached = np.zeros(n + 1, bool)         # the last entry: "no region" (label -1)
-    reached[labels[_in_cells(trusted, elsewhere.periodic, elsewhere, disparity, scale, right)]] = True
+    reached[labels[_in_cells(trusted, cells, elsewhere, disparity, scale, right)]] = True
     reached[-1] = False
     return trusted & ~reached[labels]
 
