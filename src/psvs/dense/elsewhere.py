@@ -29,8 +29,8 @@ past an end nothing is trusted; in a repeating cell only a surface whose own ech
 from outside them is not). A repeating
 texture whose repeats exceed chance at several lags is left to the echo test's own ambiguity rule. A texture
 that repeats every P px with P above the range (wallpaper, tiles) echoes in the range at its twin's lag d and
-at its mirror P - d alike: a patch whose strongest echo lies above the range and which echoes at two lags of it
-adding up to that one is *mirrored* (:func:`mirrored_patches`), and like a periodic cell nothing in its cells,
+at its mirror P - d alike: a patch whose strongest echo lies above the range or in it and which echoes at two
+other lags of it adding up to that one is *mirrored* (:func:`mirrored_patches`), and like a periodic cell nothing in its cells,
 nor in a region reaching them, is trusted. On an
 image without echo a cell is flagged with probability :data:`ALPHA` at most, and flagging only takes trust
 away.
@@ -224,7 +224,7 @@ MIRROR_TOL_LAGS = 1
 
 def mirrored_patches(z: np.ndarray, threshold: float, judged: np.ndarray, above: np.ndarray,
                      lags: np.ndarray) -> np.ndarray:
-    """Patches whose strongest echo lies above the searched range, at P, and which echo beyond ``threshold`` at
+    """Patches whose strongest echo lies above the searched range or in it, at P, and which echo beyond ``threshold`` at
     two lags a and P - a of the range (within :data:`MIRROR_TOL_LAGS`, and apart by more than twice that: a lag
     at P / 2 is its own mirror, no rival): a texture that repeats every P px along
     the row, P beyond the range. Its complex image echoes at the twin's lag d and at P - d alike (the left view
@@ -236,7 +236,7 @@ def mirrored_patches(z: np.ndarray, threshold: float, judged: np.ndarray, above:
     filled = np.nan_to_num(z, nan=-np.inf)
     at = filled.argmax(axis=0)
     top = np.take_along_axis(filled, at[None], 0)[0]
-    candidate = (top > threshold) & above[at]
+    candidate = (top > threshold) & (above[at] | judged[at])
     out = np.zeros(candidate.shape, bool)
     if not candidate.any():
         return out

@@ -430,15 +430,19 @@ def _another_field(A: np.ndarray, main: np.ndarray, inliers: np.ndarray, frame: 
     smooth field of their own, apart from the fitted one by more than the tolerance. Wrong tiles scatter; a
     moved rig's lie on a field."""
     y, centre, tolerance_px = found["offset_px"], found["centre_px"], found["tolerance_px"]
-    for k in np.unique(frame):
+    frames = np.unique(frame)
+    # the frames' common field unbounded (the fit's is held to the curvature a turned view makes: what lies
+    # beyond that bound is every frame's, not one frame's own)
+    common = np.linalg.lstsq(A[inliers], y[inliers], rcond=None)[0] if len(frames) > 1 else main
+    for k in frames:
         at = frame == k
         whole = at.sum() >= MIN_TILES and covered_regions(centre[at], places) >= MIN_REGIONS
         if whole and inliers[at].mean() < MIN_CONSISTENT:
             return (f"{int((~inliers[at]).sum())} of frame {int(k) + 1}'s {int(at.sum())} tiles lie off the field "
                     f"the others hold")
         on = at & inliers
-        if whole and on.sum() >= MIN_TILES:
-            gap, chi2 = frame_apart(A[on], y[on] - A[on] @ main, noise_px)
+        if len(frames) > 1 and whole and on.sum() >= MIN_TILES:
+            gap, chi2 = frame_apart(A[on], y[on] - A[on] @ common, noise_px)
             if gap > 0.5 * tolerance_px and chi2 > CHI2_APART:
                 return (f"frame {int(k) + 1}'s {int(on.sum())} tiles stand {gap:.2f} px RMS off the field of them "
                         f"all (chi-square {chi2:.0f}, beyond {CHI2_APART:g})")
