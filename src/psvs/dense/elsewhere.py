@@ -30,10 +30,9 @@ from outside them is not). A repeating
 texture whose repeats exceed chance at several lags is left to the echo test's own ambiguity rule. A texture
 that repeats every P px with P above the range (wallpaper, tiles) echoes in the range at its twin's lag d and
 at its mirror P - d alike: a patch whose strongest echo lies above the range or in it and which echoes at two
-other lags of it adding up to that one is *mirrored* (:func:`mirrored_patches`), and like a periodic cell nothing in its cells,
-nor in a region reaching them, is trusted. On an
-image without echo a cell is flagged with probability :data:`ALPHA` at most, and flagging only takes trust
-away.
+other lags of it adding up to that one is *mirrored* (:func:`mirrored_patches`), and like a periodic cell
+nothing in its cells, nor in a region reaching them, is trusted. On an image without echo a cell is flagged
+with probability :data:`ALPHA` at most, and flagging only takes trust away.
 """
 from __future__ import annotations
 
@@ -224,10 +223,10 @@ MIRROR_TOL_LAGS = 1
 
 def mirrored_patches(z: np.ndarray, threshold: float, judged: np.ndarray, above: np.ndarray,
                      lags: np.ndarray) -> np.ndarray:
-    """Patches whose strongest echo lies above the searched range or in it, at P, and which echo beyond ``threshold`` at
-    two lags a and P - a of the range (within :data:`MIRROR_TOL_LAGS`, and apart by more than twice that: a lag
-    at P / 2 is its own mirror, no rival): a texture that repeats every P px along
-    the row, P beyond the range. Its complex image echoes at the twin's lag d and at P - d alike (the left view
+    """Patches whose strongest echo lies above the searched range or in it, at P, and which echo beyond
+    ``threshold`` at two lags a and P - a of the range (within :data:`MIRROR_TOL_LAGS`, and apart by more than
+    twice that: a lag at P / 2 is its own mirror, no rival): a texture that repeats every P px along the row, P
+    beyond the range or near its top. Its complex image echoes at the twin's lag d and at P - d alike (the left view
     against the right view's next repeat), and the method may answer either (an adversarial trial: a wall of
     wallpaper repeating every 212 mm at 800 mm, P 282 px against a range up to 258, answered at P - d = 148 px
     for 134 on 97 % of the pixels trusted, 9.4 % short). ``z`` (D, ny, nx) standardised correlations (NaN not
