@@ -240,7 +240,7 @@ def _summary(dense: RigDense, trust: EchoTrust) -> str:
                if trust.elsewhere is not None and trust.elsewhere.repeats else "")
             + (f"; part of the image's texture repeats along its rows: {periodic_words(trust)}"
                if trust.elsewhere is not None and trust.elsewhere.periodic_any else "")
-            + (f"; part of the image's texture repeats beyond the range searched: {mirror_words(trust)}"
+            + (f"; part of the image's texture repeats at or beyond the range's end: {mirror_words(trust)}"
                if trust.elsewhere is not None and trust.elsewhere.mirrored_any else ""))
 
 

@@ -68,7 +68,7 @@ def nothing_trusted(dense: RigDense, trust: EchoTrust) -> str:
     if periodic:
         return _periodic_refusal(trust, asked)
     if e is not None and e.mirrored_any:
-        return (f"the image's texture repeats along its rows beyond the searched disparities {asked}: "
+        return (f"the image's texture repeats along its rows at or beyond the end of the searched disparities {asked}: "
                 f"{mirror_words(trust)}")
     if e is not None and math.isfinite(e.edge_lag_px):
         return (f"the image echoes beyond chance only at the edge of the searched disparities {asked}, where the "
@@ -129,11 +129,11 @@ def periodic_words(trust: EchoTrust) -> str:
 
 
 def mirror_words(trust: EchoTrust) -> str:
-    """Where the image's echoes in the range mirror a repeat beyond it (:func:`psvs.dense.elsewhere.mirrored_patches`),
-    in words a user can check."""
+    """Where the image's echoes in the range mirror a repeat at its top or beyond it
+    (:func:`psvs.dense.elsewhere.mirrored_patches`), in words a user can check."""
     e = trust.elsewhere
     k = 2 ** trust.level
     return (f"{int(e.mirrored.sum())} cells of {e.cell_px * e.scale * k:.0f} px a side correlate with themselves "
-            f"farther to their left than the range reaches, and echo in it at two disparities that add up to that "
-            "repeat: the twin's and its mirror's, which cannot be told apart (wallpaper, tiles); nothing on that "
-            "surface is trusted")
+            f"most strongly at one repeat (at the range's top or beyond it), and echo in the range at two other "
+            "disparities that add up to that repeat: the twin's and its mirror's, which cannot be told apart "
+            "(wallpaper, tiles); nothing on that surface is trusted")
