@@ -243,14 +243,16 @@ def mirrored_patches(z: np.ndarray, threshold: float, judged: np.ndarray, above:
     yi, xi = np.nonzero(candidate)
     p = lags[at[yi, xi]]                                           # (n,) each candidate's P
     ia = np.flatnonzero(judged)                                    # the range's lags, as indices
-    first = lags[0]
+    a = lags[ia][:, None]                                          # (Din, 1) the range's lags
+    at_a = echo[ia][:, yi, xi]                                     # (Din, n) whether each candidate echoes at a
+    rows, cols = np.broadcast_to(yi, (len(ia), len(yi))), np.broadcast_to(xi, (len(ia), len(xi)))
     for t in range(-MIRROR_TOL_LAGS, MIRROR_TOL_LAGS + 1):
-        jb = p[None, :] - lags[ia][:, None] + t - first            # (Din, n): the index of P - a (+ t)
+        jb = p[None, :] - a + t - lags[0]                          # (Din, n): the index of P - a (+ t)
         # a lag that is its own mirror (a = P / 2: the twin at half the repeat) is no rival
-        ok = (jb >= 0) & (jb < len(lags)) & (np.abs(jb + first - lags[ia][:, None]) > 2 * MIRROR_TOL_LAGS)
+        ok = (jb >= 0) & (jb < len(lags)) & (np.abs(jb + lags[0] - a) > 2 * MIRROR_TOL_LAGS)
         mirror = np.zeros(jb.shape, bool)
-        mirror[ok] = echo[jb[ok], np.broadcast_to(yi, jb.shape)[ok], np.broadcast_to(xi, jb.shape)[ok]]
-        out[yi, xi] |= (echo[ia][:, yi, xi] & mirror).any(axis=0)
+        mirror[ok] = echo[jb[ok], rows[ok], cols[ok]]
+        out[yi, xi] |= (at_a & mirror).any(axis=0)
     return out
 
 

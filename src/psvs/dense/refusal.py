@@ -101,16 +101,23 @@ def elsewhere_words(trust: EchoTrust) -> str:
     e = trust.elsewhere
     k = 2 ** trust.level
     return (f"the strongest, {e.strongest_z:.1f} spreads where chance reaches {e.threshold:.1f}, repeats "
-            f"{e.strongest_lag_px * k:.0f} px to its left; nothing in {int(e.cells.sum())} cells of "
-            f"{e.cell_px * e.scale * k:.0f} px a side showing it is trusted: widen the range searched "
+            f"{e.strongest_lag_px * k:.0f} px to its left; nothing in {_cells_words(trust, e.cells)} showing it "
+            "is trusted: widen the range searched "
             "(--near-mm/--far-mm, or --min-disparity/--max-disparity) to measure it")
+
+
+def _cells_words(trust: EchoTrust, cells: np.ndarray) -> str:
+    """"N cells of S px a side": how many of the elsewhere test's ``cells`` (ny, nx bool) are flagged, and their
+    side in px of the image the maps were made of."""
+    e = trust.elsewhere
+    return f"{int(cells.sum())} cells of {e.cell_px * e.scale * 2 ** trust.level:.0f} px a side"
 
 
 def repeat_words(trust: EchoTrust) -> str:
     """Where the image's texture repeats along its rows (psvs.dense.elsewhere), in words a user can check."""
     e = trust.elsewhere
     k = 2 ** trust.level
-    return (f"{int(e.repeating.sum())} cells of {e.cell_px * e.scale * k:.0f} px a side correlate with themselves "
+    return (f"{_cells_words(trust, e.repeating)} correlate with themselves "
             f"{e.period_px * k:.0f} px to their left ({e.period_z:.1f} spreads where chance reaches "
             f"{e.period_threshold:.1f}): a texture that repeats along the rows (bricks, stripes), or a surface far "
             "beyond the range; there only a surface whose own echo supports its answer is trusted")
@@ -121,7 +128,7 @@ def periodic_words(trust: EchoTrust) -> str:
     (:func:`psvs.dense.elsewhere.periodic_patches`), in words a user can check."""
     e = trust.elsewhere
     k = 2 ** trust.level
-    return (f"{int(e.periodic.sum())} cells of {e.cell_px * e.scale * k:.0f} px a side correlate with themselves "
+    return (f"{_cells_words(trust, e.periodic)} correlate with themselves "
             f"{e.periodic_px * k:.0f} px to their left and at a multiple of that ({e.periodic_z:.1f} spreads where "
             f"chance reaches {e.periodic_threshold:.1f}): a texture that repeats along the rows (a fence, blinds, "
             "tiles) echoes at every multiple of its period, and which one is the twin cannot be told; nothing on "
@@ -131,9 +138,7 @@ def periodic_words(trust: EchoTrust) -> str:
 def mirror_words(trust: EchoTrust) -> str:
     """Where the image's echoes in the range mirror a repeat at its top or beyond it
     (:func:`psvs.dense.elsewhere.mirrored_patches`), in words a user can check."""
-    e = trust.elsewhere
-    k = 2 ** trust.level
-    return (f"{int(e.mirrored.sum())} cells of {e.cell_px * e.scale * k:.0f} px a side correlate with themselves "
+    return (f"{_cells_words(trust, trust.elsewhere.mirrored)} correlate with themselves "
             f"most strongly at one repeat (at the range's top or beyond it), and echo in the range at two other "
             "disparities that add up to that repeat: the twin's and its mirror's, which cannot be told apart "
             "(wallpaper, tiles); nothing on that surface is trusted")
