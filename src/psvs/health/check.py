@@ -333,6 +333,13 @@ def judge(tiles: list[FrameTiles], tolerance_px: float = TOLERANCE_PX, scenes: l
                        f"decide it", **found)
 
 
+def tile_noise_px(scatter_px: float, n: int, p: int) -> float:
+    """A tile's noise (px) from the robust ``scatter_px`` of ``n`` tiles' residuals about a fit of ``p`` terms: those
+    residuals have n - p degrees of freedom, so their spread understates the noise by sqrt((n - p) / n) (at the
+    12 tiles of a first judgement, by 30 %)."""
+    return float(scatter_px * math.sqrt(n / max(n - p, 1)))
+
+
 def _figures(A: np.ndarray, y: np.ndarray, coef: np.ndarray, scatter: float, centre: np.ndarray, scene: np.ndarray,
              size_px: int) -> tuple[np.ndarray, float, float, int, float]:
     """(the field at the tiles (n,), its RMS, its uncertainty px, the degrees of freedom, the repeat factor) of the
@@ -342,9 +349,7 @@ def _figures(A: np.ndarray, y: np.ndarray, coef: np.ndarray, scatter: float, cen
     fitted = A @ coef
     overlap, repeat = evidence_factors(centre, scene, y - fitted, size_px)
     dof = int(n / (overlap * repeat)) - p
-    # the residuals about a fit of p terms to n tiles are n - p degrees of freedom: their spread understates
-    # the tiles' noise by sqrt((n - p) / n) (at the 12 tiles of a first judgement, by 30 %)
-    noise = scatter * np.sqrt(n / max(n - p, 1))
+    noise = tile_noise_px(scatter, n, p)
     cov = overlap * repeat * noise ** 2 * np.linalg.pinv(A.T @ A)
     var = np.einsum("ij,jk,ik->i", A, cov, A)
     unc = float(np.sqrt(np.mean(var)))
@@ -412,7 +417,7 @@ def _not_one_field(A: np.ndarray, coef: np.ndarray, inliers: np.ndarray, scatter
                            f"{scatter:.2f} px, at most {MAX_SCATTER_PX:g} allowed; {n} of {m} on it, "
                            f"{max(MIN_TILES, math.ceil(MIN_CONSISTENT * m))} needed): the frames do not show one "
                            "rig's twins; frames of a still, textured scene are needed", **found)
-    apart = _another_field(A, coef, inliers, frame, places, found, bound, scatter * math.sqrt(n / max(n - 6, 1)))
+    apart = _another_field(A, coef, inliers, frame, places, found, bound, tile_noise_px(scatter, n, A.shape[1]))
     if apart:
         return HealthCheck("cannot judge", f"the tiles above chance hold two fields: {apart}: frames of one rig, "
                            "as it stands now, are needed", **found)
@@ -470,10 +475,10 @@ def frame_apart(A: np.ndarray, residual_px: np.ndarray, noise_px: float) -> tupl
     (n,) about the field of all the frames) stands from that field, RMS over its tiles, and the chi-square of its
     6 terms given a tile's noise ``noise_px`` and the tiles' :data:`OVERLAP` (a whole frame's: each pixel in that
     many tiles)."""
-    g = np.linalg.pinv(A.T @ A)
-    delta = g @ A.T @ residual_px
+    normal = A.T @ A
+    delta = np.linalg.pinv(normal) @ A.T @ residual_px
     gap = float(np.sqrt(np.mean((A @ delta) ** 2)))
-    chi2 = float(delta @ (A.T @ A) @ delta) / (OVERLAP * max(noise_px, 1e-9) ** 2)
+    chi2 = float(delta @ normal @ delta) / (OVERLAP * max(noise_px, 1e-9) ** 2)
     return gap, chi2
 
 
